@@ -1,0 +1,502 @@
+//! The CMA-ES state and its ask/tell step (Hansen 2016, active covariance update).
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::evd::{self, ComputeEigenvectors};
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, Par};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+use crate::{CmaesConfig, CmaesError, Parameters, StopRule, Termination};
+
+/// A CMA-ES optimiser driven by [`Cmaes::ask`] and [`Cmaes::tell`].
+///
+/// One generation: `ask` samples λ candidates `x_k = m + σ B D z_k` with `z_k ~ N(0, I)`
+/// drawn from a stream keyed by (seed, generation), so a run does not depend on who
+/// evaluates the candidates or in which order; `tell` takes their costs (NaN and ±∞ rank
+/// last and are counted) and updates mean, step size, evolution paths and the covariance
+/// C with positive and negative (active) weights. B and D (C = B D² Bᵀ) are refreshed
+/// every `eigen_gap` generations; C is kept bit-for-bit symmetric and repaired if it ever
+/// loses positive definiteness.
+///
+/// [`crate::minimize`] runs the loop with stopping rules and observers; use `ask`/`tell`
+/// directly when you need to own the loop.
+#[derive(Debug)]
+pub struct Cmaes {
+    params: Parameters,
+    config: CmaesConfig,
+    gap: u64,
+    mean: Vec<f64>,
+    sigma: f64,
+    c: Mat<f64>,
+    b: Mat<f64>,
+    d: Vec<f64>,
+    bd: Mat<f64>,
+    p_sigma: Vec<f64>,
+    p_c: Vec<f64>,
+    generation: u64,
+    evaluations: u64,
+    non_finite: u64,
+    repairs: u64,
+    last_decomposition: u64,
+    condition: f64,
+    z: Mat<f64>,
+    y: Mat<f64>,
+    x: Vec<f64>,
+    sorted_costs: Vec<f64>,
+    best: Option<(Vec<f64>, f64)>,
+    best_history: Vec<f64>,
+    median_history: Vec<f64>,
+    flat_generations: u64,
+    work: Work,
+}
+
+/// Buffers reused every generation.
+struct Work {
+    order: Vec<usize>,
+    yw: Mat<f64>,
+    ys: Mat<f64>,
+    eigvals: faer::diag::Diag<f64>,
+    eigvecs: Mat<f64>,
+    stack: MemBuffer,
+}
+
+impl std::fmt::Debug for Work {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Work { .. }")
+    }
+}
+
+impl Cmaes {
+    /// A new optimiser centred at `x0`.
+    pub fn new(config: &CmaesConfig, x0: &[f64]) -> Result<Self, CmaesError> {
+        let n = x0.len();
+        config.validate(n)?;
+        if let Some(&v) = x0.iter().find(|v| !v.is_finite()) {
+            return Err(CmaesError::InvalidConfig {
+                field: "x0",
+                rule: "must be finite",
+                value: v,
+            });
+        }
+        let lambda = config.lambda(n);
+        let params = Parameters::new(n, lambda);
+        let gap = config
+            .eigen_gap
+            .unwrap_or_else(|| params.default_eigen_gap());
+        let scales = config
+            .initial_scales
+            .clone()
+            .unwrap_or_else(|| vec![1.0; n]);
+        let c = Mat::from_fn(
+            n,
+            n,
+            |i, j| if i == j { scales[i] * scales[i] } else { 0.0 },
+        );
+        let b = Mat::identity(n, n);
+        let bd = Mat::from_fn(n, n, |i, j| if i == j { scales[i] } else { 0.0 });
+        let (max, min) = scales.iter().fold((0.0f64, f64::INFINITY), |(a, b), s| {
+            (a.max(s * s), b.min(s * s))
+        });
+        let par = Par::Seq;
+        let req = evd::self_adjoint_evd_scratch::<f64>(
+            n,
+            ComputeEigenvectors::Yes,
+            par,
+            Default::default(),
+        );
+        Ok(Self {
+            gap,
+            mean: x0.to_vec(),
+            sigma: config.sigma0,
+            c,
+            b,
+            d: scales,
+            bd,
+            p_sigma: vec![0.0; n],
+            p_c: vec![0.0; n],
+            generation: 0,
+            evaluations: 0,
+            non_finite: 0,
+            repairs: 0,
+            last_decomposition: 0,
+            condition: max / min,
+            z: Mat::zeros(n, lambda),
+            y: Mat::zeros(n, lambda),
+            x: vec![0.0; n * lambda],
+            sorted_costs: Vec::with_capacity(lambda),
+            best: None,
+            best_history: Vec::new(),
+            median_history: Vec::new(),
+            flat_generations: 0,
+            work: Work {
+                order: (0..lambda).collect(),
+                yw: Mat::zeros(n, lambda),
+                ys: Mat::zeros(n, lambda),
+                eigvals: faer::diag::Diag::zeros(n),
+                eigvecs: Mat::zeros(n, n),
+                stack: MemBuffer::new(req),
+            },
+            params,
+            config: config.clone(),
+        })
+    }
+
+    /// Samples a new population and returns it: λ candidates of length n back to back.
+    /// Asking again before [`Self::tell`] returns the same candidates.
+    pub fn ask(&mut self) -> &[f64] {
+        let (n, lambda) = (self.params.n, self.params.lambda);
+        let mut rng = ChaCha8Rng::seed_from_u64(self.config.seed);
+        rng.set_stream(self.generation);
+        for k in 0..lambda {
+            for i in 0..n {
+                self.z[(i, k)] = StandardNormal.sample(&mut rng);
+            }
+        }
+        matmul(
+            self.y.as_mut(),
+            Accum::Replace,
+            self.bd.as_ref(),
+            self.z.as_ref(),
+            1.0,
+            Par::Seq,
+        );
+        for k in 0..lambda {
+            let col = self.y.col(k);
+            for i in 0..n {
+                self.x[k * n + i] = self.mean[i] + self.sigma * col[i];
+            }
+        }
+        &self.x
+    }
+
+    /// The current population (as returned by the last [`Self::ask`]).
+    pub fn population(&self) -> &[f64] {
+        &self.x
+    }
+
+    /// Updates the distribution from the costs of the last asked population.
+    /// Lower is better; NaN and infinite costs rank last and are counted in
+    /// [`Self::non_finite_evaluations`].
+    pub fn tell(&mut self, costs: &[f64]) -> Result<(), CmaesError> {
+        let p = &self.params;
+        let (n, lambda, mu) = (p.n, p.lambda, p.mu);
+        if costs.len() != lambda {
+            return Err(CmaesError::DimensionMismatch {
+                what: "costs",
+                got: costs.len(),
+                expected: lambda,
+            });
+        }
+        self.evaluations += lambda as u64;
+        self.non_finite += costs.iter().filter(|c| !c.is_finite()).count() as u64;
+        let key = |c: f64| if c.is_nan() { f64::INFINITY } else { c };
+        let order = &mut self.work.order;
+        order.iter_mut().enumerate().for_each(|(i, o)| *o = i);
+        order.sort_by(|&a, &b| key(costs[a]).total_cmp(&key(costs[b])).then(a.cmp(&b)));
+        self.sorted_costs.clear();
+        self.sorted_costs
+            .extend(order.iter().map(|&i| key(costs[i])));
+        let best_now = self.sorted_costs[0];
+        if best_now.is_finite() && self.best.as_ref().is_none_or(|(_, f)| best_now < *f) {
+            let k = order[0];
+            self.best = Some((self.x[k * n..(k + 1) * n].to_vec(), best_now));
+        }
+
+        // Weighted means of the selected steps, in y (= B D z) and z coordinates.
+        let mut y_w = vec![0.0; n];
+        let mut z_w = vec![0.0; n];
+        for (rank, &k) in order.iter().take(mu).enumerate() {
+            let w = p.weights[rank];
+            let (yc, zc) = (self.y.col(k), self.z.col(k));
+            for i in 0..n {
+                y_w[i] += w * yc[i];
+                z_w[i] += w * zc[i];
+            }
+        }
+        for i in 0..n {
+            self.mean[i] += p.c_m * self.sigma * y_w[i];
+        }
+        // Step-size path: C^{-1/2} y_w = B z_w for the decomposition that sampled y.
+        let cs = (p.c_sigma * (2.0 - p.c_sigma) * p.mu_eff).sqrt();
+        for i in 0..n {
+            let bz: f64 = (0..n).map(|j| self.b[(i, j)] * z_w[j]).sum();
+            self.p_sigma[i] = (1.0 - p.c_sigma) * self.p_sigma[i] + cs * bz;
+        }
+        let ps_norm = self.p_sigma.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let g1 = (self.generation + 1) as f64;
+        let h_sigma = ps_norm / (1.0 - (1.0 - p.c_sigma).powf(2.0 * g1)).sqrt()
+            < (1.4 + 2.0 / (n as f64 + 1.0)) * p.chi_n;
+        let cc = (p.c_c * (2.0 - p.c_c) * p.mu_eff).sqrt();
+        for i in 0..n {
+            self.p_c[i] = (1.0 - p.c_c) * self.p_c[i] + if h_sigma { cc * y_w[i] } else { 0.0 };
+        }
+
+        // Covariance: rank-one and active rank-μ update, negative weights rescaled by
+        // n / ‖C^{-1/2} y‖² = n / ‖z‖².
+        let delta = if h_sigma { 0.0 } else { p.c_c * (2.0 - p.c_c) };
+        let sum_w: f64 = p.weights.iter().sum();
+        let decay = 1.0 + p.c1 * delta - p.c1 - p.c_mu * sum_w;
+        for (rank, &k) in order.iter().enumerate() {
+            let mut w = p.weights[rank];
+            if w < 0.0 {
+                let z2: f64 = self.z.col(k).iter().map(|v| v * v).sum();
+                w *= n as f64 / z2.max(f64::MIN_POSITIVE);
+            }
+            for i in 0..n {
+                let yi = self.y[(i, k)];
+                self.work.ys[(i, rank)] = yi;
+                self.work.yw[(i, rank)] = w * yi;
+            }
+        }
+        for j in 0..n {
+            for i in j..n {
+                self.c[(i, j)] = decay * self.c[(i, j)] + p.c1 * self.p_c[i] * self.p_c[j];
+            }
+        }
+        matmul(
+            self.c.as_mut(),
+            Accum::Add,
+            self.work.yw.as_ref(),
+            self.work.ys.transpose(),
+            p.c_mu,
+            Par::Seq,
+        );
+        // Bit-for-bit symmetry: keep the lower triangle, mirror it.
+        for j in 0..n {
+            for i in j + 1..n {
+                self.c[(j, i)] = self.c[(i, j)];
+            }
+        }
+
+        let ratio = (p.c_sigma / p.d_sigma) * (ps_norm / p.chi_n - 1.0);
+        self.sigma *= ratio.min(1.0).exp();
+        self.generation += 1;
+
+        let median = self.sorted_costs[lambda / 2];
+        self.best_history.push(best_now);
+        self.median_history.push(median);
+        let flat_index = ((0.1 + lambda as f64 / 4.0).ceil() as usize).clamp(1, lambda) - 1;
+        if self.sorted_costs[0] == self.sorted_costs[flat_index] {
+            self.flat_generations += 1;
+        } else {
+            self.flat_generations = 0;
+        }
+        if self.generation - self.last_decomposition >= self.gap {
+            self.decompose();
+        }
+        Ok(())
+    }
+
+    /// Refreshes B, D (C = B D² Bᵀ), repairing C if it is not positive definite or not
+    /// finite.
+    fn decompose(&mut self) {
+        let n = self.params.n;
+        self.last_decomposition = self.generation;
+        let finite = (0..n).all(|j| self.c.col(j).iter().all(|v| v.is_finite()));
+        let ok = finite
+            && evd::self_adjoint_evd(
+                self.c.as_ref(),
+                self.work.eigvals.as_mut(),
+                Some(self.work.eigvecs.as_mut()),
+                Par::Seq,
+                MemStack::new(&mut self.work.stack),
+                Default::default(),
+            )
+            .is_ok();
+        let vals = self.work.eigvals.column_vector();
+        if !ok || !vals.iter().all(|v| v.is_finite()) {
+            // Numerical failure: fall back to the last good decomposition.
+            self.repairs += 1;
+            self.rebuild_c_from_bd();
+            return;
+        }
+        let max = vals.iter().fold(0.0f64, |a, &v| a.max(v));
+        if max <= 0.0 {
+            self.repairs += 1;
+            self.rebuild_c_from_bd();
+            return;
+        }
+        let floor = max * 1e-16;
+        let mut repaired = false;
+        for i in 0..n {
+            let v = vals[i];
+            self.d[i] = if v > floor {
+                v.sqrt()
+            } else {
+                repaired = true;
+                floor.sqrt()
+            };
+        }
+        self.b.copy_from(self.work.eigvecs.as_ref());
+        let min = self.d.iter().fold(f64::INFINITY, |a, &v| a.min(v * v));
+        self.condition = max / min;
+        for j in 0..n {
+            for i in 0..n {
+                self.bd[(i, j)] = self.b[(i, j)] * self.d[j];
+            }
+        }
+        if repaired {
+            self.repairs += 1;
+            self.rebuild_c_from_bd();
+        }
+    }
+
+    /// C = (B D)(B D)ᵀ, symmetric by construction.
+    fn rebuild_c_from_bd(&mut self) {
+        let n = self.params.n;
+        matmul(
+            self.c.as_mut(),
+            Accum::Replace,
+            self.bd.as_ref(),
+            self.bd.transpose(),
+            1.0,
+            Par::Seq,
+        );
+        for j in 0..n {
+            for i in j + 1..n {
+                self.c[(j, i)] = self.c[(i, j)];
+            }
+        }
+    }
+
+    /// The first rule in `rules` that fires now, if any.
+    pub fn termination(&self, rules: &[StopRule]) -> Option<Termination> {
+        rules
+            .iter()
+            .find(|r| self.fires(r))
+            .map(|r| Termination::Rule(r.clone()))
+    }
+
+    fn fires(&self, rule: &StopRule) -> bool {
+        let p = &self.params;
+        let (n, lambda) = (p.n, p.lambda);
+        let g = self.generation;
+        match *rule {
+            StopRule::MaxGenerations(max) => g >= max,
+            StopRule::MaxEvaluations(max) => self.evaluations + lambda as u64 > max,
+            StopRule::TargetCost(target) => self.best.as_ref().is_some_and(|(_, f)| *f <= target),
+            StopRule::TolFun(tol) => {
+                let window = 10 + (30.0 * n as f64 / lambda as f64).ceil() as usize;
+                if self.best_history.len() < window || self.sorted_costs.is_empty() {
+                    return false;
+                }
+                let recent = &self.best_history[self.best_history.len() - window..];
+                let range = |v: &[f64]| {
+                    let (lo, hi) = v
+                        .iter()
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                            (a.min(x), b.max(x))
+                        });
+                    hi - lo
+                };
+                let finite: Vec<f64> = self
+                    .sorted_costs
+                    .iter()
+                    .copied()
+                    .filter(|c| c.is_finite())
+                    .collect();
+                !finite.is_empty() && range(recent) < tol && range(&finite) < tol
+            }
+            StopRule::TolX(tol) => {
+                (0..n).all(|i| self.sigma * self.p_c[i].abs().max(self.c[(i, i)].sqrt()) < tol)
+            }
+            StopRule::TolUpSigma(tol) => {
+                let dmax = self.d.iter().fold(0.0f64, |a, &v| a.max(v));
+                self.sigma / self.config.sigma0 > tol * dmax
+            }
+            StopRule::ConditionCov(tol) => self.condition > tol,
+            StopRule::FlatFitness(k) => self.flat_generations >= k,
+            StopRule::Stagnation => {
+                let min_len = 120 + (30.0 * n as f64 / lambda as f64).ceil() as usize;
+                let hist = self.best_history.len();
+                if hist < min_len {
+                    return false;
+                }
+                let len = min_len.max((0.2 * hist as f64).ceil() as usize).min(hist);
+                let median = |v: &[f64]| {
+                    let mut s = v.to_vec();
+                    s.sort_by(f64::total_cmp);
+                    s[s.len() / 2]
+                };
+                let stale = |h: &[f64]| {
+                    let w = &h[h.len() - len..];
+                    let k = 20.min(w.len());
+                    median(&w[w.len() - k..]) >= median(&w[..k])
+                };
+                stale(&self.best_history) && stale(&self.median_history)
+            }
+            StopRule::NoEffectAxis => {
+                if g == 0 {
+                    return false;
+                }
+                let i = (g % n as u64) as usize;
+                (0..n).all(|j| {
+                    self.mean[j] == self.mean[j] + 0.1 * self.sigma * self.d[i] * self.b[(j, i)]
+                })
+            }
+            StopRule::NoEffectCoord => {
+                g > 0
+                    && (0..n).any(|i| {
+                        self.mean[i] == self.mean[i] + 0.2 * self.sigma * self.c[(i, i)].sqrt()
+                    })
+            }
+        }
+    }
+
+    /// The strategy parameters.
+    pub fn parameters(&self) -> &Parameters {
+        &self.params
+    }
+
+    /// The distribution mean.
+    pub fn mean(&self) -> &[f64] {
+        &self.mean
+    }
+
+    /// The step size σ.
+    pub fn sigma(&self) -> f64 {
+        self.sigma
+    }
+
+    /// The covariance matrix C (n × n, symmetric).
+    pub fn covariance(&self) -> faer::MatRef<'_, f64> {
+        self.c.as_ref()
+    }
+
+    /// Condition number of C at the last decomposition.
+    pub fn condition(&self) -> f64 {
+        self.condition
+    }
+
+    /// Generations completed.
+    pub fn generation(&self) -> u64 {
+        self.generation
+    }
+
+    /// Objective evaluations told so far.
+    pub fn evaluations(&self) -> u64 {
+        self.evaluations
+    }
+
+    /// Costs told so far that were NaN or infinite.
+    pub fn non_finite_evaluations(&self) -> u64 {
+        self.non_finite
+    }
+
+    /// Times C had to be repaired after a decomposition found it not positive definite.
+    pub fn repairs(&self) -> u64 {
+        self.repairs
+    }
+
+    /// The best candidate seen so far and its cost.
+    pub fn best(&self) -> Option<(&[f64], f64)> {
+        self.best.as_ref().map(|(x, f)| (x.as_slice(), *f))
+    }
+
+    /// Costs of the last told generation, sorted ascending (non-finite as +∞).
+    pub fn last_costs(&self) -> &[f64] {
+        &self.sorted_costs
+    }
+}

@@ -1,0 +1,93 @@
+//! User-facing settings of a CMA-ES run.
+
+use crate::{CmaesError, Parameters};
+
+/// Settings of a CMA-ES run. Required: the initial step size `sigma0` and the seed.
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct CmaesConfig {
+    /// Initial step size σ₀ (> 0), in the units of the search space. A good σ₀ is about a
+    /// third of the distance to where the optimum may be.
+    pub sigma0: f64,
+    /// Population size λ; `None` = the default `4 + ⌊3 ln n⌋` (Hansen 2016).
+    pub population: Option<usize>,
+    /// Seed of the random stream. The same seed gives the same run bit for bit, whatever
+    /// the number of threads evaluating the population.
+    pub seed: u64,
+    /// Generations between eigendecompositions of C; `None` = pycma's lazy gap
+    /// `⌊1/(2n(c_1 + c_μ))⌋` (≈ 4 at n = 75), `Some(1)` = every generation.
+    pub eigen_gap: Option<u64>,
+    /// Optional per-coordinate scales `s` of the initial distribution: C₀ = diag(s²), so
+    /// coordinate i starts with standard deviation `sigma0 * s[i]`.
+    pub initial_scales: Option<Vec<f64>>,
+}
+
+impl CmaesConfig {
+    /// Default settings with the given initial step size and seed.
+    pub fn new(sigma0: f64, seed: u64) -> Self {
+        Self {
+            sigma0,
+            population: None,
+            seed,
+            eigen_gap: None,
+            initial_scales: None,
+        }
+    }
+
+    /// Checks the settings for a problem of dimension `n`; the error names the field.
+    pub fn validate(&self, n: usize) -> Result<(), CmaesError> {
+        if n == 0 {
+            return Err(CmaesError::InvalidConfig {
+                field: "x0",
+                rule: "must have at least one coordinate",
+                value: 0.0,
+            });
+        }
+        if !(self.sigma0.is_finite() && self.sigma0 > 0.0) {
+            return Err(CmaesError::InvalidConfig {
+                field: "sigma0",
+                rule: "must be finite and > 0",
+                value: self.sigma0,
+            });
+        }
+        if let Some(l) = self.population
+            && l < 2
+        {
+            return Err(CmaesError::InvalidConfig {
+                field: "population",
+                rule: "must be at least 2",
+                value: l as f64,
+            });
+        }
+        if self.eigen_gap == Some(0) {
+            return Err(CmaesError::InvalidConfig {
+                field: "eigen_gap",
+                rule: "must be at least 1",
+                value: 0.0,
+            });
+        }
+        if let Some(s) = &self.initial_scales {
+            if s.len() != n {
+                return Err(CmaesError::DimensionMismatch {
+                    what: "initial_scales",
+                    got: s.len(),
+                    expected: n,
+                });
+            }
+            if let Some(&v) = s.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
+                return Err(CmaesError::InvalidConfig {
+                    field: "initial_scales",
+                    rule: "must all be finite and > 0",
+                    value: v,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The population size for dimension `n`.
+    pub fn lambda(&self, n: usize) -> usize {
+        self.population
+            .unwrap_or_else(|| Parameters::default_lambda(n))
+    }
+}

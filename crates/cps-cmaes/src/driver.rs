@@ -1,0 +1,191 @@
+//! The loop around ask/tell: objectives, observers, budgets and the result.
+
+use std::ops::ControlFlow;
+
+use rayon::prelude::*;
+
+use crate::{Cmaes, CmaesConfig, CmaesError, ObjectiveError, StopRule, Termination};
+
+/// A cost to minimise. `evaluate` takes `&self` so a population can be evaluated in
+/// parallel; it returns an error when the evaluation itself failed (a dead simulator),
+/// while a NaN or infinite cost is a valid answer that ranks last.
+pub trait Objective: Sync {
+    /// The cost of one candidate.
+    fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError>;
+
+    /// The costs of a population: `xs` holds `out.len()` candidates of length `dim` back
+    /// to back. The default evaluates them in parallel with rayon (in the current thread
+    /// pool) and reports the failure with the lowest index, so errors are deterministic
+    /// too. Override it to reuse per-thread buffers.
+    fn evaluate_batch(
+        &self,
+        xs: &[f64],
+        dim: usize,
+        out: &mut [f64],
+    ) -> Result<(), CandidateError> {
+        let results: Vec<Result<f64, ObjectiveError>> =
+            xs.par_chunks_exact(dim).map(|x| self.evaluate(x)).collect();
+        for (index, (r, o)) in results.into_iter().zip(out.iter_mut()).enumerate() {
+            *o = r.map_err(|source| CandidateError { index, source })?;
+        }
+        Ok(())
+    }
+}
+
+/// A failed evaluation inside a batch.
+#[derive(Debug)]
+pub struct CandidateError {
+    /// Index of the candidate in the population.
+    pub index: usize,
+    /// What went wrong.
+    pub source: ObjectiveError,
+}
+
+/// An [`Objective`] made from a closure returning a cost.
+#[derive(Debug, Clone, Copy)]
+pub struct FnObjective<F>(pub F);
+
+impl<F: Fn(&[f64]) -> f64 + Sync> Objective for FnObjective<F> {
+    fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
+        Ok((self.0)(x))
+    }
+}
+
+/// What an observer sees after each generation.
+#[derive(Debug, Clone, Copy)]
+pub struct GenerationReport<'a> {
+    /// Generations completed.
+    pub generation: u64,
+    /// Evaluations spent.
+    pub evaluations: u64,
+    /// Best cost of this generation (+∞ if none was finite).
+    pub best_cost: f64,
+    /// Median cost of this generation.
+    pub median_cost: f64,
+    /// Best cost so far.
+    pub best_so_far: f64,
+    /// Step size σ after the update.
+    pub sigma: f64,
+    /// Condition number of C at the last decomposition.
+    pub condition: f64,
+    /// The distribution mean after the update.
+    pub mean: &'a [f64],
+}
+
+/// Watches a run; return `ControlFlow::Break(())` to stop it (reported as
+/// [`Termination::Interrupted`]).
+pub trait Observer {
+    /// Called after every generation.
+    fn observe(&mut self, report: &GenerationReport<'_>) -> ControlFlow<()>;
+}
+
+/// An observer that does nothing.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct NoObserver;
+
+impl Observer for NoObserver {
+    fn observe(&mut self, _: &GenerationReport<'_>) -> ControlFlow<()> {
+        ControlFlow::Continue(())
+    }
+}
+
+impl<F: FnMut(&GenerationReport<'_>) -> ControlFlow<()>> Observer for F {
+    fn observe(&mut self, report: &GenerationReport<'_>) -> ControlFlow<()> {
+        self(report)
+    }
+}
+
+/// The outcome of [`minimize`].
+#[derive(Debug, Clone)]
+pub struct Solution {
+    /// The best candidate evaluated.
+    pub best_x: Vec<f64>,
+    /// Its cost (+∞ if no evaluation was finite).
+    pub best_cost: f64,
+    /// The final distribution mean.
+    pub mean: Vec<f64>,
+    /// The final step size.
+    pub sigma: f64,
+    /// Generations run.
+    pub generations: u64,
+    /// Objective evaluations spent.
+    pub evaluations: u64,
+    /// Evaluations that returned NaN or an infinite cost.
+    pub non_finite_evaluations: u64,
+    /// Covariance repairs (numerical loss of positive definiteness).
+    pub repairs: u64,
+    /// Why the run ended.
+    pub termination: Termination,
+}
+
+/// Minimises `objective` from `x0` until one of `rules` fires or `observer` stops it.
+///
+/// `rules` must contain a budget ([`StopRule::MaxGenerations`] or
+/// [`StopRule::MaxEvaluations`]) so that every run ends. The population is evaluated
+/// with [`Objective::evaluate_batch`], in parallel in the current rayon pool; the result
+/// is the same for any number of threads.
+pub fn minimize<O: Objective + ?Sized>(
+    objective: &O,
+    x0: &[f64],
+    config: &CmaesConfig,
+    rules: &[StopRule],
+    observer: &mut dyn Observer,
+) -> Result<Solution, CmaesError> {
+    if !rules
+        .iter()
+        .any(|r| matches!(r, StopRule::MaxGenerations(_) | StopRule::MaxEvaluations(_)))
+    {
+        return Err(CmaesError::InvalidConfig {
+            field: "rules",
+            rule: "must contain a MaxGenerations or MaxEvaluations budget",
+            value: rules.len() as f64,
+        });
+    }
+    let mut es = Cmaes::new(config, x0)?;
+    let n = x0.len();
+    let mut costs = vec![0.0; es.parameters().lambda];
+    let termination = loop {
+        if let Some(t) = es.termination(rules) {
+            break t;
+        }
+        let generation = es.generation();
+        let xs = es.ask();
+        objective
+            .evaluate_batch(xs, n, &mut costs)
+            .map_err(|e| CmaesError::Objective {
+                generation,
+                index: e.index,
+                source: e.source,
+            })?;
+        es.tell(&costs)?;
+        let sorted = es.last_costs();
+        let report = GenerationReport {
+            generation: es.generation(),
+            evaluations: es.evaluations(),
+            best_cost: sorted[0],
+            median_cost: sorted[sorted.len() / 2],
+            best_so_far: es.best().map_or(f64::INFINITY, |(_, f)| f),
+            sigma: es.sigma(),
+            condition: es.condition(),
+            mean: es.mean(),
+        };
+        if observer.observe(&report).is_break() {
+            break Termination::Interrupted;
+        }
+    };
+    let (best_x, best_cost) = match es.best() {
+        Some((x, f)) => (x.to_vec(), f),
+        None => (es.mean().to_vec(), f64::INFINITY),
+    };
+    Ok(Solution {
+        best_x,
+        best_cost,
+        mean: es.mean().to_vec(),
+        sigma: es.sigma(),
+        generations: es.generation(),
+        evaluations: es.evaluations(),
+        non_finite_evaluations: es.non_finite_evaluations(),
+        repairs: es.repairs(),
+        termination,
+    })
+}

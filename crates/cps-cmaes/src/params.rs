@@ -1,0 +1,187 @@
+//! Strategy parameters: Hansen (2016), "The CMA Evolution Strategy: A Tutorial",
+//! arXiv:1604.00772, Table 1, with active (negative) recombination weights.
+
+/// The default strategy parameters for dimension `n` and population `lambda`.
+///
+/// This is the tutorial's version exactly: `c_mu` has no `+1/4` in its numerator and
+/// `c_sigma`'s denominator is `n + mu_eff + 5` (pycma differs in both; evaluations agree
+/// within a few per cent on unimodal functions).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Parameters {
+    /// Dimension `n`.
+    pub n: usize,
+    /// Population size `λ`.
+    pub lambda: usize,
+    /// Number of positive weights `μ = ⌊λ/2⌋`.
+    pub mu: usize,
+    /// Recombination weights `w_1 ≥ … ≥ w_λ`: the first `μ` positive and summing to 1,
+    /// the rest non-positive, summing to `-min(α_μ⁻, α_μeff⁻, α_posdef⁻)`.
+    pub weights: Vec<f64>,
+    /// Variance-effective selection mass of the positive weights, `μ_eff`.
+    pub mu_eff: f64,
+    /// The same for the negative weights, `μ_eff⁻`.
+    pub mu_eff_neg: f64,
+    /// Learning rate of the mean, `c_m = 1`.
+    pub c_m: f64,
+    /// Cumulation constant of the step-size path, `c_σ = (μ_eff + 2)/(n + μ_eff + 5)`.
+    pub c_sigma: f64,
+    /// Step-size damping `d_σ = 1 + 2 max(0, √((μ_eff − 1)/(n + 1)) − 1) + c_σ`.
+    pub d_sigma: f64,
+    /// Cumulation constant of the rank-one path, `c_c = (4 + μ_eff/n)/(n + 4 + 2μ_eff/n)`.
+    pub c_c: f64,
+    /// Rank-one learning rate `c_1 = 2/((n + 1.3)² + μ_eff)`.
+    pub c1: f64,
+    /// Rank-μ learning rate `c_μ = min(1 − c_1, 2(μ_eff − 2 + 1/μ_eff)/((n + 2)² + μ_eff))`.
+    pub c_mu: f64,
+    /// `E‖N(0, I)‖ ≈ √n (1 − 1/(4n) + 1/(21 n²))`.
+    pub chi_n: f64,
+}
+
+impl Parameters {
+    /// The default population size `4 + ⌊3 ln n⌋`.
+    pub fn default_lambda(n: usize) -> usize {
+        4 + (3.0 * (n as f64).ln()).floor() as usize
+    }
+
+    /// All parameters for dimension `n ≥ 1` and population `lambda ≥ 2`.
+    ///
+    /// # Panics
+    /// If `n == 0` or `lambda < 2` (validated configurations never have those).
+    pub fn new(n: usize, lambda: usize) -> Self {
+        assert!(n >= 1 && lambda >= 2, "n >= 1 and lambda >= 2");
+        let nf = n as f64;
+        let mu = lambda / 2;
+        let raw: Vec<f64> = (1..=lambda)
+            .map(|i| ((lambda as f64 + 1.0) / 2.0).ln() - (i as f64).ln())
+            .collect();
+        let (sum_pos, sum_pos2) = raw
+            .iter()
+            .filter(|w| **w > 0.0)
+            .fold((0.0, 0.0), |(s, s2), w| (s + w, s2 + w * w));
+        let (sum_neg, sum_neg2) = raw
+            .iter()
+            .filter(|w| **w < 0.0)
+            .fold((0.0, 0.0), |(s, s2), w| (s + w, s2 + w * w));
+        let mu_eff = sum_pos * sum_pos / sum_pos2;
+        let mu_eff_neg = if sum_neg2 > 0.0 {
+            sum_neg * sum_neg / sum_neg2
+        } else {
+            0.0
+        };
+        let c_sigma = (mu_eff + 2.0) / (nf + mu_eff + 5.0);
+        let d_sigma = 1.0 + 2.0 * (((mu_eff - 1.0) / (nf + 1.0)).sqrt() - 1.0).max(0.0) + c_sigma;
+        let c_c = (4.0 + mu_eff / nf) / (nf + 4.0 + 2.0 * mu_eff / nf);
+        let c1 = 2.0 / ((nf + 1.3) * (nf + 1.3) + mu_eff);
+        let c_mu = (1.0 - c1)
+            .min(2.0 * (mu_eff - 2.0 + 1.0 / mu_eff) / ((nf + 2.0) * (nf + 2.0) + mu_eff));
+        let alpha_mu_neg = 1.0 + c1 / c_mu;
+        let alpha_mueff_neg = 1.0 + 2.0 * mu_eff_neg / (mu_eff + 2.0);
+        let alpha_posdef_neg = (1.0 - c1 - c_mu) / (nf * c_mu);
+        let neg_total = alpha_mu_neg.min(alpha_mueff_neg).min(alpha_posdef_neg);
+        let weights = raw
+            .iter()
+            .map(|&w| {
+                if w >= 0.0 {
+                    w / sum_pos
+                } else {
+                    neg_total * w / -sum_neg
+                }
+            })
+            .collect();
+        let chi_n = nf.sqrt() * (1.0 - 1.0 / (4.0 * nf) + 1.0 / (21.0 * nf * nf));
+        Self {
+            n,
+            lambda,
+            mu,
+            weights,
+            mu_eff,
+            mu_eff_neg,
+            c_m: 1.0,
+            c_sigma,
+            d_sigma,
+            c_c,
+            c1,
+            c_mu,
+            chi_n,
+        }
+    }
+
+    /// `min(α_μ⁻, α_μeff⁻, α_posdef⁻)`, the total magnitude of the negative weights.
+    pub fn negative_weight_total(&self) -> f64 {
+        -self.weights.iter().filter(|w| **w < 0.0).sum::<f64>()
+    }
+
+    /// The default number of generations between eigendecompositions:
+    /// `max(1, ⌊1 / (2 n (c_1 + c_μ))⌋)` (pycma's lazy-update gap).
+    pub fn default_eigen_gap(&self) -> u64 {
+        ((1.0 / (2.0 * self.n as f64 * (self.c1 + self.c_mu))).floor() as u64).max(1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: f64, b: f64) -> bool {
+        (a - b).abs() <= 1e-12 * b.abs().max(1e-300)
+    }
+
+    #[test]
+    fn parameters_follow_the_tutorial_formulas() {
+        for &n in &[2usize, 10, 75, 200] {
+            let lambda = Parameters::default_lambda(n);
+            let p = Parameters::new(n, lambda);
+            let nf = n as f64;
+            assert_eq!(p.lambda, 4 + (3.0 * nf.ln()) as usize);
+            assert_eq!(p.mu, lambda / 2);
+            let pos: Vec<f64> = p.weights[..p.mu].to_vec();
+            assert!(close(pos.iter().sum::<f64>(), 1.0));
+            let mu_eff = 1.0 / pos.iter().map(|w| w * w).sum::<f64>();
+            assert!(close(p.mu_eff, mu_eff));
+            // Weights are proportional to ln((λ+1)/2) − ln i within each sign group.
+            for i in 1..p.mu {
+                let r = ((lambda as f64 + 1.0) / 2.0).ln() - ((i + 1) as f64).ln();
+                let r0 = ((lambda as f64 + 1.0) / 2.0).ln();
+                assert!(close(p.weights[i] / p.weights[0], r / r0));
+            }
+            assert!(close(p.c_sigma, (mu_eff + 2.0) / (nf + mu_eff + 5.0)));
+            let ds =
+                1.0 + 2.0 * f64::max(0.0, ((mu_eff - 1.0) / (nf + 1.0)).sqrt() - 1.0) + p.c_sigma;
+            assert!(close(p.d_sigma, ds));
+            assert!(close(
+                p.c_c,
+                (4.0 + mu_eff / nf) / (nf + 4.0 + 2.0 * mu_eff / nf)
+            ));
+            assert!(close(p.c1, 2.0 / ((nf + 1.3).powi(2) + mu_eff)));
+            let cmu = f64::min(
+                1.0 - p.c1,
+                2.0 * (mu_eff - 2.0 + 1.0 / mu_eff) / ((nf + 2.0).powi(2) + mu_eff),
+            );
+            assert!(close(p.c_mu, cmu));
+            let neg: Vec<f64> = p.weights[p.mu..]
+                .iter()
+                .copied()
+                .filter(|w| *w < 0.0)
+                .collect();
+            let mu_eff_neg =
+                neg.iter().sum::<f64>().powi(2) / neg.iter().map(|w| w * w).sum::<f64>();
+            assert!(close(p.mu_eff_neg, mu_eff_neg));
+            let total = f64::min(
+                f64::min(1.0 + p.c1 / p.c_mu, 1.0 + 2.0 * mu_eff_neg / (mu_eff + 2.0)),
+                (1.0 - p.c1 - p.c_mu) / (nf * p.c_mu),
+            );
+            assert!(close(p.negative_weight_total(), total));
+            assert!(p.weights.windows(2).all(|w| w[0] >= w[1]));
+        }
+    }
+
+    #[test]
+    fn known_values_at_n_10() {
+        // λ = 10, μ = 5; reference values computed independently in Python.
+        let p = Parameters::new(10, 10);
+        assert_eq!((p.lambda, p.mu), (10, 5));
+        assert!((p.mu_eff - 3.167_299_281_410_702_6).abs() < 1e-12);
+        assert!((p.chi_n - 3.084_726_565_169_012_3).abs() < 1e-12);
+        assert_eq!(Parameters::new(75, 16).default_eigen_gap(), 4);
+    }
+}

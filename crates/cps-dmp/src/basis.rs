@@ -1,0 +1,114 @@
+//! Gaussian basis functions in phase space (Ijspeert et al. 2013, eq. 43/44 of the thesis).
+
+/// `psi_i(x) = exp(-h_i (x - c_i)^2)` with centres `c_i = exp(-alpha_x (i-1)/(N-1))`
+/// (evenly spaced in time) and widths `h_i = (c_{i+1} - c_i)^-2`, `h_N = h_{N-1}`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GaussianBasis {
+    centers: Vec<f64>,
+    widths: Vec<f64>,
+}
+
+impl GaussianBasis {
+    /// `n ≥ 1` basis functions for a canonical system with decay `alpha_x`.
+    ///
+    /// With a single basis function the centre is 1 and the width is chosen so the
+    /// function falls to `exp(-1)` at the end of the movement.
+    ///
+    /// # Panics
+    /// If `n == 0` (a validated [`crate::DmpConfig`] never has that).
+    pub fn new(n: usize, alpha_x: f64) -> Self {
+        assert!(n > 0, "a basis needs at least one function");
+        if n == 1 {
+            let span = 1.0 - (-alpha_x).exp();
+            return Self {
+                centers: vec![1.0],
+                widths: vec![1.0 / (span * span)],
+            };
+        }
+        let centers: Vec<f64> = (0..n)
+            .map(|i| (-alpha_x * i as f64 / (n - 1) as f64).exp())
+            .collect();
+        let mut widths: Vec<f64> = centers
+            .windows(2)
+            .map(|c| 1.0 / ((c[1] - c[0]) * (c[1] - c[0])))
+            .collect();
+        widths.push(widths[n - 2]);
+        Self { centers, widths }
+    }
+
+    /// Number of basis functions.
+    pub fn len(&self) -> usize {
+        self.centers.len()
+    }
+
+    /// Always false: a basis has at least one function.
+    pub fn is_empty(&self) -> bool {
+        self.centers.is_empty()
+    }
+
+    /// The centres `c_i` (phase values, from 1 down to `exp(-alpha_x)`).
+    pub fn centers(&self) -> &[f64] {
+        &self.centers
+    }
+
+    /// The widths `h_i`.
+    pub fn widths(&self) -> &[f64] {
+        &self.widths
+    }
+
+    /// Writes the forcing-term features at phase `x` into `out`:
+    /// `out[i] = psi_i(x) * x / sum_j psi_j(x)`. The forcing term of one dimension is
+    /// `f(x) = (g - y0) * sum_i out[i] * w_i`.
+    ///
+    /// # Panics
+    /// If `out.len()` differs from [`Self::len`].
+    pub fn features(&self, x: f64, out: &mut [f64]) {
+        assert_eq!(out.len(), self.len(), "feature buffer length");
+        let mut sum = 0.0;
+        for ((o, &c), &h) in out.iter_mut().zip(&self.centers).zip(&self.widths) {
+            let d = x - c;
+            *o = (-h * d * d).exp();
+            sum += *o;
+        }
+        // The nearest centre is at most half a spacing away inside the movement, so the sum
+        // is bounded away from zero; guard anyway for phases far outside.
+        let scale = if sum > f64::MIN_POSITIVE {
+            x / sum
+        } else {
+            0.0
+        };
+        for o in out.iter_mut() {
+            *o *= scale;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn centres_are_evenly_spaced_in_time() {
+        let b = GaussianBasis::new(25, 25.0 / 3.0);
+        assert_eq!(b.centers()[0], 1.0);
+        assert!((b.centers()[24] - (-25.0f64 / 3.0).exp()).abs() < 1e-16);
+        for i in 0..24 {
+            let ratio = b.centers()[i + 1] / b.centers()[i];
+            assert!((ratio - (-25.0f64 / 3.0 / 24.0).exp()).abs() < 1e-14);
+            let gap = b.centers()[i + 1] - b.centers()[i];
+            assert!((b.widths()[i] * gap * gap - 1.0).abs() < 1e-12);
+        }
+        assert_eq!(b.widths()[24], b.widths()[23]);
+    }
+
+    #[test]
+    fn features_sum_to_the_phase() {
+        let b = GaussianBasis::new(10, 4.0);
+        let mut f = vec![0.0; 10];
+        for &x in &[1.0, 0.5, 0.1, 0.02] {
+            b.features(x, &mut f);
+            let s: f64 = f.iter().sum();
+            assert!((s - x).abs() < 1e-15 * 10.0, "x = {x}: {s}");
+        }
+    }
+}

@@ -1,0 +1,122 @@
+//! Rolled-out trajectories on the DMP's time grid.
+
+/// Position, velocity and acceleration of every dimension on a uniform time grid.
+///
+/// All values are in SI units of the task: if positions are metres, velocities are m/s
+/// and accelerations m/s². Velocities are the **physical** `ẏ = z / tau` (not the scaled
+/// state `z`) and accelerations are `ÿ = ż / tau`. Each quantity is stored one
+/// contiguous slice per dimension.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trajectory {
+    dims: usize,
+    times: Vec<f64>,
+    pub(crate) position: Vec<f64>,
+    pub(crate) velocity: Vec<f64>,
+    pub(crate) acceleration: Vec<f64>,
+    pub(crate) forcing: Vec<f64>,
+}
+
+impl Trajectory {
+    /// An all-zero trajectory on the given time grid, ready to be filled by a rollout.
+    pub fn zeros(dims: usize, times: Vec<f64>) -> Self {
+        let n = dims * times.len();
+        Self {
+            dims,
+            times,
+            position: vec![0.0; n],
+            velocity: vec![0.0; n],
+            acceleration: vec![0.0; n],
+            forcing: vec![0.0; n],
+        }
+    }
+
+    /// Number of dimensions.
+    pub fn dims(&self) -> usize {
+        self.dims
+    }
+
+    /// Number of samples on the grid (steps + 1).
+    pub fn n_samples(&self) -> usize {
+        self.times.len()
+    }
+
+    /// The sample times in seconds, from 0 to `tau`.
+    pub fn times(&self) -> &[f64] {
+        &self.times
+    }
+
+    fn slice<'a>(&self, data: &'a [f64], dim: usize) -> &'a [f64] {
+        let n = self.times.len();
+        &data[dim * n..(dim + 1) * n]
+    }
+
+    /// Positions of dimension `dim` at every sample.
+    ///
+    /// # Panics
+    /// If `dim >= dims()`.
+    pub fn position(&self, dim: usize) -> &[f64] {
+        self.slice(&self.position, dim)
+    }
+
+    /// Physical velocities `ẏ` of dimension `dim` (units per second).
+    ///
+    /// # Panics
+    /// If `dim >= dims()`.
+    pub fn velocity(&self, dim: usize) -> &[f64] {
+        self.slice(&self.velocity, dim)
+    }
+
+    /// Physical accelerations `ÿ` of dimension `dim` (units per second²).
+    ///
+    /// # Panics
+    /// If `dim >= dims()`.
+    pub fn acceleration(&self, dim: usize) -> &[f64] {
+        self.slice(&self.acceleration, dim)
+    }
+
+    /// The forcing term `f` of dimension `dim` at every sample (units of `tau² ÿ`).
+    ///
+    /// # Panics
+    /// If `dim >= dims()`.
+    pub fn forcing(&self, dim: usize) -> &[f64] {
+        self.slice(&self.forcing, dim)
+    }
+
+    /// Position of dimension `dim` at time `t` seconds, interpolated linearly between
+    /// samples (exact on the grid; clamped to the ends outside it).
+    ///
+    /// # Panics
+    /// If `dim >= dims()`.
+    pub fn position_at(&self, dim: usize, t: f64) -> f64 {
+        let (k, frac) = self.locate(t);
+        let p = self.position(dim);
+        if frac == 0.0 {
+            p[k]
+        } else {
+            p[k] + frac * (p[k + 1] - p[k])
+        }
+    }
+
+    /// The grid interval holding `t`: index `k` and the fraction of the way to `k + 1`.
+    pub fn locate(&self, t: f64) -> (usize, f64) {
+        let n = self.times.len();
+        if n < 2 || t <= self.times[0] {
+            return (0, 0.0);
+        }
+        let h = self.times[1] - self.times[0];
+        let s = (t - self.times[0]) / h;
+        if s >= (n - 1) as f64 {
+            return (n - 1, 0.0);
+        }
+        let k = s.floor() as usize;
+        let frac = s - k as f64;
+        // Times that sit on the grid up to rounding count as grid points.
+        if frac < 1e-9 {
+            (k, 0.0)
+        } else if frac > 1.0 - 1e-9 {
+            (k + 1, 0.0)
+        } else {
+            (k, frac)
+        }
+    }
+}
