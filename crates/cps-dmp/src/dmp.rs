@@ -1,7 +1,6 @@
 //! The discrete DMP: precomputation and rollouts.
 
-use faer::linalg::matmul::matmul;
-use faer::{Accum, MatMut, MatRef, Par};
+use pulp::{Arch, Simd, WithSimd};
 
 use crate::discretize::StepCoefficients;
 use crate::{CanonicalSystem, DmpConfig, DmpError, GaussianBasis, Trajectory};
@@ -31,7 +30,10 @@ pub struct DiscreteDmp {
     phases: Vec<f64>,
     /// Features, (K+1) × N, column-major.
     features: Vec<f64>,
+    /// The same features packed chunk-major for the forcing kernel.
+    packed: Vec<f64>,
     coefficients: StepCoefficients,
+    arch: Arch,
 }
 
 impl DiscreteDmp {
@@ -79,8 +81,10 @@ impl DiscreteDmp {
             basis,
             times,
             phases,
+            packed: pack_features(&features, k + 1, n),
             features,
             coefficients,
+            arch: Arch::new(),
         })
     }
 
@@ -176,18 +180,43 @@ impl DiscreteDmp {
             traj.dims() == dims && traj.n_samples() == ns,
             "trajectory shape mismatch"
         );
-        // 1. Forcing features times weights: F = Φ W, (K+1) × dims, one GEMM.
-        let phi = MatRef::from_column_major_slice(&self.features, ns, n);
-        let w = MatRef::from_column_major_slice(weights, n, dims);
-        let f = MatMut::from_column_major_slice_mut(&mut traj.forcing, ns, dims);
-        matmul(f, Accum::Replace, phi, w, 1.0, Par::Seq);
-        // 2. The recurrence, four dimensions at a time so independent chains overlap.
+        // 1. Forcing features times weights, F = Φ W, SIMD with runtime dispatch.
+        self.arch.dispatch(ForcingProduct {
+            packed: &self.packed,
+            weights,
+            n_basis: n,
+            out: &mut traj.forcing,
+        });
+        // 2. The exact recurrence: vectorised inputs, the sequential chain several
+        //    dimensions at a time (plain scalar code: independent chains overlap in the
+        //    CPU, which SIMD shuffles would only slow down), vectorised outputs.
+        self.arch.dispatch(Elementwise {
+            dmp: self,
+            pass: Pass::Inputs,
+            traj: &mut *traj,
+        });
         let mut d0 = 0;
         while d0 < dims {
             let width = (dims - d0).min(LANES);
-            self.integrate_group(d0, width, traj);
+            let range = d0 * ns..(d0 + width) * ns;
+            let start: [f64; LANES] = std::array::from_fn(|j| self.start[d0 + j.min(width - 1)]);
+            let pos = traj.position[range.clone()].chunks_exact_mut(ns);
+            let vel = traj.velocity[range.clone()].chunks_exact_mut(ns);
+            let acc = traj.acceleration[range].chunks_exact(ns);
+            let e = self.coefficients.e;
+            match width {
+                1 => chain::<1>(e, &start, pos, vel, acc),
+                2 => chain::<2>(e, &start, pos, vel, acc),
+                3 => chain::<3>(e, &start, pos, vel, acc),
+                _ => chain::<4>(e, &start, pos, vel, acc),
+            }
             d0 += width;
         }
+        self.arch.dispatch(Elementwise {
+            dmp: self,
+            pass: Pass::Outputs,
+            traj: &mut *traj,
+        });
     }
 
     /// Rolls out a population: `weights` holds `out.len()` weight vectors back to back.
@@ -201,60 +230,226 @@ impl DiscreteDmp {
             self.rollout_into(w, traj);
         }
     }
+}
 
-    /// Integrates dimensions `d0 .. d0 + width` (width ≤ LANES) reading the unscaled
-    /// forcing from `traj.forcing` and writing position, velocity, acceleration and the
-    /// scaled forcing.
-    fn integrate_group(&self, d0: usize, width: usize, traj: &mut Trajectory) {
-        let ns = self.n_samples();
-        let c = &self.coefficients;
-        let (az, bz, tau) = (self.config.alpha_z, self.config.beta_z, self.config.tau);
-        let kk = az * bz;
-        let (inv_tau, inv_tau2) = (1.0 / tau, 1.0 / (tau * tau));
-        let mut y = [0.0; LANES];
-        let mut z = [0.0; LANES];
-        let mut g = [0.0; LANES];
-        let mut amp = [0.0; LANES];
-        for j in 0..LANES {
-            let d = d0 + j.min(width - 1);
-            y[j] = self.start[d];
-            g[j] = self.goal[d];
-            amp[j] = g[j] - y[j];
-        }
-        let base: [usize; LANES] = std::array::from_fn(|j| (d0 + j.min(width - 1)) * ns);
-        // Scale the forcing in place: f = (g - y0) · Φ w.
-        for j in 0..width {
-            for v in &mut traj.forcing[base[j]..base[j] + ns] {
-                *v *= amp[j];
-            }
-        }
-        let mut u = [0.0; LANES];
-        for j in 0..LANES {
-            u[j] = kk * g[j] + traj.forcing[base[j]];
-        }
-        for s in 0..ns {
-            let mut u_next = [0.0; LANES];
-            for j in 0..LANES {
-                let idx = base[j] + s;
-                traj.position[idx] = y[j];
-                traj.velocity[idx] = z[j] * inv_tau;
-                traj.acceleration[idx] = (u[j] - kk * y[j] - az * z[j]) * inv_tau2;
-                if s + 1 < ns {
-                    u_next[j] = kk * g[j] + traj.forcing[idx + 1];
-                }
-                let yn = c.e[0][0] * y[j] + c.e[0][1] * z[j] + c.b0[0] * u[j] + c.b1[0] * u_next[j];
-                let zn = c.e[1][0] * y[j] + c.e[1][1] * z[j] + c.b0[1] * u[j] + c.b1[1] * u_next[j];
-                y[j] = yn;
-                z[j] = zn;
-            }
-            u = u_next;
+/// Dimensions integrated together (and accumulated together in the forcing product).
+const LANES: usize = 4;
+
+/// The sequential part of the recurrence for `W` dimensions at once (independent chains
+/// overlap in the CPU): `s_{k+1} = E s_k + c_k` with the inputs `c_k = (cy_k, cz_k)`
+/// precomputed in `vel` and `acc`. Writes `y_k` to `pos` and the raw `z_k` over `vel`.
+#[inline(never)]
+fn chain<'a, const W: usize>(
+    e: [[f64; 2]; 2],
+    start: &[f64; LANES],
+    pos: impl Iterator<Item = &'a mut [f64]>,
+    vel: impl Iterator<Item = &'a mut [f64]>,
+    acc: impl Iterator<Item = &'a [f64]>,
+) {
+    let [[e00, e01], [e10, e11]] = e;
+    let mut pos = pos;
+    let mut vel = vel;
+    let mut acc = acc;
+    let pos: [&mut [f64]; W] = std::array::from_fn(|_| pos.next().expect("lane"));
+    let vel: [&mut [f64]; W] = std::array::from_fn(|_| vel.next().expect("lane"));
+    let acc: [&[f64]; W] = std::array::from_fn(|_| acc.next().expect("lane"));
+    let ns = pos[0].len();
+    let mut y: [f64; W] = std::array::from_fn(|j| start[j]);
+    let mut z = [0.0; W];
+    for k in 0..ns {
+        for j in 0..W {
+            let (cy, cz) = (vel[j][k], acc[j][k]);
+            pos[j][k] = y[j];
+            vel[j][k] = z[j];
+            let yn = cy + (e00 * y[j] + e01 * z[j]);
+            let zn = cz + (e10 * y[j] + e11 * z[j]);
+            y[j] = yn;
+            z[j] = zn;
         }
     }
 }
 
-/// Dimensions integrated together (padding lanes repeat the last real dimension and are
-/// written identically, so they are harmless).
-const LANES: usize = 4;
+/// Samples per block of the packed feature matrix.
+const CHUNK: usize = 16;
+
+/// Packs Φ ((K+1) × N, column-major) chunk-major: block c holds, for each basis i, the
+/// `CHUNK` feature values of samples `c*CHUNK ..`, zero-padded at the end.
+fn pack_features(features: &[f64], ns: usize, nb: usize) -> Vec<f64> {
+    let chunks = ns.div_ceil(CHUNK);
+    let mut packed = vec![0.0; chunks * nb * CHUNK];
+    for c in 0..chunks {
+        for i in 0..nb {
+            for l in 0..CHUNK {
+                let k = c * CHUNK + l;
+                if k < ns {
+                    packed[(c * nb + i) * CHUNK + l] = features[i * ns + k];
+                }
+            }
+        }
+    }
+    packed
+}
+
+/// `out[j] = Φ w_j` for `W` dimensions: `NV` SIMD vectors of accumulators per dimension
+/// stay in registers while the N basis functions of a chunk are summed.
+#[inline(always)]
+fn forcing_kernel<S: Simd, const W: usize, const NV: usize>(
+    simd: S,
+    packed: &[f64],
+    weights: [&[f64]; W],
+    out: [&mut [f64]; W],
+) {
+    let nb = weights[0].len();
+    let ns = out[0].len();
+    let zero = simd.splat_f64s(0.0);
+    for (c, block) in packed.chunks_exact(nb * CHUNK).enumerate() {
+        let mut acc = [[zero; NV]; W];
+        for i in 0..nb {
+            let (v, _) = S::as_simd_f64s(&block[i * CHUNK..(i + 1) * CHUNK]);
+            for j in 0..W {
+                let w = simd.splat_f64s(weights[j][i]);
+                for r in 0..NV {
+                    acc[j][r] = simd.mul_add_e_f64s(w, v[r], acc[j][r]);
+                }
+            }
+        }
+        let k0 = c * CHUNK;
+        let len = CHUNK.min(ns - k0);
+        for j in 0..W {
+            if len == CHUNK {
+                let (ov, _) = S::as_mut_simd_f64s(&mut out[j][k0..k0 + CHUNK]);
+                ov[..NV].copy_from_slice(&acc[j]);
+            } else {
+                let mut tmp = [0.0f64; CHUNK];
+                let (tv, _) = S::as_mut_simd_f64s(&mut tmp);
+                tv[..NV].copy_from_slice(&acc[j]);
+                out[j][k0..k0 + len].copy_from_slice(&tmp[..len]);
+            }
+        }
+    }
+}
+
+/// `out[d] = Φ w_d` for every dimension d, dimensions in groups of up to three.
+struct ForcingProduct<'a> {
+    packed: &'a [f64],
+    weights: &'a [f64],
+    n_basis: usize,
+    out: &'a mut [f64],
+}
+
+impl WithSimd for ForcingProduct<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: Simd>(self, simd: S) {
+        #[inline(always)]
+        fn group<S: Simd, const W: usize>(
+            simd: S,
+            packed: &[f64],
+            w: &[f64],
+            out: &mut [f64],
+            nb: usize,
+        ) {
+            let ns = out.len() / W;
+            let weights: [&[f64]; W] = std::array::from_fn(|j| &w[j * nb..(j + 1) * nb]);
+            let mut it = out.chunks_exact_mut(ns);
+            let out: [&mut [f64]; W] = std::array::from_fn(|_| it.next().expect("lane"));
+            match S::F64_LANES {
+                8 => forcing_kernel::<S, W, 2>(simd, packed, weights, out),
+                4 => forcing_kernel::<S, W, 4>(simd, packed, weights, out),
+                2 => forcing_kernel::<S, W, 8>(simd, packed, weights, out),
+                _ => forcing_kernel::<S, W, 16>(simd, packed, weights, out),
+            }
+        }
+        let nb = self.n_basis;
+        let dims = self.weights.len() / nb;
+        let ns = self.out.len() / dims;
+        let mut d0 = 0;
+        while d0 < dims {
+            let width = (dims - d0).min(3);
+            let w = &self.weights[d0 * nb..(d0 + width) * nb];
+            let o = &mut self.out[d0 * ns..(d0 + width) * ns];
+            match width {
+                1 => group::<S, 1>(simd, self.packed, w, o, nb),
+                2 => group::<S, 2>(simd, self.packed, w, o, nb),
+                _ => group::<S, 3>(simd, self.packed, w, o, nb),
+            }
+            d0 += width;
+        }
+    }
+}
+
+/// Which vectorised pass of the recurrence to run over every dimension.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Pass {
+    /// Scale the forcing by `g − y0` and fold each step's inputs into
+    /// `cy_k = b0_y u_k + b1_y u_{k+1}` and `cz_k` (likewise), `u = α_z β_z g + f`, stored
+    /// in the velocity and acceleration buffers until [`Pass::Outputs`] overwrites them.
+    Inputs,
+    /// Physical outputs from the chain's `y` and raw `z`:
+    /// `ÿ = (α_z β_z (g − y) − α_z z + f) / τ²`, `ẏ = z / τ`.
+    Outputs,
+}
+
+/// The element-wise passes around the sequential chain, run under SIMD dispatch.
+struct Elementwise<'a> {
+    dmp: &'a DiscreteDmp,
+    pass: Pass,
+    traj: &'a mut Trajectory,
+}
+
+impl WithSimd for Elementwise<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: Simd>(self, _simd: S) {
+        let Self { dmp, pass, traj } = self;
+        let ns = dmp.n_samples();
+        let c = &dmp.coefficients;
+        let cfg = &dmp.config;
+        let (az, kk) = (cfg.alpha_z, cfg.alpha_z * cfg.beta_z);
+        let (inv_tau, inv_tau2) = (1.0 / cfg.tau, 1.0 / (cfg.tau * cfg.tau));
+        let parts = traj
+            .position
+            .chunks_exact(ns)
+            .zip(traj.velocity.chunks_exact_mut(ns))
+            .zip(traj.acceleration.chunks_exact_mut(ns))
+            .zip(traj.forcing.chunks_exact_mut(ns));
+        for (d, (((pos, vel), acc), f)) in parts.enumerate() {
+            let g = dmp.goal[d];
+            match pass {
+                Pass::Inputs => {
+                    let amp = g - dmp.start[d];
+                    for v in f.iter_mut() {
+                        *v *= amp;
+                    }
+                    let ug = kk * g;
+                    let (b0y, b1y, b0z, b1z) = (c.b0[0], c.b1[0], c.b0[1], c.b1[1]);
+                    let steps = vel
+                        .iter_mut()
+                        .zip(acc.iter_mut())
+                        .zip(&f[..ns - 1])
+                        .zip(&f[1..]);
+                    for (((cy, cz), &f0), &f1) in steps {
+                        let (u0, u1) = (ug + f0, ug + f1);
+                        *cy = b0y * u0 + b1y * u1;
+                        *cz = b0z * u0 + b1z * u1;
+                    }
+                }
+                Pass::Outputs => {
+                    let kg = kk * g;
+                    for (((acc, vel), &y), &f) in
+                        acc.iter_mut().zip(vel.iter_mut()).zip(pos).zip(f.iter())
+                    {
+                        let z = *vel;
+                        *acc = (kg - kk * y - az * z + f) * inv_tau2;
+                        *vel = z * inv_tau;
+                    }
+                }
+            }
+        }
+    }
+}
 
 #[cfg(test)]
 mod tests {

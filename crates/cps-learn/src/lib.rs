@@ -1,1 +1,44 @@
-//! learn
+//! Learning pipelines for cps.
+//!
+//! Via-point learning (Rueckert & d'Avella 2013, "Learned parametrized dynamic movement
+//! primitives with shared synergies for controlling robotic and musculoskeletal systems";
+//! thesis §4.5.2): CMA-ES searches the weights of task-space DMPs so that the rolled-out
+//! movement passes via points at given times, ends at the goal at rest, and stays smooth.
+//!
+//! - [`ViaPointTask`]: start, goal, via points, DMP settings and the weighted cost terms
+//!   ([`CostWeights`]); each term optional.
+//! - [`Parametrisation`] / [`SearchSpace`]: how CMA-ES's parameters map to DMP weights.
+//! - [`exact_optimum`]: the cost is an exact quadratic in the weights (the rollout is
+//!   affine), so its least-squares optimum is computed directly and every run reports its
+//!   gap to it; it also serves as a solver and a warm start.
+//! - [`learn_via_points`]: repetitions with derived seeds, in parallel, deterministic.
+//!
+//! # Example
+//! ```
+//! use cps_learn::{learn_via_points, ViaPointConfig, ViaPointTask};
+//! # fn main() -> Result<(), cps_learn::LearnError> {
+//! let mut config = ViaPointConfig::new(ViaPointTask::thesis());
+//! config.generations = 50; // a short run for the example
+//! let outcome = learn_via_points(&config, &|_, _| std::ops::ControlFlow::Continue(()))?;
+//! let run = outcome.best();
+//! assert!(run.cost >= outcome.optimum.cost * (1.0 - 1e-12));
+//! println!("gap to the exact optimum: {:.2e}", run.gap_to_optimum);
+//! # Ok(())
+//! # }
+//! ```
+#![deny(missing_docs)]
+
+mod error;
+mod exact;
+mod space;
+mod task;
+mod viapoint;
+
+pub use error::LearnError;
+pub use exact::{ExactOptimum, exact_optimum};
+pub use space::{Parametrisation, SearchSpace};
+pub use task::{CostBreakdown, CostWeights, TaskErrors, ViaPoint, ViaPointTask};
+pub use viapoint::{
+    GenerationRecord, RunResult, Solver, ViaPointConfig, ViaPointOutcome, history_band,
+    learn_via_points,
+};

@@ -1,0 +1,99 @@
+//! The exact optimum of a via-point cost without a simulator in the loop.
+//!
+//! The rollout is affine in the DMP weights and every cost residual is affine in the
+//! rollout, so the cost is `‖r₀ + J θ‖²`: a linear least-squares problem. Its columns are
+//! found by rolling out unit parameter vectors (no separate derivation that could drift
+//! from the rollout), and it is solved with a Householder QR (faer), which works on J
+//! directly instead of squaring its condition number in normal equations.
+
+use cps_dmp::DiscreteDmp;
+use faer::Mat;
+use faer::prelude::SolveLstsq;
+use serde::{Deserialize, Serialize};
+
+use crate::{CostBreakdown, LearnError, SearchSpace, ViaPointTask};
+
+/// The least-squares optimum of a via-point task.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ExactOptimum {
+    /// Optimal parameters θ in the search space used.
+    pub params: Vec<f64>,
+    /// Optimal DMP weights.
+    pub weights: Vec<f64>,
+    /// The optimal cost (evaluated by a rollout of the optimal weights).
+    pub cost: f64,
+    /// The optimal cost term by term.
+    pub breakdown: CostBreakdown,
+    /// Condition number of the Hessian `2 JᵀJ` in the search space used: how hard the
+    /// problem is for an optimiser that must learn its shape (CMA-ES).
+    pub hessian_condition: f64,
+}
+
+/// Residual vector of the cost at parameters `theta`.
+fn residual_vector(
+    task: &ViaPointTask,
+    dmp: &DiscreteDmp,
+    space: &SearchSpace,
+    theta: &[f64],
+    out: &mut Vec<f64>,
+) {
+    let mut w = vec![0.0; theta.len()];
+    space.to_weights(theta, &mut w);
+    let traj = dmp.rollout(&w);
+    out.clear();
+    task.residuals(&traj, |_, r| out.push(r));
+}
+
+/// The exact optimum of `task` in the search space `space`.
+pub fn exact_optimum(
+    task: &ViaPointTask,
+    dmp: &DiscreteDmp,
+    space: &SearchSpace,
+) -> Result<ExactOptimum, LearnError> {
+    let n = space.len();
+    let mut r0 = Vec::new();
+    residual_vector(task, dmp, space, &vec![0.0; n], &mut r0);
+    let m = r0.len();
+    if m < n {
+        return Err(LearnError::Exact(format!(
+            "{m} residuals cannot determine {n} parameters: add cost terms (acceleration or jerk) or via points"
+        )));
+    }
+    let mut jac = Mat::<f64>::zeros(m, n);
+    let mut e = vec![0.0; n];
+    let mut r = Vec::with_capacity(m);
+    for j in 0..n {
+        e[j] = 1.0;
+        residual_vector(task, dmp, space, &e, &mut r);
+        e[j] = 0.0;
+        for i in 0..m {
+            jac[(i, j)] = r[i] - r0[i];
+        }
+    }
+    let singular = jac
+        .singular_values()
+        .map_err(|e| LearnError::Exact(format!("{e:?}")))?;
+    let (smax, smin) = singular
+        .iter()
+        .fold((0.0f64, f64::INFINITY), |(a, b), &s| (a.max(s), b.min(s)));
+    if !(smin > smax * 1e-14) {
+        return Err(LearnError::Exact(format!(
+            "the problem is rank deficient (singular values from {smax:.3e} down to {smin:.3e}): \
+             some weights do not affect the cost; add an acceleration or jerk term"
+        )));
+    }
+    let rhs = Mat::from_fn(m, 1, |i, _| -r0[i]);
+    let sol = jac.qr().solve_lstsq(&rhs);
+    let params: Vec<f64> = (0..n).map(|j| sol[(j, 0)]).collect();
+    let mut weights = vec![0.0; n];
+    space.to_weights(&params, &mut weights);
+    let traj = dmp.rollout(&weights);
+    let breakdown = task.breakdown(&traj);
+    Ok(ExactOptimum {
+        params,
+        weights,
+        cost: breakdown.total(),
+        breakdown,
+        hessian_condition: (smax / smin).powi(2),
+    })
+}

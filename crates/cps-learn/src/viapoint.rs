@@ -1,0 +1,337 @@
+//! Via-point learning: CMA-ES over DMP weights (Rueckert & d'Avella 2013), with the exact
+//! least-squares optimum as a reference, a solver and a warm start.
+
+use std::ops::ControlFlow;
+use std::time::Instant;
+
+use cps_cmaes::{
+    CandidateError, CmaesConfig, GenerationReport, Objective, ObjectiveError, StopRule, minimize,
+};
+use cps_dmp::{DiscreteDmp, Trajectory};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::{
+    CostBreakdown, ExactOptimum, LearnError, Parametrisation, SearchSpace, TaskErrors,
+    ViaPointTask, exact_optimum,
+};
+
+/// How the weights are found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Solver {
+    /// CMA-ES, the general method (works for costs that are not quadratic). Default.
+    #[default]
+    Cmaes,
+    /// The exact least-squares optimum (only for costs without a simulator in the loop).
+    Exact,
+}
+
+/// Everything a via-point learning run needs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViaPointConfig {
+    /// The task and its cost.
+    pub task: ViaPointTask,
+    /// The search space CMA-ES works in. Default: [`Parametrisation::AnchorOffset`].
+    pub parametrisation: Parametrisation,
+    /// CMA-ES or the exact solve.
+    pub solver: Solver,
+    /// Start CMA-ES at the exact optimum instead of θ = 0 (zero weights).
+    pub warm_start: bool,
+    /// Initial CMA-ES step size in the units of the search space (metres for
+    /// `AnchorOffset`).
+    pub sigma0: f64,
+    /// Population size; `None` = `4 + ⌊3 ln n⌋` (16 for 75 weights).
+    pub population: Option<usize>,
+    /// Generation budget per repetition.
+    pub generations: u64,
+    /// Stop a repetition early when the best costs of the last `10 + 30n/λ` generations
+    /// and the current population all lie within this range (CMA-ES's tolfun); `None` = off.
+    pub tol_fun: Option<f64>,
+    /// Independent repetitions, each with its own seed derived from `seed`.
+    pub repetitions: usize,
+    /// Master seed.
+    pub seed: u64,
+}
+
+impl ViaPointConfig {
+    /// Defaults for a task: anchor-offset space, CMA-ES from zero weights, σ₀ = 0.5 (task
+    /// units), default population, 1000 generations, tolfun 1e-9, one repetition, seed 1.
+    pub fn new(task: ViaPointTask) -> Self {
+        Self {
+            task,
+            parametrisation: Parametrisation::default(),
+            solver: Solver::default(),
+            warm_start: false,
+            sigma0: 0.5,
+            population: None,
+            generations: 1000,
+            tol_fun: Some(1e-9),
+            repetitions: 1,
+            seed: 1,
+        }
+    }
+
+    /// The seed of repetition `r`: a SplitMix64 hash of (seed, r), so repetitions are
+    /// independent streams and adding repetitions does not change the earlier ones.
+    pub fn repetition_seed(&self, r: usize) -> u64 {
+        let mut z = self
+            .seed
+            .wrapping_add((r as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+}
+
+/// One generation of a repetition's history.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GenerationRecord {
+    /// Generation number (1-based).
+    pub generation: u64,
+    /// Best cost of the generation.
+    pub best: f64,
+    /// Median cost of the generation.
+    pub median: f64,
+    /// Best cost so far.
+    pub best_so_far: f64,
+    /// Step size after the generation.
+    pub sigma: f64,
+}
+
+/// The result of one repetition.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunResult {
+    /// The repetition's seed.
+    pub seed: u64,
+    /// Best parameters θ found.
+    pub params: Vec<f64>,
+    /// The corresponding DMP weights (dimension-major).
+    pub weights: Vec<f64>,
+    /// Their cost.
+    pub cost: f64,
+    /// The cost term by term.
+    pub breakdown: CostBreakdown,
+    /// Errors in task units.
+    pub errors: TaskErrors,
+    /// `(cost − optimum) / optimum`.
+    pub gap_to_optimum: f64,
+    /// Generations run.
+    pub generations: u64,
+    /// Cost evaluations (rollouts).
+    pub evaluations: u64,
+    /// Evaluations whose cost was NaN or infinite.
+    pub non_finite_evaluations: u64,
+    /// Why the run ended (`max_generations`, `tolfun`, `exact`, `interrupted`, …).
+    pub termination: String,
+    /// Per-generation history.
+    pub history: Vec<GenerationRecord>,
+    /// Wall time of this repetition in seconds.
+    pub seconds: f64,
+}
+
+/// The result of [`learn_via_points`].
+#[derive(Debug, Clone)]
+pub struct ViaPointOutcome {
+    /// The exact least-squares optimum (the reference every run is measured against).
+    pub optimum: ExactOptimum,
+    /// One result per repetition.
+    pub runs: Vec<RunResult>,
+    /// Index of the repetition with the lowest cost.
+    pub best_run: usize,
+    /// The DMP the weights belong to.
+    pub dmp: DiscreteDmp,
+}
+
+impl ViaPointOutcome {
+    /// The best repetition.
+    pub fn best(&self) -> &RunResult {
+        &self.runs[self.best_run]
+    }
+
+    /// The trajectory of the best repetition's weights.
+    pub fn best_trajectory(&self) -> Trajectory {
+        self.dmp.rollout(&self.best().weights)
+    }
+
+    /// True if any repetition was interrupted.
+    pub fn interrupted(&self) -> bool {
+        self.runs.iter().any(|r| r.termination == "interrupted")
+    }
+}
+
+/// The CMA-ES objective: roll out, then cost.
+struct RolloutCost<'a> {
+    task: &'a ViaPointTask,
+    dmp: &'a DiscreteDmp,
+    space: &'a SearchSpace,
+}
+
+impl RolloutCost<'_> {
+    fn cost_with(&self, theta: &[f64], w: &mut [f64], traj: &mut Trajectory) -> f64 {
+        self.space.to_weights(theta, w);
+        self.dmp.rollout_into(w, traj);
+        self.task.cost(traj)
+    }
+}
+
+impl Objective for RolloutCost<'_> {
+    fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
+        let mut w = vec![0.0; x.len()];
+        let mut traj = self.dmp.new_trajectory();
+        Ok(self.cost_with(x, &mut w, &mut traj))
+    }
+
+    fn evaluate_batch(
+        &self,
+        xs: &[f64],
+        dim: usize,
+        out: &mut [f64],
+    ) -> Result<(), CandidateError> {
+        // One weight buffer and trajectory per worker, not per rollout.
+        xs.par_chunks_exact(dim)
+            .zip(out.par_iter_mut())
+            .for_each_init(
+                || (vec![0.0; dim], self.dmp.new_trajectory()),
+                |(w, traj), (x, o)| *o = self.cost_with(x, w, traj),
+            );
+        Ok(())
+    }
+}
+
+/// Learns a via-point movement.
+///
+/// Computes the exact optimum first (it is cheap: one rollout per weight plus a QR), then
+/// runs the configured solver once per repetition, repetitions in parallel in the current
+/// rayon pool. `progress(repetition, report)` is called after every generation and may
+/// return `ControlFlow::Break(())` to stop (e.g. on Ctrl-C); the runs then end with
+/// termination `interrupted`. The results do not depend on the number of threads.
+pub fn learn_via_points(
+    config: &ViaPointConfig,
+    progress: &(dyn Fn(usize, &GenerationReport<'_>) -> ControlFlow<()> + Sync),
+) -> Result<ViaPointOutcome, LearnError> {
+    let task = &config.task;
+    let dmp = task.build_dmp()?;
+    if config.repetitions == 0 {
+        return Err(LearnError::task("repetitions", "must be at least 1"));
+    }
+    let space = SearchSpace::new(config.parametrisation, &dmp);
+    let optimum = exact_optimum(task, &dmp, &space)?;
+    let objective = RolloutCost {
+        task,
+        dmp: &dmp,
+        space: &space,
+    };
+    let finish = |seed: u64,
+                  params: Vec<f64>,
+                  stats: (u64, u64, u64, String, Vec<GenerationRecord>),
+                  started: Instant| {
+        let mut weights = vec![0.0; params.len()];
+        space.to_weights(&params, &mut weights);
+        let traj = dmp.rollout(&weights);
+        let breakdown = task.breakdown(&traj);
+        let cost = breakdown.total();
+        RunResult {
+            seed,
+            params,
+            weights,
+            cost,
+            breakdown,
+            errors: task.errors(&traj),
+            gap_to_optimum: (cost - optimum.cost) / optimum.cost,
+            generations: stats.0,
+            evaluations: stats.1,
+            non_finite_evaluations: stats.2,
+            termination: stats.3,
+            history: stats.4,
+            seconds: started.elapsed().as_secs_f64(),
+        }
+    };
+    let runs: Result<Vec<RunResult>, LearnError> = (0..config.repetitions)
+        .into_par_iter()
+        .map(|rep| {
+            let seed = config.repetition_seed(rep);
+            let started = Instant::now();
+            if config.solver == Solver::Exact {
+                let stats = (
+                    0,
+                    space.len() as u64 + 1,
+                    0,
+                    "exact".to_string(),
+                    Vec::new(),
+                );
+                return Ok(finish(seed, optimum.params.clone(), stats, started));
+            }
+            let x0 = if config.warm_start {
+                optimum.params.clone()
+            } else {
+                vec![0.0; space.len()]
+            };
+            let cmaes = CmaesConfig {
+                population: config.population,
+                ..CmaesConfig::new(config.sigma0, seed)
+            };
+            let mut rules = vec![StopRule::MaxGenerations(config.generations)];
+            if let Some(tol) = config.tol_fun {
+                rules.push(StopRule::TolFun(tol));
+            }
+            rules.extend(StopRule::safety_defaults());
+            let mut history = Vec::new();
+            let mut observer = |r: &GenerationReport<'_>| {
+                history.push(GenerationRecord {
+                    generation: r.generation,
+                    best: r.best_cost,
+                    median: r.median_cost,
+                    best_so_far: r.best_so_far,
+                    sigma: r.sigma,
+                });
+                progress(rep, r)
+            };
+            let sol = minimize(&objective, &x0, &cmaes, &rules, &mut observer)?;
+            let stats = (
+                sol.generations,
+                sol.evaluations,
+                sol.non_finite_evaluations,
+                sol.termination.name().to_string(),
+                history,
+            );
+            Ok(finish(seed, sol.best_x, stats, started))
+        })
+        .collect();
+    let runs = runs?;
+    let best_run = runs
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1.cost.total_cmp(&b.1.cost).then(a.0.cmp(&b.0)))
+        .map(|(i, _)| i)
+        .unwrap_or(0);
+    Ok(ViaPointOutcome {
+        optimum,
+        runs,
+        best_run,
+        dmp,
+    })
+}
+
+/// Mean and 95 % band (mean ± 1.96 · std / √n) of the best-so-far cost per generation
+/// over repetitions. Runs that stopped early keep their final value.
+pub fn history_band(runs: &[RunResult]) -> Vec<(f64, f64, f64)> {
+    let len = runs.iter().map(|r| r.history.len()).max().unwrap_or(0);
+    let n = runs.len() as f64;
+    (0..len)
+        .map(|g| {
+            let vals: Vec<f64> = runs
+                .iter()
+                .filter_map(|r| r.history.get(g).or(r.history.last()).map(|h| h.best_so_far))
+                .collect();
+            let mean = vals.iter().sum::<f64>() / n;
+            let var = if vals.len() > 1 {
+                vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)
+            } else {
+                0.0
+            };
+            let half = 1.96 * var.sqrt() / n.sqrt();
+            (mean, mean - half, mean + half)
+        })
+        .collect()
+}
