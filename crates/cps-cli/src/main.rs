@@ -1,1 +1,238 @@
-fn main() {}
+//! `cps-cli`: run cps experiments from TOML files.
+//!
+//! ```text
+//! cps-cli run experiments/viapoint.toml [--out DIR] [--seed N] [--threads N] [--force] [--quiet]
+//! cps-cli check experiments/viapoint.toml
+//! cps-cli default > my-experiment.toml
+//! ```
+//!
+//! Exit codes: 0 success, 1 failure while running, 2 bad input (the message names the file,
+//! line and column), 130 interrupted by Ctrl-C (the results of the finished generations are
+//! still written, with `"complete": false`).
+
+mod experiment;
+mod output;
+mod plots;
+
+use std::io::IsTerminal;
+use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+use crate::experiment::InputError;
+
+/// The commented default experiment: the file shipped as experiments/viapoint.toml.
+const DEFAULT_EXPERIMENT: &str = include_str!("../../../experiments/viapoint.toml");
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "cps-cli",
+    version,
+    about = "Learn smooth robot movements from way points (cps)"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Run an experiment and write its results, plots and summary.
+    Run {
+        /// The experiment file (TOML).
+        file: PathBuf,
+        /// Output directory (default: results/<experiment name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Override the experiment's seed.
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Worker threads (default: all cores). Results do not depend on it.
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Replace results already in the output directory.
+        #[arg(long)]
+        force: bool,
+        /// No progress bar and no summary on the terminal.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Validate an experiment file without running it.
+    Check {
+        /// The experiment file (TOML).
+        file: PathBuf,
+    },
+    /// Print a commented default experiment (the thesis's via-point task).
+    Default,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let interrupted = Arc::new(AtomicBool::new(false));
+    let flag = interrupted.clone();
+    // A second Ctrl-C exits at once (the staging directory is then left behind, hidden).
+    let _ = ctrlc::set_handler(move || {
+        if flag.swap(true, Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+    });
+    match run(cli, &interrupted) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e}");
+            for cause in e.chain().skip(1) {
+                eprintln!("  caused by: {cause}");
+            }
+            if e.downcast_ref::<InputError>().is_some() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::from(1)
+            }
+        }
+    }
+}
+
+fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
+    match cli.command {
+        Command::Default => {
+            print!("{DEFAULT_EXPERIMENT}");
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Check { file } => {
+            let exp = experiment::load(&file, None)?;
+            println!(
+                "{}: ok ({} dimensions, {} via points, {} weights, {} generations x {} repetition(s))",
+                file.display(),
+                exp.config.task.start.len(),
+                exp.config.task.via.len(),
+                exp.config.task.start.len() * exp.config.task.dmp.n_basis,
+                exp.config.generations,
+                exp.config.repetitions
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Run {
+            file,
+            out,
+            seed,
+            threads,
+            force,
+            quiet,
+        } => run_experiment(&file, out, seed, threads, force, quiet, interrupted),
+    }
+}
+
+fn run_experiment(
+    file: &Path,
+    out: Option<PathBuf>,
+    seed: Option<u64>,
+    threads: Option<usize>,
+    force: bool,
+    quiet: bool,
+    interrupted: &AtomicBool,
+) -> Result<ExitCode> {
+    let started = Instant::now();
+    let exp = experiment::load(file, seed)?;
+    let out = out.unwrap_or_else(|| Path::new("results").join(&exp.name));
+    output::check_target(&out, force)?;
+    if threads == Some(0) {
+        return Err(InputError("--threads must be at least 1".into()).into());
+    }
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if let Some(t) = threads {
+        builder = builder.num_threads(t);
+    }
+    let pool = builder.build().context("cannot start the worker threads")?;
+    let threads_used = pool.current_num_threads();
+
+    let config = &exp.config;
+    let total = config.generations * config.repetitions as u64;
+    let bar = if quiet || !std::io::stderr().is_terminal() {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr_with_hz(10))
+    };
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{bar:30} {pos}/{len} generations  {msg}  [{elapsed_precise}]",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let best_bits = AtomicU64::new(f64::INFINITY.to_bits());
+    let progress = |_rep: usize, r: &cps_cmaes::GenerationReport<'_>| {
+        bar.inc(1);
+        let prev = f64::from_bits(best_bits.load(Ordering::Relaxed));
+        if r.best_so_far < prev {
+            best_bits.store(r.best_so_far.to_bits(), Ordering::Relaxed);
+        }
+        if r.generation % 25 == 0 {
+            bar.set_message(format!(
+                "best cost {:.4e}  sigma {:.2e}",
+                f64::from_bits(best_bits.load(Ordering::Relaxed)),
+                r.sigma
+            ));
+        }
+        if interrupted.load(Ordering::Relaxed) {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    };
+    let outcome = pool
+        .install(|| cps_learn::learn_via_points(config, &progress))
+        .map_err(|e| match e {
+            cps_learn::LearnError::InvalidTask { .. } | cps_learn::LearnError::Dmp(_) => {
+                anyhow::Error::new(InputError(format!("{}: {e}", file.display())))
+            }
+            other => anyhow::Error::new(other).context("the learning run failed"),
+        })?;
+    bar.finish_and_clear();
+    let wall = started.elapsed().as_secs_f64();
+
+    let stage = output::Staging::new(&out)?;
+    output::write_viapoint(&stage, &exp.name, config, &outcome, wall, threads_used)?;
+    if exp.plots {
+        plots::viapoint(&stage, &outcome, &config.task)?;
+    }
+    stage.commit()?;
+
+    let best = outcome.best();
+    if !quiet {
+        println!(
+            "{}: {} in {:.2} s",
+            exp.name,
+            best.termination,
+            started.elapsed().as_secs_f64()
+        );
+        println!(
+            "  best cost {:.6e} (exact optimum {:.6e}, gap {:.2e}) after {} generations, {} evaluations",
+            best.cost,
+            outcome.optimum.cost,
+            best.gap_to_optimum,
+            best.generations,
+            best.evaluations
+        );
+        println!(
+            "  goal error {:.3} mm, worst via-point error {:.3} mm, final speed {:.3} mm/s",
+            best.errors.goal * 1e3,
+            best.errors.via.iter().fold(0.0f64, |a, &b| a.max(b)) * 1e3,
+            best.errors.final_speed * 1e3
+        );
+        println!("  results in {}", out.display());
+    }
+    if outcome.interrupted() {
+        eprintln!(
+            "interrupted: results of the finished generations are in {} (complete: false)",
+            out.display()
+        );
+        return Ok(ExitCode::from(130));
+    }
+    Ok(ExitCode::SUCCESS)
+}

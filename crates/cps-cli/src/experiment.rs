@@ -1,0 +1,403 @@
+//! The experiment file: TOML schema, parsing with locations, and conversion to the
+//! library's typed configuration.
+
+use std::ops::Range;
+use std::path::Path;
+
+use cps_dmp::DmpConfig;
+use cps_learn::{
+    CostWeights, LearnError, Parametrisation, Solver, ViaPoint, ViaPointConfig, ViaPointTask,
+};
+use serde::Deserialize;
+use toml::Spanned;
+
+/// A problem with the user's input: exit code 2.
+#[derive(Debug)]
+pub struct InputError(pub String);
+
+impl std::fmt::Display for InputError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for InputError {}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    experiment: Experiment,
+    dmp: Dmp,
+    task: Task,
+    #[serde(default)]
+    cost: Option<Spanned<Cost>>,
+    optimizer: Optimizer,
+    #[serde(default)]
+    output: Output,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Experiment {
+    name: Option<String>,
+    #[serde(default = "one")]
+    seed: u64,
+    #[serde(default = "one_spanned")]
+    repetitions: Spanned<usize>,
+}
+
+fn one() -> u64 {
+    1
+}
+
+fn one_spanned() -> Spanned<usize> {
+    Spanned::new(0..0, 1)
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Dmp {
+    basis_functions: Spanned<usize>,
+    tau: Spanned<f64>,
+    dt: Spanned<f64>,
+    alpha_z: Option<Spanned<f64>>,
+    beta_z: Option<Spanned<f64>>,
+    alpha_x: Option<Spanned<f64>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Task {
+    start: Spanned<Vec<f64>>,
+    goal: Spanned<Vec<f64>>,
+    goal_velocity: Option<Spanned<Vec<f64>>>,
+    #[serde(default)]
+    via: Vec<Spanned<Via>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Via {
+    time: Spanned<f64>,
+    position: Spanned<Vec<f64>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Cost {
+    #[serde(default)]
+    goal: f64,
+    #[serde(default)]
+    via: f64,
+    #[serde(default)]
+    final_velocity: f64,
+    #[serde(default)]
+    acceleration: f64,
+    #[serde(default)]
+    jerk: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Optimizer {
+    #[serde(default)]
+    method: Solver,
+    #[serde(default)]
+    parametrisation: Parametrisation,
+    #[serde(default)]
+    warm_start: bool,
+    sigma0: Option<Spanned<f64>>,
+    population: Option<Spanned<usize>>,
+    generations: Spanned<u64>,
+    tol_fun: Option<Spanned<f64>>,
+}
+
+#[derive(Debug, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct Output {
+    #[serde(default = "yes")]
+    plots: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// A parsed and validated experiment.
+#[derive(Debug, Clone)]
+pub struct ViaPointExperiment {
+    /// Experiment name (file stem unless given).
+    pub name: String,
+    /// The learner's configuration.
+    pub config: ViaPointConfig,
+    /// Whether to draw plots.
+    pub plots: bool,
+}
+
+/// `file:line:column` of a byte offset.
+fn location(path: &Path, text: &str, span: &Range<usize>) -> String {
+    let before = &text[..span.start.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    format!("{}:{line}:{column}", path.display())
+}
+
+/// Reads, parses and validates an experiment file. Every error names the file, the line
+/// and column where it can, and the rule broken.
+pub fn load(path: &Path, seed_override: Option<u64>) -> Result<ViaPointExperiment, InputError> {
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        InputError(format!(
+            "{}: cannot read the experiment file: {e}",
+            path.display()
+        ))
+    })?;
+    parse(path, &text, seed_override)
+}
+
+/// Parses and validates experiment text (`path` is only used in messages).
+pub fn parse(
+    path: &Path,
+    text: &str,
+    seed_override: Option<u64>,
+) -> Result<ViaPointExperiment, InputError> {
+    let file: File = toml::from_str(text).map_err(|e| {
+        let at = e
+            .span()
+            .map(|s| location(path, text, &s))
+            .unwrap_or_else(|| path.display().to_string());
+        InputError(format!("{at}: {}", e.message()))
+    })?;
+    let err = |span: &Range<usize>, msg: String| {
+        InputError(format!("{}: {msg}", location(path, text, span)))
+    };
+
+    let d = &file.dmp;
+    let mut dmp = DmpConfig::new(
+        *d.basis_functions.get_ref(),
+        *d.tau.get_ref(),
+        *d.dt.get_ref(),
+    );
+    if let Some(v) = &d.alpha_z {
+        dmp.alpha_z = *v.get_ref();
+        dmp.beta_z = dmp.alpha_z / 4.0;
+        dmp.alpha_x = dmp.alpha_z / 3.0;
+    }
+    if let Some(v) = &d.beta_z {
+        dmp.beta_z = *v.get_ref();
+    }
+    if let Some(v) = &d.alpha_x {
+        dmp.alpha_x = *v.get_ref();
+    }
+    let t = &file.task;
+    let dims = t.start.get_ref().len();
+    let task = ViaPointTask {
+        start: t.start.get_ref().clone(),
+        goal: t.goal.get_ref().clone(),
+        goal_velocity: t
+            .goal_velocity
+            .as_ref()
+            .map_or_else(|| vec![0.0; dims], |v| v.get_ref().clone()),
+        via: t
+            .via
+            .iter()
+            .map(|v| ViaPoint {
+                time: *v.get_ref().time.get_ref(),
+                position: v.get_ref().position.get_ref().clone(),
+            })
+            .collect(),
+        dmp,
+        weights: match &file.cost {
+            Some(c) => {
+                let c = c.get_ref();
+                CostWeights {
+                    goal: c.goal,
+                    via: c.via,
+                    final_velocity: c.final_velocity,
+                    acceleration: c.acceleration,
+                    jerk: c.jerk,
+                }
+            }
+            None => CostWeights::thesis(),
+        },
+    };
+    // Library validation, mapped back to the place in the file.
+    if let Err(e) = task.validate() {
+        let span = match &e {
+            LearnError::InvalidTask { field, .. } => locate_task_field(&file, field),
+            LearnError::Dmp(cps_dmp::DmpError::InvalidConfig { field, .. }) => Some(match *field {
+                "tau" => d.tau.span(),
+                "dt" => d.dt.span(),
+                "n_basis" => d.basis_functions.span(),
+                "alpha_z" => d.alpha_z.as_ref().map_or(d.tau.span(), |v| v.span()),
+                "beta_z" => d
+                    .beta_z
+                    .as_ref()
+                    .or(d.alpha_z.as_ref())
+                    .map_or(d.tau.span(), |v| v.span()),
+                _ => d
+                    .alpha_x
+                    .as_ref()
+                    .or(d.alpha_z.as_ref())
+                    .map_or(d.tau.span(), |v| v.span()),
+            }),
+            _ => None,
+        };
+        let msg = match &e {
+            LearnError::Dmp(cps_dmp::DmpError::InvalidConfig { field, rule, value }) => {
+                format!("[dmp] `{}` {rule} (got {value})", toml_name(field))
+            }
+            other => other.to_string(),
+        };
+        return Err(match span {
+            Some(s) => err(&s, msg),
+            None => InputError(format!("{}: {msg}", path.display())),
+        });
+    }
+    let o = &file.optimizer;
+    let reps = &file.experiment.repetitions;
+    if *reps.get_ref() == 0 {
+        return Err(err(
+            &reps.span(),
+            "[experiment] `repetitions` must be at least 1".into(),
+        ));
+    }
+    if *reps.get_ref() > 10_000 {
+        return Err(err(
+            &reps.span(),
+            "[experiment] `repetitions` must be at most 10000".into(),
+        ));
+    }
+    let mut config = ViaPointConfig::new(task);
+    config.solver = o.method;
+    config.parametrisation = o.parametrisation;
+    config.warm_start = o.warm_start;
+    config.repetitions = *reps.get_ref();
+    config.seed = seed_override.unwrap_or(file.experiment.seed);
+    if let Some(s) = &o.sigma0 {
+        let v = *s.get_ref();
+        if !(v.is_finite() && v > 0.0) {
+            return Err(err(
+                &s.span(),
+                format!("[optimizer] `sigma0` must be finite and > 0 (got {v})"),
+            ));
+        }
+        config.sigma0 = v;
+    }
+    if let Some(p) = &o.population {
+        if *p.get_ref() < 2 {
+            return Err(err(
+                &p.span(),
+                format!(
+                    "[optimizer] `population` must be at least 2 (got {})",
+                    p.get_ref()
+                ),
+            ));
+        }
+        config.population = Some(*p.get_ref());
+    }
+    let g = &o.generations;
+    if *g.get_ref() == 0 || *g.get_ref() > 100_000_000 {
+        return Err(err(
+            &g.span(),
+            format!(
+                "[optimizer] `generations` must be between 1 and 1e8 (got {})",
+                g.get_ref()
+            ),
+        ));
+    }
+    config.generations = *g.get_ref();
+    config.tol_fun = match &o.tol_fun {
+        Some(t) => {
+            let v = *t.get_ref();
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(err(
+                    &t.span(),
+                    format!("[optimizer] `tol_fun` must be finite and ≥ 0 (got {v})"),
+                ));
+            }
+            (v > 0.0).then_some(v)
+        }
+        None => None,
+    };
+    let name = file.experiment.name.clone().unwrap_or_else(|| {
+        path.file_stem()
+            .map_or("experiment".into(), |s| s.to_string_lossy().into_owned())
+    });
+    Ok(ViaPointExperiment {
+        name,
+        config,
+        plots: file.output.plots,
+    })
+}
+
+fn toml_name(field: &str) -> &str {
+    if field == "n_basis" {
+        "basis_functions"
+    } else {
+        field
+    }
+}
+
+/// The span of a task field named like `via[2].time`, `start[1]` or `cost.via`.
+fn locate_task_field(file: &File, field: &str) -> Option<Range<usize>> {
+    let t = &file.task;
+    let (head, index) = match field.split_once('[') {
+        Some((h, rest)) => (
+            h,
+            rest.split(']').next().and_then(|i| i.parse::<usize>().ok()),
+        ),
+        None => (field, None),
+    };
+    Some(match head {
+        "start" => t.start.span(),
+        "goal" => t.goal.span(),
+        "goal_velocity" => t.goal_velocity.as_ref()?.span(),
+        "via" => {
+            let v = t.via.get(index?)?;
+            if field.ends_with(".time") {
+                v.get_ref().time.span()
+            } else if field.contains(".position") {
+                v.get_ref().position.span()
+            } else {
+                v.span()
+            }
+        }
+        _ if head.starts_with("cost") => file.cost.as_ref()?.span(),
+        _ => return None,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SHIPPED: &str = include_str!("../../../experiments/viapoint.toml");
+
+    fn check(text: &str) -> Result<ViaPointExperiment, InputError> {
+        parse(Path::new("x.toml"), text, None)
+    }
+
+    #[test]
+    fn the_shipped_experiment_parses_to_the_thesis_task() {
+        let e = check(SHIPPED).unwrap();
+        let thesis = ViaPointTask::thesis();
+        assert_eq!(e.config.task.start, thesis.start);
+        assert_eq!(e.config.task.goal, thesis.goal);
+        assert_eq!(e.config.task.via, thesis.via);
+        assert_eq!(e.config.task.weights, thesis.weights);
+        assert_eq!(e.config.task.dmp, thesis.dmp);
+    }
+
+    #[test]
+    fn errors_name_line_column_and_rule() {
+        let bad = SHIPPED.replace("tau = 10.0", "tau = -1.0");
+        let msg = check(&bad).unwrap_err().0;
+        let line = SHIPPED
+            .lines()
+            .position(|l| l.starts_with("tau = 10.0"))
+            .unwrap()
+            + 1;
+        assert!(msg.starts_with(&format!("x.toml:{line}:")), "{msg}");
+        assert!(msg.contains("tau") && msg.contains("> 0"), "{msg}");
+    }
+}

@@ -1,0 +1,338 @@
+//! Results on disk: summary.json, CSV files and plots, written atomically.
+
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use cps_learn::{ViaPointConfig, ViaPointOutcome};
+use serde::Serialize;
+
+use crate::experiment::InputError;
+
+/// Files that mark a directory as holding results.
+const MARKER: &str = "summary.json";
+
+/// Refuses an output directory that already holds results unless `force`.
+pub fn check_target(out: &Path, force: bool) -> Result<(), InputError> {
+    if out.join(MARKER).exists() && !force {
+        return Err(InputError(format!(
+            "{}: already holds results (summary.json); choose another --out or pass --force to replace them",
+            out.display()
+        )));
+    }
+    if out.exists() && !out.is_dir() {
+        return Err(InputError(format!(
+            "{}: exists and is not a directory",
+            out.display()
+        )));
+    }
+    Ok(())
+}
+
+/// A directory being filled next to its final place, renamed into place when complete, so
+/// no reader ever sees half-written results.
+pub struct Staging {
+    tmp: PathBuf,
+    target: PathBuf,
+    done: bool,
+}
+
+impl Staging {
+    /// Creates `.<name>.partial-<pid>` next to `target`.
+    pub fn new(target: &Path) -> Result<Self> {
+        let parent = target
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        fs::create_dir_all(parent)
+            .with_context(|| format!("cannot create {}", parent.display()))?;
+        let name = target
+            .file_name()
+            .map_or("results".into(), |n| n.to_string_lossy().into_owned());
+        let tmp = parent.join(format!(".{name}.partial-{}", std::process::id()));
+        if tmp.exists() {
+            fs::remove_dir_all(&tmp).ok();
+        }
+        fs::create_dir(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+        Ok(Self {
+            tmp,
+            target: target.to_path_buf(),
+            done: false,
+        })
+    }
+
+    /// Path of a file inside the staging directory.
+    pub fn path(&self, file: &str) -> PathBuf {
+        self.tmp.join(file)
+    }
+
+    /// Writes a whole file.
+    pub fn write(&self, file: &str, bytes: &[u8]) -> Result<()> {
+        let p = self.path(file);
+        let mut f =
+            fs::File::create(&p).with_context(|| format!("cannot create {}", p.display()))?;
+        f.write_all(bytes)
+            .with_context(|| format!("cannot write {}", p.display()))?;
+        Ok(())
+    }
+
+    /// Moves the finished directory into place (replacing old results, which `check_target`
+    /// allowed only with --force).
+    pub fn commit(mut self) -> Result<()> {
+        let old = self.target.with_file_name(format!(
+            ".{}.old-{}",
+            self.target
+                .file_name()
+                .map_or("results".into(), |n| n.to_string_lossy().into_owned()),
+            std::process::id()
+        ));
+        let had_old = self.target.exists();
+        if had_old {
+            fs::rename(&self.target, &old)
+                .with_context(|| format!("cannot move old {}", self.target.display()))?;
+        }
+        fs::rename(&self.tmp, &self.target)
+            .with_context(|| format!("cannot move results into {}", self.target.display()))?;
+        if had_old {
+            fs::remove_dir_all(&old).ok();
+        }
+        self.done = true;
+        Ok(())
+    }
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        if !self.done {
+            fs::remove_dir_all(&self.tmp).ok();
+        }
+    }
+}
+
+#[derive(Serialize)]
+struct Summary<'a> {
+    experiment: &'a str,
+    kind: &'static str,
+    complete: bool,
+    seed: u64,
+    versions: Versions,
+    threads: usize,
+    wall_time_s: f64,
+    solver: &'static str,
+    parametrisation: &'static str,
+    warm_start: bool,
+    repetitions: usize,
+    best_repetition: usize,
+    generations: u64,
+    evaluations: u64,
+    non_finite_evaluations: u64,
+    termination: &'a str,
+    best_cost: f64,
+    cost_terms: &'a cps_learn::CostBreakdown,
+    goal_error_m: f64,
+    via_errors_m: &'a [f64],
+    max_position_error_m: f64,
+    final_speed_m_s: f64,
+    optimum_cost: f64,
+    optimum_cost_terms: &'a cps_learn::CostBreakdown,
+    gap_to_optimum: f64,
+    hessian_condition: f64,
+    runs: Vec<RunSummary<'a>>,
+}
+
+#[derive(Serialize)]
+struct RunSummary<'a> {
+    seed: u64,
+    cost: f64,
+    gap_to_optimum: f64,
+    max_position_error_m: f64,
+    final_speed_m_s: f64,
+    generations: u64,
+    evaluations: u64,
+    termination: &'a str,
+    seconds: f64,
+}
+
+#[derive(Serialize)]
+struct Versions {
+    cps: &'static str,
+}
+
+fn sci(v: f64) -> String {
+    format!("{v:e}")
+}
+
+/// Writes every result file of a via-point run into `stage`.
+pub fn write_viapoint(
+    stage: &Staging,
+    name: &str,
+    config: &ViaPointConfig,
+    outcome: &ViaPointOutcome,
+    wall_time_s: f64,
+    threads: usize,
+) -> Result<()> {
+    let best = outcome.best();
+    let summary = Summary {
+        experiment: name,
+        kind: "viapoint",
+        complete: !outcome.interrupted(),
+        seed: config.seed,
+        versions: Versions {
+            cps: env!("CARGO_PKG_VERSION"),
+        },
+        threads,
+        wall_time_s,
+        solver: match config.solver {
+            cps_learn::Solver::Cmaes => "cmaes",
+            cps_learn::Solver::Exact => "exact",
+        },
+        parametrisation: config.parametrisation.name(),
+        warm_start: config.warm_start,
+        repetitions: outcome.runs.len(),
+        best_repetition: outcome.best_run,
+        generations: best.generations,
+        evaluations: outcome.runs.iter().map(|r| r.evaluations).sum(),
+        non_finite_evaluations: outcome.runs.iter().map(|r| r.non_finite_evaluations).sum(),
+        termination: &best.termination,
+        best_cost: best.cost,
+        cost_terms: &best.breakdown,
+        goal_error_m: best.errors.goal,
+        via_errors_m: &best.errors.via,
+        max_position_error_m: best.errors.max_position_error(),
+        final_speed_m_s: best.errors.final_speed,
+        optimum_cost: outcome.optimum.cost,
+        optimum_cost_terms: &outcome.optimum.breakdown,
+        gap_to_optimum: best.gap_to_optimum,
+        hessian_condition: outcome.optimum.hessian_condition,
+        runs: outcome
+            .runs
+            .iter()
+            .map(|r| RunSummary {
+                seed: r.seed,
+                cost: r.cost,
+                gap_to_optimum: r.gap_to_optimum,
+                max_position_error_m: r.errors.max_position_error(),
+                final_speed_m_s: r.errors.final_speed,
+                generations: r.generations,
+                evaluations: r.evaluations,
+                termination: &r.termination,
+                seconds: r.seconds,
+            })
+            .collect(),
+    };
+    stage.write("summary.json", &serde_json::to_vec_pretty(&summary)?)?;
+
+    // cost_history.csv: one row per generation and repetition.
+    let mut w = csv::Writer::from_path(stage.path("cost_history.csv"))?;
+    w.write_record([
+        "repetition",
+        "generation",
+        "best",
+        "median",
+        "best_so_far",
+        "sigma",
+    ])?;
+    for (rep, run) in outcome.runs.iter().enumerate() {
+        for h in &run.history {
+            w.write_record([
+                rep.to_string(),
+                h.generation.to_string(),
+                sci(h.best),
+                sci(h.median),
+                sci(h.best_so_far),
+                sci(h.sigma),
+            ])?;
+        }
+    }
+    w.flush()?;
+
+    // weights.csv: the thesis's columns, one row per repetition.
+    let task = &config.task;
+    let dims = task.start.len();
+    let mut way: Vec<Vec<f64>> = vec![Vec::new(); dims + 1];
+    let mut push = |p: &[f64], t: f64| {
+        for d in 0..dims {
+            way[d].push(p[d]);
+        }
+        way[dims].push(t);
+    };
+    push(&task.start, 0.0);
+    for v in &task.via {
+        push(&v.position, v.time);
+    }
+    push(&task.goal, task.dmp.tau);
+    let list = |v: &[f64]| {
+        format!(
+            "[{}]",
+            v.iter().map(|x| sci(*x)).collect::<Vec<_>>().join(", ")
+        )
+    };
+    let now = humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string();
+    let mut w = csv::Writer::from_path(stage.path("weights.csv"))?;
+    w.write_record([
+        "Time",
+        "NrDmps",
+        "NrBfs",
+        "Scaling",
+        "Tau",
+        "NrIterations",
+        "Weights",
+        "Rewards",
+        "ComputeTime",
+        "NrWayPoints",
+        "WayPoints",
+    ])?;
+    for run in &outcome.runs {
+        let weights: Vec<String> = run.weights.chunks(task.dmp.n_basis).map(list).collect();
+        let rewards: Vec<f64> = run.history.iter().map(|h| h.best_so_far).collect();
+        let points: Vec<String> = way.iter().map(|r| list(r)).collect();
+        w.write_record([
+            now.clone(),
+            dims.to_string(),
+            task.dmp.n_basis.to_string(),
+            config.parametrisation.name().to_string(),
+            task.dmp.tau.to_string(),
+            run.generations.to_string(),
+            format!("[{}]", weights.join(", ")),
+            list(&rewards),
+            format!("{:.6}", run.seconds),
+            (task.via.len() + 2).to_string(),
+            format!("[{}]", points.join(", ")),
+        ])?;
+    }
+    w.flush()?;
+
+    // trajectory.csv: t, positions, velocities, accelerations (SI units).
+    let traj = outcome.best_trajectory();
+    let axis = |d: usize| {
+        if dims == 3 {
+            ["x", "y", "z"][d].to_string()
+        } else {
+            d.to_string()
+        }
+    };
+    let mut header = vec!["t".to_string()];
+    for prefix in ["", "v", "a"] {
+        for d in 0..dims {
+            header.push(format!("{prefix}{}", axis(d)));
+        }
+    }
+    let mut w = csv::Writer::from_path(stage.path("trajectory.csv"))?;
+    w.write_record(&header)?;
+    for (k, t) in traj.times().iter().enumerate() {
+        let mut row = vec![format!("{t:.6}")];
+        for q in [
+            cps_dmp::Trajectory::position,
+            cps_dmp::Trajectory::velocity,
+            cps_dmp::Trajectory::acceleration,
+        ] {
+            for d in 0..dims {
+                row.push(format!("{:.12e}", q(&traj, d)[k]));
+            }
+        }
+        w.write_record(&row)?;
+    }
+    w.flush()?;
+    Ok(())
+}
