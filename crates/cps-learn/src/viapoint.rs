@@ -288,6 +288,14 @@ pub fn learn_via_points(
                 progress(rep, r)
             };
             let sol = minimize(&objective, &x0, &cmaes, &rules, &mut observer)?;
+            // The final mean is often better than every sample, and a warm start must never
+            // end worse than where it began: keep the best of the three.
+            let best_x = [sol.best_x, sol.mean, x0]
+                .into_iter()
+                .map(|x| (objective.evaluate(&x).unwrap_or(f64::INFINITY), x))
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .map(|(_, x)| x)
+                .unwrap_or_default();
             let stats = (
                 sol.generations,
                 sol.evaluations,
@@ -295,7 +303,7 @@ pub fn learn_via_points(
                 sol.termination.name().to_string(),
                 history,
             );
-            Ok(finish(seed, sol.best_x, stats, started))
+            Ok(finish(seed, best_x, stats, started))
         })
         .collect();
     let runs = runs?;

@@ -1,0 +1,100 @@
+//! Property tests of the discrete DMP against analytic facts.
+
+use cps_dmp::{DiscreteDmp, DmpConfig};
+use proptest::prelude::*;
+
+fn weights(n: usize, seed: u64, scale: f64) -> Vec<f64> {
+    // A cheap deterministic pseudo-random vector.
+    (0..n).map(|i| (((i as u64 + 1) * 2654435761 ^ seed) % 2001) as f64 / 1000.0 - 1.0).map(|v| v * scale).collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// The same weights with τ and 2τ trace the same path, twice as slowly: on matching
+    /// grids (dt and 2 dt) positions agree to rounding, velocities halve, accelerations
+    /// quarter.
+    #[test]
+    fn tau_invariance_on_matching_grids(seed in 0u64..1000, tau in 0.5f64..20.0, nb in 3usize..30) {
+        let (y0, g) = ([0.3, -1.0], [1.2, 0.4]);
+        let a = DiscreteDmp::new(DmpConfig::new(nb, tau, tau / 500.0), &y0, &g).unwrap();
+        let b = DiscreteDmp::new(DmpConfig::new(nb, 2.0 * tau, 2.0 * tau / 500.0), &y0, &g).unwrap();
+        let w = weights(a.n_weights(), seed, 300.0);
+        let (ta, tb) = (a.rollout(&w), b.rollout(&w));
+        for d in 0..2 {
+            let scale = ta.position(d).iter().fold(1.0f64, |m, v| m.max(v.abs()));
+            for k in 0..ta.n_samples() {
+                prop_assert!((ta.position(d)[k] - tb.position(d)[k]).abs() <= 1e-12 * scale);
+                prop_assert!((ta.velocity(d)[k] - 2.0 * tb.velocity(d)[k]).abs() <= 1e-11 * scale / tau);
+                prop_assert!((ta.acceleration(d)[k] - 4.0 * tb.acceleration(d)[k]).abs() <= 1e-10 * scale / (tau * tau));
+            }
+        }
+    }
+
+    /// With the same dt, doubling τ samples the same continuous path twice as densely;
+    /// the first-order-hold scheme is second order, so the paths agree closely.
+    #[test]
+    fn tau_invariance_same_dt(seed in 0u64..1000) {
+        let a = DiscreteDmp::new(DmpConfig::new(25, 10.0, 0.01), &[0.75], &[0.55]).unwrap();
+        let b = DiscreteDmp::new(DmpConfig::new(25, 20.0, 0.01), &[0.75], &[0.55]).unwrap();
+        let w = weights(25, seed, 2000.0);
+        let (ta, tb) = (a.rollout(&w), b.rollout(&w));
+        for k in 0..ta.n_samples() {
+            prop_assert!((ta.position(0)[k] - tb.position(0)[2 * k]).abs() < 2e-5, "k = {}", k);
+        }
+    }
+
+    /// The rollout is affine in the weights: r(a w1 + b w2) = r0 + a (r(w1) - r0) + b (r(w2) - r0).
+    #[test]
+    fn rollout_is_affine(seed in 0u64..1000, a in -3.0f64..3.0, b in -3.0f64..3.0) {
+        let dmp = DiscreteDmp::new(DmpConfig::new(12, 3.0, 0.01), &[0.0, 2.0, -1.0], &[1.0, 1.5, 0.0]).unwrap();
+        let n = dmp.n_weights();
+        let (w1, w2) = (weights(n, seed, 500.0), weights(n, seed + 7, 500.0));
+        let mix: Vec<f64> = w1.iter().zip(&w2).map(|(x, y)| a * x + b * y).collect();
+        let (t0, t1, t2, tm) = (dmp.rollout(&vec![0.0; n]), dmp.rollout(&w1), dmp.rollout(&w2), dmp.rollout(&mix));
+        for d in 0..3 {
+            for k in 0..t0.n_samples() {
+                let z = t0.position(d)[k];
+                let expect = z + a * (t1.position(d)[k] - z) + b * (t2.position(d)[k] - z);
+                prop_assert!((tm.position(d)[k] - expect).abs() < 1e-9 * (1.0 + expect.abs()));
+            }
+        }
+    }
+
+    /// Zero weights: a critically damped spring from y0 to g, never overshooting.
+    #[test]
+    fn zero_weights_reach_the_goal_monotonically(y0 in -5.0f64..5.0, g in -5.0f64..5.0, tau in 0.2f64..5.0) {
+        prop_assume!((g - y0).abs() > 1e-3);
+        let dmp = DiscreteDmp::new(DmpConfig::new(10, tau, tau / 400.0), &[y0], &[g]).unwrap();
+        let t = dmp.rollout(&[0.0; 10]);
+        let err: Vec<f64> = t.position(0).iter().map(|y| (y - g).abs()).collect();
+        prop_assert!(err.windows(2).all(|e| e[1] <= e[0] + 1e-12));
+        prop_assert!(err[err.len() - 1] < 5.1e-5 * (g - y0).abs());
+    }
+}
+
+#[test]
+fn velocity_and_acceleration_are_the_derivatives_of_position() {
+    let dmp = DiscreteDmp::new(DmpConfig::new(25, 10.0, 0.001), &[0.75], &[0.55]).unwrap();
+    let t = dmp.rollout(&weights(25, 3, 3000.0));
+    let h = t.times()[1];
+    let (y, v, a) = (t.position(0), t.velocity(0), t.acceleration(0));
+    for k in 1..t.n_samples() - 1 {
+        let dv = (y[k + 1] - y[k - 1]) / (2.0 * h);
+        let da = (v[k + 1] - v[k - 1]) / (2.0 * h);
+        assert!((dv - v[k]).abs() < 1e-4 * (1.0 + v[k].abs()), "velocity at {k}");
+        assert!((da - a[k]).abs() < 2e-3 * (1.0 + a[k].abs()), "acceleration at {k}: {da} vs {}", a[k]);
+    }
+}
+
+#[test]
+fn batch_rollout_equals_single_rollouts() {
+    let dmp = DiscreteDmp::new(DmpConfig::new(25, 10.0, 0.01), &[0.75, 0.02, 1.87], &[0.55, -0.57, 1.45]).unwrap();
+    let n = dmp.n_weights();
+    let pop = weights(5 * n, 11, 800.0);
+    let mut out: Vec<_> = (0..5).map(|_| dmp.new_trajectory()).collect();
+    dmp.rollout_batch(&pop, &mut out);
+    for (m, t) in out.iter().enumerate() {
+        assert_eq!(t, &dmp.rollout(&pop[m * n..(m + 1) * n]));
+    }
+}

@@ -1,0 +1,152 @@
+//! Via-point learning against exact facts: the cost is an exact quadratic in the weights,
+//! the least-squares optimum is a minimum in every search space, CMA-ES approaches it, and
+//! runs are reproducible at any thread count.
+
+use std::ops::ControlFlow;
+
+use cps_learn::{
+    exact_optimum, learn_via_points, LearnError, Parametrisation, SearchSpace, Solver, ViaPointConfig, ViaPointTask,
+};
+
+fn cost_at(task: &ViaPointTask, space: &SearchSpace, theta: &[f64]) -> f64 {
+    let dmp = task.build_dmp().unwrap();
+    let mut w = vec![0.0; theta.len()];
+    space.to_weights(theta, &mut w);
+    task.cost(&dmp.rollout(&w))
+}
+
+fn direction(n: usize, seed: u64) -> Vec<f64> {
+    (0..n).map(|i| ((((i as u64 + 3) * 0x9E37_79B9) ^ seed) % 1000) as f64 / 500.0 - 1.0).collect()
+}
+
+fn quiet() -> impl Fn(usize, &cps_cmaes::GenerationReport<'_>) -> ControlFlow<()> + Sync {
+    |_, _| ControlFlow::Continue(())
+}
+
+#[test]
+fn the_cost_is_an_exact_quadratic_in_the_parameters() {
+    let task = ViaPointTask::thesis();
+    let dmp = task.build_dmp().unwrap();
+    let space = SearchSpace::new(Parametrisation::AnchorOffset, &dmp);
+    let x = direction(space.len(), 1);
+    let d = direction(space.len(), 2);
+    let at = |s: f64| cost_at(&task, &space, &x.iter().zip(&d).map(|(a, b)| a + s * b).collect::<Vec<_>>());
+    // A quadratic's third finite difference vanishes; check against the scale of the values.
+    let (c0, c1, c2, c3) = (at(0.0), at(0.1), at(0.2), at(0.3));
+    let third = c3 - 3.0 * c2 + 3.0 * c1 - c0;
+    assert!(third.abs() < 1e-9 * c0.abs().max(1.0), "third difference {third} (cost {c0})");
+}
+
+#[test]
+fn the_exact_optimum_is_a_minimum_in_every_space() {
+    let task = ViaPointTask::thesis();
+    let dmp = task.build_dmp().unwrap();
+    let mut costs = Vec::new();
+    for kind in [Parametrisation::AnchorOffset, Parametrisation::ThesisScaling, Parametrisation::Raw] {
+        let space = SearchSpace::new(kind, &dmp);
+        let opt = exact_optimum(&task, &dmp, &space).unwrap();
+        assert!((cost_at(&task, &space, &opt.params) - opt.cost).abs() <= 1e-12 * opt.cost);
+        // Every step away raises the cost (quadratic with a positive definite Hessian).
+        for seed in 0..8 {
+            let d = direction(space.len(), seed);
+            for step in [1e-4, 1e-2] {
+                let scale = space.scale().iter().map(|s| 1.0 / s).collect::<Vec<_>>();
+                let p: Vec<f64> = opt.params.iter().zip(&d).zip(&scale).map(|((p, d), s)| p + step * d * s * space.scale()[0]).collect();
+                assert!(cost_at(&task, &space, &p) >= opt.cost * (1.0 - 1e-12), "{kind:?}, seed {seed}, step {step}");
+            }
+        }
+        costs.push(opt.cost);
+    }
+    // The optimum does not depend on the parametrisation (it is a linear reparametrisation).
+    for c in &costs[1..] {
+        assert!((c - costs[0]).abs() <= 1e-6 * costs[0], "{costs:?}");
+    }
+    // The thesis's penalties pin the via points to micrometres at the optimum.
+    let opt = exact_optimum(&task, &dmp, &SearchSpace::new(Parametrisation::AnchorOffset, &dmp)).unwrap();
+    let errors = task.errors(&dmp.rollout(&opt.weights));
+    assert!(errors.max_position_error() < 1e-4, "{errors:?}");
+}
+
+#[test]
+fn anchor_offsets_condition_the_problem_far_better_than_raw_weights() {
+    let task = ViaPointTask::thesis();
+    let dmp = task.build_dmp().unwrap();
+    let cond = |k| exact_optimum(&task, &dmp, &SearchSpace::new(k, &dmp)).unwrap().hessian_condition;
+    let (raw, thesis, anchor) = (cond(Parametrisation::Raw), cond(Parametrisation::ThesisScaling), cond(Parametrisation::AnchorOffset));
+    assert!(anchor * 1e5 < raw, "anchor {anchor:e} raw {raw:e}");
+    assert!(anchor * 1e4 < thesis, "anchor {anchor:e} thesis {thesis:e}");
+}
+
+#[test]
+fn cmaes_from_the_exact_optimum_stays_there_and_exact_solver_reports_zero_gap() {
+    let mut config = ViaPointConfig::new(ViaPointTask::thesis());
+    config.warm_start = true;
+    config.sigma0 = 1e-4;
+    config.generations = 30;
+    let out = learn_via_points(&config, &quiet()).unwrap();
+    assert!(out.best().gap_to_optimum.abs() < 1e-6, "{}", out.best().gap_to_optimum);
+    config.solver = Solver::Exact;
+    let out = learn_via_points(&config, &quiet()).unwrap();
+    assert_eq!(out.best().gap_to_optimum, 0.0);
+    assert_eq!(out.best().termination, "exact");
+}
+
+#[test]
+fn cmaes_improves_from_zero_weights_and_every_run_is_no_better_than_the_optimum() {
+    let mut config = ViaPointConfig::new(ViaPointTask::thesis());
+    config.generations = 300;
+    config.repetitions = 3;
+    let out = learn_via_points(&config, &quiet()).unwrap();
+    assert_eq!(out.runs.len(), 3);
+    for r in &out.runs {
+        let first = r.history[0].best_so_far;
+        assert!(r.cost < first / 500.0, "{} vs {first}", r.cost);
+        assert!(r.cost >= out.optimum.cost * (1.0 - 1e-9));
+        assert!(r.history.windows(2).all(|h| h[1].best_so_far <= h[0].best_so_far));
+    }
+    let seeds: std::collections::HashSet<u64> = out.runs.iter().map(|r| r.seed).collect();
+    assert_eq!(seeds.len(), 3, "repetitions use distinct derived seeds");
+}
+
+#[test]
+fn same_seed_same_result_at_any_thread_count() {
+    let mut config = ViaPointConfig::new(ViaPointTask::thesis());
+    config.generations = 60;
+    config.repetitions = 2;
+    let go = |t: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap();
+        pool.install(|| learn_via_points(&config, &quiet()).unwrap())
+    };
+    let (a, b) = (go(1), go(2));
+    for (x, y) in a.runs.iter().zip(&b.runs) {
+        assert_eq!(x.weights, y.weights);
+        assert_eq!(x.cost.to_bits(), y.cost.to_bits());
+        assert_eq!(x.history, y.history);
+    }
+}
+
+#[test]
+fn ill_posed_tasks_are_errors_naming_the_field() {
+    let field = |task: ViaPointTask| match task.validate() {
+        Err(LearnError::InvalidTask { field, .. }) => field,
+        other => panic!("{other:?}"),
+    };
+    let mut t = ViaPointTask::thesis();
+    t.via[2].time = 11.0;
+    assert_eq!(field(t), "via[2].time");
+    let mut t = ViaPointTask::thesis();
+    t.via[1].time = 1.0;
+    assert_eq!(field(t), "via[1].time");
+    let mut t = ViaPointTask::thesis();
+    t.via[0].position.pop();
+    assert_eq!(field(t), "via[0].position");
+    let mut t = ViaPointTask::thesis();
+    t.goal[1] = t.start[1];
+    assert_eq!(field(t), "goal[1]");
+    let mut t = ViaPointTask::thesis();
+    t.weights.via = -1.0;
+    assert_eq!(field(t), "cost.via");
+    let mut t = ViaPointTask::thesis();
+    t.start[2] = f64::NAN;
+    assert_eq!(field(t), "start[2]");
+}
