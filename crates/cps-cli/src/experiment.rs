@@ -160,13 +160,20 @@ pub fn parse(
     text: &str,
     seed_override: Option<u64>,
 ) -> Result<ViaPointExperiment, InputError> {
-    let file: File = toml::from_str(text).map_err(|e| {
-        let at = e
-            .span()
+    let at = |e: &toml::de::Error| {
+        e.span()
             .map(|s| location(path, text, &s))
-            .unwrap_or_else(|| path.display().to_string());
-        InputError(format!("{at}: {}", e.message()))
-    })?;
+            .unwrap_or_else(|| path.display().to_string())
+    };
+    if let Err(e) = text.parse::<toml::Table>() {
+        return Err(InputError(format!(
+            "{}: not valid TOML: {}",
+            at(&e),
+            e.message()
+        )));
+    }
+    let file: File =
+        toml::from_str(text).map_err(|e| InputError(format!("{}: {}", at(&e), e.message())))?;
     let err = |span: &Range<usize>, msg: String| {
         InputError(format!("{}: {msg}", location(path, text, span)))
     };

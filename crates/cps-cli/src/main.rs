@@ -48,7 +48,7 @@ enum Command {
     Run {
         /// The experiment file (TOML).
         file: PathBuf,
-        /// Output directory (default: results/<experiment name>).
+        /// Output directory (default: results/NAME, NAME from the experiment).
         #[arg(long)]
         out: Option<PathBuf>,
         /// Override the experiment's seed.
@@ -172,7 +172,7 @@ fn run_experiment(
         if r.best_so_far < prev {
             best_bits.store(r.best_so_far.to_bits(), Ordering::Relaxed);
         }
-        if r.generation % 25 == 0 {
+        if r.generation.is_multiple_of(25) {
             bar.set_message(format!(
                 "best cost {:.4e}  sigma {:.2e}",
                 f64::from_bits(best_bits.load(Ordering::Relaxed)),

@@ -215,8 +215,8 @@ impl Cmaes {
                 z_w[i] += w * zc[i];
             }
         }
-        for i in 0..n {
-            self.mean[i] += p.c_m * self.sigma * y_w[i];
+        for (m, y) in self.mean.iter_mut().zip(&y_w) {
+            *m += p.c_m * self.sigma * y;
         }
         // Step-size path: C^{-1/2} y_w = B z_w for the decomposition that sampled y.
         let cs = (p.c_sigma * (2.0 - p.c_sigma) * p.mu_eff).sqrt();
@@ -229,8 +229,9 @@ impl Cmaes {
         let h_sigma = ps_norm / (1.0 - (1.0 - p.c_sigma).powf(2.0 * g1)).sqrt()
             < (1.4 + 2.0 / (n as f64 + 1.0)) * p.chi_n;
         let cc = (p.c_c * (2.0 - p.c_c) * p.mu_eff).sqrt();
-        for i in 0..n {
-            self.p_c[i] = (1.0 - p.c_c) * self.p_c[i] + if h_sigma { cc * y_w[i] } else { 0.0 };
+        let cc = if h_sigma { cc } else { 0.0 };
+        for (pc, y) in self.p_c.iter_mut().zip(&y_w) {
+            *pc = (1.0 - p.c_c) * *pc + cc * y;
         }
 
         // Covariance: rank-one and active rank-μ update, negative weights rescaled by

@@ -5,7 +5,10 @@ use proptest::prelude::*;
 
 fn weights(n: usize, seed: u64, scale: f64) -> Vec<f64> {
     // A cheap deterministic pseudo-random vector.
-    (0..n).map(|i| (((i as u64 + 1) * 2654435761 ^ seed) % 2001) as f64 / 1000.0 - 1.0).map(|v| v * scale).collect()
+    (0..n)
+        .map(|i| ((((i as u64 + 1) * 2654435761) ^ seed) % 2001) as f64 / 1000.0 - 1.0)
+        .map(|v| v * scale)
+        .collect()
 }
 
 proptest! {
@@ -82,14 +85,26 @@ fn velocity_and_acceleration_are_the_derivatives_of_position() {
     for k in 1..t.n_samples() - 1 {
         let dv = (y[k + 1] - y[k - 1]) / (2.0 * h);
         let da = (v[k + 1] - v[k - 1]) / (2.0 * h);
-        assert!((dv - v[k]).abs() < 1e-4 * (1.0 + v[k].abs()), "velocity at {k}");
-        assert!((da - a[k]).abs() < 2e-3 * (1.0 + a[k].abs()), "acceleration at {k}: {da} vs {}", a[k]);
+        assert!(
+            (dv - v[k]).abs() < 1e-4 * (1.0 + v[k].abs()),
+            "velocity at {k}"
+        );
+        assert!(
+            (da - a[k]).abs() < 2e-3 * (1.0 + a[k].abs()),
+            "acceleration at {k}: {da} vs {}",
+            a[k]
+        );
     }
 }
 
 #[test]
 fn batch_rollout_equals_single_rollouts() {
-    let dmp = DiscreteDmp::new(DmpConfig::new(25, 10.0, 0.01), &[0.75, 0.02, 1.87], &[0.55, -0.57, 1.45]).unwrap();
+    let dmp = DiscreteDmp::new(
+        DmpConfig::new(25, 10.0, 0.01),
+        &[0.75, 0.02, 1.87],
+        &[0.55, -0.57, 1.45],
+    )
+    .unwrap();
     let n = dmp.n_weights();
     let pop = weights(5 * n, 11, 800.0);
     let mut out: Vec<_> = (0..5).map(|_| dmp.new_trajectory()).collect();

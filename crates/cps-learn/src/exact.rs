@@ -76,7 +76,7 @@ pub fn exact_optimum(
     let (smax, smin) = singular
         .iter()
         .fold((0.0f64, f64::INFINITY), |(a, b), &s| (a.max(s), b.min(s)));
-    if !(smin > smax * 1e-14) {
+    if smin.is_nan() || smin <= smax * 1e-14 {
         return Err(LearnError::Exact(format!(
             "the problem is rank deficient (singular values from {smax:.3e} down to {smin:.3e}): \
              some weights do not affect the cost; add an acceleration or jerk term"

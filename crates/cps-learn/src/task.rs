@@ -16,8 +16,11 @@ pub struct ViaPoint {
 
 /// Weights of the cost terms; a weight of 0 switches its term off. All must be ≥ 0.
 ///
-/// `C = w_goal ‖y_T − g‖² + w_via Σ_i ‖y(t_i) − p_i‖² + w_vel ‖ẏ_T − ġ‖²
-///    + w_acc Σ_k ‖ÿ_k‖² + w_jerk Σ_k ‖(ÿ_{k+1} − ÿ_k)/h‖²`,
+/// ```text
+/// C = w_goal ‖y_T − g‖² + w_via Σ_i ‖y(t_i) − p_i‖² + w_vel ‖ẏ_T − ġ‖²
+///   + w_acc Σ_k ‖ÿ_k‖² + w_jerk Σ_k ‖(ÿ_{k+1} − ÿ_k)/h‖²
+/// ```
+///
 /// with sums over the grid samples (not integrals) and every quantity in SI units
 /// (physical velocity, acceleration and jerk).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

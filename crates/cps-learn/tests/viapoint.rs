@@ -5,7 +5,8 @@
 use std::ops::ControlFlow;
 
 use cps_learn::{
-    exact_optimum, learn_via_points, LearnError, Parametrisation, SearchSpace, Solver, ViaPointConfig, ViaPointTask,
+    LearnError, Parametrisation, SearchSpace, Solver, ViaPointConfig, ViaPointTask, exact_optimum,
+    learn_via_points,
 };
 
 fn cost_at(task: &ViaPointTask, space: &SearchSpace, theta: &[f64]) -> f64 {
@@ -16,7 +17,9 @@ fn cost_at(task: &ViaPointTask, space: &SearchSpace, theta: &[f64]) -> f64 {
 }
 
 fn direction(n: usize, seed: u64) -> Vec<f64> {
-    (0..n).map(|i| ((((i as u64 + 3) * 0x9E37_79B9) ^ seed) % 1000) as f64 / 500.0 - 1.0).collect()
+    (0..n)
+        .map(|i| ((((i as u64 + 3) * 0x9E37_79B9) ^ seed) % 1000) as f64 / 500.0 - 1.0)
+        .collect()
 }
 
 fn quiet() -> impl Fn(usize, &cps_cmaes::GenerationReport<'_>) -> ControlFlow<()> + Sync {
@@ -30,11 +33,20 @@ fn the_cost_is_an_exact_quadratic_in_the_parameters() {
     let space = SearchSpace::new(Parametrisation::AnchorOffset, &dmp);
     let x = direction(space.len(), 1);
     let d = direction(space.len(), 2);
-    let at = |s: f64| cost_at(&task, &space, &x.iter().zip(&d).map(|(a, b)| a + s * b).collect::<Vec<_>>());
+    let at = |s: f64| {
+        cost_at(
+            &task,
+            &space,
+            &x.iter().zip(&d).map(|(a, b)| a + s * b).collect::<Vec<_>>(),
+        )
+    };
     // A quadratic's third finite difference vanishes; check against the scale of the values.
     let (c0, c1, c2, c3) = (at(0.0), at(0.1), at(0.2), at(0.3));
     let third = c3 - 3.0 * c2 + 3.0 * c1 - c0;
-    assert!(third.abs() < 1e-9 * c0.abs().max(1.0), "third difference {third} (cost {c0})");
+    assert!(
+        third.abs() < 1e-9 * c0.abs().max(1.0),
+        "third difference {third} (cost {c0})"
+    );
 }
 
 #[test]
@@ -42,7 +54,11 @@ fn the_exact_optimum_is_a_minimum_in_every_space() {
     let task = ViaPointTask::thesis();
     let dmp = task.build_dmp().unwrap();
     let mut costs = Vec::new();
-    for kind in [Parametrisation::AnchorOffset, Parametrisation::ThesisScaling, Parametrisation::Raw] {
+    for kind in [
+        Parametrisation::AnchorOffset,
+        Parametrisation::ThesisScaling,
+        Parametrisation::Raw,
+    ] {
         let space = SearchSpace::new(kind, &dmp);
         let opt = exact_optimum(&task, &dmp, &space).unwrap();
         assert!((cost_at(&task, &space, &opt.params) - opt.cost).abs() <= 1e-12 * opt.cost);
@@ -51,8 +67,17 @@ fn the_exact_optimum_is_a_minimum_in_every_space() {
             let d = direction(space.len(), seed);
             for step in [1e-4, 1e-2] {
                 let scale = space.scale().iter().map(|s| 1.0 / s).collect::<Vec<_>>();
-                let p: Vec<f64> = opt.params.iter().zip(&d).zip(&scale).map(|((p, d), s)| p + step * d * s * space.scale()[0]).collect();
-                assert!(cost_at(&task, &space, &p) >= opt.cost * (1.0 - 1e-12), "{kind:?}, seed {seed}, step {step}");
+                let p: Vec<f64> = opt
+                    .params
+                    .iter()
+                    .zip(&d)
+                    .zip(&scale)
+                    .map(|((p, d), s)| p + step * d * s * space.scale()[0])
+                    .collect();
+                assert!(
+                    cost_at(&task, &space, &p) >= opt.cost * (1.0 - 1e-12),
+                    "{kind:?}, seed {seed}, step {step}"
+                );
             }
         }
         costs.push(opt.cost);
@@ -62,7 +87,12 @@ fn the_exact_optimum_is_a_minimum_in_every_space() {
         assert!((c - costs[0]).abs() <= 1e-6 * costs[0], "{costs:?}");
     }
     // The thesis's penalties pin the via points to micrometres at the optimum.
-    let opt = exact_optimum(&task, &dmp, &SearchSpace::new(Parametrisation::AnchorOffset, &dmp)).unwrap();
+    let opt = exact_optimum(
+        &task,
+        &dmp,
+        &SearchSpace::new(Parametrisation::AnchorOffset, &dmp),
+    )
+    .unwrap();
     let errors = task.errors(&dmp.rollout(&opt.weights));
     assert!(errors.max_position_error() < 1e-4, "{errors:?}");
 }
@@ -71,8 +101,16 @@ fn the_exact_optimum_is_a_minimum_in_every_space() {
 fn anchor_offsets_condition_the_problem_far_better_than_raw_weights() {
     let task = ViaPointTask::thesis();
     let dmp = task.build_dmp().unwrap();
-    let cond = |k| exact_optimum(&task, &dmp, &SearchSpace::new(k, &dmp)).unwrap().hessian_condition;
-    let (raw, thesis, anchor) = (cond(Parametrisation::Raw), cond(Parametrisation::ThesisScaling), cond(Parametrisation::AnchorOffset));
+    let cond = |k| {
+        exact_optimum(&task, &dmp, &SearchSpace::new(k, &dmp))
+            .unwrap()
+            .hessian_condition
+    };
+    let (raw, thesis, anchor) = (
+        cond(Parametrisation::Raw),
+        cond(Parametrisation::ThesisScaling),
+        cond(Parametrisation::AnchorOffset),
+    );
     assert!(anchor * 1e5 < raw, "anchor {anchor:e} raw {raw:e}");
     assert!(anchor * 1e4 < thesis, "anchor {anchor:e} thesis {thesis:e}");
 }
@@ -84,7 +122,11 @@ fn cmaes_from_the_exact_optimum_stays_there_and_exact_solver_reports_zero_gap() 
     config.sigma0 = 1e-4;
     config.generations = 30;
     let out = learn_via_points(&config, &quiet()).unwrap();
-    assert!(out.best().gap_to_optimum.abs() < 1e-6, "{}", out.best().gap_to_optimum);
+    assert!(
+        out.best().gap_to_optimum.abs() < 1e-6,
+        "{}",
+        out.best().gap_to_optimum
+    );
     config.solver = Solver::Exact;
     let out = learn_via_points(&config, &quiet()).unwrap();
     assert_eq!(out.best().gap_to_optimum, 0.0);
@@ -102,7 +144,11 @@ fn cmaes_improves_from_zero_weights_and_every_run_is_no_better_than_the_optimum(
         let first = r.history[0].best_so_far;
         assert!(r.cost < first / 200.0, "{} vs {first}", r.cost);
         assert!(r.cost >= out.optimum.cost * (1.0 - 1e-9));
-        assert!(r.history.windows(2).all(|h| h[1].best_so_far <= h[0].best_so_far));
+        assert!(
+            r.history
+                .windows(2)
+                .all(|h| h[1].best_so_far <= h[0].best_so_far)
+        );
     }
     let seeds: std::collections::HashSet<u64> = out.runs.iter().map(|r| r.seed).collect();
     assert_eq!(seeds.len(), 3, "repetitions use distinct derived seeds");
@@ -114,7 +160,10 @@ fn same_seed_same_result_at_any_thread_count() {
     config.generations = 60;
     config.repetitions = 2;
     let go = |t: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(t)
+            .build()
+            .unwrap();
         pool.install(|| learn_via_points(&config, &quiet()).unwrap())
     };
     let (a, b) = (go(1), go(2));

@@ -1,0 +1,335 @@
+//! End-to-end tests of the `cps-cli` binary: a small run with its files and numbers,
+//! determinism across thread counts, and every kind of bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const SHIPPED: &str = include_str!("../../../experiments/viapoint.toml");
+
+fn cli(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cps-cli"))
+        .args(args)
+        .output()
+        .expect("run cps-cli")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// The shipped experiment made quick: the exact optimum as a warm start and a short run.
+fn small_experiment() -> String {
+    SHIPPED
+        .replace("warm_start = false", "warm_start = true")
+        .replace("sigma0 = 0.5", "sigma0 = 0.001")
+        .replace("generations = 4000", "generations = 40")
+        .replace("repetitions = 1 ", "repetitions = 2 ")
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+fn a_run_writes_every_result_with_the_promised_numbers() {
+    let dir = tempfile::tempdir().unwrap();
+    let exp = write(dir.path(), "small.toml", &small_experiment());
+    let out = dir.path().join("out");
+    let o = cli(&[
+        "run",
+        exp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in [
+        "summary.json",
+        "cost_history.csv",
+        "weights.csv",
+        "trajectory.csv",
+        "cost.png",
+        "cost.svg",
+        "coordinates.png",
+        "coordinates.svg",
+        "path3d.png",
+        "path3d.svg",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["experiment"], "viapoint");
+    assert_eq!(s["complete"], true);
+    assert_eq!(s["repetitions"], 2);
+    for v in s["via_errors_m"].as_array().unwrap() {
+        assert!(v.as_f64().unwrap() < 1e-3);
+    }
+    assert!(s["goal_error_m"].as_f64().unwrap() < 1e-3);
+    assert!(s["final_speed_m_s"].as_f64().unwrap() < 1e-3);
+    let gap = s["gap_to_optimum"].as_f64().unwrap();
+    assert!((0.0..0.01).contains(&gap), "gap {gap}");
+    let best = s["best_cost"].as_f64().unwrap();
+    let opt = s["optimum_cost"].as_f64().unwrap();
+    assert!(((best - opt) / opt - gap).abs() < 1e-12);
+
+    let traj = std::fs::read_to_string(out.join("trajectory.csv")).unwrap();
+    let mut lines = traj.lines();
+    assert_eq!(lines.next().unwrap(), "t,x,y,z,vx,vy,vz,ax,ay,az");
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 1001);
+    assert_eq!(rows[0][1..4], [0.75, 0.02, 1.87]);
+    let last = &rows[1000];
+    assert_eq!(last[0], 10.0);
+    assert!(
+        (last[1] - 0.55).abs() < 1e-3
+            && (last[2] + 0.57).abs() < 1e-3
+            && (last[3] - 1.45).abs() < 1e-3
+    );
+    // Velocities are physical: they match the positions' central differences.
+    let k = 400;
+    let dv = (rows[k + 1][1] - rows[k - 1][1]) / 0.02;
+    assert!(
+        (dv - rows[k][4]).abs() < 1e-3 * (1.0 + dv.abs()),
+        "{dv} vs {}",
+        rows[k][4]
+    );
+
+    let weights = std::fs::read_to_string(out.join("weights.csv")).unwrap();
+    assert!(weights.starts_with(
+        "Time,NrDmps,NrBfs,Scaling,Tau,NrIterations,Weights,Rewards,ComputeTime,NrWayPoints,WayPoints"
+    ));
+    assert_eq!(
+        weights.lines().count(),
+        3,
+        "a header and one row per repetition"
+    );
+    let history = std::fs::read_to_string(out.join("cost_history.csv")).unwrap();
+    assert!(history.starts_with("repetition,generation,best,median,best_so_far,sigma"));
+    assert_eq!(history.lines().count(), 1 + 2 * 40);
+}
+
+#[test]
+fn one_and_two_threads_give_identical_numbers() {
+    let dir = tempfile::tempdir().unwrap();
+    let exp = write(
+        dir.path(),
+        "e.toml",
+        &small_experiment()
+            .replace("warm_start = true", "warm_start = false")
+            .replace("sigma0 = 0.001", "sigma0 = 0.5"),
+    );
+    let mut summaries = Vec::new();
+    for t in ["1", "2"] {
+        let out = dir.path().join(format!("out{t}"));
+        let o = cli(&[
+            "run",
+            exp.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--threads",
+            t,
+            "--quiet",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let mut s = json(&out.join("summary.json"));
+        let obj = s.as_object_mut().unwrap();
+        obj.remove("wall_time_s");
+        obj.remove("threads");
+        for r in obj["runs"].as_array_mut().unwrap() {
+            r.as_object_mut().unwrap().remove("seconds");
+        }
+        summaries.push(s);
+    }
+    assert_eq!(summaries[0], summaries[1]);
+}
+
+#[test]
+fn the_default_experiment_is_valid_and_check_does_not_run() {
+    let o = cli(&["default"]);
+    assert!(o.status.success());
+    let dir = tempfile::tempdir().unwrap();
+    let exp = write(dir.path(), "d.toml", &String::from_utf8(o.stdout).unwrap());
+    let o = cli(&["check", exp.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("ok"));
+}
+
+#[test]
+fn existing_results_are_kept_unless_forced() {
+    let dir = tempfile::tempdir().unwrap();
+    let exp = write(dir.path(), "e.toml", &small_experiment());
+    let out = dir.path().join("out");
+    let args = [
+        "run",
+        exp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ];
+    assert!(cli(&args).status.success());
+    let before = std::fs::read(out.join("summary.json")).unwrap();
+    let o = cli(&args);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("already holds results"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(std::fs::read(out.join("summary.json")).unwrap(), before);
+    let mut forced = args.to_vec();
+    forced.push("--force");
+    assert!(cli(&forced).status.success());
+    // No staging directories are left behind.
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with('.'))
+        .collect();
+    assert!(leftovers.is_empty());
+}
+
+/// Each bad input: exit code 2, a message with the file, the line and the rule, and
+/// nothing written.
+#[test]
+fn bad_inputs_are_clear_errors_and_write_nothing() {
+    let base = small_experiment();
+    let line_of = |needle: &str| base.lines().position(|l| l.contains(needle)).unwrap() + 1;
+    let cases: Vec<(&str, String, Option<usize>, &str)> = vec![
+        (
+            "unknown key",
+            base.replace("tau = 10.0", "tau = 10.0\ntaux = 3"),
+            Some(line_of("tau = 10.0") + 1),
+            "unknown field",
+        ),
+        (
+            "missing coordinate",
+            base.replace("position = [0.78, 0.60, 1.70]", "position = [0.78, 0.60]"),
+            Some(line_of("[0.78, 0.60, 1.70]")),
+            "has 2 coordinates",
+        ),
+        (
+            "extra coordinate",
+            base.replace(
+                "goal = [0.55, -0.57, 1.45]",
+                "goal = [0.55, -0.57, 1.45, 2.0]",
+            ),
+            Some(line_of("goal = [0.55")),
+            "has 4 coordinates",
+        ),
+        (
+            "via time outside",
+            base.replace("time = 8.0", "time = 12.0"),
+            Some(line_of("time = 8.0")),
+            "inside (0, tau",
+        ),
+        (
+            "via time at zero",
+            base.replace("time = 2.0", "time = 0.0"),
+            Some(line_of("time = 2.0")),
+            "inside (0, tau",
+        ),
+        (
+            "via times not increasing",
+            base.replace("time = 6.0", "time = 3.0"),
+            Some(line_of("time = 6.0")),
+            "later than the previous",
+        ),
+        (
+            "tau <= 0",
+            base.replace("tau = 10.0", "tau = 0.0"),
+            Some(line_of("tau = 10.0")),
+            "`tau` must be finite and > 0",
+        ),
+        (
+            "dt <= 0",
+            base.replace("dt = 0.01", "dt = -0.01"),
+            Some(line_of("dt = 0.01")),
+            "`dt` must be finite and > 0",
+        ),
+        (
+            "dt >= tau",
+            base.replace("dt = 0.01", "dt = 10.0"),
+            Some(line_of("dt = 0.01")),
+            "smaller than tau",
+        ),
+        (
+            "NaN",
+            base.replace("start = [0.75, 0.02, 1.87]", "start = [0.75, nan, 1.87]"),
+            Some(line_of("start = [")),
+            "must be finite",
+        ),
+        (
+            "infinity",
+            base.replace(
+                "position = [1.12, 0.37, 1.45]",
+                "position = [1.12, inf, 1.45]",
+            ),
+            Some(line_of("[1.12, 0.37, 1.45]")),
+            "must be finite",
+        ),
+        (
+            "zero basis functions",
+            base.replace("basis_functions = 25", "basis_functions = 0"),
+            Some(line_of("basis_functions = 25")),
+            "at least 1",
+        ),
+        (
+            "negative penalty",
+            base.replace("via = 1e5", "via = -1e5"),
+            None,
+            "cost.via",
+        ),
+        (
+            "population < 2",
+            base.replace("population = 32", "population = 1"),
+            Some(line_of("population = 32")),
+            "at least 2",
+        ),
+        ("not TOML", "this is [not toml".to_string(), Some(1), "TOML"),
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    for (what, text, line, rule) in cases {
+        let exp = write(dir.path(), "bad.toml", &text);
+        let out = dir.path().join("never");
+        let o = cli(&[
+            "run",
+            exp.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ]);
+        let msg = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{what}: {msg}");
+        assert!(msg.contains("bad.toml"), "{what}: {msg}");
+        if let Some(line) = line {
+            assert!(
+                msg.contains(&format!("bad.toml:{line}:")),
+                "{what}: expected line {line}: {msg}"
+            );
+        }
+        assert!(msg.contains(rule), "{what}: expected `{rule}`: {msg}");
+        assert!(!msg.contains("panicked"), "{what}: {msg}");
+        assert!(!out.exists(), "{what}: wrote {}", out.display());
+        // `check` agrees.
+        assert_eq!(
+            cli(&["check", exp.to_str().unwrap()]).status.code(),
+            Some(2),
+            "{what}"
+        );
+    }
+    let o = cli(&[
+        "run",
+        dir.path().join("missing.toml").to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("cannot read"));
+}
