@@ -49,17 +49,56 @@ pub struct Cmaes {
     best_history: Vec<f64>,
     median_history: Vec<f64>,
     flat_generations: u64,
+    defer: bool,
     work: Work,
 }
 
 /// Buffers reused every generation.
 struct Work {
+    /// C as it was when a deferred decomposition became due.
+    snapshot: Mat<f64>,
+    /// A deferred decomposition waits for `decompose_snapshot`.
+    pending: bool,
+    /// `Some(ok)` once the deferred decomposition ran.
+    ready: Option<bool>,
     order: Vec<usize>,
     yw: Mat<f64>,
     ys: Mat<f64>,
     eigvals: faer::diag::Diag<f64>,
     eigvecs: Mat<f64>,
     stack: MemBuffer,
+}
+
+impl Work {
+    /// Symmetric eigendecomposition of `c` (lower triangle) into `vals`, `vecs`; false if
+    /// `c` is not finite or the solver failed.
+    fn eigen(
+        c: faer::MatRef<'_, f64>,
+        vals: &mut faer::diag::Diag<f64>,
+        vecs: &mut Mat<f64>,
+        stack: &mut MemBuffer,
+    ) -> bool {
+        let finite = (0..c.ncols()).all(|j| c.col(j).iter().all(|v| v.is_finite()));
+        finite
+            && evd::self_adjoint_evd(
+                c,
+                vals.as_mut(),
+                Some(vecs.as_mut()),
+                Par::Seq,
+                MemStack::new(stack),
+                Default::default(),
+            )
+            .is_ok()
+    }
+
+    fn decompose_snapshot(&mut self) -> bool {
+        Work::eigen(
+            self.snapshot.as_ref(),
+            &mut self.eigvals,
+            &mut self.eigvecs,
+            &mut self.stack,
+        )
+    }
 }
 
 impl std::fmt::Debug for Work {
@@ -130,7 +169,11 @@ impl Cmaes {
             best_history: Vec::new(),
             median_history: Vec::new(),
             flat_generations: 0,
+            defer: false,
             work: Work {
+                snapshot: Mat::zeros(n, n),
+                pending: false,
+                ready: None,
                 order: (0..lambda).collect(),
                 yw: Mat::zeros(n, lambda),
                 ys: Mat::zeros(n, lambda),
@@ -284,51 +327,79 @@ impl Cmaes {
         } else {
             self.flat_generations = 0;
         }
+        if let Some(ok) = self.work.ready.take() {
+            self.apply_eigen(ok, true);
+        }
         if self.generation - self.last_decomposition >= self.gap {
-            self.decompose();
+            if self.defer {
+                self.last_decomposition = self.generation;
+                self.work.snapshot.copy_from(self.c.as_ref());
+                self.work.pending = true;
+            } else {
+                self.decompose();
+            }
         }
         Ok(())
+    }
+
+    /// Defers each due eigendecomposition by one generation so that it can run while the
+    /// next population is evaluated ([`Self::evaluate_overlapped`]). The run stays
+    /// deterministic (the delay is fixed); sampling uses a decomposition one generation
+    /// older, as with any lazy update gap.
+    pub(crate) fn defer_decompositions(&mut self) {
+        self.defer = true;
+    }
+
+    /// Evaluates the current population with `evaluate` while a deferred decomposition, if
+    /// one is pending, runs on another rayon worker.
+    pub(crate) fn evaluate_overlapped<R: Send>(
+        &mut self,
+        evaluate: impl FnOnce(&[f64]) -> R + Send,
+    ) -> R {
+        let (x, work) = (&self.x, &mut self.work);
+        if !work.pending {
+            return evaluate(x);
+        }
+        let (r, ok) = rayon::join(|| evaluate(x), || work.decompose_snapshot());
+        work.pending = false;
+        work.ready = Some(ok);
+        r
     }
 
     /// Refreshes B, D (C = B D² Bᵀ), repairing C if it is not positive definite or not
     /// finite.
     fn decompose(&mut self) {
-        let n = self.params.n;
         self.last_decomposition = self.generation;
-        let finite = (0..n).all(|j| self.c.col(j).iter().all(|v| v.is_finite()));
-        let ok = finite
-            && evd::self_adjoint_evd(
-                self.c.as_ref(),
-                self.work.eigvals.as_mut(),
-                Some(self.work.eigvecs.as_mut()),
-                Par::Seq,
-                MemStack::new(&mut self.work.stack),
-                Default::default(),
-            )
-            .is_ok();
+        let ok = Work::eigen(
+            self.c.as_ref(),
+            &mut self.work.eigvals,
+            &mut self.work.eigvecs,
+            &mut self.work.stack,
+        );
+        self.apply_eigen(ok, false);
+    }
+
+    /// Installs the eigendecomposition held in the work buffers. One computed from a
+    /// snapshot (`deferred`) that needs any repair is discarded and C is decomposed
+    /// afresh, because C has moved on since the snapshot.
+    fn apply_eigen(&mut self, ok: bool, deferred: bool) {
+        let n = self.params.n;
         let vals = self.work.eigvals.column_vector();
-        if !ok || !vals.iter().all(|v| v.is_finite()) {
+        let max = vals.iter().fold(0.0f64, |a, &v| a.max(v));
+        let floor = max * 1e-16;
+        let clean = ok && max > 0.0 && vals.iter().all(|&v| v.is_finite() && v > floor);
+        if deferred && !clean {
+            self.decompose();
+            return;
+        }
+        if !ok || !(max > 0.0) || !vals.iter().all(|v| v.is_finite()) {
             // Numerical failure: fall back to the last good decomposition.
             self.repairs += 1;
             self.rebuild_c_from_bd();
             return;
         }
-        let max = vals.iter().fold(0.0f64, |a, &v| a.max(v));
-        if max <= 0.0 {
-            self.repairs += 1;
-            self.rebuild_c_from_bd();
-            return;
-        }
-        let floor = max * 1e-16;
-        let mut repaired = false;
         for i in 0..n {
-            let v = vals[i];
-            self.d[i] = if v > floor {
-                v.sqrt()
-            } else {
-                repaired = true;
-                floor.sqrt()
-            };
+            self.d[i] = vals[i].max(floor).sqrt();
         }
         self.b.copy_from(self.work.eigvecs.as_ref());
         let min = self.d.iter().fold(f64::INFINITY, |a, &v| a.min(v * v));
@@ -338,7 +409,7 @@ impl Cmaes {
                 self.bd[(i, j)] = self.b[(i, j)] * self.d[j];
             }
         }
-        if repaired {
+        if !clean {
             self.repairs += 1;
             self.rebuild_c_from_bd();
         }

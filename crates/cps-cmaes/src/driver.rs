@@ -142,6 +142,8 @@ pub fn minimize<O: Objective + ?Sized>(
         });
     }
     let mut es = Cmaes::new(config, x0)?;
+    // Each eigendecomposition runs while the next population is evaluated.
+    es.defer_decompositions();
     let n = x0.len();
     let mut costs = vec![0.0; es.parameters().lambda];
     let termination = loop {
@@ -149,9 +151,8 @@ pub fn minimize<O: Objective + ?Sized>(
             break t;
         }
         let generation = es.generation();
-        let xs = es.ask();
-        objective
-            .evaluate_batch(xs, n, &mut costs)
+        es.ask();
+        es.evaluate_overlapped(|xs| objective.evaluate_batch(xs, n, &mut costs))
             .map_err(|e| CmaesError::Objective {
                 generation,
                 index: e.index,

@@ -32,6 +32,8 @@ pub struct DiscreteDmp {
     features: Vec<f64>,
     /// The same features packed chunk-major for the forcing kernel.
     packed: Vec<f64>,
+    /// The same features row-major ((K+1) rows of N) for the streaming batch rollout.
+    rows: Vec<f64>,
     coefficients: StepCoefficients,
     arch: Arch,
 }
@@ -82,6 +84,9 @@ impl DiscreteDmp {
             times,
             phases,
             packed: pack_features(&features, k + 1, n),
+            rows: (0..(k + 1) * n)
+                .map(|r| features[(r % n) * (k + 1) + r / n])
+                .collect(),
             features,
             coefficients,
             arch: Arch::new(),
@@ -187,35 +192,97 @@ impl DiscreteDmp {
             n_basis: n,
             out: &mut traj.forcing,
         });
-        // 2. The exact recurrence: vectorised inputs, the sequential chain several
-        //    dimensions at a time (plain scalar code: independent chains overlap in the
-        //    CPU, which SIMD shuffles would only slow down), vectorised outputs.
-        self.arch.dispatch(Elementwise {
-            dmp: self,
-            pass: Pass::Inputs,
-            traj: &mut *traj,
-        });
+        // 2. The exact recurrence, several dimensions at a time: the chain through the
+        //    state is sequential, so independent dimensions overlap in the CPU, and the
+        //    inputs and physical outputs of each step are computed off the critical path.
         let mut d0 = 0;
         while d0 < dims {
             let width = (dims - d0).min(LANES);
-            let range = d0 * ns..(d0 + width) * ns;
-            let start: [f64; LANES] = std::array::from_fn(|j| self.start[d0 + j.min(width - 1)]);
-            let pos = traj.position[range.clone()].chunks_exact_mut(ns);
-            let vel = traj.velocity[range.clone()].chunks_exact_mut(ns);
-            let acc = traj.acceleration[range].chunks_exact(ns);
-            let e = self.coefficients.e;
             match width {
-                1 => chain::<1>(e, &start, pos, vel, acc),
-                2 => chain::<2>(e, &start, pos, vel, acc),
-                3 => chain::<3>(e, &start, pos, vel, acc),
-                _ => chain::<4>(e, &start, pos, vel, acc),
+                1 => self.chain::<1>(d0, traj),
+                2 => self.chain::<2>(d0, traj),
+                3 => self.chain::<3>(d0, traj),
+                _ => self.chain::<4>(d0, traj),
             }
             d0 += width;
         }
-        self.arch.dispatch(Elementwise {
+    }
+
+    /// The recurrence for dimensions `d0 .. d0 + W`, reading the unscaled forcing `Φ w`
+    /// from `traj.forcing` and writing position, physical velocity and acceleration and the
+    /// scaled forcing `f = (g − y0) Φ w`. One step of one dimension:
+    ///
+    /// `u_k = α_z β_z g + f_k`, `ÿ_k = (u_k − α_z β_z y_k − α_z z_k) / τ²`, `ẏ_k = z_k / τ`,
+    /// `(y, z)_{k+1} = E (y, z)_k + b0 u_k + b1 u_{k+1}`.
+    #[inline(always)]
+    fn chain<const W: usize>(&self, d0: usize, traj: &mut Trajectory) {
+        let ns = self.n_samples();
+        let cfg = &self.config;
+        let c = &self.coefficients;
+        let [[e00, e01], [e10, e11]] = c.e;
+        let (b0y, b1y, b0z, b1z) = (c.b0[0], c.b1[0], c.b0[1], c.b1[1]);
+        let (az, kk) = (cfg.alpha_z, cfg.alpha_z * cfg.beta_z);
+        let (inv_tau, inv_tau2) = (1.0 / cfg.tau, 1.0 / (cfg.tau * cfg.tau));
+        let range = d0 * ns..(d0 + W) * ns;
+        let mut pos = traj.position[range.clone()].chunks_exact_mut(ns);
+        let mut vel = traj.velocity[range.clone()].chunks_exact_mut(ns);
+        let mut acc = traj.acceleration[range.clone()].chunks_exact_mut(ns);
+        let mut frc = traj.forcing[range].chunks_exact_mut(ns);
+        let pos: [&mut [f64]; W] = std::array::from_fn(|_| pos.next().expect("lane"));
+        let vel: [&mut [f64]; W] = std::array::from_fn(|_| vel.next().expect("lane"));
+        let acc: [&mut [f64]; W] = std::array::from_fn(|_| acc.next().expect("lane"));
+        let frc: [&mut [f64]; W] = std::array::from_fn(|_| frc.next().expect("lane"));
+        let amp: [f64; W] = std::array::from_fn(|j| self.goal[d0 + j] - self.start[d0 + j]);
+        let ug: [f64; W] = std::array::from_fn(|j| kk * self.goal[d0 + j]);
+        let mut y: [f64; W] = std::array::from_fn(|j| self.start[d0 + j]);
+        let mut z = [0.0; W];
+        let mut f: [f64; W] = std::array::from_fn(|j| amp[j] * frc[j][0]);
+        for k in 0..ns {
+            let next = (k + 1).min(ns - 1);
+            for j in 0..W {
+                let u0 = ug[j] + f[j];
+                let f1 = amp[j] * frc[j][next];
+                let u1 = ug[j] + f1;
+                pos[j][k] = y[j];
+                vel[j][k] = z[j] * inv_tau;
+                acc[j][k] = (u0 - kk * y[j] - az * z[j]) * inv_tau2;
+                frc[j][k] = f[j];
+                let cy = b0y * u0 + b1y * u1;
+                let cz = b0z * u0 + b1z * u1;
+                let yn = cy + (e00 * y[j] + e01 * z[j]);
+                let zn = cz + (e10 * y[j] + e11 * z[j]);
+                y[j] = yn;
+                z[j] = zn;
+                f[j] = f1;
+            }
+        }
+    }
+
+    /// Rolls out up to [`BATCH_LANES`] weight vectors at once without storing their
+    /// trajectories, for costs that can be accumulated sample by sample (the fast path of
+    /// population evaluation). `weights` holds `m ≤ BATCH_LANES` weight vectors back to back;
+    /// `visitor.visit(k, d, y, v, a)` is called for every sample `k` (in order) and
+    /// dimension `d` with the position, physical velocity and acceleration of every lane.
+    /// Lanes `m..` repeat the last vector. Mark the visitor's `visit` `#[inline(always)]`:
+    /// it then runs inside the SIMD context too.
+    ///
+    /// The arithmetic is the same exact recurrence as [`Self::rollout_into`]; results agree
+    /// to rounding (the forcing sum may be fused differently).
+    ///
+    /// # Panics
+    /// If `weights` is empty, longer than `BATCH_LANES` vectors or not a whole number of them.
+    pub fn rollout_stream<V: StreamVisitor>(&self, weights: &[f64], visitor: &mut V) {
+        let nw = self.n_weights();
+        let m = weights.len() / nw;
+        assert!(
+            m >= 1 && m <= BATCH_LANES && weights.len() == m * nw,
+            "rollout_stream takes 1 to {BATCH_LANES} weight vectors"
+        );
+        self.arch.dispatch(Stream {
             dmp: self,
-            pass: Pass::Outputs,
-            traj: &mut *traj,
+            weights,
+            m,
+            visit: visitor,
         });
     }
 
@@ -232,42 +299,135 @@ impl DiscreteDmp {
     }
 }
 
-/// Dimensions integrated together (and accumulated together in the forcing product).
-const LANES: usize = 4;
+/// Candidates rolled out together by [`DiscreteDmp::rollout_stream`].
+pub const BATCH_LANES: usize = 8;
 
-/// The sequential part of the recurrence for `W` dimensions at once (independent chains
-/// overlap in the CPU): `s_{k+1} = E s_k + c_k` with the inputs `c_k = (cy_k, cz_k)`
-/// precomputed in `vel` and `acc`. Writes `y_k` to `pos` and the raw `z_k` over `vel`.
-#[inline(never)]
-fn chain<'a, const W: usize>(
-    e: [[f64; 2]; 2],
-    start: &[f64; LANES],
-    pos: impl Iterator<Item = &'a mut [f64]>,
-    vel: impl Iterator<Item = &'a mut [f64]>,
-    acc: impl Iterator<Item = &'a [f64]>,
-) {
-    let [[e00, e01], [e10, e11]] = e;
-    let mut pos = pos;
-    let mut vel = vel;
-    let mut acc = acc;
-    let pos: [&mut [f64]; W] = std::array::from_fn(|_| pos.next().expect("lane"));
-    let vel: [&mut [f64]; W] = std::array::from_fn(|_| vel.next().expect("lane"));
-    let acc: [&[f64]; W] = std::array::from_fn(|_| acc.next().expect("lane"));
-    let ns = pos[0].len();
-    let mut y: [f64; W] = std::array::from_fn(|j| start[j]);
-    let mut z = [0.0; W];
-    for k in 0..ns {
-        for j in 0..W {
-            let (cy, cz) = (vel[j][k], acc[j][k]);
-            pos[j][k] = y[j];
-            vel[j][k] = z[j];
-            let yn = cy + (e00 * y[j] + e01 * z[j]);
-            let zn = cz + (e10 * y[j] + e11 * z[j]);
-            y[j] = yn;
-            z[j] = zn;
+/// One value per lane of [`DiscreteDmp::rollout_stream`].
+pub type Lanes = [f64; BATCH_LANES];
+
+/// The streaming batch rollout: lanes are candidates, so every operation is a SIMD
+/// operation over [`BATCH_LANES`] candidates, and nothing is stored.
+struct Stream<'a, V> {
+    dmp: &'a DiscreteDmp,
+    weights: &'a [f64],
+    m: usize,
+    visit: &'a mut V,
+}
+
+/// Receives the samples of [`DiscreteDmp::rollout_stream`].
+pub trait StreamVisitor {
+    /// Sample `k` of dimension `d`: position, physical velocity and acceleration per lane.
+    fn visit(&mut self, k: usize, d: usize, y: &Lanes, v: &Lanes, a: &Lanes);
+}
+
+impl<F: FnMut(usize, usize, &Lanes, &Lanes, &Lanes)> StreamVisitor for F {
+    #[inline(always)]
+    fn visit(&mut self, k: usize, d: usize, y: &Lanes, v: &Lanes, a: &Lanes) {
+        self(k, d, y, v, a)
+    }
+}
+
+impl<V: StreamVisitor> WithSimd for Stream<'_, V> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: Simd>(self, _simd: S) {
+        #[inline(always)]
+        fn fma<S: Simd>(a: f64, b: f64, c: f64) -> f64 {
+            if S::IS_SCALAR {
+                a * b + c
+            } else {
+                a.mul_add(b, c)
+            }
+        }
+        let Self {
+            dmp,
+            weights,
+            m,
+            visit,
+        } = self;
+        let (nb, dims, ns) = (dmp.n_basis(), dmp.dims(), dmp.n_samples());
+        let nw = nb * dims;
+        let cfg = &dmp.config;
+        let c = &dmp.coefficients;
+        let [[e00, e01], [e10, e11]] = c.e;
+        let (b0y, b1y, b0z, b1z) = (c.b0[0], c.b1[0], c.b0[1], c.b1[1]);
+        let (az, kk) = (cfg.alpha_z, cfg.alpha_z * cfg.beta_z);
+        let (inv_tau, inv_tau2) = (1.0 / cfg.tau, 1.0 / (cfg.tau * cfg.tau));
+        // Weights transposed to [d][i][lane], pre-multiplied by g − y0.
+        let mut wt = vec![[0.0; BATCH_LANES]; nw];
+        for d in 0..dims {
+            let amp = dmp.goal[d] - dmp.start[d];
+            for i in 0..nb {
+                for (l, w) in wt[d * nb + i].iter_mut().enumerate() {
+                    *w = amp * weights[l.min(m - 1) * nw + d * nb + i];
+                }
+            }
+        }
+        // Φ(k) · w for one dimension: four partial sums so the FMAs do not wait on each
+        // other. A nested function, not a closure, so it is always inlined into the SIMD
+        // context.
+        #[inline(always)]
+        fn forcing<S: Simd>(row: &[f64], w: &[Lanes]) -> Lanes {
+            let nb = row.len();
+            let mut part = [[0.0; BATCH_LANES]; 4];
+            for (phi, w) in row.chunks_exact(4).zip(w.chunks_exact(4)) {
+                for (p, (&phi, w)) in part.iter_mut().zip(phi.iter().zip(w)) {
+                    for l in 0..BATCH_LANES {
+                        p[l] = fma::<S>(phi, w[l], p[l]);
+                    }
+                }
+            }
+            let rest = nb - nb % 4;
+            for (&phi, w) in row[rest..].iter().zip(&w[rest..]) {
+                for l in 0..BATCH_LANES {
+                    part[0][l] = fma::<S>(phi, w[l], part[0][l]);
+                }
+            }
+            let mut f = [0.0; BATCH_LANES];
+            for l in 0..BATCH_LANES {
+                f[l] = (part[0][l] + part[1][l]) + (part[2][l] + part[3][l]);
+            }
+            f
+        }
+        let row = |k: usize| &dmp.rows[k * nb..(k + 1) * nb];
+        let wd = |d: usize| &wt[d * nb..(d + 1) * nb];
+        let mut y: Vec<Lanes> = (0..dims).map(|d| [dmp.start[d]; BATCH_LANES]).collect();
+        let mut z: Vec<Lanes> = vec![[0.0; BATCH_LANES]; dims];
+        let mut f: Vec<Lanes> = (0..dims).map(|d| forcing::<S>(row(0), wd(d))).collect();
+        let mut f_next: Vec<Lanes> = f.clone();
+        for k in 0..ns {
+            let next = (k + 1).min(ns - 1);
+            for (d, fn_) in f_next.iter_mut().enumerate() {
+                *fn_ = forcing::<S>(row(next), wd(d));
+            }
+            for d in 0..dims {
+                let ug = kk * dmp.goal[d];
+                let (yd, zd, f0, f1) = (y[d], z[d], f[d], f_next[d]);
+                let mut v = [0.0; BATCH_LANES];
+                let mut a = [0.0; BATCH_LANES];
+                let mut yn = [0.0; BATCH_LANES];
+                let mut zn = [0.0; BATCH_LANES];
+                for l in 0..BATCH_LANES {
+                    let (u0, u1) = (ug + f0[l], ug + f1[l]);
+                    v[l] = zd[l] * inv_tau;
+                    a[l] = (u0 - kk * yd[l] - az * zd[l]) * inv_tau2;
+                    let cy = b0y * u0 + b1y * u1;
+                    let cz = b0z * u0 + b1z * u1;
+                    yn[l] = cy + (e00 * yd[l] + e01 * zd[l]);
+                    zn[l] = cz + (e10 * yd[l] + e11 * zd[l]);
+                }
+                visit.visit(k, d, &yd, &v, &a);
+                y[d] = yn;
+                z[d] = zn;
+            }
+            std::mem::swap(&mut f, &mut f_next);
         }
     }
 }
+
+/// Dimensions integrated together in one recurrence loop.
+const LANES: usize = 4;
 
 /// Samples per block of the packed feature matrix.
 const CHUNK: usize = 16;
@@ -375,78 +535,6 @@ impl WithSimd for ForcingProduct<'_> {
                 _ => group::<S, 3>(simd, self.packed, w, o, nb),
             }
             d0 += width;
-        }
-    }
-}
-
-/// Which vectorised pass of the recurrence to run over every dimension.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Pass {
-    /// Scale the forcing by `g − y0` and fold each step's inputs into
-    /// `cy_k = b0_y u_k + b1_y u_{k+1}` and `cz_k` (likewise), `u = α_z β_z g + f`, stored
-    /// in the velocity and acceleration buffers until [`Pass::Outputs`] overwrites them.
-    Inputs,
-    /// Physical outputs from the chain's `y` and raw `z`:
-    /// `ÿ = (α_z β_z (g − y) − α_z z + f) / τ²`, `ẏ = z / τ`.
-    Outputs,
-}
-
-/// The element-wise passes around the sequential chain, run under SIMD dispatch.
-struct Elementwise<'a> {
-    dmp: &'a DiscreteDmp,
-    pass: Pass,
-    traj: &'a mut Trajectory,
-}
-
-impl WithSimd for Elementwise<'_> {
-    type Output = ();
-
-    #[inline(always)]
-    fn with_simd<S: Simd>(self, _simd: S) {
-        let Self { dmp, pass, traj } = self;
-        let ns = dmp.n_samples();
-        let c = &dmp.coefficients;
-        let cfg = &dmp.config;
-        let (az, kk) = (cfg.alpha_z, cfg.alpha_z * cfg.beta_z);
-        let (inv_tau, inv_tau2) = (1.0 / cfg.tau, 1.0 / (cfg.tau * cfg.tau));
-        let parts = traj
-            .position
-            .chunks_exact(ns)
-            .zip(traj.velocity.chunks_exact_mut(ns))
-            .zip(traj.acceleration.chunks_exact_mut(ns))
-            .zip(traj.forcing.chunks_exact_mut(ns));
-        for (d, (((pos, vel), acc), f)) in parts.enumerate() {
-            let g = dmp.goal[d];
-            match pass {
-                Pass::Inputs => {
-                    let amp = g - dmp.start[d];
-                    for v in f.iter_mut() {
-                        *v *= amp;
-                    }
-                    let ug = kk * g;
-                    let (b0y, b1y, b0z, b1z) = (c.b0[0], c.b1[0], c.b0[1], c.b1[1]);
-                    let steps = vel
-                        .iter_mut()
-                        .zip(acc.iter_mut())
-                        .zip(&f[..ns - 1])
-                        .zip(&f[1..]);
-                    for (((cy, cz), &f0), &f1) in steps {
-                        let (u0, u1) = (ug + f0, ug + f1);
-                        *cy = b0y * u0 + b1y * u1;
-                        *cz = b0z * u0 + b1z * u1;
-                    }
-                }
-                Pass::Outputs => {
-                    let kg = kk * g;
-                    for (((acc, vel), &y), &f) in
-                        acc.iter_mut().zip(vel.iter_mut()).zip(pos).zip(f.iter())
-                    {
-                        let z = *vel;
-                        *acc = (kg - kk * y - az * z + f) * inv_tau2;
-                        *vel = z * inv_tau;
-                    }
-                }
-            }
         }
     }
 }

@@ -44,6 +44,6 @@ mod trajectory;
 pub use basis::GaussianBasis;
 pub use canonical::CanonicalSystem;
 pub use config::DmpConfig;
-pub use dmp::DiscreteDmp;
+pub use dmp::{BATCH_LANES, DiscreteDmp, Lanes, StreamVisitor};
 pub use error::DmpError;
 pub use trajectory::Trajectory;

@@ -1,6 +1,6 @@
 //! The via-point task and its cost (Rueckert & d'Avella 2013; thesis eq. 54).
 
-use cps_dmp::{DiscreteDmp, DmpConfig, Trajectory};
+use cps_dmp::{BATCH_LANES, DiscreteDmp, DmpConfig, Lanes, StreamVisitor, Trajectory};
 use serde::{Deserialize, Serialize};
 
 use crate::LearnError;
@@ -292,6 +292,71 @@ impl ViaPointTask {
         b
     }
 
+    /// The costs of up to [`BATCH_LANES`] weight vectors (back to back in `weights`) from
+    /// one streaming batch rollout, without storing trajectories: the fast path of
+    /// population evaluation. Agrees with [`Self::cost`] of each rollout to rounding.
+    ///
+    /// # Panics
+    /// If `out.len()` is not the number of weight vectors or it exceeds `BATCH_LANES`.
+    pub fn costs_streamed(&self, dmp: &DiscreteDmp, weights: &[f64], out: &mut [f64]) {
+        let m = out.len();
+        assert!(m >= 1 && m <= BATCH_LANES && weights.len() == m * dmp.n_weights());
+        let w = &self.weights;
+        let dims = dmp.dims();
+        let last = dmp.n_samples() - 1;
+        let times = dmp.times();
+        let h = times[1] - times[0];
+        // Where each via point falls on the grid: sample k and fraction towards k + 1.
+        let via_at: Vec<(usize, f64)> = self
+            .via
+            .iter()
+            .map(|v| {
+                let s = (v.time / h).clamp(0.0, last as f64);
+                let k = (s.floor() as usize).min(last);
+                let frac = s - k as f64;
+                if frac < 1e-9 {
+                    (k, 0.0)
+                } else if frac > 1.0 - 1e-9 {
+                    (k + 1, 0.0)
+                } else {
+                    (k, frac)
+                }
+            })
+            .collect();
+        let zero = [0.0; BATCH_LANES];
+        let mut sink = CostSink {
+            task: self,
+            via_at,
+            last,
+            inv_h: 1.0 / h,
+            via_pos: vec![zero; self.via.len() * dims],
+            prev_a: vec![zero; dims],
+            acc: vec![zero; dims],
+            jerk: vec![zero; dims],
+            end: zero,
+        };
+        dmp.rollout_stream(weights, &mut sink);
+        let CostSink {
+            via_pos,
+            acc,
+            jerk,
+            end,
+            ..
+        } = sink;
+        for (l, o) in out.iter_mut().enumerate() {
+            let mut via = 0.0;
+            for (i, p) in self.via.iter().enumerate() {
+                for d in 0..dims {
+                    let e = via_pos[i * dims + d][l] - p.position[d];
+                    via += e * e;
+                }
+            }
+            let acc: f64 = acc.iter().map(|a| a[l]).sum();
+            let jerk: f64 = jerk.iter().map(|j| j[l]).sum();
+            *o = end[l] + w.via * via + w.acceleration * acc + w.jerk * jerk;
+        }
+    }
+
     /// Plain-unit errors of a trajectory: goal distance, distance at each via point and
     /// final speed.
     pub fn errors(&self, traj: &Trajectory) -> TaskErrors {
@@ -306,6 +371,64 @@ impl ViaPointTask {
                 .map(|v| norm(&|d| traj.position_at(d, v.time) - v.position[d]))
                 .collect(),
             final_speed: norm(&|d| traj.velocity(d)[last]),
+        }
+    }
+}
+
+/// Accumulates a via-point cost from a streaming batch rollout, lane by lane.
+struct CostSink<'a> {
+    task: &'a ViaPointTask,
+    /// Grid sample and fraction towards the next sample of each via point.
+    via_at: Vec<(usize, f64)>,
+    last: usize,
+    inv_h: f64,
+    via_pos: Vec<Lanes>,
+    prev_a: Vec<Lanes>,
+    acc: Vec<Lanes>,
+    jerk: Vec<Lanes>,
+    end: Lanes,
+}
+
+impl StreamVisitor for CostSink<'_> {
+    #[inline(always)]
+    fn visit(&mut self, k: usize, d: usize, y: &Lanes, v: &Lanes, a: &Lanes) {
+        let w = &self.task.weights;
+        if w.acceleration > 0.0 {
+            let acc = &mut self.acc[d];
+            for l in 0..BATCH_LANES {
+                acc[l] += a[l] * a[l];
+            }
+        }
+        if w.jerk > 0.0 {
+            if k > 0 {
+                let (jerk, prev) = (&mut self.jerk[d], &self.prev_a[d]);
+                for l in 0..BATCH_LANES {
+                    let j = (a[l] - prev[l]) * self.inv_h;
+                    jerk[l] += j * j;
+                }
+            }
+            self.prev_a[d] = *a;
+        }
+        let dims = self.prev_a.len();
+        for (i, &(kv, frac)) in self.via_at.iter().enumerate() {
+            let c = if k == kv {
+                1.0 - frac
+            } else if frac > 0.0 && k == kv + 1 {
+                frac
+            } else {
+                continue;
+            };
+            let slot = &mut self.via_pos[i * dims + d];
+            for l in 0..BATCH_LANES {
+                slot[l] += c * y[l];
+            }
+        }
+        if k == self.last {
+            let (g, gv) = (self.task.goal[d], self.task.goal_velocity[d]);
+            for l in 0..BATCH_LANES {
+                let (eg, ev) = (y[l] - g, v[l] - gv);
+                self.end[l] += w.goal * eg * eg + w.final_velocity * ev * ev;
+            }
         }
     }
 }

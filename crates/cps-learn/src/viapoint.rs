@@ -7,7 +7,7 @@ use std::time::Instant;
 use cps_cmaes::{
     CandidateError, CmaesConfig, GenerationReport, Objective, ObjectiveError, StopRule, minimize,
 };
-use cps_dmp::{DiscreteDmp, Trajectory};
+use cps_dmp::{BATCH_LANES, DiscreteDmp, Trajectory};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -188,13 +188,17 @@ impl Objective for RolloutCost<'_> {
         dim: usize,
         out: &mut [f64],
     ) -> Result<(), CandidateError> {
-        // One weight buffer and trajectory per worker, not per rollout.
-        xs.par_chunks_exact(dim)
-            .zip(out.par_iter_mut())
-            .for_each_init(
-                || (vec![0.0; dim], self.dmp.new_trajectory()),
-                |(w, traj), (x, o)| *o = self.cost_with(x, w, traj),
-            );
+        // Streaming batch rollouts: BATCH_LANES candidates per SIMD pass, no trajectories
+        // stored; groups in parallel.
+        xs.par_chunks(dim * BATCH_LANES)
+            .zip(out.par_chunks_mut(BATCH_LANES))
+            .for_each(|(group, costs)| {
+                let mut w = vec![0.0; group.len()];
+                for (theta, w) in group.chunks_exact(dim).zip(w.chunks_exact_mut(dim)) {
+                    self.space.to_weights(theta, w);
+                }
+                self.task.costs_streamed(self.dmp, &w, costs);
+            });
         Ok(())
     }
 }

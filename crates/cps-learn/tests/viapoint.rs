@@ -199,3 +199,33 @@ fn ill_posed_tasks_are_errors_naming_the_field() {
     t.start[2] = f64::NAN;
     assert_eq!(field(t), "start[2]");
 }
+
+#[test]
+fn streamed_batch_costs_equal_rollout_costs() {
+    let mut task = ViaPointTask::thesis();
+    task.weights.jerk = 1e-4; // exercise every term
+    task.via[1].time = 4.004; // off the grid: interpolated
+    let dmp = task.build_dmp().unwrap();
+    let space = SearchSpace::new(Parametrisation::AnchorOffset, &dmp);
+    let n = space.len();
+    for m in [1usize, 5, 8] {
+        let mut w = vec![0.0; m * n];
+        for c in 0..m {
+            let theta: Vec<f64> = direction(n, c as u64 + 10)
+                .iter()
+                .map(|v| v * 0.3)
+                .collect();
+            space.to_weights(&theta, &mut w[c * n..(c + 1) * n]);
+        }
+        let mut streamed = vec![0.0; m];
+        task.costs_streamed(&dmp, &w, &mut streamed);
+        for c in 0..m {
+            let direct = task.cost(&dmp.rollout(&w[c * n..(c + 1) * n]));
+            assert!(
+                (streamed[c] - direct).abs() <= 1e-9 * direct,
+                "m {m} candidate {c}: {} vs {direct}",
+                streamed[c]
+            );
+        }
+    }
+}
