@@ -22,7 +22,7 @@ fn small_experiment() -> String {
     SHIPPED
         .replace("warm_start = false", "warm_start = true")
         .replace("sigma0 = 0.5", "sigma0 = 0.001")
-        .replace("generations = 4000", "generations = 40")
+        .replace("generations = 3000", "generations = 40")
         .replace("repetitions = 1 ", "repetitions = 2 ")
 }
 
@@ -289,8 +289,8 @@ fn bad_inputs_are_clear_errors_and_write_nothing() {
         ),
         (
             "population < 2",
-            base.replace("population = 32", "population = 1"),
-            Some(line_of("population = 32")),
+            base.replace("population = 96", "population = 1"),
+            Some(line_of("population = 96")),
             "at least 2",
         ),
         ("not TOML", "this is [not toml".to_string(), Some(1), "TOML"),

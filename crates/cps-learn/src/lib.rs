@@ -39,6 +39,6 @@ pub use exact::{ExactOptimum, exact_optimum};
 pub use space::{Parametrisation, SearchSpace};
 pub use task::{CostBreakdown, CostWeights, TaskErrors, ViaPoint, ViaPointTask};
 pub use viapoint::{
-    GenerationRecord, RunResult, Solver, ViaPointConfig, ViaPointOutcome, history_band,
-    learn_via_points,
+    GenerationRecord, RunResult, Solver, ViaPointConfig, ViaPointObjective, ViaPointOutcome,
+    history_band, learn_via_points,
 };

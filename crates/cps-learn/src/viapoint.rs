@@ -160,14 +160,25 @@ impl ViaPointOutcome {
     }
 }
 
-/// The CMA-ES objective: roll out, then cost.
-struct RolloutCost<'a> {
+/// The via-point cost as a CMA-ES [`Objective`] over the parameters θ of a
+/// [`SearchSpace`]: θ → weights → rollout → cost. Populations are evaluated with streaming
+/// batch rollouts ([`ViaPointTask::costs_streamed`]), groups of candidates in parallel.
+#[derive(Debug, Clone, Copy)]
+pub struct ViaPointObjective<'a> {
     task: &'a ViaPointTask,
     dmp: &'a DiscreteDmp,
     space: &'a SearchSpace,
 }
 
-impl RolloutCost<'_> {
+impl<'a> ViaPointObjective<'a> {
+    /// The objective of `task`, whose DMP is `dmp` (from [`ViaPointTask::build_dmp`]), in
+    /// the search space `space`.
+    pub fn new(task: &'a ViaPointTask, dmp: &'a DiscreteDmp, space: &'a SearchSpace) -> Self {
+        Self { task, dmp, space }
+    }
+}
+
+impl ViaPointObjective<'_> {
     fn cost_with(&self, theta: &[f64], w: &mut [f64], traj: &mut Trajectory) -> f64 {
         self.space.to_weights(theta, w);
         self.dmp.rollout_into(w, traj);
@@ -175,7 +186,7 @@ impl RolloutCost<'_> {
     }
 }
 
-impl Objective for RolloutCost<'_> {
+impl Objective for ViaPointObjective<'_> {
     fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
         let mut w = vec![0.0; x.len()];
         let mut traj = self.dmp.new_trajectory();
@@ -221,11 +232,7 @@ pub fn learn_via_points(
     }
     let space = SearchSpace::new(config.parametrisation, &dmp);
     let optimum = exact_optimum(task, &dmp, &space)?;
-    let objective = RolloutCost {
-        task,
-        dmp: &dmp,
-        space: &space,
-    };
+    let objective = ViaPointObjective::new(task, &dmp, &space);
     let finish = |seed: u64,
                   params: Vec<f64>,
                   stats: (u64, u64, u64, String, Vec<GenerationRecord>),
