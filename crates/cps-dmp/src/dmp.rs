@@ -332,28 +332,14 @@ impl<V: StreamVisitor> WithSimd for Stream<'_, V> {
 
     #[inline(always)]
     fn with_simd<S: Simd>(self, _simd: S) {
-        #[inline(always)]
-        fn fma<S: Simd>(a: f64, b: f64, c: f64) -> f64 {
-            if S::IS_SCALAR {
-                a * b + c
-            } else {
-                a.mul_add(b, c)
-            }
-        }
         let Self {
             dmp,
             weights,
             m,
             visit,
         } = self;
-        let (nb, dims, ns) = (dmp.n_basis(), dmp.dims(), dmp.n_samples());
+        let (nb, dims) = (dmp.n_basis(), dmp.dims());
         let nw = nb * dims;
-        let cfg = &dmp.config;
-        let c = &dmp.coefficients;
-        let [[e00, e01], [e10, e11]] = c.e;
-        let (b0y, b1y, b0z, b1z) = (c.b0[0], c.b1[0], c.b0[1], c.b1[1]);
-        let (az, kk) = (cfg.alpha_z, cfg.alpha_z * cfg.beta_z);
-        let (inv_tau, inv_tau2) = (1.0 / cfg.tau, 1.0 / (cfg.tau * cfg.tau));
         // Weights transposed to [d][i][lane], pre-multiplied by g − y0.
         let mut wt = vec![[0.0; BATCH_LANES]; nw];
         for d in 0..dims {
@@ -364,65 +350,106 @@ impl<V: StreamVisitor> WithSimd for Stream<'_, V> {
                 }
             }
         }
-        // Φ(k) · w for one dimension: four partial sums so the FMAs do not wait on each
-        // other. A nested function, not a closure, so it is always inlined into the SIMD
-        // context.
-        #[inline(always)]
-        fn forcing<S: Simd>(row: &[f64], w: &[Lanes]) -> Lanes {
-            let nb = row.len();
-            let mut part = [[0.0; BATCH_LANES]; 4];
-            for (phi, w) in row.chunks_exact(4).zip(w.chunks_exact(4)) {
-                for (p, (&phi, w)) in part.iter_mut().zip(phi.iter().zip(w)) {
-                    for l in 0..BATCH_LANES {
-                        p[l] = fma::<S>(phi, w[l], p[l]);
-                    }
-                }
+        // Dimensions in groups of up to three share each broadcast feature value.
+        let mut d0 = 0;
+        while d0 < dims {
+            let width = (dims - d0).min(3);
+            let wg = &wt[d0 * nb..(d0 + width) * nb];
+            match width {
+                1 => stream_group::<S, V, 1>(dmp, d0, wg, visit),
+                2 => stream_group::<S, V, 2>(dmp, d0, wg, visit),
+                _ => stream_group::<S, V, 3>(dmp, d0, wg, visit),
             }
-            let rest = nb - nb % 4;
-            for (&phi, w) in row[rest..].iter().zip(&w[rest..]) {
+            d0 += width;
+        }
+    }
+}
+
+/// `a * b + c`, fused wherever the dispatched SIMD level has FMA (all but the scalar
+/// fallback).
+#[inline(always)]
+fn fma<S: Simd>(a: f64, b: f64, c: f64) -> f64 {
+    if S::IS_SCALAR {
+        a * b + c
+    } else {
+        a.mul_add(b, c)
+    }
+}
+
+/// `Φ(k) · w` for `W` dimensions at once: each feature value is broadcast once for all of
+/// them, and four partial sums per dimension keep the FMAs independent.
+#[inline(always)]
+fn stream_forcing<S: Simd, const W: usize>(row: &[f64], wt: &[Lanes]) -> [Lanes; W] {
+    let nb = row.len();
+    let mut part = [[[0.0; BATCH_LANES]; 4]; W];
+    let full = nb - nb % 4;
+    for i0 in (0..full).step_by(4) {
+        for q in 0..4 {
+            let phi = row[i0 + q];
+            for (j, part) in part.iter_mut().enumerate() {
+                let w = &wt[j * nb + i0 + q];
                 for l in 0..BATCH_LANES {
-                    part[0][l] = fma::<S>(phi, w[l], part[0][l]);
+                    part[q][l] = fma::<S>(phi, w[l], part[q][l]);
                 }
             }
-            let mut f = [0.0; BATCH_LANES];
+        }
+    }
+    for i in full..nb {
+        let phi = row[i];
+        for (j, part) in part.iter_mut().enumerate() {
+            let w = &wt[j * nb + i];
             for l in 0..BATCH_LANES {
-                f[l] = (part[0][l] + part[1][l]) + (part[2][l] + part[3][l]);
+                part[0][l] = fma::<S>(phi, w[l], part[0][l]);
             }
-            f
         }
-        let row = |k: usize| &dmp.rows[k * nb..(k + 1) * nb];
-        let wd = |d: usize| &wt[d * nb..(d + 1) * nb];
-        let mut y: Vec<Lanes> = (0..dims).map(|d| [dmp.start[d]; BATCH_LANES]).collect();
-        let mut z: Vec<Lanes> = vec![[0.0; BATCH_LANES]; dims];
-        let mut f: Vec<Lanes> = (0..dims).map(|d| forcing::<S>(row(0), wd(d))).collect();
-        let mut f_next: Vec<Lanes> = f.clone();
-        for k in 0..ns {
-            let next = (k + 1).min(ns - 1);
-            for (d, fn_) in f_next.iter_mut().enumerate() {
-                *fn_ = forcing::<S>(row(next), wd(d));
-            }
-            for d in 0..dims {
-                let ug = kk * dmp.goal[d];
-                let (yd, zd, f0, f1) = (y[d], z[d], f[d], f_next[d]);
-                let mut v = [0.0; BATCH_LANES];
-                let mut a = [0.0; BATCH_LANES];
-                let mut yn = [0.0; BATCH_LANES];
-                let mut zn = [0.0; BATCH_LANES];
-                for l in 0..BATCH_LANES {
-                    let (u0, u1) = (ug + f0[l], ug + f1[l]);
-                    v[l] = zd[l] * inv_tau;
-                    a[l] = (u0 - kk * yd[l] - az * zd[l]) * inv_tau2;
-                    let cy = b0y * u0 + b1y * u1;
-                    let cz = b0z * u0 + b1z * u1;
-                    yn[l] = cy + (e00 * yd[l] + e01 * zd[l]);
-                    zn[l] = cz + (e10 * yd[l] + e11 * zd[l]);
-                }
-                visit.visit(k, d, &yd, &v, &a);
-                y[d] = yn;
-                z[d] = zn;
-            }
-            std::mem::swap(&mut f, &mut f_next);
+    }
+    let mut f = [[0.0; BATCH_LANES]; W];
+    for j in 0..W {
+        for l in 0..BATCH_LANES {
+            f[j][l] = (part[j][0][l] + part[j][1][l]) + (part[j][2][l] + part[j][3][l]);
         }
+    }
+    f
+}
+
+/// The streaming rollout of dimensions `d0 .. d0 + W` (weights `wt` of these dimensions).
+#[inline(always)]
+fn stream_group<S: Simd, V: StreamVisitor, const W: usize>(
+    dmp: &DiscreteDmp,
+    d0: usize,
+    wt: &[Lanes],
+    visit: &mut V,
+) {
+    let (nb, ns) = (dmp.n_basis(), dmp.n_samples());
+    let cfg = &dmp.config;
+    let c = &dmp.coefficients;
+    let [[e00, e01], [e10, e11]] = c.e;
+    let (b0y, b1y, b0z, b1z) = (c.b0[0], c.b1[0], c.b0[1], c.b1[1]);
+    let (az, kk) = (cfg.alpha_z, cfg.alpha_z * cfg.beta_z);
+    let (inv_tau, inv_tau2) = (1.0 / cfg.tau, 1.0 / (cfg.tau * cfg.tau));
+    let row = |k: usize| &dmp.rows[k * nb..(k + 1) * nb];
+    let ug: [f64; W] = std::array::from_fn(|j| kk * dmp.goal[d0 + j]);
+    let mut y: [Lanes; W] = std::array::from_fn(|j| [dmp.start[d0 + j]; BATCH_LANES]);
+    let mut z = [[0.0; BATCH_LANES]; W];
+    let mut f = stream_forcing::<S, W>(row(0), wt);
+    for k in 0..ns {
+        let f_next = stream_forcing::<S, W>(row((k + 1).min(ns - 1)), wt);
+        for j in 0..W {
+            let (yd, zd, f0, f1) = (y[j], z[j], f[j], f_next[j]);
+            let mut v = [0.0; BATCH_LANES];
+            let mut a = [0.0; BATCH_LANES];
+            for l in 0..BATCH_LANES {
+                let (u0, u1) = (ug[j] + f0[l], ug[j] + f1[l]);
+                v[l] = zd[l] * inv_tau;
+                a[l] = (u0 - kk * yd[l] - az * zd[l]) * inv_tau2;
+                let cy = b0y * u0 + b1y * u1;
+                let cz = b0z * u0 + b1z * u1;
+                y[j][l] = cy + (e00 * yd[l] + e01 * zd[l]);
+                z[j][l] = cz + (e10 * yd[l] + e11 * zd[l]);
+            }
+            visit.visit(k, d0 + j, &yd, &v, &a);
+        }
+        f = f_next;
     }
 }
 

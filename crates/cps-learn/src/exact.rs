@@ -44,6 +44,31 @@ fn residual_vector(
     task.residuals(&traj, |_, r| out.push(r));
 }
 
+/// Column blocks (one per DMP dimension) with the rows that touch them, when no row
+/// touches two blocks; otherwise a single block with everything.
+fn decoupled_blocks(jac: &Mat<f64>, dims: usize, nb: usize) -> Vec<(Vec<usize>, Vec<usize>)> {
+    let (m, n) = (jac.nrows(), jac.ncols());
+    let mut owner = vec![usize::MAX; m];
+    for d in 0..dims {
+        for j in d * nb..(d + 1) * nb {
+            for (i, &v) in jac.col(j).iter().enumerate() {
+                if v != 0.0 {
+                    if owner[i] != usize::MAX && owner[i] != d {
+                        return vec![((0..n).collect(), (0..m).collect())];
+                    }
+                    owner[i] = d;
+                }
+            }
+        }
+    }
+    (0..dims)
+        .map(|d| {
+            let rows = (0..m).filter(|&i| owner[i] == d).collect();
+            ((d * nb..(d + 1) * nb).collect(), rows)
+        })
+        .collect()
+}
+
 /// The exact optimum of `task` in the search space `space`.
 pub fn exact_optimum(
     task: &ViaPointTask,
@@ -70,21 +95,36 @@ pub fn exact_optimum(
             jac[(i, j)] = r[i] - r0[i];
         }
     }
-    let singular = jac
-        .singular_values()
-        .map_err(|e| LearnError::Exact(format!("{e:?}")))?;
-    let (smax, smin) = singular
-        .iter()
-        .fold((0.0f64, f64::INFINITY), |(a, b), &s| (a.max(s), b.min(s)));
+    // Solve block by block when no residual couples the DMP's dimensions (J is then block
+    // diagonal up to a row permutation, and each block is a small independent problem);
+    // otherwise one QR of the whole J.
+    let blocks = decoupled_blocks(&jac, dmp.dims(), dmp.n_basis());
+    let mut params = vec![0.0; n];
+    let (mut smax, mut smin) = (0.0f64, f64::INFINITY);
+    for (cols, rows) in &blocks {
+        let sub = Mat::from_fn(rows.len(), cols.len(), |i, j| jac[(rows[i], cols[j])]);
+        let rhs = Mat::from_fn(rows.len(), 1, |i, _| -r0[rows[i]]);
+        let qr = sub.qr();
+        // cond(J) = cond(R): singular values of the small square factor R.
+        let sv = qr
+            .thin_R()
+            .singular_values()
+            .map_err(|e| LearnError::Exact(format!("{e:?}")))?;
+        for &v in &sv {
+            smax = smax.max(v);
+            smin = smin.min(v);
+        }
+        let sol = qr.solve_lstsq(&rhs);
+        for (j, &c) in cols.iter().enumerate() {
+            params[c] = sol[(j, 0)];
+        }
+    }
     if smin.is_nan() || smin <= smax * 1e-14 {
         return Err(LearnError::Exact(format!(
             "the problem is rank deficient (singular values from {smax:.3e} down to {smin:.3e}): \
              some weights do not affect the cost; add an acceleration or jerk term"
         )));
     }
-    let rhs = Mat::from_fn(m, 1, |i, _| -r0[i]);
-    let sol = jac.qr().solve_lstsq(&rhs);
-    let params: Vec<f64> = (0..n).map(|j| sol[(j, 0)]).collect();
     let mut weights = vec![0.0; n];
     space.to_weights(&params, &mut weights);
     let traj = dmp.rollout(&weights);
