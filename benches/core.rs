@@ -15,6 +15,19 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+/// A rayon pool whose only worker is the benchmark's own thread, so `install` runs in
+/// place and no iteration pays for a hand-off between threads.
+fn one_thread_pool() -> &'static rayon::ThreadPool {
+    static POOL: std::sync::OnceLock<rayon::ThreadPool> = std::sync::OnceLock::new();
+    POOL.get_or_init(|| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .use_current_thread()
+            .build()
+            .unwrap()
+    })
+}
+
 fn thesis_dmp() -> DiscreteDmp {
     DiscreteDmp::new(
         DmpConfig::new(25, 10.0, 0.01),
@@ -73,10 +86,7 @@ fn cmaes_generation(c: &mut Criterion) {
     let space = SearchSpace::new(Parametrisation::AnchorOffset, &dmp);
     let objective = ViaPointObjective::new(&task, &dmp, &space);
     let n = space.len();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
+    let pool = one_thread_pool();
     let mut es = Cmaes::new(&CmaesConfig::new(0.5, 3), &vec![0.0; n]).unwrap();
     let mut costs = vec![0.0; es.parameters().lambda];
     c.bench_function("cmaes_generation/n=75", |b| {
@@ -110,16 +120,17 @@ fn viapoint_run(c: &mut Criterion) {
     let mut config = ViaPointConfig::new(ViaPointTask::thesis());
     config.generations = 200;
     config.tol_fun = None;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
+    let pool = one_thread_pool();
     let mut group = c.benchmark_group("viapoint");
     group.sample_size(20);
     group.bench_function("200_generations", |b| {
         b.iter(|| {
             pool.install(|| learn_via_points(&config, &|_, _| ControlFlow::Continue(())).unwrap())
         })
+    });
+    // The same run with the machine's default pool (every core), as the CLI runs it.
+    group.bench_function("200_generations_all_cores", |b| {
+        b.iter(|| learn_via_points(&config, &|_, _| ControlFlow::Continue(())).unwrap())
     });
     group.finish();
 }

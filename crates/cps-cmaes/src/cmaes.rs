@@ -392,7 +392,7 @@ impl Cmaes {
             self.decompose();
             return;
         }
-        if !ok || !(max > 0.0) || !vals.iter().all(|v| v.is_finite()) {
+        if !ok || max.is_nan() || max <= 0.0 || !vals.iter().all(|v| v.is_finite()) {
             // Numerical failure: fall back to the last good decomposition.
             self.repairs += 1;
             self.rebuild_c_from_bd();

@@ -275,7 +275,7 @@ impl DiscreteDmp {
         let nw = self.n_weights();
         let m = weights.len() / nw;
         assert!(
-            m >= 1 && m <= BATCH_LANES && weights.len() == m * nw,
+            (1..=BATCH_LANES).contains(&m) && weights.len() == m * nw,
             "rollout_stream takes 1 to {BATCH_LANES} weight vectors"
         );
         self.arch.dispatch(Stream {

@@ -300,7 +300,7 @@ impl ViaPointTask {
     /// If `out.len()` is not the number of weight vectors or it exceeds `BATCH_LANES`.
     pub fn costs_streamed(&self, dmp: &DiscreteDmp, weights: &[f64], out: &mut [f64]) {
         let m = out.len();
-        assert!(m >= 1 && m <= BATCH_LANES && weights.len() == m * dmp.n_weights());
+        assert!((1..=BATCH_LANES).contains(&m) && weights.len() == m * dmp.n_weights());
         let w = &self.weights;
         let dims = dmp.dims();
         let last = dmp.n_samples() - 1;
