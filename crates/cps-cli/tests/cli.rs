@@ -333,3 +333,40 @@ fn bad_inputs_are_clear_errors_and_write_nothing() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("cannot read"));
 }
+
+/// Ctrl-C (SIGINT) stops at the end of a generation and still writes complete files, marked
+/// `"complete": false`, with exit code 130.
+#[cfg(unix)]
+#[test]
+fn an_interrupted_run_writes_what_it_learned_marked_incomplete() {
+    let dir = tempfile::tempdir().unwrap();
+    let exp = write(
+        dir.path(),
+        "long.toml",
+        &SHIPPED.replace("generations = 3000", "generations = 1000000"),
+    );
+    let out = dir.path().join("out");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cps-cli"))
+        .args([
+            "run",
+            exp.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ])
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let killed = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130));
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["complete"], false);
+    assert_eq!(s["termination"], "interrupted");
+    assert!(s["generations"].as_u64().unwrap() >= 1);
+    assert!(out.join("trajectory.csv").is_file() && out.join("cost.png").is_file());
+}

@@ -46,4 +46,4 @@ pub use canonical::CanonicalSystem;
 pub use config::DmpConfig;
 pub use dmp::{BATCH_LANES, DiscreteDmp, Lanes, StreamVisitor};
 pub use error::DmpError;
-pub use trajectory::Trajectory;
+pub use trajectory::{Trajectory, locate_on_grid};

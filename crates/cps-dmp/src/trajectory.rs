@@ -97,26 +97,32 @@ impl Trajectory {
         }
     }
 
-    /// The grid interval holding `t`: index `k` and the fraction of the way to `k + 1`.
+    /// The grid interval holding `t`: index `k` and the fraction of the way to `k + 1`
+    /// (see [`locate_on_grid`]).
     pub fn locate(&self, t: f64) -> (usize, f64) {
-        let n = self.times.len();
-        if n < 2 || t <= self.times[0] {
-            return (0, 0.0);
-        }
-        let h = self.times[1] - self.times[0];
-        let s = (t - self.times[0]) / h;
-        if s >= (n - 1) as f64 {
-            return (n - 1, 0.0);
-        }
-        let k = s.floor() as usize;
-        let frac = s - k as f64;
-        // Times that sit on the grid up to rounding count as grid points.
-        if frac < 1e-9 {
-            (k, 0.0)
-        } else if frac > 1.0 - 1e-9 {
-            (k + 1, 0.0)
-        } else {
-            (k, frac)
-        }
+        locate_on_grid(&self.times, t)
+    }
+}
+
+/// Where time `t` falls on a uniform grid `times`: the sample `k` at or before it and the
+/// fraction of the way to `k + 1`. Times on the grid up to rounding (fraction within 1e-9)
+/// count as grid points; times outside the grid are clamped to its ends.
+pub fn locate_on_grid(times: &[f64], t: f64) -> (usize, f64) {
+    let n = times.len();
+    if n < 2 || t <= times[0] {
+        return (0, 0.0);
+    }
+    let s = (t - times[0]) / (times[1] - times[0]);
+    if s >= (n - 1) as f64 {
+        return (n - 1, 0.0);
+    }
+    let k = s.floor() as usize;
+    let frac = s - k as f64;
+    if frac < 1e-9 {
+        (k, 0.0)
+    } else if frac > 1.0 - 1e-9 {
+        (k + 1, 0.0)
+    } else {
+        (k, frac)
     }
 }

@@ -1,6 +1,8 @@
 //! The via-point task and its cost (Rueckert & d'Avella 2013; thesis eq. 54).
 
-use cps_dmp::{BATCH_LANES, DiscreteDmp, DmpConfig, Lanes, StreamVisitor, Trajectory};
+use cps_dmp::{
+    BATCH_LANES, DiscreteDmp, DmpConfig, Lanes, StreamVisitor, Trajectory, locate_on_grid,
+};
 use serde::{Deserialize, Serialize};
 
 use crate::LearnError;
@@ -84,7 +86,7 @@ pub(crate) enum Term {
 }
 
 /// A via-point movement: start, goal, via points, the DMP that carries it and the cost.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ViaPointTask {
     /// Start position `y0` (the DMP's start).
     pub start: Vec<f64>,
@@ -95,14 +97,9 @@ pub struct ViaPointTask {
     /// Via points, with increasing times inside `(0, tau)`.
     pub via: Vec<ViaPoint>,
     /// DMP parameters (basis functions, `tau`, `dt`, gains).
-    #[serde(skip, default = "default_dmp")]
     pub dmp: DmpConfig,
     /// Cost weights.
     pub weights: CostWeights,
-}
-
-fn default_dmp() -> DmpConfig {
-    DmpConfig::new(25, 10.0, 0.01)
 }
 
 impl ViaPointTask {
@@ -310,18 +307,7 @@ impl ViaPointTask {
         let via_at: Vec<(usize, f64)> = self
             .via
             .iter()
-            .map(|v| {
-                let s = (v.time / h).clamp(0.0, last as f64);
-                let k = (s.floor() as usize).min(last);
-                let frac = s - k as f64;
-                if frac < 1e-9 {
-                    (k, 0.0)
-                } else if frac > 1.0 - 1e-9 {
-                    (k + 1, 0.0)
-                } else {
-                    (k, frac)
-                }
-            })
+            .map(|v| locate_on_grid(times, v.time))
             .collect();
         let zero = [0.0; BATCH_LANES];
         let mut sink = CostSink {
