@@ -377,14 +377,16 @@ fn fma<S: Simd>(a: f64, b: f64, c: f64) -> f64 {
 }
 
 /// `Φ(k) · w` for `W` dimensions at once: each feature value is broadcast once for all of
-/// them, and four partial sums per dimension keep the FMAs independent.
+/// them, and two partial sums per dimension shorten the FMA chains (more would spill
+/// registers; successive steps' sums are independent and overlap anyway).
 #[inline(always)]
 fn stream_forcing<S: Simd, const W: usize>(row: &[f64], wt: &[Lanes]) -> [Lanes; W] {
     let nb = row.len();
-    let mut part = [[[0.0; BATCH_LANES]; 4]; W];
-    let full = nb - nb % 4;
-    for i0 in (0..full).step_by(4) {
-        for q in 0..4 {
+    const P: usize = 2;
+    let mut part = [[[0.0; BATCH_LANES]; P]; W];
+    let full = nb - nb % P;
+    for i0 in (0..full).step_by(P) {
+        for q in 0..P {
             let phi = row[i0 + q];
             for (j, part) in part.iter_mut().enumerate() {
                 let w = &wt[j * nb + i0 + q];
@@ -406,7 +408,7 @@ fn stream_forcing<S: Simd, const W: usize>(row: &[f64], wt: &[Lanes]) -> [Lanes;
     let mut f = [[0.0; BATCH_LANES]; W];
     for j in 0..W {
         for l in 0..BATCH_LANES {
-            f[j][l] = (part[j][0][l] + part[j][1][l]) + (part[j][2][l] + part[j][3][l]);
+            f[j][l] = part[j][0][l] + part[j][1][l];
         }
     }
     f

@@ -310,9 +310,20 @@ impl ViaPointTask {
             .map(|v| locate_on_grid(times, v.time))
             .collect();
         let zero = [0.0; BATCH_LANES];
+        let mut marked = vec![false; last + 1];
+        marked[last] = true;
+        for &(k, frac) in &via_at {
+            marked[k] = true;
+            if frac > 0.0 {
+                marked[(k + 1).min(last)] = true;
+            }
+        }
         let mut sink = CostSink {
             task: self,
             via_at,
+            marked,
+            use_acc: w.acceleration > 0.0,
+            use_jerk: w.jerk > 0.0,
             last,
             inv_h: 1.0 / h,
             via_pos: vec![zero; self.via.len() * dims],
@@ -366,6 +377,10 @@ struct CostSink<'a> {
     task: &'a ViaPointTask,
     /// Grid sample and fraction towards the next sample of each via point.
     via_at: Vec<(usize, f64)>,
+    /// Samples where a via point or the goal is read.
+    marked: Vec<bool>,
+    use_acc: bool,
+    use_jerk: bool,
     last: usize,
     inv_h: f64,
     via_pos: Vec<Lanes>,
@@ -378,14 +393,13 @@ struct CostSink<'a> {
 impl StreamVisitor for CostSink<'_> {
     #[inline(always)]
     fn visit(&mut self, k: usize, d: usize, y: &Lanes, v: &Lanes, a: &Lanes) {
-        let w = &self.task.weights;
-        if w.acceleration > 0.0 {
+        if self.use_acc {
             let acc = &mut self.acc[d];
             for l in 0..BATCH_LANES {
                 acc[l] += a[l] * a[l];
             }
         }
-        if w.jerk > 0.0 {
+        if self.use_jerk {
             if k > 0 {
                 let (jerk, prev) = (&mut self.jerk[d], &self.prev_a[d]);
                 for l in 0..BATCH_LANES {
@@ -395,6 +409,16 @@ impl StreamVisitor for CostSink<'_> {
             }
             self.prev_a[d] = *a;
         }
+        if self.marked[k] {
+            self.sample(k, d, y, v);
+        }
+    }
+}
+
+impl CostSink<'_> {
+    /// The rare samples that carry a via point or the goal.
+    #[inline(never)]
+    fn sample(&mut self, k: usize, d: usize, y: &Lanes, v: &Lanes) {
         let dims = self.prev_a.len();
         for (i, &(kv, frac)) in self.via_at.iter().enumerate() {
             let c = if k == kv {
@@ -410,6 +434,7 @@ impl StreamVisitor for CostSink<'_> {
             }
         }
         if k == self.last {
+            let w = &self.task.weights;
             let (g, gv) = (self.task.goal[d], self.task.goal_velocity[d]);
             for l in 0..BATCH_LANES {
                 let (eg, ev) = (y[l] - g, v[l] - gv);
