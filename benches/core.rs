@@ -42,6 +42,16 @@ fn random_weights(n: usize, seed: u64) -> Vec<f64> {
     (0..n).map(|_| rng.random_range(-1e3..1e3)).collect()
 }
 
+fn kinematics(c: &mut Criterion) {
+    use cps::kinematics::robots::{PandaTool, panda};
+    let arm = panda(PandaTool::HandTcp);
+    let q = [0.3, -0.5, 0.2, -2.0, 0.1, 1.6, 0.7];
+    c.bench_function("fk/panda", |b| b.iter(|| arm.fk(black_box(&q)).unwrap()));
+    c.bench_function("jacobian/panda", |b| {
+        b.iter(|| arm.jacobian(black_box(&q)).unwrap())
+    });
+}
+
 fn rollout(c: &mut Criterion) {
     let dmp = thesis_dmp();
     let w = random_weights(dmp.n_weights(), 1);
@@ -137,6 +147,7 @@ fn viapoint_run(c: &mut Criterion) {
 
 criterion_group!(
     benches,
+    kinematics,
     rollout,
     cmaes_overhead,
     cmaes_generation,

@@ -1,8 +1,37 @@
-//! Robot kinematics for cps (not filled yet).
+//! Robot kinematics for cps (first part: DH chains, forward kinematics, Jacobians).
 //!
-//! This crate will hold the robot maths: homogeneous transforms, Denavit-Hartenberg chains
-//! in the standard and the modified (Craig) convention, forward kinematics, geometric
-//! Jacobians, damped pseudo-inverse and transpose controllers, inverse kinematics with
-//! joint limits, robot models (Franka Panda first) and the small robot-backend trait with
-//! an in-process kinematic robot. It does no IO and has no rayon.
+//! - [`SerialChain`]: a serial chain of revolute joints from a Denavit-Hartenberg table in
+//!   an explicitly named convention ([`DhConvention::Standard`] or
+//!   [`DhConvention::Modified`], never mixed up), with base and tool transforms.
+//! - Forward kinematics ([`SerialChain::fk`], every joint frame with
+//!   [`SerialChain::fk_frames`]), the geometric Jacobian in the world frame
+//!   ([`SerialChain::jacobian`], 6 × n, position rows first) and Yoshikawa's manipulability.
+//! - [`robots`]: the Franka Emika Panda (modified DH, flange or Franka Hand TCP, limits) and
+//!   the Puma 560 (standard DH).
+//!
+//! Still to come (issue "cps-kinematics"): controllers, inverse kinematics with limits,
+//! workspace sampling, URDF and TOML models, the robot-backend trait and the in-process
+//! robot. This crate does no IO and has no rayon.
+//!
+//! # Example
+//! ```
+//! use cps_kinematics::robots::{panda, PandaTool};
+//! # fn main() -> Result<(), cps_kinematics::KinematicsError> {
+//! let arm = panda(PandaTool::Flange);
+//! let pose = arm.fk(&[0.0; 7])?;
+//! // At q = 0 the flange sits 0.088 m forward and 0.926 m above the base.
+//! assert!((pose.translation.x - 0.088).abs() < 1e-12);
+//! assert!((pose.translation.z - 0.926).abs() < 1e-12);
+//! let j = arm.jacobian(&[0.0; 7])?; // 6 x 7
+//! assert_eq!(j.ncols(), 7);
+//! # Ok(())
+//! # }
+//! ```
 #![deny(missing_docs)]
+
+mod chain;
+mod error;
+pub mod robots;
+
+pub use chain::{ChainPose, DhConvention, DhLink, SerialChain};
+pub use error::KinematicsError;

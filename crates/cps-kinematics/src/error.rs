@@ -1,0 +1,26 @@
+//! The error type of cps-kinematics.
+
+/// What can go wrong with a robot model or a kinematic query.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum KinematicsError {
+    /// A joint vector of the wrong length.
+    #[error("expected {expected} joint values, got {got}")]
+    JointCount {
+        /// Joints of the robot.
+        expected: usize,
+        /// Values given.
+        got: usize,
+    },
+    /// A joint value is NaN or infinite.
+    #[error("joint {joint} is not finite ({value})")]
+    NotFinite {
+        /// 1-based joint number.
+        joint: usize,
+        /// The value.
+        value: f64,
+    },
+    /// A robot model that cannot be a serial chain (no joints, bad limits, NaN parameters).
+    #[error("invalid robot model: {0}")]
+    InvalidModel(String),
+}
