@@ -6,10 +6,11 @@
 //! - Forward kinematics ([`SerialChain::fk`], every joint frame with
 //!   [`SerialChain::fk_frames`]), the geometric Jacobian in the world frame
 //!   ([`SerialChain::jacobian`], 6 × n, position rows first) and Yoshikawa's manipulability.
+//! - [`controllers`]: pseudo-inverse, damped least squares and transpose steps.
 //! - [`robots`]: the Franka Emika Panda (modified DH, flange or Franka Hand TCP, limits) and
 //!   the Puma 560 (standard DH).
 //!
-//! Still to come (issue "cps-kinematics"): controllers, inverse kinematics with limits,
+//! Still to come (issue "cps-kinematics"): null-space use and limits in the controllers, inverse kinematics with limits,
 //! workspace sampling, URDF and TOML models, the robot-backend trait and the in-process
 //! robot. This crate does no IO and has no rayon.
 //!
@@ -30,6 +31,7 @@
 #![deny(missing_docs)]
 
 mod chain;
+pub mod controllers;
 mod error;
 pub mod robots;
 

@@ -103,6 +103,63 @@ fn puma560_matches_the_reference() {
 }
 
 #[test]
+fn controller_steps_match_the_reference() {
+    use cps_kinematics::controllers::{dls_step, pinv_step, to_dmatrix, transpose_step};
+    let data = reference();
+    let e = floats(&data["meta"]["e_test"]);
+    let lambda = data["meta"]["dls_lambda"].as_f64().unwrap();
+    let arm = panda(PandaTool::Flange);
+    for c in data["configs"].as_array().unwrap() {
+        let name = c["name"].as_str().unwrap();
+        let q = floats(&c["q"]);
+        let j = to_dmatrix(&arm.jacobian(&q).unwrap());
+        let f = &c["flange"];
+        let sv = floats(&f["singular_values"]);
+        let singular = sv.iter().cloned().fold(f64::INFINITY, f64::min) < 1e-10;
+        let close = |got: &nalgebra::DVector<f64>, key: &str, tol: f64| {
+            for (k, r) in floats(&f[key]).iter().enumerate() {
+                assert!(
+                    (got[k] - r).abs() < tol,
+                    "{name} {key}[{k}]: {} vs {r}",
+                    got[k]
+                );
+            }
+        };
+        close(&transpose_step(&j, &e), "JT_e", 1e-12);
+        close(&dls_step(&j, &e, lambda), "dls_J_e", 1e-12);
+        // At the singular configurations the pseudo-inverse depends on the rank cut-off.
+        if !singular {
+            close(&pinv_step(&j, &e), "pinv_J_e", 1e-10);
+        }
+    }
+}
+
+#[test]
+fn damped_steps_stay_bounded_through_a_singularity_where_the_pseudo_inverse_explodes() {
+    use cps_kinematics::controllers::{dls_step, pinv_step, to_dmatrix};
+    let arm = panda(PandaTool::Flange);
+    let e = [0.0, 0.0, 0.01, 0.0, 0.0, 0.0];
+    let lambda = 0.1;
+    let mut worst_pinv = 0.0f64;
+    // Approach the stretched-out singularity (q4 → 0 straightens the elbow).
+    for k in 0..50 {
+        let q4 = -0.5 * (1.0 - k as f64 / 50.0) - 1e-7;
+        let q = [0.0, 0.3, 0.0, q4, 0.0, 1.0, 0.0];
+        let j = to_dmatrix(&arm.jacobian(&q).unwrap());
+        let dls = dls_step(&j, &e, lambda).norm();
+        assert!(
+            dls <= 0.01 / (2.0 * lambda) + 1e-12,
+            "DLS step {dls} at q4 = {q4}"
+        );
+        worst_pinv = worst_pinv.max(pinv_step(&j, &e).norm());
+    }
+    assert!(
+        worst_pinv > 1.0,
+        "the pseudo-inverse should blow up near the singularity: {worst_pinv}"
+    );
+}
+
+#[test]
 fn bad_joint_vectors_are_typed_errors() {
     let arm = panda(PandaTool::Flange);
     assert!(matches!(
