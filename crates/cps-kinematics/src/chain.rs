@@ -141,6 +141,7 @@ pub struct SerialChain {
     twist: Vec<(f64, f64)>,
     base: Affine,
     tool: Affine,
+    limits: Option<(Vec<f64>, Vec<f64>)>,
 }
 
 /// Forward kinematics with every joint frame, for Jacobians and teaching.
@@ -176,6 +177,7 @@ impl SerialChain {
             twist,
             base: Affine::IDENTITY,
             tool: Affine::IDENTITY,
+            limits: None,
         })
     }
 
@@ -189,6 +191,38 @@ impl SerialChain {
     pub fn with_tool(mut self, tool: Isometry3<f64>) -> Self {
         self.tool = Affine::from_isometry(&tool);
         self
+    }
+
+    /// The same chain with joint position limits (radians); each lower < upper.
+    pub fn with_limits(mut self, lower: &[f64], upper: &[f64]) -> Result<Self, KinematicsError> {
+        let n = self.dof();
+        for (what, v) in [("lower", lower), ("upper", upper)] {
+            if v.len() != n {
+                return Err(KinematicsError::InvalidModel(format!(
+                    "{what} limits have {} values for {n} joints",
+                    v.len()
+                )));
+            }
+        }
+        for i in 0..n {
+            if !(lower[i].is_finite() && upper[i].is_finite() && lower[i] < upper[i]) {
+                return Err(KinematicsError::InvalidModel(format!(
+                    "joint {}: limits must be finite with lower < upper (got {} .. {})",
+                    i + 1,
+                    lower[i],
+                    upper[i]
+                )));
+            }
+        }
+        self.limits = Some((lower.to_vec(), upper.to_vec()));
+        Ok(self)
+    }
+
+    /// Joint position limits `(lower, upper)`, if the model has them.
+    pub fn limits(&self) -> Option<(&[f64], &[f64])> {
+        self.limits
+            .as_ref()
+            .map(|(l, u)| (l.as_slice(), u.as_slice()))
     }
 
     /// The DH convention of the table.

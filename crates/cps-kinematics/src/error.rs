@@ -20,6 +20,20 @@ pub enum KinematicsError {
         /// The value.
         value: f64,
     },
+    /// Inverse kinematics found no configuration within the tolerances; the best one
+    /// missed by these residuals.
+    #[error(
+        "target not reached: best position error {position_error:.3e} m, rotation error {rotation_error:.3e} rad after {iterations} iterations"
+    )]
+    Unreachable {
+        /// Distance from the target position of the best configuration, metres.
+        position_error: f64,
+        /// Rotation angle between the target and the best orientation, radians (0 for
+        /// position-only targets).
+        rotation_error: f64,
+        /// Iterations spent over all restarts.
+        iterations: usize,
+    },
     /// A robot model that cannot be a serial chain (no joints, bad limits, NaN parameters).
     #[error("invalid robot model: {0}")]
     InvalidModel(String),

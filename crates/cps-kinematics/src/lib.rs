@@ -7,10 +7,12 @@
 //!   [`SerialChain::fk_frames`]), the geometric Jacobian in the world frame
 //!   ([`SerialChain::jacobian`], 6 × n, position rows first) and Yoshikawa's manipulability.
 //! - [`controllers`]: pseudo-inverse, damped least squares and transpose steps.
+//! - [`solve_ik`]: inverse kinematics (position or full pose) with joint limits and seeded
+//!   random restarts; failure carries the best residual.
 //! - [`robots`]: the Franka Emika Panda (modified DH, flange or Franka Hand TCP, limits) and
 //!   the Puma 560 (standard DH).
 //!
-//! Still to come (issue "cps-kinematics"): null-space use and limits in the controllers, inverse kinematics with limits,
+//! Still to come (issue "cps-kinematics"): null-space use and limits in the controllers,
 //! workspace sampling, URDF and TOML models, the robot-backend trait and the in-process
 //! robot. This crate does no IO and has no rayon.
 //!
@@ -33,7 +35,9 @@
 mod chain;
 pub mod controllers;
 mod error;
+mod ik;
 pub mod robots;
 
 pub use chain::{ChainPose, DhConvention, DhLink, SerialChain};
 pub use error::KinematicsError;
+pub use ik::{IkConfig, IkSolution, IkTarget, solve_ik};

@@ -53,8 +53,8 @@ pub fn panda(tool: PandaTool) -> SerialChain {
         }
     };
     SerialChain::new(DhConvention::Modified, links)
-        .expect("the Panda table is valid")
-        .with_tool(tool)
+        .and_then(|c| c.with_tool(tool).with_limits(&PANDA_Q_MIN, &PANDA_Q_MAX))
+        .expect("the Panda model is valid")
 }
 
 /// The Puma 560 in standard DH (Corke's Robotics Toolbox model `Puma560`), for teaching

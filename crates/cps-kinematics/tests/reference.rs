@@ -201,3 +201,80 @@ proptest! {
         }
     }
 }
+
+mod inverse {
+    use cps_kinematics::robots::{PANDA_Q_MAX, PANDA_Q_MIN, PandaTool, panda};
+    use cps_kinematics::{IkConfig, IkTarget, KinematicsError, solve_ik};
+    use nalgebra::{UnitQuaternion, Vector3};
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    const READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+
+    /// FK∘IK round trips: random in-limit configurations give reachable poses; IK from the
+    /// ready pose reaches each to 1e-9 m / 1e-9 rad inside the limits.
+    #[test]
+    fn full_pose_round_trips_within_limits() {
+        let arm = panda(PandaTool::HandTcp);
+        let mut rng = ChaCha8Rng::seed_from_u64(42);
+        let (mut ok, total) = (0, 200);
+        for _ in 0..total {
+            let q: Vec<f64> = PANDA_Q_MIN
+                .iter()
+                .zip(&PANDA_Q_MAX)
+                .map(|(l, h)| rng.random_range(*l..*h))
+                .collect();
+            let target = arm.fk(&q).unwrap();
+            if let Ok(sol) = solve_ik(&arm, &IkTarget::Pose(target), &READY, &IkConfig::default()) {
+                let reached = arm.fk(&sol.q).unwrap();
+                assert!((reached.translation.vector - target.translation.vector).norm() <= 1e-9);
+                let dr = UnitQuaternion::from_rotation_matrix(
+                    &(reached.rotation * target.rotation.inverse()),
+                )
+                .angle();
+                assert!(dr <= 1e-9, "rotation error {dr}");
+                for (i, v) in sol.q.iter().enumerate() {
+                    assert!(
+                        (PANDA_Q_MIN[i]..=PANDA_Q_MAX[i]).contains(v),
+                        "joint {} at {v}",
+                        i + 1
+                    );
+                }
+                ok += 1;
+            }
+        }
+        assert!(ok as f64 >= 0.995 * total as f64, "{ok}/{total} solved");
+    }
+
+    #[test]
+    fn position_targets_and_unreachable_targets() {
+        let arm = panda(PandaTool::HandTcp);
+        let target = Vector3::new(0.4, 0.2, 0.5);
+        let sol = solve_ik(
+            &arm,
+            &IkTarget::Position(target),
+            &READY,
+            &IkConfig::default(),
+        )
+        .unwrap();
+        assert!((arm.fk(&sol.q).unwrap().translation.vector - target).norm() <= 1e-9);
+        let far = Vector3::new(3.0, 0.0, 0.5);
+        let cfg = IkConfig {
+            restarts: 5,
+            ..IkConfig::default()
+        };
+        match solve_ik(&arm, &IkTarget::Position(far), &READY, &cfg) {
+            Err(KinematicsError::Unreachable {
+                position_error,
+                iterations,
+                ..
+            }) => {
+                assert!(position_error > 1.5, "residual {position_error}");
+                assert!(iterations > 0);
+            }
+            other => panic!("{other:?}"),
+        }
+        let nan = IkTarget::Position(Vector3::new(f64::NAN, 0.0, 0.0));
+        assert!(solve_ik(&arm, &nan, &READY, &cfg).is_err());
+    }
+}
