@@ -4,15 +4,27 @@
 //! cps-cli run experiments/viapoint.toml [--out DIR] [--seed N] [--threads N] [--force] [--quiet]
 //! cps-cli check experiments/viapoint.toml
 //! cps-cli default > my-experiment.toml
+//! cps-cli fk --robot panda --q 0,-0.785,0,-2.356,0,1.571,0.785 [--tool hand|flange] [--json]
+//! cps-cli ik --robot panda --target 0.4,0.2,0.5[,qx,qy,qz,qw] [--seed-q ...] [--json]
+//! cps-cli robot show panda
 //! ```
 //!
 //! Exit codes: 0 success, 1 failure while running, 2 bad input (the message names the file,
 //! line and column), 130 interrupted by Ctrl-C (the results of the finished generations are
 //! still written, with `"complete": false`).
 
+/// Prints a line to stdout, ignoring a closed pipe (`cps-cli fk ... | head` must not panic).
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
+
 mod experiment;
 mod output;
 mod plots;
+mod robot;
 
 use std::io::IsTerminal;
 use std::ops::ControlFlow;
@@ -71,6 +83,15 @@ enum Command {
     },
     /// Print a commented default experiment (the thesis's via-point task).
     Default,
+    /// Forward kinematics: the tool pose at joint angles `--q`.
+    Fk(robot::FkArgs),
+    /// Inverse kinematics: joint angles that reach `--target`.
+    Ik(robot::IkArgs),
+    /// Robot models.
+    Robot {
+        #[command(subcommand)]
+        command: robot::RobotCommand,
+    },
 }
 
 fn main() -> ExitCode {
@@ -102,12 +123,15 @@ fn main() -> ExitCode {
 fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
     match cli.command {
         Command::Default => {
-            print!("{DEFAULT_EXPERIMENT}");
+            say!("{}", DEFAULT_EXPERIMENT.trim_end());
             Ok(ExitCode::SUCCESS)
         }
+        Command::Fk(args) => robot::fk(&args),
+        Command::Ik(args) => robot::ik(&args),
+        Command::Robot { command } => robot::robot(&command),
         Command::Check { file } => {
             let exp = experiment::load(&file, None)?;
-            println!(
+            say!(
                 "{}: ok ({} dimensions, {} via points, {} weights, {} generations x {} repetition(s))",
                 file.display(),
                 exp.config.task.start.len(),
@@ -205,13 +229,13 @@ fn run_experiment(
 
     let best = outcome.best();
     if !quiet {
-        println!(
+        say!(
             "{}: {} in {:.2} s",
             exp.name,
             best.termination,
             started.elapsed().as_secs_f64()
         );
-        println!(
+        say!(
             "  best cost {:.6e} (exact optimum {:.6e}, gap {:.2e}) after {} generations, {} evaluations",
             best.cost,
             outcome.optimum.cost,
@@ -219,13 +243,13 @@ fn run_experiment(
             best.generations,
             best.evaluations
         );
-        println!(
+        say!(
             "  goal error {:.3} mm, worst via-point error {:.3} mm, final speed {:.3} mm/s",
             best.errors.goal * 1e3,
             best.errors.via.iter().fold(0.0f64, |a, &b| a.max(b)) * 1e3,
             best.errors.final_speed * 1e3
         );
-        println!("  results in {}", out.display());
+        say!("  results in {}", out.display());
     }
     if outcome.interrupted() {
         eprintln!(

@@ -370,3 +370,88 @@ fn an_interrupted_run_writes_what_it_learned_marked_incomplete() {
     assert!(s["generations"].as_u64().unwrap() >= 1);
     assert!(out.join("trajectory.csv").is_file() && out.join("cost.png").is_file());
 }
+
+fn stdout_json(o: &Output) -> serde_json::Value {
+    serde_json::from_slice(&o.stdout)
+        .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&o.stdout)))
+}
+
+#[test]
+fn fk_and_ik_from_the_command_line_round_trip() {
+    // At q = 0 the Panda's flange is 0.088 m forward and 0.926 m up, pointing down.
+    let o = cli(&[
+        "fk",
+        "--robot",
+        "panda",
+        "--q",
+        "0,0,0,0,0,0,0",
+        "--tool",
+        "flange",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let fk = stdout_json(&o);
+    assert!((fk["T"][0][3].as_f64().unwrap() - 0.088).abs() < 1e-12);
+    assert!((fk["T"][2][3].as_f64().unwrap() - 0.926).abs() < 1e-12);
+    assert!((fk["T"][2][2].as_f64().unwrap() + 1.0).abs() < 1e-12);
+    assert_eq!(fk["quaternion_xyzw"].as_array().unwrap().len(), 4);
+
+    // The Hand TCP pose at some configuration, then IK for that full pose.
+    let q = "0.3,-0.5,0.2,-2.0,0.1,1.6,0.7";
+    let fk = stdout_json(&cli(&["fk", "--q", q, "--json"]));
+    let mut target: Vec<String> = fk["position"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.to_string())
+        .collect();
+    target.extend(
+        fk["quaternion_xyzw"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.to_string()),
+    );
+    let o = cli(&["ik", "--target", &target.join(","), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let ik = stdout_json(&o);
+    assert!(ik["position_error"].as_f64().unwrap() <= 1e-9);
+    assert!(ik["rotation_error"].as_f64().unwrap() <= 1e-9);
+    let q_ik: Vec<String> = ik["q"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.to_string())
+        .collect();
+    let again = stdout_json(&cli(&["fk", "--q", &q_ik.join(","), "--json"]));
+    for k in 0..3 {
+        let (a, b) = (
+            again["position"][k].as_f64().unwrap(),
+            fk["position"][k].as_f64().unwrap(),
+        );
+        assert!((a - b).abs() < 1e-9);
+    }
+}
+
+#[test]
+fn kinematics_bad_input_exits_2_with_a_clear_message() {
+    for (args, expect) in [
+        (vec!["fk", "--q", "0,0,0"], "expected 7 joint values, got 3"),
+        (vec!["fk", "--robot", "r2d2", "--q", "0"], "unknown robot"),
+        (vec!["ik", "--target", "3,0,0.5"], "target not reached"),
+        (vec!["ik", "--target", "0.3,0.1"], "x,y,z"),
+        (vec!["ik", "--target", "0.3,NaN,0.5"], "finite"),
+    ] {
+        let o = cli(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(expect), "{args:?}: {}", stderr(&o));
+        assert!(!stderr(&o).contains("panicked"));
+    }
+    let o = cli(&["robot", "show", "panda"]);
+    assert!(o.status.success());
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("modified (Craig) DH") && text.contains("-3.0718"),
+        "{text}"
+    );
+}
