@@ -22,7 +22,7 @@ pub enum ToolArg {
 /// Arguments of `cps-cli fk`.
 #[derive(Args, Debug)]
 pub struct FkArgs {
-    /// Robot: `panda` or `puma560`.
+    /// Robot: `panda`, `ur3` or `puma560`.
     #[arg(long, default_value = "panda")]
     robot: String,
     /// Joint angles in radians, comma-separated.
@@ -44,7 +44,7 @@ pub struct FkArgs {
 /// Arguments of `cps-cli ik`.
 #[derive(Args, Debug)]
 pub struct IkArgs {
-    /// Robot: `panda` or `puma560`.
+    /// Robot: `panda`, `ur3` or `puma560`.
     #[arg(long, default_value = "panda")]
     robot: String,
     /// Target `x,y,z` (metres, world frame) or a full pose `x,y,z,qx,qy,qz,qw`.
@@ -71,7 +71,7 @@ pub struct IkArgs {
 pub enum RobotCommand {
     /// Print a robot's DH table, convention, limits and tool.
     Show {
-        /// `panda` or `puma560`.
+        /// `panda`, `ur3` or `puma560`.
         name: String,
     },
 }

@@ -9,11 +9,13 @@
 //! - [`controllers`]: pseudo-inverse, damped least squares and transpose steps.
 //! - [`solve_ik`]: inverse kinematics (position or full pose) with joint limits and seeded
 //!   random restarts; failure carries the best residual.
-//! - [`robots`]: the Franka Emika Panda (modified DH, flange or Franka Hand TCP, limits) and
-//!   the Puma 560 (standard DH).
+//! - [`robots`]: the Franka Emika Panda (modified DH, flange or Franka Hand TCP, limits),
+//!   the UR3 and the Puma 560 (standard DH).
+//! - [`sample_workspace`] (seeded reachable tool positions) and Grübler's
+//!   [`degrees_of_freedom`], for teaching.
 //!
 //! Still to come (issue "cps-kinematics"): null-space use and limits in the controllers,
-//! workspace sampling, URDF and TOML models, the robot-backend trait and the in-process
+//! path reachability checks, URDF and TOML models, the robot-backend trait and the in-process
 //! robot. This crate does no IO and has no rayon.
 //!
 //! # Example
@@ -37,7 +39,9 @@ pub mod controllers;
 mod error;
 mod ik;
 pub mod robots;
+mod workspace;
 
 pub use chain::{ChainPose, DhConvention, DhLink, SerialChain};
 pub use error::KinematicsError;
 pub use ik::{IkConfig, IkSolution, IkTarget, solve_ik};
+pub use workspace::{degrees_of_freedom, sample_workspace};

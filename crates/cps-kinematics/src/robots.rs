@@ -70,3 +70,21 @@ pub fn puma560() -> SerialChain {
     ];
     SerialChain::new(DhConvention::Standard, links).expect("the Puma table is valid")
 }
+
+/// The Universal Robots UR3 in standard DH with Universal Robots' published parameters
+/// (d1 = 0.1519, a2 = −0.24365, a3 = −0.21325, d4 = 0.11235, d5 = 0.08535,
+/// d6 = 0.0819 m; α = π/2, 0, 0, π/2, −π/2, 0), joint limits ±2π, tool at the flange.
+pub fn ur3() -> SerialChain {
+    let links = vec![
+        DhLink::new(0.0, 0.1519, FRAC_PI_2),
+        DhLink::new(-0.24365, 0.0, 0.0),
+        DhLink::new(-0.21325, 0.0, 0.0),
+        DhLink::new(0.0, 0.11235, FRAC_PI_2),
+        DhLink::new(0.0, 0.08535, -FRAC_PI_2),
+        DhLink::new(0.0, 0.0819, 0.0),
+    ];
+    let tau = std::f64::consts::TAU;
+    SerialChain::new(DhConvention::Standard, links)
+        .and_then(|c| c.with_limits(&[-tau; 6], &[tau; 6]))
+        .expect("the UR3 model is valid")
+}

@@ -278,3 +278,52 @@ mod inverse {
         assert!(solve_ik(&arm, &nan, &READY, &cfg).is_err());
     }
 }
+
+#[test]
+fn ur3_zero_configuration_and_jacobian_consistency() {
+    use cps_kinematics::robots::ur3;
+    let arm = ur3();
+    // Standard DH at q = 0: the arm lies along −x, offset along −y by d4 + d6, and d5 lower.
+    let p = arm.fk(&[0.0; 6]).unwrap().translation.vector;
+    let expect = [-0.24365 - 0.21325, -(0.11235 + 0.0819), 0.1519 - 0.08535];
+    for k in 0..3 {
+        assert!((p[k] - expect[k]).abs() < 1e-12, "{p:?}");
+    }
+    let q = [0.3, -1.1, 0.8, -0.4, 1.2, 0.5];
+    let j = arm.jacobian(&q).unwrap();
+    let h = 1e-6;
+    for i in 0..6 {
+        let (mut qp, mut qm) = (q, q);
+        qp[i] += h;
+        qm[i] -= h;
+        let dv = (arm.fk(&qp).unwrap().translation.vector
+            - arm.fk(&qm).unwrap().translation.vector)
+            / (2.0 * h);
+        for k in 0..3 {
+            assert!((dv[k] - j[(k, i)]).abs() < 1e-7);
+        }
+    }
+}
+
+#[test]
+fn workspace_samples_are_reachable_and_reproducible() {
+    use cps_kinematics::sample_workspace;
+    let arm = panda(PandaTool::HandTcp);
+    let a = sample_workspace(&arm, 50, 3);
+    assert_eq!(a, sample_workspace(&arm, 50, 3));
+    assert_ne!(a, sample_workspace(&arm, 50, 4));
+    for p in &a {
+        // The Panda reaches about 0.855 m from joint 2 (0.333 m above the base) plus the hand.
+        assert!((p - nalgebra::Vector3::new(0.0, 0.0, 0.333)).norm() < 0.855 + 0.11 + 0.11);
+    }
+}
+
+#[test]
+fn grubler_counts_classic_mechanisms() {
+    use cps_kinematics::degrees_of_freedom;
+    assert_eq!(degrees_of_freedom(false, 4, &[1, 1, 1, 1]).unwrap(), 1); // four-bar linkage
+    assert_eq!(degrees_of_freedom(false, 5, &[1; 5]).unwrap(), 2); // five-bar linkage
+    assert_eq!(degrees_of_freedom(true, 8, &[1; 7]).unwrap(), 7); // the Panda: 7 revolute joints
+    assert_eq!(degrees_of_freedom(true, 7, &[1; 6]).unwrap(), 6); // UR3
+    assert!(degrees_of_freedom(false, 3, &[4]).is_err());
+}
