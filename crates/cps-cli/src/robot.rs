@@ -4,7 +4,7 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::{Args, Subcommand, ValueEnum};
-use cps_kinematics::robots::{PandaTool, panda, puma560};
+use cps_kinematics::robots::{PandaTool, panda, puma560, ur3};
 use cps_kinematics::{DhConvention, IkConfig, IkTarget, KinematicsError, SerialChain, solve_ik};
 use nalgebra::{IsometryMatrix3, Quaternion, Translation3, UnitQuaternion, Vector3};
 
@@ -86,8 +86,9 @@ fn robot_model(name: &str, tool: ToolArg) -> Result<SerialChain, InputError> {
             ToolArg::Flange => PandaTool::Flange,
         })),
         "puma560" => Ok(puma560()),
+        "ur3" => Ok(ur3()),
         other => Err(InputError(format!(
-            "--robot: unknown robot `{other}` (built in: panda, puma560)"
+            "--robot: unknown robot `{other}` (built in: panda, ur3, puma560)"
         ))),
     }
 }
