@@ -19,12 +19,25 @@ pub enum ToolArg {
     Flange,
 }
 
-/// Arguments of `cps-cli fk`.
+/// Which robot and tool point a kinematics command works on.
 #[derive(Args, Debug)]
-pub struct FkArgs {
+pub struct RobotArgs {
     /// Robot: `panda`, `ur3` or `puma560`.
     #[arg(long, default_value = "panda")]
     robot: String,
+    /// Tool point of the Panda.
+    #[arg(long, value_enum, default_value = "hand")]
+    tool: ToolArg,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Arguments of `cps-cli fk`; `--json` prints `{"T", "position", "quaternion_xyzw"}`.
+#[derive(Args, Debug)]
+pub struct FkArgs {
+    #[command(flatten)]
+    arm: RobotArgs,
     /// Joint angles in radians, comma-separated.
     #[arg(
         long,
@@ -33,20 +46,14 @@ pub struct FkArgs {
         required = true
     )]
     q: Vec<f64>,
-    /// Tool point of the Panda.
-    #[arg(long, value_enum, default_value = "hand")]
-    tool: ToolArg,
-    /// Print JSON: `{"T", "position", "quaternion_xyzw"}`.
-    #[arg(long)]
-    json: bool,
 }
 
-/// Arguments of `cps-cli ik`.
+/// Arguments of `cps-cli ik`; `--json` prints `{"q", "position_error", "rotation_error",
+/// "iterations"}`.
 #[derive(Args, Debug)]
 pub struct IkArgs {
-    /// Robot: `panda`, `ur3` or `puma560`.
-    #[arg(long, default_value = "panda")]
-    robot: String,
+    #[command(flatten)]
+    arm: RobotArgs,
     /// Target `x,y,z` (metres, world frame) or a full pose `x,y,z,qx,qy,qz,qw`.
     #[arg(
         long,
@@ -58,12 +65,6 @@ pub struct IkArgs {
     /// Joint angles to start from (default: the Panda's ready pose, or zeros).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     seed_q: Option<Vec<f64>>,
-    /// Tool point of the Panda.
-    #[arg(long, value_enum, default_value = "hand")]
-    tool: ToolArg,
-    /// Print JSON: `{"q", "position_error", "rotation_error", "iterations"}`.
-    #[arg(long)]
-    json: bool,
 }
 
 /// `cps-cli robot ...`.
@@ -99,17 +100,17 @@ fn kin(e: KinematicsError) -> anyhow::Error {
 
 /// `cps-cli fk`.
 pub fn fk(args: &FkArgs) -> Result<ExitCode> {
-    let arm = robot_model(&args.robot, args.tool)?;
+    let arm = robot_model(&args.arm.robot, args.arm.tool)?;
     let t = arm.fk_matrix(&args.q).map_err(kin)?;
     let pose = arm.fk(&args.q).map_err(kin)?;
     let q = UnitQuaternion::from_rotation_matrix(&pose.rotation);
     let p = pose.translation.vector;
-    if args.json {
+    if args.arm.json {
         let rows: Vec<Vec<f64>> = (0..4)
             .map(|r| (0..4).map(|c| t[(r, c)]).collect())
             .collect();
         let out = serde_json::json!({
-            "robot": args.robot,
+            "robot": args.arm.robot,
             "q": args.q,
             "T": rows,
             "position": [p.x, p.y, p.z],
@@ -117,7 +118,7 @@ pub fn fk(args: &FkArgs) -> Result<ExitCode> {
         });
         say!("{}", serde_json::to_string_pretty(&out)?);
     } else {
-        say!("tool pose of {} (world frame, metres):", args.robot);
+        say!("tool pose of {} (world frame, metres):", args.arm.robot);
         for r in 0..4 {
             say!(
                 "  [{:>10.6} {:>10.6} {:>10.6} {:>10.6}]",
@@ -141,7 +142,7 @@ pub fn fk(args: &FkArgs) -> Result<ExitCode> {
 
 /// `cps-cli ik`.
 pub fn ik(args: &IkArgs) -> Result<ExitCode> {
-    let arm = robot_model(&args.robot, args.tool)?;
+    let arm = robot_model(&args.arm.robot, args.arm.tool)?;
     if let Some(v) = args.target.iter().find(|v| !v.is_finite()) {
         return Err(InputError(format!("--target: values must be finite (got {v})")).into());
     }
@@ -168,13 +169,13 @@ pub fn ik(args: &IkArgs) -> Result<ExitCode> {
     };
     let seed = match &args.seed_q {
         Some(q) => q.clone(),
-        None if args.robot == "panda" => PANDA_READY.to_vec(),
+        None if args.arm.robot == "panda" => PANDA_READY.to_vec(),
         None => vec![0.0; arm.dof()],
     };
     let sol = solve_ik(&arm, &target, &seed, &IkConfig::default()).map_err(kin)?;
-    if args.json {
+    if args.arm.json {
         let out = serde_json::json!({
-            "robot": args.robot,
+            "robot": args.arm.robot,
             "q": sol.q,
             "position_error": sol.position_error,
             "rotation_error": sol.rotation_error,

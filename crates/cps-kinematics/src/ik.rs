@@ -156,7 +156,8 @@ pub fn solve_ik(
         clamp(&mut q);
         let mut e = pose_error(chain, &q, target);
         let mut mu = 1e-3;
-        for _ in 0..config.max_iterations {
+        // Converged or not, the loop ends with the attempt's residuals in `e`.
+        for step in 0..=config.max_iterations {
             let (pe, re) = (e.0.norm(), e.1.norm());
             if pe <= config.position_tolerance && re <= config.rotation_tolerance {
                 return Ok(IkSolution {
@@ -166,6 +167,9 @@ pub fn solve_ik(
                     iterations,
                     restarts: attempt,
                 });
+            }
+            if step == config.max_iterations {
+                break;
             }
             iterations += 1;
             let j6 = chain.jacobian(&q)?;
@@ -198,15 +202,6 @@ pub fn solve_ik(
             }
         }
         let (pe, re) = (e.0.norm(), e.1.norm());
-        if pe <= config.position_tolerance && re <= config.rotation_tolerance {
-            return Ok(IkSolution {
-                q,
-                position_error: pe,
-                rotation_error: re,
-                iterations,
-                restarts: attempt,
-            });
-        }
         if best.is_none_or(|b| pe * pe + re * re < b.0) {
             best = Some((pe * pe + re * re, pe, re));
         }
