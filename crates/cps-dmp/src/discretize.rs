@@ -46,6 +46,11 @@ pub(crate) struct StepCoefficients {
     pub b0: [f64; 2],
     /// Coefficients of `u_{k+1}` for (y, z).
     pub b1: [f64; 2],
+    /// `alpha_z beta_z`, `alpha_z`, `1/tau` and `1/tau²`, for the physical outputs.
+    kk: f64,
+    az: f64,
+    inv_tau: f64,
+    inv_tau2: f64,
 }
 
 impl StepCoefficients {
@@ -67,7 +72,39 @@ impl StepCoefficients {
             e,
             b0: [qh[0][1] / tau, qh[1][1] / tau],
             b1: [p_minus[0][1] / tau, p_minus[1][1] / tau],
+            kk: k,
+            az: alpha_z,
+            inv_tau: 1.0 / tau,
+            inv_tau2: 1.0 / (tau * tau),
         }
+    }
+
+    /// One step of the state `(y, z)` with inputs `u_k = u0`, `u_{k+1} = u1`:
+    /// `(y, z)_{k+1} = E (y, z)_k + b0 u_k + b1 u_{k+1}`.
+    #[inline(always)]
+    pub(crate) fn advance(&self, y: f64, z: f64, u0: f64, u1: f64) -> (f64, f64) {
+        let [[e00, e01], [e10, e11]] = self.e;
+        let cy = self.b0[0] * u0 + self.b1[0] * u1;
+        let cz = self.b0[1] * u0 + self.b1[1] * u1;
+        (cy + (e00 * y + e01 * z), cz + (e10 * y + e11 * z))
+    }
+
+    /// `alpha_z beta_z g`, the goal's share of the input `u = alpha_z beta_z g + f`.
+    #[inline(always)]
+    pub(crate) fn goal_input(&self, g: f64) -> f64 {
+        self.kk * g
+    }
+
+    /// Physical velocity `ẏ = z / tau`.
+    #[inline(always)]
+    pub(crate) fn velocity(&self, z: f64) -> f64 {
+        z * self.inv_tau
+    }
+
+    /// Physical acceleration `ÿ = (u − alpha_z beta_z y − alpha_z z) / tau²`.
+    #[inline(always)]
+    pub(crate) fn acceleration(&self, u: f64, y: f64, z: f64) -> f64 {
+        (u - self.kk * y - self.az * z) * self.inv_tau2
     }
 }
 

@@ -67,10 +67,11 @@ impl DiscreteDmp {
         let phases: Vec<f64> = times.iter().map(|&t| cs.phase(t)).collect();
         let basis = GaussianBasis::new(config.n_basis, config.alpha_x);
         let n = config.n_basis;
+        // Row-major (for the streaming rollout) and column-major (for the forcing kernel).
+        let mut rows = vec![0.0; (k + 1) * n];
         let mut features = vec![0.0; (k + 1) * n];
-        let mut row = vec![0.0; n];
-        for (s, &x) in phases.iter().enumerate() {
-            basis.features(x, &mut row);
+        for (s, (&x, row)) in phases.iter().zip(rows.chunks_exact_mut(n)).enumerate() {
+            basis.features(x, row);
             for (i, &v) in row.iter().enumerate() {
                 features[i * (k + 1) + s] = v;
             }
@@ -84,9 +85,7 @@ impl DiscreteDmp {
             times,
             phases,
             packed: pack_features(&features, k + 1, n),
-            rows: (0..(k + 1) * n)
-                .map(|r| features[(r % n) * (k + 1) + r / n])
-                .collect(),
+            rows,
             features,
             coefficients,
             arch: Arch::new(),
@@ -217,12 +216,7 @@ impl DiscreteDmp {
     #[inline(always)]
     fn chain<const W: usize>(&self, d0: usize, traj: &mut Trajectory) {
         let ns = self.n_samples();
-        let cfg = &self.config;
         let c = &self.coefficients;
-        let [[e00, e01], [e10, e11]] = c.e;
-        let (b0y, b1y, b0z, b1z) = (c.b0[0], c.b1[0], c.b0[1], c.b1[1]);
-        let (az, kk) = (cfg.alpha_z, cfg.alpha_z * cfg.beta_z);
-        let (inv_tau, inv_tau2) = (1.0 / cfg.tau, 1.0 / (cfg.tau * cfg.tau));
         let range = d0 * ns..(d0 + W) * ns;
         let mut pos = traj.position[range.clone()].chunks_exact_mut(ns);
         let mut vel = traj.velocity[range.clone()].chunks_exact_mut(ns);
@@ -232,27 +226,21 @@ impl DiscreteDmp {
         let vel: [&mut [f64]; W] = std::array::from_fn(|_| vel.next().expect("lane"));
         let acc: [&mut [f64]; W] = std::array::from_fn(|_| acc.next().expect("lane"));
         let frc: [&mut [f64]; W] = std::array::from_fn(|_| frc.next().expect("lane"));
-        let amp: [f64; W] = std::array::from_fn(|j| self.goal[d0 + j] - self.start[d0 + j]);
-        let ug: [f64; W] = std::array::from_fn(|j| kk * self.goal[d0 + j]);
+        let amp: [f64; W] = std::array::from_fn(|j| self.amplitude(d0 + j));
+        let ug: [f64; W] = std::array::from_fn(|j| c.goal_input(self.goal[d0 + j]));
         let mut y: [f64; W] = std::array::from_fn(|j| self.start[d0 + j]);
         let mut z = [0.0; W];
         let mut f: [f64; W] = std::array::from_fn(|j| amp[j] * frc[j][0]);
         for k in 0..ns {
             let next = (k + 1).min(ns - 1);
             for j in 0..W {
-                let u0 = ug[j] + f[j];
                 let f1 = amp[j] * frc[j][next];
-                let u1 = ug[j] + f1;
+                let (u0, u1) = (ug[j] + f[j], ug[j] + f1);
                 pos[j][k] = y[j];
-                vel[j][k] = z[j] * inv_tau;
-                acc[j][k] = (u0 - kk * y[j] - az * z[j]) * inv_tau2;
+                vel[j][k] = c.velocity(z[j]);
+                acc[j][k] = c.acceleration(u0, y[j], z[j]);
                 frc[j][k] = f[j];
-                let cy = b0y * u0 + b1y * u1;
-                let cz = b0z * u0 + b1z * u1;
-                let yn = cy + (e00 * y[j] + e01 * z[j]);
-                let zn = cz + (e10 * y[j] + e11 * z[j]);
-                y[j] = yn;
-                z[j] = zn;
+                (y[j], z[j]) = c.advance(y[j], z[j], u0, u1);
                 f[j] = f1;
             }
         }
@@ -423,14 +411,9 @@ fn stream_group<S: Simd, V: StreamVisitor, const W: usize>(
     visit: &mut V,
 ) {
     let (nb, ns) = (dmp.n_basis(), dmp.n_samples());
-    let cfg = &dmp.config;
     let c = &dmp.coefficients;
-    let [[e00, e01], [e10, e11]] = c.e;
-    let (b0y, b1y, b0z, b1z) = (c.b0[0], c.b1[0], c.b0[1], c.b1[1]);
-    let (az, kk) = (cfg.alpha_z, cfg.alpha_z * cfg.beta_z);
-    let (inv_tau, inv_tau2) = (1.0 / cfg.tau, 1.0 / (cfg.tau * cfg.tau));
     let row = |k: usize| &dmp.rows[k * nb..(k + 1) * nb];
-    let ug: [f64; W] = std::array::from_fn(|j| kk * dmp.goal[d0 + j]);
+    let ug: [f64; W] = std::array::from_fn(|j| c.goal_input(dmp.goal[d0 + j]));
     let mut y: [Lanes; W] = std::array::from_fn(|j| [dmp.start[d0 + j]; BATCH_LANES]);
     let mut z = [[0.0; BATCH_LANES]; W];
     let mut f = stream_forcing::<S, W>(row(0), wt);
@@ -442,12 +425,9 @@ fn stream_group<S: Simd, V: StreamVisitor, const W: usize>(
             let mut a = [0.0; BATCH_LANES];
             for l in 0..BATCH_LANES {
                 let (u0, u1) = (ug[j] + f0[l], ug[j] + f1[l]);
-                v[l] = zd[l] * inv_tau;
-                a[l] = (u0 - kk * yd[l] - az * zd[l]) * inv_tau2;
-                let cy = b0y * u0 + b1y * u1;
-                let cz = b0z * u0 + b1z * u1;
-                y[j][l] = cy + (e00 * yd[l] + e01 * zd[l]);
-                z[j][l] = cz + (e10 * yd[l] + e11 * zd[l]);
+                v[l] = c.velocity(zd[l]);
+                a[l] = c.acceleration(u0, yd[l], zd[l]);
+                (y[j][l], z[j][l]) = c.advance(yd[l], zd[l], u0, u1);
             }
             visit.visit(k, d0 + j, &yd, &v, &a);
         }

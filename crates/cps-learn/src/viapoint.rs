@@ -178,19 +178,11 @@ impl<'a> ViaPointObjective<'a> {
     }
 }
 
-impl ViaPointObjective<'_> {
-    fn cost_with(&self, theta: &[f64], w: &mut [f64], traj: &mut Trajectory) -> f64 {
-        self.space.to_weights(theta, w);
-        self.dmp.rollout_into(w, traj);
-        self.task.cost(traj)
-    }
-}
-
 impl Objective for ViaPointObjective<'_> {
     fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
         let mut w = vec![0.0; x.len()];
-        let mut traj = self.dmp.new_trajectory();
-        Ok(self.cost_with(x, &mut w, &mut traj))
+        self.space.to_weights(x, &mut w);
+        Ok(self.task.cost(&self.dmp.rollout(&w)))
     }
 
     fn evaluate_batch(
