@@ -135,7 +135,7 @@ pub struct ViaPointExperiment {
 }
 
 /// `file:line:column` of a byte offset.
-fn location(path: &Path, text: &str, span: &Range<usize>) -> String {
+pub(crate) fn location(path: &Path, text: &str, span: &Range<usize>) -> String {
     let before = &text[..span.start.min(text.len())];
     let line = before.matches('\n').count() + 1;
     let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;

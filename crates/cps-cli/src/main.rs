@@ -6,8 +6,12 @@
 //! cps-cli default > my-experiment.toml
 //! cps-cli fk --robot panda --q 0,-0.785,0,-2.356,0,1.571,0.785 [--tool hand|flange] [--json]
 //! cps-cli ik --robot panda --target 0.4,0.2,0.5[,qx,qy,qz,qw] [--seed-q ...] [--json]
-//! cps-cli robot show panda
+//! cps-cli robot show panda|configs/robots/ur3.toml|configs/robots/panda.urdf [--tool NAME] [--tip LINK]
+//! cps-cli scene check configs/scenes/thesis.toml [--json]
 //! ```
+//!
+//! `--robot` takes a built-in name (`panda`, `ur3`, `puma560`) or a robot file: TOML as in
+//! `configs/robots/` or URDF.
 //!
 //! Exit codes: 0 success, 1 failure while running, 2 bad input (the message names the file,
 //! line and column), 130 interrupted by Ctrl-C (the results of the finished generations are
@@ -25,6 +29,8 @@ mod experiment;
 mod output;
 mod plots;
 mod robot;
+mod robot_file;
+mod scene;
 
 use std::io::IsTerminal;
 use std::ops::ControlFlow;
@@ -92,6 +98,11 @@ enum Command {
         #[command(subcommand)]
         command: robot::RobotCommand,
     },
+    /// Scenes: a placed robot and named way points.
+    Scene {
+        #[command(subcommand)]
+        command: scene::SceneCommand,
+    },
 }
 
 fn main() -> ExitCode {
@@ -129,6 +140,7 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
         Command::Fk(args) => robot::fk(&args),
         Command::Ik(args) => robot::ik(&args),
         Command::Robot { command } => robot::robot(&command),
+        Command::Scene { command } => scene::scene(&command),
         Command::Check { file } => {
             let exp = experiment::load(&file, None)?;
             say!(

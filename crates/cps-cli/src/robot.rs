@@ -3,34 +3,37 @@
 use std::process::ExitCode;
 
 use anyhow::Result;
-use clap::{Args, Subcommand, ValueEnum};
-use cps_kinematics::robots::{PandaTool, panda, puma560, ur3};
-use cps_kinematics::{DhConvention, IkConfig, IkTarget, KinematicsError, SerialChain, solve_ik};
+use clap::{Args, Subcommand};
+use cps_kinematics::{ChainGeometry, DhConvention, IkConfig, IkTarget, KinematicsError, solve_ik};
 use nalgebra::{IsometryMatrix3, Quaternion, Translation3, UnitQuaternion, Vector3};
 
 use crate::experiment::InputError;
-
-/// The Panda's tool point.
-#[derive(Debug, Clone, Copy, ValueEnum)]
-pub enum ToolArg {
-    /// The Franka Hand's tool centre point (0.1034 m beyond the flange, turned −45°).
-    Hand,
-    /// The flange.
-    Flange,
-}
+use crate::robot_file::{RobotModel, load_robot};
 
 /// Which robot and tool point a kinematics command works on.
 #[derive(Args, Debug)]
 pub struct RobotArgs {
-    /// Robot: `panda`, `ur3` or `puma560`.
+    /// Robot: a built-in name (`panda`, `ur3`, `puma560`) or a robot file (`.toml` as in
+    /// configs/robots/, or `.urdf`).
     #[arg(long, default_value = "panda")]
     robot: String,
-    /// Tool point of the Panda.
-    #[arg(long, value_enum, default_value = "hand")]
-    tool: ToolArg,
+    /// Tool point: `hand` or `flange` for the built-in Panda, a `[tools.*]` name for a TOML
+    /// robot (default: the file's `default_tool`).
+    #[arg(long)]
+    tool: Option<String>,
+    /// URDF only: the tip link the chain ends at (default: the one leaf reached through
+    /// revolute joints).
+    #[arg(long)]
+    tip: Option<String>,
     /// Print JSON instead of text.
     #[arg(long)]
     json: bool,
+}
+
+impl RobotArgs {
+    fn load(&self) -> Result<RobotModel, InputError> {
+        load_robot(&self.robot, self.tool.as_deref(), self.tip.as_deref())
+    }
 }
 
 /// Arguments of `cps-cli fk`; `--json` prints `{"T", "position", "quaternion_xyzw"}`.
@@ -70,28 +73,17 @@ pub struct IkArgs {
 /// `cps-cli robot ...`.
 #[derive(Subcommand, Debug)]
 pub enum RobotCommand {
-    /// Print a robot's DH table, convention, limits and tool.
+    /// Print a robot's kinematic description (DH table or URDF joints), limits, base and tool.
     Show {
-        /// `panda`, `ur3` or `puma560`.
-        name: String,
+        /// A built-in name (`panda`, `ur3`, `puma560`) or a `.toml` / `.urdf` robot file.
+        robot: String,
+        /// Tool point (as for `fk`).
+        #[arg(long)]
+        tool: Option<String>,
+        /// URDF tip link (as for `fk`).
+        #[arg(long)]
+        tip: Option<String>,
     },
-}
-
-/// The Panda's "ready" configuration (Franka's default start pose).
-const PANDA_READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
-
-fn robot_model(name: &str, tool: ToolArg) -> Result<SerialChain, InputError> {
-    match name {
-        "panda" => Ok(panda(match tool {
-            ToolArg::Hand => PandaTool::HandTcp,
-            ToolArg::Flange => PandaTool::Flange,
-        })),
-        "puma560" => Ok(puma560()),
-        "ur3" => Ok(ur3()),
-        other => Err(InputError(format!(
-            "--robot: unknown robot `{other}` (built in: panda, ur3, puma560)"
-        ))),
-    }
 }
 
 fn kin(e: KinematicsError) -> anyhow::Error {
@@ -100,7 +92,7 @@ fn kin(e: KinematicsError) -> anyhow::Error {
 
 /// `cps-cli fk`.
 pub fn fk(args: &FkArgs) -> Result<ExitCode> {
-    let arm = robot_model(&args.arm.robot, args.arm.tool)?;
+    let arm = args.arm.load()?.chain;
     let t = arm.fk_matrix(&args.q).map_err(kin)?;
     let pose = arm.fk(&args.q).map_err(kin)?;
     let q = UnitQuaternion::from_rotation_matrix(&pose.rotation);
@@ -142,7 +134,8 @@ pub fn fk(args: &FkArgs) -> Result<ExitCode> {
 
 /// `cps-cli ik`.
 pub fn ik(args: &IkArgs) -> Result<ExitCode> {
-    let arm = robot_model(&args.arm.robot, args.arm.tool)?;
+    let model = args.arm.load()?;
+    let arm = &model.chain;
     if let Some(v) = args.target.iter().find(|v| !v.is_finite()) {
         return Err(InputError(format!("--target: values must be finite (got {v})")).into());
     }
@@ -167,12 +160,8 @@ pub fn ik(args: &IkArgs) -> Result<ExitCode> {
             .into());
         }
     };
-    let seed = match &args.seed_q {
-        Some(q) => q.clone(),
-        None if args.arm.robot == "panda" => PANDA_READY.to_vec(),
-        None => vec![0.0; arm.dof()],
-    };
-    let sol = solve_ik(&arm, &target, &seed, &IkConfig::default()).map_err(kin)?;
+    let seed = args.seed_q.clone().unwrap_or_else(|| model.ready.clone());
+    let sol = solve_ik(arm, &target, &seed, &IkConfig::default()).map_err(kin)?;
     if args.arm.json {
         let out = serde_json::json!({
             "robot": args.arm.robot,
@@ -199,46 +188,89 @@ pub fn ik(args: &IkArgs) -> Result<ExitCode> {
 
 /// `cps-cli robot show`.
 pub fn robot(cmd: &RobotCommand) -> Result<ExitCode> {
-    let RobotCommand::Show { name } = cmd;
-    let arm = robot_model(name, ToolArg::Hand)?;
-    let conv = match arm.convention() {
-        DhConvention::Standard => "standard DH: T_i = RotZ(θ_i) TransZ(d_i) TransX(a_i) RotX(α_i)",
-        DhConvention::Modified => {
-            "modified (Craig) DH: T_i = RotX(α_{i−1}) TransX(a_{i−1}) RotZ(θ_i) TransZ(d_i)"
-        }
-    };
-    say!("{name}: {} revolute joints, {conv}", arm.dof());
-    say!(
-        "{:>5} {:>9} {:>9} {:>10} {:>8} {:>10} {:>10}",
-        "joint",
-        "a [m]",
-        "d [m]",
-        "α [rad]",
-        "offset",
-        "q_min",
-        "q_max"
-    );
-    for (i, l) in arm.links().iter().enumerate() {
+    let RobotCommand::Show { robot, tool, tip } = cmd;
+    let model = load_robot(robot, tool.as_deref(), tip.as_deref())?;
+    let arm = &model.chain;
+    let limits = |i: usize| {
         let (lo, hi) = arm
             .limits()
             .map_or(("-".to_string(), "-".to_string()), |(lo, hi)| {
                 (format!("{:.4}", lo[i]), format!("{:.4}", hi[i]))
             });
-        say!(
-            "{:>5} {:>9.4} {:>9.4} {:>10.4} {:>8.4} {:>10} {:>10}",
-            i + 1,
-            l.a,
-            l.d,
-            l.alpha,
-            l.offset,
-            lo,
-            hi
-        );
+        let dq = arm
+            .velocity_limits()
+            .map_or("-".to_string(), |v| format!("{:.4}", v[i]));
+        format!("{lo:>10} {hi:>10} {dq:>9}")
+    };
+    let head = format!("{:>10} {:>10} {:>9}", "q_min", "q_max", "dq_max");
+    match arm.geometry() {
+        ChainGeometry::Dh { convention, links } => {
+            let conv = match convention {
+                DhConvention::Standard => {
+                    "standard DH: T_i = RotZ(θ_i) TransZ(d_i) TransX(a_i) RotX(α_i)"
+                }
+                DhConvention::Modified => {
+                    "modified (Craig) DH: T_i = RotX(α_{i−1}) TransX(a_{i−1}) RotZ(θ_i) TransZ(d_i)"
+                }
+            };
+            say!("{}: {} revolute joints, {conv}", model.name, arm.dof());
+            say!(
+                "{:>5} {:>9} {:>9} {:>10} {:>8} {head}",
+                "joint",
+                "a [m]",
+                "d [m]",
+                "α [rad]",
+                "offset"
+            );
+            for (i, l) in links.iter().enumerate() {
+                say!(
+                    "{:>5} {:>9.4} {:>9.4} {:>10.4} {:>8.4} {}",
+                    i + 1,
+                    l.a,
+                    l.d,
+                    l.alpha,
+                    l.offset,
+                    limits(i)
+                );
+            }
+        }
+        ChainGeometry::Joints(joints) => {
+            say!(
+                "{}: {} revolute joints, URDF joints (origin xyz, rpy; axis)",
+                model.name,
+                arm.dof()
+            );
+            for (i, j) in joints.iter().enumerate() {
+                let t = j.origin.translation.vector;
+                let (r, p, y) = j.origin.rotation.euler_angles();
+                say!(
+                    "{:>2} {:<14} xyz [{:.4} {:.4} {:.4}] rpy [{:.4} {:.4} {:.4}] axis [{:.3} {:.3} {:.3}] {}",
+                    i + 1,
+                    model.joint_names[i],
+                    t.x,
+                    t.y,
+                    t.z,
+                    r,
+                    p,
+                    y,
+                    j.axis.x,
+                    j.axis.y,
+                    j.axis.z,
+                    limits(i)
+                );
+            }
+            say!("   (limit columns: {head})");
+        }
     }
-    if name == "panda" {
-        say!(
-            "flange: 0.107 m along joint 7's z axis; Franka Hand TCP: flange turned −45° about z, then 0.1034 m along z"
-        );
-    }
+    let frame = |iso: &nalgebra::Isometry3<f64>| {
+        let t = iso.translation.vector;
+        let (r, p, y) = iso.rotation.euler_angles();
+        format!(
+            "xyz [{:.4} {:.4} {:.4}] m, rpy [{:.4} {:.4} {:.4}] rad",
+            t.x, t.y, t.z, r, p, y
+        )
+    };
+    say!("base: {}", frame(&arm.base()));
+    say!("tool ({}): {}", model.tool, frame(&arm.tool()));
     Ok(ExitCode::SUCCESS)
 }

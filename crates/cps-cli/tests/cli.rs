@@ -455,3 +455,179 @@ fn kinematics_bad_input_exits_2_with_a_clear_message() {
         "{text}"
     );
 }
+
+fn repo(path: &str) -> String {
+    format!("{}/../../{path}", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The robot files in configs/robots/ describe the same robots as the built-in models:
+/// the Panda as a TOML DH table and as URDF joints, the UR3 as a TOML DH table.
+#[test]
+fn robot_files_agree_with_the_built_in_models() {
+    let q7 = "0.3,-0.5,0.2,-2.0,0.1,1.6,0.7";
+    let fk = |robot: &str, q: &str, extra: &[&str]| {
+        let mut args = vec!["fk", "--robot", robot, "--q", q, "--json"];
+        args.extend_from_slice(extra);
+        let o = cli(&args);
+        assert!(o.status.success(), "{robot}: {}", stderr(&o));
+        stdout_json(&o)["T"].clone()
+    };
+    let close = |a: &serde_json::Value, b: &serde_json::Value| {
+        for r in 0..4 {
+            for c in 0..4 {
+                let d = a[r][c].as_f64().unwrap() - b[r][c].as_f64().unwrap();
+                assert!(d.abs() < 1e-12, "T[{r}][{c}] differs by {d}");
+            }
+        }
+    };
+    let builtin = fk("panda", q7, &[]);
+    close(&builtin, &fk(&repo("configs/robots/panda.toml"), q7, &[]));
+    close(&builtin, &fk(&repo("configs/robots/panda.urdf"), q7, &[]));
+    let flange = fk("panda", q7, &["--tool", "flange"]);
+    close(
+        &flange,
+        &fk(
+            &repo("configs/robots/panda.toml"),
+            q7,
+            &["--tool", "flange"],
+        ),
+    );
+    close(
+        &flange,
+        &fk(
+            &repo("configs/robots/panda.urdf"),
+            q7,
+            &["--tip", "panda_link8"],
+        ),
+    );
+    let q6 = "0.3,-1.1,0.8,-0.4,1.2,0.5";
+    close(
+        &fk("ur3", q6, &[]),
+        &fk(&repo("configs/robots/ur3.toml"), q6, &[]),
+    );
+    let o = cli(&["robot", "show", &repo("configs/robots/panda.urdf")]);
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("panda_joint7"));
+}
+
+#[test]
+fn bad_robot_files_exit_2_naming_the_place() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = std::fs::read_to_string(repo("configs/robots/panda.toml")).unwrap();
+    let no_limit = good.replacen("q_max = 2.8973\n", "", 1);
+    let unknown = good.replacen("dq_max = 2.175\n", "dq_max = 2.175\nmass = 3.0\n", 1);
+    let inverted = good.replacen("q_min = -1.7628", "q_min = 1.9", 1);
+    let some_speeds = good.replacen("dq_max = 2.61\n", "", 1);
+    let prismatic = std::fs::read_to_string(repo("configs/robots/panda.urdf"))
+        .unwrap()
+        .replace(
+            "panda_joint4\" type=\"revolute",
+            "panda_joint4\" type=\"prismatic",
+        );
+    for (name, text, expect) in [
+        ("no_limit.toml", no_limit.as_str(), "missing field `q_max`"),
+        ("unknown.toml", unknown.as_str(), "unknown field `mass`"),
+        (
+            "inverted.toml",
+            inverted.as_str(),
+            "joint 2: limits need finite `q_min` < `q_max`",
+        ),
+        (
+            "speeds.toml",
+            some_speeds.as_str(),
+            "`dq_max` for every joint or for none",
+        ),
+        (
+            "prismatic.urdf",
+            prismatic.as_str(),
+            "joint `panda_joint4` is Prismatic",
+        ),
+        ("broken.urdf", "<robot name='x'><link", "URDF:"),
+    ] {
+        let p = write(dir.path(), name, text);
+        let o = cli(&["fk", "--robot", p.to_str().unwrap(), "--q", "0,0,0,0,0,0,0"]);
+        assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
+        let err = stderr(&o);
+        assert!(err.contains(expect) && err.contains(name), "{name}: {err}");
+        assert!(!err.contains("panicked"));
+    }
+    // Line and column of the offending joint table.
+    let p = dir.path().join("inverted.toml");
+    let err = stderr(&cli(&["robot", "show", p.to_str().unwrap()]));
+    assert!(err.contains("inverted.toml:") && err.contains(':'), "{err}");
+    let urdf = repo("configs/robots/panda.urdf");
+    for (args, expect) in [
+        (
+            vec!["fk", "--robot", urdf.as_str(), "--tool", "hand", "--q", "0"],
+            "--tip",
+        ),
+        (
+            vec!["fk", "--robot", "panda", "--tool", "gripper", "--q", "0"],
+            "not `gripper`",
+        ),
+        (
+            vec!["fk", "--robot", "/nowhere/arm.toml", "--q", "0"],
+            "cannot read the robot file",
+        ),
+    ] {
+        let o = cli(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(expect), "{args:?}: {}", stderr(&o));
+    }
+}
+
+/// The thesis's scene puts the Hand TCP at the experiment's start point at the initial
+/// configuration, and every Table 3 point is reachable within the joint limits.
+#[test]
+fn the_thesis_scene_starts_at_p0_and_reaches_every_way_point() {
+    let o = cli(&[
+        "scene",
+        "check",
+        &repo("configs/scenes/thesis.toml"),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v = stdout_json(&o);
+    let tool: Vec<f64> = v["tool_at_initial_q"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    for (a, b) in tool.iter().zip([0.75, 0.02, 1.87]) {
+        assert!((a - b).abs() < 1e-12, "{tool:?}");
+    }
+    assert_eq!(v["initial_q_outside_limits"], serde_json::json!([4]));
+    let objects = v["objects"].as_array().unwrap();
+    assert_eq!(objects.len(), 6);
+    assert!(
+        objects.iter().all(|o| o["reachable"] == true),
+        "{objects:?}"
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(repo("configs/scenes/thesis.toml")).unwrap();
+    let far = write(
+        dir.path(),
+        "far.toml",
+        &text.replace("[0.55, -0.57, 1.45]", "[3.0, 0.0, 1.0]"),
+    );
+    let o = cli(&["scene", "check", far.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("pT   (3.000, 0.000, 1.000): NOT reachable")
+    );
+    let short = write(
+        dir.path(),
+        "short.toml",
+        &text.replace("1.5707963267948966, 0.7853981633974483]", "1.57]"),
+    );
+    let o = cli(&["scene", "check", short.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("short.toml:16:")
+            && stderr(&o).contains("expected 7 joint values, got 6"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -1,7 +1,15 @@
-//! Denavit-Hartenberg serial chains: forward kinematics and geometric Jacobians.
+//! Serial chains of revolute joints: forward kinematics and geometric Jacobians.
+//!
+//! A chain is described either by a Denavit-Hartenberg table (standard or modified, named
+//! explicitly) or by URDF-style joints (a fixed origin, then a rotation about an axis).
+//! Both compile to one internal form: per joint a constant rigid transform followed by a
+//! rotation about the local z axis, `T = base · Π_i (F_i · Rz(q_i + offset_i)) · tail`,
+//! so forward kinematics costs one 3×4 product and one z-rotation per joint whatever the
+//! description.
 
 use nalgebra::{
-    Isometry3, IsometryMatrix3, Matrix3, Matrix4, OMatrix, Rotation3, Translation3, U6, Vector3,
+    Isometry3, IsometryMatrix3, Matrix3, Matrix4, OMatrix, Rotation3, Translation3, U6, Unit,
+    UnitQuaternion, Vector3,
 };
 
 use crate::KinematicsError;
@@ -96,6 +104,14 @@ impl Affine {
         )
     }
 
+    fn to_isometry3(self) -> Isometry3<f64> {
+        let m = self.to_isometry();
+        Isometry3::from_parts(
+            m.translation,
+            UnitQuaternion::from_rotation_matrix(&m.rotation),
+        )
+    }
+
     fn to_isometry(self) -> IsometryMatrix3<f64> {
         let r = self.r;
         let m = Matrix3::new(
@@ -107,51 +123,121 @@ impl Affine {
         )
     }
 
-    /// The transform of one DH row at joint angle `theta`.
-    fn link(conv: DhConvention, l: &DhLink, (sa, ca): (f64, f64), theta: f64) -> Affine {
-        let (st, ct) = theta.sin_cos();
-        match conv {
-            DhConvention::Standard => Affine {
-                r: [
-                    [ct, -st * ca, st * sa],
-                    [st, ct * ca, -ct * sa],
-                    [0.0, sa, ca],
-                ],
-                t: [l.a * ct, l.a * st, l.d],
-            },
-            DhConvention::Modified => Affine {
-                r: [
-                    [ct, -st, 0.0],
-                    [st * ca, ct * ca, -sa],
-                    [st * sa, ct * sa, ca],
-                ],
-                t: [l.a, -sa * l.d, ca * l.d],
-            },
+    /// `self · Rz(θ)` given `(sin θ, cos θ)`: only the first two columns change.
+    #[inline(always)]
+    fn rot_z(&self, (s, c): (f64, f64)) -> Affine {
+        let mut r = self.r;
+        for row in &mut r {
+            let (x, y) = (row[0], row[1]);
+            row[0] = c * x + s * y;
+            row[1] = c * y - s * x;
+        }
+        Affine { r, t: self.t }
+    }
+
+    fn rot_x(alpha: f64) -> Affine {
+        let (s, c) = alpha.sin_cos();
+        Affine {
+            r: [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]],
+            t: [0.0; 3],
         }
     }
+
+    fn translation(x: f64, y: f64, z: f64) -> Affine {
+        Affine {
+            t: [x, y, z],
+            ..Affine::IDENTITY
+        }
+    }
+
+    /// The inverse of a rigid transform: `[Rᵀ | −Rᵀ t]`.
+    fn inverse(&self) -> Affine {
+        let r = std::array::from_fn(|i| std::array::from_fn(|j| self.r[j][i]));
+        let t = std::array::from_fn(|i| {
+            -(self.r[0][i] * self.t[0] + self.r[1][i] * self.t[1] + self.r[2][i] * self.t[2])
+        });
+        Affine { r, t }
+    }
+}
+/// One revolute joint in URDF form: the joint frame sits at `origin` relative to the
+/// previous joint's child frame (the base frame for the first joint), and the joint turns
+/// by `q + offset` about `axis`, given in the joint frame. The child frame is the joint
+/// frame turned by that angle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RevoluteJoint {
+    /// Fixed transform from the parent frame to the joint frame (metres, radians).
+    pub origin: Isometry3<f64>,
+    /// Rotation axis in the joint frame.
+    pub axis: Unit<Vector3<f64>>,
+    /// Angle offset added to `q`.
+    pub offset: f64,
 }
 
-/// A serial chain of revolute joints described by a DH table, with a fixed base transform
-/// (world → robot base) and a fixed tool transform (last joint frame → tool point).
+/// How a chain was described; kept for display and for saving the model again.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ChainGeometry {
+    /// A Denavit-Hartenberg table in the named convention.
+    Dh {
+        /// Standard or modified.
+        convention: DhConvention,
+        /// One row per joint.
+        links: Vec<DhLink>,
+    },
+    /// URDF-style joints.
+    Joints(Vec<RevoluteJoint>),
+}
+
+/// Joint position limits in radians.
+#[derive(Debug, Clone, PartialEq)]
+struct Limits {
+    lower: Vec<f64>,
+    upper: Vec<f64>,
+}
+
+/// A serial chain of revolute joints with a fixed base transform (world → robot base) and
+/// a fixed tool transform (last joint's frame → tool point), optional joint position
+/// limits and optional joint speed limits.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SerialChain {
-    convention: DhConvention,
-    links: Vec<DhLink>,
-    /// `(sin α, cos α)` of each row, computed once.
-    twist: Vec<(f64, f64)>,
+    geometry: ChainGeometry,
+    /// Constant factor before each joint's z-rotation, the previous joint's trailing factor
+    /// and (for the first joint) the base folded in.
+    fixed: Vec<Affine>,
+    /// Constant factor after each joint's z-rotation (rotation frame → link frame).
+    post: Vec<Affine>,
+    offsets: Vec<f64>,
+    /// The first joint's own leading factor (before the base is folded in).
+    pre0: Affine,
     base: Affine,
     tool: Affine,
-    limits: Option<(Vec<f64>, Vec<f64>)>,
+    /// `post[n−1] · tool`.
+    tail: Affine,
+    limits: Option<Limits>,
+    velocity_limits: Option<Vec<f64>>,
 }
 
-/// Forward kinematics with every joint frame, for Jacobians and teaching.
+/// Forward kinematics with every link frame, for teaching and drawing.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ChainPose {
-    /// World pose of each joint's frame: for modified DH, frame i (whose z axis is joint
-    /// i's axis); for standard DH, frame i − 1 (ditto). `frames[0]` is joint 1's.
-    pub joint_frames: Vec<IsometryMatrix3<f64>>,
+    /// World pose of the frame attached after each joint: DH frame i for either DH
+    /// convention, the child link frame for URDF joints. `link_frames[0]` follows joint 1.
+    pub link_frames: Vec<IsometryMatrix3<f64>>,
     /// World pose of the tool point.
     pub tool: IsometryMatrix3<f64>,
+}
+
+/// A rotation taking the z axis onto `axis`.
+fn z_onto(axis: &Unit<Vector3<f64>>) -> Affine {
+    let q = UnitQuaternion::rotation_between(&Vector3::z(), axis).unwrap_or_else(|| {
+        // axis = −z: any half turn about an axis perpendicular to z
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
+    });
+    Affine::from_isometry(&Isometry3::from_parts(Translation3::identity(), q))
+}
+
+fn finite_isometry(iso: &Isometry3<f64>) -> bool {
+    iso.translation.vector.iter().all(|v| v.is_finite())
+        && iso.rotation.coords.iter().all(|v| v.is_finite())
 }
 
 impl SerialChain {
@@ -170,30 +256,114 @@ impl SerialChain {
                 )));
             }
         }
-        let twist = links.iter().map(|l| l.alpha.sin_cos()).collect();
-        Ok(Self {
-            convention,
-            links,
-            twist,
+        let (pre, post) = links
+            .iter()
+            .map(|l| match convention {
+                // Rz(θ) · Tz(d) Tx(a) Rx(α)
+                DhConvention::Standard => (
+                    Affine::IDENTITY,
+                    Affine::translation(l.a, 0.0, l.d).mul(&Affine::rot_x(l.alpha)),
+                ),
+                // Rx(α) Tx(a) · Rz(θ) · Tz(d)
+                DhConvention::Modified => (
+                    Affine::rot_x(l.alpha).mul(&Affine::translation(l.a, 0.0, 0.0)),
+                    Affine::translation(0.0, 0.0, l.d),
+                ),
+            })
+            .unzip();
+        let offsets = links.iter().map(|l| l.offset).collect();
+        Ok(Self::compile(
+            ChainGeometry::Dh { convention, links },
+            pre,
+            post,
+            offsets,
+        ))
+    }
+
+    /// A chain from URDF-style revolute joints (see [`RevoluteJoint`]). The base and tool
+    /// transforms start as identities.
+    pub fn from_joints(joints: Vec<RevoluteJoint>) -> Result<Self, KinematicsError> {
+        if joints.is_empty() {
+            return Err(KinematicsError::InvalidModel(
+                "a serial chain needs at least one joint".into(),
+            ));
+        }
+        for (i, j) in joints.iter().enumerate() {
+            if !(finite_isometry(&j.origin)
+                && j.axis.iter().all(|v| v.is_finite())
+                && j.offset.is_finite())
+            {
+                return Err(KinematicsError::InvalidModel(format!(
+                    "joint {} has a non-finite origin, axis or offset",
+                    i + 1
+                )));
+            }
+        }
+        // origin · Rot(axis, θ) = (origin · A) · Rz(θ) · Aᵀ with A taking z onto the axis
+        let (pre, post) = joints
+            .iter()
+            .map(|j| {
+                let a = z_onto(&j.axis);
+                (Affine::from_isometry(&j.origin).mul(&a), a.inverse())
+            })
+            .unzip();
+        let offsets = joints.iter().map(|j| j.offset).collect();
+        Ok(Self::compile(
+            ChainGeometry::Joints(joints),
+            pre,
+            post,
+            offsets,
+        ))
+    }
+
+    fn compile(
+        geometry: ChainGeometry,
+        pre: Vec<Affine>,
+        post: Vec<Affine>,
+        offsets: Vec<f64>,
+    ) -> Self {
+        // F_0 = pre_0 (base folded in later), F_i = post_{i−1} · pre_i
+        let fixed = std::iter::once(pre[0])
+            .chain(post.iter().zip(&pre[1..]).map(|(a, b)| a.mul(b)))
+            .collect();
+        let mut chain = Self {
+            geometry,
+            fixed,
+            post,
+            offsets,
+            pre0: pre[0],
             base: Affine::IDENTITY,
             tool: Affine::IDENTITY,
+            tail: Affine::IDENTITY,
             limits: None,
-        })
+            velocity_limits: None,
+        };
+        chain.refold();
+        chain
+    }
+
+    /// Folds the base into the first factor and the tool into the tail.
+    fn refold(&mut self) {
+        self.fixed[0] = self.base.mul(&self.pre0);
+        self.tail = self.post[self.post.len() - 1].mul(&self.tool);
     }
 
     /// The same chain placed at `base` (world → robot base frame).
     pub fn with_base(mut self, base: Isometry3<f64>) -> Self {
         self.base = Affine::from_isometry(&base);
+        self.refold();
         self
     }
 
-    /// The same chain with the tool point at `tool` relative to the last joint frame.
+    /// The same chain with the tool point at `tool` relative to the last link frame.
     pub fn with_tool(mut self, tool: Isometry3<f64>) -> Self {
         self.tool = Affine::from_isometry(&tool);
+        self.refold();
         self
     }
 
-    /// The same chain with joint position limits (radians); each lower < upper.
+    /// The same chain with joint position limits (radians), `lower < upper` per joint.
+    /// A joint without a limit (a continuous joint) takes `−∞ .. ∞`.
     pub fn with_limits(mut self, lower: &[f64], upper: &[f64]) -> Result<Self, KinematicsError> {
         let n = self.dof();
         for (what, v) in [("lower", lower), ("upper", upper)] {
@@ -205,16 +375,39 @@ impl SerialChain {
             }
         }
         for i in 0..n {
-            if !(lower[i].is_finite() && upper[i].is_finite() && lower[i] < upper[i]) {
+            if lower[i].is_nan() || upper[i].is_nan() || lower[i] >= upper[i] {
                 return Err(KinematicsError::InvalidModel(format!(
-                    "joint {}: limits must be finite with lower < upper (got {} .. {})",
+                    "joint {}: limits need lower < upper (got {} .. {})",
                     i + 1,
                     lower[i],
                     upper[i]
                 )));
             }
         }
-        self.limits = Some((lower.to_vec(), upper.to_vec()));
+        self.limits = Some(Limits {
+            lower: lower.to_vec(),
+            upper: upper.to_vec(),
+        });
+        Ok(self)
+    }
+
+    /// The same chain with joint speed limits (rad/s, each finite and > 0).
+    pub fn with_velocity_limits(mut self, max: &[f64]) -> Result<Self, KinematicsError> {
+        if max.len() != self.dof() {
+            return Err(KinematicsError::InvalidModel(format!(
+                "speed limits have {} values for {} joints",
+                max.len(),
+                self.dof()
+            )));
+        }
+        if let Some(i) = max.iter().position(|v| !(v.is_finite() && *v > 0.0)) {
+            return Err(KinematicsError::InvalidModel(format!(
+                "joint {}: the speed limit must be finite and > 0 (got {})",
+                i + 1,
+                max[i]
+            )));
+        }
+        self.velocity_limits = Some(max.to_vec());
         Ok(self)
     }
 
@@ -222,25 +415,36 @@ impl SerialChain {
     pub fn limits(&self) -> Option<(&[f64], &[f64])> {
         self.limits
             .as_ref()
-            .map(|(l, u)| (l.as_slice(), u.as_slice()))
+            .map(|l| (l.lower.as_slice(), l.upper.as_slice()))
     }
 
-    /// The DH convention of the table.
-    pub fn convention(&self) -> DhConvention {
-        self.convention
+    /// Joint speed limits in rad/s, if the model has them.
+    pub fn velocity_limits(&self) -> Option<&[f64]> {
+        self.velocity_limits.as_deref()
     }
 
-    /// The DH table.
-    pub fn links(&self) -> &[DhLink] {
-        &self.links
+    /// How the chain was described.
+    pub fn geometry(&self) -> &ChainGeometry {
+        &self.geometry
+    }
+
+    /// The base transform (world → robot base).
+    pub fn base(&self) -> Isometry3<f64> {
+        self.base.to_isometry3()
+    }
+
+    /// The tool transform (last link frame → tool point).
+    pub fn tool(&self) -> Isometry3<f64> {
+        self.tool.to_isometry3()
     }
 
     /// Number of joints.
     pub fn dof(&self) -> usize {
-        self.links.len()
+        self.offsets.len()
     }
 
-    fn check(&self, q: &[f64]) -> Result<(), KinematicsError> {
+    /// Checks a joint vector's length and finiteness.
+    pub fn check(&self, q: &[f64]) -> Result<(), KinematicsError> {
         if q.len() != self.dof() {
             return Err(KinematicsError::JointCount {
                 expected: self.dof(),
@@ -256,24 +460,47 @@ impl SerialChain {
         Ok(())
     }
 
-    /// Walks the chain, calling `frame(i, axis_frame)` with the frame whose z axis is joint
-    /// i's axis, and returns the tool transform.
+    /// Whether `q` lies within the position limits (always true without limits).
+    pub fn within_limits(&self, q: &[f64]) -> bool {
+        self.limits.as_ref().is_none_or(|l| {
+            q.iter()
+                .zip(l.lower.iter().zip(&l.upper))
+                .all(|(v, (lo, hi))| lo <= v && v <= hi)
+        })
+    }
+
+    /// A uniformly random configuration within the limits; joints without limits (or
+    /// with an infinite side) draw from the finite part of `(−π, π)` ∪ their limits.
+    pub fn random_configuration(&self, rng: &mut impl rand::Rng) -> Vec<f64> {
+        let pi = std::f64::consts::PI;
+        (0..self.dof())
+            .map(|i| {
+                let (lo, hi) = self
+                    .limits
+                    .as_ref()
+                    .map_or((-pi, pi), |l| (l.lower[i], l.upper[i]));
+                let (lo, hi) = match (lo.is_finite(), hi.is_finite()) {
+                    (true, true) => (lo, hi),
+                    (true, false) => (lo, lo + 2.0 * pi),
+                    (false, true) => (hi - 2.0 * pi, hi),
+                    (false, false) => (-pi, pi),
+                };
+                rng.random_range(lo..hi)
+            })
+            .collect()
+    }
+
+    /// Walks the chain, calling `frame(i, axis_frame)` with the world frame whose z axis is
+    /// joint i's axis (after the joint's rotation), and returns the tool transform.
+    #[inline(always)]
     fn walk(&self, q: &[f64], mut frame: impl FnMut(usize, &Affine)) -> Affine {
-        let mut t = self.base;
-        for (i, ((l, &tw), &qi)) in self.links.iter().zip(&self.twist).zip(q).enumerate() {
-            let link = Affine::link(self.convention, l, tw, qi + l.offset);
-            match self.convention {
-                DhConvention::Standard => {
-                    frame(i, &t);
-                    t = t.mul(&link);
-                }
-                DhConvention::Modified => {
-                    t = t.mul(&link);
-                    frame(i, &t);
-                }
-            }
+        let mut t = Affine::IDENTITY;
+        for (i, ((f, &off), &qi)) in self.fixed.iter().zip(&self.offsets).zip(q).enumerate() {
+            t = if i == 0 { *f } else { t.mul(f) };
+            t = t.rot_z((qi + off).sin_cos());
+            frame(i, &t);
         }
-        t.mul(&self.tool)
+        t.mul(&self.tail)
     }
 
     /// The world pose of the tool point at joint angles `q` (radians), with its rotation
@@ -290,38 +517,45 @@ impl SerialChain {
         Ok(self.walk(q, |_, _| {}).to_matrix4())
     }
 
-    /// The tool pose and every joint frame.
+    /// The tool pose and every link frame.
     pub fn fk_frames(&self, q: &[f64]) -> Result<ChainPose, KinematicsError> {
         self.check(q)?;
         let mut frames = Vec::with_capacity(self.dof());
-        let tool = self.walk(q, |_, f| frames.push(f.to_isometry()));
+        let tool = self.walk(q, |i, f| frames.push(f.mul(&self.post[i]).to_isometry()));
         Ok(ChainPose {
-            joint_frames: frames,
+            link_frames: frames,
             tool: tool.to_isometry(),
         })
     }
 
     /// The geometric Jacobian of the tool point in the world frame, 6 × n: rows
     /// `[vx, vy, vz, ωx, ωy, ωz]` (linear velocity of the tool point, angular velocity),
-    /// column i for joint i: `(z_i × (p_tool − p_i), z_i)`.
+    /// column i for joint i: `(z_i × (p_tool − p_i), z_i)` with `z_i` the joint's axis and
+    /// `p_i` a point on it.
     pub fn jacobian(&self, q: &[f64]) -> Result<OMatrix<f64, U6, nalgebra::Dyn>, KinematicsError> {
         self.check(q)?;
         let n = self.dof();
-        let mut axes = Vec::with_capacity(n);
-        let mut origins = Vec::with_capacity(n);
-        let tool = self.walk(q, |_, f| {
-            axes.push([f.r[0][2], f.r[1][2], f.r[2][2]]);
-            origins.push(f.t);
-        });
         let mut j = OMatrix::<f64, U6, nalgebra::Dyn>::zeros(n);
-        for i in 0..n {
-            let z = Vector3::from(axes[i]);
-            let r = Vector3::from(tool.t) - Vector3::from(origins[i]);
-            let v = z.cross(&r);
+        let mut origins = [[0.0; 3]; 16];
+        let mut heap = Vec::new();
+        let store: &mut [[f64; 3]] = if n <= 16 {
+            &mut origins[..n]
+        } else {
+            heap.resize(n, [0.0; 3]);
+            &mut heap
+        };
+        let tool = self.walk(q, |i, f| {
             for k in 0..3 {
-                j[(k, i)] = v[k];
-                j[(k + 3, i)] = z[k];
+                j[(k + 3, i)] = f.r[k][2];
             }
+            store[i] = f.t;
+        });
+        for (i, o) in store.iter().enumerate() {
+            let r = [tool.t[0] - o[0], tool.t[1] - o[1], tool.t[2] - o[2]];
+            let z = [j[(3, i)], j[(4, i)], j[(5, i)]];
+            j[(0, i)] = z[1] * r[2] - z[2] * r[1];
+            j[(1, i)] = z[2] * r[0] - z[0] * r[2];
+            j[(2, i)] = z[0] * r[1] - z[1] * r[0];
         }
         Ok(j)
     }

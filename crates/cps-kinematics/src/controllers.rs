@@ -7,8 +7,14 @@
 //! - Damped least squares `Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e`: bounded near singularities
 //!   (‖Δq‖ ≤ ‖e‖ / (2λ)), at the price of a small tracking error.
 //! - Jacobian transpose `Δq = Jᵀ e` (eq. 20): no inversion, always bounded, slow.
+//!
+//! [`control_step`] combines them into the controller used to execute trajectories:
+//! damping that grows near singularities, a secondary task in the null space of a
+//! redundant arm ([`NullSpace`]) and joint position and speed limits at every step.
 
 use nalgebra::{DMatrix, DVector, Dyn, OMatrix, U6};
+
+use crate::{IkTarget, KinematicsError, SerialChain};
 
 /// `J⁺ e` with the Moore-Penrose pseudo-inverse.
 ///
@@ -60,4 +66,279 @@ pub fn transpose_step(j: &DMatrix<f64>, e: &[f64]) -> DVector<f64> {
 /// The 6 × n geometric Jacobian as a dynamic matrix, for the controllers.
 pub fn to_dmatrix(j: &OMatrix<f64, U6, Dyn>) -> DMatrix<f64> {
     DMatrix::from_column_slice(6, j.ncols(), j.as_slice())
+}
+
+/// How a Jacobian is inverted for one control step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum InverseMethod {
+    /// Moore-Penrose pseudo-inverse: exact tracking, unbounded near singularities.
+    PseudoInverse,
+    /// Damped least squares with damping that grows near singularities (Nakamura &
+    /// Hanafusa 1986; Chiaverini 1997): with σ_min the smallest singular value of J,
+    /// `λ² = 0` while `σ_min ≥ threshold`, else `λ² = lambda_max² (1 − (σ_min/threshold)²)`.
+    /// Away from singularities it is the pseudo-inverse; at one, ‖Δq‖ ≤ ‖e‖/(2 λ_max).
+    Damped {
+        /// Damping at an exact singularity (rad/m scale; 0.05 is a common choice).
+        lambda_max: f64,
+        /// Smallest singular value below which damping starts.
+        threshold: f64,
+    },
+    /// Jacobian transpose `Δq = gain · Jᵀ e`: no inversion, always bounded, slow.
+    Transpose {
+        /// Step gain (rad per metre·metre): small enough for stability, e.g. 1.
+        gain: f64,
+    },
+}
+
+/// Secondary task projected into the null space of the primary task, for redundant arms
+/// (the Panda has one spare degree of freedom for a position-and-orientation task, four
+/// for a position-only task). It never disturbs the tool.
+#[derive(Debug, Clone, PartialEq)]
+pub enum NullSpace {
+    /// No secondary task.
+    None,
+    /// Move away from joint limits along the gradient of Liégeois' (1977) criterion
+    /// `H = −½ Σ ((q_i − mid_i)/(hi_i − lo_i))²`: `z_i = −gain (q_i − mid_i)/(hi_i − lo_i)²`
+    /// per step (joints without finite limits are left alone).
+    JointLimits {
+        /// Scale of the gradient step (rad²); 1 moves a Panda joint at a limit by ≈ 0.1 rad
+        /// per step before projection.
+        gain: f64,
+    },
+    /// Pull towards a preferred posture: `gain · (q_pref − q)` per step.
+    Posture {
+        /// The preferred joint angles.
+        q: Vec<f64>,
+        /// Fraction of the posture error corrected per step.
+        gain: f64,
+    },
+}
+
+/// Settings of the inverse controller (thesis eq. 14–20 plus what makes it usable on a
+/// redundant arm: damping, null space and limits).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControllerConfig {
+    /// How the Jacobian is inverted. Default: damped, λ_max = 0.05, threshold 0.05.
+    pub method: InverseMethod,
+    /// Fraction η of the task error corrected per step (thesis eq. 19), in (0, 1].
+    /// Default 1.
+    pub gain: f64,
+    /// Secondary task. Default: none.
+    pub null_space: NullSpace,
+    /// Keep joints inside their position limits and below their speed limits (when the
+    /// chain has them). A joint already outside a limit may only move back. Default true.
+    pub respect_limits: bool,
+}
+
+impl Default for ControllerConfig {
+    fn default() -> Self {
+        Self {
+            method: InverseMethod::Damped {
+                lambda_max: 0.05,
+                threshold: 0.05,
+            },
+            gain: 1.0,
+            null_space: NullSpace::None,
+            respect_limits: true,
+        }
+    }
+}
+
+impl ControllerConfig {
+    /// Checks every field; the error names the field and the rule.
+    pub fn validate(&self, chain: &SerialChain) -> Result<(), KinematicsError> {
+        let bad = |m: String| Err(KinematicsError::InvalidConfig(m));
+        if !(self.gain > 0.0 && self.gain <= 1.0) {
+            return bad(format!(
+                "controller gain must be in (0, 1] (got {})",
+                self.gain
+            ));
+        }
+        match self.method {
+            InverseMethod::Damped {
+                lambda_max,
+                threshold,
+            } if !(lambda_max > 0.0
+                && lambda_max.is_finite()
+                && threshold > 0.0
+                && threshold.is_finite()) =>
+            {
+                return bad(format!(
+                    "damping needs finite lambda_max > 0 and threshold > 0 (got {lambda_max}, {threshold})"
+                ));
+            }
+            InverseMethod::Transpose { gain } if !(gain > 0.0 && gain.is_finite()) => {
+                return bad(format!(
+                    "transpose gain must be finite and > 0 (got {gain})"
+                ));
+            }
+            _ => {}
+        }
+        match &self.null_space {
+            NullSpace::None => {}
+            NullSpace::JointLimits { gain } => {
+                if !(gain.is_finite() && *gain >= 0.0) {
+                    return bad(format!(
+                        "null-space gain must be finite and ≥ 0 (got {gain})"
+                    ));
+                }
+                if chain.limits().is_none() {
+                    return bad("joint-limit avoidance needs a chain with limits".into());
+                }
+            }
+            NullSpace::Posture { q, gain } => {
+                if !(gain.is_finite() && *gain >= 0.0) {
+                    return bad(format!("posture gain must be finite and ≥ 0 (got {gain})"));
+                }
+                chain.check(q)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One step of the inverse controller.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControlStep {
+    /// Joint displacement for this step (radians), limits applied.
+    pub dq: Vec<f64>,
+    /// Norm of the position error before the step (metres).
+    pub position_error: f64,
+    /// Rotation error before the step (radians; 0 for position targets).
+    pub rotation_error: f64,
+    /// Damping used (0 unless damped near a singularity).
+    pub damping: f64,
+    /// Fraction of the step kept by the speed limits (1 = not limited).
+    pub speed_scale: f64,
+}
+
+/// The world-frame task error (position, rotation vector) from the tool pose to `target`.
+pub fn task_error(
+    pose: &nalgebra::IsometryMatrix3<f64>,
+    target: &IkTarget,
+) -> (nalgebra::Vector3<f64>, nalgebra::Vector3<f64>) {
+    match target {
+        IkTarget::Position(p) => (p - pose.translation.vector, nalgebra::Vector3::zeros()),
+        IkTarget::Pose(t) => {
+            let r = t.rotation * pose.rotation.inverse();
+            let w = nalgebra::UnitQuaternion::from_rotation_matrix(&r).scaled_axis();
+            (t.translation.vector - pose.translation.vector, w)
+        }
+    }
+}
+
+/// One control step from `q` towards `target`, for a control period of `dt` seconds (used
+/// only by the speed limits): `Δq = η J^# e + (I − J⁺J) z`, then limits.
+///
+/// The step is scaled as a whole so that no joint exceeds its speed limit (the direction is
+/// kept), then each joint is kept inside its position limits (a joint outside may only
+/// move back).
+pub fn control_step(
+    chain: &SerialChain,
+    q: &[f64],
+    target: &IkTarget,
+    dt: f64,
+    config: &ControllerConfig,
+) -> Result<ControlStep, KinematicsError> {
+    chain.check(q)?;
+    let n = chain.dof();
+    let pose = chain.fk(q)?;
+    let (ep, er) = task_error(&pose, target);
+    let rows = if matches!(target, IkTarget::Position(_)) {
+        3
+    } else {
+        6
+    };
+    let j6 = chain.jacobian(q)?;
+    let j = DMatrix::from_fn(rows, n, |r, c| j6[(r, c)]);
+    let e: Vec<f64> = (0..rows)
+        .map(|r| config.gain * if r < 3 { ep[r] } else { er[r - 3] })
+        .collect();
+    let mut damping = 0.0;
+    let mut dq = match config.method {
+        InverseMethod::Transpose { gain } => transpose_step(&j, &e) * gain,
+        InverseMethod::PseudoInverse | InverseMethod::Damped { .. } => {
+            let svd = j.clone().svd(true, true);
+            let (u, vt) = (svd.u.expect("u requested"), svd.v_t.expect("v_t requested"));
+            let sv = &svd.singular_values;
+            let smax = sv.iter().fold(0.0f64, |a, &s| a.max(s));
+            let smin = if rows <= n {
+                sv.iter().fold(f64::INFINITY, |a, &s| a.min(s))
+            } else {
+                0.0
+            };
+            let lambda2 = match config.method {
+                InverseMethod::Damped {
+                    lambda_max,
+                    threshold,
+                } if smin < threshold => {
+                    lambda_max * lambda_max * (1.0 - (smin / threshold).powi(2))
+                }
+                _ => 0.0,
+            };
+            damping = lambda2.sqrt();
+            let ev = DVector::from_column_slice(&e);
+            let mut dq = DVector::zeros(n);
+            for (k, &s) in sv.iter().enumerate() {
+                if lambda2 > 0.0 || s > 1e-15 * smax {
+                    let c = u.column(k).dot(&ev) * s / (s * s + lambda2);
+                    dq += vt.row(k).transpose() * c;
+                }
+            }
+            // Null space of the primary task: I − Σ_{σ_k > tol} v_k v_kᵀ.
+            let z: Option<DVector<f64>> = match &config.null_space {
+                NullSpace::None => None,
+                NullSpace::JointLimits { gain } => chain.limits().map(|(lo, hi)| {
+                    DVector::from_fn(n, |i, _| {
+                        let range = hi[i] - lo[i];
+                        if range.is_finite() {
+                            -gain * (q[i] - 0.5 * (lo[i] + hi[i])) / (range * range)
+                        } else {
+                            0.0
+                        }
+                    })
+                }),
+                NullSpace::Posture { q: pref, gain } => {
+                    Some(DVector::from_fn(n, |i, _| gain * (pref[i] - q[i])))
+                }
+            };
+            if let Some(z) = z {
+                let mut proj = z.clone();
+                for (k, &s) in sv.iter().enumerate() {
+                    if s > 1e-10 * smax.max(1e-300) {
+                        let v = vt.row(k).transpose();
+                        proj -= &v * v.dot(&z);
+                    }
+                }
+                dq += proj;
+            }
+            dq
+        }
+    };
+    let mut speed_scale = 1.0;
+    if config.respect_limits {
+        if let Some(vmax) = chain.velocity_limits() {
+            for (d, v) in dq.iter().zip(vmax) {
+                let allowed = v * dt;
+                if d.abs() * speed_scale > allowed {
+                    speed_scale = allowed / d.abs();
+                }
+            }
+            dq *= speed_scale;
+        }
+        if let Some((lo, hi)) = chain.limits() {
+            for i in 0..n {
+                let down = (lo[i] - q[i]).min(0.0);
+                let up = (hi[i] - q[i]).max(0.0);
+                dq[i] = dq[i].clamp(down, up);
+            }
+        }
+    }
+    Ok(ControlStep {
+        dq: dq.iter().copied().collect(),
+        position_error: ep.norm(),
+        rotation_error: er.norm(),
+        damping,
+        speed_scale,
+    })
 }

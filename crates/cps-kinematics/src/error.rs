@@ -34,6 +34,27 @@ pub enum KinematicsError {
         /// Iterations spent over all restarts.
         iterations: usize,
     },
+    /// A setting out of its range; the message names it and the rule.
+    #[error("invalid setting: {0}")]
+    InvalidConfig(String),
+    /// A robot backend (simulator connection, hardware) failed.
+    #[error("robot backend {backend}: {message}")]
+    Backend {
+        /// Which backend (e.g. the endpoint of a simulator).
+        backend: String,
+        /// What went wrong.
+        message: String,
+    },
+    /// A Cartesian path that the robot cannot follow within its limits.
+    #[error("path sample {sample} (t = {time:.3} s) is not reachable: {reason}")]
+    PathUnreachable {
+        /// 0-based index of the first failing sample.
+        sample: usize,
+        /// Its time in seconds.
+        time: f64,
+        /// Why: the IK residual or the joint jump needed.
+        reason: String,
+    },
     /// A robot model that cannot be a serial chain (no joints, bad limits, NaN parameters).
     #[error("invalid robot model: {0}")]
     InvalidModel(String),

@@ -1,10 +1,11 @@
 //! Numerical inverse kinematics: Levenberg-Marquardt on the pose error, joint limits by
 //! projection, seeded random restarts.
 
-use nalgebra::{DMatrix, DVector, IsometryMatrix3, UnitQuaternion, Vector3};
-use rand::{Rng, SeedableRng};
+use nalgebra::{DMatrix, DVector, IsometryMatrix3, Vector3};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
+use crate::controllers::task_error;
 use crate::{KinematicsError, SerialChain};
 
 /// What the tool should reach.
@@ -61,17 +62,8 @@ pub struct IkSolution {
     pub restarts: usize,
 }
 
-/// World-frame error (position, rotation vector) from the current pose to the target.
 fn pose_error(chain: &SerialChain, q: &[f64], target: &IkTarget) -> (Vector3<f64>, Vector3<f64>) {
-    let pose = chain.fk(q).expect("q checked");
-    match target {
-        IkTarget::Position(p) => (p - pose.translation.vector, Vector3::zeros()),
-        IkTarget::Pose(t) => {
-            let r = t.rotation * pose.rotation.inverse();
-            let w = UnitQuaternion::from_rotation_matrix(&r).scaled_axis();
-            (t.translation.vector - pose.translation.vector, w)
-        }
-    }
+    task_error(&chain.fk(q).expect("q checked"), target)
 }
 
 fn cost(e: &(Vector3<f64>, Vector3<f64>)) -> f64 {
@@ -136,16 +128,7 @@ pub fn solve_ik(
         let mut q: Vec<f64> = if attempt == 0 {
             seed_q.to_vec()
         } else {
-            match limits.or(chain.limits()) {
-                Some((lo, hi)) => lo
-                    .iter()
-                    .zip(hi)
-                    .map(|(l, h)| rng.random_range(*l..*h))
-                    .collect(),
-                None => (0..n)
-                    .map(|_| rng.random_range(-std::f64::consts::PI..std::f64::consts::PI))
-                    .collect(),
-            }
+            chain.random_configuration(&mut rng)
         };
         if let Some(i) = q.iter().position(|v| !v.is_finite()) {
             return Err(KinematicsError::NotFinite {

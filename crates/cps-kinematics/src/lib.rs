@@ -1,22 +1,28 @@
-//! Robot kinematics for cps (first part: DH chains, forward kinematics, Jacobians).
+//! Robot kinematics for cps: serial chains, forward and inverse kinematics, inverse
+//! controllers, and a robot to run trajectories on.
 //!
-//! - [`SerialChain`]: a serial chain of revolute joints from a Denavit-Hartenberg table in
-//!   an explicitly named convention ([`DhConvention::Standard`] or
-//!   [`DhConvention::Modified`], never mixed up), with base and tool transforms.
-//! - Forward kinematics ([`SerialChain::fk`], every joint frame with
+//! - [`SerialChain`]: revolute joints from a Denavit-Hartenberg table in an explicitly
+//!   named convention ([`DhConvention::Standard`] or [`DhConvention::Modified`], never mixed
+//!   up) or from URDF-style joints ([`RevoluteJoint`], [`chain_from_urdf`]), with base and
+//!   tool transforms, position limits and speed limits.
+//! - Forward kinematics ([`SerialChain::fk`], every link frame with
 //!   [`SerialChain::fk_frames`]), the geometric Jacobian in the world frame
 //!   ([`SerialChain::jacobian`], 6 × n, position rows first) and Yoshikawa's manipulability.
-//! - [`controllers`]: pseudo-inverse, damped least squares and transpose steps.
+//! - [`controllers`]: pseudo-inverse, damped least squares and transpose steps, and
+//!   [`controllers::control_step`], the controller that executes trajectories (damping that
+//!   grows near singularities, null-space tasks, limits at every step).
 //! - [`solve_ik`]: inverse kinematics (position or full pose) with joint limits and seeded
-//!   random restarts; failure carries the best residual.
+//!   random restarts; failure carries the best residual. [`check_path`]: is a whole
+//!   Cartesian path reachable on one branch?
+//! - [`RobotBackend`]: what a robot must offer (joints, tool pose, time, step);
+//!   [`KinematicRobot`] implements it in-process; [`execute`] follows a task-space
+//!   trajectory on any backend and records what the robot did.
 //! - [`robots`]: the Franka Emika Panda (modified DH, flange or Franka Hand TCP, limits),
 //!   the UR3 and the Puma 560 (standard DH).
 //! - [`sample_workspace`] (seeded reachable tool positions) and Grübler's
 //!   [`degrees_of_freedom`], for teaching.
 //!
-//! Still to come (issue "cps-kinematics"): null-space use and limits in the controllers,
-//! path reachability checks, URDF and TOML models, the robot-backend trait and the in-process
-//! robot. This crate does no IO and has no rayon.
+//! This crate does no IO (URDF comes in as text) and has no rayon.
 //!
 //! # Example
 //! ```
@@ -34,14 +40,22 @@
 //! ```
 #![deny(missing_docs)]
 
+mod backend;
 mod chain;
 pub mod controllers;
 mod error;
+mod execute;
 mod ik;
 pub mod robots;
+#[cfg(feature = "urdf")]
+mod urdf;
 mod workspace;
 
-pub use chain::{ChainPose, DhConvention, DhLink, SerialChain};
+pub use backend::{KinematicRobot, RobotBackend};
+pub use chain::{ChainGeometry, ChainPose, DhConvention, DhLink, RevoluteJoint, SerialChain};
 pub use error::KinematicsError;
+pub use execute::{ExecutionConfig, Recording, execute};
 pub use ik::{IkConfig, IkSolution, IkTarget, solve_ik};
-pub use workspace::{degrees_of_freedom, sample_workspace};
+#[cfg(feature = "urdf")]
+pub use urdf::{UrdfChain, chain_from_urdf};
+pub use workspace::{check_path, degrees_of_freedom, sample_workspace};

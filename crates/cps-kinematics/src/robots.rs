@@ -26,7 +26,7 @@ pub const PANDA_Q_MAX: [f64; 7] = [2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.75
 pub const PANDA_DQ_MAX: [f64; 7] = [2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61];
 
 /// The Franka Emika Panda in its published modified-DH table (Franka documentation),
-/// base at the world origin, ending at `tool`.
+/// base at the world origin, ending at `tool`, with position and speed limits.
 pub fn panda(tool: PandaTool) -> SerialChain {
     let links = vec![
         DhLink::new(0.0, 0.333, 0.0),
@@ -54,6 +54,7 @@ pub fn panda(tool: PandaTool) -> SerialChain {
     };
     SerialChain::new(DhConvention::Modified, links)
         .and_then(|c| c.with_tool(tool).with_limits(&PANDA_Q_MIN, &PANDA_Q_MAX))
+        .and_then(|c| c.with_velocity_limits(&PANDA_DQ_MAX))
         .expect("the Panda model is valid")
 }
 
@@ -73,7 +74,8 @@ pub fn puma560() -> SerialChain {
 
 /// The Universal Robots UR3 in standard DH with Universal Robots' published parameters
 /// (d1 = 0.1519, a2 = −0.24365, a3 = −0.21325, d4 = 0.11235, d5 = 0.08535,
-/// d6 = 0.0819 m; α = π/2, 0, 0, π/2, −π/2, 0), joint limits ±2π, tool at the flange.
+/// d6 = 0.0819 m; α = π/2, 0, 0, π/2, −π/2, 0), joint limits ±2π, speed limits 180°/s
+/// (base, shoulder, elbow) and 360°/s (wrists) from the UR3 datasheet, tool at the flange.
 pub fn ur3() -> SerialChain {
     let links = vec![
         DhLink::new(0.0, 0.1519, FRAC_PI_2),
@@ -83,8 +85,9 @@ pub fn ur3() -> SerialChain {
         DhLink::new(0.0, 0.08535, -FRAC_PI_2),
         DhLink::new(0.0, 0.0819, 0.0),
     ];
-    let tau = std::f64::consts::TAU;
+    let (pi, tau) = (std::f64::consts::PI, std::f64::consts::TAU);
     SerialChain::new(DhConvention::Standard, links)
         .and_then(|c| c.with_limits(&[-tau; 6], &[tau; 6]))
+        .and_then(|c| c.with_velocity_limits(&[pi, pi, pi, tau, tau, tau]))
         .expect("the UR3 model is valid")
 }

@@ -1,28 +1,19 @@
-//! Workspace sampling and mobility.
+//! Workspace sampling, path reachability and mobility.
 
 use nalgebra::Vector3;
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::{KinematicsError, SerialChain};
+use crate::{IkConfig, IkTarget, KinematicsError, SerialChain, solve_ik};
 
 /// `count` tool positions reachable within the joint limits: forward kinematics of
 /// uniformly random in-limit configurations drawn from `seed` (joints without limits are
-/// drawn from (−π, π)). The same seed gives the same samples.
+/// drawn as [`SerialChain::random_configuration`] says). The same seed gives the same samples.
 pub fn sample_workspace(chain: &SerialChain, count: usize, seed: u64) -> Vec<Vector3<f64>> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let n = chain.dof();
-    let pi = std::f64::consts::PI;
     (0..count)
         .map(|_| {
-            let q: Vec<f64> = match chain.limits() {
-                Some((lo, hi)) => lo
-                    .iter()
-                    .zip(hi)
-                    .map(|(l, h)| rng.random_range(*l..*h))
-                    .collect(),
-                None => (0..n).map(|_| rng.random_range(-pi..pi)).collect(),
-            };
+            let q = chain.random_configuration(&mut rng);
             chain
                 .fk(&q)
                 .expect("q has the chain's length and is finite")
@@ -53,4 +44,73 @@ pub fn degrees_of_freedom(
         )));
     }
     Ok(m * (links as i64 - 1) - joint_freedoms.iter().map(|&f| m - f as i64).sum::<i64>())
+}
+
+/// Checks that a whole Cartesian path can be followed within the joint limits, and returns
+/// a joint configuration per sample.
+///
+/// Each sample is solved by [`solve_ik`] seeded with the previous sample's solution (the
+/// first with `seed_q`), without restarts, so the solutions stay on one branch; a sample
+/// that fails from there is retried with the configured restarts. With `max_joint_step`
+/// (radians per sample, e.g. speed limit × dt), a jump larger than that between
+/// consecutive samples (a branch change) also fails. `times` only labels the error.
+///
+/// # Panics
+/// If `times` and `path` differ in length.
+pub fn check_path(
+    chain: &SerialChain,
+    path: &[IkTarget],
+    times: &[f64],
+    seed_q: &[f64],
+    config: &IkConfig,
+    max_joint_step: Option<&[f64]>,
+) -> Result<Vec<Vec<f64>>, KinematicsError> {
+    assert_eq!(path.len(), times.len(), "one time per path sample");
+    if let Some(m) = max_joint_step
+        && m.len() != chain.dof()
+    {
+        return Err(KinematicsError::JointCount {
+            expected: chain.dof(),
+            got: m.len(),
+        });
+    }
+    let tracking = IkConfig {
+        restarts: 0,
+        ..config.clone()
+    };
+    let mut prev = seed_q.to_vec();
+    let mut out = Vec::with_capacity(path.len());
+    for (k, (target, &t)) in path.iter().zip(times).enumerate() {
+        let fail = |reason: String| KinematicsError::PathUnreachable {
+            sample: k,
+            time: t,
+            reason,
+        };
+        let sol = solve_ik(chain, target, &prev, &tracking)
+            .or_else(|_| solve_ik(chain, target, &prev, config))
+            .map_err(|e| match e {
+                KinematicsError::Unreachable {
+                    position_error,
+                    rotation_error,
+                    ..
+                } => fail(format!(
+                    "no configuration within the joint limits (best position error {position_error:.3e} m, rotation error {rotation_error:.3e} rad)"
+                )),
+                other => other,
+            })?;
+        if let Some(m) = max_joint_step
+            && k > 0
+            && let Some(j) = (0..chain.dof()).find(|&j| (sol.q[j] - prev[j]).abs() > m[j])
+        {
+            return Err(fail(format!(
+                "joint {} would jump by {:.3} rad (at most {:.3} rad per sample): a branch change",
+                j + 1,
+                (sol.q[j] - prev[j]).abs(),
+                m[j]
+            )));
+        }
+        prev.clone_from(&sol.q);
+        out.push(sol.q);
+    }
+    Ok(out)
 }

@@ -327,3 +327,363 @@ fn grubler_counts_classic_mechanisms() {
     assert_eq!(degrees_of_freedom(true, 7, &[1; 6]).unwrap(), 6); // UR3
     assert!(degrees_of_freedom(false, 3, &[4]).is_err());
 }
+
+mod urdf {
+    use super::*;
+    use cps_kinematics::{KinematicsError, chain_from_urdf};
+
+    const PANDA_URDF: &str = include_str!("../../../configs/robots/panda.urdf");
+
+    /// The Panda written as URDF joints (origins and axes, no DH) is a different
+    /// description of the same robot: it must match the reference to 1e-12 as well.
+    #[test]
+    fn the_panda_urdf_matches_the_reference_at_the_tcp_and_the_flange() {
+        let data = reference();
+        let hand = chain_from_urdf(PANDA_URDF, None).unwrap();
+        assert_eq!(hand.tip_link, "panda_hand_tcp");
+        assert_eq!(hand.base_link, "panda_link0");
+        assert_eq!(hand.joint_names.len(), 7);
+        assert_eq!(hand.chain.limits(), panda(PandaTool::HandTcp).limits());
+        assert_eq!(
+            hand.chain.velocity_limits(),
+            Some(&cps_kinematics::robots::PANDA_DQ_MAX[..])
+        );
+        let flange = chain_from_urdf(PANDA_URDF, Some("panda_link8")).unwrap();
+        for c in data["configs"].as_array().unwrap() {
+            let q = floats(&c["q"]);
+            let name = c["name"].as_str().unwrap();
+            check(
+                &hand.chain,
+                &q,
+                &c["hand_tcp"],
+                &format!("{name} urdf hand"),
+            );
+            check(
+                &flange.chain,
+                &q,
+                &c["flange"],
+                &format!("{name} urdf flange"),
+            );
+        }
+    }
+
+    #[test]
+    fn non_serial_or_malformed_urdf_is_refused_with_the_reason() {
+        let err = |xml: &str, tip: Option<&str>| match chain_from_urdf(xml, tip) {
+            Err(KinematicsError::InvalidModel(m)) => m,
+            other => panic!("{other:?}"),
+        };
+        assert!(err("<robot name='x'><link name='a'/>", None).starts_with("URDF:"));
+        let finger = err(PANDA_URDF, Some("panda_leftfinger"));
+        assert!(
+            finger.contains("panda_finger_joint1") && finger.contains("Prismatic"),
+            "{finger}"
+        );
+        assert!(err(PANDA_URDF, Some("nowhere")).contains("no link named `nowhere`"));
+        let two_roots = "<robot name='x'><link name='a'/><link name='b'/></robot>";
+        assert!(err(two_roots, None).contains("several root links"));
+        let forked = r#"<robot name="y"><link name="a"/><link name="b"/><link name="c"/>
+            <joint name="j1" type="continuous"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/></joint>
+            <joint name="j2" type="continuous"><parent link="a"/><child link="c"/><axis xyz="0 1 0"/></joint>
+            </robot>"#;
+        assert!(err(forked, None).contains("several tip links are possible (b, c)"));
+        let zero_axis = forked.replace("0 1 0", "0 0 0");
+        assert!(err(&zero_axis, Some("c")).contains("axis is zero"));
+        // A continuous joint is unlimited, and an axis other than z works.
+        let c = chain_from_urdf(forked, Some("c")).unwrap().chain;
+        assert_eq!(c.limits().unwrap().0, &[f64::NEG_INFINITY]);
+        let j = c.jacobian(&[0.4]).unwrap();
+        let w = nalgebra::Vector3::new(j[(3, 0)], j[(4, 0)], j[(5, 0)]);
+        assert!((w - nalgebra::Vector3::y()).norm() < 1e-15, "{w:?}");
+    }
+}
+
+#[test]
+fn a_base_transform_moves_every_frame_and_link_frames_end_at_the_tool() {
+    let q = [0.1, -0.4, 0.3, -2.0, 0.2, 1.6, 0.7];
+    let base = Isometry3::new(
+        nalgebra::Vector3::new(0.5396, 0.02, 0.749),
+        nalgebra::Vector3::new(0.0, 0.0, 0.3),
+    );
+    let arm = panda(PandaTool::Flange);
+    let placed = panda(PandaTool::Flange).with_base(base);
+    let base_m = base.to_homogeneous();
+    let (t0, t1) = (arm.fk_matrix(&q).unwrap(), placed.fk_matrix(&q).unwrap());
+    assert!((base_m * t0 - t1).abs().max() < 1e-14);
+    let frames = placed.fk_frames(&q).unwrap();
+    let last = frames.link_frames[6] * nalgebra::Translation3::new(0.0, 0.0, 0.107);
+    assert!((last.to_homogeneous() - t1).abs().max() < 1e-14);
+    // Modified DH: link frame 1 sits 0.333 m above the base, turned by q1.
+    let f1 = frames.link_frames[0].to_homogeneous();
+    let expect = base_m
+        * nalgebra::Isometry3::new(
+            nalgebra::Vector3::new(0.0, 0.0, 0.333),
+            nalgebra::Vector3::new(0.0, 0.0, q[0]),
+        )
+        .to_homogeneous();
+    assert!((f1 - expect).abs().max() < 1e-14);
+    // Rotation parts of the Jacobian are unchanged by a base translation, turned by its rotation.
+    let (j0, j1) = (arm.jacobian(&q).unwrap(), placed.jacobian(&q).unwrap());
+    let r = base.rotation;
+    for i in 0..7 {
+        let w0 = nalgebra::Vector3::new(j0[(3, i)], j0[(4, i)], j0[(5, i)]);
+        let w1 = nalgebra::Vector3::new(j1[(3, i)], j1[(4, i)], j1[(5, i)]);
+        assert!((r * w0 - w1).norm() < 1e-14);
+    }
+}
+
+mod control_and_execution {
+    use cps_kinematics::controllers::{ControllerConfig, InverseMethod, NullSpace, control_step};
+    use cps_kinematics::robots::{PANDA_DQ_MAX, PANDA_Q_MAX, PANDA_Q_MIN, PandaTool, panda};
+    use cps_kinematics::{
+        ExecutionConfig, IkConfig, IkTarget, KinematicRobot, KinematicsError, RobotBackend,
+        check_path, execute,
+    };
+    use nalgebra::Vector3;
+
+    const THESIS_Q0: [f64; 7] = [
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        std::f64::consts::FRAC_PI_2,
+        std::f64::consts::FRAC_PI_4,
+    ];
+    const READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+
+    /// A secondary task in the null space does not move the tool (to first order), and a
+    /// posture task brings the redundant joint towards the preferred posture.
+    #[test]
+    fn null_space_motion_leaves_the_tool_alone_and_reaches_the_posture() {
+        let arm = panda(PandaTool::HandTcp);
+        let q = READY;
+        let hold = IkTarget::Pose(arm.fk(&q).unwrap());
+        let mut pref = READY;
+        pref[2] += 0.5; // elbow swivel: reachable by self-motion
+        let cfg = ControllerConfig {
+            null_space: NullSpace::Posture {
+                q: pref.to_vec(),
+                gain: 0.2,
+            },
+            ..ControllerConfig::default()
+        };
+        let st = control_step(&arm, &q, &hold, 0.01, &cfg).unwrap();
+        let j = arm.jacobian(&q).unwrap();
+        let dq = nalgebra::DVector::from_column_slice(&st.dq);
+        let twist = j * dq;
+        assert!(st.dq.iter().any(|d| d.abs() > 1e-4), "no null-space motion");
+        assert!(twist.norm() < 1e-12, "tool moved: {twist}");
+        // Iterate: the tool stays put while joint 3 approaches the preferred angle.
+        let mut q = q.to_vec();
+        for _ in 0..300 {
+            let st = control_step(&arm, &q, &hold, 0.01, &cfg).unwrap();
+            for (a, d) in q.iter_mut().zip(&st.dq) {
+                *a += d;
+            }
+        }
+        let moved = (arm.fk(&q).unwrap().translation.vector
+            - arm.fk(&READY).unwrap().translation.vector)
+            .norm();
+        assert!(moved < 1e-6, "tool drifted {moved} m");
+        // The self-motion manifold is one-dimensional: the posture error shrinks as far as
+        // moving along it can (here from 0.5 to the closest point of the manifold).
+        let dist = |q: &[f64]| {
+            q.iter()
+                .zip(&pref)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        assert!(
+            dist(&q) < 0.9 * dist(&READY),
+            "posture error {} (start 0.5)",
+            dist(&q)
+        );
+        // Joint-limit avoidance moves joints towards mid-range without moving the tool.
+        let near_limit = [2.7, 0.3, 0.0, -1.5, 0.0, 1.8, 0.0];
+        let hold = IkTarget::Position(arm.fk(&near_limit).unwrap().translation.vector);
+        let cfg = ControllerConfig {
+            null_space: NullSpace::JointLimits { gain: 1.0 },
+            ..ControllerConfig::default()
+        };
+        let st = control_step(&arm, &near_limit, &hold, 0.01, &cfg).unwrap();
+        assert!(
+            st.dq[0] < 0.0,
+            "joint 1 should leave its upper limit: {:?}",
+            st.dq
+        );
+    }
+
+    /// Damping grows through a singularity: joint speeds stay bounded where the plain
+    /// pseudo-inverse explodes, and the damping is zero far from it.
+    #[test]
+    fn adaptive_damping_bounds_steps_at_a_singularity() {
+        let arm = panda(PandaTool::Flange);
+        let free = ControllerConfig {
+            respect_limits: false,
+            ..ControllerConfig::default()
+        };
+        let pinv = ControllerConfig {
+            method: InverseMethod::PseudoInverse,
+            ..free.clone()
+        };
+        // Next to the thesis's initial configuration, which is singular (σ_min ≈ 4e-17 in
+        // the reference; exactly at it the pseudo-inverse's rank cut-off hides the problem).
+        let mut q = THESIS_Q0;
+        q[1] = 1e-4;
+        // A 1 cm / 0.01 rad error along the direction the arm can hardly move in.
+        let j = cps_kinematics::controllers::to_dmatrix(&arm.jacobian(&q).unwrap());
+        let svd = j.svd(true, false);
+        let k = svd.singular_values.imin();
+        let e = svd.u.unwrap().column(k) * 0.01;
+        let pose = arm.fk(&q).unwrap();
+        let rot = nalgebra::Rotation3::new(Vector3::new(e[3], e[4], e[5]));
+        let target = IkTarget::Pose(nalgebra::IsometryMatrix3::from_parts(
+            nalgebra::Translation3::from(pose.translation.vector + Vector3::new(e[0], e[1], e[2])),
+            rot * pose.rotation,
+        ));
+        let damped = control_step(&arm, &q, &target, 0.01, &free).unwrap();
+        let exact = control_step(&arm, &q, &target, 0.01, &pinv).unwrap();
+        let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        assert!(damped.damping > 0.04, "damping {}", damped.damping);
+        assert!(norm(&damped.dq) <= 0.01 / (2.0 * 0.05) + 1e-9);
+        assert!(
+            norm(&exact.dq) > 10.0 * norm(&damped.dq),
+            "{} vs {}",
+            norm(&exact.dq),
+            norm(&damped.dq)
+        );
+        let easy = control_step(&arm, &READY, &target, 0.01, &free).unwrap();
+        assert_eq!(easy.damping, 0.0);
+    }
+
+    #[test]
+    fn kinematic_robot_integrates_commands_within_limits() {
+        let arm = panda(PandaTool::HandTcp);
+        let mut robot = KinematicRobot::new(arm, &THESIS_Q0, 0.01).unwrap();
+        // Joint 4 starts above its upper limit (−0.0698): it may only move back.
+        robot
+            .command_joint_velocities(&[0.5, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
+            .unwrap();
+        for _ in 0..100 {
+            robot.step().unwrap();
+        }
+        let q = robot.joint_positions().unwrap();
+        assert!((q[0] - 0.5).abs() < 1e-12, "q1 = {}", q[0]); // v t exactly
+        assert_eq!(q[3], 0.0, "joint 4 pushed further out");
+        assert!((robot.time().unwrap() - 1.0).abs() < 1e-15);
+        // A position command far away is approached at the speed limit, never beyond.
+        robot
+            .command_joint_positions(&[2.0, 0.0, 0.0, -2.0, 0.0, 1.5, 0.0])
+            .unwrap();
+        robot.step().unwrap();
+        let q1 = robot.joint_positions().unwrap();
+        assert!((q1[0] - (0.5 + PANDA_DQ_MAX[0] * 0.01)).abs() < 1e-12);
+        assert!((q1[3] - (-PANDA_DQ_MAX[3] * 0.01)).abs() < 1e-12);
+        assert!(robot.command_joint_positions(&[0.0; 6]).is_err());
+        assert!(matches!(
+            robot.command_joint_velocities(&[f64::NAN; 7]),
+            Err(KinematicsError::InvalidConfig(_))
+        ));
+        assert!(KinematicRobot::new(panda(PandaTool::Flange), &READY, 0.0).is_err());
+    }
+
+    /// A circle of radius 0.1 m in 4 s, 10 ms per sample: tracked to within 0.1 mm, and
+    /// limits are never exceeded at any step.
+    #[test]
+    fn execution_tracks_a_circle_and_respects_limits_at_every_step() {
+        let arm = panda(PandaTool::HandTcp);
+        let c = arm.fk(&READY).unwrap().translation.vector;
+        let n = 400;
+        let targets: Vec<IkTarget> = (0..=n)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / n as f64;
+                IkTarget::Position(c + Vector3::new(0.1 * (a.cos() - 1.0), 0.1 * a.sin(), 0.0))
+            })
+            .collect();
+        let mut robot = KinematicRobot::new(arm.clone(), &READY, 0.01).unwrap();
+        let cfg = ExecutionConfig {
+            max_iterations_per_sample: 1,
+            ..ExecutionConfig::default()
+        };
+        let rec = execute(&mut robot, &arm, &targets, &cfg).unwrap();
+        assert_eq!(rec.time.len(), n + 1);
+        assert_eq!(rec.steps, n + 1);
+        assert!(
+            rec.max_position_error() < 1e-4,
+            "max error {}",
+            rec.max_position_error()
+        );
+        let mut prev = READY.to_vec();
+        for q in &rec.q {
+            for i in 0..7 {
+                assert!((PANDA_Q_MIN[i]..=PANDA_Q_MAX[i]).contains(&q[i]));
+                assert!((q[i] - prev[i]).abs() <= PANDA_DQ_MAX[i] * 0.01 + 1e-12);
+            }
+            prev.clone_from(q);
+        }
+        // A target out of reach: the robot stops at its limits, the error is reported,
+        // the iteration cap ends every sample.
+        let far = vec![IkTarget::Position(Vector3::new(2.0, 0.0, 0.5)); 50];
+        let mut robot = KinematicRobot::new(arm.clone(), &READY, 0.01).unwrap();
+        let rec = execute(&mut robot, &arm, &far, &ExecutionConfig::default()).unwrap();
+        assert_eq!(rec.unconverged, 50);
+        assert_eq!(rec.steps, 500);
+        assert!(rec.max_position_error() > 0.9);
+        for q in &rec.q {
+            for i in 0..7 {
+                assert!(
+                    (PANDA_Q_MIN[i]..=PANDA_Q_MAX[i]).contains(&q[i]),
+                    "joint {} at {}",
+                    i + 1,
+                    q[i]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn path_checks_find_the_first_unreachable_sample() {
+        let arm = panda(PandaTool::HandTcp);
+        let p0 = arm.fk(&READY).unwrap().translation.vector;
+        let mut path: Vec<IkTarget> = (0..50)
+            .map(|k| IkTarget::Position(p0 + Vector3::new(0.004 * k as f64, 0.0, 0.0)))
+            .collect();
+        let times: Vec<f64> = (0..60).map(|k| k as f64 * 0.01).collect();
+        let step: Vec<f64> = PANDA_DQ_MAX.iter().map(|v| v * 0.01 * 5.0).collect();
+        let qs = check_path(
+            &arm,
+            &path,
+            &times[..50],
+            &READY,
+            &IkConfig::default(),
+            Some(&step),
+        )
+        .unwrap();
+        assert_eq!(qs.len(), 50);
+        for (q, t) in qs.iter().zip(&path) {
+            let IkTarget::Position(p) = t else {
+                unreachable!()
+            };
+            assert!((arm.fk(q).unwrap().translation.vector - p).norm() < 1e-9);
+        }
+        path.extend((0..10).map(|_| IkTarget::Position(Vector3::new(1.5, 0.0, 0.3))));
+        let cfg = IkConfig {
+            restarts: 3,
+            ..IkConfig::default()
+        };
+        match check_path(&arm, &path, &times, &READY, &cfg, None) {
+            Err(KinematicsError::PathUnreachable {
+                sample,
+                time,
+                reason,
+            }) => {
+                assert_eq!(sample, 50);
+                assert!((time - 0.5).abs() < 1e-12);
+                assert!(reason.contains("best position error"), "{reason}");
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+}

@@ -1,0 +1,325 @@
+//! Robot models from the command line's `--robot` value: a built-in name, a TOML robot file
+//! (schema below, examples in `configs/robots/`) or a URDF file.
+//!
+//! A TOML robot file names its DH convention and gives one `[[joint]]` table per joint
+//! with its DH row and its limits; `[base]` places the robot in the world and `[tools.*]`
+//! names tool points (`xyz` in metres, `rpy` in radians as URDF: roll about x, then pitch
+//! about y, then yaw about z, all about fixed axes).
+
+use std::path::Path;
+
+use cps_kinematics::robots::{PandaTool, panda, puma560, ur3};
+use cps_kinematics::{DhConvention, DhLink, SerialChain, chain_from_urdf};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::experiment::{InputError, location};
+
+/// A robot ready for kinematics commands.
+#[derive(Debug, Clone)]
+pub struct RobotModel {
+    /// Its name (built-in name, the file's `name`, or the URDF robot's name).
+    pub name: String,
+    /// The chain with the chosen tool point and base.
+    pub chain: SerialChain,
+    /// A configuration to start inverse kinematics from.
+    pub ready: Vec<f64>,
+    /// Which tool point the chain ends at, in words.
+    pub tool: String,
+    /// Joint names (URDF) or `joint1..n`.
+    pub joint_names: Vec<String>,
+}
+
+/// The Panda's "ready" configuration (Franka's default start pose).
+pub const PANDA_READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+
+/// The built-in robot names.
+pub const BUILT_IN: &str = "panda, ur3, puma560";
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    name: String,
+    convention: Spanned<String>,
+    #[serde(default)]
+    ready: Option<Spanned<Vec<f64>>>,
+    #[serde(default)]
+    base: Option<Frame>,
+    joint: Spanned<Vec<Spanned<Joint>>>,
+    #[serde(default)]
+    tools: std::collections::BTreeMap<String, Frame>,
+    #[serde(default)]
+    default_tool: Option<Spanned<String>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Joint {
+    a: f64,
+    d: f64,
+    alpha: f64,
+    #[serde(default)]
+    offset: f64,
+    q_min: f64,
+    q_max: f64,
+    dq_max: Option<f64>,
+}
+
+/// A rigid transform in a robot or scene file.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Frame {
+    #[serde(default)]
+    xyz: [f64; 3],
+    #[serde(default)]
+    rpy: [f64; 3],
+}
+
+impl Frame {
+    /// The transform, or a message if a value is not finite.
+    pub fn isometry(&self) -> Result<Isometry3<f64>, String> {
+        if !self.xyz.iter().chain(&self.rpy).all(|v| v.is_finite()) {
+            return Err("`xyz` and `rpy` must be finite".into());
+        }
+        Ok(Isometry3::from_parts(
+            Translation3::new(self.xyz[0], self.xyz[1], self.xyz[2]),
+            UnitQuaternion::from_euler_angles(self.rpy[0], self.rpy[1], self.rpy[2]),
+        ))
+    }
+}
+
+/// Loads `spec`: a built-in name, or a path ending in `.toml` or `.urdf`. `tool` picks a
+/// tool point (built-in Panda: `hand` or `flange`; TOML: a `[tools.*]` name); `tip` picks
+/// the URDF tip link.
+pub fn load_robot(
+    spec: &str,
+    tool: Option<&str>,
+    tip: Option<&str>,
+) -> Result<RobotModel, InputError> {
+    let lower = spec.to_ascii_lowercase();
+    if lower.ends_with(".toml") || lower.ends_with(".urdf") {
+        let path = Path::new(spec);
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            InputError(format!(
+                "{}: cannot read the robot file: {e}",
+                path.display()
+            ))
+        })?;
+        if lower.ends_with(".urdf") {
+            if tool.is_some() {
+                return Err(InputError(
+                    "--tool: a URDF robot ends at its tip link; choose it with --tip".into(),
+                ));
+            }
+            let u = chain_from_urdf(&text, tip)
+                .map_err(|e| InputError(format!("{}: {e}", path.display())))?;
+            let ready = mid_range(&u.chain);
+            return Ok(RobotModel {
+                name: u.name,
+                ready,
+                tool: format!("link `{}`", u.tip_link),
+                joint_names: u.joint_names,
+                chain: u.chain,
+            });
+        }
+        if tip.is_some() {
+            return Err(InputError("--tip applies to URDF robots only".into()));
+        }
+        return parse_robot_toml(path, &text, tool);
+    }
+    if tip.is_some() {
+        return Err(InputError("--tip applies to URDF robots only".into()));
+    }
+    let names = |n: usize| (1..=n).map(|i| format!("joint{i}")).collect();
+    match spec {
+        "panda" => {
+            let (t, words) = match tool.unwrap_or("hand") {
+                "hand" => (PandaTool::HandTcp, "Franka Hand TCP"),
+                "flange" => (PandaTool::Flange, "flange"),
+                other => {
+                    return Err(InputError(format!(
+                        "--tool: the Panda has tools `hand` and `flange`, not `{other}`"
+                    )));
+                }
+            };
+            Ok(RobotModel {
+                name: "panda".into(),
+                chain: panda(t),
+                ready: PANDA_READY.to_vec(),
+                tool: words.into(),
+                joint_names: names(7),
+            })
+        }
+        "ur3" | "puma560" => {
+            if let Some(t) = tool {
+                return Err(InputError(format!(
+                    "--tool: the built-in {spec} has only its flange, not `{t}`"
+                )));
+            }
+            let chain = if spec == "ur3" { ur3() } else { puma560() };
+            Ok(RobotModel {
+                name: spec.into(),
+                ready: vec![0.0; chain.dof()],
+                joint_names: names(chain.dof()),
+                chain,
+                tool: "flange".into(),
+            })
+        }
+        other => Err(InputError(format!(
+            "--robot: unknown robot `{other}` (built in: {BUILT_IN}; or a .toml or .urdf file)"
+        ))),
+    }
+}
+
+/// The middle of each joint's range (0 without finite limits): a neutral IK seed.
+fn mid_range(chain: &SerialChain) -> Vec<f64> {
+    match chain.limits() {
+        Some((lo, hi)) => lo
+            .iter()
+            .zip(hi)
+            .map(|(l, h)| {
+                if l.is_finite() && h.is_finite() {
+                    0.5 * (l + h)
+                } else {
+                    0.0
+                }
+            })
+            .collect(),
+        None => vec![0.0; chain.dof()],
+    }
+}
+
+/// Parses a TOML robot file (`path` only for messages); `tool` picks a `[tools.*]` entry.
+pub fn parse_robot_toml(
+    path: &Path,
+    text: &str,
+    tool: Option<&str>,
+) -> Result<RobotModel, InputError> {
+    let file: File = toml::from_str(text).map_err(|e| {
+        let at = e
+            .span()
+            .map(|s| location(path, text, &s))
+            .unwrap_or_else(|| path.display().to_string());
+        InputError(format!("{at}: {}", e.message()))
+    })?;
+    let err = |span: std::ops::Range<usize>, msg: String| {
+        InputError(format!("{}: {msg}", location(path, text, &span)))
+    };
+    let convention = match file.convention.get_ref().as_str() {
+        "standard" => DhConvention::Standard,
+        "modified" => DhConvention::Modified,
+        other => {
+            return Err(err(
+                file.convention.span(),
+                format!("`convention` must be \"standard\" or \"modified\", not \"{other}\""),
+            ));
+        }
+    };
+    let joints = file.joint.get_ref();
+    if joints.is_empty() {
+        return Err(err(
+            file.joint.span(),
+            "a robot needs at least one [[joint]]".into(),
+        ));
+    }
+    let mut links = Vec::new();
+    let (mut lo, mut hi, mut dq) = (Vec::new(), Vec::new(), Vec::new());
+    for (i, j) in joints.iter().enumerate() {
+        let v = j.get_ref();
+        let bad = |m: String| err(j.span(), format!("joint {}: {m}", i + 1));
+        if ![v.a, v.d, v.alpha, v.offset].iter().all(|x| x.is_finite()) {
+            return Err(bad("`a`, `d`, `alpha` and `offset` must be finite".into()));
+        }
+        if !(v.q_min.is_finite() && v.q_max.is_finite() && v.q_min < v.q_max) {
+            return Err(bad(format!(
+                "limits need finite `q_min` < `q_max` (got {} .. {})",
+                v.q_min, v.q_max
+            )));
+        }
+        if let Some(s) = v.dq_max
+            && !(s.is_finite() && s > 0.0)
+        {
+            return Err(bad(format!("`dq_max` must be finite and > 0 (got {s})")));
+        }
+        links.push(DhLink {
+            a: v.a,
+            d: v.d,
+            alpha: v.alpha,
+            offset: v.offset,
+        });
+        lo.push(v.q_min);
+        hi.push(v.q_max);
+        dq.push(v.dq_max);
+    }
+    let whole = 0..text.len();
+    let in_file = |e: cps_kinematics::KinematicsError| err(whole.clone(), e.to_string());
+    let mut chain = SerialChain::new(convention, links)
+        .and_then(|c| c.with_limits(&lo, &hi))
+        .map_err(in_file)?;
+    match dq.iter().filter(|v| v.is_some()).count() {
+        0 => {}
+        n if n == dq.len() => {
+            let dq: Vec<f64> = dq.iter().flatten().copied().collect();
+            chain = chain.with_velocity_limits(&dq).map_err(in_file)?;
+        }
+        _ => {
+            return Err(err(
+                file.joint.span(),
+                "give `dq_max` for every joint or for none".into(),
+            ));
+        }
+    }
+    if let Some(b) = &file.base {
+        let iso = b
+            .isometry()
+            .map_err(|m| InputError(format!("{}: [base] {m}", path.display())))?;
+        chain = chain.with_base(iso);
+    }
+    let wanted = tool
+        .map(str::to_string)
+        .or_else(|| file.default_tool.as_ref().map(|t| t.get_ref().clone()));
+    let tool_name = match wanted {
+        Some(name) => {
+            let Some(frame) = file.tools.get(&name) else {
+                let known: Vec<&str> = file.tools.keys().map(String::as_str).collect();
+                return Err(InputError(format!(
+                    "{}: no tool `{name}` (tools: {})",
+                    path.display(),
+                    if known.is_empty() {
+                        "none".into()
+                    } else {
+                        known.join(", ")
+                    }
+                )));
+            };
+            let iso = frame
+                .isometry()
+                .map_err(|m| InputError(format!("{}: [tools.{name}] {m}", path.display())))?;
+            chain = chain.with_tool(iso);
+            name
+        }
+        None => "last joint frame".into(),
+    };
+    let n = chain.dof();
+    let ready = match &file.ready {
+        Some(r) => {
+            let q = r.get_ref();
+            if q.len() != n || q.iter().any(|v| !v.is_finite()) {
+                return Err(err(
+                    r.span(),
+                    format!("`ready` needs {n} finite joint values (got {})", q.len()),
+                ));
+            }
+            q.clone()
+        }
+        None => mid_range(&chain),
+    };
+    Ok(RobotModel {
+        name: file.name,
+        chain,
+        ready,
+        tool: tool_name,
+        joint_names: (1..=n).map(|i| format!("joint{i}")).collect(),
+    })
+}

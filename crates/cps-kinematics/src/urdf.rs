@@ -1,0 +1,228 @@
+//! Serial chains from URDF (Unified Robot Description Format) text, so users can bring any
+//! arm whose description they have. Parsing uses urdf-rs; this module only walks the tree.
+//!
+//! The chain runs from the root link (the one link that is no joint's child) to a tip link.
+//! Fixed joints fold into the neighbouring transforms; revolute joints keep their limits
+//! (position, and speed when every joint gives one); continuous joints are unlimited.
+//! Prismatic, floating, planar, spherical and mimic joints on the path are refused with
+//! the joint's name: cps chains are revolute.
+
+use std::collections::HashMap;
+
+use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
+use urdf_rs::JointType;
+
+use crate::{KinematicsError, RevoluteJoint, SerialChain};
+
+/// A chain read from a URDF description.
+#[derive(Debug, Clone)]
+pub struct UrdfChain {
+    /// The robot's `name` attribute.
+    pub name: String,
+    /// The chain, with limits, and the fixed joints after the last revolute one as its tool.
+    pub chain: SerialChain,
+    /// Names of the revolute joints in chain order.
+    pub joint_names: Vec<String>,
+    /// The root link.
+    pub base_link: String,
+    /// The tip link.
+    pub tip_link: String,
+}
+
+fn invalid(msg: String) -> KinematicsError {
+    KinematicsError::InvalidModel(format!("URDF: {msg}"))
+}
+
+fn pose(p: &urdf_rs::Pose) -> Result<Isometry3<f64>, String> {
+    if !p.xyz.iter().chain(p.rpy.iter()).all(|v| v.is_finite()) {
+        return Err("origin has a non-finite value".into());
+    }
+    Ok(Isometry3::from_parts(
+        Translation3::new(p.xyz[0], p.xyz[1], p.xyz[2]),
+        UnitQuaternion::from_euler_angles(p.rpy[0], p.rpy[1], p.rpy[2]),
+    ))
+}
+
+/// Reads the serial chain from the root link to `tip` (a link name). Without `tip`, the
+/// tip is the one leaf link reachable through revolute, continuous and fixed joints only
+/// with the most revolute joints on its path; when several tie, the error lists them.
+pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, KinematicsError> {
+    let robot = urdf_rs::read_from_string(xml).map_err(|e| invalid(format!("{e}")))?;
+    let mut parent_joint: HashMap<&str, usize> = HashMap::new();
+    for (i, j) in robot.joints.iter().enumerate() {
+        if parent_joint.insert(j.child.link.as_str(), i).is_some() {
+            return Err(invalid(format!(
+                "link `{}` is the child of two joints: not a tree",
+                j.child.link
+            )));
+        }
+    }
+    let roots: Vec<&str> = robot
+        .links
+        .iter()
+        .map(|l| l.name.as_str())
+        .filter(|l| !parent_joint.contains_key(l))
+        .collect();
+    let root = match roots.as_slice() {
+        [r] => *r,
+        [] => return Err(invalid("no root link (every link has a parent)".into())),
+        many => {
+            return Err(invalid(format!(
+                "several root links ({}): the links do not form one tree",
+                many.join(", ")
+            )));
+        }
+    };
+    // The path of joints from the root to a link, or None if it does not reach the root.
+    let path_to = |link: &str| -> Option<Vec<usize>> {
+        let mut path = Vec::new();
+        let mut at = link;
+        while let Some(&j) = parent_joint.get(at) {
+            if path.len() > robot.joints.len() {
+                return None; // a cycle
+            }
+            path.push(j);
+            at = robot.joints[j].parent.link.as_str();
+        }
+        path.reverse();
+        (at == root).then_some(path)
+    };
+    let revolute = |j: usize| {
+        matches!(
+            robot.joints[j].joint_type,
+            JointType::Revolute | JointType::Continuous
+        )
+    };
+    let tip_link = match tip {
+        Some(t) => {
+            if !robot.links.iter().any(|l| l.name == t) {
+                return Err(invalid(format!("no link named `{t}`")));
+            }
+            t.to_string()
+        }
+        None => {
+            let parents: Vec<&str> = robot
+                .joints
+                .iter()
+                .map(|j| j.parent.link.as_str())
+                .collect();
+            let mut best: Vec<(&str, usize)> = Vec::new();
+            for l in robot.links.iter().map(|l| l.name.as_str()) {
+                if parents.contains(&l) {
+                    continue; // not a leaf
+                }
+                let Some(path) = path_to(l) else { continue };
+                if !path
+                    .iter()
+                    .all(|&j| revolute(j) || matches!(robot.joints[j].joint_type, JointType::Fixed))
+                {
+                    continue;
+                }
+                let count = path.iter().filter(|&&j| revolute(j)).count();
+                match best.first().map(|b| b.1) {
+                    Some(c) if c > count => {}
+                    Some(c) if c == count => best.push((l, count)),
+                    _ => best = vec![(l, count)],
+                }
+            }
+            match best.as_slice() {
+                [(l, _)] => l.to_string(),
+                // No clean path: take the deepest leaf, so that the walk below names the
+                // joint that is in the way.
+                [] => robot
+                    .links
+                    .iter()
+                    .filter(|l| !parents.contains(&l.name.as_str()))
+                    .filter_map(|l| path_to(&l.name).map(|p| (l.name.clone(), p.len())))
+                    .max_by_key(|(_, depth)| *depth)
+                    .map(|(name, _)| name)
+                    .ok_or_else(|| invalid("no leaf link is connected to the root".into()))?,
+                many => {
+                    let names: Vec<&str> = many.iter().map(|b| b.0).collect();
+                    return Err(invalid(format!(
+                        "several tip links are possible ({}): name one",
+                        names.join(", ")
+                    )));
+                }
+            }
+        }
+    };
+    let path = path_to(&tip_link)
+        .ok_or_else(|| invalid(format!("link `{tip_link}` is not connected to the root")))?;
+
+    let mut joints = Vec::new();
+    let mut names = Vec::new();
+    let (mut lower, mut upper, mut speed) = (Vec::new(), Vec::new(), Vec::new());
+    let mut pending = Isometry3::identity();
+    for &ji in &path {
+        let j = &robot.joints[ji];
+        let origin =
+            pending * pose(&j.origin).map_err(|m| invalid(format!("joint `{}`: {m}", j.name)))?;
+        if j.mimic.is_some() {
+            return Err(invalid(format!(
+                "joint `{}` mimics another joint: not supported",
+                j.name
+            )));
+        }
+        match &j.joint_type {
+            JointType::Fixed => pending = origin,
+            JointType::Revolute | JointType::Continuous => {
+                let a = Vector3::from(j.axis.xyz.0);
+                let axis = Unit::try_new(a, 1e-12)
+                    .filter(|_| a.iter().all(|v| v.is_finite()))
+                    .ok_or_else(|| {
+                        invalid(format!(
+                            "joint `{}`: the axis is zero or not finite",
+                            j.name
+                        ))
+                    })?;
+                joints.push(RevoluteJoint {
+                    origin,
+                    axis,
+                    offset: 0.0,
+                });
+                names.push(j.name.clone());
+                if matches!(j.joint_type, JointType::Revolute) {
+                    let (lo, hi) = (j.limit.lower, j.limit.upper);
+                    if lo.is_nan() || hi.is_nan() || lo >= hi {
+                        return Err(invalid(format!(
+                            "joint `{}`: a revolute joint needs limits lower < upper (got {lo} .. {hi})",
+                            j.name
+                        )));
+                    }
+                    lower.push(lo);
+                    upper.push(hi);
+                } else {
+                    lower.push(f64::NEG_INFINITY);
+                    upper.push(f64::INFINITY);
+                }
+                speed.push(j.limit.velocity);
+                pending = Isometry3::identity();
+            }
+            other => {
+                return Err(invalid(format!(
+                    "joint `{}` is {other:?}: cps chains have revolute joints only",
+                    j.name
+                )));
+            }
+        }
+    }
+    if joints.is_empty() {
+        return Err(invalid(format!(
+            "no revolute joint between `{root}` and `{tip_link}`"
+        )));
+    }
+    let mut chain = SerialChain::from_joints(joints)?
+        .with_tool(pending)
+        .with_limits(&lower, &upper)?;
+    if speed.iter().all(|v| v.is_finite() && *v > 0.0) {
+        chain = chain.with_velocity_limits(&speed)?;
+    }
+    Ok(UrdfChain {
+        name: robot.name.clone(),
+        chain,
+        joint_names: names,
+        base_link: root.to_string(),
+        tip_link,
+    })
+}
