@@ -13,6 +13,8 @@ use nalgebra::{
 };
 
 use crate::KinematicsError;
+use crate::fastmath::sin_cos_batch;
+use pulp::{Arch, Simd, WithSimd};
 
 /// Which Denavit-Hartenberg convention a link table is written in. The two are not
 /// interchangeable: the same numbers describe different robots.
@@ -53,31 +55,100 @@ impl DhLink {
     }
 }
 
-/// A rigid transform as a 3×4 matrix `[R | t]`, the fast internal form.
+/// A rigid transform `[R | t]` stored as four columns of four lanes (the fourth lane is
+/// padding, always 0): the three columns of `R`, then `t`. Column arithmetic on `[f64; 4]`
+/// vectorises, which is what makes forward kinematics fast.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Affine {
-    r: [[f64; 3]; 3],
-    t: [f64; 3],
+    c: [[f64; 4]; 4],
+}
+
+/// `a·x + y` lane-wise; fused when the dispatched instruction set has FMA.
+#[inline(always)]
+fn axpy<const FMA: bool>(a: [f64; 4], x: f64, y: [f64; 4]) -> [f64; 4] {
+    let mut out = y;
+    for i in 0..4 {
+        out[i] = if FMA {
+            a[i].mul_add(x, y[i])
+        } else {
+            a[i] * x + y[i]
+        };
+    }
+    out
+}
+
+/// `c0·v0 + c1·v1 + c2·v2 + base`: one column of an affine product.
+#[inline(always)]
+fn column<const FMA: bool>(c: &[[f64; 4]; 4], v: [f64; 4], base: [f64; 4]) -> [f64; 4] {
+    axpy::<FMA>(
+        c[2],
+        v[2],
+        axpy::<FMA>(c[1], v[1], axpy::<FMA>(c[0], v[0], base)),
+    )
+}
+
+#[inline(always)]
+fn scale(a: [f64; 4], x: f64) -> [f64; 4] {
+    [a[0] * x, a[1] * x, a[2] * x, a[3] * x]
 }
 
 impl Affine {
-    const IDENTITY: Affine = Affine {
-        r: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-        t: [0.0; 3],
-    };
+    const IDENTITY: Affine = Affine::from_rows(
+        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        [0.0; 3],
+    );
 
-    fn mul(&self, o: &Affine) -> Affine {
-        let row = |a: &[f64; 3]| {
-            let r = std::array::from_fn(|j| a[0] * o.r[0][j] + a[1] * o.r[1][j] + a[2] * o.r[2][j]);
-            (r, a[0] * o.t[0] + a[1] * o.t[1] + a[2] * o.t[2])
-        };
-        let rows = [row(&self.r[0]), row(&self.r[1]), row(&self.r[2])];
+    const fn from_rows(r: [[f64; 3]; 3], t: [f64; 3]) -> Affine {
         Affine {
-            r: [rows[0].0, rows[1].0, rows[2].0],
-            t: [
-                self.t[0] + rows[0].1,
-                self.t[1] + rows[1].1,
-                self.t[2] + rows[2].1,
+            c: [
+                [r[0][0], r[1][0], r[2][0], 0.0],
+                [r[0][1], r[1][1], r[2][1], 0.0],
+                [r[0][2], r[1][2], r[2][2], 0.0],
+                [t[0], t[1], t[2], 0.0],
+            ],
+        }
+    }
+
+    /// Entry `(i, j)` of the rotation.
+    #[inline(always)]
+    fn r(&self, i: usize, j: usize) -> f64 {
+        self.c[j][i]
+    }
+
+    /// The translation.
+    #[inline(always)]
+    fn t(&self) -> [f64; 3] {
+        [self.c[3][0], self.c[3][1], self.c[3][2]]
+    }
+
+    /// `self · o`: column j of the product is `R · o_j` (plus `t` for the translation).
+    fn mul(&self, o: &Affine) -> Affine {
+        self.mul_f::<false>(o)
+    }
+
+    #[inline(always)]
+    fn mul_f<const FMA: bool>(&self, o: &Affine) -> Affine {
+        let c = &self.c;
+        Affine {
+            c: [
+                column::<FMA>(c, o.c[0], [0.0; 4]),
+                column::<FMA>(c, o.c[1], [0.0; 4]),
+                column::<FMA>(c, o.c[2], [0.0; 4]),
+                column::<FMA>(c, o.c[3], c[3]),
+            ],
+        }
+    }
+
+    /// `self · Rz(θ)` given `(sin θ, cos θ)`: only the first two columns change.
+    #[inline(always)]
+    fn rot_z<const FMA: bool>(&self, (s, c): (f64, f64)) -> Affine {
+        let [x, y, z, t] = self.c;
+        Affine {
+            c: [
+                axpy::<FMA>(y, s, scale(x, c)),
+                axpy::<FMA>(x, -s, scale(y, c)),
+                z,
+                t,
             ],
         }
     }
@@ -85,23 +156,18 @@ impl Affine {
     fn from_isometry(iso: &Isometry3<f64>) -> Affine {
         let m = iso.rotation.to_rotation_matrix();
         let m = m.matrix();
-        Affine {
-            r: [
-                [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
-                [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
-                [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
-            ],
-            t: [iso.translation.x, iso.translation.y, iso.translation.z],
-        }
+        Affine::from_rows(
+            std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)])),
+            [iso.translation.x, iso.translation.y, iso.translation.z],
+        )
     }
 
     fn to_matrix4(self) -> Matrix4<f64> {
-        let r = self.r;
-        let t = self.t;
-        Matrix4::new(
-            r[0][0], r[0][1], r[0][2], t[0], r[1][0], r[1][1], r[1][2], t[1], r[2][0], r[2][1],
-            r[2][2], t[2], 0.0, 0.0, 0.0, 1.0,
-        )
+        Matrix4::from_fn(|i, j| match (i, j) {
+            (3, 3) => 1.0,
+            (3, _) => 0.0,
+            _ => self.c[j][i],
+        })
     }
 
     fn to_isometry3(self) -> Isometry3<f64> {
@@ -113,52 +179,59 @@ impl Affine {
     }
 
     fn to_isometry(self) -> IsometryMatrix3<f64> {
-        let r = self.r;
-        let m = Matrix3::new(
-            r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2],
-        );
+        let m = Matrix3::from_fn(|i, j| self.c[j][i]);
+        let t = self.t();
         IsometryMatrix3::from_parts(
-            Translation3::new(self.t[0], self.t[1], self.t[2]),
+            Translation3::new(t[0], t[1], t[2]),
             Rotation3::from_matrix_unchecked(m),
         )
     }
 
-    /// `self · Rz(θ)` given `(sin θ, cos θ)`: only the first two columns change.
-    #[inline(always)]
-    fn rot_z(&self, (s, c): (f64, f64)) -> Affine {
-        let mut r = self.r;
-        for row in &mut r {
-            let (x, y) = (row[0], row[1]);
-            row[0] = c * x + s * y;
-            row[1] = c * y - s * x;
-        }
-        Affine { r, t: self.t }
-    }
-
     fn rot_x(alpha: f64) -> Affine {
         let (s, c) = alpha.sin_cos();
-        Affine {
-            r: [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]],
-            t: [0.0; 3],
-        }
+        Affine::from_rows([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]], [0.0; 3])
     }
 
     fn translation(x: f64, y: f64, z: f64) -> Affine {
-        Affine {
-            t: [x, y, z],
-            ..Affine::IDENTITY
-        }
+        Affine::from_rows(
+            [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            [x, y, z],
+        )
     }
 
     /// The inverse of a rigid transform: `[Rᵀ | −Rᵀ t]`.
     fn inverse(&self) -> Affine {
-        let r = std::array::from_fn(|i| std::array::from_fn(|j| self.r[j][i]));
-        let t = std::array::from_fn(|i| {
-            -(self.r[0][i] * self.t[0] + self.r[1][i] * self.t[1] + self.r[2][i] * self.t[2])
-        });
-        Affine { r, t }
+        let t = self.t();
+        Affine::from_rows(
+            std::array::from_fn(|i| std::array::from_fn(|j| self.r(j, i))),
+            std::array::from_fn(|i| {
+                -(self.r(0, i) * t[0] + self.r(1, i) * t[1] + self.r(2, i) * t[2])
+            }),
+        )
     }
 }
+
+/// Joints handled with stack buffers; longer chains use the heap.
+const STACK_JOINTS: usize = 16;
+
+/// Three scratch slices of length `n`: on the stack when `n` fits, else in `heap`.
+#[inline(always)]
+fn scratch<'a>(
+    n: usize,
+    stack: &'a mut [[f64; STACK_JOINTS]; 3],
+    heap: &'a mut Vec<f64>,
+) -> [&'a mut [f64]; 3] {
+    if n <= STACK_JOINTS {
+        let [a, s, c] = stack;
+        [&mut a[..n], &mut s[..n], &mut c[..n]]
+    } else {
+        heap.resize(3 * n, 0.0);
+        let (a, rest) = heap.split_at_mut(n);
+        let (s, c) = rest.split_at_mut(n);
+        [a, s, c]
+    }
+}
+
 /// One revolute joint in URDF form: the joint frame sits at `origin` relative to the
 /// previous joint's child frame (the base frame for the first joint), and the joint turns
 /// by `q + offset` about `axis`, given in the joint frame. The child frame is the joint
@@ -492,15 +565,119 @@ impl SerialChain {
 
     /// Walks the chain, calling `frame(i, axis_frame)` with the world frame whose z axis is
     /// joint i's axis (after the joint's rotation), and returns the tool transform.
+    /// Walks the chain joint by joint, calling `frame(i, axis_frame)` with the world frame
+    /// whose z axis is joint i's axis (after the joint's rotation), and returns the tool
+    /// transform. Runtime dispatch: compiled for AVX2+FMA and AVX-512 too, the best the
+    /// processor has runs.
     #[inline(always)]
-    fn walk(&self, q: &[f64], mut frame: impl FnMut(usize, &Affine)) -> Affine {
-        let mut t = Affine::IDENTITY;
-        for (i, ((f, &off), &qi)) in self.fixed.iter().zip(&self.offsets).zip(q).enumerate() {
-            t = if i == 0 { *f } else { t.mul(f) };
-            t = t.rot_z((qi + off).sin_cos());
+    fn walk(&self, q: &[f64], frame: impl FnMut(usize, &Affine)) -> Affine {
+        struct Walk<'a, F> {
+            chain: &'a SerialChain,
+            q: &'a [f64],
+            frame: F,
+        }
+        impl<F: FnMut(usize, &Affine)> WithSimd for Walk<'_, F> {
+            type Output = Affine;
+            #[inline(always)]
+            fn with_simd<S: Simd>(self, _simd: S) -> Affine {
+                if S::IS_SCALAR {
+                    self.chain.walk_with::<false>(self.q, self.frame)
+                } else {
+                    self.chain.walk_with::<true>(self.q, self.frame)
+                }
+            }
+        }
+        Arch::new().dispatch(Walk {
+            chain: self,
+            q,
+            frame,
+        })
+    }
+
+    /// The tool transform alone: every joint's factor `F_i · Rz(q_i)` is independent, so
+    /// they are multiplied as a balanced tree (depth ⌈log₂ n⌉ instead of n dependent
+    /// products), which is what makes forward kinematics latency-cheap.
+    #[inline(always)]
+    fn tool_transform(&self, q: &[f64]) -> Affine {
+        struct Tool<'a> {
+            chain: &'a SerialChain,
+            q: &'a [f64],
+        }
+        impl WithSimd for Tool<'_> {
+            type Output = Affine;
+            #[inline(always)]
+            fn with_simd<S: Simd>(self, _simd: S) -> Affine {
+                if S::IS_SCALAR {
+                    self.chain.tree_with::<false>(self.q)
+                } else {
+                    self.chain.tree_with::<true>(self.q)
+                }
+            }
+        }
+        Arch::new().dispatch(Tool { chain: self, q })
+    }
+
+    /// Sines and cosines of `q + offset`, into `s` and `c` (`a` is scratch), all of the
+    /// chain's length.
+    #[inline(always)]
+    fn angles<const FMA: bool>(&self, q: &[f64], a: &mut [f64], s: &mut [f64], c: &mut [f64]) {
+        for ((a, &qi), &off) in a.iter_mut().zip(q).zip(&self.offsets) {
+            *a = qi + off;
+        }
+        sin_cos_batch::<FMA>(a, s, c);
+    }
+
+    #[inline(always)]
+    fn walk_with<const FMA: bool>(
+        &self,
+        q: &[f64],
+        mut frame: impl FnMut(usize, &Affine),
+    ) -> Affine {
+        let n = self.dof();
+        let mut stack = [[0.0; STACK_JOINTS]; 3];
+        let mut heap = Vec::new();
+        let [a, s, c] = scratch(n, &mut stack, &mut heap);
+        self.angles::<FMA>(q, a, s, c);
+        let mut t = self.fixed[0].rot_z::<FMA>((s[0], c[0]));
+        frame(0, &t);
+        for i in 1..n {
+            t = t.mul_f::<FMA>(&self.fixed[i]).rot_z::<FMA>((s[i], c[i]));
             frame(i, &t);
         }
-        t.mul(&self.tail)
+        t.mul_f::<FMA>(&self.tail)
+    }
+
+    #[inline(always)]
+    fn tree_with<const FMA: bool>(&self, q: &[f64]) -> Affine {
+        let n = self.dof();
+        let mut stack = [[0.0; STACK_JOINTS]; 3];
+        let mut heap = Vec::new();
+        let [a, s, c] = scratch(n, &mut stack, &mut heap);
+        self.angles::<FMA>(q, a, s, c);
+        let mut stack_m = [Affine::IDENTITY; STACK_JOINTS + 1];
+        let mut heap_m = Vec::new();
+        let m: &mut [Affine] = if n < STACK_JOINTS + 1 {
+            &mut stack_m[..n + 1]
+        } else {
+            heap_m.resize(n + 1, Affine::IDENTITY);
+            &mut heap_m
+        };
+        for i in 0..n {
+            m[i] = self.fixed[i].rot_z::<FMA>((s[i], c[i]));
+        }
+        m[n] = self.tail;
+        let mut len = n + 1;
+        while len > 1 {
+            let half = len / 2;
+            for j in 0..half {
+                m[j] = m[2 * j].mul_f::<FMA>(&m[2 * j + 1]);
+            }
+            if len % 2 == 1 {
+                m[half] = m[len - 1];
+            }
+            len = len.div_ceil(2);
+        }
+        m[0]
     }
 
     /// The world pose of the tool point at joint angles `q` (radians), with its rotation
@@ -508,13 +685,13 @@ impl SerialChain {
     /// when a quaternion is wanted).
     pub fn fk(&self, q: &[f64]) -> Result<IsometryMatrix3<f64>, KinematicsError> {
         self.check(q)?;
-        Ok(self.walk(q, |_, _| {}).to_isometry())
+        Ok(self.tool_transform(q).to_isometry())
     }
 
     /// The tool pose as a 4×4 homogeneous matrix (row-major as printed, metres).
     pub fn fk_matrix(&self, q: &[f64]) -> Result<Matrix4<f64>, KinematicsError> {
         self.check(q)?;
-        Ok(self.walk(q, |_, _| {}).to_matrix4())
+        Ok(self.tool_transform(q).to_matrix4())
     }
 
     /// The tool pose and every link frame.
@@ -546,12 +723,13 @@ impl SerialChain {
         };
         let tool = self.walk(q, |i, f| {
             for k in 0..3 {
-                j[(k + 3, i)] = f.r[k][2];
+                j[(k + 3, i)] = f.r(k, 2);
             }
-            store[i] = f.t;
+            store[i] = f.t();
         });
         for (i, o) in store.iter().enumerate() {
-            let r = [tool.t[0] - o[0], tool.t[1] - o[1], tool.t[2] - o[2]];
+            let tt = tool.t();
+            let r = [tt[0] - o[0], tt[1] - o[1], tt[2] - o[2]];
             let z = [j[(3, i)], j[(4, i)], j[(5, i)]];
             j[(0, i)] = z[1] * r[2] - z[2] * r[1];
             j[(1, i)] = z[2] * r[0] - z[0] * r[2];

@@ -45,6 +45,7 @@ mod chain;
 pub mod controllers;
 mod error;
 mod execute;
+mod fastmath;
 mod ik;
 pub mod robots;
 #[cfg(feature = "urdf")]
