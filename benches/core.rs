@@ -50,6 +50,48 @@ fn kinematics(c: &mut Criterion) {
     c.bench_function("jacobian/panda", |b| {
         b.iter(|| arm.jacobian(black_box(&q)).unwrap())
     });
+    ik(c);
+}
+
+/// IK for full poses of 1000 random in-limit configurations, from the ready pose, with
+/// seeded restarts. Criterion times the mean per target; the median, p90 and success rate
+/// over the same targets are printed once (the figures).
+fn ik(c: &mut Criterion) {
+    use cps::kinematics::robots::{PandaTool, panda};
+    use cps::kinematics::{IkConfig, IkTarget, solve_ik};
+    let arm = panda(PandaTool::HandTcp);
+    let ready = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    let mut rng = ChaCha8Rng::seed_from_u64(2024);
+    let targets: Vec<IkTarget> = (0..1000)
+        .map(|_| IkTarget::Pose(arm.fk(&arm.random_configuration(&mut rng)).unwrap()))
+        .collect();
+    let config = IkConfig::default();
+    // Each target's time is the best of three solves (the same work each time), which
+    // removes most of a shared machine's scheduling noise from the distribution.
+    let mut times = vec![f64::INFINITY; targets.len()];
+    let mut solved = 0;
+    for round in 0..3 {
+        for (t, best) in targets.iter().zip(&mut times) {
+            let start = std::time::Instant::now();
+            let r = solve_ik(&arm, t, &ready, &config);
+            *best = best.min(start.elapsed().as_secs_f64() * 1e6);
+            if round == 0 {
+                solved += usize::from(r.is_ok());
+            }
+        }
+    }
+    times.sort_by(f64::total_cmp);
+    eprintln!(
+        "ik/panda_pose_1000: {solved}/1000 solved, median {:.1} µs, p90 {:.1} µs, max {:.0} µs",
+        times[500], times[900], times[999]
+    );
+    let mut k = 0;
+    c.bench_function("ik/panda_pose", |b| {
+        b.iter(|| {
+            k = (k + 1) % targets.len();
+            solve_ik(&arm, black_box(&targets[k]), &ready, &config)
+        })
+    });
 }
 
 fn rollout(c: &mut Criterion) {

@@ -654,9 +654,10 @@ impl SerialChain {
         let mut heap = Vec::new();
         let [a, s, c] = scratch(n, &mut stack, &mut heap);
         self.angles::<FMA>(q, a, s, c);
-        let mut stack_m = [Affine::IDENTITY; STACK_JOINTS + 1];
+        // Arms up to 7 joints (with the tail, 8 factors) stay on the stack.
+        let mut stack_m = [Affine::IDENTITY; 8];
         let mut heap_m = Vec::new();
-        let m: &mut [Affine] = if n < STACK_JOINTS + 1 {
+        let m: &mut [Affine] = if n < 8 {
             &mut stack_m[..n + 1]
         } else {
             heap_m.resize(n + 1, Affine::IDENTITY);
@@ -678,6 +679,44 @@ impl SerialChain {
             len = len.div_ceil(2);
         }
         m[0]
+    }
+
+    /// The tool pose and the 6 × n Jacobian (column i in `cols[i]`, rows as in
+    /// [`SerialChain::jacobian`]) from one walk, without allocating; for solvers.
+    /// `q` must be checked by the caller.
+    pub(crate) fn pose_and_jacobian(
+        &self,
+        q: &[f64],
+        cols: &mut [[f64; 6]],
+    ) -> IsometryMatrix3<f64> {
+        let mut origins = [[0.0; 3]; STACK_JOINTS];
+        let mut heap = Vec::new();
+        let store: &mut [[f64; 3]] = if q.len() <= STACK_JOINTS {
+            &mut origins[..q.len()]
+        } else {
+            heap.resize(q.len(), [0.0; 3]);
+            &mut heap
+        };
+        let tool = self.walk(q, |i, f| {
+            for k in 0..3 {
+                cols[i][k + 3] = f.r(k, 2);
+            }
+            store[i] = f.t();
+        });
+        let tt = tool.t();
+        for (col, o) in cols.iter_mut().zip(store.iter()) {
+            let r = [tt[0] - o[0], tt[1] - o[1], tt[2] - o[2]];
+            let z = [col[3], col[4], col[5]];
+            col[0] = z[1] * r[2] - z[2] * r[1];
+            col[1] = z[2] * r[0] - z[0] * r[2];
+            col[2] = z[0] * r[1] - z[1] * r[0];
+        }
+        tool.to_isometry()
+    }
+
+    /// The tool pose for a checked `q`.
+    pub(crate) fn fk_unchecked(&self, q: &[f64]) -> IsometryMatrix3<f64> {
+        self.tool_transform(q).to_isometry()
     }
 
     /// The world pose of the tool point at joint angles `q` (radians), with its rotation

@@ -212,12 +212,13 @@ mod inverse {
     const READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
 
     /// FK∘IK round trips: random in-limit configurations give reachable poses; IK from the
-    /// ready pose reaches each to 1e-9 m / 1e-9 rad inside the limits.
+    /// ready pose reaches at least 99.9 % of 1000 of them to 1e-9 m / 1e-9 rad inside the
+    /// limits.
     #[test]
     fn full_pose_round_trips_within_limits() {
         let arm = panda(PandaTool::HandTcp);
         let mut rng = ChaCha8Rng::seed_from_u64(42);
-        let (mut ok, total) = (0, 200);
+        let (mut ok, total) = (0, 1000);
         for _ in 0..total {
             let q: Vec<f64> = PANDA_Q_MIN
                 .iter()
@@ -243,7 +244,7 @@ mod inverse {
                 ok += 1;
             }
         }
-        assert!(ok as f64 >= 0.995 * total as f64, "{ok}/{total} solved");
+        assert!(ok as f64 >= 0.999 * total as f64, "{ok}/{total} solved");
     }
 
     #[test]
