@@ -49,6 +49,10 @@ pub struct FkArgs {
         required = true
     )]
     q: Vec<f64>,
+    /// Refuse joint angles outside the robot's limits (exit 2) instead of computing the
+    /// pose anyway.
+    #[arg(long)]
+    within_limits: bool,
 }
 
 /// Arguments of `cps-cli ik`; `--json` prints `{"q", "position_error", "rotation_error",
@@ -65,7 +69,8 @@ pub struct IkArgs {
         required = true
     )]
     target: Vec<f64>,
-    /// Joint angles to start from (default: the Panda's ready pose, or zeros).
+    /// Joint angles to start from, within the limits (default: the robot's ready pose, or
+    /// the middle of each joint's range).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     seed_q: Option<Vec<f64>>,
 }
@@ -93,6 +98,10 @@ fn kin(e: KinematicsError) -> anyhow::Error {
 /// `cps-cli fk`.
 pub fn fk(args: &FkArgs) -> Result<ExitCode> {
     let arm = args.arm.load()?.chain;
+    if args.within_limits {
+        arm.check_within_limits(&args.q)
+            .map_err(|e| InputError(format!("--q: {e}")))?;
+    }
     let t = arm.fk_matrix(&args.q).map_err(kin)?;
     let pose = arm.fk(&args.q).map_err(kin)?;
     let q = UnitQuaternion::from_rotation_matrix(&pose.rotation);
@@ -161,6 +170,8 @@ pub fn ik(args: &IkArgs) -> Result<ExitCode> {
         }
     };
     let seed = args.seed_q.clone().unwrap_or_else(|| model.ready.clone());
+    arm.check_within_limits(&seed)
+        .map_err(|e| InputError(format!("--seed-q: {e}")))?;
     let sol = solve_ik(arm, &target, &seed, &IkConfig::default()).map_err(kin)?;
     if args.arm.json {
         let out = serde_json::json!({

@@ -441,6 +441,20 @@ fn kinematics_bad_input_exits_2_with_a_clear_message() {
         (vec!["ik", "--target", "3,0,0.5"], "target not reached"),
         (vec!["ik", "--target", "0.3,0.1"], "x,y,z"),
         (vec!["ik", "--target", "0.3,NaN,0.5"], "finite"),
+        (
+            vec![
+                "ik",
+                "--target",
+                "0.3,0.1,0.5",
+                "--seed-q",
+                "0,0,0,0,0,1.57,0.78",
+            ],
+            "--seed-q: joint 4 = 0 is outside its limits [-3.0718, -0.0698]",
+        ),
+        (
+            vec!["fk", "--within-limits", "--q", "0,0,0,0,0,1.57,0.78"],
+            "--q: joint 4 = 0 is outside its limits",
+        ),
     ] {
         let o = cli(&args);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));

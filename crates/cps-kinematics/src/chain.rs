@@ -533,6 +533,23 @@ impl SerialChain {
         Ok(())
     }
 
+    /// Checks `q` like [`SerialChain::check`] and that it lies within the position limits;
+    /// the error names the first joint outside.
+    pub fn check_within_limits(&self, q: &[f64]) -> Result<(), KinematicsError> {
+        self.check(q)?;
+        if let Some((lo, hi)) = self.limits()
+            && let Some(i) = (0..q.len()).find(|&i| q[i] < lo[i] || q[i] > hi[i])
+        {
+            return Err(KinematicsError::OutsideLimits {
+                joint: i + 1,
+                value: q[i],
+                lower: lo[i],
+                upper: hi[i],
+            });
+        }
+        Ok(())
+    }
+
     /// Whether `q` lies within the position limits (always true without limits).
     pub fn within_limits(&self, q: &[f64]) -> bool {
         self.limits.as_ref().is_none_or(|l| {
@@ -775,6 +792,14 @@ impl SerialChain {
             j[(2, i)] = z[0] * r[1] - z[1] * r[0];
         }
         Ok(j)
+    }
+
+    /// The position part of the geometric Jacobian, 3 × n (the rows the thesis used).
+    pub fn jacobian_position(
+        &self,
+        q: &[f64],
+    ) -> Result<OMatrix<f64, nalgebra::U3, nalgebra::Dyn>, KinematicsError> {
+        Ok(self.jacobian(q)?.fixed_rows::<3>(0).into_owned())
     }
 
     /// Yoshikawa's manipulability `√det(J Jᵀ)` of the full 6 × n Jacobian (0 at a

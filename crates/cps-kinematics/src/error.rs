@@ -20,6 +20,18 @@ pub enum KinematicsError {
         /// The value.
         value: f64,
     },
+    /// A joint value outside the chain's position limits where limits were asked for.
+    #[error("joint {joint} = {value} is outside its limits [{lower}, {upper}]")]
+    OutsideLimits {
+        /// 1-based joint number.
+        joint: usize,
+        /// The value (radians).
+        value: f64,
+        /// Lower limit.
+        lower: f64,
+        /// Upper limit.
+        upper: f64,
+    },
     /// Inverse kinematics found no configuration within the tolerances; the best one
     /// missed by these residuals.
     #[error(

@@ -17,6 +17,8 @@
 //! - [`RobotBackend`]: what a robot must offer (joints, tool pose, time, step);
 //!   [`KinematicRobot`] implements it in-process; [`execute`] follows a task-space
 //!   trajectory on any backend and records what the robot did.
+//! - [`transforms`]: elementary homogeneous transforms (spatial and planar) and the two
+//!   Euler-angle conventions, named.
 //! - [`robots`]: the Franka Emika Panda (modified DH, flange or Franka Hand TCP, limits),
 //!   the UR3 and the Puma 560 (standard DH).
 //! - [`sample_workspace`] (seeded reachable tool positions) and Grübler's
@@ -48,6 +50,7 @@ mod execute;
 mod fastmath;
 mod ik;
 pub mod robots;
+pub mod transforms;
 #[cfg(feature = "urdf")]
 mod urdf;
 mod workspace;

@@ -425,6 +425,7 @@ fn a_base_transform_moves_every_frame_and_link_frames_end_at_the_tool() {
     assert!((f1 - expect).abs().max() < 1e-14);
     // Rotation parts of the Jacobian are unchanged by a base translation, turned by its rotation.
     let (j0, j1) = (arm.jacobian(&q).unwrap(), placed.jacobian(&q).unwrap());
+    assert_eq!(arm.jacobian_position(&q).unwrap(), j0.fixed_rows::<3>(0));
     let r = base.rotation;
     for i in 0..7 {
         let w0 = nalgebra::Vector3::new(j0[(3, i)], j0[(4, i)], j0[(5, i)]);
