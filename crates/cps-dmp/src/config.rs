@@ -2,6 +2,25 @@
 
 use crate::DmpError;
 
+/// How the forcing term enters the transformation system. Both forms share
+/// `tau ż = alpha_z (beta_z (g − y) − z) + f`, `tau ẏ = z` (τ is the movement's duration
+/// in seconds: the phase reaches `exp(−alpha_x)` at `t = τ`), with `Φ(x) w =
+/// x Σ ψ_i(x) w_i / Σ ψ_i(x)` the weighted basis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+pub enum Formulation {
+    /// Ijspeert et al. (2013), the thesis's form: `f = (g − y0) · Φ(x) w`. A new goal
+    /// scales the whole movement by `(g' − y0)/(g − y0)` per dimension (mirrored when the
+    /// sign changes); with `g = y0` the forcing term vanishes.
+    #[default]
+    Ijspeert2013,
+    /// Hoffmann et al. (2009) / Pastor et al. (2009): `f = α_z β_z (Φ(x) w − (g − y0) x)`,
+    /// independent of `g − y0`: start ≈ goal is fine (e.g. a loop returning to its start),
+    /// and a new goal adds a smooth correction instead of rescaling the path.
+    GoalRobust,
+}
+
 /// Parameters of a discrete DMP, shared by all its dimensions.
 ///
 /// Defaults follow Ijspeert et al. (2013) and the thesis: `alpha_z = 25`,
@@ -23,6 +42,9 @@ pub struct DmpConfig {
     /// Duration of the movement in seconds (> 0). The phase reaches `exp(-alpha_x)` at
     /// `t = tau`; doubling `tau` traces the same path twice as slowly.
     pub tau: f64,
+    /// How the forcing term enters; default [`Formulation::Ijspeert2013`].
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub formulation: Formulation,
     /// Requested time step in seconds (0 < dt < tau). The grid uses
     /// `K = round(tau / dt)` steps of exactly `tau / K`, so the last sample is at `tau`.
     pub dt: f64,
@@ -40,6 +62,7 @@ impl DmpConfig {
             n_basis,
             tau,
             dt,
+            formulation: Formulation::Ijspeert2013,
         }
     }
 

@@ -3,13 +3,14 @@
 use pulp::{Arch, Simd, WithSimd};
 
 use crate::discretize::StepCoefficients;
-use crate::{CanonicalSystem, DmpConfig, DmpError, GaussianBasis, Trajectory};
+use crate::{CanonicalSystem, DmpConfig, DmpError, Formulation, GaussianBasis, Trajectory};
 
-/// A discrete DMP with one transformation system per dimension (Ijspeert et al. 2013):
+/// A discrete DMP with one transformation system per dimension:
 ///
-/// `tau ż = alpha_z (beta_z (g - y) - z) + f(x)`, `tau ẏ = z`, with the forcing term
-/// `f(x) = (g - y0) · x · Σ psi_i(x) w_i / Σ psi_i(x)` and `x` the phase of a
-/// [`CanonicalSystem`]. All dimensions share phase, basis and `tau`.
+/// `tau ż = alpha_z (beta_z (g - y) - z) + f(x)`, `tau ẏ = z`, with `x` the phase of a
+/// [`CanonicalSystem`] and the forcing term `f` of the configured [`Formulation`]
+/// (default Ijspeert et al. 2013: `f(x) = (g - y0) · x · Σ psi_i(x) w_i / Σ psi_i(x)`).
+/// All dimensions share phase, basis and `tau`.
 ///
 /// Integration: the linear transformation system is discretised exactly, with the
 /// forcing term interpolated linearly between grid samples (see the `discretize`
@@ -18,8 +19,10 @@ use crate::{CanonicalSystem, DmpConfig, DmpError, GaussianBasis, Trajectory};
 /// Weights are passed as one slice, dimension-major: `w[d * n_basis + i]` is basis `i` of
 /// dimension `d` (the thesis's `(nr_dmps, nr_bfs)` layout).
 ///
-/// When `g == y0` in a dimension the forcing term vanishes there and the DMP can only
-/// stay at `y0`; [`DiscreteDmp::amplitude`] exposes `g - y0` so callers can say so.
+/// In the Ijspeert form, when `g == y0` in a dimension the forcing term vanishes there and
+/// the DMP can only stay at `y0`; [`DiscreteDmp::amplitude`] exposes `g - y0` so callers
+/// can say so, and imitation refuses such a dimension with advice to use
+/// [`Formulation::GoalRobust`], whose forcing term does not scale with `g − y0`.
 #[derive(Debug, Clone)]
 pub struct DiscreteDmp {
     config: DmpConfig,
@@ -147,6 +150,20 @@ impl DiscreteDmp {
         self.goal[dim] - self.start[dim]
     }
 
+    /// The forcing term of dimension `dim` is `f = a · (Φ w) + b · x` with `(a, b)` from
+    /// this method: `(g − y0, 0)` in the [`Formulation::Ijspeert2013`] form,
+    /// `(α_z β_z, −α_z β_z (g − y0))` in the [`Formulation::GoalRobust`] form.
+    pub fn forcing_scale(&self, dim: usize) -> (f64, f64) {
+        let amp = self.amplitude(dim);
+        match self.config.formulation {
+            Formulation::Ijspeert2013 => (amp, 0.0),
+            Formulation::GoalRobust => {
+                let k = self.config.alpha_z * self.config.beta_z;
+                (k, -k * amp)
+            }
+        }
+    }
+
     /// The forcing features of basis `i` at every sample: `x ψ_i(x) / Σ ψ(x)`.
     pub fn feature_column(&self, i: usize) -> &[f64] {
         let n = self.n_samples();
@@ -226,15 +243,19 @@ impl DiscreteDmp {
         let vel: [&mut [f64]; W] = std::array::from_fn(|_| vel.next().expect("lane"));
         let acc: [&mut [f64]; W] = std::array::from_fn(|_| acc.next().expect("lane"));
         let frc: [&mut [f64]; W] = std::array::from_fn(|_| frc.next().expect("lane"));
-        let amp: [f64; W] = std::array::from_fn(|j| self.amplitude(d0 + j));
+        let (amp, off): ([f64; W], [f64; W]) = (
+            std::array::from_fn(|j| self.forcing_scale(d0 + j).0),
+            std::array::from_fn(|j| self.forcing_scale(d0 + j).1),
+        );
+        let x = &self.phases;
         let ug: [f64; W] = std::array::from_fn(|j| c.goal_input(self.goal[d0 + j]));
         let mut y: [f64; W] = std::array::from_fn(|j| self.start[d0 + j]);
         let mut z = [0.0; W];
-        let mut f: [f64; W] = std::array::from_fn(|j| amp[j] * frc[j][0]);
+        let mut f: [f64; W] = std::array::from_fn(|j| amp[j] * frc[j][0] + off[j] * x[0]);
         for k in 0..ns {
             let next = (k + 1).min(ns - 1);
             for j in 0..W {
-                let f1 = amp[j] * frc[j][next];
+                let f1 = amp[j] * frc[j][next] + off[j] * x[next];
                 let (u0, u1) = (ug[j] + f[j], ug[j] + f1);
                 pos[j][k] = y[j];
                 vel[j][k] = c.velocity(z[j]);
@@ -331,7 +352,7 @@ impl<V: StreamVisitor> WithSimd for Stream<'_, V> {
         // Weights transposed to [d][i][lane], pre-multiplied by g − y0.
         let mut wt = vec![[0.0; BATCH_LANES]; nw];
         for d in 0..dims {
-            let amp = dmp.goal[d] - dmp.start[d];
+            let amp = dmp.forcing_scale(d).0;
             for i in 0..nb {
                 for (l, w) in wt[d * nb + i].iter_mut().enumerate() {
                     *w = amp * weights[l.min(m - 1) * nw + d * nb + i];
@@ -416,9 +437,21 @@ fn stream_group<S: Simd, V: StreamVisitor, const W: usize>(
     let ug: [f64; W] = std::array::from_fn(|j| c.goal_input(dmp.goal[d0 + j]));
     let mut y: [Lanes; W] = std::array::from_fn(|j| [dmp.start[d0 + j]; BATCH_LANES]);
     let mut z = [[0.0; BATCH_LANES]; W];
-    let mut f = stream_forcing::<S, W>(row(0), wt);
+    let off: [f64; W] = std::array::from_fn(|j| dmp.forcing_scale(d0 + j).1);
+    // f = a Φw + b x: the offset term added to every lane.
+    let forcing = |k: usize| {
+        let mut f = stream_forcing::<S, W>(row(k), wt);
+        let x = dmp.phases[k];
+        for j in 0..W {
+            for v in &mut f[j] {
+                *v = fma::<S>(off[j], x, *v);
+            }
+        }
+        f
+    };
+    let mut f = forcing(0);
     for k in 0..ns {
-        let f_next = stream_forcing::<S, W>(row((k + 1).min(ns - 1)), wt);
+        let f_next = forcing((k + 1).min(ns - 1));
         for j in 0..W {
             let (yd, zd, f0, f1) = (y[j], z[j], f[j], f_next[j]);
             let mut v = [0.0; BATCH_LANES];

@@ -39,11 +39,13 @@ mod config;
 mod discretize;
 mod dmp;
 mod error;
+mod online;
 mod trajectory;
 
 pub use basis::GaussianBasis;
 pub use canonical::CanonicalSystem;
-pub use config::DmpConfig;
+pub use config::{DmpConfig, Formulation};
 pub use dmp::{BATCH_LANES, DiscreteDmp, Lanes, StreamVisitor};
 pub use error::DmpError;
+pub use online::{OnlineDmp, StepInput};
 pub use trajectory::{Trajectory, locate_on_grid};

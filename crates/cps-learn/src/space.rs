@@ -63,7 +63,8 @@ impl SearchSpace {
                         }
                     }
                     Parametrisation::AnchorOffset => {
-                        cfg.alpha_z * cfg.beta_z / (dmp.basis().centers()[i] * dmp.amplitude(d))
+                        cfg.alpha_z * cfg.beta_z
+                            / (dmp.basis().centers()[i] * dmp.forcing_scale(d).0)
                     }
                 });
             }
