@@ -1,5 +1,7 @@
 //! The discrete DMP: precomputation and rollouts.
 
+use std::sync::Arc;
+
 use pulp::{Arch, Simd, WithSimd};
 
 use crate::discretize::StepCoefficients;
@@ -28,23 +30,47 @@ pub struct DiscreteDmp {
     config: DmpConfig,
     start: Vec<f64>,
     goal: Vec<f64>,
-    basis: GaussianBasis,
-    times: Vec<f64>,
-    phases: Vec<f64>,
+    /// Everything that depends only on the configuration, shared between DMPs that differ
+    /// only in start and goal (cloning a DMP is cheap).
+    grid: Arc<Grid>,
+    arch: Arch,
+}
+
+/// The weight- and endpoint-independent precomputation of a [`DiscreteDmp`].
+#[derive(Debug)]
+pub(crate) struct Grid {
+    pub(crate) basis: GaussianBasis,
+    pub(crate) times: Vec<f64>,
+    pub(crate) phases: Vec<f64>,
     /// Features, (K+1) × N, column-major.
-    features: Vec<f64>,
+    pub(crate) features: Vec<f64>,
     /// The same features packed chunk-major for the forcing kernel.
     packed: Vec<f64>,
     /// The same features row-major ((K+1) rows of N) for the streaming batch rollout.
     rows: Vec<f64>,
     coefficients: StepCoefficients,
-    arch: Arch,
 }
 
 impl DiscreteDmp {
     /// Builds the DMP and precomputes everything that does not depend on the weights.
     pub fn new(config: DmpConfig, start: &[f64], goal: &[f64]) -> Result<Self, DmpError> {
         config.validate()?;
+        let grid = Arc::new(Grid::new(&config));
+        Self::checked(config, start, goal, grid)
+    }
+
+    /// The same DMP (configuration, grid, basis) with other endpoints, without redoing the
+    /// precomputation.
+    pub fn with_endpoints(&self, start: &[f64], goal: &[f64]) -> Result<Self, DmpError> {
+        Self::checked(self.config, start, goal, Arc::clone(&self.grid))
+    }
+
+    fn checked(
+        config: DmpConfig,
+        start: &[f64],
+        goal: &[f64],
+        grid: Arc<Grid>,
+    ) -> Result<Self, DmpError> {
         if start.is_empty() {
             return Err(DmpError::NoDimensions);
         }
@@ -60,39 +86,18 @@ impl DiscreteDmp {
                 return Err(DmpError::NotFinite { what, index, value });
             }
         }
-        let k = config.n_steps();
-        let h = config.step();
-        let cs = CanonicalSystem {
-            alpha_x: config.alpha_x,
-            tau: config.tau,
-        };
-        let times: Vec<f64> = (0..=k).map(|i| i as f64 * h).collect();
-        let phases: Vec<f64> = times.iter().map(|&t| cs.phase(t)).collect();
-        let basis = GaussianBasis::new(config.n_basis, config.alpha_x);
-        let n = config.n_basis;
-        // Row-major (for the streaming rollout) and column-major (for the forcing kernel).
-        let mut rows = vec![0.0; (k + 1) * n];
-        let mut features = vec![0.0; (k + 1) * n];
-        for (s, (&x, row)) in phases.iter().zip(rows.chunks_exact_mut(n)).enumerate() {
-            basis.features(x, row);
-            for (i, &v) in row.iter().enumerate() {
-                features[i * (k + 1) + s] = v;
-            }
-        }
-        let coefficients = StepCoefficients::new(config.alpha_z, config.beta_z, config.tau, h);
         Ok(Self {
             config,
             start: start.to_vec(),
             goal: goal.to_vec(),
-            basis,
-            times,
-            phases,
-            packed: pack_features(&features, k + 1, n),
-            rows,
-            features,
-            coefficients,
+            grid,
             arch: Arch::new(),
         })
+    }
+
+    /// The precomputed grid.
+    pub(crate) fn grid(&self) -> &Grid {
+        &self.grid
     }
 
     /// The configuration.
@@ -117,22 +122,22 @@ impl DiscreteDmp {
 
     /// Number of samples on the grid (`round(tau/dt) + 1`).
     pub fn n_samples(&self) -> usize {
-        self.times.len()
+        self.grid.times.len()
     }
 
     /// Sample times in seconds.
     pub fn times(&self) -> &[f64] {
-        &self.times
+        &self.grid.times
     }
 
     /// The phase `x` at each sample.
     pub fn phases(&self) -> &[f64] {
-        &self.phases
+        &self.grid.phases
     }
 
     /// The basis functions.
     pub fn basis(&self) -> &GaussianBasis {
-        &self.basis
+        &self.grid.basis
     }
 
     /// Start position `y0`.
@@ -167,12 +172,12 @@ impl DiscreteDmp {
     /// The forcing features of basis `i` at every sample: `x ψ_i(x) / Σ ψ(x)`.
     pub fn feature_column(&self, i: usize) -> &[f64] {
         let n = self.n_samples();
-        &self.features[i * n..(i + 1) * n]
+        &self.grid.features[i * n..(i + 1) * n]
     }
 
     /// A zeroed trajectory on this DMP's grid, to reuse with [`Self::rollout_into`].
     pub fn new_trajectory(&self) -> Trajectory {
-        Trajectory::zeros(self.dims(), self.times.clone())
+        Trajectory::zeros(self.dims(), self.grid.times.clone())
     }
 
     /// Rolls out the DMP for `weights` into a new trajectory.
@@ -203,7 +208,7 @@ impl DiscreteDmp {
         );
         // 1. Forcing features times weights, F = Φ W, SIMD with runtime dispatch.
         self.arch.dispatch(ForcingProduct {
-            packed: &self.packed,
+            packed: &self.grid.packed,
             weights,
             n_basis: n,
             out: &mut traj.forcing,
@@ -233,7 +238,7 @@ impl DiscreteDmp {
     #[inline(always)]
     fn chain<const W: usize>(&self, d0: usize, traj: &mut Trajectory) {
         let ns = self.n_samples();
-        let c = &self.coefficients;
+        let c = &self.grid.coefficients;
         let range = d0 * ns..(d0 + W) * ns;
         let mut pos = traj.position[range.clone()].chunks_exact_mut(ns);
         let mut vel = traj.velocity[range.clone()].chunks_exact_mut(ns);
@@ -247,7 +252,7 @@ impl DiscreteDmp {
             std::array::from_fn(|j| self.forcing_scale(d0 + j).0),
             std::array::from_fn(|j| self.forcing_scale(d0 + j).1),
         );
-        let x = &self.phases;
+        let x = &self.grid.phases;
         let ug: [f64; W] = std::array::from_fn(|j| c.goal_input(self.goal[d0 + j]));
         let mut y: [f64; W] = std::array::from_fn(|j| self.start[d0 + j]);
         let mut z = [0.0; W];
@@ -304,6 +309,40 @@ impl DiscreteDmp {
         assert_eq!(weights.len(), out.len() * nw, "population weight length");
         for (w, traj) in weights.chunks_exact(nw).zip(out.iter_mut()) {
             self.rollout_into(w, traj);
+        }
+    }
+}
+
+impl Grid {
+    fn new(config: &DmpConfig) -> Self {
+        let k = config.n_steps();
+        let h = config.step();
+        let cs = CanonicalSystem {
+            alpha_x: config.alpha_x,
+            tau: config.tau,
+        };
+        let times: Vec<f64> = (0..=k).map(|i| i as f64 * h).collect();
+        let phases: Vec<f64> = times.iter().map(|&t| cs.phase(t)).collect();
+        let basis = GaussianBasis::new(config.n_basis, config.alpha_x);
+        let n = config.n_basis;
+        // Row-major (for the streaming rollout) and column-major (for the forcing kernel).
+        let mut rows = vec![0.0; (k + 1) * n];
+        let mut features = vec![0.0; (k + 1) * n];
+        for (s, (&x, row)) in phases.iter().zip(rows.chunks_exact_mut(n)).enumerate() {
+            basis.features(x, row);
+            for (i, &v) in row.iter().enumerate() {
+                features[i * (k + 1) + s] = v;
+            }
+        }
+        let coefficients = StepCoefficients::new(config.alpha_z, config.beta_z, config.tau, h);
+        Grid {
+            packed: pack_features(&features, k + 1, n),
+            basis,
+            times,
+            phases,
+            rows,
+            features,
+            coefficients,
         }
     }
 }
@@ -432,8 +471,8 @@ fn stream_group<S: Simd, V: StreamVisitor, const W: usize>(
     visit: &mut V,
 ) {
     let (nb, ns) = (dmp.n_basis(), dmp.n_samples());
-    let c = &dmp.coefficients;
-    let row = |k: usize| &dmp.rows[k * nb..(k + 1) * nb];
+    let c = &dmp.grid.coefficients;
+    let row = |k: usize| &dmp.grid.rows[k * nb..(k + 1) * nb];
     let ug: [f64; W] = std::array::from_fn(|j| c.goal_input(dmp.goal[d0 + j]));
     let mut y: [Lanes; W] = std::array::from_fn(|j| [dmp.start[d0 + j]; BATCH_LANES]);
     let mut z = [[0.0; BATCH_LANES]; W];
@@ -441,7 +480,7 @@ fn stream_group<S: Simd, V: StreamVisitor, const W: usize>(
     // f = a Φw + b x: the offset term added to every lane.
     let forcing = |k: usize| {
         let mut f = stream_forcing::<S, W>(row(k), wt);
-        let x = dmp.phases[k];
+        let x = dmp.grid.phases[k];
         for j in 0..W {
             for v in &mut f[j] {
                 *v = fma::<S>(off[j], x, *v);

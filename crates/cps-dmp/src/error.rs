@@ -34,6 +34,28 @@ pub enum DmpError {
         /// The value.
         value: f64,
     },
+    /// A demonstration that cannot be learned from; the reason names the sample.
+    #[error("invalid demonstration: {reason}")]
+    InvalidDemonstration {
+        /// What is wrong, with the sample or demonstration number.
+        reason: String,
+    },
+    /// In the Ijspeert form the forcing term scales with `g − y0`; a dimension that moves
+    /// but ends where it starts cannot be learned there.
+    #[error(
+        "dimension {dim} moves over {range:.3e} but ends {amplitude:.3e} from where it starts: the Ijspeert form scales the forcing term by g − y0 and would need huge weights; use the goal-robust formulation"
+    )]
+    DegenerateAmplitude {
+        /// 0-based dimension.
+        dim: usize,
+        /// `g − y0` of the demonstration.
+        amplitude: f64,
+        /// Range of the demonstration in that dimension.
+        range: f64,
+    },
+    /// A linear-algebra step failed (e.g. a singular regression without regularisation).
+    #[error("numerical failure: {0}")]
+    NumericalFailure(String),
     /// A DMP needs at least one dimension.
     #[error("a DMP needs at least one dimension")]
     NoDimensions,

@@ -39,6 +39,8 @@ mod config;
 mod discretize;
 mod dmp;
 mod error;
+mod imitation;
+mod jet;
 mod online;
 mod trajectory;
 
@@ -47,5 +49,8 @@ pub use canonical::CanonicalSystem;
 pub use config::{DmpConfig, Formulation};
 pub use dmp::{BATCH_LANES, DiscreteDmp, Lanes, StreamVisitor};
 pub use error::DmpError;
+pub use imitation::{
+    Combine, Demonstration, FitReport, Imitation, Imitator, Lambda, Regression, imitate,
+};
 pub use online::{OnlineDmp, StepInput};
 pub use trajectory::{Trajectory, locate_on_grid};

@@ -1,0 +1,627 @@
+//! Imitation learning: DMP weights by regression onto demonstrations (thesis §3.2.3).
+//!
+//! Pipeline, per dimension:
+//! 1. **Resampling.** Each demonstration keeps its own time stamps. Its time is mapped
+//!    linearly onto `[0, τ]` (time normalisation: the model's τ is a duration you choose;
+//!    the demonstration's own duration by default in the CLI) and its positions are
+//!    interpolated linearly onto the DMP grid.
+//! 2. **Derivatives** on the uniform grid by finite differences: fourth-order central
+//!    (five points) in the interior, second-order next to and at the ends (one-sided).
+//! 3. **Forcing target** (eq. 48): `f = τ² ÿ − α_z (β_z (g − y) − τ ẏ)` with `y0`, `g` the
+//!    trajectory's first and last samples, turned into the target of the weighted basis
+//!    `Φ w` by the formulation: `f / (g − y0)` (Ijspeert) or `f / (α_z β_z) + (g − y0) x`
+//!    (goal-robust).
+//! 4. **Regression** of that target on the features `Φ[k, i] = x_k ψ_i(x_k) / Σ_j ψ_j(x_k)`:
+//!    - locally weighted regression (Schaal et al. 2003): per basis function,
+//!      `w_i = Σ_k ψ_i x_k t_k / Σ_k ψ_i x_k²`;
+//!    - ridge (eq. 51, with the transpose the thesis dropped): `w = (ΦᵀΦ + λ I)⁻¹ Φᵀ t`,
+//!      λ = 1e-12 by default as in the thesis;
+//!    - jerk-regularised ridge (eq. 52): `w = (ΦᵀΦ + λ P)⁻¹ Φᵀ t` with
+//!      `P = Δt · ΓᵀΓ` and `Γ[k, i] = d³Φ_i/dt³ (t_k)` computed exactly by Taylor
+//!      arithmetic (no symbolic maths), so `λ wᵀ P w` is λ times the integrated squared
+//!      jerk of the weighted basis.
+//!
+//!    With [`Lambda::Auto`], λ minimises the generalised cross-validation score
+//!    `GCV(λ) = n ‖t − Φ w_λ‖² / (n − tr H_λ)²` (Golub, Heath & Wahba 1979), evaluated
+//!    exactly for every λ through one generalised eigendecomposition.
+//!
+//! Several demonstrations are either averaged sample by sample after time normalisation
+//! ([`Combine::Mean`]) or stacked into one regression ([`Combine::Stack`]); the model's
+//! `y0` and `g` are the mean start and end.
+
+use faer::linalg::solvers::Solve;
+use faer::{Mat, Side};
+
+use crate::jet::Jet;
+use crate::{DiscreteDmp, DmpConfig, DmpError, Formulation, Trajectory};
+
+/// A recorded movement: strictly increasing time stamps (seconds) and one position per
+/// time stamp.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Demonstration {
+    times: Vec<f64>,
+    /// Row-major samples: `values[k * dims + d]`.
+    values: Vec<f64>,
+    dims: usize,
+}
+
+impl Demonstration {
+    /// A demonstration from its time stamps and rows of positions. Needs at least 3
+    /// samples, finite values, strictly increasing times and rows of one length.
+    pub fn new(times: Vec<f64>, rows: &[Vec<f64>]) -> Result<Self, DmpError> {
+        let bad = |reason: String| Err(DmpError::InvalidDemonstration { reason });
+        if times.len() != rows.len() {
+            return bad(format!(
+                "{} time stamps for {} samples",
+                times.len(),
+                rows.len()
+            ));
+        }
+        if times.len() < 3 {
+            return bad(format!("needs at least 3 samples, got {}", times.len()));
+        }
+        let dims = rows[0].len();
+        if dims == 0 {
+            return bad("samples have no coordinates".into());
+        }
+        for (k, row) in rows.iter().enumerate() {
+            if row.len() != dims {
+                return bad(format!(
+                    "sample {k} has {} values, the first has {dims}",
+                    row.len()
+                ));
+            }
+            if let Some(d) = row.iter().position(|v| !v.is_finite()) {
+                return bad(format!(
+                    "sample {k}, coordinate {d} is not finite ({})",
+                    row[d]
+                ));
+            }
+            if !times[k].is_finite() {
+                return bad(format!("time stamp {k} is not finite ({})", times[k]));
+            }
+            if k > 0 && times[k] <= times[k - 1] {
+                return bad(format!(
+                    "time stamps must increase strictly: sample {k} at {} s follows {} s",
+                    times[k],
+                    times[k - 1]
+                ));
+            }
+        }
+        Ok(Self {
+            times,
+            values: rows.iter().flatten().copied().collect(),
+            dims,
+        })
+    }
+
+    /// Number of coordinates per sample.
+    pub fn dims(&self) -> usize {
+        self.dims
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.times.len()
+    }
+
+    /// Always false (a demonstration has at least 3 samples).
+    pub fn is_empty(&self) -> bool {
+        self.times.is_empty()
+    }
+
+    /// Time stamps in seconds.
+    pub fn times(&self) -> &[f64] {
+        &self.times
+    }
+
+    /// Sample `k`.
+    pub fn sample(&self, k: usize) -> &[f64] {
+        &self.values[k * self.dims..(k + 1) * self.dims]
+    }
+
+    /// Duration from the first to the last time stamp, in seconds.
+    pub fn duration(&self) -> f64 {
+        self.times[self.len() - 1] - self.times[0]
+    }
+
+    /// The positions at `n ≥ 2` evenly spaced normalised times from the first to the last
+    /// time stamp, by linear interpolation; dimension-major (`out[d][k]`).
+    pub fn resample(&self, n: usize) -> Vec<Vec<f64>> {
+        let (t0, span) = (self.times[0], self.duration());
+        let mut out = vec![vec![0.0; n]; self.dims];
+        let mut seg = 0;
+        for k in 0..n {
+            let t = t0 + span * k as f64 / (n - 1) as f64;
+            while seg + 2 < self.len() && self.times[seg + 1] < t {
+                seg += 1;
+            }
+            let (ta, tb) = (self.times[seg], self.times[seg + 1]);
+            let u = ((t - ta) / (tb - ta)).clamp(0.0, 1.0);
+            let (a, b) = (self.sample(seg), self.sample(seg + 1));
+            for (o, (pa, pb)) in out.iter_mut().zip(a.iter().zip(b)) {
+                o[k] = pa + u * (pb - pa);
+            }
+        }
+        out
+    }
+}
+
+/// The regularisation weight λ.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Lambda {
+    /// A given λ ≥ 0.
+    Fixed(f64),
+    /// Chosen per dimension by generalised cross-validation.
+    Auto,
+}
+
+/// How the weights are regressed (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Regression {
+    /// Schaal's locally weighted regression, one basis function at a time.
+    Lwr,
+    /// Ridge regression (thesis eq. 51).
+    Ridge {
+        /// Regularisation weight.
+        lambda: Lambda,
+    },
+    /// Ridge regression penalising the jerk of the weighted basis (thesis eq. 52).
+    JerkRidge {
+        /// Regularisation weight.
+        lambda: Lambda,
+    },
+}
+
+impl Default for Regression {
+    /// Ridge with the thesis's λ = 1e-12.
+    fn default() -> Self {
+        Regression::Ridge {
+            lambda: Lambda::Fixed(1e-12),
+        }
+    }
+}
+
+/// How several demonstrations are combined.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Combine {
+    /// Average the time-normalised demonstrations sample by sample, then fit the mean.
+    #[default]
+    Mean,
+    /// One regression over the samples of all demonstrations.
+    Stack,
+}
+
+/// How well a learned DMP reproduces what it was taught.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitReport {
+    /// Root-mean-square position error of the model's rollout against the (mean)
+    /// demonstration on the grid, per dimension.
+    pub rmse: Vec<f64>,
+    /// Largest position error, per dimension.
+    pub max_error: Vec<f64>,
+    /// λ used per dimension (0 for LWR).
+    pub lambda: Vec<f64>,
+    /// Condition number of the regression matrix (`ΦᵀΦ + λP` of the first dimension; the
+    /// Gram matrix `ΦᵀΦ` for LWR).
+    pub condition_number: f64,
+    /// Integrated squared jerk `∫ (d³y/dt³)² dt` of the model's rollout, per dimension
+    /// (finite differences of the acceleration).
+    pub integrated_squared_jerk: Vec<f64>,
+    /// The same for the (mean) demonstration on the grid.
+    pub demo_integrated_squared_jerk: Vec<f64>,
+}
+
+/// A learned DMP with its weights and fit report.
+#[derive(Debug, Clone)]
+pub struct Imitation {
+    /// The model (configuration, grid, start = mean first sample, goal = mean last sample).
+    pub dmp: DiscreteDmp,
+    /// Weights, dimension-major as [`DiscreteDmp::rollout`] takes them.
+    pub weights: Vec<f64>,
+    /// The fit diagnostics.
+    pub report: FitReport,
+    /// The (mean) demonstration resampled to the grid, dimension-major.
+    pub reference: Vec<Vec<f64>>,
+}
+
+/// Learns a DMP with `config` from `demos`.
+pub fn imitate(
+    config: &DmpConfig,
+    demos: &[Demonstration],
+    regression: Regression,
+    combine: Combine,
+) -> Result<Imitation, DmpError> {
+    config.validate()?;
+    let dmp0 = DiscreteDmp::new(*config, &[0.0], &[1.0])?;
+    Imitator::new(dmp0).imitate(demos, regression, combine)
+}
+
+/// Imitation with the DMP grid, Gram matrix and jerk penalty precomputed, for repeated
+/// fits with one configuration.
+#[derive(Debug, Clone)]
+pub struct Imitator {
+    template: DiscreteDmp,
+    gram: Mat<f64>,
+    jerk: std::sync::OnceLock<Mat<f64>>,
+}
+
+impl Imitator {
+    /// Precomputes for the grid and basis of `dmp` (its endpoints are ignored).
+    pub fn new(dmp: DiscreteDmp) -> Self {
+        let (ns, nb) = (dmp.n_samples(), dmp.n_basis());
+        let phi = faer::MatRef::from_column_major_slice(&dmp.grid().features, ns, nb);
+        let gram = phi.transpose() * phi;
+        Self {
+            template: dmp,
+            gram,
+            jerk: std::sync::OnceLock::new(),
+        }
+    }
+
+    fn phi(&self) -> faer::MatRef<'_, f64> {
+        let (ns, nb) = (self.template.n_samples(), self.template.n_basis());
+        faer::MatRef::from_column_major_slice(&self.template.grid().features, ns, nb)
+    }
+
+    /// `Δt · ΓᵀΓ` with `Γ[k, i]` the exact third time derivative of feature i at sample k.
+    fn jerk_penalty(&self) -> &Mat<f64> {
+        self.jerk.get_or_init(|| {
+            let dmp = &self.template;
+            let cfg = dmp.config();
+            let (ns, nb) = (dmp.n_samples(), dmp.n_basis());
+            let (c, h) = (dmp.basis().centers(), dmp.basis().widths());
+            let mut gamma = Mat::<f64>::zeros(ns, nb);
+            let mut psi = vec![Jet::constant(0.0); nb];
+            for (k, &t) in dmp.times().iter().enumerate() {
+                let x = Jet::variable(t).scale(-cfg.alpha_x / cfg.tau).exp();
+                let mut sum = Jet::constant(0.0);
+                for i in 0..nb {
+                    let d = x.offset(-c[i]);
+                    psi[i] = d.mul(d).scale(-h[i]).exp();
+                    sum = sum.add(psi[i]);
+                }
+                let xs = x.div(sum);
+                for i in 0..nb {
+                    gamma[(k, i)] = xs.mul(psi[i]).derivative(3);
+                }
+            }
+            let step = cfg.step();
+            (gamma.transpose() * &gamma) * faer::Scale(step)
+        })
+    }
+
+    /// The per-dimension targets of one trajectory (dimension-major positions on the grid).
+    fn targets(&self, y: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, DmpError> {
+        let dmp = &self.template;
+        let cfg = dmp.config();
+        let h = cfg.step();
+        let (tau, az, bz) = (cfg.tau, cfg.alpha_z, cfg.beta_z);
+        let x = dmp.phases();
+        y.iter()
+            .enumerate()
+            .map(|(d, yd)| {
+                let n = yd.len();
+                let (y0, g) = (yd[0], yd[n - 1]);
+                let (lo, hi) = yd
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                        (a.min(v), b.max(v))
+                    });
+                let range = hi - lo;
+                let (v, a) = derivatives(yd, h);
+                let f = (0..n).map(|k| tau * tau * a[k] - az * (bz * (g - yd[k]) - tau * v[k]));
+                Ok(match cfg.formulation {
+                    Formulation::Ijspeert2013 => {
+                        let amp = g - y0;
+                        if range == 0.0 {
+                            vec![0.0; n]
+                        } else if amp.abs() < 1e-3 * range {
+                            return Err(DmpError::DegenerateAmplitude {
+                                dim: d,
+                                amplitude: amp,
+                                range,
+                            });
+                        } else {
+                            f.map(|f| f / amp).collect()
+                        }
+                    }
+                    Formulation::GoalRobust => f
+                        .zip(x)
+                        .map(|(f, &x)| f / (az * bz) + (g - y0) * x)
+                        .collect(),
+                })
+            })
+            .collect()
+    }
+
+    /// Learns the weights from `demos` (see the module documentation).
+    pub fn imitate(
+        &self,
+        demos: &[Demonstration],
+        regression: Regression,
+        combine: Combine,
+    ) -> Result<Imitation, DmpError> {
+        let Some(first) = demos.first() else {
+            return Err(DmpError::InvalidDemonstration {
+                reason: "no demonstrations".into(),
+            });
+        };
+        let dims = first.dims();
+        if let Some((i, d)) = demos.iter().enumerate().find(|(_, d)| d.dims() != dims) {
+            return Err(DmpError::InvalidDemonstration {
+                reason: format!(
+                    "demonstration {} has {} coordinates, the first has {dims}",
+                    i + 1,
+                    d.dims()
+                ),
+            });
+        }
+        let ns = self.template.n_samples();
+        let nb = self.template.n_basis();
+        let resampled: Vec<Vec<Vec<f64>>> = demos.iter().map(|d| d.resample(ns)).collect();
+        let mean: Vec<Vec<f64>> = (0..dims)
+            .map(|d| {
+                (0..ns)
+                    .map(|k| resampled.iter().map(|r| r[d][k]).sum::<f64>() / demos.len() as f64)
+                    .collect()
+            })
+            .collect();
+        let fitted: Vec<Vec<Vec<f64>>> = match combine {
+            Combine::Mean => vec![self.targets(&mean)?],
+            Combine::Stack => resampled
+                .iter()
+                .map(|r| self.targets(r))
+                .collect::<Result<_, _>>()?,
+        };
+        let m = fitted.len() as f64;
+        let phi = self.phi();
+        let mut weights = vec![0.0; dims * nb];
+        let mut lambdas = vec![0.0; dims];
+        let mut condition = f64::NAN;
+        for d in 0..dims {
+            // Φᵀ t summed over the stacked targets, and Σ ‖t‖².
+            let mut rhs = Mat::<f64>::zeros(nb, 1);
+            let mut tt = 0.0;
+            for t in &fitted {
+                let tv = faer::MatRef::from_column_major_slice(&t[d], ns, 1);
+                rhs += phi.transpose() * tv;
+                tt += t[d].iter().map(|v| v * v).sum::<f64>();
+            }
+            let w = &mut weights[d * nb..(d + 1) * nb];
+            match regression {
+                Regression::Lwr => {
+                    let basis = self.template.basis();
+                    let x = self.template.phases();
+                    for (i, wi) in w.iter_mut().enumerate() {
+                        let (c, h) = (basis.centers()[i], basis.widths()[i]);
+                        let (mut num, mut den) = (0.0, 0.0);
+                        for (k, &xk) in x.iter().enumerate() {
+                            let psi = (-h * (xk - c) * (xk - c)).exp();
+                            den += psi * xk * xk;
+                            for t in &fitted {
+                                num += psi * xk * t[d][k];
+                            }
+                        }
+                        *wi = if den > 0.0 { num / (m * den) } else { 0.0 };
+                    }
+                    if d == 0 {
+                        condition = condition_number(&self.gram);
+                    }
+                }
+                Regression::Ridge { lambda } | Regression::JerkRidge { lambda } => {
+                    let gram = &self.gram * faer::Scale(m);
+                    let penalty = match regression {
+                        Regression::JerkRidge { .. } => self.jerk_penalty().clone(),
+                        _ => Mat::identity(nb, nb),
+                    };
+                    let lam = match lambda {
+                        Lambda::Fixed(l) if l.is_finite() && l >= 0.0 => l,
+                        Lambda::Fixed(l) => {
+                            return Err(DmpError::InvalidConfig {
+                                field: "lambda",
+                                rule: "must be finite and ≥ 0",
+                                value: l,
+                            });
+                        }
+                        Lambda::Auto => gcv_lambda(&gram, &penalty, &rhs, tt, m * ns as f64)?,
+                    };
+                    let a = &gram + &penalty * faer::Scale(lam);
+                    let sol = solve_spd(&a, &rhs)?;
+                    for (i, wi) in w.iter_mut().enumerate() {
+                        *wi = sol[(i, 0)];
+                    }
+                    lambdas[d] = lam;
+                    if d == 0 {
+                        condition = condition_number(&a);
+                    }
+                }
+            }
+        }
+        if let Some(i) = weights.iter().position(|v| !v.is_finite()) {
+            return Err(DmpError::NumericalFailure(format!(
+                "weight {i} came out non-finite; try a larger λ"
+            )));
+        }
+        let start: Vec<f64> = (0..dims).map(|d| mean[d][0]).collect();
+        let goal: Vec<f64> = (0..dims).map(|d| mean[d][ns - 1]).collect();
+        let dmp = self.template.with_endpoints(&start, &goal)?;
+        let traj = dmp.rollout(&weights);
+        let report = report(
+            &traj,
+            &mean,
+            lambdas,
+            condition,
+            self.template.config().step(),
+        );
+        Ok(Imitation {
+            dmp,
+            weights,
+            report,
+            reference: mean,
+        })
+    }
+}
+
+/// First and second derivatives on a uniform grid of step `h`: fourth-order central
+/// differences (five points) inside, second-order ones next to the ends and second-order
+/// one-sided differences at the ends.
+fn derivatives(y: &[f64], h: f64) -> (Vec<f64>, Vec<f64>) {
+    let n = y.len();
+    let mut v = vec![0.0; n];
+    let mut a = vec![0.0; n];
+    for k in 1..n - 1 {
+        if k >= 2 && k + 2 < n {
+            v[k] = (y[k - 2] - 8.0 * y[k - 1] + 8.0 * y[k + 1] - y[k + 2]) / (12.0 * h);
+            a[k] = (-y[k - 2] + 16.0 * y[k - 1] - 30.0 * y[k] + 16.0 * y[k + 1] - y[k + 2])
+                / (12.0 * h * h);
+        } else {
+            v[k] = (y[k + 1] - y[k - 1]) / (2.0 * h);
+            a[k] = (y[k + 1] - 2.0 * y[k] + y[k - 1]) / (h * h);
+        }
+    }
+    v[0] = (-3.0 * y[0] + 4.0 * y[1] - y[2]) / (2.0 * h);
+    v[n - 1] = (3.0 * y[n - 1] - 4.0 * y[n - 2] + y[n - 3]) / (2.0 * h);
+    if n >= 4 {
+        a[0] = (2.0 * y[0] - 5.0 * y[1] + 4.0 * y[2] - y[3]) / (h * h);
+        a[n - 1] = (2.0 * y[n - 1] - 5.0 * y[n - 2] + 4.0 * y[n - 3] - y[n - 4]) / (h * h);
+    } else {
+        a[0] = a[1];
+        a[n - 1] = a[n - 2];
+    }
+    (v, a)
+}
+
+/// ∫ (d³y/dt³)² dt from a sampled acceleration.
+fn integrated_squared_jerk(acc: &[f64], h: f64) -> f64 {
+    acc.windows(2)
+        .map(|w| ((w[1] - w[0]) / h).powi(2) * h)
+        .sum()
+}
+
+fn report(
+    traj: &Trajectory,
+    reference: &[Vec<f64>],
+    lambda: Vec<f64>,
+    condition: f64,
+    h: f64,
+) -> FitReport {
+    let dims = reference.len();
+    let mut rmse = Vec::with_capacity(dims);
+    let mut max_error = Vec::with_capacity(dims);
+    let mut jerk = Vec::with_capacity(dims);
+    let mut demo_jerk = Vec::with_capacity(dims);
+    for (d, r) in reference.iter().enumerate() {
+        let e: Vec<f64> = traj.position(d).iter().zip(r).map(|(a, b)| a - b).collect();
+        rmse.push((e.iter().map(|v| v * v).sum::<f64>() / e.len() as f64).sqrt());
+        max_error.push(e.iter().fold(0.0f64, |m, v| m.max(v.abs())));
+        jerk.push(integrated_squared_jerk(traj.acceleration(d), h));
+        demo_jerk.push(integrated_squared_jerk(&derivatives(r, h).1, h));
+    }
+    FitReport {
+        rmse,
+        max_error,
+        lambda,
+        condition_number: condition,
+        integrated_squared_jerk: jerk,
+        demo_integrated_squared_jerk: demo_jerk,
+    }
+}
+
+/// Solves `a x = b` for symmetric positive (semi)definite `a`: Cholesky, or, when that
+/// fails, the eigendecomposition with eigenvalues below `1e-14 λ_max` dropped.
+fn solve_spd(a: &Mat<f64>, b: &Mat<f64>) -> Result<Mat<f64>, DmpError> {
+    if let Ok(llt) = a.llt(Side::Lower) {
+        return Ok(llt.solve(b));
+    }
+    let eig = a
+        .self_adjoint_eigen(Side::Lower)
+        .map_err(|e| DmpError::NumericalFailure(format!("eigendecomposition failed: {e:?}")))?;
+    let (u, s) = (eig.U(), eig.S().column_vector());
+    let smax = s.iter().fold(0.0f64, |m, &v| m.max(v));
+    let mut c = u.transpose() * b;
+    for i in 0..c.nrows() {
+        let v = s[i];
+        c[(i, 0)] = if v > 1e-14 * smax { c[(i, 0)] / v } else { 0.0 };
+    }
+    Ok(u * c)
+}
+
+/// `λ_max / λ_min` of a symmetric matrix (∞ if singular).
+fn condition_number(a: &Mat<f64>) -> f64 {
+    match a.self_adjoint_eigenvalues(Side::Lower) {
+        Ok(v) => {
+            let (lo, hi) = (v[0], v[v.len() - 1]);
+            if lo > 0.0 { hi / lo } else { f64::INFINITY }
+        }
+        Err(_) => f64::NAN,
+    }
+}
+
+/// The λ minimising `GCV(λ) = n RSS(λ) / (n − tr H(λ))²` for the penalised least squares
+/// `min ‖t − Φw‖² + λ wᵀPw` with Gram `c = ΦᵀΦ`, `rhs = Φᵀt`, `tt = ‖t‖²`, `n` rows.
+///
+/// With `c = L Lᵀ` and `L⁻¹ P L⁻ᵀ = V Λ Vᵀ`, the fit in the basis `b = Vᵀ L⁻¹ rhs` has
+/// `tr H = Σ 1/(1 + λΛ_i)` and `RSS = RSS(0) + Σ b_i² (λΛ_i / (1 + λΛ_i))²`, so every λ
+/// costs O(N). A log grid over twenty decades, then golden-section refinement.
+fn gcv_lambda(
+    c: &Mat<f64>,
+    p: &Mat<f64>,
+    rhs: &Mat<f64>,
+    tt: f64,
+    n: f64,
+) -> Result<f64, DmpError> {
+    let nb = c.nrows();
+    let trace = (0..nb).map(|i| c[(i, i)]).sum::<f64>();
+    let jitter = Mat::<f64>::identity(nb, nb) * faer::Scale(1e-13 * trace / nb as f64);
+    let llt = (c + &jitter).llt(Side::Lower).map_err(|_| {
+        DmpError::NumericalFailure("the Gram matrix ΦᵀΦ is not positive definite".into())
+    })?;
+    let l = llt.L();
+    // M = L⁻¹ P L⁻ᵀ by two triangular solves.
+    let mut x = p.clone();
+    faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, x.as_mut(), faer::Par::Seq);
+    let mut m = x.transpose().to_owned();
+    faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, m.as_mut(), faer::Par::Seq);
+    let eig = m
+        .self_adjoint_eigen(Side::Lower)
+        .map_err(|e| DmpError::NumericalFailure(format!("eigendecomposition failed: {e:?}")))?;
+    let mut z = rhs.clone();
+    faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, z.as_mut(), faer::Par::Seq);
+    let b = eig.U().transpose() * z;
+    let lam: Vec<f64> = eig.S().column_vector().iter().map(|v| v.max(0.0)).collect();
+    let b2: Vec<f64> = (0..nb).map(|i| b[(i, 0)] * b[(i, 0)]).collect();
+    let rss0 = (tt - b2.iter().sum::<f64>()).max(0.0);
+    let score = |log_l: f64| {
+        let l = 10f64.powf(log_l);
+        let (mut rss, mut dof) = (rss0, 0.0);
+        for i in 0..nb {
+            let s = 1.0 / (1.0 + l * lam[i]);
+            dof += s;
+            rss += b2[i] * (1.0 - s) * (1.0 - s);
+        }
+        n * rss / ((n - dof) * (n - dof))
+    };
+    let lmax = lam
+        .iter()
+        .fold(0.0f64, |m, &v| m.max(v))
+        .max(f64::MIN_POSITIVE);
+    let (lo, hi) = ((1e-10 / lmax).log10(), (1e10 / lmax).log10());
+    let steps = 200;
+    let grid = |i: usize| lo + (hi - lo) * i as f64 / steps as f64;
+    let best = (0..=steps)
+        .min_by(|&a, &b| score(grid(a)).total_cmp(&score(grid(b))))
+        .unwrap_or(0);
+    // Golden-section search in the bracketing grid cells.
+    let (mut a, mut b) = (grid(best.saturating_sub(1)), grid((best + 1).min(steps)));
+    let r = 0.5 * (5f64.sqrt() - 1.0);
+    for _ in 0..40 {
+        let (c1, c2) = (b - r * (b - a), a + r * (b - a));
+        if score(c1) < score(c2) {
+            b = c2;
+        } else {
+            a = c1;
+        }
+    }
+    Ok(10f64.powf(0.5 * (a + b)))
+}
