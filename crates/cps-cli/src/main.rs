@@ -8,6 +8,8 @@
 //! cps-cli ik --robot panda --target 0.4,0.2,0.5[,qx,qy,qz,qw] [--seed-q ...] [--json]
 //! cps-cli robot show panda|configs/robots/ur3.toml|configs/robots/panda.urdf [--tool NAME] [--tip LINK]
 //! cps-cli scene check configs/scenes/thesis.toml [--json]
+//! cps-cli imitate demo.csv [more.csv ...] [--bases N] [--method lwr|ridge|jerk] [--lambda X|auto] [--tau S] --out model.json [--plot fit.png]
+//! cps-cli rollout model.json [--start ...] [--goal ...] [--tau S] [--dt S] --out traj.csv [--plot traj.png]
 //! ```
 //!
 //! `--robot` takes a built-in name (`panda`, `ur3`, `puma560`) or a robot file: TOML as in
@@ -26,6 +28,7 @@ macro_rules! say {
 }
 
 mod experiment;
+mod movement;
 mod output;
 mod plots;
 mod robot;
@@ -98,6 +101,10 @@ enum Command {
         #[command(subcommand)]
         command: robot::RobotCommand,
     },
+    /// Learn a DMP model (JSON) from demonstrations (CSV).
+    Imitate(movement::ImitateArgs),
+    /// Roll out a DMP model into a trajectory (CSV), with optional new start, goal, τ.
+    Rollout(movement::RolloutArgs),
     /// Scenes: a placed robot and named way points.
     Scene {
         #[command(subcommand)]
@@ -141,6 +148,8 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
         Command::Ik(args) => robot::ik(&args),
         Command::Robot { command } => robot::robot(&command),
         Command::Scene { command } => scene::scene(&command),
+        Command::Imitate(args) => movement::run_imitate(&args),
+        Command::Rollout(args) => movement::run_rollout(&args),
         Command::Check { file } => {
             let exp = experiment::load(&file, None)?;
             say!(

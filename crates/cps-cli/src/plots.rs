@@ -156,57 +156,130 @@ fn cost_plot<DB: DrawingBackend>(
     Ok(())
 }
 
-fn coordinate_plot<DB: DrawingBackend>(
+/// One curve family of [`curves_plot`]: a label and one slice of values per dimension.
+pub struct Series<'a> {
+    /// Legend label.
+    pub label: String,
+    /// `values[d]` for dimension d, on the shared time axis.
+    pub values: Vec<&'a [f64]>,
+    /// Drawn thin and light (for many recordings) instead of bold.
+    pub faint: bool,
+}
+
+/// One panel per dimension: every series over time, and marked points `(t, value per
+/// dimension)`.
+fn curves_plot<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
-    traj: &Trajectory,
-    task: &ViaPointTask,
+    times: &[f64],
+    names: &[String],
+    series: &[Series<'_>],
+    points: &[(f64, Vec<f64>)],
 ) -> DrawResult<DB> {
     root.fill(&WHITE)?;
-    let dims = traj.dims();
+    let dims = names.len();
     let panels = root.split_evenly((dims, 1));
-    let tau = task.dmp.tau;
-    let mut points: Vec<(f64, &[f64])> = vec![(0.0, &task.start[..])];
-    points.extend(task.via.iter().map(|v| (v.time, &v.position[..])));
-    points.push((tau, &task.goal[..]));
+    let t_end = times.last().copied().unwrap_or(1.0).max(1e-9);
     for (d, panel) in panels.iter().enumerate() {
-        let y = traj.position(d);
-        let (mut lo, mut hi) = y
+        let values = series
             .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-                (a.min(v), b.max(v))
-            });
-        for (_, p) in &points {
-            lo = lo.min(p[d]);
-            hi = hi.max(p[d]);
-        }
+            .flat_map(|s| s.values[d].iter())
+            .chain(points.iter().map(|p| &p.1[d]));
+        let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
         let pad = ((hi - lo) * 0.08).max(1e-3);
-        let name = if dims == 3 {
-            ["x", "y", "z"][d].to_string()
-        } else {
-            format!("y{d}")
-        };
         let mut chart = ChartBuilder::on(panel)
             .margin(10)
             .x_label_area_size(35)
             .y_label_area_size(60)
-            .build_cartesian_2d(0f64..tau, (lo - pad)..(hi + pad))?;
+            .build_cartesian_2d(times[0]..t_end, (lo - pad)..(hi + pad))?;
         chart
             .configure_mesh()
             .x_desc("t [s]")
-            .y_desc(format!("{name} [m]"))
+            .y_desc(names[d].as_str())
             .draw()?;
-        let c = COLORS[d % 3];
-        chart.draw_series(LineSeries::new(
-            traj.times().iter().copied().zip(y.iter().copied()),
-            c.stroke_width(2),
-        ))?;
+        for (i, s) in series.iter().enumerate() {
+            let style = if s.faint {
+                RGBColor(150, 150, 150).mix(0.5).stroke_width(1)
+            } else {
+                COLORS[i % 3].stroke_width(2)
+            };
+            let drawn = chart.draw_series(LineSeries::new(
+                times.iter().copied().zip(s.values[d].iter().copied()),
+                style,
+            ))?;
+            if d == 0 && !s.label.is_empty() {
+                drawn
+                    .label(s.label.clone())
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+            }
+        }
         chart.draw_series(
             points
                 .iter()
                 .map(|(t, p)| Circle::new((*t, p[d]), 5, BLACK.filled())),
         )?;
+        if d == 0 && series.iter().any(|s| !s.label.is_empty()) {
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()?;
+        }
     }
     Ok(())
+}
+
+/// Draws [`curves_plot`] to `path` (PNG, or SVG when the name ends in `.svg`).
+pub fn curves_to_file(
+    path: &std::path::Path,
+    times: &[f64],
+    names: &[String],
+    series: &[Series<'_>],
+    points: &[(f64, Vec<f64>)],
+) -> Result<()> {
+    register_font();
+    let size = (1000, 300 * names.len().clamp(1, 4) as u32);
+    let svg = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
+    let fail = |e: String| anyhow!("{}: {e}", path.display());
+    if svg {
+        let root = SVGBackend::new(path, size).into_drawing_area();
+        curves_plot(&root, times, names, series, points).map_err(|e| fail(format!("{e:?}")))?;
+        root.present().map_err(|e| fail(format!("{e:?}")))?;
+    } else {
+        let root = BitMapBackend::new(path, size).into_drawing_area();
+        curves_plot(&root, times, names, series, points).map_err(|e| fail(format!("{e:?}")))?;
+        root.present().map_err(|e| fail(format!("{e:?}")))?;
+    }
+    Ok(())
+}
+
+fn coordinate_plot<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    traj: &Trajectory,
+    task: &ViaPointTask,
+) -> DrawResult<DB> {
+    let dims = traj.dims();
+    let mut points: Vec<(f64, Vec<f64>)> = vec![(0.0, task.start.clone())];
+    points.extend(task.via.iter().map(|v| (v.time, v.position.clone())));
+    points.push((task.dmp.tau, task.goal.clone()));
+    let names: Vec<String> = (0..dims)
+        .map(|d| {
+            if dims == 3 {
+                format!("{} [m]", ["x", "y", "z"][d])
+            } else {
+                format!("y{d} [m]")
+            }
+        })
+        .collect();
+    let series = [Series {
+        label: String::new(),
+        values: (0..dims).map(|d| traj.position(d)).collect(),
+        faint: false,
+    }];
+    curves_plot(root, traj.times(), &names, &series, &points)
 }
 
 fn path_plot<DB: DrawingBackend>(

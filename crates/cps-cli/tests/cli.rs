@@ -645,3 +645,219 @@ fn the_thesis_scene_starts_at_p0_and_reaches_every_way_point() {
         stderr(&o)
     );
 }
+
+fn demo_csv(rows: usize) -> String {
+    let mut s = String::from("time,x,y\n");
+    for k in 0..rows {
+        let t = 2.0 * k as f64 / (rows - 1) as f64;
+        let u = t / 2.0;
+        let mj = 10.0 * u.powi(3) - 15.0 * u.powi(4) + 6.0 * u.powi(5);
+        s.push_str(&format!("{t},{},{}\n", 0.2 + 0.3 * mj, -0.1 + 0.05 * mj));
+    }
+    s
+}
+
+/// imitate → model.json → rollout: the trajectory reproduces the demonstration, a new
+/// goal and τ are honoured, and the files have the promised shape.
+#[test]
+fn imitate_and_rollout_round_trip() {
+    let dir = tempfile::tempdir().unwrap();
+    let demo = write(dir.path(), "demo.csv", &demo_csv(201));
+    let model = dir.path().join("model.json");
+    let o = cli(&[
+        "imitate",
+        demo.to_str().unwrap(),
+        "--bases",
+        "20",
+        "--out",
+        model.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = stdout_json(&o);
+    for d in 0..2 {
+        assert!(report["rmse"][d].as_f64().unwrap() < 1e-4, "{report}");
+    }
+    let m = json(&model);
+    assert_eq!(m["format"], "cps-dmp-model");
+    assert_eq!(m["version"], 1);
+    assert_eq!(m["names"], serde_json::json!(["x", "y"]));
+    assert_eq!(m["weights"].as_array().unwrap().len(), 2);
+    let traj = dir.path().join("traj.csv");
+    let plot = dir.path().join("traj.png");
+    let o = cli(&[
+        "rollout",
+        model.to_str().unwrap(),
+        "--goal",
+        "0.6,0.0",
+        "--tau",
+        "4",
+        "--out",
+        traj.to_str().unwrap(),
+        "--plot",
+        plot.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&traj).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next().unwrap(), "time,x,y,x_vel,y_vel,x_acc,y_acc");
+    let last: Vec<f64> = text
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert!((last[0] - 4.0).abs() < 1e-12);
+    assert!(
+        (last[1] - 0.6).abs() < 5e-3 && (last[2] - 0.0).abs() < 5e-3,
+        "{last:?}"
+    );
+    assert!(std::fs::metadata(&plot).unwrap().len() > 1000);
+}
+
+#[test]
+fn bad_demonstrations_and_models_exit_2_and_write_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = demo_csv(50);
+    let mut lines: Vec<String> = good.lines().map(str::to_string).collect();
+    let cases: Vec<(&str, String, &str)> = vec![
+        (
+            "short.csv",
+            "time,x\n0,1\n1,2\n".into(),
+            "at least 3 samples",
+        ),
+        (
+            "dup.csv",
+            "time,x\n0,1\n1,2\n1,3\n2,4\n".into(),
+            "sample 2 at 1 s follows 1 s",
+        ),
+        (
+            "nan.csv",
+            "time,x\n0,1\n1,NaN\n2,3\n".into(),
+            "line 3, column `x`: NaN is not finite",
+        ),
+        (
+            "text.csv",
+            "time,x\n0,1\n1,abc\n2,3\n".into(),
+            "line 3, column `x`: `abc` is not a number",
+        ),
+        (
+            "ragged.csv",
+            "time,x,y\n0,1,2\n1,2\n2,3,4\n".into(),
+            "line 3",
+        ),
+        (
+            "noheader.csv",
+            "0,1,2\n1,2,3\n2,3,4\n".into(),
+            "no header row",
+        ),
+    ];
+    for (name, text, expect) in cases {
+        let p = write(dir.path(), name, &text);
+        let out = dir.path().join(format!("{name}.json"));
+        let o = cli(&[
+            "imitate",
+            p.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains(expect) && stderr(&o).contains(name),
+            "{name}: {}",
+            stderr(&o)
+        );
+        assert!(!out.exists(), "{name}: a model was written");
+    }
+    // Mismatched dimensions between demonstrations; zero bases; τ ≤ 0.
+    let a = write(dir.path(), "a.csv", &good);
+    lines.iter_mut().for_each(|l| {
+        let mut parts: Vec<&str> = l.split(',').collect();
+        parts.pop();
+        *l = parts.join(",");
+    });
+    let b = write(dir.path(), "b.csv", &(lines.join("\n") + "\n"));
+    let out = dir.path().join("m.json");
+    let outs = out.to_str().unwrap();
+    for (args, expect) in [
+        (
+            vec![
+                "imitate",
+                a.to_str().unwrap(),
+                b.to_str().unwrap(),
+                "--out",
+                outs,
+            ],
+            "1 dimensions",
+        ),
+        (
+            vec![
+                "imitate",
+                a.to_str().unwrap(),
+                "--bases",
+                "0",
+                "--out",
+                outs,
+            ],
+            "--bases: must be at least 1",
+        ),
+        (
+            vec!["imitate", a.to_str().unwrap(), "--tau", "-1", "--out", outs],
+            "--tau: must be finite and > 0",
+        ),
+        (
+            vec![
+                "imitate",
+                a.to_str().unwrap(),
+                "--lambda",
+                "lots",
+                "--out",
+                outs,
+            ],
+            "--lambda",
+        ),
+    ] {
+        let o = cli(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(expect), "{args:?}: {}", stderr(&o));
+        assert!(!out.exists());
+    }
+    // Models of another version or formulation, and a goal of the wrong dimension.
+    assert!(
+        cli(&["imitate", a.to_str().unwrap(), "--out", outs])
+            .status
+            .success()
+    );
+    let text = std::fs::read_to_string(&out).unwrap();
+    let traj = dir.path().join("t.csv");
+    let ts = traj.to_str().unwrap();
+    for (name, body, expect) in [
+        (
+            "v2.json",
+            text.replace("\"version\": 1", "\"version\": 2"),
+            "version 2 is not supported",
+        ),
+        (
+            "f.json",
+            text.replace("ijspeert2013", "schaal"),
+            "unknown formulation \"schaal\"",
+        ),
+    ] {
+        let p = write(dir.path(), name, &body);
+        let o = cli(&["rollout", p.to_str().unwrap(), "--out", ts]);
+        assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
+        assert!(stderr(&o).contains(expect), "{name}: {}", stderr(&o));
+    }
+    let o = cli(&["rollout", outs, "--goal", "1,2,3", "--out", ts]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("--goal: 3 values for a 2-dimensional model (x, y)"),
+        "{}",
+        stderr(&o)
+    );
+    let o = cli(&["rollout", outs, "--tau", "0", "--out", ts]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--tau"), "{}", stderr(&o));
+    assert!(!traj.exists());
+}

@@ -56,6 +56,13 @@ pub enum DmpError {
     /// A linear-algebra step failed (e.g. a singular regression without regularisation).
     #[error("numerical failure: {0}")]
     NumericalFailure(String),
+    /// A model file that cannot be loaded: another format or version, an unknown
+    /// formulation, inconsistent shapes.
+    #[error("invalid model: {reason}")]
+    InvalidModel {
+        /// What is wrong.
+        reason: String,
+    },
     /// A DMP needs at least one dimension.
     #[error("a DMP needs at least one dimension")]
     NoDimensions,

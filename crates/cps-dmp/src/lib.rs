@@ -41,6 +41,8 @@ mod dmp;
 mod error;
 mod imitation;
 mod jet;
+#[cfg(feature = "serde")]
+mod model;
 mod online;
 mod trajectory;
 
@@ -52,5 +54,7 @@ pub use error::DmpError;
 pub use imitation::{
     Combine, Demonstration, FitReport, Imitation, Imitator, Lambda, Regression, imitate,
 };
+#[cfg(feature = "serde")]
+pub use model::{BasisRecord, ConfigRecord, DmpModel, MODEL_FORMAT, MODEL_VERSION};
 pub use online::{OnlineDmp, StepInput};
 pub use trajectory::{Trajectory, locate_on_grid};
