@@ -94,6 +94,54 @@ fn ik(c: &mut Criterion) {
     });
 }
 
+/// DMP imitation and online stepping (issue 3's figures).
+fn dmp_extras(c: &mut Criterion) {
+    use cps::dmp::{Combine, Demonstration, Imitator, OnlineDmp, Regression};
+    // A smooth 3-D demonstration: 10 s, 1000 samples.
+    let times: Vec<f64> = (0..1000).map(|k| 10.0 * k as f64 / 999.0).collect();
+    let rows: Vec<Vec<f64>> = times
+        .iter()
+        .map(|&t| {
+            let s = t / 10.0;
+            let mj = 10.0 * s.powi(3) - 15.0 * s.powi(4) + 6.0 * s.powi(5);
+            let bump = (std::f64::consts::PI * s).sin().powi(2);
+            vec![
+                0.75 - 0.2 * mj + 0.1 * bump,
+                0.02 - 0.59 * mj,
+                1.87 - 0.42 * mj,
+            ]
+        })
+        .collect();
+    let demo = [Demonstration::new(times, &rows).unwrap()];
+    let imitator = Imitator::new(thesis_dmp());
+    c.bench_function("imitate/ridge_3x1000x25", |b| {
+        b.iter(|| {
+            imitator
+                .imitate(black_box(&demo), Regression::default(), Combine::Mean)
+                .unwrap()
+        })
+    });
+    c.bench_function("imitate/ridge_weights_only_3x1000x25", |b| {
+        b.iter(|| {
+            imitator
+                .weights(black_box(&demo), Regression::default(), Combine::Mean)
+                .unwrap()
+        })
+    });
+    let dmp = thesis_dmp();
+    let w = random_weights(dmp.n_weights(), 3);
+    let mut online = OnlineDmp::new(&dmp, &w);
+    let h = dmp.config().step();
+    c.bench_function("online_step/3d", |b| {
+        b.iter(|| {
+            online.step(black_box(h)).unwrap();
+            if online.phase() < 1e-3 {
+                online = OnlineDmp::new(&dmp, &w);
+            }
+        })
+    });
+}
+
 fn rollout(c: &mut Criterion) {
     let dmp = thesis_dmp();
     let w = random_weights(dmp.n_weights(), 1);
@@ -187,6 +235,7 @@ fn viapoint_run(c: &mut Criterion) {
     group.finish();
 }
 
+criterion_group!(dmp_benches, dmp_extras);
 criterion_group!(
     benches,
     kinematics,
@@ -195,4 +244,4 @@ criterion_group!(
     cmaes_generation,
     viapoint_run
 );
-criterion_main!(benches);
+criterion_main!(dmp_benches, benches);

@@ -301,6 +301,9 @@ impl DiscreteDmp {
     }
 
     /// Rolls out a population: `weights` holds `out.len()` weight vectors back to back.
+    /// (Measured: storing the streaming kernel's lanes costs more than it saves, so this is
+    /// one [`Self::rollout_into`] per candidate; use [`Self::rollout_stream`] when only
+    /// costs are needed.)
     ///
     /// # Panics
     /// If `weights.len() != out.len() * n_weights()` or a trajectory has the wrong shape.
@@ -424,14 +427,22 @@ fn fma<S: Simd>(a: f64, b: f64, c: f64) -> f64 {
     }
 }
 
-/// `Φ(k) · w` for `W` dimensions at once: each feature value is broadcast once for all of
+/// `Φ(k) · w + off · x` for `W` dimensions at once: each feature value is broadcast once for all of
 /// them, and two partial sums per dimension shorten the FMA chains (more would spill
 /// registers; successive steps' sums are independent and overlap anyway).
 #[inline(always)]
-fn stream_forcing<S: Simd, const W: usize>(row: &[f64], wt: &[Lanes]) -> [Lanes; W] {
+fn stream_forcing<S: Simd, const W: usize>(
+    row: &[f64],
+    wt: &[Lanes],
+    off: &[f64; W],
+    x: f64,
+) -> [Lanes; W] {
     let nb = row.len();
     const P: usize = 2;
     let mut part = [[[0.0; BATCH_LANES]; P]; W];
+    for (p, o) in part.iter_mut().zip(off) {
+        p[0] = [o * x; BATCH_LANES];
+    }
     let full = nb - nb % P;
     for i0 in (0..full).step_by(P) {
         for q in 0..P {
@@ -477,20 +488,14 @@ fn stream_group<S: Simd, V: StreamVisitor, const W: usize>(
     let mut y: [Lanes; W] = std::array::from_fn(|j| [dmp.start[d0 + j]; BATCH_LANES]);
     let mut z = [[0.0; BATCH_LANES]; W];
     let off: [f64; W] = std::array::from_fn(|j| dmp.forcing_scale(d0 + j).1);
-    // f = a Φw + b x: the offset term added to every lane.
-    let forcing = |k: usize| {
-        let mut f = stream_forcing::<S, W>(row(k), wt);
-        let x = dmp.grid.phases[k];
-        for j in 0..W {
-            for v in &mut f[j] {
-                *v = fma::<S>(off[j], x, *v);
-            }
-        }
-        f
-    };
-    let mut f = forcing(0);
+    // f = a Φw + b x: the accumulators of Φw start at b x. (No closures here: they are
+    // not reliably inlined into the SIMD context, and outside it `mul_add` becomes a slow
+    // software call.)
+    let x = &dmp.grid.phases;
+    let mut f = stream_forcing::<S, W>(row(0), wt, &off, x[0]);
     for k in 0..ns {
-        let f_next = forcing((k + 1).min(ns - 1));
+        let next = (k + 1).min(ns - 1);
+        let f_next = stream_forcing::<S, W>(row(next), wt, &off, x[next]);
         for j in 0..W {
             let (yd, zd, f0, f1) = (y[j], z[j], f[j], f_next[j]);
             let mut v = [0.0; BATCH_LANES];

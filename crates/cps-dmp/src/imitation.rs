@@ -129,16 +129,33 @@ impl Demonstration {
     /// time stamp, by linear interpolation; dimension-major (`out[d][k]`).
     pub fn resample(&self, n: usize) -> Vec<Vec<f64>> {
         let (t0, span) = (self.times[0], self.duration());
+        let last = self.len() - 1;
         let mut out = vec![vec![0.0; n]; self.dims];
+        // Evenly spaced time stamps (the usual recording) locate each sample directly.
+        let step = span / last as f64;
+        let tol = 1e-9 * span;
+        let even = self
+            .times
+            .iter()
+            .enumerate()
+            .all(|(k, &t)| (t - (t0 + step * k as f64)).abs() <= tol);
+        let scale = last as f64 / (n - 1) as f64;
         let mut seg = 0;
         for k in 0..n {
-            let t = t0 + span * k as f64 / (n - 1) as f64;
-            while seg + 2 < self.len() && self.times[seg + 1] < t {
-                seg += 1;
-            }
-            let (ta, tb) = (self.times[seg], self.times[seg + 1]);
-            let u = ((t - ta) / (tb - ta)).clamp(0.0, 1.0);
-            let (a, b) = (self.sample(seg), self.sample(seg + 1));
+            let (i, u) = if even {
+                let pos = k as f64 * scale;
+                // pos ≥ 0, so truncation is the floor.
+                let i = (pos as usize).min(last - 1);
+                (i, pos - i as f64)
+            } else {
+                let t = t0 + span * (k as f64 / (n - 1) as f64);
+                while seg + 1 < last && self.times[seg + 1] < t {
+                    seg += 1;
+                }
+                let (ta, tb) = (self.times[seg], self.times[seg + 1]);
+                (seg, ((t - ta) / (tb - ta)).clamp(0.0, 1.0))
+            };
+            let (a, b) = (self.sample(i), self.sample(i + 1));
             for (o, (pa, pb)) in out.iter_mut().zip(a.iter().zip(b)) {
                 o[k] = pa + u * (pb - pa);
             }
@@ -243,6 +260,7 @@ pub fn imitate(
 pub struct Imitator {
     template: DiscreteDmp,
     gram: Mat<f64>,
+    gram_eigen: std::sync::OnceLock<Vec<f64>>,
     jerk: std::sync::OnceLock<Mat<f64>>,
 }
 
@@ -255,13 +273,9 @@ impl Imitator {
         Self {
             template: dmp,
             gram,
+            gram_eigen: std::sync::OnceLock::new(),
             jerk: std::sync::OnceLock::new(),
         }
-    }
-
-    fn phi(&self) -> faer::MatRef<'_, f64> {
-        let (ns, nb) = (self.template.n_samples(), self.template.n_basis());
-        faer::MatRef::from_column_major_slice(&self.template.grid().features, ns, nb)
     }
 
     /// `Δt · ΓᵀΓ` with `Γ[k, i]` the exact third time derivative of feature i at sample k.
@@ -289,6 +303,46 @@ impl Imitator {
             let step = cfg.step();
             (gamma.transpose() * &gamma) * faer::Scale(step)
         })
+    }
+
+    /// Eigenvalues of the Gram matrix ΦᵀΦ, ascending (computed once).
+    fn gram_eigenvalues(&self) -> &[f64] {
+        self.gram_eigen.get_or_init(|| {
+            self.gram
+                .self_adjoint_eigenvalues(Side::Lower)
+                .unwrap_or_else(|_| vec![f64::NAN; self.gram.nrows()])
+        })
+    }
+
+    /// Penalised least squares with λ by cross-validation, per dimension; returns the
+    /// condition number of the first dimension's system.
+    fn penalised(
+        &self,
+        p: &Mat<f64>,
+        m: f64,
+        rhs: &Mat<f64>,
+        tt: &[f64],
+        weights: &mut [f64],
+        lambdas: &mut [f64],
+    ) -> Result<f64, DmpError> {
+        let nb = self.template.n_basis();
+        let n = m * self.template.n_samples() as f64;
+        let gram = &self.gram * faer::Scale(m);
+        let mut condition = f64::NAN;
+        for (d, t2) in tt.iter().enumerate() {
+            let r = rhs.col(d).as_mat().to_owned();
+            let lam = gcv_lambda(&gram, p, &r, *t2, n)?;
+            let a = &gram + p * faer::Scale(lam);
+            let sol = solve_spd(&a, &r)?;
+            for i in 0..nb {
+                weights[d * nb + i] = sol[(i, 0)];
+            }
+            lambdas[d] = lam;
+            if d == 0 {
+                condition = condition_number(&a);
+            }
+        }
+        Ok(condition)
     }
 
     /// The per-dimension targets of one trajectory (dimension-major positions on the grid).
@@ -342,6 +396,45 @@ impl Imitator {
         regression: Regression,
         combine: Combine,
     ) -> Result<Imitation, DmpError> {
+        let fit = self.fit(demos, regression, combine)?;
+        let ns = self.template.n_samples();
+        let dims = fit.reference.len();
+        let start: Vec<f64> = (0..dims).map(|d| fit.reference[d][0]).collect();
+        let goal: Vec<f64> = (0..dims).map(|d| fit.reference[d][ns - 1]).collect();
+        let dmp = self.template.with_endpoints(&start, &goal)?;
+        let traj = dmp.rollout(&fit.weights);
+        let report = report(
+            &traj,
+            &fit.reference,
+            fit.lambdas,
+            fit.condition,
+            self.template.config().step(),
+        );
+        Ok(Imitation {
+            dmp,
+            weights: fit.weights,
+            report,
+            reference: fit.reference,
+        })
+    }
+
+    /// Only the weights of [`Imitator::imitate`] (no validation rollout, no report), for
+    /// loops that fit many times.
+    pub fn weights(
+        &self,
+        demos: &[Demonstration],
+        regression: Regression,
+        combine: Combine,
+    ) -> Result<Vec<f64>, DmpError> {
+        Ok(self.fit(demos, regression, combine)?.weights)
+    }
+
+    fn fit(
+        &self,
+        demos: &[Demonstration],
+        regression: Regression,
+        combine: Combine,
+    ) -> Result<Fit, DmpError> {
         let Some(first) = demos.first() else {
             return Err(DmpError::InvalidDemonstration {
                 reason: "no demonstrations".into(),
@@ -360,13 +453,19 @@ impl Imitator {
         let ns = self.template.n_samples();
         let nb = self.template.n_basis();
         let resampled: Vec<Vec<Vec<f64>>> = demos.iter().map(|d| d.resample(ns)).collect();
-        let mean: Vec<Vec<f64>> = (0..dims)
-            .map(|d| {
-                (0..ns)
-                    .map(|k| resampled.iter().map(|r| r[d][k]).sum::<f64>() / demos.len() as f64)
-                    .collect()
-            })
-            .collect();
+        let mean: Vec<Vec<f64>> = if resampled.len() == 1 {
+            resampled[0].clone()
+        } else {
+            (0..dims)
+                .map(|d| {
+                    (0..ns)
+                        .map(|k| {
+                            resampled.iter().map(|r| r[d][k]).sum::<f64>() / demos.len() as f64
+                        })
+                        .collect()
+                })
+                .collect()
+        };
         let fitted: Vec<Vec<Vec<f64>>> = match combine {
             Combine::Mean => vec![self.targets(&mean)?],
             Combine::Stack => resampled
@@ -375,92 +474,180 @@ impl Imitator {
                 .collect::<Result<_, _>>()?,
         };
         let m = fitted.len() as f64;
-        let phi = self.phi();
         let mut weights = vec![0.0; dims * nb];
         let mut lambdas = vec![0.0; dims];
-        let mut condition = f64::NAN;
-        for d in 0..dims {
-            // Φᵀ t summed over the stacked targets, and Σ ‖t‖².
-            let mut rhs = Mat::<f64>::zeros(nb, 1);
-            let mut tt = 0.0;
-            for t in &fitted {
-                let tv = faer::MatRef::from_column_major_slice(&t[d], ns, 1);
-                rhs += phi.transpose() * tv;
-                tt += t[d].iter().map(|v| v * v).sum::<f64>();
-            }
-            let w = &mut weights[d * nb..(d + 1) * nb];
-            match regression {
-                Regression::Lwr => {
-                    let basis = self.template.basis();
-                    let x = self.template.phases();
-                    for (i, wi) in w.iter_mut().enumerate() {
-                        let (c, h) = (basis.centers()[i], basis.widths()[i]);
-                        let (mut num, mut den) = (0.0, 0.0);
-                        for (k, &xk) in x.iter().enumerate() {
-                            let psi = (-h * (xk - c) * (xk - c)).exp();
-                            den += psi * xk * xk;
-                            for t in &fitted {
-                                num += psi * xk * t[d][k];
-                            }
-                        }
-                        *wi = if den > 0.0 { num / (m * den) } else { 0.0 };
-                    }
-                    if d == 0 {
-                        condition = condition_number(&self.gram);
-                    }
+        // Φᵀ T for every dimension at once (summed over stacked targets), and Σ ‖t‖².
+        let mut rhs = Mat::<f64>::zeros(nb, dims);
+        let mut tt = vec![0.0; dims];
+        let features = &self.template.grid().features;
+        for t in &fitted {
+            let cols: Vec<&[f64]> = t.iter().map(Vec::as_slice).collect();
+            let mut out = vec![0.0; nb * dims];
+            project(features, ns, &cols, &mut out);
+            for d in 0..dims {
+                for i in 0..nb {
+                    rhs[(i, d)] += out[i * dims + d];
                 }
-                Regression::Ridge { lambda } | Regression::JerkRidge { lambda } => {
-                    let gram = &self.gram * faer::Scale(m);
-                    let penalty = match regression {
-                        Regression::JerkRidge { .. } => self.jerk_penalty().clone(),
-                        _ => Mat::identity(nb, nb),
-                    };
-                    let lam = match lambda {
-                        Lambda::Fixed(l) if l.is_finite() && l >= 0.0 => l,
-                        Lambda::Fixed(l) => {
-                            return Err(DmpError::InvalidConfig {
-                                field: "lambda",
-                                rule: "must be finite and ≥ 0",
-                                value: l,
-                            });
-                        }
-                        Lambda::Auto => gcv_lambda(&gram, &penalty, &rhs, tt, m * ns as f64)?,
-                    };
-                    let a = &gram + &penalty * faer::Scale(lam);
-                    let sol = solve_spd(&a, &rhs)?;
-                    for (i, wi) in w.iter_mut().enumerate() {
-                        *wi = sol[(i, 0)];
-                    }
-                    lambdas[d] = lam;
-                    if d == 0 {
-                        condition = condition_number(&a);
-                    }
-                }
+                tt[d] += t[d].iter().map(|v| v * v).sum::<f64>();
             }
         }
+        let lambda_of = |lambda: Lambda| match lambda {
+            Lambda::Fixed(l) if l.is_finite() && l >= 0.0 => Ok(Some(l)),
+            Lambda::Fixed(l) => Err(DmpError::InvalidConfig {
+                field: "lambda",
+                rule: "must be finite and ≥ 0",
+                value: l,
+            }),
+            Lambda::Auto => Ok(None),
+        };
+        let condition = match regression {
+            Regression::Lwr => {
+                let basis = self.template.basis();
+                let x = self.template.phases();
+                for (i, (&c, &h)) in basis.centers().iter().zip(basis.widths()).enumerate() {
+                    let (mut num, mut den) = (vec![0.0; dims], 0.0);
+                    for (k, &xk) in x.iter().enumerate() {
+                        let psi = (-h * (xk - c) * (xk - c)).exp();
+                        den += psi * xk * xk;
+                        for t in &fitted {
+                            for d in 0..dims {
+                                num[d] += psi * xk * t[d][k];
+                            }
+                        }
+                    }
+                    for d in 0..dims {
+                        weights[d * nb + i] = if den > 0.0 { num[d] / (m * den) } else { 0.0 };
+                    }
+                }
+                let ev = self.gram_eigenvalues();
+                ev[nb - 1] / ev[0]
+            }
+            Regression::Ridge { lambda } => match lambda_of(lambda)? {
+                // One factorisation serves every dimension.
+                Some(lam) => {
+                    let a = &self.gram * faer::Scale(m)
+                        + Mat::<f64>::identity(nb, nb) * faer::Scale(lam);
+                    let sol = solve_spd(&a, &rhs)?;
+                    for d in 0..dims {
+                        for i in 0..nb {
+                            weights[d * nb + i] = sol[(i, d)];
+                        }
+                    }
+                    lambdas.fill(lam);
+                    let ev = self.gram_eigenvalues();
+                    (m * ev[nb - 1] + lam) / (m * ev[0] + lam)
+                }
+                None => self.penalised(
+                    &Mat::identity(nb, nb),
+                    m,
+                    &rhs,
+                    &tt,
+                    &mut weights,
+                    &mut lambdas,
+                )?,
+            },
+            Regression::JerkRidge { lambda } => {
+                let p = self.jerk_penalty();
+                match lambda_of(lambda)? {
+                    Some(lam) => {
+                        let a = &self.gram * faer::Scale(m) + p * faer::Scale(lam);
+                        let sol = solve_spd(&a, &rhs)?;
+                        for d in 0..dims {
+                            for i in 0..nb {
+                                weights[d * nb + i] = sol[(i, d)];
+                            }
+                        }
+                        lambdas.fill(lam);
+                        condition_number(&a)
+                    }
+                    None => self.penalised(p, m, &rhs, &tt, &mut weights, &mut lambdas)?,
+                }
+            }
+        };
         if let Some(i) = weights.iter().position(|v| !v.is_finite()) {
             return Err(DmpError::NumericalFailure(format!(
                 "weight {i} came out non-finite; try a larger λ"
             )));
         }
-        let start: Vec<f64> = (0..dims).map(|d| mean[d][0]).collect();
-        let goal: Vec<f64> = (0..dims).map(|d| mean[d][ns - 1]).collect();
-        let dmp = self.template.with_endpoints(&start, &goal)?;
-        let traj = dmp.rollout(&weights);
-        let report = report(
-            &traj,
-            &mean,
+        Ok(Fit {
+            weights,
             lambdas,
             condition,
-            self.template.config().step(),
-        );
-        Ok(Imitation {
-            dmp,
-            weights,
-            report,
             reference: mean,
         })
     }
+}
+
+/// What a regression produced, before validation.
+struct Fit {
+    weights: Vec<f64>,
+    lambdas: Vec<f64>,
+    condition: f64,
+    reference: Vec<Vec<f64>>,
+}
+
+/// `out[i * T + j] = Φ_iᵀ t_j` for every feature column `i` of the column-major `features`
+/// (`ns` rows) and every target `t_j`: each feature value is loaded once for all targets.
+/// SIMD with runtime dispatch.
+fn project(features: &[f64], ns: usize, targets: &[&[f64]], out: &mut [f64]) {
+    struct Project<'a> {
+        features: &'a [f64],
+        ns: usize,
+        targets: &'a [&'a [f64]],
+        out: &'a mut [f64],
+    }
+    impl pulp::WithSimd for Project<'_> {
+        type Output = ();
+        #[inline(always)]
+        fn with_simd<S: pulp::Simd>(self, simd: S) {
+            let nt = self.targets.len();
+            for (i, col) in self.features.chunks_exact(self.ns).enumerate() {
+                for j0 in (0..nt).step_by(3) {
+                    let width = (nt - j0).min(3);
+                    let (ch, ct) = S::as_simd_f64s(col);
+                    let heads: [&[S::f64s]; 3] = std::array::from_fn(|j| {
+                        S::as_simd_f64s(self.targets[j0 + j.min(width - 1)]).0
+                    });
+                    let zero = simd.splat_f64s(0.0);
+                    let (mut a0, mut a1, mut a2) = ([zero; 2], [zero; 2], [zero; 2]);
+                    let pairs = ch.len() / 2;
+                    for p in 0..pairs {
+                        let (k0, k1) = (2 * p, 2 * p + 1);
+                        let (x0, x1) = (ch[k0], ch[k1]);
+                        a0[0] = simd.mul_add_e_f64s(x0, heads[0][k0], a0[0]);
+                        a1[0] = simd.mul_add_e_f64s(x0, heads[1][k0], a1[0]);
+                        a2[0] = simd.mul_add_e_f64s(x0, heads[2][k0], a2[0]);
+                        a0[1] = simd.mul_add_e_f64s(x1, heads[0][k1], a0[1]);
+                        a1[1] = simd.mul_add_e_f64s(x1, heads[1][k1], a1[1]);
+                        a2[1] = simd.mul_add_e_f64s(x1, heads[2][k1], a2[1]);
+                    }
+                    if ch.len() % 2 == 1 {
+                        let k = ch.len() - 1;
+                        a0[0] = simd.mul_add_e_f64s(ch[k], heads[0][k], a0[0]);
+                        a1[0] = simd.mul_add_e_f64s(ch[k], heads[1][k], a1[0]);
+                        a2[0] = simd.mul_add_e_f64s(ch[k], heads[2][k], a2[0]);
+                    }
+                    let acc = [a0, a1, a2];
+                    for (j, acc) in acc.iter().enumerate().take(width) {
+                        let t = self.targets[j0 + j];
+                        let tail = &t[t.len() - ct.len()..];
+                        let mut total = simd.reduce_sum_f64s(simd.add_f64s(acc[0], acc[1]));
+                        for (x, y) in ct.iter().zip(tail) {
+                            total += x * y;
+                        }
+                        self.out[i * nt + j0 + j] = total;
+                    }
+                }
+            }
+        }
+    }
+    assert!(targets.iter().all(|t| t.len() == ns), "target lengths");
+    pulp::Arch::new().dispatch(Project {
+        features,
+        ns,
+        targets,
+        out,
+    });
 }
 
 /// First and second derivatives on a uniform grid of step `h`: fourth-order central
@@ -470,21 +657,24 @@ fn derivatives(y: &[f64], h: f64) -> (Vec<f64>, Vec<f64>) {
     let n = y.len();
     let mut v = vec![0.0; n];
     let mut a = vec![0.0; n];
-    for k in 1..n - 1 {
-        if k >= 2 && k + 2 < n {
-            v[k] = (y[k - 2] - 8.0 * y[k - 1] + 8.0 * y[k + 1] - y[k + 2]) / (12.0 * h);
-            a[k] = (-y[k - 2] + 16.0 * y[k - 1] - 30.0 * y[k] + 16.0 * y[k + 1] - y[k + 2])
-                / (12.0 * h * h);
-        } else {
-            v[k] = (y[k + 1] - y[k - 1]) / (2.0 * h);
-            a[k] = (y[k + 1] - 2.0 * y[k] + y[k - 1]) / (h * h);
+    let (i2h, ih2) = (0.5 / h, 1.0 / (h * h));
+    let (i12h, i12h2) = (1.0 / (12.0 * h), 1.0 / (12.0 * h * h));
+    for k in (1..n - 1).filter(|&k| k < 2 || k + 2 >= n) {
+        v[k] = (y[k + 1] - y[k - 1]) * i2h;
+        a[k] = (y[k + 1] - 2.0 * y[k] + y[k - 1]) * ih2;
+    }
+    if n >= 5 {
+        for (k, w) in y.windows(5).enumerate() {
+            let (ym2, ym1, y0, yp1, yp2) = (w[0], w[1], w[2], w[3], w[4]);
+            v[k + 2] = (ym2 - yp2 + 8.0 * (yp1 - ym1)) * i12h;
+            a[k + 2] = (16.0 * (ym1 + yp1) - (ym2 + yp2) - 30.0 * y0) * i12h2;
         }
     }
-    v[0] = (-3.0 * y[0] + 4.0 * y[1] - y[2]) / (2.0 * h);
-    v[n - 1] = (3.0 * y[n - 1] - 4.0 * y[n - 2] + y[n - 3]) / (2.0 * h);
+    v[0] = (-3.0 * y[0] + 4.0 * y[1] - y[2]) * i2h;
+    v[n - 1] = (3.0 * y[n - 1] - 4.0 * y[n - 2] + y[n - 3]) * i2h;
     if n >= 4 {
-        a[0] = (2.0 * y[0] - 5.0 * y[1] + 4.0 * y[2] - y[3]) / (h * h);
-        a[n - 1] = (2.0 * y[n - 1] - 5.0 * y[n - 2] + 4.0 * y[n - 3] - y[n - 4]) / (h * h);
+        a[0] = (2.0 * y[0] - 5.0 * y[1] + 4.0 * y[2] - y[3]) * ih2;
+        a[n - 1] = (2.0 * y[n - 1] - 5.0 * y[n - 2] + 4.0 * y[n - 3] - y[n - 4]) * ih2;
     } else {
         a[0] = a[1];
         a[n - 1] = a[n - 2];
