@@ -44,6 +44,8 @@ mod jet;
 #[cfg(feature = "serde")]
 mod model;
 mod online;
+mod quaternion;
+mod rhythmic;
 mod trajectory;
 
 pub use basis::GaussianBasis;
@@ -57,4 +59,6 @@ pub use imitation::{
 #[cfg(feature = "serde")]
 pub use model::{BasisRecord, ConfigRecord, DmpModel, MODEL_FORMAT, MODEL_VERSION};
 pub use online::{OnlineDmp, StepInput};
+pub use quaternion::{OrientationTrajectory, QuaternionDmp};
+pub use rhythmic::{RhythmicDmp, RhythmicRollout};
 pub use trajectory::{Trajectory, locate_on_grid};

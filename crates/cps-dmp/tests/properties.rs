@@ -1,4 +1,8 @@
-//! Property tests of the discrete DMP against analytic facts.
+//! Property tests of the DMP crate against analytic facts and reference constructions:
+//! discrete rollouts, formulations, online stepping, imitation, rhythmic and orientation
+//! DMPs.
+
+#![allow(clippy::needless_range_loop)] // numeric tests index several arrays in step
 
 use cps_dmp::{DiscreteDmp, DmpConfig};
 use proptest::prelude::*;
@@ -662,5 +666,138 @@ mod imitation {
         };
         let d = Demonstration::new(t, &[vec![0.0], vec![1.0], vec![2.0]]).unwrap();
         assert!(imitate(&cfg, &[d], lam, Combine::Mean).is_err());
+    }
+}
+
+mod rhythmic {
+    use cps_dmp::RhythmicDmp;
+
+    /// One period (2 s) of a two-harmonic movement in 2-D, last sample = first.
+    fn period() -> (Vec<f64>, Vec<Vec<f64>>) {
+        let times: Vec<f64> = (0..=400).map(|k| 2.0 * k as f64 / 400.0).collect();
+        let w = std::f64::consts::PI; // 2π / 2 s
+        let rows = times
+            .iter()
+            .map(|&t| {
+                vec![
+                    0.3 + 0.1 * (w * t).sin() + 0.03 * (2.0 * w * t).cos(),
+                    -0.2 + 0.05 * (w * t).cos(),
+                ]
+            })
+            .collect();
+        (times, rows)
+    }
+
+    /// Learned from one period, the DMP reproduces it, repeats it period after period,
+    /// and its amplitude scales the oscillation about the anchor.
+    #[test]
+    fn learned_from_one_period_it_is_periodic_and_its_amplitude_scales() {
+        let (times, rows) = period();
+        let dmp = RhythmicDmp::learn(&times, &rows, 30, 400, 1e-10).unwrap();
+        assert!((dmp.tau - 2.0 / std::f64::consts::TAU).abs() < 1e-12);
+        let run = dmp.rollout(6.0, 0.005).unwrap(); // three periods
+        let per = 400; // samples per period at dt = 5 ms
+        let mut worst_fit = 0.0f64;
+        let mut worst_period = 0.0f64;
+        for d in 0..2 {
+            for k in 0..per {
+                worst_fit = worst_fit.max((run.position[d][k] - rows[k][d]).abs());
+                worst_period =
+                    worst_period.max((run.position[d][k + 2 * per] - run.position[d][k]).abs());
+            }
+        }
+        assert!(worst_fit < 1e-4, "fit {worst_fit}");
+        assert!(worst_period < 1e-4, "periodicity {worst_period}");
+        // Doubling r (with the start scaled about the anchor) doubles y − g.
+        let mut big = dmp.clone();
+        big.amplitude = vec![2.0, 2.0];
+        for d in 0..2 {
+            big.start[d] = dmp.anchor[d] + 2.0 * (dmp.start[d] - dmp.anchor[d]);
+            big.start_velocity[d] = 2.0 * dmp.start_velocity[d];
+        }
+        let run2 = big.rollout(6.0, 0.005).unwrap();
+        for d in 0..2 {
+            for k in 0..run.times.len() {
+                let (a, b) = (
+                    run.position[d][k] - dmp.anchor[d],
+                    run2.position[d][k] - dmp.anchor[d],
+                );
+                assert!((b - 2.0 * a).abs() < 1e-12, "{d} {k}: {b} vs {a}");
+            }
+        }
+        // Bad input.
+        assert!(dmp.rollout(1.0, 0.0).is_err());
+        assert!(RhythmicDmp::learn(&times[..2], &rows[..2], 10, 100, 0.0).is_err());
+        let mut wrong = dmp.clone();
+        wrong.weights.pop();
+        assert!(wrong.rollout(1.0, 0.01).is_err());
+    }
+}
+
+mod orientation {
+    use cps_dmp::{DmpConfig, QuaternionDmp};
+    use nalgebra::{UnitQuaternion, Vector3};
+
+    fn q(rx: f64, ry: f64, rz: f64) -> UnitQuaternion<f64> {
+        UnitQuaternion::from_scaled_axis(Vector3::new(rx, ry, rz))
+    }
+
+    /// Zero weights turn the tool to the goal; every sample is a unit quaternion.
+    #[test]
+    fn zero_weights_reach_the_goal_orientation_and_stay_unit() {
+        let cfg = DmpConfig::new(20, 2.0, 0.002);
+        let (start, goal) = (q(0.3, -0.2, 1.0), q(-1.2, 0.4, 2.5));
+        let dmp = QuaternionDmp::new(cfg, start, goal).unwrap();
+        let run = dmp.rollout(&vec![0.0; dmp.n_weights()]);
+        for o in &run.orientation {
+            assert!((o.coords.norm() - 1.0).abs() < 1e-12);
+        }
+        let end = run.orientation.last().unwrap();
+        assert!(end.angle_to(&goal) < 2e-3, "{}", end.angle_to(&goal));
+        assert!(run.orientation[0].angle_to(&start) < 1e-15);
+        // With random weights it still stays unit and ends at the goal.
+        let w: Vec<f64> = (0..dmp.n_weights())
+            .map(|i| ((i * 37 % 11) as f64 - 5.0) * 3.0)
+            .collect();
+        let run = dmp.rollout(&w);
+        assert!(
+            run.orientation
+                .iter()
+                .all(|o| (o.coords.norm() - 1.0).abs() < 1e-12)
+        );
+        assert!(run.orientation.last().unwrap().angle_to(&goal) < 5e-3);
+    }
+
+    /// An orientation movement learned from its samples is reproduced, and a new goal
+    /// is reached.
+    #[test]
+    fn an_orientation_demo_is_learned_back() {
+        let times: Vec<f64> = (0..=500).map(|k| 2.0 * k as f64 / 500.0).collect();
+        let demo: Vec<UnitQuaternion<f64>> = times
+            .iter()
+            .map(|&t| {
+                let s = t / 2.0;
+                let mj = 10.0 * s.powi(3) - 15.0 * s.powi(4) + 6.0 * s.powi(5);
+                q(
+                    0.2 + 0.8 * mj,
+                    -0.5 * mj + 0.2 * (std::f64::consts::PI * s).sin().powi(2),
+                    1.5 * mj,
+                )
+            })
+            .collect();
+        let cfg = DmpConfig::new(30, 2.0, 0.004);
+        let (dmp, w) = QuaternionDmp::learn(cfg, &times, &demo, 1e-10).unwrap();
+        let run = dmp.rollout(&w);
+        let worst = run
+            .orientation
+            .iter()
+            .zip(run.times.iter())
+            .map(|(o, &t)| o.angle_to(&demo[(t / 2.0 * 500.0).round() as usize]))
+            .fold(0.0f64, f64::max);
+        assert!(worst < 5e-4, "worst angle error {worst} rad");
+        let new_goal = q(0.0, 0.3, 2.0);
+        let moved = dmp.with_goal(new_goal).rollout(&w);
+        assert!(moved.orientation.last().unwrap().angle_to(&new_goal) < 1e-2);
+        assert!(QuaternionDmp::learn(cfg, &times[..2], &demo[..2], 0.0).is_err());
     }
 }
