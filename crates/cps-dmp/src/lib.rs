@@ -2,32 +2,44 @@
 //!
 //! A DMP turns a weight vector into a smooth trajectory from a start `y0` to a goal `g`
 //! (Ijspeert et al. 2013, "Dynamical Movement Primitives: Learning Attractor Models for
-//! Motor Behaviors"). This crate holds the discrete core:
+//! Motor Behaviors"). τ is always a duration in seconds; velocities and accelerations are
+//! physical (SI).
 //!
 //! - [`DmpConfig`]: gains (`alpha_z`, `beta_z`, `alpha_x`), number of basis functions,
-//!   duration `tau` in seconds and time step `dt`, validated once.
-//! - [`CanonicalSystem`]: the phase `x(t) = exp(-alpha_x t / tau)`, stepped exactly.
-//! - [`GaussianBasis`]: the basis functions `psi_i(x)` spread evenly in time.
-//! - [`DiscreteDmp`]: one DMP per dimension sharing phase, basis and `tau`, with everything
-//!   that does not depend on the weights precomputed, so that [`DiscreteDmp::rollout_into`]
-//!   is one small matrix product plus a cheap linear recurrence.
-//! - [`Trajectory`]: position, **physical** velocity (m/s) and acceleration (m/s²) on the
-//!   time grid, one contiguous slice per dimension.
+//!   duration `tau`, time step `dt` and the [`Formulation`] (Ijspeert 2013, or the
+//!   goal-robust Hoffmann/Pastor 2009 form), validated once.
+//! - [`DiscreteDmp`]: one DMP per dimension sharing phase ([`CanonicalSystem`]), basis
+//!   ([`GaussianBasis`]) and `tau`, with everything that does not depend on the weights
+//!   precomputed, so that [`DiscreteDmp::rollout_into`] is one small matrix product plus a
+//!   cheap exact linear recurrence; [`DiscreteDmp::rollout_stream`] runs eight candidates
+//!   at once for population costs. [`Trajectory`] holds the samples.
+//! - [`OnlineDmp`]: the same model stepped one control period at a time, with live goal
+//!   and τ changes, phase stopping and coupling terms.
+//! - [`imitate`] / [`Imitator`]: weights from demonstrations ([`Demonstration`]) by LWR,
+//!   ridge or jerk-regularised ridge, λ fixed or by cross-validation, with a [`FitReport`].
+//! - [`RhythmicDmp`] (periodic movements) and [`QuaternionDmp`] (tool orientations).
+//! - `DmpModel` (feature `serde`): learned DMPs as versioned JSON.
 //!
-//! The rollout is linear (affine) in the weights, which is what lets `cps-learn` compute
-//! the exact optimum of quadratic costs.
+//! The rollout is affine in the weights, which is what lets `cps-learn` compute the exact
+//! optimum of quadratic costs.
 //!
 //! # Example
 //! ```
-//! use cps_dmp::{DiscreteDmp, DmpConfig};
+//! use cps_dmp::{imitate, Combine, Demonstration, DiscreteDmp, DmpConfig, Regression};
 //! # fn main() -> Result<(), cps_dmp::DmpError> {
 //! let config = DmpConfig::new(25, 10.0, 0.01); // 25 bases, tau = 10 s, dt = 10 ms
 //! let dmp = DiscreteDmp::new(config, &[0.75, 0.02, 1.87], &[0.55, -0.57, 1.45])?;
-//! let weights = vec![0.0; dmp.n_weights()]; // 3 dims x 25 bases
-//! let traj = dmp.rollout(&weights);
+//! let traj = dmp.rollout(&vec![0.0; dmp.n_weights()]); // 3 dims x 25 bases
 //! let end = traj.n_samples() - 1;
 //! assert!((traj.position(2)[end] - 1.45).abs() < 1e-2); // zero weights: to the goal
-//! assert_eq!(traj.times()[end], 10.0);
+//!
+//! // Learn the weights back from that movement, sampled at its own time stamps.
+//! let rows: Vec<Vec<f64>> = (0..traj.n_samples())
+//!     .map(|k| (0..3).map(|d| traj.position(d)[k]).collect())
+//!     .collect();
+//! let demo = Demonstration::new(traj.times().to_vec(), &rows)?;
+//! let fit = imitate(&config, &[demo], Regression::default(), Combine::Mean)?;
+//! assert!(fit.report.rmse.iter().all(|&e| e < 1e-5));
 //! # Ok(())
 //! # }
 //! ```
