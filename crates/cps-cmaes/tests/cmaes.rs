@@ -293,3 +293,113 @@ fn evaluation_counts_match_pycma_at_n_10() {
         );
     }
 }
+
+/// Each stopping rule fires in the situation it is made for, and is reported by name.
+mod stopping_rules {
+    use cps_cmaes::{
+        CmaesConfig, FnObjective, NoObserver, Solution, StopRule, functions, minimize,
+    };
+
+    fn stop(f: impl Fn(&[f64]) -> f64 + Sync, x0: &[f64], sigma0: f64, rule: StopRule) -> Solution {
+        let rules = [rule, StopRule::MaxGenerations(50_000)];
+        minimize(
+            &FnObjective(f),
+            x0,
+            &CmaesConfig::new(sigma0, 3),
+            &rules,
+            &mut NoObserver,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn budgets_and_targets() {
+        let s = stop(
+            functions::sphere,
+            &[1.0; 5],
+            0.5,
+            StopRule::MaxGenerations(7),
+        );
+        assert_eq!(
+            (s.termination.name(), s.generations),
+            ("max_generations", 7)
+        );
+        let s = stop(
+            functions::sphere,
+            &[1.0; 5],
+            0.5,
+            StopRule::MaxEvaluations(100),
+        );
+        assert_eq!(s.termination.name(), "max_evaluations");
+        assert!(
+            s.evaluations <= 100 && s.evaluations + 8 > 100,
+            "{}",
+            s.evaluations
+        );
+        let s = stop(
+            functions::sphere,
+            &[1.0; 5],
+            0.5,
+            StopRule::TargetCost(1e-3),
+        );
+        assert_eq!(s.termination.name(), "target_cost");
+        assert!(s.best_cost <= 1e-3);
+    }
+
+    #[test]
+    fn convergence_rules_tolfun_and_tolx() {
+        let s = stop(functions::sphere, &[1.0; 5], 0.5, StopRule::TolFun(1e-12));
+        assert_eq!(s.termination.name(), "tolfun");
+        assert!(s.best_cost < 1e-10, "{}", s.best_cost);
+        let s = stop(functions::sphere, &[1.0; 5], 0.5, StopRule::TolX(1e-7));
+        assert_eq!(s.termination.name(), "tolx");
+        // σ·max(|p_c|, √C_ii) < 1e-7 per coordinate: the best point is that close.
+        assert!(s.best_cost < 1e-12, "f {}", s.best_cost);
+    }
+
+    #[test]
+    fn divergence_and_conditioning_rules() {
+        // On a linear function the step size grows without bound.
+        let s = stop(|x: &[f64]| x[0], &[0.0; 4], 1.0, StopRule::TolUpSigma(1e3));
+        assert_eq!(s.termination.name(), "tolupsigma");
+        assert!(s.sigma > 1e3, "σ {}", s.sigma);
+        // A badly scaled ellipsoid drives the covariance's condition past the threshold.
+        let scaled = |x: &[f64]| {
+            x.iter()
+                .enumerate()
+                .map(|(i, v)| 1e4f64.powi(i as i32) * v * v)
+                .sum()
+        };
+        let s = stop(scaled, &[1.0; 4], 1.0, StopRule::ConditionCov(1e6));
+        assert_eq!(s.termination.name(), "conditioncov");
+    }
+
+    #[test]
+    fn flat_and_stagnating_landscapes() {
+        let s = stop(|_: &[f64]| 1.0, &[0.0; 3], 1.0, StopRule::FlatFitness(5));
+        assert_eq!((s.termination.name(), s.generations), ("flat_fitness", 5));
+        // Deterministic noise: no progress is possible, the medians stop improving.
+        let noise = |x: &[f64]| {
+            let h = x.iter().fold(0xcbf29ce484222325u64, |h, v| {
+                (h ^ v.to_bits()).wrapping_mul(0x100000001b3)
+            });
+            (h >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let s = stop(noise, &[0.0; 3], 1.0, StopRule::Stagnation);
+        assert_eq!(s.termination.name(), "stagnation");
+        assert!(s.generations >= 120, "{}", s.generations);
+    }
+
+    #[test]
+    fn numerical_no_effect_rules() {
+        // A step far below the resolution of the mean's coordinates changes nothing.
+        let far = [1e20; 3];
+        let s = stop(functions::sphere, &far, 1e-6, StopRule::NoEffectAxis);
+        assert_eq!(s.termination.name(), "noeffectaxis");
+        let s = stop(functions::sphere, &far, 1e-6, StopRule::NoEffectCoord);
+        assert_eq!(s.termination.name(), "noeffectcoord");
+        // Near the origin neither fires early.
+        let s = stop(functions::sphere, &[1.0; 3], 0.5, StopRule::NoEffectCoord);
+        assert!(s.generations > 50, "{}", s.generations);
+    }
+}
