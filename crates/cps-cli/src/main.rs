@@ -8,6 +8,7 @@
 //! cps-cli ik --robot panda --target 0.4,0.2,0.5[,qx,qy,qz,qw] [--seed-q ...] [--json]
 //! cps-cli robot show panda|configs/robots/ur3.toml|configs/robots/panda.urdf [--tool NAME] [--tip LINK]
 //! cps-cli scene check configs/scenes/thesis.toml [--json]
+//! cps-cli cmaes bench sphere|ellipsoid|cigar|discus|rosenbrock|rastrigin --dim N --seeds A..B [--ipop] [--json]
 //! cps-cli imitate demo.csv [more.csv ...] [--bases N] [--method lwr|ridge|jerk] [--lambda X|auto] [--tau S] --out model.json [--plot fit.png]
 //! cps-cli rollout model.json [--start ...] [--goal ...] [--tau S] [--dt S] --out traj.csv [--plot traj.png]
 //! ```
@@ -27,6 +28,7 @@ macro_rules! say {
     }};
 }
 
+mod cmaes_bench;
 mod experiment;
 mod movement;
 mod output;
@@ -101,6 +103,11 @@ enum Command {
         #[command(subcommand)]
         command: robot::RobotCommand,
     },
+    /// The optimiser alone: standard test functions in the reference set-up.
+    Cmaes {
+        #[command(subcommand)]
+        command: cmaes_bench::CmaesCommand,
+    },
     /// Learn a DMP model (JSON) from demonstrations (CSV).
     Imitate(movement::ImitateArgs),
     /// Roll out a DMP model into a trajectory (CSV), with optional new start, goal, τ.
@@ -149,6 +156,7 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
         Command::Robot { command } => robot::robot(&command),
         Command::Scene { command } => scene::scene(&command),
         Command::Imitate(args) => movement::run_imitate(&args),
+        Command::Cmaes { command } => cmaes_bench::bench(&command),
         Command::Rollout(args) => movement::run_rollout(&args),
         Command::Check { file } => {
             let exp = experiment::load(&file, None)?;

@@ -861,3 +861,31 @@ fn bad_demonstrations_and_models_exit_2_and_write_nothing() {
     assert!(stderr(&o).contains("--tau"), "{}", stderr(&o));
     assert!(!traj.exists());
 }
+
+#[test]
+fn cmaes_bench_prints_per_seed_results() {
+    let o = cli(&[
+        "cmaes", "bench", "sphere", "--dim", "5", "--seeds", "1..3", "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v = stdout_json(&o);
+    let rows = v.as_array().unwrap();
+    assert_eq!(rows.len(), 3);
+    for (i, r) in rows.iter().enumerate() {
+        assert_eq!(r["seed"], (i + 1) as u64);
+        assert_eq!(r["success"], true);
+        assert!(r["best"].as_f64().unwrap() <= 1e-8);
+        assert!(r["evaluations"].as_u64().unwrap() > 100);
+    }
+    for (args, expect) in [
+        (
+            vec!["cmaes", "bench", "sphere", "--seeds", "5..2"],
+            "--seeds",
+        ),
+        (vec!["cmaes", "bench", "sphere", "--dim", "0"], "--dim"),
+    ] {
+        let o = cli(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        assert!(stderr(&o).contains(expect), "{}", stderr(&o));
+    }
+}

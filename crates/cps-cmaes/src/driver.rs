@@ -190,3 +190,81 @@ pub fn minimize<O: Objective + ?Sized>(
         termination,
     })
 }
+
+/// The result of [`minimize_ipop`]: the overall best and every run.
+#[derive(Debug, Clone)]
+pub struct RestartSolution {
+    /// The best candidate over all runs; `evaluations`, `non_finite_evaluations`,
+    /// `repairs` and `generations` are totals; `termination` is the last run's.
+    pub best: Solution,
+    /// Each run in order (run r has population λ₀ · 2^r).
+    pub runs: Vec<Solution>,
+}
+
+/// IPOP-CMA-ES (Auger & Hansen 2005): runs [`minimize`] and, while a run ends by a rule
+/// other than the target, the budget or an interruption, restarts it from the same `x0`
+/// and σ₀ with the population doubled, up to `max_restarts` times. Run r uses the seed
+/// `seed + r · 0x9E37_79B9_7F4A_7C15` (wrapping), so the whole sequence is reproducible.
+/// A [`StopRule::MaxEvaluations`] budget counts over all runs together.
+pub fn minimize_ipop<O: Objective + ?Sized>(
+    objective: &O,
+    x0: &[f64],
+    config: &CmaesConfig,
+    rules: &[StopRule],
+    max_restarts: usize,
+    observer: &mut dyn Observer,
+) -> Result<RestartSolution, CmaesError> {
+    config.validate(x0.len())?;
+    let lambda0 = config
+        .population
+        .unwrap_or_else(|| crate::Parameters::default_lambda(x0.len()));
+    let mut runs: Vec<Solution> = Vec::new();
+    let mut spent = 0u64;
+    for r in 0..=max_restarts {
+        let cfg = CmaesConfig {
+            population: Some(lambda0 << r.min(20)),
+            seed: config
+                .seed
+                .wrapping_add((r as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)),
+            ..config.clone()
+        };
+        let budget: Vec<StopRule> = rules
+            .iter()
+            .map(|rule| match rule {
+                StopRule::MaxEvaluations(max) => {
+                    StopRule::MaxEvaluations(max.saturating_sub(spent))
+                }
+                other => other.clone(),
+            })
+            .collect();
+        let run = minimize(objective, x0, &cfg, &budget, observer)?;
+        spent += run.evaluations;
+        let done = matches!(
+            run.termination,
+            Termination::Interrupted
+                | Termination::Rule(StopRule::TargetCost(_))
+                | Termination::Rule(StopRule::MaxEvaluations(_))
+        );
+        runs.push(run);
+        if done {
+            break;
+        }
+    }
+    let best_run = runs
+        .iter()
+        .min_by(|a, b| a.best_cost.total_cmp(&b.best_cost))
+        .expect("at least one run");
+    let last = runs.last().expect("at least one run");
+    let best = Solution {
+        best_x: best_run.best_x.clone(),
+        best_cost: best_run.best_cost,
+        mean: best_run.mean.clone(),
+        sigma: best_run.sigma,
+        generations: runs.iter().map(|r| r.generations).sum(),
+        evaluations: spent,
+        non_finite_evaluations: runs.iter().map(|r| r.non_finite_evaluations).sum(),
+        repairs: runs.iter().map(|r| r.repairs).sum(),
+        termination: last.termination.clone(),
+    };
+    Ok(RestartSolution { best, runs })
+}

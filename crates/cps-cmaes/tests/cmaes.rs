@@ -403,3 +403,52 @@ mod stopping_rules {
         assert!(s.generations > 50, "{}", s.generations);
     }
 }
+
+/// The reference set-up of `cps-cli cmaes bench`: pycma's default termination.
+fn reference_rules(n: usize) -> Vec<StopRule> {
+    let mut rules = vec![
+        StopRule::TargetCost(1e-8),
+        StopRule::MaxEvaluations(2_000_000 * n as u64),
+        StopRule::TolFun(1e-11),
+        StopRule::TolX(1e-11),
+        StopRule::Stagnation,
+    ];
+    rules.extend(StopRule::safety_defaults());
+    rules
+}
+
+/// IPOP on Rastrigin, n = 10, x0 = 3·1, σ0 = 2: every one of seeds 1..10 reaches 1e-8
+/// (pycma 4.5.0: 10/10, median 47 142 evaluations).
+#[test]
+fn ipop_solves_rastrigin_10_for_every_seed() {
+    let mut evals = Vec::new();
+    for seed in 1..=10 {
+        let sol = cps_cmaes::minimize_ipop(
+            &FnObjective(functions::rastrigin),
+            &[3.0; 10],
+            &CmaesConfig::new(2.0, seed),
+            &reference_rules(10),
+            9,
+            &mut NoObserver,
+        )
+        .unwrap();
+        assert!(
+            sol.best.best_cost <= 1e-8,
+            "seed {seed}: {}",
+            sol.best.best_cost
+        );
+        assert_eq!(
+            sol.best.evaluations,
+            sol.runs.iter().map(|r| r.evaluations).sum::<u64>()
+        );
+        for (r, run) in sol.runs.iter().enumerate().skip(1) {
+            assert!(run.evaluations > 0, "restart {r} ran");
+        }
+        evals.push(sol.best.evaluations);
+    }
+    evals.sort_unstable();
+    eprintln!(
+        "IPOP rastrigin n=10: median {} evaluations (pycma 47 142)",
+        evals[5]
+    );
+}
