@@ -1,8 +1,42 @@
-//! CoppeliaSim transport for cps (not filled yet).
+//! CoppeliaSim transport for cps: the ZMQ remote-API client and a stand-in server.
 //!
-//! This crate will hold the CoppeliaSim ZMQ remote-API client (protocol v2 with fallback to
-//! v1, CBOR through one codec module), the Franka scene interface implementing the
-//! robot-backend trait of `cps-kinematics`, and an embedded stand-in server that speaks the
-//! same protocol so everything runs where CoppeliaSim is not installed. It is the only crate
-//! that knows ZMQ and CBOR.
+//! - [`Client`]: CoppeliaSim's ZMQ remote API, protocol v2 (CoppeliaSim 4.6+) with v1
+//!   detected, CBOR through one codec module, every call bounded by a timeout, a broken
+//!   socket rebuilt on the next call; typed wrappers for the `sim` functions cps uses
+//!   ([`Client::get_object`], [`Client::set_joint_position`], [`Client::step`], …).
+//! - [`StandInServer`]: the same protocol served by cps, backed by the in-process
+//!   kinematic robot, for machines without CoppeliaSim (tests, CI, students).
+//!
+//! This is the only crate that knows ZMQ and CBOR.
+//!
+//! # Example
+//! ```
+//! use cps_coppelia::{Client, ClientConfig, SceneSetup, ServerConfig, StandInServer};
+//! use cps_kinematics::robots::{panda, PandaTool};
+//! # fn main() -> Result<(), cps_coppelia::CoppeliaError> {
+//! let scene = SceneSetup {
+//!     robot_name: "Panda".into(),
+//!     chain: panda(PandaTool::HandTcp),
+//!     initial_q: vec![0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785],
+//!     dummies: vec![],
+//!     dt: 0.05,
+//! };
+//! let server = StandInServer::start(ServerConfig { bind: "127.0.0.1:0".into(), scene })?;
+//! let mut sim = Client::connect(ClientConfig { endpoint: server.endpoint().into(), ..ClientConfig::default() })?;
+//! let joint = sim.get_object("/Panda_joint1")?;
+//! sim.set_joint_position(joint, 0.3)?;
+//! assert_eq!(sim.get_joint_position(joint)?, 0.3);
+//! # Ok(())
+//! # }
+//! ```
 #![deny(missing_docs)]
+
+mod client;
+pub mod codec;
+mod error;
+mod server;
+pub mod sim;
+
+pub use client::{Client, ClientConfig, Protocol};
+pub use error::CoppeliaError;
+pub use server::{SceneSetup, ServerConfig, StandInServer};

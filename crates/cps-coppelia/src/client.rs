@@ -1,0 +1,283 @@
+//! The ZMQ remote-API client (protocol v2, CoppeliaSim 4.6+; v1 servers are detected and
+//! used for plain calls).
+
+use std::time::Duration;
+
+use tokio::runtime::Runtime;
+use zeromq::{ReqSocket, Socket, SocketOptions, SocketRecv, SocketSend, ZmqMessage};
+
+use crate::CoppeliaError;
+use crate::codec::{self, Value};
+
+/// Where the simulator is and how long to wait for it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClientConfig {
+    /// ZMQ endpoint, default `tcp://127.0.0.1:23000`.
+    pub endpoint: String,
+    /// Time allowed to connect and get the first reply. Default 5 s.
+    pub connect_timeout: Duration,
+    /// Time allowed for each call (a `sim.step` may take several round trips). Default
+    /// 10 s.
+    pub call_timeout: Duration,
+}
+
+impl Default for ClientConfig {
+    fn default() -> Self {
+        Self {
+            endpoint: "tcp://127.0.0.1:23000".into(),
+            connect_timeout: Duration::from_secs(5),
+            call_timeout: Duration::from_secs(10),
+        }
+    }
+}
+
+/// Which dialect the server speaks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Protocol {
+    /// CoppeliaSim 4.6 and later.
+    V2,
+    /// CoppeliaSim 4.3 – 4.5: plain calls only (no stepping through this client).
+    V1,
+}
+
+/// A connection to CoppeliaSim's ZMQ remote API (or the stand-in server). Calls are
+/// blocking; every call is bounded by the configured timeout, and a socket that timed out
+/// or failed is rebuilt on the next call. Dropping the client says goodbye (`_*end*_`).
+pub struct Client {
+    config: ClientConfig,
+    runtime: Runtime,
+    socket: Option<ReqSocket>,
+    uuid: String,
+    first: bool,
+    protocol: Protocol,
+}
+
+impl std::fmt::Debug for Client {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Client")
+            .field("endpoint", &self.config.endpoint)
+            .field("uuid", &self.uuid)
+            .field("protocol", &self.protocol)
+            .finish()
+    }
+}
+
+impl Client {
+    /// Connects and loads the `sim` namespace (`zmqRemoteApi.require("sim")`); falls back
+    /// to protocol v1 when the server does not know `require`.
+    pub fn connect(config: ClientConfig) -> Result<Self, CoppeliaError> {
+        if !config.endpoint.starts_with("tcp://") {
+            return Err(CoppeliaError::InvalidConfig(format!(
+                "endpoint `{}` must look like tcp://host:port",
+                config.endpoint
+            )));
+        }
+        if config.connect_timeout.is_zero() || config.call_timeout.is_zero() {
+            return Err(CoppeliaError::InvalidConfig("timeouts must be > 0".into()));
+        }
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .map_err(|e| {
+                CoppeliaError::InvalidConfig(format!("cannot start the I/O runtime: {e}"))
+            })?;
+        let mut client = Self {
+            config,
+            runtime,
+            socket: None,
+            uuid: uuid::Uuid::new_v4().to_string(),
+            first: true,
+            protocol: Protocol::V2,
+        };
+        match client.call_with("zmqRemoteApi.require", vec![codec::text("sim")], true) {
+            Ok(_) => {}
+            Err(CoppeliaError::Remote { message, .. }) if message.contains("No such function") => {
+                client.protocol = Protocol::V1;
+            }
+            Err(e) => return Err(e),
+        }
+        Ok(client)
+    }
+
+    /// The dialect in use.
+    pub fn protocol(&self) -> Protocol {
+        self.protocol
+    }
+
+    /// The endpoint.
+    pub fn endpoint(&self) -> &str {
+        &self.config.endpoint
+    }
+
+    fn err(
+        &self,
+        function: &str,
+        kind: fn(String, String, String) -> CoppeliaError,
+        message: String,
+    ) -> CoppeliaError {
+        kind(self.config.endpoint.clone(), function.to_string(), message)
+    }
+
+    /// Calls `func` with `args` and returns its return values.
+    pub fn call(&mut self, func: &str, args: Vec<Value>) -> Result<Vec<Value>, CoppeliaError> {
+        self.call_with(func, args, false)
+    }
+
+    fn request(&mut self, func: &str, args: &[Value]) -> Value {
+        let mut entries = vec![
+            ("func", codec::text(func)),
+            ("args", Value::Array(args.to_vec())),
+        ];
+        if self.protocol == Protocol::V2 {
+            entries.push(("argsL", codec::int(args.len() as i64)));
+            entries.push(("uuid", codec::text(&self.uuid)));
+            if self.first {
+                entries.push(("ver", codec::int(2)));
+                entries.push(("lang", codec::text("rust")));
+                entries.push(("timeout", codec::int(600)));
+            }
+        }
+        codec::map(entries)
+    }
+
+    /// One request/reply exchange within the deadline; on any failure the socket is
+    /// dropped so the next call starts afresh.
+    fn exchange(
+        &mut self,
+        func: &str,
+        message: Value,
+        timeout: Duration,
+    ) -> Result<Value, CoppeliaError> {
+        let endpoint = self.config.endpoint.clone();
+        let connect_timeout = self.config.connect_timeout;
+        let bytes = codec::encode(&message);
+        let mut socket = self.socket.take();
+        let result = self.runtime.block_on(async {
+            tokio::time::timeout(timeout, async {
+                if socket.is_none() {
+                    let mut options = SocketOptions::default();
+                    options.connect_timeout(connect_timeout);
+                    let mut s = ReqSocket::with_options(options);
+                    s.connect(&endpoint).await.map_err(|e| e.to_string())?;
+                    socket = Some(s);
+                }
+                let s = socket.as_mut().expect("socket just made");
+                s.send(ZmqMessage::from(bytes))
+                    .await
+                    .map_err(|e| e.to_string())?;
+                let reply = s.recv().await.map_err(|e| e.to_string())?;
+                let payload: Vec<u8> = reply
+                    .into_vec()
+                    .into_iter()
+                    .flat_map(|b| b.to_vec())
+                    .collect();
+                Ok::<Vec<u8>, String>(payload)
+            })
+            .await
+        });
+        match result {
+            Ok(Ok(payload)) => {
+                self.socket = socket;
+                codec::decode(&payload).map_err(|m| {
+                    self.err(
+                        func,
+                        |e, f, m| CoppeliaError::Protocol {
+                            endpoint: e,
+                            function: f,
+                            message: m,
+                        },
+                        m,
+                    )
+                })
+            }
+            Ok(Err(message)) => Err(self.err(
+                func,
+                |e, f, m| CoppeliaError::Connection {
+                    endpoint: e,
+                    function: f,
+                    message: m,
+                },
+                message,
+            )),
+            Err(_) => Err(CoppeliaError::Timeout {
+                endpoint: self.config.endpoint.clone(),
+                function: func.into(),
+                timeout_ms: timeout.as_millis() as u64,
+            }),
+        }
+    }
+
+    fn call_with(
+        &mut self,
+        func: &str,
+        args: Vec<Value>,
+        connecting: bool,
+    ) -> Result<Vec<Value>, CoppeliaError> {
+        let timeout = if connecting || self.socket.is_none() {
+            self.config
+                .connect_timeout
+                .max(self.config.call_timeout.min(self.config.connect_timeout))
+        } else {
+            self.config.call_timeout
+        };
+        let deadline = std::time::Instant::now() + self.config.call_timeout.max(timeout);
+        let original = self.request(func, &args);
+        let mut message = original.clone();
+        self.first = false;
+        loop {
+            let left = deadline.saturating_duration_since(std::time::Instant::now());
+            if left.is_zero() {
+                self.socket = None;
+                return Err(CoppeliaError::Timeout {
+                    endpoint: self.config.endpoint.clone(),
+                    function: func.into(),
+                    timeout_ms: self.config.call_timeout.as_millis() as u64,
+                });
+            }
+            let reply = self.exchange(func, message.clone(), left.min(timeout))?;
+            let protocol = |m: String| CoppeliaError::Protocol {
+                endpoint: self.config.endpoint.clone(),
+                function: func.into(),
+                message: m,
+            };
+            if let Some(f) = codec::get(&reply, "func") {
+                let f = codec::as_text(f).ok_or_else(|| protocol("`func` is not text".into()))?;
+                message = match f.as_str() {
+                    "_*repeat*_" => original.clone(),
+                    // `_*wait*_` and callbacks we do not register: answer "executed".
+                    _ => self.request("_*executed*_", &[]),
+                };
+                continue;
+            }
+            if let Some(e) = codec::get(&reply, "err") {
+                let text = codec::as_text(e).unwrap_or_else(|| format!("{e:?}"));
+                return Err(CoppeliaError::Remote {
+                    endpoint: self.config.endpoint.clone(),
+                    function: func.into(),
+                    message: text.replace("_=NL=_", "\n").replace("_=TB=_", "\t"),
+                });
+            }
+            if codec::get(&reply, "success").and_then(codec::as_bool) == Some(false) {
+                let text = codec::get(&reply, "error")
+                    .and_then(codec::as_text)
+                    .unwrap_or_else(|| "unknown error".into());
+                return Err(CoppeliaError::Remote {
+                    endpoint: self.config.endpoint.clone(),
+                    function: func.into(),
+                    message: text,
+                });
+            }
+            return codec::as_list(codec::get(&reply, "ret"))
+                .ok_or_else(|| protocol(format!("`ret` is neither a list nor empty: {reply:?}")));
+        }
+    }
+}
+
+impl Drop for Client {
+    fn drop(&mut self) {
+        if self.socket.is_some() && self.protocol == Protocol::V2 {
+            let bye = self.request("_*end*_", &[]);
+            let _ = self.exchange("_*end*_", bye, Duration::from_millis(500));
+        }
+    }
+}

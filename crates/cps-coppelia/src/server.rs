@@ -1,0 +1,652 @@
+//! The stand-in server: CoppeliaSim's ZMQ remote API (protocol v2) served by cps itself,
+//! backed by the in-process kinematic robot and a scene of named objects, so clients (ours
+//! and the official Python one) run where CoppeliaSim is not installed.
+//!
+//! What it models: a robot whose joints are `/<robot>_joint1..n` and whose tool point is
+//! `/<robot>_tip` (positions from forward kinematics), the robot's base `/<robot>`, and
+//! dummies with poses (created, aliased, moved, coloured and removed by clients). Joint
+//! positions are set kinematically. Simulation time advances by `dt` per step: with
+//! `sim.step` for a client that set stepping, else one step per request while running.
+//! It binds loopback by default and never executes code it is sent.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::thread::JoinHandle;
+
+use cps_kinematics::SerialChain;
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use tokio::sync::oneshot;
+use zeromq::{RepSocket, Socket, SocketRecv, SocketSend, ZmqMessage};
+
+use crate::CoppeliaError;
+use crate::codec::{self, Value};
+
+/// The robot and objects the server starts with.
+#[derive(Debug, Clone)]
+pub struct SceneSetup {
+    /// The robot's name: objects are `/<name>`, `/<name>_joint1..n`, `/<name>_tip`.
+    pub robot_name: String,
+    /// The robot's chain, placed at its base in the world, ending at its tool point.
+    pub chain: SerialChain,
+    /// Initial joint positions.
+    pub initial_q: Vec<f64>,
+    /// Named dummies and their world positions (way points).
+    pub dummies: Vec<(String, [f64; 3])>,
+    /// Simulation time step in seconds (CoppeliaSim's default is 0.05).
+    pub dt: f64,
+}
+
+#[derive(Debug, Clone)]
+enum Kind {
+    Base,
+    Joint(usize),
+    Tip,
+    Dummy(Isometry3<f64>),
+}
+
+#[derive(Debug, Clone)]
+struct Object {
+    alias: String,
+    kind: Kind,
+}
+
+#[derive(Debug, Default)]
+struct ClientState {
+    stepping: i64,
+    waiting: bool,
+}
+
+struct Sim {
+    setup: SceneSetup,
+    q: Vec<f64>,
+    objects: HashMap<i64, Object>,
+    next_handle: i64,
+    running: bool,
+    steps: u64,
+    clients: HashMap<String, ClientState>,
+}
+
+type Reply = Result<Vec<Value>, String>;
+
+impl Sim {
+    fn new(setup: SceneSetup) -> Self {
+        let mut objects = HashMap::new();
+        let name = setup.robot_name.clone();
+        objects.insert(
+            16,
+            Object {
+                alias: name.clone(),
+                kind: Kind::Base,
+            },
+        );
+        for j in 0..setup.chain.dof() {
+            objects.insert(
+                17 + j as i64,
+                Object {
+                    alias: format!("{name}_joint{}", j + 1),
+                    kind: Kind::Joint(j),
+                },
+            );
+        }
+        let tip = 17 + setup.chain.dof() as i64;
+        objects.insert(
+            tip,
+            Object {
+                alias: format!("{name}_tip"),
+                kind: Kind::Tip,
+            },
+        );
+        let mut next = 100;
+        for (alias, p) in &setup.dummies {
+            objects.insert(
+                next,
+                Object {
+                    alias: alias.clone(),
+                    kind: Kind::Dummy(Isometry3::translation(p[0], p[1], p[2])),
+                },
+            );
+            next += 1;
+        }
+        Self {
+            q: setup.initial_q.clone(),
+            setup,
+            objects,
+            next_handle: next,
+            running: false,
+            steps: 0,
+            clients: HashMap::new(),
+        }
+    }
+
+    fn time(&self) -> f64 {
+        self.steps as f64 * self.setup.dt
+    }
+
+    fn pose(&self, h: i64) -> Result<Isometry3<f64>, String> {
+        let o = self.objects.get(&h).ok_or("Object does not exist.")?;
+        Ok(match &o.kind {
+            Kind::Base => self.setup.chain.base(),
+            Kind::Joint(j) => {
+                let frames = self
+                    .setup
+                    .chain
+                    .fk_frames(&self.q)
+                    .map_err(|e| e.to_string())?;
+                let f = frames.link_frames[*j];
+                Isometry3::from_parts(
+                    f.translation,
+                    UnitQuaternion::from_rotation_matrix(&f.rotation),
+                )
+            }
+            Kind::Tip => {
+                let f = self.setup.chain.fk(&self.q).map_err(|e| e.to_string())?;
+                Isometry3::from_parts(
+                    f.translation,
+                    UnitQuaternion::from_rotation_matrix(&f.rotation),
+                )
+            }
+            Kind::Dummy(p) => *p,
+        })
+    }
+
+    fn relative(&self, h: i64, rel: i64) -> Result<Isometry3<f64>, String> {
+        let p = self.pose(h)?;
+        if rel == -1 {
+            Ok(p)
+        } else {
+            Ok(self.pose(rel)?.inverse() * p)
+        }
+    }
+
+    fn set_pose(&mut self, h: i64, pose: Isometry3<f64>, rel: i64) -> Result<(), String> {
+        let world = if rel == -1 {
+            pose
+        } else {
+            self.pose(rel)? * pose
+        };
+        match self.objects.get_mut(&h).map(|o| &mut o.kind) {
+            Some(Kind::Dummy(p)) => {
+                *p = world;
+                Ok(())
+            }
+            Some(_) => Err(
+                "the stand-in server moves dummies only; move the robot through its joints".into(),
+            ),
+            None => Err("Object does not exist.".into()),
+        }
+    }
+
+    fn find(&self, path: &str) -> Option<i64> {
+        let name = path.trim_start_matches('/').rsplit('/').next()?;
+        let name = name.split(['[', '{']).next()?;
+        self.objects
+            .iter()
+            .filter(|(_, o)| o.alias == name)
+            .map(|(h, _)| *h)
+            .min()
+    }
+
+    /// Advances one step when the simulation runs freely (no client stepping).
+    fn tick(&mut self) {
+        if self.running && self.clients.values().all(|c| c.stepping == 0) {
+            self.steps += 1;
+        }
+    }
+
+    fn call(&mut self, uuid: &str, func: &str, args: &[Value]) -> Reply {
+        let int = |i: usize| {
+            args.get(i)
+                .and_then(codec::as_i64)
+                .ok_or(format!("argument {} must be an integer", i + 1))
+        };
+        let num = |i: usize| {
+            args.get(i)
+                .and_then(codec::as_f64)
+                .ok_or(format!("argument {} must be a number", i + 1))
+        };
+        let vec = |i: usize, n: usize| {
+            args.get(i)
+                .and_then(codec::as_f64_vec)
+                .filter(|v| v.len() == n)
+                .ok_or(format!("argument {} must be a table of {n} numbers", i + 1))
+        };
+        let rel = |i: usize| {
+            args.get(i).map_or(Ok(-1), |v| {
+                codec::as_i64(v).ok_or(format!("argument {} must be an integer", i + 1))
+            })
+        };
+        let none = Ok(vec![]);
+        match func {
+            "zmqRemoteApi.require" => match args.first().and_then(codec::as_text).as_deref() {
+                Some("sim") => none,
+                Some(other) => Err(format!(
+                    "module '{other}' not found (the stand-in server provides 'sim')"
+                )),
+                None => Err("argument 1 must be a string".into()),
+            },
+            "zmqRemoteApi.info" => Ok(vec![info()]),
+            "sim.getObject" => {
+                let path = args
+                    .first()
+                    .and_then(codec::as_text)
+                    .ok_or("argument 1 must be a string")?;
+                self.find(&path)
+                    .map(|h| vec![codec::int(h)])
+                    .ok_or_else(|| "Object does not exist.".into())
+            }
+            "sim.getObjectAlias" => {
+                let h = int(0)?;
+                let o = self.objects.get(&h).ok_or("Object does not exist.")?;
+                Ok(vec![codec::text(&o.alias)])
+            }
+            "sim.setObjectAlias" => {
+                let h = int(0)?;
+                let alias = args
+                    .get(1)
+                    .and_then(codec::as_text)
+                    .ok_or("argument 2 must be a string")?;
+                self.objects
+                    .get_mut(&h)
+                    .ok_or("Object does not exist.")?
+                    .alias = alias;
+                none
+            }
+            "sim.getJointPosition" => match self.objects.get(&int(0)?).map(|o| &o.kind) {
+                Some(Kind::Joint(j)) => Ok(vec![Value::Float(self.q[*j])]),
+                Some(_) => Err("object is not a joint".into()),
+                None => Err("Object does not exist.".into()),
+            },
+            "sim.setJointPosition" | "sim.setJointTargetPosition" => {
+                let (h, v) = (int(0)?, num(1)?);
+                if !v.is_finite() {
+                    return Err("argument 2 must be finite".into());
+                }
+                match self.objects.get(&h).map(|o| o.kind.clone()) {
+                    Some(Kind::Joint(j)) => {
+                        self.q[j] = v;
+                        none
+                    }
+                    Some(_) => Err("object is not a joint".into()),
+                    None => Err("Object does not exist.".into()),
+                }
+            }
+            "sim.getObjectPosition" => {
+                let p = self.relative(int(0)?, rel(1)?)?.translation.vector;
+                Ok(vec![codec::floats(&[p.x, p.y, p.z])])
+            }
+            "sim.getObjectQuaternion" => {
+                let q = self.relative(int(0)?, rel(1)?)?.rotation;
+                Ok(vec![codec::floats(&[q.i, q.j, q.k, q.w])])
+            }
+            "sim.getObjectPose" => {
+                let p = self.relative(int(0)?, rel(1)?)?;
+                let (t, q) = (p.translation.vector, p.rotation);
+                Ok(vec![codec::floats(&[t.x, t.y, t.z, q.i, q.j, q.k, q.w])])
+            }
+            "sim.getObjectMatrix" => {
+                let m = self.relative(int(0)?, rel(1)?)?.to_homogeneous();
+                let v: Vec<f64> = (0..3)
+                    .flat_map(|r| (0..4).map(move |c| (r, c)))
+                    .map(|(r, c)| m[(r, c)])
+                    .collect();
+                Ok(vec![codec::floats(&v)])
+            }
+            "sim.setObjectPosition" => {
+                let h = int(0)?;
+                // 4.6+ order (h, pos, rel); the old order (h, rel, pos) is accepted too.
+                let (p, r) = match vec(1, 3) {
+                    Ok(p) => (p, rel(2)?),
+                    Err(_) => (vec(2, 3)?, rel(1)?),
+                };
+                let mut pose = self.relative(h, r)?;
+                pose.translation = Translation3::new(p[0], p[1], p[2]);
+                self.set_pose(h, pose, r)?;
+                none
+            }
+            "sim.setObjectPose" => {
+                let h = int(0)?;
+                let (p, r) = match vec(1, 7) {
+                    Ok(p) => (p, rel(2)?),
+                    Err(_) => (vec(2, 7)?, rel(1)?),
+                };
+                let q = Quaternion::new(p[6], p[3], p[4], p[5]);
+                if q.norm() < 1e-9 || p.iter().any(|v| !v.is_finite()) {
+                    return Err("the pose's quaternion must be finite and non-zero".into());
+                }
+                let pose = Isometry3::from_parts(
+                    Translation3::new(p[0], p[1], p[2]),
+                    UnitQuaternion::from_quaternion(q),
+                );
+                self.set_pose(h, pose, r)?;
+                none
+            }
+            "sim.createDummy" => {
+                let size = num(0)?;
+                if !(size.is_finite() && size > 0.0) {
+                    return Err("argument 1 must be a positive size".into());
+                }
+                let h = self.next_handle;
+                self.next_handle += 1;
+                self.objects.insert(
+                    h,
+                    Object {
+                        alias: "Dummy".into(),
+                        kind: Kind::Dummy(Isometry3::identity()),
+                    },
+                );
+                Ok(vec![codec::int(h)])
+            }
+            "sim.removeObjects" | "sim.removeObject" => {
+                let handles: Vec<i64> = match args.first().map(codec::untag) {
+                    Some(Value::Array(a)) => a
+                        .iter()
+                        .map(|v| codec::as_i64(v).ok_or("argument 1 must be a table of handles"))
+                        .collect::<Result<_, _>>()?,
+                    Some(v) => vec![codec::as_i64(v).ok_or("argument 1 must be a handle")?],
+                    None => return Err("argument 1 missing".into()),
+                };
+                for h in &handles {
+                    match self.objects.get(h).map(|o| &o.kind) {
+                        Some(Kind::Dummy(_)) => {}
+                        Some(_) => return Err("the robot's objects cannot be removed".into()),
+                        None => return Err("Object does not exist.".into()),
+                    }
+                }
+                for h in handles {
+                    self.objects.remove(&h);
+                }
+                none
+            }
+            "sim.setObjectColor" => {
+                self.objects.get(&int(0)?).ok_or("Object does not exist.")?;
+                vec(3, 3)?;
+                Ok(vec![Value::Bool(true)])
+            }
+            "sim.setShapeColor" => {
+                self.objects.get(&int(0)?).ok_or("Object does not exist.")?;
+                vec(3, 3)?;
+                none
+            }
+            "sim.startSimulation" => {
+                self.running = true;
+                none
+            }
+            "sim.stopSimulation" => {
+                self.running = false;
+                self.steps = 0;
+                for c in self.clients.values_mut() {
+                    c.stepping = 0;
+                }
+                none
+            }
+            "sim.getSimulationState" => Ok(vec![codec::int(if self.running { 17 } else { 0 })]),
+            "sim.getSimulationTime" => Ok(vec![Value::Float(self.time())]),
+            "sim.getSimulationTimeStep" => Ok(vec![Value::Float(self.setup.dt)]),
+            "sim.setStepping" => {
+                let on = args
+                    .first()
+                    .and_then(codec::as_bool)
+                    .ok_or("argument 1 must be a boolean")?;
+                let c = self.clients.entry(uuid.into()).or_default();
+                let previous = c.stepping;
+                c.stepping = if on {
+                    c.stepping + 1
+                } else {
+                    (c.stepping - 1).max(0)
+                };
+                Ok(vec![codec::int(previous)])
+            }
+            other => Err(format!("No such function: {other}")),
+        }
+    }
+}
+
+/// `zmqRemoteApi.info("sim")`: every function and constant the server provides.
+fn info() -> Value {
+    let mut entries: Vec<(&'static str, Value)> = FUNCTIONS
+        .iter()
+        .map(|f| (*f, codec::map([("func", Value::Map(Default::default()))])))
+        .collect();
+    for (name, v) in CONSTANTS {
+        entries.push((name, codec::map([("const", codec::int(*v))])));
+    }
+    codec::map(entries)
+}
+
+const FUNCTIONS: &[&str] = &[
+    "getObject",
+    "getObjectAlias",
+    "setObjectAlias",
+    "getJointPosition",
+    "setJointPosition",
+    "setJointTargetPosition",
+    "getObjectPosition",
+    "setObjectPosition",
+    "getObjectQuaternion",
+    "getObjectPose",
+    "setObjectPose",
+    "getObjectMatrix",
+    "createDummy",
+    "removeObjects",
+    "removeObject",
+    "setObjectColor",
+    "setShapeColor",
+    "startSimulation",
+    "stopSimulation",
+    "getSimulationState",
+    "getSimulationTime",
+    "getSimulationTimeStep",
+    "setStepping",
+    "step",
+];
+
+const CONSTANTS: &[(&str, i64)] = &[
+    ("handle_world", -1),
+    ("handle_all", -2),
+    ("simulation_stopped", 0),
+    ("simulation_paused", 8),
+    ("simulation_advancing_running", 17),
+    ("colorcomponent_ambient_diffuse", 0),
+    ("object_joint_type", 1),
+    ("object_dummy_type", 4),
+];
+
+/// One request in, one reply out (never blocks: a stepping client is parked with
+/// `_*wait*_`).
+fn handle(sim: &mut Sim, bytes: &[u8]) -> Value {
+    let err = |m: String| codec::map([("err", codec::text(&m))]);
+    let request = match codec::decode(bytes) {
+        Ok(v) => v,
+        Err(e) => return err(e),
+    };
+    let Some(func) = codec::get(&request, "func").and_then(codec::as_text) else {
+        return err("the request has no `func` text".into());
+    };
+    let Some(uuid) = codec::get(&request, "uuid").and_then(codec::as_text) else {
+        return codec::map([
+            ("success", Value::Bool(false)),
+            (
+                "error",
+                codec::text(
+                    "The client ZeroMQ remote API version does not match CoppeliaSim's version",
+                ),
+            ),
+        ]);
+    };
+    let Some(args) = codec::as_list(codec::get(&request, "args")) else {
+        return err("`args` must be an array".into());
+    };
+    let ret = |values: Vec<Value>| {
+        codec::map([(
+            "ret",
+            if values.is_empty() {
+                Value::Map(Default::default())
+            } else {
+                Value::Array(values)
+            },
+        )])
+    };
+    let wait = || {
+        codec::map([
+            ("func", codec::text("_*wait*_")),
+            ("args", Value::Map(Default::default())),
+        ])
+    };
+    match func.as_str() {
+        "_*end*_" => {
+            sim.clients.remove(&uuid);
+            Value::Map(Default::default())
+        }
+        "sim.step" => {
+            let c = sim.clients.entry(uuid).or_default();
+            c.waiting = true;
+            wait()
+        }
+        "_*executed*_" => {
+            let c = sim.clients.entry(uuid).or_default();
+            if c.waiting {
+                c.waiting = false;
+                if sim.running {
+                    sim.steps += 1;
+                }
+            }
+            ret(vec![])
+        }
+        f => {
+            sim.tick();
+            match sim.call(&uuid, f, &args) {
+                Ok(values) => ret(values),
+                Err(m) => err(format!("{m} (in function '{f}')")),
+            }
+        }
+    }
+}
+
+/// Settings of [`StandInServer::start`].
+#[derive(Debug, Clone)]
+pub struct ServerConfig {
+    /// `host:port` to bind (port 0 picks a free one). Default `127.0.0.1:23000`.
+    pub bind: String,
+    /// The scene.
+    pub scene: SceneSetup,
+}
+
+/// A running stand-in server; dropping it stops it.
+#[derive(Debug)]
+pub struct StandInServer {
+    endpoint: String,
+    stop: Option<oneshot::Sender<()>>,
+    thread: Option<JoinHandle<()>>,
+    requests: Arc<AtomicU64>,
+}
+
+impl StandInServer {
+    /// Binds and starts serving on a background thread.
+    pub fn start(config: ServerConfig) -> Result<Self, CoppeliaError> {
+        config
+            .scene
+            .chain
+            .check(&config.scene.initial_q)
+            .map_err(|e| CoppeliaError::InvalidConfig(format!("initial joint positions: {e}")))?;
+        if !(config.scene.dt.is_finite() && config.scene.dt > 0.0) {
+            return Err(CoppeliaError::InvalidConfig(
+                "the simulation time step must be > 0".into(),
+            ));
+        }
+        let bind = format!("tcp://{}", config.bind.trim_start_matches("tcp://"));
+        let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+        let (stop_tx, stop_rx) = oneshot::channel::<()>();
+        let requests = Arc::new(AtomicU64::new(0));
+        let counter = Arc::clone(&requests);
+        let thread = std::thread::Builder::new()
+            .name("cps-sim-server".into())
+            .spawn(move || {
+                let rt = match tokio::runtime::Builder::new_current_thread()
+                    .enable_all()
+                    .build()
+                {
+                    Ok(rt) => rt,
+                    Err(e) => {
+                        let _ = ready_tx.send(Err(format!("cannot start the I/O runtime: {e}")));
+                        return;
+                    }
+                };
+                rt.block_on(async move {
+                    let mut socket = RepSocket::new();
+                    let endpoint = match socket.bind(&bind).await {
+                        Ok(ep) => ep.to_string(),
+                        Err(e) => {
+                            let _ = ready_tx.send(Err(format!("cannot bind {bind}: {e}")));
+                            return;
+                        }
+                    };
+                    let _ = ready_tx.send(Ok(endpoint));
+                    let mut sim = Sim::new(config.scene);
+                    let mut stop_rx = stop_rx;
+                    loop {
+                        let message = tokio::select! {
+                            _ = &mut stop_rx => break,
+                            m = socket.recv() => m,
+                        };
+                        let Ok(message) = message else { continue };
+                        counter.fetch_add(1, Ordering::Relaxed);
+                        let bytes: Vec<u8> = message
+                            .into_vec()
+                            .into_iter()
+                            .flat_map(|b| b.to_vec())
+                            .collect();
+                        let reply = handle(&mut sim, &bytes);
+                        if socket
+                            .send(ZmqMessage::from(codec::encode(&reply)))
+                            .await
+                            .is_err()
+                        {
+                            continue;
+                        }
+                    }
+                });
+            })
+            .map_err(|e| {
+                CoppeliaError::InvalidConfig(format!("cannot start the server thread: {e}"))
+            })?;
+        let endpoint = ready_rx
+            .recv()
+            .map_err(|_| CoppeliaError::InvalidConfig("the server thread ended early".into()))?
+            .map_err(CoppeliaError::InvalidConfig)?;
+        Ok(Self {
+            endpoint,
+            stop: Some(stop_tx),
+            thread: Some(thread),
+            requests,
+        })
+    }
+
+    /// The bound endpoint, e.g. `tcp://127.0.0.1:40321`.
+    pub fn endpoint(&self) -> &str {
+        &self.endpoint
+    }
+
+    /// Requests served so far.
+    pub fn requests(&self) -> u64 {
+        self.requests.load(Ordering::Relaxed)
+    }
+
+    /// Blocks until the server stops (for `cps-cli sim serve`).
+    pub fn wait(mut self) {
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+impl Drop for StandInServer {
+    fn drop(&mut self) {
+        if let Some(stop) = self.stop.take() {
+            let _ = stop.send(());
+        }
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}

@@ -1,0 +1,194 @@
+//! The Rust client against the stand-in server on a free loopback port: a full session,
+//! errors from the server, two clients with separate stepping, and a dead server.
+
+use std::time::{Duration, Instant};
+
+use cps_coppelia::sim::HANDLE_WORLD;
+use cps_coppelia::{Client, ClientConfig, CoppeliaError, SceneSetup, ServerConfig, StandInServer};
+use cps_kinematics::robots::{PandaTool, panda};
+use nalgebra::Isometry3;
+
+const THESIS_Q0: [f64; 7] = [
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    std::f64::consts::FRAC_PI_2,
+    std::f64::consts::FRAC_PI_4,
+];
+
+fn server() -> StandInServer {
+    let chain = panda(PandaTool::HandTcp).with_base(Isometry3::translation(0.5396, 0.02, 0.749));
+    StandInServer::start(ServerConfig {
+        bind: "127.0.0.1:0".into(),
+        scene: SceneSetup {
+            robot_name: "Panda".into(),
+            chain,
+            initial_q: THESIS_Q0.to_vec(),
+            dummies: vec![("p1".into(), [0.78, 0.60, 1.70])],
+            dt: 0.05,
+        },
+    })
+    .unwrap()
+}
+
+fn client(endpoint: &str) -> Client {
+    Client::connect(ClientConfig {
+        endpoint: endpoint.into(),
+        connect_timeout: Duration::from_secs(2),
+        call_timeout: Duration::from_secs(2),
+    })
+    .unwrap()
+}
+
+#[test]
+fn a_full_session() {
+    let srv = server();
+    let mut sim = client(srv.endpoint());
+    // The seven joints and the tip: the thesis's start point at the initial configuration.
+    let joints: Vec<i64> = (1..=7)
+        .map(|i| sim.get_object(&format!("/Panda_joint{i}")).unwrap())
+        .collect();
+    for (h, q) in joints.iter().zip(THESIS_Q0) {
+        assert!((sim.get_joint_position(*h).unwrap() - q).abs() < 1e-15);
+    }
+    let tip = sim.get_object("/Panda_tip").unwrap();
+    let p = sim.get_object_position(tip, HANDLE_WORLD).unwrap();
+    for (a, b) in p.iter().zip([0.75, 0.02, 1.87]) {
+        assert!((a - b).abs() < 1e-12, "{p:?}");
+    }
+    // Moving joint 1 turns the tip about the base's z axis.
+    sim.set_joint_position(joints[0], 0.5).unwrap();
+    let moved = sim.get_object_position(tip, HANDLE_WORLD).unwrap();
+    assert!((moved[2] - 1.87).abs() < 1e-12 && (moved[0] - 0.75).abs() > 0.01);
+    // A dummy: create, alias, move, colour, find by its alias, remove.
+    let d = sim.create_dummy(0.04).unwrap();
+    sim.set_object_alias(d, "pT").unwrap();
+    sim.set_object_position(d, [0.55, -0.57, 1.45], HANDLE_WORLD)
+        .unwrap();
+    sim.set_object_color(d, [0.0, 1.0, 0.0]).unwrap();
+    assert_eq!(sim.get_object("/pT").unwrap(), d);
+    assert_eq!(
+        sim.get_object_position(d, HANDLE_WORLD).unwrap(),
+        [0.55, -0.57, 1.45]
+    );
+    let m = sim.get_object_matrix(d, HANDLE_WORLD).unwrap();
+    assert_eq!([m[3], m[7], m[11]], [0.55, -0.57, 1.45]);
+    let p1 = sim.get_object("/p1").unwrap();
+    let pose = sim.get_object_pose(p1, HANDLE_WORLD).unwrap();
+    assert!((pose.translation.vector - nalgebra::Vector3::new(0.78, 0.60, 1.70)).norm() < 1e-15);
+    sim.remove_objects(&[d]).unwrap();
+    assert!(matches!(
+        sim.get_object("/pT"),
+        Err(CoppeliaError::Remote { .. })
+    ));
+    // Start, stepping, several steps with time advancing by dt, stop.
+    sim.start_simulation().unwrap();
+    assert_eq!(sim.get_simulation_state().unwrap(), 17);
+    assert_eq!(sim.set_stepping(true).unwrap(), 0);
+    let t0 = sim.get_simulation_time().unwrap();
+    for k in 1..=5 {
+        sim.step().unwrap();
+        let t = sim.get_simulation_time().unwrap();
+        assert!((t - t0 - 0.05 * k as f64).abs() < 1e-12, "t {t}");
+    }
+    sim.stop_simulation().unwrap();
+    assert_eq!(sim.get_simulation_state().unwrap(), 0);
+    assert_eq!(sim.get_simulation_time().unwrap(), 0.0);
+    // An error raised on the server names the function.
+    match sim.get_object("/NoSuchThing") {
+        Err(CoppeliaError::Remote {
+            function, message, ..
+        }) => {
+            assert_eq!(function, "sim.getObject");
+            assert!(message.contains("Object does not exist"), "{message}");
+        }
+        other => panic!("{other:?}"),
+    }
+    match sim.call("sim.noSuchFunction", vec![]) {
+        Err(CoppeliaError::Remote { message, .. }) => {
+            assert!(message.contains("No such function: sim.noSuchFunction"))
+        }
+        other => panic!("{other:?}"),
+    }
+    match sim.call(
+        "sim.setJointPosition",
+        vec![
+            cps_coppelia::codec::text("j"),
+            cps_coppelia::codec::text("x"),
+        ],
+    ) {
+        Err(CoppeliaError::Remote { message, .. }) => assert!(
+            message.contains("argument 1 must be an integer"),
+            "{message}"
+        ),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn two_clients_keep_separate_stepping_state() {
+    let srv = server();
+    let (mut a, mut b) = (client(srv.endpoint()), client(srv.endpoint()));
+    a.start_simulation().unwrap();
+    assert_eq!(a.set_stepping(true).unwrap(), 0);
+    assert_eq!(a.set_stepping(true).unwrap(), 1);
+    assert_eq!(b.set_stepping(true).unwrap(), 0, "b has its own level");
+    assert_eq!(b.set_stepping(false).unwrap(), 1);
+    // Only a steps now: each of its steps advances the clock by dt, b's requests do not.
+    let t0 = b.get_simulation_time().unwrap();
+    a.step().unwrap();
+    assert!((b.get_simulation_time().unwrap() - t0 - 0.05).abs() < 1e-12);
+    // Stopping the simulation ends every client's stepping.
+    a.stop_simulation().unwrap();
+    assert_eq!(a.set_stepping(true).unwrap(), 0);
+}
+
+#[test]
+fn a_dead_server_is_a_timely_error_and_a_restarted_one_is_reached_again() {
+    let srv = server();
+    let endpoint = srv.endpoint().to_string();
+    let mut sim = client(&endpoint);
+    assert!(sim.get_simulation_time().is_ok());
+    drop(srv);
+    let start = Instant::now();
+    let e = sim.get_simulation_time().unwrap_err();
+    assert!(
+        start.elapsed() < Duration::from_secs(5),
+        "took {:?}",
+        start.elapsed()
+    );
+    assert!(
+        matches!(
+            e,
+            CoppeliaError::Timeout { .. } | CoppeliaError::Connection { .. }
+        ),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains(&endpoint));
+    // The server comes back on the same port: the next call reconnects by itself
+    // (a server restart forgets `require`, which the stand-in does not enforce).
+    let again = StandInServer::start(ServerConfig {
+        bind: endpoint.trim_start_matches("tcp://").into(),
+        scene: SceneSetup {
+            robot_name: "Panda".into(),
+            chain: panda(PandaTool::HandTcp),
+            initial_q: THESIS_Q0.to_vec(),
+            dummies: vec![],
+            dt: 0.05,
+        },
+    })
+    .unwrap();
+    assert_eq!(sim.get_simulation_time().unwrap(), 0.0);
+    drop(again);
+    // Nothing listening at all: connect fails within its timeout.
+    let start = Instant::now();
+    let e = Client::connect(ClientConfig {
+        endpoint: endpoint.clone(),
+        connect_timeout: Duration::from_millis(300),
+        call_timeout: Duration::from_millis(300),
+    })
+    .unwrap_err();
+    assert!(start.elapsed() < Duration::from_secs(3), "{e}");
+}
