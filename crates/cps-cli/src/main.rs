@@ -8,6 +8,7 @@
 //! cps-cli ik --robot panda --target 0.4,0.2,0.5[,qx,qy,qz,qw] [--seed-q ...] [--json]
 //! cps-cli robot show panda|configs/robots/ur3.toml|configs/robots/panda.urdf [--tool NAME] [--tip LINK]
 //! cps-cli scene check configs/scenes/thesis.toml [--json]
+//! cps-cli sim serve [--bind 127.0.0.1:23000] [--scene FILE] [--dt 0.05]
 //! cps-cli cmaes bench sphere|ellipsoid|cigar|discus|rosenbrock|rastrigin --dim N --seeds A..B [--ipop] [--json]
 //! cps-cli imitate demo.csv [more.csv ...] [--bases N] [--method lwr|ridge|jerk] [--lambda X|auto] [--tau S] --out model.json [--plot fit.png]
 //! cps-cli rollout model.json [--start ...] [--goal ...] [--tau S] [--dt S] --out traj.csv [--plot traj.png]
@@ -36,6 +37,7 @@ mod plots;
 mod robot;
 mod robot_file;
 mod scene;
+mod simserve;
 
 use std::io::IsTerminal;
 use std::ops::ControlFlow;
@@ -103,6 +105,11 @@ enum Command {
         #[command(subcommand)]
         command: robot::RobotCommand,
     },
+    /// The stand-in CoppeliaSim server.
+    Sim {
+        #[command(subcommand)]
+        command: simserve::SimCommand,
+    },
     /// The optimiser alone: standard test functions in the reference set-up.
     Cmaes {
         #[command(subcommand)]
@@ -157,6 +164,7 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
         Command::Scene { command } => scene::scene(&command),
         Command::Imitate(args) => movement::run_imitate(&args),
         Command::Cmaes { command } => cmaes_bench::bench(&command),
+        Command::Sim { command } => simserve::sim(&command, interrupted),
         Command::Rollout(args) => movement::run_rollout(&args),
         Command::Check { file } => {
             let exp = experiment::load(&file, None)?;

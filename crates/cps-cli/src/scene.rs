@@ -73,6 +73,15 @@ pub fn load_scene(path: &Path) -> Result<Scene, InputError> {
             path.display()
         ))
     })?;
+    parse_scene(path, &text)
+}
+
+/// The thesis's scene, built in (the text of `configs/scenes/thesis.toml`).
+pub const THESIS_SCENE: &str = include_str!("../../../configs/scenes/thesis.toml");
+
+/// Parses scene text (`path` names it in messages and resolves relative robot files).
+pub fn parse_scene(path: &Path, text: &str) -> Result<Scene, InputError> {
+    let text = text.to_string();
     let file: File = toml::from_str(&text).map_err(|e| {
         let at = e
             .span()

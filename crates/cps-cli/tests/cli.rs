@@ -889,3 +889,57 @@ fn cmaes_bench_prints_per_seed_results() {
         assert!(stderr(&o).contains(expect), "{}", stderr(&o));
     }
 }
+
+/// The official CoppeliaSim Python client (`coppeliasim-zmqremoteapi-client` from PyPI)
+/// drives `cps-cli sim serve` through a full session. The interpreter is `$CPS_PYTHON`
+/// or `python3`; without the package the test is skipped, except under CI (`CI` set),
+/// where `.ci/run` installs it and the test is required.
+#[test]
+fn the_official_python_client_runs_a_session_against_sim_serve() {
+    use std::io::{BufRead, BufReader};
+    let python = std::env::var("CPS_PYTHON").unwrap_or_else(|_| "python3".into());
+    let has_client = Command::new(&python)
+        .args(["-c", "import coppeliasim_zmqremoteapi_client"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !has_client {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI must provide the official Python client (CPS_PYTHON={python})"
+        );
+        eprintln!("skipped: {python} has no coppeliasim_zmqremoteapi_client");
+        return;
+    }
+    let mut server = Command::new(env!("CARGO_BIN_EXE_cps-cli"))
+        .args(["sim", "serve", "--bind", "127.0.0.1:0"])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(server.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let port = line
+        .split("tcp://127.0.0.1:")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .unwrap_or_else(|| panic!("no endpoint in {line:?}"))
+        .to_string();
+    let script = format!(
+        "{}/tests/data/python_session.py",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let out = Command::new(&python)
+        .args([&script, &port])
+        .output()
+        .unwrap();
+    let _ = server.kill();
+    let _ = server.wait();
+    assert!(
+        out.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("python session ok"));
+}

@@ -1,0 +1,51 @@
+"""A full session of the official CoppeliaSim Python client against `cps-cli sim serve`.
+
+Usage: python python_session.py PORT   (exit status 0 when every check holds)
+"""
+import math
+import sys
+
+from coppeliasim_zmqremoteapi_client import RemoteAPIClient
+
+client = RemoteAPIClient(host="127.0.0.1", port=int(sys.argv[1]))
+sim = client.require("sim")
+
+# Handles of the seven joints; read and set them.
+joints = [sim.getObject(f"/Panda_joint{i}") for i in range(1, 8)]
+q0 = [sim.getJointPosition(j) for j in joints]
+assert q0 == [0, 0, 0, 0, 0, math.pi / 2, math.pi / 4], q0
+for j, v in zip(joints, [0.1, -0.2, 0.3, -1.5, 0.2, 1.6, 0.7]):
+    sim.setJointPosition(j, v)
+assert abs(sim.getJointPosition(joints[3]) + 1.5) < 1e-15
+
+# The tip moves with the joints.
+tip = sim.getObject("/Panda_tip")
+p = sim.getObjectPosition(tip, sim.handle_world)
+assert len(p) == 3 and abs(p[2] - 1.87) > 1e-3, p
+
+# A dummy: create, alias, move, find, remove.
+d = sim.createDummy(0.04)
+sim.setObjectAlias(d, "pX")
+sim.setObjectPosition(d, [0.1, 0.2, 0.3], sim.handle_world)
+assert sim.getObject("/pX") == d
+assert sim.getObjectPosition(d, sim.handle_world) == [0.1, 0.2, 0.3]
+sim.removeObjects([d])
+
+# Start, stepping, several steps with the time advancing by dt, stop.
+sim.startSimulation()
+assert sim.setStepping(True) == 0
+t0 = sim.getSimulationTime()
+for k in range(1, 6):
+    sim.step()
+    assert abs(sim.getSimulationTime() - t0 - 0.05 * k) < 1e-12
+sim.stopSimulation()
+assert sim.getSimulationState() == sim.simulation_stopped
+
+# An error raised on the server raises here.
+try:
+    sim.getObject("/DoesNotExist")
+except Exception as e:  # the client raises a plain Exception with the server's text
+    assert "Object does not exist" in str(e), e
+else:
+    raise AssertionError("no exception for a missing object")
+print("python session ok")
