@@ -4,6 +4,8 @@
 //!   detected, CBOR through one codec module, every call bounded by a timeout, a broken
 //!   socket rebuilt on the next call; typed wrappers for the `sim` functions cps uses
 //!   ([`Client::get_object`], [`Client::set_joint_position`], [`Client::step`], …).
+//! - [`FrankaScene`]: the thesis's scene names (`/Panda_joint1..7`, `/Panda_tip`, way points
+//!   `/p0` … `/pT`) and a `RobotBackend` of `cps-kinematics` that drives the joints.
 //! - [`StandInServer`]: the same protocol served by cps, backed by the in-process
 //!   kinematic robot, for machines without CoppeliaSim (tests, CI, students).
 //!
@@ -34,9 +36,11 @@
 mod client;
 pub mod codec;
 mod error;
+mod franka;
 mod server;
 pub mod sim;
 
 pub use client::{Client, ClientConfig, Protocol};
 pub use error::CoppeliaError;
+pub use franka::FrankaScene;
 pub use server::{SceneSetup, ServerConfig, StandInServer};

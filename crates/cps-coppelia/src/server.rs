@@ -517,6 +517,7 @@ fn handle(sim: &mut Sim, bytes: &[u8]) -> Value {
             sim.tick();
             match sim.call(&uuid, f, &args) {
                 Ok(values) => ret(values),
+                Err(m) if m.starts_with("No such function") => err(m),
                 Err(m) => err(format!("{m} (in function '{f}')")),
             }
         }
@@ -647,6 +648,134 @@ impl Drop for StandInServer {
         }
         if let Some(t) = self.thread.take() {
             let _ = t.join();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cps_kinematics::robots::{PandaTool, panda};
+    use rand::{Rng, SeedableRng};
+
+    fn sim() -> Sim {
+        Sim::new(SceneSetup {
+            robot_name: "Panda".into(),
+            chain: panda(PandaTool::HandTcp),
+            initial_q: vec![0.0; 7],
+            dummies: vec![("p0".into(), [0.1, 0.2, 0.3])],
+            dt: 0.05,
+        })
+    }
+
+    fn request(func: &str, args: Vec<Value>, uuid: bool) -> Vec<u8> {
+        let mut e = vec![
+            ("func", codec::text(func)),
+            ("argsL", codec::int(args.len() as i64)),
+            ("args", Value::Array(args)),
+        ];
+        if uuid {
+            e.push(("uuid", codec::text("5b9c2a7e-0000-4000-8000-000000000001")));
+        }
+        codec::encode(&codec::map(e))
+    }
+
+    #[test]
+    fn protocol_edge_cases_are_answered_like_coppeliasim() {
+        let mut s = sim();
+        let reply = handle(
+            &mut s,
+            &request("sim.getObject", vec![codec::text("/p0")], false),
+        );
+        assert_eq!(
+            codec::get(&reply, "success").and_then(codec::as_bool),
+            Some(false)
+        );
+        assert!(
+            codec::get(&reply, "error")
+                .and_then(codec::as_text)
+                .unwrap()
+                .contains("version does not match")
+        );
+        let reply = handle(
+            &mut s,
+            &request("sim.getJointPosition", vec![codec::text("x")], true),
+        );
+        let err = codec::get(&reply, "err").and_then(codec::as_text).unwrap();
+        assert_eq!(
+            err,
+            "argument 1 must be an integer (in function 'sim.getJointPosition')"
+        );
+        let reply = handle(&mut s, &request("sim.getJointPosition", vec![], true));
+        assert!(codec::get(&reply, "err").is_some());
+        let reply = handle(
+            &mut s,
+            &request("os.execute", vec![codec::text("rm -rf /")], true),
+        );
+        assert_eq!(
+            codec::get(&reply, "err").and_then(codec::as_text).unwrap(),
+            "No such function: os.execute"
+        );
+        let reply = handle(&mut s, &[0xff, 0x00]);
+        assert!(codec::get(&reply, "err").is_some());
+        // A void function answers {"ret": {}}, like CoppeliaSim.
+        let reply = handle(&mut s, &request("sim.startSimulation", vec![], true));
+        assert_eq!(
+            codec::encode(&reply),
+            vec![0xa1, 0x63, b'r', b'e', b't', 0xa0]
+        );
+    }
+
+    /// 10⁵ malformed, truncated, mutated and random messages: every one gets a reply map,
+    /// none panics.
+    #[test]
+    fn hostile_bytes_never_panic() {
+        let mut s = sim();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let seeds: Vec<Vec<u8>> = vec![
+            request("sim.getObject", vec![codec::text("/Panda_joint3")], true),
+            request(
+                "sim.setObjectPose",
+                vec![
+                    codec::int(100),
+                    codec::floats(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]),
+                    codec::int(-1),
+                ],
+                true,
+            ),
+            request(
+                "sim.removeObjects",
+                vec![Value::Array(vec![codec::int(100)])],
+                true,
+            ),
+            request("sim.step", vec![], true),
+            request("_*executed*_", vec![], true),
+            request(
+                "sim.setJointPosition",
+                vec![codec::int(17), Value::Float(0.5)],
+                true,
+            ),
+        ];
+        for i in 0..100_000u32 {
+            let mut bytes = seeds[i as usize % seeds.len()].clone();
+            match i % 4 {
+                0 => {
+                    for _ in 0..rng.random_range(1..4) {
+                        let k = rng.random_range(0..bytes.len());
+                        bytes[k] = rng.random();
+                    }
+                }
+                1 => bytes.truncate(rng.random_range(0..bytes.len())),
+                2 => {
+                    let k = rng.random_range(0..=bytes.len());
+                    let extra: Vec<u8> =
+                        (0..rng.random_range(1..16)).map(|_| rng.random()).collect();
+                    bytes.splice(k..k, extra);
+                }
+                _ => bytes = (0..rng.random_range(0..64)).map(|_| rng.random()).collect(),
+            }
+            let reply = handle(&mut s, &bytes);
+            assert!(matches!(reply, Value::Map(_)), "input {i}: {reply:?}");
         }
     }
 }

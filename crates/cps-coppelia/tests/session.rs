@@ -192,3 +192,62 @@ fn a_dead_server_is_a_timely_error_and_a_restarted_one_is_reached_again() {
     .unwrap_err();
     assert!(start.elapsed() < Duration::from_secs(3), "{e}");
 }
+
+/// The same trajectory executed on the in-process robot and, through the remote API, on
+/// the stand-in server gives the same recording.
+#[test]
+fn execution_on_the_server_matches_the_in_process_robot() {
+    use cps_coppelia::FrankaScene;
+    use cps_kinematics::{ExecutionConfig, IkTarget, KinematicRobot, execute};
+    let srv = server();
+    let mut scene = FrankaScene::open(client(srv.endpoint()), "Panda", 7, 0.05).unwrap();
+    let names: Vec<String> = scene
+        .way_points()
+        .unwrap()
+        .into_iter()
+        .map(|w| w.0)
+        .collect();
+    assert!(names.is_empty() || names.iter().all(|n| n.starts_with('p')));
+    let model = panda(PandaTool::HandTcp).with_base(Isometry3::translation(0.5396, 0.02, 0.749));
+    let ready = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    use cps_kinematics::RobotBackend;
+    scene.command_joint_positions(&ready).unwrap();
+    scene.start_stepping().unwrap();
+    scene.step().unwrap();
+    let c = model.fk(&ready).unwrap().translation.vector;
+    let targets: Vec<IkTarget> = (0..=40)
+        .map(|k| {
+            let a = std::f64::consts::TAU * k as f64 / 40.0;
+            IkTarget::Position(
+                c + nalgebra::Vector3::new(0.02 * (a.cos() - 1.0), 0.02 * a.sin(), 0.0),
+            )
+        })
+        .collect();
+    let cfg = ExecutionConfig {
+        max_iterations_per_sample: 1,
+        ..ExecutionConfig::default()
+    };
+    let remote = execute(&mut scene, &model, &targets, &cfg).unwrap();
+    let mut local_robot = KinematicRobot::new(model.clone(), &ready, 0.05).unwrap();
+    let local = execute(&mut local_robot, &model, &targets, &cfg).unwrap();
+    assert_eq!(remote.q.len(), local.q.len());
+    for (a, b) in remote.q.iter().zip(&local.q) {
+        for (x, y) in a.iter().zip(b) {
+            assert!((x - y).abs() < 1e-12, "{x} vs {y}");
+        }
+    }
+    for (a, b) in remote.position.iter().zip(&local.position) {
+        for k in 0..3 {
+            assert!((a[k] - b[k]).abs() < 1e-12);
+        }
+    }
+    // Both clocks advance by dt per step (the remote one started one step earlier).
+    let dt_remote = remote.time[1] - remote.time[0];
+    assert!((dt_remote - 0.05).abs() < 1e-12);
+    assert!(
+        remote.max_position_error() < 1e-4,
+        "{}",
+        remote.max_position_error()
+    );
+    scene.stop().unwrap();
+}

@@ -1,0 +1,152 @@
+//! The thesis's Franka scene over the remote API: the robot `/Panda`, its joints
+//! `/Panda_joint1..7`, tool tip `/Panda_tip`, IK target `/Panda_target`, way points `/p0`,
+//! `/p1`, …, `/pT`; and a [`RobotBackend`] that drives the joints.
+
+use cps_kinematics::{KinematicsError, RobotBackend};
+use nalgebra::{IsometryMatrix3, Vector3};
+
+use crate::sim::HANDLE_WORLD;
+use crate::{Client, CoppeliaError};
+
+/// The handles of a robot in a CoppeliaSim scene, named as in the thesis.
+#[derive(Debug)]
+pub struct FrankaScene {
+    client: Client,
+    joints: Vec<i64>,
+    tip: i64,
+    dt: f64,
+}
+
+impl FrankaScene {
+    /// Looks up `/<robot>_joint1..dof` and `/<robot>_tip` (the thesis: robot `Panda`,
+    /// seven joints). `dt` is the scene's simulation time step in seconds.
+    pub fn open(
+        mut client: Client,
+        robot: &str,
+        dof: usize,
+        dt: f64,
+    ) -> Result<Self, CoppeliaError> {
+        let joints = (1..=dof)
+            .map(|i| client.get_object(&format!("/{robot}_joint{i}")))
+            .collect::<Result<Vec<_>, _>>()?;
+        let tip = client.get_object(&format!("/{robot}_tip"))?;
+        Ok(Self {
+            client,
+            joints,
+            tip,
+            dt,
+        })
+    }
+
+    /// Starts the simulation in stepping mode, so that [`RobotBackend::step`] advances it
+    /// exactly one time step.
+    pub fn start_stepping(&mut self) -> Result<(), CoppeliaError> {
+        self.client.start_simulation()?;
+        self.client.set_stepping(true)?;
+        Ok(())
+    }
+
+    /// Stops the simulation (which also ends stepping).
+    pub fn stop(&mut self) -> Result<(), CoppeliaError> {
+        self.client.stop_simulation()
+    }
+
+    /// The client, for calls this type does not wrap.
+    pub fn client(&mut self) -> &mut Client {
+        &mut self.client
+    }
+
+    /// The way points of the scene: `/p0`, `/p1`, … as long as they exist, then `/pT`
+    /// (world positions, metres).
+    pub fn way_points(&mut self) -> Result<Vec<(String, Vector3<f64>)>, CoppeliaError> {
+        let mut out = Vec::new();
+        let mut names: Vec<String> = Vec::new();
+        for i in 0.. {
+            let name = format!("p{i}");
+            match self.client.get_object(&format!("/{name}")) {
+                Ok(h) => {
+                    let p = self.client.get_object_position(h, HANDLE_WORLD)?;
+                    out.push((name.clone(), Vector3::from(p)));
+                    names.push(name);
+                }
+                Err(CoppeliaError::Remote { .. }) => break,
+                Err(e) => return Err(e),
+            }
+        }
+        if let Ok(h) = self.client.get_object("/pT") {
+            let p = self.client.get_object_position(h, HANDLE_WORLD)?;
+            out.push(("pT".into(), Vector3::from(p)));
+        }
+        Ok(out)
+    }
+
+    /// Creates a way-point dummy (size 0.04 m, as the thesis) named `name` at `position`,
+    /// coloured `rgb`; returns its handle.
+    pub fn create_way_point(
+        &mut self,
+        name: &str,
+        position: [f64; 3],
+        rgb: [f64; 3],
+    ) -> Result<i64, CoppeliaError> {
+        let h = self.client.create_dummy(0.04)?;
+        self.client.set_object_alias(h, name)?;
+        self.client.set_object_position(h, position, HANDLE_WORLD)?;
+        self.client.set_object_color(h, rgb)?;
+        Ok(h)
+    }
+}
+
+impl RobotBackend for FrankaScene {
+    fn dof(&self) -> usize {
+        self.joints.len()
+    }
+
+    fn time_step(&self) -> f64 {
+        self.dt
+    }
+
+    fn joint_positions(&mut self) -> Result<Vec<f64>, KinematicsError> {
+        let joints = self.joints.clone();
+        Ok(joints
+            .iter()
+            .map(|&j| self.client.get_joint_position(j))
+            .collect::<Result<Vec<_>, _>>()?)
+    }
+
+    fn command_joint_positions(&mut self, q: &[f64]) -> Result<(), KinematicsError> {
+        if q.len() != self.joints.len() {
+            return Err(KinematicsError::JointCount {
+                expected: self.joints.len(),
+                got: q.len(),
+            });
+        }
+        let joints = self.joints.clone();
+        for (j, v) in joints.iter().zip(q) {
+            self.client.set_joint_position(*j, *v)?;
+        }
+        Ok(())
+    }
+
+    fn command_joint_velocities(&mut self, dq: &[f64]) -> Result<(), KinematicsError> {
+        // Kinematic joints: integrate one step here.
+        let q = self.joint_positions()?;
+        let next: Vec<f64> = q.iter().zip(dq).map(|(a, v)| a + v * self.dt).collect();
+        self.command_joint_positions(&next)
+    }
+
+    fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, KinematicsError> {
+        let pose = self.client.get_object_pose(self.tip, HANDLE_WORLD)?;
+        Ok(IsometryMatrix3::from_parts(
+            pose.translation,
+            pose.rotation.to_rotation_matrix(),
+        ))
+    }
+
+    fn time(&mut self) -> Result<f64, KinematicsError> {
+        Ok(self.client.get_simulation_time()?)
+    }
+
+    fn step(&mut self) -> Result<(), KinematicsError> {
+        Ok(self.client.step()?)
+    }
+}
