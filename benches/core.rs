@@ -142,6 +142,44 @@ fn dmp_extras(c: &mut Criterion) {
     });
 }
 
+/// Remote-API round trips: the Rust client against the stand-in server on loopback.
+fn coppelia(c: &mut Criterion) {
+    use cps::coppelia::{Client, ClientConfig, SceneSetup, ServerConfig, StandInServer};
+    use cps::kinematics::robots::{PandaTool, panda};
+    let server = StandInServer::start(ServerConfig {
+        bind: "127.0.0.1:0".into(),
+        scene: SceneSetup {
+            robot_name: "Panda".into(),
+            chain: panda(PandaTool::HandTcp),
+            initial_q: vec![0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785],
+            dummies: vec![],
+            dt: 0.05,
+        },
+    })
+    .unwrap();
+    let mut sim = Client::connect(ClientConfig {
+        endpoint: server.endpoint().into(),
+        ..ClientConfig::default()
+    })
+    .unwrap();
+    let joints: Vec<i64> = (1..=7)
+        .map(|i| sim.get_object(&format!("/Panda_joint{i}")).unwrap())
+        .collect();
+    let tip = sim.get_object("/Panda_tip").unwrap();
+    c.bench_function("coppelia/get_joint_position", |b| {
+        b.iter(|| sim.get_joint_position(black_box(joints[0])).unwrap())
+    });
+    c.bench_function("coppelia/read_7_joints_and_tip", |b| {
+        b.iter(|| {
+            let q: Vec<f64> = joints
+                .iter()
+                .map(|&j| sim.get_joint_position(j).unwrap())
+                .collect();
+            (q, sim.get_object_position(tip, -1).unwrap())
+        })
+    });
+}
+
 fn rollout(c: &mut Criterion) {
     let dmp = thesis_dmp();
     let w = random_weights(dmp.n_weights(), 1);
@@ -235,7 +273,7 @@ fn viapoint_run(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(dmp_benches, dmp_extras);
+criterion_group!(dmp_benches, dmp_extras, coppelia);
 criterion_group!(
     benches,
     kinematics,

@@ -251,3 +251,95 @@ fn execution_on_the_server_matches_the_in_process_robot() {
     );
     scene.stop().unwrap();
 }
+
+/// An endpoint that is not a ZMQ server (a plain TCP listener that sends garbage) gives a
+/// clear error within the timeout, never a hang.
+#[test]
+fn an_endpoint_that_is_not_a_zmq_server_is_an_error() {
+    use std::io::Write;
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let garbage = std::thread::spawn(move || {
+        if let Ok((mut s, _)) = listener.accept() {
+            let _ = s.write_all(b"HTTP/1.1 400 Bad Request\r\n\r\n");
+            std::thread::sleep(Duration::from_millis(500));
+        }
+    });
+    let start = Instant::now();
+    let e = Client::connect(ClientConfig {
+        endpoint: format!("tcp://127.0.0.1:{port}"),
+        connect_timeout: Duration::from_millis(500),
+        call_timeout: Duration::from_millis(500),
+    })
+    .unwrap_err();
+    assert!(
+        start.elapsed() < Duration::from_secs(3),
+        "took {:?}",
+        start.elapsed()
+    );
+    assert!(e.to_string().contains(&format!("127.0.0.1:{port}")), "{e}");
+    let _ = garbage.join();
+    // Settings that cannot work are refused before any I/O.
+    let bad = Client::connect(ClientConfig {
+        endpoint: "localhost:23000".into(),
+        ..ClientConfig::default()
+    });
+    assert!(matches!(bad, Err(CoppeliaError::InvalidConfig(_))));
+}
+
+/// A CoppeliaSim 4.3–4.5 server (protocol v1) does not know `zmqRemoteApi.require`: the
+/// client notices and speaks v1 (`{func, args}` only) from then on.
+#[test]
+fn a_v1_server_is_detected() {
+    use cps_coppelia::codec::{self, Value};
+    use zeromq::{RepSocket, Socket, SocketRecv, SocketSend, ZmqMessage};
+    let (tx, rx) = std::sync::mpsc::channel();
+    let server = std::thread::spawn(move || {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
+        rt.block_on(async move {
+            let mut rep = RepSocket::new();
+            let ep = rep.bind("tcp://127.0.0.1:0").await.unwrap();
+            tx.send(ep.to_string()).unwrap();
+            let mut seen = Vec::new();
+            for _ in 0..2 {
+                let m = rep.recv().await.unwrap();
+                let bytes: Vec<u8> = m.into_vec().into_iter().flat_map(|b| b.to_vec()).collect();
+                let req = codec::decode(&bytes).unwrap();
+                let func = codec::get(&req, "func").and_then(codec::as_text).unwrap();
+                seen.push((func.clone(), codec::get(&req, "uuid").is_some()));
+                let reply = if func == "zmqRemoteApi.require" {
+                    codec::map([
+                        ("success", Value::Bool(false)),
+                        (
+                            "error",
+                            codec::text("No such function: zmqRemoteApi.require"),
+                        ),
+                    ])
+                } else {
+                    codec::map([
+                        ("success", Value::Bool(true)),
+                        ("ret", Value::Array(vec![Value::Float(1.25)])),
+                    ])
+                };
+                rep.send(ZmqMessage::from(codec::encode(&reply)))
+                    .await
+                    .unwrap();
+            }
+            seen
+        })
+    });
+    let endpoint = rx.recv().unwrap();
+    let mut sim = client(&endpoint);
+    assert_eq!(sim.protocol(), cps_coppelia::Protocol::V1);
+    assert_eq!(sim.get_simulation_time().unwrap(), 1.25);
+    drop(sim);
+    let seen = server.join().unwrap();
+    assert_eq!(
+        seen[1],
+        ("sim.getSimulationTime".to_string(), false),
+        "v1 requests carry no uuid"
+    );
+}
