@@ -321,6 +321,22 @@ impl Sim {
                 self.set_pose(h, pose, r)?;
                 none
             }
+            "sim.setObjectMatrix" => {
+                let h = int(0)?;
+                let (m, r) = match vec(1, 12) {
+                    Ok(m) => (m, rel(2)?),
+                    Err(_) => (vec(2, 12)?, rel(1)?),
+                };
+                if m.iter().any(|v| !v.is_finite()) {
+                    return Err("the matrix must be finite".into());
+                }
+                let rot =
+                    nalgebra::Matrix3::new(m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10]);
+                let rotation = UnitQuaternion::from_matrix(&rot);
+                let pose = Isometry3::from_parts(Translation3::new(m[3], m[7], m[11]), rotation);
+                self.set_pose(h, pose, r)?;
+                none
+            }
             "sim.createDummy" => {
                 let size = num(0)?;
                 if !(size.is_finite() && size > 0.0) {
@@ -427,6 +443,7 @@ const FUNCTIONS: &[&str] = &[
     "getObjectPose",
     "setObjectPose",
     "getObjectMatrix",
+    "setObjectMatrix",
     "createDummy",
     "removeObjects",
     "removeObject",

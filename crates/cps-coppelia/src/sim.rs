@@ -155,6 +155,25 @@ impl Client {
         )
     }
 
+    /// `sim.setObjectMatrix(handle, matrix, relativeTo)`: 12 numbers, the 3×4 matrix
+    /// row-major.
+    pub fn set_object_matrix(
+        &mut self,
+        object: i64,
+        matrix: [f64; 12],
+        relative_to: i64,
+    ) -> Result<(), CoppeliaError> {
+        self.call(
+            "sim.setObjectMatrix",
+            vec![
+                codec::int(object),
+                codec::floats(&matrix),
+                codec::int(relative_to),
+            ],
+        )
+        .map(drop)
+    }
+
     /// `sim.createDummy(size)`: a new dummy's handle.
     pub fn create_dummy(&mut self, size: f64) -> Result<i64, CoppeliaError> {
         self.typed(

@@ -75,6 +75,13 @@ fn a_full_session() {
     );
     let m = sim.get_object_matrix(d, HANDLE_WORLD).unwrap();
     assert_eq!([m[3], m[7], m[11]], [0.55, -0.57, 1.45]);
+    // A quarter turn about z, set as a matrix, comes back as a pose.
+    let quarter = [0.0, -1.0, 0.0, 0.1, 1.0, 0.0, 0.0, 0.2, 0.0, 0.0, 1.0, 0.3];
+    sim.set_object_matrix(d, quarter, HANDLE_WORLD).unwrap();
+    let back = sim.get_object_matrix(d, HANDLE_WORLD).unwrap();
+    for (a, b) in back.iter().zip(quarter) {
+        assert!((a - b).abs() < 1e-12, "{back:?}");
+    }
     let p1 = sim.get_object("/p1").unwrap();
     let pose = sim.get_object_pose(p1, HANDLE_WORLD).unwrap();
     assert!((pose.translation.vector - nalgebra::Vector3::new(0.78, 0.60, 1.70)).norm() < 1e-15);
