@@ -104,14 +104,7 @@ pub fn bench(cmd: &CmaesCommand) -> Result<ExitCode> {
         Function::Rosenbrock => (vec![0.0; n], 0.5),
         _ => (vec![3.0; n], 2.0),
     };
-    let mut rules = vec![
-        StopRule::TargetCost(1e-8),
-        StopRule::MaxEvaluations(2_000_000 * n as u64),
-        StopRule::TolFun(1e-11),
-        StopRule::TolX(1e-11),
-        StopRule::Stagnation,
-    ];
-    rules.extend(StopRule::safety_defaults());
+    let rules = StopRule::reference_set(1e-8, n);
     let mut rows = Vec::new();
     for seed in first..=last {
         let config = CmaesConfig::new(sigma0, seed);

@@ -51,6 +51,23 @@ impl StopRule {
     }
 }
 
+impl StopRule {
+    /// The reference set-up of benchmarks (pycma's default termination): reach `target`,
+    /// or stop by tolfun 1e-11, tolx 1e-11, stagnation or a safety rule, within a budget
+    /// of 2·10⁶·n evaluations. Used by `cps-cli cmaes bench` and the reference tests.
+    pub fn reference_set(target: f64, n: usize) -> Vec<StopRule> {
+        let mut rules = vec![
+            StopRule::TargetCost(target),
+            StopRule::MaxEvaluations(2_000_000 * n as u64),
+            StopRule::TolFun(1e-11),
+            StopRule::TolX(1e-11),
+            StopRule::Stagnation,
+        ];
+        rules.extend(StopRule::safety_defaults());
+        rules
+    }
+}
+
 /// Why a run ended.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]

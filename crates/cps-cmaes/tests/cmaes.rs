@@ -404,19 +404,6 @@ mod stopping_rules {
     }
 }
 
-/// The reference set-up of `cps-cli cmaes bench`: pycma's default termination.
-fn reference_rules(n: usize) -> Vec<StopRule> {
-    let mut rules = vec![
-        StopRule::TargetCost(1e-8),
-        StopRule::MaxEvaluations(2_000_000 * n as u64),
-        StopRule::TolFun(1e-11),
-        StopRule::TolX(1e-11),
-        StopRule::Stagnation,
-    ];
-    rules.extend(StopRule::safety_defaults());
-    rules
-}
-
 /// IPOP on Rastrigin, n = 10, x0 = 3·1, σ0 = 2: every one of seeds 1..10 reaches 1e-8
 /// (pycma 4.5.0: 10/10, median 47 142 evaluations).
 #[test]
@@ -427,7 +414,7 @@ fn ipop_solves_rastrigin_10_for_every_seed() {
             &FnObjective(functions::rastrigin),
             &[3.0; 10],
             &CmaesConfig::new(2.0, seed),
-            &reference_rules(10),
+            &StopRule::reference_set(1e-8, 10),
             9,
             &mut NoObserver,
         )
