@@ -140,13 +140,14 @@ pub fn bench(cmd: &CmaesCommand) -> Result<ExitCode> {
         let mut evals: Vec<u64> = rows.iter().filter(|r| r.2).map(|r| r.1).collect();
         evals.sort_unstable();
         let successes = evals.len();
-        let median = if evals.is_empty() {
-            0
-        } else {
-            evals[evals.len() / 2]
+        // The usual median: the mean of the two middle values for an even count.
+        let median = match evals.len() {
+            0 => 0.0,
+            k if k % 2 == 1 => evals[k / 2] as f64,
+            k => 0.5 * (evals[k / 2 - 1] + evals[k / 2]) as f64,
         };
         say!(
-            "{:?} n = {n}: {successes}/{} successes, median evaluations of the successes {median}",
+            "{:?} n = {n}: {successes}/{} successes, median evaluations of the successes {median:.0}",
             args.function,
             rows.len()
         );

@@ -436,6 +436,6 @@ fn ipop_solves_rastrigin_10_for_every_seed() {
     evals.sort_unstable();
     eprintln!(
         "IPOP rastrigin n=10: median {} evaluations (pycma 47 142)",
-        evals[5]
+        (evals[4] + evals[5]) / 2
     );
 }
