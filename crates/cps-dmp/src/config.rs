@@ -68,29 +68,12 @@ impl DmpConfig {
 
     /// Checks every field once; the error names the field and the rule it broke.
     pub fn validate(&self) -> Result<(), DmpError> {
-        let positive = |field, value: f64| {
-            if value.is_finite() && value > 0.0 {
-                Ok(())
-            } else {
-                Err(DmpError::InvalidConfig {
-                    field,
-                    rule: "must be finite and > 0",
-                    value,
-                })
-            }
-        };
         positive("alpha_z", self.alpha_z)?;
         positive("beta_z", self.beta_z)?;
         positive("alpha_x", self.alpha_x)?;
         positive("tau", self.tau)?;
         positive("dt", self.dt)?;
-        if self.n_basis == 0 {
-            return Err(DmpError::InvalidConfig {
-                field: "n_basis",
-                rule: "must be at least 1",
-                value: 0.0,
-            });
-        }
+        at_least_one("n_basis", self.n_basis)?;
         if self.dt >= self.tau {
             return Err(DmpError::InvalidConfig {
                 field: "dt",
@@ -116,5 +99,31 @@ impl DmpConfig {
     /// The step actually used, `tau / K` in seconds.
     pub fn step(&self) -> f64 {
         self.tau / self.n_steps() as f64
+    }
+}
+
+/// `value` must be finite and > 0; the error names `field`.
+pub(crate) fn positive(field: &'static str, value: f64) -> Result<(), DmpError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(())
+    } else {
+        Err(DmpError::InvalidConfig {
+            field,
+            rule: "must be finite and > 0",
+            value,
+        })
+    }
+}
+
+/// A count that must be at least 1; the error names `field`.
+pub(crate) fn at_least_one(field: &'static str, count: usize) -> Result<(), DmpError> {
+    if count == 0 {
+        Err(DmpError::InvalidConfig {
+            field,
+            rule: "must be at least 1",
+            value: 0.0,
+        })
+    } else {
+        Ok(())
     }
 }

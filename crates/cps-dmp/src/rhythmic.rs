@@ -8,6 +8,7 @@
 //! DMP. Scaling `r` scales the oscillation about `g`; changing `τ` changes the period.
 
 use crate::DmpError;
+use crate::config::{at_least_one, positive};
 use crate::discretize::StepCoefficients;
 
 /// A rhythmic DMP with one transformation system per dimension.
@@ -60,28 +61,11 @@ fn basis(phi: f64, n: usize, h: f64, out: &mut [f64]) -> f64 {
 impl RhythmicDmp {
     fn check(&self) -> Result<usize, DmpError> {
         let dims = self.anchor.len();
-        let positive = |field, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(DmpError::InvalidConfig {
-                    field,
-                    rule: "must be finite and > 0",
-                    value: v,
-                })
-            }
-        };
         positive("alpha_z", self.alpha_z)?;
         positive("beta_z", self.beta_z)?;
         positive("tau", self.tau)?;
         positive("width", self.width)?;
-        if self.n_basis == 0 {
-            return Err(DmpError::InvalidConfig {
-                field: "n_basis",
-                rule: "must be at least 1",
-                value: 0.0,
-            });
-        }
+        at_least_one("n_basis", self.n_basis)?;
         if dims == 0 {
             return Err(DmpError::NoDimensions);
         }
