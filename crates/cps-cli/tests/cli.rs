@@ -943,3 +943,22 @@ fn the_official_python_client_runs_a_session_against_sim_serve() {
     );
     assert!(String::from_utf8_lossy(&out.stdout).contains("python session ok"));
 }
+
+/// The shipped demonstration (experiments/demos) is learned within a millimetre.
+#[test]
+fn the_shipped_demonstration_is_learned_within_a_millimetre() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.json");
+    let o = cli(&[
+        "imitate",
+        &repo("experiments/demos/table3_min_jerk.csv"),
+        "--out",
+        model.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = stdout_json(&o);
+    for d in 0..3 {
+        assert!(report["rmse"][d].as_f64().unwrap() < 1e-3, "{report}");
+    }
+}
