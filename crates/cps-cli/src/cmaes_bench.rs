@@ -5,7 +5,8 @@
 //! (Rosenbrock: x0 = 0, σ0 = 0.5), default λ, success when f ≤ 1e-8, pycma's default
 //! termination (tolfun 1e-11, tolx 1e-11, stagnation, tolupsigma, conditioncov,
 //! no-effect rules), a budget of 2·10⁶·n evaluations, and with `--ipop` up to 9 restarts
-//! doubling λ, each from the same x0 and σ0.
+//! doubling λ, each from the same x0 and σ0 (`--bipop`: BIPOP, small-population runs
+//! interleaved).
 
 use std::process::ExitCode;
 use std::time::Instant;
@@ -13,7 +14,8 @@ use std::time::Instant;
 use anyhow::Result;
 use clap::{Args, Subcommand, ValueEnum};
 use cps_cmaes::{
-    CmaesConfig, FnObjective, NoObserver, StopRule, functions, minimize, minimize_ipop,
+    CmaesConfig, FnObjective, NoObserver, StopRule, functions, minimize, minimize_bipop,
+    minimize_ipop,
 };
 
 use crate::experiment::InputError;
@@ -55,8 +57,11 @@ pub struct BenchArgs {
     #[arg(long, default_value = "1..10")]
     seeds: String,
     /// IPOP restarts (up to 9, population doubled each time).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "bipop")]
     ipop: bool,
+    /// BIPOP restarts (up to 9 large-population runs, small ones interleaved).
+    #[arg(long)]
+    bipop: bool,
     /// Print a JSON list of `{seed, evaluations, success, best, seconds}`.
     #[arg(long)]
     json: bool,
@@ -111,6 +116,8 @@ pub fn bench(cmd: &CmaesCommand) -> Result<ExitCode> {
         let start = Instant::now();
         let sol = if args.ipop {
             minimize_ipop(&FnObjective(f), &x0, &config, &rules, 9, &mut NoObserver)?.best
+        } else if args.bipop {
+            minimize_bipop(&FnObjective(f), &x0, &config, &rules, 9, &mut NoObserver)?.best
         } else {
             minimize(&FnObjective(f), &x0, &config, &rules, &mut NoObserver)?
         };

@@ -201,32 +201,22 @@ pub struct RestartSolution {
     pub runs: Vec<Solution>,
 }
 
-/// IPOP-CMA-ES (Auger & Hansen 2005): runs [`minimize`] and, while a run ends by a rule
-/// other than the target, the budget or an interruption, restarts it from the same `x0`
-/// and σ₀ with the population doubled, up to `max_restarts` times. Run r uses the seed
-/// `seed + r · 0x9E37_79B9_7F4A_7C15` (wrapping), so the whole sequence is reproducible.
-/// A [`StopRule::MaxEvaluations`] budget counts over all runs together.
-pub fn minimize_ipop<O: Objective + ?Sized>(
+/// Runs [`minimize`] repeatedly with the settings `plan(run, spent_large, spent_small)`
+/// returns (`None` ends the sequence), until the target, the budget or an interruption.
+/// The second element of a plan says whether the run belongs to the large-population
+/// regime (for BIPOP's budget bookkeeping).
+fn restarts<O: Objective + ?Sized>(
     objective: &O,
     x0: &[f64],
-    config: &CmaesConfig,
     rules: &[StopRule],
-    max_restarts: usize,
     observer: &mut dyn Observer,
+    mut plan: impl FnMut(usize, u64, u64) -> Option<(CmaesConfig, bool)>,
 ) -> Result<RestartSolution, CmaesError> {
-    config.validate(x0.len())?;
-    let lambda0 = config
-        .population
-        .unwrap_or_else(|| crate::Parameters::default_lambda(x0.len()));
     let mut runs: Vec<Solution> = Vec::new();
-    let mut spent = 0u64;
-    for r in 0..=max_restarts {
-        let cfg = CmaesConfig {
-            population: Some(lambda0 << r.min(20)),
-            seed: config
-                .seed
-                .wrapping_add((r as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)),
-            ..config.clone()
+    let (mut spent, mut large, mut small) = (0u64, 0u64, 0u64);
+    for r in 0.. {
+        let Some((cfg, is_large)) = plan(r, large, small) else {
+            break;
         };
         let budget: Vec<StopRule> = rules
             .iter()
@@ -239,6 +229,11 @@ pub fn minimize_ipop<O: Objective + ?Sized>(
             .collect();
         let run = minimize(objective, x0, &cfg, &budget, observer)?;
         spent += run.evaluations;
+        if is_large {
+            large += run.evaluations;
+        } else {
+            small += run.evaluations;
+        }
         let done = matches!(
             run.termination,
             Termination::Interrupted
@@ -267,4 +262,103 @@ pub fn minimize_ipop<O: Objective + ?Sized>(
         termination: last.termination.clone(),
     };
     Ok(RestartSolution { best, runs })
+}
+
+/// The seed of restart `r`: `seed + r · 0x9E37_79B9_7F4A_7C15` (wrapping).
+fn restart_seed(seed: u64, r: usize) -> u64 {
+    seed.wrapping_add((r as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15))
+}
+
+/// IPOP-CMA-ES (Auger & Hansen 2005): runs [`minimize`] and, while a run ends by a rule
+/// other than the target, the budget or an interruption, restarts it from the same `x0`
+/// and σ₀ with the population doubled, up to `max_restarts` times. Run r uses the seed
+/// `seed + r · 0x9E37_79B9_7F4A_7C15` (wrapping), so the whole sequence is reproducible.
+/// A [`StopRule::MaxEvaluations`] budget counts over all runs together.
+pub fn minimize_ipop<O: Objective + ?Sized>(
+    objective: &O,
+    x0: &[f64],
+    config: &CmaesConfig,
+    rules: &[StopRule],
+    max_restarts: usize,
+    observer: &mut dyn Observer,
+) -> Result<RestartSolution, CmaesError> {
+    config.validate(x0.len())?;
+    let lambda0 = config
+        .population
+        .unwrap_or_else(|| crate::Parameters::default_lambda(x0.len()));
+    restarts(objective, x0, rules, observer, |r, _, _| {
+        (r <= max_restarts).then(|| {
+            let cfg = CmaesConfig {
+                population: Some(lambda0 << r.min(20)),
+                seed: restart_seed(config.seed, r),
+                ..config.clone()
+            };
+            (cfg, true)
+        })
+    })
+}
+
+/// BIPOP-CMA-ES (Hansen 2009): after a first run with the default population, restarts
+/// alternate between two regimes, each time choosing the one that has spent fewer
+/// evaluations: the large regime doubles the population at each of its runs (as IPOP,
+/// σ₀ unchanged, up to `max_large_restarts` of them), the small regime draws
+/// `λ = ⌊λ₀ (λ_large / (2 λ₀))^{u²}⌋` and `σ = σ₀ · 10^{−2u}` with `u` uniform in [0, 1)
+/// (seeded, reproducible), where `λ_large` is the last large population. Ends when the
+/// large regime has used its restarts, or by the target, the budget or an interruption.
+pub fn minimize_bipop<O: Objective + ?Sized>(
+    objective: &O,
+    x0: &[f64],
+    config: &CmaesConfig,
+    rules: &[StopRule],
+    max_large_restarts: usize,
+    observer: &mut dyn Observer,
+) -> Result<RestartSolution, CmaesError> {
+    use rand::{Rng, SeedableRng};
+    config.validate(x0.len())?;
+    let lambda0 = config
+        .population
+        .unwrap_or_else(|| crate::Parameters::default_lambda(x0.len()));
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(restart_seed(config.seed, usize::MAX));
+    let mut large_runs = 0usize;
+    restarts(
+        objective,
+        x0,
+        rules,
+        observer,
+        |r, spent_large, spent_small| {
+            let seed = restart_seed(config.seed, r);
+            if r == 0 {
+                return Some((
+                    CmaesConfig {
+                        seed,
+                        ..config.clone()
+                    },
+                    true,
+                ));
+            }
+            let lambda_large = lambda0 << (large_runs + 1).min(20);
+            if spent_small < spent_large {
+                let u: f64 = rng.random();
+                let ratio = lambda_large as f64 / (2.0 * lambda0 as f64);
+                let lambda = ((lambda0 as f64) * ratio.powf(u * u)).floor().max(2.0) as usize;
+                let cfg = CmaesConfig {
+                    population: Some(lambda),
+                    sigma0: config.sigma0 * 10f64.powf(-2.0 * rng.random::<f64>()),
+                    seed,
+                    ..config.clone()
+                };
+                Some((cfg, false))
+            } else if large_runs < max_large_restarts {
+                large_runs += 1;
+                let cfg = CmaesConfig {
+                    population: Some(lambda0 << large_runs.min(20)),
+                    seed,
+                    ..config.clone()
+                };
+                Some((cfg, true))
+            } else {
+                None
+            }
+        },
+    )
 }

@@ -9,7 +9,7 @@
 //!   bit-symmetric covariance, repair on numerical failure, NaN costs ranked last.
 //! - [`minimize`]: the driver: budget and [`StopRule`]s (a documented enum), an
 //!   [`Observer`] after each generation, parallel evaluation with rayon.
-//! - [`minimize_ipop`]: IPOP restarts (population doubled per restart) for multimodal costs.
+//! - [`minimize_ipop`] / [`minimize_bipop`]: IPOP and BIPOP restarts for multimodal costs.
 //! - [`functions`]: the standard test functions.
 //!
 //! Determinism: candidates are drawn from a ChaCha8 stream keyed by (seed, generation)
@@ -42,7 +42,7 @@ pub use cmaes::Cmaes;
 pub use config::CmaesConfig;
 pub use driver::{
     CandidateError, FnObjective, GenerationReport, NoObserver, Objective, Observer,
-    RestartSolution, Solution, minimize, minimize_ipop,
+    RestartSolution, Solution, minimize, minimize_bipop, minimize_ipop,
 };
 pub use error::{CmaesError, ObjectiveError};
 pub use params::Parameters;

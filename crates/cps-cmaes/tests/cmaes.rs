@@ -439,3 +439,47 @@ fn ipop_solves_rastrigin_10_for_every_seed() {
         (evals[4] + evals[5]) / 2
     );
 }
+
+/// BIPOP on Rastrigin n = 10: every seed of 1..5 reaches 1e-8, the evaluations add up,
+/// the same seed gives the same sequence, and the sequence is not IPOP's (small-population
+/// runs with other λ and σ are interleaved).
+#[test]
+fn bipop_solves_rastrigin_10_and_is_reproducible() {
+    let rules = StopRule::reference_set(1e-8, 10);
+    let bipop = |seed| {
+        cps_cmaes::minimize_bipop(
+            &FnObjective(functions::rastrigin),
+            &[3.0; 10],
+            &CmaesConfig::new(2.0, seed),
+            &rules,
+            9,
+            &mut NoObserver,
+        )
+        .unwrap()
+    };
+    let mut differs = false;
+    for seed in 1..=5 {
+        let sol = bipop(seed);
+        assert!(
+            sol.best.best_cost <= 1e-8,
+            "seed {seed}: {}",
+            sol.best.best_cost
+        );
+        assert_eq!(
+            sol.best.evaluations,
+            sol.runs.iter().map(|r| r.evaluations).sum::<u64>()
+        );
+        let ipop = cps_cmaes::minimize_ipop(
+            &FnObjective(functions::rastrigin),
+            &[3.0; 10],
+            &CmaesConfig::new(2.0, seed),
+            &rules,
+            9,
+            &mut NoObserver,
+        )
+        .unwrap();
+        differs |= ipop.best.evaluations != sol.best.evaluations;
+    }
+    assert!(differs, "BIPOP ran exactly as IPOP for every seed");
+    assert_eq!(bipop(3).best.evaluations, bipop(3).best.evaluations);
+}
