@@ -264,6 +264,15 @@ fn restarts<O: Objective + ?Sized>(
     Ok(RestartSolution { best, runs })
 }
 
+/// Validates `config` for dimension `n` and returns its population λ₀ (the default when
+/// unset), the starting point of every restart schedule.
+fn base_population(config: &CmaesConfig, n: usize) -> Result<usize, CmaesError> {
+    config.validate(n)?;
+    Ok(config
+        .population
+        .unwrap_or_else(|| crate::Parameters::default_lambda(n)))
+}
+
 /// The seed of restart `r`: `seed + r · 0x9E37_79B9_7F4A_7C15` (wrapping).
 fn restart_seed(seed: u64, r: usize) -> u64 {
     seed.wrapping_add((r as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15))
@@ -282,10 +291,7 @@ pub fn minimize_ipop<O: Objective + ?Sized>(
     max_restarts: usize,
     observer: &mut dyn Observer,
 ) -> Result<RestartSolution, CmaesError> {
-    config.validate(x0.len())?;
-    let lambda0 = config
-        .population
-        .unwrap_or_else(|| crate::Parameters::default_lambda(x0.len()));
+    let lambda0 = base_population(config, x0.len())?;
     restarts(objective, x0, rules, observer, |r, _, _| {
         (r <= max_restarts).then(|| {
             let cfg = CmaesConfig {
@@ -314,10 +320,7 @@ pub fn minimize_bipop<O: Objective + ?Sized>(
     observer: &mut dyn Observer,
 ) -> Result<RestartSolution, CmaesError> {
     use rand::{Rng, SeedableRng};
-    config.validate(x0.len())?;
-    let lambda0 = config
-        .population
-        .unwrap_or_else(|| crate::Parameters::default_lambda(x0.len()));
+    let lambda0 = base_population(config, x0.len())?;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(restart_seed(config.seed, usize::MAX));
     let mut large_runs = 0usize;
     restarts(

@@ -213,10 +213,9 @@ impl Client {
         args: Vec<Value>,
         connecting: bool,
     ) -> Result<Vec<Value>, CoppeliaError> {
+        // Connecting (a new socket) is bounded by the connect timeout, calls by the call one.
         let timeout = if connecting || self.socket.is_none() {
-            self.config
-                .connect_timeout
-                .max(self.config.call_timeout.min(self.config.connect_timeout))
+            self.config.connect_timeout
         } else {
             self.config.call_timeout
         };

@@ -26,7 +26,10 @@ fn server() -> StandInServer {
             robot_name: "Panda".into(),
             chain,
             initial_q: THESIS_Q0.to_vec(),
-            dummies: vec![("p1".into(), [0.78, 0.60, 1.70])],
+            dummies: vec![
+                ("p0".into(), [0.75, 0.02, 1.87]),
+                ("p1".into(), [0.78, 0.60, 1.70]),
+            ],
             dt: 0.05,
         },
     })

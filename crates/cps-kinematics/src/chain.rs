@@ -698,14 +698,10 @@ impl SerialChain {
         m[0]
     }
 
-    /// The tool pose and the 6 × n Jacobian (column i in `cols[i]`, rows as in
-    /// [`SerialChain::jacobian`]) from one walk, without allocating; for solvers.
-    /// `q` must be checked by the caller.
-    pub(crate) fn pose_and_jacobian(
-        &self,
-        q: &[f64],
-        cols: &mut [[f64; 6]],
-    ) -> IsometryMatrix3<f64> {
+    /// The tool pose and the 6 × n Jacobian, column-major in `cols` (column i is
+    /// `cols[6 i .. 6 i + 6]`, rows as in [`SerialChain::jacobian`]), from one walk without
+    /// allocating. `q` must be checked by the caller.
+    pub(crate) fn pose_and_jacobian(&self, q: &[f64], cols: &mut [f64]) -> IsometryMatrix3<f64> {
         let mut origins = [[0.0; 3]; STACK_JOINTS];
         let mut heap = Vec::new();
         let store: &mut [[f64; 3]] = if q.len() <= STACK_JOINTS {
@@ -716,12 +712,12 @@ impl SerialChain {
         };
         let tool = self.walk(q, |i, f| {
             for k in 0..3 {
-                cols[i][k + 3] = f.r(k, 2);
+                cols[6 * i + k + 3] = f.r(k, 2);
             }
             store[i] = f.t();
         });
         let tt = tool.t();
-        for (col, o) in cols.iter_mut().zip(store.iter()) {
+        for (col, o) in cols.chunks_exact_mut(6).zip(store.iter()) {
             let r = [tt[0] - o[0], tt[1] - o[1], tt[2] - o[2]];
             let z = [col[3], col[4], col[5]];
             col[0] = z[1] * r[2] - z[2] * r[1];
@@ -767,30 +763,8 @@ impl SerialChain {
     /// `p_i` a point on it.
     pub fn jacobian(&self, q: &[f64]) -> Result<OMatrix<f64, U6, nalgebra::Dyn>, KinematicsError> {
         self.check(q)?;
-        let n = self.dof();
-        let mut j = OMatrix::<f64, U6, nalgebra::Dyn>::zeros(n);
-        let mut origins = [[0.0; 3]; 16];
-        let mut heap = Vec::new();
-        let store: &mut [[f64; 3]] = if n <= 16 {
-            &mut origins[..n]
-        } else {
-            heap.resize(n, [0.0; 3]);
-            &mut heap
-        };
-        let tool = self.walk(q, |i, f| {
-            for k in 0..3 {
-                j[(k + 3, i)] = f.r(k, 2);
-            }
-            store[i] = f.t();
-        });
-        for (i, o) in store.iter().enumerate() {
-            let tt = tool.t();
-            let r = [tt[0] - o[0], tt[1] - o[1], tt[2] - o[2]];
-            let z = [j[(3, i)], j[(4, i)], j[(5, i)]];
-            j[(0, i)] = z[1] * r[2] - z[2] * r[1];
-            j[(1, i)] = z[2] * r[0] - z[0] * r[2];
-            j[(2, i)] = z[0] * r[1] - z[1] * r[0];
-        }
+        let mut j = OMatrix::<f64, U6, nalgebra::Dyn>::zeros(self.dof());
+        self.pose_and_jacobian(q, j.as_mut_slice());
         Ok(j)
     }
 

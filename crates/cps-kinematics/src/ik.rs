@@ -178,7 +178,7 @@ pub fn solve_ik(
     let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
     let mut iterations = 0;
     // Work space, allocated once per solve.
-    let mut jac = vec![[0.0; 6]; n];
+    let mut jac = vec![0.0; 6 * n];
     let (mut jtj, mut a) = (vec![0.0; n * n], vec![0.0; n * n]);
     let (mut g, mut dq, mut trial) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let mut best: Option<(f64, f64, f64)> = None;
@@ -228,9 +228,9 @@ pub fn solve_ik(
             chain.pose_and_jacobian(&q, &mut jac);
             let ev = [e.0[0], e.0[1], e.0[2], e.1[0], e.1[1], e.1[2]];
             for r in 0..n {
-                g[r] = (0..rows).map(|k| jac[r][k] * ev[k]).sum();
+                g[r] = (0..rows).map(|k| jac[6 * r + k] * ev[k]).sum();
                 for c in 0..=r {
-                    jtj[r * n + c] = (0..rows).map(|k| jac[r][k] * jac[c][k]).sum();
+                    jtj[r * n + c] = (0..rows).map(|k| jac[6 * r + k] * jac[6 * c + k]).sum();
                 }
             }
             let mut improved = false;
