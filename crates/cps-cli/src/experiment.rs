@@ -34,11 +34,41 @@ struct File {
     optimizer: Optimizer,
     #[serde(default)]
     output: Output,
+    robot: Option<Spanned<crate::pipelines::RobotSection>>,
+    demonstrations: Option<Spanned<crate::pipelines::DemonstrationsSection>>,
+    imitation: Option<Spanned<crate::pipelines::ImitationSection>>,
+    scaling: Option<Spanned<crate::pipelines::ScalingSection>>,
+}
+
+/// What an experiment file runs (`[experiment] kind`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kind {
+    /// Via-point learning (the default).
+    #[default]
+    Viapoint,
+    /// The thesis's imitation pipeline on a robot backend.
+    Imitation,
+    /// Parametrisations compared over repetitions (the thesis's scaled vs not scaled).
+    Scaling,
+}
+
+impl Kind {
+    /// The name used in files and summaries.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Kind::Viapoint => "viapoint",
+            Kind::Imitation => "imitation",
+            Kind::Scaling => "scaling",
+        }
+    }
 }
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Experiment {
+    #[serde(default)]
+    kind: Option<Spanned<Kind>>,
     name: Option<String>,
     #[serde(default = "one")]
     seed: u64,
@@ -112,11 +142,18 @@ struct Optimizer {
     tol_fun: Option<Spanned<f64>>,
 }
 
-#[derive(Debug, Deserialize, Default)]
+#[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Output {
     #[serde(default = "yes")]
     plots: bool,
+}
+
+/// A file without `[output]` gets plots, like one with an empty `[output]`.
+impl Default for Output {
+    fn default() -> Self {
+        Self { plots: true }
+    }
 }
 
 fn yes() -> bool {
@@ -126,12 +163,20 @@ fn yes() -> bool {
 /// A parsed and validated experiment.
 #[derive(Debug, Clone)]
 pub struct ViaPointExperiment {
+    /// What the file runs.
+    pub kind: Kind,
     /// Experiment name (file stem unless given).
     pub name: String,
     /// The learner's configuration.
     pub config: ViaPointConfig,
     /// Whether to draw plots.
     pub plots: bool,
+    /// The robot and backend (`[robot]`), for kinds that execute.
+    pub robot: Option<crate::pipelines::RobotChoice>,
+    /// The imitation pipeline's settings (`kind = "imitation"`).
+    pub imitation: Option<crate::pipelines::ImitationPlan>,
+    /// The parametrisations compared (`kind = "scaling"`).
+    pub scaling: Option<crate::pipelines::ScalingPlan>,
 }
 
 /// `file:line:column` of a byte offset.
@@ -330,10 +375,29 @@ pub fn parse(
         path.file_stem()
             .map_or("experiment".into(), |s| s.to_string_lossy().into_owned())
     });
+    let kind = file
+        .experiment
+        .kind
+        .as_ref()
+        .map_or(Kind::default(), |k| *k.get_ref());
+    let sections = crate::pipelines::Sections {
+        path,
+        text,
+        kind,
+        robot: file.robot.as_ref(),
+        demonstrations: file.demonstrations.as_ref(),
+        imitation: file.imitation.as_ref(),
+        scaling: file.scaling.as_ref(),
+    };
+    let plans = sections.parse(&config)?;
     Ok(ViaPointExperiment {
+        kind,
         name,
         config,
         plots: file.output.plots,
+        robot: plans.robot,
+        imitation: plans.imitation,
+        scaling: plans.scaling,
     })
 }
 
@@ -393,6 +457,15 @@ mod tests {
         assert_eq!(e.config.task.via, thesis.via);
         assert_eq!(e.config.task.weights, thesis.weights);
         assert_eq!(e.config.task.dmp, thesis.dmp);
+    }
+
+    #[test]
+    fn plots_are_on_unless_switched_off() {
+        let without = SHIPPED.replace("[output]\nplots = true", "");
+        assert!(!without.contains("[output]"));
+        assert!(check(&without).unwrap().plots);
+        let off = SHIPPED.replace("plots = true ", "plots = false ");
+        assert!(!check(&off).unwrap().plots);
     }
 
     #[test]

@@ -31,11 +31,15 @@ macro_rules! say {
 
 mod cmaes_bench;
 mod experiment;
+mod imitation_run;
 mod movement;
 mod output;
+mod pipelines;
 mod plots;
+mod report;
 mod robot;
 mod robot_file;
+mod scaling_run;
 mod scene;
 mod simserve;
 
@@ -214,18 +218,99 @@ fn run_experiment(
     let threads_used = pool.current_num_threads();
 
     let config = &exp.config;
-    let total = config.generations * config.repetitions as u64;
+    let total = match exp.kind {
+        experiment::Kind::Viapoint => config.generations * config.repetitions as u64,
+        experiment::Kind::Scaling => {
+            config.generations
+                * config.repetitions as u64
+                * exp.scaling.as_ref().map_or(1, |s| s.compare.len() as u64)
+        }
+        experiment::Kind::Imitation => 0,
+    };
     let bar = if quiet || !std::io::stderr().is_terminal() {
         ProgressBar::hidden()
+    } else if total == 0 {
+        ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr_with_hz(10))
     } else {
         ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr_with_hz(10))
     };
     bar.set_style(
-        ProgressStyle::with_template(
-            "{bar:30} {pos}/{len} generations  {msg}  [{elapsed_precise}]",
-        )
+        ProgressStyle::with_template(if total == 0 {
+            "{spinner} {msg}  [{elapsed_precise}]"
+        } else {
+            "{bar:30} {pos}/{len} generations  {msg}  [{elapsed_precise}]"
+        })
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
+    if exp.kind != experiment::Kind::Viapoint {
+        let ctx = imitation_run::RunContext {
+            pool: &pool,
+            bar: &bar,
+            interrupted,
+        };
+        let wall = || started.elapsed().as_secs_f64();
+        let stage = output::Staging::new(&out)?;
+        let complete = match exp.kind {
+            experiment::Kind::Imitation => {
+                let o = imitation_run::run(&exp, &ctx, &stage, &wall)?;
+                if !quiet {
+                    say!(
+                        "{}: {} of {} demonstrations kept and executed in {:.2} s ({})",
+                        exp.name,
+                        o.kept().count(),
+                        o.demonstrations.len(),
+                        wall(),
+                        exp.robot.as_ref().map_or(String::new(), |r| r.describe())
+                    );
+                    for d in o.demonstrations.iter().filter(|d| d.dropped.is_some()) {
+                        say!(
+                            "  dropped demonstration {}: {}",
+                            d.index,
+                            d.dropped.as_deref().unwrap_or("")
+                        );
+                    }
+                    for f in &o.fits {
+                        say!(
+                            "  imitation by {}: RMSE to the mean {:.3} mm, integrated squared jerk {:.4e} m²/s⁵, executed within {:.3} mm",
+                            f.method.replace('_', " "),
+                            f.rmse() * 1e3,
+                            f.integrated_squared_jerk(),
+                            f.recording
+                                .as_ref()
+                                .map_or(f64::NAN, |r| r.max_position_error())
+                                * 1e3
+                        );
+                    }
+                }
+                o.complete
+            }
+            _ => {
+                let (arms, verdict) = scaling_run::run(&exp, &ctx, &stage, &wall)?;
+                if !quiet {
+                    say!(
+                        "{}: {} search spaces compared in {:.2} s",
+                        exp.name,
+                        arms.len(),
+                        wall()
+                    );
+                    say!("  {verdict}");
+                }
+                !arms.iter().any(|a| a.outcome.interrupted())
+            }
+        };
+        stage.commit()?;
+        if !quiet {
+            say!("  results and report.html in {}", out.display());
+        }
+        if !complete {
+            eprintln!(
+                "interrupted: the finished part is in {} (complete: false)",
+                out.display()
+            );
+            return Ok(ExitCode::from(130));
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
     let best_bits = AtomicU64::new(f64::INFINITY.to_bits());
     let progress = |_rep: usize, r: &cps_cmaes::GenerationReport<'_>| {
         bar.inc(1);
@@ -262,6 +347,7 @@ fn run_experiment(
     if exp.plots {
         plots::viapoint(&stage, &outcome, &config.task)?;
     }
+    output::viapoint_report(&stage, &exp.name, config, &outcome, wall, threads_used)?;
     stage.commit()?;
 
     let best = outcome.best();

@@ -16,7 +16,7 @@ use cps_dmp::{
 };
 
 use crate::experiment::InputError;
-use crate::plots::{Series, curves_to_file};
+use crate::plots::{Series, curves_to_file, trajectory_series};
 
 /// Regression method of `imitate`.
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -264,16 +264,13 @@ pub fn run_imitate(args: &ImitateArgs) -> Result<ExitCode> {
         let series = [
             Series {
                 label: "demonstration".into(),
+                times: traj.times(),
                 values: fit.reference.iter().map(Vec::as_slice).collect(),
                 faint: false,
             },
-            Series {
-                label: "DMP".into(),
-                values: (0..traj.dims()).map(|d| traj.position(d)).collect(),
-                faint: false,
-            },
+            trajectory_series("DMP", &traj),
         ];
-        curves_to_file(plot, traj.times(), &names, &series, &[])?;
+        curves_to_file(plot, &names, &series, &[])?;
     }
     let r = &fit.report;
     if args.json {
@@ -389,13 +386,9 @@ pub fn run_rollout(args: &RolloutArgs) -> Result<ExitCode> {
     let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
     write_atomically(&args.out, &bytes)?;
     if let Some(plot) = &args.plot {
-        let series = [Series {
-            label: String::new(),
-            values: (0..dims).map(|d| traj.position(d)).collect(),
-            faint: false,
-        }];
+        let series = [trajectory_series("", &traj)];
         let marks = vec![(0.0, start.clone()), (config.tau, goal.clone())];
-        curves_to_file(plot, traj.times(), &names, &series, &marks)?;
+        curves_to_file(plot, &names, &series, &marks)?;
     }
     say!(
         "{} samples over {} s written to {}",

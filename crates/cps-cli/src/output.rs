@@ -154,9 +154,19 @@ struct RunSummary<'a> {
     seconds: f64,
 }
 
+/// The versions that produced a result.
 #[derive(Serialize)]
-struct Versions {
+pub struct Versions {
     cps: &'static str,
+}
+
+impl Versions {
+    /// This build's versions.
+    pub fn now() -> Self {
+        Self {
+            cps: env!("CARGO_PKG_VERSION"),
+        }
+    }
 }
 
 fn sci(v: f64) -> String {
@@ -178,9 +188,7 @@ pub fn write_viapoint(
         kind: "viapoint",
         complete: !outcome.interrupted(),
         seed: config.seed,
-        versions: Versions {
-            cps: env!("CARGO_PKG_VERSION"),
-        },
+        versions: Versions::now(),
         threads,
         wall_time_s,
         solver: match config.solver {
@@ -335,4 +343,92 @@ pub fn write_viapoint(
     }
     w.flush()?;
     Ok(())
+}
+
+/// `report.html` of a via-point run (after its figures are drawn).
+pub fn viapoint_report(
+    stage: &Staging,
+    name: &str,
+    config: &ViaPointConfig,
+    outcome: &ViaPointOutcome,
+    wall_time_s: f64,
+    threads: usize,
+) -> Result<()> {
+    use crate::report::{Table, write};
+    let best = outcome.best();
+    let mm = |v: f64| format!("{:.3} mm", v * 1e3);
+    let task = &config.task;
+    let mut rows = vec![
+        ("complete", (!outcome.interrupted()).to_string()),
+        ("seed", config.seed.to_string()),
+        (
+            "solver",
+            format!(
+                "{} in the {} search space{}",
+                match config.solver {
+                    cps_learn::Solver::Cmaes => "CMA-ES",
+                    cps_learn::Solver::Exact => "exact least squares",
+                },
+                config.parametrisation.name(),
+                if config.warm_start {
+                    ", warm-started at the exact optimum"
+                } else {
+                    ""
+                }
+            ),
+        ),
+        (
+            "DMPs",
+            format!(
+                "{} × {} basis functions, τ = {} s, dt = {} s",
+                task.start.len(),
+                task.dmp.n_basis,
+                task.dmp.tau,
+                task.dmp.dt
+            ),
+        ),
+        ("best cost", format!("{:.6e}", best.cost)),
+        (
+            "exact optimum",
+            format!(
+                "{:.6e} (gap {:.2e})",
+                outcome.optimum.cost, best.gap_to_optimum
+            ),
+        ),
+        ("termination", best.termination.clone()),
+        (
+            "generations / evaluations",
+            format!("{} / {}", best.generations, best.evaluations),
+        ),
+        ("goal error", mm(best.errors.goal)),
+    ];
+    for (i, e) in best.errors.via.iter().enumerate() {
+        rows.push(("via-point error", format!("p{}: {}", i + 1, mm(*e))));
+    }
+    rows.push((
+        "final speed",
+        format!("{:.3} mm/s", best.errors.final_speed * 1e3),
+    ));
+    rows.push((
+        "wall time",
+        format!("{wall_time_s:.2} s on {threads} thread(s)"),
+    ));
+    write(
+        stage,
+        &format!("{name}: via-point learning"),
+        &format!(
+            "DMPs learned to pass {} via points and stop at the goal ({} repetition(s)); every cost is compared with the exact least-squares optimum.",
+            task.via.len(),
+            outcome.runs.len()
+        ),
+        &[Table::pairs("Result", rows)],
+        &[
+            ("cost", "Best cost so far per generation (log scale)."),
+            (
+                "coordinates",
+                "Each coordinate over time; dots are the way points.",
+            ),
+            ("path3d", "The path in 3-D, world frame."),
+        ],
+    )
 }

@@ -70,12 +70,13 @@ const COLORS: [RGBColor; 3] = [
     RGBColor(44, 160, 44),
 ];
 
+/// Best cost so far per generation (log scale): per arm the mean over its repetitions
+/// with the 95 % band, and the exact optimum.
 fn cost_plot<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
-    outcome: &ViaPointOutcome,
+    arms: &[(String, &ViaPointOutcome)],
 ) -> DrawResult<DB> {
     root.fill(&WHITE)?;
-    let band = history_band(&outcome.runs);
     let positive = |v: f64| {
         if v.is_finite() && v > 0.0 {
             Some(v)
@@ -83,21 +84,26 @@ fn cost_plot<DB: DrawingBackend>(
             None
         }
     };
-    let all = outcome
-        .runs
-        .iter()
-        .flat_map(|r| r.history.iter().filter_map(|h| positive(h.best_so_far)));
+    let optimum = arms.first().map_or(1.0, |a| a.1.optimum.cost);
+    let all = arms.iter().flat_map(|(_, o)| {
+        o.runs
+            .iter()
+            .flat_map(|r| r.history.iter().filter_map(|h| positive(h.best_so_far)))
+    });
     let (lo, hi) = all.fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
-    let lo = lo.min(outcome.optimum.cost).max(1e-300);
+    let lo = lo.min(optimum).max(1e-300);
     let (lo, hi) = if lo < hi {
         (lo * 0.8, hi * 1.25)
     } else {
         (lo * 0.5, lo * 2.0)
     };
-    let gens = band.len().max(2) as f64;
+    let bands: Vec<Vec<(f64, f64, f64)>> =
+        arms.iter().map(|(_, o)| history_band(&o.runs)).collect();
+    let gens = bands.iter().map(Vec::len).max().unwrap_or(0).max(2) as f64;
+    let reps = arms.first().map_or(1, |a| a.1.runs.len());
     let mut chart = ChartBuilder::on(root)
         .caption(
-            format!("cost per generation ({} repetition(s))", outcome.runs.len()),
+            format!("cost per generation ({reps} repetition(s) each)"),
             ("sans-serif", 22),
         )
         .margin(15)
@@ -109,41 +115,45 @@ fn cost_plot<DB: DrawingBackend>(
         .x_desc("generation")
         .y_desc("best cost so far")
         .draw()?;
-    if outcome.runs.len() > 1 {
-        let mut poly: Vec<(f64, f64)> = band
+    for (i, ((label, outcome), band)) in arms.iter().zip(&bands).enumerate() {
+        let color = COLORS[i % COLORS.len()];
+        if outcome.runs.len() > 1 {
+            let mut poly: Vec<(f64, f64)> = band
+                .iter()
+                .enumerate()
+                .map(|(g, b)| ((g + 1) as f64, b.2.clamp(lo, hi)))
+                .collect();
+            poly.extend(
+                band.iter()
+                    .enumerate()
+                    .rev()
+                    .map(|(g, b)| ((g + 1) as f64, b.1.clamp(lo, hi))),
+            );
+            chart
+                .draw_series(std::iter::once(Polygon::new(poly, color.mix(0.2))))?
+                .label(format!("{label}: 95 % band"))
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 5), (x + 20, y + 5)], color.mix(0.2).filled())
+                });
+        }
+        let mean = band
             .iter()
             .enumerate()
-            .map(|(g, b)| ((g + 1) as f64, b.2.clamp(lo, hi)))
-            .collect();
-        poly.extend(
-            band.iter()
-                .enumerate()
-                .rev()
-                .map(|(g, b)| ((g + 1) as f64, b.1.clamp(lo, hi))),
-        );
+            .filter_map(|(g, b)| positive(b.0).map(|v| ((g + 1) as f64, v)));
         chart
-            .draw_series(std::iter::once(Polygon::new(poly, COLORS[0].mix(0.25))))?
-            .label("95 % band")
-            .legend(|(x, y)| {
-                Rectangle::new([(x, y - 5), (x + 20, y + 5)], COLORS[0].mix(0.25).filled())
+            .draw_series(LineSeries::new(mean, color.stroke_width(2)))?
+            .label(if outcome.runs.len() > 1 {
+                format!("{label}: mean best cost")
+            } else {
+                format!("{label}: best cost")
+            })
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
             });
     }
-    let mean = band
-        .iter()
-        .enumerate()
-        .filter_map(|(g, b)| positive(b.0).map(|v| ((g + 1) as f64, v)));
-    chart
-        .draw_series(LineSeries::new(mean, COLORS[0].stroke_width(2)))?
-        .label(if outcome.runs.len() > 1 {
-            "mean best cost"
-        } else {
-            "best cost"
-        })
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], COLORS[0].stroke_width(2)));
-    let opt = outcome.optimum.cost;
     chart
         .draw_series(LineSeries::new(
-            vec![(1.0, opt), (gens, opt)],
+            vec![(1.0, optimum), (gens, optimum)],
             BLACK.stroke_width(1),
         ))?
         .label("exact optimum")
@@ -156,21 +166,40 @@ fn cost_plot<DB: DrawingBackend>(
     Ok(())
 }
 
-/// One curve family of [`curves_plot`]: a label and one slice of values per dimension.
+/// Draws the cost figure `<stem>.png/.svg` of one or more arms.
+pub fn costs(stage: &Staging, stem: &str, arms: &[(String, &ViaPointOutcome)]) -> Result<()> {
+    both(stage, stem, (1000, 600), |a| {
+        with_area!(a, |r| cost_plot(r, arms))
+    })
+}
+
+/// One curve family of [`curves_plot`]: a label, its time stamps and one slice of values
+/// per dimension.
 pub struct Series<'a> {
-    /// Legend label.
+    /// Legend label (empty: no legend entry).
     pub label: String,
-    /// `values[d]` for dimension d, on the shared time axis.
+    /// Time stamps of the values.
+    pub times: &'a [f64],
+    /// `values[d]` for dimension d, one per time stamp.
     pub values: Vec<&'a [f64]>,
     /// Drawn thin and light (for many recordings) instead of bold.
     pub faint: bool,
+}
+
+impl Series<'_> {
+    fn style(&self, i: usize) -> ShapeStyle {
+        if self.faint {
+            RGBColor(150, 150, 150).mix(0.5).stroke_width(1)
+        } else {
+            COLORS[i % COLORS.len()].stroke_width(2)
+        }
+    }
 }
 
 /// One panel per dimension: every series over time, and marked points `(t, value per
 /// dimension)`.
 fn curves_plot<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
-    times: &[f64],
     names: &[String],
     series: &[Series<'_>],
     points: &[(f64, Vec<f64>)],
@@ -178,7 +207,14 @@ fn curves_plot<DB: DrawingBackend>(
     root.fill(&WHITE)?;
     let dims = names.len();
     let panels = root.split_evenly((dims, 1));
-    let t_end = times.last().copied().unwrap_or(1.0).max(1e-9);
+    let (t0, t_end) = series
+        .iter()
+        .flat_map(|s| s.times.iter())
+        .chain(points.iter().map(|p| &p.0))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &t| {
+            (a.min(t), b.max(t))
+        });
+    let (t0, t_end) = if t0 < t_end { (t0, t_end) } else { (0.0, 1.0) };
     for (d, panel) in panels.iter().enumerate() {
         let values = series
             .iter()
@@ -192,23 +228,25 @@ fn curves_plot<DB: DrawingBackend>(
             .margin(10)
             .x_label_area_size(35)
             .y_label_area_size(60)
-            .build_cartesian_2d(times[0]..t_end, (lo - pad)..(hi + pad))?;
+            .build_cartesian_2d(t0..t_end, (lo - pad)..(hi + pad))?;
         chart
             .configure_mesh()
             .x_desc("t [s]")
             .y_desc(names[d].as_str())
             .draw()?;
-        for (i, s) in series.iter().enumerate() {
-            let style = if s.faint {
-                RGBColor(150, 150, 150).mix(0.5).stroke_width(1)
-            } else {
-                COLORS[i % 3].stroke_width(2)
-            };
+        let mut bold = 0;
+        let mut faint_labelled = false;
+        for s in series {
+            let style = s.style(bold);
+            bold += usize::from(!s.faint);
             let drawn = chart.draw_series(LineSeries::new(
-                times.iter().copied().zip(s.values[d].iter().copied()),
+                s.times.iter().copied().zip(s.values[d].iter().copied()),
                 style,
             ))?;
-            if d == 0 && !s.label.is_empty() {
+            // One legend entry per label (faint families share theirs).
+            let label = !(s.label.is_empty() || s.faint && faint_labelled);
+            if d == 0 && label {
+                faint_labelled |= s.faint;
                 drawn
                     .label(s.label.clone())
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
@@ -233,7 +271,6 @@ fn curves_plot<DB: DrawingBackend>(
 /// Draws [`curves_plot`] to `path` (PNG, or SVG when the name ends in `.svg`).
 pub fn curves_to_file(
     path: &std::path::Path,
-    times: &[f64],
     names: &[String],
     series: &[Series<'_>],
     points: &[(f64, Vec<f64>)],
@@ -246,26 +283,19 @@ pub fn curves_to_file(
     let fail = |e: String| anyhow!("{}: {e}", path.display());
     if svg {
         let root = SVGBackend::new(path, size).into_drawing_area();
-        curves_plot(&root, times, names, series, points).map_err(|e| fail(format!("{e:?}")))?;
+        curves_plot(&root, names, series, points).map_err(|e| fail(format!("{e:?}")))?;
         root.present().map_err(|e| fail(format!("{e:?}")))?;
     } else {
         let root = BitMapBackend::new(path, size).into_drawing_area();
-        curves_plot(&root, times, names, series, points).map_err(|e| fail(format!("{e:?}")))?;
+        curves_plot(&root, names, series, points).map_err(|e| fail(format!("{e:?}")))?;
         root.present().map_err(|e| fail(format!("{e:?}")))?;
     }
     Ok(())
 }
 
-fn coordinate_plot<DB: DrawingBackend>(
-    root: &DrawingArea<DB, Shift>,
-    traj: &Trajectory,
-    task: &ViaPointTask,
-) -> DrawResult<DB> {
-    let dims = traj.dims();
-    let mut points: Vec<(f64, Vec<f64>)> = vec![(0.0, task.start.clone())];
-    points.extend(task.via.iter().map(|v| (v.time, v.position.clone())));
-    points.push((task.dmp.tau, task.goal.clone()));
-    let names: Vec<String> = (0..dims)
+/// `x [m]`, `y [m]`, `z [m]` for three dimensions, `y0 [m]`, … otherwise.
+pub fn axis_names(dims: usize) -> Vec<String> {
+    (0..dims)
         .map(|d| {
             if dims == 3 {
                 format!("{} [m]", ["x", "y", "z"][d])
@@ -273,33 +303,29 @@ fn coordinate_plot<DB: DrawingBackend>(
                 format!("y{d} [m]")
             }
         })
-        .collect();
-    let series = [Series {
-        label: String::new(),
-        values: (0..dims).map(|d| traj.position(d)).collect(),
-        faint: false,
-    }];
-    curves_plot(root, traj.times(), &names, &series, &points)
+        .collect()
 }
 
+/// The way points of a task as `(time, position)` marks.
+pub fn way_points(task: &ViaPointTask) -> Vec<(f64, Vec<f64>)> {
+    let mut points: Vec<(f64, Vec<f64>)> = vec![(0.0, task.start.clone())];
+    points.extend(task.via.iter().map(|v| (v.time, v.position.clone())));
+    points.push((task.dmp.tau, task.goal.clone()));
+    points
+}
+
+/// A 3-D path plot: every series (x, y, z over its samples) and marked points.
 fn path_plot<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
-    traj: &Trajectory,
-    task: &ViaPointTask,
+    series: &[Series<'_>],
+    points: &[Vec<f64>],
 ) -> DrawResult<DB> {
     root.fill(&WHITE)?;
-    let (x, y, z) = (traj.position(0), traj.position(1), traj.position(2));
-    let mut pts: Vec<[f64; 3]> = vec![[task.start[0], task.start[1], task.start[2]]];
-    pts.extend(
-        task.via
+    let range = |d: usize| {
+        let (lo, hi) = series
             .iter()
-            .map(|v| [v.position[0], v.position[1], v.position[2]]),
-    );
-    pts.push([task.goal[0], task.goal[1], task.goal[2]]);
-    let range = |v: &[f64], d: usize| {
-        let (lo, hi) = v
-            .iter()
-            .chain(pts.iter().map(|p| &p[d]))
+            .flat_map(|s| s.values[d].iter())
+            .chain(points.iter().map(|p| &p[d]))
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
                 (a.min(v), b.max(v))
             });
@@ -308,12 +334,9 @@ fn path_plot<DB: DrawingBackend>(
     };
     // plotters' vertical axis is its y: pass (x, z, y) so the world's z points up.
     let mut chart = ChartBuilder::on(root)
-        .caption(
-            "3-D path (world frame) with the way points",
-            ("sans-serif", 22),
-        )
+        .caption("3-D path (world frame)", ("sans-serif", 22))
         .margin(10)
-        .build_cartesian_3d(range(x, 0), range(z, 2), range(y, 1))?;
+        .build_cartesian_3d(range(0), range(2), range(1))?;
     chart.with_projection(|mut p| {
         p.yaw = 0.6;
         p.pitch = 0.35;
@@ -326,30 +349,66 @@ fn path_plot<DB: DrawingBackend>(
         .y_labels(5)
         .z_labels(5)
         .draw()?;
-    chart.draw_series(LineSeries::new(
-        (0..x.len()).map(|k| (x[k], z[k], y[k])),
-        COLORS[0].stroke_width(2),
-    ))?;
+    let mut bold = 0;
+    for s in series {
+        let style = s.style(bold);
+        bold += usize::from(!s.faint);
+        let (x, y, z) = (s.values[0], s.values[1], s.values[2]);
+        chart.draw_series(LineSeries::new(
+            (0..x.len()).map(|k| (x[k], z[k], y[k])),
+            style,
+        ))?;
+    }
     chart.draw_series(
-        pts.iter()
+        points
+            .iter()
             .map(|p| Circle::new((p[0], p[2], p[1]), 5, BLACK.filled())),
     )?;
     Ok(())
 }
 
-/// Draws every figure of a via-point run into `stage`.
-pub fn viapoint(stage: &Staging, outcome: &ViaPointOutcome, task: &ViaPointTask) -> Result<()> {
-    both(stage, "cost", (1000, 600), |a| {
-        with_area!(a, |r| cost_plot(r, outcome))
+/// Draws the per-coordinate figure (`<stem>.png/.svg`) and, for three dimensions, the 3-D
+/// path (`path3d*.png/.svg`).
+pub fn figures(
+    stage: &Staging,
+    stem: &str,
+    path_stem: &str,
+    series: &[Series<'_>],
+    points: &[(f64, Vec<f64>)],
+) -> Result<()> {
+    let dims = series.first().map_or(0, |s| s.values.len());
+    let names = axis_names(dims);
+    both(stage, stem, (1000, 300 * dims.clamp(1, 4) as u32), |a| {
+        with_area!(a, |r| curves_plot(r, &names, series, points))
     })?;
-    let traj = outcome.best_trajectory();
-    both(stage, "coordinates", (1000, 900), |a| {
-        with_area!(a, |r| coordinate_plot(r, &traj, task))
-    })?;
-    if traj.dims() == 3 {
-        both(stage, "path3d", (900, 800), |a| {
-            with_area!(a, |r| path_plot(r, &traj, task))
+    if dims == 3 {
+        let marks: Vec<Vec<f64>> = points.iter().map(|p| p.1.clone()).collect();
+        both(stage, path_stem, (900, 800), |a| {
+            with_area!(a, |r| path_plot(r, series, &marks))
         })?;
     }
     Ok(())
+}
+
+/// The series of one trajectory's positions.
+pub fn trajectory_series<'a>(label: &str, traj: &'a Trajectory) -> Series<'a> {
+    Series {
+        label: label.into(),
+        times: traj.times(),
+        values: (0..traj.dims()).map(|d| traj.position(d)).collect(),
+        faint: false,
+    }
+}
+
+/// Draws every figure of a via-point run into `stage`.
+pub fn viapoint(stage: &Staging, outcome: &ViaPointOutcome, task: &ViaPointTask) -> Result<()> {
+    costs(stage, "cost", &[("CMA-ES".to_string(), outcome)])?;
+    let traj = outcome.best_trajectory();
+    figures(
+        stage,
+        "coordinates",
+        "path3d",
+        &[trajectory_series("", &traj)],
+        &way_points(task),
+    )
 }

@@ -63,7 +63,11 @@ fn a_run_writes_every_result_with_the_promised_numbers() {
     ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
+    // The report holds the three figures inline and the numbers of the summary.
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert_eq!(html.matches("<svg").count(), 3);
     let s = json(&out.join("summary.json"));
+    assert!(html.contains(&format!("{:.6e}", s["best_cost"].as_f64().unwrap())));
     assert_eq!(s["experiment"], "viapoint");
     assert_eq!(s["complete"], true);
     assert_eq!(s["repetitions"], 2);

@@ -5,7 +5,7 @@
 use cps_kinematics::{KinematicsError, RobotBackend};
 use nalgebra::{IsometryMatrix3, Vector3};
 
-use crate::sim::HANDLE_WORLD;
+use crate::sim::{HANDLE_WORLD, SIMULATION_STOPPED};
 use crate::{Client, CoppeliaError};
 
 /// The handles of a robot in a CoppeliaSim scene, named as in the thesis.
@@ -46,9 +46,23 @@ impl FrankaScene {
         Ok(())
     }
 
-    /// Stops the simulation (which also ends stepping).
+    /// Stops the simulation (which also ends stepping) and waits until it has stopped:
+    /// CoppeliaSim stops asynchronously, restoring the scene over a few passes. Gives up
+    /// with [`CoppeliaError::Timeout`] after 10 s.
     pub fn stop(&mut self) -> Result<(), CoppeliaError> {
-        self.client.stop_simulation()
+        self.client.stop_simulation()?;
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+        while self.client.get_simulation_state()? != SIMULATION_STOPPED {
+            if std::time::Instant::now() > deadline {
+                return Err(CoppeliaError::Timeout {
+                    endpoint: self.client.endpoint().to_string(),
+                    function: "sim.stopSimulation (waiting for the stopped state)".into(),
+                    timeout_ms: 10_000,
+                });
+            }
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        Ok(())
     }
 
     /// The client, for calls this type does not wrap.
@@ -148,5 +162,14 @@ impl RobotBackend for FrankaScene {
 
     fn step(&mut self) -> Result<(), KinematicsError> {
         Ok(self.client.step()?)
+    }
+
+    /// Stops the simulation (CoppeliaSim restores the scene and resets its clock), sets
+    /// the joints to `q` and starts stepping again.
+    fn reset(&mut self, q: &[f64]) -> Result<(), KinematicsError> {
+        self.stop()?;
+        self.command_joint_positions(q)?;
+        self.start_stepping()?;
+        Ok(())
     }
 }

@@ -228,6 +228,16 @@ impl Client {
         self.typed("sim.getSimulationTime", vec![], "a number", codec::as_f64)
     }
 
+    /// `sim.getSimulationTimeStep()` in seconds.
+    pub fn get_simulation_time_step(&mut self) -> Result<f64, CoppeliaError> {
+        self.typed(
+            "sim.getSimulationTimeStep",
+            vec![],
+            "a number",
+            codec::as_f64,
+        )
+    }
+
     /// `sim.getSimulationState()` (see [`SIMULATION_STOPPED`] and friends).
     pub fn get_simulation_state(&mut self) -> Result<i64, CoppeliaError> {
         self.typed(

@@ -31,6 +31,9 @@ pub trait RobotBackend {
     fn time(&mut self) -> Result<f64, KinematicsError>;
     /// Advances the backend by one time step.
     fn step(&mut self) -> Result<(), KinematicsError>;
+    /// Puts the robot at `q` at rest with its clock at 0, ready to step: the start of a
+    /// new run (a simulator stops, sets the joints and starts stepping again).
+    fn reset(&mut self, q: &[f64]) -> Result<(), KinematicsError>;
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -155,6 +158,15 @@ impl RobotBackend for KinematicRobot {
         self.steps += 1;
         // Time as steps × dt: no drift from repeated additions.
         self.time = self.steps as f64 * self.dt;
+        Ok(())
+    }
+
+    fn reset(&mut self, q: &[f64]) -> Result<(), KinematicsError> {
+        self.chain.check(q)?;
+        self.q = q.to_vec();
+        self.command = Command::Hold;
+        self.steps = 0;
+        self.time = 0.0;
         Ok(())
     }
 }

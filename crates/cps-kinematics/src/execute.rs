@@ -35,7 +35,8 @@ impl Default for ExecutionConfig {
 /// What the robot did, one entry per trajectory sample (after its last iteration).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Recording {
-    /// The backend's clock in seconds.
+    /// Seconds since the execution started (the backend's clock minus its reading at the
+    /// start), so recordings of different runs and backends share one time origin.
     pub time: Vec<f64>,
     /// Measured joint positions (radians).
     pub q: Vec<Vec<f64>>,
@@ -72,7 +73,7 @@ impl Recording {
 /// one backend step, stopping early once the model says the sample is reached. Then the
 /// backend's measured state is recorded. Never loops without bound.
 pub fn execute(
-    backend: &mut impl RobotBackend,
+    backend: &mut (impl RobotBackend + ?Sized),
     model: &SerialChain,
     targets: &[IkTarget],
     config: &ExecutionConfig,
@@ -96,16 +97,20 @@ pub fn execute(
     }
     let dt = backend.time_step();
     let mut rec = Recording::default();
+    let t0 = backend.time()?;
+    // The measured configuration is read once per control step and reused: a remote
+    // backend pays a round trip per joint and call.
+    let mut q = backend.joint_positions()?;
     for target in targets {
         let mut reached = false;
         for _ in 0..config.max_iterations_per_sample {
-            let q = backend.joint_positions()?;
             let st = control_step(model, &q, target, dt, &config.controller)?;
             let next: Vec<f64> = q.iter().zip(&st.dq).map(|(a, b)| a + b).collect();
             backend.command_joint_positions(&next)?;
             backend.step()?;
             rec.steps += 1;
-            let (ep, er) = task_error(&model.fk(&backend.joint_positions()?)?, target);
+            q = backend.joint_positions()?;
+            let (ep, er) = task_error(&model.fk(&q)?, target);
             if ep.norm() <= config.tolerance && er.norm() <= config.rotation_tolerance {
                 reached = true;
                 break;
@@ -116,8 +121,8 @@ pub fn execute(
         let (ep, er) = task_error(&pose, target);
         let p = pose.translation.vector;
         let o = UnitQuaternion::from_rotation_matrix(&pose.rotation);
-        rec.time.push(backend.time()?);
-        rec.q.push(backend.joint_positions()?);
+        rec.time.push(backend.time()? - t0);
+        rec.q.push(q.clone());
         rec.position.push([p.x, p.y, p.z]);
         rec.orientation.push([o.i, o.j, o.k, o.w]);
         rec.position_error.push(ep.norm());

@@ -103,7 +103,7 @@ pub fn check_path(
             && let Some(j) = (0..chain.dof()).find(|&j| (sol.q[j] - prev[j]).abs() > m[j])
         {
             return Err(fail(format!(
-                "joint {} would jump by {:.3} rad (at most {:.3} rad per sample): a branch change",
+                "joint {} would move {:.3} rad in one sample (at most {:.3} rad): faster than its speed limit allows, or a branch change",
                 j + 1,
                 (sol.q[j] - prev[j]).abs(),
                 m[j]

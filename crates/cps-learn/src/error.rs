@@ -21,6 +21,22 @@ pub enum LearnError {
         /// What is wrong with it.
         problem: String,
     },
+    /// The robot model, inverse kinematics or a robot backend failed.
+    #[error(transparent)]
+    Kinematics(#[from] cps_kinematics::KinematicsError),
+    /// A way point the robot's tool cannot reach within the joint limits.
+    #[error(
+        "`{point}` at ({x:.4}, {y:.4}, {z:.4}) is outside the robot's reachable workspace: the closest reachable point within the joint limits is {distance:.4} m away",
+        x = position[0], y = position[1], z = position[2]
+    )]
+    Unreachable {
+        /// Which point (`start`, `via[1]`, `goal`).
+        point: String,
+        /// Its position (metres, world frame).
+        position: [f64; 3],
+        /// Distance to the closest reachable point found by inverse kinematics (metres).
+        distance: f64,
+    },
     /// The exact least-squares solve failed (a rank-deficient problem).
     #[error("the exact optimum could not be computed: {0}")]
     Exact(String),

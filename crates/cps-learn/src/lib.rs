@@ -30,12 +30,19 @@
 
 mod error;
 mod exact;
+mod imitation;
+mod robot;
 mod space;
 mod task;
 mod viapoint;
 
 pub use error::LearnError;
 pub use exact::{ExactOptimum, exact_optimum};
+pub use imitation::{
+    DemonstrationResult, ImitationConfig, ImitationFit, ImitationOutcome, ImitationStage,
+    run_imitation,
+};
+pub use robot::{RobotSetup, check_way_points, execute_trajectory, targets_at};
 pub use space::{Parametrisation, SearchSpace};
 pub use task::{CostBreakdown, CostWeights, TaskErrors, ViaPoint, ViaPointTask};
 pub use viapoint::{

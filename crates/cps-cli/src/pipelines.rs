@@ -1,0 +1,464 @@
+//! The experiment-file sections of the kinds beyond plain via-point learning (`[robot]`,
+//! `[demonstrations]`, `[imitation]`, `[scaling]`) and the robot backends they choose.
+
+use std::ops::Range;
+use std::path::Path;
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use cps_coppelia::{Client, ClientConfig, FrankaScene};
+use cps_dmp::{DmpConfig, Lambda};
+use cps_kinematics::{ExecutionConfig, KinematicRobot, RobotBackend};
+use cps_learn::{Parametrisation, RobotSetup, ViaPointConfig};
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::experiment::{InputError, Kind, location};
+use crate::scene::{THESIS_SCENE, load_scene, parse_scene};
+
+/// `[robot]`: the robot, where it stands and which backend executes on it.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotSection {
+    /// A scene file (robot, base, initial configuration), relative to the experiment file;
+    /// default: the thesis's scene.
+    scene: Option<Spanned<String>>,
+    #[serde(default)]
+    backend: BackendKind,
+    endpoint: Option<Spanned<String>>,
+    /// The robot's alias in CoppeliaSim (`/Panda`, `/Panda_joint1`, …).
+    name: Option<String>,
+    dt: Option<Spanned<f64>>,
+    timeout: Option<Spanned<f64>>,
+    tolerance: Option<Spanned<f64>>,
+    max_iterations_per_sample: Option<Spanned<usize>>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum BackendKind {
+    #[default]
+    Kinematic,
+    Coppelia,
+}
+
+/// Where trajectories are executed.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BackendChoice {
+    /// The in-process kinematic robot, stepped every `dt` seconds.
+    Kinematic {
+        /// Control period, seconds.
+        dt: f64,
+    },
+    /// CoppeliaSim (or `cps-cli sim serve`) over the ZMQ remote API.
+    Coppelia {
+        /// `tcp://host:port`.
+        endpoint: String,
+        /// The robot's alias in the scene.
+        robot_name: String,
+        /// Connect and per-call timeout.
+        timeout: Duration,
+    },
+}
+
+/// The robot of an experiment: its model and start, and the backend.
+#[derive(Debug, Clone)]
+pub struct RobotChoice {
+    /// Model, initial configuration, execution settings.
+    pub setup: RobotSetup,
+    /// Which backend.
+    pub backend: BackendChoice,
+    /// The scene it came from (for summaries).
+    pub scene: String,
+}
+
+impl RobotChoice {
+    /// A short description for summaries: `kinematic (dt 0.01 s)` or the endpoint.
+    pub fn describe(&self) -> String {
+        match &self.backend {
+            BackendChoice::Kinematic { dt } => format!("kinematic (in-process, dt {dt} s)"),
+            BackendChoice::Coppelia { endpoint, .. } => format!("coppelia at {endpoint}"),
+        }
+    }
+
+    /// Opens the backend with the robot at its initial configuration.
+    pub fn open(&self) -> Result<Box<dyn RobotBackend + Send>> {
+        let setup = &self.setup;
+        match &self.backend {
+            BackendChoice::Kinematic { dt } => Ok(Box::new(KinematicRobot::new(
+                setup.chain.clone(),
+                &setup.initial_q,
+                *dt,
+            )?)),
+            BackendChoice::Coppelia {
+                endpoint,
+                robot_name,
+                timeout,
+            } => {
+                let mut client = Client::connect(ClientConfig {
+                    endpoint: endpoint.clone(),
+                    connect_timeout: *timeout,
+                    call_timeout: *timeout,
+                })
+                .with_context(|| format!("backend = \"coppelia\": cannot reach {endpoint}"))?;
+                let dt = client
+                    .get_simulation_time_step()
+                    .with_context(|| format!("{endpoint}: cannot read the simulation time step"))?;
+                let mut scene = FrankaScene::open(client, robot_name, setup.chain.dof(), dt)
+                    .with_context(|| {
+                        format!("{endpoint}: the scene has no robot `/{robot_name}` with joints `/{robot_name}_joint1..{}` and `/{robot_name}_tip`", setup.chain.dof())
+                    })?;
+                // The scene's robot must be the model: compare the tip at the start.
+                scene.reset(&setup.initial_q)?;
+                let remote = scene.tool_pose()?.translation.vector;
+                let local = setup.chain.fk(&setup.initial_q)?.translation.vector;
+                let gap = (remote - local).norm();
+                if gap > 1e-3 {
+                    anyhow::bail!(
+                        "{endpoint}: the scene's `/{robot_name}_tip` is at ({:.4}, {:.4}, {:.4}) at the initial configuration, but the model puts the tool at ({:.4}, {:.4}, {:.4}) ({:.1} mm apart): the experiment's [robot] scene does not describe this simulator's robot",
+                        remote.x,
+                        remote.y,
+                        remote.z,
+                        local.x,
+                        local.y,
+                        local.z,
+                        gap * 1e3
+                    );
+                }
+                Ok(Box::new(scene))
+            }
+        }
+    }
+}
+
+/// `[demonstrations]` of `kind = "imitation"`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DemonstrationsSection {
+    count: Option<Spanned<usize>>,
+    via_std: Option<Spanned<f64>>,
+}
+
+/// `[imitation]` of `kind = "imitation"`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImitationSection {
+    basis_functions: Option<Spanned<usize>>,
+    tau: Option<Spanned<f64>>,
+    dt: Option<Spanned<f64>>,
+    ridge_lambda: Option<Spanned<f64>>,
+    jerk_lambda: Option<Spanned<toml::Value>>,
+}
+
+/// The imitation pipeline's settings beyond the learner and the robot.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImitationPlan {
+    /// Number of demonstrations.
+    pub demonstrations: usize,
+    /// Via-point perturbation per axis, metres.
+    pub via_std: f64,
+    /// The imitating DMP.
+    pub dmp: DmpConfig,
+    /// λ of ridge.
+    pub ridge_lambda: Lambda,
+    /// λ of jerk-regularised ridge.
+    pub jerk_lambda: Lambda,
+}
+
+/// `[scaling]` of `kind = "scaling"`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScalingSection {
+    compare: Option<Spanned<Vec<Parametrisation>>>,
+}
+
+/// The parametrisations a scaling experiment compares.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScalingPlan {
+    /// In order; each runs the experiment's repetitions.
+    pub compare: Vec<Parametrisation>,
+}
+
+/// The optional sections of a file, with what is needed to name places in errors.
+pub struct Sections<'a> {
+    pub path: &'a Path,
+    pub text: &'a str,
+    pub kind: Kind,
+    pub robot: Option<&'a Spanned<RobotSection>>,
+    pub demonstrations: Option<&'a Spanned<DemonstrationsSection>>,
+    pub imitation: Option<&'a Spanned<ImitationSection>>,
+    pub scaling: Option<&'a Spanned<ScalingSection>>,
+}
+
+/// The parsed plans of [`Sections::parse`].
+pub struct Plans {
+    pub robot: Option<RobotChoice>,
+    pub imitation: Option<ImitationPlan>,
+    pub scaling: Option<ScalingPlan>,
+}
+
+impl Sections<'_> {
+    fn err(&self, span: &Range<usize>, msg: String) -> InputError {
+        InputError(format!("{}: {msg}", location(self.path, self.text, span)))
+    }
+
+    fn positive(&self, v: &Spanned<f64>, what: &str) -> Result<f64, InputError> {
+        let x = *v.get_ref();
+        if x.is_finite() && x > 0.0 {
+            Ok(x)
+        } else {
+            Err(self.err(
+                &v.span(),
+                format!("{what} must be finite and > 0 (got {x})"),
+            ))
+        }
+    }
+
+    /// Checks that each section belongs to the kind and parses them.
+    pub fn parse(&self, learner: &ViaPointConfig) -> Result<Plans, InputError> {
+        let only = |span: Range<usize>, section: &str, kinds: &str| {
+            self.err(
+                &span,
+                format!(
+                    "[{section}] is read only by {kinds}; this file has kind = \"{}\" (remove the section or change [experiment] kind)",
+                    self.kind.name()
+                ),
+            )
+        };
+        let executes = matches!(self.kind, Kind::Imitation);
+        if let Some(r) = self.robot
+            && !executes
+        {
+            return Err(only(r.span(), "robot", "kind = \"imitation\""));
+        }
+        for (span, name) in [
+            (self.demonstrations.map(Spanned::span), "demonstrations"),
+            (self.imitation.map(Spanned::span), "imitation"),
+        ] {
+            if let Some(s) = span
+                && self.kind != Kind::Imitation
+            {
+                return Err(only(s, name, "kind = \"imitation\""));
+            }
+        }
+        if let Some(s) = self.scaling
+            && self.kind != Kind::Scaling
+        {
+            return Err(only(s.span(), "scaling", "kind = \"scaling\""));
+        }
+        let robot = if executes {
+            Some(self.robot_choice(learner.task.dmp.dt)?)
+        } else {
+            None
+        };
+        let imitation = if self.kind == Kind::Imitation {
+            Some(self.imitation_plan(learner)?)
+        } else {
+            None
+        };
+        let scaling = if self.kind == Kind::Scaling {
+            let compare = match self.scaling.and_then(|s| s.get_ref().compare.as_ref()) {
+                Some(c) if c.get_ref().is_empty() => {
+                    return Err(self.err(
+                        &c.span(),
+                        "[scaling] `compare` must name at least one parametrisation".into(),
+                    ));
+                }
+                Some(c) => c.get_ref().clone(),
+                None => vec![Parametrisation::ThesisScaling, Parametrisation::Raw],
+            };
+            Some(ScalingPlan { compare })
+        } else {
+            None
+        };
+        Ok(Plans {
+            robot,
+            imitation,
+            scaling,
+        })
+    }
+
+    fn robot_choice(&self, default_dt: f64) -> Result<RobotChoice, InputError> {
+        let section = self.robot.map(Spanned::get_ref);
+        let (scene, scene_name) = match section.and_then(|r| r.scene.as_ref()) {
+            Some(s) => {
+                let p = self
+                    .path
+                    .parent()
+                    .unwrap_or(Path::new("."))
+                    .join(s.get_ref());
+                if !p.exists() {
+                    return Err(self.err(
+                        &s.span(),
+                        format!(
+                            "[robot] `scene`: {} does not exist (paths are relative to the experiment file)",
+                            p.display()
+                        ),
+                    ));
+                }
+                (load_scene(&p)?, p.display().to_string())
+            }
+            None => (
+                parse_scene(Path::new("configs/scenes/thesis.toml"), THESIS_SCENE)?,
+                "thesis (built in)".to_string(),
+            ),
+        };
+        let mut execution = ExecutionConfig::default();
+        if let Some(t) = section.and_then(|r| r.tolerance.as_ref()) {
+            execution.tolerance = self.positive(t, "[robot] `tolerance`")?;
+        }
+        if let Some(m) = section.and_then(|r| r.max_iterations_per_sample.as_ref()) {
+            if *m.get_ref() == 0 || *m.get_ref() > 10_000 {
+                return Err(self.err(
+                    &m.span(),
+                    format!(
+                        "[robot] `max_iterations_per_sample` must be between 1 and 10000 (got {})",
+                        m.get_ref()
+                    ),
+                ));
+            }
+            execution.max_iterations_per_sample = *m.get_ref();
+        }
+        let kind = section.map_or(BackendKind::Kinematic, |r| r.backend);
+        let backend = match kind {
+            BackendKind::Kinematic => {
+                if let Some(e) = section.and_then(|r| r.endpoint.as_ref()) {
+                    return Err(self.err(
+                        &e.span(),
+                        "[robot] `endpoint` is read only with backend = \"coppelia\"".into(),
+                    ));
+                }
+                let dt = match section.and_then(|r| r.dt.as_ref()) {
+                    Some(d) => self.positive(d, "[robot] `dt`")?,
+                    None => default_dt,
+                };
+                BackendChoice::Kinematic { dt }
+            }
+            BackendKind::Coppelia => {
+                if let Some(d) = section.and_then(|r| r.dt.as_ref()) {
+                    return Err(self.err(
+                        &d.span(),
+                        "[robot] `dt` is the kinematic backend's; CoppeliaSim's time step is read from the simulator".into(),
+                    ));
+                }
+                let endpoint = section
+                    .and_then(|r| r.endpoint.as_ref())
+                    .map_or("tcp://127.0.0.1:23000".to_string(), |e| e.get_ref().clone());
+                let timeout = match section.and_then(|r| r.timeout.as_ref()) {
+                    Some(t) => self.positive(t, "[robot] `timeout`")?,
+                    None => 5.0,
+                };
+                BackendChoice::Coppelia {
+                    endpoint,
+                    robot_name: section
+                        .and_then(|r| r.name.clone())
+                        .unwrap_or_else(|| "Panda".into()),
+                    timeout: Duration::from_secs_f64(timeout),
+                }
+            }
+        };
+        Ok(RobotChoice {
+            setup: RobotSetup {
+                chain: scene.robot.chain,
+                initial_q: scene.initial_q,
+                execution,
+            },
+            backend,
+            scene: scene_name,
+        })
+    }
+
+    fn imitation_plan(&self, learner: &ViaPointConfig) -> Result<ImitationPlan, InputError> {
+        let d = self.demonstrations.map(Spanned::get_ref);
+        let demonstrations = match d.and_then(|d| d.count.as_ref()) {
+            Some(c) if *c.get_ref() == 0 || *c.get_ref() > 10_000 => {
+                return Err(self.err(
+                    &c.span(),
+                    format!(
+                        "[demonstrations] `count` must be between 1 and 10000 (got {})",
+                        c.get_ref()
+                    ),
+                ));
+            }
+            Some(c) => *c.get_ref(),
+            None => 20,
+        };
+        let via_std = match d.and_then(|d| d.via_std.as_ref()) {
+            Some(v) if !(v.get_ref().is_finite() && *v.get_ref() >= 0.0) => {
+                return Err(self.err(
+                    &v.span(),
+                    format!(
+                        "[demonstrations] `via_std` must be finite and ≥ 0 (got {})",
+                        v.get_ref()
+                    ),
+                ));
+            }
+            Some(v) => *v.get_ref(),
+            None => 0.05,
+        };
+        let i = self.imitation.map(Spanned::get_ref);
+        let base = learner.task.dmp;
+        let mut dmp = DmpConfig::new(25, 9.5, base.dt);
+        dmp.alpha_z = base.alpha_z;
+        dmp.beta_z = base.beta_z;
+        dmp.alpha_x = base.alpha_x;
+        if let Some(n) = i.and_then(|i| i.basis_functions.as_ref()) {
+            if *n.get_ref() < 2 || *n.get_ref() > 10_000 {
+                return Err(self.err(
+                    &n.span(),
+                    format!(
+                        "[imitation] `basis_functions` must be between 2 and 10000 (got {})",
+                        n.get_ref()
+                    ),
+                ));
+            }
+            dmp.n_basis = *n.get_ref();
+        }
+        if let Some(t) = i.and_then(|i| i.tau.as_ref()) {
+            dmp.tau = self.positive(t, "[imitation] `tau`")?;
+        }
+        if let Some(t) = i.and_then(|i| i.dt.as_ref()) {
+            dmp.dt = self.positive(t, "[imitation] `dt`")?;
+        }
+        if let Err(e) = dmp.validate() {
+            let span = self.imitation.map_or(0..0, Spanned::span);
+            return Err(self.err(&span, format!("[imitation] {e}")));
+        }
+        let ridge_lambda = match i.and_then(|i| i.ridge_lambda.as_ref()) {
+            Some(l) if !(l.get_ref().is_finite() && *l.get_ref() >= 0.0) => {
+                return Err(self.err(
+                    &l.span(),
+                    format!(
+                        "[imitation] `ridge_lambda` must be finite and ≥ 0 (got {})",
+                        l.get_ref()
+                    ),
+                ));
+            }
+            Some(l) => Lambda::Fixed(*l.get_ref()),
+            None => Lambda::Fixed(1e-12),
+        };
+        let jerk_lambda = match i.and_then(|i| i.jerk_lambda.as_ref()) {
+            None => Lambda::Auto,
+            Some(l) => match l.get_ref() {
+                toml::Value::String(s) if s == "auto" => Lambda::Auto,
+                toml::Value::Float(x) if x.is_finite() && *x >= 0.0 => Lambda::Fixed(*x),
+                toml::Value::Integer(x) if *x >= 0 => Lambda::Fixed(*x as f64),
+                other => {
+                    return Err(self.err(
+                        &l.span(),
+                        format!(
+                            "[imitation] `jerk_lambda` must be \"auto\" or a number ≥ 0 (got {other})"
+                        ),
+                    ));
+                }
+            },
+        };
+        Ok(ImitationPlan {
+            demonstrations,
+            via_std,
+            dmp,
+            ridge_lambda,
+            jerk_lambda,
+        })
+    }
+}

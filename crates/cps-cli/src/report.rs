@@ -1,0 +1,110 @@
+//! `report.html`: one self-contained page per run (summary table and every figure as
+//! inline SVG) that opens offline and can be handed out.
+
+use anyhow::{Context, Result};
+
+use crate::output::Staging;
+
+/// A titled table of the report: rows of (label, value).
+pub struct Table {
+    /// Heading above the table.
+    pub title: String,
+    /// Column headings (empty: a two-column key/value table without headings).
+    pub header: Vec<String>,
+    /// Rows of cells.
+    pub rows: Vec<Vec<String>>,
+}
+
+impl Table {
+    /// A key/value table.
+    pub fn pairs(title: &str, rows: Vec<(&str, String)>) -> Self {
+        Self {
+            title: title.into(),
+            header: Vec::new(),
+            rows: rows.into_iter().map(|(k, v)| vec![k.into(), v]).collect(),
+        }
+    }
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// Writes `report.html` into `stage`: the title, a line of context, the tables, then each
+/// figure (`<stem>.svg` already in the stage) with its caption, inline. Figures that were
+/// not drawn (plots off) are listed as absent.
+pub fn write(
+    stage: &Staging,
+    title: &str,
+    context: &str,
+    tables: &[Table],
+    figures: &[(&str, &str)],
+) -> Result<()> {
+    let mut html = String::new();
+    html.push_str("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n");
+    html.push_str(&format!("<title>{}</title>\n", escape(title)));
+    html.push_str(
+        "<style>\nbody{font-family:sans-serif;max-width:1050px;margin:2em auto;padding:0 1em;color:#222}\n\
+         table{border-collapse:collapse;margin:0.5em 0 1.5em}\n\
+         td,th{border:1px solid #ccc;padding:0.25em 0.6em;text-align:left;vertical-align:top}\n\
+         th{background:#f0f0f0}\ntd:first-child{font-weight:600}\n\
+         figure{margin:1.5em 0}\nfigcaption{color:#555;margin-top:0.3em}\n\
+         svg{max-width:100%;height:auto}\n</style>\n</head>\n<body>\n",
+    );
+    html.push_str(&format!(
+        "<h1>{}</h1>\n<p>{}</p>\n",
+        escape(title),
+        escape(context)
+    ));
+    for t in tables {
+        html.push_str(&format!("<h2>{}</h2>\n<table>\n", escape(&t.title)));
+        if !t.header.is_empty() {
+            html.push_str("<tr>");
+            for h in &t.header {
+                html.push_str(&format!("<th>{}</th>", escape(h)));
+            }
+            html.push_str("</tr>\n");
+        }
+        for row in &t.rows {
+            html.push_str("<tr>");
+            for c in row {
+                html.push_str(&format!("<td>{}</td>", escape(c)));
+            }
+            html.push_str("</tr>\n");
+        }
+        html.push_str("</table>\n");
+    }
+    if !figures.is_empty() {
+        html.push_str("<h2>Figures</h2>\n");
+    }
+    for (stem, caption) in figures {
+        let path = stage.path(&format!("{stem}.svg"));
+        if !path.exists() {
+            html.push_str(&format!(
+                "<p>({stem}: not drawn; set [output] plots = true)</p>\n"
+            ));
+            continue;
+        }
+        let svg = std::fs::read_to_string(&path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let svg = svg
+            .trim_start()
+            .strip_prefix("<?xml")
+            .and_then(|rest| rest.split_once("?>").map(|(_, body)| body))
+            .unwrap_or(&svg);
+        html.push_str("<figure>\n");
+        html.push_str(svg.trim());
+        html.push_str(&format!(
+            "\n<figcaption>{}</figcaption>\n</figure>\n",
+            escape(caption)
+        ));
+    }
+    html.push_str(&format!(
+        "<p><small>cps {} · all numbers in SI units · the same figures are in the run's folder as PNG and SVG, the data as CSV and JSON</small></p>\n</body>\n</html>\n",
+        env!("CARGO_PKG_VERSION")
+    ));
+    stage.write("report.html", html.as_bytes())
+}

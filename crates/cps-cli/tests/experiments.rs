@@ -1,0 +1,379 @@
+//! The shipped experiments beyond plain via-point learning, run end to end through the
+//! binary: the imitation pipeline (in-process and on the stand-in CoppeliaSim server),
+//! the scaling comparison, reports, and their bad inputs.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+const IMITATION: &str = include_str!("../../../experiments/imitation.toml");
+const SCALING: &str = include_str!("../../../experiments/scaling.toml");
+
+fn cli(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cps-cli"))
+        .args(args)
+        .output()
+        .expect("run cps-cli")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn repo(path: &str) -> String {
+    format!("{}/../../{path}", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// An experiment file in `dir` whose scene path still points at the repository's scene.
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    let scene = repo("configs/scenes/thesis.toml");
+    std::fs::write(
+        &p,
+        text.replace("\"../configs/scenes/thesis.toml\"", &format!("{scene:?}")),
+    )
+    .unwrap();
+    p
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+fn run(file: &Path, out: &Path) -> Output {
+    cli(&[
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ])
+}
+
+/// The thesis's imitation experiment as shipped: every executed path within 1 mm, the
+/// imitation within 1 mm of the mean, the jerk penalty lowering the jerk, and the files.
+#[test]
+fn the_shipped_imitation_experiment_meets_its_numbers() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let o = run(Path::new(&repo("experiments/imitation.toml")), &out);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["complete"], true);
+    assert_eq!(s["kind"], "imitation");
+    let d = &s["demonstrations"];
+    assert_eq!(d["requested"], 20);
+    let (kept, dropped) = (d["kept"].as_u64().unwrap(), d["dropped"].as_u64().unwrap());
+    assert_eq!(kept + dropped, 20);
+    assert!(kept >= 10, "{kept} kept");
+    assert_eq!(s["dropped"].as_array().unwrap().len() as u64, dropped);
+    for r in s["runs"].as_array().unwrap() {
+        if r["kept"] == true {
+            let e = r["tracking"]["max_position_error_m"].as_f64().unwrap();
+            assert!(
+                e < 1e-3,
+                "demonstration {}: tracked within {e} m",
+                r["index"]
+            );
+        } else {
+            assert!(r["tracking"].is_null());
+        }
+    }
+    let fits = s["imitations"].as_array().unwrap();
+    assert_eq!(fits.len(), 2);
+    assert_eq!(fits[0]["method"], "ridge");
+    assert_eq!(fits[1]["method"], "jerk_ridge");
+    for f in fits {
+        assert!(f["rmse_to_mean_m"].as_f64().unwrap() < 1e-3, "{f}");
+        assert!(
+            f["tracking"]["max_position_error_m"].as_f64().unwrap() < 1e-3,
+            "{f}"
+        );
+        assert_eq!(f["basis_functions"], 25);
+        assert_eq!(f["tau_s"], 9.5);
+        assert!(out.join(f["model"].as_str().unwrap()).is_file());
+    }
+    let jerk = |i: usize| fits[i]["integrated_squared_jerk_m2_s5"].as_f64().unwrap();
+    assert!(
+        jerk(1) < jerk(0),
+        "jerk ridge {} vs ridge {}",
+        jerk(1),
+        jerk(0)
+    );
+
+    let csv = std::fs::read_to_string(out.join("recordings.csv")).unwrap();
+    assert!(csv.starts_with("type,index,t,x,y,z,tracking_error_m\n"));
+    for kind in [
+        "learned",
+        "executed",
+        "mean",
+        "imitation_ridge",
+        "executed_jerk_ridge",
+    ] {
+        assert!(csv.contains(&format!("\n{kind},")), "no {kind} rows");
+    }
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert_eq!(html.matches("<svg").count(), 2, "two inline figures");
+    assert!(html.contains("Imitations of the mean recording"));
+    assert!(!html.contains("src=\"http"), "the report must open offline");
+    assert!(out.join("coordinates.png").is_file() && out.join("path3d.svg").is_file());
+}
+
+/// Starts `cps-cli sim serve` on a free port with time step `dt`; returns it and its port.
+fn serve(dt: &str) -> (std::process::Child, String) {
+    let mut server = Command::new(env!("CARGO_BIN_EXE_cps-cli"))
+        .args(["sim", "serve", "--bind", "127.0.0.1:0", "--dt", dt])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(server.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let port = line
+        .split("tcp://127.0.0.1:")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .unwrap_or_else(|| panic!("no endpoint in {line:?}"))
+        .to_string();
+    (server, port)
+}
+
+/// The same file gives the same recordings on the in-process robot and, through the
+/// remote API, on the stand-in server.
+#[test]
+fn the_same_file_records_the_same_on_the_kinematic_robot_and_the_stand_in_server() {
+    let dir = tempfile::tempdir().unwrap();
+    let quick = IMITATION
+        .replace("count = 2", "count = 3")
+        .replace("count = 20", "count = 3")
+        .replace("dt = 0.01               #", "dt = 0.05               #");
+    let local = write(dir.path(), "local.toml", &quick);
+    let o = run(&local, &dir.path().join("local"));
+    assert!(o.status.success(), "{}", text(&o.stderr));
+
+    let (mut server, port) = serve("0.05");
+    let remote_text = quick
+        .replace("backend = \"kinematic\"", "backend = \"coppelia\"")
+        .replace(
+            "# endpoint = \"tcp://127.0.0.1:23000\"",
+            &format!("endpoint = \"tcp://127.0.0.1:{port}\""),
+        )
+        .replace("dt = 0.05               #", "# dt = 0.05             #");
+    let remote = write(dir.path(), "remote.toml", &remote_text);
+    let o = run(&remote, &dir.path().join("remote"));
+    let _ = server.kill();
+    let _ = server.wait();
+    assert!(o.status.success(), "{}", text(&o.stderr));
+
+    let s = json(&dir.path().join("remote/summary.json"));
+    assert!(
+        s["backend"].as_str().unwrap().contains(&port),
+        "{}",
+        s["backend"]
+    );
+    let read =
+        |name: &str| std::fs::read_to_string(dir.path().join(name).join("recordings.csv")).unwrap();
+    let (a, b) = (read("local"), read("remote"));
+    let (a, b): (Vec<&str>, Vec<&str>) = (a.lines().collect(), b.lines().collect());
+    assert_eq!(a.len(), b.len());
+    assert!(a.iter().any(|l| l.starts_with("executed,")));
+    for (x, y) in a.iter().zip(&b) {
+        let (x, y): (Vec<&str>, Vec<&str>) = (x.split(',').collect(), y.split(',').collect());
+        assert_eq!(x[..2], y[..2]);
+        if x[0] == "type" {
+            continue;
+        }
+        for k in 2..6 {
+            let (p, q): (f64, f64) = (x[k].parse().unwrap(), y[k].parse().unwrap());
+            assert!((p - q).abs() < 1e-8, "{x:?} vs {y:?}");
+        }
+    }
+}
+
+/// A backend that is not running is a clear error naming the endpoint, within the
+/// timeout, and writes nothing.
+#[test]
+fn a_dead_backend_is_named_within_the_timeout() {
+    let dir = tempfile::tempdir().unwrap();
+    // A port nobody listens on: bind one, note it, close it.
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let file = write(
+        dir.path(),
+        "dead.toml",
+        &IMITATION
+            .replace("backend = \"kinematic\"", "backend = \"coppelia\"")
+            .replace(
+                "# endpoint = \"tcp://127.0.0.1:23000\"",
+                &format!("endpoint = \"tcp://127.0.0.1:{port}\""),
+            )
+            .replace("# timeout = 5.0", "timeout = 1.0")
+            .replace("dt = 0.01               #", "# dt = 0.01             #"),
+    );
+    let out = dir.path().join("out");
+    let started = Instant::now();
+    let o = run(&file, &out);
+    assert!(started.elapsed() < Duration::from_secs(15));
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o.stderr));
+    let err = text(&o.stderr);
+    assert!(err.contains(&format!("tcp://127.0.0.1:{port}")), "{err}");
+    assert!(!out.exists(), "nothing is written");
+}
+
+/// A via point the robot cannot reach is named with its distance to the reachable set.
+#[test]
+fn an_unreachable_via_point_is_named_with_its_distance() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = write(
+        dir.path(),
+        "far.toml",
+        &IMITATION.replace(
+            "position = [1.15, -0.15, 1.20]",
+            "position = [3.0, -0.15, 1.20]",
+        ),
+    );
+    let o = run(&file, &dir.path().join("out"));
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
+    let err = text(&o.stderr);
+    assert!(err.contains("via[2]") && err.contains("reachable"), "{err}");
+    assert!(err.contains(" m away"), "{err}");
+}
+
+/// Sections that belong to another kind, unknown kinds and bad settings name their place.
+#[test]
+fn sections_and_settings_of_the_new_kinds_are_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let check = |name: &str, body: &str, wanted: &[&str]| {
+        let f = write(dir.path(), name, body);
+        let o = cli(&["check", f.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(2), "{name}: {}", text(&o.stdout));
+        let err = text(&o.stderr);
+        for w in wanted {
+            assert!(err.contains(w), "{name}: {err} lacks {w}");
+        }
+    };
+    let viapoint = include_str!("../../../experiments/viapoint.toml");
+    check(
+        "stray.toml",
+        &format!("{viapoint}\n[demonstrations]\ncount = 3\n"),
+        &[
+            "stray.toml:",
+            "[demonstrations] is read only by kind = \"imitation\"",
+        ],
+    );
+    check(
+        "kind.toml",
+        &IMITATION.replace("kind = \"imitation\"", "kind = \"imitate\""),
+        &["kind.toml:", "imitate"],
+    );
+    check(
+        "std.toml",
+        &IMITATION.replace("via_std = 0.05", "via_std = -1.0"),
+        &["std.toml:", "via_std", "≥ 0"],
+    );
+    check(
+        "lambda.toml",
+        &IMITATION.replace("jerk_lambda = \"auto\"", "jerk_lambda = \"best\""),
+        &["lambda.toml:", "jerk_lambda", "auto"],
+    );
+    check(
+        "scene.toml",
+        &IMITATION.replace(
+            "\"../configs/scenes/thesis.toml\"",
+            "\"no/such/scene.toml\"",
+        ),
+        &["scene.toml:", "does not exist"],
+    );
+    check(
+        "endpoint.toml",
+        &IMITATION.replace(
+            "# endpoint = \"tcp://127.0.0.1:23000\"",
+            "endpoint = \"tcp://127.0.0.1:23000\"",
+        ),
+        &["endpoint.toml:", "only with backend = \"coppelia\""],
+    );
+}
+
+/// The scaling comparison writes its bands, a verdict and a report.
+#[test]
+fn the_scaling_comparison_gives_a_verdict_and_a_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = write(
+        dir.path(),
+        "scaling.toml",
+        &SCALING
+            .replace("repetitions = 5 ", "repetitions = 3 ")
+            .replace("generations = 200", "generations = 60"),
+    );
+    let out = dir.path().join("out");
+    let o = run(&file, &out);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["complete"], true);
+    let arms = s["arms"].as_array().unwrap();
+    assert_eq!(arms.len(), 3);
+    let optimum = s["optimum_cost"].as_f64().unwrap();
+    for a in arms {
+        assert_eq!(a["final_costs"].as_array().unwrap().len(), 3);
+        let (lo, hi) = (
+            a["final_cost_band_95"][0].as_f64().unwrap(),
+            a["final_cost_band_95"][1].as_f64().unwrap(),
+        );
+        let mean = a["final_cost_mean"].as_f64().unwrap();
+        assert!(lo <= mean && mean <= hi && mean >= optimum * (1.0 - 1e-9));
+    }
+    // In 60 generations the anchor-offset space ends far below both others.
+    let verdict = s["verdict"].as_str().unwrap();
+    assert!(
+        verdict.contains("thesis_scaling vs anchor_offset: anchor_offset ended lower")
+            && verdict.contains("raw vs anchor_offset: anchor_offset ended lower"),
+        "{verdict}"
+    );
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert_eq!(html.matches("<svg").count(), 3);
+    assert!(html.contains(verdict.split(';').next().unwrap()));
+    let bands = std::fs::read_to_string(out.join("trajectory_bands.csv")).unwrap();
+    assert_eq!(bands.lines().count(), 1 + 3 * 1001);
+}
+
+/// Ctrl-C during an imitation run keeps what was finished, marked incomplete.
+#[cfg(unix)]
+#[test]
+fn an_interrupted_imitation_run_is_marked_incomplete() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = write(
+        dir.path(),
+        "long.toml",
+        &IMITATION
+            .replace("method = \"exact\"", "method = \"cmaes\"")
+            .replace("generations = 3000", "generations = 1000000")
+            .replace("tol_fun = 1e-3", "tol_fun = 0.0"),
+    );
+    let out = dir.path().join("out");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cps-cli"))
+        .args([
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ])
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    let killed = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    assert_eq!(child.wait().unwrap().code(), Some(130));
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["complete"], false);
+    assert_eq!(s["runs"].as_array().unwrap().len(), 20);
+    assert!(out.join("recordings.csv").is_file() && out.join("report.html").is_file());
+}

@@ -1,0 +1,424 @@
+//! The thesis's imitation experiment (§5.2): learned movements become demonstrations,
+//! the robot executes them, what it really did is averaged and imitated, and the imitation
+//! is executed in turn.
+//!
+//! 1. **Demonstrations.** The via-point task is perturbed `count` times (each via point
+//!    moved by N(0, σ²) per axis, seeded) and each perturbed task is learned with the
+//!    via-point learner.
+//! 2. **Reachability.** Each learned path is followed by inverse kinematics within the
+//!    joint limits on one branch ([`check_path`]); paths that leave the reachable set or
+//!    would need a branch change are dropped, with the reason.
+//! 3. **Execution.** The kept paths are executed on the robot backend with the inverse
+//!    controller from the initial configuration; the tool position and the backend's
+//!    clock are recorded.
+//! 4. **Imitation.** The recordings are time-normalised and averaged, and the mean is
+//!    imitated by ridge regression and by jerk-regularised ridge regression.
+//! 5. **Execution of the imitations**, recorded like the demonstrations.
+
+use std::ops::ControlFlow;
+use std::time::Instant;
+
+use cps_dmp::{Combine, DmpConfig, Imitation, Imitator, Lambda, Regression, Trajectory};
+use cps_kinematics::{IkConfig, KinematicsError, Recording, RobotBackend, check_path};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use rayon::prelude::*;
+
+use crate::robot::{execute_trajectory, targets_at};
+use crate::{
+    LearnError, RobotSetup, RunResult, ViaPointConfig, ViaPointTask, check_way_points,
+    learn_via_points,
+};
+
+/// Settings of [`run_imitation`].
+#[derive(Debug, Clone)]
+pub struct ImitationConfig {
+    /// The unperturbed task and the learner of the demonstrations (its `seed` is the
+    /// experiment's master seed; `repetitions` is ignored: one run per demonstration).
+    pub learner: ViaPointConfig,
+    /// Number of demonstrations (thesis: 20).
+    pub demonstrations: usize,
+    /// Standard deviation of the via-point perturbation per axis, metres (thesis: 0.05).
+    pub via_std: f64,
+    /// The robot the demonstrations and imitations are executed on.
+    pub robot: RobotSetup,
+    /// The imitating DMP (thesis: 25 basis functions, τ = 9.5 s).
+    pub imitation: DmpConfig,
+    /// λ of plain ridge regression (thesis: 1e-12).
+    pub ridge_lambda: Lambda,
+    /// λ of jerk-regularised ridge regression (default: generalised cross-validation).
+    pub jerk_lambda: Lambda,
+}
+
+impl ImitationConfig {
+    /// The thesis's set-up around `learner` and `robot`: 20 demonstrations, σ = 5 cm,
+    /// 25 basis functions, τ = 9.5 s with the learner's dt, ridge λ = 1e-12, jerk λ by GCV.
+    pub fn thesis(learner: ViaPointConfig, robot: RobotSetup) -> Self {
+        let dt = learner.task.dmp.dt;
+        Self {
+            learner,
+            demonstrations: 20,
+            via_std: 0.05,
+            robot,
+            imitation: DmpConfig::new(25, 9.5, dt),
+            ridge_lambda: Lambda::Fixed(1e-12),
+            jerk_lambda: Lambda::Auto,
+        }
+    }
+
+    /// The seed of demonstration `i` (perturbation and learning), derived from the master
+    /// seed so that adding demonstrations does not change the earlier ones.
+    pub fn demonstration_seed(&self, i: usize) -> u64 {
+        self.learner.repetition_seed(i)
+    }
+
+    /// The perturbed task of demonstration `i`.
+    pub fn perturbed_task(&self, i: usize) -> ViaPointTask {
+        let mut task = self.learner.task.clone();
+        let mut rng = ChaCha8Rng::seed_from_u64(self.demonstration_seed(i));
+        // σ is validated finite and ≥ 0 before any use.
+        let normal = Normal::new(0.0, self.via_std).unwrap_or(Normal::new(0.0, 0.0).unwrap());
+        for v in &mut task.via {
+            for p in &mut v.position {
+                *p += normal.sample(&mut rng);
+            }
+        }
+        task
+    }
+
+    fn validate(&self) -> Result<(), LearnError> {
+        self.learner.task.validate()?;
+        if self.demonstrations == 0 {
+            return Err(LearnError::task("demonstrations", "must be at least 1"));
+        }
+        if !(self.via_std.is_finite() && self.via_std >= 0.0) {
+            return Err(LearnError::task(
+                "via_std",
+                format!("must be finite and ≥ 0 (got {})", self.via_std),
+            ));
+        }
+        self.imitation.validate()?;
+        Ok(())
+    }
+}
+
+/// A stage of [`run_imitation`], reported to the progress callback.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ImitationStage {
+    /// Learning the demonstrations (`done` of `total`).
+    Learning,
+    /// Checking that the paths are reachable.
+    Checking,
+    /// Executing demonstrations on the backend.
+    Executing,
+    /// Fitting the imitations.
+    Imitating,
+    /// Executing the imitations.
+    ExecutingImitations,
+}
+
+impl ImitationStage {
+    /// A lower-case name for messages and summaries.
+    pub fn name(&self) -> &'static str {
+        match self {
+            ImitationStage::Learning => "learning",
+            ImitationStage::Checking => "checking",
+            ImitationStage::Executing => "executing",
+            ImitationStage::Imitating => "imitating",
+            ImitationStage::ExecutingImitations => "executing imitations",
+        }
+    }
+}
+
+/// One demonstration and what became of it.
+#[derive(Debug, Clone)]
+pub struct DemonstrationResult {
+    /// Its index (0-based).
+    pub index: usize,
+    /// The perturbed task it was learned from.
+    pub task: ViaPointTask,
+    /// The learner's result.
+    pub learned: RunResult,
+    /// The learned movement on the DMP grid.
+    pub trajectory: Trajectory,
+    /// Why it was dropped (`None` if it was kept).
+    pub dropped: Option<String>,
+    /// The robot's recording (kept demonstrations that were executed).
+    pub recording: Option<Recording>,
+}
+
+/// One imitation of the mean recording.
+#[derive(Debug, Clone)]
+pub struct ImitationFit {
+    /// `ridge` or `jerk_ridge`.
+    pub method: &'static str,
+    /// The model, its weights, the fit report and the mean it was fitted to.
+    pub imitation: Imitation,
+    /// The model's rollout.
+    pub trajectory: Trajectory,
+    /// The robot's recording of the rollout (if execution was reached).
+    pub recording: Option<Recording>,
+}
+
+impl ImitationFit {
+    /// Root-mean-square distance between the rollout and the mean recording on the grid
+    /// (metres; all dimensions together).
+    pub fn rmse(&self) -> f64 {
+        self.imitation
+            .report
+            .rmse
+            .iter()
+            .map(|r| r * r)
+            .sum::<f64>()
+            .sqrt()
+    }
+
+    /// Integrated squared jerk of the rollout, summed over the dimensions (m²/s⁵).
+    pub fn integrated_squared_jerk(&self) -> f64 {
+        self.imitation.report.integrated_squared_jerk.iter().sum()
+    }
+}
+
+/// What [`run_imitation`] produced; stages not reached (interruption, no demonstration
+/// kept) are empty.
+#[derive(Debug, Clone)]
+pub struct ImitationOutcome {
+    /// Every demonstration, kept or dropped.
+    pub demonstrations: Vec<DemonstrationResult>,
+    /// The imitations (ridge, jerk-regularised ridge).
+    pub fits: Vec<ImitationFit>,
+    /// Wall time per stage, seconds.
+    pub stage_seconds: Vec<(&'static str, f64)>,
+    /// False if the run was interrupted.
+    pub complete: bool,
+}
+
+impl ImitationOutcome {
+    /// The demonstrations that were kept and executed.
+    pub fn kept(&self) -> impl Iterator<Item = &DemonstrationResult> {
+        self.demonstrations
+            .iter()
+            .filter(|d| d.dropped.is_none() && d.recording.is_some())
+    }
+
+    /// The mean recording the imitations were fitted to, on the imitation grid (one
+    /// vector per dimension), if the imitation stage was reached.
+    pub fn mean(&self) -> Option<&[Vec<f64>]> {
+        self.fits.first().map(|f| f.imitation.reference.as_slice())
+    }
+}
+
+/// Runs the imitation experiment (see the module documentation) on `backend`.
+///
+/// Learning and reachability checks run in parallel in the current rayon pool; executions
+/// are sequential on the one backend. `progress(stage, done, total)` is called as work
+/// finishes and may return `ControlFlow::Break(())` to stop: the outcome then holds the
+/// finished stages and `complete == false`. The results do not depend on the number of
+/// threads.
+pub fn run_imitation(
+    config: &ImitationConfig,
+    backend: &mut dyn RobotBackend,
+    progress: &(dyn Fn(ImitationStage, usize, usize) -> ControlFlow<()> + Sync),
+) -> Result<ImitationOutcome, LearnError> {
+    config.validate()?;
+    if backend.dof() != config.robot.chain.dof() {
+        return Err(KinematicsError::JointCount {
+            expected: config.robot.chain.dof(),
+            got: backend.dof(),
+        }
+        .into());
+    }
+    // The unperturbed way points must be reachable: a clear error before any work.
+    check_way_points(&config.learner.task, &config.robot)?;
+    let mut out = ImitationOutcome {
+        demonstrations: Vec::new(),
+        fits: Vec::new(),
+        stage_seconds: Vec::new(),
+        complete: false,
+    };
+    let n = config.demonstrations;
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let report = |stage, total| {
+        let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        if progress(stage, d, total).is_break() {
+            stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+    };
+    let stopped = || stop.load(std::sync::atomic::Ordering::Relaxed);
+
+    // 1. Learn the demonstrations, in parallel.
+    let t = Instant::now();
+    let learned: Result<Vec<_>, LearnError> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let mut learner = config.learner.clone();
+            learner.task = config.perturbed_task(i);
+            learner.seed = config.demonstration_seed(i);
+            learner.repetitions = 1;
+            // Every generation asks the caller whether to go on (Ctrl-C reaches the runs).
+            let outcome = learn_via_points(&learner, &|_, _| {
+                let finished = done.load(std::sync::atomic::Ordering::Relaxed);
+                if stopped() || progress(ImitationStage::Learning, finished, n).is_break() {
+                    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+                    ControlFlow::Break(())
+                } else {
+                    ControlFlow::Continue(())
+                }
+            })?;
+            report(ImitationStage::Learning, n);
+            let trajectory = outcome.best_trajectory();
+            Ok(DemonstrationResult {
+                index: i,
+                task: learner.task,
+                learned: outcome.best().clone(),
+                trajectory,
+                dropped: None,
+                recording: None,
+            })
+        })
+        .collect();
+    out.demonstrations = learned?;
+    out.stage_seconds
+        .push(("learning", t.elapsed().as_secs_f64()));
+    if stopped()
+        || out
+            .demonstrations
+            .iter()
+            .any(|d| d.learned.termination == "interrupted")
+    {
+        return Ok(out);
+    }
+
+    // 2. Reachability of every path within the joint limits, in parallel.
+    let t = Instant::now();
+    done.store(0, std::sync::atomic::Ordering::Relaxed);
+    let dt = backend.time_step();
+    let chain = &config.robot.chain;
+    let max_step: Option<Vec<f64>> = chain
+        .velocity_limits()
+        .map(|v| v.iter().map(|v| v * dt).collect());
+    let ik = IkConfig {
+        position_tolerance: 1e-6,
+        restarts: 20,
+        ..IkConfig::default()
+    };
+    let verdicts: Vec<Option<String>> = out
+        .demonstrations
+        .par_iter()
+        .map(|d| {
+            let (times, targets) = targets_at(&d.trajectory, dt);
+            let verdict = match check_path(
+                chain,
+                &targets,
+                &times,
+                &config.robot.initial_q,
+                &ik,
+                max_step.as_deref(),
+            ) {
+                Ok(_) => None,
+                Err(e) => Some(e.to_string()),
+            };
+            report(ImitationStage::Checking, n);
+            verdict
+        })
+        .collect();
+    for (d, v) in out.demonstrations.iter_mut().zip(verdicts) {
+        d.dropped = v;
+    }
+    out.stage_seconds
+        .push(("checking", t.elapsed().as_secs_f64()));
+    if stopped() {
+        return Ok(out);
+    }
+
+    // 3. Execute the kept demonstrations, one after the other on the backend.
+    let t = Instant::now();
+    let kept = out
+        .demonstrations
+        .iter()
+        .filter(|d| d.dropped.is_none())
+        .count();
+    done.store(0, std::sync::atomic::Ordering::Relaxed);
+    for d in out
+        .demonstrations
+        .iter_mut()
+        .filter(|d| d.dropped.is_none())
+    {
+        d.recording = Some(execute_trajectory(backend, &config.robot, &d.trajectory)?);
+        report(ImitationStage::Executing, kept);
+        if stopped() {
+            out.stage_seconds
+                .push(("executing", t.elapsed().as_secs_f64()));
+            return Ok(out);
+        }
+    }
+    out.stage_seconds
+        .push(("executing", t.elapsed().as_secs_f64()));
+    if kept == 0 {
+        // Nothing to imitate: the outcome says so (no fits); not an error of the run.
+        out.complete = true;
+        return Ok(out);
+    }
+
+    // 4. Time-normalise, average and imitate the recordings.
+    let t = Instant::now();
+    let demos = out
+        .kept()
+        .map(|d| {
+            let rec = d
+                .recording
+                .as_ref()
+                .expect("kept demonstrations are executed");
+            let rows: Vec<Vec<f64>> = rec.position.iter().map(|p| p.to_vec()).collect();
+            cps_dmp::Demonstration::new(rec.time.clone(), &rows)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let template = cps_dmp::DiscreteDmp::new(config.imitation, &[0.0; 3], &[1.0; 3])?;
+    let imitator = Imitator::new(template);
+    for (method, regression) in [
+        (
+            "ridge",
+            Regression::Ridge {
+                lambda: config.ridge_lambda,
+            },
+        ),
+        (
+            "jerk_ridge",
+            Regression::JerkRidge {
+                lambda: config.jerk_lambda,
+            },
+        ),
+    ] {
+        let imitation = imitator.imitate(&demos, regression, Combine::Mean)?;
+        let trajectory = imitation.dmp.rollout(&imitation.weights);
+        out.fits.push(ImitationFit {
+            method,
+            imitation,
+            trajectory,
+            recording: None,
+        });
+    }
+    out.stage_seconds
+        .push(("imitating", t.elapsed().as_secs_f64()));
+    if progress(ImitationStage::Imitating, 1, 1).is_break() {
+        return Ok(out);
+    }
+
+    // 5. Execute the imitations.
+    let t = Instant::now();
+    let total = out.fits.len();
+    for (i, fit) in out.fits.iter_mut().enumerate() {
+        fit.recording = Some(execute_trajectory(backend, &config.robot, &fit.trajectory)?);
+        if progress(ImitationStage::ExecutingImitations, i + 1, total).is_break() {
+            out.stage_seconds
+                .push(("executing imitations", t.elapsed().as_secs_f64()));
+            return Ok(out);
+        }
+    }
+    out.stage_seconds
+        .push(("executing imitations", t.elapsed().as_secs_f64()));
+    out.complete = true;
+    Ok(out)
+}

@@ -1,0 +1,99 @@
+//! The imitation pipeline on the in-process robot: the thesis's set-up end to end.
+
+use std::ops::ControlFlow;
+
+use cps_kinematics::robots::{PandaTool, panda};
+use cps_kinematics::{ExecutionConfig, KinematicRobot};
+use cps_learn::{
+    ImitationConfig, LearnError, RobotSetup, Solver, ViaPointConfig, ViaPointTask,
+    check_way_points, run_imitation,
+};
+use nalgebra::Isometry3;
+
+const THESIS_Q0: [f64; 7] = [
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    std::f64::consts::FRAC_PI_2,
+    std::f64::consts::FRAC_PI_4,
+];
+
+fn thesis_robot() -> RobotSetup {
+    RobotSetup {
+        chain: panda(PandaTool::HandTcp).with_base(Isometry3::translation(0.5396, 0.02, 0.749)),
+        initial_q: THESIS_Q0.to_vec(),
+        execution: ExecutionConfig::default(),
+    }
+}
+
+fn config(demos: usize) -> ImitationConfig {
+    let mut learner = ViaPointConfig::new(ViaPointTask::thesis());
+    learner.solver = Solver::Exact;
+    let mut c = ImitationConfig::thesis(learner, thesis_robot());
+    c.demonstrations = demos;
+    c
+}
+
+#[test]
+fn the_thesis_pipeline_imitates_the_mean_within_a_millimetre() {
+    let c = config(20);
+    let mut robot = KinematicRobot::new(c.robot.chain.clone(), &THESIS_Q0, 0.01).unwrap();
+    let out = run_imitation(&c, &mut robot, &|_, _, _| ControlFlow::Continue(())).unwrap();
+    assert!(out.complete);
+    assert_eq!(out.demonstrations.len(), 20);
+    let kept = out.kept().count();
+    let dropped: Vec<_> = out
+        .demonstrations
+        .iter()
+        .filter_map(|d| d.dropped.as_ref())
+        .collect();
+    eprintln!("kept {kept}, dropped {}: {dropped:?}", dropped.len());
+    eprintln!("{:?}", out.stage_seconds);
+    assert!(kept >= 5, "{kept} kept");
+    assert_eq!(kept + dropped.len(), 20);
+    // Every executed demonstration is tracked within 1 mm.
+    for d in out.kept() {
+        let r = d.recording.as_ref().unwrap();
+        assert!(
+            r.max_position_error() < 1e-3,
+            "demo {}: {}",
+            d.index,
+            r.max_position_error()
+        );
+    }
+    assert_eq!(out.fits.len(), 2);
+    let (ridge, jerk) = (&out.fits[0], &out.fits[1]);
+    for f in &out.fits {
+        eprintln!(
+            "{}: rmse {:.3} mm, jerk {:.4e}, tracked {:.3} mm",
+            f.method,
+            f.rmse() * 1e3,
+            f.integrated_squared_jerk(),
+            f.recording.as_ref().unwrap().max_position_error() * 1e3
+        );
+        assert!(f.rmse() < 1e-3, "{} rmse {}", f.method, f.rmse());
+        assert!(f.recording.as_ref().unwrap().max_position_error() < 1e-3);
+    }
+    assert!(jerk.integrated_squared_jerk() < ridge.integrated_squared_jerk());
+}
+
+#[test]
+fn an_unreachable_via_point_is_named_with_its_distance() {
+    let mut task = ViaPointTask::thesis();
+    task.via[2].position = vec![3.0, 0.0, 1.2];
+    let err = check_way_points(&task, &thesis_robot()).unwrap_err();
+    match &err {
+        LearnError::Unreachable {
+            point, distance, ..
+        } => {
+            assert_eq!(point, "via[2]");
+            // The Panda reaches ~0.855 m from its shoulder (at 0.5396 + 0, 0.02, 0.749 + 0.333):
+            // the point is ~1.6 m beyond that.
+            assert!(*distance > 1.4 && *distance < 1.8, "{distance}");
+        }
+        other => panic!("{other}"),
+    }
+    assert!(err.to_string().contains("via[2]"), "{err}");
+}
