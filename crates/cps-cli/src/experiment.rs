@@ -38,6 +38,7 @@ struct File {
     demonstrations: Option<Spanned<crate::pipelines::DemonstrationsSection>>,
     imitation: Option<Spanned<crate::pipelines::ImitationSection>>,
     scaling: Option<Spanned<crate::pipelines::ScalingSection>>,
+    joint: Option<Spanned<crate::pipelines::JointSection>>,
 }
 
 /// What an experiment file runs (`[experiment] kind`).
@@ -51,6 +52,8 @@ pub enum Kind {
     Imitation,
     /// Parametrisations compared over repetitions (the thesis's scaled vs not scaled).
     Scaling,
+    /// Via-point learning with one DMP per joint, judged in task space.
+    ViapointJoint,
 }
 
 impl Kind {
@@ -60,6 +63,7 @@ impl Kind {
             Kind::Viapoint => "viapoint",
             Kind::Imitation => "imitation",
             Kind::Scaling => "scaling",
+            Kind::ViapointJoint => "viapoint_joint",
         }
     }
 }
@@ -177,6 +181,8 @@ pub struct ViaPointExperiment {
     pub imitation: Option<crate::pipelines::ImitationPlan>,
     /// The parametrisations compared (`kind = "scaling"`).
     pub scaling: Option<crate::pipelines::ScalingPlan>,
+    /// The limit penalties (`kind = "viapoint_joint"`).
+    pub joint: Option<crate::pipelines::JointPlan>,
 }
 
 /// `file:line:column` of a byte offset.
@@ -388,6 +394,7 @@ pub fn parse(
         demonstrations: file.demonstrations.as_ref(),
         imitation: file.imitation.as_ref(),
         scaling: file.scaling.as_ref(),
+        joint: file.joint.as_ref(),
     };
     let plans = sections.parse(&config)?;
     Ok(ViaPointExperiment {
@@ -398,6 +405,7 @@ pub fn parse(
         robot: plans.robot,
         imitation: plans.imitation,
         scaling: plans.scaling,
+        joint: plans.joint,
     })
 }
 

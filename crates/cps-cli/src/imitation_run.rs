@@ -2,7 +2,7 @@
 //! (recordings, summary, models, figures, report).
 
 use std::ops::ControlFlow;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 
 use anyhow::{Context, Result};
 use cps_dmp::DmpModel;
@@ -14,22 +14,15 @@ use crate::experiment::ViaPointExperiment;
 use crate::output::Staging;
 use crate::plots::{Series, figures, trajectory_series};
 use crate::report::{self, Table};
+use crate::runner::{Finished, RunContext};
 
-/// What the run needs from the command line.
-pub struct RunContext<'a> {
-    pub pool: &'a rayon::ThreadPool,
-    pub bar: &'a indicatif::ProgressBar,
-    pub interrupted: &'a AtomicBool,
-}
-
-/// Runs the pipeline and writes every result into `stage`. Returns the outcome (for the
-/// terminal summary).
+/// Runs the pipeline and writes every result into `stage`.
 pub fn run(
     exp: &ViaPointExperiment,
     ctx: &RunContext<'_>,
     stage: &Staging,
     wall: &dyn Fn() -> f64,
-) -> Result<ImitationOutcome> {
+) -> Result<Finished> {
     let robot = exp
         .robot
         .as_ref()
@@ -68,7 +61,38 @@ pub fn run(
         })?;
     ctx.bar.finish_and_clear();
     write(exp, &config, robot, &outcome, stage, wall())?;
-    Ok(outcome)
+    let o = &outcome;
+    let mut lines = vec![format!(
+        "{}: {} of {} demonstrations kept and executed in {:.2} s ({})",
+        exp.name,
+        o.kept().count(),
+        o.demonstrations.len(),
+        wall(),
+        robot.describe()
+    )];
+    for d in o.demonstrations.iter().filter(|d| d.dropped.is_some()) {
+        lines.push(format!(
+            "  dropped demonstration {}: {}",
+            d.index,
+            d.dropped.as_deref().unwrap_or("")
+        ));
+    }
+    for f in &o.fits {
+        lines.push(format!(
+            "  imitation by {}: RMSE to the mean {:.3} mm, integrated squared jerk {:.4e} m²/s⁵, executed within {:.3} mm",
+            f.method.replace('_', " "),
+            f.rmse() * 1e3,
+            f.integrated_squared_jerk(),
+            f.recording
+                .as_ref()
+                .map_or(f64::NAN, |r| r.max_position_error())
+                * 1e3
+        ));
+    }
+    Ok(Finished {
+        complete: o.complete,
+        lines,
+    })
 }
 
 #[derive(Serialize)]

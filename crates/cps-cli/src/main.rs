@@ -32,6 +32,7 @@ macro_rules! say {
 mod cmaes_bench;
 mod experiment;
 mod imitation_run;
+mod joint_run;
 mod movement;
 mod output;
 mod pipelines;
@@ -39,6 +40,7 @@ mod plots;
 mod report;
 mod robot;
 mod robot_file;
+mod runner;
 mod scaling_run;
 mod scene;
 mod simserve;
@@ -226,6 +228,7 @@ fn run_experiment(
                 * exp.scaling.as_ref().map_or(1, |s| s.compare.len() as u64)
         }
         experiment::Kind::Imitation => 0,
+        experiment::Kind::ViapointJoint => config.generations,
     };
     let bar = if quiet || !std::io::stderr().is_terminal() {
         ProgressBar::hidden()
@@ -243,61 +246,20 @@ fn run_experiment(
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     if exp.kind != experiment::Kind::Viapoint {
-        let ctx = imitation_run::RunContext {
+        let ctx = runner::RunContext {
             pool: &pool,
             bar: &bar,
             interrupted,
         };
         let wall = || started.elapsed().as_secs_f64();
         let stage = output::Staging::new(&out)?;
-        let complete = match exp.kind {
-            experiment::Kind::Imitation => {
-                let o = imitation_run::run(&exp, &ctx, &stage, &wall)?;
-                if !quiet {
-                    say!(
-                        "{}: {} of {} demonstrations kept and executed in {:.2} s ({})",
-                        exp.name,
-                        o.kept().count(),
-                        o.demonstrations.len(),
-                        wall(),
-                        exp.robot.as_ref().map_or(String::new(), |r| r.describe())
-                    );
-                    for d in o.demonstrations.iter().filter(|d| d.dropped.is_some()) {
-                        say!(
-                            "  dropped demonstration {}: {}",
-                            d.index,
-                            d.dropped.as_deref().unwrap_or("")
-                        );
-                    }
-                    for f in &o.fits {
-                        say!(
-                            "  imitation by {}: RMSE to the mean {:.3} mm, integrated squared jerk {:.4e} m²/s⁵, executed within {:.3} mm",
-                            f.method.replace('_', " "),
-                            f.rmse() * 1e3,
-                            f.integrated_squared_jerk(),
-                            f.recording
-                                .as_ref()
-                                .map_or(f64::NAN, |r| r.max_position_error())
-                                * 1e3
-                        );
-                    }
-                }
-                o.complete
+        let finished = runner::run(&exp, &ctx, &stage, &wall)?;
+        if !quiet {
+            for line in &finished.lines {
+                say!("{line}");
             }
-            _ => {
-                let (arms, verdict) = scaling_run::run(&exp, &ctx, &stage, &wall)?;
-                if !quiet {
-                    say!(
-                        "{}: {} search spaces compared in {:.2} s",
-                        exp.name,
-                        arms.len(),
-                        wall()
-                    );
-                    say!("  {verdict}");
-                }
-                !arms.iter().any(|a| a.outcome.interrupted())
-            }
-        };
+        }
+        let complete = finished.complete;
         stage.commit()?;
         if !quiet {
             say!("  results and report.html in {}", out.display());

@@ -179,6 +179,23 @@ pub struct ScalingPlan {
     pub compare: Vec<Parametrisation>,
 }
 
+/// `[joint]` of `kind = "viapoint_joint"`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointSection {
+    limit_weight: Option<Spanned<f64>>,
+    speed_limit_weight: Option<Spanned<f64>>,
+}
+
+/// The limit penalties of a joint-space experiment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JointPlan {
+    /// Weight of the squared position-limit excess.
+    pub limit_weight: f64,
+    /// Weight of the squared speed-limit excess.
+    pub speed_limit_weight: f64,
+}
+
 /// The optional sections of a file, with what is needed to name places in errors.
 pub struct Sections<'a> {
     pub path: &'a Path,
@@ -188,6 +205,7 @@ pub struct Sections<'a> {
     pub demonstrations: Option<&'a Spanned<DemonstrationsSection>>,
     pub imitation: Option<&'a Spanned<ImitationSection>>,
     pub scaling: Option<&'a Spanned<ScalingSection>>,
+    pub joint: Option<&'a Spanned<JointSection>>,
 }
 
 /// The parsed plans of [`Sections::parse`].
@@ -195,6 +213,7 @@ pub struct Plans {
     pub robot: Option<RobotChoice>,
     pub imitation: Option<ImitationPlan>,
     pub scaling: Option<ScalingPlan>,
+    pub joint: Option<JointPlan>,
 }
 
 impl Sections<'_> {
@@ -225,11 +244,20 @@ impl Sections<'_> {
                 ),
             )
         };
-        let executes = matches!(self.kind, Kind::Imitation);
+        let executes = matches!(self.kind, Kind::Imitation | Kind::ViapointJoint);
         if let Some(r) = self.robot
             && !executes
         {
-            return Err(only(r.span(), "robot", "kind = \"imitation\""));
+            return Err(only(
+                r.span(),
+                "robot",
+                "kind = \"imitation\" and kind = \"viapoint_joint\"",
+            ));
+        }
+        if let Some(j) = self.joint
+            && self.kind != Kind::ViapointJoint
+        {
+            return Err(only(j.span(), "joint", "kind = \"viapoint_joint\""));
         }
         for (span, name) in [
             (self.demonstrations.map(Spanned::span), "demonstrations"),
@@ -271,10 +299,39 @@ impl Sections<'_> {
         } else {
             None
         };
+        let joint = if self.kind == Kind::ViapointJoint {
+            let section = self.joint.map(Spanned::get_ref);
+            let weight = |v: Option<&Spanned<f64>>, name: &str, default: f64| match v {
+                Some(v) if !(v.get_ref().is_finite() && *v.get_ref() >= 0.0) => Err(self.err(
+                    &v.span(),
+                    format!(
+                        "[joint] `{name}` must be finite and ≥ 0 (got {})",
+                        v.get_ref()
+                    ),
+                )),
+                Some(v) => Ok(*v.get_ref()),
+                None => Ok(default),
+            };
+            Some(JointPlan {
+                limit_weight: weight(
+                    section.and_then(|s| s.limit_weight.as_ref()),
+                    "limit_weight",
+                    1e6,
+                )?,
+                speed_limit_weight: weight(
+                    section.and_then(|s| s.speed_limit_weight.as_ref()),
+                    "speed_limit_weight",
+                    1e3,
+                )?,
+            })
+        } else {
+            None
+        };
         Ok(Plans {
             robot,
             imitation,
             scaling,
+            joint,
         })
     }
 

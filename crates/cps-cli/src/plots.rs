@@ -7,7 +7,7 @@ use std::sync::Once;
 
 use anyhow::{Result, anyhow};
 use cps_dmp::Trajectory;
-use cps_learn::{ViaPointOutcome, ViaPointTask, history_band};
+use cps_learn::{GenerationRecord, ViaPointOutcome, ViaPointTask, history_band};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -74,7 +74,8 @@ const COLORS: [RGBColor; 3] = [
 /// with the 95 % band, and the exact optimum.
 fn cost_plot<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
-    arms: &[(String, &ViaPointOutcome)],
+    arms: &[CostArm<'_>],
+    optimum: Option<f64>,
 ) -> DrawResult<DB> {
     root.fill(&WHITE)?;
     let positive = |v: f64| {
@@ -84,23 +85,21 @@ fn cost_plot<DB: DrawingBackend>(
             None
         }
     };
-    let optimum = arms.first().map_or(1.0, |a| a.1.optimum.cost);
-    let all = arms.iter().flat_map(|(_, o)| {
-        o.runs
+    let all = arms.iter().flat_map(|a| {
+        a.runs
             .iter()
-            .flat_map(|r| r.history.iter().filter_map(|h| positive(h.best_so_far)))
+            .flat_map(|r| r.iter().filter_map(|h| positive(h.best_so_far)))
     });
     let (lo, hi) = all.fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
-    let lo = lo.min(optimum).max(1e-300);
+    let lo = lo.min(optimum.unwrap_or(f64::INFINITY)).max(1e-300);
     let (lo, hi) = if lo < hi {
         (lo * 0.8, hi * 1.25)
     } else {
         (lo * 0.5, lo * 2.0)
     };
-    let bands: Vec<Vec<(f64, f64, f64)>> =
-        arms.iter().map(|(_, o)| history_band(&o.runs)).collect();
+    let bands: Vec<Vec<(f64, f64, f64)>> = arms.iter().map(|a| history_band(&a.runs)).collect();
     let gens = bands.iter().map(Vec::len).max().unwrap_or(0).max(2) as f64;
-    let reps = arms.first().map_or(1, |a| a.1.runs.len());
+    let reps = arms.first().map_or(1, |a| a.runs.len());
     let mut chart = ChartBuilder::on(root)
         .caption(
             format!("cost per generation ({reps} repetition(s) each)"),
@@ -115,9 +114,9 @@ fn cost_plot<DB: DrawingBackend>(
         .x_desc("generation")
         .y_desc("best cost so far")
         .draw()?;
-    for (i, ((label, outcome), band)) in arms.iter().zip(&bands).enumerate() {
-        let color = COLORS[i % COLORS.len()];
-        if outcome.runs.len() > 1 {
+    for (i, (arm, band)) in arms.iter().zip(&bands).enumerate() {
+        let (label, color) = (&arm.label, COLORS[i % COLORS.len()]);
+        if arm.runs.len() > 1 {
             let mut poly: Vec<(f64, f64)> = band
                 .iter()
                 .enumerate()
@@ -142,7 +141,7 @@ fn cost_plot<DB: DrawingBackend>(
             .filter_map(|(g, b)| positive(b.0).map(|v| ((g + 1) as f64, v)));
         chart
             .draw_series(LineSeries::new(mean, color.stroke_width(2)))?
-            .label(if outcome.runs.len() > 1 {
+            .label(if arm.runs.len() > 1 {
                 format!("{label}: mean best cost")
             } else {
                 format!("{label}: best cost")
@@ -151,13 +150,15 @@ fn cost_plot<DB: DrawingBackend>(
                 PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
             });
     }
-    chart
-        .draw_series(LineSeries::new(
-            vec![(1.0, optimum), (gens, optimum)],
-            BLACK.stroke_width(1),
-        ))?
-        .label("exact optimum")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+    if let Some(opt) = optimum {
+        chart
+            .draw_series(LineSeries::new(
+                vec![(1.0, opt), (gens, opt)],
+                BLACK.stroke_width(1),
+            ))?
+            .label("exact optimum")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+    }
     chart
         .configure_series_labels()
         .background_style(WHITE.mix(0.8))
@@ -166,10 +167,34 @@ fn cost_plot<DB: DrawingBackend>(
     Ok(())
 }
 
-/// Draws the cost figure `<stem>.png/.svg` of one or more arms.
-pub fn costs(stage: &Staging, stem: &str, arms: &[(String, &ViaPointOutcome)]) -> Result<()> {
+/// One curve family of the cost figure: the histories of its repetitions.
+pub struct CostArm<'a> {
+    /// Legend label.
+    pub label: String,
+    /// One history per repetition.
+    pub runs: Vec<&'a [GenerationRecord]>,
+}
+
+impl<'a> CostArm<'a> {
+    /// The repetitions of a via-point outcome.
+    pub fn of(label: &str, outcome: &'a ViaPointOutcome) -> Self {
+        Self {
+            label: label.into(),
+            runs: outcome.runs.iter().map(|r| r.history.as_slice()).collect(),
+        }
+    }
+}
+
+/// Draws the cost figure `<stem>.png/.svg` of one or more arms, with the exact optimum
+/// when there is one.
+pub fn costs(
+    stage: &Staging,
+    stem: &str,
+    arms: &[CostArm<'_>],
+    optimum: Option<f64>,
+) -> Result<()> {
     both(stage, stem, (1000, 600), |a| {
-        with_area!(a, |r| cost_plot(r, arms))
+        with_area!(a, |r| cost_plot(r, arms, optimum))
     })
 }
 
@@ -377,10 +402,7 @@ pub fn figures(
     points: &[(f64, Vec<f64>)],
 ) -> Result<()> {
     let dims = series.first().map_or(0, |s| s.values.len());
-    let names = axis_names(dims);
-    both(stage, stem, (1000, 300 * dims.clamp(1, 4) as u32), |a| {
-        with_area!(a, |r| curves_plot(r, &names, series, points))
-    })?;
+    panels(stage, stem, &axis_names(dims), series, points)?;
     if dims == 3 {
         let marks: Vec<Vec<f64>> = points.iter().map(|p| p.1.clone()).collect();
         both(stage, path_stem, (900, 800), |a| {
@@ -388,6 +410,24 @@ pub fn figures(
         })?;
     }
     Ok(())
+}
+
+/// One panel per dimension (named by `names`) of every series, with marked points, to
+/// `<stem>.png/.svg`.
+pub fn panels(
+    stage: &Staging,
+    stem: &str,
+    names: &[String],
+    series: &[Series<'_>],
+    points: &[(f64, Vec<f64>)],
+) -> Result<()> {
+    let height = if names.len() <= 4 { 300 } else { 220 };
+    both(
+        stage,
+        stem,
+        (1000, height * names.len().max(1) as u32),
+        |a| with_area!(a, |r| curves_plot(r, names, series, points)),
+    )
 }
 
 /// The series of one trajectory's positions.
@@ -402,7 +442,12 @@ pub fn trajectory_series<'a>(label: &str, traj: &'a Trajectory) -> Series<'a> {
 
 /// Draws every figure of a via-point run into `stage`.
 pub fn viapoint(stage: &Staging, outcome: &ViaPointOutcome, task: &ViaPointTask) -> Result<()> {
-    costs(stage, "cost", &[("CMA-ES".to_string(), outcome)])?;
+    costs(
+        stage,
+        "cost",
+        &[CostArm::of("CMA-ES", outcome)],
+        Some(outcome.optimum.cost),
+    )?;
     let traj = outcome.best_trajectory();
     figures(
         stage,

@@ -9,17 +9,17 @@ use cps_learn::{Parametrisation, ViaPointOutcome, learn_via_points};
 use serde::Serialize;
 
 use crate::experiment::ViaPointExperiment;
-use crate::imitation_run::RunContext;
 use crate::output::Staging;
-use crate::plots::{Series, costs, figures, way_points};
+use crate::plots::{CostArm, Series, costs, figures, way_points};
 use crate::report::{self, Table};
+use crate::runner::{Finished, RunContext};
 
 /// One arm of the comparison.
-pub struct Arm {
+struct Arm {
     /// The search space.
-    pub parametrisation: Parametrisation,
+    parametrisation: Parametrisation,
     /// Its repetitions.
-    pub outcome: ViaPointOutcome,
+    outcome: ViaPointOutcome,
 }
 
 /// Mean and 95 % band (1.96 · std / √n) of values.
@@ -41,7 +41,7 @@ pub fn run(
     ctx: &RunContext<'_>,
     stage: &Staging,
     wall: &dyn Fn() -> f64,
-) -> Result<(Vec<Arm>, String)> {
+) -> Result<Finished> {
     let plan = exp
         .scaling
         .as_ref()
@@ -73,7 +73,18 @@ pub fn run(
     ctx.bar.finish_and_clear();
     let verdict = verdict(&arms);
     write(exp, &arms, &verdict, stage, wall())?;
-    Ok((arms, verdict))
+    Ok(Finished {
+        complete: !arms.iter().any(|a| a.outcome.interrupted()),
+        lines: vec![
+            format!(
+                "{}: {} search spaces compared in {:.2} s",
+                exp.name,
+                arms.len(),
+                wall()
+            ),
+            format!("  {verdict}"),
+        ],
+    })
 }
 
 /// Mean and 95 % band of an arm's trajectories over its repetitions.
@@ -291,11 +302,16 @@ fn write(
     w.flush()?;
 
     if exp.plots {
-        let named: Vec<(String, &ViaPointOutcome)> = arms
+        let named: Vec<CostArm<'_>> = arms
             .iter()
-            .map(|a| (a.parametrisation.name().to_string(), &a.outcome))
+            .map(|a| CostArm::of(a.parametrisation.name(), &a.outcome))
             .collect();
-        costs(stage, "cost", &named)?;
+        costs(
+            stage,
+            "cost",
+            &named,
+            arms.first().map(|a| a.outcome.optimum.cost),
+        )?;
         if dims == 3 {
             let mut series = Vec::new();
             for b in &bands {

@@ -377,3 +377,56 @@ fn an_interrupted_imitation_run_is_marked_incomplete() {
     assert_eq!(s["runs"].as_array().unwrap().len(), 20);
     assert!(out.join("recordings.csv").is_file() && out.join("report.html").is_file());
 }
+
+const JOINT: &str = include_str!("../../../experiments/viapoint_joint.toml");
+
+/// Joint-space learning: the tool passes the via points and reaches the goal within a
+/// millimetre in task space, CMA-ES never ends above its warm start, and the executed
+/// result stays within the joint limits.
+#[test]
+fn joint_space_learning_meets_its_numbers_within_the_limits() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = write(
+        dir.path(),
+        "joint.toml",
+        &JOINT.replace("generations = 1500", "generations = 150"),
+    );
+    let out = dir.path().join("out");
+    let o = run(&file, &out);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["kind"], "viapoint_joint");
+    assert_eq!(s["complete"], true);
+    assert!(s["max_position_error_m"].as_f64().unwrap() < 1e-3, "{s}");
+    assert_eq!(s["via_errors_m"].as_array().unwrap().len(), 4);
+    assert!(s["cost"].as_f64().unwrap() <= s["warm_start_cost"].as_f64().unwrap());
+    assert_eq!(s["limits"]["within"], true);
+    let e = &s["execution"];
+    assert_eq!(e["within_position_limits"], true);
+    assert!(e["max_speed_ratio"].as_f64().unwrap() <= 1.0 + 1e-9);
+    assert!(e["max_tool_deviation_m"].as_f64().unwrap() < 1e-9);
+    assert_eq!(e["samples"], 1001);
+    // Seven joints, one configuration per way point.
+    let configs = s["way_configurations_rad"].as_array().unwrap();
+    assert_eq!(configs.len(), 6);
+    assert!(configs.iter().all(|q| q.as_array().unwrap().len() == 7));
+    let csv = std::fs::read_to_string(out.join("trajectory.csv")).unwrap();
+    assert!(csv.starts_with("t,q1,q2,q3,q4,q5,q6,q7,dq1,"));
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert_eq!(html.matches("<svg").count(), 4);
+}
+
+/// A way point that cannot be converted to joint space is named with its residual.
+#[test]
+fn a_way_point_without_a_joint_configuration_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = write(
+        dir.path(),
+        "far.toml",
+        &JOINT.replace("goal = [0.55, -0.57, 1.45]", "goal = [0.55, -0.57, 3.45]"),
+    );
+    let o = run(&file, &dir.path().join("out"));
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
+    let err = text(&o.stderr);
+    assert!(err.contains("`goal`") && err.contains(" m away"), "{err}");
+}

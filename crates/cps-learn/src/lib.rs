@@ -31,6 +31,7 @@
 mod error;
 mod exact;
 mod imitation;
+mod joint;
 mod robot;
 mod space;
 mod task;
@@ -41,6 +42,10 @@ pub use exact::{ExactOptimum, exact_optimum};
 pub use imitation::{
     DemonstrationResult, ImitationConfig, ImitationFit, ImitationOutcome, ImitationStage,
     run_imitation,
+};
+pub use joint::{
+    JointCostBreakdown, JointSpaceConfig, JointSpaceCost, JointSpaceOutcome, LimitReport,
+    execute_joint_trajectory, learn_joint_space,
 };
 pub use robot::{RobotSetup, check_way_points, execute_trajectory, targets_at};
 pub use space::{Parametrisation, SearchSpace};

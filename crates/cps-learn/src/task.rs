@@ -195,7 +195,9 @@ impl ViaPointTask {
                 ));
             }
         }
-        for d in 0..dims {
+        // Only the Ijspeert form scales its forcing term with goal − start.
+        let scaled = self.dmp.formulation == cps_dmp::Formulation::Ijspeert2013;
+        for d in (0..dims).filter(|_| scaled) {
             let amp = self.goal[d] - self.start[d];
             let scale = self.start[d].abs().max(self.goal[d].abs()).max(1.0);
             if amp.abs() <= 1e-9 * scale {

@@ -270,42 +270,15 @@ pub fn learn_via_points(
             } else {
                 vec![0.0; space.len()]
             };
-            let cmaes = CmaesConfig {
-                population: config.population,
-                ..CmaesConfig::new(config.sigma0, seed)
-            };
-            let mut rules = vec![StopRule::MaxGenerations(config.generations)];
-            if let Some(tol) = config.tol_fun {
-                rules.push(StopRule::TolFun(tol));
-            }
-            rules.extend(StopRule::safety_defaults());
-            let mut history = Vec::new();
-            let mut observer = |r: &GenerationReport<'_>| {
-                history.push(GenerationRecord {
-                    generation: r.generation,
-                    best: r.best_cost,
-                    median: r.median_cost,
-                    best_so_far: r.best_so_far,
-                    sigma: r.sigma,
-                });
-                progress(rep, r)
-            };
-            let sol = minimize(&objective, &x0, &cmaes, &rules, &mut observer)?;
-            // The final mean is often better than every sample, and a warm start must never
-            // end worse than where it began: keep the best of the three.
-            let best_x = [sol.best_x, sol.mean, x0]
-                .into_iter()
-                .map(|x| (objective.evaluate(&x).unwrap_or(f64::INFINITY), x))
-                .min_by(|a, b| a.0.total_cmp(&b.0))
-                .map(|(_, x)| x)
-                .unwrap_or_default();
+            let run = run_cmaes(&objective, x0, config, seed, &|r| progress(rep, r))?;
             let stats = (
-                sol.generations,
-                sol.evaluations,
-                sol.non_finite_evaluations,
-                sol.termination.name().to_string(),
-                history,
+                run.generations,
+                run.evaluations,
+                run.non_finite_evaluations,
+                run.termination,
+                run.history,
             );
+            let best_x = run.best_x;
             Ok(finish(seed, best_x, stats, started))
         })
         .collect();
@@ -324,16 +297,75 @@ pub fn learn_via_points(
     })
 }
 
+/// What [`run_cmaes`] found.
+pub(crate) struct CmaesRun {
+    pub best_x: Vec<f64>,
+    pub generations: u64,
+    pub evaluations: u64,
+    pub non_finite_evaluations: u64,
+    pub termination: String,
+    pub history: Vec<GenerationRecord>,
+}
+
+/// One CMA-ES run with a via-point learner's settings (σ₀, population, budget, tolfun,
+/// the safety stopping rules), recording the history. The result is the best of the best
+/// sample, the final mean and the start: the final mean is often better than every
+/// sample, and a warm start must never end worse than where it began.
+pub(crate) fn run_cmaes(
+    objective: &dyn Objective,
+    x0: Vec<f64>,
+    config: &ViaPointConfig,
+    seed: u64,
+    progress: &(dyn Fn(&GenerationReport<'_>) -> ControlFlow<()> + Sync),
+) -> Result<CmaesRun, LearnError> {
+    let cmaes = CmaesConfig {
+        population: config.population,
+        ..CmaesConfig::new(config.sigma0, seed)
+    };
+    let mut rules = vec![StopRule::MaxGenerations(config.generations)];
+    if let Some(tol) = config.tol_fun {
+        rules.push(StopRule::TolFun(tol));
+    }
+    rules.extend(StopRule::safety_defaults());
+    let mut history = Vec::new();
+    let mut observer = |r: &GenerationReport<'_>| {
+        history.push(GenerationRecord {
+            generation: r.generation,
+            best: r.best_cost,
+            median: r.median_cost,
+            best_so_far: r.best_so_far,
+            sigma: r.sigma,
+        });
+        progress(r)
+    };
+    let sol = minimize(objective, &x0, &cmaes, &rules, &mut observer)?;
+    let best_x = [sol.best_x, sol.mean, x0]
+        .into_iter()
+        .map(|x| (objective.evaluate(&x).unwrap_or(f64::INFINITY), x))
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, x)| x)
+        .unwrap_or_default();
+    Ok(CmaesRun {
+        best_x,
+        generations: sol.generations,
+        evaluations: sol.evaluations,
+        non_finite_evaluations: sol.non_finite_evaluations,
+        termination: sol.termination.name().to_string(),
+        history,
+    })
+}
+
 /// Mean and 95 % band (mean ± 1.96 · std / √n) of the best-so-far cost per generation
-/// over repetitions. Runs that stopped early keep their final value.
-pub fn history_band(runs: &[RunResult]) -> Vec<(f64, f64, f64)> {
-    let len = runs.iter().map(|r| r.history.len()).max().unwrap_or(0);
-    let n = runs.len() as f64;
+/// over repetitions, given their histories (e.g. `runs.iter().map(|r| &r.history[..])`).
+/// Runs that stopped early keep their final value.
+pub fn history_band(histories: &[&[GenerationRecord]]) -> Vec<(f64, f64, f64)> {
+    let len = histories.iter().map(|r| r.len()).max().unwrap_or(0);
+    let n = histories.len() as f64;
     (0..len)
         .map(|g| {
-            let vals: Vec<f64> = runs
+            let vals: Vec<f64> = histories
                 .iter()
-                .filter_map(|r| r.history.get(g).or(r.history.last()).map(|h| h.best_so_far))
+                .filter_map(|r| r.get(g).or(r.last()).map(|h| h.best_so_far))
                 .collect();
             let mean = vals.iter().sum::<f64>() / n;
             let var = if vals.len() > 1 {

@@ -1,4 +1,5 @@
-//! The imitation pipeline on the in-process robot: the thesis's set-up end to end.
+//! The robot pipelines on the in-process robot: the thesis's imitation experiment end to
+//! end, way-point reachability, and joint-space via-point learning.
 
 use std::ops::ControlFlow;
 
@@ -49,8 +50,6 @@ fn the_thesis_pipeline_imitates_the_mean_within_a_millimetre() {
         .iter()
         .filter_map(|d| d.dropped.as_ref())
         .collect();
-    eprintln!("kept {kept}, dropped {}: {dropped:?}", dropped.len());
-    eprintln!("{:?}", out.stage_seconds);
     assert!(kept >= 5, "{kept} kept");
     assert_eq!(kept + dropped.len(), 20);
     // Every executed demonstration is tracked within 1 mm.
@@ -66,13 +65,6 @@ fn the_thesis_pipeline_imitates_the_mean_within_a_millimetre() {
     assert_eq!(out.fits.len(), 2);
     let (ridge, jerk) = (&out.fits[0], &out.fits[1]);
     for f in &out.fits {
-        eprintln!(
-            "{}: rmse {:.3} mm, jerk {:.4e}, tracked {:.3} mm",
-            f.method,
-            f.rmse() * 1e3,
-            f.integrated_squared_jerk(),
-            f.recording.as_ref().unwrap().max_position_error() * 1e3
-        );
         assert!(f.rmse() < 1e-3, "{} rmse {}", f.method, f.rmse());
         assert!(f.recording.as_ref().unwrap().max_position_error() < 1e-3);
     }
@@ -96,4 +88,34 @@ fn an_unreachable_via_point_is_named_with_its_distance() {
         other => panic!("{other}"),
     }
     assert!(err.to_string().contains("via[2]"), "{err}");
+}
+
+#[test]
+fn joint_space_learning_reaches_the_points_within_limits() {
+    use cps_learn::{JointSpaceConfig, execute_joint_trajectory, learn_joint_space};
+    let mut learner = ViaPointConfig::new(ViaPointTask::thesis());
+    learner.warm_start = true;
+    learner.sigma0 = 0.01;
+    learner.population = Some(32);
+    learner.generations = 300;
+    let c = JointSpaceConfig::new(learner, thesis_robot());
+    let t = std::time::Instant::now();
+    let out = learn_joint_space(&c, &|_| ControlFlow::Continue(())).unwrap();
+    eprintln!(
+        "{:.2} s, {} gens, {}",
+        t.elapsed().as_secs_f64(),
+        out.generations,
+        out.termination
+    );
+    eprintln!("warm {:?}\nfinal {:?}", out.warm_start, out.breakdown);
+    eprintln!("errors {:?}\nlimits {:?}", out.errors, out.limits);
+    assert!(out.errors.max_position_error() < 1e-3);
+    assert!(out.limits.within());
+    let mut robot = KinematicRobot::new(c.robot.chain.clone(), &THESIS_Q0, 0.01).unwrap();
+    let rec = execute_joint_trajectory(&mut robot, &c.robot, &out.trajectory).unwrap();
+    assert!(
+        rec.max_position_error() < 1e-9,
+        "{}",
+        rec.max_position_error()
+    );
 }

@@ -1,0 +1,422 @@
+//! Joint-space via-point learning: the thesis's second variant.
+//!
+//! The way points are converted to joint configurations by inverse kinematics within the
+//! joint limits, each solve seeded by the previous one so that they stay on one branch.
+//! One DMP per joint (goal-robust formulation: a joint whose start equals its goal still
+//! has a forcing term) carries the movement. The cost is judged where the task lives:
+//!
+//! ```text
+//! C = w_goal ‖FK(q_T) − g‖² + w_via Σ_i ‖FK(q(t_i)) − p_i‖²        (task space, metres)
+//!   + w_vel ‖q̇_T‖² + w_acc Σ_k ‖q̈_k‖² + w_jerk Σ_k ‖(q̈_{k+1} − q̈_k)/h‖²   (joint space)
+//!   + w_limit Σ_k Σ_j excess_j(q_k)² + w_speed Σ_k Σ_j excess_j(|q̇_k|)²
+//! ```
+//!
+//! with `excess` the amount by which a joint leaves its position range or exceeds its speed
+//! limit (radians, rad/s). The cost is not quadratic in the weights (forward kinematics is
+//! in it), so CMA-ES is the solver. Its warm start is the exact optimum of the joint-space
+//! surrogate (the via-point cost on the IK configurations), which is quadratic.
+
+use std::ops::ControlFlow;
+use std::time::Instant;
+
+use cps_cmaes::{GenerationReport, Objective, ObjectiveError};
+use cps_dmp::{DiscreteDmp, Formulation, Trajectory};
+use cps_kinematics::{KinematicsError, Recording, RobotBackend};
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+use crate::viapoint::run_cmaes;
+use crate::{
+    GenerationRecord, LearnError, RobotSetup, SearchSpace, Solver, TaskErrors, ViaPoint,
+    ViaPointConfig, ViaPointTask, check_way_points, exact_optimum,
+};
+
+/// Settings of [`learn_joint_space`].
+#[derive(Debug, Clone)]
+pub struct JointSpaceConfig {
+    /// The task in task space (way points in metres, DMP settings, cost weights) and the
+    /// CMA-ES settings (σ₀ in radians of anchor offset for the default search space).
+    pub learner: ViaPointConfig,
+    /// The robot: its model converts and judges, its limits are penalised.
+    pub robot: RobotSetup,
+    /// Weight of the squared joint-position-limit excess (rad²), summed over samples.
+    pub limit_weight: f64,
+    /// Weight of the squared joint-speed-limit excess ((rad/s)²), summed over samples.
+    pub speed_limit_weight: f64,
+}
+
+impl JointSpaceConfig {
+    /// Defaults around a learner and a robot: limit weights 1e6 and 1e3.
+    pub fn new(learner: ViaPointConfig, robot: RobotSetup) -> Self {
+        Self {
+            learner,
+            robot,
+            limit_weight: 1e6,
+            speed_limit_weight: 1e3,
+        }
+    }
+}
+
+/// The joint-space cost term by term.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct JointCostBreakdown {
+    /// Goal term (task space).
+    pub goal: f64,
+    /// Via-point term (task space).
+    pub via: f64,
+    /// Final joint velocity term.
+    pub final_velocity: f64,
+    /// Joint acceleration term.
+    pub acceleration: f64,
+    /// Joint jerk term.
+    pub jerk: f64,
+    /// Position-limit penalty.
+    pub joint_limits: f64,
+    /// Speed-limit penalty.
+    pub speed_limits: f64,
+}
+
+impl JointCostBreakdown {
+    /// The sum of the terms.
+    pub fn total(&self) -> f64 {
+        self.goal
+            + self.via
+            + self.final_velocity
+            + self.acceleration
+            + self.jerk
+            + self.joint_limits
+            + self.speed_limits
+    }
+}
+
+/// How close a joint trajectory comes to the robot's limits.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct LimitReport {
+    /// Largest excess beyond a position limit over samples and joints (rad; 0 = within).
+    pub max_position_excess: f64,
+    /// Smallest distance to a position limit over samples and joints (rad; negative when
+    /// outside).
+    pub min_position_margin: f64,
+    /// Largest `|q̇_j| / v_max_j` over samples and joints (≤ 1 = within the speed limits).
+    pub max_speed_ratio: f64,
+}
+
+impl LimitReport {
+    /// True if no limit is exceeded.
+    pub fn within(&self) -> bool {
+        self.max_position_excess == 0.0 && self.max_speed_ratio <= 1.0
+    }
+}
+
+/// The joint-space cost of a task on a robot, over the joint DMP's trajectories.
+#[derive(Debug, Clone)]
+pub struct JointSpaceCost<'a> {
+    task: &'a ViaPointTask,
+    robot: &'a RobotSetup,
+    limit_weight: f64,
+    speed_limit_weight: f64,
+}
+
+impl JointSpaceCost<'_> {
+    /// The cost of a joint trajectory, term by term.
+    pub fn breakdown(&self, traj: &Trajectory) -> Result<JointCostBreakdown, KinematicsError> {
+        let w = &self.task.weights;
+        let dof = traj.dims();
+        let last = traj.n_samples() - 1;
+        let chain = &self.robot.chain;
+        let mut b = JointCostBreakdown::default();
+        let q_at = |t: f64| (0..dof).map(|j| traj.position_at(j, t)).collect::<Vec<_>>();
+        let dist2 = |q: &[f64], p: &[f64]| -> Result<f64, KinematicsError> {
+            let x = chain.fk(q)?.translation.vector;
+            Ok((x - Vector3::new(p[0], p[1], p[2])).norm_squared())
+        };
+        let end: Vec<f64> = (0..dof).map(|j| traj.position(j)[last]).collect();
+        b.goal = w.goal * dist2(&end, &self.task.goal)?;
+        for v in &self.task.via {
+            b.via += w.via * dist2(&q_at(v.time), &v.position)?;
+        }
+        let h = traj.times()[1] - traj.times()[0];
+        let limits = chain.limits();
+        let speeds = chain.velocity_limits();
+        for j in 0..dof {
+            let (q, v, a) = (traj.position(j), traj.velocity(j), traj.acceleration(j));
+            b.final_velocity += w.final_velocity * v[last] * v[last];
+            if w.acceleration > 0.0 {
+                b.acceleration += w.acceleration * a.iter().map(|a| a * a).sum::<f64>();
+            }
+            if w.jerk > 0.0 {
+                b.jerk += w.jerk
+                    * a.windows(2)
+                        .map(|p| ((p[1] - p[0]) / h).powi(2))
+                        .sum::<f64>();
+            }
+            if let Some((lo, hi)) = limits {
+                let excess: f64 = q
+                    .iter()
+                    .map(|&x| (x - hi[j]).max(lo[j] - x).max(0.0).powi(2))
+                    .sum();
+                b.joint_limits += self.limit_weight * excess;
+            }
+            if let Some(vmax) = speeds {
+                let excess: f64 = v
+                    .iter()
+                    .map(|&x| (x.abs() - vmax[j]).max(0.0).powi(2))
+                    .sum();
+                b.speed_limits += self.speed_limit_weight * excess;
+            }
+        }
+        Ok(b)
+    }
+
+    /// Task-space errors through forward kinematics: goal and via-point distances, and
+    /// the tool's speed at the end (finite difference of the last two samples).
+    pub fn task_errors(&self, traj: &Trajectory) -> Result<TaskErrors, KinematicsError> {
+        let dof = traj.dims();
+        let last = traj.n_samples() - 1;
+        let chain = &self.robot.chain;
+        let tool = |k: usize| -> Result<Vector3<f64>, KinematicsError> {
+            let q: Vec<f64> = (0..dof).map(|j| traj.position(j)[k]).collect();
+            Ok(chain.fk(&q)?.translation.vector)
+        };
+        let tool_at = |t: f64| -> Result<Vector3<f64>, KinematicsError> {
+            let q: Vec<f64> = (0..dof).map(|j| traj.position_at(j, t)).collect();
+            Ok(chain.fk(&q)?.translation.vector)
+        };
+        let p = |v: &[f64]| Vector3::new(v[0], v[1], v[2]);
+        let h = traj.times()[1] - traj.times()[0];
+        Ok(TaskErrors {
+            goal: (tool(last)? - p(&self.task.goal)).norm(),
+            via: self
+                .task
+                .via
+                .iter()
+                .map(|v| Ok((tool_at(v.time)? - p(&v.position)).norm()))
+                .collect::<Result<_, KinematicsError>>()?,
+            final_speed: (tool(last)? - tool(last - 1)?).norm() / h,
+        })
+    }
+
+    /// The limit report of a joint trajectory.
+    pub fn limits(&self, traj: &Trajectory) -> LimitReport {
+        let chain = &self.robot.chain;
+        let mut r = LimitReport {
+            max_position_excess: 0.0,
+            min_position_margin: f64::INFINITY,
+            max_speed_ratio: 0.0,
+        };
+        for j in 0..traj.dims() {
+            if let Some((lo, hi)) = chain.limits() {
+                for &x in traj.position(j) {
+                    let margin = (hi[j] - x).min(x - lo[j]);
+                    r.min_position_margin = r.min_position_margin.min(margin);
+                    r.max_position_excess = r.max_position_excess.max(-margin);
+                }
+            }
+            if let Some(v) = chain.velocity_limits() {
+                for &x in traj.velocity(j) {
+                    r.max_speed_ratio = r.max_speed_ratio.max(x.abs() / v[j]);
+                }
+            }
+        }
+        r
+    }
+}
+
+/// The joint-space cost as a CMA-ES objective over the search-space parameters.
+struct JointObjective<'a> {
+    cost: JointSpaceCost<'a>,
+    dmp: &'a DiscreteDmp,
+    space: &'a SearchSpace,
+}
+
+impl Objective for JointObjective<'_> {
+    fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
+        let mut w = vec![0.0; x.len()];
+        self.space.to_weights(x, &mut w);
+        let traj = self.dmp.rollout(&w);
+        // A configuration forward kinematics refuses (NaN) ranks last.
+        Ok(self
+            .cost
+            .breakdown(&traj)
+            .map_or(f64::INFINITY, |b| b.total()))
+    }
+}
+
+/// The result of [`learn_joint_space`].
+#[derive(Debug, Clone)]
+pub struct JointSpaceOutcome {
+    /// The way points in joint space: start, via points, goal (radians).
+    pub way_configurations: Vec<Vec<f64>>,
+    /// The joint DMPs (goal-robust, start and goal from the IK configurations).
+    pub dmp: DiscreteDmp,
+    /// The learned weights (joint-major).
+    pub weights: Vec<f64>,
+    /// Its joint trajectory.
+    pub trajectory: Trajectory,
+    /// Its cost, term by term.
+    pub breakdown: JointCostBreakdown,
+    /// The cost of the warm start (the surrogate's exact optimum), term by term.
+    pub warm_start: JointCostBreakdown,
+    /// Task-space errors through forward kinematics.
+    pub errors: TaskErrors,
+    /// How close the trajectory comes to the limits.
+    pub limits: LimitReport,
+    /// CMA-ES generations and evaluations run.
+    pub generations: u64,
+    /// Cost evaluations.
+    pub evaluations: u64,
+    /// Why the run ended (`exact` for the surrogate optimum alone).
+    pub termination: String,
+    /// Per-generation history.
+    pub history: Vec<GenerationRecord>,
+    /// Wall time in seconds.
+    pub seconds: f64,
+}
+
+/// Learns the task in joint space (see the module documentation). `progress` is called
+/// after every CMA-ES generation and may stop the run.
+pub fn learn_joint_space(
+    config: &JointSpaceConfig,
+    progress: &(dyn Fn(&GenerationReport<'_>) -> ControlFlow<()> + Sync),
+) -> Result<JointSpaceOutcome, LearnError> {
+    let started = Instant::now();
+    let task = &config.learner.task;
+    task.validate()?;
+    for (name, v) in [
+        ("limit_weight", config.limit_weight),
+        ("speed_limit_weight", config.speed_limit_weight),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(LearnError::task(
+                name,
+                format!("must be finite and ≥ 0 (got {v})"),
+            ));
+        }
+    }
+    let configs = check_way_points(task, &config.robot)?;
+    let n = configs.len();
+    let dof = config.robot.chain.dof();
+    let mut dmp_config = task.dmp;
+    dmp_config.formulation = Formulation::GoalRobust;
+    let surrogate = ViaPointTask {
+        start: configs[0].clone(),
+        goal: configs[n - 1].clone(),
+        goal_velocity: vec![0.0; dof],
+        via: task
+            .via
+            .iter()
+            .zip(&configs[1..n - 1])
+            .map(|(v, q)| ViaPoint {
+                time: v.time,
+                position: q.clone(),
+            })
+            .collect(),
+        dmp: dmp_config,
+        weights: task.weights,
+    };
+    let dmp = surrogate.build_dmp()?;
+    let space = SearchSpace::new(config.learner.parametrisation, &dmp);
+    let optimum = exact_optimum(&surrogate, &dmp, &space)?;
+    let cost = JointSpaceCost {
+        task,
+        robot: &config.robot,
+        limit_weight: config.limit_weight,
+        speed_limit_weight: config.speed_limit_weight,
+    };
+    let objective = JointObjective {
+        cost: cost.clone(),
+        dmp: &dmp,
+        space: &space,
+    };
+    let weights_of = |params: &[f64]| {
+        let mut w = vec![0.0; params.len()];
+        space.to_weights(params, &mut w);
+        w
+    };
+    let warm = cost.breakdown(&dmp.rollout(&weights_of(&optimum.params)))?;
+    let (params, generations, evaluations, termination, history) =
+        if config.learner.solver == Solver::Exact {
+            (
+                optimum.params.clone(),
+                0,
+                1,
+                "exact".to_string(),
+                Vec::new(),
+            )
+        } else {
+            let x0 = if config.learner.warm_start {
+                optimum.params.clone()
+            } else {
+                vec![0.0; space.len()]
+            };
+            let run = run_cmaes(
+                &objective,
+                x0,
+                &config.learner,
+                config.learner.seed,
+                progress,
+            )?;
+            (
+                run.best_x,
+                run.generations,
+                run.evaluations,
+                run.termination,
+                run.history,
+            )
+        };
+    let weights = weights_of(&params);
+    let trajectory = dmp.rollout(&weights);
+    Ok(JointSpaceOutcome {
+        way_configurations: configs,
+        breakdown: cost.breakdown(&trajectory)?,
+        warm_start: warm,
+        errors: cost.task_errors(&trajectory)?,
+        limits: cost.limits(&trajectory),
+        dmp,
+        weights,
+        trajectory,
+        generations,
+        evaluations,
+        termination,
+        history,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+/// Plays a joint trajectory on `backend`: reset to its first configuration, then one
+/// commanded configuration per control period (linear interpolation between grid
+/// samples), recording the tool and the joints. `position_error` is the distance of the
+/// measured tool from the model's tool at the commanded configuration.
+pub fn execute_joint_trajectory(
+    backend: &mut dyn RobotBackend,
+    robot: &RobotSetup,
+    traj: &Trajectory,
+) -> Result<Recording, LearnError> {
+    let dof = traj.dims();
+    let start: Vec<f64> = (0..dof).map(|j| traj.position(j)[0]).collect();
+    backend.reset(&start)?;
+    let dt = backend.time_step();
+    let end = *traj.times().last().unwrap_or(&0.0);
+    let samples = (end / dt + 1e-9).floor() as usize + 1;
+    let t0 = backend.time()?;
+    let mut rec = Recording::default();
+    for k in 0..samples {
+        let t = k as f64 * dt;
+        let q: Vec<f64> = (0..dof).map(|j| traj.position_at(j, t)).collect();
+        backend.command_joint_positions(&q)?;
+        backend.step()?;
+        rec.steps += 1;
+        let measured = backend.joint_positions()?;
+        let pose = backend.tool_pose()?;
+        let want = robot.chain.fk(&q)?.translation.vector;
+        let p = pose.translation.vector;
+        let o = nalgebra::UnitQuaternion::from_rotation_matrix(&pose.rotation);
+        rec.time.push(backend.time()? - t0);
+        rec.q.push(measured);
+        rec.position.push([p.x, p.y, p.z]);
+        rec.orientation.push([o.i, o.j, o.k, o.w]);
+        rec.position_error.push((p - want).norm());
+        rec.rotation_error.push(0.0);
+    }
+    Ok(rec)
+}
