@@ -39,6 +39,8 @@ struct File {
     imitation: Option<Spanned<crate::pipelines::ImitationSection>>,
     scaling: Option<Spanned<crate::pipelines::ScalingSection>>,
     joint: Option<Spanned<crate::pipelines::JointSection>>,
+    plant: Option<Spanned<crate::pipelines::PlantSection>>,
+    speedup: Option<Spanned<crate::pipelines::SpeedupSection>>,
 }
 
 /// What an experiment file runs (`[experiment] kind`).
@@ -54,6 +56,8 @@ pub enum Kind {
     Scaling,
     /// Via-point learning with one DMP per joint, judged in task space.
     ViapointJoint,
+    /// Via-point learning through a simulated plant with a control-effort term.
+    ViapointEnergy,
 }
 
 impl Kind {
@@ -64,6 +68,7 @@ impl Kind {
             Kind::Imitation => "imitation",
             Kind::Scaling => "scaling",
             Kind::ViapointJoint => "viapoint_joint",
+            Kind::ViapointEnergy => "viapoint_energy",
         }
     }
 }
@@ -183,6 +188,8 @@ pub struct ViaPointExperiment {
     pub scaling: Option<crate::pipelines::ScalingPlan>,
     /// The limit penalties (`kind = "viapoint_joint"`).
     pub joint: Option<crate::pipelines::JointPlan>,
+    /// The plant and the speed-up measurement (`kind = "viapoint_energy"`).
+    pub energy: Option<crate::pipelines::EnergyPlan>,
 }
 
 /// `file:line:column` of a byte offset.
@@ -395,6 +402,8 @@ pub fn parse(
         imitation: file.imitation.as_ref(),
         scaling: file.scaling.as_ref(),
         joint: file.joint.as_ref(),
+        plant: file.plant.as_ref(),
+        speedup: file.speedup.as_ref(),
     };
     let plans = sections.parse(&config)?;
     Ok(ViaPointExperiment {
@@ -406,6 +415,7 @@ pub fn parse(
         imitation: plans.imitation,
         scaling: plans.scaling,
         joint: plans.joint,
+        energy: plans.energy,
     })
 }
 

@@ -30,6 +30,7 @@ macro_rules! say {
 }
 
 mod cmaes_bench;
+mod energy_run;
 mod experiment;
 mod imitation_run;
 mod joint_run;
@@ -229,6 +230,9 @@ fn run_experiment(
         }
         experiment::Kind::Imitation => 0,
         experiment::Kind::ViapointJoint => config.generations,
+        experiment::Kind::ViapointEnergy => {
+            config.generations + 2 * exp.energy.map_or(0, |e| e.speedup_generations)
+        }
     };
     let bar = if quiet || !std::io::stderr().is_terminal() {
         ProgressBar::hidden()

@@ -196,6 +196,35 @@ pub struct JointPlan {
     pub speed_limit_weight: f64,
 }
 
+/// `[plant]` of `kind = "viapoint_energy"`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlantSection {
+    mass: Option<Spanned<f64>>,
+    kp: Option<Spanned<f64>>,
+    kv: Option<Spanned<f64>>,
+    substeps: Option<Spanned<usize>>,
+    effort_weight: Option<Spanned<f64>>,
+}
+
+/// `[speedup]` of `kind = "viapoint_energy"`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpeedupSection {
+    generations: Spanned<u64>,
+}
+
+/// The plant of an effort experiment and its speed-up measurement.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EnergyPlan {
+    /// The plant and controller.
+    pub plant: cps_learn::PointMassPlant,
+    /// Weight of the control effort.
+    pub effort_weight: f64,
+    /// Generations timed on 1 and on 2 threads (0: no measurement).
+    pub speedup_generations: u64,
+}
+
 /// The optional sections of a file, with what is needed to name places in errors.
 pub struct Sections<'a> {
     pub path: &'a Path,
@@ -206,6 +235,8 @@ pub struct Sections<'a> {
     pub imitation: Option<&'a Spanned<ImitationSection>>,
     pub scaling: Option<&'a Spanned<ScalingSection>>,
     pub joint: Option<&'a Spanned<JointSection>>,
+    pub plant: Option<&'a Spanned<PlantSection>>,
+    pub speedup: Option<&'a Spanned<SpeedupSection>>,
 }
 
 /// The parsed plans of [`Sections::parse`].
@@ -214,6 +245,7 @@ pub struct Plans {
     pub imitation: Option<ImitationPlan>,
     pub scaling: Option<ScalingPlan>,
     pub joint: Option<JointPlan>,
+    pub energy: Option<EnergyPlan>,
 }
 
 impl Sections<'_> {
@@ -258,6 +290,16 @@ impl Sections<'_> {
             && self.kind != Kind::ViapointJoint
         {
             return Err(only(j.span(), "joint", "kind = \"viapoint_joint\""));
+        }
+        for (span, name) in [
+            (self.plant.map(Spanned::span), "plant"),
+            (self.speedup.map(Spanned::span), "speedup"),
+        ] {
+            if let Some(s) = span
+                && self.kind != Kind::ViapointEnergy
+            {
+                return Err(only(s, name, "kind = \"viapoint_energy\""));
+            }
         }
         for (span, name) in [
             (self.demonstrations.map(Spanned::span), "demonstrations"),
@@ -327,11 +369,62 @@ impl Sections<'_> {
         } else {
             None
         };
+        let energy = if self.kind == Kind::ViapointEnergy {
+            Some(self.energy_plan()?)
+        } else {
+            None
+        };
         Ok(Plans {
             robot,
             imitation,
             scaling,
             joint,
+            energy,
+        })
+    }
+
+    fn energy_plan(&self) -> Result<EnergyPlan, InputError> {
+        let p = self.plant.map(Spanned::get_ref);
+        let mut plant = cps_learn::PointMassPlant::default();
+        if let Some(v) = p.and_then(|p| p.mass.as_ref()) {
+            plant.mass = self.positive(v, "[plant] `mass`")?;
+        }
+        if let Some(v) = p.and_then(|p| p.kp.as_ref()) {
+            plant.kp = self.positive(v, "[plant] `kp`")?;
+        }
+        if let Some(v) = p.and_then(|p| p.kv.as_ref()) {
+            plant.kv = self.positive(v, "[plant] `kv`")?;
+        }
+        if let Some(v) = p.and_then(|p| p.substeps.as_ref()) {
+            plant.substeps = *v.get_ref();
+        }
+        let effort_weight = match p.and_then(|p| p.effort_weight.as_ref()) {
+            Some(v) if !(v.get_ref().is_finite() && *v.get_ref() >= 0.0) => {
+                return Err(self.err(
+                    &v.span(),
+                    format!(
+                        "[plant] `effort_weight` must be finite and ≥ 0 (got {})",
+                        v.get_ref()
+                    ),
+                ));
+            }
+            Some(v) => *v.get_ref(),
+            None => 1e-2,
+        };
+        let speedup_generations = match self.speedup {
+            Some(s) if *s.get_ref().generations.get_ref() > 100_000 => {
+                return Err(self.err(
+                    &s.get_ref().generations.span(),
+                    "[speedup] `generations` must be at most 100000".into(),
+                ));
+            }
+            Some(s) => *s.get_ref().generations.get_ref(),
+            None => 0,
+        };
+        Ok(EnergyPlan {
+            plant,
+            effort_weight,
+            speedup_generations,
         })
     }
 

@@ -430,3 +430,50 @@ fn a_way_point_without_a_joint_configuration_is_named() {
     let err = text(&o.stderr);
     assert!(err.contains("`goal`") && err.contains(" m away"), "{err}");
 }
+
+const ENERGY: &str = include_str!("../../../experiments/viapoint_energy.toml");
+
+/// The effort experiment learns through the plant, measures its speed-up with identical
+/// results on 1 and 2 threads, and reports.
+#[test]
+fn the_effort_experiment_learns_and_measures_its_speed_up() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = write(
+        dir.path(),
+        "energy.toml",
+        &ENERGY
+            .replace("generations = 500", "generations = 40")
+            .replace("generations = 100 ", "generations = 5 ")
+            .replace("sigma0 = 0.05 ", "sigma0 = 0.005"),
+    );
+    let out = dir.path().join("out");
+    let o = run(&file, &out);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["kind"], "viapoint_energy");
+    assert_eq!(s["complete"], true);
+    assert!(s["cost"].as_f64().unwrap() < s["start_cost"].as_f64().unwrap());
+    assert!(s["cost_terms"]["effort"].as_f64().unwrap() > 0.0);
+    let sp = &s["speedup"];
+    assert_eq!(sp["generations"], 5);
+    assert_eq!(sp["identical_results"], true);
+    assert!(sp["speedup"].as_f64().unwrap() > 0.0);
+    let csv = std::fs::read_to_string(out.join("trajectory.csv")).unwrap();
+    assert!(csv.starts_with("t,reference_x,reference_y,reference_z,plant_x,"));
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert_eq!(html.matches("<svg").count(), 4);
+    assert!(html.contains("parallel speed-up"));
+    // A plant the integrator cannot follow is refused before any work, naming the field.
+    let file = write(
+        dir.path(),
+        "stiff.toml",
+        &ENERGY.replace("kp = 400.0 ", "kp = 1e6   "),
+    );
+    let o = run(&file, &dir.path().join("stiff"));
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
+    assert!(
+        text(&o.stderr).contains("plant.substeps"),
+        "{}",
+        text(&o.stderr)
+    );
+}

@@ -30,6 +30,42 @@ impl Trajectory {
         }
     }
 
+    /// A trajectory from its samples, one vector per dimension for each quantity (e.g. a
+    /// reference that did not come from a DMP); the forcing term is zero.
+    ///
+    /// # Panics
+    /// If the three quantities do not have the same number of dimensions, or a vector's
+    /// length differs from the number of time stamps.
+    pub fn from_parts(
+        times: Vec<f64>,
+        position: &[Vec<f64>],
+        velocity: &[Vec<f64>],
+        acceleration: &[Vec<f64>],
+    ) -> Self {
+        let dims = position.len();
+        assert!(
+            velocity.len() == dims && acceleration.len() == dims,
+            "one vector per dimension for each quantity"
+        );
+        let flat = |parts: &[Vec<f64>]| -> Vec<f64> {
+            parts
+                .iter()
+                .flat_map(|p| {
+                    assert_eq!(p.len(), times.len(), "one value per time stamp");
+                    p.iter().copied()
+                })
+                .collect()
+        };
+        Self {
+            dims,
+            position: flat(position),
+            velocity: flat(velocity),
+            acceleration: flat(acceleration),
+            forcing: vec![0.0; dims * times.len()],
+            times,
+        }
+    }
+
     /// Number of dimensions.
     pub fn dims(&self) -> usize {
         self.dims

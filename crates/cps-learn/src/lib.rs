@@ -28,6 +28,7 @@
 //! ```
 #![deny(missing_docs)]
 
+mod energy;
 mod error;
 mod exact;
 mod imitation;
@@ -37,6 +38,10 @@ mod space;
 mod task;
 mod viapoint;
 
+pub use energy::{
+    EffortConfig, EffortCostBreakdown, EffortOutcome, PlantTrajectory, PointMassPlant,
+    learn_with_effort,
+};
 pub use error::LearnError;
 pub use exact::{ExactOptimum, exact_optimum};
 pub use imitation::{

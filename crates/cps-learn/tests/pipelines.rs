@@ -119,3 +119,67 @@ fn joint_space_learning_reaches_the_points_within_limits() {
         rec.max_position_error()
     );
 }
+
+/// The plant's closed loop against its analytic response: a critically damped PD loop
+/// tracking a constant reference from rest at 1 m below it follows
+/// `e(t) = (1 + ω t) e^(−ω t)`.
+#[test]
+fn the_plant_tracks_a_step_as_the_critically_damped_solution() {
+    use cps_learn::{PlantTrajectory, PointMassPlant};
+    let plant = PointMassPlant {
+        substeps: 100,
+        ..PointMassPlant::default()
+    };
+    let times: Vec<f64> = (0..=200).map(|k| k as f64 * 0.01).collect();
+    // The reference: 0 at t = 0 (the plant starts there), then 1 m from the next sample.
+    let mut y = vec![1.0; times.len()];
+    y[0] = 0.0;
+    let zero = vec![0.0; times.len()];
+    let traj = cps_dmp::Trajectory::from_parts(times.clone(), &[y], &[zero.to_vec()], &[zero]);
+    let mut out = PlantTrajectory::default();
+    plant.simulate(&traj, &mut out);
+    let omega = (plant.kp / plant.mass).sqrt();
+    // The step is ramped over the first sample: compare from 0.2 s on, shifted by half a
+    // sample, to 2e-3 of the step.
+    for (t, y) in times.iter().zip(&out.position[0]).skip(20) {
+        let s = t - 0.005;
+        let expected = 1.0 - (1.0 + omega * s) * (-omega * s).exp();
+        assert!((y - expected).abs() < 2e-3, "t = {t}: {y} vs {expected}");
+    }
+}
+
+/// Learning through the plant with the effort term improves on its warm start and gives
+/// the same bits on one and on two threads.
+#[test]
+fn effort_learning_improves_and_is_the_same_on_any_thread_count() {
+    use cps_learn::{EffortConfig, PointMassPlant, learn_with_effort};
+    let mut learner = ViaPointConfig::new(ViaPointTask::thesis());
+    learner.warm_start = true;
+    learner.sigma0 = 0.005;
+    learner.population = Some(32);
+    learner.generations = 150;
+    let c = EffortConfig {
+        learner,
+        plant: PointMassPlant::default(),
+        effort_weight: 1e-2,
+    };
+    let run = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| learn_with_effort(&c, &|_| ControlFlow::Continue(())))
+            .unwrap()
+    };
+    let (one, two) = (run(1), run(2));
+    assert_eq!(one.weights, two.weights);
+    assert!(
+        one.breakdown.total() < 0.97 * one.start.total(),
+        "{:?} vs {:?}",
+        one.breakdown,
+        one.start
+    );
+    assert!(one.breakdown.effort > 0.0);
+    // The plant lags behind the DMP: the learned reference leads it.
+    assert!(one.errors.max_position_error() < 2e-3, "{:?}", one.errors);
+}

@@ -1,0 +1,394 @@
+//! Via-point learning with a control-effort term (thesis eq. 53/54): the DMP is the
+//! desired movement of a simulated plant that a PD controller makes follow it, and the
+//! cost judges what the plant did and what the controller spent.
+//!
+//! Plant: a point mass `m` per axis, `m ÿ = u`, with
+//! `u = K_p (y* − y) + K_v (ẏ* − ẏ)` tracking the DMP's position `y*` and velocity `ẏ*`
+//! (linearly interpolated between DMP samples), integrated by semi-implicit Euler with
+//! `substeps` steps per DMP sample, starting at rest at the DMP's start.
+//!
+//! ```text
+//! C = w_goal ‖y_T − g‖² + w_via Σ_i ‖y(t_i) − p_i‖² + w_vel ‖ẏ_T − ġ‖²     (the plant)
+//!   + w_acc Σ_k ‖ÿ*_k‖² + w_jerk …                                           (the DMP)
+//!   + w_effort Σ_k ‖u_k‖²                                                    (the controller)
+//! ```
+//!
+//! with sums over the DMP samples. Each rollout is a small simulation, so the population
+//! is evaluated in parallel; the results do not depend on the number of threads.
+
+use std::ops::ControlFlow;
+use std::time::Instant;
+
+use cps_cmaes::{GenerationReport, Objective, ObjectiveError};
+use cps_dmp::{DiscreteDmp, Trajectory};
+use serde::{Deserialize, Serialize};
+
+use crate::task::Term;
+use crate::viapoint::run_cmaes;
+use crate::{
+    GenerationRecord, LearnError, SearchSpace, Solver, TaskErrors, ViaPointConfig, exact_optimum,
+};
+
+/// The simulated plant and its PD controller, the same on every axis.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PointMassPlant {
+    /// Mass in kg. Default 1.
+    pub mass: f64,
+    /// Position gain `K_p` in N/m. Default 400 (ω = 20 rad/s with 1 kg).
+    pub kp: f64,
+    /// Velocity gain `K_v` in N·s/m. Default 40 (critically damped with 1 kg).
+    pub kv: f64,
+    /// Integration steps per DMP sample. Default 10 (1 ms for dt = 0.01 s).
+    pub substeps: usize,
+}
+
+impl Default for PointMassPlant {
+    fn default() -> Self {
+        Self {
+            mass: 1.0,
+            kp: 400.0,
+            kv: 40.0,
+            substeps: 10,
+        }
+    }
+}
+
+impl PointMassPlant {
+    /// Checks the plant; errors name the field.
+    pub fn validate(&self, dt: f64) -> Result<(), LearnError> {
+        for (name, v) in [("mass", self.mass), ("kp", self.kp), ("kv", self.kv)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(LearnError::task(
+                    format!("plant.{name}"),
+                    format!("must be finite and > 0 (got {v})"),
+                ));
+            }
+        }
+        if self.substeps == 0 || self.substeps > 10_000 {
+            return Err(LearnError::task(
+                "plant.substeps",
+                format!("must be between 1 and 10000 (got {})", self.substeps),
+            ));
+        }
+        // Semi-implicit Euler on the closed loop is stable for h·ω well below 2.
+        let h = dt / self.substeps as f64;
+        let omega = (self.kp / self.mass).sqrt();
+        let zeta_term = self.kv / self.mass * h;
+        if omega * h > 0.5 || zeta_term > 1.0 {
+            return Err(LearnError::task(
+                "plant.substeps",
+                format!(
+                    "{} substeps of {h:.2e} s are too coarse for these gains (ω·h = {:.2}, K_v·h/m = {:.2}; both must stay below 0.5 and 1): use more substeps",
+                    self.substeps,
+                    omega * h,
+                    zeta_term
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Simulates the plant following `traj`: per DMP sample and axis, the plant's position
+    /// and velocity and the control force (at the sample's time). `out` is reused.
+    pub fn simulate(&self, traj: &Trajectory, out: &mut PlantTrajectory) {
+        let dims = traj.dims();
+        let n = traj.n_samples();
+        out.resize(dims, n);
+        let h = if n > 1 {
+            (traj.times()[1] - traj.times()[0]) / self.substeps as f64
+        } else {
+            0.0
+        };
+        let inv_m = 1.0 / self.mass;
+        let frac = 1.0 / self.substeps as f64;
+        // The axes are independent: stepping them side by side gives the processor
+        // independent dependency chains to overlap.
+        let mut y: Vec<f64> = (0..dims).map(|d| traj.position(d)[0]).collect();
+        let mut v = vec![0.0; dims];
+        for k in 0..n {
+            for d in 0..dims {
+                let u =
+                    self.kp * (traj.position(d)[k] - y[d]) + self.kv * (traj.velocity(d)[k] - v[d]);
+                out.position[d][k] = y[d];
+                out.velocity[d][k] = v[d];
+                out.force[d][k] = u;
+            }
+            if k + 1 == n {
+                break;
+            }
+            for s in 0..self.substeps {
+                let a = s as f64 * frac;
+                for d in 0..dims {
+                    let (yd, vd) = (traj.position(d), traj.velocity(d));
+                    let target = yd[k] + a * (yd[k + 1] - yd[k]);
+                    let target_v = vd[k] + a * (vd[k + 1] - vd[k]);
+                    let u = self.kp * (target - y[d]) + self.kv * (target_v - v[d]);
+                    v[d] += h * u * inv_m;
+                    y[d] += h * v[d];
+                }
+            }
+        }
+    }
+}
+
+/// What the plant did: `[axis][sample]`.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PlantTrajectory {
+    /// Positions (m).
+    pub position: Vec<Vec<f64>>,
+    /// Velocities (m/s).
+    pub velocity: Vec<Vec<f64>>,
+    /// Control forces (N).
+    pub force: Vec<Vec<f64>>,
+}
+
+impl PlantTrajectory {
+    fn resize(&mut self, dims: usize, n: usize) {
+        for v in [&mut self.position, &mut self.velocity, &mut self.force] {
+            v.resize(dims, Vec::new());
+            for a in v.iter_mut() {
+                a.resize(n, 0.0);
+            }
+        }
+    }
+}
+
+/// The effort cost term by term.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct EffortCostBreakdown {
+    /// Goal term (the plant).
+    pub goal: f64,
+    /// Via-point term (the plant).
+    pub via: f64,
+    /// Final-velocity term (the plant).
+    pub final_velocity: f64,
+    /// Acceleration term (the DMP).
+    pub acceleration: f64,
+    /// Jerk term (the DMP).
+    pub jerk: f64,
+    /// Control-effort term.
+    pub effort: f64,
+}
+
+impl EffortCostBreakdown {
+    /// The sum of the terms.
+    pub fn total(&self) -> f64 {
+        self.goal + self.via + self.final_velocity + self.acceleration + self.jerk + self.effort
+    }
+}
+
+/// Settings of [`learn_with_effort`].
+#[derive(Debug, Clone)]
+pub struct EffortConfig {
+    /// The via-point task, its cost weights and the CMA-ES settings.
+    pub learner: ViaPointConfig,
+    /// The plant and controller.
+    pub plant: PointMassPlant,
+    /// Weight of the control effort `Σ_k ‖u_k‖²` (N²). Thesis symbol `H_E`.
+    pub effort_weight: f64,
+}
+
+/// The cost of a DMP trajectory through the plant.
+fn breakdown(
+    config: &EffortConfig,
+    traj: &Trajectory,
+    plant: &mut PlantTrajectory,
+) -> EffortCostBreakdown {
+    let task = &config.learner.task;
+    config.plant.simulate(traj, plant);
+    let mut b = EffortCostBreakdown::default();
+    // The DMP-side terms (acceleration, jerk) come from the task's own residuals.
+    task.residuals(traj, |term, r| match term {
+        Term::Acceleration => b.acceleration += r * r,
+        Term::Jerk => b.jerk += r * r,
+        _ => {}
+    });
+    let w = &task.weights;
+    let last = traj.n_samples() - 1;
+    for d in 0..traj.dims() {
+        let (y, v, u) = (&plant.position[d], &plant.velocity[d], &plant.force[d]);
+        b.goal += w.goal * (y[last] - task.goal[d]).powi(2);
+        b.final_velocity += w.final_velocity * (v[last] - task.goal_velocity[d]).powi(2);
+        for p in &task.via {
+            let (k, frac) = traj.locate(p.time);
+            let at = if frac == 0.0 {
+                y[k]
+            } else {
+                y[k] + frac * (y[k + 1] - y[k])
+            };
+            b.via += w.via * (at - p.position[d]).powi(2);
+        }
+        b.effort += config.effort_weight * u.iter().map(|u| u * u).sum::<f64>();
+    }
+    b
+}
+
+struct EffortObjective<'a> {
+    config: &'a EffortConfig,
+    dmp: &'a DiscreteDmp,
+    space: &'a SearchSpace,
+}
+
+impl EffortObjective<'_> {
+    fn cost(&self, x: &[f64], buffers: &mut (Vec<f64>, Trajectory, PlantTrajectory)) -> f64 {
+        let (w, traj, plant) = buffers;
+        self.space.to_weights(x, w);
+        self.dmp.rollout_into(w, traj);
+        breakdown(self.config, traj, plant).total()
+    }
+
+    fn buffers(&self) -> (Vec<f64>, Trajectory, PlantTrajectory) {
+        (
+            vec![0.0; self.space.len()],
+            self.dmp.new_trajectory(),
+            PlantTrajectory::default(),
+        )
+    }
+}
+
+impl Objective for EffortObjective<'_> {
+    fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
+        Ok(self.cost(x, &mut self.buffers()))
+    }
+
+    /// In parallel, with the rollout and plant buffers reused across candidates: fresh
+    /// buffers per candidate cost page faults, which serialise the threads.
+    fn evaluate_batch(
+        &self,
+        xs: &[f64],
+        dim: usize,
+        out: &mut [f64],
+    ) -> Result<(), cps_cmaes::CandidateError> {
+        use rayon::prelude::*;
+        xs.par_chunks_exact(dim)
+            .zip(out.par_iter_mut())
+            .for_each_init(|| self.buffers(), |b, (x, o)| *o = self.cost(x, b));
+        Ok(())
+    }
+}
+
+/// The result of [`learn_with_effort`].
+#[derive(Debug, Clone)]
+pub struct EffortOutcome {
+    /// The DMP.
+    pub dmp: DiscreteDmp,
+    /// The learned weights.
+    pub weights: Vec<f64>,
+    /// The DMP's trajectory (the controller's reference).
+    pub reference: Trajectory,
+    /// What the plant did.
+    pub plant: PlantTrajectory,
+    /// The cost term by term.
+    pub breakdown: EffortCostBreakdown,
+    /// The cost of the start point (zero weights, or the warm start), term by term.
+    pub start: EffortCostBreakdown,
+    /// The plant's errors: goal, via points, final speed.
+    pub errors: TaskErrors,
+    /// Generations run.
+    pub generations: u64,
+    /// Cost evaluations.
+    pub evaluations: u64,
+    /// Why the run ended.
+    pub termination: String,
+    /// Per-generation history.
+    pub history: Vec<GenerationRecord>,
+    /// Wall time in seconds.
+    pub seconds: f64,
+}
+
+/// Learns the via-point task through the plant with the effort term (see the module
+/// documentation). The warm start, if asked for, is the exact optimum of the plain
+/// via-point cost (the DMP alone, without the plant). `progress` is called after every
+/// generation and may stop the run.
+pub fn learn_with_effort(
+    config: &EffortConfig,
+    progress: &(dyn Fn(&GenerationReport<'_>) -> ControlFlow<()> + Sync),
+) -> Result<EffortOutcome, LearnError> {
+    let started = Instant::now();
+    let task = &config.learner.task;
+    let dmp = task.build_dmp()?;
+    config.plant.validate(dmp.config().step())?;
+    if !(config.effort_weight.is_finite() && config.effort_weight >= 0.0) {
+        return Err(LearnError::task(
+            "plant.effort_weight",
+            format!("must be finite and ≥ 0 (got {})", config.effort_weight),
+        ));
+    }
+    let space = SearchSpace::new(config.learner.parametrisation, &dmp);
+    let x0 = if config.learner.warm_start || config.learner.solver == Solver::Exact {
+        exact_optimum(task, &dmp, &space)?.params
+    } else {
+        vec![0.0; space.len()]
+    };
+    let objective = EffortObjective {
+        config,
+        dmp: &dmp,
+        space: &space,
+    };
+    let weights_of = |params: &[f64]| {
+        let mut w = vec![0.0; params.len()];
+        space.to_weights(params, &mut w);
+        w
+    };
+    let mut plant = PlantTrajectory::default();
+    let start = breakdown(config, &dmp.rollout(&weights_of(&x0)), &mut plant);
+    let (params, generations, evaluations, termination, history) =
+        if config.learner.solver == Solver::Exact {
+            (x0, 0, 1, "exact".to_string(), Vec::new())
+        } else {
+            let run = run_cmaes(
+                &objective,
+                x0,
+                &config.learner,
+                config.learner.seed,
+                progress,
+            )?;
+            (
+                run.best_x,
+                run.generations,
+                run.evaluations,
+                run.termination,
+                run.history,
+            )
+        };
+    let weights = weights_of(&params);
+    let reference = dmp.rollout(&weights);
+    let breakdown = breakdown(config, &reference, &mut plant);
+    let last = reference.n_samples() - 1;
+    let dims = reference.dims();
+    let dist = |f: &dyn Fn(usize) -> f64| (0..dims).map(|d| f(d).powi(2)).sum::<f64>().sqrt();
+    let errors = TaskErrors {
+        goal: dist(&|d| plant.position[d][last] - task.goal[d]),
+        via: task
+            .via
+            .iter()
+            .map(|p| {
+                let (k, frac) = reference.locate(p.time);
+                dist(&|d| {
+                    let y = &plant.position[d];
+                    let at = if frac == 0.0 {
+                        y[k]
+                    } else {
+                        y[k] + frac * (y[k + 1] - y[k])
+                    };
+                    at - p.position[d]
+                })
+            })
+            .collect(),
+        final_speed: dist(&|d| plant.velocity[d][last]),
+    };
+    Ok(EffortOutcome {
+        dmp,
+        weights,
+        reference,
+        plant,
+        breakdown,
+        start,
+        errors,
+        generations,
+        evaluations,
+        termination,
+        history,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
