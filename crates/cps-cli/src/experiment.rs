@@ -41,6 +41,7 @@ struct File {
     joint: Option<Spanned<crate::pipelines::JointSection>>,
     plant: Option<Spanned<crate::pipelines::PlantSection>>,
     speedup: Option<Spanned<crate::pipelines::SpeedupSection>>,
+    orientation: Option<Spanned<crate::pipelines::OrientationSection>>,
 }
 
 /// What an experiment file runs (`[experiment] kind`).
@@ -58,6 +59,8 @@ pub enum Kind {
     ViapointJoint,
     /// Via-point learning through a simulated plant with a control-effort term.
     ViapointEnergy,
+    /// Via-point learning of position and orientation.
+    ViapointPose,
 }
 
 impl Kind {
@@ -69,6 +72,7 @@ impl Kind {
             Kind::Scaling => "scaling",
             Kind::ViapointJoint => "viapoint_joint",
             Kind::ViapointEnergy => "viapoint_energy",
+            Kind::ViapointPose => "viapoint_pose",
         }
     }
 }
@@ -190,6 +194,8 @@ pub struct ViaPointExperiment {
     pub joint: Option<crate::pipelines::JointPlan>,
     /// The plant and the speed-up measurement (`kind = "viapoint_energy"`).
     pub energy: Option<crate::pipelines::EnergyPlan>,
+    /// The orientation targets (`kind = "viapoint_pose"`).
+    pub pose: Option<crate::pipelines::PosePlan>,
 }
 
 /// `file:line:column` of a byte offset.
@@ -404,6 +410,7 @@ pub fn parse(
         joint: file.joint.as_ref(),
         plant: file.plant.as_ref(),
         speedup: file.speedup.as_ref(),
+        orientation: file.orientation.as_ref(),
     };
     let plans = sections.parse(&config)?;
     Ok(ViaPointExperiment {
@@ -416,6 +423,7 @@ pub fn parse(
         scaling: plans.scaling,
         joint: plans.joint,
         energy: plans.energy,
+        pose: plans.pose,
     })
 }
 

@@ -38,6 +38,7 @@ mod movement;
 mod output;
 mod pipelines;
 mod plots;
+mod pose_run;
 mod report;
 mod robot;
 mod robot_file;
@@ -230,6 +231,7 @@ fn run_experiment(
         }
         experiment::Kind::Imitation => 0,
         experiment::Kind::ViapointJoint => config.generations,
+        experiment::Kind::ViapointPose => 2 * config.generations,
         experiment::Kind::ViapointEnergy => {
             config.generations + 2 * exp.energy.map_or(0, |e| e.speedup_generations)
         }

@@ -225,6 +225,32 @@ pub struct EnergyPlan {
     pub speedup_generations: u64,
 }
 
+/// `[orientation]` of `kind = "viapoint_pose"`: each orientation is a unit quaternion
+/// `[x, y, z, w]` or roll, pitch, yaw `[r, p, y]` in radians (URDF: about the fixed x, y,
+/// z axes); a via orientation `[]` is free.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OrientationSection {
+    start: Spanned<Vec<f64>>,
+    goal: Spanned<Vec<f64>>,
+    #[serde(default)]
+    via: Vec<Spanned<Vec<f64>>>,
+    sigma0: Option<Spanned<f64>>,
+}
+
+/// The orientation targets of a pose experiment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PosePlan {
+    /// Start orientation.
+    pub start: nalgebra::UnitQuaternion<f64>,
+    /// Goal orientation.
+    pub goal: nalgebra::UnitQuaternion<f64>,
+    /// One per via point; `None` = free.
+    pub via: Vec<Option<nalgebra::UnitQuaternion<f64>>>,
+    /// Initial CMA-ES step of the orientation part, radians.
+    pub sigma0: f64,
+}
+
 /// The optional sections of a file, with what is needed to name places in errors.
 pub struct Sections<'a> {
     pub path: &'a Path,
@@ -237,6 +263,7 @@ pub struct Sections<'a> {
     pub joint: Option<&'a Spanned<JointSection>>,
     pub plant: Option<&'a Spanned<PlantSection>>,
     pub speedup: Option<&'a Spanned<SpeedupSection>>,
+    pub orientation: Option<&'a Spanned<OrientationSection>>,
 }
 
 /// The parsed plans of [`Sections::parse`].
@@ -246,6 +273,7 @@ pub struct Plans {
     pub scaling: Option<ScalingPlan>,
     pub joint: Option<JointPlan>,
     pub energy: Option<EnergyPlan>,
+    pub pose: Option<PosePlan>,
 }
 
 impl Sections<'_> {
@@ -374,12 +402,102 @@ impl Sections<'_> {
         } else {
             None
         };
+        let pose = match (self.kind, self.orientation) {
+            (Kind::ViapointPose, Some(o)) => Some(self.pose_plan(o, learner)?),
+            (Kind::ViapointPose, None) => {
+                return Err(InputError(format!(
+                    "{}: kind = \"viapoint_pose\" needs an [orientation] section (start, goal, one orientation per via point)",
+                    self.path.display()
+                )));
+            }
+            (_, Some(o)) => return Err(only(o.span(), "orientation", "kind = \"viapoint_pose\"")),
+            _ => None,
+        };
         Ok(Plans {
             robot,
             imitation,
             scaling,
             joint,
             energy,
+            pose,
+        })
+    }
+
+    fn orientation(
+        &self,
+        v: &Spanned<Vec<f64>>,
+        what: &str,
+    ) -> Result<nalgebra::UnitQuaternion<f64>, InputError> {
+        let x = v.get_ref();
+        if x.iter().any(|c| !c.is_finite()) {
+            return Err(self.err(&v.span(), format!("[orientation] {what}: not finite")));
+        }
+        match x.len() {
+            4 => {
+                let q = nalgebra::Quaternion::new(x[3], x[0], x[1], x[2]);
+                let n = q.norm();
+                if (n - 1.0).abs() > 1e-3 {
+                    return Err(self.err(
+                        &v.span(),
+                        format!(
+                            "[orientation] {what}: a quaternion [x, y, z, w] must have norm 1 (got {n:.6})"
+                        ),
+                    ));
+                }
+                Ok(nalgebra::UnitQuaternion::from_quaternion(q))
+            }
+            3 => Ok(nalgebra::UnitQuaternion::from_euler_angles(x[0], x[1], x[2])),
+            n => Err(self.err(
+                &v.span(),
+                format!(
+                    "[orientation] {what}: give a quaternion [x, y, z, w] or roll, pitch, yaw [r, p, y] (got {n} numbers)"
+                ),
+            )),
+        }
+    }
+
+    fn pose_plan(
+        &self,
+        o: &Spanned<OrientationSection>,
+        learner: &ViaPointConfig,
+    ) -> Result<PosePlan, InputError> {
+        let s = o.get_ref();
+        if learner.task.start.len() != 3 {
+            return Err(self.err(
+                &o.span(),
+                "[orientation] needs a 3-D position task (x, y, z)".into(),
+            ));
+        }
+        if s.via.len() != learner.task.via.len() {
+            return Err(self.err(
+                &o.span(),
+                format!(
+                    "[orientation] `via` has {} orientations for {} [[task.via]] points: give one per via point ([] leaves one free)",
+                    s.via.len(),
+                    learner.task.via.len()
+                ),
+            ));
+        }
+        let via = s
+            .via
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                if v.get_ref().is_empty() {
+                    Ok(None)
+                } else {
+                    self.orientation(v, &format!("`via[{i}]`")).map(Some)
+                }
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(PosePlan {
+            start: self.orientation(&s.start, "`start`")?,
+            goal: self.orientation(&s.goal, "`goal`")?,
+            via,
+            sigma0: match &s.sigma0 {
+                Some(v) => self.positive(v, "[orientation] `sigma0`")?,
+                None => 0.3,
+            },
         })
     }
 

@@ -7,7 +7,7 @@ use anyhow::Result;
 
 use crate::experiment::{Kind, ViaPointExperiment};
 use crate::output::Staging;
-use crate::{energy_run, imitation_run, joint_run, scaling_run};
+use crate::{energy_run, imitation_run, joint_run, pose_run, scaling_run};
 
 /// What a run needs from the command line.
 pub struct RunContext<'a> {
@@ -39,6 +39,7 @@ pub fn run(
         Kind::Scaling => scaling_run::run(exp, ctx, stage, wall),
         Kind::ViapointJoint => joint_run::run(exp, ctx, stage, wall),
         Kind::ViapointEnergy => energy_run::run(exp, ctx, stage, wall),
+        Kind::ViapointPose => pose_run::run(exp, ctx, stage, wall),
         Kind::Viapoint => anyhow::bail!("via-point runs are not run here"),
     }
 }

@@ -477,3 +477,67 @@ fn the_effort_experiment_learns_and_measures_its_speed_up() {
         text(&o.stderr)
     );
 }
+
+const POSE: &str = include_str!("../../../experiments/viapoint_pose.toml");
+
+/// Position and orientation through via points: the position part is exact, the
+/// orientation part gets close to its targets, the free via orientation stays free.
+#[test]
+fn the_pose_experiment_learns_position_and_orientation() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = write(
+        dir.path(),
+        "pose.toml",
+        &POSE.replace("generations = 1000", "generations = 500"),
+    );
+    let out = dir.path().join("out");
+    let o = run(&file, &out);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["kind"], "viapoint_pose");
+    assert_eq!(s["complete"], true);
+    assert_eq!(s["position_gap_to_optimum"], 0.0);
+    assert!(
+        s["orientation_cost"].as_f64().unwrap()
+            < 1e-3 * s["orientation_start_cost"].as_f64().unwrap()
+    );
+    let via = s["via_angles_deg"].as_array().unwrap();
+    assert!(via[1].is_null(), "p2 is free");
+    for a in via.iter().filter(|a| !a.is_null()) {
+        assert!(a.as_f64().unwrap() < 3.0, "{a}°");
+    }
+    let csv = std::fs::read_to_string(out.join("trajectory.csv")).unwrap();
+    assert!(csv.starts_with("t,x,y,z,qx,qy,qz,qw,wx,wy,wz\n"));
+    // Every orientation written is a unit quaternion.
+    for line in csv.lines().skip(1) {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        let n = (v[4] * v[4] + v[5] * v[5] + v[6] * v[6] + v[7] * v[7]).sqrt();
+        assert!((n - 1.0).abs() < 1e-9, "{line}");
+    }
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert_eq!(html.matches("<svg").count(), 4);
+
+    let check = |name: &str, body: &str, wanted: &str| {
+        let f = write(dir.path(), name, body);
+        let o = cli(&["check", f.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(2), "{name}");
+        let err = text(&o.stderr);
+        assert!(err.contains(name) && err.contains(wanted), "{name}: {err}");
+    };
+    check(
+        "norm.toml",
+        &POSE.replace(
+            "start = [0.707107, 0.000000, 0.707107, 0.000000]",
+            "start = [0.9, 0.0, 0.9, 0.0]",
+        ),
+        "norm 1",
+    );
+    check(
+        "count.toml",
+        &POSE.replace(
+            "  [],                                           # p2: free\n",
+            "",
+        ),
+        "one per via point",
+    );
+}

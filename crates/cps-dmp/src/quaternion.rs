@@ -99,13 +99,18 @@ impl QuaternionDmp {
             orientation: Vec::with_capacity(ns),
             angular_velocity: Vec::with_capacity(ns),
         };
-        let f = |k: usize| {
-            Vector3::from_fn(|a, _| {
-                (0..nb)
-                    .map(|i| self.grid.feature_column(i)[k] * weights[a * nb + i])
-                    .sum::<f64>()
-            })
-        };
+        // The forcing term of every axis at every sample, column by column of the features
+        // (contiguous, so the products vectorise), before the sequential integration.
+        let mut forcing = vec![0.0; 3 * ns];
+        for (a, fa) in forcing.chunks_exact_mut(ns).enumerate() {
+            for i in 0..nb {
+                let w = weights[a * nb + i];
+                for (f, phi) in fa.iter_mut().zip(self.grid.feature_column(i)) {
+                    *f += phi * w;
+                }
+            }
+        }
+        let f = |k: usize| Vector3::new(forcing[k], forcing[ns + k], forcing[2 * ns + k]);
         let eta_dot = |q: &UnitQuaternion<f64>, eta: &Vector3<f64>, f: &Vector3<f64>| {
             (az * (bz * (self.goal * q.inverse()).scaled_axis() - eta) + f) / tau
         };

@@ -33,6 +33,7 @@ mod error;
 mod exact;
 mod imitation;
 mod joint;
+mod pose;
 mod robot;
 mod space;
 mod task;
@@ -51,6 +52,10 @@ pub use imitation::{
 pub use joint::{
     JointCostBreakdown, JointSpaceConfig, JointSpaceCost, JointSpaceOutcome, LimitReport,
     execute_joint_trajectory, learn_joint_space,
+};
+pub use pose::{
+    OrientationCostBreakdown, OrientationErrors, OrientationResult, PoseConfig, PoseOutcome,
+    learn_pose,
 };
 pub use robot::{RobotSetup, check_way_points, execute_trajectory, targets_at};
 pub use space::{Parametrisation, SearchSpace};
