@@ -14,6 +14,11 @@
 //! cps-cli rollout model.json [--start ...] [--goal ...] [--tau S] [--dt S] --out traj.csv [--plot traj.png]
 //! ```
 //!
+//! An experiment file's `[experiment] kind` chooses what `run` does: `viapoint` (default),
+//! `imitation`, `scaling`, `viapoint_joint`, `viapoint_energy`, `viapoint_pose`; each
+//! shipped file in `experiments/` is a commented example. Every run writes `summary.json`,
+//! CSV data, figures (PNG and SVG) and `report.html`.
+//!
 //! `--robot` takes a built-in name (`panda`, `ur3`, `puma560`) or a robot file: TOML as in
 //! `configs/robots/` or URDF.
 //!
@@ -177,8 +182,9 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
         Command::Check { file } => {
             let exp = experiment::load(&file, None)?;
             say!(
-                "{}: ok ({} dimensions, {} via points, {} weights, {} generations x {} repetition(s))",
+                "{}: ok (kind {}, {} dimensions, {} via points, {} weights, {} generations x {} repetition(s))",
                 file.display(),
+                exp.kind.name(),
                 exp.config.task.start.len(),
                 exp.config.task.via.len(),
                 exp.config.task.start.len() * exp.config.task.dmp.n_basis,
