@@ -1,10 +1,12 @@
-//! The ZMQ remote-API client (protocol v2, CoppeliaSim 4.6+; v1 servers are detected and
-//! used for plain calls).
+//! The ZMQ remote-API client (protocol v2, CoppeliaSim 4.6+; v1 servers, CoppeliaSim
+//! 4.3–4.5, are detected and spoken to in their dialect: setter argument order, and
+//! stepping through the global `setStepping`/`step` calls with the step counter published
+//! on the port after the request port).
 
 use std::time::Duration;
 
 use tokio::runtime::Runtime;
-use zeromq::{ReqSocket, Socket, SocketOptions, SocketRecv, SocketSend, ZmqMessage};
+use zeromq::{ReqSocket, Socket, SocketOptions, SocketRecv, SocketSend, SubSocket, ZmqMessage};
 
 use crate::CoppeliaError;
 use crate::codec::{self, Value};
@@ -36,7 +38,8 @@ impl Default for ClientConfig {
 pub enum Protocol {
     /// CoppeliaSim 4.6 and later.
     V2,
-    /// CoppeliaSim 4.3 – 4.5: plain calls only (no stepping through this client).
+    /// CoppeliaSim 4.3 – 4.5: `{func, args}` requests, `success`/`error` replies,
+    /// setters as `(handle, relativeTo, value)`, stepping through a PUB/SUB step counter.
     V1,
 }
 
@@ -50,6 +53,9 @@ pub struct Client {
     uuid: String,
     first: bool,
     protocol: Protocol,
+    /// v1 only: the step counter's SUB socket, connected when stepping is enabled.
+    step_counter: Option<SubSocket>,
+    step_endpoint: Option<String>,
 }
 
 impl std::fmt::Debug for Client {
@@ -88,6 +94,8 @@ impl Client {
             uuid: uuid::Uuid::new_v4().to_string(),
             first: true,
             protocol: Protocol::V2,
+            step_counter: None,
+            step_endpoint: None,
         };
         match client.call_with("zmqRemoteApi.require", vec![codec::text("sim")], true) {
             Ok(_) => {}
@@ -107,6 +115,104 @@ impl Client {
     /// The endpoint.
     pub fn endpoint(&self) -> &str {
         &self.config.endpoint
+    }
+
+    /// Protocol v1 only: where the server publishes its step counter (CoppeliaSim's
+    /// `zmqRemoteApi.cntPort`). Default: the request port + 1 on the same host.
+    pub fn set_step_counter_endpoint(&mut self, endpoint: &str) {
+        self.step_endpoint = Some(endpoint.to_string());
+        self.step_counter = None;
+    }
+
+    fn step_counter_endpoint(&self) -> Result<String, CoppeliaError> {
+        if let Some(e) = &self.step_endpoint {
+            return Ok(e.clone());
+        }
+        let ep = &self.config.endpoint;
+        let (host, port) = ep
+            .rsplit_once(':')
+            .and_then(|(h, p)| p.parse::<u16>().ok().map(|p| (h, p)))
+            .ok_or_else(|| {
+                CoppeliaError::InvalidConfig(format!(
+                    "cannot derive the step counter's port from `{ep}`: set it with set_step_counter_endpoint"
+                ))
+            })?;
+        Ok(format!("{host}:{}", port.wrapping_add(1)))
+    }
+
+    /// v1 stepping on or off: the global `setStepping [enable, uuid]`; turning it on
+    /// connects the step counter's SUB socket first.
+    pub(crate) fn v1_set_stepping(&mut self, enabled: bool) -> Result<i64, CoppeliaError> {
+        if enabled && self.step_counter.is_none() {
+            let endpoint = self.step_counter_endpoint()?;
+            let timeout = self.config.connect_timeout;
+            let result = self.runtime.block_on(async {
+                tokio::time::timeout(timeout, async {
+                    let mut sub = SubSocket::new();
+                    sub.connect(&endpoint).await.map_err(|e| e.to_string())?;
+                    sub.subscribe("").await.map_err(|e| e.to_string())?;
+                    Ok::<SubSocket, String>(sub)
+                })
+                .await
+            });
+            self.step_counter = Some(match result {
+                Ok(Ok(sub)) => sub,
+                Ok(Err(message)) => {
+                    return Err(CoppeliaError::Connection {
+                        endpoint,
+                        function: "setStepping (step counter)".into(),
+                        message,
+                    });
+                }
+                Err(_) => {
+                    return Err(CoppeliaError::Timeout {
+                        endpoint,
+                        function: "setStepping (step counter)".into(),
+                        timeout_ms: timeout.as_millis() as u64,
+                    });
+                }
+            });
+        }
+        let uuid = codec::text(&self.uuid);
+        let ret = self.call("setStepping", vec![Value::Bool(enabled), uuid])?;
+        Ok(ret.first().and_then(codec::as_i64).unwrap_or(0))
+    }
+
+    /// One v1 step: drain old counter messages, `step [uuid]`, then wait (within the call
+    /// timeout) for the counter the server publishes after the step.
+    pub(crate) fn v1_step(&mut self) -> Result<(), CoppeliaError> {
+        if self.step_counter.is_none() {
+            self.v1_set_stepping(true)?;
+        }
+        let mut sub = self.step_counter.take().expect("connected above");
+        self.runtime.block_on(async {
+            while let Ok(Ok(_)) = tokio::time::timeout(Duration::ZERO, sub.recv()).await {}
+        });
+        let uuid = codec::text(&self.uuid);
+        if let Err(e) = self.call("step", vec![uuid]) {
+            self.step_counter = Some(sub);
+            return Err(e);
+        }
+        let timeout = self.config.call_timeout;
+        let got = self
+            .runtime
+            .block_on(async { tokio::time::timeout(timeout, sub.recv()).await });
+        match got {
+            Ok(Ok(_)) => {
+                self.step_counter = Some(sub);
+                Ok(())
+            }
+            Ok(Err(e)) => Err(CoppeliaError::Connection {
+                endpoint: self.step_counter_endpoint()?,
+                function: "step (step counter)".into(),
+                message: e.to_string(),
+            }),
+            Err(_) => Err(CoppeliaError::Timeout {
+                endpoint: self.step_counter_endpoint()?,
+                function: "step (waiting for the step counter)".into(),
+                timeout_ms: timeout.as_millis() as u64,
+            }),
+        }
     }
 
     fn err(

@@ -91,15 +91,8 @@ impl Client {
         position: [f64; 3],
         relative_to: i64,
     ) -> Result<(), CoppeliaError> {
-        self.call(
-            "sim.setObjectPosition",
-            vec![
-                codec::int(object),
-                codec::floats(&position),
-                codec::int(relative_to),
-            ],
-        )
-        .map(drop)
+        let args = self.setter_args(object, codec::floats(&position), relative_to);
+        self.call("sim.setObjectPosition", args).map(drop)
     }
 
     /// `sim.getObjectPose(handle, relativeTo)` as an isometry (`[x y z qx qy qz qw]` on the
@@ -130,15 +123,8 @@ impl Client {
     ) -> Result<(), CoppeliaError> {
         let (t, q) = (pose.translation.vector, pose.rotation);
         let wire = [t.x, t.y, t.z, q.i, q.j, q.k, q.w];
-        self.call(
-            "sim.setObjectPose",
-            vec![
-                codec::int(object),
-                codec::floats(&wire),
-                codec::int(relative_to),
-            ],
-        )
-        .map(drop)
+        let args = self.setter_args(object, codec::floats(&wire), relative_to);
+        self.call("sim.setObjectPose", args).map(drop)
     }
 
     /// `sim.getObjectMatrix(handle, relativeTo)`: the 3×4 matrix row-major (12 numbers).
@@ -163,15 +149,8 @@ impl Client {
         matrix: [f64; 12],
         relative_to: i64,
     ) -> Result<(), CoppeliaError> {
-        self.call(
-            "sim.setObjectMatrix",
-            vec![
-                codec::int(object),
-                codec::floats(&matrix),
-                codec::int(relative_to),
-            ],
-        )
-        .map(drop)
+        let args = self.setter_args(object, codec::floats(&matrix), relative_to);
+        self.call("sim.setObjectMatrix", args).map(drop)
     }
 
     /// `sim.createDummy(size)`: a new dummy's handle.
@@ -248,8 +227,12 @@ impl Client {
         )
     }
 
-    /// `sim.setStepping(enabled)`: returns the previous stepping level.
+    /// `sim.setStepping(enabled)`: returns the previous stepping level. (v1: the global
+    /// `setStepping`, after connecting the step counter.)
     pub fn set_stepping(&mut self, enabled: bool) -> Result<i64, CoppeliaError> {
+        if self.protocol() == crate::Protocol::V1 {
+            return self.v1_set_stepping(enabled);
+        }
         self.typed(
             "sim.setStepping",
             vec![Value::Bool(enabled)],
@@ -260,6 +243,18 @@ impl Client {
 
     /// `sim.step()`: one simulation step (waits until it has happened).
     pub fn step(&mut self) -> Result<(), CoppeliaError> {
+        if self.protocol() == crate::Protocol::V1 {
+            return self.v1_step();
+        }
         self.call("sim.step", vec![]).map(drop)
+    }
+
+    /// A setter's arguments: `(handle, value, relativeTo)` in v2, `(handle, relativeTo,
+    /// value)` in v1.
+    fn setter_args(&self, object: i64, value: Value, relative_to: i64) -> Vec<Value> {
+        match self.protocol() {
+            crate::Protocol::V2 => vec![codec::int(object), value, codec::int(relative_to)],
+            crate::Protocol::V1 => vec![codec::int(object), codec::int(relative_to), value],
+        }
     }
 }

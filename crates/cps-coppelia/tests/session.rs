@@ -356,3 +356,120 @@ fn a_v1_server_is_detected() {
         "v1 requests carry no uuid"
     );
 }
+
+/// Against a protocol-v1 server (CoppeliaSim 4.3–4.5, faked here from the protocol notes):
+/// stepping goes through the global `setStepping`/`step` and waits for the step counter
+/// published on the next port; setters send `(handle, relativeTo, value)`.
+#[test]
+fn a_v1_server_steps_through_its_step_counter_and_takes_v1_setters() {
+    use cps_coppelia::codec::{self, Value};
+    use zeromq::{PubSocket, RepSocket, Socket, SocketRecv, SocketSend, ZmqMessage};
+    // Two free consecutive ports: request port p, step counter p + 1.
+    let port = (0..50)
+        .find_map(|_| {
+            let a = std::net::TcpListener::bind("127.0.0.1:0").ok()?;
+            let p = a.local_addr().ok()?.port();
+            let b = std::net::TcpListener::bind(("127.0.0.1", p.checked_add(1)?)).ok()?;
+            drop((a, b));
+            Some(p)
+        })
+        .expect("two consecutive free ports");
+    let (tx, rx) = std::sync::mpsc::channel();
+    let server = std::thread::spawn(move || {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
+        rt.block_on(async move {
+            let mut rep = RepSocket::new();
+            rep.bind(&format!("tcp://127.0.0.1:{port}")).await.unwrap();
+            let mut publisher = PubSocket::new();
+            publisher
+                .bind(&format!("tcp://127.0.0.1:{}", port + 1))
+                .await
+                .unwrap();
+            tx.send(()).unwrap();
+            // The simulation advances 30 ms after a `step` request was answered, then
+            // publishes the counter; meanwhile requests are served. A client that did not
+            // wait for the counter would read the old time.
+            let steps = std::sync::Arc::new(std::sync::atomic::AtomicU32::new(0));
+            let (step_tx, mut step_rx) = tokio::sync::mpsc::unbounded_channel::<()>();
+            let counter = steps.clone();
+            tokio::spawn(async move {
+                while step_rx.recv().await.is_some() {
+                    tokio::time::sleep(Duration::from_millis(30)).await;
+                    let n = counter.fetch_add(1, std::sync::atomic::Ordering::SeqCst) + 1;
+                    publisher
+                        .send(ZmqMessage::from(n.to_le_bytes().to_vec()))
+                        .await
+                        .unwrap();
+                }
+            });
+            let mut stepping = false;
+            let mut seen = Vec::new();
+            loop {
+                let m = rep.recv().await.unwrap();
+                let bytes: Vec<u8> = m.into_vec().into_iter().flat_map(|b| b.to_vec()).collect();
+                let req = codec::decode(&bytes).unwrap();
+                let func = codec::get(&req, "func").and_then(codec::as_text).unwrap();
+                let args = codec::as_list(codec::get(&req, "args")).unwrap();
+                seen.push((func.clone(), args.clone()));
+                let ok = |ret: Vec<Value>| {
+                    codec::map([("success", Value::Bool(true)), ("ret", Value::Array(ret))])
+                };
+                let now = steps.load(std::sync::atomic::Ordering::SeqCst);
+                let reply = match func.as_str() {
+                    "zmqRemoteApi.require" => codec::map([
+                        ("success", Value::Bool(false)),
+                        (
+                            "error",
+                            codec::text("No such function: zmqRemoteApi.require"),
+                        ),
+                    ]),
+                    "setStepping" => {
+                        stepping = codec::as_bool(&args[0]).unwrap();
+                        ok(vec![codec::int(0)])
+                    }
+                    "sim.getSimulationTime" => ok(vec![Value::Float(f64::from(now) * 0.05)]),
+                    _ => ok(vec![]),
+                };
+                rep.send(ZmqMessage::from(codec::encode(&reply)))
+                    .await
+                    .unwrap();
+                if func == "step" && stepping {
+                    step_tx.send(()).unwrap();
+                }
+                if func == "sim.setObjectPosition" {
+                    return (seen, steps.load(std::sync::atomic::Ordering::SeqCst));
+                }
+            }
+        })
+    });
+    rx.recv().unwrap();
+    let mut sim = client(&format!("tcp://127.0.0.1:{port}"));
+    assert_eq!(sim.protocol(), cps_coppelia::Protocol::V1);
+    sim.set_stepping(true).unwrap();
+    for k in 1..=3 {
+        // `step` returns only once the counter arrived, i.e. after the step happened.
+        sim.step().unwrap();
+        assert!((sim.get_simulation_time().unwrap() - 0.05 * f64::from(k)).abs() < 1e-12);
+    }
+    sim.set_object_position(17, [0.1, 0.2, 0.3], HANDLE_WORLD)
+        .unwrap();
+    let (seen, steps) = server.join().unwrap();
+    assert_eq!(steps, 3);
+    let stepping = seen.iter().find(|(f, _)| f == "setStepping").unwrap();
+    assert_eq!(stepping.1[0], Value::Bool(true));
+    assert!(
+        matches!(stepping.1.get(1), Some(Value::Text(_))),
+        "the uuid follows"
+    );
+    let setter = &seen.last().unwrap().1;
+    assert_eq!(setter[0], codec::int(17));
+    assert_eq!(
+        setter[1],
+        codec::int(HANDLE_WORLD),
+        "v1 takes relativeTo second"
+    );
+    assert_eq!(setter[2], codec::floats(&[0.1, 0.2, 0.3]));
+}
