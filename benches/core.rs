@@ -154,6 +154,7 @@ fn coppelia(c: &mut Criterion) {
             initial_q: vec![0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785],
             dummies: vec![],
             dt: 0.05,
+            ik_following: false,
         },
     })
     .unwrap();

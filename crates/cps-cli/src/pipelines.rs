@@ -32,6 +32,17 @@ pub struct RobotSection {
     timeout: Option<Spanned<f64>>,
     tolerance: Option<Spanned<f64>>,
     max_iterations_per_sample: Option<Spanned<usize>>,
+    control: Option<Spanned<Control>>,
+}
+
+/// Who moves the joints on a CoppeliaSim backend.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum Control {
+    /// cps's inverse controller commands the joints.
+    Cps,
+    /// CoppeliaSim's IK makes the tip follow `/<robot>_target`, which cps moves.
+    SimulatorIk,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
@@ -58,6 +69,9 @@ pub enum BackendChoice {
         robot_name: String,
         /// Connect and per-call timeout.
         timeout: Duration,
+        /// Execute through CoppeliaSim's IK following `/<robot>_target` instead of cps's
+        /// controller.
+        simulator_ik: bool,
     },
 }
 
@@ -77,7 +91,18 @@ impl RobotChoice {
     pub fn describe(&self) -> String {
         match &self.backend {
             BackendChoice::Kinematic { dt } => format!("kinematic (in-process, dt {dt} s)"),
-            BackendChoice::Coppelia { endpoint, .. } => format!("coppelia at {endpoint}"),
+            BackendChoice::Coppelia {
+                endpoint,
+                simulator_ik,
+                ..
+            } => format!(
+                "coppelia at {endpoint}{}",
+                if *simulator_ik {
+                    ", CoppeliaSim's IK following the target"
+                } else {
+                    ""
+                }
+            ),
         }
     }
 
@@ -94,6 +119,7 @@ impl RobotChoice {
                 endpoint,
                 robot_name,
                 timeout,
+                simulator_ik,
             } => {
                 let mut client = Client::connect(ClientConfig {
                     endpoint: endpoint.clone(),
@@ -108,6 +134,11 @@ impl RobotChoice {
                     .with_context(|| {
                         format!("{endpoint}: the scene has no robot `/{robot_name}` with joints `/{robot_name}_joint1..{}` and `/{robot_name}_tip`", setup.chain.dof())
                     })?;
+                if *simulator_ik {
+                    scene.follow_ik_target(true).with_context(|| {
+                        format!("{endpoint}: control = \"simulator_ik\" needs an IK target `/{robot_name}_target` in the scene")
+                    })?;
+                }
                 // The scene's robot must be the model: compare the tip at the start.
                 scene.reset(&setup.initial_q)?;
                 let remote = scene.tool_pose()?.translation.vector;
@@ -596,6 +627,14 @@ impl Sections<'_> {
                         "[robot] `endpoint` is read only with backend = \"coppelia\"".into(),
                     ));
                 }
+                if let Some(c) = section.and_then(|r| r.control.as_ref())
+                    && *c.get_ref() == Control::SimulatorIk
+                {
+                    return Err(self.err(
+                        &c.span(),
+                        "[robot] control = \"simulator_ik\" needs backend = \"coppelia\" (the in-process robot has no IK of its own)".into(),
+                    ));
+                }
                 let dt = match section.and_then(|r| r.dt.as_ref()) {
                     Some(d) => self.positive(d, "[robot] `dt`")?,
                     None => default_dt,
@@ -603,6 +642,15 @@ impl Sections<'_> {
                 BackendChoice::Kinematic { dt }
             }
             BackendKind::Coppelia => {
+                if let Some(c) = section.and_then(|r| r.control.as_ref())
+                    && *c.get_ref() == Control::SimulatorIk
+                    && self.kind == Kind::ViapointJoint
+                {
+                    return Err(self.err(
+                        &c.span(),
+                        "[robot] control = \"simulator_ik\" executes tool targets; a joint-space experiment commands the joints itself (use control = \"cps\")".into(),
+                    ));
+                }
                 if let Some(d) = section.and_then(|r| r.dt.as_ref()) {
                     return Err(self.err(
                         &d.span(),
@@ -622,6 +670,9 @@ impl Sections<'_> {
                         .and_then(|r| r.name.clone())
                         .unwrap_or_else(|| "Panda".into()),
                     timeout: Duration::from_secs_f64(timeout),
+                    simulator_ik: section
+                        .and_then(|r| r.control.as_ref())
+                        .is_some_and(|c| *c.get_ref() == Control::SimulatorIk),
                 }
             }
         };

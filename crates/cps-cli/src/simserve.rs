@@ -27,12 +27,21 @@ pub enum SimCommand {
         /// Simulation time step in seconds.
         #[arg(long, default_value_t = 0.05)]
         dt: f64,
+        /// Make the tip follow `/<robot>_target` at every step, like CoppeliaSim's IK in
+        /// the thesis's scene (otherwise the joints move only when set).
+        #[arg(long)]
+        ik_following: bool,
     },
 }
 
 /// `cps-cli sim serve`.
 pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
-    let SimCommand::Serve { bind, scene, dt } = cmd;
+    let SimCommand::Serve {
+        bind,
+        scene,
+        dt,
+        ik_following,
+    } = cmd;
     let scene = match scene {
         Some(path) => load_scene(path)?,
         None => parse_scene(
@@ -54,6 +63,7 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
             .map(|(n, p)| (n.clone(), [p.x, p.y, p.z]))
             .collect(),
         dt: *dt,
+        ik_following: *ik_following,
     };
     let server = StandInServer::start(ServerConfig {
         bind: bind.clone(),
@@ -61,9 +71,14 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
     })
     .map_err(|e| InputError(format!("--bind {bind}: {e}")))?;
     say!(
-        "stand-in CoppeliaSim serving {} (robot /{robot_name}, joints /{robot_name}_joint1..{}, tip /{robot_name}_tip, {} dummies); Ctrl-C stops",
+        "stand-in CoppeliaSim serving {} (robot /{robot_name}, joints /{robot_name}_joint1..{}, tip /{robot_name}_tip, IK target /{robot_name}_target{}, {} dummies); Ctrl-C stops",
         server.endpoint(),
         scene.robot.chain.dof(),
+        if *ik_following {
+            " followed by the tip"
+        } else {
+            ""
+        },
         scene.objects.len()
     );
     while !interrupted.load(Ordering::SeqCst) {

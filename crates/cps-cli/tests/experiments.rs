@@ -541,3 +541,68 @@ fn the_pose_experiment_learns_position_and_orientation() {
         "one per via point",
     );
 }
+
+/// With `control = "simulator_ik"` the imitation pipeline executes through the
+/// simulator's own IK (the stand-in with `--ik-following`) and still tracks within 1 mm.
+#[test]
+fn the_imitation_runs_through_the_simulator_s_ik() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut server = Command::new(env!("CARGO_BIN_EXE_cps-cli"))
+        .args([
+            "sim",
+            "serve",
+            "--bind",
+            "127.0.0.1:0",
+            "--dt",
+            "0.05",
+            "--ik-following",
+        ])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(server.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    assert!(line.contains("followed by the tip"), "{line}");
+    let port = line
+        .split("tcp://127.0.0.1:")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .unwrap()
+        .to_string();
+    let file = write(
+        dir.path(),
+        "ik.toml",
+        &IMITATION
+            .replace("count = 20", "count = 2")
+            .replace("backend = \"kinematic\"", "backend = \"coppelia\"")
+            .replace(
+                "# endpoint = \"tcp://127.0.0.1:23000\"",
+                &format!("endpoint = \"tcp://127.0.0.1:{port}\""),
+            )
+            .replace("# control = \"cps\"  ", "control = \"simulator_ik\"")
+            .replace("dt = 0.01               #", "# dt = 0.01             #"),
+    );
+    let o = run(&file, &dir.path().join("out"));
+    let _ = server.kill();
+    let _ = server.wait();
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let s = json(&dir.path().join("out/summary.json"));
+    assert!(
+        s["backend"].as_str().unwrap().contains("IK following"),
+        "{}",
+        s["backend"]
+    );
+    for r in s["runs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|r| r["kept"] == true)
+    {
+        assert!(r["tracking"]["max_position_error_m"].as_f64().unwrap() < 1e-3);
+    }
+    for f in s["imitations"].as_array().unwrap() {
+        assert!(f["tracking"]["max_position_error_m"].as_f64().unwrap() < 1e-3);
+    }
+}

@@ -15,6 +15,9 @@ pub struct FrankaScene {
     joints: Vec<i64>,
     tip: i64,
     dt: f64,
+    /// `/<robot>_target` while the scene's IK follows it (see [`FrankaScene::follow_ik_target`]).
+    target: Option<i64>,
+    robot: String,
 }
 
 impl FrankaScene {
@@ -35,7 +38,23 @@ impl FrankaScene {
             joints,
             tip,
             dt,
+            target: None,
+            robot: robot.to_string(),
         })
+    }
+
+    /// Switches to CoppeliaSim's own inverse kinematics: trajectories are then executed
+    /// by moving `/<robot>_target` (the thesis's `/Panda_target`), which the scene's IK
+    /// makes the tip follow at every step, instead of commanding joints from cps's
+    /// controller. The scene must run that IK (the thesis's scene does;
+    /// `cps-cli sim serve --ik-following` does).
+    pub fn follow_ik_target(&mut self, on: bool) -> Result<(), CoppeliaError> {
+        self.target = if on {
+            Some(self.client.get_object(&format!("/{}_target", self.robot))?)
+        } else {
+            None
+        };
+        Ok(())
     }
 
     /// Starts the simulation in stepping mode, so that [`RobotBackend::step`] advances it
@@ -165,11 +184,45 @@ impl RobotBackend for FrankaScene {
     }
 
     /// Stops the simulation (CoppeliaSim restores the scene and resets its clock), sets
-    /// the joints to `q` and starts stepping again.
+    /// the joints to `q` and starts stepping again. Following the IK target, the target is
+    /// put on the tip first, so the robot stays where it was set.
     fn reset(&mut self, q: &[f64]) -> Result<(), KinematicsError> {
         self.stop()?;
         self.command_joint_positions(q)?;
+        if let Some(target) = self.target {
+            let tip = self.client.get_object_pose(self.tip, HANDLE_WORLD)?;
+            self.client.set_object_pose(target, &tip, HANDLE_WORLD)?;
+        }
         self.start_stepping()?;
+        Ok(())
+    }
+
+    fn follows_targets(&self) -> bool {
+        self.target.is_some()
+    }
+
+    /// Moves `/<robot>_target`: its position for a position target (orientation kept),
+    /// its whole pose for a pose target.
+    fn command_target(&mut self, target: &cps_kinematics::IkTarget) -> Result<(), KinematicsError> {
+        let Some(handle) = self.target else {
+            return Err(KinematicsError::Backend {
+                backend: format!("CoppeliaSim at {}", self.client.endpoint()),
+                message: "not following the IK target: call follow_ik_target(true) first".into(),
+            });
+        };
+        match target {
+            cps_kinematics::IkTarget::Position(p) => {
+                self.client
+                    .set_object_position(handle, [p.x, p.y, p.z], HANDLE_WORLD)?;
+            }
+            cps_kinematics::IkTarget::Pose(pose) => {
+                let iso = nalgebra::Isometry3::from_parts(
+                    pose.translation,
+                    nalgebra::UnitQuaternion::from_rotation_matrix(&pose.rotation),
+                );
+                self.client.set_object_pose(handle, &iso, HANDLE_WORLD)?;
+            }
+        }
         Ok(())
     }
 }

@@ -22,6 +22,7 @@
 //!     initial_q: vec![0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785],
 //!     dummies: vec![],
 //!     dt: 0.05,
+//!     ik_following: false,
 //! };
 //! let server = StandInServer::start(ServerConfig { bind: "127.0.0.1:0".into(), scene })?;
 //! let mut sim = Client::connect(ClientConfig { endpoint: server.endpoint().into(), ..ClientConfig::default() })?;

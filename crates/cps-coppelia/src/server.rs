@@ -35,6 +35,11 @@ pub struct SceneSetup {
     pub dummies: Vec<(String, [f64; 3])>,
     /// Simulation time step in seconds (CoppeliaSim's default is 0.05).
     pub dt: f64,
+    /// Make the tip follow the IK target `/<name>_target` at every simulation step, as
+    /// CoppeliaSim's IK does in the thesis's scene (position constraints, damped least
+    /// squares within the joint limits, up to 10 iterations per step). Off: the joints move
+    /// only when set.
+    pub ik_following: bool,
 }
 
 #[derive(Debug, Clone)]
@@ -95,6 +100,24 @@ impl Sim {
             Object {
                 alias: format!("{name}_tip"),
                 kind: Kind::Tip,
+            },
+        );
+        // The IK target, where the tip is at the start (CoppeliaSim's `/Panda_target`).
+        let tip_pose = setup
+            .chain
+            .fk(&setup.initial_q)
+            .map(|f| {
+                Isometry3::from_parts(
+                    f.translation,
+                    UnitQuaternion::from_rotation_matrix(&f.rotation),
+                )
+            })
+            .unwrap_or_else(|_| Isometry3::identity());
+        objects.insert(
+            tip + 1,
+            Object {
+                alias: format!("{name}_target"),
+                kind: Kind::Dummy(tip_pose),
             },
         );
         let mut next = 100;
@@ -190,7 +213,46 @@ impl Sim {
     /// Advances one step when the simulation runs freely (no client stepping).
     fn tick(&mut self) {
         if self.running && self.clients.values().all(|c| c.stepping == 0) {
-            self.steps += 1;
+            self.advance();
+        }
+    }
+
+    /// One simulation step: the clock advances and, with IK following, the joints move
+    /// the tip towards the IK target.
+    fn advance(&mut self) {
+        self.steps += 1;
+        if self.setup.ik_following {
+            self.follow_target();
+        }
+    }
+
+    fn follow_target(&mut self) {
+        let name = format!("{}_target", self.setup.robot_name);
+        let Some(target) = self.objects.values().find_map(|o| match &o.kind {
+            Kind::Dummy(p) if o.alias == name => Some(*p),
+            _ => None,
+        }) else {
+            return;
+        };
+        // Position constraints only, as the IK in the thesis's scene.
+        let goal = cps_kinematics::IkTarget::Position(target.translation.vector);
+        let config = cps_kinematics::controllers::ControllerConfig::default();
+        for _ in 0..10 {
+            let Ok(step) = cps_kinematics::controllers::control_step(
+                &self.setup.chain,
+                &self.q,
+                &goal,
+                self.setup.dt,
+                &config,
+            ) else {
+                return;
+            };
+            if step.position_error < 1e-9 {
+                return;
+            }
+            for (q, d) in self.q.iter_mut().zip(&step.dq) {
+                *q += d;
+            }
         }
     }
 
@@ -525,7 +587,7 @@ fn handle(sim: &mut Sim, bytes: &[u8]) -> Value {
             if c.waiting {
                 c.waiting = false;
                 if sim.running {
-                    sim.steps += 1;
+                    sim.advance();
                 }
             }
             ret(vec![])
@@ -682,6 +744,7 @@ mod tests {
             initial_q: vec![0.0; 7],
             dummies: vec![("p0".into(), [0.1, 0.2, 0.3])],
             dt: 0.05,
+            ik_following: false,
         })
     }
 

@@ -31,6 +31,7 @@ fn server() -> StandInServer {
                 ("p1".into(), [0.78, 0.60, 1.70]),
             ],
             dt: 0.05,
+            ik_following: false,
         },
     })
     .unwrap()
@@ -187,6 +188,7 @@ fn a_dead_server_is_a_timely_error_and_a_restarted_one_is_reached_again() {
             initial_q: THESIS_Q0.to_vec(),
             dummies: vec![],
             dt: 0.05,
+            ik_following: false,
         },
     })
     .unwrap();
@@ -472,4 +474,58 @@ fn a_v1_server_steps_through_its_step_counter_and_takes_v1_setters() {
         "v1 takes relativeTo second"
     );
     assert_eq!(setter[2], codec::floats(&[0.1, 0.2, 0.3]));
+}
+
+/// CoppeliaSim's IK as the backend: the trajectory moves `/Panda_target`, the scene's IK
+/// (emulated by the stand-in with `ik_following`) moves the joints, and the tip follows.
+#[test]
+fn the_scene_s_own_ik_follows_the_target() {
+    use cps_coppelia::FrankaScene;
+    use cps_kinematics::{ExecutionConfig, IkTarget, RobotBackend, execute};
+    let model = panda(PandaTool::HandTcp).with_base(Isometry3::translation(0.5396, 0.02, 0.749));
+    let srv = StandInServer::start(ServerConfig {
+        bind: "127.0.0.1:0".into(),
+        scene: SceneSetup {
+            robot_name: "Panda".into(),
+            chain: model.clone(),
+            initial_q: THESIS_Q0.to_vec(),
+            dummies: vec![],
+            dt: 0.05,
+            ik_following: true,
+        },
+    })
+    .unwrap();
+    let mut scene = FrankaScene::open(client(srv.endpoint()), "Panda", 7, 0.05).unwrap();
+    assert!(!scene.follows_targets());
+    scene.follow_ik_target(true).unwrap();
+    assert!(scene.follows_targets());
+    let ready = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    scene.reset(&ready).unwrap();
+    // Reset put the target on the tip: a step does not move the robot.
+    scene.step().unwrap();
+    let q = scene.joint_positions().unwrap();
+    assert!(
+        q.iter().zip(&ready).all(|(a, b)| (a - b).abs() < 1e-9),
+        "{q:?}"
+    );
+    let c = model.fk(&ready).unwrap().translation.vector;
+    let targets: Vec<IkTarget> = (0..=40)
+        .map(|k| {
+            let a = std::f64::consts::TAU * k as f64 / 40.0;
+            IkTarget::Position(
+                c + nalgebra::Vector3::new(0.0, 0.03 * a.sin(), 0.03 * (1.0 - a.cos())),
+            )
+        })
+        .collect();
+    let rec = execute(&mut scene, &model, &targets, &ExecutionConfig::default()).unwrap();
+    assert!(
+        rec.max_position_error() < 1e-4,
+        "{}",
+        rec.max_position_error()
+    );
+    assert_eq!(rec.unconverged, 0);
+    // The joints really moved (the circle's top is 6 cm above the start).
+    let top = &rec.q[20];
+    assert!(top.iter().zip(&ready).any(|(a, b)| (a - b).abs() > 0.01));
+    scene.stop().unwrap();
 }

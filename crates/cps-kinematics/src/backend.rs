@@ -34,6 +34,22 @@ pub trait RobotBackend {
     /// Puts the robot at `q` at rest with its clock at 0, ready to step: the start of a
     /// new run (a simulator stops, sets the joints and starts stepping again).
     fn reset(&mut self, q: &[f64]) -> Result<(), KinematicsError>;
+    /// True if the backend moves its joints itself to follow a commanded tool target
+    /// ([`RobotBackend::command_target`]), as CoppeliaSim's IK follows `/Panda_target`;
+    /// [`crate::execute`] then commands targets instead of running cps's controller.
+    /// Default: false.
+    fn follows_targets(&self) -> bool {
+        false
+    }
+    /// Commands the tool target, followed from the next step on. Only for backends that
+    /// [follow targets](RobotBackend::follows_targets); the default refuses.
+    fn command_target(&mut self, target: &crate::IkTarget) -> Result<(), KinematicsError> {
+        let _ = target;
+        Err(KinematicsError::Backend {
+            backend: "this backend".into(),
+            message: "it does not follow tool targets; command joint positions".into(),
+        })
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]

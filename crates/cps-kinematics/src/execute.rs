@@ -71,7 +71,9 @@ impl Recording {
 /// describes: per sample, up to `max_iterations_per_sample` control steps
 /// ([`control_step`], limits respected), each commanded as joint positions and followed by
 /// one backend step, stopping early once the model says the sample is reached. Then the
-/// backend's measured state is recorded. Never loops without bound.
+/// backend's measured state is recorded. Never loops without bound. A backend that
+/// [follows targets itself](RobotBackend::follows_targets) (CoppeliaSim's IK) is given
+/// the sample as its target and stepped the same way, without cps's controller.
 pub fn execute(
     backend: &mut (impl RobotBackend + ?Sized),
     model: &SerialChain,
@@ -103,10 +105,16 @@ pub fn execute(
     let mut q = backend.joint_positions()?;
     for target in targets {
         let mut reached = false;
+        let follows = backend.follows_targets();
+        if follows {
+            backend.command_target(target)?;
+        }
         for _ in 0..config.max_iterations_per_sample {
-            let st = control_step(model, &q, target, dt, &config.controller)?;
-            let next: Vec<f64> = q.iter().zip(&st.dq).map(|(a, b)| a + b).collect();
-            backend.command_joint_positions(&next)?;
+            if !follows {
+                let st = control_step(model, &q, target, dt, &config.controller)?;
+                let next: Vec<f64> = q.iter().zip(&st.dq).map(|(a, b)| a + b).collect();
+                backend.command_joint_positions(&next)?;
+            }
             backend.step()?;
             rec.steps += 1;
             q = backend.joint_positions()?;
