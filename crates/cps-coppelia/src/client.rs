@@ -56,7 +56,12 @@ pub struct Client {
     /// v1 only: the step counter's SUB socket, connected when stepping is enabled.
     step_counter: Option<SubSocket>,
     step_endpoint: Option<String>,
+    callbacks: std::collections::HashMap<String, Callback>,
 }
+
+/// A function the server may call back during a request (see
+/// [`Client::register_callback`]).
+type Callback = Box<dyn FnMut(&[Value]) -> Vec<Value> + Send>;
 
 impl std::fmt::Debug for Client {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -96,6 +101,7 @@ impl Client {
             protocol: Protocol::V2,
             step_counter: None,
             step_endpoint: None,
+            callbacks: std::collections::HashMap::new(),
         };
         match client.call_with("zmqRemoteApi.require", vec![codec::text("sim")], true) {
             Ok(_) => {}
@@ -115,6 +121,19 @@ impl Client {
     /// The endpoint.
     pub fn endpoint(&self) -> &str {
         &self.config.endpoint
+    }
+
+    /// Registers `f` as a callback named `name` and returns the argument to pass where a
+    /// `sim` function expects a function (`"<name>@func"` on the wire). While a call is in
+    /// progress the server may call it, any number of times, with its arguments; what it
+    /// returns goes back to the server. An unregistered callback is answered with nothing.
+    pub fn register_callback(
+        &mut self,
+        name: &str,
+        f: impl FnMut(&[Value]) -> Vec<Value> + Send + 'static,
+    ) -> Value {
+        self.callbacks.insert(name.to_string(), Box::new(f));
+        codec::text(&format!("{name}@func"))
     }
 
     /// Protocol v1 only: where the server publishes its step counter (CoppeliaSim's
@@ -349,8 +368,17 @@ impl Client {
                 let f = codec::as_text(f).ok_or_else(|| protocol("`func` is not text".into()))?;
                 message = match f.as_str() {
                     "_*repeat*_" => original.clone(),
-                    // `_*wait*_` and callbacks we do not register: answer "executed".
-                    _ => self.request("_*executed*_", &[]),
+                    name => match self.callbacks.get_mut(name) {
+                        // A registered callback: call it, answer with its results.
+                        Some(cb) => {
+                            let args =
+                                codec::as_list(codec::get(&reply, "args")).unwrap_or_default();
+                            let results = cb(&args);
+                            self.request("_*executed*_", &results)
+                        }
+                        // `_*wait*_` and unregistered callbacks: answer "executed".
+                        None => self.request("_*executed*_", &[]),
+                    },
                 };
                 continue;
             }

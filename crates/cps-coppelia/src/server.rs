@@ -60,6 +60,17 @@ struct Object {
 struct ClientState {
     stepping: i64,
     waiting: bool,
+    /// A `sim.testCB` in progress: the client's callback is called until `calls` is 0.
+    callback: Option<PendingCallback>,
+}
+
+/// CoppeliaSim's `sim.testCB(a, cb, b, iterations)`: calls `cb(a, b)` iterations + 1
+/// times through the client and returns the last result.
+#[derive(Debug)]
+struct PendingCallback {
+    name: String,
+    args: Vec<Value>,
+    calls: u32,
 }
 
 struct Sim {
@@ -518,6 +529,7 @@ const FUNCTIONS: &[&str] = &[
     "getSimulationTimeStep",
     "setStepping",
     "step",
+    "testCB",
 ];
 
 const CONSTANTS: &[(&str, i64)] = &[
@@ -584,6 +596,18 @@ fn handle(sim: &mut Sim, bytes: &[u8]) -> Value {
         }
         "_*executed*_" => {
             let c = sim.clients.entry(uuid).or_default();
+            if let Some(cb) = &mut c.callback {
+                // The client answered its callback: call again or return its result.
+                if cb.calls > 0 {
+                    cb.calls -= 1;
+                    return codec::map([
+                        ("func", codec::text(&cb.name)),
+                        ("args", Value::Array(cb.args.clone())),
+                    ]);
+                }
+                c.callback = None;
+                return ret(args.first().cloned().into_iter().collect());
+            }
             if c.waiting {
                 c.waiting = false;
                 if sim.running {
@@ -591,6 +615,32 @@ fn handle(sim: &mut Sim, bytes: &[u8]) -> Value {
                 }
             }
             ret(vec![])
+        }
+        "sim.testCB" => {
+            let name = args
+                .get(1)
+                .and_then(codec::as_text)
+                .and_then(|t| t.strip_suffix("@func").map(str::to_string));
+            let (Some(a), Some(name), Some(b)) = (args.first(), name, args.get(2)) else {
+                return err(
+                    "sim.testCB(a, callback, b[, iterations]): argument 2 must be a function (in function 'sim.testCB')".into(),
+                );
+            };
+            let iterations = args
+                .get(3)
+                .and_then(codec::as_i64)
+                .unwrap_or(99)
+                .clamp(0, 10_000);
+            let call = codec::map([
+                ("func", codec::text(&name)),
+                ("args", Value::Array(vec![a.clone(), b.clone()])),
+            ]);
+            sim.clients.entry(uuid).or_default().callback = Some(PendingCallback {
+                name,
+                args: vec![a.clone(), b.clone()],
+                calls: iterations as u32,
+            });
+            call
         }
         f => {
             sim.tick();

@@ -529,3 +529,31 @@ fn the_scene_s_own_ik_follows_the_target() {
     assert!(top.iter().zip(&ready).any(|(a, b)| (a - b).abs() > 0.01));
     scene.stop().unwrap();
 }
+
+/// Callbacks: the server calls a registered Rust function during a request (CoppeliaSim's
+/// `sim.testCB(a, cb, b, iterations)` calls `cb(a, b)` iterations + 1 times) and gets its
+/// results back.
+#[test]
+fn a_registered_callback_is_called_by_the_server() {
+    use cps_coppelia::codec::{self, Value};
+    let srv = server();
+    let mut sim = client(srv.endpoint());
+    let calls = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let seen = calls.clone();
+    let cb = sim.register_callback("multiply", move |args| {
+        seen.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        let a = codec::as_f64(&args[0]).unwrap();
+        let b = codec::as_f64(&args[1]).unwrap();
+        vec![Value::Float(a * b)]
+    });
+    let ret = sim
+        .call(
+            "sim.testCB",
+            vec![codec::int(21), cb, codec::int(2), codec::int(3)],
+        )
+        .unwrap();
+    assert_eq!(codec::as_f64(&ret[0]), Some(42.0));
+    assert_eq!(calls.load(std::sync::atomic::Ordering::SeqCst), 4);
+    // A plain call afterwards is unaffected.
+    assert_eq!(sim.get_simulation_time().unwrap(), 0.0);
+}

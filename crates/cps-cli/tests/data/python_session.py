@@ -41,6 +41,14 @@ for k in range(1, 6):
 sim.stopSimulation()
 assert sim.getSimulationState() == sim.simulation_stopped
 
+# A callback: the server calls the client's function (21 * 2) four times during one call.
+calls = []
+def multiply(a, b):
+    calls.append((a, b))
+    return a * b
+assert sim.testCB(21, multiply, 2, 3) == 42
+assert calls == [(21, 2)] * 4, calls
+
 # An error raised on the server raises here.
 try:
     sim.getObject("/DoesNotExist")
