@@ -2,28 +2,22 @@
 //! control-effort term (thesis eq. 53/54), and the measured parallel speed-up.
 
 use std::ops::ControlFlow;
-use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
 use cps_learn::{EffortConfig, EffortCostBreakdown, EffortOutcome, learn_with_effort};
 use serde::Serialize;
 
-use crate::experiment::{InputError, ViaPointExperiment};
+use crate::experiment::ViaPointExperiment;
 use crate::output::Staging;
 use crate::plots::{CostArm, Series, axis_names, costs, figures, panels, way_points};
 use crate::report::{self, Table};
-use crate::runner::{Finished, RunContext};
+use crate::runner::{Finished, RunContext, RunHeader, learn_error, search_row, write_history};
 
 #[derive(Serialize)]
 struct Summary<'a> {
-    experiment: &'a str,
-    kind: &'static str,
-    complete: bool,
-    seed: u64,
-    versions: crate::output::Versions,
-    threads: usize,
-    wall_time_s: f64,
+    #[serde(flatten)]
+    header: RunHeader<'a>,
     plant: cps_learn::PointMassPlant,
     effort_weight: f64,
     cost: f64,
@@ -35,9 +29,7 @@ struct Summary<'a> {
     max_position_error_m: f64,
     final_speed_m_s: f64,
     peak_force_n: f64,
-    generations: u64,
-    evaluations: u64,
-    termination: &'a str,
+    search: &'a cps_learn::SearchStats,
     learning_seconds: f64,
     speedup: Option<Speedup>,
 }
@@ -50,15 +42,6 @@ struct Speedup {
     seconds_2_threads: f64,
     speedup: f64,
     identical_results: bool,
-}
-
-fn map_err(e: cps_learn::LearnError) -> anyhow::Error {
-    match e {
-        cps_learn::LearnError::InvalidTask { .. } | cps_learn::LearnError::Dmp(_) => {
-            anyhow::Error::new(InputError(e.to_string()))
-        }
-        other => anyhow::Error::new(other).context("the effort run failed"),
-    }
 }
 
 /// Learns with the plant, measures the speed-up if asked, writes everything into `stage`.
@@ -74,19 +57,12 @@ pub fn run(
         plant: plan.plant,
         effort_weight: plan.effort_weight,
     };
-    let progress = |_: &cps_cmaes::GenerationReport<'_>| {
-        ctx.bar.inc(1);
-        if ctx.interrupted.load(Ordering::Relaxed) {
-            ControlFlow::Break(())
-        } else {
-            ControlFlow::Continue(())
-        }
-    };
+    let progress = |_: &cps_cmaes::GenerationReport<'_>| ctx.generation();
     let outcome = ctx
         .pool
         .install(|| learn_with_effort(&config, &progress))
-        .map_err(map_err)?;
-    let mut complete = outcome.termination != "interrupted";
+        .map_err(|e| learn_error(e, "effort run"))?;
+    let mut complete = !outcome.search.interrupted();
     let speedup = if complete && plan.speedup_generations > 0 {
         let speedup = measure_speedup(&config, plan.speedup_generations, &progress)?;
         complete = speedup.is_some();
@@ -102,13 +78,7 @@ pub fn run(
         .flat_map(|f| f.iter())
         .fold(0.0f64, |a, &u| a.max(u.abs()));
     let summary = Summary {
-        experiment: &exp.name,
-        kind: "viapoint_energy",
-        complete,
-        seed: exp.config.seed,
-        versions: crate::output::Versions::now(),
-        threads: ctx.pool.current_num_threads(),
-        wall_time_s: wall(),
+        header: RunHeader::new(exp, complete, ctx.pool.current_num_threads(), wall()),
         plant: plan.plant,
         effort_weight: plan.effort_weight,
         cost: outcome.breakdown.total(),
@@ -120,9 +90,7 @@ pub fn run(
         max_position_error_m: outcome.errors.max_position_error(),
         final_speed_m_s: outcome.errors.final_speed,
         peak_force_n: peak,
-        generations: outcome.generations,
-        evaluations: outcome.evaluations,
-        termination: &outcome.termination,
+        search: &outcome.search,
         learning_seconds: outcome.seconds,
         speedup,
     };
@@ -136,9 +104,9 @@ pub fn run(
         format!(
             "{}: {} in {:.2} s ({} generations)",
             exp.name,
-            outcome.termination,
+            outcome.search.termination,
             wall(),
-            outcome.generations
+            outcome.search.generations
         ),
         format!(
             "  cost {:.6e} (start {:.6e}; control effort {:.4e}); the plant's goal error {:.3} mm, worst via-point error {:.3} mm; peak force {peak:.2} N",
@@ -185,8 +153,8 @@ fn measure_speedup(
         let started = Instant::now();
         let o = pool
             .install(|| learn_with_effort(&short, progress))
-            .map_err(map_err)?;
-        if o.termination == "interrupted" {
+            .map_err(|e| learn_error(e, "speed-up measurement"))?;
+        if o.search.interrupted() {
             return Ok(None);
         }
         timed.push((started.elapsed().as_secs_f64(), o.weights));
@@ -222,29 +190,17 @@ fn write_trajectory(stage: &Staging, o: &EffortOutcome) -> Result<()> {
         w.write_record(&row)?;
     }
     w.flush()?;
-    let mut w = csv::Writer::from_path(stage.path("cost_history.csv"))?;
-    w.write_record(["generation", "best", "median", "best_so_far", "sigma"])?;
-    for h in &o.history {
-        w.write_record([
-            h.generation.to_string(),
-            format!("{:e}", h.best),
-            format!("{:e}", h.median),
-            format!("{:e}", h.best_so_far),
-            format!("{:e}", h.sigma),
-        ])?;
-    }
-    w.flush()?;
-    Ok(())
+    write_history(stage, &[("plant", &o.search.history)])
 }
 
 fn plot(stage: &Staging, exp: &ViaPointExperiment, o: &EffortOutcome) -> Result<()> {
-    if !o.history.is_empty() {
+    if !o.search.history.is_empty() {
         costs(
             stage,
             "cost",
             &[CostArm {
                 label: "CMA-ES".into(),
-                runs: vec![&o.history],
+                runs: vec![&o.search.history],
             }],
             None,
         )?;
@@ -294,7 +250,6 @@ fn plot(stage: &Staging, exp: &ViaPointExperiment, o: &EffortOutcome) -> Result<
 fn write_report(stage: &Staging, exp: &ViaPointExperiment, s: &Summary<'_>) -> Result<()> {
     let mm = |v: f64| format!("{:.4} mm", v * 1e3);
     let mut rows = vec![
-        ("complete", s.complete.to_string()),
         (
             "plant",
             format!(
@@ -311,17 +266,8 @@ fn write_report(stage: &Staging, exp: &ViaPointExperiment, s: &Summary<'_>) -> R
         ("goal error (plant)", mm(s.goal_error_m)),
         ("worst via-point error (plant)", mm(s.max_position_error_m)),
         ("peak force", format!("{:.2} N", s.peak_force_n)),
-        (
-            "CMA-ES",
-            format!(
-                "{} generations, {} evaluations, {}",
-                s.generations, s.evaluations, s.termination
-            ),
-        ),
-        (
-            "wall time",
-            format!("{:.2} s on {} thread(s)", s.wall_time_s, s.threads),
-        ),
+        search_row(s.search),
+        ("learning time", format!("{:.2} s", s.learning_seconds)),
     ];
     if let Some(p) = &s.speedup {
         rows.push((
@@ -342,6 +288,7 @@ fn write_report(stage: &Staging, exp: &ViaPointExperiment, s: &Summary<'_>) -> R
     }
     report::write(
         stage,
+        &s.header,
         &format!("{}: via points with a control-effort cost", exp.name),
         "The DMP is the reference of a PD controller driving a point mass per axis; the via points, the goal and the final velocity are judged on what the plant did, and the controller's squared force is penalised (thesis eq. 53/54).",
         &[Table::pairs("Result", rows)],

@@ -14,7 +14,7 @@ use crate::experiment::ViaPointExperiment;
 use crate::output::Staging;
 use crate::plots::{Series, figures, trajectory_series};
 use crate::report::{self, Table};
-use crate::runner::{Finished, RunContext};
+use crate::runner::{Finished, RunContext, RunHeader};
 
 /// Runs the pipeline and writes every result into `stage`.
 pub fn run(
@@ -52,15 +52,15 @@ pub fn run(
     let outcome = ctx
         .pool
         .install(|| cps_learn::run_imitation(&config, backend.as_mut(), &progress))
-        .map_err(|e| match e {
-            cps_learn::LearnError::Unreachable { .. }
-            | cps_learn::LearnError::InvalidTask { .. } => {
-                anyhow::Error::new(crate::experiment::InputError(e.to_string()))
-            }
-            other => anyhow::Error::new(other).context("the imitation run failed"),
-        })?;
+        .map_err(|e| crate::runner::learn_error(e, "imitation run"))?;
     ctx.bar.finish_and_clear();
-    write(exp, &config, robot, &outcome, stage, wall())?;
+    let header = RunHeader::new(
+        exp,
+        outcome.complete,
+        ctx.pool.current_num_threads(),
+        wall(),
+    );
+    write(exp, &config, robot, &outcome, stage, header)?;
     let o = &outcome;
     let mut lines = vec![format!(
         "{}: {} of {} demonstrations kept and executed in {:.2} s ({})",
@@ -97,13 +97,8 @@ pub fn run(
 
 #[derive(Serialize)]
 struct Summary<'a> {
-    experiment: &'a str,
-    kind: &'static str,
-    complete: bool,
-    seed: u64,
-    versions: crate::output::Versions,
-    threads: usize,
-    wall_time_s: f64,
+    #[serde(flatten)]
+    header: RunHeader<'a>,
     backend: String,
     scene: &'a str,
     learner: &'static str,
@@ -185,7 +180,7 @@ fn write(
     robot: &crate::pipelines::RobotChoice,
     outcome: &ImitationOutcome,
     stage: &Staging,
-    wall_time_s: f64,
+    header: RunHeader<'_>,
 ) -> Result<()> {
     let kept = outcome.kept().count();
     let mut fits = Vec::new();
@@ -214,13 +209,7 @@ fn write(
         });
     }
     let summary = Summary {
-        experiment: &exp.name,
-        kind: "imitation",
-        complete: outcome.complete,
-        seed: exp.config.seed,
-        versions: crate::output::Versions::now(),
-        threads: rayon::current_num_threads(),
-        wall_time_s,
+        header,
         backend: robot.describe(),
         scene: &robot.scene,
         learner: match exp.config.solver {
@@ -411,8 +400,6 @@ fn report(exp: &ViaPointExperiment, s: &Summary<'_>, stage: &Staging) -> Result<
     let mut overview = vec![
         ("backend", s.backend.clone()),
         ("scene", s.scene.to_string()),
-        ("complete", s.complete.to_string()),
-        ("seed", s.seed.to_string()),
         (
             "demonstrations",
             format!(
@@ -424,10 +411,6 @@ fn report(exp: &ViaPointExperiment, s: &Summary<'_>, stage: &Staging) -> Result<
             ),
         ),
         ("learner", s.learner.to_string()),
-        (
-            "wall time",
-            format!("{:.2} s on {} thread(s)", s.wall_time_s, s.threads),
-        ),
     ];
     let worst = s
         .runs
@@ -490,6 +473,7 @@ fn report(exp: &ViaPointExperiment, s: &Summary<'_>, stage: &Staging) -> Result<
     }
     report::write(
         stage,
+        &s.header,
         &format!("{}: imitation of executed demonstrations", exp.name),
         "Demonstrations learned by the via-point learner from perturbed via points, executed on the robot with the inverse controller, time-normalised, averaged and imitated (thesis §5.2).",
         &tables,

@@ -1,9 +1,6 @@
 //! `kind = "viapoint_joint"`: via-point learning with one DMP per joint, judged in task
 //! space, executed on the robot backend.
 
-use std::ops::ControlFlow;
-use std::sync::atomic::Ordering;
-
 use anyhow::{Context, Result};
 use cps_kinematics::Recording;
 use cps_learn::{
@@ -12,21 +9,16 @@ use cps_learn::{
 };
 use serde::Serialize;
 
-use crate::experiment::{InputError, ViaPointExperiment};
+use crate::experiment::ViaPointExperiment;
 use crate::output::Staging;
 use crate::plots::{CostArm, Series, costs, figures, way_points};
 use crate::report::{self, Table};
-use crate::runner::{Finished, RunContext};
+use crate::runner::{Finished, RunContext, RunHeader, learn_error, search_row, write_history};
 
 #[derive(Serialize)]
 struct Summary<'a> {
-    experiment: &'a str,
-    kind: &'static str,
-    complete: bool,
-    seed: u64,
-    versions: crate::output::Versions,
-    threads: usize,
-    wall_time_s: f64,
+    #[serde(flatten)]
+    header: RunHeader<'a>,
     backend: String,
     scene: &'a str,
     way_configurations_rad: &'a [Vec<f64>],
@@ -39,9 +31,7 @@ struct Summary<'a> {
     max_position_error_m: f64,
     final_tool_speed_m_s: f64,
     limits: LimitSummary,
-    generations: u64,
-    evaluations: u64,
-    termination: &'a str,
+    search: &'a cps_learn::SearchStats,
     learning_seconds: f64,
     execution: Option<ExecutionSummary>,
 }
@@ -121,26 +111,12 @@ pub fn run(
     config.limit_weight = plan.limit_weight;
     config.speed_limit_weight = plan.speed_limit_weight;
     let mut backend = robot.open()?;
-    let progress = |_: &cps_cmaes::GenerationReport<'_>| {
-        ctx.bar.inc(1);
-        if ctx.interrupted.load(Ordering::Relaxed) {
-            ControlFlow::Break(())
-        } else {
-            ControlFlow::Continue(())
-        }
-    };
     let outcome = ctx
         .pool
-        .install(|| learn_joint_space(&config, &progress))
-        .map_err(|e| match e {
-            cps_learn::LearnError::Unreachable { .. }
-            | cps_learn::LearnError::InvalidTask { .. } => {
-                anyhow::Error::new(InputError(format!("{e}")))
-            }
-            other => anyhow::Error::new(other).context("the joint-space run failed"),
-        })?;
+        .install(|| learn_joint_space(&config, &|_| ctx.generation()))
+        .map_err(|e| learn_error(e, "joint-space run"))?;
     ctx.bar.finish_and_clear();
-    let interrupted = outcome.termination == "interrupted";
+    let interrupted = outcome.search.interrupted();
     let recording = if interrupted {
         None
     } else {
@@ -154,13 +130,7 @@ pub fn run(
         .as_ref()
         .map(|r| execution_summary(r, &robot.setup.chain));
     let summary = Summary {
-        experiment: &exp.name,
-        kind: "viapoint_joint",
-        complete: !interrupted,
-        seed: exp.config.seed,
-        versions: crate::output::Versions::now(),
-        threads: ctx.pool.current_num_threads(),
-        wall_time_s: wall(),
+        header: RunHeader::new(exp, !interrupted, ctx.pool.current_num_threads(), wall()),
         backend: robot.describe(),
         scene: &robot.scene,
         way_configurations_rad: &outcome.way_configurations,
@@ -173,9 +143,7 @@ pub fn run(
         max_position_error_m: outcome.errors.max_position_error(),
         final_tool_speed_m_s: outcome.errors.final_speed,
         limits: outcome.limits.into(),
-        generations: outcome.generations,
-        evaluations: outcome.evaluations,
-        termination: &outcome.termination,
+        search: &outcome.search,
         learning_seconds: outcome.seconds,
         execution,
     };
@@ -189,9 +157,9 @@ pub fn run(
         format!(
             "{}: {} in {:.2} s ({} generations, {})",
             exp.name,
-            outcome.termination,
+            outcome.search.termination,
             wall(),
-            outcome.generations,
+            outcome.search.generations,
             robot.describe()
         ),
         format!(
@@ -270,19 +238,7 @@ fn write_files(
         }
         w.flush()?;
     }
-    let mut w = csv::Writer::from_path(stage.path("cost_history.csv"))?;
-    w.write_record(["generation", "best", "median", "best_so_far", "sigma"])?;
-    for h in &outcome.history {
-        w.write_record([
-            h.generation.to_string(),
-            format!("{:e}", h.best),
-            format!("{:e}", h.median),
-            format!("{:e}", h.best_so_far),
-            format!("{:e}", h.sigma),
-        ])?;
-    }
-    w.flush()?;
-    Ok(())
+    write_history(stage, &[("joints", &outcome.search.history)])
 }
 
 fn plot(
@@ -294,13 +250,13 @@ fn plot(
     let traj = &outcome.trajectory;
     let dof = traj.dims();
     let chain = &config.robot.chain;
-    if !outcome.history.is_empty() {
+    if !outcome.search.history.is_empty() {
         costs(
             stage,
             "cost",
             &[CostArm {
                 label: "CMA-ES".into(),
-                runs: vec![&outcome.history],
+                runs: vec![&outcome.search.history],
             }],
             None,
         )?;
@@ -364,7 +320,6 @@ fn write_report(stage: &Staging, exp: &ViaPointExperiment, s: &Summary<'_>) -> R
     let mm = |v: f64| format!("{:.4} mm", v * 1e3);
     let mut rows = vec![
         ("backend", s.backend.clone()),
-        ("complete", s.complete.to_string()),
         ("cost", format!("{:.6e}", s.cost)),
         (
             "warm start (joint-space exact optimum)",
@@ -406,19 +361,11 @@ fn write_report(stage: &Staging, exp: &ViaPointExperiment, s: &Summary<'_>) -> R
             ),
         ));
     }
-    rows.push((
-        "CMA-ES",
-        format!(
-            "{} generations, {} evaluations, {}",
-            s.generations, s.evaluations, s.termination
-        ),
-    ));
-    rows.push((
-        "wall time",
-        format!("{:.2} s on {} thread(s)", s.wall_time_s, s.threads),
-    ));
+    rows.push(search_row(s.search));
+    rows.push(("learning time", format!("{:.2} s", s.learning_seconds)));
     report::write(
         stage,
+        &s.header,
         &format!("{}: via points learned in joint space", exp.name),
         "The way points are converted to joint configurations by inverse kinematics (one branch), one DMP per joint carries the movement, and the via-point and goal errors are judged in task space through forward kinematics, with joint-limit and speed-limit penalties.",
         &[Table::pairs("Result", rows)],

@@ -321,7 +321,7 @@ fn run_experiment(
     if exp.plots {
         plots::viapoint(&stage, &outcome, &config.task)?;
     }
-    output::viapoint_report(&stage, &exp.name, config, &outcome, wall, threads_used)?;
+    output::viapoint_report(&stage, &exp, &outcome, wall, threads_used)?;
     stage.commit()?;
 
     let best = outcome.best();

@@ -348,19 +348,18 @@ pub fn write_viapoint(
 /// `report.html` of a via-point run (after its figures are drawn).
 pub fn viapoint_report(
     stage: &Staging,
-    name: &str,
-    config: &ViaPointConfig,
+    exp: &crate::experiment::ViaPointExperiment,
     outcome: &ViaPointOutcome,
     wall_time_s: f64,
     threads: usize,
 ) -> Result<()> {
     use crate::report::{Table, write};
+    let (name, config) = (&exp.name, &exp.config);
+    let header = crate::runner::RunHeader::new(exp, !outcome.interrupted(), threads, wall_time_s);
     let best = outcome.best();
     let mm = |v: f64| format!("{:.3} mm", v * 1e3);
     let task = &config.task;
     let mut rows = vec![
-        ("complete", (!outcome.interrupted()).to_string()),
-        ("seed", config.seed.to_string()),
         (
             "solver",
             format!(
@@ -409,12 +408,9 @@ pub fn viapoint_report(
         "final speed",
         format!("{:.3} mm/s", best.errors.final_speed * 1e3),
     ));
-    rows.push((
-        "wall time",
-        format!("{wall_time_s:.2} s on {threads} thread(s)"),
-    ));
     write(
         stage,
+        &header,
         &format!("{name}: via-point learning"),
         &format!(
             "DMPs learned to pass {} via points and stop at the goal ({} repetition(s)); every cost is compared with the exact least-squares optimum.",

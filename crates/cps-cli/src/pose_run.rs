@@ -1,27 +1,19 @@
 //! `kind = "viapoint_pose"`: via-point learning of the tool's position and orientation.
 
-use std::ops::ControlFlow;
-use std::sync::atomic::Ordering;
-
 use anyhow::{Context, Result};
 use cps_learn::{OrientationCostBreakdown, PoseConfig, PoseOutcome, learn_pose};
 use serde::Serialize;
 
-use crate::experiment::{InputError, ViaPointExperiment};
+use crate::experiment::ViaPointExperiment;
 use crate::output::Staging;
 use crate::plots::{CostArm, Series, costs, figures, panels, trajectory_series, way_points};
 use crate::report::{self, Table};
-use crate::runner::{Finished, RunContext};
+use crate::runner::{Finished, RunContext, RunHeader, learn_error, search_row, write_history};
 
 #[derive(Serialize)]
 struct Summary<'a> {
-    experiment: &'a str,
-    kind: &'static str,
-    complete: bool,
-    seed: u64,
-    versions: crate::output::Versions,
-    threads: usize,
-    wall_time_s: f64,
+    #[serde(flatten)]
+    header: RunHeader<'a>,
     position_cost: f64,
     position_gap_to_optimum: f64,
     goal_error_m: f64,
@@ -32,9 +24,7 @@ struct Summary<'a> {
     goal_angle_deg: f64,
     via_angles_deg: Vec<Option<f64>>,
     final_angular_speed_rad_s: f64,
-    orientation_generations: u64,
-    orientation_evaluations: u64,
-    orientation_termination: &'a str,
+    orientation_search: &'a cps_learn::SearchStats,
     orientation_seconds: f64,
 }
 
@@ -56,35 +46,17 @@ pub fn run(
         via_orientations: plan.via.clone(),
         orientation_sigma0: plan.sigma0,
     };
-    let progress = |_: usize, _: &cps_cmaes::GenerationReport<'_>| {
-        ctx.bar.inc(1);
-        if ctx.interrupted.load(Ordering::Relaxed) {
-            ControlFlow::Break(())
-        } else {
-            ControlFlow::Continue(())
-        }
-    };
+    let progress = |_: usize, _: &cps_cmaes::GenerationReport<'_>| ctx.generation();
     let outcome = ctx
         .pool
         .install(|| learn_pose(&config, &progress))
-        .map_err(|e| match e {
-            cps_learn::LearnError::InvalidTask { .. } | cps_learn::LearnError::Dmp(_) => {
-                anyhow::Error::new(InputError(e.to_string()))
-            }
-            other => anyhow::Error::new(other).context("the pose run failed"),
-        })?;
+        .map_err(|e| learn_error(e, "pose run"))?;
     ctx.bar.finish_and_clear();
     let o = &outcome.orientation;
     let best = outcome.position.best();
-    let complete = !outcome.position.interrupted() && o.termination != "interrupted";
+    let complete = !outcome.position.interrupted() && !o.search.interrupted();
     let summary = Summary {
-        experiment: &exp.name,
-        kind: "viapoint_pose",
-        complete,
-        seed: exp.config.seed,
-        versions: crate::output::Versions::now(),
-        threads: ctx.pool.current_num_threads(),
-        wall_time_s: wall(),
+        header: RunHeader::new(exp, complete, ctx.pool.current_num_threads(), wall()),
         position_cost: best.cost,
         position_gap_to_optimum: best.gap_to_optimum,
         goal_error_m: best.errors.goal,
@@ -100,9 +72,7 @@ pub fn run(
             .map(|a| a.map(f64::to_degrees))
             .collect(),
         final_angular_speed_rad_s: o.errors.final_angular_speed,
-        orientation_generations: o.generations,
-        orientation_evaluations: o.evaluations,
-        orientation_termination: &o.termination,
+        orientation_search: &o.search,
         orientation_seconds: o.seconds,
     };
     stage.write("summary.json", &serde_json::to_vec_pretty(&summary)?)?;
@@ -133,8 +103,8 @@ pub fn run(
                 summary.orientation_start_cost,
                 summary.goal_angle_deg,
                 worst(&summary.via_angles_deg),
-                o.generations,
-                o.termination
+                o.search.generations,
+                o.search.termination
             ),
         ],
     })
@@ -155,33 +125,13 @@ fn write_trajectory(stage: &Staging, outcome: &PoseOutcome) -> Result<()> {
         w.write_record(&row)?;
     }
     w.flush()?;
-    let mut w = csv::Writer::from_path(stage.path("cost_history.csv"))?;
-    w.write_record([
-        "part",
-        "generation",
-        "best",
-        "median",
-        "best_so_far",
-        "sigma",
-    ])?;
-    let parts = [
-        ("position", &outcome.position.best().history),
-        ("orientation", &outcome.orientation.history),
-    ];
-    for (part, history) in parts {
-        for h in history.iter() {
-            w.write_record([
-                part.to_string(),
-                h.generation.to_string(),
-                format!("{:e}", h.best),
-                format!("{:e}", h.median),
-                format!("{:e}", h.best_so_far),
-                format!("{:e}", h.sigma),
-            ])?;
-        }
-    }
-    w.flush()?;
-    Ok(())
+    write_history(
+        stage,
+        &[
+            ("position", &outcome.position.best().history),
+            ("orientation", &outcome.orientation.search.history),
+        ],
+    )
 }
 
 fn plot(
@@ -192,7 +142,7 @@ fn plot(
 ) -> Result<()> {
     let histories: Vec<CostArm<'_>> = [
         ("position", &outcome.position.best().history),
-        ("orientation", &outcome.orientation.history),
+        ("orientation", &outcome.orientation.search.history),
     ]
     .into_iter()
     .filter(|(_, h)| !h.is_empty())
@@ -254,18 +204,15 @@ fn plot(
 }
 
 fn write_report(stage: &Staging, exp: &ViaPointExperiment, s: &Summary<'_>) -> Result<()> {
-    let mut rows = vec![
-        ("complete", s.complete.to_string()),
-        (
-            "position",
-            format!(
-                "cost {:.6e} (gap to the exact optimum {:.2e}); goal error {:.4} mm",
-                s.position_cost,
-                s.position_gap_to_optimum,
-                s.goal_error_m * 1e3
-            ),
+    let mut rows = vec![(
+        "position",
+        format!(
+            "cost {:.6e} (gap to the exact optimum {:.2e}); goal error {:.4} mm",
+            s.position_cost,
+            s.position_gap_to_optimum,
+            s.goal_error_m * 1e3
         ),
-    ];
+    )];
     for (i, e) in s.via_errors_m.iter().enumerate() {
         rows.push(("via-point error", format!("p{}: {:.4} mm", i + 1, e * 1e3)));
     }
@@ -285,22 +232,14 @@ fn write_report(stage: &Staging, exp: &ViaPointExperiment, s: &Summary<'_>) -> R
             },
         ));
     }
+    rows.push(search_row(s.orientation_search));
     rows.push((
-        "CMA-ES (orientation)",
-        format!(
-            "{} generations, {} evaluations, {} ({:.2} s)",
-            s.orientation_generations,
-            s.orientation_evaluations,
-            s.orientation_termination,
-            s.orientation_seconds
-        ),
-    ));
-    rows.push((
-        "wall time",
-        format!("{:.2} s on {} thread(s)", s.wall_time_s, s.threads),
+        "orientation learning time",
+        format!("{:.2} s", s.orientation_seconds),
     ));
     report::write(
         stage,
+        &s.header,
         &format!("{}: position and orientation through via points", exp.name),
         "Three DMPs carry the tool's position and one orientation DMP on unit quaternions its orientation; each part is learned against its via-point targets.",
         &[Table::pairs("Result", rows)],

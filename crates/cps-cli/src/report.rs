@@ -33,16 +33,20 @@ fn escape(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
-/// Writes `report.html` into `stage`: the title, a line of context, the tables, then each
+/// Writes `report.html` into `stage`: the title, a line of context, the run's own table
+/// (complete, seed, wall time), the tables, then each
 /// figure (`<stem>.svg` already in the stage) with its caption, inline. Figures that were
 /// not drawn (plots off) are listed as absent.
 pub fn write(
     stage: &Staging,
+    header: &crate::runner::RunHeader<'_>,
     title: &str,
     context: &str,
     tables: &[Table],
     figures: &[(&str, &str)],
 ) -> Result<()> {
+    let run = Table::pairs("Run", header.rows());
+    let tables: Vec<&Table> = std::iter::once(&run).chain(tables).collect();
     let mut html = String::new();
     html.push_str("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n");
     html.push_str(&format!("<title>{}</title>\n", escape(title)));
@@ -59,7 +63,7 @@ pub fn write(
         escape(title),
         escape(context)
     ));
-    for t in tables {
+    for t in &tables {
         html.push_str(&format!("<h2>{}</h2>\n<table>\n", escape(&t.title)));
         if !t.header.is_empty() {
             html.push_str("<tr>");

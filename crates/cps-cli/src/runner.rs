@@ -1,9 +1,12 @@
 //! Runs of the experiment kinds beyond plain via-point learning: what every runner gets
 //! from the command line and gives back for the terminal.
 
-use std::sync::atomic::AtomicBool;
+use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Result;
+use cps_learn::{GenerationRecord, LearnError};
+use serde::Serialize;
 
 use crate::experiment::{Kind, ViaPointExperiment};
 use crate::output::Staging;
@@ -17,6 +20,117 @@ pub struct RunContext<'a> {
     pub bar: &'a indicatif::ProgressBar,
     /// Set by Ctrl-C.
     pub interrupted: &'a AtomicBool,
+}
+
+impl RunContext<'_> {
+    /// After a generation: advance the progress bar; stop on Ctrl-C.
+    pub fn generation(&self) -> ControlFlow<()> {
+        self.bar.inc(1);
+        if self.interrupted.load(Ordering::Relaxed) {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    }
+}
+
+/// The fields every `summary.json` opens with.
+#[derive(Serialize)]
+pub struct RunHeader<'a> {
+    experiment: &'a str,
+    kind: &'static str,
+    complete: bool,
+    seed: u64,
+    versions: crate::output::Versions,
+    threads: usize,
+    wall_time_s: f64,
+}
+
+impl<'a> RunHeader<'a> {
+    /// The header of `exp`'s run.
+    pub fn new(exp: &'a ViaPointExperiment, complete: bool, threads: usize, wall: f64) -> Self {
+        Self {
+            experiment: &exp.name,
+            kind: exp.kind.name(),
+            complete,
+            seed: exp.config.seed,
+            versions: crate::output::Versions::now(),
+            threads,
+            wall_time_s: wall,
+        }
+    }
+
+    /// The report's rows for the run itself.
+    pub fn rows(&self) -> Vec<(&'static str, String)> {
+        vec![
+            (
+                "experiment",
+                format!("{} (kind {})", self.experiment, self.kind),
+            ),
+            (
+                "complete",
+                if self.complete {
+                    "yes".into()
+                } else {
+                    "no: interrupted, the finished part is shown".into()
+                },
+            ),
+            ("seed", self.seed.to_string()),
+            (
+                "wall time",
+                format!("{:.2} s on {} thread(s)", self.wall_time_s, self.threads),
+            ),
+        ]
+    }
+}
+
+/// A library error as the command line reports it: a problem with the file's content
+/// (exit 2) or a failure while running (exit 1) in `what`.
+pub fn learn_error(e: LearnError, what: &str) -> anyhow::Error {
+    match e {
+        LearnError::InvalidTask { .. } | LearnError::Dmp(_) | LearnError::Unreachable { .. } => {
+            anyhow::Error::new(crate::experiment::InputError(e.to_string()))
+        }
+        other => anyhow::Error::new(other).context(format!("the {what} failed")),
+    }
+}
+
+/// The report's row for a search: generations, evaluations, why it ended.
+pub fn search_row(s: &cps_learn::SearchStats) -> (&'static str, String) {
+    (
+        "CMA-ES",
+        format!(
+            "{} generations, {} evaluations, {}",
+            s.generations, s.evaluations, s.termination
+        ),
+    )
+}
+
+/// `cost_history.csv`: one row per generation of each named search.
+pub fn write_history(stage: &Staging, searches: &[(&str, &[GenerationRecord])]) -> Result<()> {
+    let mut w = csv::Writer::from_path(stage.path("cost_history.csv"))?;
+    w.write_record([
+        "search",
+        "generation",
+        "best",
+        "median",
+        "best_so_far",
+        "sigma",
+    ])?;
+    for (name, history) in searches {
+        for h in history.iter() {
+            w.write_record([
+                name.to_string(),
+                h.generation.to_string(),
+                format!("{:e}", h.best),
+                format!("{:e}", h.median),
+                format!("{:e}", h.best_so_far),
+                format!("{:e}", h.sigma),
+            ])?;
+        }
+    }
+    w.flush()?;
+    Ok(())
 }
 
 /// What a finished (or interrupted) run reports.

@@ -12,7 +12,7 @@ use crate::experiment::ViaPointExperiment;
 use crate::output::Staging;
 use crate::plots::{CostArm, Series, costs, figures, way_points};
 use crate::report::{self, Table};
-use crate::runner::{Finished, RunContext};
+use crate::runner::{Finished, RunContext, RunHeader};
 
 /// One arm of the comparison.
 struct Arm {
@@ -72,7 +72,14 @@ pub fn run(
     }
     ctx.bar.finish_and_clear();
     let verdict = verdict(&arms);
-    write(exp, &arms, &verdict, stage, wall())?;
+    write(
+        exp,
+        &arms,
+        &verdict,
+        stage,
+        ctx.pool.current_num_threads(),
+        wall(),
+    )?;
     Ok(Finished {
         complete: !arms.iter().any(|a| a.outcome.interrupted()),
         lines: vec![
@@ -173,13 +180,8 @@ fn verdict(arms: &[Arm]) -> String {
 
 #[derive(Serialize)]
 struct Summary<'a> {
-    experiment: &'a str,
-    kind: &'static str,
-    complete: bool,
-    seed: u64,
-    versions: crate::output::Versions,
-    threads: usize,
-    wall_time_s: f64,
+    #[serde(flatten)]
+    header: RunHeader<'a>,
     repetitions: usize,
     generations: u64,
     optimum_cost: f64,
@@ -203,18 +205,13 @@ fn write(
     arms: &[Arm],
     verdict: &str,
     stage: &Staging,
+    threads: usize,
     wall_time_s: f64,
 ) -> Result<()> {
     let complete = !arms.iter().any(|a| a.outcome.interrupted())
         && arms.len() == exp.scaling.as_ref().map_or(0, |s| s.compare.len());
     let summary = Summary {
-        experiment: &exp.name,
-        kind: "scaling",
-        complete,
-        seed: exp.config.seed,
-        versions: crate::output::Versions::now(),
-        threads: rayon::current_num_threads(),
-        wall_time_s,
+        header: RunHeader::new(exp, complete, threads, wall_time_s),
         repetitions: exp.config.repetitions,
         generations: exp.config.generations,
         optimum_cost: arms.first().map_or(f64::NAN, |a| a.outcome.optimum.cost),
@@ -360,23 +357,14 @@ fn write(
         .collect();
     report::write(
         stage,
+        &summary.header,
         &format!("{}: does weight scaling help?", exp.name),
         &format!(
             "Each search space learns the same via-point task {} times ({} generations, the same seeds); costs are compared with the exact optimum ({:.4}).",
             exp.config.repetitions, exp.config.generations, summary.optimum_cost
         ),
         &[
-            Table::pairs(
-                "Verdict",
-                vec![
-                    ("verdict", verdict.to_string()),
-                    ("complete", complete.to_string()),
-                    (
-                        "wall time",
-                        format!("{wall_time_s:.2} s on {} thread(s)", summary.threads),
-                    ),
-                ],
-            ),
+            Table::pairs("Verdict", vec![("verdict", verdict.to_string())]),
             Table {
                 title: "Final cost per search space".into(),
                 header: [

@@ -120,10 +120,12 @@ fn the_shipped_imitation_experiment_meets_its_numbers() {
     assert!(out.join("coordinates.png").is_file() && out.join("path3d.svg").is_file());
 }
 
-/// Starts `cps-cli sim serve` on a free port with time step `dt`; returns it and its port.
-fn serve(dt: &str) -> (std::process::Child, String) {
+/// Starts `cps-cli sim serve` on a free port with time step `dt` and `extra` options;
+/// returns it and its port.
+fn serve(dt: &str, extra: &[&str]) -> (std::process::Child, String) {
     let mut server = Command::new(env!("CARGO_BIN_EXE_cps-cli"))
         .args(["sim", "serve", "--bind", "127.0.0.1:0", "--dt", dt])
+        .args(extra)
         .stdout(Stdio::piped())
         .spawn()
         .unwrap();
@@ -131,6 +133,9 @@ fn serve(dt: &str) -> (std::process::Child, String) {
     BufReader::new(server.stdout.take().unwrap())
         .read_line(&mut line)
         .unwrap();
+    if extra.contains(&"--ik-following") {
+        assert!(line.contains("followed by the tip"), "{line}");
+    }
     let port = line
         .split("tcp://127.0.0.1:")
         .nth(1)
@@ -153,7 +158,7 @@ fn the_same_file_records_the_same_on_the_kinematic_robot_and_the_stand_in_server
     let o = run(&local, &dir.path().join("local"));
     assert!(o.status.success(), "{}", text(&o.stderr));
 
-    let (mut server, port) = serve("0.05");
+    let (mut server, port) = serve("0.05", &[]);
     let remote_text = quick
         .replace("backend = \"kinematic\"", "backend = \"coppelia\"")
         .replace(
@@ -547,30 +552,7 @@ fn the_pose_experiment_learns_position_and_orientation() {
 #[test]
 fn the_imitation_runs_through_the_simulator_s_ik() {
     let dir = tempfile::tempdir().unwrap();
-    let mut server = Command::new(env!("CARGO_BIN_EXE_cps-cli"))
-        .args([
-            "sim",
-            "serve",
-            "--bind",
-            "127.0.0.1:0",
-            "--dt",
-            "0.05",
-            "--ik-following",
-        ])
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(server.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    assert!(line.contains("followed by the tip"), "{line}");
-    let port = line
-        .split("tcp://127.0.0.1:")
-        .nth(1)
-        .and_then(|s| s.split_whitespace().next())
-        .unwrap()
-        .to_string();
+    let (mut server, port) = serve("0.05", &["--ik-following"]);
     let file = write(
         dir.path(),
         "ik.toml",

@@ -26,7 +26,7 @@ use serde::{Deserialize, Serialize};
 use crate::task::Term;
 use crate::viapoint::run_cmaes;
 use crate::{
-    GenerationRecord, LearnError, SearchSpace, Solver, TaskErrors, ViaPointConfig, exact_optimum,
+    LearnError, SearchSpace, SearchStats, Solver, TaskErrors, ViaPointConfig, exact_optimum,
 };
 
 /// The simulated plant and its PD controller, the same on every axis.
@@ -284,14 +284,8 @@ pub struct EffortOutcome {
     pub start: EffortCostBreakdown,
     /// The plant's errors: goal, via points, final speed.
     pub errors: TaskErrors,
-    /// Generations run.
-    pub generations: u64,
-    /// Cost evaluations.
-    pub evaluations: u64,
-    /// Why the run ended.
-    pub termination: String,
-    /// Per-generation history.
-    pub history: Vec<GenerationRecord>,
+    /// The CMA-ES search.
+    pub search: SearchStats,
     /// Wall time in seconds.
     pub seconds: f64,
 }
@@ -332,25 +326,13 @@ pub fn learn_with_effort(
     };
     let mut plant = PlantTrajectory::default();
     let start = breakdown(config, &dmp.rollout(&weights_of(&x0)), &mut plant);
-    let (params, generations, evaluations, termination, history) =
-        if config.learner.solver == Solver::Exact {
-            (x0, 0, 1, "exact".to_string(), Vec::new())
-        } else {
-            let run = run_cmaes(
-                &objective,
-                x0,
-                &config.learner,
-                config.learner.seed,
-                progress,
-            )?;
-            (
-                run.best_x,
-                run.generations,
-                run.evaluations,
-                run.termination,
-                run.history,
-            )
-        };
+    let (params, search) = run_cmaes(
+        &objective,
+        x0,
+        &config.learner,
+        config.learner.seed,
+        progress,
+    )?;
     let weights = weights_of(&params);
     let reference = dmp.rollout(&weights);
     let breakdown = breakdown(config, &reference, &mut plant);
@@ -385,10 +367,7 @@ pub fn learn_with_effort(
         breakdown,
         start,
         errors,
-        generations,
-        evaluations,
-        termination,
-        history,
+        search,
         seconds: started.elapsed().as_secs_f64(),
     })
 }

@@ -27,8 +27,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::viapoint::run_cmaes;
 use crate::{
-    GenerationRecord, LearnError, RobotSetup, SearchSpace, Solver, TaskErrors, ViaPoint,
-    ViaPointConfig, ViaPointTask, check_way_points, exact_optimum,
+    LearnError, RobotSetup, SearchSpace, SearchStats, Solver, TaskErrors, ViaPoint, ViaPointConfig,
+    ViaPointTask, check_way_points, exact_optimum,
 };
 
 /// Settings of [`learn_joint_space`].
@@ -261,14 +261,8 @@ pub struct JointSpaceOutcome {
     pub errors: TaskErrors,
     /// How close the trajectory comes to the limits.
     pub limits: LimitReport,
-    /// CMA-ES generations and evaluations run.
-    pub generations: u64,
-    /// Cost evaluations.
-    pub evaluations: u64,
-    /// Why the run ended (`exact` for the surrogate optimum alone).
-    pub termination: String,
-    /// Per-generation history.
-    pub history: Vec<GenerationRecord>,
+    /// The CMA-ES search (`exact` for the surrogate optimum alone).
+    pub search: SearchStats,
     /// Wall time in seconds.
     pub seconds: f64,
 }
@@ -334,36 +328,18 @@ pub fn learn_joint_space(
         w
     };
     let warm = cost.breakdown(&dmp.rollout(&weights_of(&optimum.params)))?;
-    let (params, generations, evaluations, termination, history) =
-        if config.learner.solver == Solver::Exact {
-            (
-                optimum.params.clone(),
-                0,
-                1,
-                "exact".to_string(),
-                Vec::new(),
-            )
-        } else {
-            let x0 = if config.learner.warm_start {
-                optimum.params.clone()
-            } else {
-                vec![0.0; space.len()]
-            };
-            let run = run_cmaes(
-                &objective,
-                x0,
-                &config.learner,
-                config.learner.seed,
-                progress,
-            )?;
-            (
-                run.best_x,
-                run.generations,
-                run.evaluations,
-                run.termination,
-                run.history,
-            )
-        };
+    let x0 = if config.learner.warm_start || config.learner.solver == Solver::Exact {
+        optimum.params.clone()
+    } else {
+        vec![0.0; space.len()]
+    };
+    let (params, search) = run_cmaes(
+        &objective,
+        x0,
+        &config.learner,
+        config.learner.seed,
+        progress,
+    )?;
     let weights = weights_of(&params);
     let trajectory = dmp.rollout(&weights);
     Ok(JointSpaceOutcome {
@@ -375,10 +351,7 @@ pub fn learn_joint_space(
         dmp,
         weights,
         trajectory,
-        generations,
-        evaluations,
-        termination,
-        history,
+        search,
         seconds: started.elapsed().as_secs_f64(),
     })
 }

@@ -61,6 +61,6 @@ pub use robot::{RobotSetup, check_way_points, execute_trajectory, targets_at};
 pub use space::{Parametrisation, SearchSpace};
 pub use task::{CostBreakdown, CostWeights, TaskErrors, ViaPoint, ViaPointTask};
 pub use viapoint::{
-    GenerationRecord, RunResult, Solver, ViaPointConfig, ViaPointObjective, ViaPointOutcome,
-    history_band, learn_via_points,
+    GenerationRecord, RunResult, SearchStats, Solver, ViaPointConfig, ViaPointObjective,
+    ViaPointOutcome, history_band, learn_via_points,
 };

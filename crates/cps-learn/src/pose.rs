@@ -22,7 +22,7 @@ use nalgebra::UnitQuaternion;
 use serde::{Deserialize, Serialize};
 
 use crate::viapoint::run_cmaes;
-use crate::{GenerationRecord, LearnError, ViaPointConfig, ViaPointOutcome, learn_via_points};
+use crate::{LearnError, SearchStats, ViaPointConfig, ViaPointOutcome, learn_via_points};
 
 /// Settings of [`learn_pose`].
 #[derive(Debug, Clone)]
@@ -170,14 +170,8 @@ pub struct OrientationResult {
     pub start: OrientationCostBreakdown,
     /// The errors.
     pub errors: OrientationErrors,
-    /// Generations run.
-    pub generations: u64,
-    /// Cost evaluations.
-    pub evaluations: u64,
-    /// Why the run ended.
-    pub termination: String,
-    /// Per-generation history.
-    pub history: Vec<GenerationRecord>,
+    /// The CMA-ES search.
+    pub search: SearchStats,
     /// Wall time in seconds.
     pub seconds: f64,
 }
@@ -238,14 +232,16 @@ pub fn learn_pose(
     let start = config.breakdown(&dmp.rollout(&zero));
     let mut learner = config.learner.clone();
     learner.sigma0 = config.orientation_sigma0;
-    let run = run_cmaes(
+    // The orientation cost is not quadratic: always CMA-ES, whatever solves the position.
+    learner.solver = crate::Solver::Cmaes;
+    let (best_x, search) = run_cmaes(
         &objective,
         zero,
         &learner,
         learner.seed ^ 0x6f72_6965_6e74,
         &|r| progress(1, r),
     )?;
-    let weights = objective.weights(&run.best_x);
+    let weights = objective.weights(&best_x);
     let trajectory = dmp.rollout(&weights);
     let orientation = OrientationResult {
         breakdown: config.breakdown(&trajectory),
@@ -254,10 +250,7 @@ pub fn learn_pose(
         dmp,
         weights,
         trajectory,
-        generations: run.generations,
-        evaluations: run.evaluations,
-        termination: run.termination,
-        history: run.history,
+        search,
         seconds: started.elapsed().as_secs_f64(),
     };
     Ok(PoseOutcome {

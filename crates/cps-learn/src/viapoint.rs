@@ -270,7 +270,7 @@ pub fn learn_via_points(
             } else {
                 vec![0.0; space.len()]
             };
-            let run = run_cmaes(&objective, x0, config, seed, &|r| progress(rep, r))?;
+            let (best_x, run) = run_cmaes(&objective, x0, config, seed, &|r| progress(rep, r))?;
             let stats = (
                 run.generations,
                 run.evaluations,
@@ -278,7 +278,6 @@ pub fn learn_via_points(
                 run.termination,
                 run.history,
             );
-            let best_x = run.best_x;
             Ok(finish(seed, best_x, stats, started))
         })
         .collect();
@@ -297,27 +296,54 @@ pub fn learn_via_points(
     })
 }
 
-/// What [`run_cmaes`] found.
-pub(crate) struct CmaesRun {
-    pub best_x: Vec<f64>,
+/// How a search went: the budget spent, why it ended, and the history.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SearchStats {
+    /// Generations run (0 for an exact solve).
     pub generations: u64,
+    /// Cost evaluations.
     pub evaluations: u64,
+    /// Evaluations whose cost was NaN or infinite.
     pub non_finite_evaluations: u64,
+    /// Why the search ended (`max_generations`, `tolfun`, `exact`, `interrupted`, …).
     pub termination: String,
+    /// Per-generation history (empty for an exact solve).
     pub history: Vec<GenerationRecord>,
+}
+
+impl SearchStats {
+    /// True if the search was stopped by its caller (Ctrl-C).
+    pub fn interrupted(&self) -> bool {
+        self.termination == "interrupted"
+    }
+
+    /// The statistics of an exact solve (no search): one evaluation.
+    pub(crate) fn exact() -> Self {
+        Self {
+            generations: 0,
+            evaluations: 1,
+            non_finite_evaluations: 0,
+            termination: "exact".into(),
+            history: Vec::new(),
+        }
+    }
 }
 
 /// One CMA-ES run with a via-point learner's settings (σ₀, population, budget, tolfun,
 /// the safety stopping rules), recording the history. The result is the best of the best
 /// sample, the final mean and the start: the final mean is often better than every
-/// sample, and a warm start must never end worse than where it began.
+/// sample, and a warm start must never end worse than where it began. With
+/// [`Solver::Exact`] there is no search: `x0` is returned.
 pub(crate) fn run_cmaes(
     objective: &dyn Objective,
     x0: Vec<f64>,
     config: &ViaPointConfig,
     seed: u64,
     progress: &(dyn Fn(&GenerationReport<'_>) -> ControlFlow<()> + Sync),
-) -> Result<CmaesRun, LearnError> {
+) -> Result<(Vec<f64>, SearchStats), LearnError> {
+    if config.solver == Solver::Exact {
+        return Ok((x0, SearchStats::exact()));
+    }
     let cmaes = CmaesConfig {
         population: config.population,
         ..CmaesConfig::new(config.sigma0, seed)
@@ -345,14 +371,16 @@ pub(crate) fn run_cmaes(
         .min_by(|a, b| a.0.total_cmp(&b.0))
         .map(|(_, x)| x)
         .unwrap_or_default();
-    Ok(CmaesRun {
+    Ok((
         best_x,
-        generations: sol.generations,
-        evaluations: sol.evaluations,
-        non_finite_evaluations: sol.non_finite_evaluations,
-        termination: sol.termination.name().to_string(),
-        history,
-    })
+        SearchStats {
+            generations: sol.generations,
+            evaluations: sol.evaluations,
+            non_finite_evaluations: sol.non_finite_evaluations,
+            termination: sol.termination.name().to_string(),
+            history,
+        },
+    ))
 }
 
 /// Mean and 95 % band (mean ± 1.96 · std / √n) of the best-so-far cost per generation
