@@ -239,7 +239,7 @@ fn run_experiment(
         experiment::Kind::ViapointJoint => config.generations,
         experiment::Kind::ViapointPose => 2 * config.generations,
         experiment::Kind::ViapointEnergy => {
-            config.generations + 2 * exp.energy.map_or(0, |e| e.speedup_generations)
+            config.generations + 6 * exp.energy.map_or(0, |e| e.speedup_generations)
         }
     };
     let bar = if quiet || !std::io::stderr().is_terminal() {
