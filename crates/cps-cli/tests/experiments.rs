@@ -448,7 +448,7 @@ fn the_effort_experiment_learns_and_measures_its_speed_up() {
         "energy.toml",
         &ENERGY
             .replace("generations = 500", "generations = 40")
-            .replace("generations = 100 ", "generations = 5 ")
+            .replace("generations = 60  ", "generations = 5   ")
             .replace("sigma0 = 0.05 ", "sigma0 = 0.005"),
     );
     let out = dir.path().join("out");
