@@ -20,6 +20,10 @@ pub struct CmaesConfig {
     /// Optional per-coordinate scales `s` of the initial distribution: C₀ = diag(s²), so
     /// coordinate i starts with standard deviation `sigma0 * s[i]`.
     pub initial_scales: Option<Vec<f64>>,
+    /// Optional box bounds, handled by the boundary transformation of [`crate::Bounds`]:
+    /// every evaluated candidate, and the returned best point and mean, lie in the box;
+    /// `x0` must too. (Observers see the search's own, unbounded mean.)
+    pub bounds: Option<crate::Bounds>,
 }
 
 impl CmaesConfig {
@@ -31,6 +35,7 @@ impl CmaesConfig {
             seed,
             eigen_gap: None,
             initial_scales: None,
+            bounds: None,
         }
     }
 
@@ -64,6 +69,15 @@ impl CmaesConfig {
                 field: "eigen_gap",
                 rule: "must be at least 1",
                 value: 0.0,
+            });
+        }
+        if let Some(b) = &self.bounds
+            && b.len() != n
+        {
+            return Err(CmaesError::DimensionMismatch {
+                what: "bounds",
+                got: b.len(),
+                expected: n,
             });
         }
         if let Some(s) = &self.initial_scales {

@@ -141,6 +141,20 @@ pub fn minimize<O: Objective + ?Sized>(
             value: rules.len() as f64,
         });
     }
+    match &config.bounds {
+        Some(bounds) => minimize_bounded(objective, x0, config, bounds, rules, observer),
+        None => search(objective, x0, config, rules, observer),
+    }
+}
+
+/// The CMA-ES loop of [`minimize`], on the unbounded space.
+fn search<O: Objective + ?Sized>(
+    objective: &O,
+    x0: &[f64],
+    config: &CmaesConfig,
+    rules: &[StopRule],
+    observer: &mut dyn Observer,
+) -> Result<Solution, CmaesError> {
     let mut es = Cmaes::new(config, x0)?;
     // Each eigendecomposition runs while the next population is evaluated.
     es.defer_decompositions();
@@ -302,6 +316,62 @@ pub fn minimize_ipop<O: Objective + ?Sized>(
             (cfg, true)
         })
     })
+}
+
+/// An objective seen through a boundary transformation: candidates are mapped into the
+/// box before the inner objective sees them.
+struct Bounded<'a, O: ?Sized> {
+    inner: &'a O,
+    bounds: &'a crate::Bounds,
+}
+
+impl<O: Objective + ?Sized> Objective for Bounded<'_, O> {
+    fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
+        let mut y = vec![0.0; x.len()];
+        self.bounds.transform(x, &mut y);
+        self.inner.evaluate(&y)
+    }
+
+    fn evaluate_batch(
+        &self,
+        xs: &[f64],
+        dim: usize,
+        out: &mut [f64],
+    ) -> Result<(), CandidateError> {
+        let mut ys = vec![0.0; xs.len()];
+        for (x, y) in xs.chunks_exact(dim).zip(ys.chunks_exact_mut(dim)) {
+            self.bounds.transform(x, y);
+        }
+        self.inner.evaluate_batch(&ys, dim, out)
+    }
+}
+
+/// [`minimize`] within box bounds: the search starts at the preimage of `x0` and runs on
+/// the transformed objective; its best point and mean are mapped back into the box.
+fn minimize_bounded<O: Objective + ?Sized>(
+    objective: &O,
+    x0: &[f64],
+    config: &CmaesConfig,
+    bounds: &crate::Bounds,
+    rules: &[StopRule],
+    observer: &mut dyn Observer,
+) -> Result<Solution, CmaesError> {
+    config.validate(x0.len())?;
+    let mut z0 = vec![0.0; x0.len()];
+    bounds.inverse(x0, &mut z0)?;
+    let unbounded = CmaesConfig {
+        bounds: None,
+        ..config.clone()
+    };
+    let wrapped = Bounded {
+        inner: objective,
+        bounds,
+    };
+    let mut sol = search(&wrapped, &z0, &unbounded, rules, observer)?;
+    let (best, mean) = (sol.best_x.clone(), sol.mean.clone());
+    bounds.transform(&best, &mut sol.best_x);
+    bounds.transform(&mean, &mut sol.mean);
+    Ok(sol)
 }
 
 /// BIPOP-CMA-ES (Hansen 2009): after a first run with the default population, restarts

@@ -30,6 +30,7 @@
 //! ```
 #![deny(missing_docs)]
 
+mod bounds;
 mod cmaes;
 mod config;
 mod driver;
@@ -38,6 +39,7 @@ pub mod functions;
 mod params;
 mod stop;
 
+pub use bounds::Bounds;
 pub use cmaes::Cmaes;
 pub use config::CmaesConfig;
 pub use driver::{

@@ -483,3 +483,108 @@ fn bipop_solves_rastrigin_10_and_is_reproducible() {
     assert!(differs, "BIPOP ran exactly as IPOP for every seed");
     assert_eq!(bipop(3).best.evaluations, bipop(3).best.evaluations);
 }
+
+/// The boundary transformation: every image lies in the box, the box's interior is left
+/// alone, it is continuous, and its inverse brings any point of the box back.
+#[test]
+fn the_boundary_transformation_keeps_every_candidate_in_the_box() {
+    use cps_cmaes::Bounds;
+    let b = Bounds::new(
+        vec![-1.0, 0.0, 2.0, f64::NEG_INFINITY],
+        vec![1.0, 1e-3, 50.0, 3.0],
+    )
+    .unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let (mut y, mut y2) = ([0.0; 4], [0.0; 4]);
+    for _ in 0..100_000 {
+        let x: Vec<f64> = (0..4).map(|_| (rng.random::<f64>() - 0.5) * 2e3).collect();
+        b.transform(&x, &mut y);
+        assert!(b.contains(&y), "{x:?} -> {y:?}");
+        // Continuous: a tiny step moves the image by at most about as much.
+        let x2: Vec<f64> = x.iter().map(|v| v + 1e-9).collect();
+        b.transform(&x2, &mut y2);
+        assert!(
+            y.iter()
+                .zip(&y2)
+                .all(|(a, c)| (a - c).abs() <= 2e-9 + 1e-12 * a.abs())
+        );
+        // Inverse: the preimage maps back.
+        let mut z = [0.0; 4];
+        b.inverse(&y, &mut z).unwrap();
+        b.transform(&z, &mut y2);
+        assert!(
+            y.iter()
+                .zip(&y2)
+                .all(|(a, c)| (a - c).abs() <= 1e-9 * (1.0 + a.abs()))
+        );
+    }
+    // The interior (margins (1 + |bound|)/20 or half the width) is the identity.
+    b.transform(&[0.3, 5e-4, 20.0, -100.0], &mut y);
+    assert_eq!(y[0], 0.3);
+    assert_eq!(y[2], 20.0);
+    assert_eq!(y[3], -100.0);
+    // Near a bound the map bends: ub − (x − ub − a_u)²/(4 a_u), with a_u = 0.1 here, so
+    // 1.05 ↦ 1 − 0.05²/0.4 and 1.1 (= ub + a_u) ↦ exactly the bound.
+    b.transform(&[1.05, -0.5, 2.0, 3.05], &mut y);
+    assert!((y[0] - (1.0 - 0.0025 / 0.4)).abs() < 1e-15, "{}", y[0]);
+    assert!(y[3] <= 3.0);
+    b.transform(&[1.1, 0.0, 2.0, 0.0], &mut y);
+    assert_eq!(y[0], 1.0);
+    // Bad bounds and a start outside are named.
+    assert!(Bounds::new(vec![1.0], vec![1.0]).is_err());
+    assert!(Bounds::new(vec![f64::NAN], vec![1.0]).is_err());
+    assert!(b.inverse(&[2.0, 0.0, 3.0, 0.0], &mut y).is_err());
+}
+
+/// An optimum outside the box: CMA-ES ends on the bound, exactly, as pycma's
+/// BoundTransform does; an optimum inside costs few extra evaluations.
+#[test]
+fn bounded_searches_end_on_the_bound_or_at_the_inner_optimum() {
+    use cps_cmaes::Bounds;
+    let n = 10;
+    // The sphere centred at 2, box [-1, 1]^n: the best point is 1 in every coordinate.
+    let f = |x: &[f64]| x.iter().map(|v| (v - 2.0).powi(2)).sum::<f64>();
+    let config = CmaesConfig {
+        bounds: Some(Bounds::new(vec![-1.0; n], vec![1.0; n]).unwrap()),
+        ..CmaesConfig::new(0.5, 3)
+    };
+    let rules = [
+        StopRule::TargetCost(n as f64 + 1e-10),
+        StopRule::MaxGenerations(5_000),
+    ];
+    let sol = minimize(
+        &FnObjective(f),
+        &vec![0.0; n],
+        &config,
+        &rules,
+        &mut NoObserver,
+    )
+    .unwrap();
+    assert!(sol.best_cost <= n as f64 + 1e-10, "{}", sol.best_cost);
+    assert!(
+        sol.best_x.iter().all(|&v| v <= 1.0 && v > 1.0 - 1e-10),
+        "{:?}",
+        sol.best_x
+    );
+    // Rosenbrock inside [-5, 5]^n: solved, with at most 25 % more evaluations.
+    let rosen = |x: &[f64]| functions::rosenbrock(x);
+    let free = run(rosen, &vec![0.0; n], 0.5, 1, 1e-8);
+    let boxed = minimize(
+        &FnObjective(rosen),
+        &vec![0.0; n],
+        &CmaesConfig {
+            bounds: Some(Bounds::new(vec![-5.0; n], vec![5.0; n]).unwrap()),
+            ..CmaesConfig::new(0.5, 1)
+        },
+        &[StopRule::TargetCost(1e-8), StopRule::MaxGenerations(20_000)],
+        &mut NoObserver,
+    )
+    .unwrap();
+    assert!(boxed.best_cost <= 1e-8);
+    assert!(
+        boxed.evaluations as f64 <= 1.25 * free.evaluations as f64,
+        "{} vs {}",
+        boxed.evaluations,
+        free.evaluations
+    );
+}
