@@ -16,8 +16,14 @@
 
 use crate::CmaesError;
 
-/// Lower and upper bounds per coordinate, with the transformation's margins.
+/// Lower and upper bounds per coordinate, with the transformation's margins. With the
+/// `serde` feature it (de)serialises as `{ lower, upper }`, checked on reading.
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(try_from = "BoundsRecord", into = "BoundsRecord")
+)]
 pub struct Bounds {
     lower: Vec<f64>,
     upper: Vec<f64>,
@@ -166,5 +172,32 @@ impl Bounds {
             };
         }
         Ok(())
+    }
+}
+
+/// The serialised form of [`Bounds`].
+#[cfg(feature = "serde")]
+#[derive(serde::Serialize, serde::Deserialize)]
+struct BoundsRecord {
+    lower: Vec<f64>,
+    upper: Vec<f64>,
+}
+
+#[cfg(feature = "serde")]
+impl From<Bounds> for BoundsRecord {
+    fn from(b: Bounds) -> Self {
+        Self {
+            lower: b.lower,
+            upper: b.upper,
+        }
+    }
+}
+
+#[cfg(feature = "serde")]
+impl TryFrom<BoundsRecord> for Bounds {
+    type Error = CmaesError;
+
+    fn try_from(r: BoundsRecord) -> Result<Self, CmaesError> {
+        Bounds::new(r.lower, r.upper)
     }
 }

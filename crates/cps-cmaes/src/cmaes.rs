@@ -107,6 +107,53 @@ impl std::fmt::Debug for Work {
     }
 }
 
+/// The `format` of a [`Checkpoint`].
+pub const CHECKPOINT_FORMAT: &str = "cps-cmaes-checkpoint";
+/// The `version` of a [`Checkpoint`] this build writes and reads.
+pub const CHECKPOINT_VERSION: u32 = 1;
+
+/// A run's whole state between two generations, from [`Cmaes::checkpoint`]; with the
+/// `serde` feature it (de)serialises (matrices column-major). JSON cannot hold NaN or
+/// infinite costs: with costs that may be non-finite use a binary format.
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Checkpoint {
+    format: String,
+    version: u32,
+    sigma0: f64,
+    population: usize,
+    seed: u64,
+    eigen_gap: u64,
+    initial_scales: Option<Vec<f64>>,
+    bounds: Option<(Vec<f64>, Vec<f64>)>,
+    mean: Vec<f64>,
+    sigma: f64,
+    c: Vec<f64>,
+    b: Vec<f64>,
+    d: Vec<f64>,
+    p_sigma: Vec<f64>,
+    p_c: Vec<f64>,
+    generation: u64,
+    evaluations: u64,
+    non_finite: u64,
+    repairs: u64,
+    last_decomposition: u64,
+    condition: f64,
+    sorted_costs: Vec<f64>,
+    best: Option<(Vec<f64>, f64)>,
+    best_history: Vec<f64>,
+    median_history: Vec<f64>,
+    flat_generations: u64,
+    pending_decomposition: Option<Vec<f64>>,
+}
+
+impl Checkpoint {
+    /// The generation the run had completed.
+    pub fn generation(&self) -> u64 {
+        self.generation
+    }
+}
+
 impl Cmaes {
     /// A new optimiser centred at `x0`.
     pub fn new(config: &CmaesConfig, x0: &[f64]) -> Result<Self, CmaesError> {
@@ -520,6 +567,135 @@ impl Cmaes {
     /// The strategy parameters.
     pub fn parameters(&self) -> &Parameters {
         &self.params
+    }
+
+    /// The configuration the run was made with.
+    pub fn config(&self) -> &CmaesConfig {
+        &self.config
+    }
+
+    /// Everything needed to continue this run exactly, between generations (after
+    /// [`Self::tell`]): save it (feature `serde`), later [`Self::resume`] it and go on with
+    /// [`crate::resume`]; the continued run is bit for bit the uninterrupted one.
+    pub fn checkpoint(&self) -> Checkpoint {
+        let n = self.params.n;
+        let flat = |m: &Mat<f64>| -> Vec<f64> {
+            (0..n)
+                .flat_map(|j| (0..n).map(move |i| (i, j)))
+                .map(|(i, j)| m[(i, j)])
+                .collect()
+        };
+        Checkpoint {
+            format: CHECKPOINT_FORMAT.into(),
+            version: CHECKPOINT_VERSION,
+            sigma0: self.config.sigma0,
+            population: self.params.lambda,
+            seed: self.config.seed,
+            eigen_gap: self.gap,
+            initial_scales: self.config.initial_scales.clone(),
+            bounds: self
+                .config
+                .bounds
+                .as_ref()
+                .map(|b| (b.lower().to_vec(), b.upper().to_vec())),
+            mean: self.mean.clone(),
+            sigma: self.sigma,
+            c: flat(&self.c),
+            b: flat(&self.b),
+            d: self.d.clone(),
+            p_sigma: self.p_sigma.clone(),
+            p_c: self.p_c.clone(),
+            generation: self.generation,
+            evaluations: self.evaluations,
+            non_finite: self.non_finite,
+            repairs: self.repairs,
+            last_decomposition: self.last_decomposition,
+            condition: self.condition,
+            sorted_costs: self.sorted_costs.clone(),
+            best: self.best.clone(),
+            best_history: self.best_history.clone(),
+            median_history: self.median_history.clone(),
+            flat_generations: self.flat_generations,
+            pending_decomposition: self.work.pending.then(|| flat(&self.work.snapshot)),
+        }
+    }
+
+    /// Restores a run from a [`Checkpoint`]; the checkpoint is checked (format, version,
+    /// sizes, finite state).
+    pub fn resume(checkpoint: &Checkpoint) -> Result<Self, CmaesError> {
+        let cp = checkpoint;
+        let bad = |rule: &'static str, value: f64| CmaesError::InvalidConfig {
+            field: "checkpoint",
+            rule,
+            value,
+        };
+        if cp.format != CHECKPOINT_FORMAT || cp.version != CHECKPOINT_VERSION {
+            return Err(bad(
+                "must be a cps-cmaes checkpoint of version 1",
+                f64::from(cp.version),
+            ));
+        }
+        let n = cp.mean.len();
+        let config = CmaesConfig {
+            sigma0: cp.sigma0,
+            population: Some(cp.population),
+            seed: cp.seed,
+            eigen_gap: Some(cp.eigen_gap),
+            initial_scales: cp.initial_scales.clone(),
+            bounds: match &cp.bounds {
+                Some((l, u)) => Some(crate::Bounds::new(l.clone(), u.clone())?),
+                None => None,
+            },
+        };
+        let mut es = Self::new(&config, &cp.mean)?;
+        let square = |v: &[f64]| v.len() == n * n;
+        if !(square(&cp.c)
+            && square(&cp.b)
+            && cp.d.len() == n
+            && cp.p_sigma.len() == n
+            && cp.p_c.len() == n)
+            || cp
+                .pending_decomposition
+                .as_ref()
+                .is_some_and(|v| !square(v))
+        {
+            return Err(bad(
+                "has matrices and paths that do not match the mean's length",
+                n as f64,
+            ));
+        }
+        let finite = cp.c.iter().chain(&cp.b).chain(&cp.d).all(|v| v.is_finite());
+        if !(cp.sigma.is_finite() && cp.sigma > 0.0 && finite) {
+            return Err(bad("must hold a finite state with σ > 0", cp.sigma));
+        }
+        let unflat = |v: &[f64]| Mat::from_fn(n, n, |i, j| v[j * n + i]);
+        es.sigma = cp.sigma;
+        es.c = unflat(&cp.c);
+        es.b = unflat(&cp.b);
+        es.d.clone_from(&cp.d);
+        for j in 0..n {
+            for i in 0..n {
+                es.bd[(i, j)] = es.b[(i, j)] * es.d[j];
+            }
+        }
+        es.p_sigma.clone_from(&cp.p_sigma);
+        es.p_c.clone_from(&cp.p_c);
+        es.generation = cp.generation;
+        es.evaluations = cp.evaluations;
+        es.non_finite = cp.non_finite;
+        es.repairs = cp.repairs;
+        es.last_decomposition = cp.last_decomposition;
+        es.condition = cp.condition;
+        es.sorted_costs.clone_from(&cp.sorted_costs);
+        es.best.clone_from(&cp.best);
+        es.best_history.clone_from(&cp.best_history);
+        es.median_history.clone_from(&cp.median_history);
+        es.flat_generations = cp.flat_generations;
+        if let Some(snapshot) = &cp.pending_decomposition {
+            es.work.snapshot = unflat(snapshot);
+            es.work.pending = true;
+        }
+        Ok(es)
     }
 
     /// The distribution mean.

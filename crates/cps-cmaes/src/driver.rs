@@ -131,6 +131,31 @@ pub fn minimize<O: Objective + ?Sized>(
     rules: &[StopRule],
     observer: &mut dyn Observer,
 ) -> Result<Solution, CmaesError> {
+    config.validate(x0.len())?;
+    // With bounds the search runs on the unbounded space, from the preimage of x0.
+    let start = match &config.bounds {
+        Some(bounds) => {
+            let mut z0 = vec![0.0; x0.len()];
+            bounds.inverse(x0, &mut z0)?;
+            z0
+        }
+        None => x0.to_vec(),
+    };
+    let mut es = Cmaes::new(config, &start)?;
+    resume(&mut es, objective, rules, observer)
+}
+
+/// Continues a run: a new one from [`Cmaes::new`], or one restored from a
+/// [`crate::Checkpoint`] with [`Cmaes::resume`], which then goes on exactly as the
+/// uninterrupted run would have (budgets count from the run's start). Within bounds
+/// (the configuration's), candidates are mapped into the box before evaluation and the
+/// returned best point and mean are in the box.
+pub fn resume<O: Objective + ?Sized>(
+    es: &mut Cmaes,
+    objective: &O,
+    rules: &[StopRule],
+    observer: &mut dyn Observer,
+) -> Result<Solution, CmaesError> {
     if !rules
         .iter()
         .any(|r| matches!(r, StopRule::MaxGenerations(_) | StopRule::MaxEvaluations(_)))
@@ -141,24 +166,32 @@ pub fn minimize<O: Objective + ?Sized>(
             value: rules.len() as f64,
         });
     }
-    match &config.bounds {
-        Some(bounds) => minimize_bounded(objective, x0, config, bounds, rules, observer),
-        None => search(objective, x0, config, rules, observer),
+    match es.config().bounds.clone() {
+        Some(bounds) => {
+            let wrapped = Bounded {
+                inner: objective,
+                bounds: &bounds,
+            };
+            let mut sol = search(es, &wrapped, rules, observer)?;
+            let (best, mean) = (sol.best_x.clone(), sol.mean.clone());
+            bounds.transform(&best, &mut sol.best_x);
+            bounds.transform(&mean, &mut sol.mean);
+            Ok(sol)
+        }
+        None => search(es, objective, rules, observer),
     }
 }
 
-/// The CMA-ES loop of [`minimize`], on the unbounded space.
+/// The CMA-ES loop of [`minimize`] and [`resume`], on the unbounded space.
 fn search<O: Objective + ?Sized>(
+    es: &mut Cmaes,
     objective: &O,
-    x0: &[f64],
-    config: &CmaesConfig,
     rules: &[StopRule],
     observer: &mut dyn Observer,
 ) -> Result<Solution, CmaesError> {
-    let mut es = Cmaes::new(config, x0)?;
     // Each eigendecomposition runs while the next population is evaluated.
     es.defer_decompositions();
-    let n = x0.len();
+    let n = es.parameters().n;
     let mut costs = vec![0.0; es.parameters().lambda];
     let termination = loop {
         if let Some(t) = es.termination(rules) {
@@ -344,34 +377,6 @@ impl<O: Objective + ?Sized> Objective for Bounded<'_, O> {
         }
         self.inner.evaluate_batch(&ys, dim, out)
     }
-}
-
-/// [`minimize`] within box bounds: the search starts at the preimage of `x0` and runs on
-/// the transformed objective; its best point and mean are mapped back into the box.
-fn minimize_bounded<O: Objective + ?Sized>(
-    objective: &O,
-    x0: &[f64],
-    config: &CmaesConfig,
-    bounds: &crate::Bounds,
-    rules: &[StopRule],
-    observer: &mut dyn Observer,
-) -> Result<Solution, CmaesError> {
-    config.validate(x0.len())?;
-    let mut z0 = vec![0.0; x0.len()];
-    bounds.inverse(x0, &mut z0)?;
-    let unbounded = CmaesConfig {
-        bounds: None,
-        ..config.clone()
-    };
-    let wrapped = Bounded {
-        inner: objective,
-        bounds,
-    };
-    let mut sol = search(&wrapped, &z0, &unbounded, rules, observer)?;
-    let (best, mean) = (sol.best_x.clone(), sol.mean.clone());
-    bounds.transform(&best, &mut sol.best_x);
-    bounds.transform(&mean, &mut sol.mean);
-    Ok(sol)
 }
 
 /// BIPOP-CMA-ES (Hansen 2009): after a first run with the default population, restarts

@@ -40,11 +40,11 @@ mod params;
 mod stop;
 
 pub use bounds::Bounds;
-pub use cmaes::Cmaes;
+pub use cmaes::{CHECKPOINT_FORMAT, CHECKPOINT_VERSION, Checkpoint, Cmaes};
 pub use config::CmaesConfig;
 pub use driver::{
     CandidateError, FnObjective, GenerationReport, NoObserver, Objective, Observer,
-    RestartSolution, Solution, minimize, minimize_bipop, minimize_ipop,
+    RestartSolution, Solution, minimize, minimize_bipop, minimize_ipop, resume,
 };
 pub use error::{CmaesError, ObjectiveError};
 pub use params::Parameters;
