@@ -229,16 +229,38 @@ struct JointObjective<'a> {
     space: &'a SearchSpace,
 }
 
+impl JointObjective<'_> {
+    fn cost(&self, x: &[f64], (w, traj): &mut (Vec<f64>, Trajectory)) -> f64 {
+        self.space.to_weights(x, w);
+        self.dmp.rollout_into(w, traj);
+        // A configuration forward kinematics refuses (NaN) ranks last.
+        self.cost
+            .breakdown(traj)
+            .map_or(f64::INFINITY, |b| b.total())
+    }
+
+    fn buffers(&self) -> (Vec<f64>, Trajectory) {
+        (vec![0.0; self.space.len()], self.dmp.new_trajectory())
+    }
+}
+
 impl Objective for JointObjective<'_> {
     fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
-        let mut w = vec![0.0; x.len()];
-        self.space.to_weights(x, &mut w);
-        let traj = self.dmp.rollout(&w);
-        // A configuration forward kinematics refuses (NaN) ranks last.
-        Ok(self
-            .cost
-            .breakdown(&traj)
-            .map_or(f64::INFINITY, |b| b.total()))
+        Ok(self.cost(x, &mut self.buffers()))
+    }
+
+    /// In parallel, with the rollout buffers reused across the candidates of a worker.
+    fn evaluate_batch(
+        &self,
+        xs: &[f64],
+        dim: usize,
+        out: &mut [f64],
+    ) -> Result<(), cps_cmaes::CandidateError> {
+        use rayon::prelude::*;
+        xs.par_chunks_exact(dim)
+            .zip(out.par_iter_mut())
+            .for_each_init(|| self.buffers(), |b, (x, o)| *o = self.cost(x, b));
+        Ok(())
     }
 }
 
