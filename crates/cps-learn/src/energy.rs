@@ -19,12 +19,12 @@
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use cps_cmaes::{GenerationReport, Objective, ObjectiveError};
+use cps_cmaes::GenerationReport;
 use cps_dmp::{DiscreteDmp, Trajectory};
 use serde::{Deserialize, Serialize};
 
 use crate::task::Term;
-use crate::viapoint::run_cmaes;
+use crate::viapoint::{Buffered, BufferedCost, run_cmaes};
 use crate::{
     LearnError, SearchSpace, SearchStats, Solver, TaskErrors, ViaPointConfig, exact_optimum,
 };
@@ -229,41 +229,21 @@ struct EffortObjective<'a> {
     space: &'a SearchSpace,
 }
 
-impl EffortObjective<'_> {
-    fn cost(&self, x: &[f64], buffers: &mut (Vec<f64>, Trajectory, PlantTrajectory)) -> f64 {
-        let (w, traj, plant) = buffers;
-        self.space.to_weights(x, w);
-        self.dmp.rollout_into(w, traj);
-        breakdown(self.config, traj, plant).total()
-    }
+impl BufferedCost for EffortObjective<'_> {
+    type Buffers = (Vec<f64>, Trajectory, PlantTrajectory);
 
-    fn buffers(&self) -> (Vec<f64>, Trajectory, PlantTrajectory) {
+    fn buffers(&self) -> Self::Buffers {
         (
             vec![0.0; self.space.len()],
             self.dmp.new_trajectory(),
             PlantTrajectory::default(),
         )
     }
-}
 
-impl Objective for EffortObjective<'_> {
-    fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
-        Ok(self.cost(x, &mut self.buffers()))
-    }
-
-    /// In parallel, with the rollout and plant buffers reused across candidates: fresh
-    /// buffers per candidate cost page faults, which serialise the threads.
-    fn evaluate_batch(
-        &self,
-        xs: &[f64],
-        dim: usize,
-        out: &mut [f64],
-    ) -> Result<(), cps_cmaes::CandidateError> {
-        use rayon::prelude::*;
-        xs.par_chunks_exact(dim)
-            .zip(out.par_iter_mut())
-            .for_each_init(|| self.buffers(), |b, (x, o)| *o = self.cost(x, b));
-        Ok(())
+    fn cost(&self, x: &[f64], (w, traj, plant): &mut Self::Buffers) -> f64 {
+        self.space.to_weights(x, w);
+        self.dmp.rollout_into(w, traj);
+        breakdown(self.config, traj, plant).total()
     }
 }
 
@@ -314,18 +294,13 @@ pub fn learn_with_effort(
     } else {
         vec![0.0; space.len()]
     };
-    let objective = EffortObjective {
+    let objective = Buffered(EffortObjective {
         config,
         dmp: &dmp,
         space: &space,
-    };
-    let weights_of = |params: &[f64]| {
-        let mut w = vec![0.0; params.len()];
-        space.to_weights(params, &mut w);
-        w
-    };
+    });
     let mut plant = PlantTrajectory::default();
-    let start = breakdown(config, &dmp.rollout(&weights_of(&x0)), &mut plant);
+    let start = breakdown(config, &dmp.rollout(&space.weights(&x0)), &mut plant);
     let (params, search) = run_cmaes(
         &objective,
         x0,
@@ -333,7 +308,7 @@ pub fn learn_with_effort(
         config.learner.seed,
         progress,
     )?;
-    let weights = weights_of(&params);
+    let weights = space.weights(&params);
     let reference = dmp.rollout(&weights);
     let breakdown = breakdown(config, &reference, &mut plant);
     let last = reference.n_samples() - 1;

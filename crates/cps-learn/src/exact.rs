@@ -37,9 +37,7 @@ fn residual_vector(
     theta: &[f64],
     out: &mut Vec<f64>,
 ) {
-    let mut w = vec![0.0; theta.len()];
-    space.to_weights(theta, &mut w);
-    let traj = dmp.rollout(&w);
+    let traj = dmp.rollout(&space.weights(theta));
     out.clear();
     task.residuals(&traj, |_, r| out.push(r));
 }

@@ -19,13 +19,13 @@
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use cps_cmaes::{GenerationReport, Objective, ObjectiveError};
+use cps_cmaes::GenerationReport;
 use cps_dmp::{DiscreteDmp, Formulation, Trajectory};
 use cps_kinematics::{KinematicsError, Recording, RobotBackend};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use crate::viapoint::run_cmaes;
+use crate::viapoint::{Buffered, BufferedCost, run_cmaes};
 use crate::{
     LearnError, RobotSetup, SearchSpace, SearchStats, Solver, TaskErrors, ViaPoint, ViaPointConfig,
     ViaPointTask, check_way_points, exact_optimum,
@@ -229,38 +229,20 @@ struct JointObjective<'a> {
     space: &'a SearchSpace,
 }
 
-impl JointObjective<'_> {
-    fn cost(&self, x: &[f64], (w, traj): &mut (Vec<f64>, Trajectory)) -> f64 {
+impl BufferedCost for JointObjective<'_> {
+    type Buffers = (Vec<f64>, Trajectory);
+
+    fn buffers(&self) -> Self::Buffers {
+        (vec![0.0; self.space.len()], self.dmp.new_trajectory())
+    }
+
+    fn cost(&self, x: &[f64], (w, traj): &mut Self::Buffers) -> f64 {
         self.space.to_weights(x, w);
         self.dmp.rollout_into(w, traj);
         // A configuration forward kinematics refuses (NaN) ranks last.
         self.cost
             .breakdown(traj)
             .map_or(f64::INFINITY, |b| b.total())
-    }
-
-    fn buffers(&self) -> (Vec<f64>, Trajectory) {
-        (vec![0.0; self.space.len()], self.dmp.new_trajectory())
-    }
-}
-
-impl Objective for JointObjective<'_> {
-    fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
-        Ok(self.cost(x, &mut self.buffers()))
-    }
-
-    /// In parallel, with the rollout buffers reused across the candidates of a worker.
-    fn evaluate_batch(
-        &self,
-        xs: &[f64],
-        dim: usize,
-        out: &mut [f64],
-    ) -> Result<(), cps_cmaes::CandidateError> {
-        use rayon::prelude::*;
-        xs.par_chunks_exact(dim)
-            .zip(out.par_iter_mut())
-            .for_each_init(|| self.buffers(), |b, (x, o)| *o = self.cost(x, b));
-        Ok(())
     }
 }
 
@@ -339,17 +321,12 @@ pub fn learn_joint_space(
         limit_weight: config.limit_weight,
         speed_limit_weight: config.speed_limit_weight,
     };
-    let objective = JointObjective {
+    let objective = Buffered(JointObjective {
         cost: cost.clone(),
         dmp: &dmp,
         space: &space,
-    };
-    let weights_of = |params: &[f64]| {
-        let mut w = vec![0.0; params.len()];
-        space.to_weights(params, &mut w);
-        w
-    };
-    let warm = cost.breakdown(&dmp.rollout(&weights_of(&optimum.params)))?;
+    });
+    let warm = cost.breakdown(&dmp.rollout(&space.weights(&optimum.params)))?;
     let x0 = if config.learner.warm_start || config.learner.solver == Solver::Exact {
         optimum.params.clone()
     } else {
@@ -362,7 +339,7 @@ pub fn learn_joint_space(
         config.learner.seed,
         progress,
     )?;
-    let weights = weights_of(&params);
+    let weights = space.weights(&params);
     let trajectory = dmp.rollout(&weights);
     Ok(JointSpaceOutcome {
         way_configurations: configs,

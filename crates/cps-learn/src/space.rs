@@ -99,6 +99,13 @@ impl SearchSpace {
         }
     }
 
+    /// Weights from parameters, as a new vector.
+    pub fn weights(&self, theta: &[f64]) -> Vec<f64> {
+        let mut w = vec![0.0; theta.len()];
+        self.to_weights(theta, &mut w);
+        w
+    }
+
     /// Parameters from weights: `θ = w / s`.
     pub fn to_params(&self, w: &[f64]) -> Vec<f64> {
         w.iter().zip(&self.scale).map(|(w, s)| w / s).collect()

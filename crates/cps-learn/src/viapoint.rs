@@ -180,9 +180,7 @@ impl<'a> ViaPointObjective<'a> {
 
 impl Objective for ViaPointObjective<'_> {
     fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
-        let mut w = vec![0.0; x.len()];
-        self.space.to_weights(x, &mut w);
-        Ok(self.task.cost(&self.dmp.rollout(&w)))
+        Ok(self.task.cost(&self.dmp.rollout(&self.space.weights(x))))
     }
 
     fn evaluate_batch(
@@ -229,8 +227,7 @@ pub fn learn_via_points(
                   params: Vec<f64>,
                   stats: (u64, u64, u64, String, Vec<GenerationRecord>),
                   started: Instant| {
-        let mut weights = vec![0.0; params.len()];
-        space.to_weights(&params, &mut weights);
+        let weights = space.weights(&params);
         let traj = dmp.rollout(&weights);
         let breakdown = task.breakdown(&traj);
         let cost = breakdown.total();
@@ -294,6 +291,39 @@ pub fn learn_via_points(
         best_run,
         dmp,
     })
+}
+
+/// A cost that evaluates a candidate in reusable buffers (a rollout, a simulation).
+pub(crate) trait BufferedCost: Sync {
+    /// The buffers one evaluation needs.
+    type Buffers: Send;
+    /// Fresh buffers.
+    fn buffers(&self) -> Self::Buffers;
+    /// The cost of candidate `x`, computed in `buffers`.
+    fn cost(&self, x: &[f64], buffers: &mut Self::Buffers) -> f64;
+}
+
+/// A [`BufferedCost`] as a CMA-ES [`Objective`]: the population is evaluated in parallel,
+/// each rayon job reusing one set of buffers across its candidates (fresh buffers per
+/// candidate cost page faults, which serialise the threads).
+pub(crate) struct Buffered<C>(pub C);
+
+impl<C: BufferedCost> Objective for Buffered<C> {
+    fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
+        Ok(self.0.cost(x, &mut self.0.buffers()))
+    }
+
+    fn evaluate_batch(
+        &self,
+        xs: &[f64],
+        dim: usize,
+        out: &mut [f64],
+    ) -> Result<(), CandidateError> {
+        xs.par_chunks_exact(dim)
+            .zip(out.par_iter_mut())
+            .for_each_init(|| self.0.buffers(), |b, (x, o)| *o = self.0.cost(x, b));
+        Ok(())
+    }
 }
 
 /// How a search went: the budget spent, why it ended, and the history.
