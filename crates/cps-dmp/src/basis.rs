@@ -79,6 +79,13 @@ impl GaussianBasis {
         };
         for o in out.iter_mut() {
             *o *= scale;
+            // Subnormal features (Gaussians far from their centre, below 2.2e-308) are
+            // flushed to zero: they change no result representable next to the others,
+            // but every SIMD operation touching one costs a microcode assist of ~100
+            // cycles on x86 (measured: half the time of a rollout).
+            if *o < f64::MIN_POSITIVE {
+                *o = 0.0;
+            }
         }
     }
 }
@@ -99,6 +106,20 @@ mod tests {
             assert!((b.widths()[i] * gap * gap - 1.0).abs() < 1e-12);
         }
         assert_eq!(b.widths()[24], b.widths()[23]);
+    }
+
+    #[test]
+    fn features_are_never_subnormal() {
+        let b = GaussianBasis::new(25, 25.0 / 3.0);
+        let mut f = vec![0.0; 25];
+        let mut zeros = 0;
+        for k in 0..=1000 {
+            b.features((-25.0f64 / 3.0 * k as f64 / 1000.0).exp(), &mut f);
+            assert!(f.iter().all(|v| *v == 0.0 || v.is_normal()));
+            zeros += f.iter().filter(|v| **v == 0.0).count();
+        }
+        // The far tails underflow: many zeros, which the packed rollout skips.
+        assert!(zeros > 5000, "{zeros}");
     }
 
     #[test]

@@ -4,7 +4,7 @@ use std::sync::Arc;
 
 use pulp::{Arch, Simd, WithSimd};
 
-use crate::discretize::StepCoefficients;
+use crate::discretize::{BLOCK, BlockCoefficients, StepCoefficients};
 use crate::{CanonicalSystem, DmpConfig, DmpError, Formulation, GaussianBasis, Trajectory};
 
 /// A discrete DMP with one transformation system per dimension:
@@ -45,10 +45,11 @@ pub(crate) struct Grid {
     /// Features, (K+1) × N, column-major.
     pub(crate) features: Vec<f64>,
     /// The same features packed chunk-major for the forcing kernel.
-    packed: Vec<f64>,
+    packed: PackedFeatures,
     /// The same features row-major ((K+1) rows of N) for the streaming batch rollout.
     rows: Vec<f64>,
     coefficients: StepCoefficients,
+    block: BlockCoefficients,
 }
 
 impl DiscreteDmp {
@@ -206,70 +207,14 @@ impl DiscreteDmp {
             traj.dims() == dims && traj.n_samples() == ns,
             "trajectory shape mismatch"
         );
-        // 1. Forcing features times weights, F = Φ W, SIMD with runtime dispatch.
-        self.arch.dispatch(ForcingProduct {
-            packed: &self.grid.packed,
+        // Everything runs inside one runtime-dispatched SIMD context (AVX-512, AVX2+FMA or
+        // scalar): 1. the forcing term f = (g − y0) Φ w + b x of every dimension by a
+        // register-blocked product, 2. the exact recurrence eight samples at a time.
+        self.arch.dispatch(Rollouts {
+            dmp: self,
             weights,
-            n_basis: n,
-            out: &mut traj.forcing,
+            out: std::slice::from_mut(traj),
         });
-        // 2. The exact recurrence, several dimensions at a time: the chain through the
-        //    state is sequential, so independent dimensions overlap in the CPU, and the
-        //    inputs and physical outputs of each step are computed off the critical path.
-        let mut d0 = 0;
-        while d0 < dims {
-            let width = (dims - d0).min(LANES);
-            match width {
-                1 => self.chain::<1>(d0, traj),
-                2 => self.chain::<2>(d0, traj),
-                3 => self.chain::<3>(d0, traj),
-                _ => self.chain::<4>(d0, traj),
-            }
-            d0 += width;
-        }
-    }
-
-    /// The recurrence for dimensions `d0 .. d0 + W`, reading the unscaled forcing `Φ w`
-    /// from `traj.forcing` and writing position, physical velocity and acceleration and the
-    /// scaled forcing `f = (g − y0) Φ w`. One step of one dimension:
-    ///
-    /// `u_k = α_z β_z g + f_k`, `ÿ_k = (u_k − α_z β_z y_k − α_z z_k) / τ²`, `ẏ_k = z_k / τ`,
-    /// `(y, z)_{k+1} = E (y, z)_k + b0 u_k + b1 u_{k+1}`.
-    #[inline(always)]
-    fn chain<const W: usize>(&self, d0: usize, traj: &mut Trajectory) {
-        let ns = self.n_samples();
-        let c = &self.grid.coefficients;
-        let range = d0 * ns..(d0 + W) * ns;
-        let mut pos = traj.position[range.clone()].chunks_exact_mut(ns);
-        let mut vel = traj.velocity[range.clone()].chunks_exact_mut(ns);
-        let mut acc = traj.acceleration[range.clone()].chunks_exact_mut(ns);
-        let mut frc = traj.forcing[range].chunks_exact_mut(ns);
-        let pos: [&mut [f64]; W] = std::array::from_fn(|_| pos.next().expect("lane"));
-        let vel: [&mut [f64]; W] = std::array::from_fn(|_| vel.next().expect("lane"));
-        let acc: [&mut [f64]; W] = std::array::from_fn(|_| acc.next().expect("lane"));
-        let frc: [&mut [f64]; W] = std::array::from_fn(|_| frc.next().expect("lane"));
-        let (amp, off): ([f64; W], [f64; W]) = (
-            std::array::from_fn(|j| self.forcing_scale(d0 + j).0),
-            std::array::from_fn(|j| self.forcing_scale(d0 + j).1),
-        );
-        let x = &self.grid.phases;
-        let ug: [f64; W] = std::array::from_fn(|j| c.goal_input(self.goal[d0 + j]));
-        let mut y: [f64; W] = std::array::from_fn(|j| self.start[d0 + j]);
-        let mut z = [0.0; W];
-        let mut f: [f64; W] = std::array::from_fn(|j| amp[j] * frc[j][0] + off[j] * x[0]);
-        for k in 0..ns {
-            let next = (k + 1).min(ns - 1);
-            for j in 0..W {
-                let f1 = amp[j] * frc[j][next] + off[j] * x[next];
-                let (u0, u1) = (ug[j] + f[j], ug[j] + f1);
-                pos[j][k] = y[j];
-                vel[j][k] = c.velocity(z[j]);
-                acc[j][k] = c.acceleration(u0, y[j], z[j]);
-                frc[j][k] = f[j];
-                (y[j], z[j]) = c.advance(y[j], z[j], u0, u1);
-                f[j] = f1;
-            }
-        }
     }
 
     /// Rolls out up to [`BATCH_LANES`] weight vectors at once without storing their
@@ -301,18 +246,28 @@ impl DiscreteDmp {
     }
 
     /// Rolls out a population: `weights` holds `out.len()` weight vectors back to back.
-    /// (Measured: storing the streaming kernel's lanes costs more than it saves, so this is
-    /// one [`Self::rollout_into`] per candidate; use [`Self::rollout_stream`] when only
-    /// costs are needed.)
+    /// Faster than one [`Self::rollout_into`] per candidate: each chunk of the feature
+    /// matrix is read from memory once for the whole population. (Use
+    /// [`Self::rollout_stream`] when only costs are needed.)
     ///
     /// # Panics
     /// If `weights.len() != out.len() * n_weights()` or a trajectory has the wrong shape.
     pub fn rollout_batch(&self, weights: &[f64], out: &mut [Trajectory]) {
-        let nw = self.n_weights();
-        assert_eq!(weights.len(), out.len() * nw, "population weight length");
-        for (w, traj) in weights.chunks_exact(nw).zip(out.iter_mut()) {
-            self.rollout_into(w, traj);
-        }
+        assert_eq!(
+            weights.len(),
+            out.len() * self.n_weights(),
+            "population weight length"
+        );
+        assert!(
+            out.iter()
+                .all(|t| t.dims() == self.dims() && t.n_samples() == self.n_samples()),
+            "trajectory shape mismatch"
+        );
+        self.arch.dispatch(Rollouts {
+            dmp: self,
+            weights,
+            out,
+        });
     }
 }
 
@@ -339,7 +294,8 @@ impl Grid {
         }
         let coefficients = StepCoefficients::new(config.alpha_z, config.beta_z, config.tau, h);
         Grid {
-            packed: pack_features(&features, k + 1, n),
+            block: BlockCoefficients::new(&coefficients),
+            packed: PackedFeatures::new(&features, k + 1, n),
             basis,
             times,
             phases,
@@ -512,62 +468,104 @@ fn stream_group<S: Simd, V: StreamVisitor, const W: usize>(
     }
 }
 
-/// Dimensions integrated together in one recurrence loop.
-const LANES: usize = 4;
-
 /// Samples per block of the packed feature matrix.
-const CHUNK: usize = 16;
+const CHUNK: usize = 32;
 
-/// Packs Φ ((K+1) × N, column-major) chunk-major: block c holds, for each basis i, the
-/// `CHUNK` feature values of samples `c*CHUNK ..`, zero-padded at the end.
-fn pack_features(features: &[f64], ns: usize, nb: usize) -> Vec<f64> {
-    let chunks = ns.div_ceil(CHUNK);
-    let mut packed = vec![0.0; chunks * nb * CHUNK];
-    for c in 0..chunks {
-        for i in 0..nb {
-            for l in 0..CHUNK {
-                let k = c * CHUNK + l;
-                if k < ns {
-                    packed[(c * nb + i) * CHUNK + l] = features[i * ns + k];
-                }
-            }
-        }
-    }
-    packed
+/// Φ packed for the forcing kernel, chunk-major: chunk `c` holds, for each basis `i` in
+/// its band `lo_c .. hi_c`, the `CHUNK` feature values of samples `c CHUNK ..`
+/// (zero-padded at the end). The band leaves out the basis functions whose features are
+/// exactly zero (underflowed Gaussians) at every sample of the chunk, so the product is
+/// the same to the bit while a quarter less is read. The data start on a cache line:
+/// a vector load never straddles two.
+#[derive(Debug)]
+struct PackedFeatures {
+    data: Vec<f64>,
+    /// Index in `data` of the first, cache-line-aligned value.
+    origin: usize,
+    /// Per chunk: its band of basis functions and the offset of its values.
+    chunks: Vec<(usize, usize, usize)>,
 }
 
-/// `out[j] = Φ w_j` for `W` dimensions: `NV` SIMD vectors of accumulators per dimension
-/// stay in registers while the N basis functions of a chunk are summed.
+impl PackedFeatures {
+    fn new(features: &[f64], ns: usize, nb: usize) -> Self {
+        let column = |i: usize| &features[i * ns..(i + 1) * ns];
+        let mut chunks = Vec::new();
+        let mut len = 0;
+        for k0 in (0..ns).step_by(CHUNK) {
+            let k1 = (k0 + CHUNK).min(ns);
+            let live = |i: &usize| column(*i)[k0..k1].iter().any(|&v| v != 0.0);
+            let lo = (0..nb).find(live).unwrap_or(0);
+            let hi = (0..nb).rev().find(live).map_or(lo, |i| i + 1);
+            chunks.push((lo, hi, len));
+            len += (hi - lo) * CHUNK;
+        }
+        let align = 64 / std::mem::size_of::<f64>();
+        let mut data = vec![0.0; len + align];
+        let origin = data.as_ptr().align_offset(64).min(align);
+        for (c, &(lo, hi, at)) in chunks.iter().enumerate() {
+            let k0 = c * CHUNK;
+            let k1 = (k0 + CHUNK).min(ns);
+            for i in lo..hi {
+                let start = origin + at + (i - lo) * CHUNK;
+                data[start..start + (k1 - k0)].copy_from_slice(&column(i)[k0..k1]);
+            }
+        }
+        Self {
+            data,
+            origin,
+            chunks,
+        }
+    }
+
+    /// Chunk `c`: its band and its `(hi − lo) CHUNK` values.
+    fn chunk(&self, c: usize) -> (usize, usize, &[f64]) {
+        let (lo, hi, at) = self.chunks[c];
+        let start = self.origin + at;
+        (lo, hi, &self.data[start..start + (hi - lo) * CHUNK])
+    }
+}
+
+/// Chunk `c` of `out[j] = Φ w_j` for `W` dimensions (weights already scaled by their
+/// `g − y0`): `NV` SIMD vectors of samples per dimension are accumulated in registers over
+/// the chunk's band of basis functions (12 accumulators under AVX-512 and AVX2: enough
+/// independent FMA chains to keep both FMA units busy), and each loaded vector of features
+/// serves all `W` dimensions.
 #[inline(always)]
 fn forcing_kernel<S: Simd, const W: usize, const NV: usize>(
     simd: S,
-    packed: &[f64],
+    packed: &PackedFeatures,
+    c: usize,
     weights: [&[f64]; W],
     out: [&mut [f64]; W],
 ) {
-    let nb = weights[0].len();
     let ns = out[0].len();
+    let sub = NV * S::F64_LANES;
     let zero = simd.splat_f64s(0.0);
-    for (c, block) in packed.chunks_exact(nb * CHUNK).enumerate() {
+    let (lo, hi, block) = packed.chunk(c);
+    for h in 0..CHUNK / sub {
+        let k0 = c * CHUNK + h * sub;
+        if k0 >= ns {
+            break;
+        }
         let mut acc = [[zero; NV]; W];
-        for i in 0..nb {
-            let (v, _) = S::as_simd_f64s(&block[i * CHUNK..(i + 1) * CHUNK]);
-            for j in 0..W {
-                let w = simd.splat_f64s(weights[j][i]);
+        for (band, i) in (lo..hi).enumerate() {
+            let at = band * CHUNK + h * sub;
+            let (v, _) = S::as_simd_f64s(&block[at..at + sub]);
+            for (j, weights) in weights.iter().enumerate() {
+                let w = simd.splat_f64s(weights[i]);
                 for r in 0..NV {
                     acc[j][r] = simd.mul_add_e_f64s(w, v[r], acc[j][r]);
                 }
             }
         }
-        let k0 = c * CHUNK;
-        let len = CHUNK.min(ns - k0);
+        let len = sub.min(ns - k0);
         for j in 0..W {
-            if len == CHUNK {
-                let (ov, _) = S::as_mut_simd_f64s(&mut out[j][k0..k0 + CHUNK]);
+            if len == sub {
+                let (ov, _) = S::as_mut_simd_f64s(&mut out[j][k0..k0 + sub]);
                 ov[..NV].copy_from_slice(&acc[j]);
             } else {
                 let mut tmp = [0.0f64; CHUNK];
-                let (tv, _) = S::as_mut_simd_f64s(&mut tmp);
+                let (tv, _) = S::as_mut_simd_f64s(&mut tmp[..sub]);
                 tv[..NV].copy_from_slice(&acc[j]);
                 out[j][k0..k0 + len].copy_from_slice(&tmp[..len]);
             }
@@ -575,54 +573,256 @@ fn forcing_kernel<S: Simd, const W: usize, const NV: usize>(
     }
 }
 
-/// `out[d] = Φ w_d` for every dimension d, dimensions in groups of up to three.
-struct ForcingProduct<'a> {
-    packed: &'a [f64],
-    weights: &'a [f64],
-    n_basis: usize,
-    out: &'a mut [f64],
+/// Chunk `c` of the forcing term `f_d = Φ w_d` of every dimension (`scaled`: the weights
+/// times `g − y0`, dimension-major; `out`: dimension-major, `ns` samples each),
+/// dimensions in groups of up to three sharing each loaded vector of features.
+#[inline(always)]
+fn forcing_chunk<S: Simd>(
+    simd: S,
+    packed: &PackedFeatures,
+    c: usize,
+    scaled: &[f64],
+    nb: usize,
+    out: &mut [f64],
+) {
+    #[inline(always)]
+    fn group<S: Simd, const W: usize>(
+        simd: S,
+        packed: &PackedFeatures,
+        c: usize,
+        w: &[f64],
+        out: &mut [f64],
+    ) {
+        let nb = w.len() / W;
+        let ns = out.len() / W;
+        let weights: [&[f64]; W] = std::array::from_fn(|j| &w[j * nb..(j + 1) * nb]);
+        let mut it = out.chunks_exact_mut(ns);
+        let out: [&mut [f64]; W] = std::array::from_fn(|_| it.next().expect("lane"));
+        match S::F64_LANES {
+            8 | 4 => forcing_kernel::<S, W, 4>(simd, packed, c, weights, out),
+            2 => forcing_kernel::<S, W, 8>(simd, packed, c, weights, out),
+            _ => forcing_kernel::<S, W, 16>(simd, packed, c, weights, out),
+        }
+    }
+    let dims = scaled.len() / nb;
+    let ns = out.len() / dims;
+    let mut d0 = 0;
+    while d0 < dims {
+        let width = (dims - d0).min(3);
+        let w = &scaled[d0 * nb..(d0 + width) * nb];
+        let o = &mut out[d0 * ns..(d0 + width) * ns];
+        match width {
+            1 => group::<S, 1>(simd, packed, c, w, o),
+            2 => group::<S, 2>(simd, packed, c, w, o),
+            _ => group::<S, 3>(simd, packed, c, w, o),
+        }
+        d0 += width;
+    }
 }
 
-impl WithSimd for ForcingProduct<'_> {
+/// Rollouts inside the dispatched SIMD context: `weights` holds `out.len()` weight
+/// vectors back to back.
+struct Rollouts<'a> {
+    dmp: &'a DiscreteDmp,
+    weights: &'a [f64],
+    out: &'a mut [Trajectory],
+}
+
+impl WithSimd for Rollouts<'_> {
     type Output = ();
 
     #[inline(always)]
     fn with_simd<S: Simd>(self, simd: S) {
-        #[inline(always)]
-        fn group<S: Simd, const W: usize>(
-            simd: S,
-            packed: &[f64],
-            w: &[f64],
-            out: &mut [f64],
-            nb: usize,
-        ) {
-            let ns = out.len() / W;
-            let weights: [&[f64]; W] = std::array::from_fn(|j| &w[j * nb..(j + 1) * nb]);
-            let mut it = out.chunks_exact_mut(ns);
-            let out: [&mut [f64]; W] = std::array::from_fn(|_| it.next().expect("lane"));
-            match S::F64_LANES {
-                8 => forcing_kernel::<S, W, 2>(simd, packed, weights, out),
-                4 => forcing_kernel::<S, W, 4>(simd, packed, weights, out),
-                2 => forcing_kernel::<S, W, 8>(simd, packed, weights, out),
-                _ => forcing_kernel::<S, W, 16>(simd, packed, weights, out),
+        let Self { dmp, weights, out } = self;
+        let (nb, dims, ns) = (dmp.n_basis(), dmp.dims(), dmp.n_samples());
+        let nw = nb * dims;
+        let grid = &dmp.grid;
+        // 1. f = (g − y0) Φ w + b x. The weights scaled once; then chunk by chunk of Φ,
+        //    every candidate, so that a chunk is read from memory once and then from the
+        //    L1 cache (a single rollout is bound by reading Φ).
+        let scaled: Vec<f64> = weights
+            .iter()
+            .enumerate()
+            .map(|(i, w)| w * dmp.forcing_scale((i % nw) / nb).0)
+            .collect();
+        for c in 0..grid.packed.chunks.len() {
+            for (w, traj) in scaled.chunks_exact(nw).zip(out.iter_mut()) {
+                forcing_chunk(simd, &grid.packed, c, w, nb, &mut traj.forcing);
             }
         }
-        let nb = self.n_basis;
-        let dims = self.weights.len() / nb;
-        let ns = self.out.len() / dims;
-        let mut d0 = 0;
-        while d0 < dims {
-            let width = (dims - d0).min(3);
-            let w = &self.weights[d0 * nb..(d0 + width) * nb];
-            let o = &mut self.out[d0 * ns..(d0 + width) * ns];
-            match width {
-                1 => group::<S, 1>(simd, self.packed, w, o, nb),
-                2 => group::<S, 2>(simd, self.packed, w, o, nb),
-                _ => group::<S, 3>(simd, self.packed, w, o, nb),
+        // 2. Per candidate and dimension: the phase term of the goal-robust form, then
+        //    the recurrence.
+        for traj in out.iter_mut() {
+            for d in 0..dims {
+                let range = d * ns..(d + 1) * ns;
+                let f = &mut traj.forcing[range.clone()];
+                let off = dmp.forcing_scale(d).1;
+                if off != 0.0 {
+                    for (f, &x) in f.iter_mut().zip(&grid.phases) {
+                        *f = fma::<S>(off, x, *f);
+                    }
+                }
+                block_chain::<S>(
+                    simd,
+                    grid,
+                    dmp.start[d],
+                    dmp.goal[d],
+                    f,
+                    &mut traj.position[range.clone()],
+                    &mut traj.velocity[range.clone()],
+                    &mut traj.acceleration[range],
+                );
             }
-            d0 += width;
         }
     }
+}
+
+/// The exact recurrence of one dimension from `y0` at rest towards the goal `g`, with
+/// forcing `f`, writing position, physical velocity `z / τ` and acceleration
+/// `(α_z β_z (g − y) − α_z z + f) / τ²`. The state is kept relative to the goal
+/// (`ỹ = y − g`), where the constant goal input vanishes: at rest on the goal without
+/// forcing the state stays exactly zero. After the first [`BLOCK`] samples (one step
+/// at a time) the states of [`BLOCK`] consecutive samples advance together by
+/// [`BlockCoefficients`]: every operation is a SIMD operation over the block, and the
+/// chain through the state is eight times shorter. The last samples that a whole block
+/// cannot reach are again stepped one at a time.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn block_chain<S: Simd>(
+    simd: S,
+    grid: &Grid,
+    y0: f64,
+    g: f64,
+    f: &[f64],
+    pos: &mut [f64],
+    vel: &mut [f64],
+    acc: &mut [f64],
+) {
+    let c = &grid.coefficients;
+    let ns = f.len();
+    // The first block one step at a time (the whole grid if it is shorter than two
+    // blocks).
+    let head = if ns < 2 * BLOCK { ns } else { BLOCK };
+    let mut y = [0.0; BLOCK];
+    let mut z = [0.0; BLOCK];
+    let (mut ys, mut zs) = (y0 - g, 0.0);
+    for k in 0..head {
+        pos[k] = g + ys;
+        vel[k] = c.velocity(zs);
+        acc[k] = c.acceleration(f[k], ys, zs);
+        if k < BLOCK {
+            (y[k], z[k]) = (ys, zs);
+        }
+        if k + 1 < ns {
+            (ys, zs) = c.advance(ys, zs, f[k], f[k + 1]);
+        }
+    }
+    if head < BLOCK {
+        return;
+    }
+    // Advance the block at `base` to `base + BLOCK` and write it, while the inputs of
+    // the new block (up to sample base + 2 BLOCK − 1) exist.
+    let end = match S::F64_LANES {
+        8 => advance_blocks::<S, 1>(simd, grid, g, f, &mut y, &mut z, pos, vel, acc),
+        4 => advance_blocks::<S, 2>(simd, grid, g, f, &mut y, &mut z, pos, vel, acc),
+        2 => advance_blocks::<S, 4>(simd, grid, g, f, &mut y, &mut z, pos, vel, acc),
+        _ => advance_blocks::<S, 8>(simd, grid, g, f, &mut y, &mut z, pos, vel, acc),
+    };
+    // The remaining samples, one step at a time from the last one written.
+    let (mut ys, mut zs) = (y[BLOCK - 1], z[BLOCK - 1]);
+    for k in end..ns {
+        (ys, zs) = c.advance(ys, zs, f[k - 1], f[k]);
+        pos[k] = g + ys;
+        vel[k] = c.velocity(zs);
+        acc[k] = c.acceleration(f[k], ys, zs);
+    }
+}
+
+/// The block recurrence of [`block_chain`] on `NV` SIMD vectors per block (`NV` ×
+/// lanes = [`BLOCK`]): `y`, `z` hold the states of samples `0 .. BLOCK` on entry and of
+/// the last block written on return; returns the first sample not written.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn advance_blocks<S: Simd, const NV: usize>(
+    simd: S,
+    grid: &Grid,
+    g: f64,
+    f: &[f64],
+    y: &mut [f64; BLOCK],
+    z: &mut [f64; BLOCK],
+    pos: &mut [f64],
+    vel: &mut [f64],
+    acc: &mut [f64],
+) -> usize {
+    let (c, b) = (&grid.coefficients, &grid.block);
+    let ns = f.len();
+    let splat = |v: f64| simd.splat_f64s(v);
+    let vectors = |s: &[f64]| -> [S::f64s; NV] {
+        let (v, _) = S::as_simd_f64s(s);
+        std::array::from_fn(|r| v[r])
+    };
+    let [[e00, e01], [e10, e11]] = b.e.map(|row| row.map(splat));
+    let (gy, gz) = (b.gy.map(splat), b.gz.map(splat));
+    let zero = splat(0.0);
+    let (inv_tau, inv_tau2, kk, az, gv) = (
+        splat(c.inv_tau),
+        splat(c.inv_tau2),
+        splat(c.kk),
+        splat(c.az),
+        splat(g),
+    );
+    let mut yv = vectors(&y[..]);
+    let mut zv = vectors(&z[..]);
+    let mut base = 0;
+    while base + 2 * BLOCK <= ns {
+        // The input sums Σ_j Γ_j u_{k+j} as two interleaved partial sums (shorter FMA
+        // chains), over a window of fixed length so the loop unrolls without checks.
+        let window: &[f64; 2 * BLOCK] = f[base..base + 2 * BLOCK].try_into().expect("window");
+        let (mut ya, mut yb) = ([zero; NV], [zero; NV]);
+        let (mut za, mut zb) = ([zero; NV], [zero; NV]);
+        for jj in 0..BLOCK / 2 {
+            for (j, y, z) in [(2 * jj, &mut ya, &mut za), (2 * jj + 1, &mut yb, &mut zb)] {
+                let fj = vectors(&window[j..j + BLOCK]);
+                for r in 0..NV {
+                    y[r] = simd.mul_add_e_f64s(gy[j], fj[r], y[r]);
+                    z[r] = simd.mul_add_e_f64s(gz[j], fj[r], z[r]);
+                }
+            }
+        }
+        let fj = vectors(&window[BLOCK..]);
+        for r in 0..NV {
+            ya[r] = simd.mul_add_e_f64s(gy[BLOCK], fj[r], ya[r]);
+            za[r] = simd.mul_add_e_f64s(gz[BLOCK], fj[r], za[r]);
+        }
+        for r in 0..NV {
+            let (yr, zr) = (yv[r], zv[r]);
+            let (sy, sz) = (simd.add_f64s(ya[r], yb[r]), simd.add_f64s(za[r], zb[r]));
+            yv[r] = simd.mul_add_e_f64s(e00, yr, simd.mul_add_e_f64s(e01, zr, sy));
+            zv[r] = simd.mul_add_e_f64s(e10, yr, simd.mul_add_e_f64s(e11, zr, sz));
+        }
+        base += BLOCK;
+        let range = base..base + BLOCK;
+        let fb = vectors(&f[range.clone()]);
+        let (pb, _) = S::as_mut_simd_f64s(&mut pos[range.clone()]);
+        for r in 0..NV {
+            pb[r] = simd.add_f64s(gv, yv[r]);
+        }
+        let (vb, _) = S::as_mut_simd_f64s(&mut vel[range.clone()]);
+        for r in 0..NV {
+            vb[r] = simd.mul_f64s(zv[r], inv_tau);
+        }
+        let (ab, _) = S::as_mut_simd_f64s(&mut acc[range]);
+        for r in 0..NV {
+            // (f − kk ỹ − az z) / τ²
+            let t = simd.negate_mul_add_e_f64s(kk, yv[r], fb[r]);
+            ab[r] = simd.mul_f64s(simd.negate_mul_add_e_f64s(az, zv[r], t), inv_tau2);
+        }
+    }
+    let (ys, _) = S::as_mut_simd_f64s(&mut y[..]);
+    ys[..NV].copy_from_slice(&yv);
+    let (zs, _) = S::as_mut_simd_f64s(&mut z[..]);
+    zs[..NV].copy_from_slice(&zv);
+    base + BLOCK
 }
 
 #[cfg(test)]
@@ -636,6 +836,129 @@ mod tests {
             &[0.55, -0.57, 1.45],
         )
         .unwrap()
+    }
+
+    /// The plain one-step recurrence on the plain feature matrix: the reference for the
+    /// packed, blocked SIMD rollout.
+    fn naive_rollout(dmp: &DiscreteDmp, w: &[f64]) -> Trajectory {
+        let (nb, ns) = (dmp.n_basis(), dmp.n_samples());
+        let c = StepCoefficients::new(
+            dmp.config.alpha_z,
+            dmp.config.beta_z,
+            dmp.config.tau,
+            dmp.config.step(),
+        );
+        let mut t = dmp.new_trajectory();
+        for d in 0..dmp.dims() {
+            let (a, b) = dmp.forcing_scale(d);
+            let f: Vec<f64> = (0..ns)
+                .map(|k| {
+                    let phi: f64 = (0..nb)
+                        .map(|i| dmp.feature_column(i)[k] * w[d * nb + i])
+                        .sum();
+                    a * phi + b * dmp.phases()[k]
+                })
+                .collect();
+            let ug = c.goal_input(dmp.goal[d]);
+            let (mut y, mut z) = (dmp.start[d], 0.0);
+            for k in 0..ns {
+                t.position[d * ns + k] = y;
+                t.velocity[d * ns + k] = c.velocity(z);
+                t.acceleration[d * ns + k] = c.acceleration(ug + f[k], y, z);
+                t.forcing[d * ns + k] = f[k];
+                if k + 1 < ns {
+                    (y, z) = c.advance(y, z, ug + f[k], ug + f[k + 1]);
+                }
+            }
+        }
+        t
+    }
+
+    fn assert_close(got: &Trajectory, want: &Trajectory, what: &str) {
+        type Quantity = fn(&Trajectory, usize) -> &[f64];
+        let quantities: [(&str, Quantity); 4] = [
+            ("position", Trajectory::position),
+            ("velocity", Trajectory::velocity),
+            ("acceleration", Trajectory::acceleration),
+            ("forcing", Trajectory::forcing),
+        ];
+        for d in 0..want.dims() {
+            for (name, q) in quantities {
+                let scale = q(want, d).iter().fold(1.0f64, |m, v| m.max(v.abs()));
+                for (k, (g, w)) in q(got, d).iter().zip(q(want, d)).enumerate() {
+                    assert!(
+                        (g - w).abs() <= 1e-12 * scale,
+                        "{what}: {name} of dimension {d} at sample {k}: {g} vs {w}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn blocked_rollout_equals_the_plain_recurrence_on_any_grid_length() {
+        // Grids shorter than two blocks, exactly one or two blocks, and every remainder.
+        for formulation in [Formulation::Ijspeert2013, Formulation::GoalRobust] {
+            for ns in (3..=41).chain([64, 65, 1001]) {
+                let cfg = DmpConfig {
+                    formulation,
+                    ..DmpConfig::new(7, 0.01 * (ns - 1) as f64, 0.01)
+                };
+                let dmp = DiscreteDmp::new(cfg, &[0.3, -1.0], &[1.2, -0.4]).unwrap();
+                let w: Vec<f64> = (0..dmp.n_weights())
+                    .map(|i| (i as f64 * 1.3).sin() * 200.0)
+                    .collect();
+                assert_close(
+                    &dmp.rollout(&w),
+                    &naive_rollout(&dmp, &w),
+                    &format!("{formulation:?}, {} samples", dmp.n_samples()),
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn every_simd_level_and_the_batch_give_the_same_rollout() {
+        let dmp = thesis_dmp(10.0);
+        let nw = dmp.n_weights();
+        let pop: Vec<f64> = (0..3 * nw)
+            .map(|i| (i as f64 * 0.37).cos() * 150.0)
+            .collect();
+        let want: Vec<Trajectory> = pop
+            .chunks_exact(nw)
+            .map(|w| naive_rollout(&dmp, w))
+            .collect();
+        let mut out: Vec<Trajectory> = (0..3).map(|_| dmp.new_trajectory()).collect();
+        fn op<'a>(dmp: &'a DiscreteDmp, pop: &'a [f64], out: &'a mut [Trajectory]) -> Rollouts<'a> {
+            Rollouts {
+                dmp,
+                weights: pop,
+                out,
+            }
+        }
+        pulp::Scalar::new().vectorize(op(&dmp, &pop, &mut out));
+        for (got, want) in out.iter().zip(&want) {
+            assert_close(got, want, "scalar");
+        }
+        #[cfg(target_arch = "x86_64")]
+        {
+            if let Some(simd) = pulp::x86::V3::try_new() {
+                simd.vectorize(|| op(&dmp, &pop, &mut out).with_simd(simd));
+                for (got, want) in out.iter().zip(&want) {
+                    assert_close(got, want, "AVX2");
+                }
+            }
+            if let Some(simd) = pulp::x86::V4::try_new() {
+                simd.vectorize(|| op(&dmp, &pop, &mut out).with_simd(simd));
+                for (got, want) in out.iter().zip(&want) {
+                    assert_close(got, want, "AVX-512");
+                }
+            }
+        }
+        dmp.rollout_batch(&pop, &mut out);
+        for (got, w) in out.iter().zip(pop.chunks_exact(nw)) {
+            assert_eq!(got, &dmp.rollout(w), "batch = one rollout per candidate");
+        }
     }
 
     #[test]
