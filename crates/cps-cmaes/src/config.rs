@@ -14,8 +14,10 @@ pub struct CmaesConfig {
     /// Seed of the random stream. The same seed gives the same run bit for bit, whatever
     /// the number of threads evaluating the population.
     pub seed: u64,
-    /// Generations between eigendecompositions of C; `None` = pycma's lazy gap
-    /// `⌊1/(2n(c_1 + c_μ))⌋` (≈ 4 at n = 75), `Some(1)` = every generation.
+    /// Generations between the diagnostic eigendecompositions of C (condition number and
+    /// the stop rules `TolUpSigma`, `ConditionCov`, `NoEffectAxis`; sampling uses the
+    /// Cholesky factor, refreshed every generation); `None` = `n`, at least pycma's lazy
+    /// gap `⌊1/(2n(c_1 + c_μ))⌋`; `Some(1)` = every generation.
     pub eigen_gap: Option<u64>,
     /// Optional per-coordinate scales `s` of the initial distribution: C₀ = diag(s²), so
     /// coordinate i starts with standard deviation `sigma0 * s[i]`.

@@ -189,8 +189,6 @@ fn search<O: Objective + ?Sized>(
     rules: &[StopRule],
     observer: &mut dyn Observer,
 ) -> Result<Solution, CmaesError> {
-    // Each eigendecomposition runs while the next population is evaluated.
-    es.defer_decompositions();
     let n = es.parameters().n;
     let mut costs = vec![0.0; es.parameters().lambda];
     let termination = loop {
@@ -199,7 +197,8 @@ fn search<O: Objective + ?Sized>(
         }
         let generation = es.generation();
         es.ask();
-        es.evaluate_overlapped(|xs| objective.evaluate_batch(xs, n, &mut costs))
+        objective
+            .evaluate_batch(es.population(), n, &mut costs)
             .map_err(|e| CmaesError::Objective {
                 generation,
                 index: e.index,

@@ -28,8 +28,10 @@ pub enum StopRule {
     /// Stop when the best and the `⌈0.1 + λ/4⌉`-th best cost of a generation are equal in
     /// this many consecutive generations (a flat region: ranking carries no information).
     FlatFitness(u64),
-    /// Stop when, over the last `120 + 30 n / λ` generations (or 20 % of the run if
-    /// longer), neither the median of the best nor of the median costs improved.
+    /// Stop when neither the best nor the median costs improve any more (pycma's
+    /// tolstagnation): with `T = 100 + 100 n^1.5 / λ` and G generations run (at least
+    /// `n (5 + 100/λ)`), the median of the last `l = max(T/10, G/10)` values is not below
+    /// the median of the `l` before them, in both histories.
     Stagnation,
     /// Stop when adding 0.1 σ times a principal axis of C to the mean leaves it unchanged
     /// (the axis is cycled through generation by generation).

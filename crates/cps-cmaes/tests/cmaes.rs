@@ -250,7 +250,10 @@ fn an_observer_can_stop_the_run() {
 
 /// Median evaluations to f ≤ 1e-8 over seeds 1..10 at n = 10 lie within ±15 % of pycma
 /// 4.5.0's, measured independently on this machine kind (x0 = 3·1, σ0 = 2; Rosenbrock
-/// x0 = 0, σ0 = 0.5; default λ), and every run succeeds.
+/// x0 = 0, σ0 = 0.5; default λ), and every run succeeds — except that a Rosenbrock run
+/// may end in its known local minimum (f ≈ 3.99 near x = (−1, 1, …, 1)), as a few
+/// percent of runs do (measured over seeds 1..100: 2 here, 4 with the previous
+/// eigendecomposition form); at most one of the ten.
 #[test]
 fn evaluation_counts_match_pycma_at_n_10() {
     type F = fn(&[f64]) -> f64;
@@ -262,30 +265,35 @@ fn evaluation_counts_match_pycma_at_n_10() {
         ("rosenbrock", functions::rosenbrock, 0.0, 0.5, 4911.0),
     ];
     for (name, f, x0, sigma0, pycma) in cases {
-        let mut evals: Vec<u64> = (1..=10)
-            .map(|seed| {
-                let rules = [
-                    StopRule::TargetCost(1e-8),
-                    StopRule::MaxEvaluations(200_000),
-                ];
-                let sol = minimize(
-                    &FnObjective(f),
-                    &[x0; 10],
-                    &CmaesConfig::new(sigma0, seed),
-                    &rules,
-                    &mut NoObserver,
-                )
-                .unwrap();
-                assert!(
-                    sol.best_cost <= 1e-8,
-                    "{name}, seed {seed}: {}",
-                    sol.best_cost
-                );
-                sol.evaluations
-            })
-            .collect();
+        let mut evals = Vec::new();
+        let mut local = 0;
+        for seed in 1..=10 {
+            let rules = [
+                StopRule::TargetCost(1e-8),
+                StopRule::MaxEvaluations(200_000),
+            ];
+            let sol = minimize(
+                &FnObjective(f),
+                &[x0; 10],
+                &CmaesConfig::new(sigma0, seed),
+                &rules,
+                &mut NoObserver,
+            )
+            .unwrap();
+            if sol.best_cost <= 1e-8 {
+                evals.push(sol.evaluations);
+            } else {
+                let in_local_minimum = name == "rosenbrock"
+                    && (3.98..3.99).contains(&sol.best_cost)
+                    && sol.best_x[0] < -0.9;
+                assert!(in_local_minimum, "{name}, seed {seed}: {}", sol.best_cost);
+                local += 1;
+            }
+        }
+        assert!(local <= 1, "{name}: {local} runs in the local minimum");
         evals.sort_unstable();
-        let median = (evals[4] + evals[5]) as f64 / 2.0;
+        let m = evals.len();
+        let median = (evals[(m - 1) / 2] + evals[m / 2]) as f64 / 2.0;
         let ratio = median / pycma;
         assert!(
             (0.85..=1.15).contains(&ratio),
@@ -387,7 +395,9 @@ mod stopping_rules {
         };
         let s = stop(noise, &[0.0; 3], 1.0, StopRule::Stagnation);
         assert_eq!(s.termination.name(), "stagnation");
-        assert!(s.generations >= 120, "{}", s.generations);
+        // pycma's rule needs a history of more than 100 generations (n = 3, λ = 7: the
+        // compared windows are 17 generations long).
+        assert!((101..=400).contains(&s.generations), "{}", s.generations);
     }
 
     #[test]
@@ -658,7 +668,7 @@ fn a_resumed_checkpoint_continues_the_run_bit_for_bit() {
     )
     .unwrap();
     let json = serde_json::to_string(&es.checkpoint()).unwrap();
-    let bad = json.replace("\"version\":1", "\"version\":7");
+    let bad = json.replace("\"version\":2", "\"version\":7");
     let cp: cps_cmaes::Checkpoint = serde_json::from_str(&bad).unwrap();
     assert!(Cmaes::resume(&cp).is_err());
 }
