@@ -219,7 +219,7 @@ fn cmaes_overhead(c: &mut Criterion) {
 
 fn cmaes_generation(c: &mut Criterion) {
     // One generation of the thesis task at n = 75, λ = 16: ask, the 16 via-point rollouts
-    // and costs (streamed batch path), tell; one thread.
+    // and costs (batch rollouts), tell; one thread.
     let task = ViaPointTask::thesis();
     let dmp = task.build_dmp().unwrap();
     let space = SearchSpace::new(Parametrisation::AnchorOffset, &dmp);

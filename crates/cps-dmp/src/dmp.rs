@@ -46,8 +46,6 @@ pub(crate) struct Grid {
     pub(crate) features: Vec<f64>,
     /// The same features packed chunk-major for the forcing kernel.
     packed: PackedFeatures,
-    /// The same features row-major ((K+1) rows of N) for the streaming batch rollout.
-    rows: Vec<f64>,
     coefficients: StepCoefficients,
     block: BlockCoefficients,
 }
@@ -217,38 +215,9 @@ impl DiscreteDmp {
         });
     }
 
-    /// Rolls out up to [`BATCH_LANES`] weight vectors at once without storing their
-    /// trajectories, for costs that can be accumulated sample by sample (the fast path of
-    /// population evaluation). `weights` holds `m ≤ BATCH_LANES` weight vectors back to back;
-    /// `visitor.visit(k, d, y, v, a)` is called for every sample `k` (in order) and
-    /// dimension `d` with the position, physical velocity and acceleration of every lane.
-    /// Lanes `m..` repeat the last vector. Mark the visitor's `visit` `#[inline(always)]`:
-    /// it then runs inside the SIMD context too.
-    ///
-    /// The arithmetic is the same exact recurrence as [`Self::rollout_into`]; results agree
-    /// to rounding (the forcing sum may be fused differently).
-    ///
-    /// # Panics
-    /// If `weights` is empty, longer than `BATCH_LANES` vectors or not a whole number of them.
-    pub fn rollout_stream<V: StreamVisitor>(&self, weights: &[f64], visitor: &mut V) {
-        let nw = self.n_weights();
-        let m = weights.len() / nw;
-        assert!(
-            (1..=BATCH_LANES).contains(&m) && weights.len() == m * nw,
-            "rollout_stream takes 1 to {BATCH_LANES} weight vectors"
-        );
-        self.arch.dispatch(Stream {
-            dmp: self,
-            weights,
-            m,
-            visit: visitor,
-        });
-    }
-
     /// Rolls out a population: `weights` holds `out.len()` weight vectors back to back.
     /// Faster than one [`Self::rollout_into`] per candidate: each chunk of the feature
-    /// matrix is read from memory once for the whole population. (Use
-    /// [`Self::rollout_stream`] when only costs are needed.)
+    /// matrix is read from memory once for the whole population.
     ///
     /// # Panics
     /// If `weights.len() != out.len() * n_weights()` or a trajectory has the wrong shape.
@@ -283,11 +252,11 @@ impl Grid {
         let phases: Vec<f64> = times.iter().map(|&t| cs.phase(t)).collect();
         let basis = GaussianBasis::new(config.n_basis, config.alpha_x);
         let n = config.n_basis;
-        // Row-major (for the streaming rollout) and column-major (for the forcing kernel).
-        let mut rows = vec![0.0; (k + 1) * n];
+        // Column-major features (and their packed copy for the forcing kernel).
+        let mut row = vec![0.0; n];
         let mut features = vec![0.0; (k + 1) * n];
-        for (s, (&x, row)) in phases.iter().zip(rows.chunks_exact_mut(n)).enumerate() {
-            basis.features(x, row);
+        for (s, &x) in phases.iter().enumerate() {
+            basis.features(x, &mut row);
             for (i, &v) in row.iter().enumerate() {
                 features[i * (k + 1) + s] = v;
             }
@@ -299,75 +268,8 @@ impl Grid {
             basis,
             times,
             phases,
-            rows,
             features,
             coefficients,
-        }
-    }
-}
-
-/// Candidates rolled out together by [`DiscreteDmp::rollout_stream`].
-pub const BATCH_LANES: usize = 8;
-
-/// One value per lane of [`DiscreteDmp::rollout_stream`].
-pub type Lanes = [f64; BATCH_LANES];
-
-/// The streaming batch rollout: lanes are candidates, so every operation is a SIMD
-/// operation over [`BATCH_LANES`] candidates, and nothing is stored.
-struct Stream<'a, V> {
-    dmp: &'a DiscreteDmp,
-    weights: &'a [f64],
-    m: usize,
-    visit: &'a mut V,
-}
-
-/// Receives the samples of [`DiscreteDmp::rollout_stream`].
-pub trait StreamVisitor {
-    /// Sample `k` of dimension `d`: position, physical velocity and acceleration per lane.
-    fn visit(&mut self, k: usize, d: usize, y: &Lanes, v: &Lanes, a: &Lanes);
-}
-
-impl<F: FnMut(usize, usize, &Lanes, &Lanes, &Lanes)> StreamVisitor for F {
-    #[inline(always)]
-    fn visit(&mut self, k: usize, d: usize, y: &Lanes, v: &Lanes, a: &Lanes) {
-        self(k, d, y, v, a)
-    }
-}
-
-impl<V: StreamVisitor> WithSimd for Stream<'_, V> {
-    type Output = ();
-
-    #[inline(always)]
-    fn with_simd<S: Simd>(self, _simd: S) {
-        let Self {
-            dmp,
-            weights,
-            m,
-            visit,
-        } = self;
-        let (nb, dims) = (dmp.n_basis(), dmp.dims());
-        let nw = nb * dims;
-        // Weights transposed to [d][i][lane], pre-multiplied by g − y0.
-        let mut wt = vec![[0.0; BATCH_LANES]; nw];
-        for d in 0..dims {
-            let amp = dmp.forcing_scale(d).0;
-            for i in 0..nb {
-                for (l, w) in wt[d * nb + i].iter_mut().enumerate() {
-                    *w = amp * weights[l.min(m - 1) * nw + d * nb + i];
-                }
-            }
-        }
-        // Dimensions in groups of up to three share each broadcast feature value.
-        let mut d0 = 0;
-        while d0 < dims {
-            let width = (dims - d0).min(3);
-            let wg = &wt[d0 * nb..(d0 + width) * nb];
-            match width {
-                1 => stream_group::<S, V, 1>(dmp, d0, wg, visit),
-                2 => stream_group::<S, V, 2>(dmp, d0, wg, visit),
-                _ => stream_group::<S, V, 3>(dmp, d0, wg, visit),
-            }
-            d0 += width;
         }
     }
 }
@@ -380,91 +282,6 @@ fn fma<S: Simd>(a: f64, b: f64, c: f64) -> f64 {
         a * b + c
     } else {
         a.mul_add(b, c)
-    }
-}
-
-/// `Φ(k) · w + off · x` for `W` dimensions at once: each feature value is broadcast once for all of
-/// them, and two partial sums per dimension shorten the FMA chains (more would spill
-/// registers; successive steps' sums are independent and overlap anyway).
-#[inline(always)]
-fn stream_forcing<S: Simd, const W: usize>(
-    row: &[f64],
-    wt: &[Lanes],
-    off: &[f64; W],
-    x: f64,
-) -> [Lanes; W] {
-    let nb = row.len();
-    const P: usize = 2;
-    let mut part = [[[0.0; BATCH_LANES]; P]; W];
-    for (p, o) in part.iter_mut().zip(off) {
-        p[0] = [o * x; BATCH_LANES];
-    }
-    let full = nb - nb % P;
-    for i0 in (0..full).step_by(P) {
-        for q in 0..P {
-            let phi = row[i0 + q];
-            for (j, part) in part.iter_mut().enumerate() {
-                let w = &wt[j * nb + i0 + q];
-                for l in 0..BATCH_LANES {
-                    part[q][l] = fma::<S>(phi, w[l], part[q][l]);
-                }
-            }
-        }
-    }
-    for i in full..nb {
-        let phi = row[i];
-        for (j, part) in part.iter_mut().enumerate() {
-            let w = &wt[j * nb + i];
-            for l in 0..BATCH_LANES {
-                part[0][l] = fma::<S>(phi, w[l], part[0][l]);
-            }
-        }
-    }
-    let mut f = [[0.0; BATCH_LANES]; W];
-    for j in 0..W {
-        for l in 0..BATCH_LANES {
-            f[j][l] = part[j][0][l] + part[j][1][l];
-        }
-    }
-    f
-}
-
-/// The streaming rollout of dimensions `d0 .. d0 + W` (weights `wt` of these dimensions).
-#[inline(always)]
-fn stream_group<S: Simd, V: StreamVisitor, const W: usize>(
-    dmp: &DiscreteDmp,
-    d0: usize,
-    wt: &[Lanes],
-    visit: &mut V,
-) {
-    let (nb, ns) = (dmp.n_basis(), dmp.n_samples());
-    let c = &dmp.grid.coefficients;
-    let row = |k: usize| &dmp.grid.rows[k * nb..(k + 1) * nb];
-    let ug: [f64; W] = std::array::from_fn(|j| c.goal_input(dmp.goal[d0 + j]));
-    let mut y: [Lanes; W] = std::array::from_fn(|j| [dmp.start[d0 + j]; BATCH_LANES]);
-    let mut z = [[0.0; BATCH_LANES]; W];
-    let off: [f64; W] = std::array::from_fn(|j| dmp.forcing_scale(d0 + j).1);
-    // f = a Φw + b x: the accumulators of Φw start at b x. (No closures here: they are
-    // not reliably inlined into the SIMD context, and outside it `mul_add` becomes a slow
-    // software call.)
-    let x = &dmp.grid.phases;
-    let mut f = stream_forcing::<S, W>(row(0), wt, &off, x[0]);
-    for k in 0..ns {
-        let next = (k + 1).min(ns - 1);
-        let f_next = stream_forcing::<S, W>(row(next), wt, &off, x[next]);
-        for j in 0..W {
-            let (yd, zd, f0, f1) = (y[j], z[j], f[j], f_next[j]);
-            let mut v = [0.0; BATCH_LANES];
-            let mut a = [0.0; BATCH_LANES];
-            for l in 0..BATCH_LANES {
-                let (u0, u1) = (ug[j] + f0[l], ug[j] + f1[l]);
-                v[l] = c.velocity(zd[l]);
-                a[l] = c.acceleration(u0, yd[l], zd[l]);
-                (y[j][l], z[j][l]) = c.advance(yd[l], zd[l], u0, u1);
-            }
-            visit.visit(k, d0 + j, &yd, &v, &a);
-        }
-        f = f_next;
     }
 }
 

@@ -11,8 +11,9 @@
 //! - [`DiscreteDmp`]: one DMP per dimension sharing phase ([`CanonicalSystem`]), basis
 //!   ([`GaussianBasis`]) and `tau`, with everything that does not depend on the weights
 //!   precomputed, so that [`DiscreteDmp::rollout_into`] is one small matrix product plus a
-//!   cheap exact linear recurrence; [`DiscreteDmp::rollout_stream`] runs eight candidates
-//!   at once for population costs. [`Trajectory`] holds the samples.
+//!   cheap exact linear recurrence advanced eight samples at a time;
+//!   [`DiscreteDmp::rollout_batch`] rolls out a population. [`Trajectory`] holds the
+//!   samples.
 //! - [`OnlineDmp`]: the same model stepped one control period at a time, with live goal
 //!   and τ changes, phase stopping and coupling terms.
 //! - [`imitate`] / [`Imitator`]: weights from demonstrations ([`Demonstration`]) by LWR,
@@ -63,7 +64,7 @@ mod trajectory;
 pub use basis::GaussianBasis;
 pub use canonical::CanonicalSystem;
 pub use config::{DmpConfig, Formulation};
-pub use dmp::{BATCH_LANES, DiscreteDmp, Lanes, StreamVisitor};
+pub use dmp::DiscreteDmp;
 pub use error::DmpError;
 pub use imitation::{
     Combine, Demonstration, FitReport, Imitation, Imitator, Lambda, Regression, imitate,

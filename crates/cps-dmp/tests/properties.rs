@@ -133,60 +133,6 @@ fn batch_rollout_equals_single_rollouts() {
     }
 }
 
-#[test]
-fn streaming_batch_rollout_matches_single_rollouts() {
-    for f in [
-        cps_dmp::Formulation::Ijspeert2013,
-        cps_dmp::Formulation::GoalRobust,
-    ] {
-        streaming_matches(f);
-    }
-}
-
-fn streaming_matches(formulation: cps_dmp::Formulation) {
-    use cps_dmp::BATCH_LANES;
-    let dmp = DiscreteDmp::new(
-        DmpConfig {
-            formulation,
-            ..DmpConfig::new(25, 10.0, 0.01)
-        },
-        &[0.75, 0.02, 1.87],
-        &[0.55, -0.57, 1.45],
-    )
-    .unwrap();
-    let n = dmp.n_weights();
-    for m in [1, 3, BATCH_LANES] {
-        let pop = weights(m * n, m as u64, 2000.0);
-        let singles: Vec<_> = (0..m)
-            .map(|c| dmp.rollout(&pop[c * n..(c + 1) * n]))
-            .collect();
-        let mut visits = 0;
-        dmp.rollout_stream(
-            &pop,
-            &mut |k: usize,
-                  d: usize,
-                  y: &cps_dmp::Lanes,
-                  v: &cps_dmp::Lanes,
-                  a: &cps_dmp::Lanes| {
-                visits += 1;
-                for l in 0..BATCH_LANES {
-                    let t = &singles[l.min(m - 1)];
-                    let close = |x: f64, r: f64| (x - r).abs() <= 1e-10 * (1.0 + r.abs());
-                    assert!(
-                        close(y[l], t.position(d)[k]),
-                        "m {m} lane {l} k {k} d {d}: {} vs {}",
-                        y[l],
-                        t.position(d)[k]
-                    );
-                    assert!(close(v[l], t.velocity(d)[k]));
-                    assert!(close(a[l], t.acceleration(d)[k]));
-                }
-            },
-        );
-        assert_eq!(visits, 3 * dmp.n_samples());
-    }
-}
-
 mod formulations_and_stepping {
     use super::weights;
     use cps_dmp::{DiscreteDmp, DmpConfig, Formulation, OnlineDmp, StepInput};

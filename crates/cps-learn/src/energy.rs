@@ -294,7 +294,7 @@ pub fn learn_with_effort(
     } else {
         vec![0.0; space.len()]
     };
-    let objective = Buffered(EffortObjective {
+    let objective = Buffered::new(EffortObjective {
         config,
         dmp: &dmp,
         space: &space,

@@ -321,7 +321,7 @@ pub fn learn_joint_space(
         limit_weight: config.limit_weight,
         speed_limit_weight: config.speed_limit_weight,
     };
-    let objective = Buffered(JointObjective {
+    let objective = Buffered::new(JointObjective {
         cost: cost.clone(),
         dmp: &dmp,
         space: &space,

@@ -7,7 +7,7 @@ use std::time::Instant;
 use cps_cmaes::{
     CandidateError, CmaesConfig, GenerationReport, Objective, ObjectiveError, StopRule, minimize,
 };
-use cps_dmp::{BATCH_LANES, DiscreteDmp, Trajectory};
+use cps_dmp::{DiscreteDmp, Trajectory};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -161,20 +161,27 @@ impl ViaPointOutcome {
 }
 
 /// The via-point cost as a CMA-ES [`Objective`] over the parameters θ of a
-/// [`SearchSpace`]: θ → weights → rollout → cost. Populations are evaluated with streaming
-/// batch rollouts ([`ViaPointTask::costs_streamed`]), groups of candidates in parallel.
-#[derive(Debug, Clone, Copy)]
+/// [`SearchSpace`]: θ → weights → rollout → cost. Populations are evaluated with batch
+/// rollouts ([`ViaPointTask::costs_batched`]), groups of candidates in parallel.
+#[derive(Debug)]
 pub struct ViaPointObjective<'a> {
     task: &'a ViaPointTask,
     dmp: &'a DiscreteDmp,
     space: &'a SearchSpace,
+    /// Weight and trajectory buffers of finished jobs, reused by the next ones.
+    buffers: BufferPool<(Vec<f64>, Vec<Trajectory>)>,
 }
 
 impl<'a> ViaPointObjective<'a> {
     /// The objective of `task`, whose DMP is `dmp` (from [`ViaPointTask::build_dmp`]), in
     /// the search space `space`.
     pub fn new(task: &'a ViaPointTask, dmp: &'a DiscreteDmp, space: &'a SearchSpace) -> Self {
-        Self { task, dmp, space }
+        Self {
+            task,
+            dmp,
+            space,
+            buffers: BufferPool::default(),
+        }
     }
 }
 
@@ -189,20 +196,31 @@ impl Objective for ViaPointObjective<'_> {
         dim: usize,
         out: &mut [f64],
     ) -> Result<(), CandidateError> {
-        // Streaming batch rollouts: BATCH_LANES candidates per SIMD pass, no trajectories
-        // stored; groups in parallel.
-        xs.par_chunks(dim * BATCH_LANES)
-            .zip(out.par_chunks_mut(BATCH_LANES))
+        // Batch rollouts of groups of candidates (each chunk of the feature matrix read once
+        // per group), groups in parallel, buffers reused across jobs and generations.
+        let nw = self.dmp.n_weights();
+        xs.par_chunks(dim * GROUP)
+            .zip(out.par_chunks_mut(GROUP))
             .for_each(|(group, costs)| {
-                let mut w = vec![0.0; group.len()];
-                for (theta, w) in group.chunks_exact(dim).zip(w.chunks_exact_mut(dim)) {
-                    self.space.to_weights(theta, w);
-                }
-                self.task.costs_streamed(self.dmp, &w, costs);
+                let m = costs.len();
+                self.buffers.with(
+                    || (vec![0.0; GROUP * nw], Vec::new()),
+                    |(w, trajs)| {
+                        let w = &mut w[..m * nw];
+                        for (theta, w) in group.chunks_exact(dim).zip(w.chunks_exact_mut(nw)) {
+                            self.space.to_weights(theta, w);
+                        }
+                        trajs.resize_with(m, || self.dmp.new_trajectory());
+                        self.task.costs_batched(self.dmp, w, &mut trajs[..m], costs);
+                    },
+                );
             });
         Ok(())
     }
 }
+
+/// Candidates rolled out together by [`ViaPointObjective`].
+const GROUP: usize = 8;
 
 /// Learns a via-point movement.
 ///
@@ -303,14 +321,44 @@ pub(crate) trait BufferedCost: Sync {
     fn cost(&self, x: &[f64], buffers: &mut Self::Buffers) -> f64;
 }
 
+/// Buffers kept between uses: a job takes one (or makes one), uses it and puts it back,
+/// so large buffers are allocated once per worker and run, not per job. (Fresh buffers
+/// cost page faults, which serialise the threads: measured 4× slower populations.)
+#[derive(Debug)]
+pub(crate) struct BufferPool<T>(std::sync::Mutex<Vec<T>>);
+
+impl<T> Default for BufferPool<T> {
+    fn default() -> Self {
+        Self(std::sync::Mutex::new(Vec::new()))
+    }
+}
+
+impl<T> BufferPool<T> {
+    /// Runs `f` on a pooled buffer (made by `make` if none is free).
+    pub(crate) fn with<R>(&self, make: impl FnOnce() -> T, f: impl FnOnce(&mut T) -> R) -> R {
+        let taken = self.0.lock().ok().and_then(|mut free| free.pop());
+        let mut buffer = taken.unwrap_or_else(make);
+        let r = f(&mut buffer);
+        if let Ok(mut free) = self.0.lock() {
+            free.push(buffer);
+        }
+        r
+    }
+}
+
 /// A [`BufferedCost`] as a CMA-ES [`Objective`]: the population is evaluated in parallel,
-/// each rayon job reusing one set of buffers across its candidates (fresh buffers per
-/// candidate cost page faults, which serialise the threads).
-pub(crate) struct Buffered<C>(pub C);
+/// each candidate in pooled buffers.
+pub(crate) struct Buffered<C: BufferedCost>(C, BufferPool<C::Buffers>);
+
+impl<C: BufferedCost> Buffered<C> {
+    pub(crate) fn new(cost: C) -> Self {
+        Self(cost, BufferPool::default())
+    }
+}
 
 impl<C: BufferedCost> Objective for Buffered<C> {
     fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
-        Ok(self.0.cost(x, &mut self.0.buffers()))
+        Ok(self.1.with(|| self.0.buffers(), |b| self.0.cost(x, b)))
     }
 
     fn evaluate_batch(
@@ -321,7 +369,7 @@ impl<C: BufferedCost> Objective for Buffered<C> {
     ) -> Result<(), CandidateError> {
         xs.par_chunks_exact(dim)
             .zip(out.par_iter_mut())
-            .for_each_init(|| self.0.buffers(), |b, (x, o)| *o = self.0.cost(x, b));
+            .for_each(|(x, o)| *o = self.1.with(|| self.0.buffers(), |b| self.0.cost(x, b)));
         Ok(())
     }
 }

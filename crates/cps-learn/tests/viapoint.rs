@@ -201,7 +201,7 @@ fn ill_posed_tasks_are_errors_naming_the_field() {
 }
 
 #[test]
-fn streamed_batch_costs_equal_rollout_costs() {
+fn batched_costs_equal_rollout_costs() {
     let mut task = ViaPointTask::thesis();
     task.weights.jerk = 1e-4; // exercise every term
     task.via[1].time = 4.004; // off the grid: interpolated
@@ -217,14 +217,15 @@ fn streamed_batch_costs_equal_rollout_costs() {
                 .collect();
             space.to_weights(&theta, &mut w[c * n..(c + 1) * n]);
         }
-        let mut streamed = vec![0.0; m];
-        task.costs_streamed(&dmp, &w, &mut streamed);
+        let mut batched = vec![0.0; m];
+        let mut trajs: Vec<_> = (0..m).map(|_| dmp.new_trajectory()).collect();
+        task.costs_batched(&dmp, &w, &mut trajs, &mut batched);
         for c in 0..m {
             let direct = task.cost(&dmp.rollout(&w[c * n..(c + 1) * n]));
             assert!(
-                (streamed[c] - direct).abs() <= 1e-9 * direct,
+                (batched[c] - direct).abs() <= 1e-12 * direct,
                 "m {m} candidate {c}: {} vs {direct}",
-                streamed[c]
+                batched[c]
             );
         }
     }
