@@ -217,6 +217,28 @@ fn cmaes_overhead(c: &mut Criterion) {
     }
 }
 
+fn cmaes_overhead_separable(c: &mut Criterion) {
+    // The separable variant at n = 1000 (λ = 24): O(n λ) per generation, no matrix.
+    let n = 1000;
+    let config = CmaesConfig {
+        separable: true,
+        ..CmaesConfig::new(1.0, 3)
+    };
+    let mut es = Cmaes::new(&config, &vec![1.0; n]).unwrap();
+    let mut g = 0u64;
+    c.bench_function("cmaes_overhead_separable/n=1000", |b| {
+        b.iter(|| {
+            g += 1;
+            let lambda = es.parameters().lambda;
+            let costs: Vec<f64> = (0..lambda as u64)
+                .map(|i| ((i * 7919 + g * 104729) % 1009) as f64)
+                .collect();
+            es.ask();
+            es.tell(&costs).unwrap();
+        })
+    });
+}
+
 fn cmaes_generation(c: &mut Criterion) {
     // One generation of the thesis task at n = 75, λ = 16: ask, the 16 via-point rollouts
     // and costs (batch rollouts), tell; one thread.
@@ -280,6 +302,7 @@ criterion_group!(
     kinematics,
     rollout,
     cmaes_overhead,
+    cmaes_overhead_separable,
     cmaes_generation,
     viapoint_run
 );

@@ -62,6 +62,9 @@ pub struct BenchArgs {
     /// BIPOP restarts (up to 9 large-population runs, small ones interleaved).
     #[arg(long)]
     bipop: bool,
+    /// The separable variant (sep-CMA-ES: diagonal covariance).
+    #[arg(long)]
+    separable: bool,
     /// Print a JSON list of `{seed, evaluations, success, best, seconds}`.
     #[arg(long)]
     json: bool,
@@ -112,7 +115,10 @@ pub fn bench(cmd: &CmaesCommand) -> Result<ExitCode> {
     let rules = StopRule::reference_set(1e-8, n);
     let mut rows = Vec::new();
     for seed in first..=last {
-        let config = CmaesConfig::new(sigma0, seed);
+        let config = CmaesConfig {
+            separable: args.separable,
+            ..CmaesConfig::new(sigma0, seed)
+        };
         let start = Instant::now();
         let sol = if args.ipop {
             minimize_ipop(&FnObjective(f), &x0, &config, &rules, 9, &mut NoObserver)?.best

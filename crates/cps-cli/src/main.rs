@@ -9,7 +9,7 @@
 //! cps-cli robot show panda|configs/robots/ur3.toml|configs/robots/panda.urdf [--tool NAME] [--tip LINK]
 //! cps-cli scene check configs/scenes/thesis.toml [--json]
 //! cps-cli sim serve [--bind 127.0.0.1:23000] [--scene FILE] [--dt 0.05] [--ik-following]
-//! cps-cli cmaes bench sphere|ellipsoid|cigar|discus|rosenbrock|rastrigin --dim N --seeds A..B [--ipop|--bipop] [--json]
+//! cps-cli cmaes bench sphere|ellipsoid|cigar|discus|rosenbrock|rastrigin --dim N --seeds A..B [--ipop|--bipop] [--separable] [--json]
 //! cps-cli imitate demo.csv [more.csv ...] [--bases N] [--method lwr|ridge|jerk] [--lambda X|auto] [--tau S] --out model.json [--plot fit.png]
 //! cps-cli rollout model.json [--start ...] [--goal ...] [--tau S] [--dt S] --out traj.csv [--plot traj.png]
 //! ```

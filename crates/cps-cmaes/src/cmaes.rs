@@ -31,6 +31,9 @@ use crate::{CmaesConfig, CmaesError, Parameters, StopRule, Termination};
 /// C is kept bit-for-bit symmetric; if a factorisation fails (C lost positive
 /// definiteness), C is rebuilt from the last factor and the repair is counted.
 ///
+/// With [`CmaesConfig::separable`] C is diagonal (sep-CMA-ES): `D` holds its standard
+/// deviations, sampling is `x_k = m + σ D z_k`, and no matrix is stored.
+///
 /// The eigendecomposition C = B D² Bᵀ serves only the diagnostics — [`Self::condition`]
 /// and the stop rules `TolUpSigma`, `ConditionCov` and `NoEffectAxis` — and is refreshed
 /// every `eigen_gap` generations (default: `n`, at least the lazy gap
@@ -45,11 +48,15 @@ pub struct Cmaes {
     gap: u64,
     mean: Vec<f64>,
     sigma: f64,
+    /// Full form: C, its Cholesky factor (lower triangle; zeros above) and the diagnostic
+    /// eigenvectors. Separable form: all three are empty.
     c: Mat<f64>,
-    /// Cholesky factor of `c` (lower triangle; zeros above).
     a: Mat<f64>,
     b: Mat<f64>,
+    /// Full form: square roots of C's eigenvalues (diagnostic). Separable form: the standard
+    /// deviations, C = diag(d²).
     d: Vec<f64>,
+    separable: bool,
     p_sigma: Vec<f64>,
     p_c: Vec<f64>,
     generation: u64,
@@ -67,6 +74,28 @@ pub struct Cmaes {
     median_history: Vec<f64>,
     flat_generations: u64,
     work: Work,
+}
+
+/// The separable form's covariance update, on the diagonal only: the same rank-one and
+/// active rank-μ terms (steps and weights in `work.ys` / `work.yw`), giving the new
+/// variances; `None` if one turns non-positive or non-finite (the update is then not
+/// taken: a repair).
+fn diagonal_update(
+    p: &Parameters,
+    work: &Work,
+    p_c: &[f64],
+    d: &[f64],
+    decay: f64,
+) -> Option<Vec<f64>> {
+    let new: Vec<f64> = (0..p.n)
+        .map(|i| {
+            let rank_mu: f64 = (0..p.lambda)
+                .map(|r| work.yw[(i, r)] * work.ys[(i, r)])
+                .sum();
+            decay * d[i] * d[i] + p.c1 * p_c[i] * p_c[i] + p.c_mu * rank_mu
+        })
+        .collect();
+    new.iter().all(|v| v.is_finite() && *v > 0.0).then_some(new)
 }
 
 /// Buffers reused every generation.
@@ -106,6 +135,8 @@ pub struct Checkpoint {
     eigen_gap: u64,
     initial_scales: Option<Vec<f64>>,
     bounds: Option<(Vec<f64>, Vec<f64>)>,
+    #[cfg_attr(feature = "serde", serde(default))]
+    separable: bool,
     mean: Vec<f64>,
     sigma: f64,
     c: Vec<f64>,
@@ -147,7 +178,14 @@ impl Cmaes {
             });
         }
         let lambda = config.lambda(n);
-        let params = Parameters::new(n, lambda);
+        let separable = config.separable;
+        let params = if separable {
+            Parameters::separable(n, lambda)
+        } else {
+            Parameters::new(n, lambda)
+        };
+        // The separable form stores no matrix.
+        let m = if separable { 0 } else { n };
         let gap = config
             .eigen_gap
             .unwrap_or_else(|| params.default_eigen_gap().max(n as u64));
@@ -156,25 +194,29 @@ impl Cmaes {
             .clone()
             .unwrap_or_else(|| vec![1.0; n]);
         let c = Mat::from_fn(
-            n,
-            n,
+            m,
+            m,
             |i, j| if i == j { scales[i] * scales[i] } else { 0.0 },
         );
-        let a = Mat::from_fn(n, n, |i, j| if i == j { scales[i] } else { 0.0 });
-        let b = Mat::identity(n, n);
+        let a = Mat::from_fn(m, m, |i, j| if i == j { scales[i] } else { 0.0 });
+        let b = Mat::identity(m, m);
         let (max, min) = scales.iter().fold((0.0f64, f64::INFINITY), |(a, b), s| {
             (a.max(s * s), b.min(s * s))
         });
         let par = Par::Seq;
-        let req = StackReq::any_of(&[
-            evd::self_adjoint_evd_scratch::<f64>(
-                n,
-                ComputeEigenvectors::Yes,
-                par,
-                Default::default(),
-            ),
-            cholesky_in_place_scratch::<f64>(n, par, Default::default()),
-        ]);
+        let req = if separable {
+            StackReq::EMPTY
+        } else {
+            StackReq::any_of(&[
+                evd::self_adjoint_evd_scratch::<f64>(
+                    n,
+                    ComputeEigenvectors::Yes,
+                    par,
+                    Default::default(),
+                ),
+                cholesky_in_place_scratch::<f64>(n, par, Default::default()),
+            ])
+        };
         Ok(Self {
             gap,
             mean: x0.to_vec(),
@@ -183,6 +225,7 @@ impl Cmaes {
             a,
             b,
             d: scales,
+            separable,
             p_sigma: vec![0.0; n],
             p_c: vec![0.0; n],
             generation: 0,
@@ -203,9 +246,9 @@ impl Cmaes {
                 order: (0..lambda).collect(),
                 yw: Mat::zeros(n, lambda),
                 ys: Mat::zeros(n, lambda),
-                factor: Mat::zeros(n, n),
-                eigvals: faer::diag::Diag::zeros(n),
-                eigvecs: Mat::zeros(n, n),
+                factor: Mat::zeros(m, m),
+                eigvals: faer::diag::Diag::zeros(m),
+                eigvecs: Mat::zeros(m, m),
                 stack: MemBuffer::new(req),
             },
             params,
@@ -224,17 +267,25 @@ impl Cmaes {
                 self.z[(i, k)] = StandardNormal.sample(&mut rng);
             }
         }
-        triangular::matmul(
-            self.y.as_mut(),
-            BlockStructure::Rectangular,
-            Accum::Replace,
-            self.a.as_ref(),
-            BlockStructure::TriangularLower,
-            self.z.as_ref(),
-            BlockStructure::Rectangular,
-            1.0,
-            Par::Seq,
-        );
+        if self.separable {
+            for k in 0..lambda {
+                for i in 0..n {
+                    self.y[(i, k)] = self.d[i] * self.z[(i, k)];
+                }
+            }
+        } else {
+            triangular::matmul(
+                self.y.as_mut(),
+                BlockStructure::Rectangular,
+                Accum::Replace,
+                self.a.as_ref(),
+                BlockStructure::TriangularLower,
+                self.z.as_ref(),
+                BlockStructure::Rectangular,
+                1.0,
+                Par::Seq,
+            );
+        }
         for k in 0..lambda {
             let col = self.y.col(k);
             for i in 0..n {
@@ -323,27 +374,42 @@ impl Cmaes {
                 self.work.yw[(i, rank)] = w * yi;
             }
         }
-        for j in 0..n {
-            for i in j..n {
-                self.c[(i, j)] = decay * self.c[(i, j)] + p.c1 * self.p_c[i] * self.p_c[j];
+        if self.separable {
+            match diagonal_update(p, &self.work, &self.p_c, &self.d, decay) {
+                Some(new) => {
+                    for (d, v) in self.d.iter_mut().zip(&new) {
+                        *d = v.sqrt();
+                    }
+                    let (max, min) = new
+                        .iter()
+                        .fold((0.0f64, f64::INFINITY), |(a, b), &v| (a.max(v), b.min(v)));
+                    self.condition = max / min;
+                }
+                None => self.repairs += 1,
             }
-        }
-        // Only the lower triangle is computed (and then mirrored).
-        triangular::matmul(
-            self.c.as_mut(),
-            BlockStructure::TriangularLower,
-            Accum::Add,
-            self.work.yw.as_ref(),
-            BlockStructure::Rectangular,
-            self.work.ys.transpose(),
-            BlockStructure::Rectangular,
-            p.c_mu,
-            Par::Seq,
-        );
-        // Bit-for-bit symmetry: keep the lower triangle, mirror it.
-        for j in 0..n {
-            for i in j + 1..n {
-                self.c[(j, i)] = self.c[(i, j)];
+        } else {
+            for j in 0..n {
+                for i in j..n {
+                    self.c[(i, j)] = decay * self.c[(i, j)] + p.c1 * self.p_c[i] * self.p_c[j];
+                }
+            }
+            // Only the lower triangle is computed (and then mirrored).
+            triangular::matmul(
+                self.c.as_mut(),
+                BlockStructure::TriangularLower,
+                Accum::Add,
+                self.work.yw.as_ref(),
+                BlockStructure::Rectangular,
+                self.work.ys.transpose(),
+                BlockStructure::Rectangular,
+                p.c_mu,
+                Par::Seq,
+            );
+            // Bit-for-bit symmetry: keep the lower triangle, mirror it.
+            for j in 0..n {
+                for i in j + 1..n {
+                    self.c[(j, i)] = self.c[(i, j)];
+                }
             }
         }
 
@@ -360,11 +426,22 @@ impl Cmaes {
         } else {
             self.flat_generations = 0;
         }
-        self.factorize();
-        if self.generation - self.last_decomposition >= self.gap {
-            self.decompose();
+        if !self.separable {
+            self.factorize();
+            if self.generation - self.last_decomposition >= self.gap {
+                self.decompose();
+            }
         }
         Ok(())
+    }
+
+    /// `C_ii`.
+    fn c_ii(&self, i: usize) -> f64 {
+        if self.separable {
+            self.d[i] * self.d[i]
+        } else {
+            self.c[(i, i)]
+        }
     }
 
     /// A = chol(C); if C is not finite or not positive definite, C is rebuilt from the
@@ -488,7 +565,7 @@ impl Cmaes {
                 !finite.is_empty() && range(recent) < tol && range(&finite) < tol
             }
             StopRule::TolX(tol) => {
-                (0..n).all(|i| self.sigma * self.p_c[i].abs().max(self.c[(i, i)].sqrt()) < tol)
+                (0..n).all(|i| self.sigma * self.p_c[i].abs().max(self.c_ii(i).sqrt()) < tol)
             }
             StopRule::TolUpSigma(tol) => {
                 let dmax = self.d.iter().fold(0.0f64, |a, &v| a.max(v));
@@ -524,6 +601,10 @@ impl Cmaes {
                     return false;
                 }
                 let i = (g % n as u64) as usize;
+                if self.separable {
+                    // The principal axes are the coordinate axes.
+                    return self.mean[i] == self.mean[i] + 0.1 * self.sigma * self.d[i];
+                }
                 (0..n).all(|j| {
                     self.mean[j] == self.mean[j] + 0.1 * self.sigma * self.d[i] * self.b[(j, i)]
                 })
@@ -531,7 +612,7 @@ impl Cmaes {
             StopRule::NoEffectCoord => {
                 g > 0
                     && (0..n).any(|i| {
-                        self.mean[i] == self.mean[i] + 0.2 * self.sigma * self.c[(i, i)].sqrt()
+                        self.mean[i] == self.mean[i] + 0.2 * self.sigma * self.c_ii(i).sqrt()
                     })
             }
         }
@@ -551,10 +632,9 @@ impl Cmaes {
     /// [`Self::tell`]): save it (feature `serde`), later [`Self::resume`] it and go on with
     /// [`crate::resume`]; the continued run is bit for bit the uninterrupted one.
     pub fn checkpoint(&self) -> Checkpoint {
-        let n = self.params.n;
         let flat = |m: &Mat<f64>| -> Vec<f64> {
-            (0..n)
-                .flat_map(|j| (0..n).map(move |i| (i, j)))
+            (0..m.ncols())
+                .flat_map(|j| (0..m.nrows()).map(move |i| (i, j)))
                 .map(|(i, j)| m[(i, j)])
                 .collect()
         };
@@ -571,6 +651,7 @@ impl Cmaes {
                 .bounds
                 .as_ref()
                 .map(|b| (b.lower().to_vec(), b.upper().to_vec())),
+            separable: self.separable,
             mean: self.mean.clone(),
             sigma: self.sigma,
             c: flat(&self.c),
@@ -619,9 +700,11 @@ impl Cmaes {
                 Some((l, u)) => Some(crate::Bounds::new(l.clone(), u.clone())?),
                 None => None,
             },
+            separable: cp.separable,
         };
         let mut es = Self::new(&config, &cp.mean)?;
-        let square = |v: &[f64]| v.len() == n * n;
+        let m = if cp.separable { 0 } else { n };
+        let square = |v: &[f64]| v.len() == m * m;
         if !(square(&cp.c)
             && square(&cp.a)
             && square(&cp.b)
@@ -643,7 +726,7 @@ impl Cmaes {
         if !(cp.sigma.is_finite() && cp.sigma > 0.0 && finite) {
             return Err(bad("must hold a finite state with σ > 0", cp.sigma));
         }
-        let unflat = |v: &[f64]| Mat::from_fn(n, n, |i, j| v[j * n + i]);
+        let unflat = |v: &[f64]| Mat::from_fn(m, m, |i, j| v[j * m + i]);
         es.sigma = cp.sigma;
         es.c = unflat(&cp.c);
         es.a = unflat(&cp.a);
@@ -675,9 +758,15 @@ impl Cmaes {
         self.sigma
     }
 
-    /// The covariance matrix C (n × n, symmetric).
+    /// The covariance matrix C (n × n, symmetric); empty (0 × 0) in the separable form,
+    /// whose C is [`Self::covariance_diagonal`].
     pub fn covariance(&self) -> faer::MatRef<'_, f64> {
         self.c.as_ref()
+    }
+
+    /// The diagonal of C (in either form).
+    pub fn covariance_diagonal(&self) -> Vec<f64> {
+        (0..self.params.n).map(|i| self.c_ii(i)).collect()
     }
 
     /// Condition number of C at the last (diagnostic) eigendecomposition, refreshed every

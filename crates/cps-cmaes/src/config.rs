@@ -26,6 +26,12 @@ pub struct CmaesConfig {
     /// every evaluated candidate, and the returned best point and mean, lie in the box;
     /// `x0` must too. (Observers see the search's own, unbounded mean.)
     pub bounds: Option<crate::Bounds>,
+    /// The separable variant (sep-CMA-ES, Ros & Hansen 2008): a diagonal covariance,
+    /// learned faster ([`crate::Parameters::separable`]), with O(n) memory and O(n λ) time
+    /// per generation — for large n or nearly separable costs. It cannot learn
+    /// correlations: on a rotated ill-conditioned cost it is much slower than the full form.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub separable: bool,
 }
 
 impl CmaesConfig {
@@ -38,6 +44,7 @@ impl CmaesConfig {
             eigen_gap: None,
             initial_scales: None,
             bounds: None,
+            separable: false,
         }
     }
 

@@ -48,6 +48,21 @@ impl Parameters {
     /// # Panics
     /// If `n == 0` or `lambda < 2` (validated configurations never have those).
     pub fn new(n: usize, lambda: usize) -> Self {
+        Self::with_rate_factor(n, lambda, 1.0)
+    }
+
+    /// The parameters of the separable variant (sep-CMA-ES, Ros & Hansen 2008): the
+    /// covariance is diagonal, so it can be learned `(n + 2)/3` times faster —
+    /// `c_1 (n + 2)/3` and `min(1 − c_1', c_μ (n + 2)/3)` — and the negative weights'
+    /// positive-definiteness bound follows these rates.
+    ///
+    /// # Panics
+    /// As [`Self::new`].
+    pub fn separable(n: usize, lambda: usize) -> Self {
+        Self::with_rate_factor(n, lambda, (n as f64 + 2.0) / 3.0)
+    }
+
+    fn with_rate_factor(n: usize, lambda: usize, factor: f64) -> Self {
         assert!(n >= 1 && lambda >= 2, "n >= 1 and lambda >= 2");
         let nf = n as f64;
         let mu = lambda / 2;
@@ -71,9 +86,9 @@ impl Parameters {
         let c_sigma = (mu_eff + 2.0) / (nf + mu_eff + 5.0);
         let d_sigma = 1.0 + 2.0 * (((mu_eff - 1.0) / (nf + 1.0)).sqrt() - 1.0).max(0.0) + c_sigma;
         let c_c = (4.0 + mu_eff / nf) / (nf + 4.0 + 2.0 * mu_eff / nf);
-        let c1 = 2.0 / ((nf + 1.3) * (nf + 1.3) + mu_eff);
+        let c1 = factor * 2.0 / ((nf + 1.3) * (nf + 1.3) + mu_eff);
         let c_mu = (1.0 - c1)
-            .min(2.0 * (mu_eff - 2.0 + 1.0 / mu_eff) / ((nf + 2.0) * (nf + 2.0) + mu_eff));
+            .min(factor * 2.0 * (mu_eff - 2.0 + 1.0 / mu_eff) / ((nf + 2.0) * (nf + 2.0) + mu_eff));
         let alpha_mu_neg = 1.0 + c1 / c_mu;
         let alpha_mueff_neg = 1.0 + 2.0 * mu_eff_neg / (mu_eff + 2.0);
         let alpha_posdef_neg = (1.0 - c1 - c_mu) / (nf * c_mu);
@@ -183,5 +198,16 @@ mod tests {
         assert!((p.mu_eff - 3.167_299_281_410_702_6).abs() < 1e-12);
         assert!((p.chi_n - 3.084_726_565_169_012_3).abs() < 1e-12);
         assert_eq!(Parameters::new(75, 16).default_eigen_gap(), 4);
+    }
+
+    #[test]
+    fn separable_rates_are_scaled_by_n_plus_2_over_3() {
+        let (full, sep) = (Parameters::new(40, 15), Parameters::separable(40, 15));
+        assert!(close(sep.c1, full.c1 * 14.0));
+        assert!(close(sep.c_mu, full.c_mu * 14.0));
+        assert_eq!(sep.c_sigma, full.c_sigma);
+        // The negative weights follow the positive-definiteness bound of the new rates.
+        let posdef = (1.0 - sep.c1 - sep.c_mu) / (40.0 * sep.c_mu);
+        assert!(sep.negative_weight_total() <= posdef * (1.0 + 1e-12));
     }
 }
