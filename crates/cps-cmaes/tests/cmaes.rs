@@ -49,6 +49,17 @@ fn rotation(n: usize, seed: u64) -> Vec<f64> {
     q.concat()
 }
 
+/// The ellipsoid in coordinates rotated by [`rotation`]`(n, seed)`.
+fn rotated_ellipsoid(n: usize, seed: u64) -> impl Fn(&[f64]) -> f64 + Sync {
+    let r = rotation(n, seed);
+    move |x: &[f64]| {
+        let y: Vec<f64> = (0..n)
+            .map(|i| (0..n).map(|j| r[i * n + j] * x[j]).sum())
+            .collect();
+        functions::ellipsoid(&y)
+    }
+}
+
 #[test]
 fn minimises_the_sphere_to_1e_10() {
     for seed in 1..=3 {
@@ -61,14 +72,7 @@ fn minimises_the_sphere_to_1e_10() {
 
 #[test]
 fn minimises_a_rotated_ellipsoid_to_1e_10() {
-    let n = 10;
-    let r = rotation(n, 7);
-    let f = |x: &[f64]| {
-        let y: Vec<f64> = (0..n)
-            .map(|i| (0..n).map(|j| r[i * n + j] * x[j]).sum())
-            .collect();
-        functions::ellipsoid(&y)
-    };
+    let f = rotated_ellipsoid(10, 7);
     let rotated = run(f, &[3.0; 10], 2.0, 5, 1e-10);
     let plain = run(functions::ellipsoid, &[3.0; 10], 2.0, 5, 1e-10);
     assert!(rotated.best_cost <= 1e-10 && plain.best_cost <= 1e-10);
@@ -123,13 +127,7 @@ fn separable_variant_learns_axes_only() {
         diag.evaluations, full.evaluations
     );
     let n = 10;
-    let r = rotation(n, 7);
-    let rotated = |x: &[f64]| {
-        let y: Vec<f64> = (0..n)
-            .map(|i| (0..n).map(|j| r[i * n + j] * x[j]).sum())
-            .collect();
-        functions::ellipsoid(&y)
-    };
+    let rotated = rotated_ellipsoid(n, 7);
     let (diag, full) = (
         solve(&rotated, n, &sep(1)),
         solve(&rotated, n, &CmaesConfig::new(2.0, 1)),
