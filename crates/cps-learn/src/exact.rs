@@ -82,15 +82,29 @@ pub fn exact_optimum(
             "{m} residuals cannot determine {n} parameters: add cost terms (acceleration or jerk) or via points"
         )));
     }
+    // Column j of J: the residuals at the unit vector e_j minus those at 0, by batch
+    // rollouts of eight unit vectors at a time in reused trajectories.
     let mut jac = Mat::<f64>::zeros(m, n);
+    let nw = dmp.n_weights();
+    const BATCH: usize = 8;
+    let mut trajs: Vec<_> = (0..BATCH.min(n)).map(|_| dmp.new_trajectory()).collect();
+    let mut weights = vec![0.0; BATCH * nw];
     let mut e = vec![0.0; n];
-    let mut r = Vec::with_capacity(m);
-    for j in 0..n {
-        e[j] = 1.0;
-        residual_vector(task, dmp, space, &e, &mut r);
-        e[j] = 0.0;
-        for i in 0..m {
-            jac[(i, j)] = r[i] - r0[i];
+    for j0 in (0..n).step_by(BATCH) {
+        let cols = BATCH.min(n - j0);
+        for (c, w) in weights.chunks_exact_mut(nw).take(cols).enumerate() {
+            e[j0 + c] = 1.0;
+            space.to_weights(&e, w);
+            e[j0 + c] = 0.0;
+        }
+        dmp.rollout_batch(&weights[..cols * nw], &mut trajs[..cols]);
+        for (c, traj) in trajs[..cols].iter().enumerate() {
+            let mut i = 0;
+            let mut col = jac.col_mut(j0 + c);
+            task.residuals(traj, |_, r| {
+                col[i] = r - r0[i];
+                i += 1;
+            });
         }
     }
     // Solve block by block when no residual couples the DMP's dimensions (J is then block
