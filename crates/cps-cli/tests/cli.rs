@@ -1,17 +1,13 @@
 //! End-to-end tests of the `cps-cli` binary: a small run with its files and numbers,
 //! determinism across thread counts, and every kind of bad input.
 
-use std::path::{Path, PathBuf};
+mod common;
+
 use std::process::{Command, Output};
 
-const SHIPPED: &str = include_str!("../../../experiments/viapoint.toml");
+use common::{cli, json, repo, run_interrupted, write};
 
-fn cli(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cps-cli"))
-        .args(args)
-        .output()
-        .expect("run cps-cli")
-}
+const SHIPPED: &str = include_str!("../../../experiments/viapoint.toml");
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
@@ -24,16 +20,6 @@ fn small_experiment() -> String {
         .replace("sigma0 = 0.5", "sigma0 = 0.001")
         .replace("generations = 3000", "generations = 40")
         .replace("repetitions = 1 ", "repetitions = 2 ")
-}
-
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    p
-}
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
 #[test]
@@ -350,24 +336,7 @@ fn an_interrupted_run_writes_what_it_learned_marked_incomplete() {
         &SHIPPED.replace("generations = 3000", "generations = 1000000"),
     );
     let out = dir.path().join("out");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_cps-cli"))
-        .args([
-            "run",
-            exp.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--quiet",
-        ])
-        .spawn()
-        .unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(1500));
-    let killed = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(killed.success());
-    let status = child.wait().unwrap();
-    assert_eq!(status.code(), Some(130));
+    assert_eq!(run_interrupted(&exp, &out), Some(130));
     let s = json(&out.join("summary.json"));
     assert_eq!(s["complete"], false);
     assert_eq!(s["termination"], "interrupted");
@@ -472,10 +441,6 @@ fn kinematics_bad_input_exits_2_with_a_clear_message() {
         text.contains("modified (Craig) DH") && text.contains("-3.0718"),
         "{text}"
     );
-}
-
-fn repo(path: &str) -> String {
-    format!("{}/../../{path}", env!("CARGO_MANIFEST_DIR"))
 }
 
 /// The robot files in configs/robots/ describe the same robots as the built-in models:

@@ -2,43 +2,20 @@
 //! binary: the imitation pipeline (in-process and on the stand-in CoppeliaSim server),
 //! the scaling comparison, reports, and their bad inputs.
 
+mod common;
+
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
+
+use common::{cli, json, repo, run_interrupted, write};
 
 const IMITATION: &str = include_str!("../../../experiments/imitation.toml");
 const SCALING: &str = include_str!("../../../experiments/scaling.toml");
 
-fn cli(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cps-cli"))
-        .args(args)
-        .output()
-        .expect("run cps-cli")
-}
-
 fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()
-}
-
-fn repo(path: &str) -> String {
-    format!("{}/../../{path}", env!("CARGO_MANIFEST_DIR"))
-}
-
-/// An experiment file in `dir` whose scene path still points at the repository's scene.
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    let scene = repo("configs/scenes/thesis.toml");
-    std::fs::write(
-        &p,
-        text.replace("\"../configs/scenes/thesis.toml\"", &format!("{scene:?}")),
-    )
-    .unwrap();
-    p
-}
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
 fn run(file: &Path, out: &Path) -> Output {
@@ -360,23 +337,7 @@ fn an_interrupted_imitation_run_is_marked_incomplete() {
             .replace("tol_fun = 1e-3", "tol_fun = 0.0"),
     );
     let out = dir.path().join("out");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_cps-cli"))
-        .args([
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--quiet",
-        ])
-        .spawn()
-        .unwrap();
-    std::thread::sleep(Duration::from_millis(1500));
-    let killed = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(killed.success());
-    assert_eq!(child.wait().unwrap().code(), Some(130));
+    assert_eq!(run_interrupted(&file, &out), Some(130));
     let s = json(&out.join("summary.json"));
     assert_eq!(s["complete"], false);
     assert_eq!(s["runs"].as_array().unwrap().len(), 20);
