@@ -5,8 +5,10 @@
 //! default parameters ([`Parameters`]). It knows nothing of robots: it minimises a cost
 //! over a parameter vector through the [`Objective`] trait.
 //!
-//! - [`Cmaes`]: the state with [`Cmaes::ask`] / [`Cmaes::tell`]; lazy eigendecomposition,
-//!   bit-symmetric covariance, repair on numerical failure, NaN costs ranked last.
+//! - [`Cmaes`]: the state with [`Cmaes::ask`] / [`Cmaes::tell`]; sampling by the Cholesky
+//!   factor of C (Krause et al. 2016; no eigendecomposition in the loop), bit-symmetric
+//!   covariance, repair on numerical failure, NaN costs ranked last, box bounds,
+//!   checkpoints, and a separable (diagonal) variant for large n.
 //! - [`minimize`]: the driver: budget and [`StopRule`]s (a documented enum), an
 //!   [`Observer`] after each generation, parallel evaluation with rayon.
 //! - [`minimize_ipop`] / [`minimize_bipop`]: IPOP and BIPOP restarts for multimodal costs.
