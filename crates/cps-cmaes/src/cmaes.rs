@@ -98,6 +98,15 @@ fn diagonal_update(
     new.iter().all(|v| v.is_finite() && *v > 0.0).then_some(new)
 }
 
+/// Copies the lower triangle of `c` onto the upper one: C stays symmetric bit for bit.
+fn mirror_lower(c: &mut Mat<f64>) {
+    for j in 0..c.ncols() {
+        for i in j + 1..c.nrows() {
+            c[(j, i)] = c[(i, j)];
+        }
+    }
+}
+
 /// Buffers reused every generation.
 struct Work {
     order: Vec<usize>,
@@ -405,12 +414,7 @@ impl Cmaes {
                 p.c_mu,
                 Par::Seq,
             );
-            // Bit-for-bit symmetry: keep the lower triangle, mirror it.
-            for j in 0..n {
-                for i in j + 1..n {
-                    self.c[(j, i)] = self.c[(i, j)];
-                }
-            }
+            mirror_lower(&mut self.c);
         }
 
         let ratio = (p.c_sigma / p.d_sigma) * (ps_norm / p.chi_n - 1.0);
@@ -507,7 +511,6 @@ impl Cmaes {
 
     /// C = A Aᵀ, symmetric by construction.
     fn rebuild_c_from_a(&mut self) {
-        let n = self.params.n;
         triangular::matmul(
             self.c.as_mut(),
             BlockStructure::TriangularLower,
@@ -519,11 +522,7 @@ impl Cmaes {
             1.0,
             Par::Seq,
         );
-        for j in 0..n {
-            for i in j + 1..n {
-                self.c[(j, i)] = self.c[(i, j)];
-            }
-        }
+        mirror_lower(&mut self.c);
     }
 
     /// The first rule in `rules` that fires now, if any.

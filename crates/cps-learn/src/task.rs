@@ -266,13 +266,6 @@ impl ViaPointTask {
         }
     }
 
-    /// The cost of a trajectory.
-    pub fn cost(&self, traj: &Trajectory) -> f64 {
-        let mut total = 0.0;
-        self.residuals(traj, |_, r| total += r * r);
-        total
-    }
-
     /// The cost of a trajectory, term by term.
     pub fn breakdown(&self, traj: &Trajectory) -> CostBreakdown {
         let mut b = CostBreakdown::default();
@@ -289,10 +282,10 @@ impl ViaPointTask {
         b
     }
 
-    /// The cost of a trajectory as [`Self::cost`], summed with eight partial sums (SIMD)
-    /// instead of one: the fast path of population evaluation; agrees with
-    /// [`Self::cost`] to rounding.
-    pub fn cost_fast(&self, traj: &Trajectory) -> f64 {
+    /// The cost of a trajectory: the sum of [`Self::breakdown`]'s terms (equal to rounding),
+    /// with the long sums over samples taken in eight partial sums (SIMD) instead of one
+    /// latency-bound chain — the hot path of population evaluation.
+    pub fn cost(&self, traj: &Trajectory) -> f64 {
         let w = &self.weights;
         let last = traj.n_samples() - 1;
         let dims = traj.dims();
@@ -319,7 +312,7 @@ impl ViaPointTask {
 
     /// The costs of a population (weight vectors back to back in `weights`) by one batch
     /// rollout into `trajs` (one per candidate, from [`DiscreteDmp::new_trajectory`]) and
-    /// [`Self::cost_fast`].
+    /// [`Self::cost`].
     ///
     /// # Panics
     /// If the lengths of `weights`, `trajs` and `out` do not match.
@@ -333,7 +326,7 @@ impl ViaPointTask {
         assert_eq!(trajs.len(), out.len(), "one trajectory per cost");
         dmp.rollout_batch(weights, trajs);
         for (o, t) in out.iter_mut().zip(trajs.iter()) {
-            *o = self.cost_fast(t);
+            *o = self.cost(t);
         }
     }
 

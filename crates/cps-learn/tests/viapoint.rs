@@ -221,7 +221,8 @@ fn batched_costs_equal_rollout_costs() {
         let mut trajs: Vec<_> = (0..m).map(|_| dmp.new_trajectory()).collect();
         task.costs_batched(&dmp, &w, &mut trajs, &mut batched);
         for c in 0..m {
-            let direct = task.cost(&dmp.rollout(&w[c * n..(c + 1) * n]));
+            // Against the residual path (term by term, one rollout per candidate).
+            let direct = task.breakdown(&dmp.rollout(&w[c * n..(c + 1) * n])).total();
             assert!(
                 (batched[c] - direct).abs() <= 1e-12 * direct,
                 "m {m} candidate {c}: {} vs {direct}",
