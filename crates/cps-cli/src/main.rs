@@ -45,6 +45,7 @@ mod pipelines;
 mod plots;
 mod pose_run;
 mod report;
+mod results_dir;
 mod robot;
 mod robot_file;
 mod runner;
@@ -216,10 +217,11 @@ fn run_experiment(
     let started = Instant::now();
     let exp = experiment::load(file, seed)?;
     let out = out.unwrap_or_else(|| Path::new("results").join(&exp.name));
-    output::check_target(&out, force)?;
     if threads == Some(0) {
         return Err(InputError("--threads must be at least 1".into()).into());
     }
+    // The output is checked, and its staging directory made, before any work.
+    let stage = output::Staging::prepare(&out, force)?;
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(t) = threads {
         builder = builder.num_threads(t);
@@ -264,7 +266,6 @@ fn run_experiment(
             interrupted,
         };
         let wall = || started.elapsed().as_secs_f64();
-        let stage = output::Staging::new(&out)?;
         let finished = runner::run(&exp, &ctx, &stage, &wall)?;
         if !quiet {
             for line in &finished.lines {
@@ -316,7 +317,6 @@ fn run_experiment(
     bar.finish_and_clear();
     let wall = started.elapsed().as_secs_f64();
 
-    let stage = output::Staging::new(&out)?;
     output::write_viapoint(&stage, &exp.name, config, &outcome, wall, threads_used)?;
     if exp.plots {
         plots::viapoint(&stage, &outcome, &config.task)?;

@@ -17,6 +17,7 @@ use cps_dmp::{
 
 use crate::experiment::InputError;
 use crate::plots::{Series, curves_to_file, trajectory_series};
+use crate::results_dir::{FileKind, check_file_target};
 
 /// Regression method of `imitate`.
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -85,6 +86,9 @@ pub struct ImitateArgs {
     /// Print the fit report as JSON.
     #[arg(long)]
     json: bool,
+    /// Replace existing output files (only files of the kind cps writes there).
+    #[arg(long)]
+    force: bool,
 }
 
 /// Arguments of `cps-cli rollout`.
@@ -110,6 +114,29 @@ pub struct RolloutArgs {
     /// Also draw the trajectory (PNG, or SVG by extension).
     #[arg(long)]
     plot: Option<PathBuf>,
+    /// Replace existing output files (only files of the kind cps writes there).
+    #[arg(long)]
+    force: bool,
+}
+
+/// Checks the output files before any work.
+fn check_outputs(
+    out: &Path,
+    out_kind: FileKind,
+    plot: Option<&Path>,
+    force: bool,
+) -> Result<(), InputError> {
+    check_file_target(out, out_kind, force)?;
+    if let Some(p) = plot {
+        if p == out {
+            return Err(InputError(format!(
+                "--plot {}: is the same file as --out",
+                p.display()
+            )));
+        }
+        check_file_target(p, FileKind::Figure, force)?;
+    }
+    Ok(())
 }
 
 /// Reads a demonstration CSV; errors name the file and the line.
@@ -208,6 +235,7 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
 
 /// `cps-cli imitate`.
 pub fn run_imitate(args: &ImitateArgs) -> Result<ExitCode> {
+    check_outputs(&args.out, FileKind::Model, args.plot.as_deref(), args.force)?;
     let mut demos = Vec::new();
     let mut names: Option<Vec<String>> = None;
     for path in &args.demos {
@@ -322,6 +350,12 @@ fn cli_name(field: &str) -> &str {
 
 /// `cps-cli rollout`.
 pub fn run_rollout(args: &RolloutArgs) -> Result<ExitCode> {
+    check_outputs(
+        &args.out,
+        FileKind::TrajectoryCsv,
+        args.plot.as_deref(),
+        args.force,
+    )?;
     let text = std::fs::read_to_string(&args.model).map_err(|e| {
         InputError(format!(
             "{}: cannot read the model: {e}",

@@ -1,0 +1,565 @@
+//! Where a run's results go, and the promise kept there: cps never deletes or overwrites a
+//! file it did not write.
+//!
+//! A result directory carries `cps-manifest.json`, the list of the files cps wrote into
+//! it. The rules, checked before any work starts ([`Staging::prepare`]):
+//!
+//! - a path that does not exist: the results are written into a hidden staging directory
+//!   beside it and renamed into place when complete (a reader never sees half a result);
+//! - an empty directory (including `--out .` in an empty folder): the results are staged
+//!   inside it and moved into place file by file;
+//! - a directory that holds only cps's results (every entry is in its manifest): refused
+//!   without `--force`; with `--force` the files of the manifest are replaced (each file
+//!   atomically) and nothing else is touched;
+//! - a directory that holds anything cps did not write (no manifest, or entries not in
+//!   it): refused, with or without `--force`, naming the directory and one such entry;
+//! - a file, a symbolic link, a literal `~`, or a place that cannot be written: refused
+//!   with a sentence saying so.
+//!
+//! Staging directories are created with a fresh name (never reused, never cleared) and
+//! removed only by the run that made them.
+
+use std::collections::BTreeSet;
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+
+use crate::experiment::InputError;
+
+/// The manifest's file name.
+pub const MANIFEST: &str = "cps-manifest.json";
+/// The manifest's `format` tag.
+const MANIFEST_FORMAT: &str = "cps-results";
+/// Prefix of the staging directories cps creates (inside a target, or beside it as
+/// `.<name>.cps-staging-…`).
+const STAGING_TAG: &str = "cps-staging-";
+
+/// What the target holds, as found before the run.
+#[derive(Debug)]
+enum Target {
+    /// Nothing there yet: stage beside it, rename into place.
+    New,
+    /// A directory that is empty or holds only cps's files (listed): stage inside it.
+    Existing { old: BTreeSet<String> },
+}
+
+/// The files listed in a directory's manifest, or `None` when it has none.
+fn read_manifest(dir: &Path) -> Result<Option<BTreeSet<String>>, InputError> {
+    let path = dir.join(MANIFEST);
+    let text = match fs::read_to_string(&path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => {
+            return Err(InputError(format!(
+                "{}: cannot read it ({e}); cps cannot tell which files there are its own",
+                path.display()
+            )));
+        }
+    };
+    let bad = || {
+        InputError(format!(
+            "{}: not a manifest cps can read; cps cannot tell which files there are its own, so it leaves the directory alone (choose another --out)",
+            path.display()
+        ))
+    };
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|_| bad())?;
+    if v.get("format").and_then(|f| f.as_str()) != Some(MANIFEST_FORMAT) {
+        return Err(bad());
+    }
+    let files = v.get("files").and_then(|f| f.as_array()).ok_or_else(bad)?;
+    let mut set = BTreeSet::new();
+    for f in files {
+        let name = f.as_str().ok_or_else(bad)?;
+        if !is_plain_relative(name) {
+            return Err(bad());
+        }
+        set.insert(name.to_string());
+    }
+    Ok(Some(set))
+}
+
+/// A relative path without `..`, root or prefix components (what a manifest may list).
+fn is_plain_relative(name: &str) -> bool {
+    let p = Path::new(name);
+    !name.is_empty()
+        && p.components()
+            .all(|c| matches!(c, std::path::Component::Normal(_)))
+}
+
+/// The regular files under `dir`, as relative paths with `/` separators (staging
+/// directories of cps skipped).
+fn list_files(dir: &Path, prefix: &str, out: &mut Vec<String>) -> std::io::Result<()> {
+    for entry in fs::read_dir(dir)? {
+        let entry = entry?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let rel = if prefix.is_empty() {
+            name.clone()
+        } else {
+            format!("{prefix}/{name}")
+        };
+        if entry.file_type()?.is_dir() {
+            list_files(&entry.path(), &rel, out)?;
+        } else {
+            out.push(rel);
+        }
+    }
+    Ok(())
+}
+
+/// Checks that results may be written to `out` (see the module docs). Nothing is created.
+fn inspect(out: &Path, force: bool) -> Result<Target, InputError> {
+    let shown = out.display();
+    if out.as_os_str().is_empty() {
+        return Err(InputError("--out: the path is empty".into()));
+    }
+    if out.to_string_lossy().starts_with('~') {
+        return Err(InputError(format!(
+            "--out {shown}: cps does not expand `~` (a shell does, when it is not quoted); give the full path"
+        )));
+    }
+    let meta = match fs::symlink_metadata(out) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Target::New),
+        Err(e) => {
+            return Err(InputError(format!(
+                "--out {shown}: cannot look at it ({e}); choose another --out"
+            )));
+        }
+    };
+    if meta.file_type().is_symlink() {
+        let to = fs::read_link(out)
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|_| "?".into());
+        return Err(InputError(format!(
+            "--out {shown}: is a symbolic link (to {to}); cps does not write through links, pass the directory itself"
+        )));
+    }
+    if !meta.is_dir() {
+        return Err(InputError(format!(
+            "--out {shown}: exists and is not a directory; cps leaves it alone (choose another --out)"
+        )));
+    }
+    let old = read_manifest(out)?;
+    let mut foreign = None;
+    let mut any = false;
+    let entries = fs::read_dir(out).map_err(|e| {
+        InputError(format!(
+            "--out {shown}: cannot list it ({e}); choose another --out"
+        ))
+    })?;
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if name == MANIFEST || name.starts_with(&format!(".{STAGING_TAG}")) {
+            continue;
+        }
+        any = true;
+        let ours = old.as_ref().is_some_and(|files| {
+            files.contains(&name) || files.iter().any(|f| f.starts_with(&format!("{name}/")))
+        });
+        if !ours && foreign.is_none() {
+            foreign = Some(name);
+        }
+    }
+    if let Some(name) = foreign {
+        return Err(InputError(format!(
+            "--out {shown}: holds `{name}`, which cps did not write; cps writes only into a new or empty directory or over its own results, and never touches other files (choose another --out, or move `{name}` away)"
+        )));
+    }
+    match old {
+        Some(files) if any || !files.is_empty() => {
+            if !force {
+                return Err(InputError(format!(
+                    "{shown}: already holds results ({MANIFEST} lists {} files); choose another --out or pass --force to replace them",
+                    files.len()
+                )));
+            }
+            Ok(Target::Existing { old: files })
+        }
+        _ => Ok(Target::Existing {
+            old: BTreeSet::new(),
+        }),
+    }
+}
+
+/// A directory being filled out of sight, moved into place when complete, so no reader
+/// ever sees half-written results and no file cps did not write is touched.
+#[derive(Debug)]
+pub struct Staging {
+    tmp: PathBuf,
+    target: PathBuf,
+    kind: Target,
+    done: bool,
+}
+
+/// Creates a directory with a fresh name `base` + `n` (never an existing one).
+fn fresh_dir(parent: &Path, base: &str) -> std::io::Result<PathBuf> {
+    for n in 0..1000 {
+        let p = parent.join(format!("{base}{n}"));
+        match fs::create_dir(&p) {
+            Ok(()) => return Ok(p),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(e),
+        }
+    }
+    Err(std::io::Error::other("no free staging name"))
+}
+
+impl Staging {
+    /// Checks `out` (see the module docs) and creates the staging directory, so a target
+    /// that cannot be used fails before any work, as bad input.
+    pub fn prepare(out: &Path, force: bool) -> Result<Self, InputError> {
+        let kind = inspect(out, force)?;
+        let pid = std::process::id();
+        let tmp = match &kind {
+            Target::New => {
+                let parent = out
+                    .parent()
+                    .filter(|p| !p.as_os_str().is_empty())
+                    .unwrap_or(Path::new("."));
+                fs::create_dir_all(parent).map_err(|e| {
+                    InputError(format!(
+                        "--out {}: cannot create the folder {} ({e}); choose a writable --out",
+                        out.display(),
+                        parent.display()
+                    ))
+                })?;
+                let name = out
+                    .file_name()
+                    .map_or("results".into(), |n| n.to_string_lossy().into_owned());
+                fresh_dir(parent, &format!(".{name}.{STAGING_TAG}{pid}-"))
+            }
+            Target::Existing { .. } => fresh_dir(out, &format!(".{STAGING_TAG}{pid}-")),
+        }
+        .map_err(|e| {
+            InputError(format!(
+                "--out {}: cannot write there ({e}); choose a writable --out",
+                out.display()
+            ))
+        })?;
+        Ok(Self {
+            tmp,
+            target: out.to_path_buf(),
+            kind,
+            done: false,
+        })
+    }
+
+    /// Path of a file inside the staging directory.
+    pub fn path(&self, file: &str) -> PathBuf {
+        self.tmp.join(file)
+    }
+
+    /// Writes a whole file.
+    pub fn write(&self, file: &str, bytes: &[u8]) -> Result<()> {
+        let p = self.path(file);
+        let mut f =
+            fs::File::create(&p).with_context(|| format!("cannot create {}", p.display()))?;
+        f.write_all(bytes)
+            .with_context(|| format!("cannot write {}", p.display()))?;
+        Ok(())
+    }
+
+    /// Moves the finished results into place. Only files of the old manifest are replaced
+    /// or removed; a file that appeared in the target during the run and is not cps's
+    /// stops the commit, and the results stay in the staging directory (named in the error).
+    pub fn commit(mut self) -> Result<()> {
+        let mut files = Vec::new();
+        list_files(&self.tmp, "", &mut files)
+            .with_context(|| format!("cannot list {}", self.tmp.display()))?;
+        files.sort();
+        match &self.kind {
+            Target::New => {
+                write_manifest(&self.tmp, &files)?;
+                if let Err(e) = fs::rename(&self.tmp, &self.target) {
+                    self.done = true; // keep the results where they are
+                    anyhow::bail!(
+                        "cannot move the results into {} ({e}; did something create it during the run?); they are in {}",
+                        self.target.display(),
+                        self.tmp.display()
+                    );
+                }
+            }
+            Target::Existing { old } => {
+                // A file that appeared during the run and is not ours: stop, keep results.
+                if let Some(clash) = files
+                    .iter()
+                    .find(|f| !old.contains(*f) && self.target.join(f).exists())
+                {
+                    self.done = true;
+                    anyhow::bail!(
+                        "{}: `{clash}` appeared during the run and cps did not write it, so it is left alone; the results are in {}",
+                        self.target.display(),
+                        self.tmp.display()
+                    );
+                }
+                // The manifest covers old and new files at every moment.
+                let union: Vec<String> = old.iter().cloned().chain(files.iter().cloned()).collect();
+                write_manifest(&self.target, &dedup(union))?;
+                for f in &files {
+                    let to = self.target.join(f);
+                    if let Some(dir) = to.parent() {
+                        fs::create_dir_all(dir)
+                            .with_context(|| format!("cannot create {}", dir.display()))?;
+                    }
+                    fs::rename(self.tmp.join(f), &to)
+                        .with_context(|| format!("cannot move {f} into place"))?;
+                }
+                let new: BTreeSet<&String> = files.iter().collect();
+                for f in old.iter().filter(|f| !new.contains(f)) {
+                    let p = self.target.join(f);
+                    if fs::symlink_metadata(&p).is_ok_and(|m| m.is_file()) {
+                        fs::remove_file(&p).ok();
+                    }
+                }
+                write_manifest(&self.target, &files)?;
+                remove_empty_tree(&self.tmp);
+            }
+        }
+        self.done = true;
+        Ok(())
+    }
+}
+
+fn dedup(mut v: Vec<String>) -> Vec<String> {
+    v.sort();
+    v.dedup();
+    v
+}
+
+/// Removes a staging tree whose files have all been moved out (directories only).
+fn remove_empty_tree(dir: &Path) {
+    if let Ok(entries) = fs::read_dir(dir) {
+        for e in entries.flatten() {
+            if e.file_type().is_ok_and(|t| t.is_dir()) {
+                remove_empty_tree(&e.path());
+            }
+        }
+    }
+    fs::remove_dir(dir).ok();
+}
+
+/// Writes the manifest through a temporary file and a rename.
+fn write_manifest(dir: &Path, files: &[String]) -> Result<()> {
+    let text = serde_json::to_string_pretty(&serde_json::json!({
+        "format": MANIFEST_FORMAT,
+        "version": 1,
+        "written_by": format!("cps-cli {}", env!("CARGO_PKG_VERSION")),
+        "files": files,
+    }))?;
+    let tmp = dir.join(format!(".{MANIFEST}.tmp-{}", std::process::id()));
+    fs::write(&tmp, text).with_context(|| format!("cannot write {}", tmp.display()))?;
+    fs::rename(&tmp, dir.join(MANIFEST))
+        .with_context(|| format!("cannot write {}", dir.join(MANIFEST).display()))?;
+    Ok(())
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        if !self.done {
+            fs::remove_dir_all(&self.tmp).ok();
+        }
+    }
+}
+
+/// What kind of file a single-file output is, so `--force` replaces only files cps could
+/// have written.
+#[derive(Debug, Clone, Copy)]
+pub enum FileKind {
+    /// A DMP model (`"format": "cps-dmp-model"`).
+    Model,
+    /// A CSV file whose header starts with `time` or `t`.
+    TrajectoryCsv,
+    /// A figure: PNG or SVG.
+    Figure,
+}
+
+fn looks_like(path: &Path, kind: FileKind) -> bool {
+    let Ok(bytes) = fs::read(path) else {
+        return false;
+    };
+    let head = &bytes[..bytes.len().min(4096)];
+    let text = String::from_utf8_lossy(head);
+    match kind {
+        FileKind::Model => text.contains("\"cps-dmp-model\""),
+        FileKind::TrajectoryCsv => text.starts_with("time,") || text.starts_with("t,"),
+        FileKind::Figure => {
+            head.starts_with(b"\x89PNG\r\n\x1a\n")
+                || text.trim_start().starts_with("<svg")
+                || text.trim_start().starts_with("<?xml")
+        }
+    }
+}
+
+/// Checks that a single output file may be written: a new path, or with `force` an
+/// existing regular file of the kind cps writes there.
+pub fn check_file_target(path: &Path, kind: FileKind, force: bool) -> Result<(), InputError> {
+    let shown = path.display();
+    if path.to_string_lossy().starts_with('~') {
+        return Err(InputError(format!(
+            "{shown}: cps does not expand `~` (a shell does, when it is not quoted); give the full path"
+        )));
+    }
+    match fs::symlink_metadata(path) {
+        Err(_) => Ok(()),
+        Ok(m) if m.file_type().is_symlink() => Err(InputError(format!(
+            "{shown}: is a symbolic link; cps does not write through links"
+        ))),
+        Ok(m) if m.is_dir() => Err(InputError(format!(
+            "{shown}: is a directory; give a file name"
+        ))),
+        Ok(_) if !force => Err(InputError(format!(
+            "{shown}: already exists; pass --force to replace it or choose another name"
+        ))),
+        Ok(_) if !looks_like(path, kind) => Err(InputError(format!(
+            "{shown}: exists and does not look like a file cps writes there, so --force leaves it alone (choose another name)"
+        ))),
+        Ok(_) => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names(dir: &Path) -> BTreeSet<String> {
+        let mut v = Vec::new();
+        list_files(dir, "", &mut v).unwrap();
+        v.into_iter().collect()
+    }
+
+    #[test]
+    fn a_new_directory_gets_the_results_and_a_manifest() {
+        let d = tempfile::tempdir().unwrap();
+        let out = d.path().join("r");
+        let s = Staging::prepare(&out, false).unwrap();
+        s.write("a.txt", b"1").unwrap();
+        s.commit().unwrap();
+        assert_eq!(
+            names(&out),
+            ["a.txt", MANIFEST].iter().map(|s| s.to_string()).collect()
+        );
+        // Nothing else is left beside it.
+        assert_eq!(fs::read_dir(d.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn force_replaces_only_files_of_the_manifest() {
+        let d = tempfile::tempdir().unwrap();
+        let out = d.path().join("r");
+        let s = Staging::prepare(&out, false).unwrap();
+        s.write("a.txt", b"old").unwrap();
+        s.write("gone.txt", b"old").unwrap();
+        s.commit().unwrap();
+        // Without force: refused, nothing changes.
+        let e = Staging::prepare(&out, false).unwrap_err();
+        assert!(e.0.contains("already holds results"), "{e}");
+        let s = Staging::prepare(&out, true).unwrap();
+        s.write("a.txt", b"new").unwrap();
+        s.commit().unwrap();
+        assert_eq!(fs::read(out.join("a.txt")).unwrap(), b"new");
+        assert!(!out.join("gone.txt").exists());
+        let listed = read_manifest(&out).unwrap().unwrap();
+        assert_eq!(listed, ["a.txt".to_string()].into_iter().collect());
+    }
+
+    #[test]
+    fn a_foreign_file_is_never_touched() {
+        let d = tempfile::tempdir().unwrap();
+        let out = d.path().join("r");
+        fs::create_dir(&out).unwrap();
+        fs::write(out.join("thesis.pdf"), b"mine").unwrap();
+        for force in [false, true] {
+            let e = Staging::prepare(&out, force).unwrap_err();
+            assert!(e.0.contains("`thesis.pdf`"), "{e}");
+        }
+        // A cps result directory with a foreign file added later: refused too.
+        let out2 = d.path().join("r2");
+        let s = Staging::prepare(&out2, false).unwrap();
+        s.write("a.txt", b"1").unwrap();
+        s.commit().unwrap();
+        fs::write(out2.join("notes.txt"), b"mine").unwrap();
+        let e = Staging::prepare(&out2, true).unwrap_err();
+        assert!(e.0.contains("`notes.txt`"), "{e}");
+        assert_eq!(fs::read(out.join("thesis.pdf")).unwrap(), b"mine");
+        assert_eq!(fs::read(out2.join("notes.txt")).unwrap(), b"mine");
+    }
+
+    #[test]
+    fn a_file_that_appears_during_the_run_stops_the_commit_and_keeps_both() {
+        let d = tempfile::tempdir().unwrap();
+        let out = d.path().join("r");
+        fs::create_dir(&out).unwrap();
+        let s = Staging::prepare(&out, false).unwrap();
+        s.write("summary.json", b"{}").unwrap();
+        let staged = s.path("summary.json");
+        fs::write(out.join("summary.json"), b"user's").unwrap();
+        let e = s.commit().unwrap_err().to_string();
+        assert!(e.contains("appeared during the run"), "{e}");
+        assert_eq!(fs::read(out.join("summary.json")).unwrap(), b"user's");
+        assert_eq!(fs::read(staged).unwrap(), b"{}");
+    }
+
+    #[test]
+    fn links_files_tildes_and_bad_manifests_are_refused() {
+        let d = tempfile::tempdir().unwrap();
+        let file = d.path().join("f");
+        fs::write(&file, b"x").unwrap();
+        assert!(
+            Staging::prepare(&file, true)
+                .unwrap_err()
+                .0
+                .contains("not a directory")
+        );
+        let real = d.path().join("real");
+        fs::create_dir(&real).unwrap();
+        let link = d.path().join("link");
+        std::os::unix::fs::symlink(&real, &link).unwrap();
+        assert!(
+            Staging::prepare(&link, false)
+                .unwrap_err()
+                .0
+                .contains("symbolic link")
+        );
+        assert!(
+            Staging::prepare(Path::new("~/x"), false)
+                .unwrap_err()
+                .0
+                .contains("`~`")
+        );
+        let bad = d.path().join("bad");
+        fs::create_dir(&bad).unwrap();
+        fs::write(
+            bad.join(MANIFEST),
+            r#"{"format":"cps-results","files":["../x"]}"#,
+        )
+        .unwrap();
+        assert!(
+            Staging::prepare(&bad, true)
+                .unwrap_err()
+                .0
+                .contains("not a manifest")
+        );
+        // A dropped (failed) staging leaves nothing behind.
+        let out = d.path().join("new");
+        let s = Staging::prepare(&out, false).unwrap();
+        s.write("a", b"1").unwrap();
+        drop(s);
+        assert!(!out.exists());
+        assert_eq!(fs::read_dir(d.path()).unwrap().count(), 4);
+    }
+
+    #[test]
+    fn single_files_are_replaced_only_when_forced_and_cps_shaped() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("model.json");
+        assert!(check_file_target(&p, FileKind::Model, false).is_ok());
+        fs::write(&p, b"{\"format\": \"cps-dmp-model\"}").unwrap();
+        assert!(check_file_target(&p, FileKind::Model, false).is_err());
+        assert!(check_file_target(&p, FileKind::Model, true).is_ok());
+        let q = d.path().join("notes.csv");
+        fs::write(&q, b"name,grade\n").unwrap();
+        assert!(check_file_target(&q, FileKind::TrajectoryCsv, true).is_err());
+    }
+}
