@@ -156,6 +156,7 @@ fn coppelia(c: &mut Criterion) {
             dt: 0.05,
             ik_following: false,
         },
+        limits: cps_coppelia::ServerLimits::default(),
     })
     .unwrap();
     let mut sim = Client::connect(ClientConfig {

@@ -125,6 +125,7 @@ impl RobotChoice {
                     endpoint: endpoint.clone(),
                     connect_timeout: *timeout,
                     call_timeout: *timeout,
+                    ..ClientConfig::default()
                 })
                 .with_context(|| format!("backend = \"coppelia\": cannot reach {endpoint}"))?;
                 let dt = client

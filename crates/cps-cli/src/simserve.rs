@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use anyhow::Result;
 use clap::Subcommand;
-use cps_coppelia::{SceneSetup, ServerConfig, StandInServer};
+use cps_coppelia::{SceneSetup, ServerConfig, ServerLimits, StandInServer};
 
 use crate::experiment::InputError;
 use crate::scene::{THESIS_SCENE, load_scene, parse_scene};
@@ -31,6 +31,17 @@ pub enum SimCommand {
         /// the thesis's scene (otherwise the joints move only when set).
         #[arg(long)]
         ik_following: bool,
+        /// A client silent for this many seconds loses its stepping hold, so the
+        /// simulation runs on for the others (0.01 to 86400).
+        #[arg(long, default_value_t = 60.0, allow_hyphen_values = true)]
+        client_lease: f64,
+        /// The largest request accepted, in bytes; a peer declaring more is disconnected
+        /// before anything is allocated (64 to 1073741824).
+        #[arg(long, default_value_t = cps_coppelia::DEFAULT_MAX_MESSAGE_BYTES)]
+        max_message_bytes: usize,
+        /// Connections served at once; more are closed on arrival (1 to 4096).
+        #[arg(long, default_value_t = 64)]
+        max_clients: usize,
     },
 }
 
@@ -41,7 +52,34 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
         scene,
         dt,
         ik_following,
+        client_lease,
+        max_message_bytes,
+        max_clients,
     } = cmd;
+    if !(dt.is_finite() && (1e-6..=10.0).contains(dt)) {
+        return Err(InputError(format!(
+            "--dt {dt}: the time step must be between 1e-6 and 10 seconds"
+        ))
+        .into());
+    }
+    if !(client_lease.is_finite() && (0.01..=86_400.0).contains(client_lease)) {
+        return Err(InputError(format!(
+            "--client-lease {client_lease}: must be between 0.01 and 86400 seconds"
+        ))
+        .into());
+    }
+    if !(64..=1 << 30).contains(max_message_bytes) {
+        return Err(InputError(format!(
+            "--max-message-bytes {max_message_bytes}: must be between 64 and 1073741824"
+        ))
+        .into());
+    }
+    if !(1..=4096).contains(max_clients) {
+        return Err(InputError(format!(
+            "--max-clients {max_clients}: must be between 1 and 4096"
+        ))
+        .into());
+    }
     let scene = match scene {
         Some(path) => load_scene(path)?,
         None => parse_scene(
@@ -68,6 +106,12 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
     let server = StandInServer::start(ServerConfig {
         bind: bind.clone(),
         scene: setup,
+        limits: ServerLimits {
+            max_message_bytes: *max_message_bytes,
+            max_connections: *max_clients,
+            client_lease: Duration::from_secs_f64(*client_lease),
+            ..ServerLimits::default()
+        },
     })
     .map_err(|e| InputError(format!("--bind {bind}: {e}")))?;
     say!(
@@ -84,6 +128,10 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
     while !interrupted.load(Ordering::SeqCst) {
         std::thread::sleep(Duration::from_millis(100));
     }
-    say!("stopped after {} requests", server.requests());
+    say!(
+        "stopped after {} requests ({} peers dropped for breaking the protocol or a limit)",
+        server.requests(),
+        server.dropped_peers()
+    );
     Ok(ExitCode::SUCCESS)
 }

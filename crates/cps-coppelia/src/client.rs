@@ -5,8 +5,10 @@
 
 use std::time::Duration;
 
+use tokio::net::TcpStream;
 use tokio::runtime::Runtime;
-use zeromq::{ReqSocket, Socket, SocketOptions, SocketRecv, SocketSend, SubSocket, ZmqMessage};
+
+use crate::zmtp::{Connection, SocketType, ZmtpError};
 
 use crate::CoppeliaError;
 use crate::codec::{self, Value};
@@ -21,6 +23,9 @@ pub struct ClientConfig {
     /// Time allowed for each call (a `sim.step` may take several round trips). Default
     /// 10 s.
     pub call_timeout: Duration,
+    /// The largest reply accepted; a server declaring more is disconnected before anything
+    /// is allocated for it. Default 16 MiB.
+    pub max_message_bytes: usize,
 }
 
 impl Default for ClientConfig {
@@ -29,6 +34,7 @@ impl Default for ClientConfig {
             endpoint: "tcp://127.0.0.1:23000".into(),
             connect_timeout: Duration::from_secs(5),
             call_timeout: Duration::from_secs(10),
+            max_message_bytes: crate::zmtp::DEFAULT_MAX_MESSAGE_BYTES,
         }
     }
 }
@@ -49,12 +55,12 @@ pub enum Protocol {
 pub struct Client {
     config: ClientConfig,
     runtime: Runtime,
-    socket: Option<ReqSocket>,
+    socket: Option<Connection<TcpStream>>,
     uuid: String,
     first: bool,
     protocol: Protocol,
     /// v1 only: the step counter's SUB socket, connected when stepping is enabled.
-    step_counter: Option<SubSocket>,
+    step_counter: Option<StepCounter>,
     step_endpoint: Option<String>,
     callbacks: std::collections::HashMap<String, Callback>,
 }
@@ -83,8 +89,20 @@ impl Client {
                 config.endpoint
             )));
         }
-        if config.connect_timeout.is_zero() || config.call_timeout.is_zero() {
-            return Err(CoppeliaError::InvalidConfig("timeouts must be > 0".into()));
+        for (name, t) in [
+            ("connect timeout", config.connect_timeout),
+            ("call timeout", config.call_timeout),
+        ] {
+            if !(0.001..=86_400.0).contains(&t.as_secs_f64()) {
+                return Err(CoppeliaError::InvalidConfig(format!(
+                    "the {name} must be between 1 ms and one day (got {t:?})"
+                )));
+            }
+        }
+        if !(64..=1 << 30).contains(&config.max_message_bytes) {
+            return Err(CoppeliaError::InvalidConfig(
+                "the message limit must be between 64 bytes and 1 GiB".into(),
+            ));
         }
         let runtime = tokio::runtime::Builder::new_current_thread()
             .enable_all()
@@ -165,17 +183,17 @@ impl Client {
         if enabled && self.step_counter.is_none() {
             let endpoint = self.step_counter_endpoint()?;
             let timeout = self.config.connect_timeout;
+            let max = self.config.max_message_bytes;
             let result = self.runtime.block_on(async {
                 tokio::time::timeout(timeout, async {
-                    let mut sub = SubSocket::new();
-                    sub.connect(&endpoint).await.map_err(|e| e.to_string())?;
-                    sub.subscribe("").await.map_err(|e| e.to_string())?;
-                    Ok::<SubSocket, String>(sub)
+                    let mut sub = open(&endpoint, SocketType::Sub, max).await?;
+                    sub.subscribe_all().await.map_err(|e| e.to_string())?;
+                    Ok::<_, String>(sub)
                 })
                 .await
             });
             self.step_counter = Some(match result {
-                Ok(Ok(sub)) => sub,
+                Ok(Ok(sub)) => StepCounter::spawn(&self.runtime, sub),
                 Ok(Err(message)) => {
                     return Err(CoppeliaError::Connection {
                         endpoint,
@@ -205,7 +223,11 @@ impl Client {
         }
         let mut sub = self.step_counter.take().expect("connected above");
         self.runtime.block_on(async {
-            while let Ok(Ok(_)) = tokio::time::timeout(Duration::ZERO, sub.recv()).await {}
+            // Let the reader take what is buffered, then forget old counters.
+            for _ in 0..4 {
+                tokio::task::yield_now().await;
+            }
+            while sub.rx.try_recv().is_ok() {}
         });
         let uuid = codec::text(&self.uuid);
         if let Err(e) = self.call("step", vec![uuid]) {
@@ -215,16 +237,21 @@ impl Client {
         let timeout = self.config.call_timeout;
         let got = self
             .runtime
-            .block_on(async { tokio::time::timeout(timeout, sub.recv()).await });
+            .block_on(async { tokio::time::timeout(timeout, sub.rx.recv()).await });
         match got {
-            Ok(Ok(_)) => {
+            Ok(Some(Ok(()))) => {
                 self.step_counter = Some(sub);
                 Ok(())
             }
-            Ok(Err(e)) => Err(CoppeliaError::Connection {
+            Ok(Some(Err(message))) => Err(CoppeliaError::Connection {
                 endpoint: self.step_counter_endpoint()?,
                 function: "step (step counter)".into(),
-                message: e.to_string(),
+                message,
+            }),
+            Ok(None) => Err(CoppeliaError::Connection {
+                endpoint: self.step_counter_endpoint()?,
+                function: "step (step counter)".into(),
+                message: "the step counter's connection closed".into(),
             }),
             Err(_) => Err(CoppeliaError::Timeout {
                 endpoint: self.step_counter_endpoint()?,
@@ -274,29 +301,16 @@ impl Client {
         timeout: Duration,
     ) -> Result<Value, CoppeliaError> {
         let endpoint = self.config.endpoint.clone();
-        let connect_timeout = self.config.connect_timeout;
+        let max = self.config.max_message_bytes;
         let bytes = codec::encode(&message);
         let mut socket = self.socket.take();
         let result = self.runtime.block_on(async {
             tokio::time::timeout(timeout, async {
                 if socket.is_none() {
-                    let mut options = SocketOptions::default();
-                    options.connect_timeout(connect_timeout);
-                    let mut s = ReqSocket::with_options(options);
-                    s.connect(&endpoint).await.map_err(|e| e.to_string())?;
-                    socket = Some(s);
+                    socket = Some(open(&endpoint, SocketType::Req, max).await?);
                 }
                 let s = socket.as_mut().expect("socket just made");
-                s.send(ZmqMessage::from(bytes))
-                    .await
-                    .map_err(|e| e.to_string())?;
-                let reply = s.recv().await.map_err(|e| e.to_string())?;
-                let payload: Vec<u8> = reply
-                    .into_vec()
-                    .into_iter()
-                    .flat_map(|b| b.to_vec())
-                    .collect();
-                Ok::<Vec<u8>, String>(payload)
+                s.request(&bytes).await.map_err(|e| e.to_string())
             })
             .await
         });
@@ -401,9 +415,59 @@ impl Client {
                 });
             }
             return codec::as_list(codec::get(&reply, "ret"))
-                .ok_or_else(|| protocol(format!("`ret` is neither a list nor empty: {reply:?}")));
+                .ok_or_else(|| protocol("the reply's `ret` is neither a list nor empty".into()));
         }
     }
+}
+
+/// Protocol v1's step counter: a task reads the SUB connection and signals each message
+/// (reads are never cancelled half-way, so framing survives timeouts).
+struct StepCounter {
+    rx: tokio::sync::mpsc::Receiver<Result<(), String>>,
+    task: tokio::task::JoinHandle<()>,
+}
+
+impl StepCounter {
+    fn spawn(runtime: &Runtime, mut sub: Connection<TcpStream>) -> Self {
+        let (tx, rx) = tokio::sync::mpsc::channel(64);
+        let task = runtime.spawn(async move {
+            loop {
+                match sub.recv().await {
+                    Ok(_) => {
+                        // A full queue already says "a step happened".
+                        let _ = tx.try_send(Ok(()));
+                    }
+                    Err(e) => {
+                        let _ = tx.send(Err(e.to_string())).await;
+                        return;
+                    }
+                }
+            }
+        });
+        Self { rx, task }
+    }
+}
+
+impl Drop for StepCounter {
+    fn drop(&mut self) {
+        self.task.abort();
+    }
+}
+
+/// Connects a TCP stream to `tcp://host:port` and shakes hands as `kind`.
+async fn open(
+    endpoint: &str,
+    kind: SocketType,
+    max: usize,
+) -> Result<Connection<TcpStream>, String> {
+    let address = endpoint.trim_start_matches("tcp://");
+    let stream = TcpStream::connect(address)
+        .await
+        .map_err(|e| e.to_string())?;
+    let _ = stream.set_nodelay(true);
+    Connection::handshake(stream, kind, max)
+        .await
+        .map_err(|e: ZmtpError| e.to_string())
 }
 
 impl Drop for Client {

@@ -9,7 +9,8 @@
 //! - [`StandInServer`]: the same protocol served by cps, backed by the in-process
 //!   kinematic robot, for machines without CoppeliaSim (tests, CI, students).
 //!
-//! This is the only crate that knows ZMQ and CBOR.
+//! This is the only crate that knows ZMQ (its wire protocol, ZMTP, in [`zmtp`], every
+//! frame bounded before it is stored) and CBOR.
 //!
 //! # Example
 //! ```
@@ -24,7 +25,7 @@
 //!     dt: 0.05,
 //!     ik_following: false,
 //! };
-//! let server = StandInServer::start(ServerConfig { bind: "127.0.0.1:0".into(), scene })?;
+//! let server = StandInServer::start(ServerConfig::new("127.0.0.1:0", scene))?;
 //! let mut sim = Client::connect(ClientConfig { endpoint: server.endpoint().into(), ..ClientConfig::default() })?;
 //! let joint = sim.get_object("/Panda_joint1")?;
 //! sim.set_joint_position(joint, 0.3)?;
@@ -40,8 +41,10 @@ mod error;
 mod franka;
 mod server;
 pub mod sim;
+pub mod zmtp;
 
 pub use client::{Client, ClientConfig, Protocol};
 pub use error::CoppeliaError;
 pub use franka::FrankaScene;
-pub use server::{SceneSetup, ServerConfig, StandInServer};
+pub use server::{SceneSetup, ServerConfig, ServerLimits, StandInServer};
+pub use zmtp::DEFAULT_MAX_MESSAGE_BYTES;

@@ -10,14 +10,17 @@
 //! It binds loopback by default and never executes code it is sent.
 
 use std::collections::HashMap;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
 
 use cps_kinematics::SerialChain;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::oneshot;
-use zeromq::{RepSocket, Socket, SocketRecv, SocketSend, ZmqMessage};
+
+use crate::zmtp::{Connection, SocketType, ZmtpError};
 
 use crate::CoppeliaError;
 use crate::codec::{self, Value};
@@ -56,13 +59,33 @@ struct Object {
     kind: Kind,
 }
 
-#[derive(Debug, Default)]
+#[derive(Debug)]
 struct ClientState {
+    /// The last request from this client (its lease runs from here).
+    last_seen: Instant,
     stepping: i64,
     waiting: bool,
     /// A `sim.testCB` in progress: the client's callback is called until `calls` is 0.
     callback: Option<PendingCallback>,
 }
+
+impl Default for ClientState {
+    fn default() -> Self {
+        Self {
+            last_seen: Instant::now(),
+            stepping: 0,
+            waiting: false,
+            callback: None,
+        }
+    }
+}
+
+/// Clients (uuids) remembered at once; beyond it the longest-silent one is forgotten.
+const MAX_CLIENTS: usize = 1024;
+/// Objects in the scene at once (`sim.createDummy` refuses beyond it).
+const MAX_OBJECTS: usize = 100_000;
+/// Largest coordinate accepted for a position (metres) and joint value (rad or m).
+const MAX_COORDINATE: f64 = 1e6;
 
 /// CoppeliaSim's `sim.testCB(a, cb, b, iterations)`: calls `cb(a, b)` iterations + 1
 /// times through the client and returns the last result.
@@ -81,12 +104,13 @@ struct Sim {
     running: bool,
     steps: u64,
     clients: HashMap<String, ClientState>,
+    lease: Duration,
 }
 
 type Reply = Result<Vec<Value>, String>;
 
 impl Sim {
-    fn new(setup: SceneSetup) -> Self {
+    fn new(setup: SceneSetup, lease: Duration) -> Self {
         let mut objects = HashMap::new();
         let name = setup.robot_name.clone();
         objects.insert(
@@ -150,7 +174,28 @@ impl Sim {
             running: false,
             steps: 0,
             clients: HashMap::new(),
+            lease,
         }
+    }
+
+    /// Records a request from `uuid` and forgets clients whose lease ran out, so a client
+    /// that enabled stepping and died does not hold the simulation for the others.
+    fn touch(&mut self, uuid: &str) {
+        let now = Instant::now();
+        let lease = self.lease;
+        self.clients
+            .retain(|_, c| now.saturating_duration_since(c.last_seen) <= lease);
+        if !self.clients.contains_key(uuid) && self.clients.len() >= MAX_CLIENTS {
+            if let Some(oldest) = self
+                .clients
+                .iter()
+                .min_by_key(|(_, c)| c.last_seen)
+                .map(|(k, _)| k.clone())
+            {
+                self.clients.remove(&oldest);
+            }
+        }
+        self.clients.entry(uuid.to_string()).or_default().last_seen = now;
     }
 
     fn time(&self) -> f64 {
@@ -283,6 +328,16 @@ impl Sim {
                 .and_then(codec::as_f64_vec)
                 .filter(|v| v.len() == n)
                 .ok_or(format!("argument {} must be a table of {n} numbers", i + 1))
+                .and_then(|v| {
+                    if v.iter().all(|x| x.is_finite() && x.abs() <= MAX_COORDINATE) {
+                        Ok(v)
+                    } else {
+                        Err(format!(
+                            "argument {} must hold finite numbers of magnitude at most {MAX_COORDINATE:e}",
+                            i + 1
+                        ))
+                    }
+                })
         };
         let rel = |i: usize| {
             args.get(i).map_or(Ok(-1), |v| {
@@ -332,8 +387,10 @@ impl Sim {
             },
             "sim.setJointPosition" | "sim.setJointTargetPosition" => {
                 let (h, v) = (int(0)?, num(1)?);
-                if !v.is_finite() {
-                    return Err("argument 2 must be finite".into());
+                if !(v.is_finite() && v.abs() <= MAX_COORDINATE) {
+                    return Err(format!(
+                        "argument 2 must be a finite joint value of magnitude at most {MAX_COORDINATE:e}"
+                    ));
                 }
                 match self.objects.get(&h).map(|o| o.kind.clone()) {
                     Some(Kind::Joint(j)) => {
@@ -384,7 +441,8 @@ impl Sim {
                     Err(_) => (vec(2, 7)?, rel(1)?),
                 };
                 let q = Quaternion::new(p[6], p[3], p[4], p[5]);
-                if q.norm() < 1e-9 || p.iter().any(|v| !v.is_finite()) {
+                let norm = q.norm();
+                if !(norm.is_finite() && norm > 1e-9) {
                     return Err("the pose's quaternion must be finite and non-zero".into());
                 }
                 let pose = Isometry3::from_parts(
@@ -400,17 +458,19 @@ impl Sim {
                     Ok(m) => (m, rel(2)?),
                     Err(_) => (vec(2, 12)?, rel(1)?),
                 };
-                if m.iter().any(|v| !v.is_finite()) {
-                    return Err("the matrix must be finite".into());
-                }
                 let rot =
                     nalgebra::Matrix3::new(m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10]);
-                let rotation = UnitQuaternion::from_matrix(&rot);
+                let rotation = rotation_of(&rot)?;
                 let pose = Isometry3::from_parts(Translation3::new(m[3], m[7], m[11]), rotation);
                 self.set_pose(h, pose, r)?;
                 none
             }
             "sim.createDummy" => {
+                if self.objects.len() >= MAX_OBJECTS {
+                    return Err(format!(
+                        "the scene holds {MAX_OBJECTS} objects, the stand-in server's limit; remove some first"
+                    ));
+                }
                 let size = num(0)?;
                 if !(size.is_finite() && size > 0.0) {
                     return Err("argument 1 must be a positive size".into());
@@ -491,6 +551,25 @@ impl Sim {
     }
 }
 
+/// The rotation of a 3×3 matrix that must be one: orthonormal to 1e-6 with determinant +1
+/// (CoppeliaSim normalises slightly off matrices; a reflection, a scaling or zeros are not
+/// rotations, and an iterative conversion of them would not end).
+fn rotation_of(m: &nalgebra::Matrix3<f64>) -> Result<UnitQuaternion<f64>, String> {
+    let off = (m.transpose() * m - nalgebra::Matrix3::identity())
+        .abs()
+        .max();
+    let det = m.determinant();
+    if !(off.is_finite() && off <= 1e-6 && det > 0.0) {
+        return Err(format!(
+            "argument 2: invalid matrix: its rotation part must be orthonormal with determinant +1 (|RᵀR − I| = {off:.3e}, det = {det:.3e})"
+        ));
+    }
+    let r = nalgebra::Rotation3::from_matrix_unchecked(*m);
+    Ok(UnitQuaternion::new_normalize(
+        *UnitQuaternion::from_rotation_matrix(&r).quaternion(),
+    ))
+}
+
 /// `zmqRemoteApi.info("sim")`: every function and constant the server provides.
 fn info() -> Value {
     let mut entries: Vec<(&'static str, Value)> = FUNCTIONS
@@ -565,6 +644,7 @@ fn handle(sim: &mut Sim, bytes: &[u8]) -> Value {
             ),
         ]);
     };
+    sim.touch(&uuid);
     let Some(args) = codec::as_list(codec::get(&request, "args")) else {
         return err("`args` must be an array".into());
     };
@@ -660,6 +740,66 @@ pub struct ServerConfig {
     pub bind: String,
     /// The scene.
     pub scene: SceneSetup,
+    /// What one peer may ask of the server.
+    pub limits: ServerLimits,
+}
+
+impl ServerConfig {
+    /// A server for `scene` on `bind`, with the default [`ServerLimits`].
+    pub fn new(bind: impl Into<String>, scene: SceneSetup) -> Self {
+        Self {
+            bind: bind.into(),
+            scene,
+            limits: ServerLimits::default(),
+        }
+    }
+}
+
+/// Bounds that keep one peer from hurting the others.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ServerLimits {
+    /// The largest request (all frames) accepted; a peer declaring more is disconnected
+    /// before anything is allocated for it. Default 16 MiB.
+    pub max_message_bytes: usize,
+    /// Connections served at once; more are closed on arrival. Default 64.
+    pub max_connections: usize,
+    /// A client silent for longer loses its stepping hold (and its state), so the
+    /// simulation runs on for the others. Default 60 s.
+    pub client_lease: Duration,
+    /// Time a new connection has to finish the ZMTP handshake, and a reply has to be taken
+    /// by its client, before the peer is dropped. Default 10 s.
+    pub io_timeout: Duration,
+}
+
+impl Default for ServerLimits {
+    fn default() -> Self {
+        Self {
+            max_message_bytes: crate::zmtp::DEFAULT_MAX_MESSAGE_BYTES,
+            max_connections: 64,
+            client_lease: Duration::from_secs(60),
+            io_timeout: Duration::from_secs(10),
+        }
+    }
+}
+
+impl ServerLimits {
+    fn check(&self) -> Result<(), CoppeliaError> {
+        let bad = |m: &str| Err(CoppeliaError::InvalidConfig(m.into()));
+        if !(64..=1 << 30).contains(&self.max_message_bytes) {
+            return bad("the message limit must be between 64 bytes and 1 GiB");
+        }
+        if !(1..=4096).contains(&self.max_connections) {
+            return bad("the connection limit must be between 1 and 4096");
+        }
+        let secs = |d: Duration| d.as_secs_f64();
+        if !(0.01..=86_400.0).contains(&secs(self.client_lease)) {
+            return bad("the client lease must be between 0.01 s and one day");
+        }
+        if !(0.01..=3_600.0).contains(&secs(self.io_timeout)) {
+            return bad("the I/O timeout must be between 0.01 s and one hour");
+        }
+        Ok(())
+    }
 }
 
 /// A running stand-in server; dropping it stops it.
@@ -668,7 +808,56 @@ pub struct StandInServer {
     endpoint: String,
     stop: Option<oneshot::Sender<()>>,
     thread: Option<JoinHandle<()>>,
-    requests: Arc<AtomicU64>,
+    stats: Arc<Stats>,
+}
+
+/// Counters shared with the serving thread.
+#[derive(Debug, Default)]
+struct Stats {
+    requests: AtomicU64,
+    dropped_peers: AtomicU64,
+}
+
+/// One connection: handshake, then request → reply until the peer leaves or misbehaves.
+/// After each request the task yields, so every other ready client is served before this
+/// one's next request (round-robin: a flooding client delays another by at most one
+/// request per connected client).
+async fn serve_peer(
+    stream: TcpStream,
+    sim: Arc<Mutex<Sim>>,
+    limits: ServerLimits,
+    stats: Arc<Stats>,
+) {
+    let _ = stream.set_nodelay(true);
+    let handshake = Connection::handshake(stream, SocketType::Rep, limits.max_message_bytes);
+    let mut conn = match tokio::time::timeout(limits.io_timeout, handshake).await {
+        Ok(Ok(c)) => c,
+        _ => {
+            stats.dropped_peers.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+    };
+    loop {
+        let (envelope, body) = match conn.recv_request().await {
+            Ok(r) => r,
+            Err(ZmtpError::Io(_)) => return,
+            Err(_) => {
+                stats.dropped_peers.fetch_add(1, Ordering::Relaxed);
+                return;
+            }
+        };
+        stats.requests.fetch_add(1, Ordering::Relaxed);
+        let reply = {
+            let mut sim = sim.lock().unwrap_or_else(|p| p.into_inner());
+            codec::encode(&handle(&mut sim, &body))
+        };
+        let sent = tokio::time::timeout(limits.io_timeout, conn.reply(&envelope, &reply)).await;
+        if !matches!(sent, Ok(Ok(()))) {
+            stats.dropped_peers.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        tokio::task::yield_now().await;
+    }
 }
 
 impl StandInServer {
@@ -679,16 +868,18 @@ impl StandInServer {
             .chain
             .check(&config.scene.initial_q)
             .map_err(|e| CoppeliaError::InvalidConfig(format!("initial joint positions: {e}")))?;
-        if !(config.scene.dt.is_finite() && config.scene.dt > 0.0) {
+        if !(config.scene.dt.is_finite() && config.scene.dt >= 1e-6 && config.scene.dt <= 10.0) {
             return Err(CoppeliaError::InvalidConfig(
-                "the simulation time step must be > 0".into(),
+                "the simulation time step must be between 1e-6 s and 10 s".into(),
             ));
         }
-        let bind = format!("tcp://{}", config.bind.trim_start_matches("tcp://"));
+        config.limits.check()?;
+        let bind = config.bind.trim_start_matches("tcp://").to_string();
         let (ready_tx, ready_rx) = std::sync::mpsc::channel();
         let (stop_tx, stop_rx) = oneshot::channel::<()>();
-        let requests = Arc::new(AtomicU64::new(0));
-        let counter = Arc::clone(&requests);
+        let stats = Arc::new(Stats::default());
+        let counter = Arc::clone(&stats);
+        let limits = config.limits.clone();
         let thread = std::thread::Builder::new()
             .name("cps-sim-server".into())
             .spawn(move || {
@@ -703,37 +894,45 @@ impl StandInServer {
                     }
                 };
                 rt.block_on(async move {
-                    let mut socket = RepSocket::new();
-                    let endpoint = match socket.bind(&bind).await {
-                        Ok(ep) => ep.to_string(),
+                    let listener = match TcpListener::bind(&bind).await {
+                        Ok(l) => l,
+                        Err(e) => {
+                            let _ = ready_tx.send(Err(format!("cannot bind {bind}: {e}")));
+                            return;
+                        }
+                    };
+                    let endpoint = match listener.local_addr() {
+                        Ok(a) => format!("tcp://{a}"),
                         Err(e) => {
                             let _ = ready_tx.send(Err(format!("cannot bind {bind}: {e}")));
                             return;
                         }
                     };
                     let _ = ready_tx.send(Ok(endpoint));
-                    let mut sim = Sim::new(config.scene);
+                    let sim = Arc::new(Mutex::new(Sim::new(config.scene, limits.client_lease)));
+                    let slots = Arc::new(tokio::sync::Semaphore::new(limits.max_connections));
                     let mut stop_rx = stop_rx;
                     loop {
-                        let message = tokio::select! {
+                        let accepted = tokio::select! {
                             _ = &mut stop_rx => break,
-                            m = socket.recv() => m,
+                            a = listener.accept() => a,
                         };
-                        let Ok(message) = message else { continue };
-                        counter.fetch_add(1, Ordering::Relaxed);
-                        let bytes: Vec<u8> = message
-                            .into_vec()
-                            .into_iter()
-                            .flat_map(|b| b.to_vec())
-                            .collect();
-                        let reply = handle(&mut sim, &bytes);
-                        if socket
-                            .send(ZmqMessage::from(codec::encode(&reply)))
-                            .await
-                            .is_err()
-                        {
+                        let Ok((stream, _)) = accepted else {
+                            // Out of descriptors and the like: wait a little, go on.
+                            tokio::time::sleep(Duration::from_millis(10)).await;
                             continue;
-                        }
+                        };
+                        let Ok(permit) = Arc::clone(&slots).try_acquire_owned() else {
+                            counter.dropped_peers.fetch_add(1, Ordering::Relaxed);
+                            drop(stream);
+                            continue;
+                        };
+                        let (sim, limits, stats) =
+                            (Arc::clone(&sim), limits.clone(), Arc::clone(&counter));
+                        tokio::spawn(async move {
+                            serve_peer(stream, sim, limits, stats).await;
+                            drop(permit);
+                        });
                     }
                 });
             })
@@ -748,7 +947,7 @@ impl StandInServer {
             endpoint,
             stop: Some(stop_tx),
             thread: Some(thread),
-            requests,
+            stats,
         })
     }
 
@@ -759,7 +958,13 @@ impl StandInServer {
 
     /// Requests served so far.
     pub fn requests(&self) -> u64 {
-        self.requests.load(Ordering::Relaxed)
+        self.stats.requests.load(Ordering::Relaxed)
+    }
+
+    /// Peers disconnected for breaking the protocol or a limit (oversized messages, slow
+    /// handshakes, replies not taken, connections beyond the limit).
+    pub fn dropped_peers(&self) -> u64 {
+        self.stats.dropped_peers.load(Ordering::Relaxed)
     }
 
     /// Blocks until the server stops (for `cps-cli sim serve`).
@@ -788,14 +993,21 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     fn sim() -> Sim {
-        Sim::new(SceneSetup {
-            robot_name: "Panda".into(),
-            chain: panda(PandaTool::HandTcp),
-            initial_q: vec![0.0; 7],
-            dummies: vec![("p0".into(), [0.1, 0.2, 0.3])],
-            dt: 0.05,
-            ik_following: false,
-        })
+        sim_with_lease(Duration::from_secs(60))
+    }
+
+    fn sim_with_lease(lease: Duration) -> Sim {
+        Sim::new(
+            SceneSetup {
+                robot_name: "Panda".into(),
+                chain: panda(PandaTool::HandTcp),
+                initial_q: vec![0.0; 7],
+                dummies: vec![("p0".into(), [0.1, 0.2, 0.3])],
+                dt: 0.05,
+                ik_following: false,
+            },
+            lease,
+        )
     }
 
     fn request(func: &str, args: Vec<Value>, uuid: bool) -> Vec<u8> {

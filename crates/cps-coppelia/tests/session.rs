@@ -33,6 +33,7 @@ fn server() -> StandInServer {
             dt: 0.05,
             ik_following: false,
         },
+        limits: cps_coppelia::ServerLimits::default(),
     })
     .unwrap()
 }
@@ -42,6 +43,7 @@ fn client(endpoint: &str) -> Client {
         endpoint: endpoint.into(),
         connect_timeout: Duration::from_secs(2),
         call_timeout: Duration::from_secs(2),
+        ..ClientConfig::default()
     })
     .unwrap()
 }
@@ -190,6 +192,7 @@ fn a_dead_server_is_a_timely_error_and_a_restarted_one_is_reached_again() {
             dt: 0.05,
             ik_following: false,
         },
+        limits: cps_coppelia::ServerLimits::default(),
     })
     .unwrap();
     assert_eq!(sim.get_simulation_time().unwrap(), 0.0);
@@ -200,6 +203,7 @@ fn a_dead_server_is_a_timely_error_and_a_restarted_one_is_reached_again() {
         endpoint: endpoint.clone(),
         connect_timeout: Duration::from_millis(300),
         call_timeout: Duration::from_millis(300),
+        ..ClientConfig::default()
     })
     .unwrap_err();
     assert!(start.elapsed() < Duration::from_secs(3), "{e}");
@@ -285,6 +289,7 @@ fn an_endpoint_that_is_not_a_zmq_server_is_an_error() {
         endpoint: format!("tcp://127.0.0.1:{port}"),
         connect_timeout: Duration::from_millis(500),
         call_timeout: Duration::from_millis(500),
+        ..ClientConfig::default()
     })
     .unwrap_err();
     assert!(
@@ -493,6 +498,7 @@ fn the_scene_s_own_ik_follows_the_target() {
             dt: 0.05,
             ik_following: true,
         },
+        limits: cps_coppelia::ServerLimits::default(),
     })
     .unwrap();
     let mut scene = FrankaScene::open(client(srv.endpoint()), "Panda", 7, 0.05).unwrap();
