@@ -563,3 +563,168 @@ fn a_registered_callback_is_called_by_the_server() {
     // A plain call afterwards is unaffected.
     assert_eq!(sim.get_simulation_time().unwrap(), 0.0);
 }
+
+// ---- Hostile peers ----------------------------------------------------------------------
+
+fn server_with(limits: cps_coppelia::ServerLimits) -> StandInServer {
+    let chain = panda(PandaTool::HandTcp);
+    StandInServer::start(ServerConfig {
+        limits,
+        ..ServerConfig::new(
+            "127.0.0.1:0",
+            SceneSetup {
+                robot_name: "Panda".into(),
+                chain,
+                initial_q: THESIS_Q0.to_vec(),
+                dummies: vec![("p0".into(), [0.75, 0.02, 1.87])],
+                dt: 0.05,
+                ik_following: false,
+            },
+        )
+    })
+    .unwrap()
+}
+
+/// A raw ZMTP 3.0 REQ peer over TCP, greeting and READY written by hand.
+fn raw_peer(endpoint: &str) -> std::net::TcpStream {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(endpoint.trim_start_matches("tcp://")).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    let mut g = [0u8; 64];
+    g[0] = 0xff;
+    g[9] = 0x7f;
+    g[10] = 3;
+    g[12..16].copy_from_slice(b"NULL");
+    s.write_all(&g).unwrap();
+    let mut ready = vec![5u8];
+    ready.extend_from_slice(b"READY");
+    ready.push(11);
+    ready.extend_from_slice(b"Socket-Type");
+    ready.extend_from_slice(&3u32.to_be_bytes());
+    ready.extend_from_slice(b"REQ");
+    s.write_all(&[0x04, ready.len() as u8]).unwrap();
+    s.write_all(&ready).unwrap();
+    let mut theirs = [0u8; 64];
+    s.read_exact(&mut theirs).unwrap();
+    let mut head = [0u8; 2];
+    s.read_exact(&mut head).unwrap();
+    let mut body = vec![0; head[1] as usize];
+    s.read_exact(&mut body).unwrap();
+    s
+}
+
+/// A v2 request as CBOR, framed for REQ (empty delimiter, then the body).
+fn framed_request(func: &str) -> Vec<u8> {
+    use cps_coppelia::codec;
+    let body = codec::encode(&codec::map([
+        ("func", codec::text(func)),
+        ("args", codec::Value::Array(vec![])),
+        ("uuid", codec::text("flood")),
+    ]));
+    let mut out = vec![0x01, 0x00, 0x00, body.len() as u8];
+    out.extend_from_slice(&body);
+    out
+}
+
+#[test]
+fn a_peer_declaring_a_huge_frame_is_dropped_and_the_others_are_served() {
+    use std::io::{Read, Write};
+    let srv = server_with(cps_coppelia::ServerLimits::default());
+    let mut sim = client(srv.endpoint());
+    for declared in [64u64 << 30, u64::MAX, (16 << 20) + 1] {
+        let mut peer = raw_peer(srv.endpoint());
+        let mut head = vec![0x02u8];
+        head.extend_from_slice(&declared.to_be_bytes());
+        peer.write_all(&head).unwrap();
+        // The server closes the connection instead of waiting for (or allocating) the body.
+        let mut buf = [0u8; 16];
+        assert!(matches!(peer.read(&mut buf), Ok(0) | Err(_)));
+        assert!(sim.get_simulation_time_step().is_ok());
+    }
+    assert!(srv.dropped_peers() >= 3, "{}", srv.dropped_peers());
+}
+
+#[test]
+fn a_flooding_client_does_not_starve_another() {
+    use std::io::Write;
+    let srv = server_with(cps_coppelia::ServerLimits::default());
+    // The flooder pipelines requests and never reads a reply.
+    let mut flood = raw_peer(srv.endpoint());
+    flood.set_nonblocking(true).unwrap();
+    let request = framed_request("sim.getSimulationTime");
+    let stop = Instant::now() + Duration::from_secs(3);
+    let mut sim = client(srv.endpoint());
+    let mut answered = 0;
+    while Instant::now() < stop && answered < 20 {
+        for _ in 0..200 {
+            let _ = flood.write_all(&request);
+        }
+        // Every call of the well-behaved client is answered within its 2 s timeout.
+        sim.get_simulation_time().unwrap();
+        answered += 1;
+    }
+    assert_eq!(answered, 20);
+}
+
+#[test]
+fn degenerate_poses_and_values_get_error_replies() {
+    let srv = server_with(cps_coppelia::ServerLimits::default());
+    let mut sim = client(srv.endpoint());
+    let d = sim.get_object("/p0").unwrap();
+    let j = sim.get_object("/Panda_joint1").unwrap();
+    let bad_matrices: [[f64; 12]; 6] = [
+        [-1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0], // reflection
+        [0.0; 12],                                                     // zeros
+        [2.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0],  // scaling
+        [1e300, 0.0, 0.0, 0.0, 0.0, 1e300, 0.0, 0.0, 0.0, 0.0, 1e300, 0.0],
+        [f64::NAN, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+        [1.0, 0.0, 0.0, 1e300, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0], // huge translation
+    ];
+    for m in bad_matrices {
+        let e = sim.set_object_matrix(d, m, HANDLE_WORLD).unwrap_err();
+        assert!(matches!(e, CoppeliaError::Remote { .. }), "{e}");
+    }
+    let bad_poses: [[f64; 7]; 3] = [
+        [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [0.0, 0.0, 0.0, 1e200, 1e200, 0.0, 0.0],
+        [f64::INFINITY, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+    ];
+    for p in bad_poses {
+        use cps_coppelia::codec;
+        let args = vec![codec::int(d), codec::floats(&p), codec::int(HANDLE_WORLD)];
+        assert!(sim.call("sim.setObjectPose", args).is_err());
+    }
+    for v in [f64::NAN, f64::INFINITY, 1e300] {
+        assert!(sim.set_joint_position(j, v).is_err());
+    }
+    assert!(sim.get_joint_position(1 << 60).is_err());
+    // A slightly off rotation (as a client's rounding leaves it) is accepted, and the
+    // server is still answering.
+    let c = 0.5f64.cos();
+    let s = 0.5f64.sin();
+    let m = [c, -s, 0.0, 0.1, s, c, 0.0, 0.2, 0.0, 0.0, 1.0 + 1e-9, 0.3];
+    sim.set_object_matrix(d, m, HANDLE_WORLD).unwrap();
+    let p = sim.get_object_position(d, HANDLE_WORLD).unwrap();
+    assert!((p[0] - 0.1).abs() < 1e-12 && (p[2] - 0.3).abs() < 1e-12);
+}
+
+#[test]
+fn a_silent_stepping_client_loses_its_hold_after_its_lease() {
+    let srv = server_with(cps_coppelia::ServerLimits {
+        client_lease: Duration::from_millis(300),
+        ..cps_coppelia::ServerLimits::default()
+    });
+    let mut dead = client(srv.endpoint());
+    dead.set_stepping(true).unwrap();
+    dead.start_simulation().unwrap();
+    // It dies without saying goodbye: the connection stays, the client says nothing more.
+    std::mem::forget(dead);
+    let mut other = client(srv.endpoint());
+    let t0 = other.get_simulation_time().unwrap();
+    let t1 = other.get_simulation_time().unwrap();
+    assert_eq!(t0, t1, "the stepping client holds the simulation while its lease runs");
+    std::thread::sleep(Duration::from_millis(400));
+    let t2 = other.get_simulation_time().unwrap();
+    let t3 = other.get_simulation_time().unwrap();
+    assert!(t3 > t2, "after the lease the simulation runs on ({t2} → {t3})");
+}
