@@ -131,7 +131,11 @@ pub fn run(
             }
         ));
     }
-    Ok(Finished { complete, lines })
+    Ok(Finished {
+        complete,
+        failure: None,
+        lines,
+    })
 }
 
 /// Times `generations` generations of the same run on 1 and on 2 threads, three times each in

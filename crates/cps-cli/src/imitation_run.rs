@@ -59,7 +59,8 @@ pub fn run(
         outcome.complete,
         ctx.pool.current_num_threads(),
         wall(),
-    );
+    )
+    .failed(outcome.failure.as_deref());
     write(exp, &config, robot, &outcome, stage, header)?;
     let o = &outcome;
     let mut lines = vec![format!(
@@ -91,6 +92,7 @@ pub fn run(
     }
     Ok(Finished {
         complete: o.complete,
+        failure: o.failure.clone(),
         lines,
     })
 }
@@ -115,6 +117,13 @@ struct DemoCounts {
     requested: usize,
     kept: usize,
     dropped: usize,
+    /// Kept (reachable) demonstrations whose execution was recorded.
+    executed: usize,
+    /// Kept demonstrations not executed (the run was interrupted or the backend failed).
+    not_executed: usize,
+    /// Imitations executed, of the imitations fitted.
+    imitations_executed: usize,
+    imitations_fitted: usize,
     via_std_m: f64,
 }
 
@@ -218,12 +227,28 @@ fn write(
         },
         demonstrations: DemoCounts {
             requested: config.demonstrations,
-            kept,
+            kept: outcome
+                .demonstrations
+                .iter()
+                .filter(|d| d.dropped.is_none())
+                .count(),
             dropped: outcome
                 .demonstrations
                 .iter()
                 .filter(|d| d.dropped.is_some())
                 .count(),
+            executed: kept,
+            not_executed: outcome
+                .demonstrations
+                .iter()
+                .filter(|d| d.dropped.is_none() && d.recording.is_none())
+                .count(),
+            imitations_executed: outcome
+                .fits
+                .iter()
+                .filter(|f| f.recording.is_some())
+                .count(),
+            imitations_fitted: outcome.fits.len(),
             via_std_m: config.via_std,
         },
         dropped: outcome

@@ -117,20 +117,26 @@ pub fn run(
         .map_err(|e| learn_error(e, "joint-space run"))?;
     ctx.bar.finish_and_clear();
     let interrupted = outcome.search.interrupted();
+    // A backend that fails here (a simulator that died) costs the execution, not the
+    // learned result: it is written, marked incomplete, with the reason.
+    let mut failure = None;
     let recording = if interrupted {
         None
     } else {
-        Some(execute_joint_trajectory(
-            backend.as_mut(),
-            &robot.setup,
-            &outcome.trajectory,
-        )?)
+        match execute_joint_trajectory(backend.as_mut(), &robot.setup, &outcome.trajectory) {
+            Ok(r) => Some(r),
+            Err(e) => {
+                failure = Some(format!("executing the learned movement: {e}"));
+                None
+            }
+        }
     };
     let execution = recording
         .as_ref()
         .map(|r| execution_summary(r, &robot.setup.chain));
     let summary = Summary {
-        header: RunHeader::new(exp, !interrupted, ctx.pool.current_num_threads(), wall()),
+        header: RunHeader::new(exp, !interrupted, ctx.pool.current_num_threads(), wall())
+            .failed(failure.as_deref()),
         backend: robot.describe(),
         scene: &robot.scene,
         way_configurations_rad: &outcome.way_configurations,
@@ -193,7 +199,8 @@ pub fn run(
         ));
     }
     Ok(Finished {
-        complete: !interrupted,
+        complete: !interrupted && failure.is_none(),
+        failure,
         lines,
     })
 }

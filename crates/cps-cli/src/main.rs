@@ -277,6 +277,13 @@ fn run_experiment(
         if !quiet {
             say!("  results and report.html in {}", out.display());
         }
+        if let Some(failure) = &finished.failure {
+            eprintln!(
+                "error: the run stopped early: {failure}\n  what was finished is in {} (summary.json says \"complete\": false and counts what was done)",
+                out.display()
+            );
+            return Ok(ExitCode::from(1));
+        }
         if !complete {
             eprintln!(
                 "interrupted: the finished part is in {} (complete: false)",

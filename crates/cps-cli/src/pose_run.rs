@@ -83,6 +83,7 @@ pub fn run(
     write_report(stage, exp, &summary)?;
     let worst = |v: &[Option<f64>]| v.iter().flatten().fold(0.0f64, |a, &b| a.max(b));
     Ok(Finished {
+        failure: None,
         complete,
         lines: vec![
             format!(

@@ -44,9 +44,21 @@ pub struct RunHeader<'a> {
     versions: crate::output::Versions,
     threads: usize,
     wall_time_s: f64,
+    /// Why the run stopped early when a dependency failed (a simulator died).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    failure: Option<String>,
 }
 
 impl<'a> RunHeader<'a> {
+    /// Marks the run as stopped by a failure (`complete` becomes false).
+    pub fn failed(mut self, failure: Option<&str>) -> Self {
+        if let Some(f) = failure {
+            self.complete = false;
+            self.failure = Some(f.to_string());
+        }
+        self
+    }
+
     /// The header of `exp`'s run.
     pub fn new(exp: &'a ViaPointExperiment, complete: bool, threads: usize, wall: f64) -> Self {
         Self {
@@ -57,6 +69,7 @@ impl<'a> RunHeader<'a> {
             versions: crate::output::Versions::now(),
             threads,
             wall_time_s: wall,
+            failure: None,
         }
     }
 
@@ -69,10 +82,10 @@ impl<'a> RunHeader<'a> {
             ),
             (
                 "complete",
-                if self.complete {
-                    "yes".into()
-                } else {
-                    "no: interrupted, the finished part is shown".into()
+                match (&self.failure, self.complete) {
+                    (Some(f), _) => format!("no: {f}; the finished part is shown"),
+                    (None, true) => "yes".into(),
+                    (None, false) => "no: interrupted, the finished part is shown".into(),
                 },
             ),
             ("seed", self.seed.to_string()),
@@ -135,8 +148,11 @@ pub fn write_history(stage: &Staging, searches: &[(&str, &[GenerationRecord])]) 
 
 /// What a finished (or interrupted) run reports.
 pub struct Finished {
-    /// False if interrupted: the results written are marked incomplete.
+    /// False if interrupted or failed: the results written are marked incomplete.
     pub complete: bool,
+    /// Set when a dependency failed mid-run (the results of the finished part are written;
+    /// the command exits 1 with this message).
+    pub failure: Option<String>,
     /// The lines to print on the terminal (unless `--quiet`).
     pub lines: Vec<String>,
 }

@@ -81,6 +81,7 @@ pub fn run(
         wall(),
     )?;
     Ok(Finished {
+        failure: None,
         complete: !arms.iter().any(|a| a.outcome.interrupted()),
         lines: vec![
             format!(

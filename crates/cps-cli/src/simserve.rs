@@ -42,6 +42,10 @@ pub enum SimCommand {
         /// Connections served at once; more are closed on arrival (1 to 4096).
         #[arg(long, default_value_t = 64)]
         max_clients: usize,
+        /// Exit abruptly once this many requests were served, as a crashing simulator
+        /// would (to test how clients handle it).
+        #[arg(long)]
+        crash_after: Option<u64>,
     },
 }
 
@@ -55,6 +59,7 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
         client_lease,
         max_message_bytes,
         max_clients,
+        crash_after,
     } = cmd;
     if !(dt.is_finite() && (1e-6..=10.0).contains(dt)) {
         return Err(InputError(format!(
@@ -126,7 +131,18 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
         scene.objects.len()
     );
     while !interrupted.load(Ordering::SeqCst) {
-        std::thread::sleep(Duration::from_millis(100));
+        if crash_after.is_some_and(|n| server.requests() >= n) {
+            eprintln!(
+                "crashing on purpose after {} requests (--crash-after)",
+                server.requests()
+            );
+            std::process::exit(3);
+        }
+        std::thread::sleep(Duration::from_millis(if crash_after.is_some() {
+            2
+        } else {
+            100
+        }));
     }
     say!(
         "stopped after {} requests ({} peers dropped for breaking the protocol or a limit)",

@@ -174,6 +174,63 @@ fn the_same_file_records_the_same_on_the_kinematic_robot_and_the_stand_in_server
     }
 }
 
+/// A simulator that dies in the middle of the executions: the run fails (exit 1) within
+/// the timeout, and the output keeps what was done, marked incomplete, with counts.
+#[test]
+fn a_simulator_dying_mid_run_keeps_what_was_executed() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut server, port) = serve("0.05", &["--crash-after", "15000"]);
+    let toml = IMITATION
+        .replace("count = 20", "count = 4")
+        .replace("backend = \"kinematic\"", "backend = \"coppelia\"")
+        .replace(
+            "# endpoint = \"tcp://127.0.0.1:23000\"",
+            &format!("endpoint = \"tcp://127.0.0.1:{port}\""),
+        )
+        .replace("# timeout = 5.0", "timeout = 1.0")
+        .replace("dt = 0.01               #", "# dt = 0.01             #");
+    let file = write(dir.path(), "dies.toml", &toml);
+    let out = dir.path().join("out");
+    let start = std::time::Instant::now();
+    let o = run(&file, &out);
+    let _ = server.kill();
+    let _ = server.wait();
+    assert_eq!(o.status.code(), Some(1), "{}", text_of(&o));
+    let err = text(&o.stderr);
+    assert!(
+        err.contains("stopped early") && err.contains(&port),
+        "{err}"
+    );
+    assert!(start.elapsed().as_secs() < 60);
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["complete"], false);
+    assert!(
+        s["failure"]
+            .as_str()
+            .unwrap()
+            .contains("executing demonstration"),
+        "{}",
+        s["failure"]
+    );
+    let c = &s["demonstrations"];
+    let executed = c["executed"].as_u64().unwrap();
+    assert!(executed >= 1, "{c}");
+    assert!(c["not_executed"].as_u64().unwrap() >= 1, "{c}");
+    assert_eq!(
+        executed + c["not_executed"].as_u64().unwrap(),
+        c["kept"].as_u64().unwrap()
+    );
+    // The executed recordings are on disk, with the report.
+    let rec = std::fs::read_to_string(out.join("recordings.csv")).unwrap();
+    assert!(rec.lines().any(|l| l.starts_with("executed,")));
+    assert!(out.join("report.html").exists());
+    assert!(out.join("cps-manifest.json").exists());
+}
+
+fn text_of(o: &Output) -> String {
+    format!("{}{}", text(&o.stdout), text(&o.stderr))
+}
+
 /// A backend that is not running is a clear error naming the endpoint, within the
 /// timeout, and writes nothing.
 #[test]

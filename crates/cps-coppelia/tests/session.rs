@@ -676,8 +676,23 @@ fn degenerate_poses_and_values_get_error_replies() {
         [-1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0], // reflection
         [0.0; 12],                                                     // zeros
         [2.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0],  // scaling
-        [1e300, 0.0, 0.0, 0.0, 0.0, 1e300, 0.0, 0.0, 0.0, 0.0, 1e300, 0.0],
-        [f64::NAN, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+        [
+            1e300, 0.0, 0.0, 0.0, 0.0, 1e300, 0.0, 0.0, 0.0, 0.0, 1e300, 0.0,
+        ],
+        [
+            f64::NAN,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            1.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            1.0,
+            0.0,
+        ],
         [1.0, 0.0, 0.0, 1e300, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0], // huge translation
     ];
     for m in bad_matrices {
@@ -722,9 +737,15 @@ fn a_silent_stepping_client_loses_its_hold_after_its_lease() {
     let mut other = client(srv.endpoint());
     let t0 = other.get_simulation_time().unwrap();
     let t1 = other.get_simulation_time().unwrap();
-    assert_eq!(t0, t1, "the stepping client holds the simulation while its lease runs");
+    assert_eq!(
+        t0, t1,
+        "the stepping client holds the simulation while its lease runs"
+    );
     std::thread::sleep(Duration::from_millis(400));
     let t2 = other.get_simulation_time().unwrap();
     let t3 = other.get_simulation_time().unwrap();
-    assert!(t3 > t2, "after the lease the simulation runs on ({t2} → {t3})");
+    assert!(
+        t3 > t2,
+        "after the lease the simulation runs on ({t2} → {t3})"
+    );
 }

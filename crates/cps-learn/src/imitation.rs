@@ -190,8 +190,11 @@ pub struct ImitationOutcome {
     pub fits: Vec<ImitationFit>,
     /// Wall time per stage, seconds.
     pub stage_seconds: Vec<(&'static str, f64)>,
-    /// False if the run was interrupted.
+    /// False if the run was interrupted or the backend failed.
     pub complete: bool,
+    /// Why the run stopped early when the robot backend failed (a simulator that died or
+    /// stopped answering): what was done before is kept in the outcome.
+    pub failure: Option<String>,
 }
 
 impl ImitationOutcome {
@@ -214,7 +217,9 @@ impl ImitationOutcome {
 /// Learning and reachability checks run in parallel in the current rayon pool; executions
 /// are sequential on the one backend. `progress(stage, done, total)` is called as work
 /// finishes and may return `ControlFlow::Break(())` to stop: the outcome then holds the
-/// finished stages and `complete == false`. The results do not depend on the number of
+/// finished stages and `complete == false`. A backend that fails during an execution (a
+/// simulator that died or timed out) ends the run the same way, with the reason in
+/// `failure`: the executions done before it are kept. The results do not depend on the number of
 /// threads.
 pub fn run_imitation(
     config: &ImitationConfig,
@@ -236,6 +241,7 @@ pub fn run_imitation(
         fits: Vec::new(),
         stage_seconds: Vec::new(),
         complete: false,
+        failure: None,
     };
     let n = config.demonstrations;
     let stop = std::sync::atomic::AtomicBool::new(false);
@@ -346,7 +352,16 @@ pub fn run_imitation(
         .iter_mut()
         .filter(|d| d.dropped.is_none())
     {
-        d.recording = Some(execute_trajectory(backend, &config.robot, &d.trajectory)?);
+        match execute_trajectory(backend, &config.robot, &d.trajectory) {
+            Ok(r) => d.recording = Some(r),
+            Err(e) => {
+                // The backend failed: keep what was executed, say what was not.
+                out.failure = Some(format!("executing demonstration {}: {e}", d.index));
+                out.stage_seconds
+                    .push(("executing", t.elapsed().as_secs_f64()));
+                return Ok(out);
+            }
+        }
         report(ImitationStage::Executing, kept);
         if stopped() {
             out.stage_seconds
@@ -410,7 +425,15 @@ pub fn run_imitation(
     let t = Instant::now();
     let total = out.fits.len();
     for (i, fit) in out.fits.iter_mut().enumerate() {
-        fit.recording = Some(execute_trajectory(backend, &config.robot, &fit.trajectory)?);
+        match execute_trajectory(backend, &config.robot, &fit.trajectory) {
+            Ok(r) => fit.recording = Some(r),
+            Err(e) => {
+                out.failure = Some(format!("executing the {} imitation: {e}", fit.method));
+                out.stage_seconds
+                    .push(("executing imitations", t.elapsed().as_secs_f64()));
+                return Ok(out);
+            }
+        }
         if progress(ImitationStage::ExecutingImitations, i + 1, total).is_break() {
             out.stage_seconds
                 .push(("executing imitations", t.elapsed().as_secs_f64()));
