@@ -11,6 +11,8 @@ use cps_learn::{
 use serde::Deserialize;
 use toml::Spanned;
 
+use crate::budget::Ceilings;
+
 /// A problem with the user's input: exit code 2.
 #[derive(Debug)]
 pub struct InputError(pub String);
@@ -22,6 +24,42 @@ impl std::fmt::Display for InputError {
 }
 
 impl std::error::Error for InputError {}
+
+/// The largest configuration file read (experiments, scenes, robots, models): 16 MiB.
+pub const MAX_FILE_BYTES: u64 = 16 << 20;
+
+/// Reads a text file of at most `limit` bytes, refusing a larger one before reading it
+/// (and anything that is not a regular file: a FIFO or a device would never end).
+pub fn read_text(path: &Path, limit: u64, what: &str) -> Result<String, InputError> {
+    use std::io::Read;
+    let fail = |m: String| InputError(format!("{}: {m}", path.display()));
+    let meta = std::fs::metadata(path).map_err(|e| fail(format!("cannot read the {what}: {e}")))?;
+    if !meta.is_file() {
+        return Err(fail(format!("the {what} must be a regular file")));
+    }
+    if meta.len() > limit {
+        return Err(fail(format!(
+            "the {what} has {} bytes, more than the {} cps reads; is it the right file?",
+            meta.len(),
+            crate::budget::bytes(limit as f64)
+        )));
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    std::fs::File::open(path)
+        .and_then(|f| f.take(limit + 1).read_to_end(&mut bytes))
+        .map_err(|e| fail(format!("cannot read the {what}: {e}")))?;
+    if bytes.len() as u64 > limit {
+        return Err(fail(format!(
+            "the {what} grew beyond {limit} bytes while being read"
+        )));
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        fail(format!(
+            "the {what} is not UTF-8 text (invalid byte at offset {})",
+            e.utf8_error().valid_up_to()
+        ))
+    })
+}
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -196,6 +234,8 @@ pub struct ViaPointExperiment {
     pub energy: Option<crate::pipelines::EnergyPlan>,
     /// The orientation targets (`kind = "viapoint_pose"`).
     pub pose: Option<crate::pipelines::PosePlan>,
+    /// What the run needs (memory, work), estimated when the file was read.
+    pub estimate: Option<crate::budget::Estimate>,
 }
 
 /// `file:line:column` of a byte offset.
@@ -208,14 +248,13 @@ pub(crate) fn location(path: &Path, text: &str, span: &Range<usize>) -> String {
 
 /// Reads, parses and validates an experiment file. Every error names the file, the line
 /// and column where it can, and the rule broken.
-pub fn load(path: &Path, seed_override: Option<u64>) -> Result<ViaPointExperiment, InputError> {
-    let text = std::fs::read_to_string(path).map_err(|e| {
-        InputError(format!(
-            "{}: cannot read the experiment file: {e}",
-            path.display()
-        ))
-    })?;
-    parse(path, &text, seed_override)
+pub fn load(
+    path: &Path,
+    seed_override: Option<u64>,
+    ceilings: &Ceilings,
+) -> Result<ViaPointExperiment, InputError> {
+    let text = read_text(path, MAX_FILE_BYTES, "experiment file")?;
+    parse(path, &text, seed_override, ceilings)
 }
 
 /// Parses and validates experiment text (`path` is only used in messages).
@@ -223,6 +262,7 @@ pub fn parse(
     path: &Path,
     text: &str,
     seed_override: Option<u64>,
+    ceilings: &Ceilings,
 ) -> Result<ViaPointExperiment, InputError> {
     let at = |e: &toml::de::Error| {
         e.span()
@@ -346,20 +386,20 @@ pub fn parse(
     config.seed = seed_override.unwrap_or(file.experiment.seed);
     if let Some(s) = &o.sigma0 {
         let v = *s.get_ref();
-        if !(v.is_finite() && v > 0.0) {
+        if !(v.is_finite() && v > 0.0 && v <= 1e6) {
             return Err(err(
                 &s.span(),
-                format!("[optimizer] `sigma0` must be finite and > 0 (got {v})"),
+                format!("[optimizer] `sigma0` must be finite, > 0 and at most 1e6 (got {v})"),
             ));
         }
         config.sigma0 = v;
     }
     if let Some(p) = &o.population {
-        if *p.get_ref() < 2 {
+        if !(2..=100_000).contains(p.get_ref()) {
             return Err(err(
                 &p.span(),
                 format!(
-                    "[optimizer] `population` must be at least 2 (got {})",
+                    "[optimizer] `population` must be between 2 and 100000 (got {})",
                     p.get_ref()
                 ),
             ));
@@ -380,7 +420,7 @@ pub fn parse(
     config.tol_fun = match &o.tol_fun {
         Some(t) => {
             let v = *t.get_ref();
-            if !(v.is_finite() && v >= 0.0) {
+            if !(v.is_finite() && (0.0..=1e300).contains(&v)) {
                 return Err(err(
                     &t.span(),
                     format!("[optimizer] `tol_fun` must be finite and ≥ 0 (got {v})"),
@@ -413,7 +453,7 @@ pub fn parse(
         orientation: file.orientation.as_ref(),
     };
     let plans = sections.parse(&config)?;
-    Ok(ViaPointExperiment {
+    let mut exp = ViaPointExperiment {
         kind,
         name,
         config,
@@ -424,7 +464,84 @@ pub fn parse(
         joint: plans.joint,
         energy: plans.energy,
         pose: plans.pose,
-    })
+        estimate: None,
+    };
+    // What the file asks of the machine, refused beyond the ceilings.
+    let factors = budget_factors(&file, &exp);
+    let estimate =
+        crate::budget::check(&exp, &factors, ceilings, &|span| location(path, text, span))?;
+    exp.estimate = Some(estimate);
+    Ok(exp)
+}
+
+/// The keys that scale an experiment's cost, with how far each is from an ordinary value.
+fn budget_factors(file: &File, exp: &ViaPointExperiment) -> crate::budget::Factors {
+    let c = &exp.config;
+    let d = &file.dmp;
+    let o = &file.optimizer;
+    let samples = (c.task.dmp.tau / c.task.dmp.dt).round() + 1.0;
+    let mut keys = vec![
+        (
+            "[dmp] `dt`",
+            format!("{} (with tau = {} s)", d.dt.get_ref(), d.tau.get_ref()),
+            samples / 1001.0,
+            d.dt.span(),
+        ),
+        (
+            "[dmp] `basis_functions`",
+            d.basis_functions.get_ref().to_string(),
+            *d.basis_functions.get_ref() as f64 / 25.0,
+            d.basis_functions.span(),
+        ),
+        (
+            "[optimizer] `generations`",
+            o.generations.get_ref().to_string(),
+            *o.generations.get_ref() as f64 / 3000.0,
+            o.generations.span(),
+        ),
+        (
+            "[experiment] `repetitions`",
+            file.experiment.repetitions.get_ref().to_string(),
+            *file.experiment.repetitions.get_ref() as f64 / 5.0,
+            file.experiment.repetitions.span(),
+        ),
+        (
+            "[task] `start`",
+            format!("{} dimensions", c.task.start.len()),
+            c.task.start.len() as f64 / 7.0,
+            file.task.start.span(),
+        ),
+    ];
+    if let Some(p) = &o.population {
+        keys.push((
+            "[optimizer] `population`",
+            p.get_ref().to_string(),
+            *p.get_ref() as f64 / 96.0,
+            p.span(),
+        ));
+    }
+    if let Some(count) = file
+        .demonstrations
+        .as_ref()
+        .and_then(|s| s.get_ref().count.as_ref())
+    {
+        keys.push((
+            "[demonstrations] `count`",
+            count.get_ref().to_string(),
+            *count.get_ref() as f64 / 20.0,
+            count.span(),
+        ));
+    }
+    if let Some(s) = &file.speedup {
+        let g = &s.get_ref().generations;
+        keys.push((
+            "[speedup] `generations`",
+            g.get_ref().to_string(),
+            *g.get_ref() as f64 / 100.0,
+            g.span(),
+        ));
+    }
+    crate::budget::Factors { keys }
 }
 
 fn toml_name(field: &str) -> &str {
@@ -471,7 +588,7 @@ mod tests {
     const SHIPPED: &str = include_str!("../../../experiments/viapoint.toml");
 
     fn check(text: &str) -> Result<ViaPointExperiment, InputError> {
-        parse(Path::new("x.toml"), text, None)
+        parse(Path::new("x.toml"), text, None, &Ceilings::default())
     }
 
     #[test]

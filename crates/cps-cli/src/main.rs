@@ -34,6 +34,7 @@ macro_rules! say {
     }};
 }
 
+mod budget;
 mod cmaes_bench;
 mod energy_run;
 mod experiment;
@@ -102,11 +103,15 @@ enum Command {
         /// No progress bar and no summary on the terminal.
         #[arg(long)]
         quiet: bool,
+        #[command(flatten)]
+        ceilings: CeilingArgs,
     },
     /// Validate an experiment file without running it.
     Check {
         /// The experiment file (TOML).
         file: PathBuf,
+        #[command(flatten)]
+        ceilings: CeilingArgs,
     },
     /// Print a commented default experiment (the thesis's via-point task).
     Default,
@@ -138,6 +143,48 @@ enum Command {
         #[command(subcommand)]
         command: scene::SceneCommand,
     },
+}
+
+/// The ceilings on what an experiment may ask of the machine.
+#[derive(clap::Args, Debug)]
+struct CeilingArgs {
+    /// Refuse an experiment estimated to need more memory than this, in GiB.
+    #[arg(
+        long,
+        default_value_t = 4.0,
+        value_name = "GIB",
+        allow_hyphen_values = true
+    )]
+    max_memory: f64,
+    /// Refuse an experiment estimated to need more multiply-adds than this.
+    #[arg(
+        long,
+        default_value_t = 1e13,
+        value_name = "OPS",
+        allow_hyphen_values = true
+    )]
+    max_work: f64,
+}
+
+impl CeilingArgs {
+    fn ceilings(&self) -> Result<budget::Ceilings, InputError> {
+        if !(self.max_memory.is_finite() && (0.001..=1e6).contains(&self.max_memory)) {
+            return Err(InputError(format!(
+                "--max-memory {}: give GiB between 0.001 and 1e6",
+                self.max_memory
+            )));
+        }
+        if !(self.max_work.is_finite() && (1.0..=1e20).contains(&self.max_work)) {
+            return Err(InputError(format!(
+                "--max-work {}: give a count between 1 and 1e20",
+                self.max_work
+            )));
+        }
+        Ok(budget::Ceilings {
+            memory_bytes: self.max_memory * 1024.0 * 1024.0 * 1024.0,
+            work: self.max_work,
+        })
+    }
 }
 
 fn main() -> ExitCode {
@@ -180,18 +227,20 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
         Command::Cmaes { command } => cmaes_bench::bench(&command),
         Command::Sim { command } => simserve::sim(&command, interrupted),
         Command::Rollout(args) => movement::run_rollout(&args),
-        Command::Check { file } => {
-            let exp = experiment::load(&file, None)?;
+        Command::Check { file, ceilings } => {
+            let exp = experiment::load(&file, None, &ceilings.ceilings()?)?;
+            let e = exp.estimate.expect("estimated when loaded");
             say!(
                 "{}: ok (kind {}, {} dimensions, {} via points, {} weights, {} generations x {} repetition(s))",
                 file.display(),
                 exp.kind.name(),
-                exp.config.task.start.len(),
+                e.dims,
                 exp.config.task.via.len(),
-                exp.config.task.start.len() * exp.config.task.dmp.n_basis,
+                e.parameters,
                 exp.config.generations,
                 exp.config.repetitions
             );
+            say!("  {}", e.describe());
             Ok(ExitCode::SUCCESS)
         }
         Command::Run {
@@ -201,7 +250,20 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
             threads,
             force,
             quiet,
-        } => run_experiment(&file, out, seed, threads, force, quiet, interrupted),
+            ceilings,
+        } => {
+            let ceilings = ceilings.ceilings()?;
+            run_experiment(
+                &file,
+                out,
+                seed,
+                threads,
+                force,
+                quiet,
+                &ceilings,
+                interrupted,
+            )
+        }
     }
 }
 
@@ -212,13 +274,16 @@ fn run_experiment(
     threads: Option<usize>,
     force: bool,
     quiet: bool,
+    ceilings: &budget::Ceilings,
     interrupted: &AtomicBool,
 ) -> Result<ExitCode> {
     let started = Instant::now();
-    let exp = experiment::load(file, seed)?;
+    let exp = experiment::load(file, seed, ceilings)?;
     let out = out.unwrap_or_else(|| Path::new("results").join(&exp.name));
-    if threads == Some(0) {
-        return Err(InputError("--threads must be at least 1".into()).into());
+    if let Some(t) = threads
+        && !(1..=1024).contains(&t)
+    {
+        return Err(InputError(format!("--threads {t}: must be between 1 and 1024")).into());
     }
     // The output is checked, and its staging directory made, before any work.
     let stage = output::Staging::prepare(&out, force)?;

@@ -141,12 +141,22 @@ fn check_outputs(
 
 /// Reads a demonstration CSV; errors name the file and the line.
 pub fn read_demo(path: &Path) -> Result<(Vec<String>, Demonstration), InputError> {
+    let text = crate::experiment::read_text(path, MAX_DEMO_BYTES, "demonstration")?;
+    parse_demo(path, &text)
+}
+
+/// The largest demonstration file read: 256 MiB (≈ 10⁷ samples of three coordinates).
+pub const MAX_DEMO_BYTES: u64 = 256 << 20;
+/// The most columns of a demonstration (time and 255 dimensions).
+const MAX_DEMO_COLUMNS: usize = 256;
+
+/// Parses demonstration CSV text (`path` names it in errors).
+pub fn parse_demo(path: &Path, text: &str) -> Result<(Vec<String>, Demonstration), InputError> {
     let fail = |m: String| InputError(format!("{}: {m}", path.display()));
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(true)
         .trim(csv::Trim::All)
-        .from_path(path)
-        .map_err(|e| fail(format!("cannot read the demonstration: {e}")))?;
+        .from_reader(text.as_bytes());
     let header: Vec<String> = reader
         .headers()
         .map_err(|e| fail(format!("cannot read the header: {e}")))?
@@ -156,6 +166,12 @@ pub fn read_demo(path: &Path) -> Result<(Vec<String>, Demonstration), InputError
     if header.len() < 2 {
         return Err(fail(format!(
             "the header has {} column(s); needed: time, then one column per dimension",
+            header.len()
+        )));
+    }
+    if header.len() > MAX_DEMO_COLUMNS {
+        return Err(fail(format!(
+            "the header has {} columns; at most {MAX_DEMO_COLUMNS} are read (time and one per dimension)",
             header.len()
         )));
     }
@@ -356,12 +372,8 @@ pub fn run_rollout(args: &RolloutArgs) -> Result<ExitCode> {
         args.plot.as_deref(),
         args.force,
     )?;
-    let text = std::fs::read_to_string(&args.model).map_err(|e| {
-        InputError(format!(
-            "{}: cannot read the model: {e}",
-            args.model.display()
-        ))
-    })?;
+    let text =
+        crate::experiment::read_text(&args.model, crate::experiment::MAX_FILE_BYTES, "model")?;
     let in_model = |e: cps_dmp::DmpError| InputError(format!("{}: {e}", args.model.display()));
     let model = DmpModel::from_json(&text).map_err(in_model)?;
     let (dmp, weights) = model.to_dmp().map_err(in_model)?;

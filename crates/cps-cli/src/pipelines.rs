@@ -167,7 +167,7 @@ impl RobotChoice {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DemonstrationsSection {
-    count: Option<Spanned<usize>>,
+    pub(crate) count: Option<Spanned<usize>>,
     via_std: Option<Spanned<f64>>,
 }
 
@@ -243,7 +243,7 @@ pub struct PlantSection {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SpeedupSection {
-    generations: Spanned<u64>,
+    pub(crate) generations: Spanned<u64>,
 }
 
 /// The plant of an effort experiment and its speed-up measurement.
@@ -313,14 +313,22 @@ impl Sections<'_> {
         InputError(format!("{}: {msg}", location(self.path, self.text, span)))
     }
 
-    fn positive(&self, v: &Spanned<f64>, what: &str) -> Result<f64, InputError> {
+    /// A value that must lie in `[lo, hi]` (and be finite), with its unit for the message.
+    fn within(
+        &self,
+        v: &Spanned<f64>,
+        what: &str,
+        lo: f64,
+        hi: f64,
+        unit: &str,
+    ) -> Result<f64, InputError> {
         let x = *v.get_ref();
-        if x.is_finite() && x > 0.0 {
+        if x.is_finite() && (lo..=hi).contains(&x) {
             Ok(x)
         } else {
             Err(self.err(
                 &v.span(),
-                format!("{what} must be finite and > 0 (got {x})"),
+                format!("{what} must be between {lo:e} and {hi:e}{unit} (got {x})"),
             ))
         }
     }
@@ -404,14 +412,13 @@ impl Sections<'_> {
         let joint = if self.kind == Kind::ViapointJoint {
             let section = self.joint.map(Spanned::get_ref);
             let weight = |v: Option<&Spanned<f64>>, name: &str, default: f64| match v {
-                Some(v) if !(v.get_ref().is_finite() && *v.get_ref() >= 0.0) => Err(self.err(
-                    &v.span(),
-                    format!(
-                        "[joint] `{name}` must be finite and ≥ 0 (got {})",
-                        v.get_ref()
-                    ),
-                )),
-                Some(v) => Ok(*v.get_ref()),
+                Some(v) => self.within(
+                    v,
+                    &format!("[joint] `{name}`"),
+                    0.0,
+                    cps_learn::MAX_WEIGHT,
+                    "",
+                ),
                 None => Ok(default),
             };
             Some(JointPlan {
@@ -430,7 +437,7 @@ impl Sections<'_> {
             None
         };
         let energy = if self.kind == Kind::ViapointEnergy {
-            Some(self.energy_plan()?)
+            Some(self.energy_plan(learner)?)
         } else {
             None
         };
@@ -527,38 +534,38 @@ impl Sections<'_> {
             goal: self.orientation(&s.goal, "`goal`")?,
             via,
             sigma0: match &s.sigma0 {
-                Some(v) => self.positive(v, "[orientation] `sigma0`")?,
+                Some(v) => self.within(v, "[orientation] `sigma0`", 1e-6, 10.0, " rad")?,
                 None => 0.3,
             },
         })
     }
 
-    fn energy_plan(&self) -> Result<EnergyPlan, InputError> {
+    fn energy_plan(&self, learner: &ViaPointConfig) -> Result<EnergyPlan, InputError> {
         let p = self.plant.map(Spanned::get_ref);
         let mut plant = cps_learn::PointMassPlant::default();
         if let Some(v) = p.and_then(|p| p.mass.as_ref()) {
-            plant.mass = self.positive(v, "[plant] `mass`")?;
+            plant.mass = self.within(v, "[plant] `mass`", 1e-3, 1e4, " kg")?;
         }
         if let Some(v) = p.and_then(|p| p.kp.as_ref()) {
-            plant.kp = self.positive(v, "[plant] `kp`")?;
+            plant.kp = self.within(v, "[plant] `kp`", 1e-3, 1e8, " N/m")?;
         }
         if let Some(v) = p.and_then(|p| p.kv.as_ref()) {
-            plant.kv = self.positive(v, "[plant] `kv`")?;
+            plant.kv = self.within(v, "[plant] `kv`", 1e-3, 1e6, " N·s/m")?;
         }
         if let Some(v) = p.and_then(|p| p.substeps.as_ref()) {
             plant.substeps = *v.get_ref();
         }
+        // The library's rules (substeps in range, integration stable for these gains),
+        // named at the section.
+        if let Err(e) = plant.validate(learner.task.dmp.dt) {
+            let span = p
+                .and_then(|p| p.substeps.as_ref().map(Spanned::span))
+                .or(self.plant.map(Spanned::span))
+                .unwrap_or(0..0);
+            return Err(self.err(&span, format!("[plant] {e}")));
+        }
         let effort_weight = match p.and_then(|p| p.effort_weight.as_ref()) {
-            Some(v) if !(v.get_ref().is_finite() && *v.get_ref() >= 0.0) => {
-                return Err(self.err(
-                    &v.span(),
-                    format!(
-                        "[plant] `effort_weight` must be finite and ≥ 0 (got {})",
-                        v.get_ref()
-                    ),
-                ));
-            }
-            Some(v) => *v.get_ref(),
+            Some(v) => self.within(v, "[plant] `effort_weight`", 0.0, cps_learn::MAX_WEIGHT, "")?,
             None => 1e-2,
         };
         let speedup_generations = match self.speedup {
@@ -605,7 +612,7 @@ impl Sections<'_> {
         };
         let mut execution = ExecutionConfig::default();
         if let Some(t) = section.and_then(|r| r.tolerance.as_ref()) {
-            execution.tolerance = self.positive(t, "[robot] `tolerance`")?;
+            execution.tolerance = self.within(t, "[robot] `tolerance`", 1e-9, 0.1, " m")?;
         }
         if let Some(m) = section.and_then(|r| r.max_iterations_per_sample.as_ref()) {
             if *m.get_ref() == 0 || *m.get_ref() > 10_000 {
@@ -637,7 +644,7 @@ impl Sections<'_> {
                     ));
                 }
                 let dt = match section.and_then(|r| r.dt.as_ref()) {
-                    Some(d) => self.positive(d, "[robot] `dt`")?,
+                    Some(d) => self.within(d, "[robot] `dt`", 1e-4, 1.0, " s")?,
                     None => default_dt,
                 };
                 BackendChoice::Kinematic { dt }
@@ -662,7 +669,7 @@ impl Sections<'_> {
                     .and_then(|r| r.endpoint.as_ref())
                     .map_or("tcp://127.0.0.1:23000".to_string(), |e| e.get_ref().clone());
                 let timeout = match section.and_then(|r| r.timeout.as_ref()) {
-                    Some(t) => self.positive(t, "[robot] `timeout`")?,
+                    Some(t) => self.within(t, "[robot] `timeout`", 0.01, 3600.0, " s")?,
                     None => 5.0,
                 };
                 BackendChoice::Coppelia {
@@ -704,16 +711,7 @@ impl Sections<'_> {
             None => 20,
         };
         let via_std = match d.and_then(|d| d.via_std.as_ref()) {
-            Some(v) if !(v.get_ref().is_finite() && *v.get_ref() >= 0.0) => {
-                return Err(self.err(
-                    &v.span(),
-                    format!(
-                        "[demonstrations] `via_std` must be finite and ≥ 0 (got {})",
-                        v.get_ref()
-                    ),
-                ));
-            }
-            Some(v) => *v.get_ref(),
+            Some(v) => self.within(v, "[demonstrations] `via_std`", 0.0, 10.0, " m")?,
             None => 0.05,
         };
         let i = self.imitation.map(Spanned::get_ref);
@@ -735,10 +733,10 @@ impl Sections<'_> {
             dmp.n_basis = *n.get_ref();
         }
         if let Some(t) = i.and_then(|i| i.tau.as_ref()) {
-            dmp.tau = self.positive(t, "[imitation] `tau`")?;
+            dmp.tau = self.within(t, "[imitation] `tau`", 1e-3, 1e5, " s")?;
         }
         if let Some(t) = i.and_then(|i| i.dt.as_ref()) {
-            dmp.dt = self.positive(t, "[imitation] `dt`")?;
+            dmp.dt = self.within(t, "[imitation] `dt`", 1e-5, 10.0, " s")?;
         }
         if let Err(e) = dmp.validate() {
             let span = self.imitation.map_or(0..0, Spanned::span);

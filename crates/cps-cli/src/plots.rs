@@ -38,13 +38,15 @@ fn both(
     {
         let root = BitMapBackend::new(&png, size).into_drawing_area();
         draw(&DynArea::Bitmap(&root))?;
-        root.present().map_err(|e| anyhow!("{stem}.png: {e:?}"))?;
+        root.present()
+            .map_err(|e| anyhow!("cannot write {stem}.png: {e}"))?;
     }
     let svg = stage.path(&format!("{stem}.svg"));
     {
         let root = SVGBackend::new(&svg, size).into_drawing_area();
         draw(&DynArea::Svg(&root))?;
-        root.present().map_err(|e| anyhow!("{stem}.svg: {e:?}"))?;
+        root.present()
+            .map_err(|e| anyhow!("cannot write {stem}.svg: {e}"))?;
     }
     Ok(())
 }
@@ -58,8 +60,8 @@ enum DynArea<'a, 'b> {
 macro_rules! with_area {
     ($area:expr, $f:expr) => {
         match $area {
-            DynArea::Bitmap(a) => $f(*a).map_err(|e| anyhow!("plot: {e:?}")),
-            DynArea::Svg(a) => $f(*a).map_err(|e| anyhow!("plot: {e:?}")),
+            DynArea::Bitmap(a) => $f(*a).map_err(|e| anyhow!("cannot draw the figure: {e}")),
+            DynArea::Svg(a) => $f(*a).map_err(|e| anyhow!("cannot draw the figure: {e}")),
         }
     };
 }
@@ -305,17 +307,33 @@ pub fn curves_to_file(
     let svg = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
-    let fail = |e: String| anyhow!("{}: {e}", path.display());
-    if svg {
-        let root = SVGBackend::new(path, size).into_drawing_area();
-        curves_plot(&root, names, series, points).map_err(|e| fail(format!("{e:?}")))?;
-        root.present().map_err(|e| fail(format!("{e:?}")))?;
+    let fail = |e: String| anyhow!("cannot write the figure {}: {e}", path.display());
+    // Drawn beside its place under a temporary name (same extension: the format follows
+    // it), then renamed: a failed figure never leaves half a file.
+    let name = path
+        .file_name()
+        .map_or("figure".into(), |n| n.to_string_lossy().into_owned());
+    let ext = if svg { "svg" } else { "png" };
+    let tmp = path.with_file_name(format!(".{name}.cps-tmp-{}.{ext}", std::process::id()));
+    let drawn = if svg {
+        let root = SVGBackend::new(&tmp, size).into_drawing_area();
+        curves_plot(&root, names, series, points)
+            .and_then(|()| root.present())
+            .map_err(|e| fail(e.to_string()))
     } else {
-        let root = BitMapBackend::new(path, size).into_drawing_area();
-        curves_plot(&root, names, series, points).map_err(|e| fail(format!("{e:?}")))?;
-        root.present().map_err(|e| fail(format!("{e:?}")))?;
+        let root = BitMapBackend::new(&tmp, size).into_drawing_area();
+        curves_plot(&root, names, series, points)
+            .and_then(|()| root.present())
+            .map_err(|e| fail(e.to_string()))
+    };
+    if let Err(e) = drawn {
+        std::fs::remove_file(&tmp).ok();
+        return Err(e);
     }
-    Ok(())
+    std::fs::rename(&tmp, path).map_err(|e| {
+        std::fs::remove_file(&tmp).ok();
+        fail(e.to_string())
+    })
 }
 
 /// `x [m]`, `y [m]`, `z [m]` for three dimensions, `y0 [m]`, … otherwise.

@@ -401,6 +401,16 @@ pub fn check_file_target(path: &Path, kind: FileKind, force: bool) -> Result<(),
             "{shown}: cps does not expand `~` (a shell does, when it is not quoted); give the full path"
         )));
     }
+    let parent = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    if !parent.is_dir() {
+        return Err(InputError(format!(
+            "{shown}: the folder {} does not exist; create it first or choose another path",
+            parent.display()
+        )));
+    }
     match fs::symlink_metadata(path) {
         Err(_) => Ok(()),
         Ok(m) if m.file_type().is_symlink() => Err(InputError(format!(

@@ -100,12 +100,8 @@ pub fn load_robot(
     let lower = spec.to_ascii_lowercase();
     if lower.ends_with(".toml") || lower.ends_with(".urdf") {
         let path = Path::new(spec);
-        let text = std::fs::read_to_string(path).map_err(|e| {
-            InputError(format!(
-                "{}: cannot read the robot file: {e}",
-                path.display()
-            ))
-        })?;
+        let text =
+            crate::experiment::read_text(path, crate::experiment::MAX_FILE_BYTES, "robot file")?;
         if lower.ends_with(".urdf") {
             if tool.is_some() {
                 return Err(InputError(

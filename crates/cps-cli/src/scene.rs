@@ -67,12 +67,7 @@ pub struct Scene {
 
 /// Reads a scene file; a relative robot file path is resolved against the scene's folder.
 pub fn load_scene(path: &Path) -> Result<Scene, InputError> {
-    let text = std::fs::read_to_string(path).map_err(|e| {
-        InputError(format!(
-            "{}: cannot read the scene file: {e}",
-            path.display()
-        ))
-    })?;
+    let text = crate::experiment::read_text(path, crate::experiment::MAX_FILE_BYTES, "scene file")?;
     parse_scene(path, &text)
 }
 

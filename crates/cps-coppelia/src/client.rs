@@ -397,7 +397,7 @@ impl Client {
                 continue;
             }
             if let Some(e) = codec::get(&reply, "err") {
-                let text = codec::as_text(e).unwrap_or_else(|| format!("{e:?}"));
+                let text = codec::as_text(e).unwrap_or_else(|| "an error that is not text".into());
                 return Err(CoppeliaError::Remote {
                     endpoint: self.config.endpoint.clone(),
                     function: func.into(),

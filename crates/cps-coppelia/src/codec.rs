@@ -7,6 +7,21 @@ use std::collections::BTreeMap;
 
 pub use serde_cbor::Value;
 
+/// What kind of value `v` is, in words (for error messages).
+pub fn describe(v: &Value) -> &'static str {
+    match untag(v) {
+        Value::Null => "nothing",
+        Value::Bool(_) => "a boolean",
+        Value::Integer(_) => "an integer",
+        Value::Float(_) => "a number",
+        Value::Bytes(_) => "bytes",
+        Value::Text(_) => "text",
+        Value::Array(_) => "a table",
+        Value::Map(_) => "a map",
+        _ => "an unknown value",
+    }
+}
+
 /// Decodes one CBOR item; hostile input gives an error, never a panic (the decoder limits
 /// recursion depth).
 pub fn decode(bytes: &[u8]) -> Result<Value, String> {

@@ -37,7 +37,7 @@ impl Client {
         f(&v).ok_or_else(|| CoppeliaError::Protocol {
             endpoint: self.endpoint().into(),
             function: func.into(),
-            message: format!("expected {what}, got {v:?}"),
+            message: format!("expected {what}, got {}", codec::describe(&v)),
         })
     }
 

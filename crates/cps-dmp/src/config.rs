@@ -74,6 +74,24 @@ impl DmpConfig {
         positive("tau", self.tau)?;
         positive("dt", self.dt)?;
         at_least_one("n_basis", self.n_basis)?;
+        // Beyond these the dynamics stop meaning anything: a phase that has decayed below
+        // e^-100 leaves every basis function at zero, and gains above 1e4 (in units of
+        // 1/tau) make the movement a step.
+        at_most("alpha_z", self.alpha_z, MAX_GAIN, "must be at most 1e4")?;
+        at_most("beta_z", self.beta_z, MAX_GAIN, "must be at most 1e4")?;
+        at_most(
+            "alpha_x",
+            self.alpha_x,
+            MAX_PHASE_DECAY,
+            "must be at most 100 (the phase would end below e^-100, every basis function at zero)",
+        )?;
+        at_most("tau", self.tau, MAX_TAU, "must be at most 1e6 s")?;
+        at_most(
+            "n_basis",
+            self.n_basis as f64,
+            MAX_BASIS as f64,
+            "must be at most 100000",
+        )?;
         if self.dt >= self.tau {
             return Err(DmpError::InvalidConfig {
                 field: "dt",
@@ -81,11 +99,20 @@ impl DmpConfig {
                 value: self.dt,
             });
         }
-        if self.tau / self.dt > 1e8 {
+        let steps = self.tau / self.dt;
+        if steps > MAX_STEPS as f64 {
             return Err(DmpError::InvalidConfig {
                 field: "dt",
-                rule: "gives more than 1e8 steps for this tau",
+                rule: "gives more than 1e7 steps for this tau",
                 value: self.dt,
+            });
+        }
+        // The basis features are stored per sample (three copies, 8 bytes each).
+        if (steps.round() + 1.0) * self.n_basis as f64 > MAX_FEATURES as f64 {
+            return Err(DmpError::InvalidConfig {
+                field: "n_basis",
+                rule: "times the samples (tau / dt + 1) exceeds 1e8 basis-feature values (≈ 2.4 GB); use fewer basis functions or a larger dt",
+                value: self.n_basis as f64,
             });
         }
         Ok(())
@@ -112,6 +139,33 @@ pub(crate) fn positive(field: &'static str, value: f64) -> Result<(), DmpError> 
             rule: "must be finite and > 0",
             value,
         })
+    }
+}
+
+/// Most steps `round(tau / dt)` accepted by [`DmpConfig::validate`].
+pub const MAX_STEPS: usize = 10_000_000;
+/// Most samples × basis functions accepted by [`DmpConfig::validate`].
+pub const MAX_FEATURES: usize = 100_000_000;
+/// Largest `alpha_z`, `beta_z` accepted by [`DmpConfig::validate`].
+pub const MAX_GAIN: f64 = 1e4;
+/// Largest `alpha_x` accepted by [`DmpConfig::validate`].
+pub const MAX_PHASE_DECAY: f64 = 100.0;
+/// Largest `tau` in seconds accepted by [`DmpConfig::validate`].
+pub const MAX_TAU: f64 = 1e6;
+/// Most basis functions per dimension accepted by [`DmpConfig::validate`].
+pub const MAX_BASIS: usize = 100_000;
+
+/// `value` must be at most `max`; the error names `field` and the rule.
+pub(crate) fn at_most(
+    field: &'static str,
+    value: f64,
+    max: f64,
+    rule: &'static str,
+) -> Result<(), DmpError> {
+    if value <= max {
+        Ok(())
+    } else {
+        Err(DmpError::InvalidConfig { field, rule, value })
     }
 }
 

@@ -724,9 +724,9 @@ fn solve_spd(a: &Mat<f64>, b: &Mat<f64>) -> Result<Mat<f64>, DmpError> {
     if let Ok(llt) = a.llt(Side::Lower) {
         return Ok(llt.solve(b));
     }
-    let eig = a
-        .self_adjoint_eigen(Side::Lower)
-        .map_err(|e| DmpError::NumericalFailure(format!("eigendecomposition failed: {e:?}")))?;
+    let eig = a.self_adjoint_eigen(Side::Lower).map_err(|_| {
+        DmpError::NumericalFailure("the eigendecomposition did not converge".into())
+    })?;
     let (u, s) = (eig.U(), eig.S().column_vector());
     let smax = s.iter().fold(0.0f64, |m, &v| m.max(v));
     let mut c = u.transpose() * b;
@@ -773,9 +773,9 @@ fn gcv_lambda(
     faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, x.as_mut(), faer::Par::Seq);
     let mut m = x.transpose().to_owned();
     faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, m.as_mut(), faer::Par::Seq);
-    let eig = m
-        .self_adjoint_eigen(Side::Lower)
-        .map_err(|e| DmpError::NumericalFailure(format!("eigendecomposition failed: {e:?}")))?;
+    let eig = m.self_adjoint_eigen(Side::Lower).map_err(|_| {
+        DmpError::NumericalFailure("the eigendecomposition did not converge".into())
+    })?;
     let mut z = rhs.clone();
     faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, z.as_mut(), faer::Par::Seq);
     let b = eig.U().transpose() * z;

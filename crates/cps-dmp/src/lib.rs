@@ -63,7 +63,9 @@ mod trajectory;
 
 pub use basis::GaussianBasis;
 pub use canonical::CanonicalSystem;
-pub use config::{DmpConfig, Formulation};
+pub use config::{
+    DmpConfig, Formulation, MAX_BASIS, MAX_FEATURES, MAX_GAIN, MAX_PHASE_DECAY, MAX_STEPS, MAX_TAU,
+};
 pub use dmp::DiscreteDmp;
 pub use error::DmpError;
 pub use imitation::{

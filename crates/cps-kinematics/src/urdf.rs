@@ -43,11 +43,130 @@ fn pose(p: &urdf_rs::Pose) -> Result<Isometry3<f64>, String> {
     ))
 }
 
+/// The largest URDF text [`chain_from_urdf`] reads: 16 MiB.
+pub const MAX_URDF_BYTES: usize = 16 << 20;
+/// The deepest element nesting [`chain_from_urdf`] accepts (checked before parsing, so a
+/// hostile file cannot exhaust the parser's stack).
+pub const MAX_URDF_DEPTH: usize = 64;
+
+/// How deeply the elements of `xml` nest, by a scan that needs no stack: comments,
+/// processing instructions, declarations and quoted attribute values are skipped.
+fn nesting_depth(xml: &str) -> usize {
+    let b = xml.as_bytes();
+    let (mut i, mut depth, mut max) = (0usize, 0usize, 0usize);
+    let find = |from: usize, pat: &[u8]| {
+        b[from.min(b.len())..]
+            .windows(pat.len())
+            .position(|w| w == pat)
+            .map_or(b.len(), |p| from + p + pat.len())
+    };
+    while i < b.len() {
+        if b[i] != b'<' {
+            i += 1;
+            continue;
+        }
+        match b.get(i + 1) {
+            Some(b'!') if b[i..].starts_with(b"<!--") => i = find(i + 4, b"-->"),
+            Some(b'!') if b[i..].starts_with(b"<![CDATA[") => i = find(i + 9, b"]]>"),
+            Some(b'!') | Some(b'?') => i = find(i + 2, b">"),
+            Some(b'/') => {
+                depth = depth.saturating_sub(1);
+                i = find(i + 2, b">");
+            }
+            _ => {
+                // A start tag: to its `>`, outside quotes; `/>` closes it at once.
+                let mut j = i + 1;
+                let mut quote = None;
+                while j < b.len() {
+                    match (quote, b[j]) {
+                        (None, b'"' | b'\'') => quote = Some(b[j]),
+                        (Some(q), c) if c == q => quote = None,
+                        (None, b'>') => break,
+                        _ => {}
+                    }
+                    j += 1;
+                }
+                if j >= b.len() || b[j - 1] != b'/' {
+                    depth += 1;
+                    max = max.max(depth);
+                }
+                i = j + 1;
+            }
+        }
+    }
+    max
+}
+
+/// Whole-model checks, before any walk: unique names, joints between existing links,
+/// finite origins, finite non-zero axes where a joint moves, finite ordered limits.
+fn validate(robot: &urdf_rs::Robot) -> Result<(), KinematicsError> {
+    let mut links = std::collections::HashSet::new();
+    for l in &robot.links {
+        if !links.insert(l.name.as_str()) {
+            return Err(invalid(format!("two links are named `{}`", l.name)));
+        }
+    }
+    let mut joints = std::collections::HashSet::new();
+    for j in &robot.joints {
+        let at = |m: String| invalid(format!("joint `{}`: {m}", j.name));
+        if !joints.insert(j.name.as_str()) {
+            return Err(invalid(format!("two joints are named `{}`", j.name)));
+        }
+        for (role, link) in [("parent", &j.parent.link), ("child", &j.child.link)] {
+            if !links.contains(link.as_str()) {
+                return Err(at(format!("its {role} link `{link}` does not exist")));
+            }
+        }
+        if j.parent.link == j.child.link {
+            return Err(at("its parent and child are the same link".into()));
+        }
+        pose(&j.origin).map_err(at)?;
+        if !matches!(j.joint_type, JointType::Fixed) {
+            let a = j.axis.xyz.0;
+            let norm = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+            if !(norm.is_finite() && norm > 1e-12) {
+                return Err(at(format!(
+                    "the axis is zero or not finite ({}, {}, {})",
+                    a[0], a[1], a[2]
+                )));
+            }
+        }
+        if matches!(j.joint_type, JointType::Revolute | JointType::Prismatic) {
+            let (lo, hi) = (j.limit.lower, j.limit.upper);
+            if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+                return Err(at(format!(
+                    "limits must be finite with lower ≤ upper (got {lo} .. {hi})"
+                )));
+            }
+        }
+        let v = j.limit.velocity;
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(at(format!(
+                "the velocity limit must be finite and ≥ 0 (got {v})"
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Reads the serial chain from the root link to `tip` (a link name). Without `tip`, the
 /// tip is the one leaf link reachable through revolute, continuous and fixed joints only
 /// with the most revolute joints on its path; when several tie, the error lists them.
 pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, KinematicsError> {
+    if xml.len() > MAX_URDF_BYTES {
+        return Err(invalid(format!(
+            "the description has {} bytes, more than the {MAX_URDF_BYTES} read",
+            xml.len()
+        )));
+    }
+    let depth = nesting_depth(xml);
+    if depth > MAX_URDF_DEPTH {
+        return Err(invalid(format!(
+            "elements are nested {depth} deep, more than the {MAX_URDF_DEPTH} a robot description needs"
+        )));
+    }
     let robot = urdf_rs::read_from_string(xml).map_err(|e| invalid(format!("{e}")))?;
+    validate(&robot)?;
     let mut parent_joint: HashMap<&str, usize> = HashMap::new();
     for (i, j) in robot.joints.iter().enumerate() {
         if parent_joint.insert(j.child.link.as_str(), i).is_some() {
@@ -201,8 +320,9 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
             }
             other => {
                 return Err(invalid(format!(
-                    "joint `{}` is {other:?}: cps chains have revolute joints only",
-                    j.name
+                    "joint `{}` is {}: cps chains have revolute joints only",
+                    j.name,
+                    format!("{other:?}").to_lowercase()
                 )));
             }
         }
@@ -225,4 +345,88 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
         base_link: root.to_string(),
         tip_link,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TWO_LINK: &str = r#"<robot name="r">
+  <link name="base"/><link name="a"/><link name="b"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/>
+    <origin xyz="0 0 0.1" rpy="0 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" velocity="2" effort="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="a"/><child link="b"/>
+    <origin xyz="0.2 0 0" rpy="0 0 0"/><axis xyz="0 1 0"/>
+    <limit lower="-2" upper="2" velocity="2" effort="1"/></joint>
+</robot>"#;
+
+    fn refused(xml: &str, needle: &str) {
+        match chain_from_urdf(xml, None) {
+            Ok(_) => panic!("accepted, expected `{needle}`"),
+            Err(e) => assert!(e.to_string().contains(needle), "{e}"),
+        }
+    }
+
+    #[test]
+    fn the_valid_description_reads() {
+        let c = chain_from_urdf(TWO_LINK, None).unwrap();
+        assert_eq!(c.joint_names, ["j1", "j2"]);
+    }
+
+    #[test]
+    fn broken_descriptions_are_named_by_element() {
+        refused(
+            &TWO_LINK.replace(r#"<link name="b"/>"#, r#"<link name="b"/><link name="a"/>"#),
+            "two links are named `a`",
+        );
+        refused(
+            &TWO_LINK.replace(r#"name="j2""#, r#"name="j1""#),
+            "two joints are named `j1`",
+        );
+        refused(
+            &TWO_LINK.replace(r#"xyz="0 1 0""#, r#"xyz="0 0 0""#),
+            "joint `j2`: the axis",
+        );
+        refused(
+            &TWO_LINK.replace(r#"xyz="0 1 0""#, r#"xyz="0 NaN 0""#),
+            "joint `j2`: the axis",
+        );
+        refused(
+            &TWO_LINK.replace(r#"upper="2""#, r#"upper="inf""#),
+            "joint `j2`: limits",
+        );
+        refused(
+            &TWO_LINK.replace(r#"lower="-1" upper="1""#, r#"lower="1" upper="-1""#),
+            "joint `j1`: limits",
+        );
+        refused(
+            &TWO_LINK.replace(r#"xyz="0.2 0 0""#, r#"xyz="0.2 inf 0""#),
+            "joint `j2`: origin",
+        );
+        refused(
+            &TWO_LINK.replace(r#"<child link="b"/>"#, r#"<child link="zz"/>"#),
+            "child link `zz` does not exist",
+        );
+        refused(
+            &TWO_LINK.replace(r#"<child link="b"/>"#, r#"<child link="a"/>"#),
+            "same link",
+        );
+        // A cycle: b is the parent of base.
+        refused(
+            &TWO_LINK.replace(
+                "</robot>",
+                r#"<joint name="j3" type="fixed"><parent link="b"/><child link="base"/></joint></robot>"#,
+            ),
+            "root",
+        );
+    }
+
+    #[test]
+    fn deep_nesting_is_refused_before_parsing() {
+        let deep = format!("{}{}", "<a>".repeat(100_000), "</a>".repeat(100_000));
+        refused(&deep, "nested 100000 deep");
+        // Comments, quotes and self-closing tags do not count.
+        assert_eq!(nesting_depth("<a x='>'><!-- <b><c> --><d/><e></e></a>"), 2);
+    }
 }

@@ -377,7 +377,7 @@ mod urdf {
         assert!(err("<robot name='x'><link name='a'/>", None).starts_with("URDF:"));
         let finger = err(PANDA_URDF, Some("panda_leftfinger"));
         assert!(
-            finger.contains("panda_finger_joint1") && finger.contains("Prismatic"),
+            finger.contains("panda_finger_joint1") && finger.contains("prismatic"),
             "{finger}"
         );
         assert!(err(PANDA_URDF, Some("nowhere")).contains("no link named `nowhere`"));

@@ -121,7 +121,11 @@ pub fn exact_optimum(
         let sv = qr
             .thin_R()
             .singular_values()
-            .map_err(|e| LearnError::Exact(format!("{e:?}")))?;
+            .map_err(|_| {
+                LearnError::Exact(
+                    "the singular value decomposition of the cost's Jacobian did not converge (are the settings extreme?)".into(),
+                )
+            })?;
         for &v in &sv {
             smax = smax.max(v);
             smin = smin.min(v);

@@ -59,7 +59,9 @@ pub use pose::{
 };
 pub use robot::{RobotSetup, check_way_points, execute_trajectory, targets_at};
 pub use space::{Parametrisation, SearchSpace};
-pub use task::{CostBreakdown, CostWeights, TaskErrors, ViaPoint, ViaPointTask};
+pub use task::{
+    CostBreakdown, CostWeights, MAX_COORDINATE, MAX_WEIGHT, TaskErrors, ViaPoint, ViaPointTask,
+};
 pub use viapoint::{
     GenerationRecord, RunResult, SearchStats, Solver, ViaPointConfig, ViaPointObjective,
     ViaPointOutcome, history_band, learn_via_points,

@@ -100,6 +100,13 @@ pub struct ViaPointTask {
     pub weights: CostWeights,
 }
 
+/// Largest magnitude of a coordinate (start, goal, via points, goal velocity) that
+/// [`ViaPointTask::validate`] accepts: 1e6 task units (a thousand kilometres in metres).
+pub const MAX_COORDINATE: f64 = 1e6;
+/// Largest cost weight [`ViaPointTask::validate`] accepts: beyond 1e12 the cost's terms
+/// differ by more than double precision can weigh against each other.
+pub const MAX_WEIGHT: f64 = 1e12;
+
 impl ViaPointTask {
     /// The thesis's Table 3 task: start (0.75, 0.02, 1.87), via points at 2, 4, 6 and 8 s,
     /// goal (0.55, −0.57, 1.45) at 10 s; 3 DMPs × 25 bases, `tau` = 10 s, dt = 0.01 s.
@@ -148,6 +155,12 @@ impl ViaPointTask {
                     format!("must be finite, got {x}"),
                 ));
             }
+            if let Some((i, x)) = v.iter().enumerate().find(|(_, x)| x.abs() > MAX_COORDINATE) {
+                return Err(LearnError::task(
+                    format!("{name}[{i}]"),
+                    format!("must be at most {MAX_COORDINATE:e} in magnitude, got {x}"),
+                ));
+            }
             Ok(())
         };
         check_vec("start".into(), &self.start)?;
@@ -186,10 +199,10 @@ impl ViaPointTask {
             ("acceleration", w.acceleration),
             ("jerk", w.jerk),
         ] {
-            if !(value.is_finite() && value >= 0.0) {
+            if !(value.is_finite() && (0.0..=MAX_WEIGHT).contains(&value)) {
                 return Err(LearnError::task(
                     format!("cost.{name}"),
-                    format!("must be a finite weight ≥ 0, got {value}"),
+                    format!("must be a weight between 0 and {MAX_WEIGHT:e}, got {value}"),
                 ));
             }
         }

@@ -1,0 +1,219 @@
+//! What an experiment file asks of the machine, estimated before any work and refused
+//! beyond a ceiling (`--max-memory`, `--max-work` raise it).
+//!
+//! The estimate is a sum of the big allocations and the multiply-adds of the dominant
+//! loops, from the file's numbers alone:
+//!
+//! - samples `S = round(τ/dt) + 1`, dimensions `D` (the robot's joints for joint-space
+//!   learning), basis functions `B`, parameters `n = D·B`, population `λ` (the file's, or
+//!   CMA-ES's default `4 + ⌊3 ln n⌋`), generations `G`, repetitions `R`, and the kind's
+//!   multiplier `M` (parametrisations compared, demonstrations learned, the orientation
+//!   search of a pose run, the speed-up measurement's generations);
+//! - **memory**: the basis features (`3·S·B` doubles: plain and packed), the population's
+//!   rollouts (`2·λ·D·3S`), the exact optimum's Jacobian (`3S·D × n`), CMA-ES's matrices
+//!   (`6 n²`), the cost history (`6·G·R·M`), the robot's recordings;
+//! - **work**: evaluations `λ·G·R·M` × a rollout (`S·D·B`, plus the plant's substeps, FK per
+//!   sample), plus the exact optimum (`n` rollouts and a QR of `3S·D × n`).
+//!
+//! The figures are upper bounds of the order of magnitude, not predictions: a run that
+//! converges stops long before its generation budget.
+
+use std::ops::Range;
+
+use crate::experiment::{InputError, Kind, ViaPointExperiment};
+
+/// The ceilings a run may not exceed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ceilings {
+    /// Bytes of memory (default 4 GiB).
+    pub memory_bytes: f64,
+    /// Multiply-adds (default 1e13: tens of minutes on one core).
+    pub work: f64,
+}
+
+impl Default for Ceilings {
+    fn default() -> Self {
+        Self {
+            memory_bytes: 4.0 * GIB,
+            work: 1e13,
+        }
+    }
+}
+
+const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
+
+/// What a run would need.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Estimate {
+    /// Peak memory, bytes.
+    pub memory_bytes: f64,
+    /// Multiply-adds.
+    pub work: f64,
+    /// Samples of one rollout.
+    pub samples: f64,
+    /// Cost evaluations at the full budget.
+    pub evaluations: f64,
+    /// Dimensions learned (task or joints).
+    pub dims: usize,
+    /// Parameters searched.
+    pub parameters: usize,
+    /// Population per generation.
+    pub population: usize,
+}
+
+impl Estimate {
+    /// One line for `check` and the progress of `run`.
+    pub fn describe(&self) -> String {
+        format!(
+            "needs at most ≈ {} of memory and ≈ {:.1e} operations ({} samples per rollout, up to {:.1e} cost evaluations)",
+            bytes(self.memory_bytes),
+            self.work,
+            self.samples,
+            self.evaluations
+        )
+    }
+}
+
+/// Bytes in words.
+pub fn bytes(b: f64) -> String {
+    if b >= GIB {
+        format!("{:.1} GiB", b / GIB)
+    } else if b >= 1024.0 * 1024.0 {
+        format!("{:.0} MiB", b / (1024.0 * 1024.0))
+    } else {
+        format!("{:.0} KiB", (b / 1024.0).max(1.0))
+    }
+}
+
+/// The factors of the estimate with the place of the key that sets each, so a refusal can
+/// name the one furthest from an ordinary experiment.
+pub struct Factors {
+    /// `(key as written, its value, how many times an ordinary value it is, its place)`.
+    pub keys: Vec<(&'static str, String, f64, Range<usize>)>,
+}
+
+/// Estimates what `exp` needs.
+pub fn estimate(exp: &ViaPointExperiment) -> Estimate {
+    let c = &exp.config;
+    let dmp = &c.task.dmp;
+    let samples = (dmp.tau / dmp.dt).round() + 1.0;
+    let dims = match (exp.kind, &exp.robot) {
+        (Kind::ViapointJoint, Some(r)) => r.setup.chain.dof(),
+        _ => c.task.start.len(),
+    };
+    let basis = dmp.n_basis as f64;
+    let n = dims * dmp.n_basis;
+    let population = c
+        .population
+        .unwrap_or(4 + (3.0 * (n.max(1) as f64).ln()).floor() as usize);
+    let (g, r) = (c.generations as f64, c.repetitions as f64);
+    let d = dims as f64;
+    let mut multiplier = 1.0;
+    let mut per_sample_extra = 0.0;
+    let mut recordings = 0.0;
+    match exp.kind {
+        Kind::Scaling => {
+            multiplier = exp.scaling.as_ref().map_or(1, |s| s.compare.len()) as f64;
+        }
+        Kind::Imitation => {
+            if let Some(p) = &exp.imitation {
+                multiplier = p.demonstrations as f64;
+                let robot_samples = exp.robot.as_ref().map_or(samples, |rb| match rb.backend {
+                    crate::pipelines::BackendChoice::Kinematic { dt } => dmp.tau / dt + 1.0,
+                    _ => samples,
+                });
+                let dof = exp.robot.as_ref().map_or(7, |rb| rb.setup.chain.dof()) as f64;
+                recordings = (p.demonstrations as f64 + 2.0) * robot_samples * (6.0 + dof) * 8.0;
+                // The imitation's design matrix: samples × bases.
+                let im_samples = p.dmp.tau / p.dmp.dt + 1.0;
+                recordings += 4.0 * im_samples * p.dmp.n_basis as f64 * 8.0;
+            }
+        }
+        Kind::ViapointJoint => per_sample_extra = 150.0,
+        Kind::ViapointPose => {
+            multiplier = 2.0;
+            per_sample_extra = 60.0;
+        }
+        Kind::ViapointEnergy => {
+            let e = exp.energy.as_ref();
+            per_sample_extra = e.map_or(10, |e| e.plant.substeps) as f64 * 8.0;
+            multiplier += e.map_or(0.0, |e| 6.0 * e.speedup_generations as f64 / g.max(1.0));
+        }
+        Kind::Viapoint => {}
+    }
+    let lambda = population as f64;
+    let evaluations = lambda * g * r * multiplier;
+    let rollout = samples * d * (basis + per_sample_extra);
+    let rows = 3.0 * samples * d;
+    let nf = n as f64;
+    let exact = nf * rollout + rows * nf * nf;
+    let work = evaluations * rollout + exact * multiplier.max(1.0);
+    let memory = 8.0
+        * (3.0 * samples * basis
+            + 2.0 * lambda * d * 3.0 * samples
+            + rows * nf
+            + 6.0 * nf * nf
+            + 6.0 * g * r * multiplier)
+        + recordings;
+    Estimate {
+        memory_bytes: memory,
+        work,
+        samples,
+        evaluations,
+        dims,
+        parameters: n,
+        population,
+    }
+}
+
+/// Refuses `exp` when its estimate exceeds a ceiling, naming the key (with its place) that
+/// is furthest above an ordinary experiment's value.
+pub fn check(
+    exp: &ViaPointExperiment,
+    factors: &Factors,
+    ceilings: &Ceilings,
+    locate: &dyn Fn(&Range<usize>) -> String,
+) -> Result<Estimate, InputError> {
+    let e = estimate(exp);
+    let over_memory = e.memory_bytes > ceilings.memory_bytes;
+    let over_work = e.work > ceilings.work;
+    if !over_memory && !over_work {
+        return Ok(e);
+    }
+    let culprit = factors.keys.iter().max_by(|a, b| a.2.total_cmp(&b.2));
+    let (what, ceiling, flag) = if over_memory {
+        (
+            format!("≈ {} of memory", bytes(e.memory_bytes)),
+            bytes(ceilings.memory_bytes),
+            "--max-memory GIB",
+        )
+    } else {
+        (
+            format!("≈ {:.1e} operations", e.work),
+            format!("{:.1e}", ceilings.work),
+            "--max-work OPS",
+        )
+    };
+    let detail = format!(
+        "this experiment would need {what}, above the ceiling of {ceiling} ({} samples per rollout, {} parameters, population {}, up to {:.1e} cost evaluations); lower it, or raise the ceiling with {flag} if the machine can take it",
+        e.samples, e.parameters, e.population, e.evaluations
+    );
+    Err(InputError(match culprit {
+        Some((key, value, _, span)) => {
+            format!("{}: {key} = {value}: {detail}", locate(span))
+        }
+        None => detail,
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bytes_read_well() {
+        assert_eq!(bytes(3.0 * GIB), "3.0 GiB");
+        assert_eq!(bytes(5.0 * 1024.0 * 1024.0), "5 MiB");
+        assert_eq!(bytes(10.0), "1 KiB");
+    }
+}
