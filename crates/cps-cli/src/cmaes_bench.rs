@@ -76,7 +76,7 @@ fn parse_seeds(text: &str) -> Result<(u64, u64), InputError> {
             "--seeds: `{text}` is not `A..B` with A ≤ B, nor one seed"
         ))
     };
-    let (a, b) = match text.split_once("..") {
+    let (a, b): (u64, u64) = match text.split_once("..") {
         Some((a, b)) => (
             a.trim().parse().map_err(|_| bad())?,
             b.trim().parse().map_err(|_| bad())?,
@@ -86,8 +86,14 @@ fn parse_seeds(text: &str) -> Result<(u64, u64), InputError> {
             (s, s)
         }
     };
-    if a > b || b - a >= 10_000 {
+    if a > b {
         return Err(bad());
+    }
+    if b - a >= 10_000 {
+        return Err(InputError(format!(
+            "--seeds: `{text}` names {} seeds; at most 10000 are run at once",
+            (b - a).saturating_add(1)
+        )));
     }
     Ok((a, b))
 }

@@ -355,7 +355,7 @@ pub fn parse(
         };
         let msg = match &e {
             LearnError::Dmp(cps_dmp::DmpError::InvalidConfig { field, rule, value }) => {
-                format!("[dmp] `{}` {rule} (got {value})", toml_name(field))
+                format!("[dmp] `{}` {rule} (got {value:?})", toml_name(field))
             }
             other => other.to_string(),
         };
@@ -389,7 +389,7 @@ pub fn parse(
         if !(v.is_finite() && v > 0.0 && v <= 1e6) {
             return Err(err(
                 &s.span(),
-                format!("[optimizer] `sigma0` must be finite, > 0 and at most 1e6 (got {v})"),
+                format!("[optimizer] `sigma0` must be finite, > 0 and at most 1e6 (got {v:?})"),
             ));
         }
         config.sigma0 = v;
@@ -423,7 +423,7 @@ pub fn parse(
             if !(v.is_finite() && (0.0..=1e300).contains(&v)) {
                 return Err(err(
                     &t.span(),
-                    format!("[optimizer] `tol_fun` must be finite and ≥ 0 (got {v})"),
+                    format!("[optimizer] `tol_fun` must be finite and ≥ 0 (got {v:?})"),
                 ));
             }
             (v > 0.0).then_some(v)

@@ -297,7 +297,7 @@ pub fn run_imitate(args: &ImitateArgs) -> Result<ExitCode> {
     };
     let fit: Imitation = imitate(&config, &demos, regression, combine).map_err(|e| match e {
         cps_dmp::DmpError::InvalidConfig { field, rule, value } => {
-            InputError(format!("--{}: {rule} (got {value})", cli_name(field)))
+            InputError(format!("--{}: {rule} (got {value:?})", cli_name(field)))
         }
         other => InputError(other.to_string()),
     })?;
@@ -411,7 +411,7 @@ pub fn run_rollout(args: &RolloutArgs) -> Result<ExitCode> {
     }
     let dmp = cps_dmp::DiscreteDmp::new(config, &start, &goal).map_err(|e| match e {
         cps_dmp::DmpError::InvalidConfig { field, rule, value } => {
-            InputError(format!("--{field}: {rule} (got {value})"))
+            InputError(format!("--{field}: {rule} (got {value:?})"))
         }
         other => InputError(other.to_string()),
     })?;

@@ -328,7 +328,7 @@ impl Sections<'_> {
         } else {
             Err(self.err(
                 &v.span(),
-                format!("{what} must be between {lo:e} and {hi:e}{unit} (got {x})"),
+                format!("{what} must be between {lo:e} and {hi:e}{unit} (got {x:?})"),
             ))
         }
     }

@@ -98,6 +98,13 @@ fn kin(e: KinematicsError) -> anyhow::Error {
 /// `cps-cli fk`.
 pub fn fk(args: &FkArgs) -> Result<ExitCode> {
     let arm = args.arm.load()?.chain;
+    if let Some((j, v)) = args.q.iter().enumerate().find(|(_, v)| v.abs() > MAX_JOINT_VALUE) {
+        return Err(InputError(format!(
+            "--q: joint {} is {v:?}; joint values must be at most {MAX_JOINT_VALUE} in magnitude",
+            j + 1
+        ))
+        .into());
+    }
     if args.within_limits {
         arm.check_within_limits(&args.q)
             .map_err(|e| InputError(format!("--q: {e}")))?;
@@ -141,12 +148,18 @@ pub fn fk(args: &FkArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// The largest joint value accepted (radians or metres): beyond it the angle means nothing.
+const MAX_JOINT_VALUE: f64 = 1000.0;
+
 /// `cps-cli ik`.
 pub fn ik(args: &IkArgs) -> Result<ExitCode> {
     let model = args.arm.load()?;
     let arm = &model.chain;
-    if let Some(v) = args.target.iter().find(|v| !v.is_finite()) {
-        return Err(InputError(format!("--target: values must be finite (got {v})")).into());
+    if let Some(v) = args.target.iter().find(|v| !v.is_finite() || v.abs() > 1e6) {
+        return Err(InputError(format!(
+            "--target: values must be finite and at most 1e6 in magnitude (got {v:?})"
+        ))
+        .into());
     }
     let target = match args.target.as_slice() {
         [x, y, z] => IkTarget::Position(Vector3::new(*x, *y, *z)),

@@ -63,13 +63,13 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
     } = cmd;
     if !(dt.is_finite() && (1e-6..=10.0).contains(dt)) {
         return Err(InputError(format!(
-            "--dt {dt}: the time step must be between 1e-6 and 10 seconds"
+            "--dt {dt:?}: the time step must be between 1e-6 and 10 seconds"
         ))
         .into());
     }
     if !(client_lease.is_finite() && (0.01..=86_400.0).contains(client_lease)) {
         return Err(InputError(format!(
-            "--client-lease {client_lease}: must be between 0.01 and 86400 seconds"
+            "--client-lease {client_lease:?}: must be between 0.01 and 86400 seconds"
         ))
         .into());
     }

@@ -8,7 +8,7 @@ pub type ObjectiveError = Box<dyn std::error::Error + Send + Sync + 'static>;
 #[non_exhaustive]
 pub enum CmaesError {
     /// A configuration field broke its rule.
-    #[error("invalid CMA-ES configuration: `{field}` {rule} (got {value})")]
+    #[error("invalid CMA-ES configuration: `{field}` {rule} (got {value:?})")]
     InvalidConfig {
         /// The field's name as in [`crate::CmaesConfig`].
         field: &'static str,

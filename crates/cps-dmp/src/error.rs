@@ -5,7 +5,7 @@
 #[non_exhaustive]
 pub enum DmpError {
     /// A configuration field broke its rule (e.g. `tau` must be > 0).
-    #[error("invalid DMP configuration: `{field}` {rule} (got {value})")]
+    #[error("invalid DMP configuration: `{field}` {rule} (got {value:?})")]
     InvalidConfig {
         /// The field's name as in [`crate::DmpConfig`].
         field: &'static str,

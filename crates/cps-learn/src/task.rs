@@ -158,7 +158,7 @@ impl ViaPointTask {
             if let Some((i, x)) = v.iter().enumerate().find(|(_, x)| x.abs() > MAX_COORDINATE) {
                 return Err(LearnError::task(
                     format!("{name}[{i}]"),
-                    format!("must be at most {MAX_COORDINATE:e} in magnitude, got {x}"),
+                    format!("must be at most {MAX_COORDINATE:e} in magnitude, got {x:?}"),
                 ));
             }
             Ok(())
@@ -202,7 +202,7 @@ impl ViaPointTask {
             if !(value.is_finite() && (0.0..=MAX_WEIGHT).contains(&value)) {
                 return Err(LearnError::task(
                     format!("cost.{name}"),
-                    format!("must be a weight between 0 and {MAX_WEIGHT:e}, got {value}"),
+                    format!("must be a weight between 0 and {MAX_WEIGHT:e}, got {value:?}"),
                 ));
             }
         }
