@@ -26,34 +26,9 @@
 //! line and column), 130 interrupted by Ctrl-C (the results of the finished generations are
 //! still written, with `"complete": false`).
 
-/// Prints a line to stdout, ignoring a closed pipe (`cps-cli fk ... | head` must not panic).
-macro_rules! say {
-    ($($arg:tt)*) => {{
-        use std::io::Write as _;
-        let _ = writeln!(std::io::stdout(), $($arg)*);
-    }};
-}
-
-mod budget;
-mod cmaes_bench;
-mod energy_run;
-mod experiment;
-mod imitation_run;
-mod joint_run;
-mod movement;
-mod output;
-mod pipelines;
-mod plots;
-mod pose_run;
-mod report;
-mod results_dir;
-mod robot;
-mod robot_file;
-mod runner;
-mod scaling_run;
-mod scene;
-mod simserve;
-
+use cps_cli::{
+    budget, cmaes_bench, experiment, movement, output, plots, robot, runner, say, scene, simserve,
+};
 use std::io::IsTerminal;
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
@@ -66,7 +41,7 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use crate::experiment::InputError;
+use cps_cli::experiment::InputError;
 
 /// The commented default experiment: the file shipped as experiments/viapoint.toml.
 const DEFAULT_EXPERIMENT: &str = include_str!("../../../experiments/viapoint.toml");

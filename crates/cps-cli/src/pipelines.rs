@@ -16,6 +16,15 @@ use toml::Spanned;
 use crate::experiment::{InputError, Kind, location};
 use crate::scene::{THESIS_SCENE, load_scene, parse_scene};
 
+/// A limit in words: plain for ordinary magnitudes, exponent form for extreme ones.
+fn number(x: f64) -> String {
+    if x == 0.0 || (1e-3..1e6).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// `[robot]`: the robot, where it stands and which backend executes on it.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -325,10 +334,22 @@ impl Sections<'_> {
         let x = *v.get_ref();
         if x.is_finite() && (lo..=hi).contains(&x) {
             Ok(x)
+        } else if lo == 0.0 {
+            Err(self.err(
+                &v.span(),
+                format!(
+                    "{what} must be finite, ≥ 0 and at most {}{unit} (got {x:?})",
+                    number(hi)
+                ),
+            ))
         } else {
             Err(self.err(
                 &v.span(),
-                format!("{what} must be between {lo:e} and {hi:e}{unit} (got {x:?})"),
+                format!(
+                    "{what} must be between {} and {}{unit} (got {x:?})",
+                    number(lo),
+                    number(hi)
+                ),
             ))
         }
     }

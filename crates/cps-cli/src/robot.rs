@@ -98,7 +98,12 @@ fn kin(e: KinematicsError) -> anyhow::Error {
 /// `cps-cli fk`.
 pub fn fk(args: &FkArgs) -> Result<ExitCode> {
     let arm = args.arm.load()?.chain;
-    if let Some((j, v)) = args.q.iter().enumerate().find(|(_, v)| v.abs() > MAX_JOINT_VALUE) {
+    if let Some((j, v)) = args
+        .q
+        .iter()
+        .enumerate()
+        .find(|(_, v)| v.abs() > MAX_JOINT_VALUE)
+    {
         return Err(InputError(format!(
             "--q: joint {} is {v:?}; joint values must be at most {MAX_JOINT_VALUE} in magnitude",
             j + 1

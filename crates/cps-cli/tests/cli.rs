@@ -281,7 +281,7 @@ fn bad_inputs_are_clear_errors_and_write_nothing() {
             "population < 2",
             base.replace("population = 96", "population = 1"),
             Some(line_of("population = 96")),
-            "at least 2",
+            "between 2 and 100000",
         ),
         ("not TOML", "this is [not toml".to_string(), Some(1), "TOML"),
     ];
@@ -523,7 +523,7 @@ fn bad_robot_files_exit_2_naming_the_place() {
         (
             "prismatic.urdf",
             prismatic.as_str(),
-            "joint `panda_joint4` is Prismatic",
+            "joint `panda_joint4` is prismatic",
         ),
         ("broken.urdf", "<robot name='x'><link", "URDF:"),
     ] {

@@ -34,6 +34,13 @@ pub struct CmaesConfig {
     pub separable: bool,
 }
 
+/// Largest population [`CmaesConfig::validate`] accepts.
+pub const MAX_POPULATION: usize = 1_000_000;
+/// Largest dimension [`CmaesConfig::validate`] accepts.
+pub const MAX_DIMENSION: usize = 1_000_000;
+/// Most values a run may store in one array (population, covariance).
+const MAX_VALUES: f64 = 1e8;
+
 impl CmaesConfig {
     /// Default settings with the given initial step size and seed.
     pub fn new(sigma0: f64, seed: u64) -> Self {
@@ -48,7 +55,9 @@ impl CmaesConfig {
         }
     }
 
-    /// Checks the settings for a problem of dimension `n`; the error names the field.
+    /// Checks the settings for a problem of dimension `n`; the error names the field. Besides
+    /// the ranges of each field, what the run would store is bounded: λ ≤ 1e6, n ≤ 1e6,
+    /// λ·n ≤ 1e8 and, for the full form, n² ≤ 2.5e7 (n ≤ 5000).
     pub fn validate(&self, n: usize) -> Result<(), CmaesError> {
         if n == 0 {
             return Err(CmaesError::InvalidConfig {
@@ -71,6 +80,41 @@ impl CmaesConfig {
                 field: "population",
                 rule: "must be at least 2",
                 value: l as f64,
+            });
+        }
+        if let Some(l) = self.population
+            && l > MAX_POPULATION
+        {
+            return Err(CmaesError::InvalidConfig {
+                field: "population",
+                rule: "must be at most 1e6",
+                value: l as f64,
+            });
+        }
+        if n > MAX_DIMENSION {
+            return Err(CmaesError::InvalidConfig {
+                field: "x0",
+                rule: "must have at most 1e6 coordinates",
+                value: n as f64,
+            });
+        }
+        // The population is stored whole (λ·n values), and the full form keeps n×n
+        // matrices: refuse what cannot fit rather than abort on allocation.
+        let lambda = self
+            .population
+            .unwrap_or(4 + (3.0 * (n as f64).ln()).floor() as usize);
+        if (lambda as f64) * (n as f64) > MAX_VALUES {
+            return Err(CmaesError::InvalidConfig {
+                field: "population",
+                rule: "times the dimension exceeds 1e8 stored values",
+                value: lambda as f64,
+            });
+        }
+        if !self.separable && (n as f64) * (n as f64) > MAX_VALUES / 4.0 {
+            return Err(CmaesError::InvalidConfig {
+                field: "x0",
+                rule: "is too long for the full covariance (n² > 2.5e7); use the separable form",
+                value: n as f64,
             });
         }
         if self.eigen_gap == Some(0) {

@@ -43,7 +43,7 @@ mod stop;
 
 pub use bounds::Bounds;
 pub use cmaes::{CHECKPOINT_FORMAT, CHECKPOINT_VERSION, Checkpoint, Cmaes};
-pub use config::CmaesConfig;
+pub use config::{CmaesConfig, MAX_DIMENSION, MAX_POPULATION};
 pub use driver::{
     CandidateError, FnObjective, GenerationReport, NoObserver, Objective, Observer,
     RestartSolution, Solution, minimize, minimize_bipop, minimize_ipop, resume,

@@ -733,6 +733,37 @@ fn handle(sim: &mut Sim, bytes: &[u8]) -> Value {
     }
 }
 
+/// The stand-in server's request handling without the network: one CBOR request in, one
+/// CBOR reply out, exactly what each connection does between reading a request and writing
+/// its reply. For tests and fuzzing of the protocol layer.
+pub struct RequestHandler {
+    sim: Sim,
+}
+
+impl std::fmt::Debug for RequestHandler {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RequestHandler")
+            .field("robot", &self.sim.setup.robot_name)
+            .field("objects", &self.sim.objects.len())
+            .finish()
+    }
+}
+
+impl RequestHandler {
+    /// A scene as [`StandInServer::start`] would serve it, with clients' stepping holds
+    /// released after `client_lease` of silence.
+    pub fn new(scene: SceneSetup, client_lease: Duration) -> Self {
+        Self {
+            sim: Sim::new(scene, client_lease),
+        }
+    }
+
+    /// Answers one request (CBOR bytes) with its reply (CBOR bytes); never panics.
+    pub fn handle(&mut self, request: &[u8]) -> Vec<u8> {
+        codec::encode(&handle(&mut self.sim, request))
+    }
+}
+
 /// Settings of [`StandInServer::start`].
 #[derive(Debug, Clone)]
 pub struct ServerConfig {

@@ -1,0 +1,331 @@
+//! The fuzz targets: each takes bytes, feeds them to one of cps's parsers (and, when it
+//! accepts them, one step further: building, rolling out, resuming), and must return
+//! without a panic, an abort or a hang, whatever the bytes.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// One parser under test.
+pub struct Target {
+    /// Its name on the command line.
+    pub name: &'static str,
+    /// Valid inputs to mutate.
+    pub seeds: Vec<Vec<u8>>,
+    /// Whether grammar-aware (text) mutations apply.
+    pub text: bool,
+    /// Feeds one input; true when the parser accepted it.
+    pub run: fn(&[u8]) -> bool,
+}
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn text(b: &[u8]) -> Option<&str> {
+    std::str::from_utf8(b).ok()
+}
+
+fn experiment(b: &[u8]) -> bool {
+    let Some(t) = text(b) else { return false };
+    // The path only places relative scene files (next to the shipped experiments).
+    let path = repo().join("experiments/fuzz.toml");
+    cps_cli::experiment::parse(&path, t, None, &cps_cli::budget::Ceilings::default()).is_ok()
+}
+
+fn robot_toml(b: &[u8]) -> bool {
+    let Some(t) = text(b) else { return false };
+    match cps_cli::robot_file::parse_robot_toml(Path::new("fuzz.toml"), t, None) {
+        Ok(m) => {
+            let q = vec![0.1; m.chain.dof()];
+            let _ = m.chain.fk(&q);
+            let _ = m.chain.jacobian(&q);
+            true
+        }
+        Err(_) => false,
+    }
+}
+
+fn urdf(b: &[u8]) -> bool {
+    let Some(t) = text(b) else { return false };
+    match cps_kinematics::chain_from_urdf(t, None) {
+        Ok(u) => {
+            let q = vec![0.1; u.chain.dof()];
+            let _ = u.chain.fk(&q);
+            let _ = u.chain.jacobian(&q);
+            true
+        }
+        Err(_) => false,
+    }
+}
+
+fn scene(b: &[u8]) -> bool {
+    let Some(t) = text(b) else { return false };
+    cps_cli::scene::parse_scene(&repo().join("configs/scenes/fuzz.toml"), t).is_ok()
+}
+
+fn demo_csv(b: &[u8]) -> bool {
+    let Some(t) = text(b) else { return false };
+    let Ok((_, demo)) = cps_cli::movement::parse_demo(Path::new("fuzz.csv"), t) else {
+        return false;
+    };
+    {
+        // One step further: a small imitation of what was accepted.
+        let duration = demo.duration();
+        if duration.is_finite() && duration > 0.0 && demo.len() <= 20_000 {
+            let config = cps_dmp::DmpConfig::new(5, duration, duration / 50.0);
+            let _ = cps_dmp::imitate(
+                &config,
+                &[demo],
+                cps_dmp::Regression::Ridge {
+                    lambda: cps_dmp::Lambda::Auto,
+                },
+                cps_dmp::Combine::Mean,
+            );
+        }
+    }
+    true
+}
+
+fn model_json(b: &[u8]) -> bool {
+    let Some(t) = text(b) else { return false };
+    let Ok(m) = cps_dmp::DmpModel::from_json(t) else {
+        return false;
+    };
+    match m.to_dmp() {
+        Ok((dmp, w)) => {
+            if dmp.n_samples() <= 100_000 {
+                let _ = dmp.rollout(&w);
+            }
+            true
+        }
+        Err(_) => false,
+    }
+}
+
+fn checkpoint_json(b: &[u8]) -> bool {
+    let Some(t) = text(b) else { return false };
+    let Ok(cp) = serde_json::from_str::<cps_cmaes::Checkpoint>(t) else {
+        return false;
+    };
+    let Ok(mut es) = cps_cmaes::Cmaes::resume(&cp) else {
+        return false;
+    };
+    {
+        let n = es.population().len();
+        if n <= 100_000 {
+            let x = es.ask().to_vec();
+            let dims = serde_json::from_str::<serde_json::Value>(t)
+                .ok()
+                .and_then(|v| v.get("mean").and_then(|m| m.as_array()).map(Vec::len))
+                .unwrap_or(1);
+            let lambda = x.len() / dims.max(1);
+            let costs: Vec<f64> = (0..lambda).map(|i| i as f64).collect();
+            let _ = es.tell(&costs);
+        }
+    }
+    true
+}
+
+thread_local! {
+    static HANDLER: std::cell::RefCell<cps_coppelia::RequestHandler> =
+        std::cell::RefCell::new(cps_coppelia::RequestHandler::new(
+            cps_coppelia::SceneSetup {
+                robot_name: "Panda".into(),
+                chain: cps_kinematics::robots::panda(cps_kinematics::robots::PandaTool::HandTcp),
+                initial_q: vec![0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785],
+                dummies: vec![("p0".into(), [0.75, 0.02, 1.87])],
+                dt: 0.05,
+                ik_following: true,
+            },
+            Duration::from_secs(60),
+        ));
+}
+
+fn cbor_request(b: &[u8]) -> bool {
+    // The codec alone, then the server's handler (state kept across inputs, as a server
+    // keeps it across requests).
+    let decoded = cps_coppelia::codec::decode(b).is_ok();
+    HANDLER.with(|h| {
+        let reply = h.borrow_mut().handle(b);
+        let reply = cps_coppelia::codec::decode(&reply).expect("the reply is CBOR");
+        decoded && cps_coppelia::codec::get(&reply, "err").is_none()
+    })
+}
+
+fn file(rel: &str) -> Vec<u8> {
+    std::fs::read(repo().join(rel)).unwrap_or_else(|e| panic!("{rel}: {e}"))
+}
+
+fn cbor_seeds() -> Vec<Vec<u8>> {
+    use cps_coppelia::codec::{self, Value};
+    let req = |func: &str, args: Vec<Value>| {
+        codec::encode(&codec::map([
+            ("func", codec::text(func)),
+            ("args", Value::Array(args)),
+            ("uuid", codec::text("fuzz")),
+            ("ver", codec::int(2)),
+        ]))
+    };
+    vec![
+        req("zmqRemoteApi.require", vec![codec::text("sim")]),
+        req("sim.getObject", vec![codec::text("/Panda_joint3")]),
+        req(
+            "sim.setJointPosition",
+            vec![codec::int(19), Value::Float(0.3)],
+        ),
+        req(
+            "sim.setObjectMatrix",
+            vec![
+                codec::int(100),
+                codec::floats(&[1.0, 0.0, 0.0, 0.1, 0.0, 1.0, 0.0, 0.2, 0.0, 0.0, 1.0, 0.3]),
+                codec::int(-1),
+            ],
+        ),
+        req(
+            "sim.setObjectPose",
+            vec![
+                codec::int(25),
+                codec::floats(&[0.1, 0.2, 0.3, 0.0, 0.0, 0.0, 1.0]),
+                codec::int(-1),
+            ],
+        ),
+        req(
+            "sim.getObjectPosition",
+            vec![codec::int(24), codec::int(16)],
+        ),
+        req("sim.createDummy", vec![Value::Float(0.01)]),
+        req(
+            "sim.removeObjects",
+            vec![Value::Array(vec![codec::int(100)])],
+        ),
+        req("sim.setStepping", vec![Value::Bool(true)]),
+        req("sim.startSimulation", vec![]),
+        req("sim.step", vec![]),
+        req("_*executed*_", vec![]),
+        req(
+            "sim.testCB",
+            vec![
+                codec::int(1),
+                codec::text("cb@func"),
+                codec::int(2),
+                codec::int(3),
+            ],
+        ),
+        req("sim.stopSimulation", vec![]),
+    ]
+}
+
+fn checkpoint_seeds() -> Vec<Vec<u8>> {
+    let mut out = Vec::new();
+    for (n, separable, bounds) in [(3usize, false, false), (5, true, false), (4, false, true)] {
+        let mut config = cps_cmaes::CmaesConfig::new(0.5, 7);
+        config.separable = separable;
+        if bounds {
+            config.bounds = cps_cmaes::Bounds::new(vec![-1.0; n], vec![1.0; n]).ok();
+        }
+        let mut es = cps_cmaes::Cmaes::new(&config, &vec![0.2; n]).expect("valid");
+        for _ in 0..3 {
+            let x = es.ask().to_vec();
+            let costs: Vec<f64> = x.chunks(n).map(|c| c.iter().map(|v| v * v).sum()).collect();
+            es.tell(&costs).expect("tell");
+        }
+        out.push(serde_json::to_vec_pretty(&es.checkpoint()).expect("a checkpoint serialises"));
+    }
+    out
+}
+
+fn model_seeds() -> Vec<Vec<u8>> {
+    let t: Vec<f64> = (0..101).map(|k| k as f64 * 0.02).collect();
+    let rows: Vec<Vec<f64>> = t
+        .iter()
+        .map(|&s| vec![s.sin(), (2.0 * s).cos(), s * s])
+        .collect();
+    let demo = cps_dmp::Demonstration::new(t, &rows).expect("valid demonstration");
+    let config = cps_dmp::DmpConfig::new(10, 2.0, 0.02);
+    let fit = cps_dmp::imitate(
+        &config,
+        &[demo],
+        cps_dmp::Regression::Ridge {
+            lambda: cps_dmp::Lambda::Fixed(1e-9),
+        },
+        cps_dmp::Combine::Mean,
+    )
+    .expect("imitation");
+    let model = cps_dmp::DmpModel::new(
+        &fit.dmp,
+        &fit.weights,
+        vec!["a".into(), "b".into(), "c".into()],
+    );
+    vec![model.to_json().into_bytes()]
+}
+
+/// Every target with its seeds (the shipped files where there are some).
+pub fn all() -> Vec<Target> {
+    let shipped = |names: &[&str]| names.iter().map(|n| file(n)).collect::<Vec<_>>();
+    let demo = {
+        // The shipped demonstration's first 200 lines keep each input small.
+        let full = String::from_utf8(file("experiments/demos/table3_min_jerk.csv")).expect("UTF-8");
+        full.lines()
+            .take(200)
+            .collect::<Vec<_>>()
+            .join("\n")
+            .into_bytes()
+    };
+    vec![
+        Target {
+            name: "experiment",
+            seeds: shipped(&[
+                "experiments/viapoint.toml",
+                "experiments/imitation.toml",
+                "experiments/scaling.toml",
+                "experiments/viapoint_joint.toml",
+                "experiments/viapoint_energy.toml",
+                "experiments/viapoint_pose.toml",
+            ]),
+            text: true,
+            run: experiment,
+        },
+        Target {
+            name: "robot-toml",
+            seeds: shipped(&["configs/robots/panda.toml", "configs/robots/ur3.toml"]),
+            text: true,
+            run: robot_toml,
+        },
+        Target {
+            name: "urdf",
+            seeds: shipped(&["configs/robots/panda.urdf"]),
+            text: true,
+            run: urdf,
+        },
+        Target {
+            name: "scene",
+            seeds: shipped(&["configs/scenes/thesis.toml"]),
+            text: true,
+            run: scene,
+        },
+        Target {
+            name: "demo-csv",
+            seeds: vec![demo],
+            text: true,
+            run: demo_csv,
+        },
+        Target {
+            name: "model-json",
+            seeds: model_seeds(),
+            text: true,
+            run: model_json,
+        },
+        Target {
+            name: "checkpoint-json",
+            seeds: checkpoint_seeds(),
+            text: true,
+            run: checkpoint_json,
+        },
+        Target {
+            name: "cbor-request",
+            seeds: cbor_seeds(),
+            text: false,
+            run: cbor_request,
+        },
+    ]
+}
