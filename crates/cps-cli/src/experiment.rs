@@ -264,6 +264,14 @@ pub fn parse(
     seed_override: Option<u64>,
     ceilings: &Ceilings,
 ) -> Result<ViaPointExperiment, InputError> {
+    if text.len() as u64 > MAX_FILE_BYTES {
+        return Err(InputError(format!(
+            "{}: the experiment file has {} bytes, more than the {} cps reads",
+            path.display(),
+            text.len(),
+            crate::budget::bytes(MAX_FILE_BYTES as f64)
+        )));
+    }
     let at = |e: &toml::de::Error| {
         e.span()
             .map(|s| location(path, text, &s))

@@ -395,8 +395,14 @@ pub fn run_rollout(args: &RolloutArgs) -> Result<ExitCode> {
                 v.len(),
                 names.join(", ")
             ))),
-            Some(v) if v.iter().any(|x| !x.is_finite()) => {
-                Err(InputError(format!("--{what}: values must be finite")))
+            Some(v)
+                if v.iter()
+                    .any(|x| !x.is_finite() || x.abs() > cps_learn::MAX_COORDINATE) =>
+            {
+                Err(InputError(format!(
+                    "--{what}: values must be finite and at most {:e} in magnitude",
+                    cps_learn::MAX_COORDINATE
+                )))
             }
             Some(v) => Ok(v.clone()),
         }

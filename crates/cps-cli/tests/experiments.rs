@@ -390,7 +390,7 @@ fn an_interrupted_imitation_run_is_marked_incomplete() {
         "long.toml",
         &IMITATION
             .replace("method = \"exact\"", "method = \"cmaes\"")
-            .replace("generations = 3000", "generations = 200000")
+            .replace("generations = 3000", "generations = 50000")
             .replace("tol_fun = 1e-3", "tol_fun = 0.0"),
     );
     let out = dir.path().join("out");

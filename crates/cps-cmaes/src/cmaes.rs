@@ -432,7 +432,7 @@ impl Cmaes {
         }
         if !self.separable {
             self.factorize();
-            if self.generation - self.last_decomposition >= self.gap {
+            if self.generation.saturating_sub(self.last_decomposition) >= self.gap {
                 self.decompose();
             }
         }
@@ -724,6 +724,28 @@ impl Cmaes {
                 .all(|v| v.is_finite());
         if !(cp.sigma.is_finite() && cp.sigma > 0.0 && finite) {
             return Err(bad("must hold a finite state with σ > 0", cp.sigma));
+        }
+        if !cp.p_sigma.iter().chain(&cp.p_c).all(|v| v.is_finite()) {
+            return Err(bad("must hold finite evolution paths", f64::NAN));
+        }
+        // The counters and histories must tell one story: as many history entries as
+        // generations, a decomposition and a flat run no later than now, the last
+        // generation's costs for the population, a best point of the mean's length.
+        let g = cp.generation;
+        let consistent = cp.last_decomposition <= g
+            && cp.flat_generations <= g
+            && cp.best_history.len() as u64 == g
+            && cp.median_history.len() as u64 == g
+            && (cp.sorted_costs.is_empty() || cp.sorted_costs.len() == cp.population)
+            && (g == 0 || cp.sorted_costs.len() == cp.population)
+            && cp.best.as_ref().is_none_or(|(x, _)| x.len() == n)
+            && cp.condition.is_finite()
+            && cp.condition >= 1.0;
+        if !consistent {
+            return Err(bad(
+                "has counters and histories that do not fit together (generation, histories, last decomposition, costs, best point)",
+                g as f64,
+            ));
         }
         let unflat = |v: &[f64]| Mat::from_fn(m, m, |i, j| v[j * m + i]);
         es.sigma = cp.sigma;

@@ -378,6 +378,12 @@ impl Client {
                 function: func.into(),
                 message: m,
             };
+            if !matches!(codec::untag(&reply), Value::Map(_)) {
+                return Err(protocol(format!(
+                    "the reply is {}, not a map",
+                    codec::describe(&reply)
+                )));
+            }
             if let Some(f) = codec::get(&reply, "func") {
                 let f = codec::as_text(f).ok_or_else(|| protocol("`func` is not text".into()))?;
                 message = match f.as_str() {

@@ -749,3 +749,83 @@ fn a_silent_stepping_client_loses_its_hold_after_its_lease() {
         "after the lease the simulation runs on ({t2} → {t3})"
     );
 }
+
+/// A hostile server: after a correct handshake it answers with a 64 GiB frame header,
+/// with bytes that are not CBOR, with CBOR of the wrong shape, or not at all. The client
+/// returns an error each time (within its timeout), allocates nothing for the huge frame,
+/// and never panics.
+#[test]
+fn the_client_survives_a_hostile_server() {
+    use std::io::{Read, Write};
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let endpoint = format!("tcp://{}", listener.local_addr().unwrap());
+    let replies: Vec<Option<Vec<u8>>> = vec![
+        Some({
+            let mut f = vec![0x01, 0x00, 0x02];
+            f.extend_from_slice(&(64u64 << 30).to_be_bytes());
+            f
+        }),
+        Some(vec![0x01, 0x00, 0x00, 0x03, 0xff, 0x00, 0x13]),
+        Some({
+            // A CBOR text where a map is expected.
+            vec![0x01, 0x00, 0x00, 0x04, 0x63, b'a', b'b', b'c']
+        }),
+        None,
+    ];
+    let server = std::thread::spawn(move || {
+        for reply in replies {
+            let Ok((mut s, _)) = listener.accept() else {
+                return;
+            };
+            let mut g = [0u8; 64];
+            g[0] = 0xff;
+            g[9] = 0x7f;
+            g[10] = 3;
+            g[12..16].copy_from_slice(b"NULL");
+            let mut ready = vec![5u8];
+            ready.extend_from_slice(b"READY");
+            ready.push(11);
+            ready.extend_from_slice(b"Socket-Type");
+            ready.extend_from_slice(&3u32.to_be_bytes());
+            ready.extend_from_slice(b"REP");
+            let _ = s.write_all(&g);
+            let _ = s.write_all(&[0x04, ready.len() as u8]);
+            let _ = s.write_all(&ready);
+            // Take the client's greeting, READY and first request (all short).
+            s.set_read_timeout(Some(Duration::from_millis(200)))
+                .unwrap();
+            let mut buf = [0u8; 4096];
+            let mut got = 0;
+            while got < 64 + 2 + 20 + 2 + 30 {
+                match s.read(&mut buf) {
+                    Ok(0) | Err(_) => break,
+                    Ok(k) => got += k,
+                }
+            }
+            if let Some(r) = reply {
+                let _ = s.write_all(&r);
+            }
+            // Hold the connection until the client gives up on it.
+            s.set_read_timeout(Some(Duration::from_secs(3))).unwrap();
+            while let Ok(k) = s.read(&mut buf) {
+                if k == 0 {
+                    break;
+                }
+            }
+        }
+    });
+    for _ in 0..4 {
+        let start = Instant::now();
+        let e = Client::connect(ClientConfig {
+            endpoint: endpoint.clone(),
+            connect_timeout: Duration::from_millis(600),
+            call_timeout: Duration::from_millis(600),
+            ..ClientConfig::default()
+        })
+        .unwrap_err();
+        assert!(start.elapsed() < Duration::from_secs(3), "{e}");
+        let text = e.to_string();
+        assert!(text.contains(&endpoint), "{text}");
+    }
+    server.join().unwrap();
+}

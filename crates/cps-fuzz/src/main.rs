@@ -1,9 +1,9 @@
 //! `cps-fuzz`: fuzzing of cps's parsers and protocol handler on stable Rust.
 //!
 //! ```text
-//! cargo run --release -p cps-fuzz -- all --inputs 1000000        # every target
-//! cargo run --release -p cps-fuzz -- urdf --inputs 100000 --seed 7
-//! cargo run --release -p cps-fuzz -- list
+//! cargo run --profile fuzz -p cps-fuzz -- all --inputs 1000000        # every target
+//! cargo run --profile fuzz -p cps-fuzz -- urdf --inputs 100000 --seed 7
+//! cargo run --profile fuzz -p cps-fuzz -- list
 //! ```
 //!
 //! Targets: the experiment TOML loader, TOML and URDF robots, scenes, demonstration CSV,
@@ -16,7 +16,7 @@
 //! raw byte mutations. Input `i` of a run depends only on `(seed, i)`, so a finding is
 //! reproduced with `--seed S --start I --inputs 1`.
 //!
-//! A panic is caught, reported with its input (saved under `target/fuzz/`) and counted; an
+//! A panic is caught, reported with its input (saved under `target/fuzz-findings/`) and counted; an
 //! input that takes longer than `--timeout` (default 10 s) is reported as a hang and ends
 //! the run; an abort ends the process (run again from the printed input number). Exit
 //! code 0 only when nothing was found.
@@ -81,6 +81,9 @@ fn parse_args() -> Result<Options, String> {
     Ok(o)
 }
 
+/// The largest input made (1 MiB).
+const MAX_INPUT: usize = 1 << 20;
+
 /// One input: a seed mutated one to three times (deterministic in `(seed, i)`).
 fn make_input(target: &Target, seeds: &[Vec<u8>], run_seed: u64, i: u64) -> Vec<u8> {
     let mut rng = ChaCha8Rng::seed_from_u64(run_seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ i);
@@ -90,12 +93,17 @@ fn make_input(target: &Target, seeds: &[Vec<u8>], run_seed: u64, i: u64) -> Vec<
         .filter_map(|s| std::str::from_utf8(s).ok())
         .collect();
     for _ in 0..rng.random_range(1..=3) {
-        input = match std::str::from_utf8(&input) {
+        let next = match std::str::from_utf8(&input) {
             Ok(t) if target.text && rng.random_bool(0.75) => {
                 mutate::mutate_text(t, &mut rng, &others).into_bytes()
             }
             _ => mutate::mutate_bytes(&input, &mut rng),
         };
+        // Inputs stay below the size the loaders accept, where the parsers do the work
+        // (larger files are refused by size before parsing).
+        if next.len() <= MAX_INPUT {
+            input = next;
+        }
     }
     input
 }
@@ -126,7 +134,7 @@ struct Current {
 }
 
 fn save(target: &str, what: &str, index: u64, input: &[u8]) -> String {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/fuzz");
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/fuzz-findings");
     let _ = std::fs::create_dir_all(&dir);
     let path = dir.join(format!("{target}-{what}-{index}.bin"));
     let _ = std::fs::write(&path, input);
