@@ -60,27 +60,7 @@ struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Run an experiment and write its results, plots and summary.
-    Run {
-        /// The experiment file (TOML).
-        file: PathBuf,
-        /// Output directory (default: results/NAME, NAME from the experiment).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Override the experiment's seed.
-        #[arg(long)]
-        seed: Option<u64>,
-        /// Worker threads (default: all cores). Results do not depend on it.
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Replace results already in the output directory.
-        #[arg(long)]
-        force: bool,
-        /// No progress bar and no summary on the terminal.
-        #[arg(long)]
-        quiet: bool,
-        #[command(flatten)]
-        ceilings: CeilingArgs,
-    },
+    Run(RunArgs),
     /// Validate an experiment file without running it.
     Check {
         /// The experiment file (TOML).
@@ -118,6 +98,30 @@ enum Command {
         #[command(subcommand)]
         command: scene::SceneCommand,
     },
+}
+
+/// Arguments of `cps-cli run`.
+#[derive(clap::Args, Debug)]
+struct RunArgs {
+    /// The experiment file (TOML).
+    file: PathBuf,
+    /// Output directory (default: results/NAME, NAME from the experiment).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Override the experiment's seed.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Replace cps's own results already in the output directory (nothing else).
+    #[arg(long)]
+    force: bool,
+    /// No progress bar and no summary on the terminal.
+    #[arg(long)]
+    quiet: bool,
+    #[command(flatten)]
+    ceilings: CeilingArgs,
 }
 
 /// The ceilings on what an experiment may ask of the machine.
@@ -218,40 +222,20 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
             say!("  {}", e.describe());
             Ok(ExitCode::SUCCESS)
         }
-        Command::Run {
-            file,
-            out,
-            seed,
-            threads,
-            force,
-            quiet,
-            ceilings,
-        } => {
-            let ceilings = ceilings.ceilings()?;
-            run_experiment(
-                &file,
-                out,
-                seed,
-                threads,
-                force,
-                quiet,
-                &ceilings,
-                interrupted,
-            )
-        }
+        Command::Run(args) => run_experiment(&args, interrupted),
     }
 }
 
-fn run_experiment(
-    file: &Path,
-    out: Option<PathBuf>,
-    seed: Option<u64>,
-    threads: Option<usize>,
-    force: bool,
-    quiet: bool,
-    ceilings: &budget::Ceilings,
-    interrupted: &AtomicBool,
-) -> Result<ExitCode> {
+fn run_experiment(args: &RunArgs, interrupted: &AtomicBool) -> Result<ExitCode> {
+    let (file, seed, threads, force, quiet) = (
+        args.file.as_path(),
+        args.seed,
+        args.threads,
+        args.force,
+        args.quiet,
+    );
+    let ceilings = &args.ceilings.ceilings()?;
+    let out = args.out.clone();
     let started = Instant::now();
     let exp = experiment::load(file, seed, ceilings)?;
     let out = out.unwrap_or_else(|| Path::new("results").join(&exp.name));

@@ -200,7 +200,7 @@ pub fn costs(
     })
 }
 
-/// One curve family of [`curves_plot`]: a label, its time stamps and one slice of values
+/// One curve family of `curves_plot`: a label, its time stamps and one slice of values
 /// per dimension.
 pub struct Series<'a> {
     /// Legend label (empty: no legend entry).
@@ -295,7 +295,7 @@ fn curves_plot<DB: DrawingBackend>(
     Ok(())
 }
 
-/// Draws [`curves_plot`] to `path` (PNG, or SVG when the name ends in `.svg`).
+/// Draws `curves_plot` to `path` (PNG, or SVG when the name ends in `.svg`).
 pub fn curves_to_file(
     path: &std::path::Path,
     names: &[String],

@@ -185,15 +185,15 @@ impl Sim {
         let lease = self.lease;
         self.clients
             .retain(|_, c| now.saturating_duration_since(c.last_seen) <= lease);
-        if !self.clients.contains_key(uuid) && self.clients.len() >= MAX_CLIENTS {
-            if let Some(oldest) = self
+        if !self.clients.contains_key(uuid)
+            && self.clients.len() >= MAX_CLIENTS
+            && let Some(oldest) = self
                 .clients
                 .iter()
                 .min_by_key(|(_, c)| c.last_seen)
                 .map(|(k, _)| k.clone())
-            {
-                self.clients.remove(&oldest);
-            }
+        {
+            self.clients.remove(&oldest);
         }
         self.clients.entry(uuid.to_string()).or_default().last_seen = now;
     }
