@@ -105,6 +105,12 @@ pub fn bench(cmd: &CmaesCommand) -> Result<ExitCode> {
     if !(1..=10_000).contains(&n) {
         return Err(InputError(format!("--dim: must be between 1 and 10000 (got {n})")).into());
     }
+    if !args.separable && n > 5000 {
+        return Err(InputError(format!(
+            "--dim {n}: the full form stores n × n matrices; use at most 5000, or --separable"
+        ))
+        .into());
+    }
     let (first, last) = parse_seeds(&args.seeds)?;
     let f: fn(&[f64]) -> f64 = match args.function {
         Function::Sphere => functions::sphere,
