@@ -585,25 +585,30 @@ fn server_with(limits: cps_coppelia::ServerLimits) -> StandInServer {
     .unwrap()
 }
 
-/// A raw ZMTP 3.0 REQ peer over TCP, greeting and READY written by hand.
-fn raw_peer(endpoint: &str) -> std::net::TcpStream {
-    use std::io::{Read, Write};
-    let mut s = std::net::TcpStream::connect(endpoint.trim_start_matches("tcp://")).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
-    let mut g = [0u8; 64];
+/// A ZMTP 3.0 greeting (NULL mechanism) and READY command for `kind`, written by hand.
+fn handshake_bytes(kind: &[u8; 3]) -> Vec<u8> {
+    let mut g = vec![0u8; 64];
     g[0] = 0xff;
     g[9] = 0x7f;
     g[10] = 3;
     g[12..16].copy_from_slice(b"NULL");
-    s.write_all(&g).unwrap();
     let mut ready = vec![5u8];
     ready.extend_from_slice(b"READY");
     ready.push(11);
     ready.extend_from_slice(b"Socket-Type");
     ready.extend_from_slice(&3u32.to_be_bytes());
-    ready.extend_from_slice(b"REQ");
-    s.write_all(&[0x04, ready.len() as u8]).unwrap();
-    s.write_all(&ready).unwrap();
+    ready.extend_from_slice(kind);
+    g.extend_from_slice(&[0x04, ready.len() as u8]);
+    g.extend_from_slice(&ready);
+    g
+}
+
+/// A raw ZMTP 3.0 REQ peer over TCP.
+fn raw_peer(endpoint: &str) -> std::net::TcpStream {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(endpoint.trim_start_matches("tcp://")).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    s.write_all(&handshake_bytes(b"REQ")).unwrap();
     let mut theirs = [0u8; 64];
     s.read_exact(&mut theirs).unwrap();
     let mut head = [0u8; 2];
@@ -777,20 +782,7 @@ fn the_client_survives_a_hostile_server() {
             let Ok((mut s, _)) = listener.accept() else {
                 return;
             };
-            let mut g = [0u8; 64];
-            g[0] = 0xff;
-            g[9] = 0x7f;
-            g[10] = 3;
-            g[12..16].copy_from_slice(b"NULL");
-            let mut ready = vec![5u8];
-            ready.extend_from_slice(b"READY");
-            ready.push(11);
-            ready.extend_from_slice(b"Socket-Type");
-            ready.extend_from_slice(&3u32.to_be_bytes());
-            ready.extend_from_slice(b"REP");
-            let _ = s.write_all(&g);
-            let _ = s.write_all(&[0x04, ready.len() as u8]);
-            let _ = s.write_all(&ready);
+            let _ = s.write_all(&handshake_bytes(b"REP"));
             // Take the client's greeting, READY and first request (all short).
             s.set_read_timeout(Some(Duration::from_millis(200)))
                 .unwrap();

@@ -32,15 +32,18 @@ fn experiment(b: &[u8]) -> bool {
     cps_cli::experiment::parse(&path, t, None, &cps_cli::budget::Ceilings::default()).is_ok()
 }
 
+/// One step past a robot parser: FK and the Jacobian of what it accepted.
+fn exercise(chain: &cps_kinematics::SerialChain) -> bool {
+    let q = vec![0.1; chain.dof()];
+    let _ = chain.fk(&q);
+    let _ = chain.jacobian(&q);
+    true
+}
+
 fn robot_toml(b: &[u8]) -> bool {
     let Some(t) = text(b) else { return false };
     match cps_cli::robot_file::parse_robot_toml(Path::new("fuzz.toml"), t, None) {
-        Ok(m) => {
-            let q = vec![0.1; m.chain.dof()];
-            let _ = m.chain.fk(&q);
-            let _ = m.chain.jacobian(&q);
-            true
-        }
+        Ok(m) => exercise(&m.chain),
         Err(_) => false,
     }
 }
@@ -48,12 +51,7 @@ fn robot_toml(b: &[u8]) -> bool {
 fn urdf(b: &[u8]) -> bool {
     let Some(t) = text(b) else { return false };
     match cps_kinematics::chain_from_urdf(t, None) {
-        Ok(u) => {
-            let q = vec![0.1; u.chain.dof()];
-            let _ = u.chain.fk(&q);
-            let _ = u.chain.jacobian(&q);
-            true
-        }
+        Ok(u) => exercise(&u.chain),
         Err(_) => false,
     }
 }
