@@ -322,8 +322,11 @@ impl Cmaes {
                 expected: lambda,
             });
         }
-        self.evaluations += lambda as u64;
-        self.non_finite += costs.iter().filter(|c| !c.is_finite()).count() as u64;
+        // Counters saturate: a resumed checkpoint may carry any count.
+        self.evaluations = self.evaluations.saturating_add(lambda as u64);
+        self.non_finite = self
+            .non_finite
+            .saturating_add(costs.iter().filter(|c| !c.is_finite()).count() as u64);
         let key = |c: f64| if c.is_nan() { f64::INFINITY } else { c };
         let order = &mut self.work.order;
         order.iter_mut().enumerate().for_each(|(i, o)| *o = i);
@@ -357,7 +360,7 @@ impl Cmaes {
             *ps = (1.0 - p.c_sigma) * *ps + cs * z;
         }
         let ps_norm = self.p_sigma.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let g1 = (self.generation + 1) as f64;
+        let g1 = self.generation as f64 + 1.0;
         let h_sigma = ps_norm / (1.0 - (1.0 - p.c_sigma).powf(2.0 * g1)).sqrt()
             < (1.4 + 2.0 / (n as f64 + 1.0)) * p.chi_n;
         let cc = (p.c_c * (2.0 - p.c_c) * p.mu_eff).sqrt();
@@ -394,7 +397,7 @@ impl Cmaes {
                         .fold((0.0f64, f64::INFINITY), |(a, b), &v| (a.max(v), b.min(v)));
                     self.condition = max / min;
                 }
-                None => self.repairs += 1,
+                None => self.repairs = self.repairs.saturating_add(1),
             }
         } else {
             for j in 0..n {
@@ -419,14 +422,14 @@ impl Cmaes {
 
         let ratio = (p.c_sigma / p.d_sigma) * (ps_norm / p.chi_n - 1.0);
         self.sigma *= ratio.min(1.0).exp();
-        self.generation += 1;
+        self.generation = self.generation.saturating_add(1);
 
         let median = self.sorted_costs[lambda / 2];
         self.best_history.push(best_now);
         self.median_history.push(median);
         let flat_index = ((0.1 + lambda as f64 / 4.0).ceil() as usize).clamp(1, lambda) - 1;
         if self.sorted_costs[0] == self.sorted_costs[flat_index] {
-            self.flat_generations += 1;
+            self.flat_generations = self.flat_generations.saturating_add(1);
         } else {
             self.flat_generations = 0;
         }
@@ -474,7 +477,7 @@ impl Cmaes {
                 }
             }
         } else {
-            self.repairs += 1;
+            self.repairs = self.repairs.saturating_add(1);
             self.rebuild_c_from_a();
         }
     }
