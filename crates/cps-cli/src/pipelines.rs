@@ -686,9 +686,26 @@ impl Sections<'_> {
                         "[robot] `dt` is the kinematic backend's; CoppeliaSim's time step is read from the simulator".into(),
                     ));
                 }
-                let endpoint = section
-                    .and_then(|r| r.endpoint.as_ref())
-                    .map_or("tcp://127.0.0.1:23000".to_string(), |e| e.get_ref().clone());
+                let endpoint = match section.and_then(|r| r.endpoint.as_ref()) {
+                    None => "tcp://127.0.0.1:23000".to_string(),
+                    Some(e) => {
+                        let text = e.get_ref();
+                        let port = text
+                            .strip_prefix("tcp://")
+                            .and_then(|rest| rest.rsplit_once(':'))
+                            .filter(|(host, _)| !host.is_empty())
+                            .and_then(|(_, p)| p.parse::<u16>().ok());
+                        if port.is_none_or(|p| p == 0) {
+                            return Err(self.err(
+                                &e.span(),
+                                format!(
+                                    "[robot] `endpoint` must look like tcp://host:port with a port from 1 to 65535 (got `{text}`)"
+                                ),
+                            ));
+                        }
+                        text.clone()
+                    }
+                };
                 let timeout = match section.and_then(|r| r.timeout.as_ref()) {
                     Some(t) => self.within(t, "[robot] `timeout`", 0.01, 3600.0, " s")?,
                     None => 5.0,

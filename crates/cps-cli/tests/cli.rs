@@ -931,3 +931,119 @@ fn the_shipped_demonstration_is_learned_within_a_millimetre() {
         assert!(report["rmse"][d].as_f64().unwrap() < 1e-3, "{report}");
     }
 }
+
+/// A file that asks for more memory or work than the ceilings is refused before any work,
+/// naming the key with its place; raising the ceiling lets it through `check`.
+#[test]
+fn oversized_experiments_are_refused_by_their_estimate() {
+    let dir = tempfile::tempdir().unwrap();
+    let shipped = std::fs::read_to_string(repo("experiments/viapoint.toml")).unwrap();
+    let line = |needle: &str| shipped.lines().position(|l| l.starts_with(needle)).unwrap() + 1;
+    for (name, from, to, flag) in [
+        (
+            "memory.toml",
+            "basis_functions = 25 ",
+            "basis_functions = 20000 ",
+            "--max-memory",
+        ),
+        (
+            "work.toml",
+            "repetitions = 1 ",
+            "repetitions = 10000 ",
+            "--max-work",
+        ),
+    ] {
+        let key = from.split(' ').next().unwrap();
+        let f = write(dir.path(), name, &shipped.replace(from, to));
+        let out = dir.path().join("never");
+        let o = cli(&[
+            "run",
+            f.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains(&format!("{name}:{}:", line(key))), "{err}");
+        assert!(err.contains(key) && err.contains(flag), "{err}");
+        assert!(!out.exists());
+    }
+    let f = write(
+        dir.path(),
+        "raised.toml",
+        &shipped.replace("repetitions = 1 ", "repetitions = 10000 "),
+    );
+    let o = cli(&["check", f.to_str().unwrap(), "--max-work", "1e15"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("operations"));
+}
+
+/// `run --out` never touches what cps did not write: a foreign file blocks the run, with
+/// or without --force, and stays as it was; a file added beside cps's results blocks
+/// --force too; `imitate --force` will not replace a file that is not a cps model.
+#[test]
+fn files_cps_did_not_write_are_never_touched() {
+    let dir = tempfile::tempdir().unwrap();
+    let exp = write(dir.path(), "e.toml", &small_experiment());
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    std::fs::write(out.join("thesis.pdf"), b"precious").unwrap();
+    for force in [false, true] {
+        let mut args = vec!["run", exp.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        args.push("--quiet");
+        if force {
+            args.push("--force");
+        }
+        let o = cli(&args);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains("`thesis.pdf`"), "{}", stderr(&o));
+    }
+    let names: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, ["thesis.pdf"]);
+    assert_eq!(std::fs::read(out.join("thesis.pdf")).unwrap(), b"precious");
+
+    let ours = dir.path().join("ours");
+    let run = |force: bool| {
+        let mut args = vec![
+            "run",
+            exp.to_str().unwrap(),
+            "--out",
+            ours.to_str().unwrap(),
+        ];
+        args.push("--quiet");
+        if force {
+            args.push("--force");
+        }
+        cli(&args)
+    };
+    assert!(run(false).status.success());
+    let manifest = json(&ours.join("cps-manifest.json"));
+    let listed = manifest["files"].as_array().unwrap();
+    assert!(listed.iter().any(|f| f == "summary.json"));
+    assert!(
+        run(true).status.success(),
+        "--force replaces cps's own results"
+    );
+    std::fs::write(ours.join("notes.txt"), b"mine").unwrap();
+    let o = run(true);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("`notes.txt`"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(ours.join("notes.txt")).unwrap(), b"mine");
+
+    let model = dir.path().join("model.json");
+    std::fs::write(&model, b"{\"mine\": true}").unwrap();
+    let demo = repo("experiments/demos/table3_min_jerk.csv");
+    let o = cli(&[
+        "imitate",
+        &demo,
+        "--out",
+        model.to_str().unwrap(),
+        "--force",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(std::fs::read(&model).unwrap(), b"{\"mine\": true}");
+}

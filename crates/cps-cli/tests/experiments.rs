@@ -336,6 +336,39 @@ fn sections_and_settings_of_the_new_kinds_are_checked() {
         ),
         &["endpoint.toml:", "only with backend = \"coppelia\""],
     );
+    let remote = |endpoint: &str, timeout: &str| {
+        IMITATION
+            .replace("backend = \"kinematic\"", "backend = \"coppelia\"")
+            .replace(
+                "# endpoint = \"tcp://127.0.0.1:23000\"",
+                &format!("endpoint = \"{endpoint}\""),
+            )
+            .replace("# timeout = 5.0", &format!("timeout = {timeout}"))
+            .replace("dt = 0.01               #", "# dt = 0.01             #")
+    };
+    for (name, endpoint, timeout, wanted) in [
+        ("scheme.toml", "http://x:1", "5.0", "tcp://host:port"),
+        (
+            "port.toml",
+            "tcp://127.0.0.1:99999",
+            "5.0",
+            "tcp://host:port",
+        ),
+        (
+            "huge_timeout.toml",
+            "tcp://127.0.0.1:23000",
+            "1e300",
+            "`timeout`",
+        ),
+        (
+            "zero_timeout.toml",
+            "tcp://127.0.0.1:23000",
+            "0.0",
+            "`timeout`",
+        ),
+    ] {
+        check(name, &remote(endpoint, timeout), &[name, wanted]);
+    }
 }
 
 /// The scaling comparison writes its bands, a verdict and a report.
