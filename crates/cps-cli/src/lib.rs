@@ -24,21 +24,18 @@ macro_rules! say {
     }};
 }
 
-pub mod budget;
+pub use cps_experiment::{budget, experiment, pipelines, results_dir, robot_file};
+
 pub mod cmaes_bench;
 pub mod energy_run;
-pub mod experiment;
 pub mod imitation_run;
 pub mod joint_run;
 pub mod movement;
 pub mod output;
-pub mod pipelines;
 pub mod plots;
 pub mod pose_run;
 pub mod report;
-pub mod results_dir;
 pub mod robot;
-pub mod robot_file;
 pub mod runner;
 pub mod scaling_run;
 pub mod scene;

@@ -110,5 +110,5 @@ pub fn write(
         "<p><small>cps {} · all numbers in SI units · the same figures are in the run's folder as PNG and SVG, the data as CSV and JSON</small></p>\n</body>\n</html>\n",
         env!("CARGO_PKG_VERSION")
     ));
-    stage.write("report.html", html.as_bytes())
+    Ok(stage.write("report.html", html.as_bytes())?)
 }

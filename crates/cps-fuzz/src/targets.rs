@@ -29,7 +29,8 @@ fn experiment(b: &[u8]) -> bool {
     let Some(t) = text(b) else { return false };
     // The path only places relative scene files (next to the shipped experiments).
     let path = repo().join("experiments/fuzz.toml");
-    cps_cli::experiment::parse(&path, t, None, &cps_cli::budget::Ceilings::default()).is_ok()
+    cps_experiment::experiment::parse(&path, t, None, &cps_experiment::budget::Ceilings::default())
+        .is_ok()
 }
 
 /// One step past a robot parser: FK and the Jacobian of what it accepted.
@@ -42,7 +43,7 @@ fn exercise(chain: &cps_kinematics::SerialChain) -> bool {
 
 fn robot_toml(b: &[u8]) -> bool {
     let Some(t) = text(b) else { return false };
-    match cps_cli::robot_file::parse_robot_toml(Path::new("fuzz.toml"), t, None) {
+    match cps_experiment::robot_file::parse_robot_toml(Path::new("fuzz.toml"), t, None) {
         Ok(m) => exercise(&m.chain),
         Err(_) => false,
     }
@@ -58,7 +59,7 @@ fn urdf(b: &[u8]) -> bool {
 
 fn scene(b: &[u8]) -> bool {
     let Some(t) = text(b) else { return false };
-    cps_cli::scene::parse_scene(&repo().join("configs/scenes/fuzz.toml"), t).is_ok()
+    cps_experiment::scene::parse_scene(&repo().join("configs/scenes/fuzz.toml"), t).is_ok()
 }
 
 fn demo_csv(b: &[u8]) -> bool {

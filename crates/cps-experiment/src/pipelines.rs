@@ -5,7 +5,6 @@ use std::ops::Range;
 use std::path::Path;
 use std::time::Duration;
 
-use anyhow::{Context, Result};
 use cps_coppelia::{Client, ClientConfig, FrankaScene};
 use cps_dmp::{DmpConfig, Lambda};
 use cps_kinematics::{ExecutionConfig, KinematicRobot, RobotBackend};
@@ -15,6 +14,7 @@ use toml::Spanned;
 
 use crate::experiment::{InputError, Kind, location};
 use crate::scene::{THESIS_SCENE, load_scene, parse_scene};
+use crate::{Context, ExperimentError};
 
 /// A limit in words: plain for ordinary magnitudes, exponent form for extreme ones.
 fn number(x: f64) -> String {
@@ -116,14 +116,13 @@ impl RobotChoice {
     }
 
     /// Opens the backend with the robot at its initial configuration.
-    pub fn open(&self) -> Result<Box<dyn RobotBackend + Send>> {
+    pub fn open(&self) -> Result<Box<dyn RobotBackend + Send>, ExperimentError> {
         let setup = &self.setup;
         match &self.backend {
-            BackendChoice::Kinematic { dt } => Ok(Box::new(KinematicRobot::new(
-                setup.chain.clone(),
-                &setup.initial_q,
-                *dt,
-            )?)),
+            BackendChoice::Kinematic { dt } => Ok(Box::new(
+                KinematicRobot::new(setup.chain.clone(), &setup.initial_q, *dt)
+                    .context_with(|| "cannot start the in-process robot".into())?,
+            )),
             BackendChoice::Coppelia {
                 endpoint,
                 robot_name,
@@ -136,26 +135,37 @@ impl RobotChoice {
                     call_timeout: *timeout,
                     ..ClientConfig::default()
                 })
-                .with_context(|| format!("backend = \"coppelia\": cannot reach {endpoint}"))?;
+                .context_with(|| format!("backend = \"coppelia\": cannot reach {endpoint}"))?;
                 let dt = client
                     .get_simulation_time_step()
-                    .with_context(|| format!("{endpoint}: cannot read the simulation time step"))?;
+                    .context_with(|| format!("{endpoint}: cannot read the simulation time step"))?;
                 let mut scene = FrankaScene::open(client, robot_name, setup.chain.dof(), dt)
-                    .with_context(|| {
+                    .context_with(|| {
                         format!("{endpoint}: the scene has no robot `/{robot_name}` with joints `/{robot_name}_joint1..{}` and `/{robot_name}_tip`", setup.chain.dof())
                     })?;
                 if *simulator_ik {
-                    scene.follow_ik_target(true).with_context(|| {
+                    scene.follow_ik_target(true).context_with(|| {
                         format!("{endpoint}: control = \"simulator_ik\" needs an IK target `/{robot_name}_target` in the scene")
                     })?;
                 }
                 // The scene's robot must be the model: compare the tip at the start.
-                scene.reset(&setup.initial_q)?;
-                let remote = scene.tool_pose()?.translation.vector;
-                let local = setup.chain.fk(&setup.initial_q)?.translation.vector;
+                scene
+                    .reset(&setup.initial_q)
+                    .context_with(|| format!("{endpoint}: cannot reset the scene"))?;
+                let remote = scene
+                    .tool_pose()
+                    .context_with(|| format!("{endpoint}: cannot read the tool pose"))?
+                    .translation
+                    .vector;
+                let local = setup
+                    .chain
+                    .fk(&setup.initial_q)
+                    .context_with(|| "the model's tool at the initial configuration".into())?
+                    .translation
+                    .vector;
                 let gap = (remote - local).norm();
                 if gap > 1e-3 {
-                    anyhow::bail!(
+                    return Err(ExperimentError::Message(format!(
                         "{endpoint}: the scene's `/{robot_name}_tip` is at ({:.4}, {:.4}, {:.4}) at the initial configuration, but the model puts the tool at ({:.4}, {:.4}, {:.4}) ({:.1} mm apart): the experiment's [robot] scene does not describe this simulator's robot",
                         remote.x,
                         remote.y,
@@ -164,7 +174,7 @@ impl RobotChoice {
                         local.y,
                         local.z,
                         gap * 1e3
-                    );
+                    )));
                 }
                 Ok(Box::new(scene))
             }
@@ -293,7 +303,7 @@ pub struct PosePlan {
 }
 
 /// The optional sections of a file, with what is needed to name places in errors.
-pub struct Sections<'a> {
+pub(crate) struct Sections<'a> {
     pub path: &'a Path,
     pub text: &'a str,
     pub kind: Kind,
@@ -308,7 +318,7 @@ pub struct Sections<'a> {
 }
 
 /// The parsed plans of [`Sections::parse`].
-pub struct Plans {
+pub(crate) struct Plans {
     pub robot: Option<RobotChoice>,
     pub imitation: Option<ImitationPlan>,
     pub scaling: Option<ScalingPlan>,

@@ -13,17 +13,7 @@ use toml::Spanned;
 
 use crate::budget::Ceilings;
 
-/// A problem with the user's input: exit code 2.
-#[derive(Debug)]
-pub struct InputError(pub String);
-
-impl std::fmt::Display for InputError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for InputError {}
+pub use crate::error::InputError;
 
 /// The largest configuration file read (experiments, scenes, robots, models): 16 MiB.
 pub const MAX_FILE_BYTES: u64 = 16 << 20;

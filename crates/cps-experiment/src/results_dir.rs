@@ -24,9 +24,8 @@ use std::fs;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
-
 use crate::experiment::InputError;
+use crate::{Context, ExperimentError};
 
 /// The manifest's file name.
 pub const MANIFEST: &str = "cps-manifest.json";
@@ -252,33 +251,33 @@ impl Staging {
     }
 
     /// Writes a whole file.
-    pub fn write(&self, file: &str, bytes: &[u8]) -> Result<()> {
+    pub fn write(&self, file: &str, bytes: &[u8]) -> Result<(), ExperimentError> {
         let p = self.path(file);
         let mut f =
-            fs::File::create(&p).with_context(|| format!("cannot create {}", p.display()))?;
+            fs::File::create(&p).context_with(|| format!("cannot create {}", p.display()))?;
         f.write_all(bytes)
-            .with_context(|| format!("cannot write {}", p.display()))?;
+            .context_with(|| format!("cannot write {}", p.display()))?;
         Ok(())
     }
 
     /// Moves the finished results into place. Only files of the old manifest are replaced
     /// or removed; a file that appeared in the target during the run and is not cps's
     /// stops the commit, and the results stay in the staging directory (named in the error).
-    pub fn commit(mut self) -> Result<()> {
+    pub fn commit(mut self) -> Result<(), ExperimentError> {
         let mut files = Vec::new();
         list_files(&self.tmp, "", &mut files)
-            .with_context(|| format!("cannot list {}", self.tmp.display()))?;
+            .context_with(|| format!("cannot list {}", self.tmp.display()))?;
         files.sort();
         match &self.kind {
             Target::New => {
                 write_manifest(&self.tmp, &files)?;
                 if let Err(e) = fs::rename(&self.tmp, &self.target) {
                     self.done = true; // keep the results where they are
-                    anyhow::bail!(
+                    return Err(ExperimentError::Message(format!(
                         "cannot move the results into {} ({e}; did something create it during the run?); they are in {}",
                         self.target.display(),
                         self.tmp.display()
-                    );
+                    )));
                 }
             }
             Target::Existing { old } => {
@@ -288,11 +287,11 @@ impl Staging {
                     .find(|f| !old.contains(*f) && self.target.join(f).exists())
                 {
                     self.done = true;
-                    anyhow::bail!(
+                    return Err(ExperimentError::Message(format!(
                         "{}: `{clash}` appeared during the run and cps did not write it, so it is left alone; the results are in {}",
                         self.target.display(),
                         self.tmp.display()
-                    );
+                    )));
                 }
                 // The manifest covers old and new files at every moment.
                 let union: Vec<String> = old.iter().cloned().chain(files.iter().cloned()).collect();
@@ -301,10 +300,10 @@ impl Staging {
                     let to = self.target.join(f);
                     if let Some(dir) = to.parent() {
                         fs::create_dir_all(dir)
-                            .with_context(|| format!("cannot create {}", dir.display()))?;
+                            .context_with(|| format!("cannot create {}", dir.display()))?;
                     }
                     fs::rename(self.tmp.join(f), &to)
-                        .with_context(|| format!("cannot move {f} into place"))?;
+                        .context_with(|| format!("cannot move {f} into place"))?;
                 }
                 let new: BTreeSet<&String> = files.iter().collect();
                 for f in old.iter().filter(|f| !new.contains(f)) {
@@ -341,17 +340,18 @@ fn remove_empty_tree(dir: &Path) {
 }
 
 /// Writes the manifest through a temporary file and a rename.
-fn write_manifest(dir: &Path, files: &[String]) -> Result<()> {
+fn write_manifest(dir: &Path, files: &[String]) -> Result<(), ExperimentError> {
     let text = serde_json::to_string_pretty(&serde_json::json!({
         "format": MANIFEST_FORMAT,
         "version": 1,
-        "written_by": format!("cps-cli {}", env!("CARGO_PKG_VERSION")),
+        "written_by": format!("cps {}", env!("CARGO_PKG_VERSION")),
         "files": files,
-    }))?;
+    }))
+    .context_with(|| "cannot encode the manifest".into())?;
     let tmp = dir.join(format!(".{MANIFEST}.tmp-{}", std::process::id()));
-    fs::write(&tmp, text).with_context(|| format!("cannot write {}", tmp.display()))?;
+    fs::write(&tmp, text).context_with(|| format!("cannot write {}", tmp.display()))?;
     fs::rename(&tmp, dir.join(MANIFEST))
-        .with_context(|| format!("cannot write {}", dir.join(MANIFEST).display()))?;
+        .context_with(|| format!("cannot write {}", dir.join(MANIFEST).display()))?;
     Ok(())
 }
 

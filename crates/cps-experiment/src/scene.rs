@@ -1,0 +1,118 @@
+//! Scene files (`configs/scenes/`): a robot placed in the world with its initial
+//! configuration, and named objects (way-point dummies).
+
+use std::path::Path;
+
+use nalgebra::Vector3;
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::experiment::{InputError, location};
+use crate::robot_file::{Frame, RobotModel, load_robot};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    robot: RobotSection,
+    #[serde(default)]
+    object: Vec<Spanned<Object>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RobotSection {
+    model: String,
+    tool: Option<String>,
+    tip: Option<String>,
+    initial_q: Spanned<Vec<f64>>,
+    base: Option<Frame>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Object {
+    name: String,
+    position: [f64; 3],
+}
+
+/// A loaded scene.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    /// The robot, placed at the scene's base.
+    pub robot: RobotModel,
+    /// The initial joint configuration.
+    pub initial_q: Vec<f64>,
+    /// Named objects and their world positions, in file order.
+    pub objects: Vec<(String, Vector3<f64>)>,
+}
+
+/// Reads a scene file; a relative robot file path is resolved against the scene's folder.
+pub fn load_scene(path: &Path) -> Result<Scene, InputError> {
+    let text = crate::experiment::read_text(path, crate::experiment::MAX_FILE_BYTES, "scene file")?;
+    parse_scene(path, &text)
+}
+
+/// The thesis's scene, built in (the text of `configs/scenes/thesis.toml`).
+pub const THESIS_SCENE: &str = include_str!("../../../configs/scenes/thesis.toml");
+
+/// Parses scene text (`path` names it in messages and resolves relative robot files).
+pub fn parse_scene(path: &Path, text: &str) -> Result<Scene, InputError> {
+    let text = text.to_string();
+    let file: File = toml::from_str(&text).map_err(|e| {
+        let at = e
+            .span()
+            .map(|s| location(path, &text, &s))
+            .unwrap_or_else(|| path.display().to_string());
+        InputError(format!("{at}: {}", e.message()))
+    })?;
+    let r = &file.robot;
+    let model = if r.model.contains('.') {
+        let p = path.parent().unwrap_or(Path::new(".")).join(&r.model);
+        p.to_string_lossy().into_owned()
+    } else {
+        r.model.clone()
+    };
+    let mut robot = load_robot(&model, r.tool.as_deref(), r.tip.as_deref())
+        .map_err(|e| InputError(format!("{}: [robot] {e}", path.display())))?;
+    if let Some(b) = &r.base {
+        let iso = b
+            .isometry()
+            .map_err(|m| InputError(format!("{}: [robot.base] {m}", path.display())))?;
+        robot.chain = robot.chain.clone().with_base(iso);
+    }
+    let q = r.initial_q.get_ref();
+    robot.chain.check(q).map_err(|e| {
+        InputError(format!(
+            "{}: [robot] `initial_q`: {e}",
+            location(path, &text, &r.initial_q.span())
+        ))
+    })?;
+    let mut objects = Vec::new();
+    for o in &file.object {
+        let v = o.get_ref();
+        let at = || location(path, &text, &o.span());
+        if v.name.is_empty() || v.name.contains('/') {
+            return Err(InputError(format!(
+                "{}: object names are non-empty and without `/` (got `{}`)",
+                at(),
+                v.name
+            )));
+        }
+        if objects.iter().any(|(n, _)| n == &v.name) {
+            return Err(InputError(format!(
+                "{}: a second object named `{}`",
+                at(),
+                v.name
+            )));
+        }
+        if !v.position.iter().all(|x| x.is_finite()) {
+            return Err(InputError(format!("{}: `position` must be finite", at())));
+        }
+        objects.push((v.name.clone(), Vector3::from(v.position)));
+    }
+    Ok(Scene {
+        robot,
+        initial_q: q.clone(),
+        objects,
+    })
+}
