@@ -4,9 +4,14 @@
 //!
 //! - [`dmp`] (`cps-dmp`): Dynamic Movement Primitives and their rollouts.
 //! - [`cmaes`] (`cps-cmaes`): CMA-ES with deterministic parallel evaluation.
-//! - [`learn`] (`cps-learn`): the learning pipelines (via-point learning).
-//! - [`kinematics`] (`cps-kinematics`): robot maths (being built).
-//! - [`coppelia`] (`cps-coppelia`): the CoppeliaSim transport (being built).
+//! - [`learn`] (`cps-learn`): the learning pipelines (via-point, imitation, joint space,
+//!   effort, pose).
+//! - [`kinematics`] (`cps-kinematics`): robot maths: chains from DH tables or URDF, FK,
+//!   Jacobians, IK, controllers, the robot-backend trait and the in-process robot.
+//! - [`coppelia`] (`cps-coppelia`): CoppeliaSim's ZMQ remote API (client and stand-in
+//!   server).
+//! - [`experiment`] (`cps-experiment`): experiment files, scenes, robot files, result
+//!   directories.
 //!
 //! See ARCHITECTURE.md for how they fit, and `cps-cli` for the command line.
 //!
@@ -25,5 +30,6 @@
 pub use cps_cmaes as cmaes;
 pub use cps_coppelia as coppelia;
 pub use cps_dmp as dmp;
+pub use cps_experiment as experiment;
 pub use cps_kinematics as kinematics;
 pub use cps_learn as learn;

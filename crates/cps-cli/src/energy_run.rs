@@ -8,7 +8,7 @@ use anyhow::{Context, Result};
 use cps_learn::{EffortConfig, EffortCostBreakdown, EffortOutcome, learn_with_effort};
 use serde::Serialize;
 
-use crate::experiment::ViaPointExperiment;
+use crate::experiment::Experiment;
 use crate::output::Staging;
 use crate::plots::{CostArm, Series, axis_names, costs, figures, panels, way_points};
 use crate::report::{self, Table};
@@ -46,7 +46,7 @@ struct Speedup {
 
 /// Learns with the plant, measures the speed-up if asked, writes everything into `stage`.
 pub fn run(
-    exp: &ViaPointExperiment,
+    exp: &Experiment,
     ctx: &RunContext<'_>,
     stage: &Staging,
     wall: &dyn Fn() -> f64,
@@ -205,7 +205,7 @@ fn write_trajectory(stage: &Staging, o: &EffortOutcome) -> Result<()> {
     write_history(stage, &[("plant", &o.search.history)])
 }
 
-fn plot(stage: &Staging, exp: &ViaPointExperiment, o: &EffortOutcome) -> Result<()> {
+fn plot(stage: &Staging, exp: &Experiment, o: &EffortOutcome) -> Result<()> {
     if !o.search.history.is_empty() {
         costs(
             stage,
@@ -259,7 +259,7 @@ fn plot(stage: &Staging, exp: &ViaPointExperiment, o: &EffortOutcome) -> Result<
     )
 }
 
-fn write_report(stage: &Staging, exp: &ViaPointExperiment, s: &Summary<'_>) -> Result<()> {
+fn write_report(stage: &Staging, exp: &Experiment, s: &Summary<'_>) -> Result<()> {
     let mm = |v: f64| format!("{:.4} mm", v * 1e3);
     let mut rows = vec![
         (

@@ -10,7 +10,7 @@ use cps_kinematics::Recording;
 use cps_learn::{ImitationConfig, ImitationOutcome, ImitationStage, ViaPoint};
 use serde::Serialize;
 
-use crate::experiment::ViaPointExperiment;
+use crate::experiment::Experiment;
 use crate::output::Staging;
 use crate::plots::{Series, figures, trajectory_series};
 use crate::report::{self, Table};
@@ -18,7 +18,7 @@ use crate::runner::{Finished, RunContext, RunHeader};
 
 /// Runs the pipeline and writes every result into `stage`.
 pub fn run(
-    exp: &ViaPointExperiment,
+    exp: &Experiment,
     ctx: &RunContext<'_>,
     stage: &Staging,
     wall: &dyn Fn() -> f64,
@@ -184,7 +184,7 @@ struct FitSummary {
 }
 
 fn write(
-    exp: &ViaPointExperiment,
+    exp: &Experiment,
     config: &ImitationConfig,
     robot: &crate::pipelines::RobotChoice,
     outcome: &ImitationOutcome,
@@ -420,7 +420,7 @@ fn plot(stage: &Staging, outcome: &ImitationOutcome, task: &cps_learn::ViaPointT
     figures(stage, "coordinates", "path3d", &series, &points)
 }
 
-fn report(exp: &ViaPointExperiment, s: &Summary<'_>, stage: &Staging) -> Result<()> {
+fn report(exp: &Experiment, s: &Summary<'_>, stage: &Staging) -> Result<()> {
     let mm = |v: f64| format!("{:.3} mm", v * 1e3);
     let mut overview = vec![
         ("backend", s.backend.clone()),

@@ -9,7 +9,7 @@ use cps_learn::{
 };
 use serde::Serialize;
 
-use crate::experiment::ViaPointExperiment;
+use crate::experiment::Experiment;
 use crate::output::Staging;
 use crate::plots::{CostArm, Series, costs, figures, way_points};
 use crate::report::{self, Table};
@@ -95,7 +95,7 @@ fn execution_summary(rec: &Recording, chain: &cps_kinematics::SerialChain) -> Ex
 
 /// Learns in joint space, executes the result and writes everything into `stage`.
 pub fn run(
-    exp: &ViaPointExperiment,
+    exp: &Experiment,
     ctx: &RunContext<'_>,
     stage: &Staging,
     wall: &dyn Fn() -> f64,
@@ -250,7 +250,7 @@ fn write_files(
 
 fn plot(
     stage: &Staging,
-    exp: &ViaPointExperiment,
+    exp: &Experiment,
     outcome: &JointSpaceOutcome,
     config: &JointSpaceConfig,
 ) -> Result<()> {
@@ -323,7 +323,7 @@ fn plot(
     crate::plots::panels(stage, "joints", &names, &series, &marks)
 }
 
-fn write_report(stage: &Staging, exp: &ViaPointExperiment, s: &Summary<'_>) -> Result<()> {
+fn write_report(stage: &Staging, exp: &Experiment, s: &Summary<'_>) -> Result<()> {
     let mm = |v: f64| format!("{:.4} mm", v * 1e3);
     let mut rows = vec![
         ("backend", s.backend.clone()),

@@ -244,7 +244,7 @@ pub fn write_viapoint(
 /// `report.html` of a via-point run (after its figures are drawn).
 pub fn viapoint_report(
     stage: &Staging,
-    exp: &crate::experiment::ViaPointExperiment,
+    exp: &crate::experiment::Experiment,
     outcome: &ViaPointOutcome,
     wall_time_s: f64,
     threads: usize,

@@ -4,7 +4,7 @@ use anyhow::{Context, Result};
 use cps_learn::{OrientationCostBreakdown, PoseConfig, PoseOutcome, learn_pose};
 use serde::Serialize;
 
-use crate::experiment::ViaPointExperiment;
+use crate::experiment::Experiment;
 use crate::output::Staging;
 use crate::plots::{CostArm, Series, costs, figures, panels, trajectory_series, way_points};
 use crate::report::{self, Table};
@@ -30,7 +30,7 @@ struct Summary<'a> {
 
 /// Learns position and orientation and writes everything into `stage`.
 pub fn run(
-    exp: &ViaPointExperiment,
+    exp: &Experiment,
     ctx: &RunContext<'_>,
     stage: &Staging,
     wall: &dyn Fn() -> f64,
@@ -137,7 +137,7 @@ fn write_trajectory(stage: &Staging, outcome: &PoseOutcome) -> Result<()> {
 
 fn plot(
     stage: &Staging,
-    exp: &ViaPointExperiment,
+    exp: &Experiment,
     outcome: &PoseOutcome,
     config: &PoseConfig,
 ) -> Result<()> {
@@ -204,7 +204,7 @@ fn plot(
     )
 }
 
-fn write_report(stage: &Staging, exp: &ViaPointExperiment, s: &Summary<'_>) -> Result<()> {
+fn write_report(stage: &Staging, exp: &Experiment, s: &Summary<'_>) -> Result<()> {
     let mut rows = vec![(
         "position",
         format!(

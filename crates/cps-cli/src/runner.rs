@@ -8,7 +8,7 @@ use anyhow::Result;
 use cps_learn::{GenerationRecord, LearnError};
 use serde::Serialize;
 
-use crate::experiment::{Kind, ViaPointExperiment};
+use crate::experiment::{Experiment, Kind};
 use crate::output::Staging;
 use crate::{energy_run, imitation_run, joint_run, pose_run, scaling_run};
 
@@ -60,7 +60,7 @@ impl<'a> RunHeader<'a> {
     }
 
     /// The header of `exp`'s run.
-    pub fn new(exp: &'a ViaPointExperiment, complete: bool, threads: usize, wall: f64) -> Self {
+    pub fn new(exp: &'a Experiment, complete: bool, threads: usize, wall: f64) -> Self {
         Self {
             experiment: &exp.name,
             kind: exp.kind.name(),
@@ -159,7 +159,7 @@ pub struct Finished {
 
 /// Runs `exp` (not of kind `viapoint`) and writes its results into `stage`.
 pub fn run(
-    exp: &ViaPointExperiment,
+    exp: &Experiment,
     ctx: &RunContext<'_>,
     stage: &Staging,
     wall: &dyn Fn() -> f64,

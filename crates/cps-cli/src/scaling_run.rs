@@ -8,7 +8,7 @@ use anyhow::Result;
 use cps_learn::{Parametrisation, ViaPointOutcome, learn_via_points};
 use serde::Serialize;
 
-use crate::experiment::ViaPointExperiment;
+use crate::experiment::Experiment;
 use crate::output::Staging;
 use crate::plots::{CostArm, Series, costs, figures, way_points};
 use crate::report::{self, Table};
@@ -37,7 +37,7 @@ fn band(values: &[f64]) -> (f64, f64, f64) {
 
 /// Runs every arm (the same seeds for each) and writes the results into `stage`.
 pub fn run(
-    exp: &ViaPointExperiment,
+    exp: &Experiment,
     ctx: &RunContext<'_>,
     stage: &Staging,
     wall: &dyn Fn() -> f64,
@@ -202,7 +202,7 @@ struct ArmSummary {
 }
 
 fn write(
-    exp: &ViaPointExperiment,
+    exp: &Experiment,
     arms: &[Arm],
     verdict: &str,
     stage: &Staging,

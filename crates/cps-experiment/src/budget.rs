@@ -20,7 +20,7 @@
 
 use std::ops::Range;
 
-use crate::experiment::{InputError, Kind, ViaPointExperiment};
+use crate::experiment::{Experiment, InputError, Kind};
 
 /// The ceilings a run may not exceed.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -93,7 +93,7 @@ pub struct Factors {
 }
 
 /// Estimates what `exp` needs.
-pub fn estimate(exp: &ViaPointExperiment) -> Estimate {
+pub fn estimate(exp: &Experiment) -> Estimate {
     let c = &exp.config;
     let dmp = &c.task.dmp;
     let samples = (dmp.tau / dmp.dt).round() + 1.0;
@@ -169,7 +169,7 @@ pub fn estimate(exp: &ViaPointExperiment) -> Estimate {
 /// Refuses `exp` when its estimate exceeds a ceiling, naming the key (with its place) that
 /// is furthest above an ordinary experiment's value.
 pub fn check(
-    exp: &ViaPointExperiment,
+    exp: &Experiment,
     factors: &Factors,
     ceilings: &Ceilings,
     locate: &dyn Fn(&Range<usize>) -> String,

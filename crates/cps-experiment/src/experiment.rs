@@ -54,7 +54,7 @@ pub fn read_text(path: &Path, limit: u64, what: &str) -> Result<String, InputErr
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct File {
-    experiment: Experiment,
+    experiment: ExperimentSection,
     dmp: Dmp,
     task: Task,
     #[serde(default)]
@@ -107,7 +107,7 @@ impl Kind {
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct Experiment {
+struct ExperimentSection {
     #[serde(default)]
     kind: Option<Spanned<Kind>>,
     name: Option<String>,
@@ -201,9 +201,10 @@ fn yes() -> bool {
     true
 }
 
-/// A parsed and validated experiment.
+/// A parsed and validated experiment of one kind (`kind`), with the plan of its kind's
+/// own sections.
 #[derive(Debug, Clone)]
-pub struct ViaPointExperiment {
+pub struct Experiment {
     /// What the file runs.
     pub kind: Kind,
     /// Experiment name (file stem unless given).
@@ -228,6 +229,19 @@ pub struct ViaPointExperiment {
     pub estimate: Option<crate::budget::Estimate>,
 }
 
+impl Experiment {
+    /// Reads and validates an experiment file (see [`load`]).
+    pub fn from_path(path: &Path, ceilings: &Ceilings) -> Result<Self, InputError> {
+        load(path, None, ceilings)
+    }
+
+    /// Validates experiment text; `path` names it in messages and places relative scene
+    /// files (see [`parse`]).
+    pub fn from_text(path: &Path, text: &str, ceilings: &Ceilings) -> Result<Self, InputError> {
+        parse(path, text, None, ceilings)
+    }
+}
+
 /// `file:line:column` of a byte offset.
 pub(crate) fn location(path: &Path, text: &str, span: &Range<usize>) -> String {
     let before = &text[..span.start.min(text.len())];
@@ -242,7 +256,7 @@ pub fn load(
     path: &Path,
     seed_override: Option<u64>,
     ceilings: &Ceilings,
-) -> Result<ViaPointExperiment, InputError> {
+) -> Result<Experiment, InputError> {
     let text = read_text(path, MAX_FILE_BYTES, "experiment file")?;
     parse(path, &text, seed_override, ceilings)
 }
@@ -253,7 +267,7 @@ pub fn parse(
     text: &str,
     seed_override: Option<u64>,
     ceilings: &Ceilings,
-) -> Result<ViaPointExperiment, InputError> {
+) -> Result<Experiment, InputError> {
     if text.len() as u64 > MAX_FILE_BYTES {
         return Err(InputError(format!(
             "{}: the experiment file has {} bytes, more than the {} cps reads",
@@ -451,7 +465,7 @@ pub fn parse(
         orientation: file.orientation.as_ref(),
     };
     let plans = sections.parse(&config)?;
-    let mut exp = ViaPointExperiment {
+    let mut exp = Experiment {
         kind,
         name,
         config,
@@ -473,7 +487,7 @@ pub fn parse(
 }
 
 /// The keys that scale an experiment's cost, with how far each is from an ordinary value.
-fn budget_factors(file: &File, exp: &ViaPointExperiment) -> crate::budget::Factors {
+fn budget_factors(file: &File, exp: &Experiment) -> crate::budget::Factors {
     let c = &exp.config;
     let d = &file.dmp;
     let o = &file.optimizer;
@@ -585,7 +599,7 @@ mod tests {
 
     const SHIPPED: &str = include_str!("../../../experiments/viapoint.toml");
 
-    fn check(text: &str) -> Result<ViaPointExperiment, InputError> {
+    fn check(text: &str) -> Result<Experiment, InputError> {
         parse(Path::new("x.toml"), text, None, &Ceilings::default())
     }
 

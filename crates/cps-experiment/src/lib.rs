@@ -4,15 +4,15 @@
 //! never touch a file cps did not write.
 //!
 //! Reading is the first layer of file format → plan → run → outcome → files: an
-//! [`experiment::ViaPointExperiment`] is a typed, validated experiment whose errors name
+//! [`Experiment`] is a typed, validated experiment whose errors name
 //! the file, line and column. Running a kind and the result model still live in
 //! `cps-cli` and move here next (issue 16).
 //!
 //! ```
-//! use cps_experiment::budget::Ceilings;
+//! use cps_experiment::{Experiment, budget::Ceilings};
 //! // Doctests run in the crate's folder.
 //! let path = std::path::Path::new("../../experiments/viapoint.toml");
-//! let exp = cps_experiment::experiment::load(path, None, &Ceilings::default())?;
+//! let exp = Experiment::from_path(path, &Ceilings::default())?;
 //! assert_eq!(exp.config.task.via.len(), 4);
 //! let need = exp.estimate.expect("estimated when read");
 //! assert!(need.memory_bytes < 1e9);
@@ -29,3 +29,4 @@ pub mod robot_file;
 pub mod scene;
 
 pub use error::{Context, ExperimentError, InputError};
+pub use experiment::{Experiment, Kind};
