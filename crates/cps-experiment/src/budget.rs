@@ -64,12 +64,16 @@ pub struct Estimate {
 impl Estimate {
     /// One line for `check` and the progress of `run`.
     pub fn describe(&self) -> String {
+        let evaluations = if self.evaluations > 0.0 {
+            format!("up to {:.1e} cost evaluations", self.evaluations)
+        } else {
+            "solved exactly, no search".into()
+        };
         format!(
-            "needs at most ≈ {} of memory and ≈ {:.1e} operations ({} samples per rollout, up to {:.1e} cost evaluations)",
+            "needs at most ≈ {} of memory and ≈ {:.1e} operations ({} samples per rollout, {evaluations})",
             bytes(self.memory_bytes),
             self.work,
             self.samples,
-            self.evaluations
         )
     }
 }
@@ -142,7 +146,14 @@ pub fn estimate(exp: &Experiment) -> Estimate {
         Kind::Viapoint => {}
     }
     let lambda = population as f64;
-    let evaluations = lambda * g * r * multiplier;
+    // The exact solver evaluates no population (via points and imitation's learner).
+    let searches = !(c.solver == cps_learn::Solver::Exact
+        && matches!(exp.kind, Kind::Viapoint | Kind::Imitation));
+    let evaluations = if searches {
+        lambda * g * r * multiplier
+    } else {
+        0.0
+    };
     let rollout = samples * d * (basis + per_sample_extra);
     let rows = 3.0 * samples * d;
     let nf = n as f64;
