@@ -986,16 +986,19 @@ fn oversized_experiments_are_refused_by_their_estimate() {
 fn files_cps_did_not_write_are_never_touched() {
     let dir = tempfile::tempdir().unwrap();
     let exp = write(dir.path(), "e.toml", &small_experiment());
-    let out = dir.path().join("out");
-    std::fs::create_dir(&out).unwrap();
-    std::fs::write(out.join("thesis.pdf"), b"precious").unwrap();
-    for force in [false, true] {
+    let run = |out: &std::path::Path, force: bool| {
         let mut args = vec!["run", exp.to_str().unwrap(), "--out", out.to_str().unwrap()];
         args.push("--quiet");
         if force {
             args.push("--force");
         }
-        let o = cli(&args);
+        cli(&args)
+    };
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    std::fs::write(out.join("thesis.pdf"), b"precious").unwrap();
+    for force in [false, true] {
+        let o = run(&out, force);
         assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
         assert!(stderr(&o).contains("`thesis.pdf`"), "{}", stderr(&o));
     }
@@ -1007,29 +1010,16 @@ fn files_cps_did_not_write_are_never_touched() {
     assert_eq!(std::fs::read(out.join("thesis.pdf")).unwrap(), b"precious");
 
     let ours = dir.path().join("ours");
-    let run = |force: bool| {
-        let mut args = vec![
-            "run",
-            exp.to_str().unwrap(),
-            "--out",
-            ours.to_str().unwrap(),
-        ];
-        args.push("--quiet");
-        if force {
-            args.push("--force");
-        }
-        cli(&args)
-    };
-    assert!(run(false).status.success());
+    assert!(run(&ours, false).status.success());
     let manifest = json(&ours.join("cps-manifest.json"));
     let listed = manifest["files"].as_array().unwrap();
     assert!(listed.iter().any(|f| f == "summary.json"));
     assert!(
-        run(true).status.success(),
+        run(&ours, true).status.success(),
         "--force replaces cps's own results"
     );
     std::fs::write(ours.join("notes.txt"), b"mine").unwrap();
-    let o = run(true);
+    let o = run(&ours, true);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("`notes.txt`"), "{}", stderr(&o));
     assert_eq!(std::fs::read(ours.join("notes.txt")).unwrap(), b"mine");
