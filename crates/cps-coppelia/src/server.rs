@@ -344,6 +344,9 @@ impl Sim {
                 codec::as_i64(v).ok_or(format!("argument {} must be an integer", i + 1))
             })
         };
+        // Setters: 4.6+ order (handle, value, relativeTo) when argument 2 is a table, the
+        // old order (handle, relativeTo, value) otherwise.
+        let new_order = || matches!(args.get(1).map(codec::untag), Some(Value::Array(_)));
         let none = Ok(vec![]);
         match func {
             "zmqRemoteApi.require" => match args.first().and_then(codec::as_text).as_deref() {
@@ -425,9 +428,10 @@ impl Sim {
             "sim.setObjectPosition" => {
                 let h = int(0)?;
                 // 4.6+ order (h, pos, rel); the old order (h, rel, pos) is accepted too.
-                let (p, r) = match vec(1, 3) {
-                    Ok(p) => (p, rel(2)?),
-                    Err(_) => (vec(2, 3)?, rel(1)?),
+                let (p, r) = if new_order() {
+                    (vec(1, 3)?, rel(2)?)
+                } else {
+                    (vec(2, 3)?, rel(1)?)
                 };
                 let mut pose = self.relative(h, r)?;
                 pose.translation = Translation3::new(p[0], p[1], p[2]);
@@ -436,9 +440,10 @@ impl Sim {
             }
             "sim.setObjectPose" => {
                 let h = int(0)?;
-                let (p, r) = match vec(1, 7) {
-                    Ok(p) => (p, rel(2)?),
-                    Err(_) => (vec(2, 7)?, rel(1)?),
+                let (p, r) = if new_order() {
+                    (vec(1, 7)?, rel(2)?)
+                } else {
+                    (vec(2, 7)?, rel(1)?)
                 };
                 let q = Quaternion::new(p[6], p[3], p[4], p[5]);
                 let norm = q.norm();
@@ -454,9 +459,10 @@ impl Sim {
             }
             "sim.setObjectMatrix" => {
                 let h = int(0)?;
-                let (m, r) = match vec(1, 12) {
-                    Ok(m) => (m, rel(2)?),
-                    Err(_) => (vec(2, 12)?, rel(1)?),
+                let (m, r) = if new_order() {
+                    (vec(1, 12)?, rel(2)?)
+                } else {
+                    (vec(2, 12)?, rel(1)?)
                 };
                 let rot =
                     nalgebra::Matrix3::new(m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10]);

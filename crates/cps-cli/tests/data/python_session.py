@@ -56,4 +56,37 @@ except Exception as e:  # the client raises a plain Exception with the server's 
     assert "Object does not exist" in str(e), e
 else:
     raise AssertionError("no exception for a missing object")
+# Degenerate matrices, poses and joint values get an error reply; the server keeps
+# answering (a reflection used to hang it).
+d = sim.createDummy(0.01)
+degenerate = [
+    [-1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0],           # a reflection
+    [0] * 12,                                        # zeros
+    [2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 2, 0],            # a scaling
+    [1e300, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0],        # huge
+    [float("nan"), 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0], # not finite
+]
+for m in degenerate:
+    try:
+        sim.setObjectMatrix(d, m, sim.handle_world)
+    except Exception as e:
+        assert "matrix" in str(e) or "finite" in str(e), e
+    else:
+        raise AssertionError(f"no exception for the matrix {m}")
+for pose in ([0, 0, 0, 0, 0, 0, 0], [float("inf"), 0, 0, 0, 0, 0, 1]):
+    try:
+        sim.setObjectPose(d, pose, sim.handle_world)
+    except Exception:
+        pass
+    else:
+        raise AssertionError(f"no exception for the pose {pose}")
+try:
+    sim.setJointPosition(sim.getObject("/Panda_joint1"), float("nan"))
+except Exception:
+    pass
+else:
+    raise AssertionError("no exception for a NaN joint value")
+sim.setObjectMatrix(d, [1, 0, 0, 0.5, 0, 1, 0, 0.25, 0, 0, 1, 0.125], sim.handle_world)
+assert sim.getObjectPosition(d, sim.handle_world) == [0.5, 0.25, 0.125]
+sim.removeObjects([d])
 print("python session ok")
