@@ -315,6 +315,12 @@ pub fn curves_to_file(
         .map_or("figure".into(), |n| n.to_string_lossy().into_owned());
     let ext = if svg { "svg" } else { "png" };
     let tmp = path.with_file_name(format!(".{name}.cps-tmp-{}.{ext}", std::process::id()));
+    if tmp.exists() {
+        return Err(fail(format!(
+            "{} is in the way of the temporary figure; remove it",
+            tmp.display()
+        )));
+    }
     let drawn = if svg {
         let root = SVGBackend::new(&tmp, size).into_drawing_area();
         curves_plot(&root, names, series, points)

@@ -739,8 +739,7 @@ impl Cmaes {
             && cp.flat_generations <= g
             && cp.best_history.len() as u64 == g
             && cp.median_history.len() as u64 == g
-            && (cp.sorted_costs.is_empty() || cp.sorted_costs.len() == cp.population)
-            && (g == 0 || cp.sorted_costs.len() == cp.population)
+            && (cp.sorted_costs.len() == cp.population || (g == 0 && cp.sorted_costs.is_empty()))
             && cp.best.as_ref().is_none_or(|(x, _)| x.len() == n)
             && cp.condition.is_finite()
             && cp.condition >= 1.0;

@@ -102,7 +102,7 @@ impl CmaesConfig {
         // matrices: refuse what cannot fit rather than abort on allocation.
         let lambda = self
             .population
-            .unwrap_or(4 + (3.0 * (n as f64).ln()).floor() as usize);
+            .unwrap_or_else(|| Parameters::default_lambda(n));
         if (lambda as f64) * (n as f64) > MAX_VALUES {
             return Err(CmaesError::InvalidConfig {
                 field: "population",

@@ -12,7 +12,7 @@
 
 use std::io;
 
-use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, BufStream};
 
 /// The default ceiling on one message (all its frames together): 16 MiB. The remote API's
 /// messages are small (a 7-joint call is < 200 bytes; a table of 10⁵ floats ≈ 0.9 MiB).
@@ -95,10 +95,12 @@ const FLAG_MORE: u8 = 0x01;
 const FLAG_LONG: u8 = 0x02;
 const FLAG_COMMAND: u8 = 0x04;
 
-/// One ZMTP connection over a byte stream (a TCP socket).
+/// One ZMTP connection over a byte stream (a TCP socket), buffered both ways: a message
+/// leaves in one write at `flush`, and frame headers are read from the buffer, not by a
+/// system call each.
 #[derive(Debug)]
 pub struct Connection<S> {
-    stream: S,
+    stream: BufStream<S>,
     max_message: usize,
 }
 
@@ -113,7 +115,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Connection<S> {
     /// Greets the peer and exchanges `READY` commands (NULL mechanism) as `socket_type`.
     /// Callers bound it with a timeout.
     pub async fn handshake(
-        mut stream: S,
+        stream: S,
         socket_type: SocketType,
         max_message: usize,
     ) -> Result<Self, ZmtpError> {
@@ -124,7 +126,9 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Connection<S> {
         greeting[10] = 3;
         greeting[11] = 0;
         greeting[12..16].copy_from_slice(b"NULL");
+        let mut stream = BufStream::new(stream);
         stream.write_all(&greeting).await?;
+        stream.flush().await?;
         let mut peer = [0u8; 64];
         stream.read_exact(&mut peer[..10]).await?;
         if peer[0] != 0xff || peer[9] & 1 != 1 {

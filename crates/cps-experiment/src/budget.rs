@@ -109,7 +109,7 @@ pub fn estimate(exp: &Experiment) -> Estimate {
     let n = dims * dmp.n_basis;
     let population = c
         .population
-        .unwrap_or(4 + (3.0 * (n.max(1) as f64).ln()).floor() as usize);
+        .unwrap_or_else(|| cps_cmaes::Parameters::default_lambda(n.max(1)));
     let (g, r) = (c.generations as f64, c.repetitions as f64);
     let d = dims as f64;
     let mut multiplier = 1.0;

@@ -16,13 +16,16 @@
 //! - a file, a symbolic link, a literal `~`, or a place that cannot be written: refused
 //!   with a sentence saying so.
 //!
-//! Staging directories are created with a fresh name (never reused, never cleared) and
-//! removed only by the run that made them.
+//! Staging directories are created with a fresh name (never reused, never cleared). A
+//! staging directory knows the files cps asked for in it ([`Staging::path`]): only those
+//! are moved into place and listed in the manifest, and a failed run removes only those
+//! and then the directory if it is empty — never a whole tree.
 
 use std::collections::BTreeSet;
 use std::fs;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 use crate::experiment::InputError;
 use crate::{Context, ExperimentError};
@@ -85,26 +88,6 @@ fn is_plain_relative(name: &str) -> bool {
     !name.is_empty()
         && p.components()
             .all(|c| matches!(c, std::path::Component::Normal(_)))
-}
-
-/// The regular files under `dir`, as relative paths with `/` separators (staging
-/// directories of cps skipped).
-fn list_files(dir: &Path, prefix: &str, out: &mut Vec<String>) -> std::io::Result<()> {
-    for entry in fs::read_dir(dir)? {
-        let entry = entry?;
-        let name = entry.file_name().to_string_lossy().into_owned();
-        let rel = if prefix.is_empty() {
-            name.clone()
-        } else {
-            format!("{prefix}/{name}")
-        };
-        if entry.file_type()?.is_dir() {
-            list_files(&entry.path(), &rel, out)?;
-        } else {
-            out.push(rel);
-        }
-    }
-    Ok(())
 }
 
 /// Checks that results may be written to `out` (see the module docs). Nothing is created.
@@ -189,6 +172,8 @@ pub struct Staging {
     tmp: PathBuf,
     target: PathBuf,
     kind: Target,
+    /// The files cps asked for in `tmp` (relative paths).
+    written: Mutex<BTreeSet<String>>,
     done: bool,
 }
 
@@ -241,13 +226,28 @@ impl Staging {
             tmp,
             target: out.to_path_buf(),
             kind,
+            written: Mutex::new(BTreeSet::new()),
             done: false,
         })
     }
 
-    /// Path of a file inside the staging directory.
+    /// Path of a file inside the staging directory, recorded as one cps writes.
     pub fn path(&self, file: &str) -> PathBuf {
+        self.written
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .insert(file.to_string());
         self.tmp.join(file)
+    }
+
+    /// The recorded files that exist in the staging directory as regular files, sorted.
+    fn staged_files(&self) -> Vec<String> {
+        let written = self.written.lock().unwrap_or_else(|p| p.into_inner());
+        written
+            .iter()
+            .filter(|f| fs::symlink_metadata(self.tmp.join(f)).is_ok_and(|m| m.is_file()))
+            .cloned()
+            .collect()
     }
 
     /// Writes a whole file.
@@ -264,10 +264,7 @@ impl Staging {
     /// or removed; a file that appeared in the target during the run and is not cps's
     /// stops the commit, and the results stay in the staging directory (named in the error).
     pub fn commit(mut self) -> Result<(), ExperimentError> {
-        let mut files = Vec::new();
-        list_files(&self.tmp, "", &mut files)
-            .context_with(|| format!("cannot list {}", self.tmp.display()))?;
-        files.sort();
+        let files = self.staged_files();
         match &self.kind {
             Target::New => {
                 write_manifest(&self.tmp, &files)?;
@@ -356,9 +353,14 @@ fn write_manifest(dir: &Path, files: &[String]) -> Result<(), ExperimentError> {
 }
 
 impl Drop for Staging {
+    /// A run that did not commit removes the files it staged and then the staging
+    /// directory if nothing else is in it.
     fn drop(&mut self) {
         if !self.done {
-            fs::remove_dir_all(&self.tmp).ok();
+            for f in self.staged_files() {
+                fs::remove_file(self.tmp.join(f)).ok();
+            }
+            remove_empty_tree(&self.tmp);
         }
     }
 }
@@ -433,6 +435,25 @@ pub fn check_file_target(path: &Path, kind: FileKind, force: bool) -> Result<(),
 mod tests {
     use super::*;
 
+    /// The files under `dir`, as relative paths with `/` separators.
+    fn list_files(dir: &Path, prefix: &str, out: &mut Vec<String>) -> std::io::Result<()> {
+        for entry in fs::read_dir(dir)? {
+            let entry = entry?;
+            let name = entry.file_name().to_string_lossy().into_owned();
+            let rel = if prefix.is_empty() {
+                name.clone()
+            } else {
+                format!("{prefix}/{name}")
+            };
+            if entry.file_type()?.is_dir() {
+                list_files(&entry.path(), &rel, out)?;
+            } else {
+                out.push(rel);
+            }
+        }
+        Ok(())
+    }
+
     fn names(dir: &Path) -> BTreeSet<String> {
         let mut v = Vec::new();
         list_files(dir, "", &mut v).unwrap();
@@ -452,6 +473,31 @@ mod tests {
         );
         // Nothing else is left beside it.
         assert_eq!(fs::read_dir(d.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn only_the_files_cps_staged_are_removed_moved_or_listed() {
+        let d = tempfile::tempdir().unwrap();
+        let out = d.path().join("r");
+        // A failed run leaves a stranger's file in the staging folder alone.
+        let s = Staging::prepare(&out, false).unwrap();
+        s.write("a.txt", b"1").unwrap();
+        let stray = s.tmp.join("stray.txt");
+        fs::write(&stray, b"not cps's").unwrap();
+        drop(s);
+        assert_eq!(fs::read(&stray).unwrap(), b"not cps's");
+        assert!(!stray.with_file_name("a.txt").exists());
+        // A committed run lists only what cps wrote.
+        fs::create_dir(&out).unwrap();
+        let s = Staging::prepare(&out, false).unwrap();
+        s.write("a.txt", b"1").unwrap();
+        fs::write(s.tmp.join("stray.txt"), b"x").unwrap();
+        let staging = s.tmp.clone();
+        s.commit().unwrap();
+        let listed = read_manifest(&out).unwrap().unwrap();
+        assert_eq!(listed, ["a.txt".to_string()].into_iter().collect());
+        assert!(!out.join("stray.txt").exists());
+        assert_eq!(fs::read(staging.join("stray.txt")).unwrap(), b"x");
     }
 
     #[test]
