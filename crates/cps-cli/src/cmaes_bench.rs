@@ -18,7 +18,7 @@ use cps_cmaes::{
     minimize_ipop,
 };
 
-use crate::experiment::InputError;
+use cps_experiment::InputError;
 
 /// A standard test function (all with minimum 0).
 #[derive(Debug, Clone, Copy, ValueEnum)]

@@ -26,22 +26,31 @@
 //! line and column), 130 interrupted by Ctrl-C (the results of the finished generations are
 //! still written, with `"complete": false`).
 
-use cps_cli::{
-    budget, cmaes_bench, experiment, movement, output, plots, robot, runner, say, scene, simserve,
-};
-use std::io::IsTerminal;
-use std::ops::ControlFlow;
+/// Prints a line to stdout, ignoring a closed pipe (`cps-cli fk ... | head` must not panic).
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
+
+mod cmaes_bench;
+mod movement;
+mod progress;
+mod robot;
+mod scene;
+mod simserve;
+
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::time::Instant;
+use std::sync::atomic::{AtomicBool, Ordering};
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::{Parser, Subcommand};
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-
-use cps_cli::experiment::InputError;
+use cps_experiment::files::{WriteOptions, write_outcome};
+use cps_experiment::results_dir::Staging;
+use cps_experiment::{Experiment, ExperimentError, InputError, RunOptions, budget, experiment};
 
 /// The commented default experiment: the file shipped as experiments/viapoint.toml.
 const DEFAULT_EXPERIMENT: &str = include_str!("../../../experiments/viapoint.toml");
@@ -226,162 +235,54 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
     }
 }
 
+/// A library error as the command line reports it: input problems keep their own type
+/// (exit 2), the rest their chain of causes (exit 1).
+pub(crate) fn cli_error(e: ExperimentError) -> anyhow::Error {
+    match e {
+        ExperimentError::Input(e) => anyhow::Error::new(e),
+        other => anyhow::Error::new(other),
+    }
+}
+
 fn run_experiment(args: &RunArgs, interrupted: &AtomicBool) -> Result<ExitCode> {
-    let (file, seed, threads, force, quiet) = (
-        args.file.as_path(),
-        args.seed,
-        args.threads,
-        args.force,
-        args.quiet,
-    );
     let ceilings = &args.ceilings.ceilings()?;
-    let out = args.out.clone();
-    let started = Instant::now();
-    let exp = experiment::load(file, seed, ceilings)?;
-    let out = out.unwrap_or_else(|| Path::new("results").join(&exp.name));
-    if let Some(t) = threads
+    let exp: Experiment = experiment::load(&args.file, args.seed, ceilings)?;
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| Path::new("results").join(&exp.name));
+    if let Some(t) = args.threads
         && !(1..=1024).contains(&t)
     {
         return Err(InputError(format!("--threads {t}: must be between 1 and 1024")).into());
     }
     // The output is checked, and its staging directory made, before any work.
-    let stage = output::Staging::prepare(&out, force)?;
-    let mut builder = rayon::ThreadPoolBuilder::new();
-    if let Some(t) = threads {
-        builder = builder.num_threads(t);
-    }
-    let pool = builder.build().context("cannot start the worker threads")?;
-    let threads_used = pool.current_num_threads();
-
-    let config = &exp.config;
-    let total = match exp.kind {
-        experiment::Kind::Viapoint => config.generations * config.repetitions as u64,
-        experiment::Kind::Scaling => {
-            config.generations
-                * config.repetitions as u64
-                * exp.scaling.as_ref().map_or(1, |s| s.compare.len() as u64)
-        }
-        experiment::Kind::Imitation => 0,
-        experiment::Kind::ViapointJoint => config.generations,
-        experiment::Kind::ViapointPose => 2 * config.generations,
-        experiment::Kind::ViapointEnergy => {
-            config.generations + 6 * exp.energy.map_or(0, |e| e.speedup_generations)
-        }
+    let stage = Staging::prepare(&out, args.force)?;
+    let observer = progress::Terminal::new(!args.quiet, interrupted);
+    let options = RunOptions {
+        threads: args.threads,
     };
-    let bar = if quiet || !std::io::stderr().is_terminal() {
-        ProgressBar::hidden()
-    } else if total == 0 {
-        ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr_with_hz(10))
-    } else {
-        ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr_with_hz(10))
-    };
-    bar.set_style(
-        ProgressStyle::with_template(if total == 0 {
-            "{spinner} {msg}  [{elapsed_precise}]"
-        } else {
-            "{bar:30} {pos}/{len} generations  {msg}  [{elapsed_precise}]"
-        })
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    if exp.kind != experiment::Kind::Viapoint {
-        let ctx = runner::RunContext {
-            pool: &pool,
-            bar: &bar,
-            interrupted,
-        };
-        let wall = || started.elapsed().as_secs_f64();
-        let finished = runner::run(&exp, &ctx, &stage, &wall)?;
-        if !quiet {
-            for line in &finished.lines {
-                say!("{line}");
-            }
+    let outcome = cps_experiment::run(&exp, &options, &observer).map_err(cli_error)?;
+    observer.clear();
+    let written = WriteOptions { figures: exp.plots };
+    write_outcome(&outcome, &stage, &written).map_err(cli_error)?;
+    stage.commit().map_err(cli_error)?;
+    if !args.quiet {
+        for line in &outcome.lines {
+            say!("{line}");
         }
-        let complete = finished.complete;
-        stage.commit()?;
-        if !quiet {
-            say!("  results and report.html in {}", out.display());
-        }
-        if let Some(failure) = &finished.failure {
-            eprintln!(
-                "error: the run stopped early: {failure}\n  what was finished is in {} (summary.json says \"complete\": false and counts what was done)",
-                out.display()
-            );
-            return Ok(ExitCode::from(1));
-        }
-        if !complete {
-            eprintln!(
-                "interrupted: the finished part is in {} (complete: false)",
-                out.display()
-            );
-            return Ok(ExitCode::from(130));
-        }
-        return Ok(ExitCode::SUCCESS);
+        say!("  results and report.html in {}", out.display());
     }
-    let best_bits = AtomicU64::new(f64::INFINITY.to_bits());
-    let progress = |_rep: usize, r: &cps_cmaes::GenerationReport<'_>| {
-        bar.inc(1);
-        let prev = f64::from_bits(best_bits.load(Ordering::Relaxed));
-        if r.best_so_far < prev {
-            best_bits.store(r.best_so_far.to_bits(), Ordering::Relaxed);
-        }
-        if r.generation.is_multiple_of(25) {
-            bar.set_message(format!(
-                "best cost {:.4e}  sigma {:.2e}",
-                f64::from_bits(best_bits.load(Ordering::Relaxed)),
-                r.sigma
-            ));
-        }
-        if interrupted.load(Ordering::Relaxed) {
-            ControlFlow::Break(())
-        } else {
-            ControlFlow::Continue(())
-        }
-    };
-    let outcome = pool
-        .install(|| cps_learn::learn_via_points(config, &progress))
-        .map_err(|e| match e {
-            cps_learn::LearnError::InvalidTask { .. } | cps_learn::LearnError::Dmp(_) => {
-                anyhow::Error::new(InputError(format!("{}: {e}", file.display())))
-            }
-            other => anyhow::Error::new(other).context("the learning run failed"),
-        })?;
-    bar.finish_and_clear();
-    let wall = started.elapsed().as_secs_f64();
-
-    output::write_viapoint(&stage, &exp.name, config, &outcome, wall, threads_used)?;
-    if exp.plots {
-        plots::viapoint(&stage, &outcome, &config.task)?;
-    }
-    output::viapoint_report(&stage, &exp, &outcome, wall, threads_used)?;
-    stage.commit()?;
-
-    let best = outcome.best();
-    if !quiet {
-        say!(
-            "{}: {} in {:.2} s",
-            exp.name,
-            best.termination,
-            started.elapsed().as_secs_f64()
-        );
-        say!(
-            "  best cost {:.6e} (exact optimum {:.6e}, gap {:.2e}) after {} generations, {} evaluations",
-            best.cost,
-            outcome.optimum.cost,
-            best.gap_to_optimum,
-            best.generations,
-            best.evaluations
-        );
-        say!(
-            "  goal error {:.3} mm, worst via-point error {:.3} mm, final speed {:.3} mm/s",
-            best.errors.goal * 1e3,
-            best.errors.via.iter().fold(0.0f64, |a, &b| a.max(b)) * 1e3,
-            best.errors.final_speed * 1e3
-        );
-        say!("  results in {}", out.display());
-    }
-    if outcome.interrupted() {
+    if let Some(failure) = outcome.failure() {
         eprintln!(
-            "interrupted: results of the finished generations are in {} (complete: false)",
+            "error: the run stopped early: {failure}\n  what was finished is in {} (summary.json says \"complete\": false and counts what was done)",
+            out.display()
+        );
+        return Ok(ExitCode::from(1));
+    }
+    if !outcome.complete() {
+        eprintln!(
+            "interrupted: the finished part is in {} (complete: false)",
             out.display()
         );
         return Ok(ExitCode::from(130));

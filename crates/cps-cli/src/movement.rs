@@ -1,23 +1,20 @@
 //! `cps-cli imitate` and `cps-cli rollout`: DMP models from demonstrations (CSV) and
-//! trajectories from models (JSON), for users who want the DMP layer alone.
-//!
-//! Demonstration CSV: a header row naming the columns, then one row per sample: the time
-//! in seconds first, then one column per dimension. Trajectory CSV (written): `time`, each
-//! dimension's position, then `<name>_vel` and `<name>_acc` per dimension (SI units).
+//! trajectories from models (JSON), for users who want the DMP layer alone. The work is
+//! `cps_experiment::movement`'s; this is arguments, output files and the terminal.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::{Args, ValueEnum};
-use cps_dmp::{
-    Combine, Demonstration, DmpConfig, DmpModel, Formulation, Imitation, Lambda, Regression,
-    imitate,
-};
+use cps_dmp::{Combine, Formulation, Lambda, Regression};
+use cps_experiment::InputError;
+use cps_experiment::figures::draw_file;
+use cps_experiment::files::{table_csv, write_file};
+use cps_experiment::movement::{ImitationSpec, RolloutSpec, imitate_files, rollout_file};
+use cps_experiment::results_dir::{FileKind, check_file_target};
 
-use crate::experiment::InputError;
-use crate::plots::{Series, curves_to_file, trajectory_series};
-use crate::results_dir::{FileKind, check_file_target};
+use crate::cli_error;
 
 /// Regression method of `imitate`.
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -139,85 +136,6 @@ fn check_outputs(
     Ok(())
 }
 
-/// Reads a demonstration CSV; errors name the file and the line.
-pub fn read_demo(path: &Path) -> Result<(Vec<String>, Demonstration), InputError> {
-    let text = crate::experiment::read_text(path, MAX_DEMO_BYTES, "demonstration")?;
-    parse_demo(path, &text)
-}
-
-/// The largest demonstration file read: 256 MiB (≈ 10⁷ samples of three coordinates).
-pub const MAX_DEMO_BYTES: u64 = 256 << 20;
-/// The most columns of a demonstration (time and 255 dimensions).
-const MAX_DEMO_COLUMNS: usize = 256;
-
-/// Parses demonstration CSV text (`path` names it in errors).
-pub fn parse_demo(path: &Path, text: &str) -> Result<(Vec<String>, Demonstration), InputError> {
-    let fail = |m: String| InputError(format!("{}: {m}", path.display()));
-    let mut reader = csv::ReaderBuilder::new()
-        .has_headers(true)
-        .trim(csv::Trim::All)
-        .from_reader(text.as_bytes());
-    let header: Vec<String> = reader
-        .headers()
-        .map_err(|e| fail(format!("cannot read the header: {e}")))?
-        .iter()
-        .map(str::to_string)
-        .collect();
-    if header.len() < 2 {
-        return Err(fail(format!(
-            "the header has {} column(s); needed: time, then one column per dimension",
-            header.len()
-        )));
-    }
-    if header.len() > MAX_DEMO_COLUMNS {
-        return Err(fail(format!(
-            "the header has {} columns; at most {MAX_DEMO_COLUMNS} are read (time and one per dimension)",
-            header.len()
-        )));
-    }
-    if header.iter().all(|h| h.parse::<f64>().is_ok()) {
-        return Err(fail(
-            "line 1: no header row; the first line must name the columns (time, then one per dimension)".into(),
-        ));
-    }
-    let (mut times, mut rows) = (Vec::new(), Vec::new());
-    for (i, record) in reader.records().enumerate() {
-        let line = i + 2;
-        let record = record.map_err(|e| fail(format!("line {line}: {e}")))?;
-        if record.len() != header.len() {
-            return Err(fail(format!(
-                "line {line}: {} values, the header has {} columns",
-                record.len(),
-                header.len()
-            )));
-        }
-        let mut values = Vec::with_capacity(record.len());
-        for (c, field) in record.iter().enumerate() {
-            let v: f64 = field.parse().map_err(|_| {
-                fail(format!(
-                    "line {line}, column `{}`: `{field}` is not a number",
-                    header[c]
-                ))
-            })?;
-            if !v.is_finite() {
-                return Err(fail(format!(
-                    "line {line}, column `{}`: {v} is not finite",
-                    header[c]
-                )));
-            }
-            values.push(v);
-        }
-        times.push(values[0]);
-        rows.push(values[1..].to_vec());
-    }
-    let demo = Demonstration::new(times, &rows).map_err(|e| {
-        // Sample k is on line k + 2: say so.
-        let text = e.to_string();
-        fail(format!("{text} (sample k is on line k + 2)"))
-    })?;
-    Ok((header[1..].to_vec(), demo))
-}
-
 fn parse_lambda(arg: Option<&str>, method: Method) -> Result<Lambda, InputError> {
     match arg {
         None => Ok(match method {
@@ -234,87 +152,35 @@ fn parse_lambda(arg: Option<&str>, method: Method) -> Result<Lambda, InputError>
     }
 }
 
-/// Writes `text` to `path` through a temporary file in the same folder, so a failure never
-/// leaves a half-written file.
-fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let mut tmp = tempfile::NamedTempFile::new_in(dir)
-        .with_context(|| format!("cannot write into {}", dir.display()))?;
-    std::io::Write::write_all(&mut tmp, bytes)?;
-    tmp.persist(path)
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    Ok(())
-}
-
 /// `cps-cli imitate`.
 pub fn run_imitate(args: &ImitateArgs) -> Result<ExitCode> {
     check_outputs(&args.out, FileKind::Model, args.plot.as_deref(), args.force)?;
-    let mut demos = Vec::new();
-    let mut names: Option<Vec<String>> = None;
-    for path in &args.demos {
-        let (header, demo) = read_demo(path)?;
-        if let Some(n) = &names
-            && n.len() != header.len()
-        {
-            return Err(InputError(format!(
-                "{}: {} dimensions, but {} has {}",
-                path.display(),
-                header.len(),
-                args.demos[0].display(),
-                n.len()
-            ))
-            .into());
-        }
-        names.get_or_insert(header);
-        demos.push(demo);
-    }
-    let names = names.unwrap_or_default();
-    let tau = args.tau.unwrap_or_else(|| {
-        demos.iter().map(Demonstration::duration).sum::<f64>() / demos.len() as f64
-    });
-    let dt = args
-        .dt
-        .unwrap_or_else(|| demos[0].duration() / (demos[0].len() - 1) as f64);
-    let config = DmpConfig {
+    let lambda = parse_lambda(args.lambda.as_deref(), args.method)?;
+    let spec = ImitationSpec {
+        bases: args.bases,
+        regression: match args.method {
+            Method::Lwr => Regression::Lwr,
+            Method::Ridge => Regression::Ridge { lambda },
+            Method::Jerk => Regression::JerkRidge { lambda },
+        },
+        tau: args.tau,
+        dt: args.dt,
         formulation: match args.formulation {
             FormulationArg::Ijspeert => Formulation::Ijspeert2013,
             FormulationArg::Robust => Formulation::GoalRobust,
         },
-        ..DmpConfig::new(args.bases, tau, dt)
+        combine: match args.combine {
+            CombineArg::Mean => Combine::Mean,
+            CombineArg::Stack => Combine::Stack,
+        },
     };
-    let lambda = parse_lambda(args.lambda.as_deref(), args.method)?;
-    let regression = match args.method {
-        Method::Lwr => Regression::Lwr,
-        Method::Ridge => Regression::Ridge { lambda },
-        Method::Jerk => Regression::JerkRidge { lambda },
-    };
-    let combine = match args.combine {
-        CombineArg::Mean => Combine::Mean,
-        CombineArg::Stack => Combine::Stack,
-    };
-    let fit: Imitation = imitate(&config, &demos, regression, combine).map_err(|e| match e {
-        cps_dmp::DmpError::InvalidConfig { field, rule, value } => {
-            InputError(format!("--{}: {rule} (got {value:?})", cli_name(field)))
-        }
-        other => InputError(other.to_string()),
-    })?;
-    let model = DmpModel::new(&fit.dmp, &fit.weights, names.clone());
-    write_atomically(&args.out, model.to_json().as_bytes())?;
+    let paths: Vec<&Path> = args.demos.iter().map(PathBuf::as_path).collect();
+    let imitated = imitate_files(&paths, &spec)?;
+    let (fit, names) = (&imitated.fit, &imitated.names);
+    let tau = fit.dmp.config().tau;
+    write_file(&args.out, imitated.model().to_json().as_bytes()).map_err(cli_error)?;
     if let Some(plot) = &args.plot {
-        let traj = fit.dmp.rollout(&fit.weights);
-        let series = [
-            Series {
-                label: "demonstration".into(),
-                times: traj.times(),
-                values: fit.reference.iter().map(Vec::as_slice).collect(),
-                faint: false,
-            },
-            trajectory_series("DMP", &traj),
-        ];
-        curves_to_file(plot, &names, &series, &[])?;
+        draw_file(&imitated.figure(), plot).map_err(cli_error)?;
     }
     let r = &fit.report;
     if args.json {
@@ -334,7 +200,7 @@ pub fn run_imitate(args: &ImitateArgs) -> Result<ExitCode> {
     } else {
         say!(
             "{} demonstration(s), {} dimension(s), {} bases, τ = {tau} s: model written to {}",
-            demos.len(),
+            imitated.demonstrations,
             names.len(),
             args.bases,
             args.out.display()
@@ -357,13 +223,6 @@ pub fn run_imitate(args: &ImitateArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn cli_name(field: &str) -> &str {
-    match field {
-        "n_basis" => "bases",
-        other => other,
-    }
-}
-
 /// `cps-cli rollout`.
 pub fn run_rollout(args: &RolloutArgs) -> Result<ExitCode> {
     check_outputs(
@@ -372,80 +231,23 @@ pub fn run_rollout(args: &RolloutArgs) -> Result<ExitCode> {
         args.plot.as_deref(),
         args.force,
     )?;
-    let text =
-        crate::experiment::read_text(&args.model, crate::experiment::MAX_FILE_BYTES, "model")?;
-    let in_model = |e: cps_dmp::DmpError| InputError(format!("{}: {e}", args.model.display()));
-    let model = DmpModel::from_json(&text).map_err(in_model)?;
-    let (dmp, weights) = model.to_dmp().map_err(in_model)?;
-    let dims = dmp.dims();
-    let names: Vec<String> = if model.names.is_empty() {
-        (0..dims).map(|d| format!("y{d}")).collect()
-    } else {
-        model.names.clone()
+    let spec = RolloutSpec {
+        start: args.start.clone(),
+        goal: args.goal.clone(),
+        tau: args.tau,
+        dt: args.dt,
     };
-    let check = |what: &str, v: &Option<Vec<f64>>| -> Result<Vec<f64>, InputError> {
-        match v {
-            None => Ok(if what == "start" {
-                dmp.start().to_vec()
-            } else {
-                dmp.goal().to_vec()
-            }),
-            Some(v) if v.len() != dims => Err(InputError(format!(
-                "--{what}: {} values for a {dims}-dimensional model ({})",
-                v.len(),
-                names.join(", ")
-            ))),
-            Some(v)
-                if v.iter()
-                    .any(|x| !x.is_finite() || x.abs() > cps_learn::MAX_COORDINATE) =>
-            {
-                Err(InputError(format!(
-                    "--{what}: values must be finite and at most {:e} in magnitude",
-                    cps_learn::MAX_COORDINATE
-                )))
-            }
-            Some(v) => Ok(v.clone()),
-        }
-    };
-    let (start, goal) = (check("start", &args.start)?, check("goal", &args.goal)?);
-    let mut config = *dmp.config();
-    if let Some(t) = args.tau {
-        config.tau = t;
-    }
-    if let Some(d) = args.dt {
-        config.dt = d;
-    }
-    let dmp = cps_dmp::DiscreteDmp::new(config, &start, &goal).map_err(|e| match e {
-        cps_dmp::DmpError::InvalidConfig { field, rule, value } => {
-            InputError(format!("--{field}: {rule} (got {value:?})"))
-        }
-        other => InputError(other.to_string()),
-    })?;
-    let traj = dmp.rollout(&weights);
-    let mut w = csv::Writer::from_writer(Vec::new());
-    let mut header = vec!["time".to_string()];
-    header.extend(names.iter().cloned());
-    header.extend(names.iter().map(|n| format!("{n}_vel")));
-    header.extend(names.iter().map(|n| format!("{n}_acc")));
-    w.write_record(&header)?;
-    for k in 0..traj.n_samples() {
-        let mut row = vec![traj.times()[k]];
-        row.extend((0..dims).map(|d| traj.position(d)[k]));
-        row.extend((0..dims).map(|d| traj.velocity(d)[k]));
-        row.extend((0..dims).map(|d| traj.acceleration(d)[k]));
-        w.write_record(row.iter().map(|v| v.to_string()))?;
-    }
-    let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
-    write_atomically(&args.out, &bytes)?;
+    let rolled = rollout_file(&args.model, &spec)?;
+    let csv = table_csv(&rolled.table()).map_err(cli_error)?;
+    write_file(&args.out, &csv).map_err(cli_error)?;
     if let Some(plot) = &args.plot {
-        let series = [trajectory_series("", &traj)];
-        let marks = vec![(0.0, start.clone()), (config.tau, goal.clone())];
-        curves_to_file(plot, &names, &series, &marks)?;
+        draw_file(&rolled.figure(), plot).map_err(cli_error)?;
     }
+    let traj = &rolled.trajectory;
     say!(
         "{} samples over {} s written to {}",
         traj.n_samples(),
-        config.tau,
+        rolled.tau,
         args.out.display()
     );
     Ok(ExitCode::SUCCESS)

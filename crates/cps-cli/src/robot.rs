@@ -7,8 +7,8 @@ use clap::{Args, Subcommand};
 use cps_kinematics::{ChainGeometry, DhConvention, IkConfig, IkTarget, KinematicsError, solve_ik};
 use nalgebra::{IsometryMatrix3, Quaternion, Translation3, UnitQuaternion, Vector3};
 
-use crate::experiment::InputError;
-use crate::robot_file::{RobotModel, load_robot};
+use cps_experiment::InputError;
+use cps_experiment::robot_file::{RobotModel, load_robot};
 
 /// Which robot and tool point a kinematics command works on.
 #[derive(Args, Debug)]

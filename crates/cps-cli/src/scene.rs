@@ -9,7 +9,7 @@ use anyhow::Result;
 use clap::Subcommand;
 use cps_kinematics::{IkConfig, IkTarget, SerialChain, solve_ik};
 
-pub use cps_experiment::scene::*;
+use cps_experiment::scene::load_scene;
 
 /// `cps-cli scene ...`.
 #[derive(Subcommand, Debug)]

@@ -9,8 +9,8 @@ use anyhow::Result;
 use clap::Subcommand;
 use cps_coppelia::{SceneSetup, ServerConfig, ServerLimits, StandInServer};
 
-use crate::experiment::InputError;
-use crate::scene::{THESIS_SCENE, load_scene, parse_scene};
+use cps_experiment::InputError;
+use cps_experiment::scene::{THESIS_SCENE, load_scene, parse_scene};
 
 /// `cps-cli sim ...`.
 #[derive(Subcommand, Debug)]

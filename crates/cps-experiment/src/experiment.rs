@@ -62,14 +62,14 @@ struct File {
     optimizer: Optimizer,
     #[serde(default)]
     output: Output,
-    robot: Option<Spanned<crate::pipelines::RobotSection>>,
-    demonstrations: Option<Spanned<crate::pipelines::DemonstrationsSection>>,
-    imitation: Option<Spanned<crate::pipelines::ImitationSection>>,
-    scaling: Option<Spanned<crate::pipelines::ScalingSection>>,
-    joint: Option<Spanned<crate::pipelines::JointSection>>,
-    plant: Option<Spanned<crate::pipelines::PlantSection>>,
-    speedup: Option<Spanned<crate::pipelines::SpeedupSection>>,
-    orientation: Option<Spanned<crate::pipelines::OrientationSection>>,
+    robot: Option<Spanned<crate::plan::RobotSection>>,
+    demonstrations: Option<Spanned<crate::plan::DemonstrationsSection>>,
+    imitation: Option<Spanned<crate::plan::ImitationSection>>,
+    scaling: Option<Spanned<crate::plan::ScalingSection>>,
+    joint: Option<Spanned<crate::plan::JointSection>>,
+    plant: Option<Spanned<crate::plan::PlantSection>>,
+    speedup: Option<Spanned<crate::plan::SpeedupSection>>,
+    orientation: Option<Spanned<crate::plan::OrientationSection>>,
 }
 
 /// What an experiment file runs (`[experiment] kind`).
@@ -207,6 +207,8 @@ fn yes() -> bool {
 pub struct Experiment {
     /// What the file runs.
     pub kind: Kind,
+    /// The file it was read from (names it in messages).
+    pub source: std::path::PathBuf,
     /// Experiment name (file stem unless given).
     pub name: String,
     /// The learner's configuration.
@@ -214,17 +216,17 @@ pub struct Experiment {
     /// Whether to draw plots.
     pub plots: bool,
     /// The robot and backend (`[robot]`), for kinds that execute.
-    pub robot: Option<crate::pipelines::RobotChoice>,
+    pub robot: Option<crate::plan::RobotChoice>,
     /// The imitation pipeline's settings (`kind = "imitation"`).
-    pub imitation: Option<crate::pipelines::ImitationPlan>,
+    pub imitation: Option<crate::plan::ImitationPlan>,
     /// The parametrisations compared (`kind = "scaling"`).
-    pub scaling: Option<crate::pipelines::ScalingPlan>,
+    pub scaling: Option<crate::plan::ScalingPlan>,
     /// The limit penalties (`kind = "viapoint_joint"`).
-    pub joint: Option<crate::pipelines::JointPlan>,
+    pub joint: Option<crate::plan::JointPlan>,
     /// The plant and the speed-up measurement (`kind = "viapoint_energy"`).
-    pub energy: Option<crate::pipelines::EnergyPlan>,
+    pub energy: Option<crate::plan::EnergyPlan>,
     /// The orientation targets (`kind = "viapoint_pose"`).
-    pub pose: Option<crate::pipelines::PosePlan>,
+    pub pose: Option<crate::plan::PosePlan>,
     /// What the run needs (memory, work), estimated when the file was read.
     pub estimate: Option<crate::budget::Estimate>,
 }
@@ -451,7 +453,7 @@ pub fn parse(
         .kind
         .as_ref()
         .map_or(Kind::default(), |k| *k.get_ref());
-    let sections = crate::pipelines::Sections {
+    let sections = crate::plan::Sections {
         path,
         text,
         kind,
@@ -467,6 +469,7 @@ pub fn parse(
     let plans = sections.parse(&config)?;
     let mut exp = Experiment {
         kind,
+        source: path.to_path_buf(),
         name,
         config,
         plots: file.output.plots,

@@ -1,32 +1,69 @@
-//! cps experiments as a library: the experiment file format (`[experiment] kind`, the
-//! via-point sections and each kind's own), scenes and robot files, what a file asks of
-//! the machine (memory and work, refused beyond a ceiling), and result directories that
-//! never touch a file cps did not write.
+//! cps experiments as a library: read an experiment file, run it, get its outcome as data,
+//! write it as a result directory.
 //!
-//! Reading is the first layer of file format → plan → run → outcome → files: an
-//! [`Experiment`] is a typed, validated experiment whose errors name
-//! the file, line and column. Running a kind and the result model still live in
-//! `cps-cli` and move here next (issue 16).
+//! The layers, in the order a run passes through them:
+//!
+//! 1. **file format** ([`experiment`]): `Experiment::from_path` reads and validates a TOML
+//!    file of any kind; every error names the file, line and column. Scenes
+//!    ([`scene`]) and robot files ([`robot_file`]) come with it, and [`budget`] refuses
+//!    a file that asks more of the machine than a ceiling.
+//! 2. **plan** ([`plan`]): each kind's sections as checked plans, and the robot backend
+//!    (in-process or CoppeliaSim) a file chooses.
+//! 3. **run** ([`run()`]): one entry point for every kind, with progress and
+//!    cancellation through an [`Observer`]; no terminal, no signals, no files.
+//! 4. **outcome** ([`outcome`]): one result model for every kind — the run header,
+//!    summary fields, named tables, named figures, documents and the report's words.
+//!
+//! [`movement`] holds the DMP layer alone for single movements: demonstrations from CSV,
+//! imitation, a model's rollout.
+//!
+//! 5. **files** ([`files`]): any outcome as `summary.json`, CSVs, figures (PNG + SVG)
+//!    and `report.html`, written through [`results_dir`], which never touches a file cps
+//!    did not write. Figures and the report need the `figures` feature (default); without
+//!    it plotters is not compiled.
+//!
+//! Running the shipped via-point experiment from Rust:
 //!
 //! ```
-//! use cps_experiment::{Experiment, budget::Ceilings};
+//! use cps_experiment::{Experiment, RunOptions, budget::Ceilings};
 //! // Doctests run in the crate's folder.
 //! let path = std::path::Path::new("../../experiments/viapoint.toml");
 //! let exp = Experiment::from_path(path, &Ceilings::default())?;
-//! assert_eq!(exp.config.task.via.len(), 4);
-//! let need = exp.estimate.expect("estimated when read");
-//! assert!(need.memory_bytes < 1e9);
-//! # Ok::<(), cps_experiment::InputError>(())
+//! let outcome = cps_experiment::run(&exp, &RunOptions::default(), &())?;
+//! assert!(outcome.complete());
+//! let best = outcome.summary["best_cost"].as_f64().unwrap();
+//! let optimum = outcome.summary["optimum_cost"].as_f64().unwrap();
+//! assert!(best >= optimum * (1.0 - 1e-9) && best < optimum * 1.01);
+//! // The trajectory as numbers: one column per quantity.
+//! let trajectory = outcome.table("trajectory").unwrap();
+//! assert_eq!(trajectory.columns[0].name, "t");
+//! // Written as a result directory (summary.json, CSVs, figures, report.html):
+//! let dir = std::env::temp_dir().join(format!("cps-doc-{}", std::process::id()));
+//! cps_experiment::files::save(&outcome, &dir, false, &Default::default())?;
+//! assert!(dir.join("summary.json").is_file());
+//! # std::fs::remove_dir_all(&dir).ok();
+//! # Ok::<(), cps_experiment::ExperimentError>(())
 //! ```
 #![deny(missing_docs)]
 
 pub mod budget;
 mod error;
 pub mod experiment;
-pub mod pipelines;
+#[cfg(feature = "figures")]
+pub mod figures;
+pub mod files;
+mod kinds;
+pub mod movement;
+pub mod outcome;
+pub mod plan;
+#[cfg(feature = "figures")]
+pub mod report;
 pub mod results_dir;
 pub mod robot_file;
+mod run;
 pub mod scene;
 
 pub use error::{Context, ExperimentError, InputError};
 pub use experiment::{Experiment, Kind};
+pub use outcome::Outcome;
+pub use run::{Event, Observer, RunOptions, planned_generations, run};

@@ -338,11 +338,12 @@ fn remove_empty_tree(dir: &Path) {
 
 /// Writes the manifest through a temporary file and a rename.
 fn write_manifest(dir: &Path, files: &[String]) -> Result<(), ExperimentError> {
+    // Keys in alphabetical order (as manifests have always been written).
     let text = serde_json::to_string_pretty(&serde_json::json!({
+        "files": files,
         "format": MANIFEST_FORMAT,
         "version": 1,
         "written_by": format!("cps {}", env!("CARGO_PKG_VERSION")),
-        "files": files,
     }))
     .context_with(|| "cannot encode the manifest".into())?;
     let tmp = dir.join(format!(".{MANIFEST}.tmp-{}", std::process::id()));

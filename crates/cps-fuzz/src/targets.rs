@@ -64,7 +64,7 @@ fn scene(b: &[u8]) -> bool {
 
 fn demo_csv(b: &[u8]) -> bool {
     let Some(t) = text(b) else { return false };
-    let Ok((_, demo)) = cps_cli::movement::parse_demo(Path::new("fuzz.csv"), t) else {
+    let Ok((_, demo)) = cps_experiment::movement::parse_demo(Path::new("fuzz.csv"), t) else {
         return false;
     };
     {

@@ -1,7 +1,6 @@
 //! `kind = "viapoint_joint"`: via-point learning with one DMP per joint, judged in task
 //! space, executed on the robot backend.
 
-use anyhow::{Context, Result};
 use cps_kinematics::Recording;
 use cps_learn::{
     JointCostBreakdown, JointSpaceConfig, JointSpaceOutcome, LimitReport, execute_joint_trajectory,
@@ -9,16 +8,15 @@ use cps_learn::{
 };
 use serde::Serialize;
 
-use crate::experiment::Experiment;
-use crate::output::Staging;
-use crate::plots::{CostArm, Series, costs, figures, way_points};
-use crate::report::{self, Table};
-use crate::runner::{Finished, RunContext, RunHeader, learn_error, search_row, write_history};
+use super::{cost_figure, history_table, position_figures, search_row, way_points, worst};
+use crate::outcome::{
+    Column, CostArm, Figure, Format, Outcome, Plot, Report, ReportTable, Series, Table, fields,
+};
+use crate::run::{Ctx, learn_error};
+use crate::{Context, ExperimentError};
 
 #[derive(Serialize)]
 struct Summary<'a> {
-    #[serde(flatten)]
-    header: RunHeader<'a>,
     backend: String,
     scene: &'a str,
     way_configurations_rad: &'a [Vec<f64>],
@@ -93,32 +91,28 @@ fn execution_summary(rec: &Recording, chain: &cps_kinematics::SerialChain) -> Ex
     }
 }
 
-/// Learns in joint space, executes the result and writes everything into `stage`.
-pub fn run(
-    exp: &Experiment,
-    ctx: &RunContext<'_>,
-    stage: &Staging,
-    wall: &dyn Fn() -> f64,
-) -> Result<Finished> {
+/// Learns in joint space, executes the result and declares the outcome.
+pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
+    let exp = ctx.exp;
     let robot = exp
         .robot
         .as_ref()
-        .context("a joint-space experiment has a robot")?;
-    let plan = exp
-        .joint
-        .context("a joint-space experiment has its limit weights")?;
+        .ok_or_else(|| ExperimentError::Message("a joint-space experiment has a robot".into()))?;
+    let plan = exp.joint.ok_or_else(|| {
+        ExperimentError::Message("a joint-space experiment has its limit weights".into())
+    })?;
     let mut config = JointSpaceConfig::new(exp.config.clone(), robot.setup.clone());
     config.limit_weight = plan.limit_weight;
     config.speed_limit_weight = plan.speed_limit_weight;
     let mut backend = robot.open()?;
     let outcome = ctx
         .pool
-        .install(|| learn_joint_space(&config, &|_| ctx.generation()))
+        .install(|| learn_joint_space(&config, &|r| ctx.generation(r)))
         .map_err(|e| learn_error(e, "joint-space run"))?;
-    ctx.bar.finish_and_clear();
+    ctx.observer.finished();
     let interrupted = outcome.search.interrupted();
     // A backend that fails here (a simulator that died) costs the execution, not the
-    // learned result: it is written, marked incomplete, with the reason.
+    // learned result: it is kept, marked incomplete, with the reason.
     let mut failure = None;
     let recording = if interrupted {
         None
@@ -134,9 +128,12 @@ pub fn run(
     let execution = recording
         .as_ref()
         .map(|r| execution_summary(r, &robot.setup.chain));
+    let mut header = ctx.header(!interrupted);
+    if let Some(f) = &failure {
+        header.complete = false;
+        header.failure = Some(f.clone());
+    }
     let summary = Summary {
-        header: RunHeader::new(exp, !interrupted, ctx.pool.current_num_threads(), wall())
-            .failed(failure.as_deref()),
         backend: robot.describe(),
         scene: &robot.scene,
         way_configurations_rad: &outcome.way_configurations,
@@ -153,18 +150,44 @@ pub fn run(
         learning_seconds: outcome.seconds,
         execution,
     };
-    stage.write("summary.json", &serde_json::to_vec_pretty(&summary)?)?;
-    write_files(stage, &outcome, recording.as_ref(), &config)?;
-    if exp.plots {
-        plot(stage, exp, &outcome, &config)?;
+    // The tool in task space, through forward kinematics.
+    let traj = &outcome.trajectory;
+    let dof = traj.dims();
+    let mut tool: [Vec<f64>; 3] = Default::default();
+    for k in 0..traj.n_samples() {
+        let q: Vec<f64> = (0..dof).map(|j| traj.position(j)[k]).collect();
+        let p = config
+            .robot
+            .chain
+            .fk(&q)
+            .context_with(|| "forward kinematics of the learned movement".into())?
+            .translation
+            .vector;
+        for d in 0..3 {
+            tool[d].push(p[d]);
+        }
     }
-    write_report(stage, exp, &summary)?;
+    let mut tables = vec![trajectory(&outcome, &tool)];
+    tables.extend(recording.as_ref().map(|r| recording_table(r, dof)));
+    tables.push(history_table(&[("joints", &outcome.search.history)]));
+    let mut figures = vec![joints_figure(ctx, &outcome, &config)];
+    figures.extend(position_figures(
+        vec![Series::new("", traj.times().to_vec(), tool.to_vec())],
+        way_points(&exp.config.task),
+        "The tool in task space (forward kinematics); dots are the way points.",
+        "The tool's path in 3-D.",
+    ));
+    figures.extend(cost_figure(
+        "Best cost so far per generation.",
+        vec![CostArm::new("CMA-ES", &[&outcome.search.history])],
+        None,
+    ));
     let mut lines = vec![
         format!(
             "{}: {} in {:.2} s ({} generations, {})",
             exp.name,
             outcome.search.termination,
-            wall(),
+            ctx.wall(),
             outcome.search.generations,
             robot.describe()
         ),
@@ -173,7 +196,7 @@ pub fn run(
             summary.cost,
             summary.warm_start_cost,
             summary.goal_error_m * 1e3,
-            outcome.errors.via.iter().fold(0.0f64, |a, &b| a.max(b)) * 1e3
+            worst(&outcome.errors.via) * 1e3
         ),
         format!(
             "  limits: {} (smallest margin {:.4} rad, speeds up to {:.0} % of their limits)",
@@ -198,132 +221,106 @@ pub fn run(
             }
         ));
     }
-    Ok(Finished {
-        complete: !interrupted && failure.is_none(),
-        failure,
+    Ok(Outcome {
+        header,
+        report: report(ctx, &summary),
+        summary: fields(&summary),
+        tables,
+        figures,
+        documents: Vec::new(),
         lines,
     })
 }
 
-fn write_files(
-    stage: &Staging,
-    outcome: &JointSpaceOutcome,
-    recording: Option<&Recording>,
-    config: &JointSpaceConfig,
-) -> Result<()> {
+/// `trajectory.csv`: time, joint angles and speeds, the tool position.
+fn trajectory(outcome: &JointSpaceOutcome, tool: &[Vec<f64>; 3]) -> Table {
     let traj = &outcome.trajectory;
     let dof = traj.dims();
-    let chain = &config.robot.chain;
-    let mut w = csv::Writer::from_path(stage.path("trajectory.csv"))?;
-    let mut header = vec!["t".to_string()];
-    header.extend((1..=dof).map(|j| format!("q{j}")));
-    header.extend((1..=dof).map(|j| format!("dq{j}")));
-    header.extend(["x", "y", "z"].map(String::from));
-    w.write_record(&header)?;
-    for (k, t) in traj.times().iter().enumerate() {
-        let q: Vec<f64> = (0..dof).map(|j| traj.position(j)[k]).collect();
-        let p = chain.fk(&q)?.translation.vector;
-        let mut row = vec![format!("{t:.6}")];
-        row.extend(q.iter().map(|v| format!("{v:.12e}")));
-        row.extend((0..dof).map(|j| format!("{:.12e}", traj.velocity(j)[k])));
-        row.extend([p.x, p.y, p.z].map(|v| format!("{v:.9}")));
-        w.write_record(&row)?;
+    let mut t = Table::new("trajectory").with(Column::numbers(
+        "t",
+        traj.times().to_vec(),
+        Format::Fixed(6),
+    ));
+    for j in 0..dof {
+        t.push(Column::numbers(
+            format!("q{}", j + 1),
+            traj.position(j).to_vec(),
+            Format::Sci(12),
+        ));
     }
-    w.flush()?;
-    if let Some(rec) = recording {
-        let mut w = csv::Writer::from_path(stage.path("recording.csv"))?;
-        let mut header = vec!["t".to_string()];
-        header.extend((1..=dof).map(|j| format!("q{j}")));
-        header.extend(["x", "y", "z", "deviation_m"].map(String::from));
-        w.write_record(&header)?;
-        for k in 0..rec.time.len() {
-            let mut row = vec![format!("{:.6}", rec.time[k])];
-            row.extend(rec.q[k].iter().map(|v| format!("{v:.12e}")));
-            row.extend(rec.position[k].map(|v| format!("{v:.9}")));
-            row.push(format!("{:.3e}", rec.position_error[k]));
-            w.write_record(&row)?;
-        }
-        w.flush()?;
+    for j in 0..dof {
+        t.push(Column::numbers(
+            format!("dq{}", j + 1),
+            traj.velocity(j).to_vec(),
+            Format::Sci(12),
+        ));
     }
-    write_history(stage, &[("joints", &outcome.search.history)])
+    for (name, v) in ["x", "y", "z"].iter().zip(tool) {
+        t.push(Column::numbers(*name, v.clone(), Format::Fixed(9)));
+    }
+    t
 }
 
-fn plot(
-    stage: &Staging,
-    exp: &Experiment,
-    outcome: &JointSpaceOutcome,
-    config: &JointSpaceConfig,
-) -> Result<()> {
+/// `recording.csv`: what the backend did, with the tool's deviation from the model.
+fn recording_table(rec: &Recording, dof: usize) -> Table {
+    let mut t =
+        Table::new("recording").with(Column::numbers("t", rec.time.clone(), Format::Fixed(6)));
+    for j in 0..dof {
+        t.push(Column::numbers(
+            format!("q{}", j + 1),
+            rec.q.iter().map(|q| q[j]).collect(),
+            Format::Sci(12),
+        ));
+    }
+    for (d, name) in ["x", "y", "z"].iter().enumerate() {
+        t.push(Column::numbers(
+            *name,
+            rec.position.iter().map(|p| p[d]).collect(),
+            Format::Fixed(9),
+        ));
+    }
+    t.with(Column::numbers(
+        "deviation_m",
+        rec.position_error.clone(),
+        Format::Sci(3),
+    ))
+}
+
+/// The joints with their limits and the way points' IK configurations.
+fn joints_figure(ctx: &Ctx<'_>, outcome: &JointSpaceOutcome, config: &JointSpaceConfig) -> Figure {
     let traj = &outcome.trajectory;
     let dof = traj.dims();
-    let chain = &config.robot.chain;
-    if !outcome.search.history.is_empty() {
-        costs(
-            stage,
-            "cost",
-            &[CostArm {
-                label: "CMA-ES".into(),
-                runs: vec![&outcome.search.history],
-            }],
-            None,
-        )?;
-    }
-    // The tool in task space, through forward kinematics.
-    let mut tool: [Vec<f64>; 3] = Default::default();
-    for k in 0..traj.n_samples() {
-        let q: Vec<f64> = (0..dof).map(|j| traj.position(j)[k]).collect();
-        let p = chain.fk(&q)?.translation.vector;
-        for d in 0..3 {
-            tool[d].push(p[d]);
+    let task = &ctx.exp.config.task;
+    let ends = vec![traj.times()[0], *traj.times().last().unwrap_or(&1.0)];
+    let mut series = vec![Series::new(
+        "joint angle",
+        traj.times().to_vec(),
+        (0..dof).map(|j| traj.position(j).to_vec()).collect(),
+    )];
+    if let Some((lo, hi)) = config.robot.chain.limits() {
+        for side in [lo, hi] {
+            let values = side.iter().map(|&v| vec![v, v]).collect();
+            series.push(Series::new("limits", ends.clone(), values).faint());
         }
     }
-    figures(
-        stage,
-        "coordinates",
-        "path3d",
-        &[Series {
-            label: String::new(),
-            times: traj.times(),
-            values: tool.iter().map(Vec::as_slice).collect(),
-            faint: false,
-        }],
-        &way_points(&exp.config.task),
-    )?;
-    // The joints with their limits.
-    let ends = [traj.times()[0], *traj.times().last().unwrap_or(&1.0)];
-    let limits: Option<[Vec<[f64; 2]>; 2]> = chain.limits().map(|(lo, hi)| {
-        [
-            lo.iter().map(|&v| [v, v]).collect(),
-            hi.iter().map(|&v| [v, v]).collect(),
-        ]
-    });
-    let mut series = vec![Series {
-        label: "joint angle".into(),
-        times: traj.times(),
-        values: (0..dof).map(|j| traj.position(j)).collect(),
-        faint: false,
-    }];
-    if let Some(l) = &limits {
-        for side in l {
-            series.push(Series {
-                label: "limits".into(),
-                times: &ends,
-                values: side.iter().map(|v| v.as_slice()).collect(),
-                faint: true,
-            });
-        }
-    }
-    let names: Vec<String> = (1..=dof).map(|j| format!("q{j} [rad]")).collect();
-    let marks: Vec<(f64, Vec<f64>)> = std::iter::once(0.0)
-        .chain(exp.config.task.via.iter().map(|v| v.time))
-        .chain(std::iter::once(exp.config.task.dmp.tau))
+    let marks = std::iter::once(0.0)
+        .chain(task.via.iter().map(|v| v.time))
+        .chain(std::iter::once(task.dmp.tau))
         .zip(&outcome.way_configurations)
         .map(|(t, q)| (t, q.clone()))
         .collect();
-    crate::plots::panels(stage, "joints", &names, &series, &marks)
+    Figure {
+        name: "joints".into(),
+        caption: "Joint angles over time with their limits (grey); dots are the way points' IK configurations.".into(),
+        plot: Plot::Panels {
+            names: (1..=dof).map(|j| format!("q{j} [rad]")).collect(),
+            series,
+            marks,
+        },
+    }
 }
 
-fn write_report(stage: &Staging, exp: &Experiment, s: &Summary<'_>) -> Result<()> {
+fn report(ctx: &Ctx<'_>, s: &Summary<'_>) -> Report {
     let mm = |v: f64| format!("{:.4} mm", v * 1e3);
     let mut rows = vec![
         ("backend", s.backend.clone()),
@@ -370,23 +367,9 @@ fn write_report(stage: &Staging, exp: &Experiment, s: &Summary<'_>) -> Result<()
     }
     rows.push(search_row(s.search));
     rows.push(("learning time", format!("{:.2} s", s.learning_seconds)));
-    report::write(
-        stage,
-        &s.header,
-        &format!("{}: via points learned in joint space", exp.name),
-        "The way points are converted to joint configurations by inverse kinematics (one branch), one DMP per joint carries the movement, and the via-point and goal errors are judged in task space through forward kinematics, with joint-limit and speed-limit penalties.",
-        &[Table::pairs("Result", rows)],
-        &[
-            (
-                "joints",
-                "Joint angles over time with their limits (grey); dots are the way points' IK configurations.",
-            ),
-            (
-                "coordinates",
-                "The tool in task space (forward kinematics); dots are the way points.",
-            ),
-            ("path3d", "The tool's path in 3-D."),
-            ("cost", "Best cost so far per generation."),
-        ],
-    )
+    Report {
+        title: format!("{}: via points learned in joint space", ctx.exp.name),
+        context: "The way points are converted to joint configurations by inverse kinematics (one branch), one DMP per joint carries the movement, and the via-point and goal errors are judged in task space through forward kinematics, with joint-limit and speed-limit penalties.".into(),
+        tables: vec![ReportTable::pairs("Result", rows)],
+    }
 }

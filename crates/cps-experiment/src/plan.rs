@@ -1,5 +1,7 @@
-//! The experiment-file sections of the kinds beyond plain via-point learning (`[robot]`,
-//! `[demonstrations]`, `[imitation]`, `[scaling]`) and the robot backends they choose.
+//! The plan of a run: the experiment-file sections of the kinds beyond plain via-point
+//! learning (`[robot]`, `[demonstrations]`, `[imitation]`, `[scaling]`, `[joint]`,
+//! `[plant]`, `[speedup]`, `[orientation]`) turned into checked plans, and the robot
+//! backends they choose.
 
 use std::ops::Range;
 use std::path::Path;

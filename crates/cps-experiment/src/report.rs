@@ -1,30 +1,10 @@
-//! `report.html`: one self-contained page per run (summary table and every figure as
-//! inline SVG) that opens offline and can be handed out.
+//! `report.html` (feature `figures`): one self-contained page per run — the run's own
+//! table, the outcome's report tables, then every figure as inline SVG with its caption —
+//! that opens offline and can be handed out.
 
-use anyhow::{Context, Result};
-
-use crate::output::Staging;
-
-/// A titled table of the report: rows of (label, value).
-pub struct Table {
-    /// Heading above the table.
-    pub title: String,
-    /// Column headings (empty: a two-column key/value table without headings).
-    pub header: Vec<String>,
-    /// Rows of cells.
-    pub rows: Vec<Vec<String>>,
-}
-
-impl Table {
-    /// A key/value table.
-    pub fn pairs(title: &str, rows: Vec<(&str, String)>) -> Self {
-        Self {
-            title: title.into(),
-            header: Vec::new(),
-            rows: rows.into_iter().map(|(k, v)| vec![k.into(), v]).collect(),
-        }
-    }
-}
+use crate::outcome::{Outcome, ReportTable};
+use crate::results_dir::Staging;
+use crate::{Context, ExperimentError};
 
 fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
@@ -33,23 +13,15 @@ fn escape(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
-/// Writes `report.html` into `stage`: the title, a line of context, the run's own table
-/// (complete, seed, wall time), the tables, then each
-/// figure (`<stem>.svg` already in the stage) with its caption, inline. Figures that were
-/// not drawn (plots off) are listed as absent.
-pub fn write(
-    stage: &Staging,
-    header: &crate::runner::RunHeader<'_>,
-    title: &str,
-    context: &str,
-    tables: &[Table],
-    figures: &[(&str, &str)],
-) -> Result<()> {
-    let run = Table::pairs("Run", header.rows());
-    let tables: Vec<&Table> = std::iter::once(&run).chain(tables).collect();
+/// Writes `report.html` into `stage`. With `figures`, each figure's `<name>.svg` must
+/// already be in the stage; without, the figures are listed as not drawn.
+pub fn write(outcome: &Outcome, stage: &Staging, figures: bool) -> Result<(), ExperimentError> {
+    let report = &outcome.report;
+    let run = ReportTable::pairs("Run", outcome.header.rows());
+    let tables: Vec<&ReportTable> = std::iter::once(&run).chain(&report.tables).collect();
     let mut html = String::new();
     html.push_str("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n");
-    html.push_str(&format!("<title>{}</title>\n", escape(title)));
+    html.push_str(&format!("<title>{}</title>\n", escape(&report.title)));
     html.push_str(
         "<style>\nbody{font-family:sans-serif;max-width:1050px;margin:2em auto;padding:0 1em;color:#222}\n\
          table{border-collapse:collapse;margin:0.5em 0 1.5em}\n\
@@ -60,8 +32,8 @@ pub fn write(
     );
     html.push_str(&format!(
         "<h1>{}</h1>\n<p>{}</p>\n",
-        escape(title),
-        escape(context)
+        escape(&report.title),
+        escape(&report.context)
     ));
     for t in &tables {
         html.push_str(&format!("<h2>{}</h2>\n<table>\n", escape(&t.title)));
@@ -81,19 +53,20 @@ pub fn write(
         }
         html.push_str("</table>\n");
     }
-    if !figures.is_empty() {
+    if !outcome.figures.is_empty() {
         html.push_str("<h2>Figures</h2>\n");
     }
-    for (stem, caption) in figures {
-        let path = stage.path(&format!("{stem}.svg"));
-        if !path.exists() {
+    for figure in &outcome.figures {
+        let stem = &figure.name;
+        if !figures {
             html.push_str(&format!(
                 "<p>({stem}: not drawn; set [output] plots = true)</p>\n"
             ));
             continue;
         }
+        let path = stage.path(&format!("{stem}.svg"));
         let svg = std::fs::read_to_string(&path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
+            .context_with(|| format!("cannot read {}", path.display()))?;
         let svg = svg
             .trim_start()
             .strip_prefix("<?xml")
@@ -103,12 +76,12 @@ pub fn write(
         html.push_str(svg.trim());
         html.push_str(&format!(
             "\n<figcaption>{}</figcaption>\n</figure>\n",
-            escape(caption)
+            escape(&figure.caption)
         ));
     }
     html.push_str(&format!(
         "<p><small>cps {} · all numbers in SI units · the same figures are in the run's folder as PNG and SVG, the data as CSV and JSON</small></p>\n</body>\n</html>\n",
         env!("CARGO_PKG_VERSION")
     ));
-    Ok(stage.write("report.html", html.as_bytes())?)
+    stage.write("report.html", html.as_bytes())
 }

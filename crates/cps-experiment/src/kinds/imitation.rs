@@ -1,106 +1,20 @@
-//! `kind = "imitation"`: the thesis's imitation pipeline run from a file, with its results
-//! (recordings, summary, models, figures, report).
+//! `kind = "imitation"`: the thesis's imitation pipeline (demonstrations learned from
+//! perturbed via points, executed, time-normalised, averaged and imitated).
 
-use std::ops::ControlFlow;
-use std::sync::atomic::Ordering;
-
-use anyhow::{Context, Result};
 use cps_dmp::DmpModel;
 use cps_kinematics::Recording;
 use cps_learn::{ImitationConfig, ImitationOutcome, ImitationStage, ViaPoint};
 use serde::Serialize;
 
-use crate::experiment::Experiment;
-use crate::output::Staging;
-use crate::plots::{Series, figures, trajectory_series};
-use crate::report::{self, Table};
-use crate::runner::{Finished, RunContext, RunHeader};
-
-/// Runs the pipeline and writes every result into `stage`.
-pub fn run(
-    exp: &Experiment,
-    ctx: &RunContext<'_>,
-    stage: &Staging,
-    wall: &dyn Fn() -> f64,
-) -> Result<Finished> {
-    let robot = exp
-        .robot
-        .as_ref()
-        .context("an imitation experiment has a robot")?;
-    let plan = exp
-        .imitation
-        .as_ref()
-        .context("an imitation experiment has its settings")?;
-    let mut config = ImitationConfig::thesis(exp.config.clone(), robot.setup.clone());
-    config.demonstrations = plan.demonstrations;
-    config.via_std = plan.via_std;
-    config.imitation = plan.dmp;
-    config.ridge_lambda = plan.ridge_lambda;
-    config.jerk_lambda = plan.jerk_lambda;
-
-    let mut backend = robot.open()?;
-    let progress = |s: ImitationStage, done: usize, total: usize| {
-        ctx.bar.set_message(format!("{} {done}/{total}", s.name()));
-        ctx.bar.tick();
-        if ctx.interrupted.load(Ordering::Relaxed) {
-            ControlFlow::Break(())
-        } else {
-            ControlFlow::Continue(())
-        }
-    };
-    // The backend stays on this thread; learning and checks fan out in the pool.
-    let outcome = ctx
-        .pool
-        .install(|| cps_learn::run_imitation(&config, backend.as_mut(), &progress))
-        .map_err(|e| crate::runner::learn_error(e, "imitation run"))?;
-    ctx.bar.finish_and_clear();
-    let header = RunHeader::new(
-        exp,
-        outcome.complete,
-        ctx.pool.current_num_threads(),
-        wall(),
-    )
-    .failed(outcome.failure.as_deref());
-    write(exp, &config, robot, &outcome, stage, header)?;
-    let o = &outcome;
-    let mut lines = vec![format!(
-        "{}: {} of {} demonstrations kept and executed in {:.2} s ({})",
-        exp.name,
-        o.kept().count(),
-        o.demonstrations.len(),
-        wall(),
-        robot.describe()
-    )];
-    for d in o.demonstrations.iter().filter(|d| d.dropped.is_some()) {
-        lines.push(format!(
-            "  dropped demonstration {}: {}",
-            d.index,
-            d.dropped.as_deref().unwrap_or("")
-        ));
-    }
-    for f in &o.fits {
-        lines.push(format!(
-            "  imitation by {}: RMSE to the mean {:.3} mm, integrated squared jerk {:.4e} m²/s⁵, executed within {:.3} mm",
-            f.method.replace('_', " "),
-            f.rmse() * 1e3,
-            f.integrated_squared_jerk(),
-            f.recording
-                .as_ref()
-                .map_or(f64::NAN, |r| r.max_position_error())
-                * 1e3
-        ));
-    }
-    Ok(Finished {
-        complete: o.complete,
-        failure: o.failure.clone(),
-        lines,
-    })
-}
+use super::{position_figures, solver_name};
+use crate::ExperimentError;
+use crate::outcome::{
+    Column, Document, Figure, Format, Outcome, Report, ReportTable, Series, Table, fields,
+};
+use crate::run::{Ctx, Event, learn_error};
 
 #[derive(Serialize)]
 struct Summary<'a> {
-    #[serde(flatten)]
-    header: RunHeader<'a>,
     backend: String,
     scene: &'a str,
     learner: &'static str,
@@ -183,25 +97,49 @@ struct FitSummary {
     model: String,
 }
 
-fn write(
-    exp: &Experiment,
-    config: &ImitationConfig,
-    robot: &crate::pipelines::RobotChoice,
-    outcome: &ImitationOutcome,
-    stage: &Staging,
-    header: RunHeader<'_>,
-) -> Result<()> {
-    let kept = outcome.kept().count();
+/// Runs the pipeline on the experiment's backend and declares the outcome.
+pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
+    let exp = ctx.exp;
+    let robot = exp
+        .robot
+        .as_ref()
+        .ok_or_else(|| ExperimentError::Message("an imitation experiment has a robot".into()))?;
+    let plan = exp.imitation.as_ref().ok_or_else(|| {
+        ExperimentError::Message("an imitation experiment has its settings".into())
+    })?;
+    let mut config = ImitationConfig::thesis(exp.config.clone(), robot.setup.clone());
+    config.demonstrations = plan.demonstrations;
+    config.via_std = plan.via_std;
+    config.imitation = plan.dmp;
+    config.ridge_lambda = plan.ridge_lambda;
+    config.jerk_lambda = plan.jerk_lambda;
+
+    let mut backend = robot.open()?;
+    let progress = |s: ImitationStage, done: usize, total: usize| {
+        ctx.observer
+            .event(Event::Stage(&format!("{} {done}/{total}", s.name())))
+    };
+    // The backend stays on this thread; learning and checks fan out in the pool.
+    let outcome = ctx
+        .pool
+        .install(|| cps_learn::run_imitation(&config, backend.as_mut(), &progress))
+        .map_err(|e| learn_error(e, "imitation run"))?;
+    ctx.observer.finished();
+    let mut header = ctx.header(outcome.complete);
+    if let Some(f) = &outcome.failure {
+        header.complete = false;
+        header.failure = Some(f.clone());
+    }
+    let o = &outcome;
+    let mut documents = Vec::new();
     let mut fits = Vec::new();
-    for f in &outcome.fits {
-        let file = format!("model_{}.json", f.method);
-        let names = vec!["x".to_string(), "y".to_string(), "z".to_string()];
-        stage.write(
-            &file,
-            DmpModel::new(&f.imitation.dmp, &f.imitation.weights, names)
-                .to_json()
-                .as_bytes(),
-        )?;
+    for f in &o.fits {
+        let name = format!("model_{}.json", f.method);
+        let axes = vec!["x".to_string(), "y".to_string(), "z".to_string()];
+        documents.push(Document {
+            name: name.clone(),
+            text: DmpModel::new(&f.imitation.dmp, &f.imitation.weights, axes).to_json(),
+        });
         let r = &f.imitation.report;
         fits.push(FitSummary {
             method: f.method,
@@ -214,45 +152,28 @@ fn write(
             integrated_squared_jerk_m2_s5: f.integrated_squared_jerk(),
             condition_number: r.condition_number,
             tracking: f.recording.as_ref().map(Tracking::of),
-            model: file,
+            model: name,
         });
     }
+    let demos = &o.demonstrations;
     let summary = Summary {
-        header,
         backend: robot.describe(),
         scene: &robot.scene,
-        learner: match exp.config.solver {
-            cps_learn::Solver::Cmaes => "cmaes",
-            cps_learn::Solver::Exact => "exact",
-        },
+        learner: solver_name(exp.config.solver),
         demonstrations: DemoCounts {
             requested: config.demonstrations,
-            kept: outcome
-                .demonstrations
-                .iter()
-                .filter(|d| d.dropped.is_none())
-                .count(),
-            dropped: outcome
-                .demonstrations
-                .iter()
-                .filter(|d| d.dropped.is_some())
-                .count(),
-            executed: kept,
-            not_executed: outcome
-                .demonstrations
+            kept: demos.iter().filter(|d| d.dropped.is_none()).count(),
+            dropped: demos.iter().filter(|d| d.dropped.is_some()).count(),
+            executed: o.kept().count(),
+            not_executed: demos
                 .iter()
                 .filter(|d| d.dropped.is_none() && d.recording.is_none())
                 .count(),
-            imitations_executed: outcome
-                .fits
-                .iter()
-                .filter(|f| f.recording.is_some())
-                .count(),
-            imitations_fitted: outcome.fits.len(),
+            imitations_executed: o.fits.iter().filter(|f| f.recording.is_some()).count(),
+            imitations_fitted: o.fits.len(),
             via_std_m: config.via_std,
         },
-        dropped: outcome
-            .demonstrations
+        dropped: demos
             .iter()
             .filter_map(|d| {
                 d.dropped.as_ref().map(|r| Dropped {
@@ -261,8 +182,7 @@ fn write(
                 })
             })
             .collect(),
-        runs: outcome
-            .demonstrations
+        runs: demos
             .iter()
             .map(|d| DemoSummary {
                 index: d.index,
@@ -275,103 +195,129 @@ fn write(
                 tracking: d.recording.as_ref().map(Tracking::of),
             })
             .collect(),
-        mean_integrated_squared_jerk_m2_s5: outcome
+        mean_integrated_squared_jerk_m2_s5: o
             .fits
             .first()
             .map(|f| f.imitation.report.demo_integrated_squared_jerk.iter().sum()),
         imitations: fits,
-        stage_seconds: outcome.stage_seconds.clone(),
+        stage_seconds: o.stage_seconds.clone(),
     };
-    stage.write("summary.json", &serde_json::to_vec_pretty(&summary)?)?;
-    write_recordings(stage, outcome)?;
-    if exp.plots {
-        plot(stage, outcome, &exp.config.task)?;
+    Ok(Outcome {
+        header,
+        report: report(ctx, &summary),
+        summary: fields(&summary),
+        tables: vec![recordings(o)],
+        figures: figures(o, &exp.config.task),
+        documents,
+        lines: lines(ctx, o, &robot.describe()),
+    })
+}
+
+fn lines(ctx: &Ctx<'_>, o: &ImitationOutcome, backend: &str) -> Vec<String> {
+    let mut lines = vec![format!(
+        "{}: {} of {} demonstrations kept and executed in {:.2} s ({backend})",
+        ctx.exp.name,
+        o.kept().count(),
+        o.demonstrations.len(),
+        ctx.wall(),
+    )];
+    for d in o.demonstrations.iter().filter(|d| d.dropped.is_some()) {
+        lines.push(format!(
+            "  dropped demonstration {}: {}",
+            d.index,
+            d.dropped.as_deref().unwrap_or("")
+        ));
     }
-    report(exp, &summary, stage)
+    for f in &o.fits {
+        lines.push(format!(
+            "  imitation by {}: RMSE to the mean {:.3} mm, integrated squared jerk {:.4e} m²/s⁵, executed within {:.3} mm",
+            f.method.replace('_', " "),
+            f.rmse() * 1e3,
+            f.integrated_squared_jerk(),
+            f.recording
+                .as_ref()
+                .map_or(f64::NAN, |r| r.max_position_error())
+                * 1e3
+        ));
+    }
+    lines
 }
 
 /// `recordings.csv`, one row per sample: the thesis's (type, time, state) with the index
 /// of the demonstration and the tracking error where there is one.
-fn write_recordings(stage: &Staging, outcome: &ImitationOutcome) -> Result<()> {
-    let mut w = csv::Writer::from_path(stage.path("recordings.csv"))?;
-    w.write_record(["type", "index", "t", "x", "y", "z", "tracking_error_m"])?;
+fn recordings(outcome: &ImitationOutcome) -> Table {
+    #[derive(Default)]
+    struct Rows {
+        kind: Vec<String>,
+        index: Vec<u64>,
+        t: Vec<f64>,
+        p: [Vec<f64>; 3],
+        e: Vec<f64>,
+    }
+    let mut rows = Rows::default();
     let mut row = |kind: &str, index: usize, t: f64, p: [f64; 3], e: Option<f64>| {
-        w.write_record([
-            kind.to_string(),
-            index.to_string(),
-            format!("{t:.6}"),
-            format!("{:.9}", p[0]),
-            format!("{:.9}", p[1]),
-            format!("{:.9}", p[2]),
-            e.map_or(String::new(), |e| format!("{e:.3e}")),
-        ])
+        rows.kind.push(kind.to_string());
+        rows.index.push(index as u64);
+        rows.t.push(t);
+        for (column, v) in rows.p.iter_mut().zip(p) {
+            column.push(v);
+        }
+        rows.e.push(e.unwrap_or(f64::NAN));
+    };
+    let at = |tr: &cps_dmp::Trajectory, k: usize| {
+        [tr.position(0)[k], tr.position(1)[k], tr.position(2)[k]]
     };
     for d in &outcome.demonstrations {
         let tr = &d.trajectory;
         for (k, &t) in tr.times().iter().enumerate() {
-            row(
-                "learned",
-                d.index,
-                t,
-                [tr.position(0)[k], tr.position(1)[k], tr.position(2)[k]],
-                None,
-            )?;
+            row("learned", d.index, t, at(tr, k), None);
         }
         if let Some(r) = &d.recording {
             for k in 0..r.time.len() {
-                row(
-                    "executed",
-                    d.index,
-                    r.time[k],
-                    r.position[k],
-                    Some(r.position_error[k]),
-                )?;
+                let e = Some(r.position_error[k]);
+                row("executed", d.index, r.time[k], r.position[k], e);
             }
         }
     }
     if let Some(f) = outcome.fits.first() {
         let mean = &f.imitation.reference;
         for (k, &t) in f.trajectory.times().iter().enumerate() {
-            row("mean", 0, t, [mean[0][k], mean[1][k], mean[2][k]], None)?;
+            row("mean", 0, t, [mean[0][k], mean[1][k], mean[2][k]], None);
         }
     }
     for (i, f) in outcome.fits.iter().enumerate() {
         let tr = &f.trajectory;
         let kind = format!("imitation_{}", f.method);
         for (k, &t) in tr.times().iter().enumerate() {
-            row(
-                &kind,
-                i,
-                t,
-                [tr.position(0)[k], tr.position(1)[k], tr.position(2)[k]],
-                None,
-            )?;
+            row(&kind, i, t, at(tr, k), None);
         }
         if let Some(r) = &f.recording {
             let kind = format!("executed_{}", f.method);
             for k in 0..r.time.len() {
-                row(
-                    &kind,
-                    i,
-                    r.time[k],
-                    r.position[k],
-                    Some(r.position_error[k]),
-                )?;
+                let e = Some(r.position_error[k]);
+                row(&kind, i, r.time[k], r.position[k], e);
             }
         }
     }
-    w.flush()?;
-    Ok(())
+    let [x, y, z] = rows.p;
+    Table::new("recordings")
+        .with(Column::texts("type", rows.kind))
+        .with(Column::integers("index", rows.index))
+        .with(Column::numbers("t", rows.t, Format::Fixed(6)))
+        .with(Column::numbers("x", x, Format::Fixed(9)))
+        .with(Column::numbers("y", y, Format::Fixed(9)))
+        .with(Column::numbers("z", z, Format::Fixed(9)))
+        .with(Column::numbers("tracking_error_m", rows.e, Format::Sci(3)).nan_as_empty())
 }
 
 /// Every executed demonstration (faint, time-normalised onto the imitation's τ), the mean
 /// and the imitations, per coordinate and in 3-D.
-fn plot(stage: &Staging, outcome: &ImitationOutcome, task: &cps_learn::ViaPointTask) -> Result<()> {
+fn figures(outcome: &ImitationOutcome, task: &cps_learn::ViaPointTask) -> Vec<Figure> {
     let Some(first) = outcome.fits.first() else {
-        return Ok(());
+        return Vec::new();
     };
     let tau = first.imitation.dmp.config().tau;
-    let recordings: Vec<(Vec<f64>, [Vec<f64>; 3])> = outcome
+    let mut series: Vec<Series> = outcome
         .kept()
         .filter_map(|d| d.recording.as_ref())
         .map(|r| {
@@ -379,32 +325,22 @@ fn plot(stage: &Staging, outcome: &ImitationOutcome, task: &cps_learn::ViaPointT
             let span = (t1 - t0).max(1e-12);
             let times = r.time.iter().map(|t| (t - t0) / span * tau).collect();
             let coord = |d: usize| r.position.iter().map(|p| p[d]).collect();
-            (times, [coord(0), coord(1), coord(2)])
+            Series::new(
+                "executed demonstrations (time-normalised)",
+                times,
+                vec![coord(0), coord(1), coord(2)],
+            )
+            .faint()
         })
         .collect();
-    let mut series: Vec<Series<'_>> = recordings
-        .iter()
-        .map(|(t, v)| Series {
-            label: "executed demonstrations (time-normalised)".into(),
-            times: t,
-            values: v.iter().map(Vec::as_slice).collect(),
-            faint: true,
-        })
-        .collect();
-    series.push(Series {
-        label: "mean".into(),
-        times: first.trajectory.times(),
-        values: first
-            .imitation
-            .reference
-            .iter()
-            .map(Vec::as_slice)
-            .collect(),
-        faint: false,
-    });
+    series.push(Series::new(
+        "mean",
+        first.trajectory.times().to_vec(),
+        first.imitation.reference.clone(),
+    ));
     for f in &outcome.fits {
-        series.push(trajectory_series(
-            &format!("imitation ({})", f.method.replace('_', " ")),
+        series.push(Series::of_trajectory(
+            format!("imitation ({})", f.method.replace('_', " ")),
             &f.trajectory,
         ));
     }
@@ -417,10 +353,15 @@ fn plot(stage: &Staging, outcome: &ImitationOutcome, task: &cps_learn::ViaPointT
             .map(|v| (v.time * scale, v.position.clone())),
     );
     points.push((tau, task.goal.clone()));
-    figures(stage, "coordinates", "path3d", &series, &points)
+    position_figures(
+        series,
+        points,
+        "Each coordinate over (normalised) time: the executed demonstrations (grey), their mean and the two imitations; dots are the unperturbed way points.",
+        "The same in 3-D, world frame.",
+    )
 }
 
-fn report(exp: &Experiment, s: &Summary<'_>, stage: &Staging) -> Result<()> {
+fn report(ctx: &Ctx<'_>, s: &Summary<'_>) -> Report {
     let mm = |v: f64| format!("{:.3} mm", v * 1e3);
     let mut overview = vec![
         ("backend", s.backend.clone()),
@@ -452,7 +393,7 @@ fn report(exp: &Experiment, s: &Summary<'_>, stage: &Staging) -> Result<()> {
             format!("{j:.4e} m²/s⁵"),
         ));
     }
-    let fits = Table {
+    let fits = ReportTable {
         title: "Imitations of the mean recording".into(),
         header: [
             "method",
@@ -483,7 +424,7 @@ fn report(exp: &Experiment, s: &Summary<'_>, stage: &Staging) -> Result<()> {
             })
             .collect(),
     };
-    let dropped = Table {
+    let dropped = ReportTable {
         title: "Dropped demonstrations".into(),
         header: vec!["demonstration".into(), "reason".into()],
         rows: s
@@ -492,22 +433,13 @@ fn report(exp: &Experiment, s: &Summary<'_>, stage: &Staging) -> Result<()> {
             .map(|d| vec![d.index.to_string(), d.reason.clone()])
             .collect(),
     };
-    let mut tables = vec![Table::pairs("Overview", overview), fits];
+    let mut tables = vec![ReportTable::pairs("Overview", overview), fits];
     if !dropped.rows.is_empty() {
         tables.push(dropped);
     }
-    report::write(
-        stage,
-        &s.header,
-        &format!("{}: imitation of executed demonstrations", exp.name),
-        "Demonstrations learned by the via-point learner from perturbed via points, executed on the robot with the inverse controller, time-normalised, averaged and imitated (thesis §5.2).",
-        &tables,
-        &[
-            (
-                "coordinates",
-                "Each coordinate over (normalised) time: the executed demonstrations (grey), their mean and the two imitations; dots are the unperturbed way points.",
-            ),
-            ("path3d", "The same in 3-D, world frame."),
-        ],
-    )
+    Report {
+        title: format!("{}: imitation of executed demonstrations", ctx.exp.name),
+        context: "Demonstrations learned by the via-point learner from perturbed via points, executed on the robot with the inverse controller, time-normalised, averaged and imitated (thesis §5.2).".into(),
+        tables,
+    }
 }

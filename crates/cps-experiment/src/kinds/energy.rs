@@ -4,20 +4,20 @@
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
 use cps_learn::{EffortConfig, EffortCostBreakdown, EffortOutcome, learn_with_effort};
 use serde::Serialize;
 
-use crate::experiment::Experiment;
-use crate::output::Staging;
-use crate::plots::{CostArm, Series, axis_names, costs, figures, panels, way_points};
-use crate::report::{self, Table};
-use crate::runner::{Finished, RunContext, RunHeader, learn_error, search_row, write_history};
+use super::{
+    axis_names, cost_figure, history_table, position_figures, search_row, way_points, worst,
+};
+use crate::ExperimentError;
+use crate::outcome::{
+    Column, CostArm, Figure, Format, Outcome, Plot, Report, ReportTable, Series, Table, fields,
+};
+use crate::run::{Ctx, learn_error};
 
 #[derive(Serialize)]
 struct Summary<'a> {
-    #[serde(flatten)]
-    header: RunHeader<'a>,
     plant: cps_learn::PointMassPlant,
     effort_weight: f64,
     cost: f64,
@@ -34,7 +34,7 @@ struct Summary<'a> {
     speedup: Option<Speedup>,
 }
 
-/// The same generations timed on one thread and on two (the faster of two runs each).
+/// The same generations timed on one thread and on two (the faster of three runs each).
 #[derive(Serialize, Clone, Copy)]
 struct Speedup {
     generations: u64,
@@ -44,20 +44,18 @@ struct Speedup {
     identical_results: bool,
 }
 
-/// Learns with the plant, measures the speed-up if asked, writes everything into `stage`.
-pub fn run(
-    exp: &Experiment,
-    ctx: &RunContext<'_>,
-    stage: &Staging,
-    wall: &dyn Fn() -> f64,
-) -> Result<Finished> {
-    let plan = exp.energy.context("an effort experiment has its plant")?;
+/// Learns with the plant, measures the speed-up if asked, declares the outcome.
+pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
+    let exp = ctx.exp;
+    let plan = exp
+        .energy
+        .ok_or_else(|| ExperimentError::Message("an effort experiment has its plant".into()))?;
     let config = EffortConfig {
         learner: exp.config.clone(),
         plant: plan.plant,
         effort_weight: plan.effort_weight,
     };
-    let progress = |_: &cps_cmaes::GenerationReport<'_>| ctx.generation();
+    let progress = |r: &cps_cmaes::GenerationReport<'_>| ctx.generation(r);
     let outcome = ctx
         .pool
         .install(|| learn_with_effort(&config, &progress))
@@ -70,51 +68,45 @@ pub fn run(
     } else {
         None
     };
-    ctx.bar.finish_and_clear();
-    let peak = outcome
+    ctx.observer.finished();
+    let o = &outcome;
+    let peak = o
         .plant
         .force
         .iter()
         .flat_map(|f| f.iter())
         .fold(0.0f64, |a, &u| a.max(u.abs()));
     let summary = Summary {
-        header: RunHeader::new(exp, complete, ctx.pool.current_num_threads(), wall()),
         plant: plan.plant,
         effort_weight: plan.effort_weight,
-        cost: outcome.breakdown.total(),
-        cost_terms: outcome.breakdown,
-        start_cost: outcome.start.total(),
-        start_cost_terms: outcome.start,
-        goal_error_m: outcome.errors.goal,
-        via_errors_m: &outcome.errors.via,
-        max_position_error_m: outcome.errors.max_position_error(),
-        final_speed_m_s: outcome.errors.final_speed,
+        cost: o.breakdown.total(),
+        cost_terms: o.breakdown,
+        start_cost: o.start.total(),
+        start_cost_terms: o.start,
+        goal_error_m: o.errors.goal,
+        via_errors_m: &o.errors.via,
+        max_position_error_m: o.errors.max_position_error(),
+        final_speed_m_s: o.errors.final_speed,
         peak_force_n: peak,
-        search: &outcome.search,
-        learning_seconds: outcome.seconds,
+        search: &o.search,
+        learning_seconds: o.seconds,
         speedup,
     };
-    stage.write("summary.json", &serde_json::to_vec_pretty(&summary)?)?;
-    write_trajectory(stage, &outcome)?;
-    if exp.plots {
-        plot(stage, exp, &outcome)?;
-    }
-    write_report(stage, exp, &summary)?;
     let mut lines = vec![
         format!(
             "{}: {} in {:.2} s ({} generations)",
             exp.name,
-            outcome.search.termination,
-            wall(),
-            outcome.search.generations
+            o.search.termination,
+            ctx.wall(),
+            o.search.generations
         ),
         format!(
             "  cost {:.6e} (start {:.6e}; control effort {:.4e}); the plant's goal error {:.3} mm, worst via-point error {:.3} mm; peak force {peak:.2} N",
             summary.cost,
             summary.start_cost,
-            outcome.breakdown.effort,
+            o.breakdown.effort,
             summary.goal_error_m * 1e3,
-            outcome.errors.via.iter().fold(0.0f64, |a, &b| a.max(b)) * 1e3
+            worst(&o.errors.via) * 1e3
         ),
     ];
     if let Some(s) = speedup {
@@ -131,9 +123,16 @@ pub fn run(
             }
         ));
     }
-    Ok(Finished {
-        complete,
-        failure: None,
+    Ok(Outcome {
+        header: ctx.header(complete),
+        report: report(ctx, &summary),
+        summary: fields(&summary),
+        tables: vec![
+            trajectory(o),
+            history_table(&[("plant", &o.search.history)]),
+        ],
+        figures: figures(ctx, o),
+        documents: Vec::new(),
         lines,
     })
 }
@@ -145,21 +144,26 @@ fn measure_speedup(
     config: &EffortConfig,
     generations: u64,
     progress: &(dyn Fn(&cps_cmaes::GenerationReport<'_>) -> ControlFlow<()> + Sync),
-) -> Result<Option<Speedup>> {
+) -> Result<Option<Speedup>, ExperimentError> {
     let mut short = config.clone();
     short.learner.generations = generations;
     short.learner.tol_fun = None;
-    let pools = [1, 2].map(|threads| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .context("cannot start the worker threads")
-    });
+    let mut pools = Vec::new();
+    for threads in [1, 2] {
+        pools.push(
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .map_err(|e| ExperimentError::Failed {
+                    context: "cannot start the worker threads".into(),
+                    source: Box::new(e),
+                })?,
+        );
+    }
     let mut best = [f64::INFINITY; 2];
     let mut weights: Vec<Vec<f64>> = Vec::new();
     for _round in 0..3 {
         for (i, pool) in pools.iter().enumerate() {
-            let pool = pool.as_ref().map_err(|e| anyhow::anyhow!("{e:#}"))?;
             let started = Instant::now();
             let o = pool
                 .install(|| learn_with_effort(&short, progress))
@@ -180,86 +184,89 @@ fn measure_speedup(
     }))
 }
 
-fn write_trajectory(stage: &Staging, o: &EffortOutcome) -> Result<()> {
+/// `trajectory.csv`: the reference, the plant's position and velocity, the force.
+fn trajectory(o: &EffortOutcome) -> Table {
     let dims = o.reference.dims();
     let axes: Vec<String> = if dims == 3 {
         ["x", "y", "z"].map(String::from).to_vec()
     } else {
         (0..dims).map(|d| format!("y{d}")).collect()
     };
-    let mut w = csv::Writer::from_path(stage.path("trajectory.csv"))?;
-    let mut header = vec!["t".to_string()];
-    for prefix in ["reference_", "plant_", "plant_v", "force_"] {
-        header.extend(axes.iter().map(|a| format!("{prefix}{a}")));
+    let mut t = Table::new("trajectory").with(Column::numbers(
+        "t",
+        o.reference.times().to_vec(),
+        Format::Fixed(6),
+    ));
+    for (d, a) in axes.iter().enumerate() {
+        t.push(Column::numbers(
+            format!("reference_{a}"),
+            o.reference.position(d).to_vec(),
+            Format::Fixed(9),
+        ));
     }
-    w.write_record(&header)?;
-    for (k, t) in o.reference.times().iter().enumerate() {
-        let mut row = vec![format!("{t:.6}")];
-        row.extend((0..dims).map(|d| format!("{:.9}", o.reference.position(d)[k])));
-        for part in [&o.plant.position, &o.plant.velocity, &o.plant.force] {
-            row.extend(part.iter().map(|a| format!("{:.9}", a[k])));
+    for (prefix, part) in [
+        ("plant_", &o.plant.position),
+        ("plant_v", &o.plant.velocity),
+        ("force_", &o.plant.force),
+    ] {
+        for (a, v) in axes.iter().zip(part) {
+            t.push(Column::numbers(
+                format!("{prefix}{a}"),
+                v.clone(),
+                Format::Fixed(9),
+            ));
         }
-        w.write_record(&row)?;
     }
-    w.flush()?;
-    write_history(stage, &[("plant", &o.search.history)])
+    t
 }
 
-fn plot(stage: &Staging, exp: &Experiment, o: &EffortOutcome) -> Result<()> {
-    if !o.search.history.is_empty() {
-        costs(
-            stage,
-            "cost",
-            &[CostArm {
-                label: "CMA-ES".into(),
-                runs: vec![&o.search.history],
-            }],
-            None,
-        )?;
-    }
-    let times = o.reference.times();
-    let series = [
-        Series {
-            label: "DMP (the controller's reference)".into(),
-            times,
-            values: (0..o.reference.dims())
-                .map(|d| o.reference.position(d))
+fn figures(ctx: &Ctx<'_>, o: &EffortOutcome) -> Vec<Figure> {
+    let times = o.reference.times().to_vec();
+    let dims = o.reference.dims();
+    let series = vec![
+        Series::new(
+            "DMP (the controller's reference)",
+            times.clone(),
+            (0..dims)
+                .map(|d| o.reference.position(d).to_vec())
                 .collect(),
-            faint: false,
-        },
-        Series {
-            label: "plant".into(),
-            times,
-            values: o.plant.position.iter().map(Vec::as_slice).collect(),
-            faint: false,
-        },
+        ),
+        Series::new("plant", times.clone(), o.plant.position.clone()),
     ];
-    figures(
-        stage,
-        "coordinates",
-        "path3d",
-        &series,
-        &way_points(&exp.config.task),
-    )?;
-    let names: Vec<String> = axis_names(o.reference.dims())
-        .iter()
-        .map(|n| n.replace("[m]", "force [N]"))
-        .collect();
-    panels(
-        stage,
-        "force",
-        &names,
-        &[Series {
-            label: "PD control force".into(),
-            times,
-            values: o.plant.force.iter().map(Vec::as_slice).collect(),
-            faint: false,
-        }],
-        &[],
-    )
+    let mut figures = position_figures(
+        series,
+        way_points(&ctx.exp.config.task),
+        "The DMP (reference) and the plant per coordinate; dots are the way points.",
+        "Paths in 3-D.",
+    );
+    figures.insert(
+        1,
+        Figure {
+            name: "force".into(),
+            caption: "The PD controller's force per axis.".into(),
+            plot: Plot::Panels {
+                names: axis_names(dims)
+                    .iter()
+                    .map(|n| n.replace("[m]", "force [N]"))
+                    .collect(),
+                series: vec![Series::new(
+                    "PD control force",
+                    times,
+                    o.plant.force.clone(),
+                )],
+                marks: Vec::new(),
+            },
+        },
+    );
+    figures.extend(cost_figure(
+        "Best cost so far per generation.",
+        vec![CostArm::new("CMA-ES", &[&o.search.history])],
+        None,
+    ));
+    figures
 }
 
-fn write_report(stage: &Staging, exp: &Experiment, s: &Summary<'_>) -> Result<()> {
+fn report(ctx: &Ctx<'_>, s: &Summary<'_>) -> Report {
     let mm = |v: f64| format!("{:.4} mm", v * 1e3);
     let mut rows = vec![
         (
@@ -298,20 +305,9 @@ fn write_report(stage: &Staging, exp: &Experiment, s: &Summary<'_>) -> Result<()
             ),
         ));
     }
-    report::write(
-        stage,
-        &s.header,
-        &format!("{}: via points with a control-effort cost", exp.name),
-        "The DMP is the reference of a PD controller driving a point mass per axis; the via points, the goal and the final velocity are judged on what the plant did, and the controller's squared force is penalised (thesis eq. 53/54).",
-        &[Table::pairs("Result", rows)],
-        &[
-            (
-                "coordinates",
-                "The DMP (reference) and the plant per coordinate; dots are the way points.",
-            ),
-            ("force", "The PD controller's force per axis."),
-            ("path3d", "Paths in 3-D."),
-            ("cost", "Best cost so far per generation."),
-        ],
-    )
+    Report {
+        title: format!("{}: via points with a control-effort cost", ctx.exp.name),
+        context: "The DMP is the reference of a PD controller driving a point mass per axis; the via points, the goal and the final velocity are judged on what the plant did, and the controller's squared force is penalised (thesis eq. 53/54).".into(),
+        tables: vec![ReportTable::pairs("Result", rows)],
+    }
 }

@@ -1,0 +1,135 @@
+//! One module per experiment kind. Each runs its pipeline (`cps-learn`) and declares its
+//! outcome: summary fields, tables, figures, report rows and terminal lines. Nothing here
+//! writes a file or draws: [`crate::files`] does that for every kind alike.
+//!
+//! To add a kind: a `Kind` variant and its sections (`experiment.rs`, `plan.rs`), a
+//! module here with `pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError>`,
+//! and its line in [`crate::run::run`].
+
+use cps_learn::{GenerationRecord, ViaPointTask};
+
+use crate::outcome::{Column, CostArm, Figure, Format, Plot, Series, Table};
+
+pub(crate) mod energy;
+pub(crate) mod imitation;
+pub(crate) mod joint;
+pub(crate) mod pose;
+pub(crate) mod scaling;
+pub(crate) mod viapoint;
+
+/// `cost_history.csv` of named searches: one row per generation of each.
+pub(crate) fn history_table(searches: &[(&str, &[GenerationRecord])]) -> Table {
+    let rows = searches
+        .iter()
+        .flat_map(|(name, h)| h.iter().map(move |r| (*name, r)));
+    let (mut search, mut generation, mut best, mut median, mut so_far, mut sigma) =
+        (vec![], vec![], vec![], vec![], vec![], vec![]);
+    for (name, r) in rows {
+        search.push(name.to_string());
+        generation.push(r.generation);
+        best.push(r.best);
+        median.push(r.median);
+        so_far.push(r.best_so_far);
+        sigma.push(r.sigma);
+    }
+    Table::new("cost_history")
+        .with(Column::texts("search", search))
+        .with(Column::integers("generation", generation))
+        .with(Column::numbers("best", best, Format::ShortestSci))
+        .with(Column::numbers("median", median, Format::ShortestSci))
+        .with(Column::numbers("best_so_far", so_far, Format::ShortestSci))
+        .with(Column::numbers("sigma", sigma, Format::ShortestSci))
+}
+
+/// The report's row for a search: generations, evaluations, why it ended.
+pub(crate) fn search_row(s: &cps_learn::SearchStats) -> (&'static str, String) {
+    (
+        "CMA-ES",
+        format!(
+            "{} generations, {} evaluations, {}",
+            s.generations, s.evaluations, s.termination
+        ),
+    )
+}
+
+/// `x [m]`, `y [m]`, `z [m]` for three dimensions, `y0 [m]`, … otherwise.
+pub(crate) fn axis_names(dims: usize) -> Vec<String> {
+    (0..dims)
+        .map(|d| {
+            if dims == 3 {
+                format!("{} [m]", ["x", "y", "z"][d])
+            } else {
+                format!("y{d} [m]")
+            }
+        })
+        .collect()
+}
+
+/// The way points of a task as `(time, position)` marks.
+pub(crate) fn way_points(task: &ViaPointTask) -> Vec<(f64, Vec<f64>)> {
+    let mut points: Vec<(f64, Vec<f64>)> = vec![(0.0, task.start.clone())];
+    points.extend(task.via.iter().map(|v| (v.time, v.position.clone())));
+    points.push((task.dmp.tau, task.goal.clone()));
+    points
+}
+
+/// The cost figure of one search, when it ran generations.
+pub(crate) fn cost_figure(
+    caption: &str,
+    arms: Vec<CostArm>,
+    optimum: Option<f64>,
+) -> Option<Figure> {
+    (arms.iter().any(|a| !a.band.is_empty()) || optimum.is_some()).then(|| Figure {
+        name: "cost".into(),
+        caption: caption.into(),
+        plot: Plot::Cost { arms, optimum },
+    })
+}
+
+/// The position figures: `coordinates` (one panel per coordinate, with `marks`) and, for
+/// three dimensions, `path3d`.
+pub(crate) fn position_figures(
+    series: Vec<Series>,
+    marks: Vec<(f64, Vec<f64>)>,
+    coordinates_caption: &str,
+    path_caption: &str,
+) -> Vec<Figure> {
+    let dims = series.first().map_or(0, |s| s.values.len());
+    let mut figures = Vec::new();
+    if dims == 3 {
+        figures.push(Figure {
+            name: "path3d".into(),
+            caption: path_caption.into(),
+            plot: Plot::Path3d {
+                series: series.clone(),
+                marks: marks.iter().map(|m| m.1.clone()).collect(),
+            },
+        });
+    }
+    figures.insert(
+        0,
+        Figure {
+            name: "coordinates".into(),
+            caption: coordinates_caption.into(),
+            plot: Plot::Panels {
+                names: axis_names(dims),
+                series,
+                marks,
+            },
+        },
+    );
+    figures
+}
+
+/// The largest of a list (0 for none).
+pub(crate) fn worst(v: &[f64]) -> f64 {
+    v.iter().fold(0.0f64, |a, &b| a.max(b))
+}
+
+/// Solver name as summaries write it.
+pub(crate) fn solver_name(s: cps_learn::Solver) -> &'static str {
+    match s {
+        cps_learn::Solver::Cmaes => "cmaes",
+        cps_learn::Solver::Exact => "exact",
+    }
+}

@@ -1,0 +1,253 @@
+//! `kind = "viapoint_pose"`: via-point learning of the tool's position and orientation.
+
+use cps_learn::{OrientationCostBreakdown, PoseConfig, PoseOutcome, learn_pose};
+use serde::Serialize;
+
+use super::{cost_figure, history_table, position_figures, search_row, way_points, worst};
+use crate::ExperimentError;
+use crate::outcome::{
+    Column, CostArm, Figure, Format, Outcome, Plot, Report, ReportTable, Series, Table, fields,
+};
+use crate::run::{Ctx, learn_error};
+
+#[derive(Serialize)]
+struct Summary<'a> {
+    position_cost: f64,
+    position_gap_to_optimum: f64,
+    goal_error_m: f64,
+    via_errors_m: &'a [f64],
+    orientation_cost: f64,
+    orientation_cost_terms: OrientationCostBreakdown,
+    orientation_start_cost: f64,
+    goal_angle_deg: f64,
+    via_angles_deg: Vec<Option<f64>>,
+    final_angular_speed_rad_s: f64,
+    orientation_search: &'a cps_learn::SearchStats,
+    orientation_seconds: f64,
+}
+
+/// Learns position and orientation and declares the outcome.
+pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
+    let exp = ctx.exp;
+    let plan = exp
+        .pose
+        .as_ref()
+        .ok_or_else(|| ExperimentError::Message("a pose experiment has its orientations".into()))?;
+    let config = PoseConfig {
+        learner: exp.config.clone(),
+        start_orientation: plan.start,
+        goal_orientation: plan.goal,
+        via_orientations: plan.via.clone(),
+        orientation_sigma0: plan.sigma0,
+    };
+    let progress = |_: usize, r: &cps_cmaes::GenerationReport<'_>| ctx.generation(r);
+    let outcome = ctx
+        .pool
+        .install(|| learn_pose(&config, &progress))
+        .map_err(|e| learn_error(e, "pose run"))?;
+    ctx.observer.finished();
+    let o = &outcome.orientation;
+    let best = outcome.position.best();
+    let complete = !outcome.position.interrupted() && !o.search.interrupted();
+    let summary = Summary {
+        position_cost: best.cost,
+        position_gap_to_optimum: best.gap_to_optimum,
+        goal_error_m: best.errors.goal,
+        via_errors_m: &best.errors.via,
+        orientation_cost: o.breakdown.total(),
+        orientation_cost_terms: o.breakdown,
+        orientation_start_cost: o.start.total(),
+        goal_angle_deg: o.errors.goal.to_degrees(),
+        via_angles_deg: o
+            .errors
+            .via
+            .iter()
+            .map(|a| a.map(f64::to_degrees))
+            .collect(),
+        final_angular_speed_rad_s: o.errors.final_angular_speed,
+        orientation_search: &o.search,
+        orientation_seconds: o.seconds,
+    };
+    let worst_angle = |v: &[Option<f64>]| v.iter().flatten().fold(0.0f64, |a, &b| a.max(b));
+    let lines = vec![
+        format!(
+            "{}: position and orientation learned in {:.2} s",
+            exp.name,
+            ctx.wall()
+        ),
+        format!(
+            "  position: cost {:.6e} (gap to the exact optimum {:.2e}), goal error {:.3} mm, worst via-point error {:.3} mm",
+            best.cost,
+            best.gap_to_optimum,
+            best.errors.goal * 1e3,
+            worst(&best.errors.via) * 1e3
+        ),
+        format!(
+            "  orientation: cost {:.6e} (from {:.6e}), goal off by {:.3}°, worst via orientation off by {:.3}° ({} generations, {})",
+            summary.orientation_cost,
+            summary.orientation_start_cost,
+            summary.goal_angle_deg,
+            worst_angle(&summary.via_angles_deg),
+            o.search.generations,
+            o.search.termination
+        ),
+    ];
+    Ok(Outcome {
+        header: ctx.header(complete),
+        report: report(ctx, &summary),
+        summary: fields(&summary),
+        tables: vec![
+            trajectory(&outcome),
+            history_table(&[
+                ("position", &best.history),
+                ("orientation", &o.search.history),
+            ]),
+        ],
+        figures: figures(ctx, &outcome, &config),
+        documents: Vec::new(),
+        lines,
+    })
+}
+
+/// `trajectory.csv`: time, position, unit quaternion, angular velocity.
+fn trajectory(outcome: &PoseOutcome) -> Table {
+    let p = outcome.position.best_trajectory();
+    let o = &outcome.orientation.trajectory;
+    let mut t =
+        Table::new("trajectory").with(Column::numbers("t", p.times().to_vec(), Format::Fixed(6)));
+    for (d, name) in ["x", "y", "z"].iter().enumerate() {
+        t.push(Column::numbers(
+            *name,
+            p.position(d).to_vec(),
+            Format::Fixed(9),
+        ));
+    }
+    let n = p.n_samples();
+    type Part = fn(&nalgebra::UnitQuaternion<f64>) -> f64;
+    let quaternion: [(&str, Part); 4] = [
+        ("qx", |q| q.i),
+        ("qy", |q| q.j),
+        ("qz", |q| q.k),
+        ("qw", |q| q.w),
+    ];
+    for (name, part) in quaternion {
+        t.push(Column::numbers(
+            name,
+            o.orientation.iter().take(n).map(part).collect(),
+            Format::Fixed(12),
+        ));
+    }
+    for (d, name) in ["wx", "wy", "wz"].iter().enumerate() {
+        t.push(Column::numbers(
+            *name,
+            o.angular_velocity.iter().take(n).map(|w| w[d]).collect(),
+            Format::Fixed(9),
+        ));
+    }
+    t
+}
+
+fn figures(ctx: &Ctx<'_>, outcome: &PoseOutcome, config: &PoseConfig) -> Vec<Figure> {
+    let task = &ctx.exp.config.task;
+    let p = outcome.position.best_trajectory();
+    let mut figures = position_figures(
+        vec![Series::of_trajectory("", &p)],
+        way_points(task),
+        "Position per coordinate; dots are the way points.",
+        "The path in 3-D.",
+    );
+    // The orientation as quaternion components, with the targets (sign-aligned with the
+    // trajectory, since q and −q are the same orientation).
+    let o = &outcome.orientation.trajectory;
+    let comps = vec![
+        o.orientation.iter().map(|q| q.i).collect(),
+        o.orientation.iter().map(|q| q.j).collect(),
+        o.orientation.iter().map(|q| q.k).collect(),
+        o.orientation.iter().map(|q| q.w).collect(),
+    ];
+    let mut marks = Vec::new();
+    let mut mark = |t: f64, q: &nalgebra::UnitQuaternion<f64>| {
+        let (k, _) = cps_dmp::locate_on_grid(&o.times, t);
+        let sign = if o.orientation[k].coords.dot(&q.coords) < 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
+        marks.push((t, q.coords.iter().map(|c| sign * c).collect::<Vec<f64>>()));
+    };
+    mark(0.0, &config.start_orientation);
+    for (v, q) in task.via.iter().zip(&config.via_orientations) {
+        if let Some(q) = q {
+            mark(v.time, q);
+        }
+    }
+    mark(task.dmp.tau, &config.goal_orientation);
+    figures.insert(
+        1,
+        Figure {
+            name: "orientation".into(),
+            caption: "Orientation as unit-quaternion components; dots are the orientation targets."
+                .into(),
+            plot: Plot::Panels {
+                names: ["qx", "qy", "qz", "qw"].map(String::from).to_vec(),
+                series: vec![Series::new(
+                    "orientation (unit quaternion)",
+                    o.times.clone(),
+                    comps,
+                )],
+                marks,
+            },
+        },
+    );
+    let arms = [
+        ("position", &outcome.position.best().history),
+        ("orientation", &outcome.orientation.search.history),
+    ]
+    .into_iter()
+    .filter(|(_, h)| !h.is_empty())
+    .map(|(label, h)| CostArm::new(label, &[h.as_slice()]))
+    .collect();
+    figures.extend(cost_figure("Best cost so far per generation.", arms, None));
+    figures
+}
+
+fn report(ctx: &Ctx<'_>, s: &Summary<'_>) -> Report {
+    let mut rows = vec![(
+        "position",
+        format!(
+            "cost {:.6e} (gap to the exact optimum {:.2e}); goal error {:.4} mm",
+            s.position_cost,
+            s.position_gap_to_optimum,
+            s.goal_error_m * 1e3
+        ),
+    )];
+    for (i, e) in s.via_errors_m.iter().enumerate() {
+        rows.push(("via-point error", format!("p{}: {:.4} mm", i + 1, e * 1e3)));
+    }
+    rows.push((
+        "orientation",
+        format!(
+            "cost {:.6e} (zero weights: {:.6e}); goal off by {:.4}°",
+            s.orientation_cost, s.orientation_start_cost, s.goal_angle_deg
+        ),
+    ));
+    for (i, a) in s.via_angles_deg.iter().enumerate() {
+        rows.push((
+            "via orientation",
+            match a {
+                Some(a) => format!("p{}: off by {a:.4}°", i + 1),
+                None => format!("p{}: free", i + 1),
+            },
+        ));
+    }
+    rows.push(search_row(s.orientation_search));
+    rows.push((
+        "orientation learning time",
+        format!("{:.2} s", s.orientation_seconds),
+    ));
+    Report {
+        title: format!("{}: position and orientation through via points", ctx.exp.name),
+        context: "Three DMPs carry the tool's position and one orientation DMP on unit quaternions its orientation; each part is learned against its via-point targets.".into(),
+        tables: vec![ReportTable::pairs("Result", rows)],
+    }
+}

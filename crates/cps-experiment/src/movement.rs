@@ -1,0 +1,338 @@
+//! Single movements, for users who want the DMP layer alone: demonstrations read from CSV,
+//! a DMP model imitated from them, a model's rollout with a new start, goal or τ — each
+//! with its table and figure in the result model.
+//!
+//! Demonstration CSV: a header row naming the columns, then one row per sample: the time
+//! in seconds first, then one column per dimension. Trajectory CSV ([`rollout_table`]):
+//! `time`, each dimension's position, then `<name>_vel` and `<name>_acc` per dimension
+//! (SI units).
+
+use std::path::Path;
+
+use cps_dmp::{
+    Combine, Demonstration, DiscreteDmp, DmpConfig, DmpError, DmpModel, Imitation, Regression,
+    Trajectory,
+};
+
+use crate::InputError;
+use crate::outcome::{Column, Figure, Format, Plot, Series, Table};
+
+/// The largest demonstration file read: 256 MiB (≈ 10⁷ samples of three coordinates).
+pub const MAX_DEMO_BYTES: u64 = 256 << 20;
+/// The most columns of a demonstration (time and 255 dimensions).
+const MAX_DEMO_COLUMNS: usize = 256;
+
+/// Reads a demonstration CSV: the names of its dimensions and the samples. Errors name
+/// the file and the line.
+pub fn read_demo(path: &Path) -> Result<(Vec<String>, Demonstration), InputError> {
+    let text = crate::experiment::read_text(path, MAX_DEMO_BYTES, "demonstration")?;
+    parse_demo(path, &text)
+}
+
+/// Parses demonstration CSV text (`path` names it in errors).
+pub fn parse_demo(path: &Path, text: &str) -> Result<(Vec<String>, Demonstration), InputError> {
+    let fail = |m: String| InputError(format!("{}: {m}", path.display()));
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .trim(csv::Trim::All)
+        .from_reader(text.as_bytes());
+    let header: Vec<String> = reader
+        .headers()
+        .map_err(|e| fail(format!("cannot read the header: {e}")))?
+        .iter()
+        .map(str::to_string)
+        .collect();
+    if header.len() < 2 {
+        return Err(fail(format!(
+            "the header has {} column(s); needed: time, then one column per dimension",
+            header.len()
+        )));
+    }
+    if header.len() > MAX_DEMO_COLUMNS {
+        return Err(fail(format!(
+            "the header has {} columns; at most {MAX_DEMO_COLUMNS} are read (time and one per dimension)",
+            header.len()
+        )));
+    }
+    if header.iter().all(|h| h.parse::<f64>().is_ok()) {
+        return Err(fail(
+            "line 1: no header row; the first line must name the columns (time, then one per dimension)".into(),
+        ));
+    }
+    let (mut times, mut rows) = (Vec::new(), Vec::new());
+    for (i, record) in reader.records().enumerate() {
+        let line = i + 2;
+        let record = record.map_err(|e| fail(format!("line {line}: {e}")))?;
+        if record.len() != header.len() {
+            return Err(fail(format!(
+                "line {line}: {} values, the header has {} columns",
+                record.len(),
+                header.len()
+            )));
+        }
+        let mut values = Vec::with_capacity(record.len());
+        for (c, field) in record.iter().enumerate() {
+            let v: f64 = field.parse().map_err(|_| {
+                fail(format!(
+                    "line {line}, column `{}`: `{field}` is not a number",
+                    header[c]
+                ))
+            })?;
+            if !v.is_finite() {
+                return Err(fail(format!(
+                    "line {line}, column `{}`: {v} is not finite",
+                    header[c]
+                )));
+            }
+            values.push(v);
+        }
+        times.push(values[0]);
+        rows.push(values[1..].to_vec());
+    }
+    let demo = Demonstration::new(times, &rows).map_err(|e| {
+        // Sample k is on line k + 2: say so.
+        let text = e.to_string();
+        fail(format!("{text} (sample k is on line k + 2)"))
+    })?;
+    Ok((header[1..].to_vec(), demo))
+}
+
+/// How to imitate demonstrations ([`imitate_files`]).
+#[derive(Debug, Clone, Copy)]
+pub struct ImitationSpec {
+    /// Gaussian basis functions per dimension.
+    pub bases: usize,
+    /// The regression (and its λ).
+    pub regression: Regression,
+    /// Duration of the model in seconds (default: the demonstrations' mean duration).
+    pub tau: Option<f64>,
+    /// Time step of the model's grid (default: the first demonstration's mean sampling
+    /// interval).
+    pub dt: Option<f64>,
+    /// The forcing term's formulation.
+    pub formulation: cps_dmp::Formulation,
+    /// How several demonstrations are combined.
+    pub combine: Combine,
+}
+
+/// A DMP imitated from demonstration files.
+#[derive(Debug)]
+pub struct Imitated {
+    /// The names of the dimensions (the demonstrations' header).
+    pub names: Vec<String>,
+    /// How many demonstrations were read.
+    pub demonstrations: usize,
+    /// The fit (model, weights, the reference it was fitted to, the report).
+    pub fit: Imitation,
+}
+
+impl Imitated {
+    /// The model as the JSON file format.
+    pub fn model(&self) -> DmpModel {
+        DmpModel::new(&self.fit.dmp, &self.fit.weights, self.names.clone())
+    }
+
+    /// The demonstration (the fitted reference) and the model's rollout, one panel per
+    /// dimension.
+    pub fn figure(&self) -> Figure {
+        let traj = self.fit.dmp.rollout(&self.fit.weights);
+        let series = vec![
+            Series::new(
+                "demonstration",
+                traj.times().to_vec(),
+                self.fit.reference.clone(),
+            ),
+            Series::of_trajectory("DMP", &traj),
+        ];
+        Figure {
+            name: "imitation".into(),
+            caption: "The demonstration and the DMP's rollout.".into(),
+            plot: Plot::Panels {
+                names: self.names.clone(),
+                series,
+                marks: Vec::new(),
+            },
+        }
+    }
+}
+
+/// The command line's name of a DMP configuration field.
+fn option_name(field: &str) -> &str {
+    match field {
+        "n_basis" => "bases",
+        other => other,
+    }
+}
+
+/// Reads demonstration files and imitates them with one DMP per dimension.
+pub fn imitate_files(paths: &[&Path], spec: &ImitationSpec) -> Result<Imitated, InputError> {
+    let mut demos = Vec::new();
+    let mut names: Option<Vec<String>> = None;
+    for path in paths {
+        let (header, demo) = read_demo(path)?;
+        if let Some(n) = &names
+            && n.len() != header.len()
+        {
+            return Err(InputError(format!(
+                "{}: {} dimensions, but {} has {}",
+                path.display(),
+                header.len(),
+                paths[0].display(),
+                n.len()
+            )));
+        }
+        names.get_or_insert(header);
+        demos.push(demo);
+    }
+    let Some(first) = demos.first() else {
+        return Err(InputError("no demonstration given".into()));
+    };
+    let tau = spec.tau.unwrap_or_else(|| {
+        demos.iter().map(Demonstration::duration).sum::<f64>() / demos.len() as f64
+    });
+    let dt = spec
+        .dt
+        .unwrap_or_else(|| first.duration() / (first.len() - 1) as f64);
+    let config = DmpConfig {
+        formulation: spec.formulation,
+        ..DmpConfig::new(spec.bases, tau, dt)
+    };
+    let fit =
+        cps_dmp::imitate(&config, &demos, spec.regression, spec.combine).map_err(|e| match e {
+            DmpError::InvalidConfig { field, rule, value } => {
+                InputError(format!("--{}: {rule} (got {value:?})", option_name(field)))
+            }
+            other => InputError(other.to_string()),
+        })?;
+    Ok(Imitated {
+        names: names.unwrap_or_default(),
+        demonstrations: demos.len(),
+        fit,
+    })
+}
+
+/// What to change in a model's rollout ([`rollout_file`]); `None` keeps the model's.
+#[derive(Debug, Clone, Default)]
+pub struct RolloutSpec {
+    /// New start, one value per dimension.
+    pub start: Option<Vec<f64>>,
+    /// New goal, one value per dimension.
+    pub goal: Option<Vec<f64>>,
+    /// New duration, seconds.
+    pub tau: Option<f64>,
+    /// New time step, seconds.
+    pub dt: Option<f64>,
+}
+
+/// A model's rollout.
+#[derive(Debug)]
+pub struct RolledOut {
+    /// The names of the dimensions (`y0`, … when the model has none).
+    pub names: Vec<String>,
+    /// The start used.
+    pub start: Vec<f64>,
+    /// The goal used.
+    pub goal: Vec<f64>,
+    /// The duration used, seconds.
+    pub tau: f64,
+    /// The trajectory.
+    pub trajectory: Trajectory,
+}
+
+impl RolledOut {
+    /// `time`, positions, `<name>_vel`, `<name>_acc` (shortest round-trip decimals).
+    pub fn table(&self) -> Table {
+        rollout_table(&self.names, &self.trajectory)
+    }
+
+    /// The trajectory per dimension, with the start and goal marked.
+    pub fn figure(&self) -> Figure {
+        let (traj, tau) = (&self.trajectory, self.tau);
+        Figure {
+            name: "rollout".into(),
+            caption: "The rollout per dimension; dots are the start and the goal.".into(),
+            plot: Plot::Panels {
+                names: self.names.clone(),
+                series: vec![Series::of_trajectory("", traj)],
+                marks: vec![(0.0, self.start.clone()), (tau, self.goal.clone())],
+            },
+        }
+    }
+}
+
+/// Reads a model file and rolls it out with the changes of `spec`.
+pub fn rollout_file(model: &Path, spec: &RolloutSpec) -> Result<RolledOut, InputError> {
+    let text = crate::experiment::read_text(model, crate::experiment::MAX_FILE_BYTES, "model")?;
+    let in_model = |e: DmpError| InputError(format!("{}: {e}", model.display()));
+    let file = DmpModel::from_json(&text).map_err(in_model)?;
+    let (dmp, weights) = file.to_dmp().map_err(in_model)?;
+    let dims = dmp.dims();
+    let names: Vec<String> = if file.names.is_empty() {
+        (0..dims).map(|d| format!("y{d}")).collect()
+    } else {
+        file.names.clone()
+    };
+    let check = |what: &str, v: &Option<Vec<f64>>, model: &[f64]| match v {
+        None => Ok(model.to_vec()),
+        Some(v) if v.len() != dims => Err(InputError(format!(
+            "--{what}: {} values for a {dims}-dimensional model ({})",
+            v.len(),
+            names.join(", ")
+        ))),
+        Some(v)
+            if v.iter()
+                .any(|x| !x.is_finite() || x.abs() > cps_learn::MAX_COORDINATE) =>
+        {
+            Err(InputError(format!(
+                "--{what}: values must be finite and at most {:e} in magnitude",
+                cps_learn::MAX_COORDINATE
+            )))
+        }
+        Some(v) => Ok(v.clone()),
+    };
+    let start = check("start", &spec.start, dmp.start())?;
+    let goal = check("goal", &spec.goal, dmp.goal())?;
+    let mut config = *dmp.config();
+    if let Some(t) = spec.tau {
+        config.tau = t;
+    }
+    if let Some(d) = spec.dt {
+        config.dt = d;
+    }
+    let dmp = DiscreteDmp::new(config, &start, &goal).map_err(|e| match e {
+        DmpError::InvalidConfig { field, rule, value } => {
+            InputError(format!("--{field}: {rule} (got {value:?})"))
+        }
+        other => InputError(other.to_string()),
+    })?;
+    Ok(RolledOut {
+        names,
+        start,
+        goal,
+        tau: config.tau,
+        trajectory: dmp.rollout(&weights),
+    })
+}
+
+/// A trajectory as `time`, positions, `<name>_vel`, `<name>_acc` columns.
+pub fn rollout_table(names: &[String], traj: &Trajectory) -> Table {
+    let mut t = Table::new("trajectory").with(Column::numbers(
+        "time",
+        traj.times().to_vec(),
+        Format::Plain,
+    ));
+    for (suffix, q) in [
+        ("", Trajectory::position as fn(&Trajectory, usize) -> &[f64]),
+        ("_vel", Trajectory::velocity),
+        ("_acc", Trajectory::acceleration),
+    ] {
+        for (d, n) in names.iter().enumerate() {
+            t.push(Column::numbers(
+                format!("{n}{suffix}"),
+                q(traj, d).to_vec(),
+                Format::Plain,
+            ));
+        }
+    }
+    t
+}
