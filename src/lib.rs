@@ -10,8 +10,9 @@
 //!   Jacobians, IK, controllers, the robot-backend trait and the in-process robot.
 //! - [`coppelia`] (`cps-coppelia`): CoppeliaSim's ZMQ remote API (client and stand-in
 //!   server).
-//! - [`experiment`] (`cps-experiment`): experiment files, scenes, robot files, result
-//!   directories.
+//! - [`experiment`] (`cps-experiment`): experiments as a library — read an experiment
+//!   file of any kind, run it, get its outcome as data (summary, tables, figures), write
+//!   it as a result directory; scenes, robot files, single movements.
 //!
 //! See ARCHITECTURE.md for how they fit, and `cps-cli` for the command line.
 //!
@@ -24,6 +25,17 @@
 //! assert_eq!(traj.n_samples(), 101);
 //! # Ok(())
 //! # }
+//! ```
+//!
+//! An experiment file, as `cps-cli run` runs it (doctests run in the workspace's folder):
+//! ```
+//! use cps::experiment::{Experiment, RunOptions, budget::Ceilings};
+//! let exp = Experiment::from_path("experiments/viapoint.toml".as_ref(), &Ceilings::default())?;
+//! let outcome = cps::experiment::run(&exp, &RunOptions::default(), &())?;
+//! assert!(outcome.summary["gap_to_optimum"].as_f64().unwrap() < 0.01);
+//! let t = outcome.table("trajectory").unwrap();
+//! assert_eq!(t.rows(), 1001);
+//! # Ok::<(), cps::experiment::ExperimentError>(())
 //! ```
 #![deny(missing_docs)]
 

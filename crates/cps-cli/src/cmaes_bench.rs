@@ -1,40 +1,20 @@
-//! `cps-cli cmaes bench`: the standard test functions in the reference set-up, so anyone
-//! can check the optimiser on their own machine against pycma's published counts.
-//!
-//! Set-up (issue "cps-cmaes", after Hansen's and pycma's conventions): x0 = 3·1 and σ0 = 2
-//! (Rosenbrock: x0 = 0, σ0 = 0.5), default λ, success when f ≤ 1e-8, pycma's default
-//! termination (tolfun 1e-11, tolx 1e-11, stagnation, tolupsigma, conditioncov,
-//! no-effect rules), a budget of 2·10⁶·n evaluations, and with `--ipop` up to 9 restarts
-//! doubling λ, each from the same x0 and σ0 (`--bipop`: BIPOP, small-population runs
-//! interleaved).
+//! `cps-cli cmaes bench`: the standard test functions in the reference set-up
+//! (`cps_cmaes::functions`), so anyone can check the optimiser on their own machine
+//! against pycma's published counts.
 
 use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::Result;
-use clap::{Args, Subcommand, ValueEnum};
-use cps_cmaes::{
-    CmaesConfig, FnObjective, NoObserver, StopRule, functions, minimize, minimize_bipop,
-    minimize_ipop,
-};
+use clap::builder::{PossibleValuesParser, TypedValueParser};
+use clap::{Args, Subcommand};
+use cps_cmaes::functions::{Restarts, TestFunction, reference_run};
 
 use cps_experiment::InputError;
 
-/// A standard test function (all with minimum 0).
-#[derive(Debug, Clone, Copy, ValueEnum)]
-pub enum Function {
-    /// Σ x_i².
-    Sphere,
-    /// Σ 10^(6(i−1)/(n−1)) x_i² (condition 1e6).
-    Ellipsoid,
-    /// x_1² + 10⁶ Σ_{i≥2} x_i².
-    Cigar,
-    /// 10⁶ x_1² + Σ_{i≥2} x_i².
-    Discus,
-    /// Σ 100 (x_{i+1} − x_i²)² + (1 − x_i)².
-    Rosenbrock,
-    /// 10 n + Σ (x_i² − 10 cos 2π x_i).
-    Rastrigin,
+fn function(name: &str) -> TestFunction {
+    // Only names of `TestFunction::ALL` pass the parser.
+    TestFunction::from_name(name).unwrap_or(TestFunction::Sphere)
 }
 
 /// `cps-cli cmaes ...`.
@@ -47,9 +27,9 @@ pub enum CmaesCommand {
 /// Arguments of `cps-cli cmaes bench`.
 #[derive(Args, Debug)]
 pub struct BenchArgs {
-    /// The test function.
-    #[arg(value_enum)]
-    function: Function,
+    /// The test function (all with minimum 0).
+    #[arg(value_parser = PossibleValuesParser::new(TestFunction::ALL.map(TestFunction::name)).map(|s| function(&s)))]
+    function: TestFunction,
     /// Dimension n.
     #[arg(long, default_value_t = 10)]
     dim: usize,
@@ -112,33 +92,15 @@ pub fn bench(cmd: &CmaesCommand) -> Result<ExitCode> {
         .into());
     }
     let (first, last) = parse_seeds(&args.seeds)?;
-    let f: fn(&[f64]) -> f64 = match args.function {
-        Function::Sphere => functions::sphere,
-        Function::Ellipsoid => functions::ellipsoid,
-        Function::Cigar => functions::cigar,
-        Function::Discus => functions::discus,
-        Function::Rosenbrock => functions::rosenbrock,
-        Function::Rastrigin => functions::rastrigin,
+    let restarts = match (args.ipop, args.bipop) {
+        (true, _) => Restarts::Ipop,
+        (_, true) => Restarts::Bipop,
+        _ => Restarts::None,
     };
-    let (x0, sigma0) = match args.function {
-        Function::Rosenbrock => (vec![0.0; n], 0.5),
-        _ => (vec![3.0; n], 2.0),
-    };
-    let rules = StopRule::reference_set(1e-8, n);
     let mut rows = Vec::new();
     for seed in first..=last {
-        let config = CmaesConfig {
-            separable: args.separable,
-            ..CmaesConfig::new(sigma0, seed)
-        };
         let start = Instant::now();
-        let sol = if args.ipop {
-            minimize_ipop(&FnObjective(f), &x0, &config, &rules, 9, &mut NoObserver)?.best
-        } else if args.bipop {
-            minimize_bipop(&FnObjective(f), &x0, &config, &rules, 9, &mut NoObserver)?.best
-        } else {
-            minimize(&FnObjective(f), &x0, &config, &rules, &mut NoObserver)?
-        };
+        let sol = reference_run(args.function, n, seed, restarts, args.separable)?;
         let seconds = start.elapsed().as_secs_f64();
         let success = sol.best_cost <= 1e-8;
         if !args.json {

@@ -156,22 +156,7 @@ struct CeilingArgs {
 
 impl CeilingArgs {
     fn ceilings(&self) -> Result<budget::Ceilings, InputError> {
-        if !(self.max_memory.is_finite() && (0.001..=1e6).contains(&self.max_memory)) {
-            return Err(InputError(format!(
-                "--max-memory {}: give GiB between 0.001 and 1e6",
-                self.max_memory
-            )));
-        }
-        if !(self.max_work.is_finite() && (1.0..=1e20).contains(&self.max_work)) {
-            return Err(InputError(format!(
-                "--max-work {}: give a count between 1 and 1e20",
-                self.max_work
-            )));
-        }
-        Ok(budget::Ceilings {
-            memory_bytes: self.max_memory * 1024.0 * 1024.0 * 1024.0,
-            work: self.max_work,
-        })
+        budget::Ceilings::new(self.max_memory, self.max_work)
     }
 }
 
@@ -251,17 +236,13 @@ fn run_experiment(args: &RunArgs, interrupted: &AtomicBool) -> Result<ExitCode> 
         .out
         .clone()
         .unwrap_or_else(|| Path::new("results").join(&exp.name));
-    if let Some(t) = args.threads
-        && !(1..=1024).contains(&t)
-    {
-        return Err(InputError(format!("--threads {t}: must be between 1 and 1024")).into());
-    }
-    // The output is checked, and its staging directory made, before any work.
-    let stage = Staging::prepare(&out, args.force)?;
-    let observer = progress::Terminal::new(!args.quiet, interrupted);
     let options = RunOptions {
         threads: args.threads,
     };
+    options.check()?;
+    // The output is checked, and its staging directory made, before any work.
+    let stage = Staging::prepare(&out, args.force)?;
+    let observer = progress::Terminal::new(!args.quiet, interrupted);
     let outcome = cps_experiment::run(&exp, &options, &observer).map_err(cli_error)?;
     observer.clear();
     let written = WriteOptions { figures: exp.plots };

@@ -12,7 +12,7 @@ use cps_experiment::InputError;
 use cps_experiment::figures::draw_file;
 use cps_experiment::files::{table_csv, write_file};
 use cps_experiment::movement::{ImitationSpec, RolloutSpec, imitate_files, rollout_file};
-use cps_experiment::results_dir::{FileKind, check_file_target};
+use cps_experiment::results_dir::{FileKind, check_file_targets};
 
 use crate::cli_error;
 
@@ -116,26 +116,6 @@ pub struct RolloutArgs {
     force: bool,
 }
 
-/// Checks the output files before any work.
-fn check_outputs(
-    out: &Path,
-    out_kind: FileKind,
-    plot: Option<&Path>,
-    force: bool,
-) -> Result<(), InputError> {
-    check_file_target(out, out_kind, force)?;
-    if let Some(p) = plot {
-        if p == out {
-            return Err(InputError(format!(
-                "--plot {}: is the same file as --out",
-                p.display()
-            )));
-        }
-        check_file_target(p, FileKind::Figure, force)?;
-    }
-    Ok(())
-}
-
 fn parse_lambda(arg: Option<&str>, method: Method) -> Result<Lambda, InputError> {
     match arg {
         None => Ok(match method {
@@ -154,7 +134,7 @@ fn parse_lambda(arg: Option<&str>, method: Method) -> Result<Lambda, InputError>
 
 /// `cps-cli imitate`.
 pub fn run_imitate(args: &ImitateArgs) -> Result<ExitCode> {
-    check_outputs(&args.out, FileKind::Model, args.plot.as_deref(), args.force)?;
+    check_file_targets(&args.out, FileKind::Model, args.plot.as_deref(), args.force)?;
     let lambda = parse_lambda(args.lambda.as_deref(), args.method)?;
     let spec = ImitationSpec {
         bases: args.bases,
@@ -225,7 +205,7 @@ pub fn run_imitate(args: &ImitateArgs) -> Result<ExitCode> {
 
 /// `cps-cli rollout`.
 pub fn run_rollout(args: &RolloutArgs) -> Result<ExitCode> {
-    check_outputs(
+    check_file_targets(
         &args.out,
         FileKind::TrajectoryCsv,
         args.plot.as_deref(),

@@ -4,11 +4,11 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
-use cps_kinematics::{ChainGeometry, DhConvention, IkConfig, IkTarget, KinematicsError, solve_ik};
-use nalgebra::{IsometryMatrix3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use cps_kinematics::{IkConfig, KinematicsError, solve_ik};
+use nalgebra::UnitQuaternion;
 
 use cps_experiment::InputError;
-use cps_experiment::robot_file::{RobotModel, load_robot};
+use cps_experiment::robot_file::{RobotModel, ik_target, load_robot};
 
 /// Which robot and tool point a kinematics command works on.
 #[derive(Args, Debug)]
@@ -160,33 +160,7 @@ const MAX_JOINT_VALUE: f64 = 1000.0;
 pub fn ik(args: &IkArgs) -> Result<ExitCode> {
     let model = args.arm.load()?;
     let arm = &model.chain;
-    if let Some(v) = args.target.iter().find(|v| !v.is_finite() || v.abs() > 1e6) {
-        return Err(InputError(format!(
-            "--target: values must be finite and at most 1e6 in magnitude (got {v:?})"
-        ))
-        .into());
-    }
-    let target = match args.target.as_slice() {
-        [x, y, z] => IkTarget::Position(Vector3::new(*x, *y, *z)),
-        [x, y, z, qx, qy, qz, qw] => {
-            let quat = Quaternion::new(*qw, *qx, *qy, *qz);
-            if quat.norm() < 1e-9 {
-                return Err(InputError("--target: the quaternion has zero length".into()).into());
-            }
-            let rot = UnitQuaternion::from_quaternion(quat).to_rotation_matrix();
-            IkTarget::Pose(IsometryMatrix3::from_parts(
-                Translation3::new(*x, *y, *z),
-                rot,
-            ))
-        }
-        other => {
-            return Err(InputError(format!(
-                "--target: give x,y,z or x,y,z,qx,qy,qz,qw ({} values given)",
-                other.len()
-            ))
-            .into());
-        }
-    };
+    let target = ik_target(&args.target)?;
     let seed = args.seed_q.clone().unwrap_or_else(|| model.ready.clone());
     arm.check_within_limits(&seed)
         .map_err(|e| InputError(format!("--seed-q: {e}")))?;
@@ -219,87 +193,8 @@ pub fn ik(args: &IkArgs) -> Result<ExitCode> {
 pub fn robot(cmd: &RobotCommand) -> Result<ExitCode> {
     let RobotCommand::Show { robot, tool, tip } = cmd;
     let model = load_robot(robot, tool.as_deref(), tip.as_deref())?;
-    let arm = &model.chain;
-    let limits = |i: usize| {
-        let (lo, hi) = arm
-            .limits()
-            .map_or(("-".to_string(), "-".to_string()), |(lo, hi)| {
-                (format!("{:.4}", lo[i]), format!("{:.4}", hi[i]))
-            });
-        let dq = arm
-            .velocity_limits()
-            .map_or("-".to_string(), |v| format!("{:.4}", v[i]));
-        format!("{lo:>10} {hi:>10} {dq:>9}")
-    };
-    let head = format!("{:>10} {:>10} {:>9}", "q_min", "q_max", "dq_max");
-    match arm.geometry() {
-        ChainGeometry::Dh { convention, links } => {
-            let conv = match convention {
-                DhConvention::Standard => {
-                    "standard DH: T_i = RotZ(θ_i) TransZ(d_i) TransX(a_i) RotX(α_i)"
-                }
-                DhConvention::Modified => {
-                    "modified (Craig) DH: T_i = RotX(α_{i−1}) TransX(a_{i−1}) RotZ(θ_i) TransZ(d_i)"
-                }
-            };
-            say!("{}: {} revolute joints, {conv}", model.name, arm.dof());
-            say!(
-                "{:>5} {:>9} {:>9} {:>10} {:>8} {head}",
-                "joint",
-                "a [m]",
-                "d [m]",
-                "α [rad]",
-                "offset"
-            );
-            for (i, l) in links.iter().enumerate() {
-                say!(
-                    "{:>5} {:>9.4} {:>9.4} {:>10.4} {:>8.4} {}",
-                    i + 1,
-                    l.a,
-                    l.d,
-                    l.alpha,
-                    l.offset,
-                    limits(i)
-                );
-            }
-        }
-        ChainGeometry::Joints(joints) => {
-            say!(
-                "{}: {} revolute joints, URDF joints (origin xyz, rpy; axis)",
-                model.name,
-                arm.dof()
-            );
-            for (i, j) in joints.iter().enumerate() {
-                let t = j.origin.translation.vector;
-                let (r, p, y) = j.origin.rotation.euler_angles();
-                say!(
-                    "{:>2} {:<14} xyz [{:.4} {:.4} {:.4}] rpy [{:.4} {:.4} {:.4}] axis [{:.3} {:.3} {:.3}] {}",
-                    i + 1,
-                    model.joint_names[i],
-                    t.x,
-                    t.y,
-                    t.z,
-                    r,
-                    p,
-                    y,
-                    j.axis.x,
-                    j.axis.y,
-                    j.axis.z,
-                    limits(i)
-                );
-            }
-            say!("   (limit columns: {head})");
-        }
+    for line in model.describe() {
+        say!("{line}");
     }
-    let frame = |iso: &nalgebra::Isometry3<f64>| {
-        let t = iso.translation.vector;
-        let (r, p, y) = iso.rotation.euler_angles();
-        format!(
-            "xyz [{:.4} {:.4} {:.4}] m, rpy [{:.4} {:.4} {:.4}] rad",
-            t.x, t.y, t.z, r, p, y
-        )
-    };
-    say!("base: {}", frame(&arm.base()));
-    say!("tool ({}): {}", model.tool, frame(&arm.tool()));
     Ok(ExitCode::SUCCESS)
 }

@@ -1,13 +1,12 @@
 //! `cps-cli scene check`: where the tool is at a scene's initial configuration and which
-//! objects the tool can reach within the joint limits. The scene format itself is
-//! `cps_experiment::scene`, re-exported here.
+//! objects the tool can reach within the joint limits. The scene format and the check
+//! are `cps_experiment::scene`'s; this prints them.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Subcommand;
-use cps_kinematics::{IkConfig, IkTarget, SerialChain, solve_ik};
 
 use cps_experiment::scene::load_scene;
 
@@ -25,33 +24,12 @@ pub enum SceneCommand {
     },
 }
 
-fn outside_limits(chain: &SerialChain, q: &[f64]) -> Vec<(usize, f64, f64, f64)> {
-    chain.limits().map_or(Vec::new(), |(lo, hi)| {
-        (0..q.len())
-            .filter(|&i| q[i] < lo[i] || q[i] > hi[i])
-            .map(|i| (i + 1, q[i], lo[i], hi[i]))
-            .collect()
-    })
-}
-
 /// `cps-cli scene check`.
 pub fn scene(cmd: &SceneCommand) -> Result<ExitCode> {
     let SceneCommand::Check { file, json } = cmd;
     let scene = load_scene(file)?;
-    let chain = &scene.robot.chain;
-    let tool = chain.fk(&scene.initial_q)?.translation.vector;
-    let config = IkConfig {
-        seed: 1,
-        ..IkConfig::default()
-    };
-    let mut rows = Vec::new();
-    let mut all = true;
-    for (name, p) in &scene.objects {
-        let r = solve_ik(chain, &IkTarget::Position(*p), &scene.robot.ready, &config);
-        all &= r.is_ok();
-        rows.push((name.clone(), *p, r));
-    }
-    let outside = outside_limits(chain, &scene.initial_q);
+    let reach = scene.reach()?;
+    let (tool, outside, rows) = (reach.tool, &reach.outside_limits, &reach.objects);
     if *json {
         let objects: Vec<_> = rows
             .iter()
@@ -78,12 +56,12 @@ pub fn scene(cmd: &SceneCommand) -> Result<ExitCode> {
             tool.y,
             tool.z
         );
-        for (j, v, lo, hi) in &outside {
+        for (j, v, lo, hi) in outside {
             say!(
                 "note: initial joint {j} = {v} lies outside its limits [{lo}, {hi}]; accepted as a start state"
             );
         }
-        for (name, p, r) in &rows {
+        for (name, p, r) in rows {
             let at = format!("{name:<4} ({:.3}, {:.3}, {:.3})", p.x, p.y, p.z);
             match r {
                 Ok(s) => say!(
@@ -98,7 +76,7 @@ pub fn scene(cmd: &SceneCommand) -> Result<ExitCode> {
             }
         }
     }
-    Ok(if all {
+    Ok(if reach.all_reachable() {
         ExitCode::SUCCESS
     } else {
         ExitCode::FAILURE

@@ -7,10 +7,10 @@ use std::time::Duration;
 
 use anyhow::Result;
 use clap::Subcommand;
-use cps_coppelia::{SceneSetup, ServerConfig, ServerLimits, StandInServer};
+use cps_coppelia::{ServerConfig, ServerLimits, StandInServer};
 
 use cps_experiment::InputError;
-use cps_experiment::scene::{THESIS_SCENE, load_scene, parse_scene};
+use cps_experiment::scene::{Scene, load_scene};
 
 /// `cps-cli sim ...`.
 #[derive(Subcommand, Debug)]
@@ -87,27 +87,10 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
     }
     let scene = match scene {
         Some(path) => load_scene(path)?,
-        None => parse_scene(
-            std::path::Path::new("configs/scenes/thesis.toml"),
-            THESIS_SCENE,
-        )?,
+        None => Scene::thesis()?,
     };
-    let robot_name = match scene.robot.name.as_str() {
-        "panda" => "Panda".to_string(),
-        other => other.to_string(),
-    };
-    let setup = SceneSetup {
-        robot_name: robot_name.clone(),
-        chain: scene.robot.chain.clone(),
-        initial_q: scene.initial_q.clone(),
-        dummies: scene
-            .objects
-            .iter()
-            .map(|(n, p)| (n.clone(), [p.x, p.y, p.z]))
-            .collect(),
-        dt: *dt,
-        ik_following: *ik_following,
-    };
+    let robot_name = scene.sim_robot_name();
+    let setup = scene.stand_in(*dt, *ik_following);
     let server = StandInServer::start(ServerConfig {
         bind: bind.clone(),
         scene: setup,

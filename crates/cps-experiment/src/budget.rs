@@ -20,7 +20,10 @@
 
 use std::ops::Range;
 
-use crate::experiment::{Experiment, InputError, Kind};
+use crate::InputError;
+pub use crate::plan::Estimate;
+use crate::plan::{Experiment, Kind};
+pub use crate::source::bytes;
 
 /// The ceilings a run may not exceed.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -42,23 +45,25 @@ impl Default for Ceilings {
 
 const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
 
-/// What a run would need.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Estimate {
-    /// Peak memory, bytes.
-    pub memory_bytes: f64,
-    /// Multiply-adds.
-    pub work: f64,
-    /// Samples of one rollout.
-    pub samples: f64,
-    /// Cost evaluations at the full budget.
-    pub evaluations: f64,
-    /// Dimensions learned (task or joints).
-    pub dims: usize,
-    /// Parameters searched.
-    pub parameters: usize,
-    /// Population per generation.
-    pub population: usize,
+impl Ceilings {
+    /// Ceilings of `memory_gib` GiB (0.001 to 1e6) and `work` multiply-adds (1 to 1e20),
+    /// as `--max-memory` and `--max-work` give them.
+    pub fn new(memory_gib: f64, work: f64) -> Result<Self, InputError> {
+        if !(memory_gib.is_finite() && (0.001..=1e6).contains(&memory_gib)) {
+            return Err(InputError(format!(
+                "--max-memory {memory_gib}: give GiB between 0.001 and 1e6"
+            )));
+        }
+        if !(work.is_finite() && (1.0..=1e20).contains(&work)) {
+            return Err(InputError(format!(
+                "--max-work {work}: give a count between 1 and 1e20"
+            )));
+        }
+        Ok(Self {
+            memory_bytes: memory_gib * GIB,
+            work,
+        })
+    }
 }
 
 impl Estimate {
@@ -75,17 +80,6 @@ impl Estimate {
             self.work,
             self.samples,
         )
-    }
-}
-
-/// Bytes in words.
-pub fn bytes(b: f64) -> String {
-    if b >= GIB {
-        format!("{:.1} GiB", b / GIB)
-    } else if b >= 1024.0 * 1024.0 {
-        format!("{:.0} MiB", b / (1024.0 * 1024.0))
-    } else {
-        format!("{:.0} KiB", (b / 1024.0).max(1.0))
     }
 }
 

@@ -11,45 +11,11 @@ use cps_learn::{
 use serde::Deserialize;
 use toml::Spanned;
 
+use crate::InputError;
 use crate::budget::Ceilings;
-
-pub use crate::error::InputError;
-
-/// The largest configuration file read (experiments, scenes, robots, models): 16 MiB.
-pub const MAX_FILE_BYTES: u64 = 16 << 20;
-
-/// Reads a text file of at most `limit` bytes, refusing a larger one before reading it
-/// (and anything that is not a regular file: a FIFO or a device would never end).
-pub fn read_text(path: &Path, limit: u64, what: &str) -> Result<String, InputError> {
-    use std::io::Read;
-    let fail = |m: String| InputError(format!("{}: {m}", path.display()));
-    let meta = std::fs::metadata(path).map_err(|e| fail(format!("cannot read the {what}: {e}")))?;
-    if !meta.is_file() {
-        return Err(fail(format!("the {what} must be a regular file")));
-    }
-    if meta.len() > limit {
-        return Err(fail(format!(
-            "the {what} has {} bytes, more than the {} cps reads; is it the right file?",
-            meta.len(),
-            crate::budget::bytes(limit as f64)
-        )));
-    }
-    let mut bytes = Vec::with_capacity(meta.len() as usize);
-    std::fs::File::open(path)
-        .and_then(|f| f.take(limit + 1).read_to_end(&mut bytes))
-        .map_err(|e| fail(format!("cannot read the {what}: {e}")))?;
-    if bytes.len() as u64 > limit {
-        return Err(fail(format!(
-            "the {what} grew beyond {limit} bytes while being read"
-        )));
-    }
-    String::from_utf8(bytes).map_err(|e| {
-        fail(format!(
-            "the {what} is not UTF-8 text (invalid byte at offset {})",
-            e.utf8_error().valid_up_to()
-        ))
-    })
-}
+pub use crate::plan::{Experiment, Kind};
+use crate::source::location;
+pub use crate::source::{MAX_FILE_BYTES, read_text};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -70,39 +36,6 @@ struct File {
     plant: Option<Spanned<crate::plan::PlantSection>>,
     speedup: Option<Spanned<crate::plan::SpeedupSection>>,
     orientation: Option<Spanned<crate::plan::OrientationSection>>,
-}
-
-/// What an experiment file runs (`[experiment] kind`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Kind {
-    /// Via-point learning (the default).
-    #[default]
-    Viapoint,
-    /// The thesis's imitation pipeline on a robot backend.
-    Imitation,
-    /// Parametrisations compared over repetitions (the thesis's scaled vs not scaled).
-    Scaling,
-    /// Via-point learning with one DMP per joint, judged in task space.
-    ViapointJoint,
-    /// Via-point learning through a simulated plant with a control-effort term.
-    ViapointEnergy,
-    /// Via-point learning of position and orientation.
-    ViapointPose,
-}
-
-impl Kind {
-    /// The name used in files and summaries.
-    pub fn name(&self) -> &'static str {
-        match self {
-            Kind::Viapoint => "viapoint",
-            Kind::Imitation => "imitation",
-            Kind::Scaling => "scaling",
-            Kind::ViapointJoint => "viapoint_joint",
-            Kind::ViapointEnergy => "viapoint_energy",
-            Kind::ViapointPose => "viapoint_pose",
-        }
-    }
 }
 
 #[derive(Debug, Deserialize)]
@@ -201,36 +134,6 @@ fn yes() -> bool {
     true
 }
 
-/// A parsed and validated experiment of one kind (`kind`), with the plan of its kind's
-/// own sections.
-#[derive(Debug, Clone)]
-pub struct Experiment {
-    /// What the file runs.
-    pub kind: Kind,
-    /// The file it was read from (names it in messages).
-    pub source: std::path::PathBuf,
-    /// Experiment name (file stem unless given).
-    pub name: String,
-    /// The learner's configuration.
-    pub config: ViaPointConfig,
-    /// Whether to draw plots.
-    pub plots: bool,
-    /// The robot and backend (`[robot]`), for kinds that execute.
-    pub robot: Option<crate::plan::RobotChoice>,
-    /// The imitation pipeline's settings (`kind = "imitation"`).
-    pub imitation: Option<crate::plan::ImitationPlan>,
-    /// The parametrisations compared (`kind = "scaling"`).
-    pub scaling: Option<crate::plan::ScalingPlan>,
-    /// The limit penalties (`kind = "viapoint_joint"`).
-    pub joint: Option<crate::plan::JointPlan>,
-    /// The plant and the speed-up measurement (`kind = "viapoint_energy"`).
-    pub energy: Option<crate::plan::EnergyPlan>,
-    /// The orientation targets (`kind = "viapoint_pose"`).
-    pub pose: Option<crate::plan::PosePlan>,
-    /// What the run needs (memory, work), estimated when the file was read.
-    pub estimate: Option<crate::budget::Estimate>,
-}
-
 impl Experiment {
     /// Reads and validates an experiment file (see [`load`]).
     pub fn from_path(path: &Path, ceilings: &Ceilings) -> Result<Self, InputError> {
@@ -242,14 +145,6 @@ impl Experiment {
     pub fn from_text(path: &Path, text: &str, ceilings: &Ceilings) -> Result<Self, InputError> {
         parse(path, text, None, ceilings)
     }
-}
-
-/// `file:line:column` of a byte offset.
-pub(crate) fn location(path: &Path, text: &str, span: &Range<usize>) -> String {
-    let before = &text[..span.start.min(text.len())];
-    let line = before.matches('\n').count() + 1;
-    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    format!("{}:{line}:{column}", path.display())
 }
 
 /// Reads, parses and validates an experiment file. Every error names the file, the line

@@ -54,6 +54,7 @@ pub mod figures;
 pub mod files;
 mod kinds;
 pub mod movement;
+mod observer;
 pub mod outcome;
 pub mod plan;
 #[cfg(feature = "figures")]
@@ -62,8 +63,10 @@ pub mod results_dir;
 pub mod robot_file;
 mod run;
 pub mod scene;
+mod source;
 
 pub use error::{Context, ExperimentError, InputError};
-pub use experiment::{Experiment, Kind};
+pub use observer::{Event, Observer};
 pub use outcome::Outcome;
-pub use run::{Event, Observer, RunOptions, planned_generations, run};
+pub use plan::{Experiment, Kind};
+pub use run::{RunOptions, planned_generations, run};

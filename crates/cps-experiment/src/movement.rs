@@ -25,7 +25,7 @@ const MAX_DEMO_COLUMNS: usize = 256;
 /// Reads a demonstration CSV: the names of its dimensions and the samples. Errors name
 /// the file and the line.
 pub fn read_demo(path: &Path) -> Result<(Vec<String>, Demonstration), InputError> {
-    let text = crate::experiment::read_text(path, MAX_DEMO_BYTES, "demonstration")?;
+    let text = crate::source::read_text(path, MAX_DEMO_BYTES, "demonstration")?;
     parse_demo(path, &text)
 }
 
@@ -262,7 +262,7 @@ impl RolledOut {
 
 /// Reads a model file and rolls it out with the changes of `spec`.
 pub fn rollout_file(model: &Path, spec: &RolloutSpec) -> Result<RolledOut, InputError> {
-    let text = crate::experiment::read_text(model, crate::experiment::MAX_FILE_BYTES, "model")?;
+    let text = crate::source::read_text(model, crate::source::MAX_FILE_BYTES, "model")?;
     let in_model = |e: DmpError| InputError(format!("{}: {e}", model.display()));
     let file = DmpModel::from_json(&text).map_err(in_model)?;
     let (dmp, weights) = file.to_dmp().map_err(in_model)?;

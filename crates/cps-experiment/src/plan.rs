@@ -14,9 +14,92 @@ use cps_learn::{Parametrisation, RobotSetup, ViaPointConfig};
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::experiment::{InputError, Kind, location};
+use crate::InputError;
 use crate::scene::{THESIS_SCENE, load_scene, parse_scene};
+use crate::source::location;
 use crate::{Context, ExperimentError};
+
+/// What an experiment file runs (`[experiment] kind`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kind {
+    /// Via-point learning (the default).
+    #[default]
+    Viapoint,
+    /// The thesis's imitation pipeline on a robot backend.
+    Imitation,
+    /// Parametrisations compared over repetitions (the thesis's scaled vs not scaled).
+    Scaling,
+    /// Via-point learning with one DMP per joint, judged in task space.
+    ViapointJoint,
+    /// Via-point learning through a simulated plant with a control-effort term.
+    ViapointEnergy,
+    /// Via-point learning of position and orientation.
+    ViapointPose,
+}
+
+impl Kind {
+    /// The name used in files and summaries.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Kind::Viapoint => "viapoint",
+            Kind::Imitation => "imitation",
+            Kind::Scaling => "scaling",
+            Kind::ViapointJoint => "viapoint_joint",
+            Kind::ViapointEnergy => "viapoint_energy",
+            Kind::ViapointPose => "viapoint_pose",
+        }
+    }
+}
+
+/// A parsed and validated experiment of one kind (`kind`), with the plan of its kind's
+/// own sections.
+#[derive(Debug, Clone)]
+pub struct Experiment {
+    /// What the file runs.
+    pub kind: Kind,
+    /// The file it was read from (names it in messages).
+    pub source: std::path::PathBuf,
+    /// Experiment name (file stem unless given).
+    pub name: String,
+    /// The learner's configuration.
+    pub config: ViaPointConfig,
+    /// Whether to draw plots.
+    pub plots: bool,
+    /// The robot and backend (`[robot]`), for kinds that execute.
+    pub robot: Option<RobotChoice>,
+    /// The imitation pipeline's settings (`kind = "imitation"`).
+    pub imitation: Option<ImitationPlan>,
+    /// The parametrisations compared (`kind = "scaling"`).
+    pub scaling: Option<ScalingPlan>,
+    /// The limit penalties (`kind = "viapoint_joint"`).
+    pub joint: Option<JointPlan>,
+    /// The plant and the speed-up measurement (`kind = "viapoint_energy"`).
+    pub energy: Option<EnergyPlan>,
+    /// The orientation targets (`kind = "viapoint_pose"`).
+    pub pose: Option<PosePlan>,
+    /// What the run needs (memory, work), estimated when the file was read.
+    pub estimate: Option<Estimate>,
+}
+
+/// What a run would need (computed by [`crate::budget`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Estimate {
+    /// Peak memory, bytes.
+    pub memory_bytes: f64,
+    /// Multiply-adds.
+    pub work: f64,
+    /// Samples of one rollout.
+    pub samples: f64,
+    /// Cost evaluations at the full budget.
+    pub evaluations: f64,
+    /// Dimensions learned (task or joints).
+    pub dims: usize,
+    /// Parameters searched.
+    pub parameters: usize,
+    /// Population per generation.
+    pub population: usize,
+}
 
 /// A limit in words: plain for ordinary magnitudes, exponent form for extreme ones.
 fn number(x: f64) -> String {

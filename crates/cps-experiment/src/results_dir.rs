@@ -27,7 +27,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-use crate::experiment::InputError;
+use crate::InputError;
 use crate::{Context, ExperimentError};
 
 /// The manifest's file name.
@@ -393,6 +393,27 @@ fn looks_like(path: &Path, kind: FileKind) -> bool {
                 || text.trim_start().starts_with("<?xml")
         }
     }
+}
+
+/// Checks the single output files of a command before any work: `out` (of `out_kind`)
+/// and, when given, a figure `plot` that is not the same file.
+pub fn check_file_targets(
+    out: &Path,
+    out_kind: FileKind,
+    plot: Option<&Path>,
+    force: bool,
+) -> Result<(), InputError> {
+    check_file_target(out, out_kind, force)?;
+    if let Some(p) = plot {
+        if p == out {
+            return Err(InputError(format!(
+                "--plot {}: is the same file as --out",
+                p.display()
+            )));
+        }
+        check_file_target(p, FileKind::Figure, force)?;
+    }
+    Ok(())
 }
 
 /// Checks that a single output file may be written: a new path, or with `force` an

@@ -9,12 +9,13 @@
 use std::path::Path;
 
 use cps_kinematics::robots::{PandaTool, panda, puma560, ur3};
-use cps_kinematics::{DhConvention, DhLink, SerialChain, chain_from_urdf};
-use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use cps_kinematics::{ChainGeometry, DhConvention, DhLink, IkTarget, SerialChain, chain_from_urdf};
+use nalgebra::{Isometry3, IsometryMatrix3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::experiment::{InputError, location};
+use crate::InputError;
+use crate::source::location;
 
 /// A robot ready for kinematics commands.
 #[derive(Debug, Clone)]
@@ -29,6 +30,130 @@ pub struct RobotModel {
     pub tool: String,
     /// Joint names (URDF) or `joint1..n`.
     pub joint_names: Vec<String>,
+}
+
+impl RobotModel {
+    /// The robot in words, one line each: its kinematic description (DH table or URDF
+    /// joints) with the joint limits, then the base and the tool frame.
+    pub fn describe(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        macro_rules! put {
+            ($($arg:tt)*) => { out.push(format!($($arg)*)) };
+        }
+        let arm = &self.chain;
+        let limits = |i: usize| {
+            let (lo, hi) = arm
+                .limits()
+                .map_or(("-".to_string(), "-".to_string()), |(lo, hi)| {
+                    (format!("{:.4}", lo[i]), format!("{:.4}", hi[i]))
+                });
+            let dq = arm
+                .velocity_limits()
+                .map_or("-".to_string(), |v| format!("{:.4}", v[i]));
+            format!("{lo:>10} {hi:>10} {dq:>9}")
+        };
+        let head = format!("{:>10} {:>10} {:>9}", "q_min", "q_max", "dq_max");
+        match arm.geometry() {
+            ChainGeometry::Dh { convention, links } => {
+                let conv = match convention {
+                    DhConvention::Standard => {
+                        "standard DH: T_i = RotZ(θ_i) TransZ(d_i) TransX(a_i) RotX(α_i)"
+                    }
+                    DhConvention::Modified => {
+                        "modified (Craig) DH: T_i = RotX(α_{i−1}) TransX(a_{i−1}) RotZ(θ_i) TransZ(d_i)"
+                    }
+                };
+                put!("{}: {} revolute joints, {conv}", self.name, arm.dof());
+                put!(
+                    "{:>5} {:>9} {:>9} {:>10} {:>8} {head}",
+                    "joint",
+                    "a [m]",
+                    "d [m]",
+                    "α [rad]",
+                    "offset"
+                );
+                for (i, l) in links.iter().enumerate() {
+                    put!(
+                        "{:>5} {:>9.4} {:>9.4} {:>10.4} {:>8.4} {}",
+                        i + 1,
+                        l.a,
+                        l.d,
+                        l.alpha,
+                        l.offset,
+                        limits(i)
+                    );
+                }
+            }
+            ChainGeometry::Joints(joints) => {
+                put!(
+                    "{}: {} revolute joints, URDF joints (origin xyz, rpy; axis)",
+                    self.name,
+                    arm.dof()
+                );
+                for (i, j) in joints.iter().enumerate() {
+                    let t = j.origin.translation.vector;
+                    let (r, p, y) = j.origin.rotation.euler_angles();
+                    put!(
+                        "{:>2} {:<14} xyz [{:.4} {:.4} {:.4}] rpy [{:.4} {:.4} {:.4}] axis [{:.3} {:.3} {:.3}] {}",
+                        i + 1,
+                        self.joint_names[i],
+                        t.x,
+                        t.y,
+                        t.z,
+                        r,
+                        p,
+                        y,
+                        j.axis.x,
+                        j.axis.y,
+                        j.axis.z,
+                        limits(i)
+                    );
+                }
+                put!("   (limit columns: {head})");
+            }
+        }
+        let frame = |iso: &nalgebra::Isometry3<f64>| {
+            let t = iso.translation.vector;
+            let (r, p, y) = iso.rotation.euler_angles();
+            format!(
+                "xyz [{:.4} {:.4} {:.4}] m, rpy [{:.4} {:.4} {:.4}] rad",
+                t.x, t.y, t.z, r, p, y
+            )
+        };
+        put!("base: {}", frame(&arm.base()));
+        put!("tool ({}): {}", self.tool, frame(&arm.tool()));
+        out
+    }
+}
+
+/// An inverse-kinematics target from `x,y,z` (metres, world frame) or a full pose
+/// `x,y,z,qx,qy,qz,qw`; the sentence of an error names `--target`.
+pub fn ik_target(values: &[f64]) -> Result<IkTarget, InputError> {
+    if let Some(v) = values.iter().find(|v| !v.is_finite() || v.abs() > 1e6) {
+        return Err(InputError(format!(
+            "--target: values must be finite and at most 1e6 in magnitude (got {v:?})"
+        )));
+    }
+    match values {
+        [x, y, z] => Ok(IkTarget::Position(Vector3::new(*x, *y, *z))),
+        [x, y, z, qx, qy, qz, qw] => {
+            let quat = Quaternion::new(*qw, *qx, *qy, *qz);
+            if quat.norm() < 1e-9 {
+                return Err(InputError(
+                    "--target: the quaternion has zero length".into(),
+                ));
+            }
+            let rot = UnitQuaternion::from_quaternion(quat).to_rotation_matrix();
+            Ok(IkTarget::Pose(IsometryMatrix3::from_parts(
+                Translation3::new(*x, *y, *z),
+                rot,
+            )))
+        }
+        other => Err(InputError(format!(
+            "--target: give x,y,z or x,y,z,qx,qy,qz,qw ({} values given)",
+            other.len()
+        ))),
+    }
 }
 
 /// The Panda's "ready" configuration (Franka's default start pose).
@@ -100,8 +225,7 @@ pub fn load_robot(
     let lower = spec.to_ascii_lowercase();
     if lower.ends_with(".toml") || lower.ends_with(".urdf") {
         let path = Path::new(spec);
-        let text =
-            crate::experiment::read_text(path, crate::experiment::MAX_FILE_BYTES, "robot file")?;
+        let text = crate::source::read_text(path, crate::source::MAX_FILE_BYTES, "robot file")?;
         if lower.ends_with(".urdf") {
             if tool.is_some() {
                 return Err(InputError(

@@ -3,12 +3,14 @@
 
 use std::path::Path;
 
+use cps_kinematics::{IkConfig, IkSolution, IkTarget, KinematicsError, solve_ik};
 use nalgebra::Vector3;
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::experiment::{InputError, location};
+use crate::InputError;
 use crate::robot_file::{Frame, RobotModel, load_robot};
+use crate::source::location;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -48,7 +50,7 @@ pub struct Scene {
 
 /// Reads a scene file; a relative robot file path is resolved against the scene's folder.
 pub fn load_scene(path: &Path) -> Result<Scene, InputError> {
-    let text = crate::experiment::read_text(path, crate::experiment::MAX_FILE_BYTES, "scene file")?;
+    let text = crate::source::read_text(path, crate::source::MAX_FILE_BYTES, "scene file")?;
     parse_scene(path, &text)
 }
 
@@ -115,4 +117,88 @@ pub fn parse_scene(path: &Path, text: &str) -> Result<Scene, InputError> {
         initial_q: q.clone(),
         objects,
     })
+}
+
+/// Where a scene's tool starts and which of its objects the tool can reach
+/// ([`Scene::reach`]).
+#[derive(Debug)]
+pub struct Reach {
+    /// The tool position at the initial configuration, world frame.
+    pub tool: Vector3<f64>,
+    /// Initial joints outside their limits: (1-based joint, value, lower, upper).
+    pub outside_limits: Vec<(usize, f64, f64, f64)>,
+    /// Per object in file order: its name, position and the IK solution within the joint
+    /// limits, or why there is none.
+    pub objects: Vec<(String, Vector3<f64>, Result<IkSolution, KinematicsError>)>,
+}
+
+impl Reach {
+    /// Whether every object is reachable.
+    pub fn all_reachable(&self) -> bool {
+        self.objects.iter().all(|o| o.2.is_ok())
+    }
+}
+
+impl Scene {
+    /// The thesis's scene (`configs/scenes/thesis.toml`, built in).
+    pub fn thesis() -> Result<Self, InputError> {
+        parse_scene(Path::new("configs/scenes/thesis.toml"), THESIS_SCENE)
+    }
+
+    /// The robot's name as CoppeliaSim's scene names it (`Panda` for `panda`).
+    pub fn sim_robot_name(&self) -> String {
+        match self.robot.name.as_str() {
+            "panda" => "Panda".to_string(),
+            other => other.to_string(),
+        }
+    }
+
+    /// This scene for the stand-in server: the robot at its initial configuration, a
+    /// dummy per object, simulation step `dt`, optionally the tip following
+    /// `/<robot>_target`.
+    pub fn stand_in(&self, dt: f64, ik_following: bool) -> cps_coppelia::SceneSetup {
+        cps_coppelia::SceneSetup {
+            robot_name: self.sim_robot_name(),
+            chain: self.robot.chain.clone(),
+            initial_q: self.initial_q.clone(),
+            dummies: self
+                .objects
+                .iter()
+                .map(|(n, p)| (n.clone(), [p.x, p.y, p.z]))
+                .collect(),
+            dt,
+            ik_following,
+        }
+    }
+
+    /// The tool at the initial configuration and, for every object, an IK solution within
+    /// the joint limits from the robot's ready pose (seeded restarts, seed 1).
+    pub fn reach(&self) -> Result<Reach, KinematicsError> {
+        let chain = &self.robot.chain;
+        let tool = chain.fk(&self.initial_q)?.translation.vector;
+        let config = IkConfig {
+            seed: 1,
+            ..IkConfig::default()
+        };
+        let q = &self.initial_q;
+        let outside_limits = chain.limits().map_or(Vec::new(), |(lo, hi)| {
+            (0..q.len())
+                .filter(|&i| q[i] < lo[i] || q[i] > hi[i])
+                .map(|i| (i + 1, q[i], lo[i], hi[i]))
+                .collect()
+        });
+        let objects = self
+            .objects
+            .iter()
+            .map(|(name, p)| {
+                let r = solve_ik(chain, &IkTarget::Position(*p), &self.robot.ready, &config);
+                (name.clone(), *p, r)
+            })
+            .collect();
+        Ok(Reach {
+            tool,
+            outside_limits,
+            objects,
+        })
+    }
 }

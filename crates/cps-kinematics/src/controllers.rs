@@ -12,9 +12,18 @@
 //! damping that grows near singularities, a secondary task in the null space of a
 //! redundant arm ([`NullSpace`]) and joint position and speed limits at every step.
 
-use nalgebra::{DMatrix, DVector, Dyn, OMatrix, U6};
+use nalgebra::{DMatrix, DVector, Dyn, IsometryMatrix3, OMatrix, U6, Vector3};
 
-use crate::{IkTarget, KinematicsError, SerialChain};
+use crate::{KinematicsError, SerialChain};
+
+/// What the tool should reach.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum IkTarget {
+    /// A position in the world frame (metres); orientation free.
+    Position(Vector3<f64>),
+    /// A full pose in the world frame.
+    Pose(IsometryMatrix3<f64>),
+}
 
 /// `J⁺ e` with the Moore-Penrose pseudo-inverse.
 ///

@@ -1,21 +1,12 @@
 //! Numerical inverse kinematics: Levenberg-Marquardt on the pose error, joint limits by
 //! projection, seeded random restarts.
 
-use nalgebra::{IsometryMatrix3, Vector3};
+use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::controllers::task_error;
+use crate::controllers::{IkTarget, task_error};
 use crate::{KinematicsError, SerialChain};
-
-/// What the tool should reach.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum IkTarget {
-    /// A position in the world frame (metres); orientation free.
-    Position(Vector3<f64>),
-    /// A full pose in the world frame.
-    Pose(IsometryMatrix3<f64>),
-}
 
 /// Settings of [`solve_ik`]; defaults reach 1e-9 m / 1e-9 rad.
 #[derive(Debug, Clone, PartialEq)]

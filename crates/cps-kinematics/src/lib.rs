@@ -57,9 +57,10 @@ mod workspace;
 
 pub use backend::{KinematicRobot, RobotBackend};
 pub use chain::{ChainGeometry, ChainPose, DhConvention, DhLink, RevoluteJoint, SerialChain};
+pub use controllers::IkTarget;
 pub use error::KinematicsError;
 pub use execute::{ExecutionConfig, Recording, execute};
-pub use ik::{IkConfig, IkSolution, IkTarget, solve_ik};
+pub use ik::{IkConfig, IkSolution, solve_ik};
 #[cfg(feature = "urdf")]
 pub use urdf::{UrdfChain, chain_from_urdf};
 pub use workspace::{check_path, degrees_of_freedom, sample_workspace};

@@ -7,6 +7,7 @@ use std::time::Instant;
 use cps_learn::{EffortConfig, EffortCostBreakdown, EffortOutcome, learn_with_effort};
 use serde::Serialize;
 
+use super::{Ctx, learn_error};
 use super::{
     axis_names, cost_figure, history_table, position_figures, search_row, way_points, worst,
 };
@@ -14,7 +15,6 @@ use crate::ExperimentError;
 use crate::outcome::{
     Column, CostArm, Figure, Format, Outcome, Plot, Report, ReportTable, Series, Table, fields,
 };
-use crate::run::{Ctx, learn_error};
 
 #[derive(Serialize)]
 struct Summary<'a> {

@@ -6,12 +6,13 @@ use cps_kinematics::Recording;
 use cps_learn::{ImitationConfig, ImitationOutcome, ImitationStage, ViaPoint};
 use serde::Serialize;
 
+use super::{Ctx, learn_error};
 use super::{position_figures, solver_name};
 use crate::ExperimentError;
+use crate::observer::Event;
 use crate::outcome::{
     Column, Document, Figure, Format, Outcome, Report, ReportTable, Series, Table, fields,
 };
-use crate::run::{Ctx, Event, learn_error};
 
 #[derive(Serialize)]
 struct Summary<'a> {

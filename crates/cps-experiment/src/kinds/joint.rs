@@ -8,11 +8,11 @@ use cps_learn::{
 };
 use serde::Serialize;
 
+use super::{Ctx, learn_error};
 use super::{cost_figure, history_table, position_figures, search_row, way_points, worst};
 use crate::outcome::{
     Column, CostArm, Figure, Format, Outcome, Plot, Report, ReportTable, Series, Table, fields,
 };
-use crate::run::{Ctx, learn_error};
 use crate::{Context, ExperimentError};
 
 #[derive(Serialize)]

@@ -4,11 +4,17 @@
 //!
 //! To add a kind: a `Kind` variant and its sections (`experiment.rs`, `plan.rs`), a
 //! module here with `pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError>`,
-//! and its line in [`crate::run::run`].
+//! and its line in `run::run`.
 
-use cps_learn::{GenerationRecord, ViaPointTask};
+use std::ops::ControlFlow;
+use std::time::Instant;
 
-use crate::outcome::{Column, CostArm, Figure, Format, Plot, Series, Table};
+use cps_learn::{GenerationRecord, LearnError, ViaPointTask};
+
+use crate::observer::{Event, Observer};
+use crate::outcome::{Column, CostArm, Figure, Format, Plot, RunHeader, Series, Table, Versions};
+use crate::plan::Experiment;
+use crate::{ExperimentError, InputError};
 
 pub(crate) mod energy;
 pub(crate) mod imitation;
@@ -16,6 +22,76 @@ pub(crate) mod joint;
 pub(crate) mod pose;
 pub(crate) mod scaling;
 pub(crate) mod viapoint;
+
+/// What every kind's runner gets.
+pub(crate) struct Ctx<'a> {
+    /// The experiment.
+    pub exp: &'a Experiment,
+    /// The worker threads.
+    pub pool: &'a rayon::ThreadPool,
+    /// The caller's observer.
+    pub observer: &'a dyn Observer,
+    started: Instant,
+}
+
+impl<'a> Ctx<'a> {
+    /// The context of a run of `exp` that started at `started`.
+    pub fn new(
+        exp: &'a Experiment,
+        pool: &'a rayon::ThreadPool,
+        observer: &'a dyn Observer,
+        started: Instant,
+    ) -> Self {
+        Self {
+            exp,
+            pool,
+            observer,
+            started,
+        }
+    }
+
+    /// Seconds since the run started.
+    pub fn wall(&self) -> f64 {
+        self.started.elapsed().as_secs_f64()
+    }
+
+    /// The header of this run, `complete` or not.
+    pub fn header(&self, complete: bool) -> RunHeader {
+        RunHeader {
+            experiment: self.exp.name.clone(),
+            kind: self.exp.kind.name(),
+            complete,
+            seed: self.exp.config.seed,
+            versions: Versions::now(),
+            threads: self.pool.current_num_threads(),
+            wall_time_s: self.wall(),
+            failure: None,
+        }
+    }
+
+    /// A search's generation report passed on to the observer.
+    pub fn generation(&self, r: &cps_cmaes::GenerationReport<'_>) -> ControlFlow<()> {
+        self.observer.event(Event::Generation {
+            generation: r.generation,
+            best_so_far: r.best_so_far,
+            sigma: r.sigma,
+        })
+    }
+}
+
+/// A learning library error as a run reports it: a problem with the file's content
+/// (input) or a failure of the `what` while running.
+pub(crate) fn learn_error(e: LearnError, what: &str) -> ExperimentError {
+    match e {
+        LearnError::InvalidTask { .. } | LearnError::Dmp(_) | LearnError::Unreachable { .. } => {
+            InputError(e.to_string()).into()
+        }
+        other => ExperimentError::Failed {
+            context: format!("the {what} failed"),
+            source: Box::new(other),
+        },
+    }
+}
 
 /// `cost_history.csv` of named searches: one row per generation of each.
 pub(crate) fn history_table(searches: &[(&str, &[GenerationRecord])]) -> Table {

@@ -3,12 +3,12 @@
 use cps_learn::{OrientationCostBreakdown, PoseConfig, PoseOutcome, learn_pose};
 use serde::Serialize;
 
+use super::{Ctx, learn_error};
 use super::{cost_figure, history_table, position_figures, search_row, way_points, worst};
 use crate::ExperimentError;
 use crate::outcome::{
     Column, CostArm, Figure, Format, Outcome, Plot, Report, ReportTable, Series, Table, fields,
 };
-use crate::run::{Ctx, learn_error};
 
 #[derive(Serialize)]
 struct Summary<'a> {

@@ -4,12 +4,13 @@
 use cps_learn::{Parametrisation, ViaPointOutcome, learn_via_points};
 use serde::Serialize;
 
+use super::Ctx;
 use super::{cost_figure, position_figures, way_points, worst};
 use crate::ExperimentError;
+use crate::observer::Event;
 use crate::outcome::{
     Column, CostArm, Figure, Format, Outcome, Report, ReportTable, Series, Table, fields,
 };
-use crate::run::{Ctx, Event};
 
 /// One arm of the comparison.
 struct Arm {

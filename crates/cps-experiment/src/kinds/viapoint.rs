@@ -4,11 +4,11 @@
 use cps_learn::{CostBreakdown, ViaPointOutcome};
 use serde::Serialize;
 
+use super::Ctx;
 use super::{cost_figure, position_figures, solver_name, way_points, worst};
 use crate::outcome::{
     Column, CostArm, Format, Outcome, Report, ReportTable, Series, Table, fields,
 };
-use crate::run::Ctx;
 use crate::{ExperimentError, InputError};
 
 #[derive(Serialize)]
