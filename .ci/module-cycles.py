@@ -72,6 +72,12 @@ def cycles(edges):
     return found
 
 
+# The check must be able to see an edge: cps-experiment's run module calls its kinds.
+probe = crate_graph(os.path.join(ROOT, "crates", "cps-experiment", "src"))
+if "kinds" not in probe.get("run", set()):
+    print("FAIL: the module check cannot see cps-experiment's run -> kinds")
+    sys.exit(1)
+
 bad = 0
 srcs = [os.path.join(ROOT, "src")] + [
     os.path.join(ROOT, "crates", c, "src") for c in sorted(os.listdir(os.path.join(ROOT, "crates")))
