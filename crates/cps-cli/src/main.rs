@@ -23,7 +23,7 @@
 //! `configs/robots/` or URDF.
 //!
 //! Exit codes: 0 success, 1 failure while running, 2 bad input (the message names the file,
-//! line and column), 130 interrupted by Ctrl-C (the results of the finished generations are
+//! line and column), 130 interrupted by Ctrl-C or SIGTERM (the results of the finished generations are
 //! still written, with `"complete": false`).
 
 /// Prints a line to stdout, ignoring a closed pipe (`cps-cli fk ... | head` must not panic).
@@ -76,6 +76,9 @@ enum Command {
         file: PathBuf,
         #[command(flatten)]
         ceilings: CeilingArgs,
+        /// Worker threads the time estimate assumes (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
     },
     /// Print a commented default experiment (the thesis's via-point task).
     Default,
@@ -164,7 +167,8 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let interrupted = Arc::new(AtomicBool::new(false));
     let flag = interrupted.clone();
-    // A second Ctrl-C exits at once (the staging directory is then left behind, hidden).
+    // Ctrl-C and SIGTERM (`timeout`, schedulers) stop the run at the end of a generation;
+    // a second one exits at once (the staging directory is then left behind, hidden).
     let _ = ctrlc::set_handler(move || {
         if flag.swap(true, Ordering::SeqCst) {
             std::process::exit(130);
@@ -200,20 +204,22 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
         Command::Cmaes { command } => cmaes_bench::bench(&command),
         Command::Sim { command } => simserve::sim(&command, interrupted),
         Command::Rollout(args) => movement::run_rollout(&args),
-        Command::Check { file, ceilings } => {
+        Command::Check {
+            file,
+            ceilings,
+            threads,
+        } => {
             let exp = experiment::load(&file, None, &ceilings.ceilings()?)?;
+            let options = RunOptions { threads };
+            options.check()?;
+            // The robot's reach is checked as the run would, before saying ok.
+            let reach = exp.check_reach()?;
             let e = exp.estimate.expect("estimated when loaded");
-            say!(
-                "{}: ok (kind {}, {} dimensions, {} via points, {} weights, {} generations x {} repetition(s))",
-                file.display(),
-                exp.kind.name(),
-                e.dims,
-                exp.config.task.via.len(),
-                e.parameters,
-                exp.config.generations,
-                exp.config.repetitions
-            );
-            say!("  {}", e.describe());
+            say!("{}: ok (kind {})", file.display(), exp.kind.name());
+            for line in exp.describe().iter().chain(&reach) {
+                say!("  {line}");
+            }
+            say!("  {}", e.describe(options.threads()));
             Ok(ExitCode::SUCCESS)
         }
         Command::Run(args) => run_experiment(&args, interrupted),

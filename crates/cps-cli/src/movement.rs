@@ -48,9 +48,15 @@ pub enum CombineArg {
 /// Arguments of `cps-cli imitate`.
 #[derive(Args, Debug)]
 pub struct ImitateArgs {
-    /// Demonstration CSV files (header row; time in seconds, then one column per dimension).
+    /// Demonstration CSV files: a header row, the time in seconds first, then one column
+    /// per dimension — or any trajectory cps writes (its positions are read).
     #[arg(required = true)]
     demos: Vec<PathBuf>,
+    /// The position columns to imitate, by name, comma-separated (default: every column
+    /// of a plain demonstration; the columns with a `_vel` column beside them in a
+    /// trajectory cps wrote).
+    #[arg(long, value_delimiter = ',')]
+    columns: Option<Vec<String>>,
     /// Gaussian basis functions per dimension.
     #[arg(long, default_value_t = 25)]
     bases: usize,
@@ -155,7 +161,7 @@ pub fn run_imitate(args: &ImitateArgs) -> Result<ExitCode> {
         },
     };
     let paths: Vec<&Path> = args.demos.iter().map(PathBuf::as_path).collect();
-    let imitated = imitate_files(&paths, &spec)?;
+    let imitated = imitate_files(&paths, args.columns.as_deref(), &spec)?;
     let (fit, names) = (&imitated.fit, &imitated.names);
     let tau = fit.dmp.config().tau;
     write_file(&args.out, imitated.model().to_json().as_bytes()).map_err(cli_error)?;

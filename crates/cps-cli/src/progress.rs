@@ -59,9 +59,9 @@ impl Observer for Terminal<'_> {
         }
         self.bar.set_style(
             ProgressStyle::with_template(if total == 0 {
-                "{spinner} {msg}  [{elapsed_precise}]"
+                "{spinner} {msg}  {elapsed}"
             } else {
-                "{bar:30} {pos}/{len} generations  {msg}  [{elapsed_precise}]"
+                "{bar:20} {pos}/{len} gen  {msg}  {elapsed}"
             })
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
@@ -83,9 +83,10 @@ impl Observer for Terminal<'_> {
                     let stage = self.stage.lock().unwrap_or_else(|p| p.into_inner());
                     let best = f64::from_bits(self.best.load(Ordering::Relaxed));
                     self.bar
-                        .set_message(format!("{stage}best cost {best:.4e}  sigma {sigma:.2e}"));
+                        .set_message(format!("{stage}best {best:.3e}  σ {sigma:.1e}"));
                 }
             }
+            Event::Working => self.bar.tick(),
             Event::Stage(s) => {
                 *self.stage.lock().unwrap_or_else(|p| p.into_inner()) = format!("{s}  ");
                 // A new stage starts its own best cost.

@@ -322,10 +322,7 @@ fn sections_and_settings_of_the_new_kinds_are_checked() {
     );
     check(
         "scene.toml",
-        &IMITATION.replace(
-            "\"../configs/scenes/thesis.toml\"",
-            "\"no/such/scene.toml\"",
-        ),
+        &IMITATION.replace("\"thesis\"", "\"no/such/scene.toml\""),
         &["scene.toml:", "does not exist"],
     );
     check(
@@ -467,7 +464,7 @@ fn joint_space_learning_meets_its_numbers_within_the_limits() {
     assert_eq!(configs.len(), 6);
     assert!(configs.iter().all(|q| q.as_array().unwrap().len() == 7));
     let csv = std::fs::read_to_string(out.join("trajectory.csv")).unwrap();
-    assert!(csv.starts_with("t,q1,q2,q3,q4,q5,q6,q7,dq1,"));
+    assert!(csv.starts_with("t,q1,q2,q3,q4,q5,q6,q7,q1_vel,"));
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert_eq!(html.matches("<svg").count(), 4);
 }
@@ -563,7 +560,7 @@ fn the_pose_experiment_learns_position_and_orientation() {
         assert!(a.as_f64().unwrap() < 3.0, "{a}°");
     }
     let csv = std::fs::read_to_string(out.join("trajectory.csv")).unwrap();
-    assert!(csv.starts_with("t,x,y,z,qx,qy,qz,qw,wx,wy,wz\n"));
+    assert!(csv.starts_with("t,x,y,z,x_vel,y_vel,z_vel,qx,qy,qz,qw,omega_x,omega_y,omega_z\n"));
     // Every orientation written is a unit quaternion.
     for line in csv.lines().skip(1) {
         let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
@@ -638,4 +635,41 @@ fn the_imitation_runs_through_the_simulator_s_ik() {
     for f in s["imitations"].as_array().unwrap() {
         assert!(f["tracking"]["max_position_error_m"].as_f64().unwrap() < 1e-3);
     }
+}
+
+/// `check` says what the run will do: the kind's own dimensions and weights, no search for
+/// the exact solver, the robot's reach (refused as the run would refuse it), the budget's
+/// time.
+#[test]
+fn check_describes_the_kind_and_refuses_what_the_run_would() {
+    let o = cli(&[
+        "check",
+        &repo("experiments/viapoint_joint.toml"),
+        "--threads",
+        "2",
+    ]);
+    assert!(o.status.success());
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("7 joint DMPs × 25 basis functions = 175 weights"),
+        "{out}"
+    );
+    assert!(out.contains("reachable within the joint limits"), "{out}");
+    assert!(out.contains("on 2 thread(s)"), "{out}");
+    let o = cli(&["check", &repo("experiments/imitation.toml")]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("exact solver (no search)"), "{out}");
+    assert!(!out.contains("3000 generations"), "{out}");
+
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(repo("experiments/viapoint_joint.toml")).unwrap();
+    let far = write(
+        dir.path(),
+        "far.toml",
+        &text.replacen("[1.12, 0.37, 1.45]", "[3.5, 0.37, 1.45]", 1),
+    );
+    let o = cli(&["check", far.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("far.toml") && err.contains("via[1]"), "{err}");
 }

@@ -66,20 +66,34 @@ impl Ceilings {
     }
 }
 
+/// Operations per second of one thread assumed for time estimates: the via-point rollout
+/// measured 6.8e9 on the 2-vCPU reference machine (BENCHMARKS.md); rounded down.
+pub const OPERATIONS_PER_SECOND: f64 = 5e9;
+
 impl Estimate {
-    /// One line for `check` and the progress of `run`.
-    pub fn describe(&self) -> String {
-        let evaluations = if self.evaluations > 0.0 {
-            format!("up to {:.1e} cost evaluations", self.evaluations)
-        } else {
-            "solved exactly, no search".into()
-        };
+    /// One line for `check`: memory, operations and the time they take on `threads`.
+    pub fn describe(&self, threads: usize) -> String {
+        let seconds = self.work / (OPERATIONS_PER_SECOND * threads.max(1) as f64);
         format!(
-            "needs at most ≈ {} of memory and ≈ {:.1e} operations ({} samples per rollout, {evaluations})",
+            "needs at most ≈ {} of memory and ≈ {:.1e} operations: ≈ {} on {threads} thread(s) for the whole budget ({} samples per rollout)",
             bytes(self.memory_bytes),
             self.work,
+            duration(seconds.max(0.01)),
             self.samples,
         )
+    }
+}
+
+/// A duration in words: `0.4 s`, `12 s`, `3.5 min`, `2.1 h`.
+fn duration(s: f64) -> String {
+    if s < 10.0 {
+        format!("{s:.1} s")
+    } else if s < 120.0 {
+        format!("{s:.0} s")
+    } else if s < 7200.0 {
+        format!("{:.1} min", s / 60.0)
+    } else {
+        format!("{:.1} h", s / 3600.0)
     }
 }
 
@@ -127,14 +141,18 @@ pub fn estimate(exp: &Experiment) -> Estimate {
                 recordings += 4.0 * im_samples * p.dmp.n_basis as f64 * 8.0;
             }
         }
-        Kind::ViapointJoint => per_sample_extra = 150.0,
+        // Extra operations per sample and dimension of a rollout beyond the forcing term,
+        // calibrated on the shipped experiments (seconds per evaluation, see
+        // `OPERATIONS_PER_SECOND`): FK and limits per joint, the orientation DMP's
+        // quaternion integration, the plant's substeps.
+        Kind::ViapointJoint => per_sample_extra = 20.0,
         Kind::ViapointPose => {
             multiplier = 2.0;
-            per_sample_extra = 60.0;
+            per_sample_extra = 300.0;
         }
         Kind::ViapointEnergy => {
             let e = exp.energy.as_ref();
-            per_sample_extra = e.map_or(10, |e| e.plant.substeps) as f64 * 8.0;
+            per_sample_extra = e.map_or(10, |e| e.plant.substeps) as f64 * 25.0;
             multiplier += e.map_or(0.0, |e| 6.0 * e.speedup_generations as f64 / g.max(1.0));
         }
         Kind::Viapoint => {}

@@ -2,10 +2,11 @@
 //! a DMP model imitated from them, a model's rollout with a new start, goal or τ — each
 //! with its table and figure in the result model.
 //!
-//! Demonstration CSV: a header row naming the columns, then one row per sample: the time
-//! in seconds first, then one column per dimension. Trajectory CSV ([`rollout_table`]):
-//! `time`, each dimension's position, then `<name>_vel` and `<name>_acc` per dimension
-//! (SI units).
+//! cps's CSV dialect, for every trajectory it reads or writes: a header row naming the
+//! columns, then one row per sample; `t` (seconds) first, then the positions by name
+//! (`x`, `q1`, …), then optional derivatives `<name>_vel` and `<name>_acc`, then other
+//! named quantities (SI units). A plain demonstration is the same without derivatives;
+//! `imitate` reads both ([`parse_demo_columns`]).
 
 use std::path::Path;
 
@@ -23,14 +24,37 @@ pub const MAX_DEMO_BYTES: u64 = 256 << 20;
 const MAX_DEMO_COLUMNS: usize = 256;
 
 /// Reads a demonstration CSV: the names of its dimensions and the samples. Errors name
-/// the file and the line.
-pub fn read_demo(path: &Path) -> Result<(Vec<String>, Demonstration), InputError> {
+/// the file and the line. `columns` chooses the position columns by name (see
+/// [`parse_demo_columns`]).
+pub fn read_demo(
+    path: &Path,
+    columns: Option<&[String]>,
+) -> Result<(Vec<String>, Demonstration), InputError> {
     let text = crate::source::read_text(path, MAX_DEMO_BYTES, "demonstration")?;
-    parse_demo(path, &text)
+    parse_demo_columns(path, &text, columns)
 }
 
-/// Parses demonstration CSV text (`path` names it in errors).
+/// Parses demonstration CSV text (`path` names it in errors), choosing the position
+/// columns as [`parse_demo_columns`] does by default.
 pub fn parse_demo(path: &Path, text: &str) -> Result<(Vec<String>, Demonstration), InputError> {
+    parse_demo_columns(path, text, None)
+}
+
+/// Whether a column holds a derivative in cps's CSV dialect (`<name>_vel`, `<name>_acc`).
+fn is_derivative(name: &str) -> bool {
+    name.ends_with("_vel") || name.ends_with("_acc")
+}
+
+/// Parses demonstration CSV text: a header, the time in seconds first, then the columns.
+/// The dimensions are `columns` when given (by name); otherwise, in a file of cps's
+/// dialect (positions `x`, derivatives `x_vel`, `x_acc`), the columns that have a `_vel`
+/// column beside them — so every trajectory cps writes reads back as its positions — and
+/// in a plain demonstration (no `_vel`/`_acc` columns) every column after the time.
+pub fn parse_demo_columns(
+    path: &Path,
+    text: &str,
+    columns: Option<&[String]>,
+) -> Result<(Vec<String>, Demonstration), InputError> {
     let fail = |m: String| InputError(format!("{}: {m}", path.display()));
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(true)
@@ -59,6 +83,7 @@ pub fn parse_demo(path: &Path, text: &str) -> Result<(Vec<String>, Demonstration
             "line 1: no header row; the first line must name the columns (time, then one per dimension)".into(),
         ));
     }
+    let picked = pick_columns(&header, columns).map_err(fail)?;
     let (mut times, mut rows) = (Vec::new(), Vec::new());
     for (i, record) in reader.records().enumerate() {
         let line = i + 2;
@@ -70,31 +95,77 @@ pub fn parse_demo(path: &Path, text: &str) -> Result<(Vec<String>, Demonstration
                 header.len()
             )));
         }
-        let mut values = Vec::with_capacity(record.len());
-        for (c, field) in record.iter().enumerate() {
+        let value = |c: usize| -> Result<f64, InputError> {
+            let field = &record[c];
             let v: f64 = field.parse().map_err(|_| {
                 fail(format!(
                     "line {line}, column `{}`: `{field}` is not a number",
                     header[c]
                 ))
             })?;
-            if !v.is_finite() {
-                return Err(fail(format!(
+            if v.is_finite() {
+                Ok(v)
+            } else {
+                Err(fail(format!(
                     "line {line}, column `{}`: {v} is not finite",
                     header[c]
-                )));
+                )))
             }
-            values.push(v);
-        }
-        times.push(values[0]);
-        rows.push(values[1..].to_vec());
+        };
+        times.push(value(0)?);
+        rows.push(
+            picked
+                .iter()
+                .map(|&c| value(c))
+                .collect::<Result<Vec<_>, _>>()?,
+        );
     }
     let demo = Demonstration::new(times, &rows).map_err(|e| {
         // Sample k is on line k + 2: say so.
         let text = e.to_string();
         fail(format!("{text} (sample k is on line k + 2)"))
     })?;
-    Ok((header[1..].to_vec(), demo))
+    Ok((picked.iter().map(|&c| header[c].clone()).collect(), demo))
+}
+
+/// The indices of the position columns (see [`parse_demo_columns`]).
+fn pick_columns(header: &[String], columns: Option<&[String]>) -> Result<Vec<usize>, String> {
+    let data = &header[1..];
+    let index = |name: &str| header.iter().skip(1).position(|h| h == name).map(|i| i + 1);
+    if let Some(wanted) = columns {
+        let mut picked = Vec::new();
+        for name in wanted {
+            match index(name) {
+                Some(i) if !picked.contains(&i) => picked.push(i),
+                Some(_) => return Err(format!("--columns: `{name}` is named twice")),
+                None => {
+                    return Err(format!(
+                        "--columns: there is no column `{name}` (the columns after the time `{}` are: {})",
+                        header[0],
+                        data.join(", ")
+                    ));
+                }
+            }
+        }
+        return Ok(picked);
+    }
+    if !data.iter().any(|h| is_derivative(h)) {
+        return Ok((1..header.len()).collect());
+    }
+    let picked: Vec<usize> = (1..header.len())
+        .filter(|&i| !is_derivative(&header[i]) && index(&format!("{}_vel", header[i])).is_some())
+        .collect();
+    if picked.is_empty() {
+        return Err(format!(
+            "the columns {} are derivatives (`_vel`, `_acc`) but no position column has its `_vel` beside it; choose the positions with --columns",
+            data.iter()
+                .filter(|h| is_derivative(h))
+                .map(|h| format!("`{h}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    Ok(picked)
 }
 
 /// How to imitate demonstrations ([`imitate_files`]).
@@ -114,6 +185,10 @@ pub struct ImitationSpec {
     /// How several demonstrations are combined.
     pub combine: Combine,
 }
+
+/// The position columns to read from each demonstration (`None`: as
+/// [`parse_demo_columns`] chooses).
+pub type Columns<'a> = Option<&'a [String]>;
 
 /// A DMP imitated from demonstration files.
 #[derive(Debug)]
@@ -165,20 +240,26 @@ fn option_name(field: &str) -> &str {
 }
 
 /// Reads demonstration files and imitates them with one DMP per dimension.
-pub fn imitate_files(paths: &[&Path], spec: &ImitationSpec) -> Result<Imitated, InputError> {
+pub fn imitate_files(
+    paths: &[&Path],
+    columns: Columns<'_>,
+    spec: &ImitationSpec,
+) -> Result<Imitated, InputError> {
     let mut demos = Vec::new();
     let mut names: Option<Vec<String>> = None;
     for path in paths {
-        let (header, demo) = read_demo(path)?;
+        let (header, demo) = read_demo(path, columns)?;
         if let Some(n) = &names
             && n.len() != header.len()
         {
             return Err(InputError(format!(
-                "{}: {} dimensions, but {} has {}",
+                "{}: {} dimensions ({}), but {} has {} ({})",
                 path.display(),
                 header.len(),
+                header.join(", "),
                 paths[0].display(),
-                n.len()
+                n.len(),
+                n.join(", ")
             )));
         }
         names.get_or_insert(header);
@@ -240,7 +321,7 @@ pub struct RolledOut {
 }
 
 impl RolledOut {
-    /// `time`, positions, `<name>_vel`, `<name>_acc` (shortest round-trip decimals).
+    /// `t`, positions, `<name>_vel`, `<name>_acc` (shortest round-trip decimals).
     pub fn table(&self) -> Table {
         rollout_table(&self.names, &self.trajectory)
     }
@@ -314,13 +395,10 @@ pub fn rollout_file(model: &Path, spec: &RolloutSpec) -> Result<RolledOut, Input
     })
 }
 
-/// A trajectory as `time`, positions, `<name>_vel`, `<name>_acc` columns.
+/// A trajectory as `t`, positions, `<name>_vel`, `<name>_acc` columns.
 pub fn rollout_table(names: &[String], traj: &Trajectory) -> Table {
-    let mut t = Table::new("trajectory").with(Column::numbers(
-        "time",
-        traj.times().to_vec(),
-        Format::Plain,
-    ));
+    let mut t =
+        Table::new("trajectory").with(Column::numbers("t", traj.times().to_vec(), Format::Plain));
     for (suffix, q) in [
         ("", Trajectory::position as fn(&Trajectory, usize) -> &[f64]),
         ("_vel", Trajectory::velocity),

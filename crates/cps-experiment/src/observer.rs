@@ -18,6 +18,9 @@ pub enum Event<'a> {
     },
     /// The run entered a stage (`demonstrations 3/20`, `scaled (1/2)`).
     Stage(&'a str),
+    /// Work that is not a counted generation (a timing measurement) made a step; the
+    /// observer may stop it like a generation.
+    Working,
 }
 
 /// Watches a run: progress and cancellation. Called from the run's worker threads.

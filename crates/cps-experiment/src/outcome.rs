@@ -12,6 +12,9 @@ use serde_json::{Map, Value};
 pub struct Versions {
     /// The cps version.
     pub cps: &'static str,
+    /// The git commit the build comes from (`-dirty` when it had uncommitted changes;
+    /// `unknown` outside a git checkout).
+    pub commit: &'static str,
 }
 
 impl Versions {
@@ -19,6 +22,7 @@ impl Versions {
     pub fn now() -> Self {
         Self {
             cps: env!("CARGO_PKG_VERSION"),
+            commit: env!("CPS_BUILD_COMMIT"),
         }
     }
 }
@@ -63,6 +67,13 @@ impl RunHeader {
                 },
             ),
             ("seed", self.seed.to_string()),
+            (
+                "built from",
+                format!(
+                    "cps {} (commit {})",
+                    self.versions.cps, self.versions.commit
+                ),
+            ),
             (
                 "wall time",
                 format!("{:.2} s on {} thread(s)", self.wall_time_s, self.threads),

@@ -114,8 +114,8 @@ fn number(x: f64) -> String {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RobotSection {
-    /// A scene file (robot, base, initial configuration), relative to the experiment file;
-    /// default: the thesis's scene.
+    /// `thesis` (the built-in scene, `configs/scenes/thesis.toml`) or a scene file (robot,
+    /// base, initial configuration), relative to the experiment file; default: `thesis`.
     scene: Option<Spanned<String>>,
     #[serde(default)]
     backend: BackendKind,
@@ -166,6 +166,9 @@ pub enum BackendChoice {
         /// Execute through CoppeliaSim's IK following `/<robot>_target` instead of cps's
         /// controller.
         simulator_ik: bool,
+        /// The control period the file expects (`[robot] dt`); the simulator's time step
+        /// must match it.
+        expected_dt: Option<f64>,
     },
 }
 
@@ -213,6 +216,7 @@ impl RobotChoice {
                 robot_name,
                 timeout,
                 simulator_ik,
+                expected_dt,
             } => {
                 let mut client = Client::connect(ClientConfig {
                     endpoint: endpoint.clone(),
@@ -224,6 +228,13 @@ impl RobotChoice {
                 let dt = client
                     .get_simulation_time_step()
                     .context_with(|| format!("{endpoint}: cannot read the simulation time step"))?;
+                if let Some(want) = expected_dt
+                    && (dt - want).abs() > 1e-9 * want.max(dt)
+                {
+                    return Err(ExperimentError::Message(format!(
+                        "{endpoint}: the simulator steps {dt} s, but the experiment's [robot] dt is {want} s; set the scene's time step to {want} s (`cps-cli sim serve --dt {want}`), or remove dt to use the simulator's"
+                    )));
+                }
                 let mut scene = FrankaScene::open(client, robot_name, setup.chain.dof(), dt)
                     .context_with(|| {
                         format!("{endpoint}: the scene has no robot `/{robot_name}` with joints `/{robot_name}_joint1..{}` and `/{robot_name}_tip`", setup.chain.dof())
@@ -703,7 +714,13 @@ impl Sections<'_> {
 
     fn robot_choice(&self, default_dt: f64) -> Result<RobotChoice, InputError> {
         let section = self.robot.map(Spanned::get_ref);
+        let built_in = || {
+            parse_scene(Path::new("configs/scenes/thesis.toml"), THESIS_SCENE)
+                .map(|s| (s, "thesis (built in)".to_string()))
+        };
         let (scene, scene_name) = match section.and_then(|r| r.scene.as_ref()) {
+            // The built-in scene by name: a file that names it runs from any folder.
+            Some(s) if s.get_ref() == "thesis" => built_in()?,
             Some(s) => {
                 let p = self
                     .path
@@ -714,17 +731,14 @@ impl Sections<'_> {
                     return Err(self.err(
                         &s.span(),
                         format!(
-                            "[robot] `scene`: {} does not exist (paths are relative to the experiment file)",
+                            "[robot] `scene`: {} does not exist (paths are relative to the experiment file; `scene = \"thesis\"` is the built-in thesis scene)",
                             p.display()
                         ),
                     ));
                 }
                 (load_scene(&p)?, p.display().to_string())
             }
-            None => (
-                parse_scene(Path::new("configs/scenes/thesis.toml"), THESIS_SCENE)?,
-                "thesis (built in)".to_string(),
-            ),
+            None => built_in()?,
         };
         let mut execution = ExecutionConfig::default();
         if let Some(t) = section.and_then(|r| r.tolerance.as_ref()) {
@@ -775,12 +789,12 @@ impl Sections<'_> {
                         "[robot] control = \"simulator_ik\" executes tool targets; a joint-space experiment commands the joints itself (use control = \"cps\")".into(),
                     ));
                 }
-                if let Some(d) = section.and_then(|r| r.dt.as_ref()) {
-                    return Err(self.err(
-                        &d.span(),
-                        "[robot] `dt` is the kinematic backend's; CoppeliaSim's time step is read from the simulator".into(),
-                    ));
-                }
+                // A `dt` is the control period the file expects: checked against the
+                // simulator's time step when it is reached.
+                let expected_dt = match section.and_then(|r| r.dt.as_ref()) {
+                    Some(d) => Some(self.within(d, "[robot] `dt`", 1e-4, 1.0, " s")?),
+                    None => None,
+                };
                 let endpoint = match section.and_then(|r| r.endpoint.as_ref()) {
                     None => "tcp://127.0.0.1:23000".to_string(),
                     Some(e) => {
@@ -814,6 +828,7 @@ impl Sections<'_> {
                     simulator_ik: section
                         .and_then(|r| r.control.as_ref())
                         .is_some_and(|c| *c.get_ref() == Control::SimulatorIk),
+                    expected_dt,
                 }
             }
         };
@@ -911,5 +926,118 @@ impl Sections<'_> {
             ridge_lambda,
             jerk_lambda,
         })
+    }
+}
+
+impl Experiment {
+    /// The plan in words, for `check`: what is learned, by which search with what budget,
+    /// and where it is executed.
+    pub fn describe(&self) -> Vec<String> {
+        let c = &self.config;
+        let task = &c.task;
+        let bases = task.dmp.n_basis;
+        let via = task.via.len();
+        let (dims, what) = match (self.kind, &self.robot) {
+            (Kind::ViapointJoint, Some(r)) => (r.setup.chain.dof(), "joint DMPs"),
+            _ => (task.start.len(), "position DMPs"),
+        };
+        let mut learns = format!(
+            "learns: {dims} {what} × {bases} basis functions = {} weights, through {via} via point(s) in {} s",
+            dims * bases,
+            task.dmp.tau
+        );
+        if self.kind == Kind::ViapointPose {
+            learns.push_str(&format!(
+                ", and 1 orientation DMP × {bases} (3 × {bases} weights)"
+            ));
+        }
+        let population = c
+            .population
+            .unwrap_or_else(|| cps_cmaes::Parameters::default_lambda((dims * bases).max(1)));
+        let cmaes = |generations: u64, repetitions: usize| {
+            format!(
+                "CMA-ES{}, population {population}, up to {generations} generations × {repetitions} repetition(s){}",
+                if self.kind == Kind::Scaling {
+                    String::new()
+                } else {
+                    format!(" in the {} search space", c.parametrisation.name())
+                },
+                if c.warm_start {
+                    ", warm-started at the exact optimum"
+                } else {
+                    ""
+                }
+            )
+        };
+        let search = match (self.kind, c.solver) {
+            (Kind::Imitation, solver) => {
+                let p = self.imitation.as_ref();
+                format!(
+                    "{} demonstrations (via points moved by N(0, {}²) m), each learned by {}; their mean imitated by ridge and jerk-regularised ridge with {} basis functions",
+                    p.map_or(0, |p| p.demonstrations),
+                    p.map_or(0.0, |p| p.via_std),
+                    match solver {
+                        cps_learn::Solver::Exact => "the exact solver (no search)".to_string(),
+                        cps_learn::Solver::Cmaes => cmaes(c.generations, 1),
+                    },
+                    p.map_or(0, |p| p.dmp.n_basis)
+                )
+            }
+            (Kind::Viapoint, cps_learn::Solver::Exact) => {
+                "the exact least-squares optimum (no search)".to_string()
+            }
+            (Kind::Scaling, _) => {
+                let arms = self.scaling.as_ref().map_or(Vec::new(), |s| {
+                    s.compare.iter().map(|p| p.name()).collect::<Vec<_>>()
+                });
+                format!(
+                    "{}, for each of {} search spaces ({})",
+                    cmaes(c.generations, c.repetitions),
+                    arms.len(),
+                    arms.join(", ")
+                )
+            }
+            (Kind::ViapointPose, _) => format!(
+                "{}, then the orientation the same way",
+                cmaes(c.generations, 1)
+            ),
+            (Kind::ViapointEnergy, _) => {
+                let extra = self.energy.map_or(0, |e| e.speedup_generations);
+                let mut s = cmaes(c.generations, 1);
+                if extra > 0 {
+                    s.push_str(&format!(
+                        "; then {extra} generations timed 3 times on 1 and on 2 threads (the speed-up)"
+                    ));
+                }
+                s
+            }
+            (_, _) => cmaes(c.generations, c.repetitions),
+        };
+        let mut lines = vec![learns, format!("search: {search}")];
+        if let Some(r) = &self.robot {
+            lines.push(format!(
+                "robot: {} joints, scene {}, executed on the {} backend",
+                r.setup.chain.dof(),
+                r.scene,
+                r.describe()
+            ));
+        }
+        lines
+    }
+
+    /// Whether the robot can reach the start, every via point and the goal within its
+    /// joint limits (kinds with a robot); the sentence names the first point it cannot,
+    /// as the run would.
+    pub fn check_reach(&self) -> Result<Option<String>, InputError> {
+        let Some(r) = &self.robot else {
+            return Ok(None);
+        };
+        match cps_learn::check_way_points(&self.config.task, &r.setup) {
+            Ok(_) => Ok(Some(format!(
+                "reach: the start, {} via point(s) and the goal are reachable within the joint limits",
+                self.config.task.via.len()
+            ))),
+            Err(e) => Err(InputError(format!("{}: {e}", self.source.display()))),
+        }
     }
 }

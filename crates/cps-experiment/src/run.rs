@@ -27,6 +27,13 @@ impl RunOptions {
             _ => Ok(()),
         }
     }
+
+    /// The threads a run uses: the option, or one per core.
+    pub fn threads(&self) -> usize {
+        self.threads.unwrap_or_else(|| {
+            std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+        })
+    }
 }
 
 /// The number of generations a run of `exp` reports through [`crate::Event::Generation`] (its
@@ -44,9 +51,8 @@ pub fn planned_generations(exp: &Experiment) -> u64 {
         Kind::Imitation => 0,
         Kind::ViapointJoint => config.generations,
         Kind::ViapointPose => 2 * config.generations,
-        Kind::ViapointEnergy => {
-            config.generations + 6 * exp.energy.map_or(0, |e| e.speedup_generations)
-        }
+        // The speed-up measurement reports `Event::Working`, not generations.
+        Kind::ViapointEnergy => config.generations,
     }
 }
 

@@ -40,6 +40,12 @@ pub fn json(path: &Path) -> serde_json::Value {
 /// Starts `cps-cli run file --out out --quiet`, sends it SIGINT (Ctrl-C) after 1.5 s
 /// and returns its exit code.
 pub fn run_interrupted(file: &Path, out: &Path) -> Option<i32> {
+    run_signalled(file, out, "INT")
+}
+
+/// Runs `cps-cli run` and sends it `signal` (`INT`, `TERM`) after 1.5 s; its exit code.
+#[allow(dead_code)]
+pub fn run_signalled(file: &Path, out: &Path, signal: &str) -> Option<i32> {
     let mut child = Command::new(env!("CARGO_BIN_EXE_cps-cli"))
         .args([
             "run",
@@ -52,7 +58,7 @@ pub fn run_interrupted(file: &Path, out: &Path) -> Option<i32> {
         .unwrap();
     std::thread::sleep(Duration::from_millis(1500));
     let killed = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
+        .args([&format!("-{signal}"), &child.id().to_string()])
         .status()
         .unwrap();
     assert!(killed.success());

@@ -12,6 +12,7 @@ use super::{
     axis_names, cost_figure, history_table, position_figures, search_row, way_points, worst,
 };
 use crate::ExperimentError;
+use crate::observer::Event;
 use crate::outcome::{
     Column, CostArm, Figure, Format, Outcome, Plot, Report, ReportTable, Series, Table, fields,
 };
@@ -62,7 +63,11 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         .map_err(|e| learn_error(e, "effort run"))?;
     let mut complete = !outcome.search.interrupted();
     let speedup = if complete && plan.speedup_generations > 0 {
-        let speedup = measure_speedup(&config, plan.speedup_generations, &progress)?;
+        let _ = ctx
+            .observer
+            .event(Event::Stage("measuring the parallel speed-up"));
+        let working = |_: &cps_cmaes::GenerationReport<'_>| ctx.observer.event(Event::Working);
+        let speedup = measure_speedup(&config, plan.speedup_generations, &working)?;
         complete = speedup.is_some();
         speedup
     } else {
@@ -184,14 +189,11 @@ fn measure_speedup(
     }))
 }
 
-/// `trajectory.csv`: the reference, the plant's position and velocity, the force.
+/// `trajectory.csv`: `t`, the reference `reference_x…`, the plant's position `plant_x…`
+/// and velocity `plant_x_vel…`, the force `force_x…`.
 fn trajectory(o: &EffortOutcome) -> Table {
     let dims = o.reference.dims();
-    let axes: Vec<String> = if dims == 3 {
-        ["x", "y", "z"].map(String::from).to_vec()
-    } else {
-        (0..dims).map(|d| format!("y{d}")).collect()
-    };
+    let axes: Vec<String> = (0..dims).map(|d| super::axis_name(dims, d)).collect();
     let mut t = Table::new("trajectory").with(Column::numbers(
         "t",
         o.reference.times().to_vec(),
@@ -204,14 +206,14 @@ fn trajectory(o: &EffortOutcome) -> Table {
             Format::Fixed(9),
         ));
     }
-    for (prefix, part) in [
-        ("plant_", &o.plant.position),
-        ("plant_v", &o.plant.velocity),
-        ("force_", &o.plant.force),
+    for (prefix, suffix, part) in [
+        ("plant_", "", &o.plant.position),
+        ("plant_", "_vel", &o.plant.velocity),
+        ("force_", "", &o.plant.force),
     ] {
         for (a, v) in axes.iter().zip(part) {
             t.push(Column::numbers(
-                format!("{prefix}{a}"),
+                format!("{prefix}{a}{suffix}"),
                 v.clone(),
                 Format::Fixed(9),
             ));

@@ -232,7 +232,8 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     })
 }
 
-/// `trajectory.csv`: time, joint angles and speeds, the tool position.
+/// `trajectory.csv`: `t`, joint angles `q1…`, their speeds `q1_vel…`, the tool position
+/// `tool_x, tool_y, tool_z` (forward kinematics).
 fn trajectory(outcome: &JointSpaceOutcome, tool: &[Vec<f64>; 3]) -> Table {
     let traj = &outcome.trajectory;
     let dof = traj.dims();
@@ -250,12 +251,12 @@ fn trajectory(outcome: &JointSpaceOutcome, tool: &[Vec<f64>; 3]) -> Table {
     }
     for j in 0..dof {
         t.push(Column::numbers(
-            format!("dq{}", j + 1),
+            format!("q{}_vel", j + 1),
             traj.velocity(j).to_vec(),
             Format::Sci(12),
         ));
     }
-    for (name, v) in ["x", "y", "z"].iter().zip(tool) {
+    for (name, v) in ["tool_x", "tool_y", "tool_z"].iter().zip(tool) {
         t.push(Column::numbers(*name, v.clone(), Format::Fixed(9)));
     }
     t
@@ -272,7 +273,7 @@ fn recording_table(rec: &Recording, dof: usize) -> Table {
             Format::Sci(12),
         ));
     }
-    for (d, name) in ["x", "y", "z"].iter().enumerate() {
+    for (d, name) in ["tool_x", "tool_y", "tool_z"].iter().enumerate() {
         t.push(Column::numbers(
             *name,
             rec.position.iter().map(|p| p[d]).collect(),

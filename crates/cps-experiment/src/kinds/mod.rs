@@ -128,6 +128,16 @@ pub(crate) fn search_row(s: &cps_learn::SearchStats) -> (&'static str, String) {
     )
 }
 
+/// The CSV name of task-space dimension `d` of `dims`: `x`, `y`, `z` for three, `y0`, …
+/// otherwise.
+pub(crate) fn axis_name(dims: usize, d: usize) -> String {
+    if dims == 3 {
+        ["x", "y", "z"][d].to_string()
+    } else {
+        format!("y{d}")
+    }
+}
+
 /// `x [m]`, `y [m]`, `z [m]` for three dimensions, `y0 [m]`, … otherwise.
 pub(crate) fn axis_names(dims: usize) -> Vec<String> {
     (0..dims)

@@ -109,18 +109,27 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     })
 }
 
-/// `trajectory.csv`: time, position, unit quaternion, angular velocity.
+/// `trajectory.csv`: `t`, position `x, y, z` and its velocity `x_vel…`, the unit
+/// quaternion `qx, qy, qz, qw`, the angular velocity `omega_x…` (world frame, rad/s).
 fn trajectory(outcome: &PoseOutcome) -> Table {
     let p = outcome.position.best_trajectory();
     let o = &outcome.orientation.trajectory;
     let mut t =
         Table::new("trajectory").with(Column::numbers("t", p.times().to_vec(), Format::Fixed(6)));
-    for (d, name) in ["x", "y", "z"].iter().enumerate() {
-        t.push(Column::numbers(
-            *name,
-            p.position(d).to_vec(),
-            Format::Fixed(9),
-        ));
+    for (suffix, q) in [
+        (
+            "",
+            cps_dmp::Trajectory::position as fn(&cps_dmp::Trajectory, usize) -> &[f64],
+        ),
+        ("_vel", cps_dmp::Trajectory::velocity),
+    ] {
+        for (d, name) in ["x", "y", "z"].iter().enumerate() {
+            t.push(Column::numbers(
+                format!("{name}{suffix}"),
+                q(&p, d).to_vec(),
+                Format::Fixed(9),
+            ));
+        }
     }
     let n = p.n_samples();
     type Part = fn(&nalgebra::UnitQuaternion<f64>) -> f64;
@@ -137,7 +146,7 @@ fn trajectory(outcome: &PoseOutcome) -> Table {
             Format::Fixed(12),
         ));
     }
-    for (d, name) in ["wx", "wy", "wz"].iter().enumerate() {
+    for (d, name) in ["omega_x", "omega_y", "omega_z"].iter().enumerate() {
         t.push(Column::numbers(
             *name,
             o.angular_velocity.iter().take(n).map(|w| w[d]).collect(),

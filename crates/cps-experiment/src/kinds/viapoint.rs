@@ -239,32 +239,27 @@ fn weights(ctx: &Ctx<'_>, outcome: &ViaPointOutcome) -> Table {
         .with(Column::texts("WayPoints", vec![points; n]))
 }
 
-/// `trajectory.csv`: t, positions, velocities, accelerations (SI units).
+/// `trajectory.csv`: `t`, positions `x, y, z` (`y0, y1, …` for other dimensions), then
+/// `<name>_vel`, `<name>_acc` (SI units).
 pub(crate) fn trajectory(traj: &cps_dmp::Trajectory) -> Table {
     let dims = traj.dims();
-    let axis = |d: usize| {
-        if dims == 3 {
-            ["x", "y", "z"][d].to_string()
-        } else {
-            d.to_string()
-        }
-    };
+    let axis = |d: usize| super::axis_name(dims, d);
     let mut table = Table::new("trajectory").with(Column::numbers(
         "t",
         traj.times().to_vec(),
         Format::Fixed(6),
     ));
-    for (prefix, q) in [
+    for (suffix, q) in [
         (
             "",
             cps_dmp::Trajectory::position as fn(&cps_dmp::Trajectory, usize) -> &[f64],
         ),
-        ("v", cps_dmp::Trajectory::velocity),
-        ("a", cps_dmp::Trajectory::acceleration),
+        ("_vel", cps_dmp::Trajectory::velocity),
+        ("_acc", cps_dmp::Trajectory::acceleration),
     ] {
         for d in 0..dims {
             table.push(Column::numbers(
-                format!("{prefix}{}", axis(d)),
+                format!("{}{suffix}", axis(d)),
                 q(traj, d).to_vec(),
                 Format::Sci(12),
             ));
