@@ -114,6 +114,10 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
         scene.objects.len()
     );
     while !interrupted.load(Ordering::SeqCst) {
+        // What clients log with sim.addLog goes to stderr, as CoppeliaSim's status bar.
+        for line in server.take_logs() {
+            eprintln!("[sim.addLog {}] {}", line.level, line.message);
+        }
         if crash_after.is_some_and(|n| server.requests() >= n) {
             eprintln!(
                 "crashing on purpose after {} requests (--crash-after)",
@@ -126,6 +130,9 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
         } else {
             100
         }));
+    }
+    for line in server.take_logs() {
+        eprintln!("[sim.addLog {}] {}", line.level, line.message);
     }
     say!(
         "stopped after {} requests ({} peers dropped for breaking the protocol or a limit)",

@@ -46,12 +46,15 @@ fn a_run_writes_every_result_with_the_promised_numbers() {
         "coordinates.svg",
         "path3d.png",
         "path3d.svg",
+        "velocity.svg",
+        "acceleration.svg",
+        "search.svg",
     ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
-    // The report holds the three figures inline and the numbers of the summary.
+    // The report holds the six figures inline and the numbers of the summary.
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
-    assert_eq!(html.matches("<svg").count(), 3);
+    assert_eq!(html.matches("<svg").count(), 6);
     let s = json(&out.join("summary.json"));
     assert!(html.contains(&format!("{:.6e}", s["best_cost"].as_f64().unwrap())));
     assert_eq!(s["experiment"], "viapoint");
@@ -904,6 +907,7 @@ fn the_official_python_client_runs_a_session_against_sim_serve() {
     let mut server = Command::new(env!("CARGO_BIN_EXE_cps-cli"))
         .args(["sim", "serve", "--bind", "127.0.0.1:0"])
         .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
     let mut line = String::new();
@@ -924,15 +928,43 @@ fn the_official_python_client_runs_a_session_against_sim_serve() {
         .args([&script, &port])
         .output()
         .unwrap();
-    let _ = server.kill();
-    let _ = server.wait();
-    assert!(
-        out.status.success(),
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
+    // CoppeliaSim's own first examples' calls (simpleTest.py and its asyncio twin).
+    let examples = format!(
+        "{}/tests/data/python_examples.py",
+        env!("CARGO_MANIFEST_DIR")
     );
-    assert!(String::from_utf8_lossy(&out.stdout).contains("python session ok"));
+    let ex = Command::new(&python)
+        .args([&examples, &port])
+        .output()
+        .unwrap();
+    // Stopped as Ctrl-C stops it, so it prints what clients logged.
+    let _ = Command::new("kill")
+        .args(["-INT", &server.id().to_string()])
+        .status();
+    let mut logged = String::new();
+    std::io::Read::read_to_string(&mut server.stderr.take().unwrap(), &mut logged).unwrap();
+    let _ = server.wait();
+    for (o, ok) in [(&out, "python session ok"), (&ex, "python examples ok")] {
+        assert!(
+            o.status.success() && String::from_utf8_lossy(&o.stdout).contains(ok),
+            "{}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    // sim.addLog's messages are printed by the server with their level.
+    assert!(
+        logged.contains("[sim.addLog script info] free t="),
+        "{logged}"
+    );
+    assert!(
+        logged.contains("[sim.addLog warning] stepped k=9"),
+        "{logged}"
+    );
+    assert!(
+        logged.contains("[sim.addLog script info] async t="),
+        "{logged}"
+    );
 }
 
 /// The shipped demonstration (experiments/demos) is learned within a millimetre.

@@ -466,7 +466,7 @@ fn joint_space_learning_meets_its_numbers_within_the_limits() {
     let csv = std::fs::read_to_string(out.join("trajectory.csv")).unwrap();
     assert!(csv.starts_with("t,q1,q2,q3,q4,q5,q6,q7,q1_vel,"));
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
-    assert_eq!(html.matches("<svg").count(), 4);
+    assert_eq!(html.matches("<svg").count(), 5);
 }
 
 /// A way point that cannot be converted to joint space is named with its residual.
@@ -514,7 +514,7 @@ fn the_effort_experiment_learns_and_measures_its_speed_up() {
     let csv = std::fs::read_to_string(out.join("trajectory.csv")).unwrap();
     assert!(csv.starts_with("t,reference_x,reference_y,reference_z,plant_x,"));
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
-    assert_eq!(html.matches("<svg").count(), 4);
+    assert_eq!(html.matches("<svg").count(), 5);
     assert!(html.contains("parallel speed-up"));
     // A plant the integrator cannot follow is refused before any work, naming the field.
     let file = write(
@@ -561,14 +561,14 @@ fn the_pose_experiment_learns_position_and_orientation() {
     }
     let csv = std::fs::read_to_string(out.join("trajectory.csv")).unwrap();
     assert!(csv.starts_with("t,x,y,z,x_vel,y_vel,z_vel,qx,qy,qz,qw,omega_x,omega_y,omega_z\n"));
-    // Every orientation written is a unit quaternion.
+    // Every orientation written (columns qx..qw) is a unit quaternion.
     for line in csv.lines().skip(1) {
         let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
-        let n = (v[4] * v[4] + v[5] * v[5] + v[6] * v[6] + v[7] * v[7]).sqrt();
+        let n = (v[7] * v[7] + v[8] * v[8] + v[9] * v[9] + v[10] * v[10]).sqrt();
         assert!((n - 1.0).abs() < 1e-9, "{line}");
     }
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
-    assert_eq!(html.matches("<svg").count(), 4);
+    assert_eq!(html.matches("<svg").count(), 5);
 
     let check = |name: &str, body: &str, wanted: &str| {
         let f = write(dir.path(), name, body);
@@ -672,4 +672,101 @@ fn check_describes_the_kind_and_refuses_what_the_run_would() {
     assert_eq!(o.status.code(), Some(2));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("far.toml") && err.contains("via[1]"), "{err}");
+}
+
+/// `report.html` in a real headless browser (Chromium, `chromium-headless-shell` from
+/// Debian, or `$CPS_CHROMIUM`): the page parses with every figure as inline SVG, and a
+/// screenshot of it is drawn. Skipped without a browser, except under CI (`CI` set), where
+/// `.ci/run` installs it. The screenshot stays in `target/report-screenshots/` to look at.
+#[test]
+fn the_report_opens_in_a_headless_browser() {
+    let browser = std::env::var("CPS_CHROMIUM").ok().or_else(|| {
+        ["chromium-headless-shell", "chromium", "chromium-browser"]
+            .into_iter()
+            .find(|b| {
+                Command::new(b)
+                    .arg("--version")
+                    .output()
+                    .is_ok_and(|o| o.status.success())
+            })
+            .map(String::from)
+    });
+    let Some(browser) = browser else {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI must provide a headless Chromium (chromium-headless-shell)"
+        );
+        eprintln!("skipped: no headless Chromium on the PATH");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("pose");
+    let o = cli(&[
+        "run",
+        &repo("experiments/viapoint_pose.toml"),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report = out.join("report.html");
+    let url = format!("file://{}", report.display());
+    let base = ["--no-sandbox", "--disable-gpu", "--hide-scrollbars"];
+    let dom = Command::new(&browser)
+        .args(base)
+        .args(["--dump-dom", &url])
+        .output()
+        .unwrap();
+    assert!(
+        dom.status.success(),
+        "{}",
+        String::from_utf8_lossy(&dom.stderr)
+    );
+    let dom = String::from_utf8_lossy(&dom.stdout);
+    let summary = json(&out.join("summary.json"));
+    assert_eq!(summary["kind"], "viapoint_pose");
+    // Every figure of the run is an inline SVG in the parsed page, with its caption.
+    let figures = std::fs::read_dir(&out)
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .path()
+                .extension()
+                .is_some_and(|x| x == "svg")
+        })
+        .count();
+    assert!(figures >= 5, "{figures} figures");
+    assert_eq!(
+        dom.matches("<svg").count(),
+        figures,
+        "inline SVGs in the DOM"
+    );
+    assert_eq!(dom.matches("<figcaption>").count(), figures);
+    for heading in ["Task", "Settings", "Cost breakdown", "Figures"] {
+        assert!(dom.contains(heading), "{heading}");
+    }
+    let shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("report-screenshots");
+    std::fs::create_dir_all(&shots).unwrap();
+    let png = shots.join("viapoint_pose.png");
+    let _ = std::fs::remove_file(&png);
+    let o = Command::new(&browser)
+        .args(base)
+        .args([
+            "--window-size=1100,6000",
+            &format!("--screenshot={}", png.display()),
+            &url,
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let bytes = std::fs::read(&png).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    let (w, h) = (
+        u32::from_be_bytes(bytes[16..20].try_into().unwrap()),
+        u32::from_be_bytes(bytes[20..24].try_into().unwrap()),
+    );
+    assert_eq!((w, h), (1100, 6000));
+    // A blank page compresses to a few kB; tables and figures do not.
+    assert!(bytes.len() > 100_000, "{} bytes", bytes.len());
 }

@@ -46,5 +46,5 @@ pub mod zmtp;
 pub use client::{Client, ClientConfig, Protocol};
 pub use error::CoppeliaError;
 pub use franka::FrankaScene;
-pub use server::{RequestHandler, SceneSetup, ServerConfig, ServerLimits, StandInServer};
+pub use server::{LogLine, RequestHandler, SceneSetup, ServerConfig, ServerLimits, StandInServer};
 pub use zmtp::DEFAULT_MAX_MESSAGE_BYTES;

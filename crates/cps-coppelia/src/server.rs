@@ -97,6 +97,8 @@ struct PendingCallback {
 }
 
 struct Sim {
+    /// Messages of `sim.addLog`, for the server's owner to print.
+    log: Arc<LogBuffer>,
     setup: SceneSetup,
     q: Vec<f64>,
     objects: HashMap<i64, Object>,
@@ -167,6 +169,7 @@ impl Sim {
             next += 1;
         }
         Self {
+            log: Arc::default(),
             q: setup.initial_q.clone(),
             setup,
             objects,
@@ -357,6 +360,15 @@ impl Sim {
                 None => Err("argument 1 must be a string".into()),
             },
             "zmqRemoteApi.info" => Ok(vec![info()]),
+            "sim.addLog" => {
+                let verbosity = int(0)?;
+                let message = args
+                    .get(1)
+                    .and_then(codec::as_text)
+                    .ok_or("argument 2 must be a string")?;
+                self.log.push(verbosity, &message);
+                none
+            }
             "sim.getObject" => {
                 let path = args
                     .first()
@@ -589,6 +601,7 @@ fn info() -> Value {
 }
 
 const FUNCTIONS: &[&str] = &[
+    "addLog",
     "getObject",
     "getObjectAlias",
     "setObjectAlias",
@@ -626,7 +639,89 @@ const CONSTANTS: &[(&str, i64)] = &[
     ("colorcomponent_ambient_diffuse", 0),
     ("object_joint_type", 1),
     ("object_dummy_type", 4),
+    ("verbosity_none", 100),
+    ("verbosity_errors", 200),
+    ("verbosity_warnings", 300),
+    ("verbosity_loadinfos", 400),
+    ("verbosity_questions", 410),
+    ("verbosity_scripterrors", 420),
+    ("verbosity_scriptwarnings", 430),
+    ("verbosity_scriptinfos", 450),
+    ("verbosity_msgs", 450),
+    ("verbosity_infos", 500),
+    ("verbosity_debug", 600),
+    ("verbosity_trace", 700),
+    ("verbosity_tracelua", 800),
+    ("verbosity_traceall", 900),
+    ("verbosity_default", 400),
+    ("verbosity_undecorated", 0xf000),
+    ("verbosity_onlyterminal", 0x10000),
+    ("verbosity_once", 0x20000),
 ];
+
+/// The level names of CoppeliaSim's verbosity constants (flags masked off).
+fn verbosity_name(v: i64) -> &'static str {
+    match v & 0xfff {
+        100 => "none",
+        200 => "error",
+        300 => "warning",
+        400 => "loadinfo",
+        410 => "question",
+        420 => "script error",
+        430 => "script warning",
+        450 => "script info",
+        500 => "info",
+        600 => "debug",
+        700 => "trace",
+        800 => "trace lua",
+        900 => "trace all",
+        _ => "log",
+    }
+}
+
+/// One message of `sim.addLog`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LogLine {
+    /// The verbosity level's name (`script info`, `warning`, …).
+    pub level: &'static str,
+    /// The message, control characters replaced, at most 4096 characters.
+    pub message: String,
+}
+
+/// The messages clients logged, kept until the owner takes them (the oldest dropped
+/// beyond 10 000).
+#[derive(Debug, Default)]
+struct LogBuffer {
+    lines: Mutex<std::collections::VecDeque<LogLine>>,
+    dropped: AtomicU64,
+}
+
+impl LogBuffer {
+    const MAX_LINES: usize = 10_000;
+
+    fn push(&self, verbosity: i64, message: &str) {
+        // A peer's text never reaches a terminal as control sequences.
+        let message: String = message
+            .chars()
+            .take(4096)
+            .map(|c| if c.is_control() { '·' } else { c })
+            .collect();
+        let mut lines = self.lines.lock().unwrap_or_else(|p| p.into_inner());
+        if lines.len() >= Self::MAX_LINES {
+            lines.pop_front();
+            self.dropped.fetch_add(1, Ordering::Relaxed);
+        }
+        lines.push_back(LogLine {
+            level: verbosity_name(verbosity),
+            message,
+        });
+    }
+
+    fn take(&self) -> Vec<LogLine> {
+        let mut lines = self.lines.lock().unwrap_or_else(|p| p.into_inner());
+        lines.drain(..).collect()
+    }
+}
 
 /// One request in, one reply out (never blocks: a stepping client is parked with
 /// `_*wait*_`).
@@ -851,6 +946,7 @@ pub struct StandInServer {
 /// Counters shared with the serving thread.
 #[derive(Debug, Default)]
 struct Stats {
+    log: Arc<LogBuffer>,
     requests: AtomicU64,
     dropped_peers: AtomicU64,
 }
@@ -946,7 +1042,9 @@ impl StandInServer {
                         }
                     };
                     let _ = ready_tx.send(Ok(endpoint));
-                    let sim = Arc::new(Mutex::new(Sim::new(config.scene, limits.client_lease)));
+                    let mut sim = Sim::new(config.scene, limits.client_lease);
+                    sim.log = Arc::clone(&counter.log);
+                    let sim = Arc::new(Mutex::new(sim));
                     let slots = Arc::new(tokio::sync::Semaphore::new(limits.max_connections));
                     let mut stop_rx = stop_rx;
                     loop {
@@ -993,6 +1091,12 @@ impl StandInServer {
         &self.endpoint
     }
 
+    /// The messages clients sent with `sim.addLog` since the last call (CoppeliaSim
+    /// prints them in its status bar; `cps-cli sim serve` prints them on stderr).
+    pub fn take_logs(&self) -> Vec<LogLine> {
+        self.stats.log.take()
+    }
+
     /// Requests served so far.
     pub fn requests(&self) -> u64 {
         self.stats.requests.load(Ordering::Relaxed)
@@ -1025,6 +1129,36 @@ impl Drop for StandInServer {
 
 #[cfg(test)]
 mod tests {
+
+    /// `sim.addLog` keeps a peer's message for the owner, never its control characters,
+    /// at most 4096 characters of it, and at most 10 000 messages (the oldest dropped).
+    #[test]
+    fn logged_messages_are_kept_bounded_and_harmless() {
+        let log = LogBuffer::default();
+        log.push(450, "plain");
+        log.push(300 | 0x10000, "\x1b[2Jred\x07");
+        log.push(7, &"y".repeat(10_000));
+        let lines = log.take();
+        assert_eq!(
+            lines[0],
+            LogLine {
+                level: "script info",
+                message: "plain".into()
+            }
+        );
+        assert_eq!(lines[1].level, "warning");
+        assert_eq!(lines[1].message, "·[2Jred·");
+        assert_eq!(lines[2].level, "log");
+        assert_eq!(lines[2].message.chars().count(), 4096);
+        assert!(log.take().is_empty(), "taken once");
+        for k in 0..10_005 {
+            log.push(450, &k.to_string());
+        }
+        let lines = log.take();
+        assert_eq!(lines.len(), 10_000);
+        assert_eq!(lines[0].message, "5");
+        assert_eq!(log.dropped.load(Ordering::Relaxed), 5);
+    }
     use super::*;
     use cps_kinematics::robots::{PandaTool, panda};
     use rand::{Rng, SeedableRng};

@@ -16,7 +16,7 @@ use cps_dmp::{
 };
 
 use crate::InputError;
-use crate::outcome::{Column, Figure, Format, Plot, Series, Table};
+use crate::outcome::{Column, Figure, Format, Mark, MarkKind, Panels, Plot, Series, Table};
 
 /// The largest demonstration file read: 256 MiB (≈ 10⁷ samples of three coordinates).
 pub const MAX_DEMO_BYTES: u64 = 256 << 20;
@@ -222,13 +222,32 @@ impl Imitated {
         Figure {
             name: "imitation".into(),
             caption: "The demonstration and the DMP's rollout.".into(),
-            plot: Plot::Panels {
-                names: self.names.clone(),
-                series,
-                marks: Vec::new(),
-            },
+            plot: Plot::Panels(Panels::new(with_units(&self.names), series)),
         }
     }
+}
+
+/// Axis names with units for dimensions named as cps names them: joints `q1…` in
+/// radians, positions `x`, `tool_y`, … in metres; other names as they are.
+fn with_units(names: &[String]) -> Vec<String> {
+    names
+        .iter()
+        .map(|n| {
+            let joint = n
+                .strip_prefix('q')
+                .is_some_and(|r| !r.is_empty() && r.chars().all(|c| c.is_ascii_digit()));
+            let last = n.rsplit('_').next().unwrap_or(n);
+            if joint {
+                format!("{n} [rad]")
+            } else if matches!(last, "x" | "y" | "z")
+                || n.starts_with('y') && n[1..].parse::<u32>().is_ok()
+            {
+                format!("{n} [m]")
+            } else {
+                n.clone()
+            }
+        })
+        .collect()
 }
 
 /// The command line's name of a DMP configuration field.
@@ -332,11 +351,26 @@ impl RolledOut {
         Figure {
             name: "rollout".into(),
             caption: "The rollout per dimension; dots are the start and the goal.".into(),
-            plot: Plot::Panels {
-                names: self.names.clone(),
-                series: vec![Series::of_trajectory("", traj)],
-                marks: vec![(0.0, self.start.clone()), (tau, self.goal.clone())],
-            },
+            plot: Plot::Panels(
+                Panels::new(
+                    with_units(&self.names),
+                    vec![Series::of_trajectory("rollout", traj)],
+                )
+                .marks(vec![
+                    Mark {
+                        time: 0.0,
+                        values: self.start.clone(),
+                        kind: MarkKind::Start,
+                        label: "start".into(),
+                    },
+                    Mark {
+                        time: tau,
+                        values: self.goal.clone(),
+                        kind: MarkKind::Goal,
+                        label: "goal".into(),
+                    },
+                ]),
+            ),
         }
     }
 }

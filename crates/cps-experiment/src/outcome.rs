@@ -322,6 +322,95 @@ impl CostArm {
     }
 }
 
+/// What a marked point is, which decides how it is drawn and labelled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MarkKind {
+    /// Where the movement starts.
+    Start,
+    /// A via point (labelled `p1`, `p2`, …).
+    Via,
+    /// Where it ends.
+    Goal,
+}
+
+/// A marked point of a figure: a way point, or a target at a time.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mark {
+    /// Its time, seconds (ignored in 3-D paths).
+    pub time: f64,
+    /// One value per panel (x, y, z in 3-D paths).
+    pub values: Vec<f64>,
+    /// Start, via point or goal.
+    pub kind: MarkKind,
+    /// Its label (`start`, `p1`, `goal`).
+    pub label: String,
+}
+
+/// A shaded band between two curves per panel (a 95 % band, mean ± 2σ).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Band {
+    /// Legend label.
+    pub label: String,
+    /// Time stamps.
+    pub times: Vec<f64>,
+    /// `lower[d][k]` and `upper[d][k]` per panel d.
+    pub lower: Vec<Vec<f64>>,
+    /// Upper edge.
+    pub upper: Vec<Vec<f64>>,
+}
+
+/// One panel per dimension over a shared horizontal axis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Panels {
+    /// The horizontal axis's name with its unit (`t [s]`, `generation`).
+    pub x_name: String,
+    /// Each panel's vertical axis name with its unit.
+    pub names: Vec<String>,
+    /// The curves; each has one value row per panel (NaN: not in that panel).
+    pub series: Vec<Series>,
+    /// Shaded bands, drawn under the curves.
+    pub bands: Vec<Band>,
+    /// Marked points.
+    pub marks: Vec<Mark>,
+    /// Per panel, limits drawn as lines with the outside shaded.
+    pub limits: Vec<Option<(f64, f64)>>,
+    /// Logarithmic vertical axes.
+    pub log_y: bool,
+}
+
+impl Panels {
+    /// Panels named `names` over time (`t [s]`) with `series`.
+    pub fn new(names: Vec<String>, series: Vec<Series>) -> Self {
+        Self {
+            x_name: "t [s]".into(),
+            names,
+            series,
+            bands: Vec::new(),
+            marks: Vec::new(),
+            limits: Vec::new(),
+            log_y: false,
+        }
+    }
+
+    /// With marked points.
+    pub fn marks(mut self, marks: Vec<Mark>) -> Self {
+        self.marks = marks;
+        self
+    }
+
+    /// With shaded bands.
+    pub fn bands(mut self, bands: Vec<Band>) -> Self {
+        self.bands = bands;
+        self
+    }
+
+    /// With per-panel limits.
+    pub fn limits(mut self, limits: Vec<Option<(f64, f64)>>) -> Self {
+        self.limits = limits;
+        self
+    }
+}
+
 /// What a figure shows.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Plot {
@@ -332,21 +421,14 @@ pub enum Plot {
         /// The exact optimum's cost, drawn as a line, when there is one.
         optimum: Option<f64>,
     },
-    /// One panel per dimension (named), every series over time, marked points.
-    Panels {
-        /// Axis name of each panel, with its unit.
-        names: Vec<String>,
-        /// The curves; each has one value row per panel.
-        series: Vec<Series>,
-        /// Marked points `(time, value per panel)`.
-        marks: Vec<(f64, Vec<f64>)>,
-    },
+    /// One panel per dimension.
+    Panels(Panels),
     /// A 3-D path (world frame, z up) of every three-dimensional series, marked points.
     Path3d {
         /// The paths (`values` has x, y, z).
         series: Vec<Series>,
         /// Marked positions.
-        marks: Vec<Vec<f64>>,
+        marks: Vec<Mark>,
     },
 }
 

@@ -79,12 +79,16 @@ pub fn run(
     })?;
     let ctx = Ctx::new(exp, &pool, observer, started);
     observer.started(planned_generations(exp));
-    match exp.kind {
+    let mut outcome = match exp.kind {
         Kind::Viapoint => kinds::viapoint::run(&ctx),
         Kind::Imitation => kinds::imitation::run(&ctx),
         Kind::Scaling => kinds::scaling::run(&ctx),
         Kind::ViapointJoint => kinds::joint::run(&ctx),
         Kind::ViapointEnergy => kinds::energy::run(&ctx),
         Kind::ViapointPose => kinds::pose::run(&ctx),
-    }
+    }?;
+    // Every report also lists the task, the settings and the cost breakdowns.
+    let shared = kinds::shared_report_tables(exp, &outcome.summary);
+    outcome.report.tables.extend(shared);
+    Ok(outcome)
 }

@@ -9,12 +9,14 @@ use serde::Serialize;
 
 use super::{Ctx, learn_error};
 use super::{
-    axis_names, cost_figure, history_table, position_figures, search_row, way_points, worst,
+    axis_names, cost_figure, history_table, position_figures, search_figure, search_row,
+    way_points, worst,
 };
 use crate::ExperimentError;
 use crate::observer::Event;
 use crate::outcome::{
-    Column, CostArm, Figure, Format, Outcome, Plot, Report, ReportTable, Series, Table, fields,
+    Column, CostArm, Figure, Format, Outcome, Panels, Plot, Report, ReportTable, Series, Table,
+    fields,
 };
 
 #[derive(Serialize)]
@@ -238,7 +240,7 @@ fn figures(ctx: &Ctx<'_>, o: &EffortOutcome) -> Vec<Figure> {
     let mut figures = position_figures(
         series,
         way_points(&ctx.exp.config.task),
-        "The DMP (reference) and the plant per coordinate; dots are the way points.",
+        "The DMP (reference) and the plant per coordinate, with the start, the via points p1… and the goal.",
         "Paths in 3-D.",
     );
     figures.insert(
@@ -246,18 +248,17 @@ fn figures(ctx: &Ctx<'_>, o: &EffortOutcome) -> Vec<Figure> {
         Figure {
             name: "force".into(),
             caption: "The PD controller's force per axis.".into(),
-            plot: Plot::Panels {
-                names: axis_names(dims)
+            plot: Plot::Panels(Panels::new(
+                axis_names(dims)
                     .iter()
                     .map(|n| n.replace("[m]", "force [N]"))
                     .collect(),
-                series: vec![Series::new(
+                vec![Series::new(
                     "PD control force",
                     times,
                     o.plant.force.clone(),
                 )],
-                marks: Vec::new(),
-            },
+            )),
         },
     );
     figures.extend(cost_figure(
@@ -265,6 +266,7 @@ fn figures(ctx: &Ctx<'_>, o: &EffortOutcome) -> Vec<Figure> {
         vec![CostArm::new("CMA-ES", &[&o.search.history])],
         None,
     ));
+    figures.extend(search_figure(&[("CMA-ES", &o.search.history)]));
     figures
 }
 

@@ -7,7 +7,7 @@ use cps_learn::{ImitationConfig, ImitationOutcome, ImitationStage, ViaPoint};
 use serde::Serialize;
 
 use super::{Ctx, learn_error};
-use super::{position_figures, solver_name};
+use super::{marks, position_figures, solver_name};
 use crate::ExperimentError;
 use crate::observer::Event;
 use crate::outcome::{
@@ -346,18 +346,13 @@ fn figures(outcome: &ImitationOutcome, task: &cps_learn::ViaPointTask) -> Vec<Fi
         ));
     }
     // The unperturbed way points, at their times scaled to the imitation's τ.
-    let scale = tau / task.dmp.tau;
-    let mut points = vec![(0.0, task.start.clone())];
-    points.extend(
-        task.via
-            .iter()
-            .map(|v| (v.time * scale, v.position.clone())),
-    );
-    points.push((tau, task.goal.clone()));
+    let positions = std::iter::once(task.start.clone())
+        .chain(task.via.iter().map(|v| v.position.clone()))
+        .chain(std::iter::once(task.goal.clone()));
     position_figures(
         series,
-        points,
-        "Each coordinate over (normalised) time: the executed demonstrations (grey), their mean and the two imitations; dots are the unperturbed way points.",
+        marks(task, tau / task.dmp.tau, positions),
+        "Each coordinate over (normalised) time: the executed demonstrations (grey), their mean and the two imitations (dashed), with the unperturbed start, via points p1… and goal.",
         "The same in 3-D, world frame.",
     )
 }

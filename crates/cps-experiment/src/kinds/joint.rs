@@ -9,9 +9,13 @@ use cps_learn::{
 use serde::Serialize;
 
 use super::{Ctx, learn_error};
-use super::{cost_figure, history_table, position_figures, search_row, way_points, worst};
+use super::{
+    cost_figure, history_table, marks, position_figures, search_figure, search_row, way_points,
+    worst,
+};
 use crate::outcome::{
-    Column, CostArm, Figure, Format, Outcome, Plot, Report, ReportTable, Series, Table, fields,
+    Column, CostArm, Figure, Format, Outcome, Panels, Plot, Report, ReportTable, Series, Table,
+    fields,
 };
 use crate::{Context, ExperimentError};
 
@@ -172,9 +176,9 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     tables.push(history_table(&[("joints", &outcome.search.history)]));
     let mut figures = vec![joints_figure(ctx, &outcome, &config)];
     figures.extend(position_figures(
-        vec![Series::new("", traj.times().to_vec(), tool.to_vec())],
+        vec![Series::new("tool (forward kinematics)", traj.times().to_vec(), tool.to_vec())],
         way_points(&exp.config.task),
-        "The tool in task space (forward kinematics); dots are the way points.",
+        "The tool in task space (forward kinematics), with the start, the via points p1… and the goal.",
         "The tool's path in 3-D.",
     ));
     figures.extend(cost_figure(
@@ -182,6 +186,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         vec![CostArm::new("CMA-ES", &[&outcome.search.history])],
         None,
     ));
+    figures.extend(search_figure(&[("CMA-ES", &outcome.search.history)]));
     let mut lines = vec![
         format!(
             "{}: {} in {:.2} s ({} generations, {})",
@@ -292,32 +297,24 @@ fn joints_figure(ctx: &Ctx<'_>, outcome: &JointSpaceOutcome, config: &JointSpace
     let traj = &outcome.trajectory;
     let dof = traj.dims();
     let task = &ctx.exp.config.task;
-    let ends = vec![traj.times()[0], *traj.times().last().unwrap_or(&1.0)];
-    let mut series = vec![Series::new(
+    let series = vec![Series::new(
         "joint angle",
         traj.times().to_vec(),
         (0..dof).map(|j| traj.position(j).to_vec()).collect(),
     )];
-    if let Some((lo, hi)) = config.robot.chain.limits() {
-        for side in [lo, hi] {
-            let values = side.iter().map(|&v| vec![v, v]).collect();
-            series.push(Series::new("limits", ends.clone(), values).faint());
-        }
-    }
-    let marks = std::iter::once(0.0)
-        .chain(task.via.iter().map(|v| v.time))
-        .chain(std::iter::once(task.dmp.tau))
-        .zip(&outcome.way_configurations)
-        .map(|(t, q)| (t, q.clone()))
-        .collect();
+    let limits = match config.robot.chain.limits() {
+        Some((lo, hi)) => (0..dof).map(|j| Some((lo[j], hi[j]))).collect(),
+        None => Vec::new(),
+    };
+    let marks = marks(task, 1.0, outcome.way_configurations.iter().cloned());
     Figure {
         name: "joints".into(),
-        caption: "Joint angles over time with their limits (grey); dots are the way points' IK configurations.".into(),
-        plot: Plot::Panels {
-            names: (1..=dof).map(|j| format!("q{j} [rad]")).collect(),
-            series,
-            marks,
-        },
+        caption: "Joint angles over time with their limits (shaded beyond them), and the way points' IK configurations.".into(),
+        plot: Plot::Panels(
+            Panels::new((1..=dof).map(|j| format!("q{j} [rad]")).collect(), series)
+                .limits(limits)
+                .marks(marks),
+        ),
     }
 }
 

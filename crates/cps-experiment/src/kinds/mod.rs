@@ -12,7 +12,10 @@ use std::time::Instant;
 use cps_learn::{GenerationRecord, LearnError, ViaPointTask};
 
 use crate::observer::{Event, Observer};
-use crate::outcome::{Column, CostArm, Figure, Format, Plot, RunHeader, Series, Table, Versions};
+use crate::outcome::{
+    Band, Column, CostArm, Figure, Format, Mark, MarkKind, Panels, Plot, ReportTable, RunHeader,
+    Series, Table, Versions,
+};
 use crate::plan::Experiment;
 use crate::{ExperimentError, InputError};
 
@@ -93,6 +96,132 @@ pub(crate) fn learn_error(e: LearnError, what: &str) -> ExperimentError {
     }
 }
 
+/// The report's tables every kind shares, from the file and the summary: the task (start,
+/// via points with their times, goal), the settings, and each cost breakdown of the
+/// summary (`*cost_terms`) with every term's share.
+pub(crate) fn shared_report_tables(
+    exp: &Experiment,
+    summary: &serde_json::Map<String, serde_json::Value>,
+) -> Vec<ReportTable> {
+    let c = &exp.config;
+    let task = &c.task;
+    let point = |p: &[f64]| {
+        let v: Vec<String> = p.iter().map(|x| format!("{x:.4}")).collect();
+        format!("({}) m", v.join(", "))
+    };
+    let mut rows = vec![vec![
+        "start".to_string(),
+        "0 s".to_string(),
+        point(&task.start),
+    ]];
+    for (i, v) in task.via.iter().enumerate() {
+        rows.push(vec![
+            format!("p{}", i + 1),
+            format!("{} s", v.time),
+            point(&v.position),
+        ]);
+    }
+    rows.push(vec![
+        "goal".into(),
+        format!("{} s (τ)", task.dmp.tau),
+        point(&task.goal),
+    ]);
+    let mut tables = vec![ReportTable {
+        title: "Task".into(),
+        header: ["point", "time", "position"].map(String::from).to_vec(),
+        rows,
+    }];
+    let w = &task.weights;
+    let mut settings = vec![
+        (
+            "DMPs",
+            format!(
+                "{} basis functions per dimension, τ = {} s, dt = {} s, α_z = {}, β_z = {}, {:?} formulation",
+                task.dmp.n_basis,
+                task.dmp.tau,
+                task.dmp.dt,
+                task.dmp.alpha_z,
+                task.dmp.beta_z,
+                task.dmp.formulation
+            ),
+        ),
+        (
+            "cost weights",
+            format!(
+                "goal {}, via {}, final velocity {}, acceleration {}, jerk {}",
+                w.goal, w.via, w.final_velocity, w.acceleration, w.jerk
+            ),
+        ),
+        (
+            "optimizer",
+            match c.solver {
+                cps_learn::Solver::Exact => "exact least squares".to_string(),
+                cps_learn::Solver::Cmaes => format!(
+                    "CMA-ES, {} search space, σ0 = {}, population {}, up to {} generations, tol_fun {}, {} repetition(s){}",
+                    c.parametrisation.name(),
+                    c.sigma0,
+                    c.population
+                        .map_or("default".to_string(), |p| p.to_string()),
+                    c.generations,
+                    c.tol_fun.map_or("off".to_string(), |t| t.to_string()),
+                    c.repetitions,
+                    if c.warm_start { ", warm start" } else { "" }
+                ),
+            },
+        ),
+        ("file", exp.source.display().to_string()),
+    ];
+    if let Some(r) = &exp.robot {
+        settings.push((
+            "robot",
+            format!(
+                "{} joints, scene {}, {}",
+                r.setup.chain.dof(),
+                r.scene,
+                r.describe()
+            ),
+        ));
+    }
+    tables.push(ReportTable::pairs("Settings", settings));
+    for (key, value) in summary {
+        let Some(terms) = value.as_object().filter(|_| key.ends_with("cost_terms")) else {
+            continue;
+        };
+        let total: f64 = terms.values().filter_map(serde_json::Value::as_f64).sum();
+        let rows = terms
+            .iter()
+            .filter_map(|(k, v)| v.as_f64().map(|v| (k, v)))
+            .map(|(k, v)| {
+                vec![
+                    k.replace('_', " "),
+                    format!("{v:.6e}"),
+                    if total > 0.0 {
+                        let share = 100.0 * v / total;
+                        if share == 0.0 || share >= 0.1 {
+                            format!("{share:.1} %")
+                        } else {
+                            format!("{share:.1e} %")
+                        }
+                    } else {
+                        "–".into()
+                    },
+                ]
+            })
+            .chain(std::iter::once(vec![
+                "total".into(),
+                format!("{total:.6e}"),
+                "100 %".into(),
+            ]))
+            .collect();
+        tables.push(ReportTable {
+            title: format!("Cost breakdown ({})", key.replace('_', " ")),
+            header: ["term", "value", "share"].map(String::from).to_vec(),
+            rows,
+        });
+    }
+    tables
+}
+
 /// `cost_history.csv` of named searches: one row per generation of each.
 pub(crate) fn history_table(searches: &[(&str, &[GenerationRecord])]) -> Table {
     let rows = searches
@@ -151,12 +280,94 @@ pub(crate) fn axis_names(dims: usize) -> Vec<String> {
         .collect()
 }
 
-/// The way points of a task as `(time, position)` marks.
-pub(crate) fn way_points(task: &ViaPointTask) -> Vec<(f64, Vec<f64>)> {
-    let mut points: Vec<(f64, Vec<f64>)> = vec![(0.0, task.start.clone())];
-    points.extend(task.via.iter().map(|v| (v.time, v.position.clone())));
-    points.push((task.dmp.tau, task.goal.clone()));
-    points
+/// Marks at the way points' times: `start` at 0, `p1…` at the via points' times
+/// (scaled by `time_scale`), `goal` at τ; `values` gives each point's values in order.
+pub(crate) fn marks(
+    task: &ViaPointTask,
+    time_scale: f64,
+    values: impl IntoIterator<Item = Vec<f64>>,
+) -> Vec<Mark> {
+    let n = task.via.len();
+    let times = std::iter::once(0.0)
+        .chain(task.via.iter().map(|v| v.time * time_scale))
+        .chain(std::iter::once(task.dmp.tau * time_scale));
+    times
+        .zip(values)
+        .enumerate()
+        .map(|(i, (time, values))| {
+            let (kind, label) = match i {
+                0 => (MarkKind::Start, "start".to_string()),
+                i if i > n => (MarkKind::Goal, "goal".to_string()),
+                i => (MarkKind::Via, format!("p{i}")),
+            };
+            Mark {
+                time,
+                values,
+                kind,
+                label,
+            }
+        })
+        .collect()
+}
+
+/// The way points of a task as marks (start, `p1…`, goal).
+pub(crate) fn way_points(task: &ViaPointTask) -> Vec<Mark> {
+    let positions = std::iter::once(task.start.clone())
+        .chain(task.via.iter().map(|v| v.position.clone()))
+        .chain(std::iter::once(task.goal.clone()));
+    marks(task, 1.0, positions)
+}
+
+/// The search figure, as `cma.plot()` draws it: per generation the best and the median
+/// cost of the population (its spread) and the best so far (log scale), and the step size
+/// σ, for each named search (the first repetition of each).
+pub(crate) fn search_figure(searches: &[(&str, &[GenerationRecord])]) -> Option<Figure> {
+    let searches: Vec<_> = searches.iter().filter(|(_, h)| !h.is_empty()).collect();
+    if searches.is_empty() {
+        return None;
+    }
+    let mut series = Vec::new();
+    for (name, h) in &searches {
+        let g: Vec<f64> = h.iter().map(|r| r.generation as f64).collect();
+        let col = |f: fn(&GenerationRecord) -> f64, panel: usize| {
+            let v: Vec<f64> = h.iter().map(f).collect();
+            let nan = vec![f64::NAN; v.len()];
+            if panel == 0 {
+                vec![v, nan]
+            } else {
+                vec![nan, v]
+            }
+        };
+        let prefix = if searches.len() > 1 {
+            format!("{name}: ")
+        } else {
+            String::new()
+        };
+        series.push(Series::new(
+            format!("{prefix}best so far"),
+            g.clone(),
+            col(|r| r.best_so_far, 0),
+        ));
+        series.push(Series::new(
+            format!("{prefix}best of the generation"),
+            g.clone(),
+            col(|r| r.best, 0),
+        ));
+        series.push(Series::new(
+            format!("{prefix}median of the generation"),
+            g.clone(),
+            col(|r| r.median, 0),
+        ));
+        series.push(Series::new(format!("{prefix}σ"), g, col(|r| r.sigma, 1)));
+    }
+    let mut panels = Panels::new(vec!["cost".into(), "step size σ".into()], series);
+    panels.x_name = "generation".into();
+    panels.log_y = true;
+    Some(Figure {
+        name: "search".into(),
+        caption: "The search per generation (log scales): the best so far, the best and the median of the population (its spread), and the step size σ.".into(),
+        plot: Plot::Panels(panels),
+    })
 }
 
 /// The cost figure of one search, when it ran generations.
@@ -176,7 +387,18 @@ pub(crate) fn cost_figure(
 /// three dimensions, `path3d`.
 pub(crate) fn position_figures(
     series: Vec<Series>,
-    marks: Vec<(f64, Vec<f64>)>,
+    marks: Vec<Mark>,
+    coordinates_caption: &str,
+    path_caption: &str,
+) -> Vec<Figure> {
+    position_figures_with(series, Vec::new(), marks, coordinates_caption, path_caption)
+}
+
+/// [`position_figures`] with shaded bands in the coordinates figure.
+pub(crate) fn position_figures_with(
+    series: Vec<Series>,
+    bands: Vec<Band>,
+    marks: Vec<Mark>,
     coordinates_caption: &str,
     path_caption: &str,
 ) -> Vec<Figure> {
@@ -188,7 +410,7 @@ pub(crate) fn position_figures(
             caption: path_caption.into(),
             plot: Plot::Path3d {
                 series: series.clone(),
-                marks: marks.iter().map(|m| m.1.clone()).collect(),
+                marks: marks.clone(),
             },
         });
     }
@@ -197,14 +419,49 @@ pub(crate) fn position_figures(
         Figure {
             name: "coordinates".into(),
             caption: coordinates_caption.into(),
-            plot: Plot::Panels {
-                names: axis_names(dims),
-                series,
-                marks,
-            },
+            plot: Plot::Panels(
+                Panels::new(axis_names(dims), series)
+                    .bands(bands)
+                    .marks(marks),
+            ),
         },
     );
     figures
+}
+
+/// Velocity and acceleration of a trajectory, one panel per coordinate each.
+pub(crate) fn derivative_figures(traj: &cps_dmp::Trajectory, names: &[&str]) -> Vec<Figure> {
+    let dims = traj.dims();
+    let unit = |d: usize, u: &str| format!("{} [{u}]", names.get(d).copied().unwrap_or("y"));
+    let times = traj.times().to_vec();
+    let velocity = Series::new(
+        "",
+        times.clone(),
+        (0..dims).map(|d| traj.velocity(d).to_vec()).collect(),
+    );
+    let acceleration = Series::new(
+        "",
+        times,
+        (0..dims).map(|d| traj.acceleration(d).to_vec()).collect(),
+    );
+    vec![
+        Figure {
+            name: "velocity".into(),
+            caption: "Velocity per coordinate (the trajectory's `_vel` columns).".into(),
+            plot: Plot::Panels(Panels::new(
+                (0..dims).map(|d| unit(d, "m/s")).collect(),
+                vec![velocity],
+            )),
+        },
+        Figure {
+            name: "acceleration".into(),
+            caption: "Acceleration per coordinate (the trajectory's `_acc` columns).".into(),
+            plot: Plot::Panels(Panels::new(
+                (0..dims).map(|d| unit(d, "m/s²")).collect(),
+                vec![acceleration],
+            )),
+        },
+    ]
 }
 
 /// The largest of a list (0 for none).

@@ -4,10 +4,13 @@ use cps_learn::{OrientationCostBreakdown, PoseConfig, PoseOutcome, learn_pose};
 use serde::Serialize;
 
 use super::{Ctx, learn_error};
-use super::{cost_figure, history_table, position_figures, search_row, way_points, worst};
+use super::{
+    cost_figure, history_table, position_figures, search_figure, search_row, way_points, worst,
+};
 use crate::ExperimentError;
 use crate::outcome::{
-    Column, CostArm, Figure, Format, Outcome, Plot, Report, ReportTable, Series, Table, fields,
+    Column, CostArm, Figure, Format, Mark, MarkKind, Outcome, Panels, Plot, Report, ReportTable,
+    Series, Table, fields,
 };
 
 #[derive(Serialize)]
@@ -160,52 +163,75 @@ fn figures(ctx: &Ctx<'_>, outcome: &PoseOutcome, config: &PoseConfig) -> Vec<Fig
     let task = &ctx.exp.config.task;
     let p = outcome.position.best_trajectory();
     let mut figures = position_figures(
-        vec![Series::of_trajectory("", &p)],
+        vec![Series::of_trajectory("learned path", &p)],
         way_points(task),
-        "Position per coordinate; dots are the way points.",
+        "Position per coordinate, with the start, the via points p1… and the goal.",
         "The path in 3-D.",
     );
-    // The orientation as quaternion components, with the targets (sign-aligned with the
-    // trajectory, since q and −q are the same orientation).
+    // The orientation relative to the start as a rotation vector (axis × angle, degrees,
+    // world frame): three angles a reader can judge, where quaternion components are not.
+    // Of the vectors that name one rotation, each sample takes the one nearest the
+    // previous sample's, so the curves do not jump at 180°.
     let o = &outcome.orientation.trajectory;
-    let comps = vec![
-        o.orientation.iter().map(|q| q.i).collect(),
-        o.orientation.iter().map(|q| q.j).collect(),
-        o.orientation.iter().map(|q| q.k).collect(),
-        o.orientation.iter().map(|q| q.w).collect(),
-    ];
-    let mut marks = Vec::new();
-    let mut mark = |t: f64, q: &nalgebra::UnitQuaternion<f64>| {
-        let (k, _) = cps_dmp::locate_on_grid(&o.times, t);
-        let sign = if o.orientation[k].coords.dot(&q.coords) < 0.0 {
-            -1.0
-        } else {
-            1.0
+    let q0 = config.start_orientation;
+    let degrees = |q: &nalgebra::UnitQuaternion<f64>| (q * q0.inverse()).scaled_axis();
+    let mut angles: Vec<nalgebra::Vector3<f64>> = Vec::with_capacity(o.orientation.len());
+    for q in &o.orientation {
+        let r = degrees(q);
+        let angle = r.norm();
+        let next = match angles.last() {
+            Some(prev) if angle > 1e-12 => {
+                let axis = r / angle;
+                [-1.0, 0.0, 1.0]
+                    .map(|k| axis * (angle + k * std::f64::consts::TAU))
+                    .into_iter()
+                    .min_by(|a, b| (a - prev).norm().total_cmp(&(b - prev).norm()))
+                    .unwrap_or(r)
+            }
+            _ => r,
         };
-        marks.push((t, q.coords.iter().map(|c| sign * c).collect::<Vec<f64>>()));
-    };
-    mark(0.0, &config.start_orientation);
-    for (v, q) in task.via.iter().zip(&config.via_orientations) {
+        angles.push(next);
+    }
+    let comps = (0..3)
+        .map(|d| angles.iter().map(|v| v[d].to_degrees()).collect())
+        .collect();
+    let degrees = |q: &nalgebra::UnitQuaternion<f64>| degrees(q).map(f64::to_degrees);
+    let mut marks = vec![Mark {
+        time: 0.0,
+        values: degrees(&config.start_orientation).iter().copied().collect(),
+        kind: MarkKind::Start,
+        label: "start".into(),
+    }];
+    for (i, (v, q)) in task.via.iter().zip(&config.via_orientations).enumerate() {
         if let Some(q) = q {
-            mark(v.time, q);
+            marks.push(Mark {
+                time: v.time,
+                values: degrees(q).iter().copied().collect(),
+                kind: MarkKind::Via,
+                label: format!("p{}", i + 1),
+            });
         }
     }
-    mark(task.dmp.tau, &config.goal_orientation);
+    marks.push(Mark {
+        time: task.dmp.tau,
+        values: degrees(&config.goal_orientation).iter().copied().collect(),
+        kind: MarkKind::Goal,
+        label: "goal".into(),
+    });
     figures.insert(
         1,
         Figure {
             name: "orientation".into(),
-            caption: "Orientation as unit-quaternion components; dots are the orientation targets."
-                .into(),
-            plot: Plot::Panels {
-                names: ["qx", "qy", "qz", "qw"].map(String::from).to_vec(),
-                series: vec![Series::new(
-                    "orientation (unit quaternion)",
-                    o.times.clone(),
-                    comps,
-                )],
-                marks,
-            },
+            caption: "Orientation relative to the start, as a rotation vector (axis × angle in degrees, world frame), with the orientation targets; free via orientations have no mark.".into(),
+            plot: Plot::Panels(
+                Panels::new(
+                    ["rotation x [°]", "rotation y [°]", "rotation z [°]"]
+                        .map(String::from)
+                        .to_vec(),
+                    vec![Series::new("learned orientation", o.times.clone(), comps)],
+                )
+                .marks(marks),
+            ),
         },
     );
     let arms = [
@@ -217,6 +243,10 @@ fn figures(ctx: &Ctx<'_>, outcome: &PoseOutcome, config: &PoseConfig) -> Vec<Fig
     .map(|(label, h)| CostArm::new(label, &[h.as_slice()]))
     .collect();
     figures.extend(cost_figure("Best cost so far per generation.", arms, None));
+    figures.extend(search_figure(&[
+        ("position", &outcome.position.best().history),
+        ("orientation", &outcome.orientation.search.history),
+    ]));
     figures
 }
 

@@ -5,11 +5,11 @@ use cps_learn::{Parametrisation, ViaPointOutcome, learn_via_points};
 use serde::Serialize;
 
 use super::Ctx;
-use super::{cost_figure, position_figures, way_points, worst};
+use super::{cost_figure, position_figures_with, way_points, worst};
 use crate::ExperimentError;
 use crate::observer::Event;
 use crate::outcome::{
-    Column, CostArm, Figure, Format, Outcome, Report, ReportTable, Series, Table, fields,
+    Band, Column, CostArm, Figure, Format, Outcome, Report, ReportTable, Series, Table, fields,
 };
 
 /// One arm of the comparison.
@@ -298,22 +298,30 @@ fn figures(ctx: &Ctx<'_>, arms: &[Arm], bands: &[TrajectoryBand]) -> Vec<Figure>
     .collect();
     if task.start.len() == 3 {
         let mut series = Vec::new();
+        let mut shaded = Vec::new();
         for b in bands {
             series.push(Series::new(
                 format!("{}: mean", b.name),
                 b.times.clone(),
                 b.curves[0].clone(),
             ));
-            for part in &b.curves[1..] {
-                series.push(Series::new("95 % bands", b.times.clone(), part.clone()).faint());
-            }
+            shaded.push(Band {
+                label: format!("{}: 95 % band", b.name),
+                times: b.times.clone(),
+                lower: b.curves[1].clone(),
+                upper: b.curves[2].clone(),
+            });
         }
-        figures.extend(position_figures(
+        let mut position = position_figures_with(
             series,
+            shaded,
             way_points(task),
-            "Mean trajectory and its 95 % band per search space; dots are the way points.",
+            "Mean trajectory and its 95 % band (shaded) per search space, with the start, the via points p1… and the goal.",
             "Mean paths in 3-D.",
-        ));
+        );
+        // The movement first, then the search.
+        position.append(&mut figures);
+        figures = position;
     }
     figures
 }
@@ -343,7 +351,14 @@ fn report(ctx: &Ctx<'_>, summary: &Summary<'_>) -> Report {
             exp.config.repetitions, exp.config.generations, summary.optimum_cost
         ),
         tables: vec![
-            ReportTable::pairs("Verdict", vec![("verdict", summary.verdict.to_string())]),
+            ReportTable::pairs(
+                "Verdict",
+                summary
+                    .verdict
+                    .split(". ")
+                    .map(|part| ("", part.trim_end_matches('.').to_string() + "."))
+                    .collect(),
+            ),
             ReportTable {
                 title: "Final cost per search space".into(),
                 header: [

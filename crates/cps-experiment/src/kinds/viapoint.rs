@@ -5,7 +5,10 @@ use cps_learn::{CostBreakdown, ViaPointOutcome};
 use serde::Serialize;
 
 use super::Ctx;
-use super::{cost_figure, position_figures, solver_name, way_points, worst};
+use super::{
+    cost_figure, derivative_figures, position_figures, search_figure, solver_name, way_points,
+    worst,
+};
 use crate::outcome::{
     Column, CostArm, Format, Outcome, Report, ReportTable, Series, Table, fields,
 };
@@ -105,19 +108,19 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     let traj = outcome.best_trajectory();
     let histories: Vec<&[cps_learn::GenerationRecord]> =
         outcome.runs.iter().map(|r| r.history.as_slice()).collect();
-    let mut figures: Vec<_> = cost_figure(
-        "Best cost so far per generation (log scale).",
+    let mut figures = position_figures(
+        vec![Series::of_trajectory("learned trajectory", &traj)],
+        way_points(&config.task),
+        "Each coordinate over time with the start, the via points p1… and the goal.",
+        "The path in 3-D, world frame.",
+    );
+    figures.extend(derivative_figures(&traj, &["x", "y", "z"]));
+    figures.extend(cost_figure(
+        "Best cost so far per generation (log scale): the mean over the repetitions with its 95 % band, and the exact optimum.",
         vec![CostArm::new("CMA-ES", &histories)],
         Some(outcome.optimum.cost),
-    )
-    .into_iter()
-    .collect();
-    figures.extend(position_figures(
-        vec![Series::of_trajectory("", &traj)],
-        way_points(&config.task),
-        "Each coordinate over time; dots are the way points.",
-        "The path in 3-D, world frame.",
     ));
+    figures.extend(search_figure(&[("CMA-ES", histories[0])]));
     let lines = vec![
         format!("{}: {} in {:.2} s", exp.name, best.termination, ctx.wall()),
         format!(
