@@ -466,7 +466,7 @@ fn joint_space_learning_meets_its_numbers_within_the_limits() {
     let csv = std::fs::read_to_string(out.join("trajectory.csv")).unwrap();
     assert!(csv.starts_with("t,q1,q2,q3,q4,q5,q6,q7,q1_vel,"));
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
-    assert_eq!(html.matches("<svg").count(), 5);
+    assert_eq!(html.matches("<svg").count(), 6);
 }
 
 /// A way point that cannot be converted to joint space is named with its residual.
@@ -568,7 +568,7 @@ fn the_pose_experiment_learns_position_and_orientation() {
         assert!((n - 1.0).abs() < 1e-9, "{line}");
     }
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
-    assert_eq!(html.matches("<svg").count(), 5);
+    assert_eq!(html.matches("<svg").count(), 6);
 
     let check = |name: &str, body: &str, wanted: &str| {
         let f = write(dir.path(), name, body);

@@ -519,7 +519,7 @@ fn panels_plot<DB: DrawingBackend>(
                     LIMIT.stroke_width(1),
                 ))?;
             }
-            legend.push(("joint limits (outside shaded)".to_string(), Swatch::Limit));
+            legend.push(("limits (outside shaded)".to_string(), Swatch::Limit));
         }
         for (i, b) in p.bands.iter().enumerate() {
             let color = COLORS[i % COLORS.len()];

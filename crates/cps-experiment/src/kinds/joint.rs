@@ -175,6 +175,27 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     tables.extend(recording.as_ref().map(|r| recording_table(r, dof)));
     tables.push(history_table(&[("joints", &outcome.search.history)]));
     let mut figures = vec![joints_figure(ctx, &outcome, &config)];
+    // Joint speeds with the speed limits (the trajectory's `q1_vel…` columns).
+    let speed_limits = config
+        .robot
+        .chain
+        .velocity_limits()
+        .map_or(Vec::new(), |v| v.iter().map(|&m| Some((-m, m))).collect());
+    figures.push(Figure {
+        name: "joint_speeds".into(),
+        caption: "Joint speeds with their limits (shaded beyond them).".into(),
+        plot: Plot::Panels(
+            Panels::new(
+                (1..=dof).map(|j| format!("q{j} speed [rad/s]")).collect(),
+                vec![Series::new(
+                    "joint speed",
+                    traj.times().to_vec(),
+                    (0..dof).map(|j| traj.velocity(j).to_vec()).collect(),
+                )],
+            )
+            .limits(speed_limits),
+        ),
+    });
     figures.extend(position_figures(
         vec![Series::new("tool (forward kinematics)", traj.times().to_vec(), tool.to_vec())],
         way_points(&exp.config.task),

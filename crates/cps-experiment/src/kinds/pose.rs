@@ -5,7 +5,8 @@ use serde::Serialize;
 
 use super::{Ctx, learn_error};
 use super::{
-    cost_figure, history_table, position_figures, search_figure, search_row, way_points, worst,
+    cost_figure, derivative_figures, history_table, position_figures, search_figure, search_row,
+    way_points, worst,
 };
 use crate::ExperimentError;
 use crate::outcome::{
@@ -218,6 +219,8 @@ fn figures(ctx: &Ctx<'_>, outcome: &PoseOutcome, config: &PoseConfig) -> Vec<Fig
         kind: MarkKind::Goal,
         label: "goal".into(),
     });
+    let velocity = derivative_figures(&p, &["x", "y", "z"]).swap_remove(0);
+    figures.push(velocity);
     figures.insert(
         1,
         Figure {
