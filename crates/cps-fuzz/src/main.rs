@@ -1,9 +1,9 @@
 //! `cps-fuzz`: fuzzing of cps's parsers and protocol handler on stable Rust.
 //!
 //! ```text
-//! cargo run --profile fuzz -p cps-fuzz -- all --inputs 1000000        # every target
-//! cargo run --profile fuzz -p cps-fuzz -- urdf --inputs 100000 --seed 7
-//! cargo run --profile fuzz -p cps-fuzz -- list
+//! cargo run --profile checked -p cps-fuzz -- all --inputs 1000000        # every target
+//! cargo run --profile checked -p cps-fuzz -- urdf --inputs 100000 --seed 7
+//! cargo run --profile checked -p cps-fuzz -- list
 //! ```
 //!
 //! Targets: the experiment TOML loader, TOML and URDF robots, scenes, demonstration CSV,
