@@ -5,7 +5,7 @@ mod common;
 
 use std::process::{Command, Output};
 
-use common::{cli, json, repo, run_interrupted, write};
+use common::{cli, json, repo, write};
 
 const SHIPPED: &str = include_str!("../../../experiments/viapoint.toml");
 
@@ -330,8 +330,9 @@ fn bad_inputs_are_clear_errors_and_write_nothing() {
     assert!(stderr(&o).contains("cannot read"));
 }
 
-/// Ctrl-C (SIGINT) stops at the end of a generation and still writes complete files, marked
-/// `"complete": false`, with exit code 130.
+/// Ctrl-C (SIGINT) and SIGTERM (what `timeout` and cluster schedulers send) stop at the
+/// end of a generation and still write complete files, marked `"complete": false`, with
+/// exit code 130.
 #[cfg(unix)]
 #[test]
 fn an_interrupted_run_writes_what_it_learned_marked_incomplete() {
@@ -341,32 +342,19 @@ fn an_interrupted_run_writes_what_it_learned_marked_incomplete() {
         "long.toml",
         &SHIPPED.replace("generations = 3000", "generations = 1000000"),
     );
-    let out = dir.path().join("out");
-    assert_eq!(run_interrupted(&exp, &out), Some(130));
-    let s = json(&out.join("summary.json"));
-    assert_eq!(s["complete"], false);
-    assert_eq!(s["termination"], "interrupted");
-    assert!(s["generations"].as_u64().unwrap() >= 1);
-    assert!(out.join("trajectory.csv").is_file() && out.join("cost.png").is_file());
-}
-
-/// SIGTERM (what `timeout` and cluster schedulers send) is handled like Ctrl-C: the
-/// finished generations are kept, marked incomplete.
-#[cfg(unix)]
-#[test]
-fn a_terminated_run_keeps_what_it_learned() {
-    let dir = tempfile::tempdir().unwrap();
-    let exp = write(
-        dir.path(),
-        "long.toml",
-        &SHIPPED.replace("generations = 3000", "generations = 1000000"),
-    );
-    let out = dir.path().join("out");
-    assert_eq!(common::run_signalled(&exp, &out, "TERM"), Some(130));
-    let s = json(&out.join("summary.json"));
-    assert_eq!(s["complete"], false);
-    assert!(s["generations"].as_u64().unwrap() >= 1);
-    assert!(out.join("trajectory.csv").is_file());
+    for signal in ["INT", "TERM"] {
+        let out = dir.path().join(format!("out-{signal}"));
+        assert_eq!(
+            common::run_signalled(&exp, &out, signal),
+            Some(130),
+            "{signal}"
+        );
+        let s = json(&out.join("summary.json"));
+        assert_eq!(s["complete"], false);
+        assert_eq!(s["termination"], "interrupted");
+        assert!(s["generations"].as_u64().unwrap() >= 1);
+        assert!(out.join("trajectory.csv").is_file() && out.join("cost.png").is_file());
+    }
 }
 
 fn stdout_json(o: &Output) -> serde_json::Value {

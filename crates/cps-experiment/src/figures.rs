@@ -345,8 +345,17 @@ fn cost_plot<DB: DrawingBackend>(
     let (lo, hi) = arms.iter().fold((f64::INFINITY, 0.0f64), |(a, b), arm| {
         (a.min(arm.range.0), b.max(arm.range.1))
     });
-    let lo = lo.min(optimum.unwrap_or(f64::INFINITY)).max(1e-300);
-    let (lo, hi) = if lo < hi {
+    let lo = lo
+        .min(
+            optimum
+                .filter(|o| o.is_finite() && *o > 0.0)
+                .unwrap_or(f64::INFINITY),
+        )
+        .max(1e-300);
+    // No positive finite cost at all: an empty axis of two decades, never an endless one.
+    let (lo, hi) = if !lo.is_finite() {
+        (0.1, 10.0)
+    } else if lo < hi {
         (lo * 0.8, hi * 1.25)
     } else {
         (lo * 0.5, lo * 2.0)
@@ -662,4 +671,92 @@ fn path_plot<DB: DrawingBackend>(
     }
     legend.extend(mark_entries(marks));
     Ok(legend)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::outcome::{Band, CostArm};
+
+    fn series(times: Vec<f64>, values: Vec<Vec<f64>>) -> Series {
+        Series::new("s", times, values)
+    }
+
+    /// Degenerate data never panics the drawing: empty, single-sample, constant, NaN,
+    /// infinite, huge and non-positive (log) values, in every kind of plot.
+    #[test]
+    fn degenerate_data_draws_without_panicking() {
+        let odd: Vec<Vec<f64>> = vec![
+            vec![],
+            vec![1.0],
+            vec![2.0, 2.0, 2.0],
+            vec![f64::NAN, 1.0, f64::NAN],
+            vec![f64::INFINITY, -1e300, 0.0],
+            vec![0.0, -1.0, 1e-320],
+        ];
+        let dir = tempfile::tempdir().unwrap();
+        let mut k = 0;
+        for v in &odd {
+            let times: Vec<f64> = (0..v.len()).map(|i| i as f64).collect();
+            let s = series(times.clone(), vec![v.clone(), v.clone(), v.clone()]);
+            let mark = Mark {
+                time: f64::NAN,
+                values: v.clone(),
+                kind: MarkKind::Via,
+                label: "p1".into(),
+            };
+            let mut panels = Panels::new(vec!["a".into(), "b".into(), "c".into()], vec![s.clone()])
+                .marks(vec![mark.clone()])
+                .bands(vec![Band {
+                    label: "band".into(),
+                    times: times.clone(),
+                    lower: vec![v.clone(); 3],
+                    upper: vec![v.clone(); 3],
+                }])
+                .limits(vec![Some((1.0, 1.0)), None, Some((f64::NAN, 0.0))]);
+            let mut plots = vec![
+                Plot::Panels(panels.clone()),
+                Plot::Path3d {
+                    series: vec![s.clone()],
+                    marks: vec![mark],
+                },
+                Plot::Cost {
+                    arms: vec![CostArm {
+                        label: "arm".into(),
+                        repetitions: 2,
+                        band: v.iter().map(|&x| (x, x, x)).collect(),
+                        range: (f64::INFINITY, 0.0),
+                    }],
+                    optimum: v.first().copied(),
+                },
+            ];
+            panels.log_y = true;
+            plots.push(Plot::Panels(panels));
+            for plot in plots {
+                let figure = Figure {
+                    name: "f".into(),
+                    caption: String::new(),
+                    plot,
+                };
+                for ext in ["png", "svg"] {
+                    k += 1;
+                    // An error is acceptable for nonsense; a panic is not.
+                    let _ = draw(&figure, &dir.path().join(format!("f{k}.{ext}")));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn ticks_read_as_numbers() {
+        let f = tick(1.0);
+        assert_eq!(f(&0.5), "0.5");
+        assert_eq!(f(&-1.1e-16), "0");
+        assert_eq!(f(&-0.0), "0");
+        assert_eq!(tick(400_000.0)(&100_000.0), "1e5");
+        assert_eq!(tick(10.0)(&3.0), "3");
+        assert_eq!(log_tick(&4.0), "1e4");
+        assert_eq!(log_tick(&-1.0), "0.1");
+        assert_eq!(log_tick(&3.5), "3.2e3");
+    }
 }
