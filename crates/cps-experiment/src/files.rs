@@ -7,7 +7,7 @@ use std::path::Path;
 
 use crate::outcome::{Outcome, Table};
 use crate::results_dir::Staging;
-use crate::{Context, ExperimentError, InputError};
+use crate::{Context, ExperimentError};
 
 /// What to write besides the data.
 #[derive(Debug, Clone, Copy)]
@@ -111,7 +111,7 @@ pub fn save(
     force: bool,
     options: &WriteOptions,
 ) -> Result<(), ExperimentError> {
-    let stage = Staging::prepare(out, force).map_err(|e: InputError| ExperimentError::from(e))?;
+    let stage = Staging::prepare(out, force)?;
     write_outcome(outcome, &stage, options)?;
     stage.commit()
 }

@@ -38,10 +38,10 @@
 //! let trajectory = outcome.table("trajectory").unwrap();
 //! assert_eq!(trajectory.columns[0].name, "t");
 //! // Written as a result directory (summary.json, CSVs, figures, report.html):
-//! let dir = std::env::temp_dir().join(format!("cps-doc-{}", std::process::id()));
+//! # let tmp = tempfile::tempdir().unwrap();
+//! let dir = tmp.path().join("viapoint"); // a new folder: save creates it
 //! cps_experiment::files::save(&outcome, &dir, false, &Default::default())?;
 //! assert!(dir.join("summary.json").is_file());
-//! # std::fs::remove_dir_all(&dir).ok();
 //! # Ok::<(), cps_experiment::ExperimentError>(())
 //! ```
 #![deny(missing_docs)]

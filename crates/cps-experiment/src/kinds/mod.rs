@@ -403,65 +403,60 @@ pub(crate) fn position_figures_with(
     path_caption: &str,
 ) -> Vec<Figure> {
     let dims = series.first().map_or(0, |s| s.values.len());
-    let mut figures = Vec::new();
-    if dims == 3 {
-        figures.push(Figure {
-            name: "path3d".into(),
-            caption: path_caption.into(),
-            plot: Plot::Path3d {
-                series: series.clone(),
-                marks: marks.clone(),
-            },
-        });
-    }
-    figures.insert(
-        0,
-        Figure {
-            name: "coordinates".into(),
-            caption: coordinates_caption.into(),
-            plot: Plot::Panels(
-                Panels::new(axis_names(dims), series)
-                    .bands(bands)
-                    .marks(marks),
-            ),
+    let path = (dims == 3).then(|| Figure {
+        name: "path3d".into(),
+        caption: path_caption.into(),
+        plot: Plot::Path3d {
+            series: series.clone(),
+            marks: marks.clone(),
         },
-    );
-    figures
+    });
+    let coordinates = Figure {
+        name: "coordinates".into(),
+        caption: coordinates_caption.into(),
+        plot: Plot::Panels(
+            Panels::new(axis_names(dims), series)
+                .bands(bands)
+                .marks(marks),
+        ),
+    };
+    std::iter::once(coordinates).chain(path).collect()
 }
 
-/// Velocity and acceleration of a trajectory, one panel per coordinate each.
-pub(crate) fn derivative_figures(traj: &cps_dmp::Trajectory, names: &[&str]) -> Vec<Figure> {
+/// A derivative of a trajectory's positions, one panel per coordinate: the velocity
+/// (`_vel` columns, m/s) or the acceleration (`_acc` columns, m/s²).
+pub(crate) fn derivative_figure(traj: &cps_dmp::Trajectory, acceleration: bool) -> Figure {
+    let (derivative, name, unit, columns): (fn(&cps_dmp::Trajectory, usize) -> &[f64], _, _, _) =
+        if acceleration {
+            (
+                cps_dmp::Trajectory::acceleration,
+                "acceleration",
+                "m/s²",
+                "_acc",
+            )
+        } else {
+            (cps_dmp::Trajectory::velocity, "velocity", "m/s", "_vel")
+        };
     let dims = traj.dims();
-    let unit = |d: usize, u: &str| format!("{} [{u}]", names.get(d).copied().unwrap_or("y"));
-    let times = traj.times().to_vec();
-    let velocity = Series::new(
+    let series = Series::new(
         "",
-        times.clone(),
-        (0..dims).map(|d| traj.velocity(d).to_vec()).collect(),
+        traj.times().to_vec(),
+        (0..dims).map(|d| derivative(traj, d).to_vec()).collect(),
     );
-    let acceleration = Series::new(
-        "",
-        times,
-        (0..dims).map(|d| traj.acceleration(d).to_vec()).collect(),
-    );
-    vec![
-        Figure {
-            name: "velocity".into(),
-            caption: "Velocity per coordinate (the trajectory's `_vel` columns).".into(),
-            plot: Plot::Panels(Panels::new(
-                (0..dims).map(|d| unit(d, "m/s")).collect(),
-                vec![velocity],
-            )),
-        },
-        Figure {
-            name: "acceleration".into(),
-            caption: "Acceleration per coordinate (the trajectory's `_acc` columns).".into(),
-            plot: Plot::Panels(Panels::new(
-                (0..dims).map(|d| unit(d, "m/s²")).collect(),
-                vec![acceleration],
-            )),
-        },
-    ]
+    Figure {
+        name: name.into(),
+        caption: format!(
+            "{}{} per coordinate (the trajectory's `{columns}` columns).",
+            name[..1].to_uppercase(),
+            &name[1..]
+        ),
+        plot: Plot::Panels(Panels::new(
+            (0..dims)
+                .map(|d| format!("{} [{unit}]", axis_name(dims, d)))
+                .collect(),
+            vec![series],
+        )),
+    }
 }
 
 /// The largest of a list (0 for none).

@@ -5,7 +5,7 @@ use serde::Serialize;
 
 use super::{Ctx, learn_error};
 use super::{
-    cost_figure, derivative_figures, history_table, position_figures, search_figure, search_row,
+    cost_figure, derivative_figure, history_table, position_figures, search_figure, search_row,
     way_points, worst,
 };
 use crate::ExperimentError;
@@ -219,8 +219,7 @@ fn figures(ctx: &Ctx<'_>, outcome: &PoseOutcome, config: &PoseConfig) -> Vec<Fig
         kind: MarkKind::Goal,
         label: "goal".into(),
     });
-    let velocity = derivative_figures(&p, &["x", "y", "z"]).swap_remove(0);
-    figures.push(velocity);
+    figures.push(derivative_figure(&p, false));
     figures.insert(
         1,
         Figure {

@@ -6,8 +6,7 @@ use serde::Serialize;
 
 use super::Ctx;
 use super::{
-    cost_figure, derivative_figures, position_figures, search_figure, solver_name, way_points,
-    worst,
+    cost_figure, derivative_figure, position_figures, search_figure, solver_name, way_points, worst,
 };
 use crate::outcome::{
     Column, CostArm, Format, Outcome, Report, ReportTable, Series, Table, fields,
@@ -114,7 +113,8 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         "Each coordinate over time with the start, the via points p1… and the goal.",
         "The path in 3-D, world frame.",
     );
-    figures.extend(derivative_figures(&traj, &["x", "y", "z"]));
+    figures.push(derivative_figure(&traj, false));
+    figures.push(derivative_figure(&traj, true));
     figures.extend(cost_figure(
         "Best cost so far per generation (log scale): the mean over the repetitions with its 95 % band, and the exact optimum.",
         vec![CostArm::new("CMA-ES", &histories)],
