@@ -106,6 +106,9 @@ pub struct Solution {
     pub mean: Vec<f64>,
     /// The final step size.
     pub sigma: f64,
+    /// The final distribution's standard deviation per coordinate, `σ √C_ii` (in the
+    /// search's own, unbounded coordinates).
+    pub stds: Vec<f64>,
     /// Generations run.
     pub generations: u64,
     /// Objective evaluations spent.
@@ -229,6 +232,11 @@ fn search<O: Objective + ?Sized>(
         best_cost,
         mean: es.mean().to_vec(),
         sigma: es.sigma(),
+        stds: es
+            .covariance_diagonal()
+            .iter()
+            .map(|c| es.sigma() * c.sqrt())
+            .collect(),
         generations: es.generation(),
         evaluations: es.evaluations(),
         non_finite_evaluations: es.non_finite_evaluations(),
@@ -301,6 +309,7 @@ fn restarts<O: Objective + ?Sized>(
         best_cost: best_run.best_cost,
         mean: best_run.mean.clone(),
         sigma: best_run.sigma,
+        stds: best_run.stds.clone(),
         generations: runs.iter().map(|r| r.generations).sum(),
         evaluations: spent,
         non_finite_evaluations: runs.iter().map(|r| r.non_finite_evaluations).sum(),

@@ -375,12 +375,19 @@ impl RolledOut {
     }
 }
 
-/// Reads a model file and rolls it out with the changes of `spec`.
-pub fn rollout_file(model: &Path, spec: &RolloutSpec) -> Result<RolledOut, InputError> {
-    let text = crate::source::read_text(model, crate::source::MAX_FILE_BYTES, "model")?;
-    let in_model = |e: DmpError| InputError(format!("{}: {e}", model.display()));
+/// Reads a model file (at most 16 MiB) and checks it: the
+/// record, its DMP and its weights. Errors name the file.
+pub fn read_model(path: &Path) -> Result<(DmpModel, DiscreteDmp, Vec<f64>), InputError> {
+    let text = crate::source::read_text(path, crate::source::MAX_FILE_BYTES, "model")?;
+    let in_model = |e: DmpError| InputError(format!("{}: {e}", path.display()));
     let file = DmpModel::from_json(&text).map_err(in_model)?;
     let (dmp, weights) = file.to_dmp().map_err(in_model)?;
+    Ok((file, dmp, weights))
+}
+
+/// Reads a model file and rolls it out with the changes of `spec`.
+pub fn rollout_file(model: &Path, spec: &RolloutSpec) -> Result<RolledOut, InputError> {
+    let (file, dmp, weights) = read_model(model)?;
     let dims = dmp.dims();
     let names: Vec<String> = if file.names.is_empty() {
         (0..dims).map(|d| format!("y{d}")).collect()

@@ -1,0 +1,321 @@
+//! Robots from Python: `Robot("panda")`, a TOML or URDF file; forward kinematics, the
+//! geometric Jacobian and inverse kinematics, each on one configuration or batched over
+//! the rows of an array; the joint limits.
+
+use cps_experiment::robot_file::{RobotModel, ik_target, load_robot};
+use cps_kinematics::{IkConfig, IkTarget, solve_ik};
+use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, Translation3};
+use numpy::{PyArray1, PyArrayMethods};
+use pyo3::prelude::*;
+use rayon::prelude::*;
+
+use crate::arrays::{array1, array2, floats, shape_text, vector};
+use crate::errors::{IntoPyErr, PyResultExt, failure, value_error};
+use crate::interrupt::detached;
+
+/// Lower and upper joint limits.
+type Limits<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
+
+/// Joint values beyond this magnitude mean nothing (radians or metres).
+const MAX_JOINT_VALUE: f64 = 1000.0;
+
+/// A serial robot arm with its tool point: a built-in name (`panda`, `ur3`, `puma560`),
+/// or a `.toml` / `.urdf` robot file.
+#[pyclass(module = "cps._cps", frozen)]
+pub struct Robot {
+    model: RobotModel,
+}
+
+impl Robot {
+    fn dof(&self) -> usize {
+        self.model.chain.dof()
+    }
+
+    /// Configurations from `q`: (dof,) → one, (m, dof) → m. Returns (values, m, batched).
+    fn configurations(&self, q: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, usize, bool)> {
+        let n = self.dof();
+        let a = floats(q, "q")?;
+        let (m, batched) = match *a.shape() {
+            [k] if k == n => (1, false),
+            [m, k] if k == n => (m, true),
+            _ => {
+                return Err(value_error(format!(
+                    "q: expected {n} joint values, (dof,) or (m, {n}), got shape {}",
+                    shape_text(a.shape())
+                )));
+            }
+        };
+        if let Some((i, v)) = a
+            .values()
+            .iter()
+            .enumerate()
+            .find(|(_, v)| v.abs() > MAX_JOINT_VALUE)
+        {
+            return Err(value_error(format!(
+                "q: joint {} is {v}; joint values must be at most {MAX_JOINT_VALUE} in magnitude",
+                i % n + 1
+            )));
+        }
+        Ok((a.values().to_vec(), m, batched))
+    }
+
+    fn target(&self, values: &[f64], name: &str) -> PyResult<IkTarget> {
+        ik_target(values).map_err(|e| value_error(e.0.replace("--target", name)))
+    }
+}
+
+/// A homogeneous 4×4 matrix as an IK target.
+fn matrix_target(m: &[f64], name: &str) -> PyResult<IkTarget> {
+    let r = Matrix3::new(m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10]);
+    let ortho = (r.transpose() * r - Matrix3::identity()).norm();
+    if ortho > 1e-6 || r.determinant() < 0.0 || m[12..16] != [0.0, 0.0, 0.0, 1.0] {
+        return Err(value_error(format!(
+            "{name}: not a homogeneous transform (rotation part not orthonormal with determinant 1, or last row not [0, 0, 0, 1])"
+        )));
+    }
+    Ok(IkTarget::Pose(IsometryMatrix3::from_parts(
+        Translation3::new(m[3], m[7], m[11]),
+        Rotation3::from_matrix_unchecked(r),
+    )))
+}
+
+#[pymethods]
+impl Robot {
+    #[new]
+    #[pyo3(signature = (robot="panda", *, tool=None, tip=None))]
+    fn new(robot: &str, tool: Option<&str>, tip: Option<&str>) -> PyResult<Self> {
+        let model = load_robot(robot, tool, tip).map_err(|e| {
+            value_error(
+                e.0.replace("--tool", "tool")
+                    .replace("--tip", "tip")
+                    .replace("--robot", "robot"),
+            )
+        })?;
+        Ok(Self { model })
+    }
+
+    /// The robot's name.
+    #[getter]
+    fn name(&self) -> String {
+        self.model.name.clone()
+    }
+
+    /// Degrees of freedom.
+    #[getter]
+    #[pyo3(name = "dof")]
+    fn dof_py(&self) -> usize {
+        self.dof()
+    }
+
+    /// Joint names.
+    #[getter]
+    fn joint_names(&self) -> Vec<String> {
+        self.model.joint_names.clone()
+    }
+
+    /// The tool point, in words.
+    #[getter]
+    fn tool(&self) -> String {
+        self.model.tool.clone()
+    }
+
+    /// The configuration inverse kinematics starts from by default.
+    #[getter]
+    fn ready<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        array1(py, self.model.ready.clone())
+    }
+
+    /// Joint position limits `(lower, upper)` in radians, or None.
+    #[getter]
+    fn limits<'py>(&self, py: Python<'py>) -> Option<Limits<'py>> {
+        self.model
+            .chain
+            .limits()
+            .map(|(l, u)| (array1(py, l.to_vec()), array1(py, u.to_vec())))
+    }
+
+    /// Joint speed limits in rad/s, or None.
+    #[getter]
+    fn velocity_limits<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        self.model
+            .chain
+            .velocity_limits()
+            .map(|v| array1(py, v.to_vec()))
+    }
+
+    /// Whether `q` (dof,) lies within the joint limits; (m, dof) gives m booleans.
+    fn within_limits<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let (values, m, batched) = self.configurations(q)?;
+        let n = self.dof();
+        let inside: Vec<bool> = values
+            .chunks(n)
+            .map(|c| self.model.chain.within_limits(c))
+            .collect();
+        if batched {
+            let _ = m;
+            Ok(PyArray1::from_vec(py, inside).into_any())
+        } else {
+            Ok(inside[0].into_pyobject(py)?.to_owned().into_any())
+        }
+    }
+
+    /// The tool pose as a 4×4 homogeneous matrix (world frame, metres) of `q` (dof,),
+    /// or (m, 4, 4) for `q` (m, dof).
+    fn fk<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+        let (values, m, batched) = self.configurations(q)?;
+        let n = self.dof();
+        let chain = &self.model.chain;
+        let out = py
+            .detach(|| -> Result<Vec<f64>, cps_kinematics::KinematicsError> {
+                let mut out = Vec::with_capacity(16 * m);
+                for c in values.chunks(n) {
+                    let t = chain.fk_matrix(c)?;
+                    out.extend((0..16).map(|k| t[(k / 4, k % 4)]));
+                }
+                Ok(out)
+            })
+            .py()?;
+        let flat = PyArray1::from_vec(py, out);
+        if batched {
+            Ok(flat.reshape([m, 4, 4])?.into_any())
+        } else {
+            Ok(flat.reshape([4, 4])?.into_any())
+        }
+    }
+
+    /// The geometric Jacobian (6, dof) in the world frame (rows: linear, then angular
+    /// velocity of the tool point), or (m, 6, dof) for `q` (m, dof).
+    fn jacobian<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+        let (values, m, batched) = self.configurations(q)?;
+        let n = self.dof();
+        let chain = &self.model.chain;
+        let out = py
+            .detach(|| -> Result<Vec<f64>, cps_kinematics::KinematicsError> {
+                let mut out = Vec::with_capacity(6 * n * m);
+                for c in values.chunks(n) {
+                    let j = chain.jacobian(c)?;
+                    out.extend((0..6 * n).map(|k| j[(k / n, k % n)]));
+                }
+                Ok(out)
+            })
+            .py()?;
+        if batched {
+            Ok(PyArray1::from_vec(py, out).reshape([m, 6, n])?.into_any())
+        } else {
+            Ok(array2(py, out, 6, n)?.into_any())
+        }
+    }
+
+    /// Joint angles that put the tool at `target`: a position (3,), a pose [x, y, z, qx,
+    /// qy, qz, qw] (7,) or a 4×4 matrix; batched as (m, 3), (m, 7) or (m, 4, 4), solved in
+    /// parallel, each row from `q0` (default: the ready configuration), within the joint
+    /// limits. Raises `cps.CpsError` naming the row when a target is out of reach.
+    #[pyo3(signature = (target, q0=None, *, tolerance=1e-9, restarts=300, seed=0))]
+    fn ik<'py>(
+        &self,
+        py: Python<'py>,
+        target: &Bound<'py, PyAny>,
+        q0: Option<&Bound<'py, PyAny>>,
+        tolerance: f64,
+        restarts: usize,
+        seed: u64,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let n = self.dof();
+        let a = floats(target, "target")?;
+        let shape = a.shape().to_vec();
+        let (rows, width, batched) = match shape.as_slice() {
+            [w] if *w == 3 || *w == 7 => (1, *w, false),
+            [4, 4] => (1, 16, false),
+            [m, w] if *w == 3 || *w == 7 => (*m, *w, true),
+            [m, 4, 4] => (*m, 16, true),
+            _ => {
+                return Err(value_error(format!(
+                    "target: expected a position (3,), a pose [x, y, z, qx, qy, qz, qw] (7,) or a 4×4 matrix, or m of them, got shape {}",
+                    shape_text(&shape)
+                )));
+            }
+        };
+        let targets = a
+            .values()
+            .chunks(width)
+            .enumerate()
+            .map(|(k, v)| {
+                let name = if batched {
+                    format!("target[{k}]")
+                } else {
+                    "target".into()
+                };
+                if width == 16 {
+                    matrix_target(v, &name)
+                } else {
+                    self.target(v, &name)
+                }
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        let seed_q = match q0 {
+            Some(q) if !q.is_none() => vector(q, "q0", Some(n))?,
+            _ => self.model.ready.clone(),
+        };
+        self.model
+            .chain
+            .check_within_limits(&seed_q)
+            .map_err(|e| value_error(format!("q0: {e}")))?;
+        if !(tolerance.is_finite() && tolerance > 0.0) {
+            return Err(value_error(format!(
+                "tolerance: must be finite and > 0 (got {tolerance})"
+            )));
+        }
+        let config = IkConfig {
+            position_tolerance: tolerance,
+            rotation_tolerance: tolerance,
+            restarts,
+            seed,
+            ..IkConfig::default()
+        };
+        let chain = &self.model.chain;
+        let solved = detached(py, |_| {
+            targets
+                .par_iter()
+                .map(|t| solve_ik(chain, t, &seed_q, &config))
+                .collect::<Vec<_>>()
+        })?;
+        let mut out = Vec::with_capacity(rows * n);
+        for (k, s) in solved.into_iter().enumerate() {
+            match s {
+                Ok(sol) => out.extend(sol.q),
+                Err(e) => {
+                    let err = e.py_err();
+                    let msg = err.value(py).to_string();
+                    return Err(if batched {
+                        failure(format!("target[{k}]: {msg}"))
+                    } else {
+                        err
+                    });
+                }
+            }
+        }
+        if batched {
+            Ok(array2(py, out, rows, n)?.into_any())
+        } else {
+            Ok(array1(py, out).into_any())
+        }
+    }
+
+    /// The robot in words: its kinematic description, limits, base and tool.
+    fn describe(&self) -> String {
+        self.model.describe().join("\n")
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Robot(\"{}\", dof={}, tool=\"{}\")",
+            self.model.name,
+            self.dof(),
+            self.model.tool
+        )
+    }
+}

@@ -1,0 +1,144 @@
+"""cps — motor-control learning for robot arms, from Python.
+
+DMPs, CMA-ES with pycma's interface, via-point and imitation learning, every experiment
+kind of ``cps-cli run``, and robot kinematics — computed in Rust, with numpy arrays in and
+out. Arrays of samples have shape (samples, dims); time is its own array.
+
+>>> import numpy as np, cps
+>>> t = np.linspace(0.0, 1.0, 101)
+>>> dmp = cps.imitate(t, np.column_stack([np.sin(t), t**2]))
+>>> t2, y, yd, ydd = dmp.rollout(goal=[1.0, 2.0])
+>>> res = cps.fmin(lambda x: float((x**2).sum()), np.full(5, 3.0), 2.0, {"ftarget": 1e-8, "seed": 1})
+>>> res.fbest <= 1e-8
+True
+
+Long calls release the GIL and stop cleanly on Ctrl-C (KeyboardInterrupt). Bad input
+raises ``ValueError`` with a sentence naming the argument and the rule; a failure while
+working raises ``cps.CpsError`` (a ``RuntimeError``). Everything stochastic takes a seed:
+the same seed gives the same bits, whatever the number of threads.
+"""
+
+from collections import namedtuple as _namedtuple
+
+from . import _cps
+from ._cps import (
+    DMP,
+    CpsError,
+    Outcome,
+    QuaternionDMP,
+    RhythmicDMP,
+    Robot,
+    Stepper,
+    Table,
+    Trajectory,
+    ViaPointResult,
+    __version__,
+    imitate,
+    learn_via_points,
+    run_experiment,
+)
+
+__all__ = [
+    "CMAES",
+    "CMAEvolutionStrategy",
+    "CMAEvolutionStrategyResult",
+    "CpsError",
+    "DMP",
+    "FminResult",
+    "Outcome",
+    "QuaternionDMP",
+    "RhythmicDMP",
+    "Robot",
+    "Stepper",
+    "Table",
+    "Trajectory",
+    "ViaPointResult",
+    "__version__",
+    "fmin",
+    "imitate",
+    "learn_via_points",
+    "run_experiment",
+]
+
+CMAEvolutionStrategyResult = _namedtuple(
+    "CMAEvolutionStrategyResult",
+    ["xbest", "fbest", "evals_best", "evaluations", "iterations", "xfavorite", "stds", "stop"],
+)
+CMAEvolutionStrategyResult.__doc__ = """pycma's result tuple: the best point and its cost,
+the evaluation that found it, evaluations and iterations spent, the distribution mean
+(``xfavorite``), the standard deviations sigma * sqrt(diag(C)) and the stop conditions met."""
+
+FminResult = _namedtuple("FminResult", CMAEvolutionStrategyResult._fields)
+FminResult.__doc__ = """What ``cps.fmin`` returns: pycma's ``fmin`` result (its first eight
+entries) as a named tuple, so ``res[0]``, ``res[1]`` and ``res.xbest`` all work."""
+
+
+class CMAES(_cps._CMAES):
+    """CMA-ES with pycma's ask-and-tell interface (Hansen 2016, active covariance update).
+
+    ``es = cps.CMAES(x0, sigma0, inopts)``, where ``inopts`` (a dict) and keyword
+    arguments take pycma's option names: ``seed`` (default 1; same seed, same bits),
+    ``popsize``, ``bounds`` (``[lower, upper]``, each None, a number or one per
+    coordinate), ``maxfevals``, ``maxiter``, ``ftarget``, ``tolfun`` (1e-11), ``tolx``
+    (1e-11), ``tolupsigma`` (1e20), ``tolconditioncov`` (1e14), ``tolflatfitness``,
+    ``CMA_diagonal`` (the separable variant), ``CMA_stds``; ``verbose``, ``verb_disp`` and
+    ``verb_log`` are accepted and ignored (cps prints and writes nothing).
+
+    >>> es = CMAES([3.0] * 10, 2.0, {"seed": 1})
+    >>> while not es.stop():
+    ...     X = es.ask()                      # (popsize, N) array
+    ...     es.tell(X, [float((x**2).sum()) for x in X])
+    >>> es.result.fbest < 1e-10
+    True
+
+    Differences from pycma: ``tell`` takes exactly the candidates of the last ``ask``
+    (no injected solutions); asking again before ``tell`` returns the same candidates.
+    """
+
+    @property
+    def result(self):
+        """``CMAEvolutionStrategyResult(xbest, fbest, evals_best, evaluations, iterations,
+        xfavorite, stds, stop)``."""
+        return CMAEvolutionStrategyResult(*self._result())
+
+    def __repr__(self):
+        return f"CMAES(N={self.N}, popsize={self.popsize}, iteration={self.countiter}, sigma={self.sigma:.3g})"
+
+
+CMAEvolutionStrategy = CMAES
+
+
+def fmin(
+    objective_function,
+    x0,
+    sigma0,
+    options=None,
+    args=(),
+    restarts=0,
+    bipop=False,
+    incpopsize=2,
+    parallel_objective=None,
+):
+    """Minimises ``objective_function(x, *args)`` from ``x0`` with step size ``sigma0``:
+    pycma's ``fmin``, its options under pycma's names (see ``CMAES``).
+
+    ``parallel_objective=f`` instead calls ``f(X, *args)`` once per generation with the
+    (popsize, N) array and takes popsize costs. ``restarts=k`` restarts up to k times with
+    IPOP (population doubled each time), or BIPOP with ``bipop=True``. The loop runs in
+    Rust; Ctrl-C stops it after the current generation (KeyboardInterrupt).
+
+    Returns ``FminResult(xbest, fbest, evals_best, evaluations, iterations, xfavorite,
+    stds, stop)``: ``res[0]`` is the best point, ``res[1]`` its cost, as in pycma.
+    """
+    res = _cps._fmin(
+        objective_function,
+        x0,
+        sigma0,
+        options,
+        tuple(args),
+        restarts,
+        bipop,
+        float(incpopsize),
+        parallel_objective,
+    )
+    return FminResult(*res)
