@@ -18,7 +18,9 @@ working raises ``cps.CpsError`` (a ``RuntimeError``). Everything stochastic take
 the same seed gives the same bits, whatever the number of threads.
 """
 
-from collections import namedtuple as _namedtuple
+from __future__ import annotations
+
+from typing import Any, Callable, NamedTuple, Optional
 
 from . import _cps
 from ._cps import (
@@ -60,17 +62,33 @@ __all__ = [
     "run_experiment",
 ]
 
-CMAEvolutionStrategyResult = _namedtuple(
-    "CMAEvolutionStrategyResult",
-    ["xbest", "fbest", "evals_best", "evaluations", "iterations", "xfavorite", "stds", "stop"],
-)
-CMAEvolutionStrategyResult.__doc__ = """pycma's result tuple: the best point and its cost,
-the evaluation that found it, evaluations and iterations spent, the distribution mean
-(``xfavorite``), the standard deviations sigma * sqrt(diag(C)) and the stop conditions met."""
+class CMAEvolutionStrategyResult(NamedTuple):
+    """pycma's result tuple: the best point and its cost, the evaluation that found it,
+    evaluations and iterations spent, the distribution mean (``xfavorite``), the standard
+    deviations sigma * sqrt(diag(C)) and the stop conditions met."""
 
-FminResult = _namedtuple("FminResult", CMAEvolutionStrategyResult._fields)
-FminResult.__doc__ = """What ``cps.fmin`` returns: pycma's ``fmin`` result (its first eight
-entries) as a named tuple, so ``res[0]``, ``res[1]`` and ``res.xbest`` all work."""
+    xbest: Any
+    fbest: float
+    evals_best: int
+    evaluations: int
+    iterations: int
+    xfavorite: Any
+    stds: Any
+    stop: dict
+
+
+class FminResult(NamedTuple):
+    """What ``cps.fmin`` returns: pycma's ``fmin`` result (its first eight entries) as a
+    named tuple, so ``res[0]``, ``res[1]`` and ``res.xbest`` all work."""
+
+    xbest: Any
+    fbest: float
+    evals_best: int
+    evaluations: int
+    iterations: int
+    xfavorite: Any
+    stds: Any
+    stop: dict
 
 
 class CMAES(_cps._CMAES):
@@ -96,12 +114,12 @@ class CMAES(_cps._CMAES):
     """
 
     @property
-    def result(self):
+    def result(self) -> CMAEvolutionStrategyResult:
         """``CMAEvolutionStrategyResult(xbest, fbest, evals_best, evaluations, iterations,
         xfavorite, stds, stop)``."""
         return CMAEvolutionStrategyResult(*self._result())
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"CMAES(N={self.N}, popsize={self.popsize}, iteration={self.countiter}, sigma={self.sigma:.3g})"
 
 
@@ -109,16 +127,16 @@ CMAEvolutionStrategy = CMAES
 
 
 def fmin(
-    objective_function,
-    x0,
-    sigma0,
-    options=None,
-    args=(),
-    restarts=0,
-    bipop=False,
-    incpopsize=2,
-    parallel_objective=None,
-):
+    objective_function: Optional[Callable[..., Any]],
+    x0: Any,
+    sigma0: float,
+    options: Optional[dict[str, Any]] = None,
+    args: tuple[Any, ...] = (),
+    restarts: int = 0,
+    bipop: bool = False,
+    incpopsize: float = 2,
+    parallel_objective: Optional[Callable[..., Any]] = None,
+) -> FminResult:
     """Minimises ``objective_function(x, *args)`` from ``x0`` with step size ``sigma0``:
     pycma's ``fmin``, its options under pycma's names (see ``CMAES``).
 

@@ -168,10 +168,10 @@ def test_stepping_with_the_grid_step_reproduces_the_rollout():
 
 def test_rollout_batch_equals_single_rollouts():
     dmp = cps.DMP([0.0, 0.0], [1.0, 1.0], bases=8)
-    W = np.random.default_rng(0).normal(size=(5, 2, 8)) * 10
+    W = np.random.default_rng(0).normal(size=(21, 2, 8)) * 10  # two groups and a rest
     Y = dmp.rollout_batch(W)
-    assert Y.shape == (5, dmp.rollout().y.shape[0], 2)
-    for i in range(5):
+    assert Y.shape == (21, dmp.rollout().y.shape[0], 2)
+    for i in range(21):
         assert np.array_equal(Y[i], dmp.rollout(weights=W[i]).y)
 
 

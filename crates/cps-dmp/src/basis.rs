@@ -1,5 +1,9 @@
 //! Gaussian basis functions in phase space (Ijspeert et al. 2013, eq. 43/44 of the thesis).
 
+/// Below this argument `exp` rounds to exactly 0.0 (the smallest subnormal is
+/// `exp(−744.44)`; half of it, `exp(−745.13)`, already rounds to 0).
+const UNDERFLOW: f64 = -746.0;
+
 /// `psi_i(x) = exp(-h_i (x - c_i)^2)` with centres `c_i = exp(-alpha_x (i-1)/(N-1))`
 /// (evenly spaced in time) and widths `h_i = (c_{i+1} - c_i)^-2`, `h_N = h_{N-1}`.
 #[derive(Debug, Clone, PartialEq)]
@@ -67,7 +71,10 @@ impl GaussianBasis {
         let mut sum = 0.0;
         for ((o, &c), &h) in out.iter_mut().zip(&self.centers).zip(&self.widths) {
             let d = x - c;
-            *o = (-h * d * d).exp();
+            let a = -h * d * d;
+            // exp(a) is exactly 0 below ln(2⁻¹⁰⁷⁵) ≈ −745.13; libm reaches that 0 through its
+            // slow underflow path, which most of a grid's far tails would take.
+            *o = if a < UNDERFLOW { 0.0 } else { a.exp() };
             sum += *o;
         }
         // The nearest centre is at most half a spacing away inside the movement, so the sum
@@ -120,6 +127,14 @@ mod tests {
         }
         // The far tails underflow: many zeros, which the packed rollout skips.
         assert!(zeros > 5000, "{zeros}");
+    }
+
+    #[test]
+    fn the_underflow_shortcut_is_what_exp_gives() {
+        for a in [-746.0, -746.5, -800.0, -1e4, -1e300, f64::NEG_INFINITY] {
+            assert_eq!(f64::exp(a), 0.0, "{a}");
+        }
+        assert!(f64::exp(-744.4) > 0.0);
     }
 
     #[test]

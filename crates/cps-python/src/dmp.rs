@@ -3,6 +3,7 @@
 //! loaded as the JSON files `cps-cli imitate` writes and `cps-cli rollout` reads.
 
 use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
 
 use cps_dmp::{
     Combine, Demonstration, DiscreteDmp, DmpConfig, DmpModel, FitReport, Formulation, Imitator,
@@ -18,7 +19,7 @@ use crate::arrays::{
     array1, array2, is_sequence_of_arrays, matrix, opt_vector, samples_by_dims, vector,
 };
 use crate::errors::{IntoPyErr, PyResultExt, file_error, value_error};
-use crate::interrupt::detached;
+use crate::interrupt::run;
 
 /// The formulation named as on the command line (`ijspeert`, `robust`) or in a model file
 /// (`ijspeert2013`, `goal_robust`).
@@ -146,7 +147,12 @@ pub struct Dmp {
     pub(crate) weights: Vec<f64>,
     pub(crate) names: Vec<String>,
     fit: Option<FitReport>,
+    /// Trajectories reused by `rollout_batch`.
+    scratch: Mutex<Vec<cps_dmp::Trajectory>>,
 }
+
+/// Rollouts per group in `rollout_batch` (the batch kernel's groups are 8 wide).
+const BATCH: usize = 16;
 
 impl Dmp {
     /// A DMP object from its parts (names `y0…` when empty).
@@ -161,6 +167,7 @@ impl Dmp {
             weights,
             names,
             fit: None,
+            scratch: Mutex::new(Vec::new()),
         }
     }
 
@@ -391,13 +398,23 @@ impl Dmp {
         let (ns, dims) = (self.dmp.n_samples(), self.dmp.dims());
         let values = w.floats.values();
         let out = py.detach(|| {
-            let mut trajs = vec![self.dmp.new_trajectory(); m];
-            self.dmp.rollout_batch(values, &mut trajs);
+            // Groups of BATCH rollouts into trajectories kept between calls: allocating
+            // them anew each call costs more than the rollouts (page faults).
+            let mut scratch = self
+                .scratch
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            scratch.resize_with(BATCH.min(m), || self.dmp.new_trajectory());
             let mut out = vec![0.0; m * ns * dims];
-            for (i, tr) in trajs.iter().enumerate() {
-                for d in 0..dims {
-                    for (k, v) in tr.position(d).iter().enumerate() {
-                        out[(i * ns + k) * dims + d] = *v;
+            for (g, group) in values.chunks(BATCH * nw).enumerate() {
+                let trajs = &mut scratch[..group.len() / nw];
+                self.dmp.rollout_batch(group, trajs);
+                for (j, tr) in trajs.iter().enumerate() {
+                    let i = g * BATCH + j;
+                    for d in 0..dims {
+                        for (k, v) in tr.position(d).iter().enumerate() {
+                            out[(i * ns + k) * dims + d] = *v;
+                        }
                     }
                 }
             }
@@ -617,6 +634,30 @@ fn demonstrations(t: &Bound<'_, PyAny>, y: &Bound<'_, PyAny>) -> PyResult<Vec<De
     Ok(demos)
 }
 
+/// Imitators (the grid, basis and Gram matrix of a configuration) of the last few
+/// configurations used: a notebook imitating again and again with one setting pays for
+/// them once. The results are the same bits as with a new one.
+static IMITATORS: Mutex<Vec<(DmpConfig, Arc<Imitator>)>> = Mutex::new(Vec::new());
+
+/// How many configurations [`IMITATORS`] keeps.
+const IMITATORS_KEPT: usize = 8;
+
+fn imitator(config: DmpConfig) -> Result<Arc<Imitator>, cps_dmp::DmpError> {
+    let cache = || {
+        IMITATORS
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    };
+    if let Some((_, im)) = cache().iter().find(|(c, _)| *c == config) {
+        return Ok(Arc::clone(im));
+    }
+    let im = Arc::new(Imitator::new(DiscreteDmp::new(config, &[0.0], &[1.0])?));
+    let mut kept = cache();
+    kept.insert(0, (config, Arc::clone(&im)));
+    kept.truncate(IMITATORS_KEPT);
+    Ok(im)
+}
+
 /// Learns a DMP from one demonstration (`t` (n,), `y` (n, dims)) or several (lists of
 /// them); the same method, defaults and fit report as `cps-cli imitate`.
 #[pyfunction]
@@ -670,9 +711,19 @@ pub fn imitate(
     };
     config.validate().py()?;
     let names = names_or_default(names, first.dims())?;
-    let fit = detached(py, |_| {
-        DiscreteDmp::new(config, &[0.0], &[1.0])
-            .and_then(|d| Imitator::new(d).imitate(&demos, regression, combine))
+    // The regression's size; generalised cross-validation repeats it per candidate λ.
+    let samples: usize = demos.iter().map(Demonstration::len).sum();
+    let gcv = matches!(
+        regression,
+        Regression::Ridge {
+            lambda: Lambda::Auto
+        } | Regression::JerkRidge {
+            lambda: Lambda::Auto
+        }
+    );
+    let size = (samples * bases * first.dims()) as f64 * if gcv { 50.0 } else { 2.0 };
+    let fit = run(py, size, |_| {
+        imitator(config).and_then(|im| im.imitate(&demos, regression, combine))
     })?
     .map_err(IntoPyErr::py_err)?;
     let mut out = Dmp::from_parts(fit.dmp, fit.weights, names);
