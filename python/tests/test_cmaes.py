@@ -3,6 +3,11 @@ line's reference runs bit for bit, ask/tell against fmin, bounds, restarts, dete
 exceptions and bad input."""
 
 import json
+import signal
+import subprocess
+import sys
+import textwrap
+import time
 
 import numpy as np
 import pytest
@@ -172,3 +177,23 @@ def test_bad_options_name_the_option(options, pattern):
         cps.CMAES(np.zeros(3), 1.0, options)
     with pytest.raises(ValueError):
         cps.CMAES(np.zeros(3), -1.0)
+
+
+FMIN_SCRIPT = textwrap.dedent("""
+    import time, numpy as np, cps
+    print("started", flush=True)
+    try:
+        cps.fmin(lambda x: time.sleep(0.001) or float(x @ x), np.ones(20), 1.0,
+                 {"maxfevals": 10**9, "ftarget": -1, "tolfun": 0, "tolx": 0})
+    except KeyboardInterrupt:
+        print("interrupted", flush=True)
+""")
+
+
+def test_ctrl_c_stops_fmin_with_keyboard_interrupt():
+    p = subprocess.Popen([sys.executable, "-c", FMIN_SCRIPT], stdout=subprocess.PIPE, text=True)
+    assert p.stdout.readline().strip() == "started"
+    time.sleep(1.0)
+    p.send_signal(signal.SIGINT)
+    out, _ = p.communicate(timeout=30)
+    assert "interrupted" in out and p.returncode == 0

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 
 use crate::arrays::{array1, array2, floats, shape_text, vector};
 use crate::errors::{IntoPyErr, PyResultExt, failure, value_error};
-use crate::interrupt::detached;
+use crate::interrupt::run;
 
 /// Lower and upper joint limits.
 type Limits<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
@@ -277,7 +277,9 @@ impl Robot {
             ..IkConfig::default()
         };
         let chain = &self.model.chain;
-        let solved = detached(py, |_| {
+        // A solve is microseconds to a few milliseconds (restarts): a handful inline, a
+        // batch on the pool, stoppable by Ctrl-C.
+        let solved = run(py, rows as f64 * 1e6, |_| {
             targets
                 .par_iter()
                 .map(|t| solve_ik(chain, t, &seed_q, &config))
