@@ -77,18 +77,9 @@ class CMAEvolutionStrategyResult(NamedTuple):
     stop: dict
 
 
-class FminResult(NamedTuple):
-    """What ``cps.fmin`` returns: pycma's ``fmin`` result (its first eight entries) as a
-    named tuple, so ``res[0]``, ``res[1]`` and ``res.xbest`` all work."""
-
-    xbest: Any
-    fbest: float
-    evals_best: int
-    evaluations: int
-    iterations: int
-    xfavorite: Any
-    stds: Any
-    stop: dict
+# What `cps.fmin` returns: pycma's `fmin` result (its first eight entries) as the same
+# named tuple, so `res[0]`, `res[1]` and `res.xbest` all work.
+FminResult = CMAEvolutionStrategyResult
 
 
 class CMAES(_cps._CMAES):
@@ -145,7 +136,7 @@ def fmin(
     IPOP (population doubled each time), or BIPOP with ``bipop=True``. The loop runs in
     Rust; Ctrl-C stops it after the current generation (KeyboardInterrupt).
 
-    Returns ``FminResult(xbest, fbest, evals_best, evaluations, iterations, xfavorite,
+    Returns the named tuple ``(xbest, fbest, evals_best, evaluations, iterations, xfavorite,
     stds, stop)``: ``res[0]`` is the best point, ``res[1]`` its cost, as in pycma.
     """
     res = _cps._fmin(

@@ -62,6 +62,21 @@ def without_clock(csv_text):
     return rows
 
 
+def test_table_columns_keep_their_types():
+    outcome = cps.run_experiment(EXPERIMENTS / "scaling.toml", seed=3)
+    integer_columns = 0
+    for table in outcome.tables.values():
+        rows = list(csv.reader(io.StringIO(table.to_csv())))
+        for i, column in enumerate(table.columns):
+            values = table[column]
+            assert isinstance(values, list) or values.dtype in (np.float64, np.uint64), (table.name, column)
+            if not isinstance(values, list) and values.dtype == np.uint64:
+                integer_columns += 1
+                # Counts and seeds come back whole, even above 2**63.
+                assert [int(v) for v in values] == [int(r[i]) for r in rows[1:]], (table.name, column)
+    assert integer_columns > 0
+
+
 def test_learn_via_points_is_the_viapoint_experiment():
     outcome = cps.run_experiment(EXPERIMENTS / "viapoint.toml")
     s = outcome.summary

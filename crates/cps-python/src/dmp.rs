@@ -18,19 +18,22 @@ use pyo3::types::{PyDict, PyTuple};
 use crate::arrays::{
     array1, array2, is_sequence_of_arrays, matrix, opt_vector, samples_by_dims, vector,
 };
-use crate::errors::{IntoPyErr, PyResultExt, file_error, value_error};
+use crate::errors::{IntoPyErr, PyResultExt, choose, file_error, value_error};
 use crate::interrupt::run;
 
 /// The formulation named as on the command line (`ijspeert`, `robust`) or in a model file
 /// (`ijspeert2013`, `goal_robust`).
 fn formulation(name: &str) -> PyResult<Formulation> {
-    match name {
-        "ijspeert" | "ijspeert2013" => Ok(Formulation::Ijspeert2013),
-        "robust" | "goal_robust" => Ok(Formulation::GoalRobust),
-        other => Err(value_error(format!(
-            "formulation: \"{other}\" is not one of \"ijspeert\" (Ijspeert et al. 2013, the thesis's) and \"robust\" (Hoffmann/Pastor 2009)"
-        ))),
-    }
+    choose(
+        "formulation",
+        name,
+        &[
+            ("ijspeert", Formulation::Ijspeert2013),
+            ("robust", Formulation::GoalRobust),
+            ("ijspeert2013", Formulation::Ijspeert2013),
+            ("goal_robust", Formulation::GoalRobust),
+        ],
+    )
 }
 
 fn formulation_name(f: Formulation) -> &'static str {
@@ -677,29 +680,20 @@ pub fn imitate(
     names: Option<Vec<String>>,
 ) -> PyResult<Dmp> {
     let demos = demonstrations(t, y)?;
-    let regression = match method {
-        "lwr" => Regression::Lwr,
-        "ridge" => Regression::Ridge {
+    let regression = match choose("method", method, &[("lwr", 0), ("ridge", 1), ("jerk", 2)])? {
+        0 => Regression::Lwr,
+        1 => Regression::Ridge {
             lambda: lambda(lambda_, Lambda::Fixed(1e-12))?,
         },
-        "jerk" => Regression::JerkRidge {
+        _ => Regression::JerkRidge {
             lambda: lambda(lambda_, Lambda::Auto)?,
         },
-        other => {
-            return Err(value_error(format!(
-                "method: \"{other}\" is not one of \"lwr\", \"ridge\", \"jerk\""
-            )));
-        }
     };
-    let combine = match combine {
-        "mean" => Combine::Mean,
-        "stack" => Combine::Stack,
-        other => {
-            return Err(value_error(format!(
-                "combine: \"{other}\" is not one of \"mean\", \"stack\""
-            )));
-        }
-    };
+    let combine = choose(
+        "combine",
+        combine,
+        &[("mean", Combine::Mean), ("stack", Combine::Stack)],
+    )?;
     let tau = tau.unwrap_or_else(|| {
         demos.iter().map(Demonstration::duration).sum::<f64>() / demos.len() as f64
     });

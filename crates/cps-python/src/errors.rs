@@ -21,6 +21,22 @@ pub fn value_error(message: impl Into<String>) -> PyErr {
     PyValueError::new_err(message.into())
 }
 
+/// The option named `value` among `options` for the argument `arg`, or a `ValueError`
+/// listing the choices.
+pub fn choose<T: Copy>(arg: &str, value: &str, options: &[(&str, T)]) -> PyResult<T> {
+    options
+        .iter()
+        .find(|(name, _)| *name == value)
+        .map(|(_, v)| *v)
+        .ok_or_else(|| {
+            let names: Vec<String> = options.iter().map(|(n, _)| format!("\"{n}\"")).collect();
+            value_error(format!(
+                "{arg}: \"{value}\" is not one of {}",
+                names.join(", ")
+            ))
+        })
+}
+
 /// `cps.CpsError(message)`.
 pub fn failure(message: impl Into<String>) -> PyErr {
     CpsError::new_err(message.into())

@@ -27,7 +27,8 @@ pub fn json_to_py<'py>(py: Python<'py>, value: &serde_json::Value) -> PyResult<B
     py.import("json")?.call_method1("loads", (text,))
 }
 
-/// A named table: columns by name as numpy arrays (numbers: float64, counts: int64) or
+/// A named table: columns by name as numpy arrays (numbers: float64, counts and seeds:
+/// uint64) or
 /// lists of str.
 #[pyclass(module = "cps._cps", frozen)]
 pub struct Table {
@@ -66,10 +67,8 @@ impl Table {
         };
         Ok(match &c.values {
             Values::Numbers(v) => PyArray1::from_slice(py, v).into_any(),
-            Values::Integers(v) => {
-                let v: Vec<i64> = v.iter().map(|&x| x as i64).collect();
-                PyArray1::from_vec(py, v).into_any()
-            }
+            // Counts and seeds: uint64, as written (a seed may exceed int64).
+            Values::Integers(v) => PyArray1::from_slice(py, v).into_any(),
             Values::Texts(v) => PyList::new(py, v)?.into_any(),
         })
     }

@@ -14,7 +14,7 @@ use pyo3::types::PyDict;
 
 use crate::arrays::{array1, opt_vector, vector};
 use crate::dmp::{Dmp, Trajectory};
-use crate::errors::{PyResultExt, value_error};
+use crate::errors::{PyResultExt, choose, value_error};
 use crate::interrupt::{cancelled, detached};
 
 /// Via points from `[(time, position), …]` or `[{"time": t, "position": p}, …]`.
@@ -260,25 +260,20 @@ pub fn learn_via_points(
         dmp: cps_dmp::DmpConfig::new(bases, tau, dt),
         weights: cost_weights(cost)?,
     };
-    let solver = match method {
-        "cmaes" => Solver::Cmaes,
-        "exact" => Solver::Exact,
-        other => {
-            return Err(value_error(format!(
-                "method: \"{other}\" is not one of \"cmaes\", \"exact\""
-            )));
-        }
-    };
-    let parametrisation = match parametrisation {
-        "anchor_offset" => Parametrisation::AnchorOffset,
-        "raw" => Parametrisation::Raw,
-        "thesis_scaling" => Parametrisation::ThesisScaling,
-        other => {
-            return Err(value_error(format!(
-                "parametrisation: \"{other}\" is not one of \"anchor_offset\", \"raw\", \"thesis_scaling\""
-            )));
-        }
-    };
+    let solver = choose(
+        "method",
+        method,
+        &[("cmaes", Solver::Cmaes), ("exact", Solver::Exact)],
+    )?;
+    let parametrisation = choose(
+        "parametrisation",
+        parametrisation,
+        &[
+            ("anchor_offset", Parametrisation::AnchorOffset),
+            ("raw", Parametrisation::Raw),
+            ("thesis_scaling", Parametrisation::ThesisScaling),
+        ],
+    )?;
     if !(sigma0.is_finite() && sigma0 > 0.0 && sigma0 <= 1e6) {
         return Err(value_error(format!(
             "sigma0: must be finite, > 0 and at most 1e6 (got {sigma0})"
