@@ -50,6 +50,19 @@ fn kinematics(c: &mut Criterion) {
     c.bench_function("jacobian/panda", |b| {
         b.iter(|| arm.jacobian(black_box(&q)).unwrap())
     });
+    // Inverse dynamics (recursive Newton–Euler) with Gaz et al.'s inertias, gravity on.
+    let links = cps::kinematics::robots::panda_inertia();
+    let gravity = nalgebra::Vector3::from(cps::kinematics::GRAVITY);
+    let (qd, qdd) = (
+        [0.3, -0.2, 0.5, 0.1, -0.4, 0.2, 0.6],
+        [1.0, -0.5, 0.8, 0.3, -1.2, 0.7, 0.4],
+    );
+    c.bench_function("rnea/panda", |b| {
+        b.iter(|| {
+            arm.inverse_dynamics(&links, gravity, black_box(&q), &qd, &qdd)
+                .unwrap()
+        })
+    });
     ik(c);
 }
 

@@ -289,6 +289,17 @@ pub struct SerialChain {
     velocity_limits: Option<Vec<f64>>,
 }
 
+/// A joint's axis and the link it moves, in the world frame ([`SerialChain::joint_axes`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct JointAxis {
+    /// A point on the axis (the joint frame's origin).
+    pub point: Vector3<f64>,
+    /// The axis direction (unit).
+    pub axis: Vector3<f64>,
+    /// The pose of the link the joint moves.
+    pub link: IsometryMatrix3<f64>,
+}
+
 /// Forward kinematics with every link frame, for teaching and drawing.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ChainPose {
@@ -755,6 +766,22 @@ impl SerialChain {
             link_frames: frames,
             tool: tool.to_isometry(),
         })
+    }
+
+    /// Per joint, in the world frame: the point its axis passes through, the axis, and the
+    /// pose of the link it moves (the frame of [`Self::fk_frames`]), for inverse dynamics.
+    pub(crate) fn joint_axes(&self, q: &[f64]) -> Result<Vec<JointAxis>, KinematicsError> {
+        self.check(q)?;
+        let mut out = Vec::with_capacity(self.dof());
+        self.walk(q, |i, f| {
+            let rotation = f.to_isometry();
+            out.push(JointAxis {
+                point: rotation.translation.vector,
+                axis: rotation.rotation.matrix().column(2).into_owned(),
+                link: f.mul(&self.post[i]).to_isometry(),
+            });
+        });
+        Ok(out)
     }
 
     /// The geometric Jacobian of the tool point in the world frame, 6 × n: rows

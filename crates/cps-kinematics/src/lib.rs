@@ -45,6 +45,7 @@
 mod backend;
 mod chain;
 pub mod controllers;
+mod dynamics;
 mod error;
 mod execute;
 mod fastmath;
@@ -58,6 +59,7 @@ mod workspace;
 pub use backend::{KinematicRobot, RobotBackend};
 pub use chain::{ChainGeometry, ChainPose, DhConvention, DhLink, RevoluteJoint, SerialChain};
 pub use controllers::IkTarget;
+pub use dynamics::{GRAVITY, LinkInertia};
 pub use error::KinematicsError;
 pub use execute::{ExecutionConfig, Recording, execute};
 pub use ik::{IkConfig, IkSolution, solve_ik};

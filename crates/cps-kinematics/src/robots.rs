@@ -58,6 +58,55 @@ pub fn panda(tool: PandaTool) -> SerialChain {
         .expect("the Panda model is valid")
 }
 
+/// The Panda's link inertias (links 1–7, in the modified-DH link frames of [`panda`]):
+/// C. Gaz, M. Cognetti, A. Oliva, P. Robuffo Giordano, A. De Luca, "Dynamic Identification
+/// of the Franka Emika Panda Robot With Retrieval of Feasible Parameters Using
+/// Penalty-Based Optimization", IEEE RA-L 4(4):4147–4154, 2019
+/// (doi 10.1109/LRA.2019.2931248), supplementary Tables VIII (mass, centre of mass) and IX
+/// (inertia about the centre of mass), column p̂. Link 7's centre of mass is in the frame
+/// of joint 7 (the flange is 0.107 m further along z); whether the identified link 7
+/// includes a mounted hand is not stated in the paper.
+pub fn panda_inertia() -> Vec<crate::LinkInertia> {
+    const MASS: [f64; 7] = [
+        4.970684, 0.646926, 3.228604, 3.587895, 1.225946, 1.666555, 0.735522,
+    ];
+    const COM: [[f64; 3]; 7] = [
+        [3.875e-3, 2.081e-3, 0.0],
+        [-3.141e-3, -2.872e-2, 3.495e-3],
+        [2.7518e-2, 3.9252e-2, -6.6502e-2],
+        [-5.317e-2, 1.04419e-1, 2.7454e-2],
+        [-1.1953e-2, 4.1065e-2, -3.8437e-2],
+        [6.0149e-2, -1.4117e-2, -1.0517e-2],
+        [1.0517e-2, -4.252e-3, 6.1597e-2],
+    ];
+    // xx, xy, xz, yy, yz, zz
+    const INERTIA: [[f64; 6]; 7] = [
+        [
+            7.0337e-1, -1.39e-4, 6.772e-3, 7.0661e-1, 1.9169e-2, 9.117e-3,
+        ],
+        [7.962e-3, -3.925e-3, 1.0254e-2, 2.811e-2, 7.04e-4, 2.5995e-2],
+        [
+            3.7242e-2, -4.761e-3, -1.1396e-2, 3.6155e-2, -1.2805e-2, 1.083e-2,
+        ],
+        [
+            2.5853e-2, 7.796e-3, -1.332e-3, 1.9552e-2, 8.641e-3, 2.8323e-2,
+        ],
+        [
+            3.5549e-2, -2.117e-3, -4.037e-3, 2.9474e-2, 2.29e-4, 8.627e-3,
+        ],
+        [1.964e-3, 1.09e-4, -1.158e-3, 4.354e-3, 3.41e-4, 5.433e-3],
+        [
+            1.2516e-2, -4.28e-4, -1.196e-3, 1.0027e-2, -7.41e-4, 4.815e-3,
+        ],
+    ];
+    (0..7)
+        .map(|i| {
+            crate::LinkInertia::new(MASS[i], COM[i], INERTIA[i])
+                .expect("the published Panda inertias are physical")
+        })
+        .collect()
+}
+
 /// The Puma 560 in standard DH (Corke's Robotics Toolbox model `Puma560`), for teaching
 /// the standard convention.
 pub fn puma560() -> SerialChain {

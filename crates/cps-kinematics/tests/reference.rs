@@ -689,3 +689,40 @@ mod control_and_execution {
         }
     }
 }
+
+/// Inverse dynamics of the Panda with Gaz et al.'s inertias against pinocchio's RNEA on 50
+/// random states (`tests/data/panda_rnea_pinocchio.json`, made by `make_panda_rnea.py`
+/// from the published tables, independently of this crate's code).
+#[test]
+fn panda_inverse_dynamics_matches_pinocchio() {
+    let reference: serde_json::Value =
+        serde_json::from_str(include_str!("data/panda_rnea_pinocchio.json")).unwrap();
+    let arm = cps_kinematics::robots::panda(cps_kinematics::robots::PandaTool::HandTcp);
+    let links = cps_kinematics::robots::panda_inertia();
+    let gravity = nalgebra::Vector3::from(cps_kinematics::GRAVITY);
+    let vec = |v: &serde_json::Value| -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let states = reference["states"].as_array().unwrap();
+    assert_eq!(states.len(), 50);
+    let mut worst = 0.0_f64;
+    for s in states {
+        let tau = arm
+            .inverse_dynamics(
+                &links,
+                gravity,
+                &vec(&s["q"]),
+                &vec(&s["qd"]),
+                &vec(&s["qdd"]),
+            )
+            .unwrap();
+        for (a, b) in tau.iter().zip(vec(&s["tau"])) {
+            worst = worst.max((a - b).abs());
+        }
+    }
+    assert!(worst < 1e-9, "largest torque difference {worst:e} N m");
+}
