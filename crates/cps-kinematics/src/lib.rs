@@ -50,6 +50,7 @@ mod error;
 mod execute;
 mod fastmath;
 mod ik;
+mod limits;
 pub mod robots;
 pub mod transforms;
 #[cfg(feature = "urdf")]
@@ -63,6 +64,9 @@ pub use dynamics::{GRAVITY, LinkInertia};
 pub use error::KinematicsError;
 pub use execute::{ExecutionConfig, Recording, execute};
 pub use ik::{IkConfig, IkSolution, solve_ik};
+pub use limits::{
+    CartesianLimits, JointLimits, LimitCheck, Quantity, Violation, check_joint_trajectory,
+};
 #[cfg(feature = "urdf")]
 pub use urdf::{UrdfChain, chain_from_urdf};
 pub use workspace::{check_path, degrees_of_freedom, sample_workspace};

@@ -58,6 +58,30 @@ pub fn panda(tool: PandaTool) -> SerialChain {
         .expect("the Panda model is valid")
 }
 
+/// The Panda's limits beyond its joint range and speed (Franka's control parameters, the
+/// thesis's Tables 5 and 6): acceleration [15, 7.5, 10, 12.5, 15, 20, 20] rad/s², jerk
+/// [7500, 3750, 5000, 6250, 7500, 10000, 10000] rad/s³, torque 87 N m (joints 1–4) and
+/// 12 N m (5–7), torque rate 1000 N m/s; Cartesian translation 1.7 m/s, 13 m/s², 6500
+/// m/s³, rotation 2.5 rad/s, 25 rad/s², 12500 rad/s³, elbow 2.175 rad/s, 10 rad/s²,
+/// 5000 rad/s³.
+pub fn panda_limits() -> (crate::JointLimits, crate::CartesianLimits) {
+    (
+        crate::JointLimits {
+            acceleration: Some(vec![15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0]),
+            jerk: Some(vec![
+                7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0,
+            ]),
+            torque: Some(vec![87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0]),
+            torque_rate: Some(vec![1000.0; 7]),
+        },
+        crate::CartesianLimits {
+            translation: [1.7, 13.0, 6500.0],
+            rotation: [2.5, 25.0, 12500.0],
+            elbow: [2.175, 10.0, 5000.0],
+        },
+    )
+}
+
 /// The Panda's link inertias (links 1–7, in the modified-DH link frames of [`panda`]):
 /// C. Gaz, M. Cognetti, A. Oliva, P. Robuffo Giordano, A. De Luca, "Dynamic Identification
 /// of the Franka Emika Panda Robot With Retrieval of Feasible Parameters Using

@@ -1,0 +1,482 @@
+//! A robot's motion limits beyond its joint range and speed (which [`SerialChain`] keeps),
+//! and checking a joint trajectory against all of them as a controller sees it.
+//!
+//! The check takes positions commanded at the control rate (every `dt` seconds) and
+//! derives velocity, acceleration and jerk by backward differences of consecutive
+//! commands, as a controller that receives positions does (libfranka's convention for
+//! its limit checks), with the robot at rest before the first command and the last one
+//! held afterwards (so starting and stopping are checked too). Torques come from inverse
+//! dynamics at each command with those derivatives, torque rates from their backward
+//! differences. A run of consecutive samples beyond a limit is one violation, reported at
+//! its worst sample.
+
+use nalgebra::Vector3;
+
+use crate::{KinematicsError, LinkInertia, SerialChain};
+
+/// A limited quantity of a joint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Quantity {
+    /// Joint position (rad), within `[lower, upper]`.
+    Position,
+    /// Joint velocity (rad/s).
+    Velocity,
+    /// Joint acceleration (rad/s²).
+    Acceleration,
+    /// Joint jerk (rad/s³).
+    Jerk,
+    /// Joint torque (N m).
+    Torque,
+    /// Rate of change of the joint torque (N m/s).
+    TorqueRate,
+}
+
+impl Quantity {
+    /// Every quantity, in order.
+    pub const ALL: [Quantity; 6] = [
+        Quantity::Position,
+        Quantity::Velocity,
+        Quantity::Acceleration,
+        Quantity::Jerk,
+        Quantity::Torque,
+        Quantity::TorqueRate,
+    ];
+
+    /// `position`, `velocity`, `acceleration`, `jerk`, `torque`, `torque_rate`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Quantity::Position => "position",
+            Quantity::Velocity => "velocity",
+            Quantity::Acceleration => "acceleration",
+            Quantity::Jerk => "jerk",
+            Quantity::Torque => "torque",
+            Quantity::TorqueRate => "torque_rate",
+        }
+    }
+
+    /// The SI unit.
+    pub fn unit(self) -> &'static str {
+        match self {
+            Quantity::Position => "rad",
+            Quantity::Velocity => "rad/s",
+            Quantity::Acceleration => "rad/s²",
+            Quantity::Jerk => "rad/s³",
+            Quantity::Torque => "N m",
+            Quantity::TorqueRate => "N m/s",
+        }
+    }
+}
+
+/// Symmetric per-joint bounds `|x| ≤ max` of the quantities beyond position and velocity;
+/// `None` where the robot's data do not give them.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct JointLimits {
+    /// rad/s² per joint.
+    pub acceleration: Option<Vec<f64>>,
+    /// rad/s³ per joint.
+    pub jerk: Option<Vec<f64>>,
+    /// N m per joint.
+    pub torque: Option<Vec<f64>>,
+    /// N m/s per joint.
+    pub torque_rate: Option<Vec<f64>>,
+}
+
+impl JointLimits {
+    /// Checks that every given limit has one finite, positive value per joint.
+    pub fn validate(&self, dof: usize) -> Result<(), KinematicsError> {
+        for (q, v) in [
+            (Quantity::Acceleration, &self.acceleration),
+            (Quantity::Jerk, &self.jerk),
+            (Quantity::Torque, &self.torque),
+            (Quantity::TorqueRate, &self.torque_rate),
+        ] {
+            let Some(v) = v else { continue };
+            if v.len() != dof {
+                return Err(KinematicsError::InvalidModel(format!(
+                    "{} limits have {} values for {dof} joints",
+                    q.name(),
+                    v.len()
+                )));
+            }
+            if let Some(i) = v.iter().position(|x| !(x.is_finite() && *x > 0.0)) {
+                return Err(KinematicsError::InvalidModel(format!(
+                    "joint {}: the {} limit must be finite and > 0 (got {})",
+                    i + 1,
+                    q.name(),
+                    v[i]
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Limits of the tool's and the elbow's motion in Cartesian space: the largest norms of
+/// velocity, acceleration and jerk.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CartesianLimits {
+    /// Translation of the tool point: m/s, m/s², m/s³.
+    pub translation: [f64; 3],
+    /// Rotation of the tool: rad/s, rad/s², rad/s³.
+    pub rotation: [f64; 3],
+    /// The elbow (Franka's redundancy parameter, joint 3's angle): rad/s, rad/s², rad/s³.
+    pub elbow: [f64; 3],
+}
+
+/// A run of samples beyond one limit, at its worst sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Violation {
+    /// 1-based joint number.
+    pub joint: usize,
+    /// What is beyond its limit.
+    pub quantity: Quantity,
+    /// Time of the worst sample (s).
+    pub time: f64,
+    /// Its value (signed; for positions the position itself).
+    pub value: f64,
+    /// The limit it exceeds (for positions the bound crossed).
+    pub limit: f64,
+}
+
+/// The outcome of [`check_joint_trajectory`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct LimitCheck {
+    /// Per quantity checked, per joint: the peak usage in percent (100 = at the limit;
+    /// for positions, how far from the middle of the range towards a bound).
+    pub peak_usage: Vec<(Quantity, Vec<f64>)>,
+    /// Every violation, in time order.
+    pub violations: Vec<Violation>,
+    /// Quantities that could not be checked, with the reason (a limit or the inertias
+    /// missing from the robot's data).
+    pub not_checked: Vec<(Quantity, String)>,
+}
+
+impl LimitCheck {
+    /// Whether every checked limit holds.
+    pub fn ok(&self) -> bool {
+        self.violations.is_empty()
+    }
+}
+
+/// A quantity's samples (one row per command) and its symmetric limit per joint (`None`
+/// for positions, bounded by the chain's range).
+type Series = (Quantity, Vec<Vec<f64>>, Option<Vec<f64>>);
+
+/// Backward differences of `x` (one row per sample) with step `dt`, starting from `first`.
+fn differences(x: &[Vec<f64>], dt: f64, first: &[f64]) -> Vec<Vec<f64>> {
+    let mut prev = first.to_vec();
+    x.iter()
+        .map(|row| {
+            let d: Vec<f64> = row.iter().zip(&prev).map(|(a, b)| (a - b) / dt).collect();
+            prev.clone_from(row);
+            d
+        })
+        .collect()
+}
+
+/// Checks joint positions `q` (one row of `chain.dof()` values per command, the first at
+/// time `t0`, then every `dt` seconds) against the chain's position and speed limits,
+/// `limits`, and — with `inertia` — the torque limits through inverse dynamics with
+/// `gravity`. See the module documentation for how the derivatives are taken.
+pub fn check_joint_trajectory(
+    chain: &SerialChain,
+    limits: &JointLimits,
+    inertia: Option<&[LinkInertia]>,
+    gravity: Vector3<f64>,
+    t0: f64,
+    dt: f64,
+    q: &[Vec<f64>],
+) -> Result<LimitCheck, KinematicsError> {
+    let n = chain.dof();
+    limits.validate(n)?;
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(KinematicsError::InvalidModel(format!(
+            "the control period must be finite and > 0 (got {dt})"
+        )));
+    }
+    let Some(last) = q.last() else {
+        return Err(KinematicsError::InvalidModel(
+            "the trajectory has no samples".into(),
+        ));
+    };
+    for row in q {
+        chain.check(row)?;
+    }
+    // At rest before the first command, the last one held for three periods after it.
+    let mut held = q.to_vec();
+    held.extend(std::iter::repeat_n(last.clone(), 3));
+    let zero = vec![0.0; n];
+    let v = differences(&held, dt, &held[0]);
+    let a = differences(&v, dt, &zero);
+    let j = differences(&a, dt, &zero);
+    let mut series: Vec<Series> = Vec::new();
+    let mut not_checked = Vec::new();
+    let mut skip = |q: Quantity, why: &str| not_checked.push((q, why.to_string()));
+    match chain.limits() {
+        Some(_) => series.push((Quantity::Position, held.clone(), None)),
+        None => skip(Quantity::Position, "the robot has no joint position limits"),
+    }
+    for (quantity, values, max) in [
+        (
+            Quantity::Velocity,
+            &v,
+            chain.velocity_limits().map(<[f64]>::to_vec),
+        ),
+        (Quantity::Acceleration, &a, limits.acceleration.clone()),
+        (Quantity::Jerk, &j, limits.jerk.clone()),
+    ] {
+        match max {
+            Some(m) => series.push((quantity, values.clone(), Some(m))),
+            None => skip(
+                quantity,
+                &format!("the robot has no {} limits", quantity.name()),
+            ),
+        }
+    }
+    let wants_torque = limits.torque.is_some() || limits.torque_rate.is_some();
+    match (inertia, wants_torque) {
+        (Some(links), true) => {
+            let tau = held
+                .iter()
+                .zip(&v)
+                .zip(&a)
+                .map(|((q, v), a)| chain.inverse_dynamics(links, gravity, q, v, a))
+                .collect::<Result<Vec<_>, _>>()?;
+            let rate = differences(&tau, dt, &tau[0]);
+            for (quantity, values, max) in [
+                (Quantity::Torque, tau, limits.torque.clone()),
+                (Quantity::TorqueRate, rate, limits.torque_rate.clone()),
+            ] {
+                match max {
+                    Some(m) => series.push((quantity, values, Some(m))),
+                    None => skip(
+                        quantity,
+                        &format!("the robot has no {} limits", quantity.name()),
+                    ),
+                }
+            }
+        }
+        (None, true) => {
+            for quantity in [Quantity::Torque, Quantity::TorqueRate] {
+                skip(
+                    quantity,
+                    "the robot's link inertias are not known, so torques cannot be computed",
+                );
+            }
+        }
+        (_, false) => {
+            for quantity in [Quantity::Torque, Quantity::TorqueRate] {
+                skip(
+                    quantity,
+                    &format!("the robot has no {} limits", quantity.name()),
+                );
+            }
+        }
+    }
+    let mut peak_usage = Vec::new();
+    let mut violations = Vec::new();
+    for (quantity, values, max) in &series {
+        let mut usage = vec![0.0_f64; n];
+        for joint in 0..n {
+            // The worst sample of the current run beyond the limit: (excess, k, value, limit).
+            let mut run: Option<(f64, usize, f64, f64)> = None;
+            for (k, row) in values.iter().enumerate() {
+                let x = row[joint];
+                let (use_pct, excess, bound) = match max {
+                    Some(m) => {
+                        let m = m[joint];
+                        (100.0 * x.abs() / m, x.abs() - m, m.copysign(x))
+                    }
+                    None => {
+                        let (lo, hi) = chain.limits().expect("checked above");
+                        let (lo, hi) = (lo[joint], hi[joint]);
+                        let mid = 0.5 * (lo + hi);
+                        let half = 0.5 * (hi - lo);
+                        let bound = if x < mid { lo } else { hi };
+                        (
+                            100.0 * (x - mid).abs() / half,
+                            (x - mid).abs() - half,
+                            bound,
+                        )
+                    }
+                };
+                usage[joint] = usage[joint].max(use_pct);
+                if excess > 0.0 {
+                    if run.is_none_or(|r| excess > r.0) {
+                        run = Some((excess, k, x, bound));
+                    }
+                } else if let Some((_, k0, value, limit)) = run.take() {
+                    violations.push(Violation {
+                        joint: joint + 1,
+                        quantity: *quantity,
+                        time: t0 + k0 as f64 * dt,
+                        value,
+                        limit,
+                    });
+                }
+            }
+            if let Some((_, k0, value, limit)) = run {
+                violations.push(Violation {
+                    joint: joint + 1,
+                    quantity: *quantity,
+                    time: t0 + k0 as f64 * dt,
+                    value,
+                    limit,
+                });
+            }
+        }
+        peak_usage.push((*quantity, usage));
+    }
+    violations.sort_by(|a, b| {
+        a.time
+            .total_cmp(&b.time)
+            .then(a.joint.cmp(&b.joint))
+            .then(a.quantity.cmp(&b.quantity))
+    });
+    Ok(LimitCheck {
+        peak_usage,
+        violations,
+        not_checked,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::GRAVITY;
+    use crate::robots::{PandaTool, panda, panda_inertia, panda_limits};
+
+    const DT: f64 = 0.001;
+
+    fn check(q: &[Vec<f64>], inertia: bool) -> LimitCheck {
+        let chain = panda(PandaTool::HandTcp);
+        let links = panda_inertia();
+        let (limits, _) = panda_limits();
+        check_joint_trajectory(
+            &chain,
+            &limits,
+            inertia.then_some(links.as_slice()),
+            Vector3::from(GRAVITY),
+            0.0,
+            DT,
+            q,
+        )
+        .unwrap()
+    }
+
+    fn usage(c: &LimitCheck, q: Quantity) -> &[f64] {
+        &c.peak_usage.iter().find(|(k, _)| *k == q).unwrap().1
+    }
+
+    const READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+
+    #[test]
+    fn standing_still_uses_only_the_torque_against_gravity() {
+        let q = vec![READY.to_vec(); 100];
+        let c = check(&q, true);
+        assert!(c.ok(), "{:?}", c.violations);
+        assert!(c.not_checked.is_empty());
+        for quantity in [
+            Quantity::Velocity,
+            Quantity::Acceleration,
+            Quantity::Jerk,
+            Quantity::TorqueRate,
+        ] {
+            assert!(
+                usage(&c, quantity).iter().all(|u| *u == 0.0),
+                "{quantity:?}"
+            );
+        }
+        let chain = panda(PandaTool::HandTcp);
+        let g = chain
+            .inverse_dynamics(
+                &panda_inertia(),
+                Vector3::from(GRAVITY),
+                &READY,
+                &[0.0; 7],
+                &[0.0; 7],
+            )
+            .unwrap();
+        let torque = usage(&c, Quantity::Torque);
+        for (j, limit) in [87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0]
+            .iter()
+            .enumerate()
+        {
+            assert!((torque[j] - 100.0 * g[j].abs() / limit).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn a_sine_uses_its_analytic_peaks_and_a_fast_one_violates_them() {
+        // Joint 1 follows A sin(w t): its peak speed A w shows as the velocity usage, and the
+        // jump from rest to A w at the first command as an acceleration of A w / dt.
+        let (amp, w) = (0.2, 5.0);
+        let q: Vec<Vec<f64>> = (0..=2513)
+            .map(|k| {
+                let mut r = READY.to_vec();
+                r[0] = amp * (w * k as f64 * DT).sin();
+                r
+            })
+            .collect();
+        let c = check(&q, false);
+        let vel = usage(&c, Quantity::Velocity)[0];
+        assert!((vel - 100.0 * amp * w / 2.175).abs() < 0.05, "{vel}");
+        // Starting at A w from rest is an acceleration step of A w / dt = 1000 rad/s².
+        assert!(
+            c.violations
+                .iter()
+                .any(|v| v.joint == 1 && v.quantity == Quantity::Acceleration && v.time == 0.001)
+        );
+        assert_eq!(
+            c.not_checked.iter().map(|(q, _)| *q).collect::<Vec<_>>(),
+            vec![Quantity::Torque, Quantity::TorqueRate]
+        );
+        assert!(c.not_checked[0].1.contains("inertias are not known"));
+    }
+
+    #[test]
+    fn a_ramp_past_the_speed_limit_is_one_violation_per_run() {
+        // Joint 5 accelerates at 12 rad/s² (its limit is 15) up to 2.7 rad/s (its speed
+        // limit is 2.61) and keeps going: one velocity run, reported at its worst sample.
+        let mut q = Vec::new();
+        let (mut x, mut v) = (0.0, 0.0);
+        for _ in 0..600 {
+            v = (v + 12.0 * DT).min(2.7);
+            x += v * DT;
+            let mut r = READY.to_vec();
+            r[4] = x;
+            q.push(r);
+        }
+        let c = check(&q, true);
+        let speed: Vec<_> = c
+            .violations
+            .iter()
+            .filter(|v| v.quantity == Quantity::Velocity)
+            .collect();
+        assert_eq!(speed.len(), 1, "{speed:?}");
+        assert_eq!(speed[0].joint, 5);
+        assert!((speed[0].value - 2.7).abs() < 1e-9 && speed[0].limit == 2.61);
+        // Stopping from 2.7 rad/s within one period afterwards breaks acceleration and jerk.
+        assert!(
+            c.violations
+                .iter()
+                .any(|v| v.quantity == Quantity::Acceleration && v.joint == 5)
+        );
+        assert!(!c.ok());
+    }
+
+    #[test]
+    fn positions_beyond_the_range_name_the_bound() {
+        let mut q = vec![READY.to_vec(); 10];
+        q[5][3] = -0.05; // joint 4's upper bound is -0.0698
+        let c = check(&q, false);
+        let v = c
+            .violations
+            .iter()
+            .find(|v| v.quantity == Quantity::Position)
+            .unwrap();
+        assert_eq!((v.joint, v.value, v.limit), (4, -0.05, -0.0698));
+        assert!((v.time - 0.005).abs() < 1e-12);
+        assert!(usage(&c, Quantity::Position)[3] > 100.0);
+    }
+}
