@@ -105,6 +105,11 @@ enum Command {
     Imitate(movement::ImitateArgs),
     /// Roll out a DMP model into a trajectory (CSV), with optional new start, goal, τ.
     Rollout(movement::RolloutArgs),
+    /// Robot limits: check a joint trajectory against them.
+    Limits {
+        #[command(subcommand)]
+        command: robot::LimitsCommand,
+    },
     /// Scenes: a placed robot and named way points.
     Scene {
         #[command(subcommand)]
@@ -200,6 +205,7 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
         Command::Ik(args) => robot::ik(&args),
         Command::Robot { command } => robot::robot(&command),
         Command::Scene { command } => scene::scene(&command),
+        Command::Limits { command } => robot::limits(&command),
         Command::Imitate(args) => movement::run_imitate(&args),
         Command::Cmaes { command } => cmaes_bench::bench(&command),
         Command::Sim { command } => simserve::sim(&command, interrupted),

@@ -189,6 +189,44 @@ pub fn ik(args: &IkArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// `cps-cli limits ...`.
+#[derive(Subcommand, Debug)]
+pub enum LimitsCommand {
+    /// Check a joint trajectory (CSV: time in s, then one position per joint in rad)
+    /// against the robot's limits as its controller sees it: exit 0 when every limit
+    /// holds, 1 when one is violated, 2 for bad input. `--json` prints `{"ok",
+    /// "peak_usage", "violations", "not_checked", …}`.
+    Check {
+        /// The trajectory file.
+        file: std::path::PathBuf,
+        #[command(flatten)]
+        arm: RobotArgs,
+        /// The controller's rate in Hz: positions are commanded, and differentiated,
+        /// at this rate (a file sampled otherwise is resampled by a cubic spline).
+        #[arg(long, default_value_t = 1000.0)]
+        rate: f64,
+    },
+}
+
+/// `cps-cli limits check`.
+pub fn limits(cmd: &LimitsCommand) -> Result<ExitCode> {
+    let LimitsCommand::Check { file, arm, rate } = cmd;
+    let report = cps_experiment::limits::check_file(file, &arm.load()?, *rate)?;
+    if arm.json {
+        say!("{}", serde_json::to_string_pretty(&report.json())?);
+    } else {
+        say!("{} on {}:", file.display(), arm.robot);
+        for line in report.lines() {
+            say!("{line}");
+        }
+    }
+    Ok(if report.check.ok() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
 /// `cps-cli robot show`.
 pub fn robot(cmd: &RobotCommand) -> Result<ExitCode> {
     let RobotCommand::Show { robot, tool, tip } = cmd;

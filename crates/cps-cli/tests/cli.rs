@@ -1179,3 +1179,89 @@ fn a_run_trajectory_round_trips_through_imitate_and_rollout() {
         "{err}"
     );
 }
+
+/// `limits check`: a slow move holds every Panda limit (exit 0, usage as computed by
+/// hand), a fast one breaks the speed limit of the joint that moves (exit 1, the violation
+/// in the JSON), and a file with too few joints is bad input (exit 2).
+#[test]
+fn limits_check_reports_usage_and_violations_with_its_exit_codes() {
+    let dir = tempfile::tempdir().unwrap();
+    let ready = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    // Joint 1 follows 3x² − 2x³ (rest to rest) over `duration` seconds, 1 kHz samples.
+    let file = |name: &str, amplitude: f64, duration: f64| {
+        let mut text = String::from("t,q1,q2,q3,q4,q5,q6,q7\n");
+        let n = (duration * 1000.0).round() as usize;
+        for k in 0..=n {
+            let x = k as f64 / n as f64;
+            let mut q = ready;
+            q[0] = amplitude * (3.0 * x * x - 2.0 * x * x * x);
+            let cells: Vec<String> = q.iter().map(|v| format!("{v:e}")).collect();
+            text.push_str(&format!("{},{}\n", k as f64 * 0.001, cells.join(",")));
+        }
+        write(dir.path(), name, &text)
+    };
+    let slow = file("slow.csv", 1.0, 4.0);
+    let o = cli(&[
+        "limits",
+        "check",
+        slow.to_str().unwrap(),
+        "--robot",
+        "panda",
+        "--json",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["ok"], true);
+    // Peak speed 1.5 A / T = 0.375 rad/s of joint 1's 2.175: 17.2 %.
+    let usage = v["peak_usage"]["velocity"][0].as_f64().unwrap();
+    assert!((usage - 100.0 * 0.375 / 2.175).abs() < 0.1, "{usage}");
+    assert!(v["peak_usage"]["torque"][1].as_f64().unwrap() > 1.0); // gravity on joint 2
+    let fast = file("fast.csv", 2.5, 1.0);
+    let o = cli(&[
+        "limits",
+        "check",
+        fast.to_str().unwrap(),
+        "--robot",
+        "panda",
+        "--json",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["ok"], false);
+    let speed: Vec<&serde_json::Value> = v["violations"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|x| x["quantity"] == "velocity")
+        .collect();
+    assert_eq!(speed.len(), 1, "{speed:?}");
+    assert_eq!(speed[0]["joint"], 1);
+    assert!((speed[0]["value"].as_f64().unwrap() - 3.75).abs() < 1e-3); // 1.5 · 2.5 rad / 1 s
+    assert!((speed[0]["time"].as_f64().unwrap() - 0.5).abs() < 2e-3); // the middle
+    assert_eq!(speed[0]["limit"], 2.175);
+    let o = cli(&[
+        "limits",
+        "check",
+        fast.to_str().unwrap(),
+        "--robot",
+        "panda",
+    ]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("joint 1 velocity at 0.50"));
+    let short = write(
+        dir.path(),
+        "short.csv",
+        "t,q1,q2\n0,0,0\n0.1,0,0\n0.2,0,0\n",
+    );
+    let o = cli(&[
+        "limits",
+        "check",
+        short.to_str().unwrap(),
+        "--robot",
+        "panda",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("a 7-joint robot needs the time and 7 joint positions"));
+    let o = cli(&["limits", "check", slow.to_str().unwrap(), "--rate", "0"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--rate 0"));
+}

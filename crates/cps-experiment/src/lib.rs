@@ -53,6 +53,7 @@ pub mod experiment;
 pub mod figures;
 pub mod files;
 mod kinds;
+pub mod limits;
 pub mod movement;
 mod observer;
 pub mod outcome;

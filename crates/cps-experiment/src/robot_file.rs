@@ -8,8 +8,11 @@
 
 use std::path::Path;
 
-use cps_kinematics::robots::{PandaTool, panda, puma560, ur3};
-use cps_kinematics::{ChainGeometry, DhConvention, DhLink, IkTarget, SerialChain, chain_from_urdf};
+use cps_kinematics::robots::{PandaTool, panda, panda_inertia, panda_limits, puma560, ur3};
+use cps_kinematics::{
+    ChainGeometry, DhConvention, DhLink, IkTarget, JointLimits, LinkInertia, SerialChain,
+    chain_from_urdf,
+};
 use nalgebra::{Isometry3, IsometryMatrix3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::Deserialize;
 use toml::Spanned;
@@ -30,6 +33,10 @@ pub struct RobotModel {
     pub tool: String,
     /// Joint names (URDF) or `joint1..n`.
     pub joint_names: Vec<String>,
+    /// Limits beyond the chain's range and speed (empty where the robot's data have none).
+    pub limits: JointLimits,
+    /// Link inertias for inverse dynamics, when the robot's data give them.
+    pub inertia: Option<Vec<LinkInertia>>,
 }
 
 impl RobotModel {
@@ -241,6 +248,8 @@ pub fn load_robot(
                 tool: format!("link `{}`", u.tip_link),
                 joint_names: u.joint_names,
                 chain: u.chain,
+                limits: JointLimits::default(),
+                inertia: None,
             });
         }
         if tip.is_some() {
@@ -269,6 +278,8 @@ pub fn load_robot(
                 ready: PANDA_READY.to_vec(),
                 tool: words.into(),
                 joint_names: names(7),
+                limits: panda_limits().0,
+                inertia: Some(panda_inertia()),
             })
         }
         "ur3" | "puma560" => {
@@ -284,6 +295,8 @@ pub fn load_robot(
                 joint_names: names(chain.dof()),
                 chain,
                 tool: "flange".into(),
+                limits: JointLimits::default(),
+                inertia: None,
             })
         }
         other => Err(InputError(format!(
@@ -441,5 +454,7 @@ pub fn parse_robot_toml(
         ready,
         tool: tool_name,
         joint_names: (1..=n).map(|i| format!("joint{i}")).collect(),
+        limits: JointLimits::default(),
+        inertia: None,
     })
 }
