@@ -454,6 +454,44 @@ fn joint_space_learning_meets_its_numbers_within_the_limits() {
     assert_eq!(s["via_errors_m"].as_array().unwrap().len(), 4);
     assert!(s["cost"].as_f64().unwrap() <= s["warm_start_cost"].as_f64().unwrap());
     assert_eq!(s["limits"]["within"], true);
+    // Every Panda limit at 1 kHz, the same check as `cps-cli limits check` on the file.
+    let u = &s["limit_usage"];
+    assert_eq!(u["rate_hz"], 1000.0);
+    let quantities: Vec<&String> = u["peak_usage"].as_object().unwrap().keys().collect();
+    assert_eq!(
+        quantities,
+        [
+            "position",
+            "velocity",
+            "acceleration",
+            "jerk",
+            "torque",
+            "torque_rate"
+        ]
+    );
+    let checked = common::cli(&[
+        "limits",
+        "check",
+        out.join("trajectory.csv").to_str().unwrap(),
+        "--json",
+    ]);
+    let from_file: serde_json::Value = serde_json::from_slice(&checked.stdout).unwrap();
+    assert_eq!(from_file["ok"], u["ok"]);
+    for q in quantities {
+        for (a, b) in from_file["peak_usage"][q]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(u["peak_usage"][q].as_array().unwrap())
+        {
+            // The file holds 13 decimals of each position; the summary the exact values.
+            assert!(
+                (a.as_f64().unwrap() - b.as_f64().unwrap()).abs()
+                    < 1e-3 * (1.0 + b.as_f64().unwrap()),
+                "{q}"
+            );
+        }
+    }
     let e = &s["execution"];
     assert_eq!(e["within_position_limits"], true);
     assert!(e["max_speed_ratio"].as_f64().unwrap() <= 1.0 + 1e-9);

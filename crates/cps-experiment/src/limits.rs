@@ -148,6 +148,34 @@ pub struct LimitsReport {
     pub duration: f64,
 }
 
+/// Checks a joint trajectory in memory (times and one row of positions each) against a
+/// chain's limits at `rate` Hz, resampled as a file would be.
+pub fn check_samples(
+    chain: &cps_kinematics::SerialChain,
+    limits: &cps_kinematics::JointLimits,
+    inertia: Option<&[cps_kinematics::LinkInertia]>,
+    traj: &JointTrajectory,
+    rate: f64,
+) -> Result<LimitsReport, cps_kinematics::KinematicsError> {
+    let (t0, dt, rows, resampled) = at_rate(traj, rate);
+    let check = check_joint_trajectory(
+        chain,
+        limits,
+        inertia,
+        Vector3::from(cps_kinematics::GRAVITY),
+        t0,
+        dt,
+        &rows,
+    )?;
+    Ok(LimitsReport {
+        check,
+        rate,
+        resampled,
+        commands: rows.len() + 3,
+        duration: traj.times[traj.times.len() - 1] - t0,
+    })
+}
+
 /// Checks a joint trajectory file against `robot`'s limits at `rate` Hz.
 pub fn check_file(path: &Path, robot: &RobotModel, rate: f64) -> Result<LimitsReport, InputError> {
     if !(rate.is_finite() && (1.0..=100_000.0).contains(&rate)) {
@@ -156,24 +184,14 @@ pub fn check_file(path: &Path, robot: &RobotModel, rate: f64) -> Result<LimitsRe
         )));
     }
     let traj = read_joint_trajectory(path, robot.chain.dof())?;
-    let (t0, dt, rows, resampled) = at_rate(&traj, rate);
-    let check = check_joint_trajectory(
+    check_samples(
         &robot.chain,
         &robot.limits,
         robot.inertia.as_deref(),
-        Vector3::from(cps_kinematics::GRAVITY),
-        t0,
-        dt,
-        &rows,
-    )
-    .map_err(|e| InputError(format!("{}: {e}", path.display())))?;
-    Ok(LimitsReport {
-        check,
+        &traj,
         rate,
-        resampled,
-        commands: rows.len() + 3,
-        duration: traj.times[traj.times.len() - 1] - t0,
-    })
+    )
+    .map_err(|e| InputError(format!("{}: {e}", path.display())))
 }
 
 impl LimitsReport {

@@ -181,6 +181,10 @@ pub struct RobotChoice {
     pub backend: BackendChoice,
     /// The scene it came from (for summaries).
     pub scene: String,
+    /// The robot's limits beyond its range and speed (for the limit-usage report).
+    pub limits: cps_kinematics::JointLimits,
+    /// The robot's link inertias, when known (for torques).
+    pub inertia: Option<Vec<cps_kinematics::LinkInertia>>,
 }
 
 impl RobotChoice {
@@ -840,6 +844,8 @@ impl Sections<'_> {
             },
             backend,
             scene: scene_name,
+            limits: scene.robot.limits,
+            inertia: scene.robot.inertia,
         })
     }
 
