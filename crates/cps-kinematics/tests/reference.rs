@@ -1,4 +1,5 @@
-//! Forward kinematics and Jacobians against independent reference data:
+//! Forward kinematics, Jacobians and inverse dynamics against independent references, and
+//! the limit checks. Reference data:
 //! `tests/data/panda_reference.json` (roboticstoolbox-python, cross-checked with pinocchio
 //! to 1e-15): the Panda's flange and Franka Hand TCP in modified DH, the same table read as
 //! standard DH, and a Puma 560 in standard DH.
@@ -725,4 +726,323 @@ fn panda_inverse_dynamics_matches_pinocchio() {
         }
     }
     assert!(worst < 1e-9, "largest torque difference {worst:e} N m");
+}
+
+/// Inverse dynamics against independent formulas (the gradient of the potential energy, the
+/// Lagrangian equations of motion), every derivative by finite differences of FK.
+mod dynamics {
+    use cps_kinematics::robots::{PandaTool, panda, panda_inertia};
+    use cps_kinematics::{GRAVITY, LinkInertia, SerialChain};
+    use nalgebra::{DMatrix, DVector};
+    use nalgebra::{Matrix3, Vector3};
+    use rand::{Rng, SeedableRng};
+
+    /// Centres of mass and link rotations in the world frame, from forward kinematics only.
+    fn coms(
+        chain: &SerialChain,
+        links: &[LinkInertia],
+        q: &[f64],
+    ) -> Vec<(Vector3<f64>, Matrix3<f64>)> {
+        let frames = chain.fk_frames(q).unwrap().link_frames;
+        frames
+            .iter()
+            .zip(links)
+            .map(|(f, l)| {
+                let r = *f.rotation.matrix();
+                (f.translation.vector + r * l.com, r)
+            })
+            .collect()
+    }
+
+    /// The mass matrix from the kinetic energy, `M = Σ m Jvᵀ Jv + Jωᵀ I Jω`, with the
+    /// Jacobians of each centre of mass and link rotation by central differences of forward
+    /// kinematics: independent of the recursion.
+    fn mass_matrix(chain: &SerialChain, links: &[LinkInertia], q: &[f64]) -> DMatrix<f64> {
+        let n = q.len();
+        let h = 1e-6;
+        let base = coms(chain, links, q);
+        let mut m = DMatrix::zeros(n, n);
+        let mut jv = vec![DMatrix::<f64>::zeros(3, n); n];
+        let mut jw = vec![DMatrix::<f64>::zeros(3, n); n];
+        for j in 0..n {
+            let (mut qp, mut qm) = (q.to_vec(), q.to_vec());
+            qp[j] += h;
+            qm[j] -= h;
+            let (p, mi) = (coms(chain, links, &qp), coms(chain, links, &qm));
+            for i in 0..n {
+                let dv = (p[i].0 - mi[i].0) / (2.0 * h);
+                // [ω]× = Ṙ Rᵀ
+                let s = (p[i].1 - mi[i].1) / (2.0 * h) * base[i].1.transpose();
+                let dw = Vector3::new(s[(2, 1)], s[(0, 2)], s[(1, 0)]);
+                jv[i].set_column(j, &dv);
+                jw[i].set_column(j, &dw);
+            }
+        }
+        for i in 0..n {
+            let inertia = base[i].1 * links[i].inertia * base[i].1.transpose();
+            let iw = DMatrix::from_column_slice(3, 3, inertia.as_slice());
+            m += jv[i].transpose() * &jv[i] * links[i].mass + jw[i].transpose() * iw * &jw[i];
+        }
+        m
+    }
+
+    fn random_state(rng: &mut impl Rng, chain: &SerialChain) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let q = chain.random_configuration(rng);
+        let qd = (0..q.len()).map(|_| rng.random_range(-2.0..2.0)).collect();
+        let qdd = (0..q.len()).map(|_| rng.random_range(-5.0..5.0)).collect();
+        (q, qd, qdd)
+    }
+
+    #[test]
+    fn gravity_torques_are_the_gradient_of_the_potential_energy() {
+        let (chain, links) = (panda(PandaTool::Flange), panda_inertia());
+        let g = Vector3::from(GRAVITY);
+        let potential = |q: &[f64]| -> f64 {
+            coms(&chain, &links, q)
+                .iter()
+                .zip(&links)
+                .map(|((c, _), l)| -l.mass * g.dot(c))
+                .sum()
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        for _ in 0..20 {
+            let q = chain.random_configuration(&mut rng);
+            let tau = chain
+                .inverse_dynamics(&links, g, &q, &[0.0; 7], &[0.0; 7])
+                .unwrap();
+            for j in 0..7 {
+                let h = 1e-6;
+                let (mut qp, mut qm) = (q.clone(), q.clone());
+                qp[j] += h;
+                qm[j] -= h;
+                let grad = (potential(&qp) - potential(&qm)) / (2.0 * h);
+                assert!(
+                    (tau[j] - grad).abs() < 1e-7,
+                    "joint {j}: {} vs {grad}",
+                    tau[j]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn the_full_equation_of_motion_matches_the_lagrangian() {
+        // τ = M q̈ + C(q, q̇) q̇ + g(q), with C q̇ = Ṁ q̇ − ½ ∂(q̇ᵀ M q̇)/∂q, M from the kinetic
+        // energy, every derivative by central differences of forward kinematics.
+        let (chain, links) = (panda(PandaTool::Flange), panda_inertia());
+        let g = Vector3::from(GRAVITY);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+        for _ in 0..5 {
+            let (q, qd, qdd) = random_state(&mut rng, &chain);
+            let tau = chain.inverse_dynamics(&links, g, &q, &qd, &qdd).unwrap();
+            let gravity = chain
+                .inverse_dynamics(&links, g, &q, &[0.0; 7], &[0.0; 7])
+                .unwrap();
+            let m = mass_matrix(&chain, &links, &q);
+            let v = DVector::from_column_slice(&qd);
+            let h = 1e-4;
+            let shifted =
+                |s: f64| -> Vec<f64> { q.iter().zip(&qd).map(|(a, b)| a + s * b).collect() };
+            let m_dot = (mass_matrix(&chain, &links, &shifted(h))
+                - mass_matrix(&chain, &links, &shifted(-h)))
+                / (2.0 * h);
+            let mut coriolis = &m_dot * &v;
+            for j in 0..7 {
+                let (mut qp, mut qm) = (q.clone(), q.clone());
+                qp[j] += h;
+                qm[j] -= h;
+                let e = |q: &[f64]| (v.transpose() * mass_matrix(&chain, &links, q) * &v)[(0, 0)];
+                coriolis[j] -= 0.5 * (e(&qp) - e(&qm)) / (2.0 * h);
+            }
+            let expected = &m * DVector::from_column_slice(&qdd)
+                + coriolis
+                + DVector::from_column_slice(&gravity);
+            for j in 0..7 {
+                assert!(
+                    (tau[j] - expected[j]).abs() < 1e-4 * (1.0 + expected[j].abs()),
+                    "joint {j}: {} vs {}",
+                    tau[j],
+                    expected[j]
+                );
+            }
+            // And the mass matrix column by column from the recursion, without gravity.
+            for j in 0..7 {
+                let mut e = [0.0; 7];
+                e[j] = 1.0;
+                let col = chain
+                    .inverse_dynamics(&links, Vector3::zeros(), &q, &[0.0; 7], &e)
+                    .unwrap();
+                for i in 0..7 {
+                    assert!(
+                        (col[i] - m[(i, j)]).abs() < 1e-7,
+                        "M[{i},{j}]: {} vs {}",
+                        col[i],
+                        m[(i, j)]
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn impossible_inertias_and_wrong_lengths_are_refused() {
+        assert!(LinkInertia::new(-1.0, [0.0; 3], [1.0, 0.0, 0.0, 1.0, 0.0, 1.0]).is_err());
+        let e = LinkInertia::new(1.0, [0.0; 3], [1.0, 0.0, 0.0, 1.0, 0.0, 3.0]).unwrap_err();
+        assert!(e.to_string().contains("not a rigid body"), "{e}");
+        let chain = panda(PandaTool::Flange);
+        let e = chain
+            .inverse_dynamics(
+                &panda_inertia()[..6],
+                Vector3::zeros(),
+                &[0.0; 7],
+                &[0.0; 7],
+                &[0.0; 7],
+            )
+            .unwrap_err();
+        assert!(
+            e.to_string().contains("links has 6 entries for 7 joints"),
+            "{e}"
+        );
+    }
+}
+
+/// Checking joint trajectories against the Panda's limits.
+mod limits {
+    use cps_kinematics::robots::{PandaTool, panda, panda_inertia, panda_limits};
+    use cps_kinematics::{GRAVITY, LimitCheck, Quantity, check_joint_trajectory};
+    use nalgebra::Vector3;
+
+    const DT: f64 = 0.001;
+
+    fn check(q: &[Vec<f64>], inertia: bool) -> LimitCheck {
+        let chain = panda(PandaTool::HandTcp);
+        let links = panda_inertia();
+        let (limits, _) = panda_limits();
+        check_joint_trajectory(
+            &chain,
+            &limits,
+            inertia.then_some(links.as_slice()),
+            Vector3::from(GRAVITY),
+            0.0,
+            DT,
+            q,
+        )
+        .unwrap()
+    }
+
+    fn usage(c: &LimitCheck, q: Quantity) -> &[f64] {
+        &c.peak_usage.iter().find(|(k, _)| *k == q).unwrap().1
+    }
+
+    const READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+
+    #[test]
+    fn standing_still_uses_only_the_torque_against_gravity() {
+        let q = vec![READY.to_vec(); 100];
+        let c = check(&q, true);
+        assert!(c.ok(), "{:?}", c.violations);
+        assert!(c.not_checked.is_empty());
+        for quantity in [
+            Quantity::Velocity,
+            Quantity::Acceleration,
+            Quantity::Jerk,
+            Quantity::TorqueRate,
+        ] {
+            assert!(
+                usage(&c, quantity).iter().all(|u| *u == 0.0),
+                "{quantity:?}"
+            );
+        }
+        let chain = panda(PandaTool::HandTcp);
+        let g = chain
+            .inverse_dynamics(
+                &panda_inertia(),
+                Vector3::from(GRAVITY),
+                &READY,
+                &[0.0; 7],
+                &[0.0; 7],
+            )
+            .unwrap();
+        let torque = usage(&c, Quantity::Torque);
+        for (j, limit) in [87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0]
+            .iter()
+            .enumerate()
+        {
+            assert!((torque[j] - 100.0 * g[j].abs() / limit).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn a_sine_uses_its_analytic_peaks_and_a_fast_one_violates_them() {
+        // Joint 1 follows A sin(w t): its peak speed A w shows as the velocity usage, and the
+        // jump from rest to A w at the first command as an acceleration of A w / dt.
+        let (amp, w) = (0.2, 5.0);
+        let q: Vec<Vec<f64>> = (0..=2513)
+            .map(|k| {
+                let mut r = READY.to_vec();
+                r[0] = amp * (w * k as f64 * DT).sin();
+                r
+            })
+            .collect();
+        let c = check(&q, false);
+        let vel = usage(&c, Quantity::Velocity)[0];
+        assert!((vel - 100.0 * amp * w / 2.175).abs() < 0.05, "{vel}");
+        // Starting at A w from rest is an acceleration step of A w / dt = 1000 rad/s².
+        assert!(
+            c.violations
+                .iter()
+                .any(|v| v.joint == 1 && v.quantity == Quantity::Acceleration && v.time == 0.001)
+        );
+        assert_eq!(
+            c.not_checked.iter().map(|(q, _)| *q).collect::<Vec<_>>(),
+            vec![Quantity::Torque, Quantity::TorqueRate]
+        );
+        assert!(c.not_checked[0].1.contains("inertias are not known"));
+    }
+
+    #[test]
+    fn a_ramp_past_the_speed_limit_is_one_violation_per_run() {
+        // Joint 5 accelerates at 12 rad/s² (its limit is 15) up to 2.7 rad/s (its speed
+        // limit is 2.61) and keeps going: one velocity run, reported at its worst sample.
+        let mut q = Vec::new();
+        let (mut x, mut v) = (0.0, 0.0);
+        for _ in 0..600 {
+            v = (v + 12.0 * DT).min(2.7);
+            x += v * DT;
+            let mut r = READY.to_vec();
+            r[4] = x;
+            q.push(r);
+        }
+        let c = check(&q, true);
+        let speed: Vec<_> = c
+            .violations
+            .iter()
+            .filter(|v| v.quantity == Quantity::Velocity)
+            .collect();
+        assert_eq!(speed.len(), 1, "{speed:?}");
+        assert_eq!(speed[0].joint, 5);
+        assert!((speed[0].value - 2.7).abs() < 1e-9 && speed[0].limit == 2.61);
+        // Stopping from 2.7 rad/s within one period afterwards breaks acceleration and jerk.
+        assert!(
+            c.violations
+                .iter()
+                .any(|v| v.quantity == Quantity::Acceleration && v.joint == 5)
+        );
+        assert!(!c.ok());
+    }
+
+    #[test]
+    fn positions_beyond_the_range_name_the_bound() {
+        let mut q = vec![READY.to_vec(); 10];
+        q[5][3] = -0.05; // joint 4's upper bound is -0.0698
+        let c = check(&q, false);
+        let v = c
+            .violations
+            .iter()
+            .find(|v| v.quantity == Quantity::Position)
+            .unwrap();
+        assert_eq!((v.joint, v.value, v.limit), (4, -0.05, -0.0698));
+        assert!((v.time - 0.005).abs() < 1e-12);
+        assert!(usage(&c, Quantity::Position)[3] > 100.0);
+    }
 }
