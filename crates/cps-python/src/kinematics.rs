@@ -9,8 +9,11 @@ use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use rayon::prelude::*;
 
-use crate::arrays::{array1, array2, floats, shape_text, vector};
+use cps_experiment::limits::{JointTrajectory, check_samples};
+
+use crate::arrays::{array1, array2, floats, matrix, shape_text, vector};
 use crate::errors::{IntoPyErr, PyResultExt, failure, value_error};
+use crate::experiment::json_to_py;
 use crate::interrupt::run;
 
 /// Lower and upper joint limits.
@@ -305,6 +308,125 @@ impl Robot {
         } else {
             Ok(array1(py, out).into_any())
         }
+    }
+
+    /// Joint torques (N m) of inverse dynamics (recursive Newton–Euler) at positions `q`,
+    /// velocities `qd` and accelerations `qdd`, each (dof,) or (m, dof); gravity
+    /// (0, 0, −9.81) m/s² unless given. Needs the robot's link inertias (the built-in
+    /// Panda: Gaz et al. 2019); raises `ValueError` for a robot without them.
+    #[pyo3(signature = (q, qd, qdd, *, gravity=None))]
+    fn inverse_dynamics<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        qdd: &Bound<'py, PyAny>,
+        gravity: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let Some(links) = &self.model.inertia else {
+            return Err(value_error(format!(
+                "{}: the robot's link inertias are not known, so its dynamics cannot be computed",
+                self.model.name
+            )));
+        };
+        let (q, m, batched) = self.configurations(q)?;
+        let n = self.dof();
+        let rows = |a: &Bound<'py, PyAny>, name: &str| -> PyResult<Vec<f64>> {
+            let f = floats(a, name)?;
+            if f.values().len() != m * n {
+                return Err(value_error(format!(
+                    "{name}: expected the shape of q ({}), got {}",
+                    if batched {
+                        format!("({m}, {n})")
+                    } else {
+                        format!("({n},)")
+                    },
+                    shape_text(f.shape())
+                )));
+            }
+            Ok(f.values().to_vec())
+        };
+        let (qd, qdd) = (rows(qd, "qd")?, rows(qdd, "qdd")?);
+        let g = match gravity {
+            Some(g) if !g.is_none() => {
+                nalgebra::Vector3::from_column_slice(&vector(g, "gravity", Some(3))?)
+            }
+            _ => nalgebra::Vector3::from(cps_kinematics::GRAVITY),
+        };
+        let chain = &self.model.chain;
+        let out = py
+            .detach(|| -> Result<Vec<f64>, cps_kinematics::KinematicsError> {
+                let mut out = Vec::with_capacity(m * n);
+                for k in 0..m {
+                    let s = k * n..(k + 1) * n;
+                    out.extend(chain.inverse_dynamics(
+                        links,
+                        g,
+                        &q[s.clone()],
+                        &qd[s.clone()],
+                        &qdd[s],
+                    )?);
+                }
+                Ok(out)
+            })
+            .py()?;
+        if batched {
+            Ok(array2(py, out, m, n)?.into_any())
+        } else {
+            Ok(array1(py, out).into_any())
+        }
+    }
+
+    /// Checks a joint trajectory (`t` (samples,), `q` (samples, dof)) against every limit of
+    /// the robot as its controller sees it at `rate` Hz — what `cps-cli limits check`
+    /// prints as JSON: `{"ok", "peak_usage", "violations", "not_checked", …}`.
+    #[pyo3(signature = (t, q, *, rate=1000.0))]
+    fn check_limits<'py>(
+        &self,
+        py: Python<'py>,
+        t: &Bound<'py, PyAny>,
+        q: &Bound<'py, PyAny>,
+        rate: f64,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let times = vector(t, "t", None)?;
+        let m = matrix(q, "q", Some(self.dof()), false)?;
+        if m.rows != times.len() || times.len() < 2 {
+            return Err(value_error(format!(
+                "q: {} rows for {} time stamps (at least 2 needed)",
+                m.rows,
+                times.len()
+            )));
+        }
+        if let Some(k) = times.windows(2).position(|w| w[1] <= w[0]) {
+            return Err(value_error(format!(
+                "t: time stamps must increase strictly: t[{}] = {} follows {}",
+                k + 1,
+                times[k + 1],
+                times[k]
+            )));
+        }
+        if !(rate.is_finite() && (1.0..=100_000.0).contains(&rate)) {
+            return Err(value_error(format!(
+                "rate: give the control rate in Hz, between 1 and 100000 (got {rate})"
+            )));
+        }
+        let traj = JointTrajectory {
+            names: self.model.joint_names.clone(),
+            times,
+            q: m.rows_vec(),
+        };
+        let report = py
+            .detach(|| {
+                check_samples(
+                    &self.model.chain,
+                    &self.model.limits,
+                    self.model.inertia.as_deref(),
+                    &traj,
+                    rate,
+                )
+            })
+            .py()?;
+        json_to_py(py, &report.json())
     }
 
     /// The robot in words: its kinematic description, limits, base and tool.

@@ -1,0 +1,82 @@
+"""Inverse dynamics and limit checks from Python: the Panda's torques against pinocchio's
+RNEA (installed in the test venv) on random states, and check_limits equal to
+`cps-cli limits check` on the same trajectory."""
+
+import importlib.util
+import json
+import os
+
+import numpy as np
+import pytest
+
+import cps
+from conftest import ROOT
+
+GENERATOR = ROOT / "crates" / "cps-kinematics" / "tests" / "data" / "make_panda_rnea.py"
+
+
+def pinocchio_model():
+    try:
+        import pinocchio
+    except ImportError:
+        if os.environ.get("CI"):
+            pytest.fail("pinocchio (PyPI: pin) is not installed in the test environment")
+        pytest.skip("pinocchio is not installed")
+    # The URDF written from Franka's published MDH table and Gaz et al.'s tables, by the
+    # script that made the Rust test's reference data.
+    spec = importlib.util.spec_from_file_location("make_panda_rnea", GENERATOR)
+    gen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gen)
+    model = pinocchio.buildModelFromXML(gen.urdf())
+    return pinocchio, model, model.createData()
+
+
+def test_panda_torques_match_pinocchio_on_random_states():
+    pin, model, data = pinocchio_model()
+    panda = cps.Robot("panda")
+    lo, hi = panda.limits
+    rng = np.random.default_rng(11)
+    q = rng.uniform(lo, hi, size=(200, 7))
+    qd = rng.uniform(-2.175, 2.175, size=(200, 7))
+    qdd = rng.uniform(-15.0, 15.0, size=(200, 7))
+    tau = panda.inverse_dynamics(q, qd, qdd)
+    assert tau.shape == (200, 7)
+    reference = np.array([pin.rnea(model, data, *state) for state in zip(q, qd, qdd)])
+    assert np.abs(tau - reference).max() < 1e-9
+    # One state at a time, and gravity alone.
+    np.testing.assert_array_equal(panda.inverse_dynamics(q[0], qd[0], qdd[0]), tau[0])
+    g = panda.inverse_dynamics(q[1], np.zeros(7), np.zeros(7))
+    np.testing.assert_allclose(g, pin.computeGeneralizedGravity(model, data, q[1]), atol=1e-9)
+    zero_g = panda.inverse_dynamics(q[1], np.zeros(7), np.zeros(7), gravity=[0, 0, 0])
+    assert np.abs(zero_g).max() == 0.0
+
+
+def test_check_limits_equals_the_command_line(tmp_path, cli):
+    panda = cps.Robot("panda")
+    t = np.linspace(0.0, 1.0, 101)
+    x = t * t * (3 - 2 * t)
+    q = np.tile(panda.ready, (101, 1))
+    q[:, 0] = 2.5 * x  # 3.75 rad/s at mid-way: beyond joint 1's 2.175
+    mine = panda.check_limits(t, q)
+    path = tmp_path / "fast.csv"
+    np.savetxt(path, np.column_stack([t, q]), delimiter=",", comments="", fmt="%.17g",
+               header="t,q1,q2,q3,q4,q5,q6,q7")
+    out = cli("limits", "check", path, "--robot", "panda", "--json", check=False)
+    assert out.returncode == 1
+    assert mine == json.loads(out.stdout)
+    assert mine["ok"] is False
+    assert any(v["quantity"] == "velocity" and v["joint"] == 1 for v in mine["violations"])
+
+
+def test_robots_without_data_say_what_they_lack():
+    ur3 = cps.Robot("ur3")
+    with pytest.raises(ValueError, match="link inertias are not known"):
+        ur3.inverse_dynamics(np.zeros(6), np.zeros(6), np.zeros(6))
+    report = ur3.check_limits([0.0, 0.5, 1.0], np.zeros((3, 6)))
+    assert report["ok"] is True
+    assert "torque" in report["not_checked"] and "velocity" in report["peak_usage"]
+    panda = cps.Robot("panda")
+    with pytest.raises(ValueError, match="qd: expected the shape of q"):
+        panda.inverse_dynamics(np.zeros(7), np.zeros(6), np.zeros(7))
+    with pytest.raises(ValueError, match="time stamps must increase"):
+        panda.check_limits([0.0, 0.0, 1.0], np.zeros((3, 7)))
