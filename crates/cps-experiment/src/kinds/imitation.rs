@@ -7,7 +7,7 @@ use cps_learn::{ImitationConfig, ImitationOutcome, ImitationStage, ViaPoint};
 use serde::Serialize;
 
 use super::{Ctx, learn_error};
-use super::{marks, position_figures, solver_name};
+use super::{limit_usage, marks, position_figures, solver_name, usage_line};
 use crate::ExperimentError;
 use crate::observer::Event;
 use crate::outcome::{
@@ -95,6 +95,9 @@ struct FitSummary {
     integrated_squared_jerk_m2_s5: f64,
     condition_number: f64,
     tracking: Option<Tracking>,
+    /// Every limit of the robot on the executed movement (its recorded joint positions)
+    /// at the controller's 1 kHz: `cps-cli limits check`'s JSON.
+    limit_usage: Option<serde_json::Value>,
     model: String,
 }
 
@@ -134,6 +137,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     let o = &outcome;
     let mut documents = Vec::new();
     let mut fits = Vec::new();
+    let mut usage_lines = Vec::new();
     for f in &o.fits {
         let name = format!("model_{}.json", f.method);
         let axes = vec!["x".to_string(), "y".to_string(), "z".to_string()];
@@ -142,6 +146,17 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
             text: DmpModel::new(&f.imitation.dmp, &f.imitation.weights, axes).to_json(),
         });
         let r = &f.imitation.report;
+        let usage = match &f.recording {
+            Some(rec) => Some(limit_usage(robot, &rec.time, rec.q.clone())?),
+            None => None,
+        };
+        if let Some(u) = &usage {
+            usage_lines.push(format!(
+                "  imitation by {}, executed: {}",
+                f.method.replace('_', " "),
+                usage_line(u)
+            ));
+        }
         fits.push(FitSummary {
             method: f.method,
             basis_functions: f.imitation.dmp.n_basis(),
@@ -153,6 +168,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
             integrated_squared_jerk_m2_s5: f.integrated_squared_jerk(),
             condition_number: r.condition_number,
             tracking: f.recording.as_ref().map(Tracking::of),
+            limit_usage: usage.as_ref().map(crate::limits::LimitsReport::json),
             model: name,
         });
     }
@@ -210,7 +226,10 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         tables: vec![recordings(o)],
         figures: figures(o, &exp.config.task),
         documents,
-        lines: lines(ctx, o, &robot.describe()),
+        lines: lines(ctx, o, &robot.describe())
+            .into_iter()
+            .chain(usage_lines)
+            .collect(),
     })
 }
 

@@ -10,18 +10,14 @@ use serde::Serialize;
 
 use super::{Ctx, learn_error};
 use super::{
-    cost_figure, history_table, marks, position_figures, search_figure, search_row, way_points,
-    worst,
+    cost_figure, history_table, limit_usage, marks, position_figures, search_figure, search_row,
+    usage_line, way_points, worst,
 };
-use crate::limits::{JointTrajectory, check_samples};
 use crate::outcome::{
     Column, CostArm, Figure, Format, Outcome, Panels, Plot, Report, ReportTable, Series, Table,
     fields,
 };
 use crate::{Context, ExperimentError};
-
-/// The rate at which a robot's controller receives the learned movement (Franka's 1 kHz).
-const CONTROL_RATE: f64 = 1000.0;
 
 #[derive(Serialize)]
 struct Summary<'a> {
@@ -145,21 +141,13 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     }
     // The learned movement as its controller will see it, against every limit.
     let traj = &outcome.trajectory;
-    let joints = JointTrajectory {
-        names: (1..=traj.dims()).map(|j| format!("q{j}")).collect(),
-        times: traj.times().to_vec(),
-        q: (0..traj.n_samples())
+    let usage = limit_usage(
+        robot,
+        traj.times(),
+        (0..traj.n_samples())
             .map(|k| (0..traj.dims()).map(|j| traj.position(j)[k]).collect())
             .collect(),
-    };
-    let usage = check_samples(
-        &robot.setup.chain,
-        &robot.limits,
-        robot.inertia.as_deref(),
-        &joints,
-        CONTROL_RATE,
-    )
-    .context_with(|| "checking the learned movement against the robot's limits".into())?;
+    )?;
     let summary = Summary {
         backend: robot.describe(),
         scene: &robot.scene,
@@ -259,28 +247,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
             outcome.limits.max_speed_ratio * 100.0
         ),
     ];
-    lines.push(format!(
-        "  every limit at {CONTROL_RATE} Hz ({}): {}",
-        usage
-            .check
-            .peak_usage
-            .iter()
-            .map(|(q, u)| format!(
-                "{} {:.0} %",
-                q.name(),
-                u.iter().fold(0.0_f64, |a, &b| a.max(b))
-            ))
-            .collect::<Vec<_>>()
-            .join(", "),
-        if usage.check.ok() {
-            "within every one".to_string()
-        } else {
-            format!(
-                "{} VIOLATION(S), see summary.json `limit_usage`",
-                usage.check.violations.len()
-            )
-        }
-    ));
+    lines.push(format!("  {}", usage_line(&usage)));
     if let Some(e) = &summary.execution {
         lines.push(format!(
             "  executed: {} samples, tool within {:.3e} m of the model, {}",

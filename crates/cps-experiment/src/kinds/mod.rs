@@ -460,6 +460,65 @@ pub(crate) fn derivative_figure(traj: &cps_dmp::Trajectory, acceleration: bool) 
 }
 
 /// The largest of a list (0 for none).
+/// The rate at which a robot's controller receives a movement (Franka's 1 kHz).
+pub(crate) const CONTROL_RATE: f64 = 1000.0;
+
+/// Every limit of the experiment's robot on a joint trajectory (times and one row of
+/// positions each), as its controller would see it at [`CONTROL_RATE`]: the JSON of
+/// `cps-cli limits check`.
+pub(crate) fn limit_usage(
+    robot: &crate::plan::RobotChoice,
+    times: &[f64],
+    q: Vec<Vec<f64>>,
+) -> Result<crate::limits::LimitsReport, ExperimentError> {
+    let traj = crate::limits::JointTrajectory {
+        names: (1..=robot.setup.chain.dof())
+            .map(|j| format!("q{j}"))
+            .collect(),
+        times: times.to_vec(),
+        q,
+    };
+    crate::limits::check_samples(
+        &robot.setup.chain,
+        &robot.limits,
+        robot.inertia.as_deref(),
+        &traj,
+        CONTROL_RATE,
+    )
+    .map_err(|e| ExperimentError::Failed {
+        context: "checking the movement against the robot's limits".into(),
+        source: Box::new(e),
+    })
+}
+
+/// A report's peak usages in one line: `position 100 %, velocity 25 %, …`, and the verdict.
+pub(crate) fn usage_line(report: &crate::limits::LimitsReport) -> String {
+    let peaks: Vec<String> = report
+        .check
+        .peak_usage
+        .iter()
+        .map(|(q, u)| {
+            format!(
+                "{} {:.0} %",
+                q.name(),
+                u.iter().fold(0.0_f64, |a, &b| a.max(b))
+            )
+        })
+        .collect();
+    format!(
+        "every limit at {CONTROL_RATE} Hz ({}): {}",
+        peaks.join(", "),
+        if report.check.ok() {
+            "within every one".to_string()
+        } else {
+            format!(
+                "{} VIOLATION(S), see summary.json `limit_usage`",
+                report.check.violations.len()
+            )
+        }
+    )
+}
+
 pub(crate) fn worst(v: &[f64]) -> f64 {
     v.iter().fold(0.0f64, |a, &b| a.max(b))
 }
