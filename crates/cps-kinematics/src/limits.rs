@@ -301,11 +301,14 @@ pub fn check_joint_trajectory(
                     }
                 };
                 usage[joint] = usage[joint].max(use_pct);
-                if excess > 0.0 {
-                    if run.is_none_or(|r| excess > r.0) {
-                        run = Some((excess, k, x, bound));
-                    }
-                } else if let Some((_, k0, value, limit)) = run.take() {
+                let ends = k + 1 == values.len();
+                if excess > 0.0 && run.is_none_or(|r| excess > r.0) {
+                    run = Some((excess, k, x, bound));
+                }
+                // A run ends at the first sample back within the limit, or with the samples.
+                if (excess <= 0.0 || ends)
+                    && let Some((_, k0, value, limit)) = run.take()
+                {
                     violations.push(Violation {
                         joint: joint + 1,
                         quantity: *quantity,
@@ -314,15 +317,6 @@ pub fn check_joint_trajectory(
                         limit,
                     });
                 }
-            }
-            if let Some((_, k0, value, limit)) = run {
-                violations.push(Violation {
-                    joint: joint + 1,
-                    quantity: *quantity,
-                    time: t0 + k0 as f64 * dt,
-                    value,
-                    limit,
-                });
             }
         }
         peak_usage.push((*quantity, usage));
