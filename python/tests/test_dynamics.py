@@ -80,3 +80,20 @@ def test_robots_without_data_say_what_they_lack():
         panda.inverse_dynamics(np.zeros(7), np.zeros(6), np.zeros(7))
     with pytest.raises(ValueError, match="time stamps must increase"):
         panda.check_limits([0.0, 0.0, 1.0], np.zeros((3, 7)))
+
+
+def test_the_panda_robot_file_carries_the_same_limits_and_inertias():
+    built_in = cps.Robot("panda")
+    from_file = cps.Robot(str(ROOT / "configs" / "robots" / "panda.toml"))
+    rng = np.random.default_rng(5)
+    q, qd, qdd = (rng.uniform(-1, 1, size=(20, 7)) for _ in range(3))
+    q[:, 3] = -1.5  # joint 4 inside its range
+    np.testing.assert_allclose(from_file.inverse_dynamics(q, qd, qdd),
+                               built_in.inverse_dynamics(q, qd, qdd), rtol=0, atol=1e-12)
+    t = np.linspace(0.0, 2.0, 201)
+    path = np.tile(built_in.ready, (201, 1))
+    path[:, 1] += 0.3 * np.sin(np.pi * t / 2) ** 2
+    a, b = built_in.check_limits(t, path), from_file.check_limits(t, path)
+    assert a["ok"] == b["ok"] and a["peak_usage"].keys() == b["peak_usage"].keys()
+    for k in a["peak_usage"]:
+        np.testing.assert_allclose(a["peak_usage"][k], b["peak_usage"][k], rtol=1e-12, atol=1e-9)

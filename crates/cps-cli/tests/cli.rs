@@ -1265,3 +1265,59 @@ fn limits_check_reports_usage_and_violations_with_its_exit_codes() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--rate 0"));
 }
+
+/// Robot files carry limits and inertias for every joint or for none; a tensor no rigid
+/// body has is refused, naming the joint and the place.
+#[test]
+fn robot_file_limits_and_inertias_are_all_or_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let panda = std::fs::read_to_string(repo("configs/robots/panda.toml")).unwrap();
+    let traj = write(
+        dir.path(),
+        "t.csv",
+        "t,q1,q2,q3,q4,q5,q6,q7\n0,0,0,0,-1,0,1,0\n0.5,0,0,0,-1,0,1,0\n1,0,0,0,-1,0,1,0\n",
+    );
+    let cases = [
+        (
+            panda.replacen("tau_max = 12.0\n", "", 1),
+            "give `tau_max` for every joint or for none",
+        ),
+        (
+            panda.replacen("mass = 0.646926\n", "", 1),
+            "joint 2: give `mass`, `com` and `inertia` together",
+        ),
+        (
+            panda.replacen("inertia = [0.70337,", "inertia = [0.01,", 1),
+            "joint 1: invalid robot model: link inertia has principal moments",
+        ),
+    ];
+    for (i, (text, message)) in cases.iter().enumerate() {
+        let robot = write(dir.path(), &format!("bad{i}.toml"), text);
+        let o = cli(&[
+            "limits",
+            "check",
+            traj.to_str().unwrap(),
+            "--robot",
+            robot.to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains(message), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains(&format!("bad{i}.toml:")),
+            "{}",
+            stderr(&o)
+        );
+    }
+    let good = write(dir.path(), "good.toml", &panda);
+    let o = cli(&[
+        "limits",
+        "check",
+        traj.to_str().unwrap(),
+        "--robot",
+        good.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["not_checked"].as_object().unwrap().is_empty(), "{v}");
+}

@@ -196,6 +196,19 @@ struct Joint {
     q_min: f64,
     q_max: f64,
     dq_max: Option<f64>,
+    /// Acceleration limit, rad/s².
+    ddq_max: Option<f64>,
+    /// Jerk limit, rad/s³.
+    dddq_max: Option<f64>,
+    /// Torque limit, N m.
+    tau_max: Option<f64>,
+    /// Torque-rate limit, N m/s.
+    dtau_max: Option<f64>,
+    /// The link's mass (kg), centre of mass in its frame (m) and inertia about it
+    /// `[xx, xy, xz, yy, yz, zz]` (kg m²): all three or none.
+    mass: Option<f64>,
+    com: Option<[f64; 3]>,
+    inertia: Option<[f64; 6]>,
 }
 
 /// A rigid transform in a robot or scene file.
@@ -358,6 +371,7 @@ pub fn parse_robot_toml(
     }
     let mut links = Vec::new();
     let (mut lo, mut hi, mut dq) = (Vec::new(), Vec::new(), Vec::new());
+    let mut inertias = Vec::new();
     for (i, j) in joints.iter().enumerate() {
         let v = j.get_ref();
         let bad = |m: String| err(j.span(), format!("joint {}: {m}", i + 1));
@@ -384,7 +398,51 @@ pub fn parse_robot_toml(
         lo.push(v.q_min);
         hi.push(v.q_max);
         dq.push(v.dq_max);
+        inertias.push(match (v.mass, v.com, v.inertia) {
+            (None, None, None) => None,
+            (Some(m), Some(c), Some(t)) => {
+                Some(LinkInertia::new(m, c, t).map_err(|e| bad(format!("{e}")))?)
+            }
+            _ => {
+                return Err(bad(
+                    "give `mass`, `com` and `inertia` together, or none of them".into(),
+                ));
+            }
+        });
     }
+    // Every joint or none: a limit or an inertia given for some joints only is an error.
+    let all_or_none = |what: &str, given: usize| -> Result<bool, InputError> {
+        match given {
+            0 => Ok(false),
+            n if n == joints.len() => Ok(true),
+            _ => Err(err(
+                file.joint.span(),
+                format!("give {what} for every joint or for none"),
+            )),
+        }
+    };
+    let per_joint =
+        |what: &str, f: fn(&Joint) -> Option<f64>| -> Result<Option<Vec<f64>>, InputError> {
+            let values: Vec<Option<f64>> = joints.iter().map(|j| f(j.get_ref())).collect();
+            Ok(
+                all_or_none(&format!("`{what}`"), values.iter().flatten().count())?
+                    .then(|| values.into_iter().flatten().collect()),
+            )
+        };
+    let limits = JointLimits {
+        acceleration: per_joint("ddq_max", |j| j.ddq_max)?,
+        jerk: per_joint("dddq_max", |j| j.dddq_max)?,
+        torque: per_joint("tau_max", |j| j.tau_max)?,
+        torque_rate: per_joint("dtau_max", |j| j.dtau_max)?,
+    };
+    limits
+        .validate(joints.len())
+        .map_err(|e| err(file.joint.span(), e.to_string()))?;
+    let inertia = all_or_none(
+        "`mass`, `com` and `inertia`",
+        inertias.iter().flatten().count(),
+    )?
+    .then(|| inertias.into_iter().flatten().collect());
     let whole = 0..text.len();
     let in_file = |e: cps_kinematics::KinematicsError| err(whole.clone(), e.to_string());
     let mut chain = SerialChain::new(convention, links)
@@ -454,7 +512,7 @@ pub fn parse_robot_toml(
         ready,
         tool: tool_name,
         joint_names: (1..=n).map(|i| format!("joint{i}")).collect(),
-        limits: JointLimits::default(),
-        inertia: None,
+        limits,
+        inertia,
     })
 }
