@@ -515,7 +515,7 @@ fn bad_robot_files_exit_2_naming_the_place() {
     let dir = tempfile::tempdir().unwrap();
     let good = std::fs::read_to_string(repo("configs/robots/panda.toml")).unwrap();
     let no_limit = good.replacen("q_max = 2.8973\n", "", 1);
-    let unknown = good.replacen("dq_max = 2.175\n", "dq_max = 2.175\nmass = 3.0\n", 1);
+    let unknown = good.replacen("dq_max = 2.175\n", "dq_max = 2.175\ndamping = 3.0\n", 1);
     let inverted = good.replacen("q_min = -1.7628", "q_min = 1.9", 1);
     let some_speeds = good.replacen("dq_max = 2.61\n", "", 1);
     let prismatic = std::fs::read_to_string(repo("configs/robots/panda.urdf"))
@@ -526,7 +526,7 @@ fn bad_robot_files_exit_2_naming_the_place() {
         );
     for (name, text, expect) in [
         ("no_limit.toml", no_limit.as_str(), "missing field `q_max`"),
-        ("unknown.toml", unknown.as_str(), "unknown field `mass`"),
+        ("unknown.toml", unknown.as_str(), "unknown field `damping`"),
         (
             "inverted.toml",
             inverted.as_str(),
