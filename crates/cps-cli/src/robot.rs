@@ -4,11 +4,8 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
-use cps_kinematics::{IkConfig, KinematicsError, solve_ik};
-use nalgebra::UnitQuaternion;
-
 use cps_experiment::InputError;
-use cps_experiment::robot_file::{RobotModel, ik_target, load_robot};
+use cps_experiment::robot_file::{Answer, RobotModel, joint_solution, load_robot, tool_pose};
 
 /// Which robot and tool point a kinematics command works on.
 #[derive(Args, Debug)]
@@ -91,102 +88,35 @@ pub enum RobotCommand {
     },
 }
 
-fn kin(e: KinematicsError) -> anyhow::Error {
-    InputError(e.to_string()).into()
+/// Prints an answer as JSON or as its lines.
+fn print(answer: &Answer, json: bool) -> Result<ExitCode> {
+    if json {
+        say!("{}", serde_json::to_string_pretty(&answer.json)?);
+    } else {
+        for line in &answer.lines {
+            say!("{line}");
+        }
+    }
+    Ok(ExitCode::SUCCESS)
 }
 
 /// `cps-cli fk`.
 pub fn fk(args: &FkArgs) -> Result<ExitCode> {
-    let arm = args.arm.load()?.chain;
-    if let Some((j, v)) = args
-        .q
-        .iter()
-        .enumerate()
-        .find(|(_, v)| v.abs() > MAX_JOINT_VALUE)
-    {
-        return Err(InputError(format!(
-            "--q: joint {} is {v:?}; joint values must be at most {MAX_JOINT_VALUE} in magnitude",
-            j + 1
-        ))
-        .into());
-    }
-    if args.within_limits {
-        arm.check_within_limits(&args.q)
-            .map_err(|e| InputError(format!("--q: {e}")))?;
-    }
-    let t = arm.fk_matrix(&args.q).map_err(kin)?;
-    let pose = arm.fk(&args.q).map_err(kin)?;
-    let q = UnitQuaternion::from_rotation_matrix(&pose.rotation);
-    let p = pose.translation.vector;
-    if args.arm.json {
-        let rows: Vec<Vec<f64>> = (0..4)
-            .map(|r| (0..4).map(|c| t[(r, c)]).collect())
-            .collect();
-        let out = serde_json::json!({
-            "robot": args.arm.robot,
-            "q": args.q,
-            "T": rows,
-            "position": [p.x, p.y, p.z],
-            "quaternion_xyzw": [q.i, q.j, q.k, q.w],
-        });
-        say!("{}", serde_json::to_string_pretty(&out)?);
-    } else {
-        say!("tool pose of {} (world frame, metres):", args.arm.robot);
-        for r in 0..4 {
-            say!(
-                "  [{:>10.6} {:>10.6} {:>10.6} {:>10.6}]",
-                t[(r, 0)],
-                t[(r, 1)],
-                t[(r, 2)],
-                t[(r, 3)]
-            );
-        }
-        say!("position   {:.6} {:.6} {:.6}", p.x, p.y, p.z);
-        say!(
-            "quaternion {:.6} {:.6} {:.6} {:.6} (x y z w)",
-            q.i,
-            q.j,
-            q.k,
-            q.w
-        );
-    }
-    Ok(ExitCode::SUCCESS)
+    let model = args.arm.load()?;
+    let answer = tool_pose(&model, &args.arm.robot, &args.q, args.within_limits)?;
+    print(&answer, args.arm.json)
 }
-
-/// The largest joint value accepted (radians or metres): beyond it the angle means nothing.
-const MAX_JOINT_VALUE: f64 = 1000.0;
 
 /// `cps-cli ik`.
 pub fn ik(args: &IkArgs) -> Result<ExitCode> {
     let model = args.arm.load()?;
-    let arm = &model.chain;
-    let target = ik_target(&args.target)?;
-    let seed = args.seed_q.clone().unwrap_or_else(|| model.ready.clone());
-    arm.check_within_limits(&seed)
-        .map_err(|e| InputError(format!("--seed-q: {e}")))?;
-    let sol = solve_ik(arm, &target, &seed, &IkConfig::default()).map_err(kin)?;
-    if args.arm.json {
-        let out = serde_json::json!({
-            "robot": args.arm.robot,
-            "q": sol.q,
-            "position_error": sol.position_error,
-            "rotation_error": sol.rotation_error,
-            "iterations": sol.iterations,
-            "restarts": sol.restarts,
-        });
-        say!("{}", serde_json::to_string_pretty(&out)?);
-    } else {
-        let q: Vec<String> = sol.q.iter().map(|v| format!("{v:.6}")).collect();
-        say!("q = [{}] rad", q.join(", "));
-        say!(
-            "position error {:.3e} m, rotation error {:.3e} rad, {} iterations, {} restarts",
-            sol.position_error,
-            sol.rotation_error,
-            sol.iterations,
-            sol.restarts
-        );
-    }
-    Ok(ExitCode::SUCCESS)
+    let answer = joint_solution(
+        &model,
+        &args.arm.robot,
+        &args.target,
+        args.seed_q.as_deref(),
+    )?;
+    print(&answer, args.arm.json)
 }
 
 /// `cps-cli limits ...`.
@@ -212,14 +142,13 @@ pub enum LimitsCommand {
 pub fn limits(cmd: &LimitsCommand) -> Result<ExitCode> {
     let LimitsCommand::Check { file, arm, rate } = cmd;
     let report = cps_experiment::limits::check_file(file, &arm.load()?, *rate)?;
-    if arm.json {
-        say!("{}", serde_json::to_string_pretty(&report.json())?);
-    } else {
-        say!("{} on {}:", file.display(), arm.robot);
-        for line in report.lines() {
-            say!("{line}");
-        }
-    }
+    let mut lines = vec![format!("{} on {}:", file.display(), arm.robot)];
+    lines.extend(report.lines());
+    let answer = Answer {
+        json: report.json(),
+        lines,
+    };
+    print(&answer, arm.json)?;
     Ok(if report.check.ok() {
         ExitCode::SUCCESS
     } else {

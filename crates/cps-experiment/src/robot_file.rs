@@ -163,6 +163,111 @@ pub fn ik_target(values: &[f64]) -> Result<IkTarget, InputError> {
     }
 }
 
+/// The largest joint value accepted (radians or metres): beyond it the angle means nothing.
+pub const MAX_JOINT_VALUE: f64 = 1000.0;
+
+/// A result of the kinematics commands: its JSON (`--json`) and its words.
+#[derive(Debug, Clone)]
+pub struct Answer {
+    /// What `--json` prints.
+    pub json: serde_json::Value,
+    /// What the command prints otherwise, a line each.
+    pub lines: Vec<String>,
+}
+
+/// The tool pose of `model` (named `robot` as the user gave it) at `q` (`cps-cli fk`): JSON
+/// `{"robot", "q", "T", "position", "quaternion_xyzw"}`. `within_limits` refuses joint values
+/// outside the limits.
+pub fn tool_pose(
+    model: &RobotModel,
+    robot: &str,
+    q: &[f64],
+    within_limits: bool,
+) -> Result<Answer, InputError> {
+    let arm = &model.chain;
+    if let Some((j, v)) = q
+        .iter()
+        .enumerate()
+        .find(|(_, v)| v.abs() > MAX_JOINT_VALUE)
+    {
+        return Err(InputError(format!(
+            "--q: joint {} is {v:?}; joint values must be at most {MAX_JOINT_VALUE} in magnitude",
+            j + 1
+        )));
+    }
+    if within_limits {
+        arm.check_within_limits(q)
+            .map_err(|e| InputError(format!("--q: {e}")))?;
+    }
+    let kin = |e: cps_kinematics::KinematicsError| InputError(e.to_string());
+    let t = arm.fk_matrix(q).map_err(kin)?;
+    let pose = arm.fk(q).map_err(kin)?;
+    let quat = UnitQuaternion::from_rotation_matrix(&pose.rotation);
+    let p = pose.translation.vector;
+    let rows: Vec<Vec<f64>> = (0..4)
+        .map(|r| (0..4).map(|c| t[(r, c)]).collect())
+        .collect();
+    let mut lines = vec![format!("tool pose of {robot} (world frame, metres):")];
+    for r in &rows {
+        lines.push(format!(
+            "  [{:>10.6} {:>10.6} {:>10.6} {:>10.6}]",
+            r[0], r[1], r[2], r[3]
+        ));
+    }
+    lines.push(format!("position   {:.6} {:.6} {:.6}", p.x, p.y, p.z));
+    lines.push(format!(
+        "quaternion {:.6} {:.6} {:.6} {:.6} (x y z w)",
+        quat.i, quat.j, quat.k, quat.w
+    ));
+    Ok(Answer {
+        json: serde_json::json!({
+            "robot": robot,
+            "q": q,
+            "T": rows,
+            "position": [p.x, p.y, p.z],
+            "quaternion_xyzw": [quat.i, quat.j, quat.k, quat.w],
+        }),
+        lines,
+    })
+}
+
+/// Joint angles that put `model`'s tool (named `robot` as the user gave it) at `target`
+/// (`x,y,z` or `x,y,z,qx,qy,qz,qw`) from `seed_q` (default: the ready configuration),
+/// `cps-cli ik`: JSON `{"robot", "q", "position_error", "rotation_error", "iterations",
+/// "restarts"}`.
+pub fn joint_solution(
+    model: &RobotModel,
+    robot: &str,
+    target: &[f64],
+    seed_q: Option<&[f64]>,
+) -> Result<Answer, InputError> {
+    let arm = &model.chain;
+    let target = ik_target(target)?;
+    let seed = seed_q.unwrap_or(&model.ready);
+    arm.check_within_limits(seed)
+        .map_err(|e| InputError(format!("--seed-q: {e}")))?;
+    let sol = cps_kinematics::solve_ik(arm, &target, seed, &cps_kinematics::IkConfig::default())
+        .map_err(|e| InputError(e.to_string()))?;
+    let q: Vec<String> = sol.q.iter().map(|v| format!("{v:.6}")).collect();
+    Ok(Answer {
+        json: serde_json::json!({
+            "robot": robot,
+            "q": sol.q,
+            "position_error": sol.position_error,
+            "rotation_error": sol.rotation_error,
+            "iterations": sol.iterations,
+            "restarts": sol.restarts,
+        }),
+        lines: vec![
+            format!("q = [{}] rad", q.join(", ")),
+            format!(
+                "position error {:.3e} m, rotation error {:.3e} rad, {} iterations, {} restarts",
+                sol.position_error, sol.rotation_error, sol.iterations, sol.restarts
+            ),
+        ],
+    })
+}
+
 /// The Panda's "ready" configuration (Franka's default start pose).
 pub const PANDA_READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
 

@@ -209,33 +209,11 @@ pub fn check_joint_trajectory(
     let v = differences(&held, dt, &held[0]);
     let a = differences(&v, dt, &zero);
     let j = differences(&a, dt, &zero);
-    let mut series: Vec<Series> = Vec::new();
-    let mut not_checked = Vec::new();
-    let mut skip = |q: Quantity, why: &str| not_checked.push((q, why.to_string()));
-    match chain.limits() {
-        Some(_) => series.push((Quantity::Position, held.clone(), None)),
-        None => skip(Quantity::Position, "the robot has no joint position limits"),
-    }
-    for (quantity, values, max) in [
-        (
-            Quantity::Velocity,
-            &v,
-            chain.velocity_limits().map(<[f64]>::to_vec),
-        ),
-        (Quantity::Acceleration, &a, limits.acceleration.clone()),
-        (Quantity::Jerk, &j, limits.jerk.clone()),
-    ] {
-        match max {
-            Some(m) => series.push((quantity, values.clone(), Some(m))),
-            None => skip(
-                quantity,
-                &format!("the robot has no {} limits", quantity.name()),
-            ),
-        }
-    }
+    // Torques (and their rates) at every command, when the robot has inertias and a
+    // torque limit to hold them to.
     let wants_torque = limits.torque.is_some() || limits.torque_rate.is_some();
-    match (inertia, wants_torque) {
-        (Some(links), true) => {
+    let (tau, rate) = match inertia.filter(|_| wants_torque) {
+        Some(links) => {
             let tau = held
                 .iter()
                 .zip(&v)
@@ -243,36 +221,43 @@ pub fn check_joint_trajectory(
                 .map(|((q, v), a)| chain.inverse_dynamics(links, gravity, q, v, a))
                 .collect::<Result<Vec<_>, _>>()?;
             let rate = differences(&tau, dt, &tau[0]);
-            for (quantity, values, max) in [
-                (Quantity::Torque, tau, limits.torque.clone()),
-                (Quantity::TorqueRate, rate, limits.torque_rate.clone()),
-            ] {
-                match max {
-                    Some(m) => series.push((quantity, values, Some(m))),
-                    None => skip(
-                        quantity,
-                        &format!("the robot has no {} limits", quantity.name()),
-                    ),
-                }
-            }
+            (Some(tau), Some(rate))
         }
-        (None, true) => {
-            for quantity in [Quantity::Torque, Quantity::TorqueRate] {
-                skip(
-                    quantity,
-                    "the robot's link inertias are not known, so torques cannot be computed",
-                );
-            }
-        }
-        (_, false) => {
-            for quantity in [Quantity::Torque, Quantity::TorqueRate] {
-                skip(
-                    quantity,
-                    &format!("the robot has no {} limits", quantity.name()),
-                );
-            }
+        None => (None, None),
+    };
+    let mut series: Vec<Series> = Vec::new();
+    let mut not_checked = Vec::new();
+    match chain.limits() {
+        Some(_) => series.push((Quantity::Position, held, None)),
+        None => not_checked.push((
+            Quantity::Position,
+            "the robot has no joint position limits".to_string(),
+        )),
+    }
+    for (quantity, values, max) in [
+        (
+            Quantity::Velocity,
+            Some(v),
+            chain.velocity_limits().map(<[f64]>::to_vec),
+        ),
+        (Quantity::Acceleration, Some(a), limits.acceleration.clone()),
+        (Quantity::Jerk, Some(j), limits.jerk.clone()),
+        (Quantity::Torque, tau, limits.torque.clone()),
+        (Quantity::TorqueRate, rate, limits.torque_rate.clone()),
+    ] {
+        match (values, max) {
+            (Some(values), Some(m)) => series.push((quantity, values, Some(m))),
+            (None, Some(_)) => not_checked.push((
+                quantity,
+                "the robot's link inertias are not known, so torques cannot be computed".into(),
+            )),
+            (_, None) => not_checked.push((
+                quantity,
+                format!("the robot has no {} limits", quantity.name()),
+            )),
         }
     }
+    let range = chain.limits();
     let mut peak_usage = Vec::new();
     let mut violations = Vec::new();
     for (quantity, values, max) in &series {
@@ -288,7 +273,7 @@ pub fn check_joint_trajectory(
                         (100.0 * x.abs() / m, x.abs() - m, m.copysign(x))
                     }
                     None => {
-                        let (lo, hi) = chain.limits().expect("checked above");
+                        let (lo, hi) = range.expect("positions are checked with a range");
                         let (lo, hi) = (lo[joint], hi[joint]);
                         let mid = 0.5 * (lo + hi);
                         let half = 0.5 * (hi - lo);

@@ -131,7 +131,7 @@ impl Trajectory {
 }
 
 /// Dimension names given by the user, or `y0`, `y1`, … .
-fn names_or_default(names: Option<Vec<String>>, dims: usize) -> PyResult<Vec<String>> {
+pub(crate) fn names_or_default(names: Option<Vec<String>>, dims: usize) -> PyResult<Vec<String>> {
     match names {
         Some(n) if n.len() != dims => Err(value_error(format!(
             "names: {} names for {dims} dimensions",

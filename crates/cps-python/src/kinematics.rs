@@ -152,14 +152,13 @@ impl Robot {
         py: Python<'py>,
         q: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let (values, m, batched) = self.configurations(q)?;
+        let (values, _, batched) = self.configurations(q)?;
         let n = self.dof();
         let inside: Vec<bool> = values
             .chunks(n)
             .map(|c| self.model.chain.within_limits(c))
             .collect();
         if batched {
-            let _ = m;
             Ok(PyArray1::from_vec(py, inside).into_any())
         } else {
             Ok(inside[0].into_pyobject(py)?.to_owned().into_any())

@@ -13,7 +13,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrays::{array1, opt_vector, vector};
-use crate::dmp::{Dmp, Trajectory};
+use crate::dmp::{Dmp, Trajectory, names_or_default};
 use crate::errors::{PyResultExt, choose, value_error};
 use crate::interrupt::{cancelled, detached};
 
@@ -311,16 +311,10 @@ pub fn learn_via_points(
         )));
     }
     task.validate().py()?;
+    // A three-dimensional task is in the world frame: x, y, z, as the experiments name it.
     let names = match names {
-        Some(n) if n.len() != dims => {
-            return Err(value_error(format!(
-                "names: {} names for {dims} dimensions",
-                n.len()
-            )));
-        }
-        Some(n) => n,
         None if dims == 3 => vec!["x".into(), "y".into(), "z".into()],
-        None => (0..dims).map(|d| format!("y{d}")).collect(),
+        given => names_or_default(given, dims)?,
     };
     let config = ViaPointConfig {
         task,
