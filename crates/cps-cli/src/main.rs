@@ -40,6 +40,7 @@ mod progress;
 mod robot;
 mod scene;
 mod simserve;
+mod trajectory;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -110,6 +111,9 @@ enum Command {
         #[command(subcommand)]
         command: robot::LimitsCommand,
     },
+    /// Retime a joint trajectory (CSV) within the robot's limits: the fastest timing of
+    /// its path, or the smallest uniform slowing.
+    Retime(trajectory::RetimeArgs),
     /// Scenes: a placed robot and named way points.
     Scene {
         #[command(subcommand)]
@@ -206,6 +210,7 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
         Command::Robot { command } => robot::robot(&command),
         Command::Scene { command } => scene::scene(&command),
         Command::Limits { command } => robot::limits(&command),
+        Command::Retime(args) => trajectory::retime(&args),
         Command::Imitate(args) => movement::run_imitate(&args),
         Command::Cmaes { command } => cmaes_bench::bench(&command),
         Command::Sim { command } => simserve::sim(&command, interrupted),

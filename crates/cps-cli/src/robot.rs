@@ -13,7 +13,7 @@ pub struct RobotArgs {
     /// Robot: a built-in name (`panda`, `ur3`, `puma560`) or a robot file (`.toml` as in
     /// configs/robots/, or `.urdf`).
     #[arg(long, default_value = "panda")]
-    robot: String,
+    pub robot: String,
     /// Tool point: `hand` or `flange` for the built-in Panda, a `[tools.*]` name for a TOML
     /// robot (default: the file's `default_tool`).
     #[arg(long)]
@@ -24,11 +24,11 @@ pub struct RobotArgs {
     tip: Option<String>,
     /// Print JSON instead of text.
     #[arg(long)]
-    json: bool,
+    pub json: bool,
 }
 
 impl RobotArgs {
-    fn load(&self) -> Result<RobotModel, InputError> {
+    pub fn load(&self) -> Result<RobotModel, InputError> {
         load_robot(&self.robot, self.tool.as_deref(), self.tip.as_deref())
     }
 }
@@ -89,7 +89,7 @@ pub enum RobotCommand {
 }
 
 /// Prints an answer as JSON or as its lines.
-fn print(answer: &Answer, json: bool) -> Result<ExitCode> {
+pub fn print(answer: &Answer, json: bool) -> Result<ExitCode> {
     if json {
         say!("{}", serde_json::to_string_pretty(&answer.json)?);
     } else {

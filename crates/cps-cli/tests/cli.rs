@@ -1321,3 +1321,65 @@ fn robot_file_limits_and_inertias_are_all_or_nothing() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["not_checked"].as_object().unwrap().is_empty(), "{v}");
 }
+
+#[test]
+fn retime_writes_a_trajectory_that_limits_check_accepts_and_never_overwrites_unasked() {
+    let dir = tempfile::tempdir().unwrap();
+    // A 0.5 s move of joint 1 by 2 rad from Franka's ready pose: far beyond its limits.
+    let mut text = String::from("t,q1,q2,q3,q4,q5,q6,q7\n");
+    for k in 0..=50 {
+        let x = k as f64 / 50.0;
+        let q1 = 2.0 * x * x * x * (10.0 - 15.0 * x + 6.0 * x * x);
+        text.push_str(&format!("{},{q1},-0.785,0,-2.356,0,1.571,0.785\n", 0.5 * x));
+    }
+    let fast = write(dir.path(), "fast.csv", &text);
+    let out = dir.path().join("retimed.csv");
+    let args = |mode: &str| {
+        vec![
+            "retime".to_string(),
+            fast.to_str().unwrap().into(),
+            "--robot".into(),
+            "panda".into(),
+            "--mode".into(),
+            mode.into(),
+            "--out".into(),
+            out.to_str().unwrap().into(),
+            "--json".into(),
+        ]
+    };
+    let run = |a: &[String]| cli(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    let o = run(&args("fastest"));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["ok"], true);
+    assert!(v["peak_usage_before"]["velocity"].as_f64().unwrap() > 100.0);
+    // Joint 1's 2 rad at no more than 2.175 rad/s: at least 0.92 s.
+    let fastest = v["duration_s"].as_f64().unwrap();
+    assert!(fastest > 2.0 / 2.175 && fastest < 2.0, "{fastest}");
+    let o = cli(&["limits", "check", out.to_str().unwrap(), "--robot", "panda"]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    // An existing output is kept unless --force; uniform slowing is slower than the fastest.
+    let before = std::fs::read(&out).unwrap();
+    let o = run(&args("uniform"));
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--force"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&out).unwrap(), before);
+    let mut forced = args("uniform");
+    forced.push("--force".into());
+    let o = run(&forced);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["duration_s"].as_f64().unwrap() > fastest);
+    let o = run(&{
+        let mut a = args("quickest");
+        a.push("--force".into());
+        a
+    });
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("`quickest`") && stderr(&o).contains("`uniform`"));
+}

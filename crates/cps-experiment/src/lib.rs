@@ -61,6 +61,7 @@ pub mod plan;
 #[cfg(feature = "figures")]
 pub mod report;
 pub mod results_dir;
+pub mod retiming;
 pub mod robot_file;
 mod run;
 pub mod scene;

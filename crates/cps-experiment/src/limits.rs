@@ -56,50 +56,6 @@ pub fn read_joint_trajectory(path: &Path, dof: usize) -> Result<JointTrajectory,
     })
 }
 
-/// Second derivatives of the cubic spline through `(t, y)` with zero slope at both ends.
-fn clamped_spline(t: &[f64], y: &[f64]) -> Vec<f64> {
-    let n = t.len();
-    let h: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    // Tridiagonal system for the second derivatives m (Thomas algorithm).
-    let (mut diag, mut upper, mut rhs) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    let mut lower = vec![0.0; n];
-    diag[0] = 2.0 * h[0];
-    upper[0] = h[0];
-    rhs[0] = 6.0 * ((y[1] - y[0]) / h[0]);
-    for i in 1..n - 1 {
-        lower[i] = h[i - 1];
-        diag[i] = 2.0 * (h[i - 1] + h[i]);
-        upper[i] = h[i];
-        rhs[i] = 6.0 * ((y[i + 1] - y[i]) / h[i] - (y[i] - y[i - 1]) / h[i - 1]);
-    }
-    lower[n - 1] = h[n - 2];
-    diag[n - 1] = 2.0 * h[n - 2];
-    rhs[n - 1] = -6.0 * ((y[n - 1] - y[n - 2]) / h[n - 2]);
-    for i in 1..n {
-        let w = lower[i] / diag[i - 1];
-        diag[i] -= w * upper[i - 1];
-        rhs[i] -= w * rhs[i - 1];
-    }
-    let mut m = vec![0.0; n];
-    m[n - 1] = rhs[n - 1] / diag[n - 1];
-    for i in (0..n - 1).rev() {
-        m[i] = (rhs[i] - upper[i] * m[i + 1]) / diag[i];
-    }
-    m
-}
-
-/// The spline with second derivatives `m` at time `x` (clamped to the knots' range).
-fn spline_at(t: &[f64], y: &[f64], m: &[f64], x: f64) -> f64 {
-    let x = x.clamp(t[0], t[t.len() - 1]);
-    let i = match t.partition_point(|&ti| ti <= x) {
-        0 => 0,
-        k => (k - 1).min(t.len() - 2),
-    };
-    let h = t[i + 1] - t[i];
-    let (a, b) = ((t[i + 1] - x) / h, (x - t[i]) / h);
-    a * y[i] + b * y[i + 1] + ((a * a * a - a) * m[i] + (b * b * b - b) * m[i + 1]) * h * h / 6.0
-}
-
 /// The commands the controller receives at `rate` Hz: `(t0, dt, rows, resampled)`.
 pub fn at_rate(traj: &JointTrajectory, rate: f64) -> (f64, f64, Vec<Vec<f64>>, bool) {
     let dt = 1.0 / rate;
@@ -111,24 +67,12 @@ pub fn at_rate(traj: &JointTrajectory, rate: f64) -> (f64, f64, Vec<Vec<f64>>, b
     if on_rate {
         return (t0, dt, traj.q.clone(), false);
     }
-    let dof = traj.q[0].len();
-    let splines: Vec<(Vec<f64>, Vec<f64>)> = (0..dof)
-        .map(|j| {
-            let y: Vec<f64> = traj.q.iter().map(|r| r[j]).collect();
-            let m = clamped_spline(&traj.times, &y);
-            (y, m)
-        })
-        .collect();
+    let spline = cps_kinematics::JointSpline::new(&traj.times, &traj.q)
+        .expect("a read trajectory has increasing, finite times");
     let span = traj.times[traj.times.len() - 1] - t0;
     let steps = (span / dt - 1e-9).ceil().max(0.0) as usize;
     let rows = (0..=steps)
-        .map(|k| {
-            let x = t0 + k as f64 * dt;
-            splines
-                .iter()
-                .map(|(y, m)| spline_at(&traj.times, y, m, x))
-                .collect()
-        })
+        .map(|k| spline.positions(t0 + k as f64 * dt))
         .collect();
     (t0, dt, rows, true)
 }
@@ -176,13 +120,20 @@ pub fn check_samples(
     })
 }
 
+/// Checks that a control rate is in 1 … 100 000 Hz.
+pub fn check_rate(rate: f64) -> Result<(), InputError> {
+    if rate.is_finite() && (1.0..=100_000.0).contains(&rate) {
+        Ok(())
+    } else {
+        Err(InputError(format!(
+            "--rate {rate}: give the control rate in Hz, between 1 and 100000"
+        )))
+    }
+}
+
 /// Checks a joint trajectory file against `robot`'s limits at `rate` Hz.
 pub fn check_file(path: &Path, robot: &RobotModel, rate: f64) -> Result<LimitsReport, InputError> {
-    if !(rate.is_finite() && (1.0..=100_000.0).contains(&rate)) {
-        return Err(InputError(format!(
-            "--rate {rate}: give the control rate in Hz, between 1 and 100000"
-        )));
-    }
+    check_rate(rate)?;
     let traj = read_joint_trajectory(path, robot.chain.dof())?;
     check_samples(
         &robot.chain,
@@ -274,34 +225,5 @@ impl LimitsReport {
             }
         }
         out
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_spline_interpolates_and_starts_and_ends_at_rest() {
-        let t: Vec<f64> = (0..11).map(|k| k as f64 * 0.1).collect();
-        let y: Vec<f64> = t.iter().map(|x| (3.0 * x).sin()).collect();
-        let m = clamped_spline(&t, &y);
-        for (ti, yi) in t.iter().zip(&y) {
-            assert!((spline_at(&t, &y, &m, *ti) - yi).abs() < 1e-12);
-        }
-        let h = 1e-7;
-        let slope0 = (spline_at(&t, &y, &m, h) - y[0]) / h;
-        let slope1 = (y[10] - spline_at(&t, &y, &m, 1.0 - h)) / h;
-        assert!(
-            slope0.abs() < 1e-5 && slope1.abs() < 1e-5,
-            "{slope0} {slope1}"
-        );
-        // A cubic with zero end slopes is reproduced exactly: y = 3x² − 2x³.
-        let y: Vec<f64> = t.iter().map(|x| 3.0 * x * x - 2.0 * x * x * x).collect();
-        let m = clamped_spline(&t, &y);
-        for k in 0..100 {
-            let x = k as f64 * 0.0101;
-            assert!((spline_at(&t, &y, &m, x) - (3.0 * x * x - 2.0 * x * x * x)).abs() < 1e-12);
-        }
     }
 }

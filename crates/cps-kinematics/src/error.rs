@@ -67,6 +67,14 @@ pub enum KinematicsError {
         /// Why: the IK residual or the joint jump needed.
         reason: String,
     },
+    /// No timing of a path keeps every limit (retiming).
+    #[error("no timing of the path keeps every limit: at t = {time:.3} s of the path, {reason}")]
+    Infeasible {
+        /// Time of the offending point on the path's original clock (s).
+        time: f64,
+        /// Which limit, which joint and why.
+        reason: String,
+    },
     /// A robot model that cannot be a serial chain (no joints, bad limits, NaN parameters).
     #[error("invalid robot model: {0}")]
     InvalidModel(String),

@@ -51,7 +51,9 @@ mod execute;
 mod fastmath;
 mod ik;
 mod limits;
+pub mod retime;
 pub mod robots;
+mod spline;
 pub mod transforms;
 #[cfg(feature = "urdf")]
 mod urdf;
@@ -67,6 +69,8 @@ pub use ik::{IkConfig, IkSolution, solve_ik};
 pub use limits::{
     CartesianLimits, JointLimits, LimitCheck, Quantity, Violation, check_joint_trajectory,
 };
+pub use retime::{RetimeOptions, Retimed, RobotLimits, UniformSlowing, retime};
+pub use spline::{JointSpline, PathPoint};
 #[cfg(feature = "urdf")]
 pub use urdf::{UrdfChain, chain_from_urdf};
 pub use workspace::{check_path, degrees_of_freedom, sample_workspace};
