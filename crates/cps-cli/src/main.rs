@@ -114,6 +114,9 @@ enum Command {
     /// Retime a joint trajectory (CSV) within the robot's limits: the fastest timing of
     /// its path, or the smallest uniform slowing.
     Retime(trajectory::RetimeArgs),
+    /// Export a joint trajectory (CSV) for ROS 2 and viewers: JointTrajectory YAML, MCAP,
+    /// or a 1 kHz CSV of positions, velocities and accelerations.
+    Export(trajectory::ExportArgs),
     /// Scenes: a placed robot and named way points.
     Scene {
         #[command(subcommand)]
@@ -211,6 +214,7 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
         Command::Scene { command } => scene::scene(&command),
         Command::Limits { command } => robot::limits(&command),
         Command::Retime(args) => trajectory::retime(&args),
+        Command::Export(args) => trajectory::export(&args),
         Command::Imitate(args) => movement::run_imitate(&args),
         Command::Cmaes { command } => cmaes_bench::bench(&command),
         Command::Sim { command } => simserve::sim(&command, interrupted),

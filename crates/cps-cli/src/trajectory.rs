@@ -5,53 +5,103 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Args;
+use cps_experiment::InputError;
+use cps_experiment::export::{ExportFormat, ExportOptions, export_file, usage};
 use cps_experiment::files::{table_csv, write_file};
 use cps_experiment::results_dir::{FileKind, check_file_target};
 use cps_experiment::retiming::{RetimeMode, retime_file};
+use cps_experiment::robot_file::Answer;
 
 use crate::cli_error;
 use crate::robot::{RobotArgs, print};
 
-/// Arguments of `cps-cli retime`; `--json` prints `{"mode", "duration_s", "peak_usage_before",
-/// "peak_usage_after", …}`.
+/// A joint trajectory in, a file out.
 #[derive(Args, Debug)]
-pub struct RetimeArgs {
+pub struct FileToFile {
     /// The joint trajectory (CSV: time in s, then one position per joint in rad).
     file: PathBuf,
     #[command(flatten)]
     arm: RobotArgs,
+    /// The file to write.
+    #[arg(long)]
+    out: PathBuf,
+    /// Replace an existing file of the kind cps writes there.
+    #[arg(long)]
+    force: bool,
+}
+
+impl FileToFile {
+    /// Writes `bytes` to --out and prints the answer, the written file first.
+    fn finish(
+        &self,
+        bytes: &[u8],
+        json: serde_json::Value,
+        lines: Vec<String>,
+    ) -> Result<ExitCode> {
+        write_file(&self.out, bytes).map_err(cli_error)?;
+        let mut all = vec![format!(
+            "{} ({} bytes) written",
+            self.out.display(),
+            bytes.len()
+        )];
+        all.extend(lines);
+        print(&Answer { json, lines: all }, self.arm.json)
+    }
+}
+
+/// Arguments of `cps-cli retime`; `--json` prints `{"mode", "duration_s",
+/// "peak_usage_before", "peak_usage_after", …}`.
+#[derive(Args, Debug)]
+pub struct RetimeArgs {
+    #[command(flatten)]
+    io: FileToFile,
     /// `fastest`: the time-optimal timing of the path within every limit (TOPP-RA, then
     /// jerk smoothing); `uniform`: the file's own timing slowed (or sped up) by the
-    /// smallest factor that keeps every limit.
+    /// smallest factor that keeps every limit. The output has t, positions, `_vel`, `_acc`.
     #[arg(long, default_value = "fastest")]
     mode: String,
     /// The controller's rate in Hz: the output's sampling and the rate limits are checked at.
     #[arg(long, default_value_t = 1000.0)]
     rate: f64,
-    /// The retimed trajectory (CSV: t, positions, `_vel`, `_acc`).
-    #[arg(long)]
-    out: PathBuf,
-    /// Replace an existing trajectory CSV at --out.
-    #[arg(long)]
-    force: bool,
 }
 
 /// `cps-cli retime`.
 pub fn retime(args: &RetimeArgs) -> Result<ExitCode> {
-    let mode = RetimeMode::parse(&args.mode).map_err(cps_experiment::InputError)?;
-    check_file_target(&args.out, FileKind::TrajectoryCsv, args.force)?;
-    let report = retime_file(&args.file, &args.arm.load()?, args.rate, mode)?;
-    write_file(&args.out, &table_csv(&report.table).map_err(cli_error)?).map_err(cli_error)?;
-    let mut lines = report.lines();
-    lines.push(format!(
-        "{} samples at {} Hz written to {}",
-        report.table.rows(),
-        args.rate,
-        args.out.display()
-    ));
-    let answer = cps_experiment::robot_file::Answer {
-        json: report.json(),
-        lines,
+    let io = &args.io;
+    let mode = RetimeMode::parse(&args.mode).map_err(InputError)?;
+    check_file_target(&io.out, FileKind::TrajectoryCsv, io.force)?;
+    let report = retime_file(&io.file, &io.arm.load()?, args.rate, mode)?;
+    let csv = table_csv(&report.table).map_err(cli_error)?;
+    io.finish(&csv, report.json(), report.lines())
+}
+
+/// Arguments of `cps-cli export`; `--json` prints `{"format", "points", "duration_s",
+/// "joint_names", "bytes", "limits_ok", "topics"?}`.
+#[derive(Args, Debug)]
+pub struct ExportArgs {
+    #[command(flatten)]
+    io: FileToFile,
+    /// `ros2-yaml` (trajectory_msgs/JointTrajectory for `ros2 topic pub` or a
+    /// FollowJointTrajectory goal), `mcap` (ROS 2 MCAP with the trajectory, /joint_states,
+    /// /tf, /tf_static and /robot_description, for Foxglove or `ros2 bag play`) or
+    /// `csv-1khz` (positions, velocities, accelerations at 1 kHz).
+    #[arg(long)]
+    format: String,
+    /// Seconds between exported points (ros2-yaml, mcap).
+    #[arg(long, default_value_t = 0.01)]
+    period: f64,
+}
+
+/// `cps-cli export`.
+pub fn export(args: &ExportArgs) -> Result<ExitCode> {
+    let io = &args.io;
+    let format = ExportFormat::parse(&args.format).map_err(InputError)?;
+    check_file_target(&io.out, format.file_kind(), io.force)?;
+    let options = ExportOptions {
+        period: args.period,
     };
-    print(&answer, args.arm.json)
+    let exported = export_file(&io.file, &io.arm.load()?, format, &options)?;
+    let mut lines = exported.lines;
+    lines.extend(usage(format, &io.out));
+    io.finish(&exported.bytes, exported.json, lines)
 }

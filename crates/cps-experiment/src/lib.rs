@@ -49,6 +49,7 @@
 pub mod budget;
 mod error;
 pub mod experiment;
+pub mod export;
 #[cfg(feature = "figures")]
 pub mod figures;
 pub mod files;

@@ -376,6 +376,10 @@ pub enum FileKind {
     TrajectoryCsv,
     /// A figure: PNG or SVG.
     Figure,
+    /// An MCAP file (its magic bytes).
+    Mcap,
+    /// A JointTrajectory in YAML flow style as `cps-cli export` writes it.
+    TrajectoryYaml,
 }
 
 fn looks_like(path: &Path, kind: FileKind) -> bool {
@@ -387,6 +391,8 @@ fn looks_like(path: &Path, kind: FileKind) -> bool {
     match kind {
         FileKind::Model => text.contains("\"cps-dmp-model\""),
         FileKind::TrajectoryCsv => text.starts_with("time,") || text.starts_with("t,"),
+        FileKind::Mcap => head.starts_with(b"\x89MCAP0\r\n"),
+        FileKind::TrajectoryYaml => text.starts_with("{header: "),
         FileKind::Figure => {
             head.starts_with(b"\x89PNG\r\n\x1a\n")
                 || text.trim_start().starts_with("<svg")

@@ -768,6 +768,31 @@ impl SerialChain {
         })
     }
 
+    /// The chain as URDF-style joints that all turn about their own z axis, for writing
+    /// it out (viewers, ROS 2): `(base, joints, tail)` with `base` the world → robot-base
+    /// transform, joint i's `origin` the fixed transform from joint i−1's rotating frame
+    /// (the robot base for the first) to joint i's, its angle offset folded in (so the
+    /// joint turns by `q_i` itself: `offset` is 0), and `tail` from the last joint's
+    /// rotating frame to the tool point. `base · Π(origin_i · Rz(q_i)) · tail` is [`Self::fk`].
+    pub fn axis_joints(&self) -> (Isometry3<f64>, Vec<RevoluteJoint>, Isometry3<f64>) {
+        let joints = self
+            .fixed
+            .iter()
+            .zip(&self.offsets)
+            .enumerate()
+            .map(|(i, (f, off))| {
+                let f = if i == 0 { self.pre0 } else { *f };
+                let (s, c) = off.sin_cos();
+                RevoluteJoint {
+                    origin: f.rot_z::<false>((s, c)).to_isometry3(),
+                    axis: Vector3::z_axis(),
+                    offset: 0.0,
+                }
+            })
+            .collect();
+        (self.base.to_isometry3(), joints, self.tail.to_isometry3())
+    }
+
     /// Per joint, in the world frame: the point its axis passes through, the axis, and the
     /// pose of the link it moves (the frame of [`Self::fk_frames`]), for inverse dynamics.
     pub(crate) fn joint_axes(&self, q: &[f64]) -> Result<Vec<JointAxis>, KinematicsError> {

@@ -1046,3 +1046,46 @@ mod limits {
         assert!(usage(&c, Quantity::Position)[3] > 100.0);
     }
 }
+
+mod axis_joints {
+    use cps_kinematics::robots::{PandaTool, panda, puma560, ur3};
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+    use rand::{Rng, SeedableRng};
+
+    /// `base · Π(origin_i · Rz(q_i)) · tail` is the chain's forward kinematics, for DH
+    /// chains of both conventions with offsets, a placed base and a tool.
+    #[test]
+    fn composing_the_joints_gives_forward_kinematics() {
+        let placed = Isometry3::from_parts(
+            Translation3::new(0.3, -0.2, 0.5),
+            UnitQuaternion::from_euler_angles(0.1, -0.4, 1.2),
+        );
+        let chains = [
+            panda(PandaTool::HandTcp).with_base(placed),
+            ur3(),
+            puma560().with_base(placed),
+        ];
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        for chain in &chains {
+            let (base, joints, tail) = chain.axis_joints();
+            for _ in 0..50 {
+                let q: Vec<f64> = (0..chain.dof())
+                    .map(|_| rng.random_range(-3.0..3.0))
+                    .collect();
+                let mut t = base;
+                for (j, qi) in joints.iter().zip(&q) {
+                    assert_eq!(j.offset, 0.0);
+                    assert_eq!(j.axis.into_inner(), Vector3::z());
+                    t = t * j.origin * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), *qi);
+                }
+                t *= tail;
+                let fk = chain.fk(&q).unwrap();
+                assert!((t.translation.vector - fk.translation.vector).norm() < 1e-12);
+                assert!(
+                    (t.rotation.to_rotation_matrix().matrix() - fk.rotation.matrix()).norm()
+                        < 1e-12
+                );
+            }
+        }
+    }
+}
