@@ -808,3 +808,112 @@ fn the_report_opens_in_a_headless_browser() {
     // A blank page compresses to a few kB; tables and figures do not.
     assert!(bytes.len() > 100_000, "{} bytes", bytes.len());
 }
+
+/// `[export]`: the learned joint movement retimed within every limit and written for ROS 2
+/// and viewers; the retimed file passes `cps-cli limits check`; the section is checked.
+#[test]
+fn a_robot_experiment_retimes_and_exports_its_movement() {
+    let dir = tempfile::tempdir().unwrap();
+    let body = JOINT.replace("generations = 1500", "generations = 100")
+        + "\n[export]\nretime = \"fastest\"\nformats = [\"ros2-yaml\", \"mcap\", \"csv-1khz\"]\nperiod = 0.02\n";
+    let file = write(dir.path(), "joint.toml", &body);
+    let out = dir.path().join("out");
+    let o = run(&file, &out);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let s = json(&out.join("summary.json"));
+    let r = &s["retiming"];
+    assert_eq!(r["ok"], true, "{r}");
+    // The 10 s movement uses a quarter of the speed limit: the fastest timing is shorter.
+    let d = r["duration_s"].as_f64().unwrap();
+    assert!(d < 0.5 * r["original_duration_s"].as_f64().unwrap(), "{d}");
+    for (q, u) in r["peak_usage_after"].as_object().unwrap() {
+        assert!(u.as_f64().unwrap() <= 100.0 + 1e-9, "{q} {u}");
+    }
+    let checked = common::cli(&[
+        "limits",
+        "check",
+        out.join("retimed.csv").to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(checked.status.code(), Some(0), "{}", text(&checked.stdout));
+    let files: Vec<&str> = s["export"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["file"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        files,
+        ["trajectory.yaml", "trajectory.mcap", "trajectory_1khz.csv"]
+    );
+    let mcap = std::fs::read(out.join("trajectory.mcap")).unwrap();
+    assert!(mcap.starts_with(b"\x89MCAP0\r\n") && mcap.ends_with(b"\x89MCAP0\r\n"));
+    // The exports hold the retimed movement: its duration, every 20 ms.
+    let yaml = std::fs::read_to_string(out.join("trajectory.yaml")).unwrap();
+    assert_eq!(
+        yaml.matches("time_from_start").count(),
+        (d / 0.02 - 1e-9).ceil() as usize + 1
+    );
+    // Bad sections are named with their place.
+    for (name, section, wanted) in [
+        ("format.toml", "formats = [\"bag\"]", "`bag`"),
+        (
+            "twice.toml",
+            "formats = [\"mcap\", \"mcap\"]",
+            "named twice",
+        ),
+        ("mode.toml", "retime = \"quick\"", "`quick`"),
+        ("period.toml", "period = 0.0", "`period`"),
+        ("key.toml", "rate = 1000", "unknown field"),
+    ] {
+        let f = write(
+            dir.path(),
+            name,
+            &format!("{}\n[export]\n{section}\n", JOINT),
+        );
+        let o = cli(&["check", f.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(2), "{name}");
+        let err = text(&o.stderr);
+        assert!(err.contains(name) && err.contains(wanted), "{name}: {err}");
+    }
+    let viapoint = include_str!("../../../experiments/viapoint.toml");
+    let f = write(
+        dir.path(),
+        "norobot.toml",
+        &format!("{viapoint}\n[export]\nformats = [\"mcap\"]\n"),
+    );
+    let o = cli(&["check", f.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o.stderr).contains("[export] is read only by experiments with a robot"));
+}
+
+/// A pose experiment with a robot executes the learned pose (IK every control period) and
+/// reports the joint movement's limit usage, as the other robot kinds do.
+#[test]
+fn a_pose_experiment_with_a_robot_executes_and_checks_its_movement() {
+    let dir = tempfile::tempdir().unwrap();
+    let body = POSE.replace("generations = 1000", "generations = 100")
+        + "\n[robot]\nscene = \"thesis\"\n\n[export]\nformats = [\"csv-1khz\"]\n";
+    let file = write(dir.path(), "pose.toml", &body);
+    let out = dir.path().join("out");
+    let o = run(&file, &out);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let s = json(&out.join("summary.json"));
+    assert!(s["backend"].as_str().unwrap().starts_with("kinematic"));
+    let e = &s["execution"];
+    assert!(e["samples"].as_u64().unwrap() >= 1001, "{e}");
+    // The thesis's start pose is reached exactly (the tool starts there).
+    assert!(s["limit_usage"]["peak_usage"]["velocity"].is_array());
+    assert_eq!(s["export"][0]["file"], "trajectory_1khz.csv");
+    assert!(out.join("trajectory_1khz.csv").is_file());
+    // Without [robot] nothing is executed.
+    let plain = write(
+        dir.path(),
+        "plain.toml",
+        &POSE.replace("generations = 1000", "generations = 20"),
+    );
+    let out2 = dir.path().join("out2");
+    assert!(run(&plain, &out2).status.success());
+    let s = json(&out2.join("summary.json"));
+    assert!(s.get("execution").is_none() && s.get("limit_usage").is_none());
+}

@@ -36,6 +36,7 @@ struct File {
     plant: Option<Spanned<crate::plan::PlantSection>>,
     speedup: Option<Spanned<crate::plan::SpeedupSection>>,
     orientation: Option<Spanned<crate::plan::OrientationSection>>,
+    export: Option<Spanned<crate::export::ExportSection>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -360,6 +361,7 @@ pub fn parse(
         plant: file.plant.as_ref(),
         speedup: file.speedup.as_ref(),
         orientation: file.orientation.as_ref(),
+        export: file.export.as_ref(),
     };
     let plans = sections.parse(&config)?;
     let mut exp = Experiment {
@@ -374,6 +376,7 @@ pub fn parse(
         joint: plans.joint,
         energy: plans.energy,
         pose: plans.pose,
+        export: plans.export,
         estimate: None,
     };
     // What the file asks of the machine, refused beyond the ceilings.

@@ -84,7 +84,7 @@ pub fn write_outcome(
         stage.write(&format!("{}.csv", table.name), &table_csv(table)?)?;
     }
     for doc in &outcome.documents {
-        stage.write(&doc.name, doc.text.as_bytes())?;
+        stage.write(&doc.name, &doc.bytes)?;
     }
     #[cfg(feature = "figures")]
     {

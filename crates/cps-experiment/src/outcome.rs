@@ -478,13 +478,24 @@ pub struct Report {
     pub tables: Vec<ReportTable>,
 }
 
-/// A file of the result that is neither a table nor a figure (a learned model).
+/// A file of the result that is neither a table nor a figure (a learned model, an
+/// exported trajectory).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Document {
     /// The file name.
     pub name: String,
     /// Its content.
-    pub text: String,
+    pub bytes: Vec<u8>,
+}
+
+impl Document {
+    /// A text file.
+    pub fn text(name: impl Into<String>, text: String) -> Self {
+        Document {
+            name: name.into(),
+            bytes: text.into_bytes(),
+        }
+    }
 }
 
 /// Everything a run gives back. Writing it ([`crate::files`]) is the same for every kind.

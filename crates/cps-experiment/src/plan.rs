@@ -78,6 +78,8 @@ pub struct Experiment {
     pub energy: Option<EnergyPlan>,
     /// The orientation targets (`kind = "viapoint_pose"`).
     pub pose: Option<PosePlan>,
+    /// Retiming and export of the robot's movement (`[export]`, kinds with a robot).
+    pub export: Option<crate::export::ExportPlan>,
     /// What the run needs (memory, work), estimated when the file was read.
     pub estimate: Option<Estimate>,
 }
@@ -181,10 +183,9 @@ pub struct RobotChoice {
     pub backend: BackendChoice,
     /// The scene it came from (for summaries).
     pub scene: String,
-    /// The robot's limits beyond its range and speed (for the limit-usage report).
-    pub limits: cps_kinematics::JointLimits,
-    /// The robot's link inertias, when known (for torques).
-    pub inertia: Option<Vec<cps_kinematics::LinkInertia>>,
+    /// The scene's robot: name, joint names, limits beyond range and speed, inertias
+    /// (its chain is `setup.chain`).
+    pub model: crate::robot_file::RobotModel,
 }
 
 impl RobotChoice {
@@ -415,6 +416,7 @@ pub(crate) struct Sections<'a> {
     pub plant: Option<&'a Spanned<PlantSection>>,
     pub speedup: Option<&'a Spanned<SpeedupSection>>,
     pub orientation: Option<&'a Spanned<OrientationSection>>,
+    pub export: Option<&'a Spanned<crate::export::ExportSection>>,
 }
 
 /// The parsed plans of [`Sections::parse`].
@@ -425,6 +427,7 @@ pub(crate) struct Plans {
     pub joint: Option<JointPlan>,
     pub energy: Option<EnergyPlan>,
     pub pose: Option<PosePlan>,
+    pub export: Option<crate::export::ExportPlan>,
 }
 
 impl Sections<'_> {
@@ -475,16 +478,29 @@ impl Sections<'_> {
                 ),
             )
         };
-        let executes = matches!(self.kind, Kind::Imitation | Kind::ViapointJoint);
+        // A pose experiment executes when it names a robot; the other two always do.
+        let executes = matches!(self.kind, Kind::Imitation | Kind::ViapointJoint)
+            || (self.kind == Kind::ViapointPose && self.robot.is_some());
         if let Some(r) = self.robot
             && !executes
         {
             return Err(only(
                 r.span(),
                 "robot",
-                "kind = \"imitation\" and kind = \"viapoint_joint\"",
+                "kind = \"imitation\", \"viapoint_joint\" and \"viapoint_pose\"",
             ));
         }
+        let export = match self.export {
+            Some(e) if !executes => {
+                return Err(only(
+                    e.span(),
+                    "export",
+                    "experiments with a robot (kind = \"imitation\", \"viapoint_joint\", or \"viapoint_pose\" with [robot])",
+                ));
+            }
+            Some(e) => Some(e.get_ref().plan(&|span, m| self.err(span, m))?),
+            None => None,
+        };
         if let Some(j) = self.joint
             && self.kind != Kind::ViapointJoint
         {
@@ -590,6 +606,7 @@ impl Sections<'_> {
             joint,
             energy,
             pose,
+            export,
         })
     }
 
@@ -838,14 +855,13 @@ impl Sections<'_> {
         };
         Ok(RobotChoice {
             setup: RobotSetup {
-                chain: scene.robot.chain,
+                chain: scene.robot.chain.clone(),
                 initial_q: scene.initial_q,
                 execution,
             },
             backend,
             scene: scene_name,
-            limits: scene.robot.limits,
-            inertia: scene.robot.inertia,
+            model: scene.robot,
         })
     }
 
@@ -1026,6 +1042,22 @@ impl Experiment {
                 r.setup.chain.dof(),
                 r.scene,
                 r.describe()
+            ));
+        }
+        if let Some(e) = &self.export {
+            let formats: Vec<&str> = e.formats.iter().map(|f| f.file_name()).collect();
+            lines.push(format!(
+                "export: {}{}",
+                e.retime
+                    .map_or("the movement's own timing".to_string(), |m| format!(
+                        "the movement retimed ({}) at 1 kHz",
+                        m.name()
+                    )),
+                if formats.is_empty() {
+                    String::new()
+                } else {
+                    format!(", written as {}", formats.join(", "))
+                }
             ));
         }
         lines

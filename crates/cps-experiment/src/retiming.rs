@@ -71,6 +71,8 @@ pub struct RetimeReport {
     pub fastest: Option<(f64, f64, usize)>,
     /// `t`, positions, `_vel`, `_acc` at the rate.
     pub table: Table,
+    /// The retimed positions at the rate (the input's names, time from 0).
+    pub trajectory: JointTrajectory,
 }
 
 /// Retimes a trajectory in memory for `robot`.
@@ -126,7 +128,7 @@ pub fn retime_samples(
         }
     };
     let times: Vec<f64> = (0..q.len()).map(|k| k as f64 * dt).collect();
-    let mut table = Table::new("retimed").with(Column::numbers("t", times, Format::Plain));
+    let mut table = Table::new("retimed").with(Column::numbers("t", times.clone(), Format::Plain));
     for (suffix, rows) in [("", &q), ("_vel", &qd), ("_acc", &qdd)] {
         for (j, name) in traj.names.iter().enumerate() {
             table.push(Column::numbers(
@@ -136,7 +138,13 @@ pub fn retime_samples(
             ));
         }
     }
+    let trajectory = JointTrajectory {
+        names: traj.names.clone(),
+        times,
+        q,
+    };
     Ok(RetimeReport {
+        trajectory,
         mode,
         before,
         after,

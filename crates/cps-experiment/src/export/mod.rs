@@ -19,6 +19,7 @@
 //! `cps-cli limits check`).
 
 pub mod ros2;
+mod section;
 mod urdf;
 
 use std::collections::BTreeMap;
@@ -33,6 +34,7 @@ use crate::limits::{JointTrajectory, check_samples, read_joint_trajectory};
 use crate::outcome::{Column, Format, Table};
 use crate::results_dir::FileKind;
 use crate::robot_file::RobotModel;
+pub use section::{ExportPlan, ExportSection};
 pub use urdf::{Frames, robot_description};
 
 /// The JointTrajectory topic of `joint_trajectory_controller` under its default name.

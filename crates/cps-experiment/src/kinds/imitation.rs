@@ -6,8 +6,9 @@ use cps_kinematics::Recording;
 use cps_learn::{ImitationConfig, ImitationOutcome, ImitationStage, ViaPoint};
 use serde::Serialize;
 
+use super::movement_files::movement_files;
 use super::{Ctx, learn_error};
-use super::{limit_usage, marks, position_figures, solver_name, usage_line};
+use super::{marks, position_figures, solver_name, usage_line};
 use crate::ExperimentError;
 use crate::observer::Event;
 use crate::outcome::{
@@ -98,6 +99,12 @@ struct FitSummary {
     /// Every limit of the robot on the executed movement (its recorded joint positions)
     /// at the controller's 1 kHz: `cps-cli limits check`'s JSON.
     limit_usage: Option<serde_json::Value>,
+    /// `[export] retime`: the executed movement retimed (`cps-cli retime`'s JSON).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    retiming: Option<serde_json::Value>,
+    /// `[export] formats`: the files written from it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    export: Option<serde_json::Value>,
     model: String,
 }
 
@@ -138,24 +145,40 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     let mut documents = Vec::new();
     let mut fits = Vec::new();
     let mut usage_lines = Vec::new();
+    let mut tables = vec![recordings(o)];
     for f in &o.fits {
         let name = format!("model_{}.json", f.method);
         let axes = vec!["x".to_string(), "y".to_string(), "z".to_string()];
-        documents.push(Document {
-            name: name.clone(),
-            text: DmpModel::new(&f.imitation.dmp, &f.imitation.weights, axes).to_json(),
-        });
+        documents.push(Document::text(
+            name.clone(),
+            DmpModel::new(&f.imitation.dmp, &f.imitation.weights, axes).to_json(),
+        ));
         let r = &f.imitation.report;
-        let usage = match &f.recording {
-            Some(rec) => Some(limit_usage(robot, &rec.time, rec.q.clone())?),
+        // The executed movement against every limit, retimed and exported as `[export]`
+        // asks, its files named after the method.
+        let movement = match &f.recording {
+            Some(rec) => Some(movement_files(
+                exp,
+                robot,
+                &format!("{}_", f.method),
+                &rec.time,
+                rec.q.clone(),
+            )?),
             None => None,
         };
-        if let Some(u) = &usage {
+        let (mut usage, mut retiming, mut export) = (None, None, None);
+        if let Some(mut m) = movement {
             usage_lines.push(format!(
                 "  imitation by {}, executed: {}",
                 f.method.replace('_', " "),
-                usage_line(u)
+                usage_line(&m.usage)
             ));
+            usage_lines.extend(m.lines.drain(1..));
+            retiming = m.summary.remove("retiming");
+            export = m.summary.remove("export");
+            tables.extend(m.tables);
+            documents.extend(m.documents);
+            usage = Some(m.usage);
         }
         fits.push(FitSummary {
             method: f.method,
@@ -169,6 +192,8 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
             condition_number: r.condition_number,
             tracking: f.recording.as_ref().map(Tracking::of),
             limit_usage: usage.as_ref().map(crate::limits::LimitsReport::json),
+            retiming,
+            export,
             model: name,
         });
     }
@@ -223,7 +248,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         header,
         report: report(ctx, &summary),
         summary: fields(&summary),
-        tables: vec![recordings(o)],
+        tables,
         figures: figures(o, &exp.config.task),
         documents,
         lines: lines(ctx, o, &robot.describe())

@@ -8,10 +8,11 @@ use cps_learn::{
 };
 use serde::Serialize;
 
+use super::movement_files::movement_files;
 use super::{Ctx, learn_error};
 use super::{
-    cost_figure, history_table, limit_usage, marks, position_figures, search_figure, search_row,
-    usage_line, way_points, worst,
+    cost_figure, history_table, marks, position_figures, search_figure, search_row, way_points,
+    worst,
 };
 use crate::outcome::{
     Column, CostArm, Figure, Format, Outcome, Panels, Plot, Report, ReportTable, Series, Table,
@@ -139,10 +140,13 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         header.complete = false;
         header.failure = Some(f.clone());
     }
-    // The learned movement as its controller will see it, against every limit.
+    // The learned movement as its controller will see it, against every limit; retimed
+    // and exported as `[export]` asks.
     let traj = &outcome.trajectory;
-    let usage = limit_usage(
+    let movement = movement_files(
+        exp,
         robot,
+        "",
         traj.times(),
         (0..traj.n_samples())
             .map(|k| (0..traj.dims()).map(|j| traj.position(j)[k]).collect())
@@ -161,7 +165,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         max_position_error_m: outcome.errors.max_position_error(),
         final_tool_speed_m_s: outcome.errors.final_speed,
         limits: outcome.limits.into(),
-        limit_usage: usage.json(),
+        limit_usage: movement.usage.json(),
         search: &outcome.search,
         learning_seconds: outcome.seconds,
         execution,
@@ -247,7 +251,6 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
             outcome.limits.max_speed_ratio * 100.0
         ),
     ];
-    lines.push(format!("  {}", usage_line(&usage)));
     if let Some(e) = &summary.execution {
         lines.push(format!(
             "  executed: {} samples, tool within {:.3e} m of the model, {}",
@@ -260,13 +263,17 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
             }
         ));
     }
+    let report = report(ctx, &summary);
+    let mut summary = fields(&summary);
+    let mut documents = Vec::new();
+    movement.into_parts(&mut summary, &mut tables, &mut documents, &mut lines);
     Ok(Outcome {
         header,
-        report: report(ctx, &summary),
-        summary: fields(&summary),
+        report,
+        summary,
         tables,
         figures,
-        documents: Vec::new(),
+        documents,
         lines,
     })
 }

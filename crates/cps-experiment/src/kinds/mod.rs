@@ -22,6 +22,7 @@ use crate::{ExperimentError, InputError};
 pub(crate) mod energy;
 pub(crate) mod imitation;
 pub(crate) mod joint;
+pub(crate) mod movement_files;
 pub(crate) mod pose;
 pub(crate) mod scaling;
 pub(crate) mod viapoint;
@@ -480,8 +481,8 @@ pub(crate) fn limit_usage(
     };
     crate::limits::check_samples(
         &robot.setup.chain,
-        &robot.limits,
-        robot.inertia.as_deref(),
+        &robot.model.limits,
+        robot.model.inertia.as_deref(),
         &traj,
         CONTROL_RATE,
     )

@@ -3,6 +3,7 @@
 use cps_learn::{OrientationCostBreakdown, PoseConfig, PoseOutcome, learn_pose};
 use serde::Serialize;
 
+use super::movement_files::movement_files;
 use super::{Ctx, learn_error};
 use super::{
     cost_figure, derivative_figure, history_table, position_figures, search_figure, search_row,
@@ -28,6 +29,77 @@ struct Summary<'a> {
     final_angular_speed_rad_s: f64,
     orientation_search: &'a cps_learn::SearchStats,
     orientation_seconds: f64,
+    /// With `[robot]`: the backend the pose was executed on.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    backend: Option<String>,
+    /// With `[robot]`: how the tool followed the pose.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    execution: Option<PoseExecution>,
+    /// With `[robot]`: every limit on the executed joint movement at the controller's
+    /// rate (`cps-cli limits check`'s JSON).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    limit_usage: Option<serde_json::Value>,
+}
+
+#[derive(Serialize)]
+struct PoseExecution {
+    samples: usize,
+    duration_s: f64,
+    max_position_error_m: f64,
+    max_rotation_error_deg: f64,
+}
+
+/// The learned pose (position and orientation on one time grid) as one tool target per
+/// control period `dt`, orientations interpolated by slerp.
+fn pose_targets(outcome: &PoseOutcome, dt: f64) -> Vec<cps_kinematics::IkTarget> {
+    let p = outcome.position.best_trajectory();
+    let o = &outcome.orientation.trajectory;
+    let end = p.times().last().copied().unwrap_or(0.0);
+    let n = (end / dt + 1e-9).floor() as usize + 1;
+    (0..n)
+        .map(|k| {
+            let t = k as f64 * dt;
+            let i = o
+                .times
+                .partition_point(|&x| x <= t)
+                .clamp(1, o.times.len().max(2) - 1);
+            let rot = if o.times.len() < 2 {
+                o.orientation[0]
+            } else {
+                let (t0, t1) = (o.times[i - 1], o.times[i]);
+                let f = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+                o.orientation[i - 1].slerp(&o.orientation[i], f)
+            };
+            let pos = nalgebra::Translation3::new(
+                p.position_at(0, t),
+                p.position_at(1, t),
+                p.position_at(2, t),
+            );
+            cps_kinematics::IkTarget::Pose(nalgebra::IsometryMatrix3::from_parts(
+                pos,
+                rot.to_rotation_matrix(),
+            ))
+        })
+        .collect()
+}
+
+/// Executes the learned pose on the experiment's robot: the recording, or why not.
+fn execute_pose(
+    robot: &crate::plan::RobotChoice,
+    outcome: &PoseOutcome,
+) -> Result<cps_kinematics::Recording, String> {
+    let mut backend = robot.open().map_err(|e| e.to_string())?;
+    backend
+        .reset(&robot.setup.initial_q)
+        .map_err(|e| e.to_string())?;
+    let targets = pose_targets(outcome, backend.time_step());
+    cps_kinematics::execute(
+        backend.as_mut(),
+        &robot.setup.chain,
+        &targets,
+        &robot.setup.execution,
+    )
+    .map_err(|e| e.to_string())
 }
 
 /// Learns position and orientation and declares the outcome.
@@ -71,7 +143,36 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         final_angular_speed_rad_s: o.errors.final_angular_speed,
         orientation_search: &o.search,
         orientation_seconds: o.seconds,
+        backend: None,
+        execution: None,
+        limit_usage: None,
     };
+    // With a robot: the pose executed (IK per control period), and the joint movement
+    // checked, retimed and exported as for the other robot kinds.
+    let mut summary = summary;
+    let mut movement = None;
+    let mut failure = None;
+    if let (Some(robot), true) = (&exp.robot, complete) {
+        summary.backend = Some(robot.describe());
+        match execute_pose(robot, &outcome) {
+            Ok(rec) => {
+                summary.execution = Some(PoseExecution {
+                    samples: rec.time.len(),
+                    duration_s: rec.time.last().copied().unwrap_or(0.0),
+                    max_position_error_m: rec.max_position_error(),
+                    max_rotation_error_deg: rec
+                        .rotation_error
+                        .iter()
+                        .fold(0.0_f64, |a, &b| a.max(b))
+                        .to_degrees(),
+                });
+                let m = movement_files(exp, robot, "", &rec.time, rec.q.clone())?;
+                summary.limit_usage = Some(m.usage.json());
+                movement = Some(m);
+            }
+            Err(e) => failure = Some(format!("executing the learned pose: {e}")),
+        }
+    }
     let worst_angle = |v: &[Option<f64>]| v.iter().flatten().fold(0.0f64, |a, &b| a.max(b));
     let lines = vec![
         format!(
@@ -96,19 +197,42 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
             o.search.termination
         ),
     ];
+    let mut lines = lines;
+    let mut header = ctx.header(complete);
+    if let Some(f) = failure {
+        lines.push(format!("  {f}"));
+        header.complete = false;
+        header.failure = Some(f);
+    }
+    if let Some(e) = &summary.execution {
+        lines.push(format!(
+            "  executed on {}: {} samples, tool within {:.3e} m and {:.3}° of the learned pose",
+            summary.backend.as_deref().unwrap_or("the robot"),
+            e.samples,
+            e.max_position_error_m,
+            e.max_rotation_error_deg
+        ));
+    }
+    let report = report(ctx, &summary);
+    let mut summary = fields(&summary);
+    let mut tables = vec![
+        trajectory(&outcome),
+        history_table(&[
+            ("position", &best.history),
+            ("orientation", &o.search.history),
+        ]),
+    ];
+    let mut documents = Vec::new();
+    if let Some(m) = movement {
+        m.into_parts(&mut summary, &mut tables, &mut documents, &mut lines);
+    }
     Ok(Outcome {
-        header: ctx.header(complete),
-        report: report(ctx, &summary),
-        summary: fields(&summary),
-        tables: vec![
-            trajectory(&outcome),
-            history_table(&[
-                ("position", &best.history),
-                ("orientation", &o.search.history),
-            ]),
-        ],
+        header,
+        report,
+        summary,
+        tables,
         figures: figures(ctx, &outcome, &config),
-        documents: Vec::new(),
+        documents,
         lines,
     })
 }
