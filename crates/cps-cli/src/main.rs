@@ -19,7 +19,7 @@
 //! shipped file in `experiments/` is a commented example. Every run writes `summary.json`,
 //! CSV data, figures (PNG and SVG) and `report.html`.
 //!
-//! `--robot` takes a built-in name (`panda`, `ur3`, `puma560`) or a robot file: TOML as in
+//! `--robot` takes a built-in name (`panda`, `ur3`, `crx10ia`, `puma560`) or a robot file: TOML as in
 //! `configs/robots/` or URDF.
 //!
 //! Exit codes: 0 success, 1 failure while running, 2 bad input (the message names the file,

@@ -10,7 +10,7 @@ use cps_experiment::robot_file::{Answer, RobotModel, joint_solution, load_robot,
 /// Which robot and tool point a kinematics command works on.
 #[derive(Args, Debug)]
 pub struct RobotArgs {
-    /// Robot: a built-in name (`panda`, `ur3`, `puma560`) or a robot file (`.toml` as in
+    /// Robot: a built-in name (`panda`, `ur3`, `crx10ia`, `puma560`) or a robot file (`.toml` as in
     /// configs/robots/, or `.urdf`).
     #[arg(long, default_value = "panda")]
     pub robot: String,
@@ -77,7 +77,7 @@ pub struct IkArgs {
 pub enum RobotCommand {
     /// Print a robot's kinematic description (DH table or URDF joints), limits, base and tool.
     Show {
-        /// A built-in name (`panda`, `ur3`, `puma560`) or a `.toml` / `.urdf` robot file.
+        /// A built-in name (`panda`, `ur3`, `crx10ia`, `puma560`) or a `.toml` / `.urdf` robot file.
         robot: String,
         /// Tool point (as for `fk`).
         #[arg(long)]

@@ -8,7 +8,9 @@
 
 use std::path::Path;
 
-use cps_kinematics::robots::{PandaTool, panda, panda_inertia, panda_limits, puma560, ur3};
+use cps_kinematics::robots::{
+    PandaTool, panda, panda_inertia, panda_limits, puma560, ur3, ur3_inertia, ur3_limits,
+};
 use cps_kinematics::{
     ChainGeometry, DhConvention, DhLink, IkTarget, JointLimits, LinkInertia, SerialChain,
     chain_from_urdf,
@@ -272,7 +274,7 @@ pub fn joint_solution(
 pub const PANDA_READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
 
 /// The built-in robot names.
-pub const BUILT_IN: &str = "panda, ur3, puma560";
+pub const BUILT_IN: &str = "panda, ur3, crx10ia, puma560";
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -339,6 +341,30 @@ impl Frame {
     }
 }
 
+/// A robot from URDF text: its joints' ranges, speeds and efforts (torque limits), and
+/// its links' inertias when it gives them.
+fn urdf_robot(
+    text: &str,
+    tip: Option<&str>,
+) -> Result<RobotModel, cps_kinematics::KinematicsError> {
+    let u = chain_from_urdf(text, tip)?;
+    Ok(RobotModel {
+        name: u.name,
+        ready: mid_range(&u.chain),
+        tool: format!("link `{}`", u.tip_link),
+        joint_names: u.joint_names,
+        chain: u.chain,
+        limits: JointLimits {
+            torque: u.effort,
+            ..JointLimits::default()
+        },
+        inertia: u.inertia,
+    })
+}
+
+/// The FANUC CRX-10iA (`crx10ia`): configs/robots/crx10ia.urdf, built in.
+pub const CRX10IA_URDF: &str = include_str!("../../../configs/robots/crx10ia.urdf");
+
 /// Loads `spec`: a built-in name, or a path ending in `.toml` or `.urdf`. `tool` picks a
 /// tool point (built-in Panda: `hand` or `flange`; TOML: a `[tools.*]` name); `tip` picks
 /// the URDF tip link.
@@ -357,18 +383,8 @@ pub fn load_robot(
                     "--tool: a URDF robot ends at its tip link; choose it with --tip".into(),
                 ));
             }
-            let u = chain_from_urdf(&text, tip)
-                .map_err(|e| InputError(format!("{}: {e}", path.display())))?;
-            let ready = mid_range(&u.chain);
-            return Ok(RobotModel {
-                name: u.name,
-                ready,
-                tool: format!("link `{}`", u.tip_link),
-                joint_names: u.joint_names,
-                chain: u.chain,
-                limits: JointLimits::default(),
-                inertia: None,
-            });
+            return urdf_robot(&text, tip)
+                .map_err(|e| InputError(format!("{}: {e}", path.display())));
         }
         if tip.is_some() {
             return Err(InputError("--tip applies to URDF robots only".into()));
@@ -406,16 +422,33 @@ pub fn load_robot(
                     "--tool: the built-in {spec} has only its flange, not `{t}`"
                 )));
             }
-            let chain = if spec == "ur3" { ur3() } else { puma560() };
+            let ur = spec == "ur3";
+            let chain = if ur { ur3() } else { puma560() };
             Ok(RobotModel {
                 name: spec.into(),
                 ready: vec![0.0; chain.dof()],
                 joint_names: names(chain.dof()),
                 chain,
                 tool: "flange".into(),
-                limits: JointLimits::default(),
-                inertia: None,
+                limits: if ur {
+                    ur3_limits()
+                } else {
+                    JointLimits::default()
+                },
+                inertia: ur.then(ur3_inertia),
             })
+        }
+        "crx10ia" => {
+            if let Some(t) = tool {
+                return Err(InputError(format!(
+                    "--tool: the built-in crx10ia has only its flange, not `{t}`"
+                )));
+            }
+            let mut model = urdf_robot(CRX10IA_URDF, None)
+                .map_err(|e| InputError(format!("the built-in crx10ia: {e}")))?;
+            model.ready = vec![0.0; 6];
+            model.tool = "flange".into();
+            Ok(model)
         }
         other => Err(InputError(format!(
             "--robot: unknown robot `{other}` (built in: {BUILT_IN}; or a .toml or .urdf file)"

@@ -59,6 +59,40 @@ impl LinkInertia {
     }
 }
 
+impl LinkInertia {
+    /// The rigid union of `parts`, each an inertia given in its own frame with that
+    /// frame's pose in this link's frame: total mass, the mass-weighted centre, and every
+    /// part's inertia turned into the link's axes and moved to the common centre (the
+    /// parallel-axis theorem). Massless parts contribute nothing.
+    pub fn combine(parts: &[(LinkInertia, nalgebra::Isometry3<f64>)]) -> LinkInertia {
+        let mass: f64 = parts.iter().map(|(p, _)| p.mass).sum();
+        if mass <= 0.0 {
+            return LinkInertia {
+                mass: 0.0,
+                com: Vector3::zeros(),
+                inertia: Matrix3::zeros(),
+            };
+        }
+        let centre = |(p, pose): &(LinkInertia, nalgebra::Isometry3<f64>)| {
+            pose * nalgebra::Point3::from(p.com)
+        };
+        let com = parts
+            .iter()
+            .map(|part| centre(part).coords * part.0.mass)
+            .sum::<Vector3<f64>>()
+            / mass;
+        let mut inertia = Matrix3::zeros();
+        for part in parts {
+            let (p, pose) = part;
+            let r = pose.rotation.to_rotation_matrix().into_inner();
+            let d = centre(part).coords - com;
+            inertia += r * p.inertia * r.transpose()
+                + p.mass * (Matrix3::identity() * d.norm_squared() - d * d.transpose());
+        }
+        LinkInertia { mass, com, inertia }
+    }
+}
+
 impl SerialChain {
     /// Joint torques (N m) that give joint accelerations `qdd` at positions `q` and
     /// velocities `qd`, with `links[i]` the inertia of the link moved by joint i and

@@ -164,3 +164,33 @@ pub fn ur3() -> SerialChain {
         .and_then(|c| c.with_velocity_limits(&[pi, pi, pi, tau, tau, tau]))
         .expect("the UR3 model is valid")
 }
+
+/// The UR3's torque limits: 56, 56, 28, 12, 12, 12 N m (Universal Robots'
+/// Universal_Robots_ROS2_Description, `config/ur3/joint_limits.yaml`, `max_effort`); UR
+/// publishes no acceleration or jerk limits.
+pub fn ur3_limits() -> crate::JointLimits {
+    crate::JointLimits {
+        torque: Some(vec![56.0, 56.0, 28.0, 12.0, 12.0, 12.0]),
+        ..crate::JointLimits::default()
+    }
+}
+
+/// The UR3's links as point masses at their centres of mass (in the standard-DH link frames
+/// of [`ur3`]): masses 2, 3.42, 1.26, 0.8, 0.8, 0.35 kg from Universal Robots' support
+/// article "DH Parameters for calculations of kinematics and dynamics", which gives no
+/// inertia tensors (Universal Robots' ROS description approximates them by cylinders).
+pub fn ur3_inertia() -> Vec<crate::LinkInertia> {
+    const MASS: [f64; 6] = [2.0, 3.42, 1.26, 0.8, 0.8, 0.35];
+    const COM: [[f64; 3]; 6] = [
+        [0.0, -0.02, 0.0],
+        [0.13, 0.0, 0.1157],
+        [0.05, 0.0, 0.0238],
+        [0.0, 0.0, 0.01],
+        [0.0, 0.0, 0.01],
+        [0.0, 0.0, -0.02],
+    ];
+    MASS.iter()
+        .zip(COM)
+        .map(|(m, c)| crate::LinkInertia::new(*m, c, [0.0; 6]).expect("a point mass is valid"))
+        .collect()
+}

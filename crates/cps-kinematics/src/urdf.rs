@@ -12,7 +12,7 @@ use std::collections::HashMap;
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
 use urdf_rs::JointType;
 
-use crate::{KinematicsError, RevoluteJoint, SerialChain};
+use crate::{KinematicsError, LinkInertia, RevoluteJoint, SerialChain};
 
 /// A chain read from a URDF description.
 #[derive(Debug, Clone)]
@@ -27,6 +27,26 @@ pub struct UrdfChain {
     pub base_link: String,
     /// The tip link.
     pub tip_link: String,
+    /// Torque limits from the joints' `<limit effort>`, when every joint gives one > 0.
+    pub effort: Option<Vec<f64>>,
+    /// Each moving link's `<inertial>` (with the links fixed to it merged in), when any
+    /// moving link has a mass.
+    pub inertia: Option<Vec<LinkInertia>>,
+}
+
+/// A link's `<inertial>` in the link's frame (its origin's rotation applied).
+fn inertial(link: &urdf_rs::Link) -> Result<LinkInertia, KinematicsError> {
+    let i = &link.inertial;
+    let m = &i.inertia;
+    let own = LinkInertia::new(
+        i.mass.value,
+        [0.0; 3],
+        [m.ixx, m.ixy, m.ixz, m.iyy, m.iyz, m.izz],
+    )
+    .map_err(|e| invalid(format!("link `{}`: {e}", link.name)))?;
+    let origin =
+        pose(&i.origin).map_err(|m| invalid(format!("link `{}` inertial: {m}", link.name)))?;
+    Ok(LinkInertia::combine(&[(own, origin)]))
 }
 
 fn invalid(msg: String) -> KinematicsError {
@@ -271,8 +291,12 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
 
     let mut joints = Vec::new();
     let mut names = Vec::new();
-    let (mut lower, mut upper, mut speed) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut lower, mut upper, mut speed, mut effort) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut pending = Isometry3::identity();
+    // Per moving link: the inertial parts rigidly attached to it, in its frame.
+    let mut parts: Vec<Vec<(LinkInertia, Isometry3<f64>)>> = Vec::new();
+    let link = |name: &str| robot.links.iter().find(|l| l.name == name);
     for &ji in &path {
         let j = &robot.joints[ji];
         let origin =
@@ -284,7 +308,12 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
             )));
         }
         match &j.joint_type {
-            JointType::Fixed => pending = origin,
+            JointType::Fixed => {
+                pending = origin;
+                if let (Some(last), Some(l)) = (parts.last_mut(), link(&j.child.link)) {
+                    last.push((inertial(l)?, origin));
+                }
+            }
             JointType::Revolute | JointType::Continuous => {
                 let a = Vector3::from(j.axis.xyz.0);
                 let axis = Unit::try_new(a, 1e-12)
@@ -316,6 +345,12 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
                     upper.push(f64::INFINITY);
                 }
                 speed.push(j.limit.velocity);
+                effort.push(j.limit.effort);
+                let own = match link(&j.child.link) {
+                    Some(l) => inertial(l)?,
+                    None => LinkInertia::combine(&[]),
+                };
+                parts.push(vec![(own, Isometry3::identity())]);
                 pending = Isometry3::identity();
             }
             other => {
@@ -338,12 +373,18 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
     if speed.iter().all(|v| v.is_finite() && *v > 0.0) {
         chain = chain.with_velocity_limits(&speed)?;
     }
+    let inertia: Vec<LinkInertia> = parts.iter().map(|p| LinkInertia::combine(p)).collect();
     Ok(UrdfChain {
         name: robot.name.clone(),
         chain,
         joint_names: names,
         base_link: root.to_string(),
         tip_link,
+        effort: effort
+            .iter()
+            .all(|e| e.is_finite() && *e > 0.0)
+            .then_some(effort),
+        inertia: inertia.iter().any(|l| l.mass > 0.0).then_some(inertia),
     })
 }
 
@@ -372,6 +413,38 @@ mod tests {
     fn the_valid_description_reads() {
         let c = chain_from_urdf(TWO_LINK, None).unwrap();
         assert_eq!(c.joint_names, ["j1", "j2"]);
+    }
+
+    #[test]
+    fn efforts_and_inertials_are_read_and_fixed_links_merged() {
+        let c = chain_from_urdf(TWO_LINK, None).unwrap();
+        assert_eq!(c.effort.as_deref(), Some(&[1.0, 1.0][..]));
+        assert!(c.inertia.is_none(), "no link has a mass");
+        // Link b: 2 kg at (0.1, 0, 0) with its tensor turned a quarter about z; a 1 kg
+        // point fixed 0.4 m along b's x axis.
+        let xml = TWO_LINK
+            .replace(
+                r#"<link name="b"/>"#,
+                r#"<link name="b"><inertial><origin xyz="0.1 0 0" rpy="0 0 1.5707963267948966"/>
+                   <mass value="2"/><inertia ixx="0.3" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.2"/></inertial></link>
+                   <link name="tip"><inertial><mass value="1"/><inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>"#,
+            )
+            .replace(
+                "</robot>",
+                r#"<joint name="f" type="fixed"><parent link="b"/><child link="tip"/><origin xyz="0.4 0 0" rpy="0 0 0"/></joint></robot>"#,
+            );
+        let c = chain_from_urdf(&xml, None).unwrap();
+        let links = c.inertia.expect("b has a mass");
+        assert_eq!(links[0].mass, 0.0);
+        let b = &links[1];
+        assert!((b.mass - 3.0).abs() < 1e-15);
+        assert!((b.com - Vector3::new(0.2, 0.0, 0.0)).norm() < 1e-15);
+        // xx and yy swap under the quarter turn; the parallel axis adds m·d² off the x axis:
+        // 2 kg 0.1 m and 1 kg 0.2 m from the common centre.
+        let extra = 2.0 * 0.01 + 1.0 * 0.04;
+        assert!((b.inertia[(0, 0)] - 0.1).abs() < 1e-12);
+        assert!((b.inertia[(1, 1)] - (0.3 + extra)).abs() < 1e-12);
+        assert!((b.inertia[(2, 2)] - (0.2 + extra)).abs() < 1e-12);
     }
 
     #[test]

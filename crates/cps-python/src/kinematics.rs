@@ -22,7 +22,7 @@ type Limits<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
 /// Joint values beyond this magnitude mean nothing (radians or metres).
 const MAX_JOINT_VALUE: f64 = 1000.0;
 
-/// A serial robot arm with its tool point: a built-in name (`panda`, `ur3`, `puma560`),
+/// A serial robot arm with its tool point: a built-in name (`panda`, `ur3`, `crx10ia`, `puma560`),
 /// or a `.toml` / `.urdf` robot file.
 #[pyclass(module = "cps._cps", frozen)]
 pub struct Robot {
