@@ -26,8 +26,11 @@ QMAX = np.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973])
 
 
 def panda_file(tmp_path, keep):
-    """configs/robots/panda.toml with only the limits in `keep` beyond range and speed."""
+    """configs/robots/panda.toml with only the limits in `keep` beyond range and speed
+    (`cartesian` keeps the [cartesian] section)."""
     dropped = {"ddq_max", "dddq_max", "tau_max", "dtau_max", "mass", "com", "inertia"} - set(keep)
+    if "cartesian" not in keep:
+        dropped |= {"[cartesian]", "translation", "rotation", "elbow"}
     lines = (ROOT / "configs/robots/panda.toml").read_text().splitlines()
     text = "\n".join(l for l in lines if l.split(" = ")[0].strip() not in dropped)
     p = tmp_path / f"panda_{'_'.join(keep) or 'none'}.toml"
@@ -191,3 +194,30 @@ def test_bad_input_is_named_and_nothing_is_written(cli, tmp_path):
     p = cli("retime", tmp_path / "weak.csv", "--robot", robot, "--out", out, check=False)
     assert p.returncode == 2 and not out.exists()
     assert "joint 2 needs" in p.stderr and "against gravity" in p.stderr and "t = 0.000 s" in p.stderr
+
+
+def test_the_built_in_panda_s_cartesian_limits_hold_by_pinocchio(cli, tmp_path):
+    """The full Panda (joint, torque and Cartesian limits): the retimed tool, through
+    pinocchio's forward kinematics of the exported /robot_description, moves no faster than
+    1.7 m/s and turns no faster than 2.5 rad/s between any two commands."""
+    pin = pytest.importorskip("pinocchio")
+    mcap_reader = pytest.importorskip("mcap_ros2.reader")
+    t, q = smooth_path(300, 2)
+    write_path(tmp_path / "p.csv", t, q)
+    r = json.loads(cli("retime", tmp_path / "p.csv", "--robot", "panda", "--out", tmp_path / "r.csv", "--json").stdout)
+    assert r["ok"] and r["peak_usage_before"]["rotation_velocity"] > 100
+    assert 90 < max(r["peak_usage_after"]["translation_velocity"], r["peak_usage_after"]["rotation_velocity"]) <= 100
+    cli("export", tmp_path / "r.csv", "--robot", "panda", "--format", "mcap", "--out", tmp_path / "r.mcap")
+    (urdf,) = [m.ros_msg.data for m in mcap_reader.read_ros2_messages(str(tmp_path / "r.mcap")) if m.channel.topic == "/robot_description"]
+    model = pin.buildModelFromXML(urdf)
+    data = model.createData()
+    tool = model.getFrameId("panda_tool")
+    _, qr, _, _ = read_retimed(tmp_path / "r.csv")
+    poses = []
+    for row in qr:
+        pin.framesForwardKinematics(model, data, row)
+        poses.append(data.oMf[tool].copy())
+    speed = [np.linalg.norm(b.translation - a.translation) / 1e-3 for a, b in zip(poses, poses[1:])]
+    turn = [np.linalg.norm(pin.log3(b.rotation @ a.rotation.T)) / 1e-3 for a, b in zip(poses, poses[1:])]
+    assert max(speed) <= 1.7 * (1 + 1e-9) and max(speed) > 1.0
+    assert max(turn) <= 2.5 * (1 + 1e-9)

@@ -149,7 +149,7 @@ pub fn limits(cmd: &LimitsCommand) -> Result<ExitCode> {
         lines,
     };
     print(&answer, arm.json)?;
-    Ok(if report.check.ok() {
+    Ok(if report.ok() {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)

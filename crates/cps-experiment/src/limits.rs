@@ -10,7 +10,9 @@
 
 use std::path::Path;
 
-use cps_kinematics::{LimitCheck, Quantity, check_joint_trajectory};
+use cps_kinematics::{
+    CartesianCheck, LimitCheck, Quantity, check_cartesian, check_joint_trajectory,
+};
 use nalgebra::Vector3;
 use serde_json::{Map, Value, json};
 
@@ -82,6 +84,8 @@ pub fn at_rate(traj: &JointTrajectory, rate: f64) -> (f64, f64, Vec<Vec<f64>>, b
 pub struct LimitsReport {
     /// Per-quantity peak usage, violations and what could not be checked.
     pub check: LimitCheck,
+    /// The tool's Cartesian motion, when the robot has Cartesian limits.
+    pub cartesian: Option<CartesianCheck>,
     /// The control rate (Hz).
     pub rate: f64,
     /// Whether the file was resampled at the rate (else taken command by command).
@@ -92,27 +96,32 @@ pub struct LimitsReport {
     pub duration: f64,
 }
 
-/// Checks a joint trajectory in memory (times and one row of positions each) against a
-/// chain's limits at `rate` Hz, resampled as a file would be.
+/// Checks a joint trajectory in memory (times and one row of positions each) against
+/// `robot`'s limits at `rate` Hz, resampled as a file would be: every joint limit, and the
+/// Cartesian limits where the robot has them.
 pub fn check_samples(
-    chain: &cps_kinematics::SerialChain,
-    limits: &cps_kinematics::JointLimits,
-    inertia: Option<&[cps_kinematics::LinkInertia]>,
+    robot: &RobotModel,
     traj: &JointTrajectory,
     rate: f64,
 ) -> Result<LimitsReport, cps_kinematics::KinematicsError> {
     let (t0, dt, rows, resampled) = at_rate(traj, rate);
+    let chain = &robot.chain;
     let check = check_joint_trajectory(
         chain,
-        limits,
-        inertia,
+        &robot.limits,
+        robot.inertia.as_deref(),
         Vector3::from(cps_kinematics::GRAVITY),
         t0,
         dt,
         &rows,
     )?;
+    let cartesian = match &robot.cartesian {
+        Some(c) => Some(check_cartesian(chain, c, t0, dt, &rows)?),
+        None => None,
+    };
     Ok(LimitsReport {
         check,
+        cartesian,
         rate,
         resampled,
         commands: rows.len() + 3,
@@ -135,17 +144,19 @@ pub fn check_rate(rate: f64) -> Result<(), InputError> {
 pub fn check_file(path: &Path, robot: &RobotModel, rate: f64) -> Result<LimitsReport, InputError> {
     check_rate(rate)?;
     let traj = read_joint_trajectory(path, robot.chain.dof())?;
-    check_samples(
-        &robot.chain,
-        &robot.limits,
-        robot.inertia.as_deref(),
-        &traj,
-        rate,
-    )
-    .map_err(|e| InputError(format!("{}: {e}", path.display())))
+    check_samples(robot, &traj, rate).map_err(|e| InputError(format!("{}: {e}", path.display())))
 }
 
 impl LimitsReport {
+    /// Whether every checked limit, joint and Cartesian, holds.
+    pub fn ok(&self) -> bool {
+        self.check.ok()
+            && self
+                .cartesian
+                .as_ref()
+                .is_none_or(|c| c.violations.is_empty())
+    }
+
     /// `{"ok", "peak_usage": {quantity: [percent per joint]}, "violations": [{"joint",
     /// "quantity", "time", "value", "limit"}], "not_checked": {quantity: reason}, "rate_hz",
     /// "resampled", "duration_s"}`.
@@ -171,15 +182,22 @@ impl LimitsReport {
                        "value": v.value, "limit": v.limit})
             })
             .collect();
-        json!({
-            "ok": self.check.ok(),
+        let mut out = json!({
+            "ok": self.ok(),
             "peak_usage": peak,
             "violations": violations,
             "not_checked": skipped,
             "rate_hz": self.rate,
             "resampled": self.resampled,
             "duration_s": self.duration,
-        })
+        });
+        if let Some(c) = &self.cartesian {
+            out["cartesian"] = json!({
+                "peak_usage": c.peak_usage.iter().map(|(q, u)| (q.to_string(), json!(u))).collect::<Map<_, _>>(),
+                "violations": c.violations.iter().map(|v| json!({"quantity": v.quantity, "time": v.time, "value": v.value, "limit": v.limit})).collect::<Vec<_>>(),
+            });
+        }
+        out
     }
 
     /// The report in words, a line each.
@@ -203,10 +221,25 @@ impl LimitsReport {
         for (q, why) in &self.check.not_checked {
             out.push(format!("  {:<13}not checked: {why}", q.name()));
         }
-        if self.check.ok() {
+        if let Some(c) = &self.cartesian {
+            let cells: Vec<String> = c
+                .peak_usage
+                .iter()
+                .map(|(q, u)| format!("{} {u:.1}", q.replace('_', " ")))
+                .collect();
+            out.push(format!("  Cartesian: {}", cells.join(", ")));
+        }
+        let cartesian = self
+            .cartesian
+            .as_ref()
+            .map_or(&[][..], |c| &c.violations[..]);
+        if self.ok() {
             out.push("every checked limit holds".into());
         } else {
-            out.push(format!("{} violation(s):", self.check.violations.len()));
+            out.push(format!(
+                "{} violation(s):",
+                self.check.violations.len() + cartesian.len()
+            ));
             for v in &self.check.violations {
                 let unit = v.quantity.unit();
                 let relation = if v.quantity == Quantity::Position {
@@ -218,6 +251,15 @@ impl LimitsReport {
                     "  joint {} {} at {:.3} s: {:.6} {unit}, {relation} {:.6} {unit}",
                     v.joint,
                     v.quantity.name(),
+                    v.time,
+                    v.value,
+                    v.limit
+                ));
+            }
+            for v in cartesian {
+                out.push(format!(
+                    "  tool {} at {:.3} s: {:.6}, above {}",
+                    v.quantity.replace('_', " "),
                     v.time,
                     v.value,
                     v.limit

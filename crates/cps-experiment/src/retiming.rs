@@ -9,7 +9,7 @@
 use std::path::Path;
 
 use cps_kinematics::retime::{RetimeOptions, RobotLimits, uniform};
-use cps_kinematics::{GRAVITY, JointSpline, LimitCheck, retime};
+use cps_kinematics::{CartesianCheck, GRAVITY, JointSpline, LimitCheck, retime};
 use nalgebra::Vector3;
 use serde_json::{Value, json};
 
@@ -57,6 +57,8 @@ pub struct RetimeReport {
     pub before: LimitsReport,
     /// The result's check at the rate.
     pub after: LimitCheck,
+    /// Its Cartesian check, when the robot has Cartesian limits.
+    pub after_cartesian: Option<CartesianCheck>,
     /// Control rate (Hz).
     pub rate: f64,
     /// Duration of the input (s).
@@ -87,16 +89,11 @@ pub fn retime_samples(
         limits: &robot.limits,
         inertia: robot.inertia.as_deref(),
         gravity: Vector3::from(GRAVITY),
+        cartesian: robot.cartesian.as_ref(),
     };
-    let before = check_samples(
-        &robot.chain,
-        &robot.limits,
-        robot.inertia.as_deref(),
-        traj,
-        rate,
-    )?;
+    let before = check_samples(robot, traj, rate)?;
     let original_duration = traj.times[traj.times.len() - 1] - traj.times[0];
-    let (q, qd, qdd, dt, after, factor, fastest, duration) = match mode {
+    let (q, qd, qdd, dt, (after, after_cartesian), factor, fastest, duration) = match mode {
         RetimeMode::Fastest => {
             let r = retime(
                 &limits,
@@ -111,7 +108,8 @@ pub fn retime_samples(
                 qdd.push(a);
             }
             let fastest = Some((r.topp_duration, r.smoothing, r.rounds));
-            (r.q, qd, qdd, r.dt, r.check, None, fastest, r.duration)
+            let checks = (r.check, r.cartesian);
+            (r.q, qd, qdd, r.dt, checks, None, fastest, r.duration)
         }
         RetimeMode::Uniform => {
             let r = uniform(&limits, &traj.times, &traj.q, rate)?;
@@ -124,7 +122,8 @@ pub fn retime_samples(
                 qd.push(p.d1.iter().map(|v| v / k).collect());
                 qdd.push(p.d2.iter().map(|a| a / (k * k)).collect());
             }
-            (r.q, qd, qdd, r.dt, r.check, Some(k), None, r.duration)
+            let checks = (r.check, r.cartesian);
+            (r.q, qd, qdd, r.dt, checks, Some(k), None, r.duration)
         }
     };
     let times: Vec<f64> = (0..q.len()).map(|k| k as f64 * dt).collect();
@@ -148,6 +147,7 @@ pub fn retime_samples(
         mode,
         before,
         after,
+        after_cartesian,
         rate,
         original_duration,
         duration,
@@ -170,9 +170,10 @@ pub fn retime_file(
         .map_err(|e| InputError(format!("{}: {e}", path.display())))
 }
 
-/// The largest usage (percent) of each checked quantity over the joints.
-fn peaks(check: &LimitCheck) -> serde_json::Map<String, Value> {
-    check
+/// The largest usage (percent) of each checked quantity over the joints, then the
+/// Cartesian ones.
+fn peaks(check: &LimitCheck, cartesian: Option<&CartesianCheck>) -> serde_json::Map<String, Value> {
+    let mut out: serde_json::Map<String, Value> = check
         .peak_usage
         .iter()
         .map(|(q, u)| {
@@ -181,10 +182,23 @@ fn peaks(check: &LimitCheck) -> serde_json::Map<String, Value> {
                 json!(u.iter().copied().fold(0.0, f64::max)),
             )
         })
-        .collect()
+        .collect();
+    for (q, u) in cartesian.map_or(&[][..], |c| &c.peak_usage[..]) {
+        out.insert(q.to_string(), json!(u));
+    }
+    out
 }
 
 impl RetimeReport {
+    /// Whether the result keeps every joint and Cartesian limit.
+    pub fn ok(&self) -> bool {
+        self.after.ok()
+            && self
+                .after_cartesian
+                .as_ref()
+                .is_none_or(|c| c.violations.is_empty())
+    }
+
     /// `{"mode", "rate_hz", "duration_s", "original_duration_s", "factor"?, "topp_duration_s"?,
     /// "smoothing_s"?, "rounds"?, "ok", "peak_usage_before", "peak_usage_after",
     /// "violations_before", "not_checked"}` (peak usage: the largest over the joints, in %).
@@ -204,15 +218,25 @@ impl RetimeReport {
             map.insert("smoothing_s".into(), json!(w));
             map.insert("rounds".into(), json!(rounds));
         }
-        map.insert("ok".into(), json!(self.after.ok()));
+        map.insert("ok".into(), json!(self.ok()));
         map.insert(
             "peak_usage_before".into(),
-            Value::Object(peaks(&self.before.check)),
+            Value::Object(peaks(&self.before.check, self.before.cartesian.as_ref())),
         );
-        map.insert("peak_usage_after".into(), Value::Object(peaks(&self.after)));
+        map.insert(
+            "peak_usage_after".into(),
+            Value::Object(peaks(&self.after, self.after_cartesian.as_ref())),
+        );
         map.insert(
             "violations_before".into(),
-            json!(self.before.check.violations.len()),
+            json!(
+                self.before.check.violations.len()
+                    + self
+                        .before
+                        .cartesian
+                        .as_ref()
+                        .map_or(0, |c| c.violations.len())
+            ),
         );
         map.insert(
             "not_checked".into(),
@@ -245,11 +269,11 @@ impl RetimeReport {
             "peak usage in % before → after, the largest over the joints ({} Hz):",
             self.rate
         ));
-        let before = peaks(&self.before.check);
-        for (q, after) in peaks(&self.after) {
+        let before = peaks(&self.before.check, self.before.cartesian.as_ref());
+        for (q, after) in peaks(&self.after, self.after_cartesian.as_ref()) {
             let b = before.get(&q).and_then(Value::as_f64).unwrap_or(f64::NAN);
             out.push(format!(
-                "  {q:<13}{b:7.1} → {:5.1}",
+                "  {q:<26}{b:7.1} → {:5.1}",
                 after.as_f64().unwrap_or(f64::NAN)
             ));
         }

@@ -12,8 +12,8 @@ use cps_kinematics::robots::{
     PandaTool, panda, panda_inertia, panda_limits, puma560, ur3, ur3_inertia, ur3_limits,
 };
 use cps_kinematics::{
-    ChainGeometry, DhConvention, DhLink, IkTarget, JointLimits, LinkInertia, SerialChain,
-    chain_from_urdf,
+    CartesianLimits, ChainGeometry, DhConvention, DhLink, IkTarget, JointLimits, LinkInertia,
+    SerialChain, chain_from_urdf,
 };
 use nalgebra::{Isometry3, IsometryMatrix3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::Deserialize;
@@ -39,6 +39,9 @@ pub struct RobotModel {
     pub limits: JointLimits,
     /// Link inertias for inverse dynamics, when the robot's data give them.
     pub inertia: Option<Vec<LinkInertia>>,
+    /// Limits of the tool's (and the elbow's) Cartesian motion, when the robot's data give
+    /// them (the Panda's; TOML `[cartesian]`).
+    pub cartesian: Option<CartesianLimits>,
 }
 
 impl RobotModel {
@@ -290,6 +293,19 @@ struct File {
     tools: std::collections::BTreeMap<String, Frame>,
     #[serde(default)]
     default_tool: Option<Spanned<String>>,
+    #[serde(default)]
+    cartesian: Option<Spanned<CartesianSection>>,
+}
+
+/// `[cartesian]`: `[velocity, acceleration, jerk]` limits of the tool point's translation
+/// (m/s, m/s², m/s³), the tool's rotation (rad/s, rad/s², rad/s³) and the elbow (joint 3;
+/// rad/s, rad/s², rad/s³).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CartesianSection {
+    translation: [f64; 3],
+    rotation: [f64; 3],
+    elbow: [f64; 3],
 }
 
 #[derive(Debug, Deserialize)]
@@ -359,6 +375,7 @@ fn urdf_robot(
             ..JointLimits::default()
         },
         inertia: u.inertia,
+        cartesian: None,
     })
 }
 
@@ -414,6 +431,7 @@ pub fn load_robot(
                 joint_names: names(7),
                 limits: panda_limits().0,
                 inertia: Some(panda_inertia()),
+                cartesian: Some(panda_limits().1),
             })
         }
         "ur3" | "puma560" => {
@@ -436,6 +454,7 @@ pub fn load_robot(
                     JointLimits::default()
                 },
                 inertia: ur.then(ur3_inertia),
+                cartesian: None,
             })
         }
         "crx10ia" => {
@@ -644,6 +663,28 @@ pub fn parse_robot_toml(
         }
         None => mid_range(&chain),
     };
+    let cartesian = match &file.cartesian {
+        Some(c) => {
+            let v = c.get_ref();
+            if v.translation
+                .iter()
+                .chain(&v.rotation)
+                .chain(&v.elbow)
+                .any(|x| !(x.is_finite() && *x > 0.0))
+            {
+                return Err(err(
+                    c.span(),
+                    "[cartesian] limits must be finite and > 0".into(),
+                ));
+            }
+            Some(CartesianLimits {
+                translation: v.translation,
+                rotation: v.rotation,
+                elbow: v.elbow,
+            })
+        }
+        None => None,
+    };
     Ok(RobotModel {
         name: file.name,
         chain,
@@ -652,5 +693,6 @@ pub fn parse_robot_toml(
         joint_names: (1..=n).map(|i| format!("joint{i}")).collect(),
         limits,
         inertia,
+        cartesian,
     })
 }

@@ -121,3 +121,35 @@ fn the_crx10ia_matches_pinocchio_and_fanuc_s_published_figures() {
     );
     assert_eq!(crx.joint_names, ["J1", "J2", "J3", "J4", "J5", "J6"]);
 }
+
+/// The shipped Panda file holds every limit of the built-in Panda (Franka's Tables 5 and 6)
+/// and its inertias.
+#[test]
+fn the_panda_file_and_the_built_in_panda_agree_on_every_limit() {
+    let file = load_robot(
+        concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../configs/robots/panda.toml"
+        ),
+        None,
+        None,
+    )
+    .unwrap();
+    let built_in = load_robot("panda", None, None).unwrap();
+    assert_eq!(file.limits, built_in.limits);
+    assert_eq!(file.cartesian, built_in.cartesian);
+    assert_eq!(file.chain.limits(), built_in.chain.limits());
+    assert_eq!(
+        file.chain.velocity_limits(),
+        built_in.chain.velocity_limits()
+    );
+    let (a, b) = (file.inertia.unwrap(), built_in.inertia.unwrap());
+    for (x, y) in a.iter().zip(&b) {
+        assert!((x.mass - y.mass).abs() < 1e-12 && (x.com - y.com).norm() < 1e-12);
+        assert!((x.inertia - y.inertia).norm() < 1e-12);
+    }
+    let c = built_in.cartesian.unwrap();
+    assert_eq!(c.translation, [1.7, 13.0, 6500.0]);
+    assert_eq!(c.rotation, [2.5, 25.0, 12500.0]);
+    assert_eq!(c.elbow, [2.175, 10.0, 5000.0]);
+}

@@ -67,7 +67,8 @@ pub use error::KinematicsError;
 pub use execute::{ExecutionConfig, Recording, execute};
 pub use ik::{IkConfig, IkSolution, solve_ik};
 pub use limits::{
-    CartesianLimits, JointLimits, LimitCheck, Quantity, Violation, check_joint_trajectory,
+    CARTESIAN_QUANTITIES, CartesianCheck, CartesianLimits, CartesianViolation, JointLimits,
+    LimitCheck, Quantity, Violation, check_cartesian, check_joint_trajectory,
 };
 pub use retime::{RetimeOptions, Retimed, RobotLimits, UniformSlowing, retime};
 pub use spline::{JointSpline, PathPoint};

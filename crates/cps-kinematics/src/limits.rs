@@ -318,3 +318,157 @@ pub fn check_joint_trajectory(
         not_checked,
     })
 }
+
+/// The Cartesian quantities [`check_cartesian`] looks at, in order: the tool point's
+/// translation, the tool's rotation and the elbow (joint 3), each as velocity,
+/// acceleration and jerk.
+pub const CARTESIAN_QUANTITIES: [&str; 9] = [
+    "translation_velocity",
+    "translation_acceleration",
+    "translation_jerk",
+    "rotation_velocity",
+    "rotation_acceleration",
+    "rotation_jerk",
+    "elbow_velocity",
+    "elbow_acceleration",
+    "elbow_jerk",
+];
+
+/// A run of commands beyond one Cartesian limit, at its worst command.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CartesianViolation {
+    /// One of [`CARTESIAN_QUANTITIES`].
+    pub quantity: &'static str,
+    /// Time of the worst command (s).
+    pub time: f64,
+    /// Its magnitude (m/s…, rad/s…).
+    pub value: f64,
+    /// The limit.
+    pub limit: f64,
+}
+
+/// The outcome of [`check_cartesian`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct CartesianCheck {
+    /// Per quantity (in the order of [`CARTESIAN_QUANTITIES`]), its peak in percent of
+    /// the limit.
+    pub peak_usage: Vec<(&'static str, f64)>,
+    /// Every violation, in time order.
+    pub violations: Vec<CartesianViolation>,
+}
+
+/// Backward differences of vectors, from zero (at rest before the first).
+fn vector_differences(x: &[Vector3<f64>], dt: f64) -> Vec<Vector3<f64>> {
+    let mut prev = Vector3::zeros();
+    x.iter()
+        .map(|v| {
+            let d = (v - prev) / dt;
+            prev = *v;
+            d
+        })
+        .collect()
+}
+
+/// Checks the tool's Cartesian motion under the joint commands `q` (as
+/// [`check_joint_trajectory`] takes them: from `t0` every `dt`, at rest before, the last
+/// held for three periods): the tool point's translation speed, acceleration and jerk
+/// (norms of backward differences of its position), the same of its rotation (the
+/// rotation between consecutive commands as a rotation vector over `dt`) and of the elbow
+/// (joint 3's angle, Franka's redundancy parameter), against `limits`.
+pub fn check_cartesian(
+    chain: &SerialChain,
+    limits: &CartesianLimits,
+    t0: f64,
+    dt: f64,
+    q: &[Vec<f64>],
+) -> Result<CartesianCheck, KinematicsError> {
+    let Some(last) = q.last() else {
+        return Err(KinematicsError::InvalidModel(
+            "the trajectory has no samples".into(),
+        ));
+    };
+    let mut held = q.to_vec();
+    held.extend(std::iter::repeat_n(last.clone(), 3));
+    let poses = held
+        .iter()
+        .map(|q| chain.fk(q))
+        .collect::<Result<Vec<_>, _>>()?;
+    let p0 = poses[0].translation.vector;
+    let v: Vec<Vector3<f64>> = poses
+        .iter()
+        .scan(p0, |prev, pose| {
+            let p = pose.translation.vector;
+            let d = (p - *prev) / dt;
+            *prev = p;
+            Some(d)
+        })
+        .collect();
+    let r0 = poses[0].rotation;
+    let w: Vec<Vector3<f64>> = poses
+        .iter()
+        .scan(r0, |prev, pose| {
+            let turn = pose.rotation * prev.inverse();
+            *prev = pose.rotation;
+            Some(turn.scaled_axis() / dt)
+        })
+        .collect();
+    let elbow: Vec<Vector3<f64>> = if chain.dof() >= 3 {
+        held.iter()
+            .scan(held[0][2], |prev, q| {
+                let d = (q[2] - *prev) / dt;
+                *prev = q[2];
+                Some(Vector3::new(d, 0.0, 0.0))
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let mut series: Vec<(&'static str, Vec<f64>, f64)> = Vec::new();
+    let groups = [
+        (&v, limits.translation),
+        (&w, limits.rotation),
+        (&elbow, limits.elbow),
+    ];
+    for (g, (first, lim)) in groups.iter().enumerate() {
+        if first.is_empty() {
+            continue;
+        }
+        let second = vector_differences(first, dt);
+        let third = vector_differences(&second, dt);
+        for (k, values) in [*first, &second, &third].into_iter().enumerate() {
+            series.push((
+                CARTESIAN_QUANTITIES[3 * g + k],
+                values.iter().map(|x| x.norm()).collect(),
+                lim[k],
+            ));
+        }
+    }
+    let mut peak_usage = Vec::new();
+    let mut violations = Vec::new();
+    for (name, values, limit) in series {
+        let mut peak = 0.0_f64;
+        let mut run: Option<(usize, f64)> = None;
+        for (k, &x) in values.iter().enumerate() {
+            peak = peak.max(100.0 * x / limit);
+            if x > limit && run.is_none_or(|r| x > r.1) {
+                run = Some((k, x));
+            }
+            if (x <= limit || k + 1 == values.len())
+                && let Some((k0, value)) = run.take()
+            {
+                violations.push(CartesianViolation {
+                    quantity: name,
+                    time: t0 + k0 as f64 * dt,
+                    value,
+                    limit,
+                });
+            }
+        }
+        peak_usage.push((name, peak));
+    }
+    violations.sort_by(|a, b| a.time.total_cmp(&b.time));
+    Ok(CartesianCheck {
+        peak_usage,
+        violations,
+    })
+}

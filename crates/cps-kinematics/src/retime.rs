@@ -44,8 +44,8 @@ use nalgebra::Vector3;
 
 use crate::spline::{Ends, JointSpline};
 use crate::{
-    JointLimits, KinematicsError, LimitCheck, LinkInertia, Quantity, SerialChain,
-    check_joint_trajectory,
+    CartesianCheck, CartesianLimits, JointLimits, KinematicsError, LimitCheck, LinkInertia,
+    Quantity, SerialChain, check_cartesian, check_joint_trajectory,
 };
 
 /// Rounds of tightening before [`retime`] gives up.
@@ -62,6 +62,8 @@ pub struct RobotLimits<'a> {
     pub inertia: Option<&'a [LinkInertia]>,
     /// Gravity in the world frame.
     pub gravity: Vector3<f64>,
+    /// Limits of the tool's Cartesian motion and the elbow's, if any.
+    pub cartesian: Option<&'a CartesianLimits>,
 }
 
 /// Settings of [`retime`].
@@ -170,6 +172,8 @@ pub struct Retimed {
     pub q: Vec<Vec<f64>>,
     /// The check of those commands.
     pub check: LimitCheck,
+    /// Their Cartesian check, when the robot has Cartesian limits.
+    pub cartesian: Option<CartesianCheck>,
 }
 
 impl Retimed {
@@ -322,6 +326,35 @@ struct Fractions {
     velocity: f64,
     acceleration: f64,
     torque: f64,
+    /// Of the Cartesian acceleration limits, applied to each axis of the tool's
+    /// translation and rotation (starting at 1, which allows up to √3 times the limit along
+    /// a diagonal; verification tightens it to what the norm needs).
+    translation_acceleration: f64,
+    rotation_acceleration: f64,
+}
+
+/// The tool's path derivatives at `s`: translation and rotation per unit `s` (`J q'`) and
+/// their derivatives along the path (central differences over `h`).
+fn tool_derivatives(
+    chain: &SerialChain,
+    path: &JointSpline,
+    s: f64,
+    h: f64,
+) -> Result<[Vector3<f64>; 4], KinematicsError> {
+    let velocity = |s: f64| -> Result<[Vector3<f64>; 2], KinematicsError> {
+        let p = path.point(s);
+        let j = chain.jacobian(&p.q)?;
+        let d = nalgebra::DVector::from_column_slice(&p.d1);
+        let v = j * d;
+        Ok([
+            Vector3::new(v[0], v[1], v[2]),
+            Vector3::new(v[3], v[4], v[5]),
+        ])
+    };
+    let [p1, r1] = velocity(s)?;
+    let [pa, ra] = velocity(s - h)?;
+    let [pb, rb] = velocity(s + h)?;
+    Ok([p1, (pb - pa) / (2.0 * h), r1, (rb - ra) / (2.0 * h)])
 }
 
 /// The path's grid and each grid point's constraints (without the controllable sets).
@@ -369,6 +402,22 @@ fn grid_constraints(
                     let m = f.acceleration * acc;
                     point.rows.push(Row { a: *d1, b: *d2, d: m });
                     point.rows.push(Row { a: -d1, b: -d2, d: m });
+                }
+            }
+            if let Some(c) = robot.cartesian {
+                let h = 1e-4 * (grid[grid.len() - 1] - grid[0]) / grid.len() as f64;
+                let [dp, ddp, dr, ddr] = tool_derivatives(robot.chain, &path.spline, s, h)?;
+                for (d1, d2, v, a, fa) in [
+                    (dp, ddp, c.translation[0], c.translation[1], f.translation_acceleration),
+                    (dr, ddr, c.rotation[0], c.rotation[1], f.rotation_acceleration),
+                ] {
+                    if d1.norm() > 0.0 {
+                        point.x_max = point.x_max.min((f.velocity * v / d1.norm()).powi(2));
+                    }
+                    for k in 0..3 {
+                        point.rows.push(Row { a: d1[k], b: d2[k], d: fa * a });
+                        point.rows.push(Row { a: -d1[k], b: -d2[k], d: fa * a });
+                    }
                 }
             }
             if let Some((tau, links)) = torque {
@@ -554,6 +603,8 @@ pub fn retime(
         velocity: 1.0,
         acceleration: 1.0,
         torque: 1.0,
+        translation_acceleration: 1.0,
+        rotation_acceleration: 1.0,
     };
     let velocity = robot.chain.velocity_limits();
     let mut last = String::new();
@@ -606,7 +657,18 @@ pub fn retime(
                 (violated || u > 100.0 * (1.0 + 1e-9)).then_some((q, (u / 100.0).max(1.0 + 1e-9)))
             })
             .collect();
-        if over.is_empty() {
+        let cartesian = match robot.cartesian {
+            Some(c) => Some(check_cartesian(robot.chain, c, 0.0, dt, &q)?),
+            None => None,
+        };
+        let cartesian_over: Vec<(&str, f64)> = cartesian.as_ref().map_or(Vec::new(), |c| {
+            c.peak_usage
+                .iter()
+                .filter(|(name, u)| *u > 100.0 || c.violations.iter().any(|v| v.quantity == *name))
+                .map(|(name, u)| (*name, (u / 100.0).max(1.0 + 1e-9)))
+                .collect()
+        });
+        if over.is_empty() && cartesian_over.is_empty() {
             return Ok(Retimed {
                 path,
                 smoothing: w,
@@ -622,13 +684,27 @@ pub fn retime(
                 dt,
                 q,
                 check,
+                cartesian,
             });
         }
         last = over
             .iter()
-            .map(|(q, r)| format!("{} at {:.1} %", q.name(), 100.0 * r))
+            .map(|(q, r)| (q.name(), *r))
+            .chain(cartesian_over.iter().copied())
+            .map(|(q, r)| format!("{q} at {:.1} %", 100.0 * r))
             .collect::<Vec<_>>()
             .join(", ");
+        // Cartesian excess acts on the knob that governs it.
+        let mut over = over;
+        for (name, ratio) in cartesian_over {
+            match name {
+                "translation_acceleration" => f.translation_acceleration *= 0.999 / ratio,
+                "rotation_acceleration" => f.rotation_acceleration *= 0.999 / ratio,
+                n if n.ends_with("_velocity") => over.push((Quantity::Velocity, ratio)),
+                "elbow_acceleration" => over.push((Quantity::Acceleration, ratio)),
+                _ => over.push((Quantity::Jerk, ratio)),
+            }
+        }
         for (quantity, ratio) in over {
             // Tighten a little beyond the excess so that rounds converge.
             let shrink = 0.999 / ratio;
@@ -671,6 +747,19 @@ pub struct UniformSlowing {
     pub q: Vec<Vec<f64>>,
     /// Their check.
     pub check: LimitCheck,
+    /// Their Cartesian check, when the robot has Cartesian limits.
+    pub cartesian: Option<CartesianCheck>,
+}
+
+impl UniformSlowing {
+    /// Whether every joint and Cartesian limit holds.
+    pub fn ok(&self) -> bool {
+        self.check.ok()
+            && self
+                .cartesian
+                .as_ref()
+                .is_none_or(|c| c.violations.is_empty())
+    }
 }
 
 /// The smallest factor `k` (to 0.01 %) by which the trajectory through `points` at
@@ -709,22 +798,27 @@ pub fn uniform(
             dt,
             &q,
         )?;
+        let cartesian = match robot.cartesian {
+            Some(c) => Some(check_cartesian(robot.chain, c, 0.0, dt, &q)?),
+            None => None,
+        };
         Ok(UniformSlowing {
             factor: k,
             duration,
             dt,
             q,
             check,
+            cartesian,
         })
     };
     let first = attempt(1.0)?;
-    let (mut lo, mut hi, mut best) = if first.check.ok() {
+    let (mut lo, mut hi, mut best) = if first.ok() {
         // Faster may do: halve until a limit breaks.
         let mut best = first;
         let mut lo = 0.5;
         loop {
             let r = attempt(lo)?;
-            if !r.check.ok() || lo < 1e-3 {
+            if !r.ok() || lo < 1e-3 {
                 break;
             }
             best = r;
@@ -735,21 +829,39 @@ pub fn uniform(
         let mut hi = 2.0;
         loop {
             let r = attempt(hi)?;
-            if r.check.ok() {
+            if r.ok() {
                 break (hi / 2.0, hi, r);
             }
             if hi >= 1000.0 {
-                let v = r.check.violations[0];
-                return Err(KinematicsError::Infeasible {
-                    time: s0 + v.time / hi,
-                    reason: format!(
-                        "even slowed a thousandfold, joint {} {} reaches {:.6} {}, beyond its limit {}",
-                        v.joint,
-                        v.quantity.name(),
-                        v.value,
-                        v.quantity.unit(),
-                        v.limit
+                let (time, what) = match (r.check.violations.first(), &r.cartesian) {
+                    (Some(v), _) => (
+                        v.time,
+                        format!(
+                            "joint {} {} reaches {:.6} {}, beyond its limit {}",
+                            v.joint,
+                            v.quantity.name(),
+                            v.value,
+                            v.quantity.unit(),
+                            v.limit
+                        ),
                     ),
+                    (None, Some(c)) => {
+                        let v = c.violations[0];
+                        (
+                            v.time,
+                            format!(
+                                "the tool's {} reaches {:.6}, beyond its limit {}",
+                                v.quantity.replace('_', " "),
+                                v.value,
+                                v.limit
+                            ),
+                        )
+                    }
+                    (None, None) => (0.0, "a limit is exceeded".to_string()),
+                };
+                return Err(KinematicsError::Infeasible {
+                    time: s0 + time / hi,
+                    reason: format!("even slowed a thousandfold, {what}"),
                 });
             }
             hi *= 2.0;
@@ -758,7 +870,7 @@ pub fn uniform(
     while (hi - lo) > 1e-4 * hi {
         let mid = 0.5 * (lo + hi);
         let r = attempt(mid)?;
-        if r.check.ok() {
+        if r.ok() {
             hi = mid;
             best = r;
         } else {

@@ -1089,3 +1089,52 @@ mod axis_joints {
         }
     }
 }
+
+/// The tool's Cartesian motion against closed forms.
+mod cartesian {
+    use cps_kinematics::check_cartesian;
+    use cps_kinematics::robots::{PandaTool, panda, panda_limits};
+
+    /// Joint 1 turning at a constant ω carries the tool on a circle about the base's z
+    /// axis: speed ω·r, turn rate ω, centripetal acceleration ω²·r; the elbow (joint 3)
+    /// stays still. Starting from rest, the first command's jump is a violation of the
+    /// acceleration and jerk limits, named at t = 0.
+    #[test]
+    fn a_turn_about_the_base_is_a_circle() {
+        let chain = panda(PandaTool::Flange);
+        let (_, limits) = panda_limits();
+        let q0 = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+        let r = chain.fk(&q0).unwrap().translation.vector.xy().norm();
+        let omega = 1.0;
+        let dt = 0.001;
+        let q: Vec<Vec<f64>> = (0..2000)
+            .map(|k| {
+                let mut q = q0.to_vec();
+                q[0] = omega * k as f64 * dt;
+                q
+            })
+            .collect();
+        let c = check_cartesian(&chain, &limits, 0.0, dt, &q).unwrap();
+        let peak = |name: &str| c.peak_usage.iter().find(|(n, _)| *n == name).unwrap().1;
+        // The chord over one period is 2r·sin(ω dt / 2) / dt ≈ ω r.
+        let chord = 2.0 * r * (omega * dt / 2.0).sin() / dt;
+        assert!((peak("translation_velocity") - 100.0 * chord / 1.7).abs() < 1e-9);
+        let p = peak("rotation_velocity");
+        assert!((p - 100.0 * omega / 2.5).abs() < 1e-6, "{p}");
+        assert_eq!(peak("elbow_velocity"), 0.0);
+        // Starting and stopping jumps: the first command's speed appears within one period.
+        let first = c
+            .violations
+            .iter()
+            .find(|v| v.quantity == "translation_acceleration")
+            .unwrap();
+        assert!(first.time <= dt && first.value > 13.0);
+        // In the steady middle, the centripetal acceleration ω²r is well within 13 m/s²: no
+        // violation between the start and the stop.
+        assert!(
+            c.violations.iter().all(|v| v.time < 0.01 || v.time > 1.99),
+            "{:?}",
+            c.violations
+        );
+    }
+}

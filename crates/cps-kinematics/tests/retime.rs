@@ -71,6 +71,7 @@ fn a_straight_line_is_the_trapezoid_and_with_jerk_the_s_curve() {
             limits: &limits,
             inertia: None,
             gravity: Vector3::from(GRAVITY),
+            cartesian: None,
         };
         let r = retime(&robot, &path_t, &path_q, &RetimeOptions::default()).unwrap();
         assert!(r.check.ok(), "{:?}", r.check.violations);
@@ -113,6 +114,7 @@ fn torque_limits_slow_the_motion_and_hold() {
         limits: &limits,
         inertia: Some(&inertia),
         gravity: Vector3::from(GRAVITY),
+        cartesian: None,
     };
     let (t, q) = segment(
         &[0.0, -0.5, 0.0, -2.2, 0.0, 1.8, 0.8],
@@ -149,6 +151,7 @@ fn a_path_held_against_gravity_beyond_the_torque_limit_is_named() {
         limits: &limits,
         inertia: Some(&inertia),
         gravity: Vector3::from(GRAVITY),
+        cartesian: None,
     };
     let (t, q) = segment(
         &[0.0, 0.0, 0.0, -1.5, 0.0, 1.5, 0.0],
@@ -175,6 +178,7 @@ fn uniform_slowing_finds_the_smallest_stretch() {
         limits: &limits,
         inertia: None,
         gravity: Vector3::from(GRAVITY),
+        cartesian: None,
     };
     // A 0.2 s move of 1 rad on joint 1 is far too fast; 5 s is slow enough. The move is
     // the quintic 10σ³ − 15σ⁴ + 6σ⁵ (at rest, without acceleration, at both ends).

@@ -414,17 +414,7 @@ impl Robot {
             times,
             q: m.rows_vec(),
         };
-        let report = py
-            .detach(|| {
-                check_samples(
-                    &self.model.chain,
-                    &self.model.limits,
-                    self.model.inertia.as_deref(),
-                    &traj,
-                    rate,
-                )
-            })
-            .py()?;
+        let report = py.detach(|| check_samples(&self.model, &traj, rate)).py()?;
         json_to_py(py, &report.json())
     }
 

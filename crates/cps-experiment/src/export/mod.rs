@@ -399,14 +399,7 @@ pub fn export_samples(
             bytes
         }
     };
-    let limits = check_samples(
-        &robot.chain,
-        &robot.limits,
-        robot.inertia.as_deref(),
-        traj,
-        1000.0,
-    )
-    .map_err(|e| InputError(e.to_string()))?;
+    let limits = check_samples(robot, traj, 1000.0).map_err(|e| InputError(e.to_string()))?;
     let mut json = json!({
         "format": format.name(),
         "points": s.t.len(),
@@ -414,7 +407,7 @@ pub fn export_samples(
         "period_s": period,
         "joint_names": names,
         "bytes": bytes.len(),
-        "limits_ok": limits.check.ok(),
+        "limits_ok": limits.ok(),
     });
     let mut lines = vec![format!(
         "{} points over {duration:.3} s every {} ms for joints {}",
@@ -432,10 +425,10 @@ pub fn export_samples(
             lines.push(format!("  {t}: {n} message(s)"));
         }
     }
-    if !limits.check.ok() {
+    if !limits.ok() {
         lines.push(format!(
             "note: the trajectory breaks {} limit(s) of the robot at 1 kHz (`cps-cli limits check` names them; `cps-cli retime` fixes the timing)",
-            limits.check.violations.len()
+            limits.check.violations.len() + limits.cartesian.as_ref().map_or(0, |c| c.violations.len())
         ));
     }
     if format == ExportFormat::Ros2Yaml && bytes.len() > MAX_ARGUMENT_BYTES {

@@ -479,16 +479,11 @@ pub(crate) fn limit_usage(
         times: times.to_vec(),
         q,
     };
-    crate::limits::check_samples(
-        &robot.setup.chain,
-        &robot.model.limits,
-        robot.model.inertia.as_deref(),
-        &traj,
-        CONTROL_RATE,
-    )
-    .map_err(|e| ExperimentError::Failed {
-        context: "checking the movement against the robot's limits".into(),
-        source: Box::new(e),
+    crate::limits::check_samples(&robot.model, &traj, CONTROL_RATE).map_err(|e| {
+        ExperimentError::Failed {
+            context: "checking the movement against the robot's limits".into(),
+            source: Box::new(e),
+        }
     })
 }
 
@@ -509,12 +504,13 @@ pub(crate) fn usage_line(report: &crate::limits::LimitsReport) -> String {
     format!(
         "every limit at {CONTROL_RATE} Hz ({}): {}",
         peaks.join(", "),
-        if report.check.ok() {
+        if report.ok() {
             "within every one".to_string()
         } else {
             format!(
                 "{} VIOLATION(S), see summary.json `limit_usage`",
                 report.check.violations.len()
+                    + report.cartesian.as_ref().map_or(0, |c| c.violations.len())
             )
         }
     )
