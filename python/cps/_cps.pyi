@@ -336,4 +336,17 @@ class Robot:
         self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, *, gravity: Optional[ArrayLike] = None
     ) -> F64: ...
     def check_limits(self, t: ArrayLike, q: ArrayLike, *, rate: float = 1000.0) -> dict[str, Any]: ...
+    def retime(
+        self, t: ArrayLike, q: ArrayLike, *, mode: Literal["fastest", "uniform"] = "fastest", rate: float = 1000.0
+    ) -> dict[str, Any]: ...
+    def export(
+        self,
+        t: ArrayLike,
+        q: ArrayLike,
+        path: Union[str, os.PathLike[str]],
+        *,
+        format: Literal["ros2-yaml", "mcap", "csv-1khz"],
+        period: float = 0.01,
+        force: bool = False,
+    ) -> dict[str, Any]: ...
     def describe(self) -> str: ...

@@ -69,12 +69,17 @@ def test_check_limits_equals_the_command_line(tmp_path, cli):
 
 
 def test_robots_without_data_say_what_they_lack():
-    ur3 = cps.Robot("ur3")
+    puma = cps.Robot("puma560")
     with pytest.raises(ValueError, match="link inertias are not known"):
-        ur3.inverse_dynamics(np.zeros(6), np.zeros(6), np.zeros(6))
-    report = ur3.check_limits([0.0, 0.5, 1.0], np.zeros((3, 6)))
+        puma.inverse_dynamics(np.zeros(6), np.zeros(6), np.zeros(6))
+    report = puma.check_limits([0.0, 0.5, 1.0], np.zeros((3, 6)))
     assert report["ok"] is True
-    assert "torque" in report["not_checked"] and "velocity" in report["peak_usage"]
+    assert report["not_checked"]["torque"] == "the robot has no torque limits"
+    # The UR3 has Universal Robots' point masses and torque limits, but no acceleration
+    # limits: torques are checked, accelerations named as not checked.
+    ur3 = cps.Robot("ur3")
+    report = ur3.check_limits([0.0, 0.5, 1.0], np.zeros((3, 6)))
+    assert "torque" in report["peak_usage"] and "acceleration" in report["not_checked"]
     panda = cps.Robot("panda")
     with pytest.raises(ValueError, match="qd: expected the shape of q"):
         panda.inverse_dynamics(np.zeros(7), np.zeros(6), np.zeros(7))
@@ -97,3 +102,20 @@ def test_the_panda_robot_file_carries_the_same_limits_and_inertias():
     assert a["ok"] == b["ok"] and a["peak_usage"].keys() == b["peak_usage"].keys()
     for k in a["peak_usage"]:
         np.testing.assert_allclose(a["peak_usage"][k], b["peak_usage"][k], rtol=1e-12, atol=1e-9)
+
+
+def test_the_crx10ia_agrees_with_pinocchio_on_fanuc_s_urdf():
+    """pinocchio reads configs/robots/crx10ia.urdf itself; cps's built-in CRX-10iA gives
+    the same tool pose and torques over random states."""
+    pin = pytest.importorskip("pinocchio")
+    model = pin.buildModelFromUrdf(str(ROOT / "configs/robots/crx10ia.urdf"))
+    data = model.createData()
+    crx = cps.Robot("crx10ia")
+    rng = np.random.default_rng(5)
+    lo, hi = crx.limits
+    for _ in range(100):
+        q = rng.uniform(lo, hi)
+        qd, qdd = rng.uniform(-2, 2, 6), rng.uniform(-5, 5, 6)
+        np.testing.assert_allclose(crx.inverse_dynamics(q, qd, qdd), pin.rnea(model, data, q, qd, qdd), atol=1e-9)
+        pin.framesForwardKinematics(model, data, q)
+        np.testing.assert_allclose(crx.fk(q)[:3, 3], data.oMf[model.getFrameId("flange")].translation, atol=1e-12)

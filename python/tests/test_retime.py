@@ -221,3 +221,33 @@ def test_the_built_in_panda_s_cartesian_limits_hold_by_pinocchio(cli, tmp_path):
     turn = [np.linalg.norm(pin.log3(b.rotation @ a.rotation.T)) / 1e-3 for a, b in zip(poses, poses[1:])]
     assert max(speed) <= 1.7 * (1 + 1e-9) and max(speed) > 1.0
     assert max(turn) <= 2.5 * (1 + 1e-9)
+
+
+def test_python_retime_and_export_match_the_command_line(cli, tmp_path):
+    import cps
+
+    robot = cps.Robot("panda")
+    t, q = smooth_path(200, 3)
+    write_path(tmp_path / "p.csv", t, q)
+    from_cli = json.loads(cli("retime", tmp_path / "p.csv", "--robot", "panda", "--out", tmp_path / "r.csv", "--json").stdout)
+    r = robot.retime(t, q)
+    assert r["duration_s"] == pytest.approx(from_cli["duration_s"], rel=1e-12)
+    assert r["peak_usage_after"] == pytest.approx(from_cli["peak_usage_after"], rel=1e-9)
+    tr, qr, qd, qdd = read_retimed(tmp_path / "r.csv")
+    assert r["q"].shape == (len(tr), 7) and r["qd"].shape == r["qdd"].shape == r["q"].shape
+    np.testing.assert_allclose(r["t"], tr, atol=1e-12)
+    np.testing.assert_allclose(r["q"], qr, atol=1e-12)
+    np.testing.assert_allclose(r["qd"], qd, atol=1e-12)
+    u = robot.retime(t, q, mode="uniform")
+    assert u["mode"] == "uniform" and u["duration_s"] >= r["duration_s"]
+    out = tmp_path / "r.mcap"
+    info = robot.export(r["t"], r["q"], out, format="mcap")
+    assert out.read_bytes()[:8] == b"\x89MCAP0\r\n" and info["points"] == len(np.arange(0, r["t"][-1] - 1e-9, 0.01)) + 1
+    with pytest.raises(ValueError, match="force=True"):
+        robot.export(r["t"], r["q"], out, format="mcap")
+    with pytest.raises(ValueError, match='format: "bag" is not one of'):
+        robot.export(r["t"], r["q"], tmp_path / "x", format="bag")
+    with pytest.raises(ValueError, match="mode"):
+        robot.retime(t, q, mode="quick")
+    with pytest.raises(ValueError, match="t: time stamps must increase"):
+        robot.retime(np.zeros(200), q)

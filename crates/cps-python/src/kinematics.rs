@@ -9,10 +9,16 @@ use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use rayon::prelude::*;
 
+use cps_experiment::export::{ExportFormat, ExportOptions, export_samples};
+use cps_experiment::files::write_file;
 use cps_experiment::limits::{JointTrajectory, check_samples};
+use cps_experiment::outcome::Values;
+use cps_experiment::results_dir::check_file_target;
+use cps_experiment::retiming::{RetimeMode, retime_samples};
+use pyo3::types::PyDict;
 
 use crate::arrays::{array1, array2, floats, matrix, shape_text, vector};
-use crate::errors::{IntoPyErr, PyResultExt, failure, value_error};
+use crate::errors::{IntoPyErr, PyResultExt, choose, failure, file_error, value_error};
 use crate::experiment::json_to_py;
 use crate::interrupt::run;
 
@@ -32,6 +38,43 @@ pub struct Robot {
 impl Robot {
     fn dof(&self) -> usize {
         self.model.chain.dof()
+    }
+
+    /// A joint trajectory from `t` (samples,) and `q` (samples, dof), checked as the
+    /// command line checks a file, for a controller at `rate` Hz.
+    fn trajectory(
+        &self,
+        t: &Bound<'_, PyAny>,
+        q: &Bound<'_, PyAny>,
+        rate: f64,
+    ) -> PyResult<JointTrajectory> {
+        let times = vector(t, "t", None)?;
+        let m = matrix(q, "q", Some(self.dof()), false)?;
+        if m.rows != times.len() || times.len() < 2 {
+            return Err(value_error(format!(
+                "q: {} rows for {} time stamps (at least 2 needed)",
+                m.rows,
+                times.len()
+            )));
+        }
+        if let Some(k) = times.windows(2).position(|w| w[1] <= w[0]) {
+            return Err(value_error(format!(
+                "t: time stamps must increase strictly: t[{}] = {} follows {}",
+                k + 1,
+                times[k + 1],
+                times[k]
+            )));
+        }
+        if !(rate.is_finite() && (1.0..=100_000.0).contains(&rate)) {
+            return Err(value_error(format!(
+                "rate: give the control rate in Hz, between 1 and 100000 (got {rate})"
+            )));
+        }
+        Ok(JointTrajectory {
+            names: self.model.joint_names.clone(),
+            times,
+            q: m.rows_vec(),
+        })
     }
 
     /// Configurations from `q`: (dof,) → one, (m, dof) → m. Returns (values, m, batched).
@@ -387,35 +430,87 @@ impl Robot {
         q: &Bound<'py, PyAny>,
         rate: f64,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let times = vector(t, "t", None)?;
-        let m = matrix(q, "q", Some(self.dof()), false)?;
-        if m.rows != times.len() || times.len() < 2 {
-            return Err(value_error(format!(
-                "q: {} rows for {} time stamps (at least 2 needed)",
-                m.rows,
-                times.len()
-            )));
-        }
-        if let Some(k) = times.windows(2).position(|w| w[1] <= w[0]) {
-            return Err(value_error(format!(
-                "t: time stamps must increase strictly: t[{}] = {} follows {}",
-                k + 1,
-                times[k + 1],
-                times[k]
-            )));
-        }
-        if !(rate.is_finite() && (1.0..=100_000.0).contains(&rate)) {
-            return Err(value_error(format!(
-                "rate: give the control rate in Hz, between 1 and 100000 (got {rate})"
-            )));
-        }
-        let traj = JointTrajectory {
-            names: self.model.joint_names.clone(),
-            times,
-            q: m.rows_vec(),
-        };
+        let traj = self.trajectory(t, q, rate)?;
         let report = py.detach(|| check_samples(&self.model, &traj, rate)).py()?;
         json_to_py(py, &report.json())
+    }
+
+    /// Retimes a joint trajectory (`t` (samples,), `q` (samples, dof)) within every limit:
+    /// `mode="fastest"` (TOPP-RA, then jerk smoothing) or `"uniform"` (its own timing
+    /// stretched by the smallest factor). Returns `cps-cli retime`'s JSON as a dict, with
+    /// the result sampled at `rate` Hz under `"t"`, `"q"`, `"qd"`, `"qdd"` (arrays).
+    #[pyo3(signature = (t, q, *, mode="fastest", rate=1000.0))]
+    fn retime<'py>(
+        &self,
+        py: Python<'py>,
+        t: &Bound<'py, PyAny>,
+        q: &Bound<'py, PyAny>,
+        mode: &str,
+        rate: f64,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let mode = choose(
+            "mode",
+            mode,
+            &[
+                ("fastest", RetimeMode::Fastest),
+                ("uniform", RetimeMode::Uniform),
+            ],
+        )?;
+        let traj = self.trajectory(t, q, rate)?;
+        let report = py
+            .detach(|| retime_samples(&self.model, &traj, rate, mode))
+            .py()?;
+        let out = json_to_py(py, &report.json())?;
+        let dict = out.cast::<PyDict>()?;
+        let n = self.dof();
+        let column = |name: String| -> Vec<f64> {
+            match report.table.column(&name).map(|c| &c.values) {
+                Some(Values::Numbers(v)) => v.clone(),
+                _ => Vec::new(),
+            }
+        };
+        dict.set_item("t", array1(py, column("t".into())))?;
+        for (key, suffix) in [("q", ""), ("qd", "_vel"), ("qdd", "_acc")] {
+            let cols: Vec<Vec<f64>> = traj
+                .names
+                .iter()
+                .map(|name| column(format!("{name}{suffix}")))
+                .collect();
+            let rows = cols[0].len();
+            let flat = (0..rows)
+                .flat_map(|k| cols.iter().map(move |c| c[k]))
+                .collect();
+            dict.set_item(key, array2(py, flat, rows, n)?)?;
+        }
+        Ok(out)
+    }
+
+    /// Writes a joint trajectory (`t`, `q`) for ROS 2 and viewers, as `cps-cli export`:
+    /// `format="ros2-yaml"` (trajectory_msgs/JointTrajectory), `"mcap"` (ROS 2 MCAP with the
+    /// trajectory, /joint_states, /tf, /tf_static, /robot_description) or `"csv-1khz"`;
+    /// points every `period` seconds. An existing file at `path` is replaced only with
+    /// `force=True` and only if it is of that format. Returns the export's summary.
+    #[pyo3(signature = (t, q, path, *, format, period=0.01, force=false))]
+    #[allow(clippy::too_many_arguments)]
+    fn export<'py>(
+        &self,
+        py: Python<'py>,
+        t: &Bound<'py, PyAny>,
+        q: &Bound<'py, PyAny>,
+        path: std::path::PathBuf,
+        format: &str,
+        period: f64,
+        force: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let format = choose("format", format, &ExportFormat::ALL.map(|f| (f.name(), f)))?;
+        let traj = self.trajectory(t, q, 1000.0)?;
+        check_file_target(&path, format.file_kind(), force).map_err(file_error)?;
+        let options = ExportOptions { period };
+        let exported = py
+            .detach(|| export_samples(&self.model, &traj, format, &options))
+            .map_err(|e| value_error(e.0.replace("--period", "period")))?;
+        write_file(&path, &exported.bytes).map_err(|e| failure(e.to_string()))?;
+        json_to_py(py, &exported.json)
     }
 
     /// The robot in words: its kinematic description, limits, base and tool.
