@@ -63,7 +63,63 @@ fn kinematics(c: &mut Criterion) {
                 .unwrap()
         })
     });
+    retiming(c);
     ik(c);
+}
+
+/// A smooth random 7-joint path of 1000 samples inside the Panda's range (the path of
+/// python/benchmarks/retime_vs_toppra.py, seed 1).
+fn retime_path() -> (Vec<f64>, Vec<Vec<f64>>) {
+    let amp = [0.25, 0.5, 0.35, 0.3, 0.45, 0.4, 0.55];
+    let freq = [0.7, 1.2, 0.9, 1.4, 0.6, 1.1, 0.8];
+    let mid = [0.0, 0.0, 0.0, -1.5, 0.0, 1.8, 0.0];
+    (0..1000)
+        .map(|k| {
+            let s = k as f64 / 999.0;
+            let q = (0..7)
+                .map(|j| mid[j] + amp[j] * (std::f64::consts::TAU * freq[j] * s + j as f64).sin())
+                .collect();
+            (2.0 * s, q)
+        })
+        .unzip()
+}
+
+/// Retiming a 1000-sample 7-joint path: TOPP-RA on 1000 grid intervals with velocity and
+/// acceleration limits (what toppra is compared on), and with every Panda limit (torques by
+/// RNEA at each grid point, Cartesian limits, jerk smoothing, verification at 1 kHz).
+fn retiming(c: &mut Criterion) {
+    use cps::kinematics::retime::{RetimeOptions, RobotLimits, retime};
+    use cps::kinematics::robots::{PandaTool, panda, panda_inertia, panda_limits};
+    let arm = panda(PandaTool::HandTcp);
+    let (t, q) = retime_path();
+    let (full, cartesian) = panda_limits();
+    let va = cps::kinematics::JointLimits {
+        acceleration: full.acceleration.clone(),
+        ..Default::default()
+    };
+    let links = panda_inertia();
+    let gravity = nalgebra::Vector3::from(cps::kinematics::GRAVITY);
+    let options = RetimeOptions::default();
+    let velocity_acceleration = RobotLimits {
+        chain: &arm,
+        limits: &va,
+        inertia: None,
+        gravity,
+        cartesian: None,
+    };
+    c.bench_function("retime/panda_1000_vel_acc", |b| {
+        b.iter(|| retime(&velocity_acceleration, black_box(&t), &q, &options).unwrap())
+    });
+    let every = RobotLimits {
+        chain: &arm,
+        limits: &full,
+        inertia: Some(&links),
+        gravity,
+        cartesian: Some(&cartesian),
+    };
+    c.bench_function("retime/panda_1000_every_limit", |b| {
+        b.iter(|| retime(&every, black_box(&t), &q, &options).unwrap())
+    });
 }
 
 /// IK for full poses of 1000 random in-limit configurations, from the ready pose, with

@@ -8,11 +8,17 @@
 //! held afterwards (so starting and stopping are checked too). Torques come from inverse
 //! dynamics at each command with those derivatives, torque rates from their backward
 //! differences. A run of consecutive samples beyond a limit is one violation, reported at
-//! its worst sample.
+//! its worst sample. A position counts as beyond its bound when it passes it by more than
+//! [`POSITION_TOLERANCE`].
 
 use nalgebra::Vector3;
 
 use crate::{KinematicsError, LinkInertia, SerialChain};
+
+/// How far (rad) a position may pass its bound before it counts as a violation: rounding
+/// in the interpolation of a path that runs along a bound, far below any encoder's
+/// resolution.
+pub const POSITION_TOLERANCE: f64 = 1e-12;
 
 /// A limited quantity of a joint.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -280,7 +286,7 @@ pub fn check_joint_trajectory(
                         let bound = if x < mid { lo } else { hi };
                         (
                             100.0 * (x - mid).abs() / half,
-                            (x - mid).abs() - half,
+                            (x - mid).abs() - half - POSITION_TOLERANCE,
                             bound,
                         )
                     }

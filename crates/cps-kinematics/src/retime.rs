@@ -42,7 +42,7 @@
 
 use nalgebra::Vector3;
 
-use crate::spline::{Ends, JointSpline};
+use crate::spline::{Ends, JointSpline, PathPoint};
 use crate::{
     CartesianCheck, CartesianLimits, JointLimits, KinematicsError, LimitCheck, LinkInertia,
     Quantity, SerialChain, check_cartesian, check_joint_trajectory,
@@ -50,6 +50,10 @@ use crate::{
 
 /// Rounds of tightening before [`retime`] gives up.
 pub const MAX_ROUNDS: usize = 40;
+
+/// The fraction of the velocity, acceleration and torque limits the first round uses (see
+/// [`retime`]'s loop).
+const START_FRACTION: f64 = 0.998;
 
 /// A robot's limits and, for torques, its dynamics.
 #[derive(Debug, Clone, Copy)]
@@ -111,6 +115,12 @@ impl TimeLaw {
     /// The state at `t`, at rest at the first point before the start and at the last after
     /// the end.
     fn at(&self, t: f64) -> LawState {
+        self.at_after(t, &mut usize::MAX)
+    }
+
+    /// [`Self::at`] for times visited in increasing order: the interval is searched from
+    /// `hint` (the previous call's) onwards.
+    fn at_after(&self, t: f64, hint: &mut usize) -> LawState {
         let n = self.t.len() - 1;
         if t <= 0.0 {
             return (self.s[0], 0.0, 0.0, self.s[0] * t);
@@ -123,7 +133,13 @@ impl TimeLaw {
                 self.integral[n] + self.s[n] * (t - self.t[n]),
             );
         }
-        let k = (self.t.partition_point(|&x| x <= t) - 1).min(n - 1);
+        if *hint >= n || self.t[*hint] > t {
+            *hint = (self.t.partition_point(|&x| x <= t) - 1).min(n - 1);
+        }
+        while *hint < n - 1 && self.t[*hint + 1] <= t {
+            *hint += 1;
+        }
+        let k = *hint;
         let (tau, s, v, u) = (t - self.t[k], self.s[k], self.v[k], self.u[k]);
         (
             s + v * tau + 0.5 * u * tau * tau,
@@ -136,11 +152,17 @@ impl TimeLaw {
     /// `(s, ṡ, s̈, s⃛)` of the law averaged over the window `w` before `t` (`w = 0`: the law
     /// itself, with no jerk).
     fn smoothed(&self, w: f64, t: f64) -> [f64; 4] {
-        let now = self.at(t);
+        self.smoothed_after(w, t, &mut [usize::MAX; 2])
+    }
+
+    /// [`Self::smoothed`] for times visited in increasing order (`hints` for `t` and
+    /// `t − w`, as [`Self::at_after`]).
+    fn smoothed_after(&self, w: f64, t: f64, hints: &mut [usize; 2]) -> [f64; 4] {
+        let now = self.at_after(t, &mut hints[0]);
         if w <= 0.0 {
             return [now.0, now.1, now.2, 0.0];
         }
-        let before = self.at(t - w);
+        let before = self.at_after(t - w, &mut hints[1]);
         [
             (now.3 - before.3) / w,
             (now.0 - before.0) / w,
@@ -252,16 +274,41 @@ impl ArcPath {
 
 /// The joint state on `path` under `law` smoothed over `w`, at `t`.
 fn joint_state(path: &JointSpline, law: &TimeLaw, w: f64, t: f64) -> [Vec<f64>; 4] {
-    let [s, sd, sdd, sddd] = law.smoothed(w, t);
-    let p = path.point(s);
-    let n = p.q.len();
-    let (mut v, mut a, mut j) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    for i in 0..n {
+    let n = path.dof();
+    let mut p = PathPoint {
+        q: vec![0.0; n],
+        d1: vec![0.0; n],
+        d2: vec![0.0; n],
+        d3: vec![0.0; n],
+    };
+    let mut out = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+    joint_state_into(path, law, w, t, &mut p, &mut out, &mut [usize::MAX; 3]);
+    let [v, a, j] = out;
+    [p.q, v, a, j]
+}
+
+/// [`joint_state`] into reused buffers, for times visited in increasing order: the path
+/// point in `p` (positions in `p.q`), and velocities, accelerations and jerks in `out`;
+/// `hints` remember where the law and the path were last evaluated.
+fn joint_state_into(
+    path: &JointSpline,
+    law: &TimeLaw,
+    w: f64,
+    t: f64,
+    p: &mut PathPoint,
+    out: &mut [Vec<f64>; 3],
+    hints: &mut [usize; 3],
+) {
+    let mut law_hints = [hints[0], hints[1]];
+    let [s, sd, sdd, sddd] = law.smoothed_after(w, t, &mut law_hints);
+    [hints[0], hints[1]] = law_hints;
+    path.point_after(s, p, &mut hints[2]);
+    let [v, a, j] = out;
+    for i in 0..p.q.len() {
         v[i] = p.d1[i] * sd;
         a[i] = p.d2[i] * sd * sd + p.d1[i] * sdd;
         j[i] = p.d3[i] * sd * sd * sd + 3.0 * p.d2[i] * sd * sdd + p.d1[i] * sddd;
     }
-    [p.q, v, a, j]
 }
 
 /// One inequality `a·u + b·x ≤ d` on the path acceleration `u` and squared speed `x`.
@@ -599,10 +646,14 @@ pub fn retime(
     if robot.limits.torque_rate.is_some() && robot.inertia.is_some() {
         w = w.max(2.0 * dt);
     }
+    // A margin of 0.2 % from the start: TOPP-RA holds the limits at the grid points;
+    // between them (the path's derivatives vary within an interval) the motion can exceed
+    // them by up to about 0.1 % on a 1000-interval grid, and without the margin nearly
+    // every path would need a second round.
     let mut f = Fractions {
-        velocity: 1.0,
-        acceleration: 1.0,
-        torque: 1.0,
+        velocity: START_FRACTION,
+        acceleration: START_FRACTION,
+        torque: START_FRACTION,
         translation_acceleration: 1.0,
         rotation_acceleration: 1.0,
     };
@@ -634,17 +685,27 @@ pub fn retime(
             (Quantity::Acceleration, 0.0),
             (Quantity::Jerk, 0.0),
         ];
+        // Per quantity, the largest |value| / limit (no limit: 0, never over).
+        let mut point = path.spline.point(grid[0]);
+        let mut state = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+        let mut worst = [[0.0_f64; 3]; 1].repeat(n);
+        let mut hints = [usize::MAX; 3];
         for k in 0..=10 * steps {
-            let [_, v, a, j] = joint_state(&path.spline, &law, w, k as f64 * dt / 10.0);
-            for i in 0..n {
-                if let Some(m) = velocity {
-                    fine[0].1 = fine[0].1.max(100.0 * v[i].abs() / m[i]);
+            let t = k as f64 * dt / 10.0;
+            joint_state_into(&path.spline, &law, w, t, &mut point, &mut state, &mut hints);
+            for (i, m) in worst.iter_mut().enumerate() {
+                for (q, x) in m.iter_mut().zip(&state) {
+                    *q = q.max(x[i].abs());
                 }
-                if let Some(m) = &robot.limits.acceleration {
-                    fine[1].1 = fine[1].1.max(100.0 * a[i].abs() / m[i]);
-                }
-                if let Some(m) = jerk {
-                    fine[2].1 = fine[2].1.max(100.0 * j[i].abs() / m[i]);
+            }
+        }
+        for (i, m) in worst.iter().enumerate() {
+            for (k, limit) in [velocity, robot.limits.acceleration.as_deref(), jerk]
+                .iter()
+                .enumerate()
+            {
+                if let Some(l) = limit {
+                    fine[k].1 = fine[k].1.max(100.0 * m[k] / l[i]);
                 }
             }
         }
@@ -783,9 +844,13 @@ pub fn uniform(
     let path = JointSpline::new(times, points)?;
     let (s0, s1) = path.span();
     let dt = 1.0 / rate;
+    // The stretched motion ends on a command: `k` is rounded up to a whole number of
+    // control periods, so that the end is not reached within a fraction of one (which
+    // would make the check depend on that fraction, not on `k`).
     let attempt = |k: f64| -> Result<UniformSlowing, KinematicsError> {
-        let duration = (s1 - s0) * k;
-        let steps = (duration / dt - 1e-9).ceil().max(1.0) as usize;
+        let steps = ((s1 - s0) * k / dt - 1e-9).ceil().max(1.0) as usize;
+        let duration = steps as f64 * dt;
+        let k = duration / (s1 - s0);
         let q: Vec<Vec<f64>> = (0..=steps)
             .map(|i| path.positions(s0 + (i as f64 * dt).min(duration) / k))
             .collect();

@@ -146,7 +146,6 @@ impl JointSpline {
     /// Positions and their first three derivatives at `s` (clamped to the span; the
     /// derivatives are those of the end segment there).
     pub fn point(&self, s: f64) -> PathPoint {
-        let (i, h, a, b) = self.locate(s);
         let n = self.dof();
         let mut p = PathPoint {
             q: vec![0.0; n],
@@ -154,6 +153,34 @@ impl JointSpline {
             d2: vec![0.0; n],
             d3: vec![0.0; n],
         };
+        self.point_into(s, &mut p);
+        p
+    }
+
+    /// [`Self::point`] into `p`, whose vectors have one entry per joint.
+    pub fn point_into(&self, s: f64, p: &mut PathPoint) {
+        let located = self.locate(s);
+        self.eval(located, p);
+    }
+
+    /// [`Self::point_into`] for parameters visited in increasing order: the segment is
+    /// searched from `hint` (the previous call's) onwards.
+    pub(crate) fn point_after(&self, s: f64, p: &mut PathPoint, hint: &mut usize) {
+        let t = &self.knots;
+        let s = s.clamp(t[0], t[t.len() - 1]);
+        let last = t.len() - 2;
+        if *hint > last || t[*hint] > s {
+            *hint = self.locate(s).0;
+        }
+        while *hint < last && t[*hint + 1] <= s {
+            *hint += 1;
+        }
+        let i = *hint;
+        let h = t[i + 1] - t[i];
+        self.eval((i, h, (t[i + 1] - s) / h, (s - t[i]) / h), p);
+    }
+
+    fn eval(&self, (i, h, a, b): (usize, f64, f64, f64), p: &mut PathPoint) {
         for (j, (y, m)) in self.y.iter().zip(&self.m).enumerate() {
             let (m0, m1) = (m[i], m[i + 1]);
             p.q[j] = a * y[i]
@@ -164,7 +191,6 @@ impl JointSpline {
             p.d2[j] = a * m0 + b * m1;
             p.d3[j] = (m1 - m0) / h;
         }
-        p
     }
 }
 
