@@ -113,13 +113,8 @@ impl TimeLaw {
     }
 
     /// The state at `t`, at rest at the first point before the start and at the last after
-    /// the end.
-    fn at(&self, t: f64) -> LawState {
-        self.at_after(t, &mut usize::MAX)
-    }
-
-    /// [`Self::at`] for times visited in increasing order: the interval is searched from
-    /// `hint` (the previous call's) onwards.
+    /// the end; for times visited in increasing order the interval is searched from `hint`
+    /// (the previous call's; `usize::MAX` at first) onwards.
     fn at_after(&self, t: f64, hint: &mut usize) -> LawState {
         let n = self.t.len() - 1;
         if t <= 0.0 {
