@@ -10,10 +10,7 @@
 
 use std::path::Path;
 
-use cps_kinematics::{
-    CartesianCheck, LimitCheck, Quantity, check_cartesian, check_joint_trajectory,
-};
-use nalgebra::Vector3;
+use cps_kinematics::{CommandCheck, Quantity, check_commands};
 use serde_json::{Map, Value, json};
 
 use crate::InputError;
@@ -82,10 +79,9 @@ pub fn at_rate(traj: &JointTrajectory, rate: f64) -> (f64, f64, Vec<Vec<f64>>, b
 /// A checked trajectory file.
 #[derive(Debug, Clone)]
 pub struct LimitsReport {
-    /// Per-quantity peak usage, violations and what could not be checked.
-    pub check: LimitCheck,
-    /// The tool's Cartesian motion, when the robot has Cartesian limits.
-    pub cartesian: Option<CartesianCheck>,
+    /// Per-quantity peak usage, violations and what could not be checked, joint and
+    /// Cartesian.
+    pub check: CommandCheck,
     /// The control rate (Hz).
     pub rate: f64,
     /// Whether the file was resampled at the rate (else taken command by command).
@@ -105,23 +101,9 @@ pub fn check_samples(
     rate: f64,
 ) -> Result<LimitsReport, cps_kinematics::KinematicsError> {
     let (t0, dt, rows, resampled) = at_rate(traj, rate);
-    let chain = &robot.chain;
-    let check = check_joint_trajectory(
-        chain,
-        &robot.limits,
-        robot.inertia.as_deref(),
-        Vector3::from(cps_kinematics::GRAVITY),
-        t0,
-        dt,
-        &rows,
-    )?;
-    let cartesian = match &robot.cartesian {
-        Some(c) => Some(check_cartesian(chain, c, t0, dt, &rows)?),
-        None => None,
-    };
+    let check = check_commands(&robot.robot_limits(), t0, dt, &rows)?;
     Ok(LimitsReport {
         check,
-        cartesian,
         rate,
         resampled,
         commands: rows.len() + 3,
@@ -151,10 +133,6 @@ impl LimitsReport {
     /// Whether every checked limit, joint and Cartesian, holds.
     pub fn ok(&self) -> bool {
         self.check.ok()
-            && self
-                .cartesian
-                .as_ref()
-                .is_none_or(|c| c.violations.is_empty())
     }
 
     /// `{"ok", "peak_usage": {quantity: [percent per joint]}, "violations": [{"joint",
@@ -163,18 +141,21 @@ impl LimitsReport {
     pub fn json(&self) -> Value {
         let peak: Map<String, Value> = self
             .check
+            .joints
             .peak_usage
             .iter()
             .map(|(q, u)| (q.name().to_string(), json!(u)))
             .collect();
         let skipped: Map<String, Value> = self
             .check
+            .joints
             .not_checked
             .iter()
             .map(|(q, why)| (q.name().to_string(), json!(why)))
             .collect();
         let violations: Vec<Value> = self
             .check
+            .joints
             .violations
             .iter()
             .map(|v| {
@@ -191,7 +172,7 @@ impl LimitsReport {
             "resampled": self.resampled,
             "duration_s": self.duration,
         });
-        if let Some(c) = &self.cartesian {
+        if let Some(c) = &self.check.cartesian {
             out["cartesian"] = json!({
                 "peak_usage": c.peak_usage.iter().map(|(q, u)| (q.to_string(), json!(u))).collect::<Map<_, _>>(),
                 "violations": c.violations.iter().map(|v| json!({"quantity": v.quantity, "time": v.time, "value": v.value, "limit": v.limit})).collect::<Vec<_>>(),
@@ -214,14 +195,14 @@ impl LimitsReport {
             }
         )];
         out.push("peak usage in % of each limit, joints 1, 2, …:".into());
-        for (q, usage) in &self.check.peak_usage {
+        for (q, usage) in &self.check.joints.peak_usage {
             let cells: Vec<String> = usage.iter().map(|u| format!("{u:6.1}")).collect();
             out.push(format!("  {:<13}{}", q.name(), cells.join(" ")));
         }
-        for (q, why) in &self.check.not_checked {
+        for (q, why) in &self.check.joints.not_checked {
             out.push(format!("  {:<13}not checked: {why}", q.name()));
         }
-        if let Some(c) = &self.cartesian {
+        if let Some(c) = &self.check.cartesian {
             let cells: Vec<String> = c
                 .peak_usage
                 .iter()
@@ -230,6 +211,7 @@ impl LimitsReport {
             out.push(format!("  Cartesian: {}", cells.join(", ")));
         }
         let cartesian = self
+            .check
             .cartesian
             .as_ref()
             .map_or(&[][..], |c| &c.violations[..]);
@@ -238,9 +220,9 @@ impl LimitsReport {
         } else {
             out.push(format!(
                 "{} violation(s):",
-                self.check.violations.len() + cartesian.len()
+                self.check.joints.violations.len() + cartesian.len()
             ));
-            for v in &self.check.violations {
+            for v in &self.check.joints.violations {
                 let unit = v.quantity.unit();
                 let relation = if v.quantity == Quantity::Position {
                     "beyond its bound"

@@ -8,9 +8,8 @@
 
 use std::path::Path;
 
-use cps_kinematics::retime::{RetimeOptions, RobotLimits, uniform};
-use cps_kinematics::{CartesianCheck, GRAVITY, JointSpline, LimitCheck, retime};
-use nalgebra::Vector3;
+use cps_kinematics::retime::{RetimeOptions, uniform};
+use cps_kinematics::{CommandCheck, JointSpline, retime};
 use serde_json::{Value, json};
 
 use crate::InputError;
@@ -55,10 +54,8 @@ pub struct RetimeReport {
     pub mode: RetimeMode,
     /// The input checked at the same rate.
     pub before: LimitsReport,
-    /// The result's check at the rate.
-    pub after: LimitCheck,
-    /// Its Cartesian check, when the robot has Cartesian limits.
-    pub after_cartesian: Option<CartesianCheck>,
+    /// The result's check at the rate, joint and Cartesian.
+    pub after: CommandCheck,
     /// Control rate (Hz).
     pub rate: f64,
     /// Duration of the input (s).
@@ -84,16 +81,10 @@ pub fn retime_samples(
     rate: f64,
     mode: RetimeMode,
 ) -> Result<RetimeReport, cps_kinematics::KinematicsError> {
-    let limits = RobotLimits {
-        chain: &robot.chain,
-        limits: &robot.limits,
-        inertia: robot.inertia.as_deref(),
-        gravity: Vector3::from(GRAVITY),
-        cartesian: robot.cartesian.as_ref(),
-    };
+    let limits = robot.robot_limits();
     let before = check_samples(robot, traj, rate)?;
     let original_duration = traj.times[traj.times.len() - 1] - traj.times[0];
-    let (q, qd, qdd, dt, (after, after_cartesian), factor, fastest, duration) = match mode {
+    let (q, qd, qdd, dt, after, factor, fastest, duration) = match mode {
         RetimeMode::Fastest => {
             let r = retime(
                 &limits,
@@ -108,8 +99,7 @@ pub fn retime_samples(
                 qdd.push(a);
             }
             let fastest = Some((r.topp_duration, r.smoothing, r.rounds));
-            let checks = (r.check, r.cartesian);
-            (r.q, qd, qdd, r.dt, checks, None, fastest, r.duration)
+            (r.q, qd, qdd, r.dt, r.check, None, fastest, r.duration)
         }
         RetimeMode::Uniform => {
             let r = uniform(&limits, &traj.times, &traj.q, rate)?;
@@ -122,8 +112,7 @@ pub fn retime_samples(
                 qd.push(p.d1.iter().map(|v| v / k).collect());
                 qdd.push(p.d2.iter().map(|a| a / (k * k)).collect());
             }
-            let checks = (r.check, r.cartesian);
-            (r.q, qd, qdd, r.dt, checks, Some(k), None, r.duration)
+            (r.q, qd, qdd, r.dt, r.check, Some(k), None, r.duration)
         }
     };
     let times: Vec<f64> = (0..q.len()).map(|k| k as f64 * dt).collect();
@@ -147,7 +136,6 @@ pub fn retime_samples(
         mode,
         before,
         after,
-        after_cartesian,
         rate,
         original_duration,
         duration,
@@ -172,8 +160,9 @@ pub fn retime_file(
 
 /// The largest usage (percent) of each checked quantity over the joints, then the
 /// Cartesian ones.
-fn peaks(check: &LimitCheck, cartesian: Option<&CartesianCheck>) -> serde_json::Map<String, Value> {
+fn peaks(check: &CommandCheck) -> serde_json::Map<String, Value> {
     let mut out: serde_json::Map<String, Value> = check
+        .joints
         .peak_usage
         .iter()
         .map(|(q, u)| {
@@ -183,7 +172,11 @@ fn peaks(check: &LimitCheck, cartesian: Option<&CartesianCheck>) -> serde_json::
             )
         })
         .collect();
-    for (q, u) in cartesian.map_or(&[][..], |c| &c.peak_usage[..]) {
+    for (q, u) in check
+        .cartesian
+        .as_ref()
+        .map_or(&[][..], |c| &c.peak_usage[..])
+    {
         out.insert(q.to_string(), json!(u));
     }
     out
@@ -193,10 +186,6 @@ impl RetimeReport {
     /// Whether the result keeps every joint and Cartesian limit.
     pub fn ok(&self) -> bool {
         self.after.ok()
-            && self
-                .after_cartesian
-                .as_ref()
-                .is_none_or(|c| c.violations.is_empty())
     }
 
     /// `{"mode", "rate_hz", "duration_s", "original_duration_s", "factor"?, "topp_duration_s"?,
@@ -221,26 +210,17 @@ impl RetimeReport {
         map.insert("ok".into(), json!(self.ok()));
         map.insert(
             "peak_usage_before".into(),
-            Value::Object(peaks(&self.before.check, self.before.cartesian.as_ref())),
+            Value::Object(peaks(&self.before.check)),
         );
-        map.insert(
-            "peak_usage_after".into(),
-            Value::Object(peaks(&self.after, self.after_cartesian.as_ref())),
-        );
+        map.insert("peak_usage_after".into(), Value::Object(peaks(&self.after)));
         map.insert(
             "violations_before".into(),
-            json!(
-                self.before.check.violations.len()
-                    + self
-                        .before
-                        .cartesian
-                        .as_ref()
-                        .map_or(0, |c| c.violations.len())
-            ),
+            json!(self.before.check.violation_count()),
         );
         map.insert(
             "not_checked".into(),
             self.after
+                .joints
                 .not_checked
                 .iter()
                 .map(|(q, why)| (q.name().to_string(), json!(why)))
@@ -269,15 +249,15 @@ impl RetimeReport {
             "peak usage in % before → after, the largest over the joints ({} Hz):",
             self.rate
         ));
-        let before = peaks(&self.before.check, self.before.cartesian.as_ref());
-        for (q, after) in peaks(&self.after, self.after_cartesian.as_ref()) {
+        let before = peaks(&self.before.check);
+        for (q, after) in peaks(&self.after) {
             let b = before.get(&q).and_then(Value::as_f64).unwrap_or(f64::NAN);
             out.push(format!(
                 "  {q:<26}{b:7.1} → {:5.1}",
                 after.as_f64().unwrap_or(f64::NAN)
             ));
         }
-        for (q, why) in &self.after.not_checked {
+        for (q, why) in &self.after.joints.not_checked {
             out.push(format!("  {:<13}not checked: {why}", q.name()));
         }
         out

@@ -45,6 +45,18 @@ pub struct RobotModel {
 }
 
 impl RobotModel {
+    /// The robot's limits and dynamics as checks and retiming take them (gravity along the
+    /// world's −z).
+    pub fn robot_limits(&self) -> cps_kinematics::RobotLimits<'_> {
+        cps_kinematics::RobotLimits {
+            chain: &self.chain,
+            limits: &self.limits,
+            inertia: self.inertia.as_deref(),
+            gravity: nalgebra::Vector3::from(cps_kinematics::GRAVITY),
+            cartesian: self.cartesian.as_ref(),
+        }
+    }
+
     /// The robot in words, one line each: its kinematic description (DH table or URDF
     /// joints) with the joint limits, then the base and the tool frame.
     pub fn describe(&self) -> Vec<String> {

@@ -67,10 +67,11 @@ pub use error::KinematicsError;
 pub use execute::{ExecutionConfig, Recording, execute};
 pub use ik::{IkConfig, IkSolution, solve_ik};
 pub use limits::{
-    CARTESIAN_QUANTITIES, CartesianCheck, CartesianLimits, CartesianViolation, JointLimits,
-    LimitCheck, Quantity, Violation, check_cartesian, check_joint_trajectory,
+    CARTESIAN_QUANTITIES, CartesianCheck, CartesianLimits, CartesianViolation, CommandCheck,
+    JointLimits, LimitCheck, POSITION_TOLERANCE, Quantity, RobotLimits, Violation, check_cartesian,
+    check_commands, check_joint_trajectory,
 };
-pub use retime::{RetimeOptions, Retimed, RobotLimits, UniformSlowing, retime};
+pub use retime::{RetimeOptions, Retimed, UniformSlowing, retime};
 pub use spline::{JointSpline, PathPoint};
 #[cfg(feature = "urdf")]
 pub use urdf::{UrdfChain, chain_from_urdf};

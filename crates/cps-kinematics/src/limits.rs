@@ -478,3 +478,65 @@ pub fn check_cartesian(
         violations,
     })
 }
+
+/// A robot's limits and, for torques, its dynamics: what a trajectory is checked and
+/// retimed against.
+#[derive(Debug, Clone, Copy)]
+pub struct RobotLimits<'a> {
+    /// Kinematics, position range and velocity limits.
+    pub chain: &'a SerialChain,
+    /// Acceleration, jerk, torque and torque-rate limits.
+    pub limits: &'a JointLimits,
+    /// Link inertias (torques are not limited without them).
+    pub inertia: Option<&'a [LinkInertia]>,
+    /// Gravity in the world frame.
+    pub gravity: Vector3<f64>,
+    /// Limits of the tool's Cartesian motion and the elbow's, if any.
+    pub cartesian: Option<&'a CartesianLimits>,
+}
+
+/// Commands checked against every limit of a robot: the joints' and, when the robot has
+/// them, the Cartesian ones.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CommandCheck {
+    /// Joint positions, velocities, accelerations, jerks, torques and torque rates.
+    pub joints: LimitCheck,
+    /// The tool's translation and rotation and the elbow.
+    pub cartesian: Option<CartesianCheck>,
+}
+
+impl CommandCheck {
+    /// Whether every checked limit holds.
+    pub fn ok(&self) -> bool {
+        self.violation_count() == 0
+    }
+
+    /// Joint and Cartesian violations together.
+    pub fn violation_count(&self) -> usize {
+        self.joints.violations.len() + self.cartesian.as_ref().map_or(0, |c| c.violations.len())
+    }
+}
+
+/// Checks commands `q` (from `t0`, every `dt`) against every limit of `robot`
+/// ([`check_joint_trajectory`] and, with Cartesian limits, [`check_cartesian`]).
+pub fn check_commands(
+    robot: &RobotLimits,
+    t0: f64,
+    dt: f64,
+    q: &[Vec<f64>],
+) -> Result<CommandCheck, KinematicsError> {
+    let joints = check_joint_trajectory(
+        robot.chain,
+        robot.limits,
+        robot.inertia,
+        robot.gravity,
+        t0,
+        dt,
+        q,
+    )?;
+    let cartesian = match robot.cartesian {
+        Some(c) => Some(check_cartesian(robot.chain, c, t0, dt, q)?),
+        None => None,
+    };
+    Ok(CommandCheck { joints, cartesian })
+}

@@ -43,10 +43,7 @@
 use nalgebra::Vector3;
 
 use crate::spline::{Ends, JointSpline, PathPoint};
-use crate::{
-    CartesianCheck, CartesianLimits, JointLimits, KinematicsError, LimitCheck, LinkInertia,
-    Quantity, SerialChain, check_cartesian, check_joint_trajectory,
-};
+use crate::{CommandCheck, KinematicsError, LimitCheck, Quantity, SerialChain, check_commands};
 
 /// Rounds of tightening before [`retime`] gives up.
 pub const MAX_ROUNDS: usize = 40;
@@ -55,20 +52,7 @@ pub const MAX_ROUNDS: usize = 40;
 /// [`retime`]'s loop).
 const START_FRACTION: f64 = 0.998;
 
-/// A robot's limits and, for torques, its dynamics.
-#[derive(Debug, Clone, Copy)]
-pub struct RobotLimits<'a> {
-    /// Kinematics, position range and velocity limits.
-    pub chain: &'a SerialChain,
-    /// Acceleration, jerk, torque and torque-rate limits.
-    pub limits: &'a JointLimits,
-    /// Link inertias (torques are not limited without them).
-    pub inertia: Option<&'a [LinkInertia]>,
-    /// Gravity in the world frame.
-    pub gravity: Vector3<f64>,
-    /// Limits of the tool's Cartesian motion and the elbow's, if any.
-    pub cartesian: Option<&'a CartesianLimits>,
-}
+pub use crate::limits::RobotLimits;
 
 /// Settings of [`retime`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -188,9 +172,7 @@ pub struct Retimed {
     /// Positions at `k·dt`, from 0 to the end (the last at the path's end).
     pub q: Vec<Vec<f64>>,
     /// The check of those commands.
-    pub check: LimitCheck,
-    /// Their Cartesian check, when the robot has Cartesian limits.
-    pub cartesian: Option<CartesianCheck>,
+    pub check: CommandCheck,
 }
 
 impl Retimed {
@@ -665,15 +647,7 @@ pub fn retime(
                 path.spline.positions(s)
             })
             .collect();
-        let check = check_joint_trajectory(
-            robot.chain,
-            robot.limits,
-            robot.inertia,
-            robot.gravity,
-            0.0,
-            dt,
-            &q,
-        )?;
+        let check = check_commands(robot, 0.0, dt, &q)?;
         // The exact derivatives, ten times finer than the commands.
         let mut fine = [
             (Quantity::Velocity, 0.0_f64),
@@ -706,18 +680,14 @@ pub fn retime(
         }
         // Quantities over their limit, with the ratio: beyond a tolerance of 10⁻⁹ in the
         // exact derivatives, or violated in the commands' check at all.
-        let over: Vec<(Quantity, f64)> = worst_usage(&check, &fine)
+        let over: Vec<(Quantity, f64)> = worst_usage(&check.joints, &fine)
             .into_iter()
             .filter_map(|(q, u)| {
-                let violated = check.violations.iter().any(|v| v.quantity == q);
+                let violated = check.joints.violations.iter().any(|v| v.quantity == q);
                 (violated || u > 100.0 * (1.0 + 1e-9)).then_some((q, (u / 100.0).max(1.0 + 1e-9)))
             })
             .collect();
-        let cartesian = match robot.cartesian {
-            Some(c) => Some(check_cartesian(robot.chain, c, 0.0, dt, &q)?),
-            None => None,
-        };
-        let cartesian_over: Vec<(&str, f64)> = cartesian.as_ref().map_or(Vec::new(), |c| {
+        let cartesian_over: Vec<(&str, f64)> = check.cartesian.as_ref().map_or(Vec::new(), |c| {
             c.peak_usage
                 .iter()
                 .filter(|(name, u)| *u > 100.0 || c.violations.iter().any(|v| v.quantity == *name))
@@ -740,7 +710,6 @@ pub fn retime(
                 dt,
                 q,
                 check,
-                cartesian,
             });
         }
         last = over
@@ -802,20 +771,7 @@ pub struct UniformSlowing {
     /// Positions of the stretched trajectory at `k·dt` from its start.
     pub q: Vec<Vec<f64>>,
     /// Their check.
-    pub check: LimitCheck,
-    /// Their Cartesian check, when the robot has Cartesian limits.
-    pub cartesian: Option<CartesianCheck>,
-}
-
-impl UniformSlowing {
-    /// Whether every joint and Cartesian limit holds.
-    pub fn ok(&self) -> bool {
-        self.check.ok()
-            && self
-                .cartesian
-                .as_ref()
-                .is_none_or(|c| c.violations.is_empty())
-    }
+    pub check: CommandCheck,
 }
 
 /// The smallest factor `k` (to 0.01 %) by which the trajectory through `points` at
@@ -849,36 +805,23 @@ pub fn uniform(
         let q: Vec<Vec<f64>> = (0..=steps)
             .map(|i| path.positions(s0 + (i as f64 * dt).min(duration) / k))
             .collect();
-        let check = check_joint_trajectory(
-            robot.chain,
-            robot.limits,
-            robot.inertia,
-            robot.gravity,
-            0.0,
-            dt,
-            &q,
-        )?;
-        let cartesian = match robot.cartesian {
-            Some(c) => Some(check_cartesian(robot.chain, c, 0.0, dt, &q)?),
-            None => None,
-        };
+        let check = check_commands(robot, 0.0, dt, &q)?;
         Ok(UniformSlowing {
             factor: k,
             duration,
             dt,
             q,
             check,
-            cartesian,
         })
     };
     let first = attempt(1.0)?;
-    let (mut lo, mut hi, mut best) = if first.ok() {
+    let (mut lo, mut hi, mut best) = if first.check.ok() {
         // Faster may do: halve until a limit breaks.
         let mut best = first;
         let mut lo = 0.5;
         loop {
             let r = attempt(lo)?;
-            if !r.ok() || lo < 1e-3 {
+            if !r.check.ok() || lo < 1e-3 {
                 break;
             }
             best = r;
@@ -889,11 +832,11 @@ pub fn uniform(
         let mut hi = 2.0;
         loop {
             let r = attempt(hi)?;
-            if r.ok() {
+            if r.check.ok() {
                 break (hi / 2.0, hi, r);
             }
             if hi >= 1000.0 {
-                let (time, what) = match (r.check.violations.first(), &r.cartesian) {
+                let (time, what) = match (r.check.joints.violations.first(), &r.check.cartesian) {
                     (Some(v), _) => (
                         v.time,
                         format!(
@@ -930,7 +873,7 @@ pub fn uniform(
     while (hi - lo) > 1e-4 * hi {
         let mid = 0.5 * (lo + hi);
         let r = attempt(mid)?;
-        if r.ok() {
+        if r.check.ok() {
             hi = mid;
             best = r;
         } else {

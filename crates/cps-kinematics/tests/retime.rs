@@ -3,8 +3,8 @@
 
 use cps_kinematics::robots::{PandaTool, panda, panda_inertia, panda_limits};
 use cps_kinematics::{
-    GRAVITY, JointLimits, KinematicsError, Quantity, RetimeOptions, RobotLimits, retime,
-    retime::uniform,
+    GRAVITY, JointLimits, KinematicsError, LinkInertia, Quantity, RetimeOptions, RobotLimits,
+    SerialChain, retime, retime::uniform,
 };
 use nalgebra::Vector3;
 
@@ -20,6 +20,21 @@ fn segment(a: &[f64], b: &[f64], n: usize) -> (Vec<f64>, Vec<Vec<f64>>) {
         })
         .collect();
     (t, q)
+}
+
+/// The robot `arm` with `limits` (and torques with `inertia`), without Cartesian limits.
+fn limited<'a>(
+    arm: &'a SerialChain,
+    limits: &'a JointLimits,
+    inertia: Option<&'a [LinkInertia]>,
+) -> RobotLimits<'a> {
+    RobotLimits {
+        chain: arm,
+        limits,
+        inertia,
+        gravity: Vector3::from(GRAVITY),
+        cartesian: None,
+    }
 }
 
 /// The Panda's velocity and acceleration limits only (and jerk with `jerk`).
@@ -66,15 +81,9 @@ fn a_straight_line_is_the_trapezoid_and_with_jerk_the_s_curve() {
     let (trapezoid, s_curve) = closed_form(&d, vel, acc, jerk);
     for (with_jerk, expected) in [(false, trapezoid), (true, s_curve)] {
         let limits = kinematic_limits(with_jerk);
-        let robot = RobotLimits {
-            chain: &arm,
-            limits: &limits,
-            inertia: None,
-            gravity: Vector3::from(GRAVITY),
-            cartesian: None,
-        };
+        let robot = limited(&arm, &limits, None);
         let r = retime(&robot, &path_t, &path_q, &RetimeOptions::default()).unwrap();
-        assert!(r.check.ok(), "{:?}", r.check.violations);
+        assert!(r.check.ok(), "{:?}", r.check.joints.violations);
         // Within a control period and the grid's discretisation of the optimum, never below.
         assert!(
             r.duration >= expected - 1e-3 && r.duration <= expected * 1.002,
@@ -109,22 +118,17 @@ fn torque_limits_slow_the_motion_and_hold() {
     let arm = panda(PandaTool::Flange);
     let (limits, _) = panda_limits();
     let inertia = panda_inertia();
-    let robot = RobotLimits {
-        chain: &arm,
-        limits: &limits,
-        inertia: Some(&inertia),
-        gravity: Vector3::from(GRAVITY),
-        cartesian: None,
-    };
+    let robot = limited(&arm, &limits, Some(&inertia));
     let (t, q) = segment(
         &[0.0, -0.5, 0.0, -2.2, 0.0, 1.8, 0.8],
         &[0.4, 0.9, 0.3, -0.6, 0.2, 1.9, 0.8],
         300,
     );
     let r = retime(&robot, &t, &q, &RetimeOptions::default()).unwrap();
-    assert!(r.check.ok(), "{:?}", r.check.violations);
+    assert!(r.check.ok(), "{:?}", r.check.joints.violations);
     let peak = |k: Quantity| {
         r.check
+            .joints
             .peak_usage
             .iter()
             .find(|(q, _)| *q == k)
@@ -146,13 +150,7 @@ fn a_path_held_against_gravity_beyond_the_torque_limit_is_named() {
     let (mut limits, _) = panda_limits();
     limits.torque.as_mut().unwrap()[1] = 5.0;
     let inertia = panda_inertia();
-    let robot = RobotLimits {
-        chain: &arm,
-        limits: &limits,
-        inertia: Some(&inertia),
-        gravity: Vector3::from(GRAVITY),
-        cartesian: None,
-    };
+    let robot = limited(&arm, &limits, Some(&inertia));
     let (t, q) = segment(
         &[0.0, 0.0, 0.0, -1.5, 0.0, 1.5, 0.0],
         &[0.0, 0.8, 0.0, -1.5, 0.0, 1.5, 0.0],
@@ -173,13 +171,7 @@ fn a_path_held_against_gravity_beyond_the_torque_limit_is_named() {
 fn uniform_slowing_finds_the_smallest_stretch() {
     let arm = panda(PandaTool::Flange);
     let limits = kinematic_limits(true);
-    let robot = RobotLimits {
-        chain: &arm,
-        limits: &limits,
-        inertia: None,
-        gravity: Vector3::from(GRAVITY),
-        cartesian: None,
-    };
+    let robot = limited(&arm, &limits, None);
     // A 0.2 s move of 1 rad on joint 1 is far too fast; 5 s is slow enough. The move is
     // the quintic 10σ³ − 15σ⁴ + 6σ⁵ (at rest, without acceleration, at both ends).
     let (t, q): (Vec<f64>, Vec<Vec<f64>>) = (0..2001)

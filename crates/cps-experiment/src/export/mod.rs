@@ -428,7 +428,7 @@ pub fn export_samples(
     if !limits.ok() {
         lines.push(format!(
             "note: the trajectory breaks {} limit(s) of the robot at 1 kHz (`cps-cli limits check` names them; `cps-cli retime` fixes the timing)",
-            limits.check.violations.len() + limits.cartesian.as_ref().map_or(0, |c| c.violations.len())
+            limits.check.violation_count()
         ));
     }
     if format == ExportFormat::Ros2Yaml && bytes.len() > MAX_ARGUMENT_BYTES {

@@ -491,6 +491,7 @@ pub(crate) fn limit_usage(
 pub(crate) fn usage_line(report: &crate::limits::LimitsReport) -> String {
     let peaks: Vec<String> = report
         .check
+        .joints
         .peak_usage
         .iter()
         .map(|(q, u)| {
@@ -509,8 +510,7 @@ pub(crate) fn usage_line(report: &crate::limits::LimitsReport) -> String {
         } else {
             format!(
                 "{} VIOLATION(S), see summary.json `limit_usage`",
-                report.check.violations.len()
-                    + report.cartesian.as_ref().map_or(0, |c| c.violations.len())
+                report.check.violation_count()
             )
         }
     )
