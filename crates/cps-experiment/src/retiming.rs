@@ -1,5 +1,5 @@
 //! Retiming a joint trajectory for a robot (`cps-cli retime`, and experiments' results):
-//! the fastest timing of its path within every limit ([`cps_kinematics::retime`]), or the
+//! the fastest timing of its path within every limit ([`cps_kinematics::retime()`]), or the
 //! smallest uniform slowing of its own timing ([`cps_kinematics::retime::uniform`]).
 //!
 //! The result is a joint trajectory CSV in the input's form, sampled at the control rate:

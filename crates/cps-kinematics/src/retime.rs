@@ -29,7 +29,7 @@
 //!    online trajectory planning with time- and frequency-domain specifications", Control
 //!    Engineering Practice 20(12), 2012); `w` starts at the largest `a/j` of the joints.
 //! 3. **Verification**: the result is sampled at the control rate and checked as a
-//!    controller sees it ([`check_joint_trajectory`]), and its exact velocities,
+//!    controller sees it ([`crate::check_commands`]), and its exact velocities,
 //!    accelerations and jerks are checked ten times finer. Where a limit is exceeded (the
 //!    grid, the filter or the torque rate, which TOPP-RA does not model), the limits given
 //!    to TOPP-RA are tightened by the excess (velocity, acceleration, torque) or `w` is
