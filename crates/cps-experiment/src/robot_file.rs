@@ -394,6 +394,80 @@ fn urdf_robot(
 /// The FANUC CRX-10iA (`crx10ia`): configs/robots/crx10ia.urdf, built in.
 pub const CRX10IA_URDF: &str = include_str!("../../../configs/robots/crx10ia.urdf");
 
+/// Its side file of limits, built in with it.
+pub const CRX10IA_LIMITS: &str = include_str!("../../../configs/robots/crx10ia.limits.toml");
+
+/// The limits a URDF has no tag for: `ROBOT.limits.toml` beside `ROBOT.urdf`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SideFile {
+    ddq_max: Option<Spanned<Vec<f64>>>,
+    dddq_max: Option<Spanned<Vec<f64>>>,
+    tau_max: Option<Spanned<Vec<f64>>>,
+    dtau_max: Option<Spanned<Vec<f64>>>,
+    cartesian: Option<Spanned<CartesianSection>>,
+}
+
+/// The side file of a URDF robot at `path` (`text`): acceleration, jerk, torque (replacing
+/// the URDF's efforts) and torque-rate limits per joint, and `[cartesian]`; each checked
+/// with its place.
+fn apply_side_file(model: &mut RobotModel, path: &Path, text: &str) -> Result<(), InputError> {
+    let at = |span: std::ops::Range<usize>, m: String| {
+        InputError(format!(
+            "{}: {m}",
+            crate::source::location(path, text, &span)
+        ))
+    };
+    let file: SideFile = toml::from_str(text).map_err(|e| {
+        let span = e.span().unwrap_or(0..0);
+        at(span, e.message().to_string())
+    })?;
+    let n = model.chain.dof();
+    let per_joint =
+        |v: &Option<Spanned<Vec<f64>>>, key: &str| -> Result<Option<Vec<f64>>, InputError> {
+            let Some(v) = v else { return Ok(None) };
+            let values = v.get_ref();
+            if values.len() != n || values.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+                return Err(at(
+                    v.span(),
+                    format!(
+                        "`{key}` needs {n} finite values > 0, one per joint (got {})",
+                        values.len()
+                    ),
+                ));
+            }
+            Ok(Some(values.clone()))
+        };
+    model.limits.acceleration = per_joint(&file.ddq_max, "ddq_max")?;
+    model.limits.jerk = per_joint(&file.dddq_max, "dddq_max")?;
+    if let Some(t) = per_joint(&file.tau_max, "tau_max")? {
+        model.limits.torque = Some(t);
+    }
+    model.limits.torque_rate = per_joint(&file.dtau_max, "dtau_max")?;
+    if let Some(c) = &file.cartesian {
+        model.cartesian = Some(cartesian_limits(c).map_err(|m| at(c.span(), m))?);
+    }
+    Ok(())
+}
+
+/// `[cartesian]` checked: every value finite and > 0.
+fn cartesian_limits(c: &Spanned<CartesianSection>) -> Result<CartesianLimits, String> {
+    let v = c.get_ref();
+    if v.translation
+        .iter()
+        .chain(&v.rotation)
+        .chain(&v.elbow)
+        .any(|x| !(x.is_finite() && *x > 0.0))
+    {
+        return Err("[cartesian] limits must be finite and > 0".into());
+    }
+    Ok(CartesianLimits {
+        translation: v.translation,
+        rotation: v.rotation,
+        elbow: v.elbow,
+    })
+}
+
 /// Loads `spec`: a built-in name, or a path ending in `.toml` or `.urdf`. `tool` picks a
 /// tool point (built-in Panda: `hand` or `flange`; TOML: a `[tools.*]` name); `tip` picks
 /// the URDF tip link.
@@ -412,8 +486,16 @@ pub fn load_robot(
                     "--tool: a URDF robot ends at its tip link; choose it with --tip".into(),
                 ));
             }
-            return urdf_robot(&text, tip)
-                .map_err(|e| InputError(format!("{}: {e}", path.display())));
+            let mut model = urdf_robot(&text, tip)
+                .map_err(|e| InputError(format!("{}: {e}", path.display())))?;
+            // The limits a URDF has no tag for, from `ROBOT.limits.toml` beside it.
+            let side = path.with_extension("limits.toml");
+            if side.is_file() {
+                let text =
+                    crate::source::read_text(&side, crate::source::MAX_FILE_BYTES, "limits file")?;
+                apply_side_file(&mut model, &side, &text)?;
+            }
+            return Ok(model);
         }
         if tip.is_some() {
             return Err(InputError("--tip applies to URDF robots only".into()));
@@ -477,6 +559,11 @@ pub fn load_robot(
             }
             let mut model = urdf_robot(CRX10IA_URDF, None)
                 .map_err(|e| InputError(format!("the built-in crx10ia: {e}")))?;
+            apply_side_file(
+                &mut model,
+                Path::new("configs/robots/crx10ia.limits.toml"),
+                CRX10IA_LIMITS,
+            )?;
             model.ready = vec![0.0; 6];
             model.tool = "flange".into();
             Ok(model)
@@ -676,25 +763,7 @@ pub fn parse_robot_toml(
         None => mid_range(&chain),
     };
     let cartesian = match &file.cartesian {
-        Some(c) => {
-            let v = c.get_ref();
-            if v.translation
-                .iter()
-                .chain(&v.rotation)
-                .chain(&v.elbow)
-                .any(|x| !(x.is_finite() && *x > 0.0))
-            {
-                return Err(err(
-                    c.span(),
-                    "[cartesian] limits must be finite and > 0".into(),
-                ));
-            }
-            Some(CartesianLimits {
-                translation: v.translation,
-                rotation: v.rotation,
-                elbow: v.elbow,
-            })
-        }
+        Some(c) => Some(cartesian_limits(c).map_err(|m| err(c.span(), m))?),
         None => None,
     };
     Ok(RobotModel {

@@ -153,3 +153,53 @@ fn the_panda_file_and_the_built_in_panda_agree_on_every_limit() {
     assert_eq!(c.rotation, [2.5, 25.0, 12500.0]);
     assert_eq!(c.elbow, [2.175, 10.0, 5000.0]);
 }
+
+/// A URDF's missing limits come from `ROBOT.limits.toml` beside it; the built-in CRX-10iA
+/// has FANUC's MoveIt planning accelerations from its side file; bad side files are named
+/// with their place.
+#[test]
+fn a_urdf_robot_takes_its_other_limits_from_a_side_file() {
+    let crx = load_robot("crx10ia", None, None).unwrap();
+    assert_eq!(
+        crx.limits.acceleration.as_deref(),
+        Some(&[0.4, 0.4, 0.4, 1.0, 1.0, 1.0][..])
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let urdf = dir.path().join("arm.urdf");
+    std::fs::write(&urdf, cps_experiment::robot_file::CRX10IA_URDF).unwrap();
+    let plain = load_robot(urdf.to_str().unwrap(), None, None).unwrap();
+    assert!(plain.limits.acceleration.is_none() && plain.cartesian.is_none());
+    let side = dir.path().join("arm.limits.toml");
+    std::fs::write(
+        &side,
+        "dddq_max = [1, 2, 3, 4, 5, 6]\ntau_max = [10, 10, 10, 5, 5, 5]\n[cartesian]\ntranslation = [1, 2, 3]\nrotation = [1, 2, 3]\nelbow = [1, 2, 3]\n",
+    )
+    .unwrap();
+    let with = load_robot(urdf.to_str().unwrap(), None, None).unwrap();
+    assert_eq!(
+        with.limits.jerk.as_deref(),
+        Some(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0][..])
+    );
+    assert_eq!(
+        with.limits.torque.as_deref().unwrap()[0],
+        10.0,
+        "replaces the efforts"
+    );
+    assert_eq!(with.cartesian.unwrap().translation, [1.0, 2.0, 3.0]);
+    for (text, wanted) in [
+        (
+            "ddq_max = [1, 2]\n",
+            "arm.limits.toml:1:11: `ddq_max` needs 6 finite values > 0",
+        ),
+        ("ddq_max = [1, 2, 3, 4, 5, -6]\n", "`ddq_max` needs 6"),
+        ("speed = [1]\n", "unknown field `speed`"),
+        (
+            "[cartesian]\ntranslation = [1, 2, 3]\nrotation = [1, 2, 3]\nelbow = [1, 0, 3]\n",
+            "[cartesian] limits must be finite and > 0",
+        ),
+    ] {
+        std::fs::write(&side, text).unwrap();
+        let e = load_robot(urdf.to_str().unwrap(), None, None).unwrap_err();
+        assert!(e.to_string().contains(wanted), "{e}");
+    }
+}
