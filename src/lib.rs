@@ -12,7 +12,10 @@
 //!   server).
 //! - [`experiment`] (`cps-experiment`): experiments as a library — read an experiment
 //!   file of any kind, run it, get its outcome as data (summary, tables, figures), write
-//!   it as a result directory; scenes, robot files, single movements.
+//!   it as a result directory; scenes, robot files, single movements; retiming and export
+//!   of robot trajectories.
+//! - [`promp`] (`cps-promp`): probabilistic movement primitives — learned from
+//!   demonstrations, conditioned on via points, sampled.
 //!
 //! See ARCHITECTURE.md for how they fit, and `cps-cli` for the command line.
 //!
@@ -45,3 +48,4 @@ pub use cps_dmp as dmp;
 pub use cps_experiment as experiment;
 pub use cps_kinematics as kinematics;
 pub use cps_learn as learn;
+pub use cps_promp as promp;

@@ -1,0 +1,391 @@
+//! The ProMP: basis, fitting, moments over time, conditioning, sampling.
+
+use nalgebra::{DMatrix, DVector};
+use rand::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
+
+/// What can go wrong with a ProMP.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ProMpError {
+    /// A setting or an input out of its range; the message names it.
+    #[error("{0}")]
+    Invalid(String),
+    /// A covariance that is not positive definite where it must be (conditioning on
+    /// contradicting exact via points, sampling a broken distribution).
+    #[error("{0}")]
+    Singular(String),
+}
+
+fn invalid(m: String) -> ProMpError {
+    ProMpError::Invalid(m)
+}
+
+/// A via point to condition on: at time `time` (s), a position and optionally a velocity,
+/// each with its covariance (dims × dims; zero: met exactly).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Observation {
+    /// Time (s), within `[0, duration]`.
+    pub time: f64,
+    /// Desired position per dimension.
+    pub position: Option<Vec<f64>>,
+    /// Its covariance (dims × dims, row-major).
+    pub position_cov: Vec<f64>,
+    /// Desired velocity per dimension.
+    pub velocity: Option<Vec<f64>>,
+    /// Its covariance (dims × dims, row-major).
+    pub velocity_cov: Vec<f64>,
+}
+
+impl Observation {
+    /// A position with the same standard deviation `std` in every dimension (0: exact).
+    pub fn position(time: f64, position: Vec<f64>, std: f64) -> Self {
+        let d = position.len();
+        Observation {
+            time,
+            position_cov: diagonal(d, std * std),
+            position: Some(position),
+            velocity: None,
+            velocity_cov: Vec::new(),
+        }
+    }
+
+    /// Adds a velocity with standard deviation `std` in every dimension.
+    pub fn with_velocity(mut self, velocity: Vec<f64>, std: f64) -> Self {
+        self.velocity_cov = diagonal(velocity.len(), std * std);
+        self.velocity = Some(velocity);
+        self
+    }
+}
+
+fn diagonal(d: usize, v: f64) -> Vec<f64> {
+    let mut m = vec![0.0; d * d];
+    for i in 0..d {
+        m[i * d + i] = v;
+    }
+    m
+}
+
+/// A probabilistic movement primitive; see the crate documentation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProMp {
+    dims: usize,
+    bases: usize,
+    duration: f64,
+    width: f64,
+    mean: DVector<f64>,
+    cov: DMatrix<f64>,
+}
+
+/// Ridge added to the weight covariance of a fit (relative to its largest diagonal entry,
+/// and at least this absolute value), so that it stays positive definite.
+const COV_RIDGE: f64 = 1e-10;
+
+impl ProMp {
+    /// A ProMP of `dims` dimensions and `bases` basis functions per dimension over
+    /// `duration` seconds, with weight mean `mean` (dimension-major: all of dimension 0's
+    /// weights, then dimension 1's, …) and covariance `cov` (row-major, square).
+    pub fn new(
+        dims: usize,
+        bases: usize,
+        duration: f64,
+        mean: Vec<f64>,
+        cov: Vec<f64>,
+    ) -> Result<Self, ProMpError> {
+        if dims == 0 || bases < 2 || dims * bases > 10_000 {
+            return Err(invalid(format!(
+                "a ProMP needs at least 1 dimension and 2 basis functions, at most 10000 weights (got {dims} × {bases})"
+            )));
+        }
+        if !(duration.is_finite() && duration > 0.0) {
+            return Err(invalid(format!(
+                "the duration must be finite and > 0 (got {duration})"
+            )));
+        }
+        let n = dims * bases;
+        if mean.len() != n || cov.len() != n * n {
+            return Err(invalid(format!(
+                "{dims} dimensions × {bases} basis functions need {n} mean weights and a {n} × {n} covariance (got {} and {})",
+                mean.len(),
+                cov.len()
+            )));
+        }
+        if mean.iter().chain(&cov).any(|v| !v.is_finite()) {
+            return Err(invalid(
+                "the weight mean and covariance must be finite".into(),
+            ));
+        }
+        Ok(ProMp {
+            dims,
+            bases,
+            duration,
+            width: 1.0 / (bases - 1) as f64,
+            mean: DVector::from_vec(mean),
+            cov: DMatrix::from_row_slice(n, n, &cov),
+        })
+    }
+
+    /// Dimensions.
+    pub fn dims(&self) -> usize {
+        self.dims
+    }
+
+    /// Basis functions per dimension.
+    pub fn bases(&self) -> usize {
+        self.bases
+    }
+
+    /// Duration (s).
+    pub fn duration(&self) -> f64 {
+        self.duration
+    }
+
+    /// The weight mean (dimension-major).
+    pub fn weight_mean(&self) -> &[f64] {
+        self.mean.as_slice()
+    }
+
+    /// The weight covariance.
+    pub fn weight_cov(&self) -> &DMatrix<f64> {
+        &self.cov
+    }
+
+    /// The normalised basis at phase `z` and its derivative with respect to `z`.
+    fn basis(&self, z: f64) -> (DVector<f64>, DVector<f64>) {
+        let n = self.bases;
+        let h = self.width;
+        let mut g = DVector::zeros(n);
+        let mut dg = DVector::zeros(n);
+        for i in 0..n {
+            let c = i as f64 / (n - 1) as f64;
+            let e = (-(z - c) * (z - c) / (2.0 * h * h)).exp();
+            g[i] = e;
+            dg[i] = -e * (z - c) / (h * h);
+        }
+        let s = g.sum();
+        let ds = dg.sum();
+        let psi = &g / s;
+        let dpsi = (&dg * s - &g * ds) / (s * s);
+        (psi, dpsi)
+    }
+
+    /// `Φ` (dims × dims·bases) of positions and of velocities (per second) at time `t`.
+    fn features(&self, t: f64) -> (DMatrix<f64>, DMatrix<f64>) {
+        let (psi, dpsi) = self.basis(t / self.duration);
+        let (d, n) = (self.dims, self.bases);
+        let mut p = DMatrix::zeros(d, d * n);
+        let mut v = DMatrix::zeros(d, d * n);
+        for k in 0..d {
+            for i in 0..n {
+                p[(k, k * n + i)] = psi[i];
+                v[(k, k * n + i)] = dpsi[i] / self.duration;
+            }
+        }
+        (p, v)
+    }
+
+    /// Mean position and velocity at time `t` (s).
+    pub fn mean_at(&self, t: f64) -> (Vec<f64>, Vec<f64>) {
+        let (p, v) = self.features(t);
+        (
+            (&p * &self.mean).as_slice().to_vec(),
+            (&v * &self.mean).as_slice().to_vec(),
+        )
+    }
+
+    /// Covariance of position and of velocity at time `t` (dims × dims each).
+    pub fn covariance_at(&self, t: f64) -> (DMatrix<f64>, DMatrix<f64>) {
+        let (p, v) = self.features(t);
+        (
+            &p * &self.cov * p.transpose(),
+            &v * &self.cov * v.transpose(),
+        )
+    }
+
+    /// Positions of the trajectory with weights `w` at the times `t`: one row per time.
+    pub fn trajectory(&self, w: &[f64], times: &[f64]) -> Vec<Vec<f64>> {
+        let w = DVector::from_column_slice(w);
+        times
+            .iter()
+            .map(|&t| (self.features(t).0 * &w).as_slice().to_vec())
+            .collect()
+    }
+
+    /// The ProMP of demonstrations `(times, positions)` (one row of `dims` values per time,
+    /// at least 2 samples, increasing times), each time-normalised to `[0, duration]`, with
+    /// `bases` basis functions per dimension. Each demonstration's weights come from ridge
+    /// regression (λ = 1e-8 times the Gram matrix's trace over its size); the mean and the
+    /// sample covariance of the weights are the ProMP. At least 2 demonstrations.
+    pub fn fit(
+        demos: &[(Vec<f64>, Vec<Vec<f64>>)],
+        bases: usize,
+        duration: f64,
+    ) -> Result<Self, ProMpError> {
+        if demos.len() < 2 {
+            return Err(invalid(format!(
+                "a ProMP needs at least 2 demonstrations to learn their spread (got {})",
+                demos.len()
+            )));
+        }
+        let dims = demos[0].1.first().map_or(0, Vec::len);
+        let n = dims * bases;
+        let mut shell = ProMp::new(dims, bases, duration, vec![0.0; n], vec![0.0; n * n])?;
+        let mut weights = Vec::with_capacity(demos.len());
+        for (k, (t, y)) in demos.iter().enumerate() {
+            let name = format!("demonstration {}", k + 1);
+            if t.len() != y.len() || t.len() < 2 {
+                return Err(invalid(format!(
+                    "{name}: needs at least 2 samples with one time each (got {} times, {} rows)",
+                    t.len(),
+                    y.len()
+                )));
+            }
+            if let Some(r) = y.iter().position(|r| r.len() != dims) {
+                return Err(invalid(format!(
+                    "{name}: sample {} has {} values, the first demonstration {dims}",
+                    r + 1,
+                    y[r].len()
+                )));
+            }
+            if let Some(i) = t.windows(2).position(|w| w[1] <= w[0] || w[1].is_nan()) {
+                return Err(invalid(format!(
+                    "{name}: times must increase (sample {} at {} follows {})",
+                    i + 2,
+                    t[i + 1],
+                    t[i]
+                )));
+            }
+            if t.iter().chain(y.iter().flatten()).any(|v| !v.is_finite()) {
+                return Err(invalid(format!("{name}: every value must be finite")));
+            }
+            let (t0, span) = (t[0], t[t.len() - 1] - t[0]);
+            let psi = DMatrix::from_fn(t.len(), bases, |r, c| shell.basis((t[r] - t0) / span).0[c]);
+            let gram = psi.transpose() * &psi;
+            let lambda = 1e-8 * gram.trace() / bases as f64;
+            let a = gram + DMatrix::identity(bases, bases) * lambda;
+            let chol = a.cholesky().ok_or_else(|| {
+                ProMpError::Singular(format!("{name}: the regression is singular"))
+            })?;
+            let mut w = DVector::zeros(n);
+            for d in 0..dims {
+                let col = DVector::from_iterator(t.len(), y.iter().map(|r| r[d]));
+                let wd = chol.solve(&(psi.transpose() * col));
+                w.rows_mut(d * bases, bases).copy_from(&wd);
+            }
+            weights.push(w);
+        }
+        let m = weights.len() as f64;
+        let mean = weights.iter().fold(DVector::zeros(n), |a, w| a + w) / m;
+        let mut cov = DMatrix::zeros(n, n);
+        for w in &weights {
+            let d = w - &mean;
+            cov += &d * d.transpose();
+        }
+        cov /= m - 1.0;
+        let ridge = (COV_RIDGE * cov.diagonal().max()).max(COV_RIDGE);
+        for i in 0..n {
+            cov[(i, i)] += ridge;
+        }
+        shell.mean = mean;
+        shell.cov = cov;
+        Ok(shell)
+    }
+
+    /// The ProMP given the via points `obs` (all at once): Gaussian conditioning of the
+    /// weights on each observed position (and velocity) with its covariance.
+    pub fn condition(&self, obs: &[Observation]) -> Result<ProMp, ProMpError> {
+        let d = self.dims;
+        let mut rows: Vec<DMatrix<f64>> = Vec::new();
+        let mut targets: Vec<f64> = Vec::new();
+        let mut noise: Vec<DMatrix<f64>> = Vec::new();
+        for (k, o) in obs.iter().enumerate() {
+            let name = format!("via point {}", k + 1);
+            if !(o.time.is_finite() && (0.0..=self.duration).contains(&o.time)) {
+                return Err(invalid(format!(
+                    "{name}: the time {} s must lie within the movement, 0 to {} s",
+                    o.time, self.duration
+                )));
+            }
+            let (p, v) = self.features(o.time);
+            for (what, value, cov, phi) in [
+                ("position", &o.position, &o.position_cov, p),
+                ("velocity", &o.velocity, &o.velocity_cov, v),
+            ] {
+                let Some(value) = value else { continue };
+                if value.len() != d || cov.len() != d * d {
+                    return Err(invalid(format!(
+                        "{name}: the {what} needs {d} values and a {d} × {d} covariance (got {} and {})",
+                        value.len(),
+                        cov.len()
+                    )));
+                }
+                if value.iter().chain(cov).any(|x| !x.is_finite()) {
+                    return Err(invalid(format!("{name}: the {what} must be finite")));
+                }
+                let c = DMatrix::from_row_slice(d, d, cov);
+                if (0..d).any(|i| c[(i, i)] < 0.0) || (&c - c.transpose()).amax() > 1e-12 {
+                    return Err(invalid(format!(
+                        "{name}: the {what} covariance must be symmetric with variances ≥ 0"
+                    )));
+                }
+                rows.push(phi);
+                targets.extend_from_slice(value);
+                noise.push(c);
+            }
+        }
+        if rows.is_empty() {
+            return Ok(self.clone());
+        }
+        let m = targets.len();
+        let n = self.dims * self.bases;
+        let mut phi = DMatrix::zeros(m, n);
+        let mut sigma = DMatrix::zeros(m, m);
+        let mut at = 0;
+        for (r, c) in rows.iter().zip(&noise) {
+            phi.rows_mut(at, d).copy_from(r);
+            sigma.view_mut((at, at), (d, d)).copy_from(c);
+            at += d;
+        }
+        let y = DVector::from_vec(targets);
+        let s = &sigma + &phi * &self.cov * phi.transpose();
+        let s = (&s + s.transpose()) * 0.5;
+        let chol = s.cholesky().ok_or_else(|| {
+            ProMpError::Singular(
+                "the via points contradict each other or leave no freedom (their combined covariance is singular): give them some covariance or fewer constraints"
+                    .into(),
+            )
+        })?;
+        // K = Σ_w Φᵀ S⁻¹
+        let gain = chol.solve(&(&phi * &self.cov)).transpose();
+        let mean = &self.mean + &gain * (y - &phi * &self.mean);
+        let cov = &self.cov - &gain * &phi * &self.cov;
+        let cov = (&cov + cov.transpose()) * 0.5;
+        Ok(ProMp {
+            mean,
+            cov,
+            ..self.clone()
+        })
+    }
+
+    /// `count` weight vectors drawn from the ProMP with seed `seed` (the same seed, the
+    /// same samples).
+    pub fn sample(&self, count: usize, seed: u64) -> Result<Vec<Vec<f64>>, ProMpError> {
+        let n = self.dims * self.bases;
+        // A relative jitter keeps Cholesky working on covariances that conditioning made
+        // singular in some directions.
+        let jitter = 1e-12 * self.cov.diagonal().amax().max(1e-300);
+        let chol = (&self.cov + DMatrix::identity(n, n) * jitter)
+            .cholesky()
+            .ok_or_else(|| {
+                ProMpError::Singular("the weight covariance is not positive semi-definite".into())
+            })?;
+        let l = chol.l();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        Ok((0..count)
+            .map(|_| {
+                let z = DVector::from_fn(n, |_, _| StandardNormal.sample(&mut rng));
+                (&self.mean + &l * z).as_slice().to_vec()
+            })
+            .collect())
+    }
+}
