@@ -169,8 +169,9 @@ impl ProMp {
         (psi, dpsi)
     }
 
-    /// `Φ` (dims × dims·bases) of positions and of velocities (per second) at time `t`.
-    fn features(&self, t: f64) -> (DMatrix<f64>, DMatrix<f64>) {
+    /// `Φ` (dims × dims·bases) of positions and of velocities (per second) at time `t`:
+    /// position = `Φ w`, velocity = `Φ̇ w`.
+    pub fn features(&self, t: f64) -> (DMatrix<f64>, DMatrix<f64>) {
         let (psi, dpsi) = self.basis(t / self.duration);
         let (d, n) = (self.dims, self.bases);
         let mut p = DMatrix::zeros(d, d * n);

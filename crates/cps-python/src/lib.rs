@@ -29,6 +29,7 @@ mod experiment;
 mod interrupt;
 mod kinematics;
 mod learn;
+mod promp;
 
 use pyo3::prelude::*;
 
@@ -52,5 +53,6 @@ fn _cps(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<experiment::Table>()?;
     m.add_function(wrap_pyfunction!(experiment::run_experiment, m)?)?;
     m.add_class::<kinematics::Robot>()?;
+    m.add_class::<promp::PyProMp>()?;
     Ok(())
 }
