@@ -225,16 +225,9 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
             threads,
         } => {
             let exp = experiment::load(&file, None, &ceilings.ceilings()?)?;
-            let options = RunOptions { threads };
-            options.check()?;
-            // The robot's reach is checked as the run would, before saying ok.
-            let reach = exp.check_reach()?;
-            let e = exp.estimate.expect("estimated when loaded");
-            say!("{}: ok (kind {})", file.display(), exp.kind.name());
-            for line in exp.describe().iter().chain(&reach) {
-                say!("  {line}");
+            for line in exp.check_lines(&RunOptions { threads })? {
+                say!("{line}");
             }
-            say!("  {}", e.describe(options.threads()));
             Ok(ExitCode::SUCCESS)
         }
         Command::Run(args) => run_experiment(&args, interrupted),

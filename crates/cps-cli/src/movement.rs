@@ -162,51 +162,11 @@ pub fn run_imitate(args: &ImitateArgs) -> Result<ExitCode> {
     };
     let paths: Vec<&Path> = args.demos.iter().map(PathBuf::as_path).collect();
     let imitated = imitate_files(&paths, args.columns.as_deref(), &spec)?;
-    let (fit, names) = (&imitated.fit, &imitated.names);
-    let tau = fit.dmp.config().tau;
     write_file(&args.out, imitated.model().to_json().as_bytes()).map_err(cli_error)?;
     if let Some(plot) = &args.plot {
         draw_file(&imitated.figure(), plot).map_err(cli_error)?;
     }
-    let r = &fit.report;
-    if args.json {
-        let out = serde_json::json!({
-            "model": args.out,
-            "dimensions": names,
-            "tau": tau,
-            "dt": fit.dmp.config().step(),
-            "rmse": r.rmse,
-            "max_error": r.max_error,
-            "lambda": r.lambda,
-            "condition_number": r.condition_number,
-            "integrated_squared_jerk": r.integrated_squared_jerk,
-            "demo_integrated_squared_jerk": r.demo_integrated_squared_jerk,
-        });
-        say!("{}", serde_json::to_string_pretty(&out)?);
-    } else {
-        say!(
-            "{} demonstration(s), {} dimension(s), {} bases, τ = {tau} s: model written to {}",
-            imitated.demonstrations,
-            names.len(),
-            args.bases,
-            args.out.display()
-        );
-        for (d, name) in names.iter().enumerate() {
-            say!(
-                "  {name}: RMSE {:.3e}, max error {:.3e}, λ {:.3e}, ∫jerk² {:.4e} (demo {:.4e})",
-                r.rmse[d],
-                r.max_error[d],
-                r.lambda[d],
-                r.integrated_squared_jerk[d],
-                r.demo_integrated_squared_jerk[d]
-            );
-        }
-        say!(
-            "  condition number of the regression: {:.3e}",
-            r.condition_number
-        );
-    }
-    Ok(ExitCode::SUCCESS)
+    crate::robot::print(&imitated.answer(&args.out), args.json)
 }
 
 /// `cps-cli rollout`.

@@ -142,18 +142,11 @@ pub enum LimitsCommand {
 pub fn limits(cmd: &LimitsCommand) -> Result<ExitCode> {
     let LimitsCommand::Check { file, arm, rate } = cmd;
     let report = cps_experiment::limits::check_file(file, &arm.load()?, *rate)?;
-    let mut lines = vec![format!("{} on {}:", file.display(), arm.robot)];
-    lines.extend(report.lines());
-    let answer = Answer {
-        json: report.json(),
-        lines,
-    };
-    print(&answer, arm.json)?;
-    Ok(if report.ok() {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(1)
-    })
+    print(
+        &report.answer(format!("{} on {}:", file.display(), arm.robot)),
+        arm.json,
+    )?;
+    Ok(ExitCode::from(u8::from(!report.ok())))
 }
 
 /// `cps-cli robot show`.

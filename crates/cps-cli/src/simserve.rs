@@ -7,10 +7,10 @@ use std::time::Duration;
 
 use anyhow::Result;
 use clap::Subcommand;
-use cps_coppelia::{ServerConfig, ServerLimits, StandInServer};
+use cps_coppelia::StandInServer;
 
 use cps_experiment::InputError;
-use cps_experiment::scene::{Scene, load_scene};
+use cps_experiment::scene::{Scene, StandInOptions, load_scene};
 
 /// `cps-cli sim ...`.
 #[derive(Subcommand, Debug)]
@@ -61,57 +61,24 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
         max_clients,
         crash_after,
     } = cmd;
-    if !(dt.is_finite() && (1e-6..=10.0).contains(dt)) {
-        return Err(InputError(format!(
-            "--dt {dt:?}: the time step must be between 1e-6 and 10 seconds"
-        ))
-        .into());
-    }
-    if !(client_lease.is_finite() && (0.01..=86_400.0).contains(client_lease)) {
-        return Err(InputError(format!(
-            "--client-lease {client_lease:?}: must be between 0.01 and 86400 seconds"
-        ))
-        .into());
-    }
-    if !(64..=1 << 30).contains(max_message_bytes) {
-        return Err(InputError(format!(
-            "--max-message-bytes {max_message_bytes}: must be between 64 and 1073741824"
-        ))
-        .into());
-    }
-    if !(1..=4096).contains(max_clients) {
-        return Err(InputError(format!(
-            "--max-clients {max_clients}: must be between 1 and 4096"
-        ))
-        .into());
-    }
     let scene = match scene {
         Some(path) => load_scene(path)?,
         None => Scene::thesis()?,
     };
-    let robot_name = scene.sim_robot_name();
-    let setup = scene.stand_in(*dt, *ik_following);
-    let server = StandInServer::start(ServerConfig {
+    let stand_in = scene.server_config(&StandInOptions {
         bind: bind.clone(),
-        scene: setup,
-        limits: ServerLimits {
-            max_message_bytes: *max_message_bytes,
-            max_connections: *max_clients,
-            client_lease: Duration::from_secs_f64(*client_lease),
-            ..ServerLimits::default()
-        },
-    })
-    .map_err(|e| InputError(format!("--bind {bind}: {e}")))?;
+        dt: *dt,
+        ik_following: *ik_following,
+        client_lease: *client_lease,
+        max_message_bytes: *max_message_bytes,
+        max_clients: *max_clients,
+    })?;
+    let server = StandInServer::start(stand_in.config)
+        .map_err(|e| InputError(format!("--bind {bind}: {e}")))?;
     say!(
-        "stand-in CoppeliaSim serving {} (robot /{robot_name}, joints /{robot_name}_joint1..{}, tip /{robot_name}_tip, IK target /{robot_name}_target{}, {} dummies); Ctrl-C stops",
+        "stand-in CoppeliaSim serving {} ({}); Ctrl-C stops",
         server.endpoint(),
-        scene.robot.chain.dof(),
-        if *ik_following {
-            " followed by the tip"
-        } else {
-            ""
-        },
-        scene.objects.len()
+        stand_in.describe
     );
     while !interrupted.load(Ordering::SeqCst) {
         // What clients log with sim.addLog goes to stderr, as CoppeliaSim's status bar.

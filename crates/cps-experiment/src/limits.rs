@@ -181,6 +181,14 @@ impl LimitsReport {
         out
     }
 
+    /// The report as `cps-cli limits check` prints it: its JSON, or `title` and its lines.
+    pub fn answer(&self, title: String) -> crate::robot_file::Answer {
+        crate::robot_file::Answer {
+            json: self.json(),
+            lines: std::iter::once(title).chain(self.lines()).collect(),
+        }
+    }
+
     /// The report in words, a line each.
     pub fn lines(&self) -> Vec<String> {
         let mut out = vec![format!(

@@ -1063,6 +1063,27 @@ impl Experiment {
         lines
     }
 
+    /// What `cps-cli check` prints for this experiment run with `options`: `ok` and the
+    /// kind, what it learns and searches, where it executes and exports, the robot's reach
+    /// (checked as the run would, so an unreachable point is an error here) and the
+    /// estimate of memory and time.
+    pub fn check_lines(&self, options: &crate::RunOptions) -> Result<Vec<String>, InputError> {
+        options.check()?;
+        let reach = self.check_reach()?;
+        let mut lines = vec![format!(
+            "{}: ok (kind {})",
+            self.source.display(),
+            self.kind.name()
+        )];
+        for line in self.describe().into_iter().chain(reach) {
+            lines.push(format!("  {line}"));
+        }
+        if let Some(e) = &self.estimate {
+            lines.push(format!("  {}", e.describe(options.threads())));
+        }
+        Ok(lines)
+    }
+
     /// Whether the robot can reach the start, every via point and the goal within its
     /// joint limits (kinds with a robot); the sentence names the first point it cannot,
     /// as the run would.

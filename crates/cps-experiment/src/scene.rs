@@ -37,6 +37,32 @@ struct Object {
     position: [f64; 3],
 }
 
+/// How the stand-in server runs a scene ([`Scene::server_config`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StandInOptions {
+    /// Address to bind.
+    pub bind: String,
+    /// Simulation step (s), 1e-6 to 10.
+    pub dt: f64,
+    /// The tip follows `/<robot>_target` every step.
+    pub ik_following: bool,
+    /// Seconds a silent client keeps its stepping hold, 0.01 to 86400.
+    pub client_lease: f64,
+    /// The largest request accepted (bytes), 64 to 2³⁰.
+    pub max_message_bytes: usize,
+    /// Connections served at once, 1 to 4096.
+    pub max_clients: usize,
+}
+
+/// A checked stand-in configuration and what it serves, in words.
+#[derive(Debug, Clone)]
+pub struct StandIn {
+    /// The server's configuration.
+    pub config: cps_coppelia::ServerConfig,
+    /// The robot's names and the dummies, for the announcement.
+    pub describe: String,
+}
+
 /// A loaded scene.
 #[derive(Debug, Clone)]
 pub struct Scene {
@@ -169,6 +195,68 @@ impl Scene {
             dt,
             ik_following,
         }
+    }
+
+    /// The stand-in server's configuration for this scene (`cps-cli sim serve`): the
+    /// options checked against their ranges (named by their command-line flags), and the
+    /// sentence that announces the server.
+    pub fn server_config(&self, options: &StandInOptions) -> Result<StandIn, InputError> {
+        let o = options;
+        let bad = |flag: &str, value: String, rule: &str| {
+            Err(InputError(format!("--{flag} {value}: {rule}")))
+        };
+        if !(o.dt.is_finite() && (1e-6..=10.0).contains(&o.dt)) {
+            return bad(
+                "dt",
+                format!("{:?}", o.dt),
+                "the time step must be between 1e-6 and 10 seconds",
+            );
+        }
+        if !(o.client_lease.is_finite() && (0.01..=86_400.0).contains(&o.client_lease)) {
+            return bad(
+                "client-lease",
+                format!("{:?}", o.client_lease),
+                "must be between 0.01 and 86400 seconds",
+            );
+        }
+        if !(64..=1 << 30).contains(&o.max_message_bytes) {
+            return bad(
+                "max-message-bytes",
+                o.max_message_bytes.to_string(),
+                "must be between 64 and 1073741824",
+            );
+        }
+        if !(1..=4096).contains(&o.max_clients) {
+            return bad(
+                "max-clients",
+                o.max_clients.to_string(),
+                "must be between 1 and 4096",
+            );
+        }
+        let name = self.sim_robot_name();
+        let describe = format!(
+            "robot /{name}, joints /{name}_joint1..{}, tip /{name}_tip, IK target /{name}_target{}, {} dummies",
+            self.robot.chain.dof(),
+            if o.ik_following {
+                " followed by the tip"
+            } else {
+                ""
+            },
+            self.objects.len()
+        );
+        Ok(StandIn {
+            config: cps_coppelia::ServerConfig {
+                bind: o.bind.clone(),
+                scene: self.stand_in(o.dt, o.ik_following),
+                limits: cps_coppelia::ServerLimits {
+                    max_message_bytes: o.max_message_bytes,
+                    max_connections: o.max_clients,
+                    client_lease: std::time::Duration::from_secs_f64(o.client_lease),
+                    ..cps_coppelia::ServerLimits::default()
+                },
+            },
+            describe,
+        })
     }
 
     /// The tool at the initial configuration and, for every object, an IK solution within

@@ -163,7 +163,7 @@ pub struct Retimed {
     /// Duration of the result (s): the TOPP-RA law plus the smoothing.
     pub duration: f64,
     /// The fraction of each velocity, acceleration and torque limit given to TOPP-RA in
-    /// the last round (1 unless verification tightened it).
+    /// the last round (0.998 unless verification tightened it further).
     pub tightening: Vec<(Quantity, f64)>,
     /// Rounds computed.
     pub rounds: usize,

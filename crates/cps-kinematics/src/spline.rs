@@ -104,11 +104,6 @@ impl JointSpline {
         (self.knots[0], self.knots[self.knots.len() - 1])
     }
 
-    /// The knots.
-    pub fn knots(&self) -> &[f64] {
-        &self.knots
-    }
-
     /// Joints.
     pub fn dof(&self) -> usize {
         self.y.len()
