@@ -225,7 +225,9 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
             threads,
         } => {
             let exp = experiment::load(&file, None, &ceilings.ceilings()?)?;
-            for line in exp.check_lines(&RunOptions { threads })? {
+            let options = RunOptions { threads };
+            options.check()?;
+            for line in exp.check_lines(options.threads())? {
                 say!("{line}");
             }
             Ok(ExitCode::SUCCESS)

@@ -1063,12 +1063,11 @@ impl Experiment {
         lines
     }
 
-    /// What `cps-cli check` prints for this experiment run with `options`: `ok` and the
-    /// kind, what it learns and searches, where it executes and exports, the robot's reach
-    /// (checked as the run would, so an unreachable point is an error here) and the
+    /// What `cps-cli check` prints for this experiment run on `threads` threads: `ok` and
+    /// the kind, what it learns and searches, where it executes and exports, the robot's
+    /// reach (checked as the run would, so an unreachable point is an error here) and the
     /// estimate of memory and time.
-    pub fn check_lines(&self, options: &crate::RunOptions) -> Result<Vec<String>, InputError> {
-        options.check()?;
+    pub fn check_lines(&self, threads: usize) -> Result<Vec<String>, InputError> {
         let reach = self.check_reach()?;
         let mut lines = vec![format!(
             "{}: ok (kind {})",
@@ -1079,7 +1078,7 @@ impl Experiment {
             lines.push(format!("  {line}"));
         }
         if let Some(e) = &self.estimate {
-            lines.push(format!("  {}", e.describe(options.threads())));
+            lines.push(format!("  {}", e.describe(threads)));
         }
         Ok(lines)
     }
