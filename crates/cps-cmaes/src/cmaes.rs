@@ -143,6 +143,8 @@ pub struct Checkpoint {
     seed: u64,
     eigen_gap: u64,
     initial_scales: Option<Vec<f64>>,
+    #[cfg_attr(feature = "serde", serde(default))]
+    initial_covariance: Option<Vec<f64>>,
     bounds: Option<(Vec<f64>, Vec<f64>)>,
     #[cfg_attr(feature = "serde", serde(default))]
     separable: bool,
@@ -226,7 +228,7 @@ impl Cmaes {
                 cholesky_in_place_scratch::<f64>(n, par, Default::default()),
             ])
         };
-        Ok(Self {
+        let mut es = Self {
             gap,
             mean: x0.to_vec(),
             sigma: config.sigma0,
@@ -262,7 +264,25 @@ impl Cmaes {
             },
             params,
             config: config.clone(),
-        })
+        };
+        if let Some(c0) = &config.initial_covariance {
+            for i in 0..n {
+                for j in 0..n {
+                    es.c[(i, j)] = c0[i * n + j];
+                }
+            }
+            mirror_lower(&mut es.c);
+            es.factorize();
+            if es.repairs > 0 {
+                return Err(CmaesError::InvalidConfig {
+                    field: "initial_covariance",
+                    rule: "must be positive definite (its Cholesky factorisation failed)",
+                    value: 0.0,
+                });
+            }
+            es.decompose();
+        }
+        Ok(es)
     }
 
     /// Samples a new population and returns it: λ candidates of length n back to back.
@@ -648,6 +668,7 @@ impl Cmaes {
             seed: self.config.seed,
             eigen_gap: self.gap,
             initial_scales: self.config.initial_scales.clone(),
+            initial_covariance: self.config.initial_covariance.clone(),
             bounds: self
                 .config
                 .bounds
@@ -698,6 +719,7 @@ impl Cmaes {
             seed: cp.seed,
             eigen_gap: Some(cp.eigen_gap),
             initial_scales: cp.initial_scales.clone(),
+            initial_covariance: cp.initial_covariance.clone(),
             bounds: match &cp.bounds {
                 Some((l, u)) => Some(crate::Bounds::new(l.clone(), u.clone())?),
                 None => None,

@@ -22,6 +22,12 @@ pub struct CmaesConfig {
     /// Optional per-coordinate scales `s` of the initial distribution: C₀ = diag(s²), so
     /// coordinate i starts with standard deviation `sigma0 * s[i]`.
     pub initial_scales: Option<Vec<f64>>,
+    /// Optional full initial covariance C₀ (n × n, row-major, symmetric positive
+    /// definite): the search starts with `sigma0² · C₀`. A learned distribution (a ProMP's
+    /// weights) starts the search in its shape this way. Excludes `initial_scales` and the
+    /// separable form.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub initial_covariance: Option<Vec<f64>>,
     /// Optional box bounds, handled by the boundary transformation of [`crate::Bounds`]:
     /// every evaluated candidate, and the returned best point and mean, lie in the box;
     /// `x0` must too. (Observers see the search's own, unbounded mean.)
@@ -50,6 +56,7 @@ impl CmaesConfig {
             seed,
             eigen_gap: None,
             initial_scales: None,
+            initial_covariance: None,
             bounds: None,
             separable: false,
         }
@@ -147,6 +154,51 @@ impl CmaesConfig {
                     rule: "must all be finite and > 0",
                     value: v,
                 });
+            }
+        }
+        if let Some(c) = &self.initial_covariance {
+            self.validate_covariance(c, n)?;
+        }
+        Ok(())
+    }
+
+    /// Shape, finiteness and symmetry of `initial_covariance` (positive definiteness is
+    /// checked when the run factorises it).
+    fn validate_covariance(&self, c: &[f64], n: usize) -> Result<(), CmaesError> {
+        let bad = |rule: &'static str, value: f64| CmaesError::InvalidConfig {
+            field: "initial_covariance",
+            rule,
+            value,
+        };
+        if self.initial_scales.is_some() {
+            return Err(bad("excludes initial_scales (give one or the other)", 0.0));
+        }
+        if self.separable {
+            return Err(bad(
+                "needs the full form (the separable form keeps a diagonal only)",
+                0.0,
+            ));
+        }
+        if c.len() != n * n {
+            return Err(CmaesError::DimensionMismatch {
+                what: "initial_covariance (n × n values)",
+                got: c.len(),
+                expected: n * n,
+            });
+        }
+        if let Some(&v) = c.iter().find(|v| !v.is_finite()) {
+            return Err(bad("must be finite", v));
+        }
+        if let Some(i) = (0..n).find(|&i| c[i * n + i] <= 0.0) {
+            return Err(bad("must have positive variances", c[i * n + i]));
+        }
+        let scale = c.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        for i in 0..n {
+            for j in 0..i {
+                let d = (c[i * n + j] - c[j * n + i]).abs();
+                if d > 1e-12 * scale {
+                    return Err(bad("must be symmetric", d));
+                }
             }
         }
         Ok(())

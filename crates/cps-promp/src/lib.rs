@@ -16,6 +16,10 @@
 //!   position and optionally a velocity with its own covariance (zero: met exactly),
 //!   by Gaussian conditioning of the weights.
 //! - [`ProMp::sample`]: seeded weight samples and their trajectories.
+//! - [`blend`]: co-activation of several ProMPs with activations over time (the product
+//!   of their distributions, each to the power of its activation).
+//! - [`ProMp::search_start`]: the mean and covariance as CMA-ES's `x0` and `C0`.
+//! - `ProMpModel` (feature `serde`): the versioned JSON file format.
 //!
 //! # Example
 //! ```
@@ -37,6 +41,10 @@
 //! ```
 #![deny(missing_docs)]
 
+#[cfg(feature = "serde")]
+pub mod model;
 mod promp;
 
-pub use promp::{Observation, ProMp, ProMpError};
+#[cfg(feature = "serde")]
+pub use model::{PROMP_FORMAT, PROMP_VERSION, ProMpModel};
+pub use promp::{Activation, Blended, Observation, ProMp, ProMpError, SearchStart, blend};

@@ -260,7 +260,11 @@ impl ProMp {
                 return Err(invalid(format!("{name}: every value must be finite")));
             }
             let (t0, span) = (t[0], t[t.len() - 1] - t[0]);
-            let psi = DMatrix::from_fn(t.len(), bases, |r, c| shell.basis((t[r] - t0) / span).0[c]);
+            let mut psi = DMatrix::zeros(t.len(), bases);
+            for (r, &tr) in t.iter().enumerate() {
+                let (row, _) = shell.basis((tr - t0) / span);
+                psi.row_mut(r).copy_from(&row.transpose());
+            }
             let gram = psi.transpose() * &psi;
             let lambda = 1e-8 * gram.trace() / bases as f64;
             let a = gram + DMatrix::identity(bases, bases) * lambda;
@@ -388,5 +392,174 @@ impl ProMp {
                 (&self.mean + &l * z).as_slice().to_vec()
             })
             .collect())
+    }
+}
+
+/// Where CMA-ES should start when it searches the weights of a ProMP
+/// ([`ProMp::search_start`]): the mean `x0`, the step size `sigma0` and the covariance
+/// `C0` (row-major), with `sigma0² · C0` the ProMP's weight covariance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SearchStart {
+    /// The weight mean.
+    pub x0: Vec<f64>,
+    /// `sqrt(trace(Σ_w) / n)`: the root-mean-square standard deviation of the weights.
+    pub sigma0: f64,
+    /// `Σ_w / sigma0²` (its diagonal averages 1), row-major.
+    pub covariance: Vec<f64>,
+}
+
+/// One ProMP's share in a co-activation ([`blend`]): the ProMP and its activation
+/// `α(t) ≥ 0` over time.
+pub struct Activation<'a> {
+    /// The ProMP.
+    pub promp: &'a ProMp,
+    /// Its activation at time `t` (s); 0 switches it off.
+    pub alpha: &'a dyn Fn(f64) -> f64,
+}
+
+/// The position distribution of co-activated ProMPs at one time ([`blend`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Blended {
+    /// Time (s).
+    pub time: f64,
+    /// Mean position per dimension.
+    pub mean: Vec<f64>,
+    /// Covariance of the position (dims × dims).
+    pub cov: DMatrix<f64>,
+}
+
+impl Blended {
+    /// Standard deviation per dimension.
+    pub fn std(&self) -> Vec<f64> {
+        (0..self.cov.nrows())
+            .map(|i| self.cov[(i, i)].max(0.0).sqrt())
+            .collect()
+    }
+}
+
+/// Co-activation of ProMPs (Paraschos et al. 2013, section 2.2): at each time the
+/// position's distribution is the product of the parts' distributions, each raised to its
+/// activation, `Σ* = (Σ αᵢ Σᵢ⁻¹)⁻¹` and `μ* = Σ* Σ αᵢ Σᵢ⁻¹ μᵢ`. A part with a small
+/// variance at a time (a via point it was conditioned on) dominates there; with
+/// activations that cross over (a sigmoid and its complement) the movement is handed from
+/// one ProMP to the next. Each covariance gets a ridge of 1e-12 of its trace so that exact
+/// via points (zero variance) stay invertible.
+///
+/// Every part must have the same dimensions, and every time with a positive activation
+/// must lie within that part's duration; at each time some activation must be positive.
+pub fn blend(parts: &[Activation<'_>], times: &[f64]) -> Result<Vec<Blended>, ProMpError> {
+    let Some(first) = parts.first() else {
+        return Err(invalid("a blend needs at least one ProMP".into()));
+    };
+    let d = first.promp.dims;
+    if let Some(k) = parts.iter().position(|p| p.promp.dims != d) {
+        return Err(invalid(format!(
+            "ProMP {} has {} dimensions, ProMP 1 has {d}: blended ProMPs must share their dimensions",
+            k + 1,
+            parts[k].promp.dims
+        )));
+    }
+    let mut out = Vec::with_capacity(times.len());
+    for &t in times {
+        let mut precision = DMatrix::<f64>::zeros(d, d);
+        let mut info = DVector::<f64>::zeros(d);
+        for (k, part) in parts.iter().enumerate() {
+            let a = (part.alpha)(t);
+            if !(a.is_finite() && a >= 0.0) {
+                return Err(invalid(format!(
+                    "ProMP {}: its activation at t = {t} s is {a}; activations must be finite and ≥ 0",
+                    k + 1
+                )));
+            }
+            if a == 0.0 {
+                continue;
+            }
+            let p = part.promp;
+            if !(0.0..=p.duration).contains(&t) {
+                return Err(invalid(format!(
+                    "ProMP {}: t = {t} s is active but outside its movement, 0 to {} s",
+                    k + 1,
+                    p.duration
+                )));
+            }
+            let (phi, _) = p.features(t);
+            let mut cov = &phi * &p.cov * phi.transpose();
+            let ridge = 1e-12 * cov.trace().max(1e-300);
+            for i in 0..d {
+                cov[(i, i)] += ridge;
+            }
+            let inv = cov.cholesky().map(|c| c.inverse()).ok_or_else(|| {
+                ProMpError::Singular(format!(
+                    "ProMP {}: its position covariance at t = {t} s is not positive definite",
+                    k + 1
+                ))
+            })?;
+            info += &inv * (&phi * &p.mean) * a;
+            precision += inv * a;
+        }
+        let cov = precision
+            .clone()
+            .cholesky()
+            .map(|c| c.inverse())
+            .ok_or_else(|| {
+                invalid(format!(
+                    "at t = {t} s every activation is 0: some ProMP must be active at each time"
+                ))
+            })?;
+        let mean = &cov * info;
+        out.push(Blended {
+            time: t,
+            mean: mean.as_slice().to_vec(),
+            cov,
+        });
+    }
+    Ok(out)
+}
+
+impl ProMp {
+    /// The start of a CMA-ES search over this ProMP's weights: its mean as `x0`, and its
+    /// covariance split into a step size and a shape (see [`SearchStart`]). A covariance
+    /// that conditioning left singular gets a ridge of 1e-10 of its mean variance, so the
+    /// shape stays positive definite.
+    pub fn search_start(&self) -> SearchStart {
+        let n = self.mean.len();
+        let mean_var = (self.cov.trace() / n as f64).max(1e-300);
+        let sigma0 = mean_var.sqrt();
+        let mut c = &self.cov / mean_var;
+        for i in 0..n {
+            c[(i, i)] += 1e-10;
+        }
+        let c = (&c + c.transpose()) * 0.5;
+        SearchStart {
+            x0: self.mean.as_slice().to_vec(),
+            sigma0,
+            covariance: c.transpose().as_slice().to_vec(),
+        }
+    }
+
+    /// Mean and standard deviation of the position, per dimension, at each time.
+    pub fn stats(&self, times: &[f64]) -> Vec<(Vec<f64>, Vec<f64>)> {
+        times
+            .iter()
+            .map(|&t| {
+                let (phi, _) = self.features(t);
+                let mean = (&phi * &self.mean).as_slice().to_vec();
+                let cov = &phi * &self.cov * phi.transpose();
+                let std = (0..self.dims)
+                    .map(|i| cov[(i, i)].max(0.0).sqrt())
+                    .collect();
+                (mean, std)
+            })
+            .collect()
+    }
+
+    /// The centres of the basis functions in phase (evenly spaced over `[0, 1]`) and their
+    /// common width `h` (`ψᵢ ∝ exp(−(z − cᵢ)² / (2h²))`).
+    pub fn basis_layout(&self) -> (Vec<f64>, f64) {
+        let n = self.bases;
+        (
+            (0..n).map(|i| i as f64 / (n - 1) as f64).collect(),
+            self.width,
+        )
     }
 }
