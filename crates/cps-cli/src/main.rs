@@ -12,6 +12,8 @@
 //! cps-cli cmaes bench sphere|ellipsoid|cigar|discus|rosenbrock|rastrigin --dim N --seeds A..B [--ipop|--bipop] [--separable] [--json]
 //! cps-cli imitate demo.csv [more.csv ...] [--bases N] [--method lwr|ridge|jerk] [--lambda X|auto] [--tau S] --out model.json [--plot fit.png]
 //! cps-cli rollout model.json [--start ...] [--goal ...] [--tau S] [--dt S] --out traj.csv [--plot traj.png]
+//! cps-cli promp fit demo*.csv [--bases N] --out p.json | condition p.json --at T --position x,y [--std S] --out q.json
+//! cps-cli promp sample p.json --n K --seed S [--dt S] --out dir/ | stats p.json --out stats.csv
 //! ```
 //!
 //! An experiment file's `[experiment] kind` chooses what `run` does: `viapoint` (default),
@@ -37,6 +39,7 @@ macro_rules! say {
 mod cmaes_bench;
 mod movement;
 mod progress;
+mod promp;
 mod robot;
 mod scene;
 mod simserve;
@@ -106,6 +109,12 @@ enum Command {
     Imitate(movement::ImitateArgs),
     /// Roll out a DMP model into a trajectory (CSV), with optional new start, goal, τ.
     Rollout(movement::RolloutArgs),
+    /// Probabilistic movement primitives: fit from demonstrations, condition on via
+    /// points, sample, statistics.
+    Promp {
+        #[command(subcommand)]
+        command: promp::ProMpCommand,
+    },
     /// Robot limits: check a joint trajectory against them.
     Limits {
         #[command(subcommand)]
@@ -219,6 +228,7 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
         Command::Cmaes { command } => cmaes_bench::bench(&command),
         Command::Sim { command } => simserve::sim(&command, interrupted),
         Command::Rollout(args) => movement::run_rollout(&args),
+        Command::Promp { command } => promp::promp(&command),
         Command::Check {
             file,
             ceilings,

@@ -59,6 +59,7 @@ pub mod movement;
 mod observer;
 pub mod outcome;
 pub mod plan;
+pub mod promp;
 #[cfg(feature = "figures")]
 pub mod report;
 pub mod results_dir;

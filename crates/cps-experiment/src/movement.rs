@@ -271,7 +271,7 @@ impl Imitated {
 
 /// Axis names with units for dimensions named as cps names them: joints `q1…` in
 /// radians, positions `x`, `tool_y`, … in metres; other names as they are.
-fn with_units(names: &[String]) -> Vec<String> {
+pub(crate) fn with_units(names: &[String]) -> Vec<String> {
     names
         .iter()
         .map(|n| {

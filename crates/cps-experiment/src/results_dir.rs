@@ -372,6 +372,8 @@ impl Drop for Staging {
 pub enum FileKind {
     /// A DMP model (`"format": "cps-dmp-model"`).
     Model,
+    /// A ProMP (`"format": "cps-promp-model"`).
+    ProMp,
     /// A CSV file whose header starts with `time` or `t`.
     TrajectoryCsv,
     /// A figure: PNG or SVG.
@@ -390,6 +392,7 @@ fn looks_like(path: &Path, kind: FileKind) -> bool {
     let text = String::from_utf8_lossy(head);
     match kind {
         FileKind::Model => text.contains("\"cps-dmp-model\""),
+        FileKind::ProMp => text.contains("\"cps-promp-model\""),
         FileKind::TrajectoryCsv => text.starts_with("time,") || text.starts_with("t,"),
         FileKind::Mcap => head.starts_with(b"\x89MCAP0\r\n"),
         FileKind::TrajectoryYaml => text.starts_with("{header: "),

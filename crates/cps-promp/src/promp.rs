@@ -376,22 +376,35 @@ impl ProMp {
     /// same samples).
     pub fn sample(&self, count: usize, seed: u64) -> Result<Vec<Vec<f64>>, ProMpError> {
         let n = self.dims * self.bases;
-        // A relative jitter keeps Cholesky working on covariances that conditioning made
-        // singular in some directions.
-        let jitter = 1e-12 * self.cov.diagonal().amax().max(1e-300);
-        let chol = (&self.cov + DMatrix::identity(n, n) * jitter)
-            .cholesky()
-            .ok_or_else(|| {
-                ProMpError::Singular("the weight covariance is not positive semi-definite".into())
-            })?;
-        let l = chol.l();
+        let factor = self.square_root()?;
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         Ok((0..count)
             .map(|_| {
                 let z = DVector::from_fn(n, |_, _| StandardNormal.sample(&mut rng));
-                (&self.mean + &l * z).as_slice().to_vec()
+                (&self.mean + &factor * z).as_slice().to_vec()
             })
             .collect())
+    }
+
+    /// A factor `L` with `L Lᵀ = Σ_w`: Cholesky with a relative jitter of 1e-12 or, when
+    /// conditioning left the covariance singular up to rounding (exact via points), the
+    /// symmetric square root with eigenvalues below zero by rounding set to zero.
+    fn square_root(&self) -> Result<DMatrix<f64>, ProMpError> {
+        let n = self.dims * self.bases;
+        let scale = self.cov.diagonal().amax().max(1e-300);
+        let jittered = &self.cov + DMatrix::identity(n, n) * (1e-12 * scale);
+        if let Some(c) = jittered.cholesky() {
+            return Ok(c.l());
+        }
+        let eig = ((&self.cov + self.cov.transpose()) * 0.5).symmetric_eigen();
+        let min = eig.eigenvalues.min();
+        if min < -1e-8 * scale {
+            return Err(ProMpError::Singular(format!(
+                "the weight covariance is not positive semi-definite (an eigenvalue of {min:.3e} against variances up to {scale:.3e})"
+            )));
+        }
+        let roots = eig.eigenvalues.map(|v| v.max(0.0).sqrt());
+        Ok(&eig.eigenvectors * DMatrix::from_diagonal(&roots))
     }
 }
 

@@ -1,0 +1,182 @@
+//! `cps-cli promp fit|condition|sample|stats`: probabilistic movement primitives from
+//! demonstrations. The work is `cps_experiment::promp`'s; this is arguments and files.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::Result;
+use clap::{Args, Subcommand};
+use cps_experiment::InputError;
+use cps_experiment::figures::draw_file;
+use cps_experiment::files::{table_csv, write_file};
+use cps_experiment::outcome::Figure;
+use cps_experiment::promp::{NamedProMp, ViaPoints, condition, fit_files};
+use cps_experiment::results_dir::{FileKind, Staging, check_file_targets};
+use cps_experiment::robot_file::Answer;
+
+use crate::cli_error;
+use crate::robot::print;
+
+/// Where a command writes.
+#[derive(Args, Debug)]
+pub struct Output {
+    /// The file to write.
+    #[arg(long)]
+    out: PathBuf,
+    /// Also draw the result (PNG, or SVG by extension).
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Print the answer as JSON.
+    #[arg(long)]
+    json: bool,
+    /// Replace existing files of the kind cps writes there.
+    #[arg(long)]
+    force: bool,
+}
+
+/// A ProMP file and a time grid.
+#[derive(Args, Debug)]
+pub struct OnGrid {
+    /// The ProMP file (JSON, from `promp fit` or `promp condition`).
+    model: PathBuf,
+    /// Time step of the written grid, seconds.
+    #[arg(long, default_value_t = 0.01, allow_hyphen_values = true)]
+    dt: f64,
+    /// Where to write (`sample`: a folder, one CSV per sample; `stats`: a CSV file).
+    #[arg(long)]
+    out: PathBuf,
+    /// Replace cps's own files already there.
+    #[arg(long)]
+    force: bool,
+}
+
+/// `cps-cli promp …`.
+#[derive(Subcommand, Debug)]
+pub enum ProMpCommand {
+    /// Fit a ProMP (JSON) to two or more demonstrations (CSV, read as `imitate` reads them).
+    Fit(FitArgs),
+    /// Condition a ProMP on via points (repeat --at and --position for several).
+    Condition(ConditionArgs),
+    /// Draw seeded samples: one CSV per sample (t, then one column per dimension).
+    Sample {
+        #[command(flatten)]
+        grid: OnGrid,
+        /// How many samples.
+        #[arg(long, default_value_t = 10)]
+        n: usize,
+        /// Seed (the same seed, the same samples).
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+    /// The mean and standard deviation over time: t, each mean, then each `_std`.
+    Stats(OnGrid),
+}
+
+/// Arguments of `promp fit`.
+#[derive(Args, Debug)]
+pub struct FitArgs {
+    /// Demonstration files.
+    #[arg(required = true)]
+    demos: Vec<PathBuf>,
+    /// The position columns, by name, comma-separated (default as `imitate`).
+    #[arg(long, value_delimiter = ',')]
+    columns: Option<Vec<String>>,
+    /// Basis functions per dimension.
+    #[arg(long, default_value_t = 20)]
+    bases: usize,
+    /// Duration every demonstration is normalised to, seconds (default: their mean).
+    #[arg(long, allow_hyphen_values = true)]
+    duration: Option<f64>,
+    #[command(flatten)]
+    output: Output,
+}
+
+/// Arguments of `promp condition`.
+#[derive(Args, Debug)]
+pub struct ConditionArgs {
+    /// The ProMP file.
+    model: PathBuf,
+    /// Time of a via point, seconds.
+    #[arg(long, required = true, allow_hyphen_values = true)]
+    at: Vec<f64>,
+    /// Its position, one value per dimension, comma-separated.
+    #[arg(long, required = true, allow_hyphen_values = true)]
+    position: Vec<String>,
+    /// Standard deviation of the positions: one for all or one per via point (0: exact).
+    #[arg(long, allow_hyphen_values = true)]
+    std: Vec<f64>,
+    /// A velocity per via point, comma-separated (optional).
+    #[arg(long, allow_hyphen_values = true)]
+    velocity: Vec<String>,
+    /// Standard deviation of the velocities (0: exact).
+    #[arg(long, allow_hyphen_values = true)]
+    velocity_std: Vec<f64>,
+    #[command(flatten)]
+    output: Output,
+}
+
+impl Output {
+    /// Checks the targets before any work.
+    fn check(&self) -> Result<(), InputError> {
+        check_file_targets(&self.out, FileKind::ProMp, self.plot.as_deref(), self.force)
+    }
+
+    /// Writes the ProMP file and its figure, then prints the answer.
+    fn finish(&self, promp: &NamedProMp, figure: Figure, answer: Answer) -> Result<ExitCode> {
+        write_file(&self.out, promp.to_json().as_bytes()).map_err(cli_error)?;
+        if let Some(plot) = &self.plot {
+            draw_file(&figure, plot).map_err(cli_error)?;
+        }
+        print(&answer, self.json)
+    }
+}
+
+/// `cps-cli promp …`.
+pub fn promp(command: &ProMpCommand) -> Result<ExitCode> {
+    match command {
+        ProMpCommand::Fit(a) => {
+            a.output.check()?;
+            let paths: Vec<&Path> = a.demos.iter().map(PathBuf::as_path).collect();
+            let fit = fit_files(&paths, a.columns.as_deref(), a.bases, a.duration)?;
+            let answer = fit.answer(&a.output.out);
+            a.output.finish(&fit.promp, fit.figure(), answer)
+        }
+        ProMpCommand::Condition(a) => {
+            a.output.check()?;
+            let via = ViaPoints::parse(&a.at, &a.position, &a.std, &a.velocity, &a.velocity_std)?;
+            let c = condition(NamedProMp::read(&a.model)?, &via)?;
+            a.output
+                .finish(&c.posterior, c.figure(), c.answer(&a.output.out))
+        }
+        ProMpCommand::Sample { grid, n, seed } => {
+            let stage = Staging::prepare(&grid.out, grid.force)?;
+            let promp = NamedProMp::read(&grid.model)?;
+            let times = promp.grid(grid.dt, n.saturating_mul(promp.names.len() + 1))?;
+            for table in promp.sample_tables(*n, *seed, &times)? {
+                let csv = table_csv(&table).map_err(cli_error)?;
+                let name = format!("{}.csv", table.name);
+                stage.write(&name, &csv).map_err(cli_error)?;
+            }
+            stage.commit().map_err(cli_error)?;
+            let steps = times.len();
+            say!(
+                "{n} samples (seed {seed}) of {steps} steps written to {}",
+                grid.out.display()
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        ProMpCommand::Stats(grid) => {
+            check_file_targets(&grid.out, FileKind::TrajectoryCsv, None, grid.force)?;
+            let promp = NamedProMp::read(&grid.model)?;
+            let times = promp.grid(grid.dt, 2 * promp.names.len() + 1)?;
+            let csv = table_csv(&promp.stats_table(&times)).map_err(cli_error)?;
+            write_file(&grid.out, &csv).map_err(cli_error)?;
+            say!(
+                "mean and σ at {} times written to {}",
+                times.len(),
+                grid.out.display()
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+    }
+}
