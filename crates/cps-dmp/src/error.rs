@@ -63,6 +63,9 @@ pub enum DmpError {
         /// What is wrong.
         reason: String,
     },
+    /// An obstacle where the movement must be: at its start or its goal.
+    #[error("{0}")]
+    BlockedEndpoint(String),
     /// A DMP needs at least one dimension.
     #[error("a DMP needs at least one dimension")]
     NoDimensions,

@@ -18,6 +18,8 @@
 //!   and τ changes, phase stopping and coupling terms.
 //! - [`imitate`] / [`Imitator`]: weights from demonstrations ([`Demonstration`]) by LWR,
 //!   ridge or jerk-regularised ridge, λ fixed or by cross-validation, with a [`FitReport`].
+//! - [`Coupling`] terms for point obstacles ([`SteeringAngle`], Hoffmann et al. 2009;
+//!   [`DynamicPotential`], Park et al. 2008) and [`DiscreteDmp::rollout_coupled`].
 //! - [`RhythmicDmp`] (periodic movements) and [`QuaternionDmp`] (tool orientations).
 //! - `DmpModel` (feature `serde`): learned DMPs as versioned JSON.
 //!
@@ -49,6 +51,7 @@
 mod basis;
 mod canonical;
 mod config;
+mod coupling;
 mod discretize;
 mod dmp;
 mod error;
@@ -66,6 +69,7 @@ pub use canonical::CanonicalSystem;
 pub use config::{
     DmpConfig, Formulation, MAX_BASIS, MAX_FEATURES, MAX_GAIN, MAX_PHASE_DECAY, MAX_STEPS, MAX_TAU,
 };
+pub use coupling::{Coupling, DynamicPotential, SteeringAngle, check_endpoints};
 pub use dmp::DiscreteDmp;
 pub use error::DmpError;
 pub use imitation::{

@@ -216,6 +216,11 @@ impl OnlineDmp {
         &self.acc
     }
 
+    /// The forcing term at the current phase (without coupling).
+    pub(crate) fn forcing(&self) -> &[f64] {
+        &self.f
+    }
+
     /// Current phase `x`.
     pub fn phase(&self) -> f64 {
         self.x
