@@ -235,11 +235,10 @@ impl DiscreteDmp {
         let mut traj = Trajectory::zeros(dims, times.clone());
         let mut c = vec![0.0; dims];
         let record = |traj: &mut Trajectory, k: usize, r: &OnlineDmp| {
-            let v = r.velocity();
-            for d in 0..dims {
+            for (d, v) in r.velocity().into_iter().enumerate() {
                 let i = d * n + k;
                 traj.position[i] = r.position()[d];
-                traj.velocity[i] = v[d];
+                traj.velocity[i] = v;
                 traj.acceleration[i] = r.acceleration()[d];
                 traj.forcing[i] = r.forcing()[d];
             }

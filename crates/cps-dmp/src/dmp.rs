@@ -64,6 +64,24 @@ impl DiscreteDmp {
         Self::checked(self.config, start, goal, Arc::clone(&self.grid))
     }
 
+    /// The same grid and basis under another configuration that shares them (only the
+    /// formulation may differ) and other endpoints.
+    pub(crate) fn with_config_and_endpoints(
+        &self,
+        config: DmpConfig,
+        start: &[f64],
+        goal: &[f64],
+    ) -> Result<Self, DmpError> {
+        debug_assert_eq!(
+            DmpConfig {
+                formulation: self.config.formulation,
+                ..config
+            },
+            self.config
+        );
+        Self::checked(config, start, goal, Arc::clone(&self.grid))
+    }
+
     fn checked(
         config: DmpConfig,
         start: &[f64],

@@ -63,6 +63,9 @@ pub enum DmpError {
         /// What is wrong.
         reason: String,
     },
+    /// A movement that cannot be carried to new endpoints in the asked way.
+    #[error("{0}")]
+    CannotRetarget(String),
     /// An obstacle where the movement must be: at its start or its goal.
     #[error("{0}")]
     BlockedEndpoint(String),

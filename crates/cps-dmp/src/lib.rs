@@ -18,6 +18,9 @@
 //!   and τ changes, phase stopping and coupling terms.
 //! - [`imitate`] / [`Imitator`]: weights from demonstrations ([`Demonstration`]) by LWR,
 //!   ridge or jerk-regularised ridge, λ fixed or by cross-validation, with a [`FitReport`].
+//! - [`DiscreteDmp::retarget`] ([`Retarget`]): a learned movement carried to a new start
+//!   and goal rotated and scaled as a whole (no mirrored dimension, no blown-up one), and
+//!   [`PoseDmp`]: position and orientation on one phase, carried together.
 //! - [`Coupling`] terms for point obstacles ([`SteeringAngle`], Hoffmann et al. 2009;
 //!   [`DynamicPotential`], Park et al. 2008) and [`DiscreteDmp::rollout_coupled`].
 //! - [`RhythmicDmp`] (periodic movements) and [`QuaternionDmp`] (tool orientations).
@@ -55,11 +58,13 @@ mod coupling;
 mod discretize;
 mod dmp;
 mod error;
+mod generalize;
 mod imitation;
 mod jet;
 #[cfg(feature = "serde")]
 mod model;
 mod online;
+mod pose;
 mod quaternion;
 mod rhythmic;
 mod trajectory;
@@ -72,12 +77,14 @@ pub use config::{
 pub use coupling::{Coupling, DynamicPotential, SteeringAngle, check_endpoints};
 pub use dmp::DiscreteDmp;
 pub use error::DmpError;
+pub use generalize::{Retarget, Retargeted, rotation_between};
 pub use imitation::{
     Combine, Demonstration, FitReport, Imitation, Imitator, Lambda, Regression, imitate,
 };
 #[cfg(feature = "serde")]
 pub use model::{BasisRecord, ConfigRecord, DmpModel, MODEL_FORMAT, MODEL_VERSION};
 pub use online::{OnlineDmp, StepInput};
+pub use pose::{PoseDmp, RetargetedPose};
 pub use quaternion::{OrientationTrajectory, QuaternionDmp};
 pub use rhythmic::{RhythmicDmp, RhythmicRollout};
 pub use trajectory::{Trajectory, locate_on_grid};

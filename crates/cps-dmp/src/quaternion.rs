@@ -9,13 +9,16 @@
 //! where `2 log(g ∗ q̄)` is the rotation vector from `q` to the goal `g` (shortest way).
 //! The forcing term is not scaled by the start-to-goal rotation (Ude's `diag(2 log(g q̄₀))`
 //! scaling vanishes on an axis without rotation, the orientation analogue of start = goal).
+//! With [`Formulation::GoalRobust`] the forcing also subtracts `α_z β_z · 2 log(g q̄₀) · x`,
+//! the orientation analogue of Hoffmann et al.'s form: a new start or goal then turns the
+//! tool smoothly from rest instead of with the spring's full initial pull.
 //! Integration is Heun's second-order method on `(q, η)`, every orientation update being
 //! the exact quaternion exponential `q ← exp(h η̄ / 2τ) ∗ q` of the step's mean `η̄`, so
 //! every sample is a unit quaternion by construction.
 
 use nalgebra::{UnitQuaternion, Vector3};
 
-use crate::{DiscreteDmp, DmpConfig, DmpError};
+use crate::{DiscreteDmp, DmpConfig, DmpError, Formulation};
 
 /// A sampled orientation trajectory.
 #[derive(Debug, Clone, PartialEq)]
@@ -37,8 +40,8 @@ pub struct QuaternionDmp {
 }
 
 impl QuaternionDmp {
-    /// An orientation DMP from `start` to `goal` with `config` (its formulation is
-    /// irrelevant here). Weights: 3 × `n_basis`, axis-major (x, y, z).
+    /// An orientation DMP from `start` to `goal` with `config` (its formulation chooses
+    /// whether the goal-robust term is subtracted; see the module docs). Weights: 3 × `n_basis`, axis-major (x, y, z).
     pub fn new(
         config: DmpConfig,
         start: UnitQuaternion<f64>,
@@ -82,6 +85,56 @@ impl QuaternionDmp {
         }
     }
 
+    /// `α_z β_z · 2 log(g q̄₀)` in the goal-robust form (subtracted from the forcing term
+    /// times the phase), zero otherwise.
+    fn lift(&self) -> Vector3<f64> {
+        let c = self.grid.config();
+        match c.formulation {
+            Formulation::GoalRobust => {
+                c.alpha_z * c.beta_z * (self.goal * self.start.inverse()).scaled_axis()
+            }
+            Formulation::Ijspeert2013 => Vector3::zeros(),
+        }
+    }
+
+    /// The configuration (gains, basis, τ, dt, formulation).
+    pub fn config(&self) -> &DmpConfig {
+        self.grid.config()
+    }
+
+    /// The phase at every sample of the grid.
+    pub fn phases(&self) -> &[f64] {
+        self.grid.phases()
+    }
+
+    /// The same DMP with other endpoints and the goal-robust form, and the weights that
+    /// give it this DMP's forcing: `w` if it was goal-robust, else `w + α_z β_z 2 log(g
+    /// q̄₀)` per axis (exact: the phase is the basis's combination of all ones).
+    pub(crate) fn goal_robust(
+        &self,
+        weights: &[f64],
+        start: UnitQuaternion<f64>,
+        goal: UnitQuaternion<f64>,
+    ) -> Result<(Self, Vec<f64>), DmpError> {
+        let nb = self.grid.n_basis();
+        let lift = match self.config().formulation {
+            Formulation::GoalRobust => Vector3::zeros(),
+            Formulation::Ijspeert2013 => {
+                let c = self.config();
+                c.alpha_z * c.beta_z * (self.goal * self.start.inverse()).scaled_axis()
+            }
+        };
+        let w = weights
+            .iter()
+            .enumerate()
+            .map(|(i, w)| w + lift[i / nb])
+            .collect();
+        let grid = self
+            .grid
+            .reformulated(Formulation::GoalRobust, &[0.0; 3], &[0.0; 3])?;
+        Ok((Self { grid, start, goal }, w))
+    }
+
     /// Rolls out the DMP on its grid.
     ///
     /// # Panics
@@ -110,7 +163,12 @@ impl QuaternionDmp {
                 }
             }
         }
-        let f = |k: usize| Vector3::new(forcing[k], forcing[ns + k], forcing[2 * ns + k]);
+        // The goal-robust form subtracts α_z β_z · 2 log(g q̄₀) · x (no jump at the start).
+        let lift = self.lift();
+        let phases = self.grid.phases();
+        let f = |k: usize| {
+            Vector3::new(forcing[k], forcing[ns + k], forcing[2 * ns + k]) - lift * phases[k]
+        };
         let eta_dot = |q: &UnitQuaternion<f64>, eta: &Vector3<f64>, f: &Vector3<f64>| {
             (az * (bz * (self.goal * q.inverse()).scaled_axis() - eta) + f) / tau
         };
@@ -207,7 +265,8 @@ impl QuaternionDmp {
         let mut rhs = faer::Mat::<f64>::zeros(nb, 3);
         for k in 0..ns {
             let f = tau * tau * domega(k)
-                - az * (bz * (goal * q[k].inverse()).scaled_axis() - tau * omega[k]);
+                - az * (bz * (goal * q[k].inverse()).scaled_axis() - tau * omega[k])
+                + dmp.lift() * dmp.grid.phases()[k];
             for i in 0..nb {
                 let pi = dmp.grid.feature_column(i)[k];
                 for j in 0..nb {
