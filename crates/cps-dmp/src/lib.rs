@@ -21,6 +21,7 @@
 //! - [`DiscreteDmp::retarget`] ([`Retarget`]): a learned movement carried to a new start
 //!   and goal rotated and scaled as a whole (no mirrored dimension, no blown-up one), and
 //!   [`PoseDmp`]: position and orientation on one phase, carried together.
+//! - [`sequence`]: several DMPs chained into one movement, C² at every junction.
 //! - [`Coupling`] terms for point obstacles ([`SteeringAngle`], Hoffmann et al. 2009;
 //!   [`DynamicPotential`], Park et al. 2008) and [`DiscreteDmp::rollout_coupled`].
 //! - [`RhythmicDmp`] (periodic movements) and [`QuaternionDmp`] (tool orientations).
@@ -67,6 +68,7 @@ mod online;
 mod pose;
 mod quaternion;
 mod rhythmic;
+mod sequence;
 mod trajectory;
 
 pub use basis::GaussianBasis;
@@ -87,4 +89,5 @@ pub use online::{OnlineDmp, StepInput};
 pub use pose::{PoseDmp, RetargetedPose};
 pub use quaternion::{OrientationTrajectory, QuaternionDmp};
 pub use rhythmic::{RhythmicDmp, RhythmicRollout};
+pub use sequence::{Junction, Sequenced, sequence, sequence_with};
 pub use trajectory::{Trajectory, locate_on_grid};

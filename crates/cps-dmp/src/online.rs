@@ -69,13 +69,43 @@ impl OnlineDmp {
             cache: None,
         };
         runner.update_forcing();
-        let cfg = dmp.config();
-        let k = cfg.alpha_z * cfg.beta_z;
-        for d in 0..dims {
-            let u = k * runner.goal[d] + runner.f[d];
-            runner.acc[d] = (u - k * runner.y[d]) / (runner.tau * runner.tau);
-        }
+        runner.update_acceleration();
         runner
+    }
+
+    /// The acceleration of the current state without coupling: `(α_z β_z (g − y) − α_z z +
+    /// f) / τ²`.
+    fn update_acceleration(&mut self) {
+        let cfg = self.dmp.config();
+        let k = cfg.alpha_z * cfg.beta_z;
+        for d in 0..self.dmp.dims() {
+            let u = k * self.goal[d] + self.f[d];
+            self.acc[d] = (u - k * self.y[d] - cfg.alpha_z * self.z[d]) / (self.tau * self.tau);
+        }
+    }
+
+    /// Starts moving with physical velocity `v` (units per second) instead of at rest —
+    /// for a movement that continues another one.
+    pub fn with_velocity(mut self, v: &[f64]) -> Result<Self, DmpError> {
+        if v.len() != self.dmp.dims() {
+            return Err(DmpError::DimensionMismatch {
+                what: "velocity",
+                got: v.len(),
+                expected: self.dmp.dims(),
+            });
+        }
+        if let Some((index, &value)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+            return Err(DmpError::NotFinite {
+                what: "velocity",
+                index,
+                value,
+            });
+        }
+        for (z, v) in self.z.iter_mut().zip(v) {
+            *z = v * self.tau;
+        }
+        self.update_acceleration();
+        Ok(self)
     }
 
     /// Sets the phase-stopping gain (1/m, default 1): the phase runs at `1/(1 + gain · e)`.
