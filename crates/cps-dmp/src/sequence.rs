@@ -103,13 +103,13 @@ pub fn sequence_with(
     }
     let n = times.len();
     let mut traj = Trajectory::zeros(dims, times);
-    for (k, r) in rows.iter().enumerate() {
-        for d in 0..dims {
+    for (k, [p, v, a, f]) in rows.iter().enumerate() {
+        for (d, (((p, v), a), f)) in p.iter().zip(v).zip(a).zip(f).enumerate() {
             let i = d * n + k;
-            traj.position[i] = r[0][d];
-            traj.velocity[i] = r[1][d];
-            traj.acceleration[i] = r[2][d];
-            traj.forcing[i] = r[3][d];
+            traj.position[i] = *p;
+            traj.velocity[i] = *v;
+            traj.acceleration[i] = *a;
+            traj.forcing[i] = *f;
         }
     }
     Ok(Sequenced {
