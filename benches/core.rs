@@ -353,7 +353,67 @@ fn viapoint_run(c: &mut Criterion) {
     group.finish();
 }
 
+/// 20 demonstrations × 1000 samples × 3 dimensions, as `python/benchmarks/beyond.py`
+/// builds them for movement_primitives (a sine, a cosine and a parabola with seeded
+/// offsets and gains).
+fn promp_demos() -> Vec<(Vec<f64>, Vec<Vec<f64>>)> {
+    let mut rng = ChaCha8Rng::seed_from_u64(0);
+    let t: Vec<f64> = (0..1000).map(|k| k as f64 / 999.0).collect();
+    (0..20)
+        .map(|_| {
+            let (a, b, c, d): (f64, f64, f64, f64) = (
+                rng.random_range(-0.1..0.1),
+                rng.random_range(-0.05..0.05),
+                rng.random_range(-0.1..0.1),
+                rng.random_range(-0.05..0.05),
+            );
+            let y = t
+                .iter()
+                .map(|&s| {
+                    vec![
+                        (std::f64::consts::TAU * s + a).sin() + b,
+                        (std::f64::consts::PI * s).cos() * (1.0 + c),
+                        s * s + d,
+                    ]
+                })
+                .collect();
+            (t.clone(), y)
+        })
+        .collect()
+}
+
+fn promp(c: &mut Criterion) {
+    use cps::promp::{Observation, ProMp};
+    let demos = promp_demos();
+    c.bench_function("promp/fit_20x1000x3_25", |b| {
+        b.iter(|| ProMp::fit(black_box(&demos), 25, 1.0).unwrap())
+    });
+    let p = ProMp::fit(&demos, 25, 1.0).unwrap();
+    let via = [Observation::position(0.5, vec![0.5, 0.2, 0.3], 0.0)];
+    c.bench_function("promp/condition_1_via", |b| {
+        b.iter(|| p.condition(black_box(&via)).unwrap())
+    });
+    let t: Vec<f64> = (0..1000).map(|k| k as f64 / 999.0).collect();
+    c.bench_function("promp/sample_1000x1000x3", |b| {
+        b.iter(|| p.sample_trajectories(1000, 1, black_box(&t)).unwrap())
+    });
+}
+
+fn obstacles(c: &mut Criterion) {
+    use cps::dmp::SteeringAngle;
+    let dmp = DiscreteDmp::new(DmpConfig::new(10, 1.0, 0.001), &[0.0; 3], &[1.0; 3]).unwrap();
+    let w = random_weights(dmp.n_weights(), 5);
+    let steer = SteeringAngle::new(&[0.5; 3]).unwrap();
+    c.bench_function("obstacle/rollout_3x10x1000_plain", |b| {
+        b.iter(|| dmp.rollout(black_box(&w)))
+    });
+    c.bench_function("obstacle/rollout_3x10x1000_steering", |b| {
+        b.iter(|| dmp.rollout_coupled(black_box(&w), &steer))
+    });
+}
+
 criterion_group!(dmp_benches, dmp_extras, coppelia);
+criterion_group!(beyond, promp, obstacles);
 criterion_group!(
     benches,
     kinematics,
@@ -362,4 +422,4 @@ criterion_group!(
     cmaes_generation,
     viapoint_run
 );
-criterion_main!(dmp_benches, benches);
+criterion_main!(dmp_benches, beyond, benches);

@@ -17,7 +17,7 @@ pub const MAX_PROMP_BYTES: u64 = 256 << 20;
 /// The most samples `promp sample` draws at once.
 pub const MAX_SAMPLES: usize = 100_000;
 /// The most values a grid of samples or statistics may hold (samples × steps × dims).
-const MAX_GRID_VALUES: f64 = 1e8;
+const MAX_GRID_VALUES: f64 = 2e7;
 
 /// A ProMP with the names of its dimensions and how many demonstrations made it.
 #[derive(Debug, Clone)]
@@ -65,7 +65,7 @@ impl NamedProMp {
 
     /// The time grid of `dt` seconds over the movement: `K = round(T/dt)` steps of exactly
     /// `T/K`, refusing a step that is not positive, longer than the movement, or that would
-    /// make `per_step · (K + 1)` values exceed 10⁸.
+    /// make `per_step · (K + 1)` values exceed 2·10⁷.
     pub fn grid(&self, dt: f64, per_step: usize) -> Result<Vec<f64>, InputError> {
         let t = self.promp.duration();
         if !(dt.is_finite() && dt > 0.0 && dt <= t) {
@@ -76,7 +76,7 @@ impl NamedProMp {
         let k = (t / dt).round().max(1.0);
         if (k + 1.0) * per_step as f64 > MAX_GRID_VALUES {
             return Err(InputError(format!(
-                "--dt {dt}: {k} steps × {per_step} values exceed the 10⁸ values written at once; take a larger --dt or fewer samples"
+                "--dt {dt}: {k} steps × {per_step} values exceed the 2·10⁷ values written at once; take a larger --dt or fewer samples"
             )));
         }
         let k = k as usize;
@@ -113,16 +113,17 @@ impl NamedProMp {
                 "--n {count}: draw between 1 and {MAX_SAMPLES} samples"
             )));
         }
-        let weights = self
+        let samples = self
             .promp
-            .sample(count, seed)
+            .sample_trajectories(count, seed, times)
             .map_err(|e| InputError(format!("cannot sample: {e}")))?;
         let width = count.to_string().len().max(3);
-        Ok(weights
-            .iter()
+        let dims = self.names.len();
+        Ok(samples
+            .chunks(times.len() * dims)
             .enumerate()
-            .map(|(k, w)| {
-                let rows = self.promp.trajectory(w, times);
+            .map(|(k, flat)| {
+                let rows: Vec<&[f64]> = flat.chunks(dims).collect();
                 let mut table = Table::new(format!("sample_{:0width$}", k + 1))
                     .with(Column::numbers("t", times.to_vec(), Format::Plain));
                 for (d, name) in self.names.iter().enumerate() {

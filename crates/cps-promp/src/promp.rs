@@ -151,22 +151,49 @@ impl ProMp {
     }
 
     /// The normalised basis at phase `z` and its derivative with respect to `z`.
+    ///
+    /// The centres are `Δ = h` apart, so neighbouring bumps differ by the factor
+    /// `exp((z − cᵢ)/h − ½)`, which itself shrinks by `e⁻¹` per step: three exponentials
+    /// per phase instead of one per bump, walking out from the nearest centre (whose bump
+    /// is ≥ e^-1/8) so the far ones underflow harmlessly to zero.
     fn basis(&self, z: f64) -> (DVector<f64>, DVector<f64>) {
         let n = self.bases;
         let h = self.width;
+        let centre = |i: usize| i as f64 / (n - 1) as f64;
+        let k = ((z / h).round().max(0.0) as usize).min(n - 1);
         let mut g = DVector::zeros(n);
-        let mut dg = DVector::zeros(n);
-        for i in 0..n {
-            let c = i as f64 / (n - 1) as f64;
-            let e = (-(z - c) * (z - c) / (2.0 * h * h)).exp();
-            g[i] = e;
-            dg[i] = -e * (z - c) / (h * h);
+        let u = (z - centre(k)) / h;
+        g[k] = (-0.5 * u * u).exp();
+        let shrink = (-1.0f64).exp();
+        let mut ratio = (u - 0.5).exp();
+        for i in k + 1..n {
+            g[i] = g[i - 1] * ratio;
+            ratio *= shrink;
         }
+        let mut ratio = (-u - 0.5).exp();
+        for i in (0..k).rev() {
+            g[i] = g[i + 1] * ratio;
+            ratio *= shrink;
+        }
+        let dg = DVector::from_fn(n, |i, _| -g[i] * (z - centre(i)) / (h * h));
         let s = g.sum();
         let ds = dg.sum();
         let psi = &g / s;
         let dpsi = (&dg * s - &g * ds) / (s * s);
         (psi, dpsi)
+    }
+
+    /// The same basis by one exponential per bump (the definition; tests compare).
+    #[cfg(test)]
+    fn basis_direct(&self, z: f64) -> DVector<f64> {
+        let n = self.bases;
+        let h = self.width;
+        let g = DVector::from_fn(n, |i, _| {
+            let c = i as f64 / (n - 1) as f64;
+            (-(z - c) * (z - c) / (2.0 * h * h)).exp()
+        });
+        let s = g.sum();
+        g / s
     }
 
     /// `Φ` (dims × dims·bases) of positions and of velocities (per second) at time `t`:
@@ -203,13 +230,52 @@ impl ProMp {
         )
     }
 
+    /// The position basis at the times `t`: one row of `bases` values per time.
+    pub fn basis_matrix(&self, times: &[f64]) -> DMatrix<f64> {
+        let mut psi = DMatrix::zeros(times.len(), self.bases);
+        for (r, &t) in times.iter().enumerate() {
+            let (row, _) = self.basis(t / self.duration);
+            psi.row_mut(r).copy_from(&row.transpose());
+        }
+        psi
+    }
+
     /// Positions of the trajectory with weights `w` at the times `t`: one row per time.
     pub fn trajectory(&self, w: &[f64], times: &[f64]) -> Vec<Vec<f64>> {
-        let w = DVector::from_column_slice(w);
-        times
-            .iter()
-            .map(|&t| (self.features(t).0 * &w).as_slice().to_vec())
+        self.trajectories(&[w.to_vec()], times)
+            .chunks(self.dims)
+            .map(<[f64]>::to_vec)
             .collect()
+    }
+
+    /// The trajectories of several weight vectors at the times `t`, by one matrix product
+    /// for all, flat: sample-major, then time, then dimension (`out[(s · T + k) · dims +
+    /// d]`).
+    pub fn trajectories(&self, weights: &[Vec<f64>], times: &[f64]) -> Vec<f64> {
+        let (d, b, t) = (self.dims, self.bases, times.len());
+        let psi = self.basis_matrix(times);
+        // Columns: sample-major, then dimension.
+        let w = DMatrix::from_fn(b, weights.len() * d, |i, c| weights[c / d][(c % d) * b + i]);
+        let y = psi * w;
+        let mut out = vec![0.0; weights.len() * t * d];
+        for (c, col) in y.column_iter().enumerate() {
+            let (s, k) = (c / d, c % d);
+            for (r, v) in col.iter().enumerate() {
+                out[(s * t + r) * d + k] = *v;
+            }
+        }
+        out
+    }
+
+    /// `count` seeded samples' trajectories at the times `t` ([`Self::sample`] then
+    /// [`Self::trajectories`]; flat, sample-major, then time, then dimension).
+    pub fn sample_trajectories(
+        &self,
+        count: usize,
+        seed: u64,
+        times: &[f64],
+    ) -> Result<Vec<f64>, ProMpError> {
+        Ok(self.trajectories(&self.sample(count, seed)?, times))
     }
 
     /// The ProMP of demonstrations `(times, positions)` (one row of `dims` values per time,
@@ -232,6 +298,8 @@ impl ProMp {
         let n = dims * bases;
         let mut shell = ProMp::new(dims, bases, duration, vec![0.0; n], vec![0.0; n * n])?;
         let mut weights = Vec::with_capacity(demos.len());
+        type Factor = nalgebra::Cholesky<f64, nalgebra::Dyn>;
+        let mut cached: Option<(Vec<f64>, DMatrix<f64>, Factor)> = None;
         for (k, (t, y)) in demos.iter().enumerate() {
             let name = format!("demonstration {}", k + 1);
             if t.len() != y.len() || t.len() < 2 {
@@ -260,23 +328,22 @@ impl ProMp {
                 return Err(invalid(format!("{name}: every value must be finite")));
             }
             let (t0, span) = (t[0], t[t.len() - 1] - t[0]);
-            let mut psi = DMatrix::zeros(t.len(), bases);
-            for (r, &tr) in t.iter().enumerate() {
-                let (row, _) = shell.basis((tr - t0) / span);
-                psi.row_mut(r).copy_from(&row.transpose());
+            let normalised: Vec<f64> = t.iter().map(|x| (x - t0) / span * duration).collect();
+            // Demonstrations sampled alike share the basis and its factorisation.
+            if cached.as_ref().is_none_or(|(c, _, _)| *c != normalised) {
+                let psi = shell.basis_matrix(&normalised);
+                let gram = psi.tr_mul(&psi);
+                let lambda = 1e-8 * gram.trace() / bases as f64;
+                let a = gram + DMatrix::identity(bases, bases) * lambda;
+                let chol = a.cholesky().ok_or_else(|| {
+                    ProMpError::Singular(format!("{name}: the regression is singular"))
+                })?;
+                cached = Some((normalised, psi, chol));
             }
-            let gram = psi.transpose() * &psi;
-            let lambda = 1e-8 * gram.trace() / bases as f64;
-            let a = gram + DMatrix::identity(bases, bases) * lambda;
-            let chol = a.cholesky().ok_or_else(|| {
-                ProMpError::Singular(format!("{name}: the regression is singular"))
-            })?;
-            let mut w = DVector::zeros(n);
-            for d in 0..dims {
-                let col = DVector::from_iterator(t.len(), y.iter().map(|r| r[d]));
-                let wd = chol.solve(&(psi.transpose() * col));
-                w.rows_mut(d * bases, bases).copy_from(&wd);
-            }
+            let (_, psi, chol) = cached.as_ref().expect("just filled");
+            let targets = DMatrix::from_fn(t.len(), dims, |r, d| y[r][d]);
+            let wd = chol.solve(&psi.tr_mul(&targets));
+            let w = DVector::from_column_slice(wd.as_slice());
             weights.push(w);
         }
         let m = weights.len() as f64;
@@ -352,7 +419,18 @@ impl ProMp {
             at += d;
         }
         let y = DVector::from_vec(targets);
-        let s = &sigma + &phi * &self.cov * phi.transpose();
+        // Φ Σ_w (m × n): Σ_w is symmetric, so row r of it is the combination of Σ_w's
+        // columns (contiguous) by row r of Φ, which is zero outside one dimension's block.
+        let mut pc_t = DMatrix::<f64>::zeros(n, m);
+        for r in 0..m {
+            let mut col = pc_t.column_mut(r);
+            for (j, &coef) in phi.row(r).iter().enumerate() {
+                if coef != 0.0 {
+                    col.axpy(coef, &self.cov.column(j), 1.0);
+                }
+            }
+        }
+        let s = &sigma + &phi * &pc_t;
         let s = (&s + s.transpose()) * 0.5;
         let chol = s.cholesky().ok_or_else(|| {
             ProMpError::Singular(
@@ -360,15 +438,25 @@ impl ProMp {
                     .into(),
             )
         })?;
-        // K = Σ_w Φᵀ S⁻¹
-        let gain = chol.solve(&(&phi * &self.cov)).transpose();
-        let mean = &self.mean + &gain * (y - &phi * &self.mean);
-        let cov = &self.cov - &gain * &phi * &self.cov;
-        let cov = (&cov + cov.transpose()) * 0.5;
+        // μ' = μ + (ΦΣ)ᵀ S⁻¹ (y − Φμ);  Σ' = Σ − (ΦΣ)ᵀ S⁻¹ (ΦΣ).
+        let mean = &self.mean + &pc_t * chol.solve(&(y - &phi * &self.mean));
+        let g = chol.solve(&pc_t.transpose());
+        let mut cov = self.cov.clone();
+        cov.gemm(-1.0, &pc_t, &g, 1.0);
+        for j in 0..n {
+            for i in j + 1..n {
+                let v = 0.5 * (cov[(i, j)] + cov[(j, i)]);
+                cov[(i, j)] = v;
+                cov[(j, i)] = v;
+            }
+        }
         Ok(ProMp {
+            dims: self.dims,
+            bases: self.bases,
+            duration: self.duration,
+            width: self.width,
             mean,
             cov,
-            ..self.clone()
         })
     }
 
@@ -574,5 +662,23 @@ impl ProMp {
             (0..n).map(|i| i as f64 / (n - 1) as f64).collect(),
             self.width,
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_recurrent_basis_equals_the_definition() {
+        for bases in [2, 3, 10, 25, 200] {
+            let p = ProMp::new(1, bases, 1.0, vec![0.0; bases], vec![0.0; bases * bases]).unwrap();
+            for k in 0..=400 {
+                let z = -0.1 + 1.2 * k as f64 / 400.0;
+                let (a, b) = (p.basis(z).0, p.basis_direct(z));
+                let gap = (&a - &b).amax();
+                assert!(gap < 1e-13, "{bases} bases, z = {z}: {gap}");
+            }
+        }
     }
 }

@@ -210,12 +210,11 @@ impl PyProMp {
         }
         let times = self.times(t)?;
         let d = self.inner.dims();
-        let weights = self.inner.sample(n, seed).map_err(py_err)?;
-        let flat: Vec<f64> = weights
-            .iter()
-            .flat_map(|w| self.inner.trajectory(w, &times).into_iter().flatten())
-            .collect();
-        let a = numpy::PyArray1::from_vec(py, flat);
+        let samples = self
+            .inner
+            .sample_trajectories(n, seed, &times)
+            .map_err(py_err)?;
+        let a = numpy::PyArray1::from_vec(py, samples);
         Ok(a.reshape([n, times.len(), d])?.into_any())
     }
 
