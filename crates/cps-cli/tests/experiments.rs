@@ -917,3 +917,55 @@ fn a_pose_experiment_with_a_robot_executes_and_checks_its_movement() {
     let s = json(&out2.join("summary.json"));
     assert!(s.get("execution").is_none() && s.get("limit_usage").is_none());
 }
+
+const OBSTACLE: &str = include_str!("../../../experiments/obstacle.toml");
+
+/// The obstacle experiment as shipped: the obstacle sits on the path the plain experiment
+/// learns; the learned path keeps its clearance (to 1 %) and still meets the via points
+/// and the goal within 0.1 mm; the exact optimum is the obstacle-free one (a lower bound).
+#[test]
+fn the_obstacle_experiment_keeps_the_clearance_and_meets_the_via_points() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("obstacle");
+    let o = run(Path::new(&repo("experiments/obstacle.toml")), &out);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let s = json(&out.join("summary.json"));
+    let d = s["obstacle_distances_m"][0].as_f64().unwrap();
+    assert!(d > 0.99 * 0.08, "{d}");
+    assert!(s["max_position_error_m"].as_f64().unwrap() < 1e-4);
+    assert!(s["best_cost"].as_f64().unwrap() >= s["optimum_cost"].as_f64().unwrap());
+    let svg = std::fs::read_to_string(out.join("path3d.svg")).unwrap();
+    assert!(svg.contains("o1"));
+    // Bad input: an obstacle on the goal, a clearance of 0, obstacles in a joint experiment.
+    let bad = |name: &str, body: String, wanted: &str| {
+        let f = write(dir.path(), name, &body);
+        let o = cli(&["check", f.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(2), "{name}");
+        let err = text(&o.stderr);
+        assert!(err.contains(wanted), "{name}: {err}");
+    };
+    bad(
+        "on_goal.toml",
+        OBSTACLE.replace(
+            "position = [1.18, 0.10, 1.31]",
+            "position = [0.55, -0.57, 1.45]",
+        ),
+        "from the movement's goal",
+    );
+    bad(
+        "zero.toml",
+        OBSTACLE.replace("clearance = 0.08", "clearance = 0.0"),
+        "obstacles[0].clearance",
+    );
+    bad(
+        "unweighted.toml",
+        OBSTACLE.replace("obstacle = 1e6", "obstacle = 0.0"),
+        "cost.obstacle",
+    );
+    let joint = include_str!("../../../experiments/viapoint_joint.toml");
+    bad(
+        "joint.toml",
+        format!("{joint}\n[[task.obstacles]]\nposition = [1.0, 0.0, 1.0]\nclearance = 0.05\n"),
+        "read only by kind = \"viapoint\"",
+    );
+}

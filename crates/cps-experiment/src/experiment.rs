@@ -6,7 +6,8 @@ use std::path::Path;
 
 use cps_dmp::DmpConfig;
 use cps_learn::{
-    CostWeights, LearnError, Parametrisation, Solver, ViaPoint, ViaPointConfig, ViaPointTask,
+    CostWeights, LearnError, Parametrisation, PointObstacle, Solver, ViaPoint, ViaPointConfig,
+    ViaPointTask,
 };
 use serde::Deserialize;
 use toml::Spanned;
@@ -78,6 +79,15 @@ struct Task {
     goal_velocity: Option<Spanned<Vec<f64>>>,
     #[serde(default)]
     via: Vec<Spanned<Via>>,
+    #[serde(default)]
+    obstacles: Vec<Spanned<Obstacle>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Obstacle {
+    position: Spanned<Vec<f64>>,
+    clearance: Spanned<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -100,6 +110,8 @@ struct Cost {
     acceleration: f64,
     #[serde(default)]
     jerk: f64,
+    #[serde(default)]
+    obstacle: f64,
 }
 
 #[derive(Debug, Deserialize)]
@@ -236,11 +248,44 @@ pub fn parse(
                     final_velocity: c.final_velocity,
                     acceleration: c.acceleration,
                     jerk: c.jerk,
+                    obstacle: c.obstacle,
                 }
             }
-            None => CostWeights::thesis(),
+            None => CostWeights {
+                obstacle: if t.obstacles.is_empty() { 0.0 } else { 1e5 },
+                ..CostWeights::thesis()
+            },
         },
+        obstacles: t
+            .obstacles
+            .iter()
+            .map(|o| PointObstacle {
+                position: o.get_ref().position.get_ref().clone(),
+                clearance: *o.get_ref().clearance.get_ref(),
+            })
+            .collect(),
     };
+    if let Some(o) = file.task.obstacles.first()
+        && !matches!(
+            file.experiment
+                .kind
+                .as_ref()
+                .map_or(Kind::default(), |k| *k.get_ref()),
+            Kind::Viapoint | Kind::Scaling
+        )
+    {
+        return Err(err(
+            &o.span(),
+            format!(
+                "[[task.obstacles]] are read only by kind = \"viapoint\" and \"scaling\" (task-space movements); this file has kind = \"{}\"",
+                file.experiment
+                    .kind
+                    .as_ref()
+                    .map_or(Kind::default(), |k| *k.get_ref())
+                    .name()
+            ),
+        ));
+    }
     // Library validation, mapped back to the place in the file.
     if let Err(e) = task.validate() {
         let span = match &e {
@@ -479,6 +524,16 @@ fn locate_task_field(file: &File, field: &str) -> Option<Range<usize>> {
         "start" => t.start.span(),
         "goal" => t.goal.span(),
         "goal_velocity" => t.goal_velocity.as_ref()?.span(),
+        "obstacles" => {
+            let o = t.obstacles.get(index?)?;
+            if field.ends_with(".clearance") {
+                o.get_ref().clearance.span()
+            } else if field.contains(".position") {
+                o.get_ref().position.span()
+            } else {
+                o.span()
+            }
+        }
         "via" => {
             let v = t.via.get(index?)?;
             if field.ends_with(".time") {

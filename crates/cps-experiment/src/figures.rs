@@ -38,6 +38,8 @@ const COLORS: [RGBColor; 5] = [
 const GREY: RGBColor = RGBColor(150, 150, 150);
 const START: RGBColor = RGBColor(44, 160, 44);
 const GOAL: RGBColor = RGBColor(214, 39, 40);
+/// Obstacles: purple crosses.
+const OBSTACLE: RGBColor = RGBColor(148, 103, 189);
 const LIMIT: RGBColor = RGBColor(214, 39, 40);
 /// Width of the legend column beside the data, pixels.
 const LEGEND_WIDTH: u32 = 250;
@@ -165,6 +167,7 @@ fn draw_marker<DB: DrawingBackend>(
             GOAL.filled(),
         )),
         MarkKind::Via => area.draw(&Circle::new(p, 5, BLACK.filled())),
+        MarkKind::Obstacle => area.draw(&Cross::new(p, 7, OBSTACLE.stroke_width(3))),
     }
 }
 
@@ -193,6 +196,13 @@ where
                     + Text::new(m.label.clone(), (7, -20), ("sans-serif", 14)),
             ))?;
         }
+        MarkKind::Obstacle => {
+            chart.draw_series(std::iter::once(
+                EmptyElement::at(at)
+                    + Cross::new((0, 0), 7, OBSTACLE.stroke_width(3))
+                    + Text::new(m.label.clone(), (9, -20), ("sans-serif", 14)),
+            ))?;
+        }
     }
     Ok(())
 }
@@ -204,6 +214,7 @@ fn mark_entries(marks: &[Mark]) -> Vec<(String, Swatch)> {
         (MarkKind::Start, "start"),
         (MarkKind::Via, "via points p1, p2, …"),
         (MarkKind::Goal, "goal"),
+        (MarkKind::Obstacle, "obstacles o1, o2, …"),
     ] {
         if marks.iter().any(|m| m.kind == kind) {
             out.push((label.to_string(), Swatch::Mark(kind)));

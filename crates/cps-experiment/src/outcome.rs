@@ -331,6 +331,8 @@ pub enum MarkKind {
     Via,
     /// Where it ends.
     Goal,
+    /// A point obstacle (drawn in 3-D paths; labelled `o1`, `o2`, …).
+    Obstacle,
 }
 
 /// A marked point of a figure: a way point, or a target at a time.

@@ -11,6 +11,7 @@ use faer::Mat;
 use faer::prelude::SolveLstsq;
 use serde::{Deserialize, Serialize};
 
+use crate::task::Term;
 use crate::{CostBreakdown, LearnError, SearchSpace, ViaPointTask};
 
 /// The least-squares optimum of a via-point task.
@@ -20,7 +21,9 @@ pub struct ExactOptimum {
     pub params: Vec<f64>,
     /// Optimal DMP weights.
     pub weights: Vec<f64>,
-    /// The optimal cost (evaluated by a rollout of the optimal weights).
+    /// The optimal cost (evaluated by a rollout of the optimal weights). With obstacles it
+    /// leaves their term out (the optimum is of the quadratic terms only), and is then a
+    /// lower bound of the whole cost's minimum.
     pub cost: f64,
     /// The optimal cost term by term.
     pub breakdown: CostBreakdown,
@@ -39,7 +42,11 @@ fn residual_vector(
 ) {
     let traj = dmp.rollout(&space.weights(theta));
     out.clear();
-    task.residuals(&traj, |_, r| out.push(r));
+    task.residuals(&traj, |term, r| {
+        if term != Term::Obstacle {
+            out.push(r);
+        }
+    });
 }
 
 /// Column blocks (one per DMP dimension) with the rows that touch them, when no row
@@ -101,9 +108,11 @@ pub fn exact_optimum(
         for (c, traj) in trajs[..cols].iter().enumerate() {
             let mut i = 0;
             let mut col = jac.col_mut(j0 + c);
-            task.residuals(traj, |_, r| {
-                col[i] = r - r0[i];
-                i += 1;
+            task.residuals(traj, |term, r| {
+                if term != Term::Obstacle {
+                    col[i] = r - r0[i];
+                    i += 1;
+                }
             });
         }
     }
@@ -148,7 +157,7 @@ pub fn exact_optimum(
     Ok(ExactOptimum {
         params,
         weights,
-        cost: breakdown.total(),
+        cost: breakdown.total() - breakdown.obstacle,
         breakdown,
         hessian_condition: (smax / smin).powi(2),
     })

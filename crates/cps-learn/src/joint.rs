@@ -297,6 +297,7 @@ pub fn learn_joint_space(
     let mut dmp_config = task.dmp;
     dmp_config.formulation = Formulation::GoalRobust;
     let surrogate = ViaPointTask {
+        obstacles: Vec::new(),
         start: configs[0].clone(),
         goal: configs[n - 1].clone(),
         goal_velocity: vec![0.0; dof],

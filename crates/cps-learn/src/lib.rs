@@ -60,7 +60,8 @@ pub use pose::{
 pub use robot::{RobotSetup, check_way_points, execute_trajectory, targets_at};
 pub use space::{Parametrisation, SearchSpace};
 pub use task::{
-    CostBreakdown, CostWeights, MAX_COORDINATE, MAX_WEIGHT, TaskErrors, ViaPoint, ViaPointTask,
+    CostBreakdown, CostWeights, MAX_COORDINATE, MAX_WEIGHT, PointObstacle, TaskErrors, ViaPoint,
+    ViaPointTask,
 };
 pub use viapoint::{
     GenerationRecord, RunResult, SearchStats, Solver, ViaPointConfig, ViaPointObjective,

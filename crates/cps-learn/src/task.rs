@@ -14,11 +14,21 @@ pub struct ViaPoint {
     pub position: Vec<f64>,
 }
 
+/// A point obstacle the movement must keep `clearance` away from (task units).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PointObstacle {
+    /// Its position, one value per dimension.
+    pub position: Vec<f64>,
+    /// The distance the movement should keep (> 0); closer samples are penalised.
+    pub clearance: f64,
+}
+
 /// Weights of the cost terms; a weight of 0 switches its term off. All must be ≥ 0.
 ///
 /// ```text
 /// C = w_goal ‖y_T − g‖² + w_via Σ_i ‖y(t_i) − p_i‖² + w_vel ‖ẏ_T − ġ‖²
 ///   + w_acc Σ_k ‖ÿ_k‖² + w_jerk Σ_k ‖(ÿ_{k+1} − ÿ_k)/h‖²
+///   + w_obs Σ_k Σ_o max(0, r_o − ‖y_k − o‖)²
 /// ```
 ///
 /// with sums over the grid samples (not integrals) and every quantity in SI units
@@ -35,6 +45,10 @@ pub struct CostWeights {
     pub acceleration: f64,
     /// Squared physical jerk (finite difference of the acceleration) at every step.
     pub jerk: f64,
+    /// Squared intrusion into an obstacle's clearance at every sample (not quadratic in
+    /// the weights: the exact optimum leaves it out and is then a lower bound).
+    #[serde(default)]
+    pub obstacle: f64,
 }
 
 impl CostWeights {
@@ -47,6 +61,7 @@ impl CostWeights {
             final_velocity: 1e3,
             acceleration: 1e-2,
             jerk: 0.0,
+            obstacle: 0.0,
         }
     }
 }
@@ -64,12 +79,15 @@ pub struct CostBreakdown {
     pub acceleration: f64,
     /// Jerk term.
     pub jerk: f64,
+    /// Obstacle term.
+    #[serde(default)]
+    pub obstacle: f64,
 }
 
 impl CostBreakdown {
     /// The sum of the terms.
     pub fn total(&self) -> f64 {
-        self.goal + self.via + self.final_velocity + self.acceleration + self.jerk
+        self.goal + self.via + self.final_velocity + self.acceleration + self.jerk + self.obstacle
     }
 }
 
@@ -81,6 +99,7 @@ pub(crate) enum Term {
     FinalVelocity,
     Acceleration,
     Jerk,
+    Obstacle,
 }
 
 /// A via-point movement: start, goal, via points, the DMP that carries it and the cost.
@@ -98,6 +117,8 @@ pub struct ViaPointTask {
     pub dmp: DmpConfig,
     /// Cost weights.
     pub weights: CostWeights,
+    /// Point obstacles (penalised by `weights.obstacle`).
+    pub obstacles: Vec<PointObstacle>,
 }
 
 /// Largest magnitude of a coordinate (start, goal, via points, goal velocity) that
@@ -130,6 +151,7 @@ impl ViaPointTask {
                 .collect(),
             dmp: DmpConfig::new(25, 10.0, 0.01),
             weights: CostWeights::thesis(),
+            obstacles: Vec::new(),
         }
     }
 
@@ -198,6 +220,7 @@ impl ViaPointTask {
             ("final_velocity", w.final_velocity),
             ("acceleration", w.acceleration),
             ("jerk", w.jerk),
+            ("obstacle", w.obstacle),
         ] {
             if !(value.is_finite() && (0.0..=MAX_WEIGHT).contains(&value)) {
                 return Err(LearnError::task(
@@ -205,6 +228,29 @@ impl ViaPointTask {
                     format!("must be a weight between 0 and {MAX_WEIGHT:e}, got {value:?}"),
                 ));
             }
+        }
+        for (i, o) in self.obstacles.iter().enumerate() {
+            check_vec(format!("obstacles[{i}].position"), &o.position)?;
+            if !(o.clearance.is_finite() && o.clearance > 0.0 && o.clearance <= MAX_COORDINATE) {
+                return Err(LearnError::task(
+                    format!("obstacles[{i}].clearance"),
+                    format!("must be > 0 and finite, got {:?}", o.clearance),
+                ));
+            }
+            cps_dmp::check_endpoints(
+                &self.start,
+                &self.goal,
+                &o.position,
+                o.clearance,
+                &format!("obstacles[{i}]"),
+            )
+            .map_err(|e| LearnError::task(format!("obstacles[{i}].position"), e.to_string()))?;
+        }
+        if !self.obstacles.is_empty() && w.obstacle == 0.0 {
+            return Err(LearnError::task(
+                "cost.obstacle",
+                "is 0, so the obstacles would be ignored: give it a weight (e.g. 1e5)",
+            ));
         }
         // Only the Ijspeert form scales its forcing term with goal − start.
         let scaled = self.dmp.formulation == cps_dmp::Formulation::Ijspeert2013;
@@ -277,6 +323,45 @@ impl ViaPointTask {
                 }
             }
         }
+        if w.obstacle > 0.0 {
+            let s = w.obstacle.sqrt();
+            self.intrusions(traj, |r| visit(Term::Obstacle, s * r));
+        }
+    }
+
+    /// The obstacle residuals, `max(0, r − ‖y_k − o‖)` per sample and obstacle (unweighted).
+    fn intrusions(&self, traj: &Trajectory, mut visit: impl FnMut(f64)) {
+        let dims = traj.dims();
+        for o in &self.obstacles {
+            for k in 0..traj.n_samples() {
+                let d2: f64 = (0..dims)
+                    .map(|d| (traj.position(d)[k] - o.position[d]).powi(2))
+                    .sum();
+                if d2 < o.clearance * o.clearance {
+                    visit(o.clearance - d2.sqrt());
+                } else {
+                    visit(0.0);
+                }
+            }
+        }
+    }
+
+    /// The smallest distance of the trajectory's samples from each obstacle.
+    pub fn obstacle_distances(&self, traj: &Trajectory) -> Vec<f64> {
+        let dims = traj.dims();
+        self.obstacles
+            .iter()
+            .map(|o| {
+                (0..traj.n_samples())
+                    .map(|k| {
+                        (0..dims)
+                            .map(|d| (traj.position(d)[k] - o.position[d]).powi(2))
+                            .sum::<f64>()
+                            .sqrt()
+                    })
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect()
     }
 
     /// The cost of a trajectory, term by term.
@@ -289,6 +374,7 @@ impl ViaPointTask {
                 Term::FinalVelocity => &mut b.final_velocity,
                 Term::Acceleration => &mut b.acceleration,
                 Term::Jerk => &mut b.jerk,
+                Term::Obstacle => &mut b.obstacle,
             };
             *slot += r * r;
         });
@@ -319,6 +405,9 @@ impl ViaPointTask {
                 let steps = sum_of_squared_differences(&a[1..], Some(&a[..last]));
                 total += w.jerk / (h * h) * steps;
             }
+        }
+        if w.obstacle > 0.0 {
+            self.intrusions(traj, |r| total += w.obstacle * r * r);
         }
         total
     }

@@ -231,3 +231,60 @@ fn batched_costs_equal_rollout_costs() {
         }
     }
 }
+
+#[test]
+fn the_obstacle_term_penalises_intrusion_and_leaves_the_exact_optimum_a_lower_bound() {
+    use cps_learn::{CostWeights, PointObstacle};
+    let plain = ViaPointTask::thesis();
+    let dmp = plain.build_dmp().unwrap();
+    let space = SearchSpace::new(Parametrisation::AnchorOffset, &dmp);
+    let free = exact_optimum(&plain, &dmp, &space).unwrap();
+    let traj = dmp.rollout(&free.weights);
+    // An obstacle on the obstacle-free optimum's path at t = 5 s.
+    let k = 500;
+    let on_path: Vec<f64> = (0..3).map(|d| traj.position(d)[k]).collect();
+    let task = ViaPointTask {
+        obstacles: vec![PointObstacle {
+            position: on_path.clone(),
+            clearance: 0.08,
+        }],
+        weights: CostWeights {
+            obstacle: 1e6,
+            ..CostWeights::thesis()
+        },
+        ..plain.clone()
+    };
+    // The term by hand: Σ_k max(0, r − d_k)², weighted.
+    let by_hand: f64 = (0..traj.n_samples())
+        .map(|k| {
+            let d = (0..3)
+                .map(|i| (traj.position(i)[k] - on_path[i]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            1e6 * (0.08 - d).max(0.0).powi(2)
+        })
+        .sum();
+    let b = task.breakdown(&traj);
+    assert!((b.obstacle - by_hand).abs() < 1e-9 * by_hand && by_hand > 1.0);
+    assert!((task.cost(&traj) - b.total()).abs() < 1e-9 * b.total());
+    assert_eq!(task.obstacle_distances(&traj)[0], 0.0);
+    // The exact optimum ignores the term (same parameters, quadratic cost only).
+    let exact = exact_optimum(&task, &dmp, &space).unwrap();
+    assert!((exact.cost - free.cost).abs() < 1e-9 * free.cost);
+    // CMA-ES from there bends the path out of the clearance at a cost above that bound.
+    let config = ViaPointConfig {
+        warm_start: true,
+        sigma0: 0.05,
+        population: Some(32),
+        generations: 1500,
+        tol_fun: Some(1e-4),
+        ..ViaPointConfig::new(task)
+    };
+    let out = learn_via_points(&config, &quiet()).unwrap();
+    let best = out.best();
+    let traj = out.best_trajectory();
+    let d = config.task.obstacle_distances(&traj)[0];
+    assert!(d > 0.075, "{d}");
+    assert!(best.cost >= exact.cost && best.gap_to_optimum >= 0.0);
+    assert!(best.errors.max_position_error() < 1e-3);
+}

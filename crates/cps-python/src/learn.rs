@@ -259,6 +259,7 @@ pub fn learn_via_points(
         via: via_points(via, dims)?,
         dmp: cps_dmp::DmpConfig::new(bases, tau, dt),
         weights: cost_weights(cost)?,
+        obstacles: Vec::new(),
     };
     let solver = choose(
         "method",

@@ -9,7 +9,8 @@ use super::{
     cost_figure, derivative_figure, position_figures, search_figure, solver_name, way_points, worst,
 };
 use crate::outcome::{
-    Column, CostArm, Format, Outcome, Report, ReportTable, Series, Table, fields,
+    Column, CostArm, Format, Mark, MarkKind, Outcome, Plot, Report, ReportTable, Series, Table,
+    fields,
 };
 use crate::{ExperimentError, InputError};
 
@@ -34,6 +35,10 @@ struct Summary<'a> {
     optimum_cost_terms: &'a CostBreakdown,
     gap_to_optimum: f64,
     hessian_condition: f64,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    obstacle_clearances_m: Vec<f64>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    obstacle_distances_m: Vec<f64>,
     runs: Vec<RunSummary<'a>>,
 }
 
@@ -68,6 +73,9 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         })?;
     ctx.observer.finished();
     let best = outcome.best();
+    let traj = outcome.best_trajectory();
+    let task = &config.task;
+    let distances = task.obstacle_distances(&traj);
     let summary = Summary {
         solver: solver_name(config.solver),
         parametrisation: config.parametrisation.name(),
@@ -88,6 +96,8 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         optimum_cost_terms: &outcome.optimum.breakdown,
         gap_to_optimum: best.gap_to_optimum,
         hessian_condition: outcome.optimum.hessian_condition,
+        obstacle_clearances_m: task.obstacles.iter().map(|o| o.clearance).collect(),
+        obstacle_distances_m: distances.clone(),
         runs: outcome
             .runs
             .iter()
@@ -104,7 +114,6 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
             })
             .collect(),
     };
-    let traj = outcome.best_trajectory();
     let histories: Vec<&[cps_learn::GenerationRecord]> =
         outcome.runs.iter().map(|r| r.history.as_slice()).collect();
     let mut figures = position_figures(
@@ -113,6 +122,17 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         "Each coordinate over time with the start, the via points p1… and the goal.",
         "The path in 3-D, world frame.",
     );
+    // Obstacles are points in space: marked in the 3-D path only.
+    for f in &mut figures {
+        if let Plot::Path3d { marks, .. } = &mut f.plot {
+            marks.extend(task.obstacles.iter().enumerate().map(|(i, o)| Mark {
+                time: 0.0,
+                values: o.position.clone(),
+                kind: MarkKind::Obstacle,
+                label: format!("o{}", i + 1),
+            }));
+        }
+    }
     figures.push(derivative_figure(&traj, false));
     figures.push(derivative_figure(&traj, true));
     figures.extend(cost_figure(
@@ -138,6 +158,20 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
             best.errors.final_speed * 1e3
         ),
     ];
+    let mut lines = lines;
+    for (i, (o, d)) in task.obstacles.iter().zip(&distances).enumerate() {
+        lines.push(format!(
+            "  obstacle o{}: closest {:.1} mm (clearance {:.1} mm){}",
+            i + 1,
+            d * 1e3,
+            o.clearance * 1e3,
+            if *d < 0.99 * o.clearance {
+                " — inside the clearance: raise [cost] obstacle"
+            } else {
+                ""
+            }
+        ));
+    }
     Ok(Outcome {
         header: ctx.header(!outcome.interrupted()),
         summary: fields(&summary),
