@@ -39,6 +39,7 @@ from ._cps import (
     imitate,
     learn_via_points,
     run_experiment,
+    sequence,
 )
 
 __all__ = [
@@ -62,6 +63,7 @@ __all__ = [
     "imitate",
     "learn_via_points",
     "run_experiment",
+    "sequence",
 ]
 
 class CMAEvolutionStrategyResult(NamedTuple):

@@ -211,9 +211,12 @@ impl Coupling for DynamicPotential {
 }
 
 /// The sum of several coupling terms (several obstacles, or both kinds).
-impl<C: Coupling + ?Sized> Coupling for [Box<C>] {
+#[derive(Default)]
+pub struct Couplings(pub Vec<Box<dyn Coupling>>);
+
+impl Coupling for Couplings {
     fn add(&self, y: &[f64], v: &[f64], out: &mut [f64]) {
-        for c in self {
+        for c in &self.0 {
             c.add(y, v, out);
         }
     }

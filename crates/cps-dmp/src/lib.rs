@@ -76,7 +76,7 @@ pub use canonical::CanonicalSystem;
 pub use config::{
     DmpConfig, Formulation, MAX_BASIS, MAX_FEATURES, MAX_GAIN, MAX_PHASE_DECAY, MAX_STEPS, MAX_TAU,
 };
-pub use coupling::{Coupling, DynamicPotential, SteeringAngle, check_endpoints};
+pub use coupling::{Coupling, Couplings, DynamicPotential, SteeringAngle, check_endpoints};
 pub use dmp::DiscreteDmp;
 pub use error::DmpError;
 pub use generalize::{Retarget, Retargeted, rotation_between};

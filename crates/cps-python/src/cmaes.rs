@@ -33,6 +33,7 @@ const OPTIONS: &[&str] = &[
     "tolflatfitness",
     "CMA_diagonal",
     "CMA_stds",
+    "C0",
     "verbose",
     "verb_disp",
     "verb_log",
@@ -54,6 +55,8 @@ struct Options {
     tolflatfitness: u64,
     diagonal: bool,
     stds: Option<Vec<f64>>,
+    /// A full initial covariance (cps's own option; pycma has none): n × n, row-major.
+    c0: Option<Vec<f64>>,
 }
 
 /// A count option: a number ≥ 0 (floats such as 1e4 or inf accepted; inf = no limit).
@@ -121,6 +124,7 @@ impl Options {
             tolflatfitness: 0,
             diagonal: false,
             stds: None,
+            c0: None,
         };
         for dict in [inopts, kwargs].into_iter().flatten() {
             for (k, v) in dict.iter() {
@@ -193,6 +197,20 @@ impl Options {
                     Some(vector(v, "CMA_stds", Some(n))?)
                 }
             }
+            "C0" => {
+                self.c0 = if v.is_none() {
+                    None
+                } else {
+                    let m = matrix(v, "C0", Some(n), false)?;
+                    if m.rows != n {
+                        return Err(value_error(format!(
+                            "C0: expected shape ({n}, {n}), got ({}, {})",
+                            m.rows, m.cols
+                        )));
+                    }
+                    Some(m.floats.values().to_vec())
+                }
+            }
             "verbose" | "verb_disp" | "verb_log" => {}
             other => {
                 return Err(value_error(format!(
@@ -214,6 +232,7 @@ impl Options {
             bounds,
             separable: self.diagonal,
             initial_scales: self.stds.clone(),
+            initial_covariance: self.c0.clone(),
             ..CmaesConfig::new(sigma0, self.seed)
         })
     }

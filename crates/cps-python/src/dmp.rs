@@ -1,13 +1,15 @@
-//! DMPs for Python: `DMP` (discrete, both formulations), `imitate`, `Trajectory`,
-//! `Stepper` (online stepping), `RhythmicDMP` and `QuaternionDMP`. Models are saved and
+//! DMPs for Python: `DMP` (discrete, both formulations; retargeting, obstacle avoidance),
+//! `imitate`, `sequence`, `Trajectory`, `Stepper` (online stepping), `RhythmicDMP` and
+//! `QuaternionDMP`. Models are saved and
 //! loaded as the JSON files `cps-cli imitate` writes and `cps-cli rollout` reads.
 
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
 use cps_dmp::{
-    Combine, Demonstration, DiscreteDmp, DmpConfig, DmpModel, FitReport, Formulation, Imitator,
-    Lambda, OnlineDmp, QuaternionDmp, Regression, RhythmicDmp, StepInput,
+    Combine, Coupling, Demonstration, DiscreteDmp, DmpConfig, DmpModel, DynamicPotential,
+    FitReport, Formulation, Imitator, Lambda, OnlineDmp, QuaternionDmp, Regression, Retarget,
+    RhythmicDmp, SteeringAngle, StepInput,
 };
 use cps_experiment::results_dir::{FileKind, check_file_targets};
 use nalgebra::{Quaternion, UnitQuaternion};
@@ -374,6 +376,88 @@ impl Dmp {
             };
             dmp.rollout(weights)
         };
+        Trajectory::of(py, &traj, self.names.clone())
+    }
+
+    /// The movement carried to a new `start` and `goal` without distorting it (see
+    /// `cps_dmp::Retarget`): `mode="rotate"` (default) turns the shape so its start→goal
+    /// direction points at the new goal, size kept; `"similar"` also scales it by the
+    /// ratio of the start→goal distances (the whole movement under a similarity
+    /// transform); `"translate"` keeps shape and size as they are. Returns a goal-robust
+    /// DMP.
+    #[pyo3(signature = (start, goal, *, mode="rotate"))]
+    fn retarget(
+        &self,
+        start: &Bound<'_, PyAny>,
+        goal: &Bound<'_, PyAny>,
+        mode: &str,
+    ) -> PyResult<Self> {
+        let dims = self.dmp.dims();
+        let start = vector(start, "start", Some(dims))?;
+        let goal = vector(goal, "goal", Some(dims))?;
+        let mode = match mode {
+            "rotate" => Retarget::Rotate,
+            "similar" => Retarget::Similar,
+            "translate" => Retarget::Translate,
+            other => {
+                return Err(value_error(format!(
+                    "mode: `{other}` is not a way to retarget (\"rotate\", \"similar\" or \"translate\")"
+                )));
+            }
+        };
+        let moved = self.dmp.retarget(&self.weights, &start, &goal, mode).py()?;
+        let mut out = Self::from_parts(moved.dmp, Vec::new(), self.names.clone());
+        out.weights = moved.weights;
+        Ok(out)
+    }
+
+    /// The rollout with point obstacles avoided online: `obstacles` (k, dims) positions
+    /// (2 or more dimensions), `avoidance="steering"` (Hoffmann et al. 2009, γ = 1000,
+    /// β = 20/π) or `"potential"` (Park et al. 2008, λ = 10, β = 2); `gains=(a, b)`
+    /// replaces the two gains.
+    #[pyo3(signature = (obstacles, *, avoidance="steering", gains=None))]
+    fn rollout_avoiding(
+        &self,
+        py: Python<'_>,
+        obstacles: &Bound<'_, PyAny>,
+        avoidance: &str,
+        gains: Option<(f64, f64)>,
+    ) -> PyResult<Trajectory> {
+        let dims = self.dmp.dims();
+        let o = matrix(obstacles, "obstacles", Some(dims), false)?;
+        let rows: Vec<Vec<f64>> = o
+            .floats
+            .values()
+            .chunks(dims)
+            .map(<[f64]>::to_vec)
+            .collect();
+        let mut terms: Vec<Box<dyn Coupling>> = Vec::new();
+        for (i, p) in rows.iter().enumerate() {
+            cps_dmp::check_endpoints(
+                self.dmp.start(),
+                self.dmp.goal(),
+                p,
+                0.0,
+                &format!("obstacles[{i}]"),
+            )
+            .py()?;
+            let term: Box<dyn Coupling> = match (avoidance, gains) {
+                ("steering", None) => Box::new(SteeringAngle::new(p).py()?),
+                ("steering", Some((g, b))) => Box::new(SteeringAngle::with_gains(p, g, b).py()?),
+                ("potential", None) => Box::new(DynamicPotential::new(p).py()?),
+                ("potential", Some((l, b))) => {
+                    Box::new(DynamicPotential::with_gains(p, l, b).py()?)
+                }
+                (other, _) => {
+                    return Err(value_error(format!(
+                        "avoidance: `{other}` is not a coupling term (\"steering\" or \"potential\")"
+                    )));
+                }
+            };
+            terms.push(term);
+        }
+        let all = cps_dmp::Couplings(terms);
+        let traj = py.detach(|| self.dmp.rollout_coupled(&self.weights, &all));
         Trajectory::of(py, &traj, self.names.clone())
     }
 
@@ -968,4 +1052,34 @@ impl Orientation {
     fn weights<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         array2(py, self.weights.clone(), 3, self.weights.len() / 3)
     }
+}
+
+/// Several DMPs run one after the other as one movement, continuous in position,
+/// velocity and acceleration at every junction (`junction="c2"`, the default; `"c1"`
+/// leaves the acceleration's jump, for comparison). Each later DMP starts where the
+/// previous one ends; its goal and duration are its own. Returns a `Trajectory`.
+#[pyfunction]
+#[pyo3(signature = (dmps, *, junction="c2"))]
+pub fn sequence(py: Python<'_>, dmps: Vec<Bound<'_, Dmp>>, junction: &str) -> PyResult<Trajectory> {
+    let junction = match junction {
+        "c2" => cps_dmp::Junction::C2,
+        "c1" => cps_dmp::Junction::C1,
+        other => {
+            return Err(value_error(format!(
+                "junction: `{other}` is not a junction (\"c2\" or \"c1\")"
+            )));
+        }
+    };
+    let Some(first) = dmps.first() else {
+        return Err(value_error("dmps: give at least one DMP"));
+    };
+    let names = first.get().names.clone();
+    let parts: Vec<(&DiscreteDmp, &[f64])> = dmps
+        .iter()
+        .map(|d| (&d.get().dmp, d.get().weights.as_slice()))
+        .collect();
+    let s = py
+        .detach(|| cps_dmp::sequence_with(&parts, junction))
+        .py()?;
+    Trajectory::of(py, &s.trajectory, names)
 }

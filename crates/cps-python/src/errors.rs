@@ -73,6 +73,7 @@ pub fn option_name(field: &str) -> &str {
     match field {
         "population" => "popsize",
         "initial_scales" => "CMA_stds",
+        "initial_covariance" => "C0",
         "separable" => "CMA_diagonal",
         other => other,
     }

@@ -65,9 +65,10 @@ fn cost_weights(cost: Option<&Bound<'_, PyDict>>) -> PyResult<CostWeights> {
                 "final_velocity" => &mut w.final_velocity,
                 "acceleration" => &mut w.acceleration,
                 "jerk" => &mut w.jerk,
+                "obstacle" => &mut w.obstacle,
                 other => {
                     return Err(value_error(format!(
-                        "cost: `{other}` is not a cost term (the terms: goal, via, final_velocity, acceleration, jerk)"
+                        "cost: `{other}` is not a cost term (the terms: goal, via, final_velocity, acceleration, jerk, obstacle)"
                     )));
                 }
             };
@@ -223,7 +224,7 @@ impl ViaPointResult {
 /// weights searched by CMA-ES (or the exact least-squares optimum with
 /// `method="exact"`), the same pipeline as a `kind = "viapoint"` experiment.
 #[pyfunction]
-#[pyo3(signature = (start, goal, via, *, tau=10.0, dt=0.01, bases=25, goal_velocity=None, cost=None, method="cmaes", parametrisation="anchor_offset", warm_start=false, sigma0=0.5, population=None, generations=1000, tol_fun=Some(1e-9), repetitions=1, seed=1, threads=None, names=None))]
+#[pyo3(signature = (start, goal, via, *, tau=10.0, dt=0.01, bases=25, goal_velocity=None, cost=None, obstacles=None, method="cmaes", parametrisation="anchor_offset", warm_start=false, sigma0=0.5, population=None, generations=1000, tol_fun=Some(1e-9), repetitions=1, seed=1, threads=None, names=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn learn_via_points(
     py: Python<'_>,
@@ -235,6 +236,7 @@ pub fn learn_via_points(
     bases: usize,
     goal_velocity: Option<&Bound<'_, PyAny>>,
     cost: Option<&Bound<'_, PyDict>>,
+    obstacles: Option<&Bound<'_, PyAny>>,
     method: &str,
     parametrisation: &str,
     warm_start: bool,
@@ -252,14 +254,32 @@ pub fn learn_via_points(
     let goal = vector(goal, "goal", Some(dims))?;
     let goal_velocity =
         opt_vector(goal_velocity, "goal_velocity", Some(dims))?.unwrap_or_else(|| vec![0.0; dims]);
+    // Obstacles: a list of (position, clearance).
+    let mut points = Vec::new();
+    if let Some(list) = obstacles {
+        for (k, item) in list.try_iter()?.enumerate() {
+            let (p, clearance): (Bound<'_, PyAny>, f64) = item?.extract().map_err(|_| {
+                value_error(format!("obstacles[{k}]: expected (position, clearance)"))
+            })?;
+            points.push(cps_learn::PointObstacle {
+                position: vector(&p, &format!("obstacles[{k}]"), Some(dims))?,
+                clearance,
+            });
+        }
+    }
+    let mut weights = cost_weights(cost)?;
+    let obstacle_weight_given = cost.is_some_and(|c| c.contains("obstacle").unwrap_or(false));
+    if !points.is_empty() && !obstacle_weight_given {
+        weights.obstacle = 1e5;
+    }
     let task = ViaPointTask {
         start,
         goal,
         goal_velocity,
         via: via_points(via, dims)?,
         dmp: cps_dmp::DmpConfig::new(bases, tau, dt),
-        weights: cost_weights(cost)?,
-        obstacles: Vec::new(),
+        weights,
+        obstacles: points,
     };
     let solver = choose(
         "method",

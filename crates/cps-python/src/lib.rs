@@ -45,6 +45,7 @@ fn _cps(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<dmp::Rhythmic>()?;
     m.add_class::<dmp::Orientation>()?;
     m.add_function(wrap_pyfunction!(dmp::imitate, m)?)?;
+    m.add_function(wrap_pyfunction!(dmp::sequence, m)?)?;
     m.add_class::<cmaes::Es>()?;
     m.add_function(wrap_pyfunction!(cmaes::_fmin, m)?)?;
     m.add_class::<learn::ViaPointResult>()?;

@@ -218,6 +218,106 @@ impl PyProMp {
         Ok(a.reshape([n, times.len(), d])?.into_any())
     }
 
+    /// Where CMA-ES should start when it searches this ProMP's weights:
+    /// `(x0, sigma0, C0)` with `sigma0² · C0` the weight covariance (`C0`'s diagonal
+    /// averages 1). `cps.CMAES(x0, sigma0, {"C0": C0})` starts in the ProMP's shape.
+    fn search_start<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(
+        Bound<'py, numpy::PyArray1<f64>>,
+        f64,
+        Bound<'py, PyArray2<f64>>,
+    )> {
+        let s = self.inner.search_start();
+        let n = s.x0.len();
+        Ok((array1(py, s.x0), s.sigma0, array2(py, s.covariance, n, n)?))
+    }
+
+    /// Co-activation of ProMPs (Paraschos et al. 2013): at each time in `t`, the product
+    /// of the ProMPs' position distributions, each raised to its activation.
+    /// `activations`: one array per ProMP with its activation (≥ 0) at each time of `t`.
+    /// Returns `(mean, std)`, each (len(t), dims).
+    #[staticmethod]
+    fn blend<'py>(
+        py: Python<'py>,
+        promps: Vec<Bound<'py, PyProMp>>,
+        activations: Vec<Bound<'py, PyAny>>,
+        t: &Bound<'py, PyAny>,
+    ) -> PyResult<Pair<'py>> {
+        if promps.len() != activations.len() {
+            return Err(value_error(format!(
+                "{} ProMPs but {} activations: give one activation array per ProMP",
+                promps.len(),
+                activations.len()
+            )));
+        }
+        let times = vector(t, "t", None)?;
+        let alphas: Vec<Vec<f64>> = activations
+            .iter()
+            .enumerate()
+            .map(|(k, a)| vector(a, &format!("activations[{k}]"), Some(times.len())))
+            .collect::<PyResult<_>>()?;
+        // Each activation as a function of time: its value at that time of `t`.
+        let lookup: Vec<Box<dyn Fn(f64) -> f64>> = alphas
+            .iter()
+            .map(|a| {
+                let (a, times) = (a.clone(), times.clone());
+                Box::new(move |x: f64| times.iter().position(|&s| s == x).map_or(0.0, |i| a[i]))
+                    as Box<dyn Fn(f64) -> f64>
+            })
+            .collect();
+        let parts: Vec<cps_promp::Activation<'_>> = promps
+            .iter()
+            .zip(&lookup)
+            .map(|(p, f)| cps_promp::Activation {
+                promp: &p.get().inner,
+                alpha: f.as_ref(),
+            })
+            .collect();
+        let out = cps_promp::blend(&parts, &times).map_err(py_err)?;
+        let d = promps.first().map_or(0, |p| p.get().inner.dims());
+        let mean = out.iter().flat_map(|b| b.mean.clone()).collect();
+        let std = out.iter().flat_map(|b| b.std()).collect();
+        Ok((
+            array2(py, mean, times.len(), d)?,
+            array2(py, std, times.len(), d)?,
+        ))
+    }
+
+    /// The ProMP as the JSON text of a cps ProMP file (what `cps-cli promp` reads).
+    fn to_json(&self) -> String {
+        cps_promp::ProMpModel::new(&self.inner, Vec::new(), 0).to_json()
+    }
+
+    /// A ProMP from the JSON text of a cps ProMP file.
+    #[staticmethod]
+    fn from_json(text: &str) -> PyResult<Self> {
+        let model = cps_promp::ProMpModel::from_json(text).map_err(py_err)?;
+        Ok(PyProMp {
+            inner: model.to_promp().map_err(py_err)?,
+        })
+    }
+
+    /// Writes the ProMP file `cps-cli promp` reads. An existing file is replaced only with
+    /// `force=True`, and only if it is a cps ProMP file.
+    #[pyo3(signature = (path, *, force=false))]
+    fn save(&self, path: std::path::PathBuf, force: bool) -> PyResult<()> {
+        use cps_experiment::results_dir::{FileKind, check_file_targets};
+        check_file_targets(&path, FileKind::ProMp, None, force)
+            .map_err(crate::errors::file_error)?;
+        cps_experiment::files::write_file(&path, self.to_json().as_bytes())
+            .map_err(|e| value_error(e.to_string()))
+    }
+
+    /// Reads a ProMP file written by `save` or `cps-cli promp fit|condition`.
+    #[staticmethod]
+    fn load(path: std::path::PathBuf) -> PyResult<Self> {
+        let named = cps_experiment::promp::NamedProMp::read(&path)
+            .map_err(|e| value_error(e.to_string()))?;
+        Ok(PyProMp { inner: named.promp })
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "ProMP(dims={}, bases={}, duration={})",
