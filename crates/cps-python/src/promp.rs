@@ -8,6 +8,9 @@ use pyo3::prelude::*;
 use crate::arrays::{array1, array2, matrix, vector};
 use crate::errors::value_error;
 
+/// `(x0, sigma0, C0)` of `search_start`.
+type SearchStart<'py> = (Bound<'py, numpy::PyArray1<f64>>, f64, Bound<'py, PyArray2<f64>>);
+
 /// Two arrays: positions and velocities.
 type Pair<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
 
@@ -224,11 +227,7 @@ impl PyProMp {
     fn search_start<'py>(
         &self,
         py: Python<'py>,
-    ) -> PyResult<(
-        Bound<'py, numpy::PyArray1<f64>>,
-        f64,
-        Bound<'py, PyArray2<f64>>,
-    )> {
+    ) -> PyResult<SearchStart<'py>> {
         let s = self.inner.search_start();
         let n = s.x0.len();
         Ok((array1(py, s.x0), s.sigma0, array2(py, s.covariance, n, n)?))
