@@ -969,3 +969,85 @@ fn the_obstacle_experiment_keeps_the_clearance_and_meets_the_via_points() {
         "read only by kind = \"viapoint\"",
     );
 }
+
+const PROMP: &str = include_str!("../../../experiments/promp.toml");
+
+/// The ProMP experiment as shipped: a ProMP of the executed demonstrations (its σ is the
+/// spread of the recordings, here ≈ the via points' 5 cm perturbation), conditioned on the
+/// new via point exactly, its mean executed through it; and its bad inputs.
+#[test]
+fn the_promp_experiment_conditions_and_executes_its_mean() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("promp");
+    let o = run(Path::new(&repo("experiments/promp.toml")), &out);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let s = json(&out.join("summary.json"));
+    let p = &s["promp"];
+    assert_eq!(
+        p["demonstrations"].as_u64(),
+        s["demonstrations"]["executed"].as_u64()
+    );
+    // The spread of demonstrations whose via points moved by N(0, 0.05²) m.
+    for sd in p["mean_std_m"].as_array().unwrap() {
+        let sd = sd.as_f64().unwrap();
+        assert!((0.01..0.08).contains(&sd), "{sd}");
+    }
+    assert!(p["via"]["mean_error_m"].as_f64().unwrap() < 1e-6);
+    for sd in p["via"]["conditioned_std_m"].as_array().unwrap() {
+        assert!(sd.as_f64().unwrap() < 1e-4);
+    }
+    let e = &p["executed"];
+    assert!(e["max_position_error_m"].as_f64().unwrap() < 1e-3);
+    assert!(e["via_error_m"].as_f64().unwrap() < 1e-3);
+    for f in [
+        "promp.json",
+        "promp_conditioned.json",
+        "promp_stats.csv",
+        "promp_executed.csv",
+        "promp.svg",
+        "conditioned.svg",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    // The model file is what `cps-cli promp` reads.
+    let stats = dir.path().join("stats.csv");
+    let o = cli(&[
+        "promp",
+        "stats",
+        out.join("promp_conditioned.json").to_str().unwrap(),
+        "--out",
+        stats.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("ProMP of the executed demonstrations"));
+    // Bad input: a via point after the movement, one demonstration, [promp] elsewhere.
+    let bad = |name: &str, body: String, wanted: &str| {
+        let f = write(dir.path(), name, &body);
+        let o = cli(&["check", f.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(2), "{name}");
+        let err = text(&o.stderr);
+        assert!(err.contains(wanted), "{name}: {err}");
+    };
+    bad(
+        "late.toml",
+        PROMP.replace("time = 5.0 ", "time = 12.0 "),
+        "[promp.via] `time`",
+    );
+    bad(
+        "one.toml",
+        PROMP.replace("count = 20", "count = 1"),
+        "at least 2",
+    );
+    bad(
+        "missing.toml",
+        PROMP[..PROMP.find("[promp]").unwrap()].to_string()
+            + &PROMP[PROMP.find("[dmp]").unwrap()..],
+        "needs a [promp] section",
+    );
+    bad(
+        "elsewhere.toml",
+        IMITATION.to_string() + "\n[promp]\n[promp.via]\ntime = 1.0\nposition = [1.0, 0.0, 1.0]\n",
+        "read only by kind = \"promp\"",
+    );
+}

@@ -127,7 +127,7 @@ pub fn estimate(exp: &Experiment) -> Estimate {
         Kind::Scaling => {
             multiplier = exp.scaling.as_ref().map_or(1, |s| s.compare.len()) as f64;
         }
-        Kind::Imitation => {
+        Kind::Imitation | Kind::Promp => {
             if let Some(p) = &exp.imitation {
                 multiplier = p.demonstrations as f64;
                 let robot_samples = exp.robot.as_ref().map_or(samples, |rb| match rb.backend {
@@ -160,7 +160,7 @@ pub fn estimate(exp: &Experiment) -> Estimate {
     let lambda = population as f64;
     // The exact solver evaluates no population (via points and imitation's learner).
     let searches = !(c.solver == cps_learn::Solver::Exact
-        && matches!(exp.kind, Kind::Viapoint | Kind::Imitation));
+        && matches!(exp.kind, Kind::Viapoint | Kind::Imitation | Kind::Promp));
     let evaluations = if searches {
         lambda * g * r * multiplier
     } else {

@@ -38,6 +38,7 @@ struct File {
     speedup: Option<Spanned<crate::plan::SpeedupSection>>,
     orientation: Option<Spanned<crate::plan::OrientationSection>>,
     export: Option<Spanned<crate::export::ExportSection>>,
+    promp: Option<Spanned<crate::plan::ProMpSection>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -407,6 +408,7 @@ pub fn parse(
         speedup: file.speedup.as_ref(),
         orientation: file.orientation.as_ref(),
         export: file.export.as_ref(),
+        promp: file.promp.as_ref(),
     };
     let plans = sections.parse(&config)?;
     let mut exp = Experiment {
@@ -421,6 +423,7 @@ pub fn parse(
         joint: plans.joint,
         energy: plans.energy,
         pose: plans.pose,
+        promp: plans.promp,
         export: plans.export,
         estimate: None,
     };

@@ -36,6 +36,9 @@ pub enum Kind {
     ViapointEnergy,
     /// Via-point learning of position and orientation.
     ViapointPose,
+    /// The imitation pipeline's executed demonstrations as a ProMP: its band, conditioned
+    /// on a new via point, the conditioned mean executed.
+    Promp,
 }
 
 impl Kind {
@@ -48,6 +51,7 @@ impl Kind {
             Kind::ViapointJoint => "viapoint_joint",
             Kind::ViapointEnergy => "viapoint_energy",
             Kind::ViapointPose => "viapoint_pose",
+            Kind::Promp => "promp",
         }
     }
 }
@@ -78,6 +82,8 @@ pub struct Experiment {
     pub energy: Option<EnergyPlan>,
     /// The orientation targets (`kind = "viapoint_pose"`).
     pub pose: Option<PosePlan>,
+    /// The ProMP and its via point (`kind = "promp"`).
+    pub promp: Option<ProMpPlan>,
     /// Retiming and export of the robot's movement (`[export]`, kinds with a robot).
     pub export: Option<crate::export::ExportPlan>,
     /// What the run needs (memory, work), estimated when the file was read.
@@ -317,6 +323,37 @@ pub struct ImitationPlan {
     pub jerk_lambda: Lambda,
 }
 
+/// `[promp]` of `kind = "promp"`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProMpSection {
+    basis_functions: Option<Spanned<usize>>,
+    via: Spanned<ProMpVia>,
+}
+
+/// `[promp.via]`: the new via point.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProMpVia {
+    time: Spanned<f64>,
+    position: Spanned<Vec<f64>>,
+    #[serde(default)]
+    std: Option<Spanned<f64>>,
+}
+
+/// A ProMP experiment's settings beyond the imitation pipeline's.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProMpPlan {
+    /// Basis functions per dimension.
+    pub bases: usize,
+    /// The via point's time (s, within the demonstrations' mean duration).
+    pub time: f64,
+    /// Its position (m).
+    pub position: Vec<f64>,
+    /// Its standard deviation (m; 0: exact).
+    pub std: f64,
+}
+
 /// `[scaling]` of `kind = "scaling"`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -417,6 +454,7 @@ pub(crate) struct Sections<'a> {
     pub speedup: Option<&'a Spanned<SpeedupSection>>,
     pub orientation: Option<&'a Spanned<OrientationSection>>,
     pub export: Option<&'a Spanned<crate::export::ExportSection>>,
+    pub promp: Option<&'a Spanned<ProMpSection>>,
 }
 
 /// The parsed plans of [`Sections::parse`].
@@ -427,6 +465,7 @@ pub(crate) struct Plans {
     pub joint: Option<JointPlan>,
     pub energy: Option<EnergyPlan>,
     pub pose: Option<PosePlan>,
+    pub promp: Option<ProMpPlan>,
     pub export: Option<crate::export::ExportPlan>,
 }
 
@@ -479,15 +518,17 @@ impl Sections<'_> {
             )
         };
         // A pose experiment executes when it names a robot; the other two always do.
-        let executes = matches!(self.kind, Kind::Imitation | Kind::ViapointJoint)
-            || (self.kind == Kind::ViapointPose && self.robot.is_some());
+        let executes = matches!(
+            self.kind,
+            Kind::Imitation | Kind::ViapointJoint | Kind::Promp
+        ) || (self.kind == Kind::ViapointPose && self.robot.is_some());
         if let Some(r) = self.robot
             && !executes
         {
             return Err(only(
                 r.span(),
                 "robot",
-                "kind = \"imitation\", \"viapoint_joint\" and \"viapoint_pose\"",
+                "kind = \"imitation\", \"promp\", \"viapoint_joint\" and \"viapoint_pose\"",
             ));
         }
         let export = match self.export {
@@ -521,10 +562,15 @@ impl Sections<'_> {
             (self.imitation.map(Spanned::span), "imitation"),
         ] {
             if let Some(s) = span
-                && self.kind != Kind::Imitation
+                && !matches!(self.kind, Kind::Imitation | Kind::Promp)
             {
-                return Err(only(s, name, "kind = \"imitation\""));
+                return Err(only(s, name, "kind = \"imitation\" and \"promp\""));
             }
+        }
+        if let Some(s) = self.promp
+            && self.kind != Kind::Promp
+        {
+            return Err(only(s.span(), "promp", "kind = \"promp\""));
         }
         if let Some(s) = self.scaling
             && self.kind != Kind::Scaling
@@ -536,8 +582,13 @@ impl Sections<'_> {
         } else {
             None
         };
-        let imitation = if self.kind == Kind::Imitation {
+        let imitation = if matches!(self.kind, Kind::Imitation | Kind::Promp) {
             Some(self.imitation_plan(learner)?)
+        } else {
+            None
+        };
+        let promp = if self.kind == Kind::Promp {
+            Some(self.promp_plan(learner.task.dmp.tau, imitation.as_ref())?)
         } else {
             None
         };
@@ -606,7 +657,76 @@ impl Sections<'_> {
             joint,
             energy,
             pose,
+            promp,
             export,
+        })
+    }
+
+    /// `[promp]`: the basis and the via point, within the demonstrations' duration `tau`
+    /// and a 10 m reach; a ProMP needs at least 2 demonstrations.
+    fn promp_plan(
+        &self,
+        tau: f64,
+        imitation: Option<&ImitationPlan>,
+    ) -> Result<ProMpPlan, InputError> {
+        let Some(section) = self.promp else {
+            return Err(InputError(format!(
+                "{}: kind = \"promp\" needs a [promp] section with the new via point: [promp.via] time = …, position = [x, y, z]",
+                self.path.display()
+            )));
+        };
+        let s = section.get_ref();
+        if let Some(p) = imitation
+            && p.demonstrations < 2
+        {
+            let span = self
+                .demonstrations
+                .and_then(|d| d.get_ref().count.as_ref())
+                .map_or(section.span(), Spanned::span);
+            return Err(self.err(
+                &span,
+                "a ProMP learns the spread of several demonstrations: [demonstrations] `count` must be at least 2".into(),
+            ));
+        }
+        let bases = match &s.basis_functions {
+            Some(n) if !(2..=1000).contains(n.get_ref()) => {
+                return Err(self.err(
+                    &n.span(),
+                    format!(
+                        "[promp] `basis_functions` must be between 2 and 1000 (got {})",
+                        n.get_ref()
+                    ),
+                ));
+            }
+            Some(n) => *n.get_ref(),
+            None => 20,
+        };
+        let v = s.via.get_ref();
+        let time = self.within(
+            &v.time,
+            "[promp.via] `time`",
+            0.0,
+            tau,
+            " s (the movement's duration)",
+        )?;
+        let position = v.position.get_ref().clone();
+        if position.len() != 3 || position.iter().any(|x| !x.is_finite() || x.abs() > 10.0) {
+            return Err(self.err(
+                &v.position.span(),
+                format!(
+                    "[promp.via] `position` must be three finite coordinates within 10 m (got {position:?})"
+                ),
+            ));
+        }
+        let std = match &v.std {
+            Some(s) => self.within(s, "[promp.via] `std`", 0.0, 10.0, " m")?,
+            None => 0.0,
+        };
+        Ok(ProMpPlan {
+            bases,
+            time,
+            position,
+            std,
         })
     }
 
@@ -992,7 +1112,7 @@ impl Experiment {
             )
         };
         let search = match (self.kind, c.solver) {
-            (Kind::Imitation, solver) => {
+            (Kind::Imitation | Kind::Promp, solver) => {
                 let p = self.imitation.as_ref();
                 format!(
                     "{} demonstrations (via points moved by N(0, {}²) m), each learned by {}; their mean imitated by ridge and jerk-regularised ridge with {} basis functions",
@@ -1003,7 +1123,12 @@ impl Experiment {
                         cps_learn::Solver::Cmaes => cmaes(c.generations, 1),
                     },
                     p.map_or(0, |p| p.dmp.n_basis)
-                )
+                ) + &self.promp.as_ref().map_or(String::new(), |p| {
+                    format!(
+                        "; then a ProMP of the executed demonstrations ({} basis functions per axis) conditioned on {:?} m at {} s, its mean executed",
+                        p.bases, p.position, p.time
+                    )
+                })
             }
             (Kind::Viapoint, cps_learn::Solver::Exact) => {
                 "the exact least-squares optimum (no search)".to_string()

@@ -278,6 +278,25 @@ pub fn fit_files(
         raw.push((demo.times().to_vec(), rows));
     }
     let names = names.unwrap_or_default();
+    let labels: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
+    fit_demos(raw, names, &labels, bases, duration)
+}
+
+/// Fits a ProMP to demonstrations in memory (`(times, rows)` each, `labels` naming them
+/// in messages) over `duration` seconds (default: their mean duration).
+pub fn fit_demos(
+    raw: Vec<(Vec<f64>, Vec<Vec<f64>>)>,
+    names: Vec<String>,
+    labels: &[String],
+    bases: usize,
+    duration: Option<f64>,
+) -> Result<Fitted, InputError> {
+    if raw.len() < 2 {
+        return Err(InputError(format!(
+            "a ProMP learns the spread of several demonstrations: at least 2 are needed (got {})",
+            raw.len()
+        )));
+    }
     let duration = match duration {
         Some(t) if t.is_finite() && t > 0.0 => t,
         Some(t) => {
@@ -299,12 +318,13 @@ pub fn fit_files(
     if let Some((k, (t, _))) = raw.iter().enumerate().find(|(_, (t, _))| t.len() < bases) {
         notes.push(format!(
             "{}: {} samples for {bases} basis functions; its weights are the ridge solution (λ = 1e-8 × the basis Gram matrix's mean diagonal), the smoothest that fits",
-            paths[k].display(),
+            labels.get(k).map_or("a demonstration", String::as_str),
             t.len()
         ));
     }
     let promp = ProMp::fit(&raw, bases, duration)
-        .map_err(|e| InputError(name_demo(&e.to_string(), paths)))?;
+        .map_err(|e| InputError(name_demo(&e.to_string(), labels)))?;
+    let demonstrations = raw.len();
     let demos = raw
         .into_iter()
         .map(|(t, y)| {
@@ -316,21 +336,21 @@ pub fn fit_files(
         promp: NamedProMp {
             promp,
             names,
-            demonstrations: paths.len(),
+            demonstrations,
         },
         demos,
         notes,
     })
 }
 
-/// Replaces "demonstration k" in a fitting error by the file's name.
-fn name_demo(message: &str, paths: &[&Path]) -> String {
+/// Replaces "demonstration k" in a fitting error by its label (a file's name).
+fn name_demo(message: &str, labels: &[String]) -> String {
     if let Some(rest) = message.strip_prefix("demonstration ")
         && let Some((k, tail)) = rest.split_once(':')
         && let Ok(k) = k.parse::<usize>()
-        && let Some(p) = paths.get(k.wrapping_sub(1))
+        && let Some(p) = labels.get(k.wrapping_sub(1))
     {
-        return format!("{}:{tail}", p.display());
+        return format!("{p}:{tail}");
     }
     message.to_string()
 }

@@ -48,7 +48,7 @@ pub fn planned_generations(exp: &Experiment) -> u64 {
                 * config.repetitions as u64
                 * exp.scaling.as_ref().map_or(1, |s| s.compare.len() as u64)
         }
-        Kind::Imitation => 0,
+        Kind::Imitation | Kind::Promp => 0,
         Kind::ViapointJoint => config.generations,
         Kind::ViapointPose => 2 * config.generations,
         // The speed-up measurement reports `Event::Working`, not generations.
@@ -82,6 +82,7 @@ pub fn run(
     let mut outcome = match exp.kind {
         Kind::Viapoint => kinds::viapoint::run(&ctx),
         Kind::Imitation => kinds::imitation::run(&ctx),
+        Kind::Promp => kinds::promp::run(&ctx),
         Kind::Scaling => kinds::scaling::run(&ctx),
         Kind::ViapointJoint => kinds::joint::run(&ctx),
         Kind::ViapointEnergy => kinds::energy::run(&ctx),

@@ -9,7 +9,11 @@ use crate::arrays::{array1, array2, matrix, vector};
 use crate::errors::value_error;
 
 /// `(x0, sigma0, C0)` of `search_start`.
-type SearchStart<'py> = (Bound<'py, numpy::PyArray1<f64>>, f64, Bound<'py, PyArray2<f64>>);
+type SearchStart<'py> = (
+    Bound<'py, numpy::PyArray1<f64>>,
+    f64,
+    Bound<'py, PyArray2<f64>>,
+);
 
 /// Two arrays: positions and velocities.
 type Pair<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
@@ -224,10 +228,7 @@ impl PyProMp {
     /// Where CMA-ES should start when it searches this ProMP's weights:
     /// `(x0, sigma0, C0)` with `sigma0² · C0` the weight covariance (`C0`'s diagonal
     /// averages 1). `cps.CMAES(x0, sigma0, {"C0": C0})` starts in the ProMP's shape.
-    fn search_start<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> PyResult<SearchStart<'py>> {
+    fn search_start<'py>(&self, py: Python<'py>) -> PyResult<SearchStart<'py>> {
         let s = self.inner.search_start();
         let n = s.x0.len();
         Ok((array1(py, s.x0), s.sigma0, array2(py, s.covariance, n, n)?))

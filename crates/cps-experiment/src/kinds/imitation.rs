@@ -110,6 +110,20 @@ struct FitSummary {
 
 /// Runs the pipeline on the experiment's backend and declares the outcome.
 pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
+    let run = pipeline(ctx)?;
+    declare(ctx, &run)
+}
+
+/// What the pipeline left: its configuration, its outcome and the open backend (for a
+/// kind that executes more on it).
+pub(crate) struct Pipeline {
+    pub config: ImitationConfig,
+    pub outcome: ImitationOutcome,
+    pub backend: Box<dyn cps_kinematics::RobotBackend>,
+}
+
+/// Runs the imitation pipeline on the experiment's backend.
+pub(crate) fn pipeline(ctx: &Ctx<'_>) -> Result<Pipeline, ExperimentError> {
     let exp = ctx.exp;
     let robot = exp
         .robot
@@ -136,12 +150,27 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         .install(|| cps_learn::run_imitation(&config, backend.as_mut(), &progress))
         .map_err(|e| learn_error(e, "imitation run"))?;
     ctx.observer.finished();
+    Ok(Pipeline {
+        config,
+        outcome,
+        backend,
+    })
+}
+
+/// The pipeline's outcome as files, figures and words.
+pub(crate) fn declare(ctx: &Ctx<'_>, run: &Pipeline) -> Result<Outcome, ExperimentError> {
+    let exp = ctx.exp;
+    let robot = exp
+        .robot
+        .as_ref()
+        .ok_or_else(|| ExperimentError::Message("an imitation experiment has a robot".into()))?;
+    let (config, outcome) = (&run.config, &run.outcome);
     let mut header = ctx.header(outcome.complete);
     if let Some(f) = &outcome.failure {
         header.complete = false;
         header.failure = Some(f.clone());
     }
-    let o = &outcome;
+    let o = outcome;
     let mut documents = Vec::new();
     let mut fits = Vec::new();
     let mut usage_lines = Vec::new();

@@ -24,6 +24,7 @@ pub(crate) mod imitation;
 pub(crate) mod joint;
 pub(crate) mod movement_files;
 pub(crate) mod pose;
+pub(crate) mod promp;
 pub(crate) mod scaling;
 pub(crate) mod viapoint;
 
