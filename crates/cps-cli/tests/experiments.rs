@@ -918,6 +918,15 @@ fn a_pose_experiment_with_a_robot_executes_and_checks_its_movement() {
     assert!(s.get("execution").is_none() && s.get("limit_usage").is_none());
 }
 
+/// `cps-cli check` of `body` (written as `name` in `dir`) exits 2 saying `wanted`.
+fn refused(dir: &Path, name: &str, body: &str, wanted: &str) {
+    let f = write(dir, name, body);
+    let o = cli(&["check", f.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{name}");
+    let err = text(&o.stderr);
+    assert!(err.contains(wanted), "{name}: {err}");
+}
+
 const OBSTACLE: &str = include_str!("../../../experiments/obstacle.toml");
 
 /// The obstacle experiment as shipped: the obstacle sits on the path the plain experiment
@@ -937,13 +946,7 @@ fn the_obstacle_experiment_keeps_the_clearance_and_meets_the_via_points() {
     let svg = std::fs::read_to_string(out.join("path3d.svg")).unwrap();
     assert!(svg.contains("o1"));
     // Bad input: an obstacle on the goal, a clearance of 0, obstacles in a joint experiment.
-    let bad = |name: &str, body: String, wanted: &str| {
-        let f = write(dir.path(), name, &body);
-        let o = cli(&["check", f.to_str().unwrap()]);
-        assert_eq!(o.status.code(), Some(2), "{name}");
-        let err = text(&o.stderr);
-        assert!(err.contains(wanted), "{name}: {err}");
-    };
+    let bad = |name: &str, body: String, wanted: &str| refused(dir.path(), name, &body, wanted);
     bad(
         "on_goal.toml",
         OBSTACLE.replace(
@@ -1022,13 +1025,7 @@ fn the_promp_experiment_conditions_and_executes_its_mean() {
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(html.contains("ProMP of the executed demonstrations"));
     // Bad input: a via point after the movement, one demonstration, [promp] elsewhere.
-    let bad = |name: &str, body: String, wanted: &str| {
-        let f = write(dir.path(), name, &body);
-        let o = cli(&["check", f.to_str().unwrap()]);
-        assert_eq!(o.status.code(), Some(2), "{name}");
-        let err = text(&o.stderr);
-        assert!(err.contains(wanted), "{name}: {err}");
-    };
+    let bad = |name: &str, body: String, wanted: &str| refused(dir.path(), name, &body, wanted);
     bad(
         "late.toml",
         PROMP.replace("time = 5.0 ", "time = 12.0 "),

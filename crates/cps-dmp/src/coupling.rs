@@ -22,6 +22,7 @@
 //! ‖a × ẏ‖` with `a = o − y` and `‖a × ẏ‖² = ‖a‖²‖ẏ‖² − (a·ẏ)²`, so it holds in any
 //! dimension. Heading straight at an obstacle (`φ = 0`) or standing still gives no push.
 
+use crate::config::positive;
 use crate::{DiscreteDmp, DmpError, OnlineDmp, StepInput, Trajectory};
 
 /// A state-dependent term added to the transformation system (see the module docs).
@@ -49,18 +50,6 @@ fn check_obstacle(position: &[f64]) -> Result<(), DmpError> {
         });
     }
     Ok(())
-}
-
-fn positive(field: &'static str, value: f64) -> Result<(), DmpError> {
-    if value.is_finite() && value > 0.0 {
-        Ok(())
-    } else {
-        Err(DmpError::InvalidConfig {
-            field,
-            rule: "must be finite and > 0",
-            value,
-        })
-    }
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {

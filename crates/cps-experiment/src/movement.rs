@@ -300,12 +300,12 @@ fn option_name(field: &str) -> &str {
     }
 }
 
-/// Reads demonstration files and imitates them with one DMP per dimension.
-pub fn imitate_files(
+/// Reads demonstration files that must all have the same dimensions: their names (the
+/// first file's) and the demonstrations.
+pub fn read_demos(
     paths: &[&Path],
     columns: Columns<'_>,
-    spec: &ImitationSpec,
-) -> Result<Imitated, InputError> {
+) -> Result<(Vec<String>, Vec<Demonstration>), InputError> {
     let mut demos = Vec::new();
     let mut names: Option<Vec<String>> = None;
     for path in paths {
@@ -314,7 +314,7 @@ pub fn imitate_files(
             && n.len() != header.len()
         {
             return Err(InputError(format!(
-                "{}: {} dimensions ({}), but {} has {} ({})",
+                "{}: {} dimensions ({}), but {} has {} ({}): every demonstration must have the same dimensions",
                 path.display(),
                 header.len(),
                 header.join(", "),
@@ -326,6 +326,16 @@ pub fn imitate_files(
         names.get_or_insert(header);
         demos.push(demo);
     }
+    Ok((names.unwrap_or_default(), demos))
+}
+
+/// Reads demonstration files and imitates them with one DMP per dimension.
+pub fn imitate_files(
+    paths: &[&Path],
+    columns: Columns<'_>,
+    spec: &ImitationSpec,
+) -> Result<Imitated, InputError> {
+    let (names, demos) = read_demos(paths, columns)?;
     let Some(first) = demos.first() else {
         return Err(InputError("no demonstration given".into()));
     };
@@ -347,7 +357,7 @@ pub fn imitate_files(
             other => InputError(other.to_string()),
         })?;
     Ok(Imitated {
-        names: names.unwrap_or_default(),
+        names,
         demonstrations: demos.len(),
         fit,
     })

@@ -8,7 +8,7 @@ use std::path::Path;
 use cps_promp::{Observation, ProMp, ProMpError, ProMpModel};
 
 use crate::InputError;
-use crate::movement::{Columns, read_demo, with_units};
+use crate::movement::{Columns, read_demos, with_units};
 use crate::outcome::{Band, Column, Figure, Format, Mark, MarkKind, Panels, Plot, Series, Table};
 use crate::robot_file::Answer;
 
@@ -256,28 +256,14 @@ pub fn fit_files(
             "--bases {bases}: between 2 and 10000 basis functions per dimension"
         )));
     }
-    let mut names: Option<Vec<String>> = None;
-    let mut raw = Vec::new();
-    for path in paths {
-        let (header, demo) = read_demo(path, columns)?;
-        if let Some(n) = &names
-            && n.len() != header.len()
-        {
-            return Err(InputError(format!(
-                "{}: {} dimensions ({}), but {} has {} ({}): every demonstration must have the same dimensions",
-                path.display(),
-                header.len(),
-                header.join(", "),
-                paths[0].display(),
-                n.len(),
-                n.join(", ")
-            )));
-        }
-        names.get_or_insert(header);
-        let rows: Vec<Vec<f64>> = (0..demo.len()).map(|k| demo.sample(k).to_vec()).collect();
-        raw.push((demo.times().to_vec(), rows));
-    }
-    let names = names.unwrap_or_default();
+    let (names, read) = read_demos(paths, columns)?;
+    let raw = read
+        .iter()
+        .map(|demo| {
+            let rows = (0..demo.len()).map(|k| demo.sample(k).to_vec()).collect();
+            (demo.times().to_vec(), rows)
+        })
+        .collect();
     let labels: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
     fit_demos(raw, names, &labels, bases, duration)
 }
