@@ -199,3 +199,28 @@ def test_learning_keeps_an_obstacles_clearance():
     assert cdist(y, o[None]).min() > 0.049
     with pytest.raises(ValueError, match="clearance"):
         cps.learn_via_points(**task, obstacles=[(o, -1.0)])
+
+
+def test_promp_means_chain_into_one_c2_movement():
+    # Each ProMP's mean, imitated by a goal-robust DMP, then sequenced.
+    rng = np.random.default_rng(0)
+    t = np.linspace(0, 1, 200)
+    first = [(t, np.column_stack([np.sin(np.pi * t / 2) * rng.normal(1, 0.1), t**2])) for _ in range(10)]
+    second = [(t, np.column_stack([1 + 0.5 * t * rng.normal(1, 0.1), 1 - t])) for _ in range(10)]
+
+    def across(dt, junction):
+        dmps = []
+        for demos in (first, second):
+            p = cps.ProMP.fit(demos, bases=12)
+            tt = np.linspace(0, p.duration, 201)
+            mean, _ = p.mean(tt)
+            dmps.append(cps.imitate(tt, mean, bases=25, formulation="robust", dt=dt))
+        T, y, _, ydd = cps.sequence(dmps, junction=junction)
+        k = int(np.argmin(np.abs(T - 1.0)))
+        np.testing.assert_allclose(y[-1], dmps[1].goal, atol=1e-2)
+        return np.abs(ydd[k + 1] - ydd[k - 1]).max()
+
+    c2, c2_half = across(0.005, "c2"), across(0.0025, "c2")
+    c1 = across(0.005, "c1")
+    # C²: the change across the junction shrinks with the step; C¹ keeps its jump.
+    assert c2_half < 0.75 * c2 and c1 > 8 * c2, (c2, c2_half, c1)

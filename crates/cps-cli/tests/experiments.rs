@@ -969,7 +969,7 @@ fn the_obstacle_experiment_keeps_the_clearance_and_meets_the_via_points() {
     bad(
         "joint.toml",
         format!("{joint}\n[[task.obstacles]]\nposition = [1.0, 0.0, 1.0]\nclearance = 0.05\n"),
-        "read only by kind = \"viapoint\"",
+        "read only by the kinds that learn tool positions",
     );
 }
 
@@ -1046,5 +1046,60 @@ fn the_promp_experiment_conditions_and_executes_its_mean() {
         "elsewhere.toml",
         IMITATION.to_string() + "\n[promp]\n[promp.via]\ntime = 1.0\nposition = [1.0, 0.0, 1.0]\n",
         "read only by kind = \"promp\"",
+    );
+}
+
+/// A scene's `[[obstacle]]`s join the task's: a pose learned in a scene with an obstacle
+/// on the path keeps its clearance; kinds that cannot keep them, the exact solver and an
+/// obstacle on the goal are refused.
+#[test]
+fn a_scene_s_obstacles_are_kept_by_the_movement_learned_in_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let thesis = std::fs::read_to_string(repo("configs/scenes/thesis.toml")).unwrap();
+    let obstacle =
+        "\n[[obstacle]]\nname = \"lamp\"\nposition = [1.18, 0.10, 1.31]\nclearance = 0.08\n";
+    std::fs::write(dir.path().join("scene.toml"), thesis.clone() + obstacle).unwrap();
+    let pose = POSE.replace(
+        "method = \"exact\"",
+        "method = \"cmaes\"\nwarm_start = true\nsigma0 = 0.05",
+    ) + "\n[robot]\nscene = \"scene.toml\"\n";
+    let file = write(dir.path(), "pose.toml", &pose);
+    let out = dir.path().join("pose");
+    let o = run(&file, &out);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let s = json(&out.join("summary.json"));
+    let d = s["obstacle_distances_m"][0].as_f64().unwrap();
+    assert!(d > 0.99 * 0.08, "{d}");
+    assert!(
+        s["via_errors_m"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|e| e.as_f64().unwrap() < 1e-3)
+    );
+    // Refused: the exact solver, a kind that learns joints, an obstacle on the goal.
+    refused(
+        dir.path(),
+        "exact.toml",
+        &pose.replace("method = \"cmaes\"", "method = \"exact\""),
+        "leaves the obstacle term out",
+    );
+    let joint = std::fs::read_to_string(repo("experiments/viapoint_joint.toml"))
+        .unwrap()
+        .replace("scene = \"thesis\"", "scene = \"scene.toml\"");
+    refused(dir.path(), "joint.toml", &joint, "cannot keep");
+    std::fs::write(
+        dir.path().join("goal.toml"),
+        thesis
+            + &obstacle
+                .replace("[1.18, 0.10, 1.31]", "[0.55, -0.57, 1.45]")
+                .replace("lamp", "on_goal"),
+    )
+    .unwrap();
+    refused(
+        dir.path(),
+        "on_goal.toml",
+        &pose.replace("scene.toml", "goal.toml"),
+        "obstacle `on_goal`",
     );
 }

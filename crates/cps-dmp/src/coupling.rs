@@ -23,7 +23,7 @@
 //! dimension. Heading straight at an obstacle (`φ = 0`) or standing still gives no push.
 
 use crate::config::positive;
-use crate::{DiscreteDmp, DmpError, OnlineDmp, StepInput, Trajectory};
+use crate::{DiscreteDmp, DmpError, OnlineDmp, Trajectory};
 
 /// A state-dependent term added to the transformation system (see the module docs).
 pub trait Coupling: Sync {
@@ -225,7 +225,6 @@ impl DiscreteDmp {
         let n = times.len();
         let mut runner = OnlineDmp::new(self, weights);
         let mut traj = Trajectory::zeros(dims, times.clone());
-        let mut c = vec![0.0; dims];
         let record = |traj: &mut Trajectory, k: usize, r: &OnlineDmp| {
             for (d, v) in r.velocity().into_iter().enumerate() {
                 let i = d * n + k;
@@ -237,15 +236,9 @@ impl DiscreteDmp {
         };
         record(&mut traj, 0, &runner);
         for k in 1..n {
-            c.iter_mut().for_each(|x| *x = 0.0);
-            coupling.add(runner.position(), &runner.velocity(), &mut c);
-            let input = StepInput {
-                coupling: Some(&c),
-                tracking_error: 0.0,
-            };
             runner
-                .step_with(times[k] - times[k - 1], input)
-                .expect("grid steps are positive and the coupling has the DMP's dimension");
+                .step_coupled(times[k] - times[k - 1], coupling)
+                .expect("grid steps are positive");
             record(&mut traj, k, &runner);
         }
         traj

@@ -112,7 +112,7 @@ struct Cost {
     #[serde(default)]
     jerk: f64,
     #[serde(default)]
-    obstacle: f64,
+    obstacle: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -249,7 +249,9 @@ pub fn parse(
                     final_velocity: c.final_velocity,
                     acceleration: c.acceleration,
                     jerk: c.jerk,
-                    obstacle: c.obstacle,
+                    obstacle: c
+                        .obstacle
+                        .unwrap_or(if t.obstacles.is_empty() { 0.0 } else { 1e5 }),
                 }
             }
             None => CostWeights {
@@ -272,13 +274,13 @@ pub fn parse(
                 .kind
                 .as_ref()
                 .map_or(Kind::default(), |k| *k.get_ref()),
-            Kind::Viapoint | Kind::Scaling
+            Kind::Viapoint | Kind::Scaling | Kind::Imitation | Kind::Promp | Kind::ViapointPose
         )
     {
         return Err(err(
             &o.span(),
             format!(
-                "[[task.obstacles]] are read only by kind = \"viapoint\" and \"scaling\" (task-space movements); this file has kind = \"{}\"",
+                "[[task.obstacles]] are read only by the kinds that learn tool positions (viapoint, scaling, imitation, promp, viapoint_pose); this file has kind = \"{}\"",
                 file.experiment
                     .kind
                     .as_ref()
@@ -410,7 +412,9 @@ pub fn parse(
         export: file.export.as_ref(),
         promp: file.promp.as_ref(),
     };
-    let plans = sections.parse(&config)?;
+    let mut plans = sections.parse(&config)?;
+    let mut config = config;
+    add_scene_obstacles(&file, path, kind, &mut plans, &mut config)?;
     let mut exp = Experiment {
         kind,
         source: path.to_path_buf(),
@@ -433,6 +437,61 @@ pub fn parse(
         crate::budget::check(&exp, &factors, ceilings, &|span| location(path, text, span))?;
     exp.estimate = Some(estimate);
     Ok(exp)
+}
+
+/// The scene's obstacles join the task's (for the kinds that keep obstacles), each
+/// checked against the start and goal; any obstacle asks for CMA-ES, since the exact
+/// solver leaves the obstacle term out.
+fn add_scene_obstacles(
+    file: &File,
+    path: &Path,
+    kind: Kind,
+    plans: &mut crate::plan::Plans,
+    config: &mut ViaPointConfig,
+) -> Result<(), InputError> {
+    let scene_obstacles = plans
+        .robot
+        .as_ref()
+        .map_or(&[][..], |r| r.obstacles.as_slice());
+    if let Some(r) = plans.robot.as_ref().filter(|_| !scene_obstacles.is_empty()) {
+        if !matches!(kind, Kind::Imitation | Kind::Promp | Kind::ViapointPose) {
+            return Err(InputError(format!(
+                "{}: the scene {} has obstacles, which kind = \"{}\" cannot keep (it learns joint or effort costs): use a scene without them",
+                path.display(),
+                r.scene,
+                kind.name()
+            )));
+        }
+        let task = &mut config.task;
+        for (name, o) in scene_obstacles {
+            cps_dmp::check_endpoints(
+                &task.start,
+                &task.goal,
+                &o.position,
+                o.clearance,
+                &format!("obstacle `{name}` of the scene {}", r.scene),
+            )
+            .map_err(|e| InputError(format!("{}: {e}", path.display())))?;
+            task.obstacles.push(o.clone());
+        }
+        match file.cost.as_ref().and_then(|c| c.get_ref().obstacle) {
+            Some(w) if w == 0.0 => {
+                return Err(InputError(format!(
+                    "{}: [cost] `obstacle` is 0, so the scene's obstacles would be ignored: give it a weight (e.g. 1e5)",
+                    path.display()
+                )));
+            }
+            Some(_) => {}
+            None => task.weights.obstacle = task.weights.obstacle.max(1e5),
+        }
+    }
+    if !config.task.obstacles.is_empty() && config.solver == Solver::Exact {
+        return Err(InputError(format!(
+            "{}: [optimizer] `method` = \"exact\" leaves the obstacle term out (it is not quadratic in the weights): use method = \"cmaes\" (warm_start = true starts it at the exact, obstacle-free optimum)",
+            path.display()
+        )));
+    }
+    Ok(())
 }
 
 /// The keys that scale an experiment's cost, with how far each is from an ordinary value.

@@ -192,6 +192,8 @@ pub struct RobotChoice {
     /// The scene's robot: name, joint names, limits beyond range and speed, inertias
     /// (its chain is `setup.chain`).
     pub model: crate::robot_file::RobotModel,
+    /// The scene's named obstacles (added to the task's by the kinds that keep them).
+    pub obstacles: Vec<(String, cps_learn::PointObstacle)>,
 }
 
 impl RobotChoice {
@@ -981,6 +983,7 @@ impl Sections<'_> {
             },
             backend,
             scene: scene_name,
+            obstacles: scene.obstacles,
             model: scene.robot,
         })
     }

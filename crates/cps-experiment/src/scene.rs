@@ -1,5 +1,6 @@
 //! Scene files (`configs/scenes/`): a robot placed in the world with its initial
-//! configuration, and named objects (way-point dummies).
+//! configuration, named objects (way-point dummies) and point obstacles with the
+//! clearance a movement must keep.
 
 use std::path::Path;
 
@@ -18,6 +19,16 @@ struct File {
     robot: RobotSection,
     #[serde(default)]
     object: Vec<Spanned<Object>>,
+    #[serde(default)]
+    obstacle: Vec<Spanned<Obstacle>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Obstacle {
+    name: String,
+    position: [f64; 3],
+    clearance: f64,
 }
 
 #[derive(Debug, Deserialize)]
@@ -72,6 +83,9 @@ pub struct Scene {
     pub initial_q: Vec<f64>,
     /// Named objects and their world positions, in file order.
     pub objects: Vec<(String, Vector3<f64>)>,
+    /// Named point obstacles (`[[obstacle]]`), in file order: movements learned in this
+    /// scene keep their clearance.
+    pub obstacles: Vec<(String, cps_learn::PointObstacle)>,
 }
 
 /// Reads a scene file; a relative robot file path is resolved against the scene's folder.
@@ -138,10 +152,44 @@ pub fn parse_scene(path: &Path, text: &str) -> Result<Scene, InputError> {
         }
         objects.push((v.name.clone(), Vector3::from(v.position)));
     }
+    let mut obstacles: Vec<(String, cps_learn::PointObstacle)> = Vec::new();
+    for o in &file.obstacle {
+        let v = o.get_ref();
+        let at = || location(path, &text, &o.span());
+        if v.name.is_empty()
+            || v.name.contains('/')
+            || objects.iter().any(|(n, _)| n == &v.name)
+            || obstacles.iter().any(|(n, _)| n == &v.name)
+        {
+            return Err(InputError(format!(
+                "{}: obstacle names are non-empty, without `/`, and not an object's or another obstacle's (got `{}`)",
+                at(),
+                v.name
+            )));
+        }
+        if !v.position.iter().all(|x| x.is_finite()) {
+            return Err(InputError(format!("{}: `position` must be finite", at())));
+        }
+        if !(v.clearance.is_finite() && v.clearance > 0.0) {
+            return Err(InputError(format!(
+                "{}: `clearance` must be finite and > 0 (got {})",
+                at(),
+                v.clearance
+            )));
+        }
+        obstacles.push((
+            v.name.clone(),
+            cps_learn::PointObstacle {
+                position: v.position.to_vec(),
+                clearance: v.clearance,
+            },
+        ));
+    }
     Ok(Scene {
         robot,
         initial_q: q.clone(),
         objects,
+        obstacles,
     })
 }
 
@@ -191,6 +239,11 @@ impl Scene {
                 .objects
                 .iter()
                 .map(|(n, p)| (n.clone(), [p.x, p.y, p.z]))
+                .chain(
+                    self.obstacles
+                        .iter()
+                        .map(|(n, o)| (n.clone(), [o.position[0], o.position[1], o.position[2]])),
+                )
                 .collect(),
             dt,
             ik_following,

@@ -21,6 +21,10 @@ struct Summary<'a> {
     position_gap_to_optimum: f64,
     goal_error_m: f64,
     via_errors_m: &'a [f64],
+    /// The closest the learned tool path comes to each obstacle (the task's, then the
+    /// scene's).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    obstacle_distances_m: Vec<f64>,
     orientation_cost: f64,
     orientation_cost_terms: OrientationCostBreakdown,
     orientation_start_cost: f64,
@@ -130,6 +134,10 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         position_gap_to_optimum: best.gap_to_optimum,
         goal_error_m: best.errors.goal,
         via_errors_m: &best.errors.via,
+        obstacle_distances_m: exp
+            .config
+            .task
+            .obstacle_distances(&outcome.position.best_trajectory()),
         orientation_cost: o.breakdown.total(),
         orientation_cost_terms: o.breakdown,
         orientation_start_cost: o.start.total(),
