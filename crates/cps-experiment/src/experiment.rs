@@ -413,7 +413,6 @@ pub fn parse(
         promp: file.promp.as_ref(),
     };
     let mut plans = sections.parse(&config)?;
-    let mut config = config;
     add_scene_obstacles(&file, path, kind, &mut plans, &mut config)?;
     let mut exp = Experiment {
         kind,
@@ -475,7 +474,7 @@ fn add_scene_obstacles(
             task.obstacles.push(o.clone());
         }
         match file.cost.as_ref().and_then(|c| c.get_ref().obstacle) {
-            Some(w) if w == 0.0 => {
+            Some(0.0) => {
                 return Err(InputError(format!(
                     "{}: [cost] `obstacle` is 0, so the scene's obstacles would be ignored: give it a weight (e.g. 1e5)",
                     path.display()
