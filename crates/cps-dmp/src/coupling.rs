@@ -23,7 +23,7 @@
 //! dimension. Heading straight at an obstacle (`φ = 0`) or standing still gives no push.
 
 use crate::config::positive;
-use crate::{DiscreteDmp, DmpError, OnlineDmp, Trajectory};
+use crate::{DiscreteDmp, DmpError, OnlineDmp, StepInput, Trajectory};
 
 /// A state-dependent term added to the transformation system (see the module docs).
 pub trait Coupling: Sync {
@@ -208,6 +208,23 @@ impl Coupling for Couplings {
         for c in &self.0 {
             c.add(y, v, out);
         }
+    }
+}
+
+impl OnlineDmp {
+    /// One step of `dt` seconds with the push of `coupling` (e.g. obstacles) evaluated at
+    /// the current position and velocity and held over the step, as
+    /// [`DiscreteDmp::rollout_coupled`] does.
+    pub fn step_coupled(&mut self, dt: f64, coupling: &dyn Coupling) -> Result<(), DmpError> {
+        let mut c = vec![0.0; self.position().len()];
+        coupling.add(self.position(), &self.velocity(), &mut c);
+        self.step_with(
+            dt,
+            StepInput {
+                coupling: Some(&c),
+                tracking_error: 0.0,
+            },
+        )
     }
 }
 

@@ -230,25 +230,6 @@ impl OnlineDmp {
         Ok(())
     }
 
-    /// One step of `dt` seconds with the push of `coupling` (e.g. obstacles) evaluated at
-    /// the current position and velocity and held over the step, as
-    /// [`DiscreteDmp::rollout_coupled`](crate::DiscreteDmp::rollout_coupled) does.
-    pub fn step_coupled(
-        &mut self,
-        dt: f64,
-        coupling: &dyn crate::Coupling,
-    ) -> Result<(), DmpError> {
-        let mut c = vec![0.0; self.dmp.dims()];
-        coupling.add(&self.y, &self.velocity(), &mut c);
-        self.step_with(
-            dt,
-            StepInput {
-                coupling: Some(&c),
-                tracking_error: 0.0,
-            },
-        )
-    }
-
     /// Current position.
     pub fn position(&self) -> &[f64] {
         &self.y
