@@ -224,6 +224,7 @@ fn coppelia(c: &mut Criterion) {
             dummies: vec![],
             dt: 0.05,
             ik_following: false,
+            step_cost: std::time::Duration::ZERO,
         },
         limits: cps_coppelia::ServerLimits::default(),
     })

@@ -42,6 +42,15 @@ pub enum SimCommand {
         /// Connections served at once; more are closed on arrival (1 to 4096).
         #[arg(long, default_value_t = 64)]
         max_clients: usize,
+        /// Make every simulation step take this many milliseconds of wall time (sleeping),
+        /// as a simulator's physics would (CoppeliaSim: ≈ 5–8 ms a step).
+        #[arg(
+            long,
+            default_value_t = 0.0,
+            allow_hyphen_values = true,
+            value_name = "MS"
+        )]
+        step_cost: f64,
         /// Exit abruptly once this many requests were served, as a crashing simulator
         /// would (to test how clients handle it).
         #[arg(long)]
@@ -59,6 +68,7 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
         client_lease,
         max_message_bytes,
         max_clients,
+        step_cost,
         crash_after,
     } = cmd;
     let scene = match scene {
@@ -72,6 +82,7 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
         client_lease: *client_lease,
         max_message_bytes: *max_message_bytes,
         max_clients: *max_clients,
+        step_cost: *step_cost / 1e3,
     })?;
     let server = StandInServer::start(stand_in.config)
         .map_err(|e| InputError(format!("--bind {bind}: {e}")))?;

@@ -24,6 +24,7 @@
 //!     dummies: vec![],
 //!     dt: 0.05,
 //!     ik_following: false,
+//!     step_cost: std::time::Duration::ZERO,
 //! };
 //! let server = StandInServer::start(ServerConfig::new("127.0.0.1:0", scene))?;
 //! let mut sim = Client::connect(ClientConfig { endpoint: server.endpoint().into(), ..ClientConfig::default() })?;

@@ -43,6 +43,10 @@ pub struct SceneSetup {
     /// squares within the joint limits, up to 10 iterations per step). Off: the joints move
     /// only when set.
     pub ik_following: bool,
+    /// Wall time each simulation step takes (the server sleeps it, without spinning), to
+    /// stand in for a simulator's physics: CoppeliaSim takes ≈ 5–8 ms a step with
+    /// dynamics. Zero: as fast as the kinematics.
+    pub step_cost: std::time::Duration,
 }
 
 #[derive(Debug, Clone)]
@@ -279,6 +283,9 @@ impl Sim {
     /// One simulation step: the clock advances and, with IK following, the joints move
     /// the tip towards the IK target.
     fn advance(&mut self) {
+        if !self.setup.step_cost.is_zero() {
+            std::thread::sleep(self.setup.step_cost);
+        }
         self.steps += 1;
         if self.setup.ik_following {
             self.follow_target();
@@ -1176,6 +1183,7 @@ mod tests {
                 dummies: vec![("p0".into(), [0.1, 0.2, 0.3])],
                 dt: 0.05,
                 ik_following: false,
+                step_cost: std::time::Duration::ZERO,
             },
             lease,
         )

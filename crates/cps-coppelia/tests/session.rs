@@ -32,6 +32,7 @@ fn server() -> StandInServer {
             ],
             dt: 0.05,
             ik_following: false,
+            step_cost: std::time::Duration::ZERO,
         },
         limits: cps_coppelia::ServerLimits::default(),
     })
@@ -191,6 +192,7 @@ fn a_dead_server_is_a_timely_error_and_a_restarted_one_is_reached_again() {
             dummies: vec![],
             dt: 0.05,
             ik_following: false,
+            step_cost: std::time::Duration::ZERO,
         },
         limits: cps_coppelia::ServerLimits::default(),
     })
@@ -497,6 +499,7 @@ fn the_scene_s_own_ik_follows_the_target() {
             dummies: vec![],
             dt: 0.05,
             ik_following: true,
+            step_cost: std::time::Duration::ZERO,
         },
         limits: cps_coppelia::ServerLimits::default(),
     })
@@ -579,6 +582,7 @@ fn server_with(limits: cps_coppelia::ServerLimits) -> StandInServer {
                 dummies: vec![("p0".into(), [0.75, 0.02, 1.87])],
                 dt: 0.05,
                 ik_following: false,
+                step_cost: std::time::Duration::ZERO,
             },
         )
     })
@@ -820,4 +824,45 @@ fn the_client_survives_a_hostile_server() {
         assert!(text.contains(&endpoint), "{text}");
     }
     server.join().unwrap();
+}
+
+/// `step_cost` stands in for a simulator's physics: each step takes at least that long
+/// (the server sleeps it; a lower bound only, which no machine load can break), and the
+/// simulation time still advances by dt a step.
+#[test]
+fn every_step_takes_the_step_cost() {
+    let scene = SceneSetup {
+        step_cost: Duration::from_millis(20),
+        ..server_scene(panda(PandaTool::HandTcp))
+    };
+    let srv = StandInServer::start(ServerConfig::new("127.0.0.1:0", scene)).unwrap();
+    let mut sim = client(srv.endpoint());
+    sim.start_simulation().unwrap();
+    assert_eq!(sim.set_stepping(true).unwrap(), 0);
+    let t0 = sim.get_simulation_time().unwrap();
+    let started = std::time::Instant::now();
+    for _ in 0..10 {
+        sim.step().unwrap();
+    }
+    assert!(
+        started.elapsed() >= Duration::from_millis(200),
+        "{:?}",
+        started.elapsed()
+    );
+    let t1 = sim.get_simulation_time().unwrap();
+    assert!((t1 - t0 - 0.5).abs() < 1e-9, "{t0} → {t1}");
+    sim.stop_simulation().unwrap();
+}
+
+/// The test scene: the Panda with no dummies, dt 0.05, no IK, no step cost.
+fn server_scene(chain: cps_kinematics::SerialChain) -> SceneSetup {
+    SceneSetup {
+        robot_name: "Panda".into(),
+        chain,
+        initial_q: THESIS_Q0.to_vec(),
+        dummies: vec![],
+        dt: 0.05,
+        ik_following: false,
+        step_cost: Duration::ZERO,
+    }
 }

@@ -63,6 +63,8 @@ pub struct StandInOptions {
     pub max_message_bytes: usize,
     /// Connections served at once, 1 to 4096.
     pub max_clients: usize,
+    /// Wall time each simulation step takes, seconds, 0 to 10 (a simulator's physics).
+    pub step_cost: f64,
 }
 
 /// A checked stand-in configuration and what it serves, in words.
@@ -231,6 +233,16 @@ impl Scene {
     /// dummy per object, simulation step `dt`, optionally the tip following
     /// `/<robot>_target`.
     pub fn stand_in(&self, dt: f64, ik_following: bool) -> cps_coppelia::SceneSetup {
+        self.stand_in_costing(dt, ik_following, std::time::Duration::ZERO)
+    }
+
+    /// [`Self::stand_in`] whose every simulation step takes `step_cost` of wall time.
+    pub fn stand_in_costing(
+        &self,
+        dt: f64,
+        ik_following: bool,
+        step_cost: std::time::Duration,
+    ) -> cps_coppelia::SceneSetup {
         cps_coppelia::SceneSetup {
             robot_name: self.sim_robot_name(),
             chain: self.robot.chain.clone(),
@@ -247,6 +259,7 @@ impl Scene {
                 .collect(),
             dt,
             ik_following,
+            step_cost,
         }
     }
 
@@ -279,6 +292,13 @@ impl Scene {
                 "must be between 64 and 1073741824",
             );
         }
+        if !(o.step_cost.is_finite() && (0.0..=10.0).contains(&o.step_cost)) {
+            return bad(
+                "step-cost",
+                format!("{:?} ms", o.step_cost * 1e3),
+                "must be between 0 and 10000 ms",
+            );
+        }
         if !(1..=4096).contains(&o.max_clients) {
             return bad(
                 "max-clients",
@@ -300,7 +320,11 @@ impl Scene {
         Ok(StandIn {
             config: cps_coppelia::ServerConfig {
                 bind: o.bind.clone(),
-                scene: self.stand_in(o.dt, o.ik_following),
+                scene: self.stand_in_costing(
+                    o.dt,
+                    o.ik_following,
+                    std::time::Duration::from_secs_f64(o.step_cost),
+                ),
                 limits: cps_coppelia::ServerLimits {
                     max_message_bytes: o.max_message_bytes,
                     max_connections: o.max_clients,
@@ -341,5 +365,73 @@ impl Scene {
             outside_limits,
             objects,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn options() -> StandInOptions {
+        StandInOptions {
+            bind: "127.0.0.1:0".into(),
+            dt: 0.01,
+            ik_following: false,
+            client_lease: 60.0,
+            max_message_bytes: 1 << 20,
+            max_clients: 4,
+            step_cost: 0.005,
+        }
+    }
+
+    #[test]
+    fn stand_in_options_are_checked_and_carried_over() {
+        let scene = Scene::thesis().unwrap();
+        let ok = scene.server_config(&options()).unwrap();
+        assert_eq!(
+            ok.config.scene.step_cost,
+            std::time::Duration::from_millis(5)
+        );
+        assert_eq!(ok.config.limits.max_connections, 4);
+        for (bad, flag) in [
+            (
+                StandInOptions {
+                    step_cost: -0.001,
+                    ..options()
+                },
+                "--step-cost",
+            ),
+            (
+                StandInOptions {
+                    step_cost: f64::NAN,
+                    ..options()
+                },
+                "--step-cost",
+            ),
+            (
+                StandInOptions {
+                    client_lease: 0.0,
+                    ..options()
+                },
+                "--client-lease",
+            ),
+            (
+                StandInOptions {
+                    max_clients: 0,
+                    ..options()
+                },
+                "--max-clients",
+            ),
+            (
+                StandInOptions {
+                    dt: 0.0,
+                    ..options()
+                },
+                "--dt",
+            ),
+        ] {
+            let e = scene.server_config(&bad).unwrap_err().to_string();
+            assert!(e.starts_with(flag), "{e}");
+        }
     }
 }

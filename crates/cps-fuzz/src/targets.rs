@@ -135,6 +135,7 @@ thread_local! {
                 dummies: vec![("p0".into(), [0.75, 0.02, 1.87])],
                 dt: 0.05,
                 ik_following: true,
+                step_cost: std::time::Duration::ZERO,
             },
             Duration::from_secs(60),
         ));
