@@ -1,4 +1,5 @@
-//! `cps-cli sim serve`: the stand-in CoppeliaSim server on this machine.
+//! `cps-cli sim serve` and `cps-cli sim pool`: stand-in CoppeliaSim servers on this
+//! machine, one or a pool.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -6,11 +7,65 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use anyhow::Result;
-use clap::Subcommand;
+use clap::{Args, Subcommand};
 use cps_coppelia::StandInServer;
 
 use cps_experiment::InputError;
-use cps_experiment::scene::{Scene, StandInOptions, load_scene};
+use cps_experiment::scene::{Scene, StandIn, StandInOptions, load_scene};
+
+/// What every stand-in server of a command serves.
+#[derive(Args, Debug)]
+pub struct Served {
+    /// Scene file (default: the thesis's scene, configs/scenes/thesis.toml).
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Simulation time step in seconds.
+    #[arg(long, default_value_t = 0.05)]
+    dt: f64,
+    /// Make the tip follow `/<robot>_target` at every step, like CoppeliaSim's IK in
+    /// the thesis's scene (otherwise the joints move only when set).
+    #[arg(long)]
+    ik_following: bool,
+    /// A client silent for this many seconds loses its stepping hold, so the
+    /// simulation runs on for the others (0.01 to 86400).
+    #[arg(long, default_value_t = 60.0, allow_hyphen_values = true)]
+    client_lease: f64,
+    /// The largest request accepted, in bytes; a peer declaring more is disconnected
+    /// before anything is allocated (64 to 1073741824).
+    #[arg(long, default_value_t = cps_coppelia::DEFAULT_MAX_MESSAGE_BYTES)]
+    max_message_bytes: usize,
+    /// Connections served at once; more are closed on arrival (1 to 4096).
+    #[arg(long, default_value_t = 64)]
+    max_clients: usize,
+    /// Make every simulation step take this many milliseconds of wall time (sleeping),
+    /// as a simulator's physics would (CoppeliaSim: ≈ 5–8 ms a step).
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        allow_hyphen_values = true,
+        value_name = "MS"
+    )]
+    step_cost: f64,
+}
+
+impl Served {
+    fn options(&self, bind: &str) -> Result<(Scene, StandInOptions), InputError> {
+        let scene = match &self.scene {
+            Some(path) => load_scene(path)?,
+            None => Scene::thesis()?,
+        };
+        let options = StandInOptions {
+            bind: bind.to_string(),
+            dt: self.dt,
+            ik_following: self.ik_following,
+            client_lease: self.client_lease,
+            max_message_bytes: self.max_message_bytes,
+            max_clients: self.max_clients,
+            step_cost: self.step_cost / 1e3,
+        };
+        Ok((scene, options))
+    }
+}
 
 /// `cps-cli sim ...`.
 #[derive(Subcommand, Debug)]
@@ -21,101 +76,114 @@ pub enum SimCommand {
         /// Address to bind (loopback by default; other hosts only if you bind them).
         #[arg(long, default_value = "127.0.0.1:23000")]
         bind: String,
-        /// Scene file (default: the thesis's scene, configs/scenes/thesis.toml).
-        #[arg(long)]
-        scene: Option<PathBuf>,
-        /// Simulation time step in seconds.
-        #[arg(long, default_value_t = 0.05)]
-        dt: f64,
-        /// Make the tip follow `/<robot>_target` at every step, like CoppeliaSim's IK in
-        /// the thesis's scene (otherwise the joints move only when set).
-        #[arg(long)]
-        ik_following: bool,
-        /// A client silent for this many seconds loses its stepping hold, so the
-        /// simulation runs on for the others (0.01 to 86400).
-        #[arg(long, default_value_t = 60.0, allow_hyphen_values = true)]
-        client_lease: f64,
-        /// The largest request accepted, in bytes; a peer declaring more is disconnected
-        /// before anything is allocated (64 to 1073741824).
-        #[arg(long, default_value_t = cps_coppelia::DEFAULT_MAX_MESSAGE_BYTES)]
-        max_message_bytes: usize,
-        /// Connections served at once; more are closed on arrival (1 to 4096).
-        #[arg(long, default_value_t = 64)]
-        max_clients: usize,
-        /// Make every simulation step take this many milliseconds of wall time (sleeping),
-        /// as a simulator's physics would (CoppeliaSim: ≈ 5–8 ms a step).
-        #[arg(
-            long,
-            default_value_t = 0.0,
-            allow_hyphen_values = true,
-            value_name = "MS"
-        )]
-        step_cost: f64,
+        #[command(flatten)]
+        served: Served,
         /// Exit abruptly once this many requests were served, as a crashing simulator
         /// would (to test how clients handle it).
         #[arg(long)]
         crash_after: Option<u64>,
     },
+    /// Start N stand-in servers, simulator i on port P + 2i (CoppeliaSim pairs each
+    /// remote-API port with the next), until Ctrl-C stops them all.
+    Pool {
+        /// How many simulators.
+        #[arg(long)]
+        n: usize,
+        /// The first simulator's port.
+        #[arg(long, default_value_t = 23000)]
+        base_port: u16,
+        /// The host to bind (loopback by default).
+        #[arg(long, default_value = "127.0.0.1")]
+        host: String,
+        #[command(flatten)]
+        served: Served,
+    },
 }
 
-/// `cps-cli sim serve`.
-pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
-    let SimCommand::Serve {
-        bind,
-        scene,
-        dt,
-        ik_following,
-        client_lease,
-        max_message_bytes,
-        max_clients,
-        step_cost,
-        crash_after,
-    } = cmd;
-    let scene = match scene {
-        Some(path) => load_scene(path)?,
-        None => Scene::thesis()?,
-    };
-    let stand_in = scene.server_config(&StandInOptions {
-        bind: bind.clone(),
-        dt: *dt,
-        ik_following: *ik_following,
-        client_lease: *client_lease,
-        max_message_bytes: *max_message_bytes,
-        max_clients: *max_clients,
-        step_cost: *step_cost / 1e3,
-    })?;
-    let server = StandInServer::start(stand_in.config)
-        .map_err(|e| InputError(format!("--bind {bind}: {e}")))?;
-    say!(
-        "stand-in CoppeliaSim serving {} ({}); Ctrl-C stops",
-        server.endpoint(),
-        stand_in.describe
-    );
-    while !interrupted.load(Ordering::SeqCst) {
-        // What clients log with sim.addLog goes to stderr, as CoppeliaSim's status bar.
-        for line in server.take_logs() {
-            eprintln!("[sim.addLog {}] {}", line.level, line.message);
+/// Starts one server, naming its address in an error.
+fn start(stand_in: StandIn) -> Result<StandInServer, InputError> {
+    let bind = stand_in.config.bind.clone();
+    StandInServer::start(stand_in.config).map_err(|e| InputError(format!("--bind {bind}: {e}")))
+}
+
+/// Prints what the servers' clients logged with sim.addLog (CoppeliaSim's status bar),
+/// led by the server's endpoint when there are several.
+fn forward_logs(servers: &[StandInServer]) {
+    for s in servers {
+        let from = match servers.len() {
+            1 => String::new(),
+            _ => format!("{} ", s.endpoint()),
+        };
+        for line in s.take_logs() {
+            eprintln!("[{from}sim.addLog {}] {}", line.level, line.message);
         }
-        if crash_after.is_some_and(|n| server.requests() >= n) {
+    }
+}
+
+/// `cps-cli sim serve|pool`.
+pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
+    let (servers, crash_after) = match cmd {
+        SimCommand::Serve {
+            bind,
+            served,
+            crash_after,
+        } => {
+            let (scene, options) = served.options(bind)?;
+            let stand_in = scene.server_config(&options)?;
+            let describe = stand_in.describe.clone();
+            let server = start(stand_in)?;
+            say!(
+                "stand-in CoppeliaSim serving {} ({describe}); Ctrl-C stops",
+                server.endpoint()
+            );
+            (vec![server], *crash_after)
+        }
+        SimCommand::Pool {
+            n,
+            base_port,
+            host,
+            served,
+        } => {
+            let (scene, options) = served.options(&format!("{host}:0"))?;
+            let configs = scene.pool_configs(&options, *n, *base_port)?;
+            let describe = configs
+                .first()
+                .map(|c| c.describe.clone())
+                .unwrap_or_default();
+            // Every server starts, or none stays up (the started ones stop when dropped).
+            let servers = configs
+                .into_iter()
+                .map(start)
+                .collect::<Result<Vec<_>, _>>()?;
+            say!("{n} stand-in CoppeliaSim servers ({describe}); Ctrl-C stops them all");
+            for s in &servers {
+                say!("  {}", s.endpoint());
+            }
+            (servers, None)
+        }
+    };
+    while !interrupted.load(Ordering::SeqCst) {
+        forward_logs(&servers);
+        if let Some(n) = crash_after
+            && servers[0].requests() >= n
+        {
             eprintln!(
                 "crashing on purpose after {} requests (--crash-after)",
-                server.requests()
+                servers[0].requests()
             );
             std::process::exit(3);
         }
-        std::thread::sleep(Duration::from_millis(if crash_after.is_some() {
-            2
-        } else {
-            100
-        }));
+        let pause = if crash_after.is_some() { 2 } else { 100 };
+        std::thread::sleep(Duration::from_millis(pause));
     }
-    for line in server.take_logs() {
-        eprintln!("[sim.addLog {}] {}", line.level, line.message);
+    forward_logs(&servers);
+    for s in &servers {
+        say!(
+            "{} stopped after {} requests ({} peers dropped for breaking the protocol or a limit)",
+            s.endpoint(),
+            s.requests(),
+            s.dropped_peers()
+        );
     }
-    say!(
-        "stopped after {} requests ({} peers dropped for breaking the protocol or a limit)",
-        server.requests(),
-        server.dropped_peers()
-    );
     Ok(ExitCode::SUCCESS)
 }

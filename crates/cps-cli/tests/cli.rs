@@ -1383,3 +1383,74 @@ fn retime_writes_a_trajectory_that_limits_check_accepts_and_never_overwrites_una
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("`quickest`") && stderr(&o).contains("`uniform`"));
 }
+
+/// `cps-cli sim pool`: N stand-in servers on every second port from the base, each
+/// accepting connections, all stopped by one Ctrl-C; bad pools exit 2 and leave nothing.
+#[test]
+fn sim_pool_starts_every_second_port_and_stops_them_all() {
+    use std::io::{BufRead, BufReader};
+    // A base port unlikely to be taken, different per test process; another on a clash.
+    let (mut pool, mut out, lines, base) = (0..5u16)
+        .find_map(|attempt| {
+            let base = 30_000 + (std::process::id() % 2_000) as u16 * 2 + attempt * 4_000;
+            let mut pool = Command::new(env!("CARGO_BIN_EXE_cps-cli"))
+                .args(["sim", "pool", "--n", "3", "--base-port", &base.to_string()])
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap();
+            let mut out = BufReader::new(pool.stdout.take().unwrap());
+            let mut lines = Vec::new();
+            for _ in 0..4 {
+                let mut line = String::new();
+                out.read_line(&mut line).unwrap();
+                lines.push(line);
+            }
+            if lines[0].is_empty() {
+                let _ = pool.wait(); // a port was taken: it exited with 2
+                return None;
+            }
+            Some((pool, out, lines, base))
+        })
+        .expect("a free range of ports");
+    assert!(
+        lines[0].starts_with("3 stand-in CoppeliaSim servers"),
+        "{lines:?}"
+    );
+    for i in 0..3u16 {
+        let port = base + 2 * i;
+        assert_eq!(
+            lines[1 + i as usize].trim(),
+            format!("tcp://127.0.0.1:{port}")
+        );
+        assert!(std::net::TcpStream::connect(("127.0.0.1", port)).is_ok());
+    }
+    let _ = Command::new("kill")
+        .args(["-INT", &pool.id().to_string()])
+        .status();
+    let status = pool.wait().unwrap();
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut out, &mut rest).unwrap();
+    assert!(status.success());
+    assert_eq!(rest.matches("stopped after").count(), 3, "{rest}");
+    // Bad pools: none, past the last port, a port already taken (nothing stays up).
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = taken.local_addr().unwrap().port();
+    for (args, says) in [
+        (vec!["--n", "0"], "--n 0".to_string()),
+        (
+            vec!["--n", "10", "--base-port", "65530"],
+            "65548".to_string(),
+        ),
+        (
+            vec!["--n", "1", "--base-port", &port.to_string()],
+            format!("127.0.0.1:{port}"),
+        ),
+    ] {
+        let mut full = vec!["sim", "pool"];
+        full.extend(&args);
+        let o = cli(&full);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        assert!(stderr(&o).contains(&says), "{args:?}: {}", stderr(&o));
+    }
+}

@@ -336,6 +336,41 @@ impl Scene {
         })
     }
 
+    /// A pool of `n` stand-in servers (`cps-cli sim pool`): server i binds the host of
+    /// `options.bind` at port `base_port + 2i` (CoppeliaSim pairs each remote-API port
+    /// with the next one), with the same scene and options. `n` is 1 to 256 and every port
+    /// must be at most 65535.
+    pub fn pool_configs(
+        &self,
+        options: &StandInOptions,
+        n: usize,
+        base_port: u16,
+    ) -> Result<Vec<StandIn>, InputError> {
+        if !(1..=256).contains(&n) {
+            return Err(InputError(format!(
+                "--n {n}: a pool has 1 to 256 simulators"
+            )));
+        }
+        let last = u32::from(base_port) + 2 * (n as u32 - 1);
+        if base_port == 0 || last > 65_535 {
+            return Err(InputError(format!(
+                "--base-port {base_port}: {n} simulators take ports {base_port} to {last} (every second one); they must lie within 1 to 65535"
+            )));
+        }
+        let host = options
+            .bind
+            .rsplit_once(':')
+            .map_or(options.bind.as_str(), |(h, _)| h);
+        (0..n)
+            .map(|i| {
+                self.server_config(&StandInOptions {
+                    bind: format!("{host}:{}", u32::from(base_port) + 2 * i as u32),
+                    ..options.clone()
+                })
+            })
+            .collect()
+    }
+
     /// The tool at the initial configuration and, for every object, an IK solution within
     /// the joint limits from the robot's ready pose (seeded restarts, seed 1).
     pub fn reach(&self) -> Result<Reach, KinematicsError> {
@@ -433,5 +468,18 @@ mod tests {
             let e = scene.server_config(&bad).unwrap_err().to_string();
             assert!(e.starts_with(flag), "{e}");
         }
+        // A pool: ports base, base + 2, …, on the host of `bind`.
+        let pool = scene.pool_configs(&options(), 3, 23000).unwrap();
+        let binds: Vec<&str> = pool.iter().map(|p| p.config.bind.as_str()).collect();
+        assert_eq!(
+            binds,
+            ["127.0.0.1:23000", "127.0.0.1:23002", "127.0.0.1:23004"]
+        );
+        assert!(scene.pool_configs(&options(), 0, 23000).is_err());
+        let e = scene
+            .pool_configs(&options(), 10, 65530)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("65548"), "{e}");
     }
 }
