@@ -80,18 +80,25 @@ pub struct ImitateArgs {
     /// How several demonstrations are combined.
     #[arg(long, value_enum, default_value = "mean")]
     combine: CombineArg,
-    /// Where to write the model (JSON).
+    #[command(flatten)]
+    output: Output,
+}
+
+/// Where a command writes a file and its figure.
+#[derive(Args, Debug)]
+pub struct Output {
+    /// The file to write.
     #[arg(long)]
-    out: PathBuf,
-    /// Also draw the demonstration and the model's rollout (PNG, or SVG by extension).
+    pub out: PathBuf,
+    /// Also draw the result (PNG, or SVG by extension).
     #[arg(long)]
-    plot: Option<PathBuf>,
-    /// Print the fit report as JSON.
+    pub plot: Option<PathBuf>,
+    /// Print the answer as JSON.
     #[arg(long)]
-    json: bool,
-    /// Replace existing output files (only files of the kind cps writes there).
+    pub json: bool,
+    /// Replace existing files of the kind cps writes there.
     #[arg(long)]
-    force: bool,
+    pub force: bool,
 }
 
 /// Arguments of `cps-cli rollout`.
@@ -140,7 +147,8 @@ fn parse_lambda(arg: Option<&str>, method: Method) -> Result<Lambda, InputError>
 
 /// `cps-cli imitate`.
 pub fn run_imitate(args: &ImitateArgs) -> Result<ExitCode> {
-    check_file_targets(&args.out, FileKind::Model, args.plot.as_deref(), args.force)?;
+    let o = &args.output;
+    check_file_targets(&o.out, FileKind::Model, o.plot.as_deref(), o.force)?;
     let lambda = parse_lambda(args.lambda.as_deref(), args.method)?;
     let spec = ImitationSpec {
         bases: args.bases,
@@ -162,11 +170,11 @@ pub fn run_imitate(args: &ImitateArgs) -> Result<ExitCode> {
     };
     let paths: Vec<&Path> = args.demos.iter().map(PathBuf::as_path).collect();
     let imitated = imitate_files(&paths, args.columns.as_deref(), &spec)?;
-    write_file(&args.out, imitated.model().to_json().as_bytes()).map_err(cli_error)?;
-    if let Some(plot) = &args.plot {
+    write_file(&o.out, imitated.model().to_json().as_bytes()).map_err(cli_error)?;
+    if let Some(plot) = &o.plot {
         draw_file(&imitated.figure(), plot).map_err(cli_error)?;
     }
-    crate::robot::print(&imitated.answer(&args.out), args.json)
+    crate::robot::print(&imitated.answer(&o.out), o.json)
 }
 
 /// `cps-cli rollout`.

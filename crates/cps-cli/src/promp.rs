@@ -8,31 +8,17 @@ use anyhow::Result;
 use clap::{Args, Subcommand};
 use cps_experiment::InputError;
 use cps_experiment::figures::draw_file;
-use cps_experiment::files::{table_csv, write_file};
+use cps_experiment::files::write_file;
 use cps_experiment::outcome::Figure;
-use cps_experiment::promp::{NamedProMp, ViaPoints, condition, fit_files};
-use cps_experiment::results_dir::{FileKind, Staging, check_file_targets};
+use cps_experiment::promp::{
+    NamedProMp, ViaPoints, condition, fit_files, write_samples, write_stats,
+};
+use cps_experiment::results_dir::{FileKind, check_file_targets};
 use cps_experiment::robot_file::Answer;
 
 use crate::cli_error;
+use crate::movement::Output;
 use crate::robot::print;
-
-/// Where a command writes.
-#[derive(Args, Debug)]
-pub struct Output {
-    /// The file to write.
-    #[arg(long)]
-    out: PathBuf,
-    /// Also draw the result (PNG, or SVG by extension).
-    #[arg(long)]
-    plot: Option<PathBuf>,
-    /// Print the answer as JSON.
-    #[arg(long)]
-    json: bool,
-    /// Replace existing files of the kind cps writes there.
-    #[arg(long)]
-    force: bool,
-}
 
 /// A ProMP file and a time grid.
 #[derive(Args, Debug)]
@@ -149,32 +135,14 @@ pub fn promp(command: &ProMpCommand) -> Result<ExitCode> {
                 .finish(&c.posterior, c.figure(), c.answer(&a.output.out))
         }
         ProMpCommand::Sample { grid, n, seed } => {
-            let stage = Staging::prepare(&grid.out, grid.force)?;
-            let promp = NamedProMp::read(&grid.model)?;
-            let times = promp.grid(grid.dt, n.saturating_mul(promp.names.len() + 1))?;
-            for table in promp.sample_tables(*n, *seed, &times)? {
-                let csv = table_csv(&table).map_err(cli_error)?;
-                let name = format!("{}.csv", table.name);
-                stage.write(&name, &csv).map_err(cli_error)?;
-            }
-            stage.commit().map_err(cli_error)?;
-            let steps = times.len();
-            say!(
-                "{n} samples (seed {seed}) of {steps} steps written to {}",
-                grid.out.display()
-            );
+            let done = write_samples(&grid.model, &grid.out, grid.force, *n, *seed, grid.dt);
+            say!("{}", done.map_err(cli_error)?);
             Ok(ExitCode::SUCCESS)
         }
-        ProMpCommand::Stats(grid) => {
-            check_file_targets(&grid.out, FileKind::TrajectoryCsv, None, grid.force)?;
-            let promp = NamedProMp::read(&grid.model)?;
-            let times = promp.grid(grid.dt, 2 * promp.names.len() + 1)?;
-            let csv = table_csv(&promp.stats_table(&times)).map_err(cli_error)?;
-            write_file(&grid.out, &csv).map_err(cli_error)?;
+        ProMpCommand::Stats(g) => {
             say!(
-                "mean and σ at {} times written to {}",
-                times.len(),
-                grid.out.display()
+                "{}",
+                write_stats(&g.model, &g.out, g.force, g.dt).map_err(cli_error)?
             );
             Ok(ExitCode::SUCCESS)
         }

@@ -3,15 +3,14 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
+use std::sync::atomic::AtomicBool;
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
-use cps_coppelia::StandInServer;
-
 use cps_experiment::InputError;
-use cps_experiment::scene::{Scene, StandIn, StandInOptions, load_scene};
+use cps_experiment::scene::{
+    Scene, ServeEnd, StandInOptions, load_scene, serve_until, start_stand_ins,
+};
 
 /// What every stand-in server of a command serves.
 #[derive(Args, Debug)]
@@ -100,26 +99,6 @@ pub enum SimCommand {
     },
 }
 
-/// Starts one server, naming its address in an error.
-fn start(stand_in: StandIn) -> Result<StandInServer, InputError> {
-    let bind = stand_in.config.bind.clone();
-    StandInServer::start(stand_in.config).map_err(|e| InputError(format!("--bind {bind}: {e}")))
-}
-
-/// Prints what the servers' clients logged with sim.addLog (CoppeliaSim's status bar),
-/// led by the server's endpoint when there are several.
-fn forward_logs(servers: &[StandInServer]) {
-    for s in servers {
-        let from = match servers.len() {
-            1 => String::new(),
-            _ => format!("{} ", s.endpoint()),
-        };
-        for line in s.take_logs() {
-            eprintln!("[{from}sim.addLog {}] {}", line.level, line.message);
-        }
-    }
-}
-
 /// `cps-cli sim serve|pool`.
 pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
     let (servers, crash_after) = match cmd {
@@ -131,12 +110,10 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
             let (scene, options) = served.options(bind)?;
             let stand_in = scene.server_config(&options)?;
             let describe = stand_in.describe.clone();
-            let server = start(stand_in)?;
-            say!(
-                "stand-in CoppeliaSim serving {} ({describe}); Ctrl-C stops",
-                server.endpoint()
-            );
-            (vec![server], *crash_after)
+            let servers = start_stand_ins(vec![stand_in])?;
+            let at = servers[0].endpoint();
+            say!("stand-in CoppeliaSim serving {at} ({describe}); Ctrl-C stops");
+            (servers, *crash_after)
         }
         SimCommand::Pool {
             n,
@@ -146,15 +123,8 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
         } => {
             let (scene, options) = served.options(&format!("{host}:0"))?;
             let configs = scene.pool_configs(&options, *n, *base_port)?;
-            let describe = configs
-                .first()
-                .map(|c| c.describe.clone())
-                .unwrap_or_default();
-            // Every server starts, or none stays up (the started ones stop when dropped).
-            let servers = configs
-                .into_iter()
-                .map(start)
-                .collect::<Result<Vec<_>, _>>()?;
+            let describe = configs[0].describe.clone();
+            let servers = start_stand_ins(configs)?;
             say!("{n} stand-in CoppeliaSim servers ({describe}); Ctrl-C stops them all");
             for s in &servers {
                 say!("  {}", s.endpoint());
@@ -162,21 +132,14 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
             (servers, None)
         }
     };
-    while !interrupted.load(Ordering::SeqCst) {
-        forward_logs(&servers);
-        if let Some(n) = crash_after
-            && servers[0].requests() >= n
-        {
-            eprintln!(
-                "crashing on purpose after {} requests (--crash-after)",
-                servers[0].requests()
-            );
-            std::process::exit(3);
-        }
-        let pause = if crash_after.is_some() { 2 } else { 100 };
-        std::thread::sleep(Duration::from_millis(pause));
+    if let ServeEnd::CrashAsked(requests) =
+        serve_until(&servers, crash_after, interrupted, &mut |l| {
+            eprintln!("{l}")
+        })
+    {
+        eprintln!("crashing on purpose after {requests} requests (--crash-after)");
+        std::process::exit(3);
     }
-    forward_logs(&servers);
     for s in &servers {
         say!(
             "{} stopped after {} requests ({} peers dropped for breaking the protocol or a limit)",

@@ -216,12 +216,26 @@ impl OnlineDmp {
     /// the current position and velocity and held over the step, as
     /// [`DiscreteDmp::rollout_coupled`] does.
     pub fn step_coupled(&mut self, dt: f64, coupling: &dyn Coupling) -> Result<(), DmpError> {
-        let mut c = vec![0.0; self.position().len()];
-        coupling.add(self.position(), &self.velocity(), &mut c);
+        let dims = self.position().len();
+        self.step_coupled_in(dt, coupling, &mut vec![0.0; dims], &mut vec![0.0; dims])
+    }
+
+    /// [`Self::step_coupled`] with the velocity and the push computed in `v` and `c`
+    /// (the DMP's dimension each), so a loop of steps allocates nothing.
+    fn step_coupled_in(
+        &mut self,
+        dt: f64,
+        coupling: &dyn Coupling,
+        v: &mut [f64],
+        c: &mut [f64],
+    ) -> Result<(), DmpError> {
+        self.velocity_into(v);
+        c.fill(0.0);
+        coupling.add(self.position(), v, c);
         self.step_with(
             dt,
             StepInput {
-                coupling: Some(&c),
+                coupling: Some(c),
                 tracking_error: 0.0,
             },
         )
@@ -242,8 +256,10 @@ impl DiscreteDmp {
         let n = times.len();
         let mut runner = OnlineDmp::new(self, weights);
         let mut traj = Trajectory::zeros(dims, times.clone());
-        let record = |traj: &mut Trajectory, k: usize, r: &OnlineDmp| {
-            for (d, v) in r.velocity().into_iter().enumerate() {
+        let (mut v, mut c) = (vec![0.0; dims], vec![0.0; dims]);
+        let record = |traj: &mut Trajectory, k: usize, r: &OnlineDmp, v: &mut [f64]| {
+            r.velocity_into(v);
+            for (d, &v) in v.iter().enumerate() {
                 let i = d * n + k;
                 traj.position[i] = r.position()[d];
                 traj.velocity[i] = v;
@@ -251,12 +267,12 @@ impl DiscreteDmp {
                 traj.forcing[i] = r.forcing()[d];
             }
         };
-        record(&mut traj, 0, &runner);
+        record(&mut traj, 0, &runner, &mut v);
         for k in 1..n {
             runner
-                .step_coupled(times[k] - times[k - 1], coupling)
+                .step_coupled_in(times[k] - times[k - 1], coupling, &mut v, &mut c)
                 .expect("grid steps are positive");
-            record(&mut traj, k, &runner);
+            record(&mut traj, k, &runner, &mut v);
         }
         traj
     }

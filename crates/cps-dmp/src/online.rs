@@ -240,6 +240,13 @@ impl OnlineDmp {
         self.z.iter().map(|z| z / self.tau).collect()
     }
 
+    /// [`Self::velocity`] into `out` (no allocation).
+    pub(crate) fn velocity_into(&self, out: &mut [f64]) {
+        for (o, z) in out.iter_mut().zip(&self.z) {
+            *o = z / self.tau;
+        }
+    }
+
     /// Current physical acceleration (units per second²), with the coupling of the last
     /// step.
     pub fn acceleration(&self) -> &[f64] {

@@ -219,6 +219,53 @@ impl NamedProMp {
     }
 }
 
+/// `cps-cli promp sample`: `count` seeded samples of the ProMP file `model` on a grid of
+/// `dt`, one CSV each in the result folder `out` (checked first, written out of sight
+/// and moved into place); the sentence saying what was written.
+pub fn write_samples(
+    model: &Path,
+    out: &Path,
+    force: bool,
+    count: usize,
+    seed: u64,
+    dt: f64,
+) -> Result<String, crate::ExperimentError> {
+    let stage = crate::results_dir::Staging::prepare(out, force)?;
+    let promp = NamedProMp::read(model)?;
+    let times = promp.grid(dt, count.saturating_mul(promp.names.len() + 1))?;
+    for table in promp.sample_tables(count, seed, &times)? {
+        let csv = crate::files::table_csv(&table)?;
+        stage.write(&format!("{}.csv", table.name), &csv)?;
+    }
+    stage.commit()?;
+    Ok(format!(
+        "{count} samples (seed {seed}) of {} steps written to {}",
+        times.len(),
+        out.display()
+    ))
+}
+
+/// `cps-cli promp stats`: the mean and σ of the ProMP file `model` on a grid of `dt`
+/// written to the CSV `out` (checked first); the sentence saying what was written.
+pub fn write_stats(
+    model: &Path,
+    out: &Path,
+    force: bool,
+    dt: f64,
+) -> Result<String, crate::ExperimentError> {
+    use crate::results_dir::{FileKind, check_file_target};
+    check_file_target(out, FileKind::TrajectoryCsv, force)?;
+    let promp = NamedProMp::read(model)?;
+    let times = promp.grid(dt, 2 * promp.names.len() + 1)?;
+    let csv = crate::files::table_csv(&promp.stats_table(&times))?;
+    crate::files::write_file(out, &csv)?;
+    Ok(format!(
+        "mean and σ at {} times written to {}",
+        times.len(),
+        out.display()
+    ))
+}
+
 /// 201 evenly spaced times over `[0, duration]`.
 fn plot_grid(duration: f64) -> Vec<f64> {
     (0..=200).map(|k| duration * k as f64 / 200.0).collect()

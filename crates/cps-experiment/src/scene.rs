@@ -195,6 +195,68 @@ pub fn parse_scene(path: &Path, text: &str) -> Result<Scene, InputError> {
     })
 }
 
+/// Starts stand-in servers: all of them, or none (the started ones stop when dropped);
+/// an address that cannot be bound is named.
+pub fn start_stand_ins(
+    configs: Vec<StandIn>,
+) -> Result<Vec<cps_coppelia::StandInServer>, InputError> {
+    configs
+        .into_iter()
+        .map(|s| {
+            let bind = s.config.bind.clone();
+            cps_coppelia::StandInServer::start(s.config)
+                .map_err(|e| InputError(format!("--bind {bind}: {e}")))
+        })
+        .collect()
+}
+
+/// How [`serve_until`] ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ServeEnd {
+    /// `stop` was set.
+    Stopped,
+    /// The first server served `crash_after` requests (it had this many).
+    CrashAsked(u64),
+}
+
+/// Serves until `stop` is set (or, with `crash_after`, until the first server has served
+/// that many requests, for a front end that then exits as a crashing simulator would),
+/// handing what clients logged with `sim.addLog` to `log` as CoppeliaSim's status bar
+/// shows it — led by the endpoint when there are several servers.
+pub fn serve_until(
+    servers: &[cps_coppelia::StandInServer],
+    crash_after: Option<u64>,
+    stop: &std::sync::atomic::AtomicBool,
+    log: &mut dyn FnMut(String),
+) -> ServeEnd {
+    let forward = |log: &mut dyn FnMut(String)| {
+        for s in servers {
+            let from = match servers.len() {
+                1 => String::new(),
+                _ => format!("{} ", s.endpoint()),
+            };
+            for line in s.take_logs() {
+                log(format!(
+                    "[{from}sim.addLog {}] {}",
+                    line.level, line.message
+                ));
+            }
+        }
+    };
+    while !stop.load(std::sync::atomic::Ordering::SeqCst) {
+        forward(log);
+        if let (Some(n), Some(first)) = (crash_after, servers.first())
+            && first.requests() >= n
+        {
+            return ServeEnd::CrashAsked(first.requests());
+        }
+        let pause = if crash_after.is_some() { 2 } else { 100 };
+        std::thread::sleep(std::time::Duration::from_millis(pause));
+    }
+    forward(log);
+    ServeEnd::Stopped
+}
+
 /// Where a scene's tool starts and which of its objects the tool can reach
 /// ([`Scene::reach`]).
 #[derive(Debug)]

@@ -258,12 +258,17 @@ impl PyProMp {
             .enumerate()
             .map(|(k, a)| vector(a, &format!("activations[{k}]"), Some(times.len())))
             .collect::<PyResult<_>>()?;
-        // Each activation as a function of time: its value at that time of `t`.
+        // Each activation as a function of time: its value at that time of `t` (looked up
+        // by the time's bits; blend asks only at those times).
         let lookup: Vec<Box<dyn Fn(f64) -> f64>> = alphas
             .iter()
             .map(|a| {
-                let (a, times) = (a.clone(), times.clone());
-                Box::new(move |x: f64| times.iter().position(|&s| s == x).map_or(0.0, |i| a[i]))
+                let at: std::collections::HashMap<u64, f64> = times
+                    .iter()
+                    .map(|t| t.to_bits())
+                    .zip(a.iter().copied())
+                    .collect();
+                Box::new(move |x: f64| at.get(&x.to_bits()).copied().unwrap_or(0.0))
                     as Box<dyn Fn(f64) -> f64>
             })
             .collect();
