@@ -225,6 +225,7 @@ fn coppelia(c: &mut Criterion) {
             dt: 0.05,
             ik_following: false,
             step_cost: std::time::Duration::ZERO,
+            script: true,
         },
         limits: cps_coppelia::ServerLimits::default(),
     })

@@ -45,6 +45,10 @@ pub struct Served {
         value_name = "MS"
     )]
     step_cost: f64,
+    /// Serve the scene without cps's script /<robot>/cpsExecutor (clients then step
+    /// call by call, as in a CoppeliaSim scene that lacks it).
+    #[arg(long)]
+    without_script: bool,
 }
 
 impl Served {
@@ -61,6 +65,7 @@ impl Served {
             max_message_bytes: self.max_message_bytes,
             max_clients: self.max_clients,
             step_cost: self.step_cost / 1e3,
+            without_script: self.without_script,
         };
         Ok((scene, options))
     }
@@ -141,12 +146,7 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
         std::process::exit(3);
     }
     for s in &servers {
-        say!(
-            "{} stopped after {} requests ({} peers dropped for breaking the protocol or a limit)",
-            s.endpoint(),
-            s.requests(),
-            s.dropped_peers()
-        );
+        say!("{} stopped after {}", s.endpoint(), s.served());
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -123,7 +123,8 @@ fn serve(dt: &str, extra: &[&str]) -> (std::process::Child, String) {
 }
 
 /// The same file gives the same recordings on the in-process robot and, through the
-/// remote API, on the stand-in server.
+/// remote API, on the stand-in server: with its scene script (a few calls a trajectory)
+/// and without it (stepped call by call).
 #[test]
 fn the_same_file_records_the_same_on_the_kinematic_robot_and_the_stand_in_server() {
     let dir = tempfile::tempdir().unwrap();
@@ -135,7 +136,16 @@ fn the_same_file_records_the_same_on_the_kinematic_robot_and_the_stand_in_server
     let o = run(&local, &dir.path().join("local"));
     assert!(o.status.success(), "{}", text(&o.stderr));
 
-    let (mut server, port) = serve("0.05", &[]);
+    for (extra, how) in [
+        (&[][..], "cpsExecutor script"),
+        (&["--without-script"][..], "stepped call by call"),
+    ] {
+        same_recordings_remotely(dir.path(), &quick, extra, how);
+    }
+}
+
+fn same_recordings_remotely(dir: &Path, quick: &str, extra: &[&str], how: &str) {
+    let (mut server, port) = serve("0.05", extra);
     let remote_text = quick
         .replace("backend = \"kinematic\"", "backend = \"coppelia\"")
         .replace(
@@ -143,21 +153,21 @@ fn the_same_file_records_the_same_on_the_kinematic_robot_and_the_stand_in_server
             &format!("endpoint = \"tcp://127.0.0.1:{port}\""),
         )
         .replace("dt = 0.05               #", "# dt = 0.05             #");
-    let remote = write(dir.path(), "remote.toml", &remote_text);
-    let o = run(&remote, &dir.path().join("remote"));
+    let remote = write(dir, "remote.toml", &remote_text);
+    let name = format!("remote{}", extra.len());
+    let o = run(&remote, &dir.join(&name));
     let _ = server.kill();
     let _ = server.wait();
     assert!(o.status.success(), "{}", text(&o.stderr));
 
-    let s = json(&dir.path().join("remote/summary.json"));
+    let s = json(&dir.join(&name).join("summary.json"));
+    let backend = s["backend"].as_str().unwrap();
     assert!(
-        s["backend"].as_str().unwrap().contains(&port),
-        "{}",
-        s["backend"]
+        backend.contains(&port) && backend.contains(how),
+        "{backend}"
     );
-    let read =
-        |name: &str| std::fs::read_to_string(dir.path().join(name).join("recordings.csv")).unwrap();
-    let (a, b) = (read("local"), read("remote"));
+    let read = |name: &str| std::fs::read_to_string(dir.join(name).join("recordings.csv")).unwrap();
+    let (a, b) = (read("local"), read(&name));
     let (a, b): (Vec<&str>, Vec<&str>) = (a.lines().collect(), b.lines().collect());
     assert_eq!(a.len(), b.len());
     assert!(a.iter().any(|l| l.starts_with("executed,")));
@@ -175,11 +185,18 @@ fn the_same_file_records_the_same_on_the_kinematic_robot_and_the_stand_in_server
 }
 
 /// A simulator that dies in the middle of the executions: the run fails (exit 1) within
-/// the timeout, and the output keeps what was done, marked incomplete, with counts.
+/// the timeout, and the output keeps what was done, marked incomplete, with counts. With
+/// the scene script an execution costs a few dozen requests (opening the scene about as
+/// many), stepped call by call thousands.
 #[test]
 fn a_simulator_dying_mid_run_keeps_what_was_executed() {
+    dies_mid_run(&["--crash-after", "60"]);
+    dies_mid_run(&["--without-script", "--crash-after", "15000"]);
+}
+
+fn dies_mid_run(extra: &[&str]) {
     let dir = tempfile::tempdir().unwrap();
-    let (mut server, port) = serve("0.05", &["--crash-after", "15000"]);
+    let (mut server, port) = serve("0.05", extra);
     let toml = IMITATION
         .replace("count = 20", "count = 4")
         .replace("backend = \"kinematic\"", "backend = \"coppelia\"")

@@ -141,6 +141,11 @@ impl Client {
         &self.config.endpoint
     }
 
+    /// The time allowed for each call.
+    pub fn call_timeout(&self) -> Duration {
+        self.config.call_timeout
+    }
+
     /// Registers `f` as a callback named `name` and returns the argument to pass where a
     /// `sim` function expects a function (`"<name>@func"` on the wire). While a call is in
     /// progress the server may call it, any number of times, with its arguments; what it

@@ -2,11 +2,15 @@
 //! `/Panda_joint1..7`, tool tip `/Panda_tip`, IK target `/Panda_target`, way points `/p0`,
 //! `/p1`, …, `/pT`; and a [`RobotBackend`] that drives the joints.
 
-use cps_kinematics::{KinematicsError, RobotBackend};
+use std::time::{Duration, Instant};
+
+use cps_kinematics::{KinematicsError, RobotBackend, StepRecording};
 use nalgebra::{IsometryMatrix3, Vector3};
 
+use crate::codec;
+use crate::executor::{self, Progress};
 use crate::sim::{HANDLE_WORLD, SIMULATION_STOPPED};
-use crate::{Client, CoppeliaError};
+use crate::{Client, CoppeliaError, Protocol};
 
 /// The handles of a robot in a CoppeliaSim scene, named as in the thesis.
 #[derive(Debug)]
@@ -18,11 +22,15 @@ pub struct FrankaScene {
     /// `/<robot>_target` while the scene's IK follows it (see [`FrankaScene::follow_ik_target`]).
     target: Option<i64>,
     robot: String,
+    /// cps's scene script `/<robot>/cpsExecutor`, when the scene has it and it is used.
+    script: Option<i64>,
 }
 
 impl FrankaScene {
     /// Looks up `/<robot>_joint1..dof` and `/<robot>_tip` (the thesis: robot `Panda`,
-    /// seven joints). `dt` is the scene's simulation time step in seconds.
+    /// seven joints), and cps's scene script `/<robot>/cpsExecutor` if the scene has it
+    /// (protocol v2; see [`crate::executor`]). `dt` is the scene's simulation time step in
+    /// seconds.
     pub fn open(
         mut client: Client,
         robot: &str,
@@ -33,6 +41,15 @@ impl FrankaScene {
             .map(|i| client.get_object(&format!("/{robot}_joint{i}")))
             .collect::<Result<Vec<_>, _>>()?;
         let tip = client.get_object(&format!("/{robot}_tip"))?;
+        let script = if client.protocol() == Protocol::V2 {
+            match client.get_object(&format!("/{robot}/{}", executor::SCRIPT_ALIAS)) {
+                Ok(h) => Some(h),
+                Err(CoppeliaError::Remote { .. }) => None,
+                Err(e) => return Err(e),
+            }
+        } else {
+            None
+        };
         Ok(Self {
             client,
             joints,
@@ -40,7 +57,100 @@ impl FrankaScene {
             dt,
             target: None,
             robot: robot.to_string(),
+            script,
         })
+    }
+
+    /// True if the scene has cps's script and trajectories are executed through it (a
+    /// few calls per trajectory instead of several per step).
+    pub fn has_script(&self) -> bool {
+        self.script.is_some()
+    }
+
+    /// Stops using cps's scene script: every step is then commanded and read in calls of
+    /// its own, as for a scene without the script (for comparisons).
+    pub fn without_script(&mut self) {
+        self.script = None;
+    }
+
+    /// Runs one part of a sequence through the scene script: load it, let the simulation
+    /// run freely, wait for the recording, take the stepping hold back.
+    fn run_part(
+        &mut self,
+        script: i64,
+        rows: &[Vec<f64>],
+    ) -> Result<StepRecording, KinematicsError> {
+        let endpoint = self.client.endpoint().to_string();
+        let dof = self.joints.len();
+        let flat: Vec<f64> = rows.iter().flatten().copied().collect();
+        let loaded =
+            self.client
+                .call_script_function(executor::LOAD, script, vec![codec::floats(&flat)])?;
+        if loaded.first().and_then(codec::as_i64) != Some(rows.len() as i64) {
+            return Err(executor::backend_error(
+                &endpoint,
+                format!(
+                    "{} did not take the {} steps it was sent",
+                    executor::LOAD,
+                    rows.len()
+                ),
+            ));
+        }
+        self.client.set_stepping(false)?;
+        let result = self.await_run(script, rows.len(), dof);
+        let hold = self.client.set_stepping(true);
+        let rec = result?;
+        hold?;
+        Ok(rec)
+    }
+
+    /// Polls `cpsResult` until the run is over, sleeping between polls for the time the
+    /// remaining steps take at the pace seen so far (1 ms to 1 s), so a run costs a few
+    /// polls. No progress for the call timeout is a [`CoppeliaError::Timeout`] (another
+    /// client holding the simulation, or a hung simulator).
+    fn await_run(
+        &mut self,
+        script: i64,
+        total: usize,
+        dof: usize,
+    ) -> Result<StepRecording, KinematicsError> {
+        let endpoint = self.client.endpoint().to_string();
+        let start = Instant::now();
+        let mut progress = (start, 0);
+        loop {
+            let reply = self
+                .client
+                .call_script_function(executor::RESULT, script, vec![])?;
+            let value = reply.first().ok_or_else(|| {
+                executor::backend_error(&endpoint, format!("{} returned nothing", executor::RESULT))
+            })?;
+            let done = match executor::read_result(value, total, dof).map_err(|m| {
+                executor::backend_error(&endpoint, format!("{}: {m}", executor::RESULT))
+            })? {
+                Progress::Done(rec) => return Ok(rec),
+                Progress::Running(done) => done,
+            };
+            let now = Instant::now();
+            if done > progress.1 {
+                progress = (now, done);
+            } else if now - progress.0 > self.client.call_timeout() {
+                return Err(CoppeliaError::Timeout {
+                    endpoint,
+                    function: format!(
+                        "{} (the simulation stood still at step {done} of {total}: is another client holding it in stepping mode?)",
+                        executor::RESULT
+                    ),
+                    timeout_ms: self.client.call_timeout().as_millis() as u64,
+                }
+                .into());
+            }
+            let pace = if done == 0 {
+                0.005
+            } else {
+                (total - done) as f64 * start.elapsed().as_secs_f64() / done as f64
+            };
+            std::thread::sleep(Duration::from_secs_f64(pace.clamp(0.001, 1.0)));
+        }
     }
 
     /// Switches to CoppeliaSim's own inverse kinematics: trajectories are then executed
@@ -199,6 +309,37 @@ impl RobotBackend for FrankaScene {
 
     fn follows_targets(&self) -> bool {
         self.target.is_some()
+    }
+
+    fn runs_sequences(&self) -> bool {
+        self.script.is_some()
+    }
+
+    /// Through cps's scene script when the scene has it ([`crate::executor`]), in parts of
+    /// at most [`executor::MAX_STEPS`] steps; otherwise one call per command, step and
+    /// reading.
+    fn run_joint_targets(
+        &mut self,
+        targets: &[Vec<f64>],
+    ) -> Result<StepRecording, KinematicsError> {
+        let dof = self.joints.len();
+        if let Some(row) = targets.iter().find(|r| r.len() != dof) {
+            return Err(KinematicsError::JointCount {
+                expected: dof,
+                got: row.len(),
+            });
+        }
+        let Some(script) = self.script else {
+            return cps_kinematics::run_stepwise(self, targets);
+        };
+        let mut rec = StepRecording::default();
+        for part in targets.chunks(executor::MAX_STEPS) {
+            let r = self.run_part(script, part)?;
+            rec.time.extend(r.time);
+            rec.q.extend(r.q);
+            rec.tool.extend(r.tool);
+        }
+        Ok(rec)
     }
 
     /// Moves `/<robot>_target`: its position for a position target (orientation kept),

@@ -25,6 +25,7 @@
 //!     dt: 0.05,
 //!     ik_following: false,
 //!     step_cost: std::time::Duration::ZERO,
+//!     script: true,
 //! };
 //! let server = StandInServer::start(ServerConfig::new("127.0.0.1:0", scene))?;
 //! let mut sim = Client::connect(ClientConfig { endpoint: server.endpoint().into(), ..ClientConfig::default() })?;
@@ -39,6 +40,7 @@
 mod client;
 pub mod codec;
 mod error;
+pub mod executor;
 mod franka;
 mod server;
 pub mod sim;

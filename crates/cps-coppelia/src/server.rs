@@ -24,6 +24,7 @@ use crate::zmtp::{Connection, SocketType, ZmtpError};
 
 use crate::CoppeliaError;
 use crate::codec::{self, Value};
+use crate::executor::{self, Run};
 
 /// The robot and objects the server starts with.
 #[derive(Debug, Clone)]
@@ -47,6 +48,10 @@ pub struct SceneSetup {
     /// stand in for a simulator's physics: CoppeliaSim takes ≈ 5–8 ms a step with
     /// dynamics. Zero: as fast as the kinematics.
     pub step_cost: std::time::Duration,
+    /// The scene has cps's script object `/<name>/cpsExecutor`, which executes a whole
+    /// joint-target sequence and records it ([`crate::executor`]). Off: a scene without
+    /// it, where clients fall back to stepping one call at a time.
+    pub script: bool,
 }
 
 #[derive(Debug, Clone)]
@@ -55,6 +60,8 @@ enum Kind {
     Joint(usize),
     Tip,
     Dummy(Isometry3<f64>),
+    /// cps's scene script (`cpsExecutor`).
+    Script,
 }
 
 #[derive(Debug, Clone)]
@@ -111,6 +118,10 @@ struct Sim {
     steps: u64,
     clients: HashMap<String, ClientState>,
     lease: Duration,
+    /// The sequence the scene script executes, and since when (and from which step) the
+    /// simulation has run freely through it.
+    run: Option<Run>,
+    free_since: Option<(Instant, usize)>,
 }
 
 type Reply = Result<Vec<Value>, String>;
@@ -161,6 +172,15 @@ impl Sim {
                 kind: Kind::Dummy(tip_pose),
             },
         );
+        if setup.script {
+            objects.insert(
+                tip + 2,
+                Object {
+                    alias: executor::SCRIPT_ALIAS.into(),
+                    kind: Kind::Script,
+                },
+            );
+        }
         let mut next = 100;
         for (alias, p) in &setup.dummies {
             objects.insert(
@@ -182,6 +202,8 @@ impl Sim {
             steps: 0,
             clients: HashMap::new(),
             lease,
+            run: None,
+            free_since: None,
         }
     }
 
@@ -233,6 +255,7 @@ impl Sim {
                 )
             }
             Kind::Dummy(p) => *p,
+            Kind::Script => self.setup.chain.base(),
         })
     }
 
@@ -273,22 +296,120 @@ impl Sim {
             .min()
     }
 
-    /// Advances one step when the simulation runs freely (no client stepping).
+    /// Advances the simulation when it runs freely (no client stepping): one step per
+    /// request, or, while the scene script executes a sequence, every step the wall time
+    /// since the simulation was released allows at the step cost (all of them at zero
+    /// cost), as a free-running simulator would have taken meanwhile.
     fn tick(&mut self) {
-        if self.running && self.clients.values().all(|c| c.stepping == 0) {
+        if !(self.running && self.clients.values().all(|c| c.stepping == 0)) {
+            self.free_since = None;
+            return;
+        }
+        let Some(run) = self.run.as_ref().filter(|r| r.next_target().is_some()) else {
             self.advance();
+            return;
+        };
+        let done = run.done();
+        let (since, from) = *self.free_since.get_or_insert((Instant::now(), done));
+        let remaining = run.total() - done;
+        let due = if self.setup.step_cost.is_zero() {
+            remaining
+        } else {
+            let elapsed = since.elapsed().as_secs_f64() / self.setup.step_cost.as_secs_f64();
+            ((elapsed as usize).saturating_sub(done - from)).min(remaining)
+        };
+        for _ in 0..due {
+            self.step_once();
         }
     }
 
-    /// One simulation step: the clock advances and, with IK following, the joints move
-    /// the tip towards the IK target.
+    /// One simulation step, taking its wall time: the clock advances and, with IK
+    /// following, the joints move the tip towards the IK target.
     fn advance(&mut self) {
         if !self.setup.step_cost.is_zero() {
             std::thread::sleep(self.setup.step_cost);
         }
+        self.step_once();
+    }
+
+    /// One simulation step without its wall time: the scene script commands its next row
+    /// (actuation), the clock advances, IK follows its target, the script records
+    /// (sensing).
+    fn step_once(&mut self) {
+        if let Some(row) = self.run.as_ref().and_then(Run::next_target) {
+            self.q.copy_from_slice(row);
+        }
         self.steps += 1;
         if self.setup.ik_following {
             self.follow_target();
+        }
+        if self.run.as_ref().is_some_and(|r| r.next_target().is_some()) {
+            let pose = self.pose_of_tip();
+            let time = self.time();
+            if let Some(run) = self.run.as_mut() {
+                run.record(time, &self.q, &pose);
+            }
+        }
+    }
+
+    fn pose_of_tip(&self) -> Isometry3<f64> {
+        self.setup
+            .chain
+            .fk(&self.q)
+            .map(|f| {
+                Isometry3::from_parts(
+                    f.translation,
+                    UnitQuaternion::from_rotation_matrix(&f.rotation),
+                )
+            })
+            .unwrap_or_else(|_| Isometry3::identity())
+    }
+
+    /// `sim.callScriptFunction(name, script, ...)` (or, as in the newest calltips,
+    /// `(script, name, ...)`) for cps's scene script.
+    fn call_script(&mut self, args: &[Value]) -> Reply {
+        let (name, handle) = match (args.first(), args.get(1)) {
+            (Some(a), Some(b)) => match (codec::as_text(a), codec::as_text(b)) {
+                (Some(name), None) => (name, codec::as_i64(b)),
+                (None, Some(name)) => (name, codec::as_i64(a)),
+                _ => {
+                    return Err(
+                        "arguments 1 and 2 must be a function name and a script handle".into(),
+                    );
+                }
+            },
+            _ => {
+                return Err("arguments 1 and 2 must be a function name and a script handle".into());
+            }
+        };
+        let is_script = handle
+            .and_then(|h| self.objects.get(&h))
+            .is_some_and(|o| matches!(o.kind, Kind::Script));
+        if !is_script {
+            return Err("Invalid script handle.".into());
+        }
+        if !self.running {
+            return Err(
+                "script is not initialized: simulation scripts run only while the simulation runs"
+                    .into(),
+            );
+        }
+        match name.as_str() {
+            executor::LOAD => {
+                let run = Run::load(self.setup.chain.dof(), &args[2..], MAX_COORDINATE)?;
+                let n = run.total();
+                self.run = Some(run);
+                self.free_since = None;
+                Ok(vec![codec::int(n as i64)])
+            }
+            executor::RESULT => match &self.run {
+                Some(run) => Ok(vec![run.result()]),
+                None => Err("cpsResult(): no sequence loaded (call cpsLoad first)".into()),
+            },
+            other => Err(format!(
+                "Failed calling script function: {other} does not exist in {}.",
+                executor::SCRIPT_ALIAS
+            )),
         }
     }
 
@@ -549,6 +670,8 @@ impl Sim {
             "sim.stopSimulation" => {
                 self.running = false;
                 self.steps = 0;
+                self.run = None;
+                self.free_since = None;
                 for c in self.clients.values_mut() {
                     c.stepping = 0;
                 }
@@ -557,6 +680,7 @@ impl Sim {
             "sim.getSimulationState" => Ok(vec![codec::int(if self.running { 17 } else { 0 })]),
             "sim.getSimulationTime" => Ok(vec![Value::Float(self.time())]),
             "sim.getSimulationTimeStep" => Ok(vec![Value::Float(self.setup.dt)]),
+            "sim.callScriptFunction" => self.call_script(args),
             "sim.setStepping" => {
                 let on = args
                     .first()
@@ -633,6 +757,7 @@ const FUNCTIONS: &[&str] = &[
     "getSimulationTime",
     "getSimulationTimeStep",
     "setStepping",
+    "callScriptFunction",
     "step",
     "testCB",
 ];
@@ -1115,6 +1240,16 @@ impl StandInServer {
         self.stats.dropped_peers.load(Ordering::Relaxed)
     }
 
+    /// What the server did, in words: `N requests (M peers dropped for breaking the
+    /// protocol or a limit)`.
+    pub fn served(&self) -> String {
+        format!(
+            "{} requests ({} peers dropped for breaking the protocol or a limit)",
+            self.requests(),
+            self.dropped_peers()
+        )
+    }
+
     /// Blocks until the server stops (for `cps-cli sim serve`).
     pub fn wait(mut self) {
         if let Some(t) = self.thread.take() {
@@ -1184,6 +1319,7 @@ mod tests {
                 dt: 0.05,
                 ik_following: false,
                 step_cost: std::time::Duration::ZERO,
+                script: true,
             },
             lease,
         )

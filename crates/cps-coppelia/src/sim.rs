@@ -249,6 +249,19 @@ impl Client {
         self.call("sim.step", vec![]).map(drop)
     }
 
+    /// `sim.callScriptFunction(name, script, args...)` (4.6+ argument order): a function of
+    /// the scene script whose handle is `script`; its return values.
+    pub fn call_script_function(
+        &mut self,
+        name: &str,
+        script: i64,
+        args: Vec<Value>,
+    ) -> Result<Vec<Value>, CoppeliaError> {
+        let mut all = vec![codec::text(name), codec::int(script)];
+        all.extend(args);
+        self.call("sim.callScriptFunction", all)
+    }
+
     /// A setter's arguments: `(handle, value, relativeTo)` in v2, `(handle, relativeTo,
     /// value)` in v1.
     fn setter_args(&self, object: i64, value: Value, relative_to: i64) -> Vec<Value> {

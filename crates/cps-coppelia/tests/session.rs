@@ -33,6 +33,7 @@ fn server() -> StandInServer {
             dt: 0.05,
             ik_following: false,
             step_cost: std::time::Duration::ZERO,
+            script: true,
         },
         limits: cps_coppelia::ServerLimits::default(),
     })
@@ -193,6 +194,7 @@ fn a_dead_server_is_a_timely_error_and_a_restarted_one_is_reached_again() {
             dt: 0.05,
             ik_following: false,
             step_cost: std::time::Duration::ZERO,
+            script: true,
         },
         limits: cps_coppelia::ServerLimits::default(),
     })
@@ -500,6 +502,7 @@ fn the_scene_s_own_ik_follows_the_target() {
             dt: 0.05,
             ik_following: true,
             step_cost: std::time::Duration::ZERO,
+            script: true,
         },
         limits: cps_coppelia::ServerLimits::default(),
     })
@@ -583,6 +586,7 @@ fn server_with(limits: cps_coppelia::ServerLimits) -> StandInServer {
                 dt: 0.05,
                 ik_following: false,
                 step_cost: std::time::Duration::ZERO,
+                script: true,
             },
         )
     })
@@ -833,6 +837,7 @@ fn the_client_survives_a_hostile_server() {
 fn every_step_takes_the_step_cost() {
     let scene = SceneSetup {
         step_cost: Duration::from_millis(20),
+        script: true,
         ..server_scene(panda(PandaTool::HandTcp))
     };
     let srv = StandInServer::start(ServerConfig::new("127.0.0.1:0", scene)).unwrap();
@@ -864,5 +869,6 @@ fn server_scene(chain: cps_kinematics::SerialChain) -> SceneSetup {
         dt: 0.05,
         ik_following: false,
         step_cost: Duration::ZERO,
+        script: true,
     }
 }

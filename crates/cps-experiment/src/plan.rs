@@ -216,6 +216,26 @@ impl RobotChoice {
         }
     }
 
+    /// [`Self::describe`] once the backend is open, saying how a simulator executes:
+    /// through cps's scene script (a few calls a trajectory) or stepped call by call.
+    pub fn describe_opened(&self, backend: &dyn RobotBackend) -> String {
+        match &self.backend {
+            BackendChoice::Coppelia { robot_name, .. } if backend.runs_sequences() => format!(
+                "{}, trajectories run by the scene's /{robot_name}/cpsExecutor script",
+                self.describe()
+            ),
+            BackendChoice::Coppelia {
+                robot_name,
+                simulator_ik: false,
+                ..
+            } => format!(
+                "{}, stepped call by call: the scene has no /{robot_name}/cpsExecutor script (configs/coppeliasim/cpsExecutor.lua)",
+                self.describe()
+            ),
+            _ => self.describe(),
+        }
+    }
+
     /// Opens the backend with the robot at its initial configuration.
     pub fn open(&self) -> Result<Box<dyn RobotBackend + Send>, ExperimentError> {
         let setup = &self.setup;

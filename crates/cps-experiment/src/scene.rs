@@ -65,6 +65,9 @@ pub struct StandInOptions {
     pub max_clients: usize,
     /// Wall time each simulation step takes, seconds, 0 to 10 (a simulator's physics).
     pub step_cost: f64,
+    /// Serve the scene without cps's script `/<robot>/cpsExecutor`, as a CoppeliaSim
+    /// scene that lacks it: clients step call by call.
+    pub without_script: bool,
 }
 
 /// A checked stand-in configuration and what it serves, in words.
@@ -322,6 +325,7 @@ impl Scene {
             dt,
             ik_following,
             step_cost,
+            script: true,
         }
     }
 
@@ -370,23 +374,31 @@ impl Scene {
         }
         let name = self.sim_robot_name();
         let describe = format!(
-            "robot /{name}, joints /{name}_joint1..{}, tip /{name}_tip, IK target /{name}_target{}, {} dummies",
+            "robot /{name}, joints /{name}_joint1..{}, tip /{name}_tip, IK target /{name}_target{}, {} dummies, {}",
             self.robot.chain.dof(),
             if o.ik_following {
                 " followed by the tip"
             } else {
                 ""
             },
-            self.objects.len()
+            self.objects.len(),
+            if o.without_script {
+                "no scene script".to_string()
+            } else {
+                format!("scene script /{name}/cpsExecutor")
+            }
         );
         Ok(StandIn {
             config: cps_coppelia::ServerConfig {
                 bind: o.bind.clone(),
-                scene: self.stand_in_costing(
-                    o.dt,
-                    o.ik_following,
-                    std::time::Duration::from_secs_f64(o.step_cost),
-                ),
+                scene: cps_coppelia::SceneSetup {
+                    script: !o.without_script,
+                    ..self.stand_in_costing(
+                        o.dt,
+                        o.ik_following,
+                        std::time::Duration::from_secs_f64(o.step_cost),
+                    )
+                },
                 limits: cps_coppelia::ServerLimits {
                     max_message_bytes: o.max_message_bytes,
                     max_connections: o.max_clients,
@@ -478,6 +490,7 @@ mod tests {
             max_message_bytes: 1 << 20,
             max_clients: 4,
             step_cost: 0.005,
+            without_script: false,
         }
     }
 

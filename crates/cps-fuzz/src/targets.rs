@@ -136,6 +136,7 @@ thread_local! {
                 dt: 0.05,
                 ik_following: true,
                 step_cost: std::time::Duration::ZERO,
+                script: true,
             },
             Duration::from_secs(60),
         ));

@@ -50,6 +50,54 @@ pub trait RobotBackend {
             message: "it does not follow tool targets; command joint positions".into(),
         })
     }
+    /// True if [`RobotBackend::run_joint_targets`] runs a whole sequence inside the backend
+    /// in a few exchanges (a simulator's scene script), rather than through the per-step
+    /// calls of the default. [`crate::execute`] then plans the controller's commands on the
+    /// model and sends them at once. Default: false.
+    fn runs_sequences(&self) -> bool {
+        false
+    }
+    /// Runs `targets` (one joint-position row per step): before step k the backend is
+    /// commanded row k, then steps once; after each step the measured joints, the tool pose
+    /// and the clock are recorded. The default does exactly that through
+    /// [`RobotBackend::command_joint_positions`], [`RobotBackend::step`] and the readers,
+    /// one call each; a backend that [runs sequences](RobotBackend::runs_sequences) does
+    /// it inside itself and must give the same recording.
+    fn run_joint_targets(
+        &mut self,
+        targets: &[Vec<f64>],
+    ) -> Result<StepRecording, KinematicsError> {
+        run_stepwise(self, targets)
+    }
+}
+
+/// [`RobotBackend::run_joint_targets`] through the per-step calls: command a row, step,
+/// read the joints, the tool pose and the clock; for backends that run sequences only
+/// sometimes (a scene without cps's script).
+pub fn run_stepwise(
+    backend: &mut (impl RobotBackend + ?Sized),
+    targets: &[Vec<f64>],
+) -> Result<StepRecording, KinematicsError> {
+    let mut rec = StepRecording::default();
+    for row in targets {
+        backend.command_joint_positions(row)?;
+        backend.step()?;
+        rec.q.push(backend.joint_positions()?);
+        rec.tool.push(backend.tool_pose()?);
+        rec.time.push(backend.time()?);
+    }
+    Ok(rec)
+}
+
+/// What [`RobotBackend::run_joint_targets`] recorded: one entry per step, after the step.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct StepRecording {
+    /// The backend's clock (seconds).
+    pub time: Vec<f64>,
+    /// Measured joint positions.
+    pub q: Vec<Vec<f64>>,
+    /// Measured tool pose in the world frame.
+    pub tool: Vec<IsometryMatrix3<f64>>,
 }
 
 #[derive(Debug, Clone, PartialEq)]

@@ -74,6 +74,14 @@ impl Recording {
 /// backend's measured state is recorded. Never loops without bound. A backend that
 /// [follows targets itself](RobotBackend::follows_targets) (CoppeliaSim's IK) is given
 /// the sample as its target and stepped the same way, without cps's controller.
+///
+/// A backend that [runs sequences](RobotBackend::runs_sequences) (a simulator with cps's
+/// scene script) gets the whole command sequence at once: the controller is run against
+/// the model, which predicts that each command is reached at the next step, and the
+/// backend executes the commands and records every step in a few exchanges instead of
+/// several per step. Where the robot follows its commands (the kinematic robot, the
+/// stand-in server) both ways give the same recording; where it lags (dynamics), the
+/// recording shows the tracking error instead of the controller correcting it.
 pub fn execute(
     backend: &mut (impl RobotBackend + ?Sized),
     model: &SerialChain,
@@ -96,6 +104,9 @@ pub fn execute(
         return Err(KinematicsError::InvalidConfig(
             "max_iterations_per_sample must be at least 1".into(),
         ));
+    }
+    if backend.runs_sequences() && !backend.follows_targets() {
+        return execute_planned(backend, model, targets, config);
     }
     let dt = backend.time_step();
     let mut rec = Recording::default();
@@ -131,6 +142,71 @@ pub fn execute(
         let o = UnitQuaternion::from_rotation_matrix(&pose.rotation);
         rec.time.push(backend.time()? - t0);
         rec.q.push(q.clone());
+        rec.position.push([p.x, p.y, p.z]);
+        rec.orientation.push([o.i, o.j, o.k, o.w]);
+        rec.position_error.push(ep.norm());
+        rec.rotation_error.push(er.norm());
+    }
+    Ok(rec)
+}
+
+/// [`execute`] for a backend that [runs sequences](RobotBackend::runs_sequences): the
+/// controller's commands are planned on the model, sent at once, and the recording of
+/// each sample's last step is kept.
+fn execute_planned(
+    backend: &mut (impl RobotBackend + ?Sized),
+    model: &SerialChain,
+    targets: &[IkTarget],
+    config: &ExecutionConfig,
+) -> Result<Recording, KinematicsError> {
+    let dt = backend.time_step();
+    let t0 = backend.time()?;
+    let mut q = backend.joint_positions()?;
+    let mut commands: Vec<Vec<f64>> = Vec::new();
+    let mut last_step = Vec::with_capacity(targets.len());
+    let mut unconverged = 0;
+    for target in targets {
+        let mut reached = false;
+        for _ in 0..config.max_iterations_per_sample {
+            let st = control_step(model, &q, target, dt, &config.controller)?;
+            for (a, b) in q.iter_mut().zip(&st.dq) {
+                *a += b;
+            }
+            commands.push(q.clone());
+            let (ep, er) = task_error(&model.fk(&q)?, target);
+            if ep.norm() <= config.tolerance && er.norm() <= config.rotation_tolerance {
+                reached = true;
+                break;
+            }
+        }
+        unconverged += usize::from(!reached);
+        last_step.push(commands.len() - 1);
+    }
+    let run = backend.run_joint_targets(&commands)?;
+    let n = commands.len();
+    if run.q.len() != n || run.tool.len() != n || run.time.len() != n {
+        return Err(KinematicsError::Backend {
+            backend: "the robot backend".into(),
+            message: format!(
+                "asked to run {n} steps, it recorded {} joint rows, {} poses and {} times",
+                run.q.len(),
+                run.tool.len(),
+                run.time.len()
+            ),
+        });
+    }
+    let mut rec = Recording {
+        steps: n,
+        unconverged,
+        ..Recording::default()
+    };
+    for (target, &k) in targets.iter().zip(&last_step) {
+        let pose = &run.tool[k];
+        let (ep, er) = task_error(pose, target);
+        let p = pose.translation.vector;
+        let o = UnitQuaternion::from_rotation_matrix(&pose.rotation);
+        rec.time.push(run.time[k] - t0);
+        rec.q.push(run.q[k].clone());
         rec.position.push([p.x, p.y, p.z]);
         rec.orientation.push([o.i, o.j, o.k, o.w]);
         rec.position_error.push(ep.norm());

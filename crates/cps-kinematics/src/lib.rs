@@ -59,7 +59,7 @@ pub mod transforms;
 mod urdf;
 mod workspace;
 
-pub use backend::{KinematicRobot, RobotBackend};
+pub use backend::{KinematicRobot, RobotBackend, StepRecording, run_stepwise};
 pub use chain::{ChainGeometry, ChainPose, DhConvention, DhLink, RevoluteJoint, SerialChain};
 pub use controllers::IkTarget;
 pub use dynamics::{GRAVITY, LinkInertia};

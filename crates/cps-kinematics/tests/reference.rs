@@ -646,6 +646,83 @@ mod control_and_execution {
         }
     }
 
+    /// A backend that says it runs sequences, running them through the trait's default
+    /// (per-step calls on the kinematic robot inside).
+    struct Batched(KinematicRobot);
+
+    impl RobotBackend for Batched {
+        fn dof(&self) -> usize {
+            self.0.dof()
+        }
+        fn time_step(&self) -> f64 {
+            self.0.time_step()
+        }
+        fn joint_positions(&mut self) -> Result<Vec<f64>, KinematicsError> {
+            self.0.joint_positions()
+        }
+        fn command_joint_positions(&mut self, q: &[f64]) -> Result<(), KinematicsError> {
+            self.0.command_joint_positions(q)
+        }
+        fn command_joint_velocities(&mut self, dq: &[f64]) -> Result<(), KinematicsError> {
+            self.0.command_joint_velocities(dq)
+        }
+        fn tool_pose(&mut self) -> Result<nalgebra::IsometryMatrix3<f64>, KinematicsError> {
+            self.0.tool_pose()
+        }
+        fn time(&mut self) -> Result<f64, KinematicsError> {
+            self.0.time()
+        }
+        fn step(&mut self) -> Result<(), KinematicsError> {
+            self.0.step()
+        }
+        fn reset(&mut self, q: &[f64]) -> Result<(), KinematicsError> {
+            self.0.reset(q)
+        }
+        fn runs_sequences(&self) -> bool {
+            true
+        }
+    }
+
+    /// Planning the controller's commands on the model and sending them at once records
+    /// exactly what the closed loop records on a robot that follows its commands: the
+    /// same samples, steps, iteration caps and measurements, bit for bit. A robot that
+    /// lags behind its commands shows it as tracking error.
+    #[test]
+    fn sequences_planned_on_the_model_record_what_the_closed_loop_records() {
+        let arm = panda(PandaTool::HandTcp);
+        let c = arm.fk(&READY).unwrap().translation.vector;
+        let circle: Vec<IkTarget> = (0..=300)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / 300.0;
+                IkTarget::Position(c + Vector3::new(0.15 * (a.cos() - 1.0), 0.15 * a.sin(), 0.0))
+            })
+            .collect();
+        let far = vec![IkTarget::Position(Vector3::new(2.0, 0.0, 0.5)); 20];
+        for targets in [&circle, &far] {
+            let cfg = ExecutionConfig::default();
+            let mut stepped = KinematicRobot::new(arm.clone(), &READY, 0.01).unwrap();
+            let closed = execute(&mut stepped, &arm, targets, &cfg).unwrap();
+            let mut batched = Batched(KinematicRobot::new(arm.clone(), &READY, 0.01).unwrap());
+            let planned = execute(&mut batched, &arm, targets, &cfg).unwrap();
+            assert_eq!(closed, planned);
+            assert!(closed.steps >= targets.len());
+            if targets.len() == far.len() {
+                assert_eq!((planned.steps, planned.unconverged), (200, 20));
+            }
+        }
+        // A robot whose speed limits are a tenth of the model's lags behind the plan: the
+        // closed loop catches up, the planned sequence records the lag.
+        let slow: Vec<f64> = PANDA_DQ_MAX.iter().map(|v| v * 0.1).collect();
+        let slow = arm.clone().with_velocity_limits(&slow).unwrap();
+        let mut batched = Batched(KinematicRobot::new(slow, &READY, 0.01).unwrap());
+        let lagging = execute(&mut batched, &arm, &circle, &ExecutionConfig::default()).unwrap();
+        assert!(
+            lagging.max_position_error() > 1e-3,
+            "{}",
+            lagging.max_position_error()
+        );
+    }
+
     #[test]
     fn path_checks_find_the_first_unreachable_sample() {
         let arm = panda(PandaTool::HandTcp);

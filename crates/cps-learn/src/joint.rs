@@ -372,20 +372,37 @@ pub fn execute_joint_trajectory(
     let end = *traj.times().last().unwrap_or(&0.0);
     let samples = (end / dt + 1e-9).floor() as usize + 1;
     let t0 = backend.time()?;
-    let mut rec = Recording::default();
-    for k in 0..samples {
-        let t = k as f64 * dt;
-        let q: Vec<f64> = (0..dof).map(|j| traj.position_at(j, t)).collect();
-        backend.command_joint_positions(&q)?;
-        backend.step()?;
-        rec.steps += 1;
-        let measured = backend.joint_positions()?;
-        let pose = backend.tool_pose()?;
-        let want = robot.chain.fk(&q)?.translation.vector;
+    let commands: Vec<Vec<f64>> = (0..samples)
+        .map(|k| {
+            (0..dof)
+                .map(|j| traj.position_at(j, k as f64 * dt))
+                .collect()
+        })
+        .collect();
+    // One call on a simulator with cps's scene script, a few per step otherwise.
+    let run = backend.run_joint_targets(&commands)?;
+    let mut rec = Recording {
+        steps: samples,
+        ..Recording::default()
+    };
+    for (k, q) in commands.iter().enumerate() {
+        let (Some(pose), Some(measured), Some(time)) =
+            (run.tool.get(k), run.q.get(k), run.time.get(k))
+        else {
+            return Err(cps_kinematics::KinematicsError::Backend {
+                backend: "the robot backend".into(),
+                message: format!(
+                    "asked to run {samples} steps, it recorded {}",
+                    run.time.len()
+                ),
+            }
+            .into());
+        };
+        let want = robot.chain.fk(q)?.translation.vector;
         let p = pose.translation.vector;
         let o = nalgebra::UnitQuaternion::from_rotation_matrix(&pose.rotation);
-        rec.time.push(backend.time()? - t0);
-        rec.q.push(measured);
+        rec.time.push(time - t0);
+        rec.q.push(measured.clone());
         rec.position.push([p.x, p.y, p.z]);
         rec.orientation.push([o.i, o.j, o.k, o.w]);
         rec.position_error.push((p - want).norm());

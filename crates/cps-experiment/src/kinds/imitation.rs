@@ -228,7 +228,7 @@ pub(crate) fn declare(ctx: &Ctx<'_>, run: &Pipeline) -> Result<Outcome, Experime
     }
     let demos = &o.demonstrations;
     let summary = Summary {
-        backend: robot.describe(),
+        backend: robot.describe_opened(run.backend.as_ref()),
         scene: &robot.scene,
         learner: solver_name(exp.config.solver),
         demonstrations: DemoCounts {
@@ -280,7 +280,7 @@ pub(crate) fn declare(ctx: &Ctx<'_>, run: &Pipeline) -> Result<Outcome, Experime
         tables,
         figures: figures(o, &exp.config.task),
         documents,
-        lines: lines(ctx, o, &robot.describe())
+        lines: lines(ctx, o, &robot.describe_opened(run.backend.as_ref()))
             .into_iter()
             .chain(usage_lines)
             .collect(),

@@ -153,7 +153,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
             .collect(),
     )?;
     let summary = Summary {
-        backend: robot.describe(),
+        backend: robot.describe_opened(backend.as_ref()),
         scene: &robot.scene,
         way_configurations_rad: &outcome.way_configurations,
         cost: outcome.breakdown.total(),
