@@ -4,12 +4,11 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
-use common::{cli, json, repo, run_interrupted, write};
+use common::{cli, json, repo, run_interrupted, serve, write};
 
 const IMITATION: &str = include_str!("../../../experiments/imitation.toml");
 const SCALING: &str = include_str!("../../../experiments/scaling.toml");
@@ -95,31 +94,6 @@ fn the_shipped_imitation_experiment_meets_its_numbers() {
     assert!(html.contains("Imitations of the mean recording"));
     assert!(!html.contains("src=\"http"), "the report must open offline");
     assert!(out.join("coordinates.png").is_file() && out.join("path3d.svg").is_file());
-}
-
-/// Starts `cps-cli sim serve` on a free port with time step `dt` and `extra` options;
-/// returns it and its port.
-fn serve(dt: &str, extra: &[&str]) -> (std::process::Child, String) {
-    let mut server = Command::new(env!("CARGO_BIN_EXE_cps-cli"))
-        .args(["sim", "serve", "--bind", "127.0.0.1:0", "--dt", dt])
-        .args(extra)
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(server.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    if extra.contains(&"--ik-following") {
-        assert!(line.contains("followed by the tip"), "{line}");
-    }
-    let port = line
-        .split("tcp://127.0.0.1:")
-        .nth(1)
-        .and_then(|s| s.split_whitespace().next())
-        .unwrap_or_else(|| panic!("no endpoint in {line:?}"))
-        .to_string();
-    (server, port)
 }
 
 /// The same file gives the same recordings on the in-process robot and, through the

@@ -146,6 +146,9 @@ pub fn estimate(exp: &Experiment) -> Estimate {
         // `OPERATIONS_PER_SECOND`): FK and limits per joint, the orientation DMP's
         // quaternion integration, the plant's substeps.
         Kind::ViapointJoint => per_sample_extra = 20.0,
+        // Every evaluation executes: the controller's step (FK, Jacobian, a 7×7 solve)
+        // per control period.
+        Kind::ViapointExecuted => per_sample_extra = 2000.0,
         Kind::ViapointPose => {
             multiplier = 2.0;
             per_sample_extra = 300.0;

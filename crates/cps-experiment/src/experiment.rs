@@ -39,6 +39,7 @@ struct File {
     orientation: Option<Spanned<crate::plan::OrientationSection>>,
     export: Option<Spanned<crate::export::ExportSection>>,
     promp: Option<Spanned<crate::plan::ProMpSection>>,
+    executed: Option<Spanned<crate::plan::ExecutedSection>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -274,13 +275,18 @@ pub fn parse(
                 .kind
                 .as_ref()
                 .map_or(Kind::default(), |k| *k.get_ref()),
-            Kind::Viapoint | Kind::Scaling | Kind::Imitation | Kind::Promp | Kind::ViapointPose
+            Kind::Viapoint
+                | Kind::Scaling
+                | Kind::Imitation
+                | Kind::Promp
+                | Kind::ViapointPose
+                | Kind::ViapointExecuted
         )
     {
         return Err(err(
             &o.span(),
             format!(
-                "[[task.obstacles]] are read only by the kinds that learn tool positions (viapoint, scaling, imitation, promp, viapoint_pose); this file has kind = \"{}\"",
+                "[[task.obstacles]] are read only by the kinds that learn tool positions (viapoint, scaling, imitation, promp, viapoint_pose, viapoint_executed); this file has kind = \"{}\"",
                 file.experiment
                     .kind
                     .as_ref()
@@ -411,6 +417,7 @@ pub fn parse(
         orientation: file.orientation.as_ref(),
         export: file.export.as_ref(),
         promp: file.promp.as_ref(),
+        executed: file.executed.as_ref(),
     };
     let mut plans = sections.parse(&config)?;
     add_scene_obstacles(&file, path, kind, &mut plans, &mut config)?;
@@ -427,6 +434,7 @@ pub fn parse(
         energy: plans.energy,
         pose: plans.pose,
         promp: plans.promp,
+        executed: plans.executed,
         export: plans.export,
         estimate: None,
     };

@@ -67,6 +67,7 @@ pub mod retiming;
 pub mod robot_file;
 mod run;
 pub mod scene;
+pub mod sim_pool;
 mod source;
 
 pub use error::{Context, ExperimentError, InputError};

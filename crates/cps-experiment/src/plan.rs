@@ -39,6 +39,9 @@ pub enum Kind {
     /// The imitation pipeline's executed demonstrations as a ProMP: its band, conditioned
     /// on a new via point, the conditioned mean executed.
     Promp,
+    /// Via-point learning whose cost is measured on the robot: every CMA-ES candidate is
+    /// executed (on a pool of simulators) and judged by its recording.
+    ViapointExecuted,
 }
 
 impl Kind {
@@ -52,6 +55,7 @@ impl Kind {
             Kind::ViapointEnergy => "viapoint_energy",
             Kind::ViapointPose => "viapoint_pose",
             Kind::Promp => "promp",
+            Kind::ViapointExecuted => "viapoint_executed",
         }
     }
 }
@@ -84,6 +88,8 @@ pub struct Experiment {
     pub pose: Option<PosePlan>,
     /// The ProMP and its via point (`kind = "promp"`).
     pub promp: Option<ProMpPlan>,
+    /// The executed cost's own weight (`kind = "viapoint_executed"`).
+    pub executed: Option<ExecutedPlan>,
     /// Retiming and export of the robot's movement (`[export]`, kinds with a robot).
     pub export: Option<crate::export::ExportPlan>,
     /// What the run needs (memory, work), estimated when the file was read.
@@ -128,6 +134,8 @@ pub struct RobotSection {
     #[serde(default)]
     backend: BackendKind,
     endpoint: Option<Spanned<String>>,
+    /// A pool of simulators (`kind = "viapoint_executed"`).
+    endpoints: Option<Spanned<Vec<Spanned<String>>>>,
     /// The robot's alias in CoppeliaSim (`/Panda`, `/Panda_joint1`, …).
     name: Option<String>,
     dt: Option<Spanned<f64>>,
@@ -167,6 +175,8 @@ pub enum BackendChoice {
     Coppelia {
         /// `tcp://host:port`.
         endpoint: String,
+        /// Every simulator of the pool (`[robot] endpoints`; else `endpoint` alone).
+        pool: Vec<String>,
         /// The robot's alias in the scene.
         robot_name: String,
         /// Connect and per-call timeout.
@@ -236,23 +246,57 @@ impl RobotChoice {
         }
     }
 
-    /// Opens the backend with the robot at its initial configuration.
+    /// Opens the backend with the robot at its initial configuration (a pool's first
+    /// simulator).
     pub fn open(&self) -> Result<Box<dyn RobotBackend + Send>, ExperimentError> {
-        let setup = &self.setup;
         match &self.backend {
             BackendChoice::Kinematic { dt } => Ok(Box::new(
-                KinematicRobot::new(setup.chain.clone(), &setup.initial_q, *dt)
+                KinematicRobot::new(self.setup.chain.clone(), &self.setup.initial_q, *dt)
                     .context_with(|| "cannot start the in-process robot".into())?,
             )),
+            BackendChoice::Coppelia { endpoint, .. } => self.open_at(endpoint),
+        }
+    }
+
+    /// Opens every simulator of the pool at once, each checked as [`Self::open`] checks
+    /// one, named by its endpoint (the in-process robot alone for the kinematic
+    /// backend). The first that cannot be opened is the error.
+    pub fn open_pool(&self) -> Result<Vec<crate::sim_pool::NamedBackend>, ExperimentError> {
+        let BackendChoice::Coppelia { pool, .. } = &self.backend else {
+            return Ok(vec![("in-process robot".into(), self.open()?)]);
+        };
+        std::thread::scope(|scope| {
+            let opening: Vec<_> = pool
+                .iter()
+                .map(|e| scope.spawn(move || self.open_at(e).map(|b| (e.clone(), b))))
+                .collect();
+            opening
+                .into_iter()
+                .map(|h| {
+                    h.join().unwrap_or_else(|_| {
+                        Err(ExperimentError::Message(
+                            "opening a simulator panicked".into(),
+                        ))
+                    })
+                })
+                .collect()
+        })
+    }
+
+    /// Opens the simulator at `endpoint` with the robot at its initial configuration.
+    fn open_at(&self, endpoint: &str) -> Result<Box<dyn RobotBackend + Send>, ExperimentError> {
+        let setup = &self.setup;
+        match &self.backend {
+            BackendChoice::Kinematic { .. } => self.open(),
             BackendChoice::Coppelia {
-                endpoint,
                 robot_name,
                 timeout,
                 simulator_ik,
                 expected_dt,
+                ..
             } => {
                 let mut client = Client::connect(ClientConfig {
-                    endpoint: endpoint.clone(),
+                    endpoint: endpoint.to_string(),
                     connect_timeout: *timeout,
                     call_timeout: *timeout,
                     ..ClientConfig::default()
@@ -309,6 +353,20 @@ impl RobotChoice {
             }
         }
     }
+}
+
+/// `[executed]` of `kind = "viapoint_executed"`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExecutedSection {
+    tracking: Option<Spanned<f64>>,
+}
+
+/// The checked `[executed]` section.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExecutedPlan {
+    /// Weight of the squared tracking errors (default 1e5, as a via point's).
+    pub tracking: f64,
 }
 
 /// `[demonstrations]` of `kind = "imitation"`.
@@ -477,6 +535,7 @@ pub(crate) struct Sections<'a> {
     pub orientation: Option<&'a Spanned<OrientationSection>>,
     pub export: Option<&'a Spanned<crate::export::ExportSection>>,
     pub promp: Option<&'a Spanned<ProMpSection>>,
+    pub executed: Option<&'a Spanned<ExecutedSection>>,
 }
 
 /// The parsed plans of [`Sections::parse`].
@@ -488,6 +547,7 @@ pub(crate) struct Plans {
     pub energy: Option<EnergyPlan>,
     pub pose: Option<PosePlan>,
     pub promp: Option<ProMpPlan>,
+    pub executed: Option<ExecutedPlan>,
     pub export: Option<crate::export::ExportPlan>,
 }
 
@@ -542,7 +602,7 @@ impl Sections<'_> {
         // A pose experiment executes when it names a robot; the other two always do.
         let executes = matches!(
             self.kind,
-            Kind::Imitation | Kind::ViapointJoint | Kind::Promp
+            Kind::Imitation | Kind::ViapointJoint | Kind::Promp | Kind::ViapointExecuted
         ) || (self.kind == Kind::ViapointPose && self.robot.is_some());
         if let Some(r) = self.robot
             && !executes
@@ -550,8 +610,13 @@ impl Sections<'_> {
             return Err(only(
                 r.span(),
                 "robot",
-                "kind = \"imitation\", \"promp\", \"viapoint_joint\" and \"viapoint_pose\"",
+                "kind = \"imitation\", \"promp\", \"viapoint_joint\", \"viapoint_pose\" and \"viapoint_executed\"",
             ));
+        }
+        if let Some(e) = self.executed
+            && self.kind != Kind::ViapointExecuted
+        {
+            return Err(only(e.span(), "executed", "kind = \"viapoint_executed\""));
         }
         let export = match self.export {
             Some(e) if !executes => {
@@ -672,6 +737,11 @@ impl Sections<'_> {
             (_, Some(o)) => return Err(only(o.span(), "orientation", "kind = \"viapoint_pose\"")),
             _ => None,
         };
+        let executed = if self.kind == Kind::ViapointExecuted {
+            Some(self.executed_plan(learner)?)
+        } else {
+            None
+        };
         Ok(Plans {
             robot,
             imitation,
@@ -680,8 +750,106 @@ impl Sections<'_> {
             energy,
             pose,
             promp,
+            executed,
             export,
         })
+    }
+
+    /// An endpoint `tcp://host:port` with a port from 1 to 65535; `what` names it.
+    fn endpoint(&self, e: &Spanned<String>, what: &str) -> Result<String, InputError> {
+        let text = e.get_ref();
+        let port = text
+            .strip_prefix("tcp://")
+            .and_then(|rest| rest.rsplit_once(':'))
+            .filter(|(host, _)| !host.is_empty())
+            .and_then(|(_, p)| p.parse::<u16>().ok());
+        if port.is_none_or(|p| p == 0) {
+            return Err(self.err(
+                &e.span(),
+                format!(
+                    "[robot] {what} must look like tcp://host:port with a port from 1 to 65535 (got `{text}`)"
+                ),
+            ));
+        }
+        Ok(text.clone())
+    }
+
+    /// `[robot] endpoints`: a pool of simulators, for `kind = "viapoint_executed"` only,
+    /// not beside `endpoint`, at least one, each once (`localhost` is `127.0.0.1`); without
+    /// it, the pool is `endpoint` alone.
+    fn pool_endpoints(
+        &self,
+        section: Option<&RobotSection>,
+        endpoint: &str,
+    ) -> Result<Vec<String>, InputError> {
+        let Some(list) = section.and_then(|r| r.endpoints.as_ref()) else {
+            return Ok(vec![endpoint.to_string()]);
+        };
+        if self.kind != Kind::ViapointExecuted {
+            return Err(self.err(
+                &list.span(),
+                format!(
+                    "[robot] `endpoints` (a pool of simulators) is read only by kind = \"viapoint_executed\"; kind = \"{}\" executes on one: use `endpoint`",
+                    self.kind.name()
+                ),
+            ));
+        }
+        if section.is_some_and(|r| r.endpoint.is_some()) {
+            return Err(self.err(
+                &list.span(),
+                "[robot] give either `endpoint` (one simulator) or `endpoints` (a pool), not both"
+                    .into(),
+            ));
+        }
+        if list.get_ref().is_empty() || list.get_ref().len() > 256 {
+            return Err(self.err(
+                &list.span(),
+                format!(
+                    "[robot] `endpoints` must name 1 to 256 simulators (got {})",
+                    list.get_ref().len()
+                ),
+            ));
+        }
+        let mut seen: Vec<(String, usize)> = Vec::new();
+        let mut pool = Vec::new();
+        for (i, e) in list.get_ref().iter().enumerate() {
+            let text = self.endpoint(e, &format!("`endpoints[{i}]`"))?;
+            let key = text.replacen("tcp://localhost:", "tcp://127.0.0.1:", 1);
+            if let Some((_, j)) = seen.iter().find(|(k, _)| *k == key) {
+                return Err(self.err(
+                    &e.span(),
+                    format!(
+                        "[robot] `endpoints[{i}]` and `endpoints[{j}]` name the same simulator ({text}): each simulator runs one candidate at a time, list it once"
+                    ),
+                ));
+            }
+            seen.push((key, i));
+            pool.push(text);
+        }
+        Ok(pool)
+    }
+
+    /// `[executed]` of `kind = "viapoint_executed"`: the tracking weight; the search must
+    /// be CMA-ES on 3-D tool positions.
+    fn executed_plan(&self, learner: &ViaPointConfig) -> Result<ExecutedPlan, InputError> {
+        if learner.solver == cps_learn::Solver::Exact {
+            return Err(InputError(format!(
+                "{}: kind = \"viapoint_executed\" learns with CMA-ES on the executed cost; the exact solver only knows the analytic cost (it is the warm start here): remove [optimizer] solver = \"exact\"",
+                self.path.display()
+            )));
+        }
+        if learner.task.start.len() != 3 {
+            return Err(InputError(format!(
+                "{}: kind = \"viapoint_executed\" executes tool positions: the task needs 3 coordinates (x, y, z), not {}",
+                self.path.display(),
+                learner.task.start.len()
+            )));
+        }
+        let tracking = match self.executed.and_then(|e| e.get_ref().tracking.as_ref()) {
+            Some(t) => self.within(t, "[executed] `tracking`", 0.0, cps_learn::MAX_WEIGHT, "")?,
+            None => 1e5,
+        };
+        Ok(ExecutedPlan { tracking })
     }
 
     /// `[promp]`: the basis and the via point, within the demonstrations' duration `tau`
@@ -928,6 +1096,12 @@ impl Sections<'_> {
                         "[robot] `endpoint` is read only with backend = \"coppelia\"".into(),
                     ));
                 }
+                if let Some(e) = section.and_then(|r| r.endpoints.as_ref()) {
+                    return Err(self.err(
+                        &e.span(),
+                        "[robot] `endpoints` is read only with backend = \"coppelia\"".into(),
+                    ));
+                }
                 if let Some(c) = section.and_then(|r| r.control.as_ref())
                     && *c.get_ref() == Control::SimulatorIk
                 {
@@ -960,30 +1134,16 @@ impl Sections<'_> {
                 };
                 let endpoint = match section.and_then(|r| r.endpoint.as_ref()) {
                     None => "tcp://127.0.0.1:23000".to_string(),
-                    Some(e) => {
-                        let text = e.get_ref();
-                        let port = text
-                            .strip_prefix("tcp://")
-                            .and_then(|rest| rest.rsplit_once(':'))
-                            .filter(|(host, _)| !host.is_empty())
-                            .and_then(|(_, p)| p.parse::<u16>().ok());
-                        if port.is_none_or(|p| p == 0) {
-                            return Err(self.err(
-                                &e.span(),
-                                format!(
-                                    "[robot] `endpoint` must look like tcp://host:port with a port from 1 to 65535 (got `{text}`)"
-                                ),
-                            ));
-                        }
-                        text.clone()
-                    }
+                    Some(e) => self.endpoint(e, "`endpoint`")?,
                 };
+                let pool = self.pool_endpoints(section, &endpoint)?;
                 let timeout = match section.and_then(|r| r.timeout.as_ref()) {
                     Some(t) => self.within(t, "[robot] `timeout`", 0.01, 3600.0, " s")?,
                     None => 5.0,
                 };
                 BackendChoice::Coppelia {
-                    endpoint,
+                    endpoint: pool[0].clone(),
+                    pool,
                     robot_name: section
                         .and_then(|r| r.name.clone())
                         .unwrap_or_else(|| "Panda".into()),

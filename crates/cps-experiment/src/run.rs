@@ -53,6 +53,7 @@ pub fn planned_generations(exp: &Experiment) -> u64 {
         Kind::ViapointPose => 2 * config.generations,
         // The speed-up measurement reports `Event::Working`, not generations.
         Kind::ViapointEnergy => config.generations,
+        Kind::ViapointExecuted => config.generations,
     }
 }
 
@@ -87,6 +88,7 @@ pub fn run(
         Kind::ViapointJoint => kinds::joint::run(&ctx),
         Kind::ViapointEnergy => kinds::energy::run(&ctx),
         Kind::ViapointPose => kinds::pose::run(&ctx),
+        Kind::ViapointExecuted => kinds::executed::run(&ctx),
     }?;
     // Every report also lists the task, the settings and the cost breakdowns.
     let shared = kinds::shared_report_tables(exp, &outcome.summary);

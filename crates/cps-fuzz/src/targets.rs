@@ -282,6 +282,7 @@ pub fn all() -> Vec<Target> {
                 "experiments/viapoint_joint.toml",
                 "experiments/viapoint_energy.toml",
                 "experiments/viapoint_pose.toml",
+                "experiments/viapoint_executed.toml",
             ]),
             text: true,
             run: experiment,

@@ -31,6 +31,7 @@
 mod energy;
 mod error;
 mod exact;
+mod executed;
 mod imitation;
 mod joint;
 mod pose;
@@ -45,6 +46,7 @@ pub use energy::{
 };
 pub use error::LearnError;
 pub use exact::{ExactOptimum, exact_optimum};
+pub use executed::{ExecutedCost, ExecutedErrors, executed_cost};
 pub use imitation::{
     DemonstrationResult, ImitationConfig, ImitationFit, ImitationOutcome, ImitationStage,
     run_imitation,

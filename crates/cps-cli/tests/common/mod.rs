@@ -2,6 +2,7 @@
 // Each test file uses a different subset.
 #![allow(dead_code)]
 
+use std::io::BufRead;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::Duration;
@@ -63,4 +64,29 @@ pub fn run_signalled(file: &Path, out: &Path, signal: &str) -> Option<i32> {
         .unwrap();
     assert!(killed.success());
     child.wait().unwrap().code()
+}
+
+/// Starts `cps-cli sim serve` on a free port with time step `dt` and `extra` options;
+/// returns it and its port.
+pub fn serve(dt: &str, extra: &[&str]) -> (std::process::Child, String) {
+    let mut server = std::process::Command::new(env!("CARGO_BIN_EXE_cps-cli"))
+        .args(["sim", "serve", "--bind", "127.0.0.1:0", "--dt", dt])
+        .args(extra)
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    std::io::BufReader::new(server.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    if extra.contains(&"--ik-following") {
+        assert!(line.contains("followed by the tip"), "{line}");
+    }
+    let port = line
+        .split("tcp://127.0.0.1:")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .unwrap_or_else(|| panic!("no endpoint in {line:?}"))
+        .to_string();
+    (server, port)
 }

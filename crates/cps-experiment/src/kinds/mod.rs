@@ -20,6 +20,7 @@ use crate::plan::Experiment;
 use crate::{ExperimentError, InputError};
 
 pub(crate) mod energy;
+pub(crate) mod executed;
 pub(crate) mod imitation;
 pub(crate) mod joint;
 pub(crate) mod movement_files;

@@ -1,0 +1,437 @@
+//! `kind = "viapoint_executed"`: via-point learning with the simulator in the loop. Every
+//! CMA-ES candidate is executed on the robot backend — reset, run, record — by a free
+//! simulator of the pool (`[robot] endpoints`), and judged by what the robot did
+//! ([`cps_learn::executed_cost`]): via-point, goal and final-velocity errors as executed,
+//! the tracking error, the commanded movement's effort. The analytic cost's exact
+//! optimum is the warm start.
+//!
+//! Each candidate's cost depends on the candidate alone (the backend is reset before
+//! each), and the costs come back in candidate order, so the result is the same for any
+//! pool size and whichever simulator ran what. A simulator that fails is dropped and its
+//! candidate run by another; when none is left the run stops, keeping the best so far
+//! (`"complete": false`).
+
+use std::ops::ControlFlow;
+
+use cps_cmaes::{Cmaes, CmaesConfig, StopRule};
+use cps_dmp::{DiscreteDmp, Trajectory};
+use cps_kinematics::{KinematicsError, Recording, RobotBackend};
+use cps_learn::{
+    ExecutedCost, ExecutedErrors, GenerationRecord, LearnError, SearchSpace, exact_optimum,
+    execute_trajectory, executed_cost, targets_at,
+};
+use serde::Serialize;
+
+use super::{Ctx, history_table, learn_error, position_figures, search_figure, way_points, worst};
+use crate::ExperimentError;
+use crate::observer::Event;
+use crate::outcome::{Column, Format, Outcome, Report, ReportTable, Series, Table, fields};
+use crate::plan::RobotChoice;
+use crate::sim_pool::{Dropped, JobError, PoolError, SimulatorPool};
+
+/// One candidate executed and judged.
+struct Judged {
+    cost: ExecutedCost,
+    errors: ExecutedErrors,
+    recording: Recording,
+    times: Vec<f64>,
+    trajectory: Trajectory,
+}
+
+/// What the learner needs to judge a candidate.
+struct Judge<'a> {
+    dmp: &'a DiscreteDmp,
+    space: &'a SearchSpace,
+    task: &'a cps_learn::ViaPointTask,
+    robot: &'a RobotChoice,
+    tracking: f64,
+}
+
+impl Judge<'_> {
+    /// Rolls θ out, executes it on `backend` from the initial configuration and costs
+    /// the recording. A backend failure is the simulator's; anything else is the job's.
+    fn judge(&self, theta: &[f64], backend: &mut dyn RobotBackend) -> Result<Judged, JobError> {
+        let trajectory = self.dmp.rollout(&self.space.weights(theta));
+        let recording = match execute_trajectory(backend, &self.robot.setup, &trajectory) {
+            Ok(r) => r,
+            Err(LearnError::Kinematics(e @ KinematicsError::Backend { .. })) => {
+                return Err(JobError::Simulator(e.to_string()));
+            }
+            Err(e) => return Err(JobError::Fatal(e.to_string())),
+        };
+        let (times, _) = targets_at(&trajectory, backend.time_step());
+        let (cost, errors) =
+            executed_cost(self.task, &trajectory, &times, &recording, self.tracking);
+        Ok(Judged {
+            cost,
+            errors,
+            recording,
+            times,
+            trajectory,
+        })
+    }
+}
+
+#[derive(Serialize)]
+struct Summary<'a> {
+    backend: String,
+    /// The pool: which simulators ran, which were dropped (the only part of the summary,
+    /// with the times, that depends on the pool).
+    simulators: Simulators<'a>,
+    parametrisation: &'static str,
+    sigma0: f64,
+    population: usize,
+    generations: u64,
+    /// Candidates judged: the warm start and every generation's population.
+    evaluations: u64,
+    /// Executions: the evaluations and the best candidate's recording run.
+    executions: u64,
+    termination: String,
+    tracking_weight: f64,
+    warm_start_analytic_cost: f64,
+    warm_start_executed_cost: f64,
+    best_cost: f64,
+    cost_terms: cps_learn::CostBreakdown,
+    tracking_cost: f64,
+    analytic_cost: f64,
+    goal_error_m: f64,
+    via_errors_m: &'a [f64],
+    max_tracking_error_m: f64,
+    unconverged_samples: usize,
+}
+
+#[derive(Serialize)]
+struct Simulators<'a> {
+    endpoints: Vec<String>,
+    evaluations: Vec<u64>,
+    dropped: &'a [Dropped],
+}
+
+/// Learns on the executed cost and declares the outcome.
+pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
+    let exp = ctx.exp;
+    let config = &exp.config;
+    let task = &config.task;
+    let robot = exp.robot.as_ref().ok_or_else(|| {
+        ExperimentError::Message("an executed-cost experiment has a robot".into())
+    })?;
+    let tracking = exp.executed.map_or(1e5, |p| p.tracking);
+    let dmp = task.build_dmp().map_err(|e| learn_error(e, "DMP"))?;
+    let space = SearchSpace::new(config.parametrisation, &dmp);
+    let optimum = ctx
+        .pool
+        .install(|| exact_optimum(task, &dmp, &space))
+        .map_err(|e| learn_error(e, "exact optimum (the warm start)"))?;
+    let judge = Judge {
+        dmp: &dmp,
+        space: &space,
+        task,
+        robot,
+        tracking,
+    };
+    let endpoints = match &robot.backend {
+        crate::plan::BackendChoice::Coppelia { pool, .. } => pool.clone(),
+        crate::plan::BackendChoice::Kinematic { .. } => vec!["in-process robot".into()],
+    };
+    let opened = robot.open_pool()?;
+    if let crate::plan::BackendChoice::Coppelia { robot_name, .. } = &robot.backend
+        && let Some((endpoint, _)) = opened.iter().find(|(_, b)| !b.runs_sequences())
+    {
+        return Err(ExperimentError::Message(format!(
+            "{endpoint}: the scene has no /{robot_name}/cpsExecutor script, and learning on the executed cost steps thousands of executions: add configs/coppeliasim/cpsExecutor.lua to the scene as a child of /{robot_name} (the stand-in server has it unless started with --without-script)"
+        )));
+    }
+    let mut pool = SimulatorPool::new(opened);
+    let x0 = optimum.params.clone();
+    let n = x0.len();
+    let mut failure = None;
+    let warm = match pool.run(1, &|_, b| judge.judge(&x0, b)) {
+        Ok(mut w) => w.remove(0),
+        Err(e) => {
+            return Err(ExperimentError::Message(pool_failure(
+                e,
+                &pool,
+                "executing the warm start",
+            )));
+        }
+    };
+    let cmaes = CmaesConfig {
+        population: config.population,
+        ..CmaesConfig::new(config.sigma0, config.seed)
+    };
+    let mut es = Cmaes::new(&cmaes, &x0).map_err(|e| ExperimentError::Failed {
+        context: "starting CMA-ES".into(),
+        source: Box::new(e),
+    })?;
+    let mut rules = vec![StopRule::MaxGenerations(config.generations)];
+    if let Some(tol) = config.tol_fun {
+        rules.push(StopRule::TolFun(tol));
+    }
+    rules.extend(StopRule::safety_defaults());
+    let mut history: Vec<GenerationRecord> = Vec::new();
+    let warm_cost = warm.cost.total();
+    let (mut best_theta, mut best_cost) = (x0.clone(), warm_cost);
+    let mut evaluations = 1;
+    let mut interrupted = false;
+    let termination = loop {
+        if let Some(t) = es.termination(&rules) {
+            break t.to_string();
+        }
+        es.ask();
+        let population = es.population().to_vec();
+        let lambda = population.len() / n;
+        let costs = match pool.run(lambda, &|i, b| {
+            judge
+                .judge(&population[i * n..(i + 1) * n], b)
+                .map(|j| j.cost.total())
+        }) {
+            Ok(c) => c,
+            Err(e) => {
+                failure = Some(pool_failure(e, &pool, "evaluating candidates"));
+                break "the simulators failed".to_string();
+            }
+        };
+        evaluations += lambda as u64;
+        for (i, c) in costs.iter().enumerate() {
+            if *c < best_cost {
+                best_cost = *c;
+                best_theta = population[i * n..(i + 1) * n].to_vec();
+            }
+        }
+        es.tell(&costs).map_err(|e| ExperimentError::Failed {
+            context: "CMA-ES".into(),
+            source: Box::new(e),
+        })?;
+        let mut sorted = costs.clone();
+        sorted.sort_by(f64::total_cmp);
+        history.push(GenerationRecord {
+            generation: es.generation(),
+            best: sorted[0],
+            median: sorted[sorted.len() / 2],
+            best_so_far: best_cost,
+            sigma: es.sigma(),
+        });
+        let flow = ctx.observer.event(Event::Generation {
+            generation: es.generation(),
+            best_so_far: best_cost,
+            sigma: es.sigma(),
+        });
+        if flow == ControlFlow::Break(()) {
+            interrupted = true;
+            break "interrupted".to_string();
+        }
+    };
+    ctx.observer.finished();
+    // The best candidate's recording: executed once more (its cost is the one found,
+    // the execution being deterministic), or the warm start's when no simulator is left.
+    let mut executions = evaluations;
+    let best = if pool.is_empty() || best_theta == x0 {
+        warm
+    } else {
+        executions += 1;
+        match pool.run(1, &|_, b| judge.judge(&best_theta, b)) {
+            Ok(mut b) => b.remove(0),
+            Err(e) => {
+                failure.get_or_insert(pool_failure(e, &pool, "recording the best candidate"));
+                best_cost = warm_cost;
+                warm
+            }
+        }
+    };
+    let summary = Summary {
+        backend: match &robot.backend {
+            crate::plan::BackendChoice::Coppelia { .. } => "coppelia (a pool of simulators)".into(),
+            crate::plan::BackendChoice::Kinematic { .. } => robot.describe(),
+        },
+        simulators: Simulators {
+            endpoints,
+            evaluations: pool.evaluations(),
+            dropped: pool.dropped(),
+        },
+        parametrisation: config.parametrisation.name(),
+        sigma0: config.sigma0,
+        population: es.parameters().lambda,
+        generations: history.len() as u64,
+        evaluations,
+        executions,
+        termination,
+        tracking_weight: tracking,
+        warm_start_analytic_cost: optimum.cost,
+        warm_start_executed_cost: warm_cost,
+        best_cost,
+        cost_terms: best.cost.terms,
+        tracking_cost: best.cost.tracking,
+        analytic_cost: task.cost(&best.trajectory),
+        goal_error_m: best.errors.goal,
+        via_errors_m: &best.errors.via,
+        max_tracking_error_m: best.errors.max_tracking,
+        unconverged_samples: best.errors.unconverged,
+    };
+    let mut header = ctx.header(!interrupted && failure.is_none());
+    header.failure = failure.clone();
+    let lines = lines(ctx, &summary, failure.as_deref());
+    let figures = position_figures(
+        vec![
+            Series::of_trajectory("commanded", &best.trajectory),
+            Series::new(
+                "executed",
+                best.times.clone(),
+                (0..3)
+                    .map(|d| best.recording.position.iter().map(|p| p[d]).collect())
+                    .collect(),
+            ),
+        ],
+        way_points(task),
+        "The best candidate commanded and as the robot executed it, each coordinate over time.",
+        "The best candidate's path in 3-D, commanded and executed, world frame.",
+    )
+    .into_iter()
+    .chain(search_figure(&[("CMA-ES on the executed cost", &history)]))
+    .collect();
+    Ok(Outcome {
+        header,
+        report: report(ctx, &summary),
+        summary: fields(&summary),
+        tables: vec![
+            history_table(&[("CMA-ES", &history)]),
+            executed_table(&best),
+        ],
+        figures,
+        documents: Vec::new(),
+        lines,
+    })
+}
+
+/// A pool that could not finish, in words: every simulator gone (with each one's reason)
+/// or a candidate no simulator can execute.
+fn pool_failure(e: PoolError, pool: &SimulatorPool, what: &str) -> String {
+    match e {
+        PoolError::Fatal(m) => format!("{what}: {m}"),
+        PoolError::Exhausted => {
+            let why: Vec<String> = pool
+                .dropped()
+                .iter()
+                .map(|d| format!("{} ({})", d.endpoint, d.reason))
+                .collect();
+            format!(
+                "{what}: every simulator of the pool is gone: {}",
+                why.join("; ")
+            )
+        }
+    }
+}
+
+/// `executed.csv`: the best candidate at the control period, target and executed.
+fn executed_table(best: &Judged) -> Table {
+    let r = &best.recording;
+    let k = best.times.len().min(r.position.len());
+    let target = |d: usize| -> Vec<f64> {
+        best.times[..k]
+            .iter()
+            .map(|&t| best.trajectory.position_at(d, t))
+            .collect()
+    };
+    let executed = |d: usize| -> Vec<f64> { r.position[..k].iter().map(|p| p[d]).collect() };
+    let mut table = Table::new("executed").with(Column::numbers(
+        "t",
+        best.times[..k].to_vec(),
+        Format::Fixed(4),
+    ));
+    for (d, axis) in ["x", "y", "z"].iter().enumerate() {
+        table = table.with(Column::numbers(
+            format!("target_{axis}"),
+            target(d),
+            Format::Fixed(6),
+        ));
+    }
+    for (d, axis) in ["x", "y", "z"].iter().enumerate() {
+        table = table.with(Column::numbers(
+            format!("executed_{axis}"),
+            executed(d),
+            Format::Fixed(6),
+        ));
+    }
+    table.with(Column::numbers(
+        "tracking_error_m",
+        r.position_error[..k].to_vec(),
+        Format::ShortestSci,
+    ))
+}
+
+fn lines(ctx: &Ctx<'_>, s: &Summary<'_>, failure: Option<&str>) -> Vec<String> {
+    let mut lines = vec![
+        format!(
+            "{}: {} in {:.2} s ({} generations, {} executions on {} simulator(s))",
+            ctx.exp.name,
+            s.termination,
+            ctx.wall(),
+            s.generations,
+            s.evaluations,
+            s.simulators.endpoints.len()
+        ),
+        format!(
+            "  executed cost {:.6e} (warm start {:.6e}; its analytic cost {:.6e}); tracking {:.3e}",
+            s.best_cost, s.warm_start_executed_cost, s.warm_start_analytic_cost, s.tracking_cost
+        ),
+        format!(
+            "  as executed: goal error {:.3} mm, worst via-point error {:.3} mm, worst tracking error {:.3} mm",
+            s.goal_error_m * 1e3,
+            worst(s.via_errors_m) * 1e3,
+            s.max_tracking_error_m * 1e3
+        ),
+    ];
+    for d in s.simulators.dropped {
+        lines.push(format!(
+            "  dropped {} after {} executions: {}",
+            d.endpoint, d.evaluations, d.reason
+        ));
+    }
+    if let Some(f) = failure {
+        lines.push(format!("  stopped early: {f}"));
+    }
+    lines
+}
+
+fn report(ctx: &Ctx<'_>, s: &Summary<'_>) -> Report {
+    let mm = |v: f64| format!("{:.4} mm", v * 1e3);
+    let mut rows = vec![
+        ("backend", s.backend.clone()),
+        ("simulators", s.simulators.endpoints.join(", ")),
+        ("executed cost", format!("{:.6e}", s.best_cost)),
+        (
+            "warm start (the analytic optimum), executed",
+            format!("{:.6e}", s.warm_start_executed_cost),
+        ),
+        ("goal error, executed", mm(s.goal_error_m)),
+        ("worst tracking error", mm(s.max_tracking_error_m)),
+        (
+            "CMA-ES",
+            format!(
+                "{} generations, {} executions, {}",
+                s.generations, s.evaluations, s.termination
+            ),
+        ),
+    ];
+    for (i, e) in s.via_errors_m.iter().enumerate() {
+        rows.push((
+            "via-point error, executed",
+            format!("p{}: {}", i + 1, mm(*e)),
+        ));
+    }
+    for d in s.simulators.dropped {
+        rows.push((
+            "dropped simulator",
+            format!(
+                "{} after {} executions: {}",
+                d.endpoint, d.evaluations, d.reason
+            ),
+        ));
+    }
+    let mut tables = super::shared_report_tables(ctx.exp, &fields(s));
+    tables.insert(0, ReportTable::pairs("Result", rows));
+    Report {
+        title: format!("{}: learning on the executed movement", ctx.exp.name),
+        context: "Every CMA-ES candidate was executed on the robot backend, reset to the initial configuration, and judged by its recording: the via points, goal and final velocity as executed, the tracking error and the commanded movement's effort. The exact optimum of the analytic cost was the warm start.".into(),
+        tables,
+    }
+}
