@@ -34,9 +34,9 @@ for n in "${sizes[@]}"; do
 import json, sys
 s = json.load(open(sys.argv[1]))
 n, single = int(sys.argv[2]), float(sys.argv[3])
-rate = s["executions"] / s["wall_time_s"]
+rate = s["evaluations"] / s["wall_time_s"]
 eff = rate / (n * single) if single else 1.0
-print(f"{n:<6} {s['executions']:<12} {s['wall_time_s']:<10.2f} {rate:<14.2f} {eff:.2f}")
+print(f"{n:<6} {s['evaluations']:<12} {s['wall_time_s']:<10.2f} {rate:<14.2f} {eff:.2f}")
 PY
   if [ -z "$single" ]; then single=$(awk 'NR==1 {print $4}' "$work/table"); fi
 done

@@ -8,7 +8,7 @@ mod common;
 use std::path::Path;
 use std::process::Child;
 
-use common::{cli, json, serve, write};
+use common::{cli, json, run_interrupted, serve, write};
 
 const EXECUTED: &str = include_str!("../../../experiments/viapoint_executed.toml");
 
@@ -73,13 +73,13 @@ fn one_simulator_four_and_four_with_one_killed_give_the_same_summary() {
     stop(one);
     assert_eq!(s1["complete"], true);
     assert_eq!(s1["evaluations"], 1 + 16 * 8);
-    assert_eq!(s1["simulators"]["evaluations"][0], s1["executions"]);
+    assert_eq!(s1["simulators"]["evaluations"][0], s1["evaluations"]);
 
     let (four, e4) = servers(4, &[]);
     let (o, s4) = run(dir.path(), "four", &on_pool(&e4));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     stop(four);
-    let total = s1["executions"].as_u64().unwrap();
+    let total = s1["evaluations"].as_u64().unwrap();
     let used = s4["simulators"]["evaluations"].as_array().unwrap();
     assert_eq!(used.len(), 4);
     assert_eq!(used.iter().map(|v| v.as_u64().unwrap()).sum::<u64>(), total);
@@ -233,4 +233,22 @@ fn a_scene_without_the_script_or_a_foreign_endpoint_is_named() {
     assert_ne!(o.status.code(), Some(0));
     assert!(err.contains(&foreign), "{err}");
     assert!(started.elapsed() < std::time::Duration::from_secs(20));
+}
+
+/// Ctrl-C while the simulators work (each execution takes 2 s of simulated physics):
+/// exit 130 within a few seconds, what was learned kept, marked incomplete.
+#[test]
+fn ctrl_c_stops_a_pool_between_candidates() {
+    let dir = tempfile::tempdir().unwrap();
+    let (slow, e) = servers(2, &["--step-cost", "2"]);
+    let file = write(dir.path(), "slow.toml", &on_pool(&e));
+    let out = dir.path().join("slow");
+    let started = std::time::Instant::now();
+    assert_eq!(run_interrupted(&file, &out), Some(130));
+    stop(slow);
+    assert!(started.elapsed() < std::time::Duration::from_secs(10));
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["complete"], false);
+    assert_eq!(s["termination"], "interrupted");
+    assert!(out.join("executed.csv").is_file());
 }

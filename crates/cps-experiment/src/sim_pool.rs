@@ -25,6 +25,8 @@ pub enum JobError {
     Simulator(String),
     /// The job itself cannot be done (the same on any simulator): the run stops.
     Fatal(String),
+    /// The run was asked to stop (Ctrl-C): no further job is started.
+    Stopped,
 }
 
 /// Why [`SimulatorPool::run`] gave no results.
@@ -34,6 +36,8 @@ pub enum PoolError {
     Exhausted,
     /// A job failed for a reason no simulator can change.
     Fatal(String),
+    /// A job said the run was asked to stop ([`JobError::Stopped`]).
+    Stopped,
 }
 
 /// A simulator dropped from the pool.
@@ -72,7 +76,7 @@ struct Queue<T> {
     pending: VecDeque<usize>,
     in_flight: usize,
     results: Vec<Option<T>>,
-    fatal: Option<String>,
+    fatal: Option<PoolError>,
 }
 
 impl SimulatorPool {
@@ -114,6 +118,8 @@ impl SimulatorPool {
     /// Runs jobs `0..n`, each on a free simulator, and returns their results in job
     /// order. A simulator whose job fails with [`JobError::Simulator`] is dropped and the
     /// job goes to another; [`PoolError::Exhausted`] when none is left with jobs undone.
+    /// A job that fails with [`JobError::Fatal`] or [`JobError::Stopped`] ends the run:
+    /// no further job starts, the running ones finish.
     pub fn run<T: Send>(
         &mut self,
         n: usize,
@@ -157,8 +163,8 @@ impl SimulatorPool {
         }
         self.members = kept;
         let q = queue.into_inner().unwrap_or_else(|e| e.into_inner());
-        if let Some(m) = q.fatal {
-            return Err(PoolError::Fatal(m));
+        if let Some(e) = q.fatal {
+            return Err(e);
         }
         q.results
             .into_iter()
@@ -207,7 +213,11 @@ fn serve<T>(
                 Some(reason)
             }
             Err(JobError::Fatal(reason)) => {
-                q.fatal.get_or_insert(reason);
+                q.fatal.get_or_insert(PoolError::Fatal(reason));
+                None
+            }
+            Err(JobError::Stopped) => {
+                q.fatal.get_or_insert(PoolError::Stopped);
                 None
             }
         };

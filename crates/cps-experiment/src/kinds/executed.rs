@@ -82,10 +82,8 @@ struct Summary<'a> {
     sigma0: f64,
     population: usize,
     generations: u64,
-    /// Candidates judged: the warm start and every generation's population.
+    /// Candidates executed and judged: the warm start and every generation's population.
     evaluations: u64,
-    /// Executions: the evaluations and the best candidate's recording run.
-    executions: u64,
     termination: String,
     tracking_weight: f64,
     warm_start_analytic_cost: f64,
@@ -170,7 +168,9 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     rules.extend(StopRule::safety_defaults());
     let mut history: Vec<GenerationRecord> = Vec::new();
     let warm_cost = warm.cost.total();
-    let (mut best_theta, mut best_cost) = (x0.clone(), warm_cost);
+    // The best execution so far, kept whole (its recording goes into the results).
+    let mut best = warm;
+    let mut best_cost = warm_cost;
     let mut evaluations = 1;
     let mut interrupted = false;
     let termination = loop {
@@ -180,23 +180,35 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         es.ask();
         let population = es.population().to_vec();
         let lambda = population.len() / n;
-        let costs = match pool.run(lambda, &|i, b| {
-            judge
-                .judge(&population[i * n..(i + 1) * n], b)
-                .map(|j| j.cost.total())
+        // Ctrl-C stops handing out candidates at once (a generation on slow simulators
+        // takes a while); the generation is then not counted.
+        let judged = match pool.run(lambda, &|i, b| {
+            if ctx.observer.event(Event::Working).is_break() {
+                return Err(JobError::Stopped);
+            }
+            judge.judge(&population[i * n..(i + 1) * n], b)
         }) {
-            Ok(c) => c,
+            Ok(j) => j,
+            Err(PoolError::Stopped) => {
+                interrupted = true;
+                break "interrupted".to_string();
+            }
             Err(e) => {
                 failure = Some(pool_failure(e, &pool, "evaluating candidates"));
                 break "the simulators failed".to_string();
             }
         };
         evaluations += lambda as u64;
-        for (i, c) in costs.iter().enumerate() {
-            if *c < best_cost {
-                best_cost = *c;
-                best_theta = population[i * n..(i + 1) * n].to_vec();
-            }
+        let costs: Vec<f64> = judged.iter().map(|j| j.cost.total()).collect();
+        // The first of equal costs wins: the same choice for any pool.
+        if let Some((i, c)) = costs
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(b.1))
+            .filter(|(_, c)| **c < best_cost)
+        {
+            best_cost = *c;
+            best = judged.into_iter().nth(i).expect("a judged candidate");
         }
         es.tell(&costs).map_err(|e| ExperimentError::Failed {
             context: "CMA-ES".into(),
@@ -222,22 +234,6 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         }
     };
     ctx.observer.finished();
-    // The best candidate's recording: executed once more (its cost is the one found,
-    // the execution being deterministic), or the warm start's when no simulator is left.
-    let mut executions = evaluations;
-    let best = if pool.is_empty() || best_theta == x0 {
-        warm
-    } else {
-        executions += 1;
-        match pool.run(1, &|_, b| judge.judge(&best_theta, b)) {
-            Ok(mut b) => b.remove(0),
-            Err(e) => {
-                failure.get_or_insert(pool_failure(e, &pool, "recording the best candidate"));
-                best_cost = warm_cost;
-                warm
-            }
-        }
-    };
     let summary = Summary {
         backend: match &robot.backend {
             crate::plan::BackendChoice::Coppelia { .. } => "coppelia (a pool of simulators)".into(),
@@ -253,7 +249,6 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         population: es.parameters().lambda,
         generations: history.len() as u64,
         evaluations,
-        executions,
         termination,
         tracking_weight: tracking,
         warm_start_analytic_cost: optimum.cost,
@@ -307,6 +302,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
 fn pool_failure(e: PoolError, pool: &SimulatorPool, what: &str) -> String {
     match e {
         PoolError::Fatal(m) => format!("{what}: {m}"),
+        PoolError::Stopped => format!("{what}: interrupted"),
         PoolError::Exhausted => {
             let why: Vec<String> = pool
                 .dropped()
