@@ -29,7 +29,7 @@ def strip(value):
             if k not in VARYING and not k.endswith("_seconds") and not k.endswith("_s")}
 
 
-@pytest.mark.parametrize("name", ["viapoint", "imitation"])
+@pytest.mark.parametrize("name", ["viapoint", "imitation", "viapoint_executed"])
 def test_run_experiment_equals_the_command_line(tmp_path, cli, name):
     path = EXPERIMENTS / f"{name}.toml"
     cli("run", path, "--out", tmp_path / "cli", "--quiet", "--threads", 2)

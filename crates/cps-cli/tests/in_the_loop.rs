@@ -180,6 +180,17 @@ fn bad_pools_are_refused_naming_the_place() {
         &other,
         "`endpoints` (a pool of simulators) is read only by kind = \"viapoint_executed\"",
     );
+    let ik = on_pool(&["tcp://127.0.0.1:23300".into()])
+        .replace("# timeout = 1.0", "")
+        .replace(
+            "dt = 0.01               #",
+            "control = \"simulator_ik\"\ndt = 0.01 #",
+        );
+    refused(
+        "ik",
+        &ik,
+        "control = \"simulator_ik\" moves the IK target one step at a time",
+    );
     let exact = EXECUTED.replace("method = \"cmaes\"", "method = \"exact\"");
     refused(
         "exact",

@@ -1126,6 +1126,15 @@ impl Sections<'_> {
                         "[robot] control = \"simulator_ik\" executes tool targets; a joint-space experiment commands the joints itself (use control = \"cps\")".into(),
                     ));
                 }
+                if let Some(c) = section.and_then(|r| r.control.as_ref())
+                    && *c.get_ref() == Control::SimulatorIk
+                    && self.kind == Kind::ViapointExecuted
+                {
+                    return Err(self.err(
+                        &c.span(),
+                        "[robot] control = \"simulator_ik\" moves the IK target one step at a time; learning on the executed cost sends whole joint sequences to the scene script (use control = \"cps\")".into(),
+                    ));
+                }
                 // A `dt` is the control period the file expects: checked against the
                 // simulator's time step when it is reached.
                 let expected_dt = match section.and_then(|r| r.dt.as_ref()) {
