@@ -45,7 +45,7 @@ pub struct Served {
         value_name = "MS"
     )]
     step_cost: f64,
-    /// Serve the scene without cps's script /<robot>/cpsExecutor (clients then step
+    /// Serve the scene without cps's script `/<robot>/cpsExecutor` (clients then step
     /// call by call, as in a CoppeliaSim scene that lacks it).
     #[arg(long)]
     without_script: bool,
