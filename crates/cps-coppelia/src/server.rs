@@ -155,16 +155,7 @@ impl Sim {
             },
         );
         // The IK target, where the tip is at the start (CoppeliaSim's `/Panda_target`).
-        let tip_pose = setup
-            .chain
-            .fk(&setup.initial_q)
-            .map(|f| {
-                Isometry3::from_parts(
-                    f.translation,
-                    UnitQuaternion::from_rotation_matrix(&f.rotation),
-                )
-            })
-            .unwrap_or_else(|_| Isometry3::identity());
+        let tip_pose = tip_at(&setup.chain, &setup.initial_q);
         objects.insert(
             tip + 1,
             Object {
@@ -344,25 +335,12 @@ impl Sim {
             self.follow_target();
         }
         if self.run.as_ref().is_some_and(|r| r.next_target().is_some()) {
-            let pose = self.pose_of_tip();
+            let pose = tip_at(&self.setup.chain, &self.q);
             let time = self.time();
             if let Some(run) = self.run.as_mut() {
                 run.record(time, &self.q, &pose);
             }
         }
-    }
-
-    fn pose_of_tip(&self) -> Isometry3<f64> {
-        self.setup
-            .chain
-            .fk(&self.q)
-            .map(|f| {
-                Isometry3::from_parts(
-                    f.translation,
-                    UnitQuaternion::from_rotation_matrix(&f.rotation),
-                )
-            })
-            .unwrap_or_else(|_| Isometry3::identity())
     }
 
     /// `sim.callScriptFunction(name, script, ...)` (or, as in the newest calltips,
@@ -698,6 +676,19 @@ impl Sim {
             other => Err(format!("No such function: {other}")),
         }
     }
+}
+
+/// The tip's world pose at `q` (the identity if `q` does not fit the chain).
+fn tip_at(chain: &SerialChain, q: &[f64]) -> Isometry3<f64> {
+    chain
+        .fk(q)
+        .map(|f| {
+            Isometry3::from_parts(
+                f.translation,
+                UnitQuaternion::from_rotation_matrix(&f.rotation),
+            )
+        })
+        .unwrap_or_else(|_| Isometry3::identity())
 }
 
 /// The rotation of a 3×3 matrix that must be one: orthonormal to 1e-6 with determinant +1
