@@ -22,7 +22,6 @@ fn on_pool(endpoints: &[String]) -> String {
             &format!("endpoints = [{}]", list.join(", ")),
         )
         .replace("# timeout = 5.0", "timeout = 1.0")
-        .replace("sigma0 = 0.002", "sigma0 = 0.0005")
         .replace("generations = 30", "generations = 8")
 }
 
@@ -73,6 +72,11 @@ fn one_simulator_four_and_four_with_one_killed_give_the_same_summary() {
     stop(one);
     assert_eq!(s1["complete"], true);
     assert_eq!(s1["evaluations"], 1 + 16 * 8);
+    assert_eq!(s1["peak_speed_usage"].as_array().unwrap().len(), 7);
+    assert!(
+        s1["limit_usage"]["peak_usage"]["velocity"].is_array(),
+        "{s1}"
+    );
     assert_eq!(s1["simulators"]["evaluations"][0], s1["evaluations"]);
 
     let (four, e4) = servers(4, &[]);
@@ -190,6 +194,19 @@ fn bad_pools_are_refused_naming_the_place() {
         "ik",
         &ik,
         "control = \"simulator_ik\" moves the IK target one step at a time",
+    );
+    let negative = EXECUTED.replace("tracking = 1e5 ", "tracking = -1.0 ");
+    refused(
+        "negative",
+        &negative,
+        "[executed] `tracking` must be finite, ≥ 0",
+    );
+    let misplaced = include_str!("../../../experiments/viapoint.toml")
+        .replace("[output]", "[executed]\ntracking = 1.0\n\n[output]");
+    refused(
+        "misplaced",
+        &misplaced,
+        "[executed] is read only by kind = \"viapoint_executed\"",
     );
     let exact = EXECUTED.replace("method = \"cmaes\"", "method = \"exact\"");
     refused(

@@ -360,13 +360,15 @@ impl RobotChoice {
 #[serde(deny_unknown_fields)]
 pub struct ExecutedSection {
     tracking: Option<Spanned<f64>>,
+    speed_usage: Option<Spanned<f64>>,
 }
 
-/// The checked `[executed]` section.
+/// The checked `[executed]` section: the weights the executed cost adds to `[cost]`'s.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ExecutedPlan {
-    /// Weight of the squared tracking errors (default 1e5, as a via point's).
-    pub tracking: f64,
+    /// Squared tracking errors (default 1e5, as a via point's) and squared peak joint
+    /// speed usages (default 0: off).
+    pub weights: cps_learn::ExecutedWeights,
 }
 
 /// `[demonstrations]` of `kind = "imitation"`.
@@ -845,11 +847,27 @@ impl Sections<'_> {
                 learner.task.start.len()
             )));
         }
-        let tracking = match self.executed.and_then(|e| e.get_ref().tracking.as_ref()) {
-            Some(t) => self.within(t, "[executed] `tracking`", 0.0, cps_learn::MAX_WEIGHT, "")?,
-            None => 1e5,
+        let section = self.executed.map(Spanned::get_ref);
+        let weight = |v: Option<&Spanned<f64>>, name: &str, default: f64| match v {
+            Some(v) => self.within(
+                v,
+                &format!("[executed] `{name}`"),
+                0.0,
+                cps_learn::MAX_WEIGHT,
+                "",
+            ),
+            None => Ok(default),
         };
-        Ok(ExecutedPlan { tracking })
+        Ok(ExecutedPlan {
+            weights: cps_learn::ExecutedWeights {
+                tracking: weight(section.and_then(|s| s.tracking.as_ref()), "tracking", 1e5)?,
+                speed_usage: weight(
+                    section.and_then(|s| s.speed_usage.as_ref()),
+                    "speed_usage",
+                    0.0,
+                )?,
+            },
+        })
     }
 
     /// `[promp]`: the basis and the via point, within the demonstrations' duration `tau`

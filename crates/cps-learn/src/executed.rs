@@ -18,13 +18,26 @@ pub struct ExecutedCost {
     /// `w_track Σ_k ‖e_k‖²`: the executed tool's distance from its target at every control
     /// step (joint limits hit, a lagging controller, dynamics).
     pub tracking: f64,
+    /// `w_speed Σ_j u_j²`, `u_j` the executed joint j's peak speed as a fraction of its
+    /// limit: keeps a margin to the speed limits.
+    #[serde(default)]
+    pub speed_usage: f64,
 }
 
 impl ExecutedCost {
     /// The sum of every term.
     pub fn total(&self) -> f64 {
-        self.terms.total() + self.tracking
+        self.terms.total() + self.tracking + self.speed_usage
     }
+}
+
+/// The weights [`executed_cost`] adds to the task's.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ExecutedWeights {
+    /// Of the squared tracking errors (m², summed over the control steps).
+    pub tracking: f64,
+    /// Of the squared peak speed usages of the joints (fractions of their limits).
+    pub speed_usage: f64,
 }
 
 /// Plain-unit errors of an executed movement.
@@ -38,6 +51,28 @@ pub struct ExecutedErrors {
     pub max_tracking: f64,
     /// Samples the controller did not reach within its iterations.
     pub unconverged: usize,
+    /// Each joint's peak executed speed as a fraction of its limit (empty without
+    /// limits).
+    pub speed_usage: Vec<f64>,
+}
+
+/// Each joint's peak speed over `recording` (differences of the measured joints over the
+/// recorded clock) as a fraction of `limits`.
+fn speed_usage(recording: &Recording, limits: &[f64]) -> Vec<f64> {
+    let mut peak = vec![0.0_f64; limits.len()];
+    for k in 1..recording.q.len().min(recording.time.len()) {
+        let h = recording.time[k] - recording.time[k - 1];
+        if h <= 0.0 {
+            continue;
+        }
+        for (j, p) in peak.iter_mut().enumerate() {
+            let (a, b) = (recording.q[k - 1].get(j), recording.q[k].get(j));
+            if let (Some(a), Some(b)) = (a, b) {
+                *p = p.max((b - a).abs() / h / limits[j]);
+            }
+        }
+    }
+    peak
 }
 
 /// The tool's executed position at time `t` (seconds from the start): `recording`'s
@@ -68,15 +103,17 @@ fn squared_distance(p: &[f64; 3], q: &[f64]) -> f64 {
 /// The cost of `traj` (a 3-D task-space movement) as `recording` shows it executed, its
 /// targets due at `times` (from [`crate::targets_at`]): the task's goal, via-point and
 /// final-velocity terms on the executed positions (the final velocity by the last
-/// difference), its acceleration, jerk and obstacle terms on the commanded movement, and
-/// `tracking_weight` times the squared tracking errors. A recording shorter than the
-/// targets (an execution cut short) costs +∞.
+/// difference), its acceleration, jerk and obstacle terms on the commanded movement, the
+/// squared tracking errors and the joints' squared peak speed usages (of `speed_limits`,
+/// if the robot has them), with `weights`. A recording shorter than the targets (an
+/// execution cut short) costs +∞.
 pub fn executed_cost(
     task: &ViaPointTask,
     traj: &Trajectory,
     times: &[f64],
     recording: &Recording,
-    tracking_weight: f64,
+    weights: &ExecutedWeights,
+    speed_limits: Option<&[f64]>,
 ) -> (ExecutedCost, ExecutedErrors) {
     let w = &task.weights;
     let commanded = task.breakdown(traj);
@@ -88,6 +125,7 @@ pub fn executed_cost(
                 ..commanded
             },
             tracking: f64::INFINITY,
+            speed_usage: 0.0,
         };
         return (inf, ExecutedErrors::default());
     }
@@ -108,6 +146,7 @@ pub fn executed_cost(
         0.0
     };
     let tracked = &recording.position_error[..n.min(recording.position_error.len())];
+    let usage = speed_limits.map_or(Vec::new(), |l| speed_usage(recording, l));
     let cost = ExecutedCost {
         terms: CostBreakdown {
             goal: w.goal * goal,
@@ -115,13 +154,15 @@ pub fn executed_cost(
             final_velocity: w.final_velocity * final_velocity,
             ..commanded
         },
-        tracking: tracking_weight * tracked.iter().map(|e| e * e).sum::<f64>(),
+        tracking: weights.tracking * tracked.iter().map(|e| e * e).sum::<f64>(),
+        speed_usage: weights.speed_usage * usage.iter().map(|u| u * u).sum::<f64>(),
     };
     let errors = ExecutedErrors {
         goal: goal.sqrt(),
         via: via.iter().map(|v| v.sqrt()).collect(),
         max_tracking: tracked.iter().fold(0.0, |a: f64, &e| a.max(e)),
         unconverged: recording.unconverged,
+        speed_usage: usage,
     };
     (cost, errors)
 }
@@ -130,6 +171,27 @@ pub fn executed_cost(
 mod tests {
     use super::*;
     use crate::targets_at;
+
+    const W: ExecutedWeights = ExecutedWeights {
+        tracking: 1e5,
+        speed_usage: 0.0,
+    };
+
+    /// Peak speed usage: a joint moving 0.01 rad per 0.01 s step uses half of a 2 rad/s
+    /// limit; the term is w Σ u².
+    #[test]
+    fn speed_usage_is_the_peak_fraction_of_each_limit() {
+        let rec = Recording {
+            time: vec![0.0, 0.01, 0.02],
+            q: vec![vec![0.0, 0.0], vec![0.01, 0.0], vec![0.015, -0.004]],
+            ..Recording::default()
+        };
+        let u = speed_usage(&rec, &[2.0, 1.0]);
+        assert!(
+            (u[0] - 0.5).abs() < 1e-12 && (u[1] - 0.4).abs() < 1e-12,
+            "{u:?}"
+        );
+    }
 
     /// A robot that executes the targets exactly: the executed cost is the analytic cost
     /// up to the final velocity's difference quotient; a robot that lags by a known
@@ -154,7 +216,7 @@ mod tests {
             position: position.clone(),
             ..Recording::default()
         };
-        let (c, e) = executed_cost(&task, &traj, &times, &perfect, 1e5);
+        let (c, e) = executed_cost(&task, &traj, &times, &perfect, &W, None);
         let analytic = task.breakdown(&traj);
         assert!((c.terms.goal - analytic.goal).abs() <= 1e-9 * analytic.goal.max(1.0));
         assert!((c.terms.via - analytic.via).abs() <= 1e-6 * analytic.via.max(1.0));
@@ -167,7 +229,7 @@ mod tests {
             position_error: vec![1e-3; position.len()],
             ..perfect.clone()
         };
-        let (l, le) = executed_cost(&task, &traj, &times, &lagging, 1e5);
+        let (l, le) = executed_cost(&task, &traj, &times, &lagging, &W, None);
         assert!((l.tracking - 1e5 * 1e-6 * position.len() as f64).abs() < 1e-9);
         assert!((le.max_tracking - 1e-3).abs() < 1e-15);
         assert!(l.total() > c.total());
@@ -177,7 +239,9 @@ mod tests {
             ..perfect
         };
         assert_eq!(
-            executed_cost(&task, &traj, &times, &short, 1e5).0.total(),
+            executed_cost(&task, &traj, &times, &short, &W, None)
+                .0
+                .total(),
             f64::INFINITY
         );
     }

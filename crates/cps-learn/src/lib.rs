@@ -46,7 +46,7 @@ pub use energy::{
 };
 pub use error::LearnError;
 pub use exact::{ExactOptimum, exact_optimum};
-pub use executed::{ExecutedCost, ExecutedErrors, executed_cost};
+pub use executed::{ExecutedCost, ExecutedErrors, ExecutedWeights, executed_cost};
 pub use imitation::{
     DemonstrationResult, ImitationConfig, ImitationFit, ImitationOutcome, ImitationStage,
     run_imitation,

@@ -22,6 +22,7 @@ use cps_learn::{
 };
 use serde::Serialize;
 
+use super::movement_files::movement_files;
 use super::{Ctx, history_table, learn_error, position_figures, search_figure, way_points, worst};
 use crate::ExperimentError;
 use crate::observer::Event;
@@ -44,7 +45,7 @@ struct Judge<'a> {
     space: &'a SearchSpace,
     task: &'a cps_learn::ViaPointTask,
     robot: &'a RobotChoice,
-    tracking: f64,
+    weights: cps_learn::ExecutedWeights,
 }
 
 impl Judge<'_> {
@@ -60,8 +61,14 @@ impl Judge<'_> {
             Err(e) => return Err(JobError::Fatal(e.to_string())),
         };
         let (times, _) = targets_at(&trajectory, backend.time_step());
-        let (cost, errors) =
-            executed_cost(self.task, &trajectory, &times, &recording, self.tracking);
+        let (cost, errors) = executed_cost(
+            self.task,
+            &trajectory,
+            &times,
+            &recording,
+            &self.weights,
+            self.robot.setup.chain.velocity_limits(),
+        );
         Ok(Judged {
             cost,
             errors,
@@ -86,16 +93,22 @@ struct Summary<'a> {
     evaluations: u64,
     termination: String,
     tracking_weight: f64,
+    speed_usage_weight: f64,
     warm_start_analytic_cost: f64,
     warm_start_executed_cost: f64,
     best_cost: f64,
     cost_terms: cps_learn::CostBreakdown,
     tracking_cost: f64,
+    speed_usage_cost: f64,
     analytic_cost: f64,
     goal_error_m: f64,
     via_errors_m: &'a [f64],
     max_tracking_error_m: f64,
     unconverged_samples: usize,
+    /// The executed joints' peak speeds as fractions of their limits.
+    peak_speed_usage: &'a [f64],
+    /// The executed movement against every limit at the control rate.
+    limit_usage: serde_json::Value,
 }
 
 #[derive(Serialize)]
@@ -113,7 +126,13 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     let robot = exp.robot.as_ref().ok_or_else(|| {
         ExperimentError::Message("an executed-cost experiment has a robot".into())
     })?;
-    let tracking = exp.executed.map_or(1e5, |p| p.tracking);
+    let weights = exp.executed.map_or(
+        cps_learn::ExecutedWeights {
+            tracking: 1e5,
+            speed_usage: 0.0,
+        },
+        |p| p.weights,
+    );
     let dmp = task.build_dmp().map_err(|e| learn_error(e, "DMP"))?;
     let space = SearchSpace::new(config.parametrisation, &dmp);
     let optimum = ctx
@@ -125,7 +144,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         space: &space,
         task,
         robot,
-        tracking,
+        weights,
     };
     let endpoints = match &robot.backend {
         crate::plan::BackendChoice::Coppelia { pool, .. } => pool.clone(),
@@ -234,6 +253,14 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         }
     };
     ctx.observer.finished();
+    // The executed movement against every limit; retimed and exported as `[export]` asks.
+    let movement = movement_files(
+        exp,
+        robot,
+        "",
+        &best.recording.time,
+        best.recording.q.clone(),
+    )?;
     let summary = Summary {
         backend: match &robot.backend {
             crate::plan::BackendChoice::Coppelia { .. } => "coppelia (a pool of simulators)".into(),
@@ -250,21 +277,25 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         generations: history.len() as u64,
         evaluations,
         termination,
-        tracking_weight: tracking,
+        tracking_weight: weights.tracking,
+        speed_usage_weight: weights.speed_usage,
         warm_start_analytic_cost: optimum.cost,
         warm_start_executed_cost: warm_cost,
         best_cost,
         cost_terms: best.cost.terms,
         tracking_cost: best.cost.tracking,
+        speed_usage_cost: best.cost.speed_usage,
         analytic_cost: task.cost(&best.trajectory),
         goal_error_m: best.errors.goal,
         via_errors_m: &best.errors.via,
         max_tracking_error_m: best.errors.max_tracking,
         unconverged_samples: best.errors.unconverged,
+        peak_speed_usage: &best.errors.speed_usage,
+        limit_usage: movement.usage.json(),
     };
     let mut header = ctx.header(!interrupted && failure.is_none());
     header.failure = failure.clone();
-    let lines = lines(ctx, &summary, failure.as_deref());
+    let mut lines = lines(ctx, &summary, failure.as_deref());
     let figures = position_figures(
         vec![
             Series::of_trajectory("commanded", &best.trajectory),
@@ -283,16 +314,21 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     .into_iter()
     .chain(search_figure(&[("CMA-ES on the executed cost", &history)]))
     .collect();
+    let report = report(ctx, &summary);
+    let mut summary = fields(&summary);
+    let mut tables = vec![
+        history_table(&[("CMA-ES", &history)]),
+        executed_table(&best),
+    ];
+    let mut documents = Vec::new();
+    movement.into_parts(&mut summary, &mut tables, &mut documents, &mut lines);
     Ok(Outcome {
         header,
-        report: report(ctx, &summary),
-        summary: fields(&summary),
-        tables: vec![
-            history_table(&[("CMA-ES", &history)]),
-            executed_table(&best),
-        ],
+        report,
+        summary,
+        tables,
         figures,
-        documents: Vec::new(),
+        documents,
         lines,
     })
 }
