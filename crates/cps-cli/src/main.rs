@@ -17,7 +17,8 @@
 //! ```
 //!
 //! An experiment file's `[experiment] kind` chooses what `run` does: `viapoint` (default),
-//! `imitation`, `scaling`, `viapoint_joint`, `viapoint_energy`, `viapoint_pose`; each
+//! `imitation`, `scaling`, `viapoint_joint`, `viapoint_energy`, `viapoint_pose`, `promp`,
+//! `viapoint_executed`; each
 //! shipped file in `experiments/` is a commented example. Every run writes `summary.json`,
 //! CSV data, figures (PNG and SVG) and `report.html`.
 //!
