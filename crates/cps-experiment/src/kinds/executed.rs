@@ -295,7 +295,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     };
     let mut header = ctx.header(!interrupted && failure.is_none());
     header.failure = failure.clone();
-    let mut lines = lines(ctx, &summary, failure.as_deref());
+    let lines = lines(ctx, &summary, failure.as_deref());
     let figures = position_figures(
         vec![
             Series::of_trajectory("commanded", &best.trajectory),
@@ -315,22 +315,11 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     .chain(search_figure(&[("CMA-ES on the executed cost", &history)]))
     .collect();
     let report = report(ctx, &summary);
-    let mut summary = fields(&summary);
-    let mut tables = vec![
+    let tables = vec![
         history_table(&[("CMA-ES", &history)]),
         executed_table(&best),
     ];
-    let mut documents = Vec::new();
-    movement.into_parts(&mut summary, &mut tables, &mut documents, &mut lines);
-    Ok(Outcome {
-        header,
-        report,
-        summary,
-        tables,
-        figures,
-        documents,
-        lines,
-    })
+    Ok(movement.outcome(header, report, fields(&summary), tables, figures, lines))
 }
 
 /// A pool that could not finish, in words: every simulator gone (with each one's reason)

@@ -264,18 +264,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         ));
     }
     let report = report(ctx, &summary);
-    let mut summary = fields(&summary);
-    let mut documents = Vec::new();
-    movement.into_parts(&mut summary, &mut tables, &mut documents, &mut lines);
-    Ok(Outcome {
-        header,
-        report,
-        summary,
-        tables,
-        figures,
-        documents,
-        lines,
-    })
+    Ok(movement.outcome(header, report, fields(&summary), tables, figures, lines))
 }
 
 /// `trajectory.csv`: `t`, joint angles `q1…`, their speeds `q1_vel…`, the tool position

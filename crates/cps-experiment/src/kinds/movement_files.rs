@@ -40,6 +40,29 @@ impl MovementFiles {
         documents.extend(self.documents);
         lines.extend(self.lines);
     }
+
+    /// A kind's outcome from its parts, with this movement's added.
+    pub fn outcome(
+        self,
+        header: crate::outcome::RunHeader,
+        report: crate::outcome::Report,
+        mut summary: Map<String, Value>,
+        mut tables: Vec<Table>,
+        figures: Vec<crate::outcome::Figure>,
+        mut lines: Vec<String>,
+    ) -> crate::outcome::Outcome {
+        let mut documents = Vec::new();
+        self.into_parts(&mut summary, &mut tables, &mut documents, &mut lines);
+        crate::outcome::Outcome {
+            header,
+            report,
+            summary,
+            tables,
+            figures,
+            documents,
+            lines,
+        }
+    }
 }
 
 /// Checks, retimes and exports the joint movement `q` (one row per time of `times`) of
