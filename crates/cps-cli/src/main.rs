@@ -44,6 +44,7 @@ mod promp;
 mod robot;
 mod scene;
 mod simserve;
+mod studio;
 mod trajectory;
 
 use std::path::{Path, PathBuf};
@@ -127,6 +128,8 @@ enum Command {
     /// Export a joint trajectory (CSV) for ROS 2 and viewers: JointTrajectory YAML, MCAP,
     /// or a 1 kHz CSV of positions, velocities and accelerations.
     Export(trajectory::ExportArgs),
+    /// A local web workbench: drag via points, watch the movement re-learned.
+    Studio(studio::StudioArgs),
     /// Scenes: a placed robot and named way points.
     Scene {
         #[command(subcommand)]
@@ -230,6 +233,7 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
         Command::Sim { command } => simserve::sim(&command, interrupted),
         Command::Rollout(args) => movement::run_rollout(&args),
         Command::Promp { command } => promp::promp(&command),
+        Command::Studio(args) => studio::studio(&args, interrupted),
         Command::Check {
             file,
             ceilings,

@@ -1,0 +1,293 @@
+// cps studio: the page. Way points in a 3-D view; dragging a via point re-learns the
+// movement with the exact solver on every move and, on release, with the chosen solver.
+"use strict";
+
+const state = {
+  start: [0.75, 0.02, 1.87],
+  goal: [0.55, -0.57, 1.45],
+  tau: 10,
+  via: [
+    { time: 2, position: [0.78, 0.60, 1.70] },
+    { time: 4, position: [1.12, 0.37, 1.45] },
+    { time: 6, position: [1.15, -0.15, 1.20] },
+    { time: 8, position: [0.90, -0.53, 1.20] },
+  ],
+  weights: { goal: 1e5, via: 1e5, final_velocity: 1e3, acceleration: 1e-2, jerk: 0 },
+  path: null,     // the last answer
+  learned: 0,     // answers received
+};
+const view = { yaw: -0.6, pitch: 0.45, zoom: 1, center: [0.85, 0.0, 1.55] };
+const canvas = document.getElementById("canvas");
+const ctx = canvas.getContext("2d");
+
+// ---------------------------------------------------------------- projection
+function rotate(p) {
+  const x = p[0] - view.center[0], y = p[1] - view.center[1], z = p[2] - view.center[2];
+  const cy = Math.cos(view.yaw), sy = Math.sin(view.yaw);
+  const x1 = cy * x - sy * y, y1 = sy * x + cy * y;
+  const cp = Math.cos(view.pitch), sp = Math.sin(view.pitch);
+  // screen right = x1, screen up = cp * z + sp * y1, depth = cp * y1 - sp * z
+  return [x1, cp * z + sp * y1, cp * y1 - sp * z];
+}
+function scale() {
+  return 0.8 * Math.min(canvas.width, canvas.height) * view.zoom;
+}
+function project(p) {
+  const r = rotate(p), s = scale();
+  return [canvas.width / 2 + s * r[0], canvas.height / 2 - s * r[1]];
+}
+// A screen displacement as a world displacement in the view plane.
+function unproject(dx, dy) {
+  const s = scale(), right = dx / s, up = -dy / s;
+  const cy = Math.cos(view.yaw), sy = Math.sin(view.yaw);
+  const cp = Math.cos(view.pitch), sp = Math.sin(view.pitch);
+  // inverse of rotate for (right, up, 0)
+  const y1 = sp * up, z = cp * up, x1 = right;
+  return [cy * x1 + sy * y1, -sy * x1 + cy * y1, z];
+}
+
+// ---------------------------------------------------------------- drawing
+function resize() {
+  const r = canvas.getBoundingClientRect();
+  canvas.width = Math.max(100, Math.round(r.width * devicePixelRatio));
+  canvas.height = Math.max(100, Math.round(r.height * devicePixelRatio));
+  draw();
+}
+function line(points, color, width) {
+  ctx.strokeStyle = color;
+  ctx.lineWidth = width * devicePixelRatio;
+  ctx.beginPath();
+  points.forEach((p, i) => {
+    const s = project(p);
+    if (i === 0) ctx.moveTo(s[0], s[1]); else ctx.lineTo(s[0], s[1]);
+  });
+  ctx.stroke();
+}
+function marker(p, color, label, square) {
+  const s = project(p), r = 6 * devicePixelRatio;
+  ctx.fillStyle = color;
+  ctx.beginPath();
+  if (square) ctx.rect(s[0] - r, s[1] - r, 2 * r, 2 * r); else ctx.arc(s[0], s[1], r, 0, 2 * Math.PI);
+  ctx.fill();
+  ctx.fillStyle = "#222";
+  ctx.font = `${12 * devicePixelRatio}px system-ui`;
+  ctx.fillText(label, s[0] + 1.5 * r, s[1] - r);
+}
+function draw() {
+  ctx.clearRect(0, 0, canvas.width, canvas.height);
+  // A floor grid at the lowest way point, 10 cm squares.
+  const zs = [state.start[2], state.goal[2], ...state.via.map(v => v.position[2])];
+  const floor = Math.min(...zs) - 0.1;
+  for (let i = -10; i <= 10; i++) {
+    const a = view.center[0] + i * 0.1, b = view.center[1] + i * 0.1;
+    line([[a, view.center[1] - 1, floor], [a, view.center[1] + 1, floor]], "#eee", 1);
+    line([[view.center[0] - 1, b, floor], [view.center[0] + 1, b, floor]], "#eee", 1);
+  }
+  const o = [view.center[0] - 1, view.center[1] - 1, floor];
+  line([o, [o[0] + 0.2, o[1], o[2]]], "#d33", 2);
+  line([o, [o[0], o[1] + 0.2, o[2]]], "#3a3", 2);
+  line([o, [o[0], o[1], o[2] + 0.2]], "#33d", 2);
+  if (state.path) line(state.path.position, "#1f5fbf", 2.5);
+  marker(state.start, "#444", "start", true);
+  marker(state.goal, "#444", "goal", true);
+  state.via.forEach((v, i) => marker(v.position, dragging === i ? "#f80" : "#e0457b", `p${i + 1}`, false));
+}
+
+// ---------------------------------------------------------------- the side panel
+const fmt = (x, d) => Number(x).toFixed(d);
+function pointRows() {
+  const body = document.querySelector("#points tbody");
+  body.innerHTML = "";
+  const rows = [["start", null, state.start], ...state.via.map((v, i) => [`p${i + 1}`, v, v.position]), ["goal", null, state.goal]];
+  rows.forEach(([name, via, p], r) => {
+    const tr = document.createElement("tr");
+    const cell = html => { const td = document.createElement("td"); td.append(html); tr.append(td); };
+    cell(name);
+    if (via) {
+      const t = number(via.time, 0.1, value => { via.time = value; });
+      t.dataset.field = `via[${r - 1}].time`;
+      cell(t);
+    } else cell(name === "goal" ? `${state.tau}` : "0");
+    for (let d = 0; d < 3; d++) {
+      const input = number(p[d], 0.01, value => { p[d] = value; draw(); });
+      input.dataset.field = via ? `via[${r - 1}].position` : name;
+      cell(input);
+    }
+    body.append(tr);
+  });
+}
+function number(value, step, set) {
+  const input = document.createElement("input");
+  input.type = "number";
+  input.step = step;
+  input.setAttribute("value", fmt(value, 3));
+  input.addEventListener("change", () => {
+    set(Number(input.value));
+    learn(document.getElementById("solver").value);
+  });
+  return input;
+}
+function weightRows() {
+  const body = document.querySelector("#weights tbody");
+  body.innerHTML = "";
+  for (const name of Object.keys(state.weights)) {
+    const tr = document.createElement("tr");
+    const label = document.createElement("td");
+    label.textContent = name;
+    const td = document.createElement("td");
+    const input = document.createElement("input");
+    input.type = "number";
+    input.value = state.weights[name];
+    input.dataset.field = `weights.${name}`;
+    input.addEventListener("change", () => {
+      state.weights[name] = Number(input.value);
+      learn(document.getElementById("solver").value);
+    });
+    td.append(input);
+    tr.append(label, td);
+    body.append(tr);
+  }
+}
+function showNumbers(answer, millis) {
+  const rows = [
+    ["solver", answer.solver + (answer.generations ? ` (${answer.generations} generations)` : "")],
+    ["cost", answer.cost.toExponential(5)],
+    ["exact optimum", answer.optimum_cost.toExponential(5)],
+    ["goal error", `${fmt(answer.goal_error_m * 1e3, 3)} mm`],
+    ...answer.via_errors_m.map((e, i) => [`p${i + 1} error`, `${fmt(e * 1e3, 3)} mm`]),
+    ["learned and drawn in", `${fmt(millis, 1)} ms`],
+  ];
+  const body = document.querySelector("#numbers tbody");
+  body.innerHTML = "";
+  for (const [k, v] of rows) {
+    const tr = document.createElement("tr");
+    tr.innerHTML = "<td></td><td></td>";
+    tr.children[0].textContent = k;
+    tr.children[1].textContent = v;
+    tr.dataset.name = k;
+    body.append(tr);
+  }
+}
+// A refusal next to its field: the sentence starts with the field's name.
+function showError(sentence) {
+  for (const el of document.querySelectorAll(".bad")) el.classList.remove("bad");
+  for (const id of ["error", "tau-error", "points-error", "weights-error"]) document.getElementById(id).textContent = "";
+  if (!sentence) return;
+  const field = sentence.split(":")[0];
+  let where = "error";
+  if (field.startsWith("tau")) where = "tau-error";
+  else if (field.startsWith("via") || field === "start" || field === "goal") where = "points-error";
+  else if (field.startsWith("weights")) where = "weights-error";
+  document.getElementById(where).textContent = sentence;
+  for (const el of document.querySelectorAll(`[data-field^="${CSS.escape(field.replace(/\[\d+\]$/, ""))}"]`)) el.classList.add("bad");
+}
+
+// ---------------------------------------------------------------- learning
+let inFlight = false, pending = null;
+async function learn(solver) {
+  if (inFlight) { pending = solver; return; }
+  inFlight = true;
+  const started = performance.now();
+  const request = {
+    start: state.start, goal: state.goal, tau: Number(document.getElementById("tau").value),
+    via: state.via, solver, weights: state.weights,
+  };
+  try {
+    const reply = await fetch("/api/viapoint", {
+      method: "POST", headers: { "content-type": "application/json" }, body: JSON.stringify(request),
+    });
+    const body = await reply.json();
+    if (!reply.ok) {
+      showError(body.error || `HTTP ${reply.status}`);
+    } else {
+      state.path = body;
+      state.learned += 1;
+      state.tau = request.tau;
+      draw();
+      showError(null);
+      showNumbers(body, performance.now() - started);
+      document.body.dataset.learned = String(state.learned);
+      document.body.dataset.samples = String(body.t.length);
+      document.body.dataset.end = body.position[body.position.length - 1].map(v => v.toFixed(4)).join(",");
+    }
+  } catch (e) {
+    showError(`the studio did not answer: ${e}`);
+  } finally {
+    inFlight = false;
+    if (pending) { const s = pending; pending = null; learn(s); }
+  }
+}
+
+// ---------------------------------------------------------------- mouse
+let dragging = null, orbit = null;
+function pick(x, y) {
+  const r = 10 * devicePixelRatio;
+  let best = null, bestD = r;
+  state.via.forEach((v, i) => {
+    const s = project(v.position), d = Math.hypot(s[0] - x, s[1] - y);
+    if (d < bestD) { best = i; bestD = d; }
+  });
+  return best;
+}
+canvas.addEventListener("mousedown", e => {
+  const x = e.offsetX * devicePixelRatio, y = e.offsetY * devicePixelRatio;
+  dragging = pick(x, y);
+  if (dragging === null) orbit = [x, y];
+  canvas.style.cursor = "grabbing";
+});
+window.addEventListener("mousemove", e => {
+  const dx = e.movementX * devicePixelRatio, dy = e.movementY * devicePixelRatio;
+  if (dragging !== null) {
+    const w = unproject(dx, dy), p = state.via[dragging].position;
+    for (let d = 0; d < 3; d++) p[d] = Math.round((p[d] + w[d]) * 1e4) / 1e4;
+    pointRows();
+    draw();
+    learn("exact");
+  } else if (orbit) {
+    view.yaw += dx * 0.005;
+    view.pitch = Math.max(-1.5, Math.min(1.5, view.pitch + dy * 0.005));
+    draw();
+  }
+});
+window.addEventListener("mouseup", () => {
+  if (dragging !== null) {
+    dragging = null;
+    learn(document.getElementById("solver").value);
+  }
+  orbit = null;
+  canvas.style.cursor = "grab";
+  draw();
+});
+canvas.addEventListener("wheel", e => {
+  e.preventDefault();
+  view.zoom *= Math.exp(-e.deltaY * 0.001);
+  draw();
+}, { passive: false });
+document.getElementById("tau").addEventListener("change", () => learn(document.getElementById("solver").value));
+window.addEventListener("resize", resize);
+
+// Tests and scripts move a via point by numbers: studio.moveVia(0, [x, y, z]).
+window.studio = {
+  state,
+  moveVia(i, position, solver = "exact") {
+    state.via[i].position = position.slice();
+    pointRows();
+    draw();
+    return learn(solver);
+  },
+  screenOf(i) { return project(state.via[i].position).map(v => v / devicePixelRatio); },
+};
+
+// `#move=i,x,y,z[,exact|cmaes]` in the address moves via point i once the first answer
+// is in (a link to a configuration; the browser test uses it).
+function applyAddress() {
+  const m = /^#move=(\d+),([-\d.e]+),([-\d.e]+),([-\d.e]+)(?:,(exact|cmaes))?$/.exec(location.hash);
+  if (m && state.via[Number(m[1])]) {
+    return window.studio.moveVia(Number(m[1]), [Number(m[2]), Number(m[3]), Number(m[4])], m[5] || "exact");
+  }
+}
+
+pointRows();
+weightRows();
+resize();
+learn("exact").then(applyAddress);

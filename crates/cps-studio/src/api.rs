@@ -1,0 +1,277 @@
+//! The studio's JSON API, without HTTP: a request as the page sends it, checked, learned,
+//! answered. Every refusal is one sentence naming the field, as the command line would
+//! say it of an experiment file.
+
+use cps_dmp::DmpConfig;
+use cps_learn::{
+    CostWeights, LearnError, Parametrisation, Solver, ViaPoint, ViaPointConfig, ViaPointTask,
+    learn_via_points,
+};
+use serde::{Deserialize, Serialize};
+
+/// The most via points a request may carry.
+pub const MAX_VIA: usize = 64;
+/// The most trajectory samples a request may ask for (τ / dt).
+pub const MAX_SAMPLES: f64 = 20_000.0;
+/// The most CMA-ES generations a request may ask for.
+pub const MAX_GENERATIONS: u64 = 2_000;
+
+/// `POST /api/viapoint`'s body.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ViaPointRequest {
+    /// Start position (1 to 6 coordinates; metres for a robot's tool).
+    pub start: Vec<f64>,
+    /// Goal position, reached at `tau`.
+    pub goal: Vec<f64>,
+    /// Duration, seconds.
+    pub tau: f64,
+    /// Via points, in time order.
+    #[serde(default)]
+    pub via: Vec<ViaRequest>,
+    /// `"exact"` (the least-squares optimum, ≈ ms) or `"cmaes"`.
+    #[serde(default = "exact")]
+    pub solver: String,
+    /// Basis functions per dimension (default 25, as the thesis).
+    #[serde(default)]
+    pub basis_functions: Option<usize>,
+    /// Sample period of the answer, seconds (default 0.01).
+    #[serde(default)]
+    pub dt: Option<f64>,
+    /// Cost weights (default: the thesis's).
+    #[serde(default)]
+    pub weights: Option<WeightsRequest>,
+    /// CMA-ES generations (default 1500; it stops earlier once converged).
+    #[serde(default)]
+    pub generations: Option<u64>,
+    /// CMA-ES seed (default 1).
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// CMA-ES population (default 96, as `experiments/viapoint.toml`).
+    #[serde(default)]
+    pub population: Option<usize>,
+}
+
+fn exact() -> String {
+    "exact".into()
+}
+
+/// A via point of a request.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ViaRequest {
+    /// Seconds, inside (0, τ).
+    pub time: f64,
+    /// Position.
+    pub position: Vec<f64>,
+}
+
+/// Cost weights of a request; a missing one keeps the thesis's value.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WeightsRequest {
+    /// Goal position error.
+    pub goal: Option<f64>,
+    /// Via-point errors.
+    pub via: Option<f64>,
+    /// Final velocity.
+    pub final_velocity: Option<f64>,
+    /// Squared acceleration.
+    pub acceleration: Option<f64>,
+    /// Squared jerk.
+    pub jerk: Option<f64>,
+}
+
+/// The answer: the learned movement sampled every `dt`, and how well it meets the task.
+#[derive(Debug, Clone, Serialize)]
+pub struct ViaPointAnswer {
+    /// Sample times, seconds.
+    pub t: Vec<f64>,
+    /// `position[k]`: the position at `t[k]`.
+    pub position: Vec<Vec<f64>>,
+    /// Distance from each via point at its time.
+    pub via_errors_m: Vec<f64>,
+    /// Distance from the goal at τ.
+    pub goal_error_m: f64,
+    /// The cost.
+    pub cost: f64,
+    /// The cost term by term.
+    pub cost_terms: cps_learn::CostBreakdown,
+    /// The exact optimum's cost (the lower bound CMA-ES approaches).
+    pub optimum_cost: f64,
+    /// `"exact"` or `"cmaes"`.
+    pub solver: &'static str,
+    /// CMA-ES generations run (0 for the exact solver).
+    pub generations: u64,
+}
+
+/// A refusal: the sentence the page shows next to the field.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ApiError(pub String);
+
+impl std::fmt::Display for ApiError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for ApiError {}
+
+fn refuse<T>(message: String) -> Result<T, ApiError> {
+    Err(ApiError(message))
+}
+
+impl ViaPointRequest {
+    /// The learning run the request asks for, checked: sizes within the API's ceilings,
+    /// then the task as the library validates it.
+    pub fn config(&self) -> Result<ViaPointConfig, ApiError> {
+        let dims = self.start.len();
+        if !(1..=6).contains(&dims) {
+            return refuse(format!("start: must have 1 to 6 coordinates (got {dims})"));
+        }
+        if self.goal.len() != dims {
+            return refuse(format!(
+                "goal: must have {dims} coordinates, as start (got {})",
+                self.goal.len()
+            ));
+        }
+        if self.via.len() > MAX_VIA {
+            return refuse(format!(
+                "via: at most {MAX_VIA} via points (got {})",
+                self.via.len()
+            ));
+        }
+        for (i, v) in self.via.iter().enumerate() {
+            if v.position.len() != dims {
+                return refuse(format!(
+                    "via[{i}].position: must have {dims} coordinates, as start (got {})",
+                    v.position.len()
+                ));
+            }
+        }
+        let solver = match self.solver.as_str() {
+            "exact" => Solver::Exact,
+            "cmaes" => Solver::Cmaes,
+            other => {
+                return refuse(format!(
+                    "solver: must be \"exact\" or \"cmaes\" (got \"{other}\")"
+                ));
+            }
+        };
+        let dt = self.dt.unwrap_or(0.01);
+        if !(dt.is_finite() && (1e-4..=1.0).contains(&dt)) {
+            return refuse(format!("dt: must be between 0.0001 and 1 s (got {dt})"));
+        }
+        if !(self.tau.is_finite() && self.tau > 0.0) || self.tau / dt > MAX_SAMPLES {
+            return refuse(format!(
+                "tau: must be positive with at most {MAX_SAMPLES} samples of dt = {dt} s (got {} s)",
+                self.tau
+            ));
+        }
+        let basis = self.basis_functions.unwrap_or(25);
+        if !(2..=200).contains(&basis) {
+            return refuse(format!(
+                "basis_functions: must be between 2 and 200 (got {basis})"
+            ));
+        }
+        let generations = self.generations.unwrap_or(1500);
+        if !(1..=MAX_GENERATIONS).contains(&generations) {
+            return refuse(format!(
+                "generations: must be between 1 and {MAX_GENERATIONS} (got {generations})"
+            ));
+        }
+        if let Some(p) = self.population
+            && !(2..=1000).contains(&p)
+        {
+            return refuse(format!("population: must be between 2 and 1000 (got {p})"));
+        }
+        let thesis = CostWeights::thesis();
+        let w = self.weights.clone().unwrap_or_default();
+        let weights = CostWeights {
+            goal: w.goal.unwrap_or(thesis.goal),
+            via: w.via.unwrap_or(thesis.via),
+            final_velocity: w.final_velocity.unwrap_or(thesis.final_velocity),
+            acceleration: w.acceleration.unwrap_or(thesis.acceleration),
+            jerk: w.jerk.unwrap_or(thesis.jerk),
+            obstacle: 0.0,
+        };
+        let task = ViaPointTask {
+            start: self.start.clone(),
+            goal: self.goal.clone(),
+            goal_velocity: vec![0.0; dims],
+            via: self
+                .via
+                .iter()
+                .map(|v| ViaPoint {
+                    time: v.time,
+                    position: v.position.clone(),
+                })
+                .collect(),
+            dmp: DmpConfig::new(basis, self.tau, dt),
+            weights,
+            obstacles: Vec::new(),
+        };
+        task.validate().map_err(|e| ApiError(sentence(e)))?;
+        let mut config = ViaPointConfig::new(task);
+        config.solver = solver;
+        config.parametrisation = Parametrisation::AnchorOffset;
+        // CMA-ES learns from zero weights, as the thesis's learner does (started at the
+        // exact optimum it would only confirm it); the exact optimum is its yardstick.
+        config.warm_start = false;
+        config.sigma0 = 0.5;
+        config.population = Some(self.population.unwrap_or(96));
+        config.tol_fun = Some(1e-3);
+        config.generations = generations;
+        config.seed = self.seed.unwrap_or(1);
+        Ok(config)
+    }
+}
+
+/// A library error as one sentence, its field first.
+fn sentence(e: LearnError) -> String {
+    match e {
+        // The request calls the cost's weights `weights`.
+        LearnError::InvalidTask { field, problem } => match field.strip_prefix("cost.") {
+            Some(weight) => format!("weights.{weight}: {problem}"),
+            None => format!("{field}: {problem}"),
+        },
+        other => other.to_string(),
+    }
+}
+
+/// Learns what `request` asks and answers it; `stop` is polled every generation.
+pub fn viapoint(
+    request: &ViaPointRequest,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Result<ViaPointAnswer, ApiError> {
+    let config = request.config()?;
+    let progress = |_: usize, _: &cps_cmaes::GenerationReport<'_>| {
+        if stop() {
+            std::ops::ControlFlow::Break(())
+        } else {
+            std::ops::ControlFlow::Continue(())
+        }
+    };
+    let outcome = learn_via_points(&config, &progress).map_err(|e| ApiError(sentence(e)))?;
+    let best = outcome.best();
+    let traj = outcome.best_trajectory();
+    let dims = traj.dims();
+    let t = traj.times().to_vec();
+    let position = (0..t.len())
+        .map(|k| (0..dims).map(|d| traj.position(d)[k]).collect())
+        .collect();
+    Ok(ViaPointAnswer {
+        t,
+        position,
+        via_errors_m: best.errors.via.clone(),
+        goal_error_m: best.errors.goal,
+        cost: best.cost,
+        cost_terms: best.breakdown,
+        optimum_cost: outcome.optimum.cost,
+        solver: match config.solver {
+            Solver::Exact => "exact",
+            Solver::Cmaes => "cmaes",
+        },
+        generations: best.generations,
+    })
+}

@@ -1,0 +1,244 @@
+//! The studio's HTTP server: the embedded page and `POST /api/viapoint`, on a runtime
+//! thread of its own.
+
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+
+use axum::Router;
+use axum::body::{Body, to_bytes};
+use axum::extract::{DefaultBodyLimit, State};
+use axum::http::{StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use tokio::sync::{Semaphore, oneshot};
+
+use crate::api;
+use crate::assets;
+
+/// How the studio serves.
+#[derive(Debug, Clone)]
+pub struct StudioConfig {
+    /// Address to bind; loopback by default (`127.0.0.1:8080`).
+    pub bind: String,
+    /// The largest request body accepted, bytes (default 64 KiB).
+    pub max_body_bytes: usize,
+    /// Learning runs at once (default: the machine's cores); more wait their turn.
+    pub workers: usize,
+}
+
+impl StudioConfig {
+    /// Defaults, bound to `bind`.
+    pub fn new(bind: impl Into<String>) -> Self {
+        Self {
+            bind: bind.into(),
+            max_body_bytes: 64 * 1024,
+            workers: std::thread::available_parallelism().map_or(2, |n| n.get()),
+        }
+    }
+}
+
+/// Why the studio could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum StudioError {
+    /// The address could not be bound (taken, not local, not an address).
+    #[error("cannot listen on {bind}: {message}")]
+    Bind {
+        /// The address.
+        bind: String,
+        /// The system's reason.
+        message: String,
+    },
+    /// A setting out of range.
+    #[error("invalid setting: {0}")]
+    Config(String),
+}
+
+#[derive(Clone)]
+struct Shared {
+    max_body: usize,
+    workers: Arc<Semaphore>,
+}
+
+/// A running studio; dropping it stops the server.
+#[derive(Debug)]
+pub struct StudioServer {
+    url: String,
+    stop: Option<oneshot::Sender<()>>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl StudioServer {
+    /// Binds and starts serving on a thread of its own.
+    pub fn start(config: StudioConfig) -> Result<Self, StudioError> {
+        if config.workers == 0 || config.workers > 1024 {
+            return Err(StudioError::Config(format!(
+                "workers must be between 1 and 1024 (got {})",
+                config.workers
+            )));
+        }
+        if !(1024..=16 << 20).contains(&config.max_body_bytes) {
+            return Err(StudioError::Config(format!(
+                "max_body_bytes must be between 1024 and 16777216 (got {})",
+                config.max_body_bytes
+            )));
+        }
+        let bind_error = |message: String| StudioError::Bind {
+            bind: config.bind.clone(),
+            message,
+        };
+        let addr: SocketAddr = config
+            .bind
+            .parse()
+            .map_err(|e| bind_error(format!("not an address host:port ({e})")))?;
+        let std_listener =
+            std::net::TcpListener::bind(addr).map_err(|e| bind_error(e.to_string()))?;
+        std_listener
+            .set_nonblocking(true)
+            .map_err(|e| bind_error(e.to_string()))?;
+        let local = std_listener
+            .local_addr()
+            .map_err(|e| bind_error(e.to_string()))?;
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .map_err(|e| bind_error(e.to_string()))?;
+        let shared = Shared {
+            max_body: config.max_body_bytes,
+            workers: Arc::new(Semaphore::new(config.workers)),
+        };
+        let (stop, stopped) = oneshot::channel::<()>();
+        let thread = std::thread::Builder::new()
+            .name("cps-studio".into())
+            .spawn(move || {
+                runtime.block_on(async move {
+                    let Ok(listener) = tokio::net::TcpListener::from_std(std_listener) else {
+                        return;
+                    };
+                    let _ = axum::serve(listener, router(shared))
+                        .with_graceful_shutdown(async {
+                            let _ = stopped.await;
+                        })
+                        .await;
+                });
+            })
+            .map_err(|e| bind_error(e.to_string()))?;
+        Ok(Self {
+            url: format!("http://{local}"),
+            stop: Some(stop),
+            thread: Some(thread),
+        })
+    }
+
+    /// `http://host:port` of the studio.
+    pub fn url(&self) -> &str {
+        &self.url
+    }
+
+    /// Blocks until the server ends (it ends when stopped from another thread or
+    /// dropped).
+    pub fn wait(mut self) {
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+
+    /// Stops serving (open connections finish their request).
+    pub fn stop(&mut self) {
+        if let Some(s) = self.stop.take() {
+            let _ = s.send(());
+        }
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+impl Drop for StudioServer {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
+
+fn router(shared: Shared) -> Router {
+    Router::new()
+        .route("/", get(|| async { asset("index.html") }))
+        .route("/app.js", get(|| async { asset("app.js") }))
+        .route("/api/viapoint", post(viapoint))
+        .fallback(|| async { error(StatusCode::NOT_FOUND, "no such page".into()) })
+        // The body is read by the handler, within the studio's own limit.
+        .layer(DefaultBodyLimit::disable())
+        .with_state(shared)
+}
+
+fn asset(name: &str) -> Response {
+    match assets::get(name) {
+        Some((content_type, bytes)) => (
+            [
+                (header::CONTENT_TYPE, content_type),
+                (header::CACHE_CONTROL, "no-cache"),
+            ],
+            bytes,
+        )
+            .into_response(),
+        None => error(StatusCode::NOT_FOUND, "no such page".into()),
+    }
+}
+
+/// An error as the page reads it: `{"error": sentence}`.
+fn error(status: StatusCode, sentence: String) -> Response {
+    (status, axum::Json(serde_json::json!({ "error": sentence }))).into_response()
+}
+
+/// Set when the request's future is dropped (the tab went away), so its learning stops.
+struct Cancel(Arc<AtomicBool>);
+
+impl Drop for Cancel {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+}
+
+async fn viapoint(State(shared): State<Shared>, body: Body) -> Response {
+    let bytes = match to_bytes(body, shared.max_body).await {
+        Ok(b) => b,
+        Err(_) => {
+            return error(
+                StatusCode::BAD_REQUEST,
+                format!(
+                    "the request body is larger than {} bytes (or was cut off)",
+                    shared.max_body
+                ),
+            );
+        }
+    };
+    let request: api::ViaPointRequest = match serde_json::from_slice(&bytes) {
+        Ok(r) => r,
+        Err(e) => return error(StatusCode::BAD_REQUEST, format!("invalid JSON: {e}")),
+    };
+    // Cheap checks before waiting for a worker.
+    if let Err(e) = request.config() {
+        return error(StatusCode::BAD_REQUEST, e.0);
+    }
+    let Ok(permit) = shared.workers.clone().acquire_owned().await else {
+        return error(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "the studio is stopping".into(),
+        );
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    let _cancel = Cancel(stop.clone());
+    let work = tokio::task::spawn_blocking(move || {
+        let _permit = permit;
+        api::viapoint(&request, &|| stop.load(Ordering::Relaxed))
+    });
+    match work.await {
+        Ok(Ok(answer)) => axum::Json(answer).into_response(),
+        Ok(Err(e)) => error(StatusCode::BAD_REQUEST, e.0),
+        Err(_) => error(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            "the learning run failed unexpectedly".into(),
+        ),
+    }
+}

@@ -1,0 +1,223 @@
+//! The studio over real HTTP on a loopback port: the page and its script are served from
+//! the binary, `POST /api/viapoint` learns the movement, bad requests get a 400 with the
+//! sentence naming the field and the server keeps serving, many clients at once are all
+//! answered.
+
+use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::time::Duration;
+
+use cps_studio::{StudioConfig, StudioServer};
+use serde_json::{Value, json};
+
+/// One HTTP/1.1 exchange; the status and the body.
+fn http(server: &StudioServer, method: &str, path: &str, body: &[u8]) -> (u16, String) {
+    let addr = server.url().trim_start_matches("http://");
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    let head = format!(
+        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+        body.len()
+    );
+    // A server that refuses a body early may close before it is all sent.
+    let _ = s.write_all(head.as_bytes()).and_then(|_| s.write_all(body));
+    let mut reply = Vec::new();
+    let _ = s.read_to_end(&mut reply);
+    let text = String::from_utf8_lossy(&reply).into_owned();
+    let status = text
+        .split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or_else(|| panic!("no status in {text:?}"));
+    let body = text
+        .split_once("\r\n\r\n")
+        .map_or("", |(_, b)| b)
+        .to_string();
+    (status, body)
+}
+
+fn thesis(solver: &str) -> Value {
+    json!({
+        "start": [0.75, 0.02, 1.87],
+        "goal": [0.55, -0.57, 1.45],
+        "tau": 10.0,
+        "solver": solver,
+        "via": [
+            {"time": 2.0, "position": [0.78, 0.60, 1.70]},
+            {"time": 4.0, "position": [1.12, 0.37, 1.45]},
+            {"time": 6.0, "position": [1.15, -0.15, 1.20]},
+            {"time": 8.0, "position": [0.90, -0.53, 1.20]}
+        ]
+    })
+}
+
+fn post(server: &StudioServer, body: &Value) -> (u16, Value) {
+    let (status, text) = http(server, "POST", "/api/viapoint", body.to_string().as_bytes());
+    (
+        status,
+        serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}: {text}")),
+    )
+}
+
+#[test]
+fn the_page_and_its_script_come_from_the_binary() {
+    let server = StudioServer::start(StudioConfig::new("127.0.0.1:0")).unwrap();
+    let (status, page) = http(&server, "GET", "/", b"");
+    assert_eq!(status, 200);
+    assert!(page.contains("<title>cps studio</title>") && page.contains("/app.js"));
+    assert!(
+        !page.contains("http://") && !page.contains("https://"),
+        "nothing from the internet"
+    );
+    let (status, script) = http(&server, "GET", "/app.js", b"");
+    assert_eq!(status, 200);
+    assert!(script.contains("/api/viapoint"));
+    let (status, body) = http(&server, "GET", "/../../etc/passwd", b"");
+    assert_eq!(status, 404, "{body}");
+    let (status, _) = http(&server, "GET", "/Cargo.toml", b"");
+    assert_eq!(status, 404);
+}
+
+/// The exact answer meets the task's invariants: it starts at the start, is sampled every
+/// dt over τ, ends at the goal and passes the via points within their errors, which the
+/// answer reports consistently with its positions; CMA-ES approaches the exact optimum
+/// from above.
+#[test]
+fn the_api_learns_the_thesis_task() {
+    let server = StudioServer::start(StudioConfig::new("127.0.0.1:0")).unwrap();
+    let (status, a) = post(&server, &thesis("exact"));
+    assert_eq!(status, 200, "{a}");
+    let t: Vec<f64> = serde_json::from_value(a["t"].clone()).unwrap();
+    let p: Vec<Vec<f64>> = serde_json::from_value(a["position"].clone()).unwrap();
+    assert_eq!((t.len(), p.len()), (1001, 1001));
+    assert!((t[1000] - 10.0).abs() < 1e-9 && (t[1] - 0.01).abs() < 1e-12);
+    let dist = |q: &[f64], r: &[f64]| {
+        q.iter()
+            .zip(r)
+            .map(|(x, y)| (x - y).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    assert!(dist(&p[0], &[0.75, 0.02, 1.87]) < 1e-12, "{:?}", p[0]);
+    assert!(dist(&p[1000], &[0.55, -0.57, 1.45]) < 1e-4);
+    let via = thesis("exact")["via"].clone();
+    for (i, e) in a["via_errors_m"].as_array().unwrap().iter().enumerate() {
+        let k = (via[i]["time"].as_f64().unwrap() / 0.01).round() as usize;
+        let want: Vec<f64> = serde_json::from_value(via[i]["position"].clone()).unwrap();
+        let e = e.as_f64().unwrap();
+        assert!(e < 1e-4, "p{}: {e}", i + 1);
+        assert!((dist(&p[k], &want) - e).abs() < 1e-12);
+    }
+    assert_eq!(a["cost"], a["optimum_cost"]);
+    assert_eq!(a["solver"], "exact");
+
+    let mut quick = thesis("cmaes");
+    quick["generations"] = json!(300);
+    let (status, c) = post(&server, &quick);
+    assert_eq!(status, 200, "{c}");
+    let (cost, optimum) = (
+        c["cost"].as_f64().unwrap(),
+        c["optimum_cost"].as_f64().unwrap(),
+    );
+    assert!(
+        cost >= optimum * (1.0 - 1e-12),
+        "{cost} below the optimum {optimum}"
+    );
+    assert_eq!(c["generations"], 300);
+    // The same request, the same answer (seeded).
+    let (_, again) = post(&server, &quick);
+    assert_eq!(c["cost"], again["cost"]);
+}
+
+/// Malformed JSON, NaN, wrong lengths, a via point outside τ, absurd sizes: a 400 with a
+/// sentence naming the problem, and the server serves the next request.
+#[test]
+fn bad_requests_get_a_sentence_and_the_server_keeps_serving() {
+    let server = StudioServer::start(StudioConfig::new("127.0.0.1:0")).unwrap();
+    let bad = |body: &[u8], expected: &str| {
+        let (status, text) = http(&server, "POST", "/api/viapoint", body);
+        assert_eq!(status, 400, "{text}");
+        let v: Value = serde_json::from_str(&text).unwrap();
+        let sentence = v["error"].as_str().unwrap();
+        assert!(sentence.contains(expected), "{sentence}");
+    };
+    bad(b"{\"start\": [1, 2", "invalid JSON: EOF while parsing");
+    bad(
+        b"{\"start\": [NaN], \"goal\": [0], \"tau\": 1}",
+        "invalid JSON: expected value",
+    );
+    bad(
+        b"{\"start\": [0, 0], \"goal\": [1, 1], \"tau\": 1, \"color\": 3}",
+        "unknown field `color`",
+    );
+    let mut v = thesis("exact");
+    v["goal"] = json!([0.5, 0.5]);
+    bad(v.to_string().as_bytes(), "goal: must have 3 coordinates");
+    let mut v = thesis("exact");
+    v["via"][1]["time"] = json!(12.0);
+    bad(v.to_string().as_bytes(), "via[1].time");
+    let mut v = thesis("exact");
+    v["via"][0]["position"][2] = json!(1e300);
+    bad(v.to_string().as_bytes(), "via[0].position");
+    let mut v = thesis("exact");
+    v["tau"] = json!(1e9);
+    bad(
+        v.to_string().as_bytes(),
+        "tau: must be positive with at most 20000 samples",
+    );
+    let mut v = thesis("exact");
+    v["solver"] = json!("magic");
+    bad(
+        v.to_string().as_bytes(),
+        "solver: must be \"exact\" or \"cmaes\"",
+    );
+    let mut v = thesis("exact");
+    v["weights"] = json!({"via": -1.0});
+    bad(v.to_string().as_bytes(), "weights.via");
+    let mut v = thesis("cmaes");
+    v["generations"] = json!(1_000_000);
+    bad(
+        v.to_string().as_bytes(),
+        "generations: must be between 1 and 2000",
+    );
+    let huge = format!("{{\"start\": [{}]}}", vec!["0.0"; 40_000].join(","));
+    bad(huge.as_bytes(), "larger than 65536 bytes");
+    // Still serving.
+    let (status, _) = post(&server, &thesis("exact"));
+    assert_eq!(status, 200);
+}
+
+/// Eight clients at once, each alternating exact and short CMA-ES requests: every one is
+/// answered (the learning pool takes them in turn, none starves).
+#[test]
+fn many_tabs_at_once_are_all_answered() {
+    let server = StudioServer::start(StudioConfig::new("127.0.0.1:0")).unwrap();
+    std::thread::scope(|s| {
+        for tab in 0..8 {
+            let server = &server;
+            s.spawn(move || {
+                for k in 0..3 {
+                    let mut v = thesis(if (tab + k) % 2 == 0 { "exact" } else { "cmaes" });
+                    v["generations"] = json!(50);
+                    v["via"][0]["position"][0] = json!(0.7 + 0.01 * tab as f64);
+                    let (status, a) = post(server, &v);
+                    assert_eq!(status, 200, "tab {tab}: {a}");
+                }
+            });
+        }
+    });
+}
+
+#[test]
+fn a_taken_or_foreign_address_is_an_error_naming_it() {
+    let first = StudioServer::start(StudioConfig::new("127.0.0.1:0")).unwrap();
+    let taken = first.url().trim_start_matches("http://").to_string();
+    let e = StudioServer::start(StudioConfig::new(&taken))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains(&taken), "{e}");
+    let e = StudioServer::start(StudioConfig::new("localhost"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("not an address host:port"), "{e}");
+}
