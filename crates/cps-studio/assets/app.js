@@ -15,8 +15,10 @@ const state = {
   weights: { goal: 1e5, via: 1e5, final_velocity: 1e3, acceleration: 1e-2, jerk: 0 },
   path: null,     // the last answer
   learned: 0,     // answers received
+  robot: null,    // the robot at rest (GET /api/robot)
+  frame: -1,      // the robot pose shown (index into path.robot.frames; -1: the last)
 };
-const view = { yaw: -0.6, pitch: 0.45, zoom: 1, center: [0.85, 0.0, 1.55] };
+const view = { yaw: -0.6, pitch: 0.45, zoom: 0.7, center: [0.8, 0.0, 1.3] };
 const canvas = document.getElementById("canvas");
 const ctx = canvas.getContext("2d");
 
@@ -75,9 +77,9 @@ function marker(p, color, label, square) {
 }
 function draw() {
   ctx.clearRect(0, 0, canvas.width, canvas.height);
-  // A floor grid at the lowest way point, 10 cm squares.
+  // A floor grid, 10 cm squares, at the robot's base (or below the lowest way point).
   const zs = [state.start[2], state.goal[2], ...state.via.map(v => v.position[2])];
-  const floor = Math.min(...zs) - 0.1;
+  const floor = state.robot ? state.robot.points[0][2] : Math.min(...zs) - 0.1;
   for (let i = -10; i <= 10; i++) {
     const a = view.center[0] + i * 0.1, b = view.center[1] + i * 0.1;
     line([[a, view.center[1] - 1, floor], [a, view.center[1] + 1, floor]], "#eee", 1);
@@ -88,9 +90,25 @@ function draw() {
   line([o, [o[0], o[1] + 0.2, o[2]]], "#3a3", 2);
   line([o, [o[0], o[1], o[2] + 0.2]], "#33d", 2);
   if (state.path) line(state.path.position, "#1f5fbf", 2.5);
+  const executed = state.path && state.path.robot;
+  if (executed && executed.tool.length) line(executed.tool, "#2a9d4b", 1.2);
+  const frames = executed && executed.frames.length ? executed.frames : null;
+  const pose = frames ? frames[state.frame < 0 ? frames.length - 1 : Math.min(state.frame, frames.length - 1)]
+    : state.robot && state.robot.points;
+  if (pose) {
+    line(pose, "#777", 7);
+    for (const p of pose) {
+      const s = project(p);
+      ctx.fillStyle = "#333";
+      ctx.beginPath();
+      ctx.arc(s[0], s[1], 3.5 * devicePixelRatio, 0, 2 * Math.PI);
+      ctx.fill();
+    }
+  }
   marker(state.start, "#444", "start", true);
   marker(state.goal, "#444", "goal", true);
-  state.via.forEach((v, i) => marker(v.position, dragging === i ? "#f80" : "#e0457b", `p${i + 1}`, false));
+  const out = executed && executed.unreachable ? executed.unreachable.split("`")[1] : null;
+  state.via.forEach((v, i) => marker(v.position, dragging === i ? "#f80" : out === `via[${i}]` ? "#b00020" : "#e0457b", `p${i + 1}`, false));
 }
 
 // ---------------------------------------------------------------- the side panel
@@ -157,6 +175,13 @@ function showNumbers(answer, millis) {
     ...answer.via_errors_m.map((e, i) => [`p${i + 1} error`, `${fmt(e * 1e3, 3)} mm`]),
     ["learned and drawn in", `${fmt(millis, 1)} ms`],
   ];
+  const robot = answer.robot;
+  if (robot && !robot.unreachable) {
+    rows.splice(rows.length - 1, 0,
+      ["robot: worst tracking", `${fmt(robot.max_tracking_error_m * 1e3, 3)} mm`],
+      ["robot: samples not reached", `${robot.unconverged}`]);
+  }
+  document.getElementById("robot-error").textContent = robot && robot.unreachable ? robot.unreachable : "";
   const body = document.querySelector("#numbers tbody");
   body.innerHTML = "";
   for (const [k, v] of rows) {
@@ -191,6 +216,7 @@ async function learn(solver) {
   const request = {
     start: state.start, goal: state.goal, tau: Number(document.getElementById("tau").value),
     via: state.via, solver, weights: state.weights,
+    robot: document.getElementById("robot").checked && state.robot !== null,
   };
   try {
     const reply = await fetch("/api/viapoint", {
@@ -209,6 +235,8 @@ async function learn(solver) {
       document.body.dataset.learned = String(state.learned);
       document.body.dataset.samples = String(body.t.length);
       document.body.dataset.end = body.position[body.position.length - 1].map(v => v.toFixed(4)).join(",");
+      document.body.dataset.robotFrames = String(body.robot ? body.robot.frames.length : 0);
+      player();
     }
   } catch (e) {
     showError(`the studio did not answer: ${e}`);
@@ -287,7 +315,50 @@ function applyAddress() {
   }
 }
 
+// ---------------------------------------------------------------- the robot's animation
+const slider = document.getElementById("time");
+let playing = null;
+function player() {
+  const frames = state.path && state.path.robot ? state.path.robot.frames.length : 0;
+  slider.max = String(Math.max(0, frames - 1));
+  if (state.frame < 0) slider.value = slider.max;
+  clock();
+}
+function clock() {
+  const r = state.path && state.path.robot;
+  const k = Number(slider.value);
+  document.getElementById("clock").textContent = r && r.t.length ? `${fmt(r.t[Math.min(k, r.t.length - 1)], 2)} s` : "";
+}
+slider.addEventListener("input", () => { state.frame = Number(slider.value); clock(); draw(); });
+document.getElementById("play").addEventListener("click", () => {
+  const r = state.path && state.path.robot;
+  if (!r || !r.frames.length) return;
+  if (playing) { cancelAnimationFrame(playing); playing = null; return; }
+  const t0 = performance.now(), end = r.t[r.t.length - 1];
+  let shown = 0, started = t0;
+  const tick = now => {
+    const t = (now - t0) / 1000;
+    const k = r.t.findIndex(x => x >= t);
+    state.frame = k < 0 ? r.frames.length - 1 : k;
+    slider.value = String(state.frame);
+    clock();
+    draw();
+    shown += 1;
+    if (t < end) playing = requestAnimationFrame(tick);
+    else {
+      playing = null;
+      document.body.dataset.fps = String(Math.round(shown / ((now - started) / 1000)));
+    }
+  };
+  playing = requestAnimationFrame(tick);
+});
+document.getElementById("robot").addEventListener("change", () => learn("exact"));
+
 pointRows();
 weightRows();
 resize();
-learn("exact").then(applyAddress);
+fetch("/api/robot")
+  .then(r => (r.ok ? r.json() : null))
+  .then(view => { state.robot = view; draw(); })
+  .catch(() => {})
+  .finally(() => learn("exact").then(applyAddress));

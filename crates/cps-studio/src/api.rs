@@ -50,6 +50,10 @@ pub struct ViaPointRequest {
     /// CMA-ES population (default 96, as `experiments/viapoint.toml`).
     #[serde(default)]
     pub population: Option<usize>,
+    /// Also execute the movement on the studio's robot (3-D tasks): reachability, the
+    /// robot's poses to animate, the executed tool path.
+    #[serde(default)]
+    pub robot: bool,
 }
 
 fn exact() -> String {
@@ -103,6 +107,9 @@ pub struct ViaPointAnswer {
     pub solver: &'static str,
     /// CMA-ES generations run (0 for the exact solver).
     pub generations: u64,
+    /// The movement on the robot, when asked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub robot: Option<crate::robot::RobotAnswer>,
 }
 
 /// A refusal: the sentence the page shows next to the field.
@@ -239,12 +246,25 @@ fn sentence(e: LearnError) -> String {
     }
 }
 
-/// Learns what `request` asks and answers it; `stop` is polled every generation.
+/// Learns what `request` asks and answers it, executed on `robot` if it asks; `stop` is
+/// polled every generation.
 pub fn viapoint(
     request: &ViaPointRequest,
+    robot: Option<&crate::robot::StudioRobot>,
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Result<ViaPointAnswer, ApiError> {
     let config = request.config()?;
+    let robot = match (request.robot, robot) {
+        (false, _) => None,
+        (true, None) => return refuse("robot: this studio has no robot".into()),
+        (true, Some(_)) if request.start.len() != 3 => {
+            return refuse(format!(
+                "robot: the robot executes tool positions: start needs 3 coordinates (got {})",
+                request.start.len()
+            ));
+        }
+        (true, Some(r)) => Some(r),
+    };
     let progress = |_: usize, _: &cps_cmaes::GenerationReport<'_>| {
         if stop() {
             std::ops::ControlFlow::Break(())
@@ -260,6 +280,10 @@ pub fn viapoint(
     let position = (0..t.len())
         .map(|k| (0..dims).map(|d| traj.position(d)[k]).collect())
         .collect();
+    let robot = match robot {
+        Some(r) => Some(r.execute(&config.task, &traj).map_err(ApiError)?),
+        None => None,
+    };
     Ok(ViaPointAnswer {
         t,
         position,
@@ -273,5 +297,6 @@ pub fn viapoint(
             Solver::Cmaes => "cmaes",
         },
         generations: best.generations,
+        robot,
     })
 }

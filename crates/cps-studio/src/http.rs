@@ -26,6 +26,8 @@ pub struct StudioConfig {
     pub max_body_bytes: usize,
     /// Learning runs at once (default: the machine's cores); more wait their turn.
     pub workers: usize,
+    /// The robot movements are executed on (default: the thesis's Panda).
+    pub robot: Option<crate::robot::StudioRobot>,
 }
 
 impl StudioConfig {
@@ -35,6 +37,7 @@ impl StudioConfig {
             bind: bind.into(),
             max_body_bytes: 64 * 1024,
             workers: std::thread::available_parallelism().map_or(2, |n| n.get()),
+            robot: crate::robot::StudioRobot::thesis().ok(),
         }
     }
 }
@@ -59,6 +62,7 @@ pub enum StudioError {
 struct Shared {
     max_body: usize,
     workers: Arc<Semaphore>,
+    robot: Option<Arc<crate::robot::StudioRobot>>,
 }
 
 /// A running studio; dropping it stops the server.
@@ -107,6 +111,7 @@ impl StudioServer {
         let shared = Shared {
             max_body: config.max_body_bytes,
             workers: Arc::new(Semaphore::new(config.workers)),
+            robot: config.robot.map(Arc::new),
         };
         let (stop, stopped) = oneshot::channel::<()>();
         let thread = std::thread::Builder::new()
@@ -166,6 +171,7 @@ fn router(shared: Shared) -> Router {
         .route("/", get(|| async { asset("index.html") }))
         .route("/app.js", get(|| async { asset("app.js") }))
         .route("/api/viapoint", post(viapoint))
+        .route("/api/robot", get(robot))
         .fallback(|| async { error(StatusCode::NOT_FOUND, "no such page".into()) })
         // The body is read by the handler, within the studio's own limit.
         .layer(DefaultBodyLimit::disable())
@@ -200,6 +206,14 @@ impl Drop for Cancel {
     }
 }
 
+/// The studio's robot at rest, or 404 without one.
+async fn robot(State(shared): State<Shared>) -> Response {
+    match &shared.robot {
+        Some(r) => axum::Json(r.view()).into_response(),
+        None => error(StatusCode::NOT_FOUND, "this studio has no robot".into()),
+    }
+}
+
 async fn viapoint(State(shared): State<Shared>, body: Body) -> Response {
     let bytes = match to_bytes(body, shared.max_body).await {
         Ok(b) => b,
@@ -229,9 +243,10 @@ async fn viapoint(State(shared): State<Shared>, body: Body) -> Response {
     };
     let stop = Arc::new(AtomicBool::new(false));
     let _cancel = Cancel(stop.clone());
+    let robot = shared.robot.clone();
     let work = tokio::task::spawn_blocking(move || {
         let _permit = permit;
-        api::viapoint(&request, &|| stop.load(Ordering::Relaxed))
+        api::viapoint(&request, robot.as_deref(), &|| stop.load(Ordering::Relaxed))
     });
     match work.await {
         Ok(Ok(answer)) => axum::Json(answer).into_response(),

@@ -16,7 +16,7 @@
 //!     r#"{"start": [0.75, 0.02, 1.87], "goal": [0.55, -0.57, 1.45], "tau": 10,
 //!         "via": [{"time": 4, "position": [1.12, 0.37, 1.45]}]}"#,
 //! )?;
-//! let answer = api::viapoint(&request, &|| false)?;
+//! let answer = api::viapoint(&request, None, &|| false)?;
 //! assert!(answer.via_errors_m[0] < 1e-3 && answer.goal_error_m < 1e-3);
 //! // The server, on a free loopback port.
 //! let server = StudioServer::start(StudioConfig::new("127.0.0.1:0"))?;
@@ -29,5 +29,6 @@
 pub mod api;
 mod assets;
 mod http;
+pub mod robot;
 
 pub use http::{StudioConfig, StudioError, StudioServer};

@@ -221,3 +221,54 @@ fn a_taken_or_foreign_address_is_an_error_naming_it() {
         .to_string();
     assert!(e.contains("not an address host:port"), "{e}");
 }
+
+/// The thesis's Panda: at rest its tool is at the task's start (thesis Table 3); the
+/// learned movement executed on it ends at the goal, tracked within a tenth of a
+/// millimetre; a via point out of reach is named with its distance, nothing executed.
+#[test]
+fn the_movement_is_executed_on_the_thesis_robot() {
+    let server = StudioServer::start(StudioConfig::new("127.0.0.1:0")).unwrap();
+    let (status, text) = http(&server, "GET", "/api/robot", b"");
+    assert_eq!(status, 200, "{text}");
+    let view: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(view["dof"], 7);
+    let points: Vec<[f64; 3]> = serde_json::from_value(view["points"].clone()).unwrap();
+    assert_eq!(points.len(), 9, "base, seven joints, tool");
+    let tool = points[8];
+    for (a, b) in tool.iter().zip([0.75, 0.02, 1.87]) {
+        assert!((a - b).abs() < 1e-3, "{tool:?}");
+    }
+    let mut v = thesis("exact");
+    v["robot"] = json!(true);
+    let (status, a) = post(&server, &v);
+    assert_eq!(status, 200, "{a}");
+    let r = &a["robot"];
+    assert!(r["unreachable"].is_null(), "{r}");
+    let frames: Vec<Vec<[f64; 3]>> = serde_json::from_value(r["frames"].clone()).unwrap();
+    assert_eq!(
+        frames.len(),
+        251,
+        "25 poses a second over 10 s, and the last"
+    );
+    let end = frames.last().unwrap()[8];
+    for (a, b) in end.iter().zip([0.55, -0.57, 1.45]) {
+        assert!((a - b).abs() < 1e-3, "{end:?}");
+    }
+    assert!(r["max_tracking_error_m"].as_f64().unwrap() < 1e-4, "{r}");
+    assert_eq!(r["tool"].as_array().unwrap().len(), 1001);
+
+    v["via"][1]["position"] = json!([3.0, 0.0, 1.0]);
+    let (status, a) = post(&server, &v);
+    assert_eq!(status, 200, "the path is still learned: {a}");
+    let why = a["robot"]["unreachable"].as_str().unwrap();
+    assert!(
+        why.contains("`via[1]`") && why.contains("outside the robot's reachable workspace"),
+        "{why}"
+    );
+    assert!(a["robot"]["frames"].as_array().unwrap().is_empty());
+    // Robots execute tool positions: a 2-D task is refused.
+    let flat = json!({"start": [0, 0], "goal": [1, 1], "tau": 2, "robot": true});
+    let (status, e) = post(&server, &flat);
+    assert_eq!(status, 400);
+    assert!(e["error"].as_str().unwrap().starts_with("robot:"), "{e}");
+}

@@ -76,6 +76,11 @@ fn moving_a_via_point_in_the_browser_redraws_the_path_and_its_numbers() {
         "2",
         "the page learned again"
     );
+    assert_eq!(
+        after(&moved, "data-robot-frames=\""),
+        "251",
+        "the robot's poses"
+    );
     let p1 = after(&moved, "<td>p1 error</td><td>");
     let mm: f64 = p1.trim_end_matches(" mm").parse().unwrap();
     assert!(mm < 0.1, "p1 error {p1} (before the move: {p1_before})");
