@@ -209,10 +209,17 @@ function showError(sentence) {
 
 // ---------------------------------------------------------------- learning
 let inFlight = false, pending = null;
+// Latency from a gesture (a move, a release) to its path on screen, per solver: the time
+// of the oldest gesture not yet drawn, to the redraw of the answer that includes it.
+let gestureAt = null;
+const latencies = { exact: [], cmaes: [] };
+function gesture() { if (gestureAt === null) gestureAt = performance.now(); }
 async function learn(solver) {
   if (inFlight) { pending = solver; return; }
   inFlight = true;
   const started = performance.now();
+  const since = gestureAt;
+  gestureAt = null;
   const request = {
     start: state.start, goal: state.goal, tau: Number(document.getElementById("tau").value),
     via: state.via, solver, weights: state.weights,
@@ -232,6 +239,7 @@ async function learn(solver) {
       draw();
       showError(null);
       showNumbers(body, performance.now() - started);
+      if (since !== null) latencies[solver].push(performance.now() - since);
       document.body.dataset.learned = String(state.learned);
       document.body.dataset.samples = String(body.t.length);
       document.body.dataset.end = body.position[body.position.length - 1].map(v => v.toFixed(4)).join(",");
@@ -257,19 +265,24 @@ function pick(x, y) {
   });
   return best;
 }
+let last = null; // the pointer's last page position while a button is down
 canvas.addEventListener("mousedown", e => {
   const x = e.offsetX * devicePixelRatio, y = e.offsetY * devicePixelRatio;
   dragging = pick(x, y);
   if (dragging === null) orbit = [x, y];
+  last = [e.clientX, e.clientY];
   canvas.style.cursor = "grabbing";
 });
 window.addEventListener("mousemove", e => {
-  const dx = e.movementX * devicePixelRatio, dy = e.movementY * devicePixelRatio;
+  if (last === null) return;
+  const dx = (e.clientX - last[0]) * devicePixelRatio, dy = (e.clientY - last[1]) * devicePixelRatio;
+  last = [e.clientX, e.clientY];
   if (dragging !== null) {
     const w = unproject(dx, dy), p = state.via[dragging].position;
     for (let d = 0; d < 3; d++) p[d] = Math.round((p[d] + w[d]) * 1e4) / 1e4;
     pointRows();
     draw();
+    gesture();
     learn("exact");
   } else if (orbit) {
     view.yaw += dx * 0.005;
@@ -278,8 +291,10 @@ window.addEventListener("mousemove", e => {
   }
 });
 window.addEventListener("mouseup", () => {
+  last = null;
   if (dragging !== null) {
     dragging = null;
+    gesture();
     learn(document.getElementById("solver").value);
   }
   orbit = null;
@@ -297,13 +312,18 @@ window.addEventListener("resize", resize);
 // Tests and scripts move a via point by numbers: studio.moveVia(0, [x, y, z]).
 window.studio = {
   state,
+  latencies,
   moveVia(i, position, solver = "exact") {
     state.via[i].position = position.slice();
     pointRows();
     draw();
     return learn(solver);
   },
-  screenOf(i) { return project(state.via[i].position).map(v => v / devicePixelRatio); },
+  // Where via point i is on the page, CSS pixels.
+  screenOf(i) {
+    const r = canvas.getBoundingClientRect(), s = project(state.via[i].position);
+    return [r.left + s[0] / devicePixelRatio, r.top + s[1] / devicePixelRatio];
+  },
 };
 
 // `#move=i,x,y,z[,exact|cmaes]` in the address moves via point i once the first answer
@@ -344,11 +364,9 @@ document.getElementById("play").addEventListener("click", () => {
     clock();
     draw();
     shown += 1;
+    if (now > started) document.body.dataset.fps = String(Math.round(shown / ((now - started) / 1000)));
     if (t < end) playing = requestAnimationFrame(tick);
-    else {
-      playing = null;
-      document.body.dataset.fps = String(Math.round(shown / ((now - started) / 1000)));
-    }
+    else playing = null;
   };
   playing = requestAnimationFrame(tick);
 });
