@@ -11,6 +11,8 @@ use cps_studio::{StudioConfig, StudioServer};
 /// Arguments of `cps-cli studio`.
 #[derive(Args, Debug)]
 pub struct StudioArgs {
+    /// An experiment file whose via-point task the page starts with.
+    file: Option<std::path::PathBuf>,
     /// Address to bind (loopback by default; other hosts only if you bind them).
     #[arg(long, default_value = "127.0.0.1:8080")]
     bind: String,
@@ -18,7 +20,11 @@ pub struct StudioArgs {
 
 /// Serves the studio until Ctrl-C.
 pub fn studio(args: &StudioArgs, interrupted: &AtomicBool) -> Result<ExitCode> {
-    let mut server = StudioServer::start(StudioConfig::new(&args.bind))
+    let mut config = StudioConfig::new(&args.bind);
+    if let Some(file) = &args.file {
+        config.initial = Some(cps_studio::files::open_path(file).map_err(|e| InputError(e.0))?);
+    }
+    let mut server = StudioServer::start(config)
         .map_err(|e| InputError(format!("--bind {}: {e}", args.bind)))?;
     say!(
         "cps studio at {}; open it in a browser, Ctrl-C stops",

@@ -16,6 +16,7 @@ const state = {
   path: null,     // the last answer
   learned: 0,     // answers received
   robot: null,    // the robot at rest (GET /api/robot)
+  name: "studio", // the experiment's name (from an opened file)
   frame: -1,      // the robot pose shown (index into path.robot.frames; -1: the last)
 };
 const view = { yaw: -0.6, pitch: 0.45, zoom: 0.7, center: [0.8, 0.0, 1.3] };
@@ -220,14 +221,11 @@ async function learn(solver) {
   const started = performance.now();
   const since = gestureAt;
   gestureAt = null;
-  const request = {
-    start: state.start, goal: state.goal, tau: Number(document.getElementById("tau").value),
-    via: state.via, solver, weights: state.weights,
-    robot: document.getElementById("robot").checked && state.robot !== null,
-  };
+  const asked = request(solver);
+  asked.robot = document.getElementById("robot").checked && state.robot !== null;
   try {
     const reply = await fetch("/api/viapoint", {
-      method: "POST", headers: { "content-type": "application/json" }, body: JSON.stringify(request),
+      method: "POST", headers: { "content-type": "application/json" }, body: JSON.stringify(asked),
     });
     const body = await reply.json();
     if (!reply.ok) {
@@ -235,7 +233,7 @@ async function learn(solver) {
     } else {
       state.path = body;
       state.learned += 1;
-      state.tau = request.tau;
+      state.tau = asked.tau;
       draw();
       showError(null);
       showNumbers(body, performance.now() - started);
@@ -335,6 +333,62 @@ function applyAddress() {
   }
 }
 
+// ---------------------------------------------------------------- files
+// An experiment's task (from /api/open or /api/initial) becomes the page's state.
+function adopt(task) {
+  state.name = task.name;
+  state.start = task.start;
+  state.goal = task.goal;
+  state.tau = task.tau;
+  state.via = task.via;
+  for (const k of Object.keys(state.weights)) state.weights[k] = task.weights[k];
+  document.getElementById("tau").value = String(task.tau);
+  pointRows();
+  weightRows();
+  draw();
+}
+function download(name, text, type) {
+  const a = document.createElement("a");
+  a.href = URL.createObjectURL(new Blob([text], { type }));
+  a.download = name;
+  a.click();
+  setTimeout(() => URL.revokeObjectURL(a.href), 1000);
+}
+function request(solver) {
+  return {
+    start: state.start, goal: state.goal, tau: Number(document.getElementById("tau").value),
+    via: state.via, solver, weights: state.weights,
+  };
+}
+document.getElementById("open").addEventListener("change", async e => {
+  const file = e.target.files[0];
+  if (!file) return;
+  const reply = await fetch("/api/open", {
+    method: "POST", headers: { "content-type": "application/json" },
+    body: JSON.stringify({ name: file.name, text: await file.text() }),
+  });
+  const body = await reply.json();
+  document.getElementById("file-error").textContent = reply.ok ? "" : body.error;
+  if (reply.ok) { adopt(body); learn("exact"); }
+});
+document.getElementById("save").addEventListener("click", async () => {
+  const reply = await fetch("/api/save", {
+    method: "POST", headers: { "content-type": "application/json" },
+    body: JSON.stringify({ name: state.name, task: request(document.getElementById("solver").value) }),
+  });
+  if (!reply.ok) { document.getElementById("file-error").textContent = (await reply.json()).error; return; }
+  document.getElementById("file-error").textContent = "";
+  download(`${state.name}.toml`, await reply.text(), "application/toml");
+});
+document.getElementById("csv").addEventListener("click", () => {
+  const p = state.path;
+  if (!p) return;
+  const axes = p.position[0].length === 3 ? ["x", "y", "z"] : p.position[0].map((_, d) => `y${d}`);
+  const rows = [["t", ...axes].join(",")];
+  p.t.forEach((t, k) => rows.push([t, ...p.position[k]].join(",")));
+  download(`${state.name}_trajectory.csv`, rows.join("\n") + "\n", "text/csv");
+});
+
 // ---------------------------------------------------------------- the robot's animation
 const slider = document.getElementById("time");
 let playing = null;
@@ -375,8 +429,12 @@ document.getElementById("robot").addEventListener("change", () => learn("exact")
 pointRows();
 weightRows();
 resize();
-fetch("/api/robot")
-  .then(r => (r.ok ? r.json() : null))
-  .then(view => { state.robot = view; draw(); })
-  .catch(() => {})
-  .finally(() => learn("exact").then(applyAddress));
+Promise.all([
+  fetch("/api/robot").then(r => (r.ok ? r.json() : null)).catch(() => null),
+  fetch("/api/initial").then(r => (r.ok ? r.json() : null)).catch(() => null),
+]).then(([view, task]) => {
+  state.robot = view;
+  if (task) adopt(task);
+  draw();
+  return learn("exact");
+}).then(applyAddress);

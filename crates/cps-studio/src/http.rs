@@ -28,6 +28,9 @@ pub struct StudioConfig {
     pub workers: usize,
     /// The robot movements are executed on (default: the thesis's Panda).
     pub robot: Option<crate::robot::StudioRobot>,
+    /// The task the page starts with (an experiment file opened with the studio); the
+    /// page's own default, the thesis's task, without it.
+    pub initial: Option<crate::files::OpenedTask>,
 }
 
 impl StudioConfig {
@@ -38,6 +41,7 @@ impl StudioConfig {
             max_body_bytes: 64 * 1024,
             workers: std::thread::available_parallelism().map_or(2, |n| n.get()),
             robot: crate::robot::StudioRobot::thesis().ok(),
+            initial: None,
         }
     }
 }
@@ -63,6 +67,7 @@ struct Shared {
     max_body: usize,
     workers: Arc<Semaphore>,
     robot: Option<Arc<crate::robot::StudioRobot>>,
+    initial: Option<Arc<crate::files::OpenedTask>>,
 }
 
 /// A running studio; dropping it stops the server.
@@ -112,6 +117,7 @@ impl StudioServer {
             max_body: config.max_body_bytes,
             workers: Arc::new(Semaphore::new(config.workers)),
             robot: config.robot.map(Arc::new),
+            initial: config.initial.map(Arc::new),
         };
         let (stop, stopped) = oneshot::channel::<()>();
         let thread = std::thread::Builder::new()
@@ -172,6 +178,9 @@ fn router(shared: Shared) -> Router {
         .route("/app.js", get(|| async { asset("app.js") }))
         .route("/api/viapoint", post(viapoint))
         .route("/api/robot", get(robot))
+        .route("/api/initial", get(initial))
+        .route("/api/open", post(open))
+        .route("/api/save", post(save))
         .fallback(|| async { error(StatusCode::NOT_FOUND, "no such page".into()) })
         // The body is read by the handler, within the studio's own limit.
         .layer(DefaultBodyLimit::disable())
@@ -214,22 +223,78 @@ async fn robot(State(shared): State<Shared>) -> Response {
     }
 }
 
-async fn viapoint(State(shared): State<Shared>, body: Body) -> Response {
-    let bytes = match to_bytes(body, shared.max_body).await {
-        Ok(b) => b,
-        Err(_) => {
-            return error(
-                StatusCode::BAD_REQUEST,
-                format!(
-                    "the request body is larger than {} bytes (or was cut off)",
-                    shared.max_body
-                ),
-            );
-        }
-    };
-    let request: api::ViaPointRequest = match serde_json::from_slice(&bytes) {
+/// The task the studio was opened with, or 404.
+async fn initial(State(shared): State<Shared>) -> Response {
+    match &shared.initial {
+        Some(t) => axum::Json(t.as_ref().clone()).into_response(),
+        None => error(
+            StatusCode::NOT_FOUND,
+            "no experiment file was opened".into(),
+        ),
+    }
+}
+
+/// A JSON body within the studio's limit, or the 400 that says what is wrong with it.
+async fn json_body<T: serde::de::DeserializeOwned>(
+    shared: &Shared,
+    body: Body,
+) -> Result<T, Response> {
+    let bytes = to_bytes(body, shared.max_body).await.map_err(|_| {
+        error(
+            StatusCode::BAD_REQUEST,
+            format!(
+                "the request body is larger than {} bytes (or was cut off)",
+                shared.max_body
+            ),
+        )
+    })?;
+    serde_json::from_slice(&bytes)
+        .map_err(|e| error(StatusCode::BAD_REQUEST, format!("invalid JSON: {e}")))
+}
+
+/// `{"name": "x.toml", "text": "..."}`: the experiment text's task, or the parser's
+/// sentence (file, line, column).
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct OpenRequest {
+    name: String,
+    text: String,
+}
+
+async fn open(State(shared): State<Shared>, body: Body) -> Response {
+    let request: OpenRequest = match json_body(&shared, body).await {
         Ok(r) => r,
-        Err(e) => return error(StatusCode::BAD_REQUEST, format!("invalid JSON: {e}")),
+        Err(e) => return e,
+    };
+    match crate::files::open_text(&request.name, &request.text) {
+        Ok(task) => axum::Json(task).into_response(),
+        Err(e) => error(StatusCode::BAD_REQUEST, e.0),
+    }
+}
+
+/// `{"name": "x", "task": <a viapoint request>}`: the experiment file, as text.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SaveRequest {
+    name: String,
+    task: api::ViaPointRequest,
+}
+
+async fn save(State(shared): State<Shared>, body: Body) -> Response {
+    let request: SaveRequest = match json_body(&shared, body).await {
+        Ok(r) => r,
+        Err(e) => return e,
+    };
+    match crate::files::save(&request.task, &request.name) {
+        Ok(text) => ([(header::CONTENT_TYPE, "text/plain; charset=utf-8")], text).into_response(),
+        Err(e) => error(StatusCode::BAD_REQUEST, e.0),
+    }
+}
+
+async fn viapoint(State(shared): State<Shared>, body: Body) -> Response {
+    let request: api::ViaPointRequest = match json_body(&shared, body).await {
+        Ok(r) => r,
+        Err(e) => return e,
     };
     // Cheap checks before waiting for a worker.
     if let Err(e) = request.config() {

@@ -28,6 +28,7 @@
 
 pub mod api;
 mod assets;
+pub mod files;
 mod http;
 pub mod robot;
 

@@ -272,3 +272,58 @@ fn the_movement_is_executed_on_the_thesis_robot() {
     assert_eq!(status, 400);
     assert!(e["error"].as_str().unwrap().starts_with("robot:"), "{e}");
 }
+
+/// Files: an experiment's text opens as the page's task (the parser's sentence with file,
+/// line and column when it is wrong), the page's task saves as a file that opens back to
+/// the same task, and a studio started with a file serves its task first.
+#[test]
+fn experiment_files_open_save_and_start_the_page() {
+    let server = StudioServer::start(StudioConfig::new("127.0.0.1:0")).unwrap();
+    let shipped = include_str!("../../../experiments/viapoint.toml");
+    let body = json!({"name": "viapoint.toml", "text": shipped});
+    let (status, text) = http(&server, "POST", "/api/open", body.to_string().as_bytes());
+    assert_eq!(status, 200, "{text}");
+    let opened: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(opened["via"].as_array().unwrap().len(), 4);
+    assert_eq!(opened["weights"]["via"], 100000.0);
+    let bad = json!({"name": "bad.toml", "text": shipped.replace("tau = 10.0", "tau = -1.0")});
+    let (status, text) = http(&server, "POST", "/api/open", bad.to_string().as_bytes());
+    assert_eq!(status, 400);
+    assert!(text.contains("bad.toml:") && text.contains("tau"), "{text}");
+
+    let mut task = thesis("exact");
+    task["via"][0]["position"] = json!([0.8, 0.5, 1.65]);
+    let save = json!({"name": "moved", "task": task});
+    let (status, file) = http(&server, "POST", "/api/save", save.to_string().as_bytes());
+    assert_eq!(status, 200, "{file}");
+    assert!(file.contains("kind = \"viapoint\"") && file.contains("position = [0.8, 0.5, 1.65]"));
+    let body = json!({"name": "moved.toml", "text": file});
+    let (status, text) = http(&server, "POST", "/api/open", body.to_string().as_bytes());
+    assert_eq!(status, 200, "{text}");
+    let back: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(back["via"][0]["position"], json!([0.8, 0.5, 1.65]));
+    assert_eq!(back["name"], "moved");
+    let (status, _) = http(&server, "GET", "/api/initial", b"");
+    assert_eq!(status, 404, "no file was opened with this studio");
+
+    let mut config = StudioConfig::new("127.0.0.1:0");
+    config.initial = Some(
+        cps_studio::files::open_text("moved.toml", back_text(&back).as_str())
+            .unwrap_or_else(|e| panic!("{e}")),
+    );
+    let with_file = StudioServer::start(config).unwrap();
+    let (status, text) = http(&with_file, "GET", "/api/initial", b"");
+    assert_eq!(status, 200);
+    let initial: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(initial["via"][0]["position"], json!([0.8, 0.5, 1.65]));
+}
+
+/// The saved file of an opened task (through the library, as the CLI's `studio FILE`).
+fn back_text(task: &Value) -> String {
+    let request: cps_studio::api::ViaPointRequest = serde_json::from_value(json!({
+        "start": task["start"], "goal": task["goal"], "tau": task["tau"],
+        "via": task["via"], "solver": "exact"
+    }))
+    .unwrap();
+    cps_studio::files::save(&request, "moved").unwrap()
+}
