@@ -172,6 +172,7 @@ function showNumbers(answer, millis) {
     ["solver", answer.solver + (answer.generations ? ` (${answer.generations} generations)` : "")],
     ["cost", answer.cost.toExponential(5)],
     ["exact optimum", answer.optimum_cost.toExponential(5)],
+    ...Object.entries(answer.cost_terms).filter(([, v]) => v > 0).map(([k, v]) => [`  ${k} term`, v.toExponential(3)]),
     ["goal error", `${fmt(answer.goal_error_m * 1e3, 3)} mm`],
     ...answer.via_errors_m.map((e, i) => [`p${i + 1} error`, `${fmt(e * 1e3, 3)} mm`]),
     ["learned and drawn in", `${fmt(millis, 1)} ms`],
@@ -183,6 +184,9 @@ function showNumbers(answer, millis) {
       ["robot: samples not reached", `${robot.unconverged}`]);
   }
   document.getElementById("robot-error").textContent = robot && robot.unreachable ? robot.unreachable : "";
+  const limits = document.getElementById("limits");
+  limits.textContent = robot && robot.limit_lines ? robot.limit_lines.join("\n") : "";
+  limits.classList.toggle("violated", Boolean(robot && robot.limit_usage && robot.limit_usage.ok === false));
   const body = document.querySelector("#numbers tbody");
   body.innerHTML = "";
   for (const [k, v] of rows) {
@@ -379,6 +383,20 @@ document.getElementById("save").addEventListener("click", async () => {
   if (!reply.ok) { document.getElementById("file-error").textContent = (await reply.json()).error; return; }
   document.getElementById("file-error").textContent = "";
   download(`${state.name}.toml`, await reply.text(), "application/toml");
+});
+document.getElementById("export").addEventListener("click", async () => {
+  const format = document.getElementById("format").value;
+  const reply = await fetch("/api/export", {
+    method: "POST", headers: { "content-type": "application/json" },
+    body: JSON.stringify({ format, task: request(document.getElementById("solver").value) }),
+  });
+  if (!reply.ok) { document.getElementById("file-error").textContent = (await reply.json()).error; return; }
+  document.getElementById("file-error").textContent = "";
+  const name = (reply.headers.get("content-disposition") || "").split('"')[1] || "trajectory";
+  const a = document.createElement("a");
+  a.href = URL.createObjectURL(await reply.blob());
+  a.download = `${state.name}_${name}`;
+  a.click();
 });
 document.getElementById("csv").addEventListener("click", () => {
   const p = state.path;

@@ -246,25 +246,27 @@ fn sentence(e: LearnError) -> String {
     }
 }
 
-/// Learns what `request` asks and answers it, executed on `robot` if it asks; `stop` is
-/// polled every generation.
-pub fn viapoint(
+/// The studio's robot for a request that asks for it: 3-D tasks only.
+fn robot_for<'a>(
     request: &ViaPointRequest,
-    robot: Option<&crate::robot::StudioRobot>,
+    robot: Option<&'a crate::robot::StudioRobot>,
+) -> Result<&'a crate::robot::StudioRobot, ApiError> {
+    match robot {
+        None => refuse("robot: this studio has no robot".into()),
+        Some(_) if request.start.len() != 3 => refuse(format!(
+            "robot: the robot executes tool positions: start needs 3 coordinates (got {})",
+            request.start.len()
+        )),
+        Some(r) => Ok(r),
+    }
+}
+
+/// The request's configuration and learning outcome; `stop` is polled every generation.
+fn learn(
+    request: &ViaPointRequest,
     stop: &(dyn Fn() -> bool + Sync),
-) -> Result<ViaPointAnswer, ApiError> {
+) -> Result<(ViaPointConfig, cps_learn::ViaPointOutcome), ApiError> {
     let config = request.config()?;
-    let robot = match (request.robot, robot) {
-        (false, _) => None,
-        (true, None) => return refuse("robot: this studio has no robot".into()),
-        (true, Some(_)) if request.start.len() != 3 => {
-            return refuse(format!(
-                "robot: the robot executes tool positions: start needs 3 coordinates (got {})",
-                request.start.len()
-            ));
-        }
-        (true, Some(r)) => Some(r),
-    };
     let progress = |_: usize, _: &cps_cmaes::GenerationReport<'_>| {
         if stop() {
             std::ops::ControlFlow::Break(())
@@ -273,6 +275,37 @@ pub fn viapoint(
         }
     };
     let outcome = learn_via_points(&config, &progress).map_err(|e| ApiError(sentence(e)))?;
+    Ok((config, outcome))
+}
+
+/// The movement `request` asks for, executed on `robot` and exported as `format`
+/// (`ros2-yaml`, `mcap`, `csv-1khz`): the file name and its bytes.
+pub fn export(
+    request: &ViaPointRequest,
+    robot: Option<&crate::robot::StudioRobot>,
+    format: &str,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Result<(String, Vec<u8>), ApiError> {
+    let robot = robot_for(request, robot)?;
+    let (config, outcome) = learn(request, stop)?;
+    robot
+        .export(&outcome.best_trajectory(), config.task.dmp.dt, format)
+        .map_err(|e| ApiError(format!("format: {e}")))
+}
+
+/// Learns what `request` asks and answers it, executed on `robot` if it asks; `stop` is
+/// polled every generation.
+pub fn viapoint(
+    request: &ViaPointRequest,
+    robot: Option<&crate::robot::StudioRobot>,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Result<ViaPointAnswer, ApiError> {
+    let robot = if request.robot {
+        Some(robot_for(request, robot)?)
+    } else {
+        None
+    };
+    let (config, outcome) = learn(request, stop)?;
     let best = outcome.best();
     let traj = outcome.best_trajectory();
     let dims = traj.dims();

@@ -181,6 +181,7 @@ fn router(shared: Shared) -> Router {
         .route("/api/initial", get(initial))
         .route("/api/open", post(open))
         .route("/api/save", post(save))
+        .route("/api/export", post(export))
         .fallback(|| async { error(StatusCode::NOT_FOUND, "no such page".into()) })
         // The body is read by the handler, within the studio's own limit.
         .layer(DefaultBodyLimit::disable())
@@ -291,6 +292,73 @@ async fn save(State(shared): State<Shared>, body: Body) -> Response {
     }
 }
 
+/// `{"format": "ros2-yaml"|"mcap"|"csv-1khz", "task": <a viapoint request>}`: the
+/// movement executed on the robot, as a file for ROS 2 and viewers.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ExportRequest {
+    format: String,
+    task: api::ViaPointRequest,
+}
+
+async fn export(State(shared): State<Shared>, body: Body) -> Response {
+    let request: ExportRequest = match json_body(&shared, body).await {
+        Ok(r) => r,
+        Err(e) => return e,
+    };
+    if let Err(e) = request.task.config() {
+        return error(StatusCode::BAD_REQUEST, e.0);
+    }
+    let robot = shared.robot.clone();
+    let work = run_limited(&shared, move |stop| {
+        api::export(&request.task, robot.as_deref(), &request.format, stop)
+    })
+    .await;
+    match work {
+        Ok((name, bytes)) => (
+            [
+                (header::CONTENT_TYPE, "application/octet-stream".to_string()),
+                (
+                    header::CONTENT_DISPOSITION,
+                    format!("attachment; filename=\"{name}\""),
+                ),
+            ],
+            bytes,
+        )
+            .into_response(),
+        Err(r) => r,
+    }
+}
+
+/// Runs learning work on the blocking pool once a worker is free (in arrival order),
+/// stopped if the request goes away; a refusal as a 400.
+async fn run_limited<T: Send + 'static>(
+    shared: &Shared,
+    work: impl FnOnce(&(dyn Fn() -> bool + Sync)) -> Result<T, api::ApiError> + Send + 'static,
+) -> Result<T, Response> {
+    let Ok(permit) = shared.workers.clone().acquire_owned().await else {
+        return Err(error(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "the studio is stopping".into(),
+        ));
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    let _cancel = Cancel(stop.clone());
+    let done = tokio::task::spawn_blocking(move || {
+        let _permit = permit;
+        work(&|| stop.load(Ordering::Relaxed))
+    })
+    .await;
+    match done {
+        Ok(Ok(v)) => Ok(v),
+        Ok(Err(e)) => Err(error(StatusCode::BAD_REQUEST, e.0)),
+        Err(_) => Err(error(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            "the learning run failed unexpectedly".into(),
+        )),
+    }
+}
+
 async fn viapoint(State(shared): State<Shared>, body: Body) -> Response {
     let request: api::ViaPointRequest = match json_body(&shared, body).await {
         Ok(r) => r,
@@ -300,25 +368,13 @@ async fn viapoint(State(shared): State<Shared>, body: Body) -> Response {
     if let Err(e) = request.config() {
         return error(StatusCode::BAD_REQUEST, e.0);
     }
-    let Ok(permit) = shared.workers.clone().acquire_owned().await else {
-        return error(
-            StatusCode::SERVICE_UNAVAILABLE,
-            "the studio is stopping".into(),
-        );
-    };
-    let stop = Arc::new(AtomicBool::new(false));
-    let _cancel = Cancel(stop.clone());
     let robot = shared.robot.clone();
-    let work = tokio::task::spawn_blocking(move || {
-        let _permit = permit;
-        api::viapoint(&request, robot.as_deref(), &|| stop.load(Ordering::Relaxed))
-    });
-    match work.await {
-        Ok(Ok(answer)) => axum::Json(answer).into_response(),
-        Ok(Err(e)) => error(StatusCode::BAD_REQUEST, e.0),
-        Err(_) => error(
-            StatusCode::INTERNAL_SERVER_ERROR,
-            "the learning run failed unexpectedly".into(),
-        ),
+    match run_limited(&shared, move |stop| {
+        api::viapoint(&request, robot.as_deref(), stop)
+    })
+    .await
+    {
+        Ok(answer) => axum::Json(answer).into_response(),
+        Err(r) => r,
     }
 }

@@ -17,6 +17,8 @@ pub struct StudioRobot {
     pub name: String,
     /// Model, initial configuration, execution settings.
     pub setup: RobotSetup,
+    /// Its joint names, limits and inertias (for the limit check and the exports).
+    pub model: cps_experiment::robot_file::RobotModel,
 }
 
 /// The robot at rest, for the page to draw before anything is learned.
@@ -47,6 +49,11 @@ pub struct RobotAnswer {
     pub max_tracking_error_m: f64,
     /// Samples the controller did not reach within its iteration cap.
     pub unconverged: usize,
+    /// The executed joint movement against every limit at 1 kHz, as `cps-cli limits
+    /// check` reports it (`ok`, peak usages, violations).
+    pub limit_usage: serde_json::Value,
+    /// The same in words, one line per finding.
+    pub limit_lines: Vec<String>,
 }
 
 impl StudioRobot {
@@ -60,6 +67,7 @@ impl StudioRobot {
                 initial_q: scene.initial_q,
                 execution: cps_kinematics::ExecutionConfig::default(),
             },
+            model: scene.robot,
         })
     }
 
@@ -82,6 +90,8 @@ impl StudioRobot {
             tool: Vec::new(),
             max_tracking_error_m: 0.0,
             unconverged: 0,
+            limit_usage: serde_json::Value::Null,
+            limit_lines: Vec::new(),
         };
         match check_way_points(task, &self.setup) {
             Ok(_) => {}
@@ -92,9 +102,11 @@ impl StudioRobot {
             Err(e) => return Err(e.to_string()),
         }
         let dt = task.dmp.dt;
-        let mut robot = KinematicRobot::new(self.setup.chain.clone(), &self.setup.initial_q, dt)
+        let rec = self.run(traj, dt)?;
+        let usage = cps_experiment::limits::check_samples(&self.model, &self.joints(&rec), 1000.0)
             .map_err(|e| e.to_string())?;
-        let rec = execute_trajectory(&mut robot, &self.setup, traj).map_err(|e| e.to_string())?;
+        answer.limit_usage = usage.json();
+        answer.limit_lines = usage.lines();
         let every = ((1.0 / FRAMES_PER_SECOND) / dt).round().max(1.0) as usize;
         for (k, q) in rec.q.iter().enumerate() {
             if k % every == 0 || k + 1 == rec.q.len() {
@@ -106,6 +118,45 @@ impl StudioRobot {
         answer.max_tracking_error_m = rec.max_position_error();
         answer.unconverged = rec.unconverged;
         Ok(answer)
+    }
+}
+
+impl StudioRobot {
+    /// Executes `traj` from the initial configuration, stepped every `dt`.
+    fn run(&self, traj: &Trajectory, dt: f64) -> Result<cps_kinematics::Recording, String> {
+        let mut robot = KinematicRobot::new(self.setup.chain.clone(), &self.setup.initial_q, dt)
+            .map_err(|e| e.to_string())?;
+        execute_trajectory(&mut robot, &self.setup, traj).map_err(|e| e.to_string())
+    }
+
+    /// The executed joints as a named joint trajectory.
+    fn joints(&self, rec: &cps_kinematics::Recording) -> cps_experiment::limits::JointTrajectory {
+        cps_experiment::limits::JointTrajectory {
+            names: self.model.joint_names.clone(),
+            times: rec.time.clone(),
+            q: rec.q.clone(),
+        }
+    }
+
+    /// `traj` executed and exported for ROS 2 and viewers (`ros2-yaml`, `mcap`,
+    /// `csv-1khz`, as `cps-cli export`): the file's name suffix, content type and bytes.
+    pub fn export(
+        &self,
+        traj: &Trajectory,
+        dt: f64,
+        format: &str,
+    ) -> Result<(String, Vec<u8>), String> {
+        use cps_experiment::export::{ExportFormat, ExportOptions, export_samples};
+        let format = ExportFormat::parse(format)?;
+        let rec = self.run(traj, dt)?;
+        let e = export_samples(
+            &self.model,
+            &self.joints(&rec),
+            format,
+            &ExportOptions::default(),
+        )
+        .map_err(|e| e.0)?;
+        Ok((format.file_name().to_string(), e.bytes))
     }
 }
 

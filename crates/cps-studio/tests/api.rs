@@ -327,3 +327,44 @@ fn back_text(task: &Value) -> String {
     .unwrap();
     cps_studio::files::save(&request, "moved").unwrap()
 }
+
+/// The robot's movement as files for ROS 2 and viewers, as `cps-cli export` writes them;
+/// every answer on the robot carries its limit check.
+#[test]
+fn the_robot_movement_exports_and_reports_its_limits() {
+    let server = StudioServer::start(StudioConfig::new("127.0.0.1:0")).unwrap();
+    let mut task = thesis("exact");
+    task["robot"] = json!(true);
+    let (status, a) = post(&server, &task);
+    assert_eq!(status, 200);
+    let usage = &a["robot"]["limit_usage"];
+    assert!(usage["peak_usage"]["velocity"].is_array(), "{usage}");
+    // The thesis's start configuration has joint 4 just beyond its upper limit.
+    assert_eq!(usage["ok"], false);
+    assert!(!a["robot"]["limit_lines"].as_array().unwrap().is_empty());
+
+    let export = |format: &str| {
+        let body = json!({"format": format, "task": thesis("exact")});
+        http(&server, "POST", "/api/export", body.to_string().as_bytes())
+    };
+    let (status, yaml) = export("ros2-yaml");
+    assert_eq!(status, 200, "{yaml}");
+    assert!(
+        yaml.contains("joint_names:") && yaml.contains("panda_joint7"),
+        "{}",
+        &yaml[..yaml.len().min(400)]
+    );
+    let (status, mcap) = export("mcap");
+    assert_eq!(status, 200);
+    assert!(mcap.contains("MCAP0"), "the MCAP magic");
+    let (status, csv) = export("csv-1khz");
+    assert_eq!(status, 200);
+    assert_eq!(
+        csv.lines().count(),
+        10_002,
+        "a header and 1 kHz rows over 10 s"
+    );
+    let (status, e) = export("pdf");
+    assert_eq!(status, 400);
+    assert!(e.contains("format:"), "{e}");
+}
