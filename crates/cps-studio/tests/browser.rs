@@ -5,23 +5,11 @@
 //! Skipped without a browser, except under CI (`CI` set), where `.ci/run` installs it.
 //! Screenshots stay in the test's target directory (`studio-screenshots/`).
 
+mod common;
+
 use std::process::Command;
 
 use cps_studio::{StudioConfig, StudioServer};
-
-fn browser() -> Option<String> {
-    std::env::var("CPS_CHROMIUM").ok().or_else(|| {
-        ["chromium-headless-shell", "chromium", "chromium-browser"]
-            .into_iter()
-            .find(|b| {
-                Command::new(b)
-                    .arg("--version")
-                    .output()
-                    .is_ok_and(|o| o.status.success())
-            })
-            .map(String::from)
-    })
-}
 
 const FLAGS: [&str; 4] = [
     "--no-sandbox",
@@ -51,12 +39,7 @@ fn after<'a>(dom: &'a str, marker: &str) -> &'a str {
 
 #[test]
 fn moving_a_via_point_in_the_browser_redraws_the_path_and_its_numbers() {
-    let Some(browser) = browser() else {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "CI must provide a headless Chromium (chromium-headless-shell)"
-        );
-        eprintln!("skipped: no headless Chromium on the PATH");
+    let Some(browser) = common::browser() else {
         return;
     };
     let server = StudioServer::start(StudioConfig::new("127.0.0.1:0")).unwrap();

@@ -5,6 +5,8 @@
 //! are written to `studio-screenshots/latency.json` for the closing notes (measured, not
 //! asserted: timing goals live in benchmarks). Skipped without a browser, except under CI.
 
+mod common;
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::process::{Child, Command, Stdio};
@@ -13,20 +15,6 @@ use std::time::{Duration, Instant};
 use cps_studio::{StudioConfig, StudioServer};
 use serde_json::{Value, json};
 use tungstenite::{Message, WebSocket};
-
-fn browser() -> Option<String> {
-    std::env::var("CPS_CHROMIUM").ok().or_else(|| {
-        ["chromium-headless-shell", "chromium", "chromium-browser"]
-            .into_iter()
-            .find(|b| {
-                Command::new(b)
-                    .arg("--version")
-                    .output()
-                    .is_ok_and(|o| o.status.success())
-            })
-            .map(String::from)
-    })
-}
 
 /// A page of a headless browser, spoken to over the DevTools protocol.
 struct Page {
@@ -185,12 +173,7 @@ fn quantile(v: &mut [f64], q: f64) -> f64 {
 
 #[test]
 fn dragging_p1_with_the_mouse_relearns_and_redraws() {
-    let Some(browser) = browser() else {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "CI must provide a headless Chromium (chromium-headless-shell)"
-        );
-        eprintln!("skipped: no headless Chromium on the PATH");
+    let Some(browser) = common::browser() else {
         return;
     };
     let server = StudioServer::start(StudioConfig::new("127.0.0.1:0")).unwrap();
