@@ -336,6 +336,16 @@ pub fn imitate_files(
     spec: &ImitationSpec,
 ) -> Result<Imitated, InputError> {
     let (names, demos) = read_demos(paths, columns)?;
+    imitate_demos(names, &demos, spec)
+}
+
+/// Imitates demonstrations in memory (`names` their dimensions) with one DMP per
+/// dimension, as [`imitate_files`] does.
+pub fn imitate_demos(
+    names: Vec<String>,
+    demos: &[Demonstration],
+    spec: &ImitationSpec,
+) -> Result<Imitated, InputError> {
     let Some(first) = demos.first() else {
         return Err(InputError("no demonstration given".into()));
     };
@@ -350,7 +360,7 @@ pub fn imitate_files(
         ..DmpConfig::new(spec.bases, tau, dt)
     };
     let fit =
-        cps_dmp::imitate(&config, &demos, spec.regression, spec.combine).map_err(|e| match e {
+        cps_dmp::imitate(&config, demos, spec.regression, spec.combine).map_err(|e| match e {
             DmpError::InvalidConfig { field, rule, value } => {
                 InputError(format!("--{}: {rule} (got {value:?})", option_name(field)))
             }

@@ -17,6 +17,8 @@ const state = {
   learned: 0,     // answers received
   robot: null,    // the robot at rest (GET /api/robot)
   name: "studio", // the experiment's name (from an opened file)
+  demoFiles: [],  // uploaded demonstrations: {name, text}
+  imitation: null, // the last imitation answer
   frame: -1,      // the robot pose shown (index into path.robot.frames; -1: the last)
 };
 const view = { yaw: -0.6, pitch: 0.45, zoom: 0.7, center: [0.8, 0.0, 1.3] };
@@ -90,6 +92,12 @@ function draw() {
   line([o, [o[0] + 0.2, o[1], o[2]]], "#d33", 2);
   line([o, [o[0], o[1] + 0.2, o[2]]], "#3a3", 2);
   line([o, [o[0], o[1], o[2] + 0.2]], "#33d", 2);
+  const im = state.imitation;
+  if (im && im.names.length === 3) {
+    for (const d of im.demos) line(d.values, "#bbb", 1);
+    if (im.promp) line(im.promp.mean, "#8e44ad", 1.5);
+    line(im.dmp.values, "#e67e22", 2.5);
+  }
   if (state.path) line(state.path.position, "#1f5fbf", 2.5);
   const executed = state.path && state.path.robot;
   if (executed && executed.tool.length) line(executed.tool, "#2a9d4b", 1.2);
@@ -315,6 +323,8 @@ window.addEventListener("resize", resize);
 window.studio = {
   state,
   latencies,
+  // Demonstrations by content (tests, scripts): [{name, text}].
+  imitateTexts(files) { state.demoFiles = files; return imitate(); },
   moveVia(i, position, solver = "exact") {
     state.via[i].position = position.slice();
     pointRows();
@@ -406,6 +416,52 @@ document.getElementById("csv").addEventListener("click", () => {
   p.t.forEach((t, k) => rows.push([t, ...p.position[k]].join(",")));
   download(`${state.name}_trajectory.csv`, rows.join("\n") + "\n", "text/csv");
 });
+
+// ---------------------------------------------------------------- imitation
+async function imitate() {
+  if (!state.demoFiles.length) return;
+  const lambda = document.getElementById("lambda").value;
+  const reply = await fetch("/api/imitate", {
+    method: "POST", headers: { "content-type": "application/json" },
+    body: JSON.stringify({
+      demos: state.demoFiles,
+      bases: Number(document.getElementById("bases").value),
+      method: document.getElementById("method").value,
+      lambda: lambda === "" ? null : Number(lambda),
+    }),
+  });
+  const body = await reply.json();
+  document.getElementById("imitation-error").textContent = reply.ok ? "" : body.error;
+  if (!reply.ok) return;
+  state.imitation = body;
+  const rows = body.names.map((n, d) => [`${n}: RMSE`, `${fmt(body.rmse[d] * 1e3, 3)} mm (λ ${body.lambda[d].toExponential(1)})`]);
+  if (body.promp) {
+    body.names.forEach((n, d) => {
+      const mean = body.promp.std.reduce((a, s) => a + s[d], 0) / body.promp.std.length;
+      rows.push([`${n}: ProMP mean σ`, `${fmt(mean * 1e3, 1)} mm`]);
+    });
+  }
+  if (body.names.length !== 3) rows.push(["view", "3-D view draws x, y, z demonstrations only"]);
+  const tbody = document.querySelector("#imitation tbody");
+  tbody.innerHTML = "";
+  for (const [k, v] of [[`${body.demos.length} demonstration(s)`, body.names.join(", ")], ...rows]) {
+    const tr = document.createElement("tr");
+    tr.innerHTML = "<td></td><td></td>";
+    tr.children[0].textContent = k;
+    tr.children[1].textContent = v;
+    tbody.append(tr);
+  }
+  document.body.dataset.imitated = String(body.demos.length);
+  draw();
+}
+async function addDemos(files) {
+  state.demoFiles = await Promise.all([...files].map(async f => ({ name: f.name, text: await f.text() })));
+  imitate();
+}
+document.getElementById("demos").addEventListener("change", e => addDemos(e.target.files));
+for (const id of ["bases", "method", "lambda"]) document.getElementById(id).addEventListener("change", imitate);
+canvas.addEventListener("dragover", e => e.preventDefault());
+canvas.addEventListener("drop", e => { e.preventDefault(); addDemos(e.dataTransfer.files); });
 
 // ---------------------------------------------------------------- the robot's animation
 const slider = document.getElementById("time");

@@ -24,6 +24,9 @@ pub struct StudioConfig {
     pub bind: String,
     /// The largest request body accepted, bytes (default 64 KiB).
     pub max_body_bytes: usize,
+    /// The largest upload accepted (demonstration files, experiment files), bytes
+    /// (default 8 MiB).
+    pub max_upload_bytes: usize,
     /// Learning runs at once (default: the machine's cores); more wait their turn.
     pub workers: usize,
     /// The robot movements are executed on (default: the thesis's Panda).
@@ -39,6 +42,7 @@ impl StudioConfig {
         Self {
             bind: bind.into(),
             max_body_bytes: 64 * 1024,
+            max_upload_bytes: 8 << 20,
             workers: std::thread::available_parallelism().map_or(2, |n| n.get()),
             robot: crate::robot::StudioRobot::thesis().ok(),
             initial: None,
@@ -65,6 +69,7 @@ pub enum StudioError {
 #[derive(Clone)]
 struct Shared {
     max_body: usize,
+    max_upload: usize,
     workers: Arc<Semaphore>,
     robot: Option<Arc<crate::robot::StudioRobot>>,
     initial: Option<Arc<crate::files::OpenedTask>>,
@@ -87,11 +92,15 @@ impl StudioServer {
                 config.workers
             )));
         }
-        if !(1024..=16 << 20).contains(&config.max_body_bytes) {
-            return Err(StudioError::Config(format!(
-                "max_body_bytes must be between 1024 and 16777216 (got {})",
-                config.max_body_bytes
-            )));
+        for (name, v) in [
+            ("max_body_bytes", config.max_body_bytes),
+            ("max_upload_bytes", config.max_upload_bytes),
+        ] {
+            if !(1024..=64 << 20).contains(&v) {
+                return Err(StudioError::Config(format!(
+                    "{name} must be between 1024 and 67108864 (got {v})"
+                )));
+            }
         }
         let bind_error = |message: String| StudioError::Bind {
             bind: config.bind.clone(),
@@ -115,6 +124,7 @@ impl StudioServer {
             .map_err(|e| bind_error(e.to_string()))?;
         let shared = Shared {
             max_body: config.max_body_bytes,
+            max_upload: config.max_upload_bytes,
             workers: Arc::new(Semaphore::new(config.workers)),
             robot: config.robot.map(Arc::new),
             initial: config.initial.map(Arc::new),
@@ -182,6 +192,7 @@ fn router(shared: Shared) -> Router {
         .route("/api/open", post(open))
         .route("/api/save", post(save))
         .route("/api/export", post(export))
+        .route("/api/imitate", post(imitate))
         .fallback(|| async { error(StatusCode::NOT_FOUND, "no such page".into()) })
         // The body is read by the handler, within the studio's own limit.
         .layer(DefaultBodyLimit::disable())
@@ -240,13 +251,18 @@ async fn json_body<T: serde::de::DeserializeOwned>(
     shared: &Shared,
     body: Body,
 ) -> Result<T, Response> {
-    let bytes = to_bytes(body, shared.max_body).await.map_err(|_| {
+    json_within(shared.max_body, body).await
+}
+
+/// A JSON body of at most `limit` bytes.
+async fn json_within<T: serde::de::DeserializeOwned>(
+    limit: usize,
+    body: Body,
+) -> Result<T, Response> {
+    let bytes = to_bytes(body, limit).await.map_err(|_| {
         error(
             StatusCode::BAD_REQUEST,
-            format!(
-                "the request body is larger than {} bytes (or was cut off)",
-                shared.max_body
-            ),
+            format!("the request body is larger than {limit} bytes (or was cut off)"),
         )
     })?;
     serde_json::from_slice(&bytes)
@@ -263,7 +279,7 @@ struct OpenRequest {
 }
 
 async fn open(State(shared): State<Shared>, body: Body) -> Response {
-    let request: OpenRequest = match json_body(&shared, body).await {
+    let request: OpenRequest = match json_within(shared.max_upload, body).await {
         Ok(r) => r,
         Err(e) => return e,
     };
@@ -356,6 +372,19 @@ async fn run_limited<T: Send + 'static>(
             StatusCode::INTERNAL_SERVER_ERROR,
             "the learning run failed unexpectedly".into(),
         )),
+    }
+}
+
+/// Demonstration files imitated by a DMP (and their ProMP band).
+async fn imitate(State(shared): State<Shared>, body: Body) -> Response {
+    let request: crate::imitation::ImitateRequest = match json_within(shared.max_upload, body).await
+    {
+        Ok(r) => r,
+        Err(e) => return e,
+    };
+    match run_limited(&shared, move |_| crate::imitation::imitate(&request)).await {
+        Ok(answer) => axum::Json(answer).into_response(),
+        Err(r) => r,
     }
 }
 

@@ -30,6 +30,7 @@ pub mod api;
 mod assets;
 pub mod files;
 mod http;
+pub mod imitation;
 pub mod robot;
 
 pub use http::{StudioConfig, StudioError, StudioServer};

@@ -368,3 +368,61 @@ fn the_robot_movement_exports_and_reports_its_limits() {
     assert_eq!(status, 400);
     assert!(e.contains("format:"), "{e}");
 }
+
+/// Imitation mode: three demonstrations (the shipped one, shifted by 0, 1 and 2 cm in x)
+/// imitated by a DMP within a millimetre; their ProMP's mean starts at the demonstrations'
+/// mean start and its σ in x is the offsets' sample standard deviation (1 cm); bad files
+/// are named with the line.
+#[test]
+fn demonstrations_are_imitated_with_their_promp_band() {
+    let server = StudioServer::start(StudioConfig::new("127.0.0.1:0")).unwrap();
+    let shipped = include_str!("../../../experiments/demos/table3_min_jerk.csv");
+    let shifted = |dx: f64| {
+        let mut out = String::from("time,x,y,z\n");
+        for line in shipped.lines().skip(1) {
+            let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+            out.push_str(&format!("{},{},{},{}\n", v[0], v[1] + dx, v[2], v[3]));
+        }
+        out
+    };
+    let demos: Vec<Value> = (0..3)
+        .map(|i| json!({"name": format!("d{i}.csv"), "text": shifted(0.01 * i as f64)}))
+        .collect();
+    let body = json!({"demos": demos, "bases": 30});
+    let (status, text) = http(&server, "POST", "/api/imitate", body.to_string().as_bytes());
+    assert_eq!(status, 200, "{}", &text[..text.len().min(300)]);
+    let a: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(a["names"], json!(["x", "y", "z"]));
+    for r in a["rmse"].as_array().unwrap() {
+        assert!(r.as_f64().unwrap() < 1e-3, "{r}");
+    }
+    let mean0: Vec<f64> = serde_json::from_value(a["promp"]["mean"][0].clone()).unwrap();
+    assert!(
+        (mean0[0] - 0.76).abs() < 1e-3 && (mean0[2] - 1.87).abs() < 1e-3,
+        "{mean0:?}"
+    );
+    let std0: Vec<f64> = serde_json::from_value(a["promp"]["std"][0].clone()).unwrap();
+    assert!((std0[0] - 0.01).abs() < 5e-4, "σx {}", std0[0]);
+    assert!(std0[1] < 1e-4 && std0[2] < 1e-4, "{std0:?}");
+
+    let bad = |body: Value, expected: &str| {
+        let (status, text) = http(&server, "POST", "/api/imitate", body.to_string().as_bytes());
+        assert_eq!(status, 400, "{text}");
+        assert!(text.contains(expected), "{text}");
+    };
+    bad(json!({"demos": []}), "demos: give 1 to 50");
+    let broken = shipped.replacen("0.749999975", "nan", 1);
+    bad(
+        json!({"demos": [{"name": "broken.csv", "text": broken}]}),
+        "broken.csv",
+    );
+    let flat = "time,x,y\n0,0,0\n0.1,0.1,0.1\n0.2,0.2,0.2\n0.3,0.3,0.3\n0.4,0.4,0.4\n";
+    bad(
+        json!({"demos": [{"name": "a.csv", "text": shipped}, {"name": "b.csv", "text": flat}]}),
+        "b.csv: 2 dimensions",
+    );
+    bad(
+        json!({"demos": [{"name": "a.csv", "text": shipped}], "method": "magic"}),
+        "method:",
+    );
+}

@@ -237,6 +237,23 @@ fn dragging_p1_with_the_mouse_relearns_and_redraws() {
         .unwrap();
     assert!(fps > 0.0, "the animation ran");
 
+    // Imitation mode: two demonstrations given to the page as files would be.
+    let demo = include_str!("../../../experiments/demos/table3_min_jerk.csv");
+    let mut shifted = String::from("time,x,y,z\n");
+    for line in demo.lines().skip(1) {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        shifted.push_str(&format!("{},{},{},{}\n", v[0], v[1], v[2] + 0.03, v[3]));
+    }
+    let files = json!([{"name": "a.csv", "text": demo}, {"name": "b.csv", "text": shifted}]);
+    page.eval(&format!("studio.imitateTexts({files}).then(() => true)"));
+    page.until("document.body.dataset.imitated === '2'");
+    assert!(page.eval("studio.state.imitation.promp !== null") == json!(true));
+    let rmse = page
+        .eval("Math.max(...studio.state.imitation.rmse)")
+        .as_f64()
+        .unwrap();
+    assert!(rmse < 1e-3, "imitation RMSE {rmse}");
+
     let shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("studio-screenshots");
     std::fs::create_dir_all(&shots).unwrap();
     let png = page.call("Page.captureScreenshot", json!({"format": "png"}));

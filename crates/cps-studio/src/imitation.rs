@@ -1,0 +1,188 @@
+//! The studio's imitation mode: demonstration CSVs (as `cps-cli imitate` reads them)
+//! imitated by a DMP, and with two or more, their ProMP's mean ± 2σ band — the same
+//! library calls as the command line, on the uploaded texts.
+
+use std::path::Path;
+
+use cps_dmp::{Combine, Formulation, Lambda, Regression};
+use cps_experiment::movement::{ImitationSpec, imitate_demos, parse_demo};
+use serde::{Deserialize, Serialize};
+
+use crate::api::ApiError;
+
+/// The most demonstrations a request may carry.
+pub const MAX_DEMOS: usize = 50;
+
+/// `POST /api/imitate`'s body.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImitateRequest {
+    /// The demonstration files: `{name, text}` (CSV: time, then one column per
+    /// dimension).
+    pub demos: Vec<DemoFile>,
+    /// Basis functions per dimension (default 25).
+    #[serde(default)]
+    pub bases: Option<usize>,
+    /// `"ridge"` (default), `"jerk"` (ridge penalising jerk) or `"lwr"`.
+    #[serde(default)]
+    pub method: Option<String>,
+    /// λ of the regression (default: 1e-12 for ridge, chosen by cross-validation for
+    /// jerk).
+    #[serde(default)]
+    pub lambda: Option<f64>,
+}
+
+/// An uploaded demonstration.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DemoFile {
+    /// The file's name (for messages).
+    pub name: String,
+    /// Its CSV text.
+    pub text: String,
+}
+
+/// A curve over time: `values[k]` at `t[k]`, one value per dimension.
+#[derive(Debug, Clone, Serialize)]
+pub struct Curve {
+    /// Times, seconds.
+    pub t: Vec<f64>,
+    /// One row per time.
+    pub values: Vec<Vec<f64>>,
+}
+
+/// The imitation's answer.
+#[derive(Debug, Clone, Serialize)]
+pub struct ImitateAnswer {
+    /// The dimensions' names (the first file's header).
+    pub names: Vec<String>,
+    /// The demonstrations as read (at most 500 samples each, for drawing).
+    pub demos: Vec<Curve>,
+    /// The DMP's rollout.
+    pub dmp: Curve,
+    /// Per dimension: RMSE to what it was fitted to, and the λ used.
+    pub rmse: Vec<f64>,
+    /// Per dimension: the regression's λ.
+    pub lambda: Vec<f64>,
+    /// With two or more demonstrations: the ProMP's mean and standard deviation.
+    pub promp: Option<Band>,
+}
+
+/// A ProMP's mean ± σ over time.
+#[derive(Debug, Clone, Serialize)]
+pub struct Band {
+    /// Times, seconds.
+    pub t: Vec<f64>,
+    /// Mean per time and dimension.
+    pub mean: Vec<Vec<f64>>,
+    /// Standard deviation per time and dimension.
+    pub std: Vec<Vec<f64>>,
+}
+
+fn thin(t: &[f64], rows: Vec<Vec<f64>>) -> Curve {
+    let every = t.len().div_ceil(500).max(1);
+    Curve {
+        t: t.iter().step_by(every).copied().collect(),
+        values: rows.into_iter().step_by(every).collect(),
+    }
+}
+
+/// Imitates the request's demonstrations.
+pub fn imitate(request: &ImitateRequest) -> Result<ImitateAnswer, ApiError> {
+    if request.demos.is_empty() || request.demos.len() > MAX_DEMOS {
+        return Err(ApiError(format!(
+            "demos: give 1 to {MAX_DEMOS} demonstration files (got {})",
+            request.demos.len()
+        )));
+    }
+    let bases = request.bases.unwrap_or(25);
+    if !(2..=200).contains(&bases) {
+        return Err(ApiError(format!(
+            "bases: must be between 2 and 200 (got {bases})"
+        )));
+    }
+    if let Some(l) = request.lambda
+        && !(l.is_finite() && l >= 0.0)
+    {
+        return Err(ApiError(format!(
+            "lambda: must be finite and ≥ 0 (got {l})"
+        )));
+    }
+    let regression = match request.method.as_deref().unwrap_or("ridge") {
+        "ridge" => Regression::Ridge {
+            lambda: Lambda::Fixed(request.lambda.unwrap_or(1e-12)),
+        },
+        "jerk" => Regression::JerkRidge {
+            lambda: request.lambda.map_or(Lambda::Auto, Lambda::Fixed),
+        },
+        "lwr" => Regression::Lwr,
+        other => {
+            return Err(ApiError(format!(
+                "method: must be \"ridge\", \"jerk\" or \"lwr\" (got \"{other}\")"
+            )));
+        }
+    };
+    let mut names = Vec::new();
+    let mut demos = Vec::new();
+    for (i, d) in request.demos.iter().enumerate() {
+        let label = if d.name.is_empty() {
+            format!("demos[{i}]")
+        } else {
+            d.name.clone()
+        };
+        let (header, demo) = parse_demo(Path::new(&label), &d.text).map_err(|e| ApiError(e.0))?;
+        if i > 0 && header.len() != names.len() {
+            return Err(ApiError(format!(
+                "{label}: {} dimensions, but the first demonstration has {}: every demonstration must have the same dimensions",
+                header.len(),
+                names.len()
+            )));
+        }
+        if i == 0 {
+            names = header;
+        }
+        demos.push(demo);
+    }
+    let spec = ImitationSpec {
+        bases,
+        regression,
+        tau: None,
+        dt: None,
+        formulation: Formulation::Ijspeert2013,
+        combine: Combine::Mean,
+    };
+    let fitted = imitate_demos(names.clone(), &demos, &spec).map_err(|e| ApiError(e.0))?;
+    let traj = fitted.fit.dmp.rollout(&fitted.fit.weights);
+    let rows = (0..traj.n_samples())
+        .map(|k| (0..traj.dims()).map(|d| traj.position(d)[k]).collect())
+        .collect();
+    let raw: Vec<(Vec<f64>, Vec<Vec<f64>>)> = demos
+        .iter()
+        .map(|d| {
+            (
+                d.times().to_vec(),
+                (0..d.len()).map(|k| d.sample(k).to_vec()).collect(),
+            )
+        })
+        .collect();
+    let promp = if demos.len() >= 2 {
+        let labels: Vec<String> = request.demos.iter().map(|d| d.name.clone()).collect();
+        let fit =
+            cps_experiment::promp::fit_demos(raw.clone(), names.clone(), &labels, bases, None)
+                .map_err(|e| ApiError(e.0))?;
+        let duration = fit.promp.promp.duration();
+        let t: Vec<f64> = (0..=200).map(|k| duration * k as f64 / 200.0).collect();
+        let (mean, std) = fit.promp.promp.stats(&t).into_iter().unzip();
+        Some(Band { t, mean, std })
+    } else {
+        None
+    };
+    Ok(ImitateAnswer {
+        names,
+        demos: raw.into_iter().map(|(t, rows)| thin(&t, rows)).collect(),
+        dmp: thin(traj.times(), rows),
+        rmse: fitted.fit.report.rmse.clone(),
+        lambda: fitted.fit.report.lambda.clone(),
+        promp,
+    })
+}
