@@ -15,6 +15,10 @@ pub const MAX_VIA: usize = 64;
 pub const MAX_SAMPLES: f64 = 20_000.0;
 /// The most CMA-ES generations a request may ask for.
 pub const MAX_GENERATIONS: u64 = 2_000;
+/// The most rollout samples a CMA-ES request may compute (population × generations ×
+/// samples): ≈ 2 s of this machine's time (release build). The default request
+/// (96 × 1500 × 1001) may use half of it; it usually converges sooner.
+pub const MAX_SAMPLE_EVALUATIONS: f64 = 3e8;
 
 /// `POST /api/viapoint`'s body.
 #[derive(Debug, Clone, Deserialize)]
@@ -191,6 +195,18 @@ impl ViaPointRequest {
             && !(2..=1000).contains(&p)
         {
             return refuse(format!("population: must be between 2 and 1000 (got {p})"));
+        }
+        // Bounded work: CMA-ES's rollouts times their samples.
+        if solver == Solver::Cmaes {
+            let work =
+                self.population.unwrap_or(96) as f64 * generations as f64 * (self.tau / dt + 1.0);
+            if work > MAX_SAMPLE_EVALUATIONS {
+                return refuse(format!(
+                    "generations: {generations} generations of {} rollouts of {:.0} samples are {work:.1e} sample evaluations, more than the {MAX_SAMPLE_EVALUATIONS:.0e} a studio request may take: fewer generations, a smaller population or a coarser dt",
+                    self.population.unwrap_or(96),
+                    self.tau / dt + 1.0
+                ));
+            }
         }
         let thesis = CostWeights::thesis();
         let w = self.weights.clone().unwrap_or_default();

@@ -180,6 +180,10 @@ fn bad_requests_get_a_sentence_and_the_server_keeps_serving() {
         v.to_string().as_bytes(),
         "generations: must be between 1 and 2000",
     );
+    let mut v = thesis("cmaes");
+    v["population"] = json!(1000);
+    v["generations"] = json!(2000);
+    bad(v.to_string().as_bytes(), "sample evaluations, more than");
     let huge = format!("{{\"start\": [{}]}}", vec!["0.0"; 40_000].join(","));
     bad(huge.as_bytes(), "larger than 65536 bytes");
     // Still serving.
