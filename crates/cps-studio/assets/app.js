@@ -428,6 +428,7 @@ async function imitate() {
       bases: Number(document.getElementById("bases").value),
       method: document.getElementById("method").value,
       lambda: lambda === "" ? null : Number(lambda),
+      via: conditioning(),
     }),
   });
   const body = await reply.json();
@@ -452,7 +453,50 @@ async function imitate() {
     tbody.append(tr);
   }
   document.body.dataset.imitated = String(body.demos.length);
+  document.body.dataset.conditioned = String(Boolean(body.promp && body.promp.conditioned));
+  drawBand(body);
   draw();
+}
+// The ProMP via point of the inputs, or none.
+function conditioning() {
+  const t = document.getElementById("cond-t").value, p = document.getElementById("cond-p").value.trim();
+  if (t === "" || p === "") return [];
+  return [{ time: Number(t), position: p.split(",").map(Number) }];
+}
+document.getElementById("cond").addEventListener("click", imitate);
+// One panel per dimension over time: demonstrations (grey), the ProMP's mean ± 2σ
+// (purple band), conditioned (green), the DMP (orange).
+function drawBand(im) {
+  const c = document.getElementById("band"), g = c.getContext("2d");
+  c.style.display = "block";
+  g.clearRect(0, 0, c.width, c.height);
+  const dims = im.names.length, h = c.height / dims, w = c.width;
+  const tEnd = Math.max(im.dmp.t[im.dmp.t.length - 1], im.promp ? im.promp.t[im.promp.t.length - 1] : 0);
+  for (let d = 0; d < dims; d++) {
+    const all = [...im.demos.flatMap(x => x.values.map(v => v[d])), ...im.dmp.values.map(v => v[d])];
+    if (im.promp) im.promp.mean.forEach((m, k) => all.push(m[d] + 2 * im.promp.std[k][d], m[d] - 2 * im.promp.std[k][d]));
+    const lo = Math.min(...all), hi = Math.max(...all), span = hi - lo || 1;
+    const X = t => 30 + (w - 36) * t / tEnd, Y = v => d * h + h - 6 - (h - 14) * (v - lo) / span;
+    const curve = (ts, vs, color, width) => {
+      g.strokeStyle = color; g.lineWidth = width; g.beginPath();
+      ts.forEach((t, k) => (k ? g.lineTo(X(t), Y(vs[k])) : g.moveTo(X(t), Y(vs[k]))));
+      g.stroke();
+    };
+    const band = (mean, std, color) => {
+      g.fillStyle = color; g.beginPath();
+      im.promp.t.forEach((t, k) => (k ? g.lineTo(X(t), Y(mean[k][d] + 2 * std[k][d])) : g.moveTo(X(t), Y(mean[k][d] + 2 * std[k][d]))));
+      for (let k = im.promp.t.length - 1; k >= 0; k--) g.lineTo(X(im.promp.t[k]), Y(mean[k][d] - 2 * std[k][d]));
+      g.fill();
+    };
+    if (im.promp) band(im.promp.mean, im.promp.std, "rgba(142, 68, 173, 0.18)");
+    if (im.promp && im.promp.conditioned) band(im.promp.conditioned[0], im.promp.conditioned[1], "rgba(39, 174, 96, 0.3)");
+    for (const demo of im.demos) curve(demo.t, demo.values.map(v => v[d]), "#aaa", 1);
+    if (im.promp) curve(im.promp.t, im.promp.mean.map(m => m[d]), "#8e44ad", 1.5);
+    if (im.promp && im.promp.conditioned) curve(im.promp.t, im.promp.conditioned[0].map(m => m[d]), "#27ae60", 1.5);
+    curve(im.dmp.t, im.dmp.values.map(v => v[d]), "#e67e22", 1.5);
+    g.fillStyle = "#222"; g.font = "11px system-ui";
+    g.fillText(im.names[d], 2, d * h + 12);
+  }
 }
 async function addDemos(files) {
   state.demoFiles = await Promise.all([...files].map(async f => ({ name: f.name, text: await f.text() })));

@@ -30,6 +30,23 @@ pub struct ImitateRequest {
     /// jerk).
     #[serde(default)]
     pub lambda: Option<f64>,
+    /// Via points to condition the ProMP on (two or more demonstrations).
+    #[serde(default)]
+    pub via: Vec<ProMpVia>,
+}
+
+/// A via point of the ProMP: where the movement should pass at `time`, within `std`
+/// (default 0: exactly).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProMpVia {
+    /// Seconds, within the ProMP's duration.
+    pub time: f64,
+    /// One value per dimension.
+    pub position: Vec<f64>,
+    /// Standard deviation of the position (default 0).
+    #[serde(default)]
+    pub std: f64,
 }
 
 /// An uploaded demonstration.
@@ -77,6 +94,9 @@ pub struct Band {
     pub mean: Vec<Vec<f64>>,
     /// Standard deviation per time and dimension.
     pub std: Vec<Vec<f64>>,
+    /// Conditioned on the request's via points: mean and standard deviation at the same
+    /// times.
+    pub conditioned: Option<(Vec<Vec<f64>>, Vec<Vec<f64>>)>,
 }
 
 fn thin(t: &[f64], rows: Vec<Vec<f64>>) -> Curve {
@@ -173,7 +193,29 @@ pub fn imitate(request: &ImitateRequest) -> Result<ImitateAnswer, ApiError> {
         let duration = fit.promp.promp.duration();
         let t: Vec<f64> = (0..=200).map(|k| duration * k as f64 / 200.0).collect();
         let (mean, std) = fit.promp.promp.stats(&t).into_iter().unzip();
-        Some(Band { t, mean, std })
+        let conditioned = if request.via.is_empty() {
+            None
+        } else {
+            let via = cps_experiment::promp::ViaPoints {
+                at: request.via.iter().map(|v| v.time).collect(),
+                positions: request.via.iter().map(|v| v.position.clone()).collect(),
+                stds: request.via.iter().map(|v| v.std).collect(),
+                ..Default::default()
+            };
+            let c = cps_experiment::promp::condition(fit.promp, &via)
+                .map_err(|e| ApiError(format!("via: {}", e.0)))?;
+            Some(c.posterior.promp.stats(&t).into_iter().unzip())
+        };
+        Some(Band {
+            t,
+            mean,
+            std,
+            conditioned,
+        })
+    } else if !request.via.is_empty() {
+        return Err(ApiError(
+            "via: conditioning needs a ProMP, which needs two or more demonstrations".into(),
+        ));
     } else {
         None
     };

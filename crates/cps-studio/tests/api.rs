@@ -409,6 +409,24 @@ fn demonstrations_are_imitated_with_their_promp_band() {
     assert!((std0[0] - 0.01).abs() < 5e-4, "σx {}", std0[0]);
     assert!(std0[1] < 1e-4 && std0[2] < 1e-4, "{std0:?}");
 
+    // Conditioned on passing (0.80, 0.30, 1.60) at 5 s exactly: the conditioned mean
+    // meets it there with no spread left.
+    let body = json!({"demos": demos, "bases": 30, "via": [{"time": 5.0, "position": [0.80, 0.30, 1.60]}]});
+    let (status, text) = http(&server, "POST", "/api/imitate", body.to_string().as_bytes());
+    assert_eq!(status, 200, "{}", &text[..text.len().min(300)]);
+    let c: Value = serde_json::from_str(&text).unwrap();
+    let t: Vec<f64> = serde_json::from_value(c["promp"]["t"].clone()).unwrap();
+    let k = t
+        .iter()
+        .position(|x| (x - 5.0).abs() < 1e-9)
+        .expect("5 s on the grid");
+    let mean: Vec<f64> = serde_json::from_value(c["promp"]["conditioned"][0][k].clone()).unwrap();
+    let std: Vec<f64> = serde_json::from_value(c["promp"]["conditioned"][1][k].clone()).unwrap();
+    for (m, want) in mean.iter().zip([0.80, 0.30, 1.60]) {
+        assert!((m - want).abs() < 1e-6, "{mean:?}");
+    }
+    assert!(std.iter().all(|s| *s < 1e-4), "{std:?}");
+
     let bad = |body: Value, expected: &str| {
         let (status, text) = http(&server, "POST", "/api/imitate", body.to_string().as_bytes());
         assert_eq!(status, 400, "{text}");
@@ -428,5 +446,9 @@ fn demonstrations_are_imitated_with_their_promp_band() {
     bad(
         json!({"demos": [{"name": "a.csv", "text": shipped}], "method": "magic"}),
         "method:",
+    );
+    bad(
+        json!({"demos": [{"name": "a.csv", "text": shipped}], "via": [{"time": 1.0, "position": [0.0, 0.0, 0.0]}]}),
+        "via: conditioning needs a ProMP",
     );
 }

@@ -253,6 +253,9 @@ fn dragging_p1_with_the_mouse_relearns_and_redraws() {
         .as_f64()
         .unwrap();
     assert!(rmse < 1e-3, "imitation RMSE {rmse}");
+    // Conditioned on a via point typed into the page.
+    page.eval("document.getElementById('cond-t').value = '5'; document.getElementById('cond-p').value = '1.1,0.2,1.4'; document.getElementById('cond').click(); true");
+    page.until("document.body.dataset.conditioned === 'true'");
 
     let shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("studio-screenshots");
     std::fs::create_dir_all(&shots).unwrap();
@@ -260,6 +263,14 @@ fn dragging_p1_with_the_mouse_relearns_and_redraws() {
     let bytes = base64_decode(png["data"].as_str().unwrap());
     assert!(bytes.len() > 10_000);
     std::fs::write(shots.join("dragged.png"), bytes).unwrap();
+    // The imitation panel: demonstrations, the ProMP band and its conditioned band.
+    page.eval("document.getElementById('imitation').scrollIntoView(), true");
+    let png = page.call("Page.captureScreenshot", json!({"format": "png"}));
+    std::fs::write(
+        shots.join("imitation.png"),
+        base64_decode(png["data"].as_str().unwrap()),
+    )
+    .unwrap();
     let weight: usize = ["/", "/app.js"]
         .iter()
         .map(|p| http_get(server.url().trim_start_matches("http://"), p).len())
