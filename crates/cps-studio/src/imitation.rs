@@ -85,6 +85,9 @@ pub struct ImitateAnswer {
     pub promp: Option<Band>,
 }
 
+/// Mean and standard deviation per time and dimension.
+pub type MeanStd = (Vec<Vec<f64>>, Vec<Vec<f64>>);
+
 /// A ProMP's mean ± σ over time.
 #[derive(Debug, Clone, Serialize)]
 pub struct Band {
@@ -96,7 +99,7 @@ pub struct Band {
     pub std: Vec<Vec<f64>>,
     /// Conditioned on the request's via points: mean and standard deviation at the same
     /// times.
-    pub conditioned: Option<(Vec<Vec<f64>>, Vec<Vec<f64>>)>,
+    pub conditioned: Option<MeanStd>,
 }
 
 fn thin(t: &[f64], rows: Vec<Vec<f64>>) -> Curve {
