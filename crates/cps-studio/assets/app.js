@@ -193,8 +193,10 @@ function showNumbers(answer, millis) {
   }
   document.getElementById("robot-error").textContent = robot && robot.unreachable ? robot.unreachable : "";
   const limits = document.getElementById("limits");
-  limits.textContent = robot && robot.limit_lines ? robot.limit_lines.join("\n") : "";
-  limits.classList.toggle("violated", Boolean(robot && robot.limit_usage && robot.limit_usage.ok === false));
+  if (!(robot && robot.limit_usage === null)) { // null while dragging: checked on release
+    limits.textContent = robot && robot.limit_lines ? robot.limit_lines.join("\n") : "";
+    limits.classList.toggle("violated", Boolean(robot && robot.limit_usage && robot.limit_usage.ok === false));
+  }
   const body = document.querySelector("#numbers tbody");
   body.innerHTML = "";
   for (const [k, v] of rows) {
@@ -235,6 +237,8 @@ async function learn(solver) {
   gestureAt = null;
   const asked = request(solver);
   asked.robot = document.getElementById("robot").checked && state.robot !== null;
+  // The limit check at 1 kHz is left out while a point is being dragged.
+  asked.limits = dragging === null;
   try {
     const reply = await fetch("/api/viapoint", {
       method: "POST", headers: { "content-type": "application/json" }, body: JSON.stringify(asked),

@@ -58,10 +58,19 @@ pub struct ViaPointRequest {
     /// robot's poses to animate, the executed tool path.
     #[serde(default)]
     pub robot: bool,
+    /// With `robot`: also check the executed movement against every limit at 1 kHz
+    /// (default true; the page skips it for the answers while a point is dragged, where
+    /// it would take most of the time).
+    #[serde(default = "yes")]
+    pub limits: bool,
 }
 
 fn exact() -> String {
     "exact".into()
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// A via point of a request.
@@ -330,7 +339,10 @@ pub fn viapoint(
         .map(|k| (0..dims).map(|d| traj.position(d)[k]).collect())
         .collect();
     let robot = match robot {
-        Some(r) => Some(r.execute(&config.task, &traj).map_err(ApiError)?),
+        Some(r) => Some(
+            r.execute(&config.task, &traj, request.limits)
+                .map_err(ApiError)?,
+        ),
         None => None,
     };
     Ok(ViaPointAnswer {

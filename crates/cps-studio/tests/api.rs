@@ -346,6 +346,16 @@ fn the_robot_movement_exports_and_reports_its_limits() {
     // The thesis's start configuration has joint 4 just beyond its upper limit.
     assert_eq!(usage["ok"], false);
     assert!(!a["robot"]["limit_lines"].as_array().unwrap().is_empty());
+    // Without the limit check (the page's answers while dragging).
+    task["limits"] = json!(false);
+    let (status, quick) = post(&server, &task);
+    assert_eq!(status, 200);
+    assert!(
+        quick["robot"]["limit_usage"].is_null(),
+        "{}",
+        quick["robot"]["limit_usage"]
+    );
+    assert_eq!(quick["robot"]["frames"], a["robot"]["frames"]);
 
     let export = |format: &str| {
         let body = json!({"format": format, "task": thesis("exact")});
