@@ -102,11 +102,11 @@ pub struct Band {
     pub conditioned: Option<MeanStd>,
 }
 
-fn thin(t: &[f64], rows: Vec<Vec<f64>>) -> Curve {
+fn thin(t: &[f64], rows: &[Vec<f64>]) -> Curve {
     let every = t.len().div_ceil(500).max(1);
     Curve {
         t: t.iter().step_by(every).copied().collect(),
-        values: rows.into_iter().step_by(every).collect(),
+        values: rows.iter().step_by(every).cloned().collect(),
     }
 }
 
@@ -176,7 +176,7 @@ pub fn imitate(request: &ImitateRequest) -> Result<ImitateAnswer, ApiError> {
     };
     let fitted = imitate_demos(names.clone(), &demos, &spec).map_err(|e| ApiError(e.0))?;
     let traj = fitted.fit.dmp.rollout(&fitted.fit.weights);
-    let rows = (0..traj.n_samples())
+    let rows: Vec<Vec<f64>> = (0..traj.n_samples())
         .map(|k| (0..traj.dims()).map(|d| traj.position(d)[k]).collect())
         .collect();
     let raw: Vec<(Vec<f64>, Vec<Vec<f64>>)> = demos
@@ -188,11 +188,12 @@ pub fn imitate(request: &ImitateRequest) -> Result<ImitateAnswer, ApiError> {
             )
         })
         .collect();
+    // The drawn copies first: the ProMP fit takes the demonstrations.
+    let drawn: Vec<Curve> = raw.iter().map(|(t, rows)| thin(t, rows)).collect();
     let promp = if demos.len() >= 2 {
         let labels: Vec<String> = request.demos.iter().map(|d| d.name.clone()).collect();
-        let fit =
-            cps_experiment::promp::fit_demos(raw.clone(), names.clone(), &labels, bases, None)
-                .map_err(|e| ApiError(e.0))?;
+        let fit = cps_experiment::promp::fit_demos(raw, names.clone(), &labels, bases, None)
+            .map_err(|e| ApiError(e.0))?;
         let duration = fit.promp.promp.duration();
         let t: Vec<f64> = (0..=200).map(|k| duration * k as f64 / 200.0).collect();
         let (mean, std) = fit.promp.promp.stats(&t).into_iter().unzip();
@@ -224,8 +225,8 @@ pub fn imitate(request: &ImitateRequest) -> Result<ImitateAnswer, ApiError> {
     };
     Ok(ImitateAnswer {
         names,
-        demos: raw.into_iter().map(|(t, rows)| thin(&t, rows)).collect(),
-        dmp: thin(traj.times(), rows),
+        demos: drawn,
+        dmp: thin(traj.times(), &rows),
         rmse: fitted.fit.report.rmse.clone(),
         lambda: fitted.fit.report.lambda.clone(),
         promp,
