@@ -1,0 +1,534 @@
+//! Franka's per-millisecond limits on commanded joint motion, one checker for them used
+//! both before a motion (over the whole stream) and while streaming (every tick), and a
+//! braking generator that stops any commanded motion within them.
+//!
+//! The robot differentiates the commanded positions `q_c` once per millisecond: velocity
+//! `(q_k − q_{k−1})/Δt`, acceleration and jerk likewise, starting at rest. A command whose
+//! derivatives pass a limit ends the motion in a reflex (`joint_motion_generator_velocity_
+//! limits_violation`, `…_acceleration_discontinuity`, …). [`StreamCheck`] takes exactly
+//! those differences; a stream it admits sample by sample is one the robot accepts.
+//!
+//! Values: Franka's published joint limits ("Robot and interface specifications"): the
+//! Panda's constant table, and the FR3's, whose velocity limit shrinks near the ends of the
+//! range (`min(v_max, max(0, −c + sqrt(k (q_end − q))))`, matching the FR3's published
+//! "rectangular" velocity table at that table's position bounds). cps evaluates the FR3's
+//! curve at the published range itself rather than the slightly wider constants libfranka
+//! uses, so it is a little stricter than the robot.
+
+use crate::wire::JOINTS;
+
+/// Which Franka arm, for its limits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Arm {
+    /// Franka Research 3 (system 5.9+ speaks protocol 10).
+    Fr3,
+    /// Franka Emika Panda (FER).
+    Panda,
+}
+
+impl Arm {
+    /// `fr3` or `panda`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Arm::Fr3 => "fr3",
+            Arm::Panda => "panda",
+        }
+    }
+
+    /// The arm named `fr3` or `panda`.
+    pub fn from_name(s: &str) -> Option<Self> {
+        match s {
+            "fr3" => Some(Arm::Fr3),
+            "panda" | "fer" => Some(Arm::Panda),
+            _ => None,
+        }
+    }
+}
+
+/// The command period of the FCI (s).
+pub const DT: f64 = 1e-3;
+
+/// One arm's limits on the commanded joint signal.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RateLimits {
+    /// The arm.
+    pub arm: Arm,
+    /// Lower joint bounds (rad).
+    pub q_min: [f64; JOINTS],
+    /// Upper joint bounds (rad).
+    pub q_max: [f64; JOINTS],
+    /// Largest speed anywhere in the range (rad/s).
+    pub dq_max: [f64; JOINTS],
+    /// Acceleration (rad/s²).
+    pub ddq_max: [f64; JOINTS],
+    /// Jerk (rad/s³).
+    pub dddq_max: [f64; JOINTS],
+    /// Torque (N m).
+    pub tau_max: [f64; JOINTS],
+    /// Torque rate (N m/s).
+    pub dtau_max: [f64; JOINTS],
+    /// FR3: the velocity curve's offset `c` and gain `k` per joint (None for the Panda).
+    curve: Option<([f64; JOINTS], [f64; JOINTS])>,
+}
+
+impl RateLimits {
+    /// The limits of `arm`.
+    pub fn of(arm: Arm) -> Self {
+        match arm {
+            Arm::Fr3 => RateLimits {
+                arm,
+                q_min: [-2.7437, -1.7837, -2.9007, -3.0421, -2.8065, 0.5445, -3.0159],
+                q_max: [2.7437, 1.7837, 2.9007, -0.1518, 2.8065, 4.5169, 3.0159],
+                dq_max: [2.62, 2.62, 2.62, 2.62, 5.26, 4.18, 5.26],
+                ddq_max: [10.0; JOINTS],
+                dddq_max: [5000.0; JOINTS],
+                tau_max: [87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0],
+                dtau_max: [1000.0; JOINTS],
+                curve: Some((
+                    [0.30, 0.20, 0.20, 0.30, 0.35, 0.35, 0.35],
+                    [12.0, 5.17, 7.0, 8.0, 34.0, 11.0, 34.0],
+                )),
+            },
+            Arm::Panda => RateLimits {
+                arm,
+                q_min: cps_kinematics::robots::PANDA_Q_MIN,
+                q_max: cps_kinematics::robots::PANDA_Q_MAX,
+                dq_max: cps_kinematics::robots::PANDA_DQ_MAX,
+                ddq_max: [15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0],
+                dddq_max: [7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0],
+                tau_max: [87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0],
+                dtau_max: [1000.0; JOINTS],
+                curve: None,
+            },
+        }
+    }
+
+    /// The velocity bounds `(lower, upper)` of joint `i` at position `q` (rad/s).
+    #[inline]
+    pub fn velocity_bounds(&self, i: usize, q: f64) -> (f64, f64) {
+        match self.curve {
+            None => (-self.dq_max[i], self.dq_max[i]),
+            Some((c, k)) => {
+                let side = |room: f64| {
+                    (-c[i] + (k[i] * room.max(0.0)).sqrt())
+                        .max(0.0)
+                        .min(self.dq_max[i])
+                };
+                (-side(q - self.q_min[i]), side(self.q_max[i] - q))
+            }
+        }
+    }
+
+    /// The same limits scaled by `factor` (0 < factor ≤ 1) on velocity, acceleration and
+    /// jerk: what a planner aims at so that rounding never reaches the robot's limits.
+    pub fn scaled(&self, factor: f64) -> Self {
+        let mut s = *self;
+        for i in 0..JOINTS {
+            s.dq_max[i] *= factor;
+            s.ddq_max[i] *= factor;
+            s.dddq_max[i] *= factor;
+        }
+        s
+    }
+}
+
+/// A limited quantity of the commanded signal.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Quantity {
+    /// Position outside the joint's range.
+    Position,
+    /// Velocity beyond its (position-dependent) bound.
+    Velocity,
+    /// Acceleration.
+    Acceleration,
+    /// Jerk.
+    Jerk,
+    /// A stop at this moment could not keep the joint inside its range.
+    StoppingDistance,
+    /// Not a number.
+    NotFinite,
+}
+
+impl Quantity {
+    /// `position`, `velocity`, …
+    pub fn name(self) -> &'static str {
+        match self {
+            Quantity::Position => "position",
+            Quantity::Velocity => "velocity",
+            Quantity::Acceleration => "acceleration",
+            Quantity::Jerk => "jerk",
+            Quantity::StoppingDistance => "stopping distance",
+            Quantity::NotFinite => "value",
+        }
+    }
+
+    fn unit(self) -> &'static str {
+        match self {
+            Quantity::Position | Quantity::StoppingDistance => "rad",
+            Quantity::Velocity => "rad/s",
+            Quantity::Acceleration => "rad/s²",
+            Quantity::Jerk => "rad/s³",
+            Quantity::NotFinite => "",
+        }
+    }
+}
+
+/// A command that breaks a limit: which joint, when, what, by how much.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Breach {
+    /// 1-based joint number.
+    pub joint: usize,
+    /// Index of the command in the stream (0 = the first).
+    pub sample: usize,
+    /// The quantity.
+    pub quantity: Quantity,
+    /// Its value.
+    pub value: f64,
+    /// The limit it passes (for positions, the bound).
+    pub limit: f64,
+}
+
+impl std::fmt::Display for Breach {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let t = self.sample as f64 * DT;
+        match self.quantity {
+            Quantity::NotFinite => write!(
+                f,
+                "joint {} at t = {t:.3} s (command {}): the position is not a number",
+                self.joint, self.sample
+            ),
+            Quantity::StoppingDistance => write!(
+                f,
+                "joint {} at t = {t:.3} s (command {}): moving this fast, a stop would end at {:.4} rad, past the bound {:.4} rad",
+                self.joint, self.sample, self.value, self.limit
+            ),
+            q => write!(
+                f,
+                "joint {} at t = {t:.3} s (command {}): {} {:.6} {} beyond the limit {:.6} {}",
+                self.joint,
+                self.sample,
+                q.name(),
+                self.value,
+                q.unit(),
+                self.limit,
+                q.unit()
+            ),
+        }
+    }
+}
+
+/// The derivatives of a commanded joint stream, checked command by command as the robot
+/// takes them. No allocation: it lives in the realtime loop.
+#[derive(Debug, Clone, Copy)]
+pub struct StreamCheck {
+    limits: RateLimits,
+    /// Last admitted position, velocity, acceleration.
+    q: [f64; JOINTS],
+    v: [f64; JOINTS],
+    a: [f64; JOINTS],
+    sample: usize,
+    /// Peak usage (fraction of the limit) of velocity, acceleration, jerk per joint.
+    peak: [[f64; JOINTS]; 3],
+}
+
+impl StreamCheck {
+    /// A check of a stream that starts with the robot at rest at `q0`.
+    pub fn at_rest(limits: RateLimits, q0: [f64; JOINTS]) -> Self {
+        StreamCheck {
+            limits,
+            q: q0,
+            v: [0.0; JOINTS],
+            a: [0.0; JOINTS],
+            sample: 0,
+            peak: [[0.0; JOINTS]; 3],
+        }
+    }
+
+    /// The limits checked.
+    pub fn limits(&self) -> &RateLimits {
+        &self.limits
+    }
+
+    /// The last admitted command's position, velocity and acceleration.
+    pub fn last(&self) -> ([f64; JOINTS], [f64; JOINTS], [f64; JOINTS]) {
+        (self.q, self.v, self.a)
+    }
+
+    /// Peak usage of velocity, acceleration and jerk (1.0 = at the limit) per joint.
+    pub fn peak_usage(&self) -> [[f64; JOINTS]; 3] {
+        self.peak
+    }
+
+    /// Commands admitted so far.
+    pub fn admitted(&self) -> usize {
+        self.sample
+    }
+
+    /// Admits the next command `q` (one period after the last) if every joint keeps every
+    /// limit, and returns the first breach otherwise (the state is then unchanged).
+    pub fn admit(&mut self, q: &[f64; JOINTS]) -> Result<(), Breach> {
+        let l = &self.limits;
+        let mut v = [0.0; JOINTS];
+        let mut a = [0.0; JOINTS];
+        let mut usage = [[0.0; JOINTS]; 3];
+        let breach = |joint: usize, quantity, value, limit| Breach {
+            joint: joint + 1,
+            sample: self.sample,
+            quantity,
+            value,
+            limit,
+        };
+        for i in 0..JOINTS {
+            let qi = q[i];
+            if !qi.is_finite() {
+                return Err(breach(i, Quantity::NotFinite, qi, 0.0));
+            }
+            if qi < l.q_min[i] {
+                return Err(breach(i, Quantity::Position, qi, l.q_min[i]));
+            }
+            if qi > l.q_max[i] {
+                return Err(breach(i, Quantity::Position, qi, l.q_max[i]));
+            }
+            v[i] = (qi - self.q[i]) / DT;
+            let (lo, hi) = l.velocity_bounds(i, qi);
+            if v[i] > hi || v[i] < lo {
+                let limit = if v[i] > hi { hi } else { lo };
+                return Err(breach(i, Quantity::Velocity, v[i], limit));
+            }
+            a[i] = (v[i] - self.v[i]) / DT;
+            if a[i].abs() > l.ddq_max[i] {
+                return Err(breach(i, Quantity::Acceleration, a[i], l.ddq_max[i]));
+            }
+            let j = (a[i] - self.a[i]) / DT;
+            if j.abs() > l.dddq_max[i] {
+                return Err(breach(i, Quantity::Jerk, j, l.dddq_max[i]));
+            }
+            // Where a full stop from here would end: the acceleration ramps to its limit
+            // at full jerk (ddq/dddq seconds), then brakes at the limit.
+            let ramp = l.ddq_max[i] / l.dddq_max[i];
+            let stop = qi + v[i] * ramp + v[i] * v[i].abs() / (2.0 * l.ddq_max[i]);
+            if stop > l.q_max[i] + 1e-9 {
+                return Err(breach(i, Quantity::StoppingDistance, stop, l.q_max[i]));
+            }
+            if stop < l.q_min[i] - 1e-9 {
+                return Err(breach(i, Quantity::StoppingDistance, stop, l.q_min[i]));
+            }
+            let vmax = if v[i] >= 0.0 { hi } else { -lo };
+            usage[0][i] = if vmax > 0.0 { v[i].abs() / vmax } else { 0.0 };
+            usage[1][i] = a[i].abs() / l.ddq_max[i];
+            usage[2][i] = j.abs() / l.dddq_max[i];
+        }
+        for (p, u) in self.peak.iter_mut().zip(usage) {
+            for i in 0..JOINTS {
+                p[i] = p[i].max(u[i]);
+            }
+        }
+        self.q = *q;
+        self.v = v;
+        self.a = a;
+        self.sample += 1;
+        Ok(())
+    }
+
+    /// Whether the last admitted command is at rest (velocity and acceleration zero).
+    pub fn at_rest_now(&self) -> bool {
+        self.v.iter().chain(&self.a).all(|x| x.abs() < 1e-12)
+    }
+}
+
+/// Checks a whole stream of commands (one per millisecond) starting at rest at `q0`, then
+/// held at its last command for a few periods (so stopping is checked too). Returns the
+/// check with its peak usage, or the first breach.
+pub fn check_stream(
+    limits: RateLimits,
+    q0: [f64; JOINTS],
+    stream: &[[f64; JOINTS]],
+) -> Result<StreamCheck, Breach> {
+    let mut c = StreamCheck::at_rest(limits, q0);
+    for q in stream {
+        c.admit(q)?;
+    }
+    if let Some(last) = stream.last() {
+        for _ in 0..3 {
+            c.admit(last)?;
+        }
+    }
+    Ok(c)
+}
+
+/// The share of each limit the brake uses.
+const BRAKE_MARGIN: f64 = 0.99;
+
+/// Brings a commanded motion to rest within the limits: every joint decelerates along a
+/// braking curve (acceleration `−sign(v)·min(a_max, sqrt(2 j_max |v|))`, reached at most
+/// at full jerk), never faster than the FR3's position-dependent velocity bound allows,
+/// and lands exactly at rest. No allocation.
+#[derive(Debug, Clone, Copy)]
+pub struct Brake {
+    limits: RateLimits,
+    q: [f64; JOINTS],
+    v: [f64; JOINTS],
+    a: [f64; JOINTS],
+}
+
+impl Brake {
+    /// A brake from the last command's position, velocity and acceleration.
+    pub fn new(limits: RateLimits, q: [f64; JOINTS], v: [f64; JOINTS], a: [f64; JOINTS]) -> Self {
+        Brake { limits, q, v, a }
+    }
+
+    /// A brake from where a [`StreamCheck`] last admitted a command.
+    pub fn from_check(check: &StreamCheck) -> Self {
+        let (q, v, a) = check.last();
+        Brake::new(check.limits, q, v, a)
+    }
+
+    /// Whether every joint is at rest.
+    pub fn stopped(&self) -> bool {
+        self.v.iter().chain(&self.a).all(|x| *x == 0.0)
+    }
+
+    /// The next command (one period later).
+    pub fn step(&mut self) -> [f64; JOINTS] {
+        // 1 % below every limit, so that the robot's differences of the rounded positions
+        // never reach one.
+        let l = &self.limits.scaled(BRAKE_MARGIN);
+        for i in 0..JOINTS {
+            let (v, a) = (self.v[i], self.a[i]);
+            let jdt = l.dddq_max[i] * DT;
+            if v == 0.0 && a == 0.0 {
+                continue;
+            }
+            // Land at rest this period, and zero acceleration the next, if both steps keep
+            // the jerk limit.
+            let land = -v / DT;
+            if (land - a).abs() <= jdt && land.abs() <= jdt && land.abs() <= l.ddq_max[i] {
+                self.a[i] = land;
+                self.v[i] = 0.0;
+                continue;
+            }
+            if v == 0.0 && a.abs() <= jdt {
+                self.a[i] = 0.0;
+                continue;
+            }
+            // The braking curve's acceleration, reached at most at full jerk.
+            let target = -v.signum() * l.ddq_max[i].min((2.0 * l.dddq_max[i] * v.abs()).sqrt());
+            let mut next = target
+                .clamp(a - jdt, a + jdt)
+                .clamp(-l.ddq_max[i], l.ddq_max[i]);
+            // Never let the speed pass the position-dependent bound.
+            let (lo, hi) = self
+                .limits
+                .velocity_bounds(i, self.q[i] + (v + next * DT) * DT);
+            let (lo, hi) = (lo * BRAKE_MARGIN, hi * BRAKE_MARGIN);
+            let lo_a = ((lo - v) / DT).max(a - jdt).max(-l.ddq_max[i]);
+            let hi_a = ((hi - v) / DT).min(a + jdt).min(l.ddq_max[i]);
+            if lo_a <= hi_a {
+                next = next.clamp(lo_a, hi_a);
+            }
+            self.a[i] = next;
+            self.v[i] = v + next * DT;
+        }
+        for i in 0..JOINTS {
+            self.q[i] += self.v[i] * DT;
+        }
+        self.q
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    #[test]
+    fn fr3_curve_meets_the_published_rectangular_table() {
+        // Franka's "rectangular" FR3 limits: these velocities hold within these bounds.
+        let upper = [2.3093, 1.5133, 2.4937, -0.4461, 2.4800, 4.2094, 2.6895];
+        let speed = [2.0, 1.0, 1.5, 1.25, 3.0, 1.5, 3.0];
+        let l = RateLimits::of(Arm::Fr3);
+        for i in 0..JOINTS {
+            let (_, hi) = l.velocity_bounds(i, upper[i]);
+            // cps evaluates the curve at the published range, a few mrad inside
+            // libfranka's constants: at most 2 % below the table, never above it.
+            assert!(
+                hi <= speed[i] && hi > 0.98 * speed[i],
+                "joint {}: {hi}",
+                i + 1
+            );
+        }
+        assert_eq!(l.velocity_bounds(0, 0.0), (-2.62, 2.62));
+        assert_eq!(l.velocity_bounds(0, 2.7437).1, 0.0);
+    }
+
+    #[test]
+    fn a_step_is_refused_naming_joint_time_and_quantity() {
+        let l = RateLimits::of(Arm::Fr3);
+        let q0 = [0.0, 0.0, 0.0, -1.5, 0.0, 1.5, 0.0];
+        let mut stream = vec![q0; 100];
+        for q in &mut stream[50..] {
+            q[3] += 0.01;
+        }
+        let b = check_stream(l, q0, &stream).unwrap_err();
+        assert_eq!((b.joint, b.sample, b.quantity), (4, 50, Quantity::Velocity));
+        assert_eq!(
+            b.to_string(),
+            "joint 4 at t = 0.050 s (command 50): velocity 10.000000 rad/s beyond the limit 2.620000 rad/s"
+        );
+        // A small step passes velocity but not acceleration.
+        let mut small = vec![q0; 10];
+        small[5][0] += 1e-4;
+        assert_eq!(
+            check_stream(l, q0, &small).unwrap_err().quantity,
+            Quantity::Acceleration
+        );
+        let mut nan = vec![q0; 3];
+        nan[2][6] = f64::NAN;
+        assert_eq!(
+            check_stream(l, q0, &nan).unwrap_err().quantity,
+            Quantity::NotFinite
+        );
+    }
+
+    #[test]
+    fn the_brake_stops_any_admissible_motion_within_every_limit() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        for arm in [Arm::Fr3, Arm::Panda] {
+            let l = RateLimits::of(arm);
+            for case in 0..300 {
+                // Accelerate with random bounded jerk for a while, as a stream the check admits.
+                let mut q = [0.0, 0.0, 0.0, -1.6, 0.0, 2.0, 0.0];
+                let mut check = StreamCheck::at_rest(l, q);
+                let (mut v, mut a) = ([0.0; JOINTS], [0.0; JOINTS]);
+                let steps = rng.random_range(1..400);
+                for _ in 0..steps {
+                    let mut next = q;
+                    for i in 0..JOINTS {
+                        let j = rng.random_range(-0.9..0.9) * l.dddq_max[i];
+                        let na = (a[i] + j * DT).clamp(-0.9 * l.ddq_max[i], 0.9 * l.ddq_max[i]);
+                        let nv = (v[i] + na * DT).clamp(-0.5 * l.dq_max[i], 0.5 * l.dq_max[i]);
+                        next[i] = q[i] + nv * DT;
+                    }
+                    if check.admit(&next).is_err() {
+                        break;
+                    }
+                    (q, v, a) = check.last();
+                }
+                let mut brake = Brake::from_check(&check);
+                let mut n = 0;
+                while !brake.stopped() {
+                    let cmd = brake.step();
+                    check
+                        .admit(&cmd)
+                        .unwrap_or_else(|b| panic!("{arm:?} case {case}, brake step {n}: {b}"));
+                    n += 1;
+                    assert!(n < 2000, "{arm:?} case {case}: no rest after 2 s");
+                }
+                // At rest: holding the last command is admissible forever.
+                let (last, _, _) = check.last();
+                check.admit(&last).unwrap();
+                assert!(check.at_rest_now(), "{arm:?} case {case}");
+            }
+        }
+    }
+}

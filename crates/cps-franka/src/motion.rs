@@ -1,0 +1,238 @@
+//! Joint trajectories for the robot: a stream of commands at 1 kHz checked whole before
+//! the motion, the approach move to its start, and executing it with a recording.
+
+use std::sync::atomic::AtomicBool;
+
+use crate::error::FrankaError;
+use crate::limits::{Breach, DT, RateLimits, StreamCheck, check_stream};
+use crate::rt::{JointPositions, LoopOptions, MotionReport, run_joint_positions, start_position};
+use crate::session::Connection;
+use crate::wire::JOINTS;
+
+/// The rest-to-rest profile `s(τ) = 35τ⁴ − 84τ⁵ + 70τ⁶ − 20τ⁷` (zero velocity,
+/// acceleration and jerk at both ends) and the peaks of its first three derivatives.
+fn septic(tau: f64) -> f64 {
+    let t4 = tau.powi(4);
+    t4 * (35.0 - 84.0 * tau + 70.0 * tau * tau - 20.0 * tau.powi(3))
+}
+
+/// Peak |s'|, |s''|, |s'''| of [`septic`] on [0, 1] (derivatives taken analytically and
+/// maximised on a fine grid in the tests: 2.1875, 7.5132, 52.5).
+const SEPTIC_PEAKS: [f64; 3] = [2.1875, 7.5132, 52.5];
+
+/// A rest-to-rest move from `from` to `to` along a straight line in joint space, at
+/// `fraction` (0 < f ≤ 1) of every joint's velocity, acceleration and jerk limit, sampled
+/// every millisecond (the first sample one period after `from`, the last exactly `to`).
+pub fn approach(
+    limits: &RateLimits,
+    from: [f64; JOINTS],
+    to: [f64; JOINTS],
+    fraction: f64,
+) -> Vec<[f64; JOINTS]> {
+    let mut duration: f64 = 0.0;
+    for i in 0..JOINTS {
+        let d = (to[i] - from[i]).abs();
+        if d == 0.0 {
+            continue;
+        }
+        // The FR3's velocity curve is lowest near the range's ends: use the smallest bound
+        // anywhere between the two positions (sampled), never above dq_max.
+        let mut vmax = limits.dq_max[i];
+        for k in 0..=32 {
+            let q = from[i] + (to[i] - from[i]) * k as f64 / 32.0;
+            let (lo, hi) = limits.velocity_bounds(i, q);
+            vmax = vmax.min(hi).min(-lo);
+        }
+        let v = (fraction * vmax).max(1e-3);
+        duration = duration
+            .max(SEPTIC_PEAKS[0] * d / v)
+            .max((SEPTIC_PEAKS[1] * d / (fraction * limits.ddq_max[i])).sqrt())
+            .max((SEPTIC_PEAKS[2] * d / (fraction * limits.dddq_max[i])).cbrt());
+    }
+    let steps = (duration / DT).ceil() as usize;
+    (1..=steps)
+        .map(|k| {
+            let s = if k == steps {
+                1.0
+            } else {
+                septic(k as f64 / steps as f64)
+            };
+            let mut q = to;
+            if k < steps {
+                for i in 0..JOINTS {
+                    q[i] = from[i] + (to[i] - from[i]) * s;
+                }
+            }
+            q
+        })
+        .collect()
+}
+
+/// How a stream that does not start where the robot is gets there.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Start {
+    /// Refuse it, naming the distance.
+    Refuse,
+    /// Prepend an [`approach`] at this fraction of the limits.
+    Approach(f64),
+}
+
+/// A command stream checked against the robot's limits from where the robot is.
+#[derive(Debug, Clone)]
+pub struct CheckedStream {
+    /// Commands, one per millisecond: the approach (if any) then the trajectory.
+    pub commands: Vec<[f64; JOINTS]>,
+    /// How many of them are the approach.
+    pub approach: usize,
+    /// Where the robot was when it was checked.
+    pub from: [f64; JOINTS],
+    /// The check's peak usage (velocity, acceleration, jerk; 1.0 = at the limit).
+    pub peak_usage: [[f64; JOINTS]; 3],
+}
+
+/// The largest start difference taken without an approach (rad): a robot at rest holds
+/// its desired position to far less.
+pub const START_TOLERANCE: f64 = 1e-3;
+
+/// Checks a trajectory of commands at 1 kHz for a robot at rest at `from`; prepends an
+/// approach when asked. Nothing is sent: a breach is returned naming joint, time and
+/// quantity.
+pub fn check_trajectory(
+    limits: &RateLimits,
+    from: [f64; JOINTS],
+    trajectory: &[[f64; JOINTS]],
+    start: Start,
+) -> Result<CheckedStream, FrankaError> {
+    let Some(first) = trajectory.first() else {
+        return Err(FrankaError::Input("the trajectory has no samples".into()));
+    };
+    let (joint, gap) = (0..JOINTS)
+        .map(|i| (i, (first[i] - from[i]).abs()))
+        .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+    let mut commands = Vec::new();
+    if gap > START_TOLERANCE || gap.is_nan() {
+        match start {
+            Start::Refuse => {
+                return Err(FrankaError::Input(format!(
+                    "the trajectory starts {gap:.4} rad from where the robot is at joint {} (robot {:.4}, trajectory {:.4}); pass --approach to move there first",
+                    joint + 1,
+                    from[joint],
+                    first[joint]
+                )));
+            }
+            Start::Approach(f) => commands = approach(limits, from, *first, f),
+        }
+    } else if gap > 0.0 {
+        // Within the tolerance: blend into the trajectory's start.
+        commands = approach(limits, from, *first, 0.5);
+    }
+    let approach_len = commands.len();
+    commands.extend_from_slice(trajectory);
+    let check: StreamCheck = check_stream(*limits, from, &commands).map_err(|b: Breach| {
+        let mut b = b;
+        if b.sample >= approach_len {
+            b.sample -= approach_len;
+            FrankaError::Limit(b)
+        } else {
+            FrankaError::Input(format!("the approach move breaks a limit: {b}"))
+        }
+    })?;
+    Ok(CheckedStream {
+        commands,
+        approach: approach_len,
+        from,
+        peak_usage: check.peak_usage(),
+    })
+}
+
+/// Executes a checked stream: one command per answered tick, on the realtime loop.
+/// The robot must still be where the stream was checked from (within
+/// [`START_TOLERANCE`] / 10), else nothing moves.
+pub fn execute_stream(
+    conn: &mut Connection,
+    limits: RateLimits,
+    stream: &CheckedStream,
+    options: &LoopOptions,
+    stop: &AtomicBool,
+) -> Result<MotionReport, FrankaError> {
+    let state = conn.read_state()?;
+    let now = start_position(&state);
+    if (0..JOINTS).any(|i| (now[i] - stream.from[i]).abs() > START_TOLERANCE / 10.0) {
+        return Err(FrankaError::Input(
+            "the robot moved since the trajectory was checked; check it again".into(),
+        ));
+    }
+    let commands = &stream.commands;
+    let mut k = 0usize;
+    let mut options = *options;
+    options.max_ticks = options.max_ticks.max(commands.len() + 4000);
+    run_joint_positions(conn, limits, &options, stop, move |_, _| {
+        let q = commands[k.min(commands.len() - 1)];
+        k += 1;
+        JointPositions {
+            q,
+            finished: k >= commands.len(),
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::limits::Arm;
+
+    #[test]
+    fn septic_peaks_are_its_derivatives_maxima() {
+        let n = 200_000;
+        let h = 1.0 / n as f64;
+        let d1 =
+            |t: f64| 140.0 * t.powi(3) - 420.0 * t.powi(4) + 420.0 * t.powi(5) - 140.0 * t.powi(6);
+        let d2 =
+            |t: f64| 420.0 * t * t - 1680.0 * t.powi(3) + 2100.0 * t.powi(4) - 840.0 * t.powi(5);
+        let d3 = |t: f64| 840.0 * t - 5040.0 * t * t + 8400.0 * t.powi(3) - 4200.0 * t.powi(4);
+        let peak =
+            |f: &dyn Fn(f64) -> f64| (0..=n).map(|k| f(k as f64 * h).abs()).fold(0.0, f64::max);
+        assert!((peak(&d1) - SEPTIC_PEAKS[0]).abs() < 1e-4);
+        assert!((peak(&d2) - SEPTIC_PEAKS[1]).abs() < 1e-3 && peak(&d2) <= SEPTIC_PEAKS[1]);
+        assert!((peak(&d3) - SEPTIC_PEAKS[2]).abs() < 1e-3);
+        // s' is d1, checked against a difference of septic.
+        assert!((d1(0.3) - (septic(0.3 + 1e-6) - septic(0.3 - 1e-6)) / 2e-6).abs() < 1e-6);
+    }
+
+    #[test]
+    fn approaches_keep_every_limit_and_end_at_the_target() {
+        for arm in [Arm::Fr3, Arm::Panda] {
+            let l = RateLimits::of(arm);
+            let from = [0.0, -0.5, 0.0, -2.0, 0.0, 1.8, 0.7];
+            let to = [1.0, 0.3, -0.4, -1.2, 0.5, 2.2, -0.5];
+            for f in [0.1, 0.5, 1.0] {
+                let a = approach(&l, from, to, f);
+                assert_eq!(*a.last().unwrap(), to);
+                let c = check_stream(l, from, &a).unwrap_or_else(|b| panic!("{arm:?} {f}: {b}"));
+                let peak = c.peak_usage().iter().flatten().copied().fold(0.0, f64::max);
+                assert!(
+                    peak <= f * 1.001 + 1e-9,
+                    "{arm:?} at {f}: peak usage {peak}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_distant_start_is_refused_or_approached() {
+        let l = RateLimits::of(Arm::Fr3);
+        let from = [0.0, 0.0, 0.0, -1.57, 0.0, 1.57, 0.785];
+        let mut traj = vec![from; 50];
+        for q in &mut traj {
+            q[1] += 0.2;
+        }
+        let e = check_trajectory(&l, from, &traj, Start::Refuse).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("starts 0.2000 rad from where the robot is at joint 2"),
+            "{e}"
+        );
+        let s = check_trajectory(&l, from, &traj, Start::Approach(0.2)).unwrap();
+        assert!(s.approach > 100 && s.commands.len() == s.approach + 50);
+    }
+}

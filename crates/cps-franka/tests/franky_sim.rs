@@ -1,0 +1,255 @@
+//! cps-franka against a physically simulated FR3 (franky-sim, MuJoCo) behind the real
+//! protocol, with the official client pylibfranka as the second opinion. Each test has a
+//! loopback address of its own; the simulators run one at a time.
+
+mod common;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use common::FrankySim;
+use cps_franka::limits::{Arm, Quantity, RateLimits, check_stream};
+use cps_franka::{
+    Connection, Ending, FrankaError, LoopOptions, Realtime, RobotMode, Start, approach,
+    check_trajectory, execute_stream,
+};
+
+fn options() -> LoopOptions {
+    LoopOptions {
+        realtime: Realtime::Ignore,
+        ..LoopOptions::default()
+    }
+}
+
+#[test]
+fn the_state_decodes_as_pylibfranka_decodes_it() {
+    let Some(sim) = FrankySim::start("127.0.0.21") else {
+        return;
+    };
+    // pylibfranka first (one client at a time), then cps; the arm rests between the two.
+    let theirs: serde_json::Value = serde_json::from_str(&sim.python(
+        r#"
+import json, os, pylibfranka
+s = pylibfranka.Robot(os.environ["HOST"], pylibfranka.RealtimeConfig.kIgnore).read_once()
+f = {k: list(getattr(s, k)) for k in ["q", "q_d", "dq", "O_T_EE", "O_T_EE_d", "F_T_EE", "EE_T_K", "F_T_NE", "NE_T_EE",
+     "elbow", "elbow_d", "tau_J", "tau_J_d", "theta", "joint_contact", "O_F_ext_hat_K", "I_ee", "F_x_Cee"]}
+f["m_ee"] = s.m_ee
+f["robot_mode"] = str(s.robot_mode)
+f["success"] = s.control_command_success_rate
+f["errors"] = str(s.current_errors)
+print(json.dumps(f))
+"#,
+    ))
+    .unwrap();
+    let mut robot = Connection::connect(&sim.host, Default::default()).unwrap();
+    let s = robot.read_state().unwrap();
+    let ours: Vec<(&str, Vec<f64>, f64)> = vec![
+        // field, cps's values, tolerance (the arm rests; torques jitter in the PD)
+        ("q", s.q.to_vec(), 1e-4),
+        ("q_d", s.q_d.to_vec(), 1e-4),
+        ("dq", s.dq.to_vec(), 5e-3),
+        ("O_T_EE", s.o_t_ee.to_vec(), 1e-4),
+        ("O_T_EE_d", s.o_t_ee_d.to_vec(), 1e-4),
+        ("F_T_EE", s.f_t_ee.to_vec(), 1e-7),
+        ("EE_T_K", s.ee_t_k.to_vec(), 1e-7),
+        ("F_T_NE", s.f_t_ne.to_vec(), 1e-7),
+        ("NE_T_EE", s.ne_t_ee.to_vec(), 1e-7),
+        ("elbow", s.elbow.to_vec(), 1e-4),
+        ("elbow_d", s.elbow_d.to_vec(), 1e-4),
+        ("tau_J", s.tau_j.to_vec(), 1.0),
+        ("tau_J_d", s.tau_j_d.to_vec(), 1.0),
+        ("theta", s.theta.to_vec(), 1e-4),
+        ("joint_contact", s.joint_contact.to_vec(), 0.0),
+        ("O_F_ext_hat_K", s.o_f_ext_hat_k.to_vec(), 0.0),
+        ("I_ee", s.i_ee.to_vec(), 1e-7),
+        ("F_x_Cee", s.f_x_cee.to_vec(), 1e-7),
+        ("m_ee", vec![s.m_ee], 1e-7),
+        ("success", vec![s.control_command_success_rate], 0.0),
+    ];
+    for (name, values, tol) in ours {
+        let theirs: Vec<f64> = match &theirs[name] {
+            serde_json::Value::Array(a) => a.iter().map(|x| x.as_f64().unwrap()).collect(),
+            x => vec![x.as_f64().unwrap()],
+        };
+        assert_eq!(theirs.len(), values.len(), "{name}");
+        for (i, (a, b)) in values.iter().zip(&theirs).enumerate() {
+            assert!(
+                (a - b).abs() <= tol,
+                "{name}[{i}]: cps {a}, pylibfranka {b}"
+            );
+        }
+    }
+    // Not all zeros: the decoding found real data (the tool hangs in front of the base).
+    assert!(
+        s.o_t_ee[12] > 0.3 && s.o_t_ee[14] > 0.3,
+        "{:?}",
+        s.tool_position()
+    );
+    assert_eq!(theirs["robot_mode"], "RobotMode.Idle");
+    assert_eq!(s.robot_mode, RobotMode::Idle);
+    assert!(!s.errors.any());
+    assert!(robot.robot_model().unwrap().contains("<robot"));
+}
+
+#[test]
+fn a_trajectory_is_executed_within_the_limits_and_tracked() {
+    let Some(sim) = FrankySim::start("127.0.0.22") else {
+        return;
+    };
+    let mut robot = Connection::connect(&sim.host, Default::default()).unwrap();
+    let limits = RateLimits::of(Arm::Fr3);
+    let start = robot.read_state().unwrap();
+    let from = cps_franka::rt::start_position(&start);
+    let mut goal = from;
+    goal[0] += 0.4;
+    goal[3] += 0.3;
+    goal[6] -= 0.5;
+    let trajectory = approach(&limits, from, goal, 0.4);
+    let stream = check_trajectory(&limits, from, &trajectory, Start::Refuse).unwrap();
+    let stop = AtomicBool::new(false);
+    let report = execute_stream(&mut robot, limits, &stream, &options(), &stop).unwrap();
+    assert_eq!(
+        report.ending,
+        Ending::Finished,
+        "{}",
+        report.ending.sentence()
+    );
+    // One command per answered tick, all of the stream, in order, then its last one held
+    // until the commanded motion is at rest (at most the three periods a jerk needs).
+    let n = stream.commands.len();
+    assert!(
+        (n..=n + 3).contains(&report.samples.len()),
+        "{} samples for {n} commands",
+        report.samples.len()
+    );
+    for (k, s) in report.samples.iter().enumerate() {
+        assert_eq!(s.q_c, stream.commands[k.min(n - 1)], "command {k}");
+    }
+    // What was sent keeps every limit (the robot's own differences).
+    let sent: Vec<[f64; 7]> = report.samples.iter().map(|s| s.q_c).collect();
+    check_stream(limits, from, &sent).unwrap();
+    assert!(report.peak_usage.iter().flatten().all(|&u| u <= 1.0));
+    // Robot time runs forward in whole milliseconds.
+    assert!(report.samples.windows(2).all(|w| w[1].t > w[0].t));
+    // The robot took the last command as its desired position (to f32 precision), and the
+    // simulated arm followed it: franky-sim's joint PD lags ≈ 10 mrad at the end of this
+    // motion and settles slowly, so the measured position is held to 10 mrad after 0.5 s.
+    std::thread::sleep(Duration::from_millis(500));
+    let end = robot.read_state().unwrap();
+    for (i, g) in goal.iter().enumerate() {
+        let (q_d, q) = (end.q_d[i], end.q[i]);
+        assert!((q_d - g).abs() < 1e-6, "q_d {}: {q_d} vs {g}", i + 1);
+        assert!((q - g).abs() < 1e-2, "joint {}: {q} vs {g}", i + 1);
+    }
+    let moved: f64 = (0..3)
+        .map(|k| (end.tool_position()[k] - start.tool_position()[k]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(moved > 0.05, "the tool moved {moved} m");
+    assert!(report.timing.ticks == report.samples.len() && report.timing.median_us > 0.0);
+    assert_eq!(end.robot_mode, RobotMode::Idle);
+}
+
+#[test]
+fn a_step_is_refused_before_anything_is_sent_and_the_robot_stays() {
+    let Some(sim) = FrankySim::start("127.0.0.23") else {
+        return;
+    };
+    let mut robot = Connection::connect(&sim.host, Default::default()).unwrap();
+    let limits = RateLimits::of(Arm::Fr3);
+    let before = robot.read_state().unwrap();
+    let from = cps_franka::rt::start_position(&before);
+    let mut trajectory = vec![from; 500];
+    for q in &mut trajectory[250..] {
+        q[2] += 0.05;
+    }
+    match check_trajectory(&limits, from, &trajectory, Start::Refuse) {
+        Err(FrankaError::Limit(b)) => {
+            assert_eq!(
+                (b.joint, b.sample, b.quantity),
+                (3, 250, Quantity::Velocity)
+            );
+        }
+        other => panic!("expected a refusal, got {other:?}"),
+    }
+    std::thread::sleep(Duration::from_millis(200));
+    let after = robot.read_state().unwrap();
+    for i in 0..7 {
+        assert!((after.q[i] - before.q[i]).abs() < 1e-4);
+    }
+}
+
+#[test]
+fn a_stop_request_brakes_within_the_limits_and_keeps_the_recording() {
+    let Some(sim) = FrankySim::start("127.0.0.24") else {
+        return;
+    };
+    let mut robot = Connection::connect(&sim.host, Default::default()).unwrap();
+    let limits = RateLimits::of(Arm::Fr3);
+    let from = cps_franka::rt::start_position(&robot.read_state().unwrap());
+    let mut goal = from;
+    goal[0] += 1.2;
+    let stream = check_trajectory(
+        &limits,
+        from,
+        &approach(&limits, from, goal, 0.8),
+        Start::Refuse,
+    )
+    .unwrap();
+    let stop = AtomicBool::new(false);
+    let report = std::thread::scope(|s| {
+        s.spawn(|| {
+            std::thread::sleep(Duration::from_millis(400));
+            stop.store(true, Ordering::Relaxed);
+        });
+        execute_stream(&mut robot, limits, &stream, &options(), &stop).unwrap()
+    });
+    assert_eq!(report.ending, Ending::Stopped);
+    assert!(report.brake_ticks > 0 && report.samples.len() < stream.commands.len());
+    let sent: Vec<[f64; 7]> = report.samples.iter().map(|s| s.q_c).collect();
+    let check = check_stream(limits, from, &sent).unwrap();
+    assert!(check.at_rest_now(), "the last command is at rest");
+    // Stopped short of the goal, and the robot answers the next motion.
+    assert!(sent.last().unwrap()[0] < goal[0] - 0.05);
+    assert_eq!(robot.read_state().unwrap().robot_mode, RobotMode::Idle);
+}
+
+#[test]
+fn a_simulator_killed_mid_motion_ends_as_lost_with_the_recording_kept() {
+    let Some(sim) = FrankySim::start("127.0.0.25") else {
+        return;
+    };
+    let mut robot = Connection::connect(&sim.host, Default::default()).unwrap();
+    let limits = RateLimits::of(Arm::Fr3);
+    let from = cps_franka::rt::start_position(&robot.read_state().unwrap());
+    let mut goal = from;
+    goal[1] += 0.6;
+    let stream = check_trajectory(
+        &limits,
+        from,
+        &approach(&limits, from, goal, 0.1),
+        Start::Refuse,
+    )
+    .unwrap();
+    let stop = AtomicBool::new(false);
+    let report = std::thread::scope(|s| {
+        let kill = sim.killer();
+        let killer = s.spawn(move || {
+            std::thread::sleep(Duration::from_millis(700));
+            kill();
+        });
+        let r = execute_stream(&mut robot, limits, &stream, &options(), &stop).unwrap();
+        killer.join().unwrap();
+        r
+    });
+    match &report.ending {
+        Ending::Lost(reason) => assert!(reason.contains("127.0.0.25"), "{reason}"),
+        other => panic!("expected a lost connection, got {other:?}"),
+    }
+    assert!(
+        report.samples.len() > 100,
+        "{} samples kept",
+        report.samples.len()
+    );
+    assert!(report.samples.len() < stream.commands.len());
+}
