@@ -14,6 +14,7 @@
 //! cps-cli rollout model.json [--start ...] [--goal ...] [--tau S] [--dt S] --out traj.csv [--plot traj.png]
 //! cps-cli promp fit demo*.csv [--bases N] --out p.json | condition p.json --at T --position x,y [--std S] --out q.json
 //! cps-cli promp sample p.json --n K --seed S [--dt S] --out dir/ | stats p.json --out stats.csv
+//! cps-cli franka state --host H | execute traj.csv --host H --record rec.csv [--retime] [--approach] | record --host H --duration S --out rec.csv
 //! ```
 //!
 //! An experiment file's `[experiment] kind` chooses what `run` does: `viapoint` (default),
@@ -38,6 +39,7 @@ macro_rules! say {
 }
 
 mod cmaes_bench;
+mod franka;
 mod movement;
 mod progress;
 mod promp;
@@ -130,6 +132,12 @@ enum Command {
     Export(trajectory::ExportArgs),
     /// A local web workbench: drag via points, watch the movement re-learned.
     Studio(studio::StudioArgs),
+    /// A Franka (FR3, or a Panda on a protocol-10 system) over the Franka Control
+    /// Interface: its state, a trajectory executed and recorded at 1 kHz within its limits.
+    Franka {
+        #[command(subcommand)]
+        command: franka::FrankaCommand,
+    },
     /// Scenes: a placed robot and named way points.
     Scene {
         #[command(subcommand)]
@@ -234,6 +242,7 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
         Command::Rollout(args) => movement::run_rollout(&args),
         Command::Promp { command } => promp::promp(&command),
         Command::Studio(args) => studio::studio(&args, interrupted),
+        Command::Franka { command } => franka::franka(&command, interrupted),
         Command::Check {
             file,
             ceilings,

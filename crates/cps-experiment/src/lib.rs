@@ -53,6 +53,7 @@ pub mod export;
 #[cfg(feature = "figures")]
 pub mod figures;
 pub mod files;
+pub mod franka;
 mod kinds;
 pub mod limits;
 pub mod movement;

@@ -9,7 +9,8 @@
 use std::path::Path;
 
 use cps_kinematics::robots::{
-    PandaTool, panda, panda_inertia, panda_limits, puma560, ur3, ur3_inertia, ur3_limits,
+    PandaTool, fr3, fr3_limits, panda, panda_inertia, panda_limits, puma560, ur3, ur3_inertia,
+    ur3_limits,
 };
 use cps_kinematics::{
     CartesianLimits, ChainGeometry, DhConvention, DhLink, IkTarget, JointLimits, LinkInertia,
@@ -289,7 +290,7 @@ pub fn joint_solution(
 pub const PANDA_READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
 
 /// The built-in robot names.
-pub const BUILT_IN: &str = "panda, ur3, crx10ia, puma560";
+pub const BUILT_IN: &str = "panda, fr3, ur3, crx10ia, puma560";
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -526,6 +527,28 @@ pub fn load_robot(
                 limits: panda_limits().0,
                 inertia: Some(panda_inertia()),
                 cartesian: Some(panda_limits().1),
+            })
+        }
+        "fr3" => {
+            let (t, words) = match tool.unwrap_or("hand") {
+                "hand" => (PandaTool::HandTcp, "Franka Hand TCP"),
+                "flange" => (PandaTool::Flange, "flange"),
+                other => {
+                    return Err(InputError(format!(
+                        "--tool: the FR3 has tools `hand` and `flange`, not `{other}`"
+                    )));
+                }
+            };
+            Ok(RobotModel {
+                name: "fr3".into(),
+                chain: fr3(t),
+                ready: PANDA_READY.to_vec(),
+                tool: words.into(),
+                joint_names: names(7),
+                limits: fr3_limits(),
+                // Franka publishes no FR3 inertias; the robot's own URDF carries them.
+                inertia: None,
+                cartesian: None,
             })
         }
         "ur3" | "puma560" => {

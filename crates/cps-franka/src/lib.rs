@@ -56,6 +56,7 @@ pub mod wire;
 pub use error::FrankaError;
 pub use motion::{
     CheckedStream, START_TOLERANCE, Start, approach, check_trajectory, execute_stream,
+    record_states,
 };
 pub use rt::{Ending, LoopOptions, MotionReport, Realtime, Sample, Timing};
 pub use session::{Connection, Timeouts};

@@ -77,9 +77,9 @@ impl RateLimits {
         match arm {
             Arm::Fr3 => RateLimits {
                 arm,
-                q_min: [-2.7437, -1.7837, -2.9007, -3.0421, -2.8065, 0.5445, -3.0159],
-                q_max: [2.7437, 1.7837, 2.9007, -0.1518, 2.8065, 4.5169, 3.0159],
-                dq_max: [2.62, 2.62, 2.62, 2.62, 5.26, 4.18, 5.26],
+                q_min: cps_kinematics::robots::FR3_Q_MIN,
+                q_max: cps_kinematics::robots::FR3_Q_MAX,
+                dq_max: cps_kinematics::robots::FR3_DQ_MAX,
                 ddq_max: [10.0; JOINTS],
                 dddq_max: [5000.0; JOINTS],
                 tau_max: [87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0],

@@ -176,6 +176,44 @@ pub fn execute_stream(
     })
 }
 
+/// Records the robot's state at its rate for `duration` without moving it (a robot being
+/// guided by hand in Desk's guiding mode, or at rest): one sample per state, `q_c` the
+/// robot's desired position. Ends early when `stop` is set; a lost connection ends it
+/// with the samples so far and the reason.
+pub fn record_states(
+    conn: &mut Connection,
+    duration: std::time::Duration,
+    stop: &AtomicBool,
+) -> Result<(Vec<crate::Sample>, Option<String>), FrankaError> {
+    let first = conn.read_state()?;
+    let ticks = (duration.as_secs_f64() / DT).ceil() as usize;
+    let mut samples = Vec::with_capacity(ticks + 1);
+    let mut state = first;
+    loop {
+        let t = (state.message_id - first.message_id) as f64 * DT;
+        if t > duration.as_secs_f64() + 1e-9 {
+            break;
+        }
+        samples.push(crate::Sample {
+            t,
+            q: state.q,
+            dq: state.dq,
+            tau: state.tau_j,
+            q_c: state.q_d,
+            tool: state.tool_position(),
+        });
+        if stop.load(std::sync::atomic::Ordering::Relaxed) {
+            break;
+        }
+        match conn.newest_state(std::time::Duration::from_millis(100)) {
+            Ok((s, _)) if s.message_id > state.message_id => state = s,
+            Ok(_) => {}
+            Err(e) => return Ok((samples, Some(e.to_string()))),
+        }
+    }
+    Ok((samples, None))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -105,10 +105,11 @@ fn fake(scenario: Scenario) -> String {
             } else {
                 RobotMode::Idle
             };
-            if in_reflex && matches!(scenario, Scenario::ReflexDuringMotion) {
-                if let Some((mid, _)) = motion.take() {
-                    reply(&mut tcp, 1, mid, &[8]); // ReflexAborted
-                }
+            if in_reflex
+                && matches!(scenario, Scenario::ReflexDuringMotion)
+                && let Some((mid, _)) = motion.take()
+            {
+                reply(&mut tcp, 1, mid, &[8]); // ReflexAborted
             }
             let s = state(id, mode, errors);
             let truncate = matches!(scenario, Scenario::Truncated)

@@ -28,15 +28,7 @@ pub const PANDA_DQ_MAX: [f64; 7] = [2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61
 /// The Franka Emika Panda in its published modified-DH table (Franka documentation),
 /// base at the world origin, ending at `tool`, with position and speed limits.
 pub fn panda(tool: PandaTool) -> SerialChain {
-    let links = vec![
-        DhLink::new(0.0, 0.333, 0.0),
-        DhLink::new(0.0, 0.0, -FRAC_PI_2),
-        DhLink::new(0.0, 0.316, FRAC_PI_2),
-        DhLink::new(0.0825, 0.0, FRAC_PI_2),
-        DhLink::new(-0.0825, 0.384, -FRAC_PI_2),
-        DhLink::new(0.0, 0.0, FRAC_PI_2),
-        DhLink::new(0.088, 0.0, FRAC_PI_2),
-    ];
+    let links = panda_links();
     let flange = Isometry3::from_parts(
         Translation3::new(0.0, 0.0, 0.107),
         UnitQuaternion::identity(),
@@ -56,6 +48,51 @@ pub fn panda(tool: PandaTool) -> SerialChain {
         .and_then(|c| c.with_tool(tool).with_limits(&PANDA_Q_MIN, &PANDA_Q_MAX))
         .and_then(|c| c.with_velocity_limits(&PANDA_DQ_MAX))
         .expect("the Panda model is valid")
+}
+
+/// The Panda's (and FR3's) modified-DH table.
+fn panda_links() -> Vec<DhLink> {
+    vec![
+        DhLink::new(0.0, 0.333, 0.0),
+        DhLink::new(0.0, 0.0, -FRAC_PI_2),
+        DhLink::new(0.0, 0.316, FRAC_PI_2),
+        DhLink::new(0.0825, 0.0, FRAC_PI_2),
+        DhLink::new(-0.0825, 0.384, -FRAC_PI_2),
+        DhLink::new(0.0, 0.0, FRAC_PI_2),
+        DhLink::new(0.088, 0.0, FRAC_PI_2),
+    ]
+}
+
+/// Franka Research 3 joint limits in radians (Franka's "Robot and interface
+/// specifications", Limits for Franka Research 3).
+pub const FR3_Q_MIN: [f64; 7] = [-2.7437, -1.7837, -2.9007, -3.0421, -2.8065, 0.5445, -3.0159];
+/// Upper joint limits in radians.
+pub const FR3_Q_MAX: [f64; 7] = [2.7437, 1.7837, 2.9007, -0.1518, 2.8065, 4.5169, 3.0159];
+/// The FR3's largest joint speeds in rad/s (reached in the middle of the range; the robot
+/// allows less near the range's ends, which `cps-franka` checks).
+pub const FR3_DQ_MAX: [f64; 7] = [2.62, 2.62, 2.62, 2.62, 5.26, 4.18, 5.26];
+
+/// The Franka Research 3: the Panda's kinematics (Franka publishes one modified-DH table
+/// for both), the FR3's joint range and speeds.
+pub fn fr3(tool: PandaTool) -> SerialChain {
+    let panda = panda(tool);
+    SerialChain::new(DhConvention::Modified, panda_links())
+        .map(|c| c.with_tool(panda.tool()))
+        .and_then(|c| c.with_limits(&FR3_Q_MIN, &FR3_Q_MAX))
+        .and_then(|c| c.with_velocity_limits(&FR3_DQ_MAX))
+        .expect("the FR3 model is valid")
+}
+
+/// The FR3's limits beyond its joint range and speed: acceleration 10 rad/s², jerk 5000
+/// rad/s³ on every joint, torque 87 N m (joints 1–4) and 12 N m (5–7), torque rate 1000
+/// N m/s.
+pub fn fr3_limits() -> crate::JointLimits {
+    crate::JointLimits {
+        acceleration: Some(vec![10.0; 7]),
+        jerk: Some(vec![5000.0; 7]),
+        torque: Some(vec![87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0]),
+        torque_rate: Some(vec![1000.0; 7]),
+    }
 }
 
 /// The Panda's limits beyond its joint range and speed (Franka's control parameters, the

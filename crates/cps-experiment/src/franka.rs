@@ -1,0 +1,433 @@
+//! A Franka from files: one state (`cps-cli franka state`), a joint trajectory file
+//! executed at 1 kHz and recorded (`franka execute`), the robot's state recorded for a
+//! while (`franka record`). The protocol, the loop and the limit checks are `cps-franka`'s;
+//! this module reads and writes the files and words the answers.
+//!
+//! A recording is a CSV `t,q1..q7,dq1..dq7,tau1..tau7,q_d1..q_d7,tool_x,tool_y,tool_z` at the
+//! robot's rate (measured positions, velocities and torques, the commanded positions, the
+//! tool's position from the robot's own kinematics), with a report beside it
+//! (`<stem>.report.json`) that says whether it is complete and why not.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+
+use cps_franka::limits::{Arm, RateLimits};
+use cps_franka::{
+    CheckedStream, Connection, Ending, FrankaError, LoopOptions, MotionReport, Realtime,
+    RobotState, Sample, Start, Timeouts, check_trajectory, execute_stream,
+};
+use serde_json::{Value, json};
+
+use crate::limits::{JointTrajectory, at_rate, read_joint_trajectory};
+use crate::outcome::{Column, Format, Table};
+use crate::results_dir::{FileKind, check_file_target};
+use crate::retiming::{RetimeMode, retime_samples};
+use crate::robot_file::{Answer, load_robot};
+use crate::{ExperimentError, InputError};
+
+/// The share of each velocity, acceleration and jerk limit `--retime` plans at, so that
+/// the robot's check (at 100 %) always has room.
+pub const RETIME_SHARE: f64 = 0.95;
+
+/// The share of the limits an approach move uses.
+pub const APPROACH_SHARE: f64 = 0.2;
+
+/// Which arm, by name (`fr3`, `panda`).
+pub fn parse_arm(name: &str) -> Result<Arm, InputError> {
+    Arm::from_name(name).ok_or_else(|| {
+        InputError(format!(
+            "--arm: `{name}` is not a Franka arm (fr3 or panda)"
+        ))
+    })
+}
+
+/// `enforce` or `ignore`.
+pub fn parse_realtime(name: &str) -> Result<Realtime, InputError> {
+    match name {
+        "enforce" => Ok(Realtime::Enforce),
+        "ignore" => Ok(Realtime::Ignore),
+        other => Err(InputError(format!(
+            "--realtime: `{other}` is neither enforce nor ignore"
+        ))),
+    }
+}
+
+fn robot_error(e: FrankaError) -> ExperimentError {
+    match e {
+        FrankaError::Input(s) => ExperimentError::Message(s),
+        other => ExperimentError::Message(other.to_string()),
+    }
+}
+
+fn connect(host: &str) -> Result<Connection, ExperimentError> {
+    Connection::connect(host, Timeouts::default()).map_err(robot_error)
+}
+
+fn fmt7(x: &[f64]) -> String {
+    x.iter()
+        .map(|v| format!("{v:.4}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// `cps-cli franka state`: one state as JSON `{"q", "dq", "tau_J", "O_T_EE", "tool_position",
+/// "robot_mode", "errors", "control_command_success_rate", "message_id"}` and as lines.
+pub fn state(host: &str) -> Result<Answer, ExperimentError> {
+    let mut robot = connect(host)?;
+    let s: RobotState = robot.read_state().map_err(robot_error)?;
+    let errors = s.errors.names();
+    let json = json!({
+        "host": host,
+        "message_id": s.message_id,
+        "q": s.q, "dq": s.dq, "tau_J": s.tau_j, "q_d": s.q_d,
+        "O_T_EE": s.o_t_ee, "tool_position": s.tool_position(),
+        "robot_mode": s.robot_mode.name(),
+        "errors": errors,
+        "control_command_success_rate": s.control_command_success_rate,
+    });
+    let p = s.tool_position();
+    let lines = vec![
+        format!(
+            "{host}: {} ({})",
+            s.robot_mode.name(),
+            s.robot_mode.sentence()
+        ),
+        format!("  q      [{}] rad", fmt7(&s.q)),
+        format!("  dq     [{}] rad/s", fmt7(&s.dq)),
+        format!("  tau_J  [{}] N m", fmt7(&s.tau_j)),
+        format!(
+            "  tool   ({:.4}, {:.4}, {:.4}) m in the base frame",
+            p[0], p[1], p[2]
+        ),
+        format!("  errors {}", s.errors.describe()),
+    ];
+    Ok(Answer { json, lines })
+}
+
+/// What `franka execute` does.
+#[derive(Debug, Clone)]
+pub struct ExecuteSettings {
+    /// The robot's address.
+    pub host: String,
+    /// Which arm's limits.
+    pub arm: Arm,
+    /// Retime the trajectory to the limits first (else its own timing, checked).
+    pub retime: bool,
+    /// Move to the trajectory's start first when the robot is elsewhere (else refuse).
+    pub approach: bool,
+    /// Realtime scheduling of the loop.
+    pub realtime: Realtime,
+}
+
+/// The recording's file and its report beside it: `rec.csv` → `rec.report.json`.
+pub fn report_path(record: &Path) -> PathBuf {
+    let stem = record
+        .file_stem()
+        .map_or("recording".into(), |s| s.to_string_lossy().into_owned());
+    record.with_file_name(format!("{stem}.report.json"))
+}
+
+/// Checks before anything moves that the recording and its report may be written.
+pub fn check_record_target(record: &Path, force: bool) -> Result<(), InputError> {
+    check_file_target(record, FileKind::TrajectoryCsv, force)?;
+    let report = report_path(record);
+    if report.exists() && !force {
+        return Err(InputError(format!(
+            "{}: exists (the report of an earlier recording); pass --force to replace it",
+            report.display()
+        )));
+    }
+    Ok(())
+}
+
+/// A joint trajectory file made ready for a Franka: 1 kHz commands from t = 0.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    /// The file.
+    pub file: PathBuf,
+    /// One command per millisecond.
+    pub commands: Vec<[f64; 7]>,
+    /// Whether it was retimed, resampled, or taken command by command.
+    pub how: &'static str,
+}
+
+/// Reads a joint trajectory (`t`, then seven positions in rad) and makes it 1 kHz commands:
+/// retimed to the arm's limits (at [`RETIME_SHARE`]), or resampled by a cubic spline that
+/// starts and ends at rest, or taken as it is when it is sampled at 1 kHz.
+pub fn prepare(file: &Path, arm: Arm, retime: bool) -> Result<Prepared, ExperimentError> {
+    let traj: JointTrajectory = read_joint_trajectory(file, 7)?;
+    let (rows, how) = if retime {
+        let mut model = load_robot(arm.name(), Some("flange"), None)?;
+        let l = RateLimits::of(arm).scaled(RETIME_SHARE);
+        model.chain = model
+            .chain
+            .clone()
+            .with_velocity_limits(&l.dq_max)
+            .map_err(|e| ExperimentError::Message(e.to_string()))?;
+        model.limits.acceleration = Some(l.ddq_max.to_vec());
+        model.limits.jerk = Some(l.dddq_max.to_vec());
+        let r = retime_samples(&model, &traj, 1000.0, RetimeMode::Fastest).map_err(|e| {
+            InputError(format!(
+                "{}: cannot be retimed for the {}: {e}",
+                file.display(),
+                arm.name()
+            ))
+        })?;
+        (r.trajectory.q, "retimed")
+    } else {
+        let (_, _, rows, resampled) = at_rate(&traj, 1000.0);
+        (
+            rows,
+            if resampled {
+                "resampled at 1 kHz"
+            } else {
+                "taken command by command"
+            },
+        )
+    };
+    let commands = rows
+        .iter()
+        .map(|r| <[f64; 7]>::try_from(r.as_slice()).expect("seven joints"))
+        .collect();
+    Ok(Prepared {
+        file: file.to_path_buf(),
+        commands,
+        how,
+    })
+}
+
+/// An execution: what was checked and sent, what the robot did.
+#[derive(Debug, Clone)]
+pub struct Executed {
+    /// The robot's address.
+    pub host: String,
+    /// The arm.
+    pub arm: Arm,
+    /// The stream checked and sent.
+    pub stream: CheckedStream,
+    /// The loop's report.
+    pub report: MotionReport,
+    /// How the file was made commands.
+    pub how: &'static str,
+}
+
+/// Connects, checks the prepared commands from where the robot is (an approach first when
+/// asked), executes them and returns the recording. A check that fails returns an error
+/// and nothing is sent; once the motion started, every ending is an [`Executed`].
+pub fn execute(
+    prepared: &Prepared,
+    settings: &ExecuteSettings,
+    stop: &AtomicBool,
+) -> Result<Executed, ExperimentError> {
+    let mut robot = connect(&settings.host)?;
+    let limits = RateLimits::of(settings.arm);
+    let state = robot.read_state().map_err(robot_error)?;
+    robot.ensure_ready(&state).map_err(robot_error)?;
+    let from = cps_franka::rt::start_position(&state);
+    let start = if settings.approach {
+        Start::Approach(APPROACH_SHARE)
+    } else {
+        Start::Refuse
+    };
+    let stream = check_trajectory(&limits, from, &prepared.commands, start).map_err(|e| match e {
+        FrankaError::Limit(b) => ExperimentError::Message(format!(
+            "{}: refused before sending anything: {b} (pass --retime to retime it to the {}'s limits)",
+            prepared.file.display(),
+            settings.arm.name()
+        )),
+        other => ExperimentError::Message(format!("{}: {other}", prepared.file.display())),
+    })?;
+    let options = LoopOptions {
+        realtime: settings.realtime,
+        ..LoopOptions::default()
+    };
+    let report =
+        execute_stream(&mut robot, limits, &stream, &options, stop).map_err(robot_error)?;
+    Ok(Executed {
+        host: settings.host.clone(),
+        arm: settings.arm,
+        stream,
+        report,
+        how: prepared.how,
+    })
+}
+
+/// The recording as a table: `t`, `q1..7`, `dq1..7`, `tau1..7`, `q_d1..7`, `tool_x,y,z`.
+pub fn recording_table(samples: &[Sample]) -> Table {
+    let mut table = Table::new("recording").with(Column::numbers(
+        "t",
+        samples.iter().map(|s| s.t).collect(),
+        Format::Plain,
+    ));
+    for (name, k) in [("q", 0), ("dq", 1), ("tau", 2), ("q_d", 3)] {
+        let get = |s: &Sample| [s.q, s.dq, s.tau, s.q_c][k];
+        for j in 0..7 {
+            table.push(Column::numbers(
+                format!("{name}{}", j + 1),
+                samples.iter().map(|s| get(s)[j]).collect(),
+                Format::Plain,
+            ));
+        }
+    }
+    for (k, axis) in ["tool_x", "tool_y", "tool_z"].into_iter().enumerate() {
+        table.push(Column::numbers(
+            axis,
+            samples.iter().map(|s| s.tool[k]).collect(),
+            Format::Plain,
+        ));
+    }
+    table
+}
+
+impl Executed {
+    /// Whether the motion ran to its end.
+    pub fn complete(&self) -> bool {
+        self.report.ending.complete()
+    }
+
+    /// Per joint, RMS and largest |measured − commanded| over the recording (rad).
+    pub fn tracking(&self) -> ([f64; 7], [f64; 7]) {
+        let (mut rms, mut max) = ([0.0; 7], [0.0f64; 7]);
+        let n = self.report.samples.len().max(1) as f64;
+        for s in &self.report.samples {
+            for j in 0..7 {
+                let e = s.q[j] - s.q_c[j];
+                rms[j] += e * e;
+                max[j] = max[j].max(e.abs());
+            }
+        }
+        (rms.map(|x| (x / n).sqrt()), max)
+    }
+
+    /// The report: `{"complete", "ending", "host", "arm", "samples", "duration_s",
+    /// "approach_s", "timing", "tracking", "limit_usage_percent"}`.
+    pub fn json(&self) -> Value {
+        let t = &self.report.timing;
+        let (rms, max) = self.tracking();
+        let usage = |k: usize| self.report.peak_usage[k].map(|u| (u * 1e4).round() / 100.0);
+        json!({
+            "complete": self.complete(),
+            "ending": self.report.ending.sentence(),
+            "host": self.host,
+            "arm": self.arm.name(),
+            "trajectory": self.how,
+            "samples": self.report.samples.len(),
+            "duration_s": self.report.samples.last().map_or(0.0, |s| s.t),
+            "approach_s": self.stream.approach as f64 * 1e-3,
+            "brake_ticks": self.report.brake_ticks,
+            "timing": {
+                "ticks": t.ticks, "median_us": t.median_us, "p99_us": t.p99_us, "max_us": t.max_us,
+                "missed_ticks": t.missed, "stale_states": t.stale, "realtime": t.realtime,
+            },
+            "tracking": { "rms_rad": rms, "max_rad": max },
+            "limit_usage_percent": { "velocity": usage(0), "acceleration": usage(1), "jerk": usage(2) },
+        })
+    }
+
+    /// The report in lines.
+    pub fn lines(&self, record: &Path) -> Vec<String> {
+        let t = &self.report.timing;
+        let (rms, max) = self.tracking();
+        let peak = |k: usize| {
+            self.report.peak_usage[k]
+                .iter()
+                .copied()
+                .fold(0.0, f64::max)
+                * 100.0
+        };
+        vec![
+            format!("{}: {}", self.host, self.report.ending.sentence()),
+            format!(
+                "  {} samples over {:.3} s ({}; approach {:.3} s), recorded in {}",
+                self.report.samples.len(),
+                self.report.samples.last().map_or(0.0, |s| s.t),
+                self.how,
+                self.stream.approach as f64 * 1e-3,
+                record.display()
+            ),
+            format!(
+                "  loop: state in -> command out median {:.1} us, p99 {:.1} us, max {:.1} us; {} ticks missed, {} stale states{}",
+                t.median_us,
+                t.p99_us,
+                t.max_us,
+                t.missed,
+                t.stale,
+                if t.realtime {
+                    "; SCHED_FIFO"
+                } else {
+                    "; normal priority"
+                }
+            ),
+            format!("  tracking (measured - commanded) RMS [{}] rad", fmt7(&rms)),
+            format!("                                  max [{}] rad", fmt7(&max)),
+            format!(
+                "  limit usage of what was sent: velocity {:.1} %, acceleration {:.1} %, jerk {:.1} %",
+                peak(0),
+                peak(1),
+                peak(2)
+            ),
+        ]
+    }
+}
+
+/// Writes a recording and its report (complete or not), each atomically.
+pub fn write_recording(
+    record: &Path,
+    samples: &[Sample],
+    report: &Value,
+) -> Result<(), ExperimentError> {
+    let csv = crate::files::table_csv(&recording_table(samples))?;
+    crate::files::write_file(record, &csv)?;
+    let text = serde_json::to_string_pretty(report)
+        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    crate::files::write_file(&report_path(record), text.as_bytes())
+}
+
+/// `franka record`: the robot's state for `seconds` (or until `stop`), written to `out`;
+/// returns the report (`complete` false when the connection was lost or it was stopped).
+pub fn record(
+    host: &str,
+    seconds: f64,
+    out: &Path,
+    stop: &AtomicBool,
+) -> Result<(Value, Vec<String>), ExperimentError> {
+    if !(seconds.is_finite() && seconds > 0.0 && seconds <= 3600.0) {
+        return Err(InputError(format!("--duration: {seconds} s is not in (0, 3600]")).into());
+    }
+    let mut robot = connect(host)?;
+    let (samples, lost) = cps_franka::record_states(
+        &mut robot,
+        std::time::Duration::from_secs_f64(seconds),
+        stop,
+    )
+    .map_err(robot_error)?;
+    let duration = samples.last().map_or(0.0, |s| s.t);
+    let stopped = stop.load(std::sync::atomic::Ordering::Relaxed);
+    let complete = lost.is_none() && !stopped;
+    let ending = match (&lost, stopped) {
+        (Some(r), _) => format!("the connection was lost: {r}"),
+        (None, true) => "stopped on request".into(),
+        (None, false) => "recorded for the whole duration".into(),
+    };
+    let report = json!({ "complete": complete, "ending": ending, "host": host, "samples": samples.len(), "duration_s": duration });
+    write_recording(out, &samples, &report)?;
+    let lines = vec![
+        format!("{host}: {ending}"),
+        format!(
+            "  {} samples over {duration:.3} s in {}",
+            samples.len(),
+            out.display()
+        ),
+    ];
+    Ok((report, lines))
+}
+
+/// Why an execution's exit code is what it is: 0 finished, 130 stopped on request, 1
+/// otherwise.
+pub fn exit_code(ending: &Ending) -> u8 {
+    match ending {
+        Ending::Finished => 0,
+        Ending::Stopped => 130,
+        _ => 1,
+    }
+}
