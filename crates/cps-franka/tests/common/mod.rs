@@ -15,12 +15,15 @@ use std::time::{Duration, Instant};
 /// One simulator at a time: two MuJoCo loops on two cores would starve each other.
 static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 
+/// The workspace's root (this file is included by the tests of several crates).
+fn workspace() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
 pub fn python() -> Option<PathBuf> {
     let p = std::env::var_os("CPS_FRANKA_PYTHON")
         .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/franka-venv/bin/python")
-        });
+        .unwrap_or_else(|| workspace().join("target/franka-venv/bin/python"));
     if p.exists() {
         return Some(p);
     }
@@ -49,7 +52,7 @@ impl FrankySim {
     pub fn start(host: &str) -> Option<Self> {
         let python = python()?;
         let turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
-        let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/sim_server.py");
+        let script = workspace().join("crates/cps-franka/tests/sim_server.py");
         let mut child = Command::new(python)
             .arg(script)
             .args(["--host", host])
