@@ -10,6 +10,8 @@
 //!   Jacobians, IK, controllers, the robot-backend trait and the in-process robot.
 //! - [`coppelia`] (`cps-coppelia`): CoppeliaSim's ZMQ remote API (client and stand-in
 //!   server).
+//! - [`franka`] (`cps-franka`): the Franka Control Interface (protocol 10): a robot
+//!   driven at 1 kHz, every command checked against its published limits.
 //! - [`experiment`] (`cps-experiment`): experiments as a library — read an experiment
 //!   file of any kind, run it, get its outcome as data (summary, tables, figures), write
 //!   it as a result directory; scenes, robot files, single movements; retiming and export
@@ -46,6 +48,7 @@ pub use cps_cmaes as cmaes;
 pub use cps_coppelia as coppelia;
 pub use cps_dmp as dmp;
 pub use cps_experiment as experiment;
+pub use cps_franka as franka;
 pub use cps_kinematics as kinematics;
 pub use cps_learn as learn;
 pub use cps_promp as promp;

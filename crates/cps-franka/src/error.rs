@@ -7,6 +7,7 @@ use crate::wire::WireError;
 
 /// What went wrong talking to a Franka.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum FrankaError {
     /// No TCP connection within the timeout, or refused.
     #[error(

@@ -486,6 +486,7 @@ impl Reader<'_> {
 
 /// Why a datagram or a reply could not be decoded.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
 pub enum WireError {
     /// A datagram or payload had the wrong size.
     #[error("{what} has {got} bytes but protocol 10 has {expected}")]
