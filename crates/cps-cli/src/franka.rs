@@ -5,12 +5,22 @@ use std::process::ExitCode;
 use std::sync::atomic::AtomicBool;
 
 use anyhow::Result;
-use clap::Subcommand;
+use clap::{Args, Subcommand};
 use cps_experiment::franka::{self, ExecuteSettings};
-use cps_experiment::robot_file::Answer;
 
 use crate::cli_error;
 use crate::robot::print;
+
+/// The robot's address, and how to print the answer.
+#[derive(Args, Debug)]
+pub struct On {
+    /// The robot's address (`ip`, or `ip:port` for a port other than 1337).
+    #[arg(long)]
+    host: String,
+    /// Print JSON.
+    #[arg(long)]
+    json: bool,
+}
 
 /// `cps-cli franka ...`. Exit codes: 0 done; 1 refused by a check, the robot, or a lost
 /// connection (a partial recording is kept, its report says `"complete": false`); 2 bad
@@ -19,23 +29,17 @@ use crate::robot::print;
 pub enum FrankaCommand {
     /// One state: joint positions, velocities, torques, the tool pose, mode and errors.
     State {
-        /// The robot's address (`ip` or `ip:port`).
-        #[arg(long)]
-        host: String,
-        /// Print JSON.
-        #[arg(long)]
-        json: bool,
+        #[command(flatten)]
+        on: On,
     },
-    /// Execute a joint trajectory (CSV: t, then q1..q7 in rad, as `limits check` reads it)
-    /// at 1 kHz and record what the robot did. Every command is checked against the arm's
-    /// published limits before the motion starts (nothing is sent if one fails) and again
-    /// while streaming.
+    /// Execute a joint trajectory (CSV: t, then q1..q7 in rad) at 1 kHz and record what the
+    /// robot did. Every command is checked against the arm's published limits before the
+    /// motion starts (nothing is sent if one fails) and again while streaming.
     Execute {
         /// The trajectory file.
         file: PathBuf,
-        /// The robot's address.
-        #[arg(long)]
-        host: String,
+        #[command(flatten)]
+        on: On,
         /// The recording (CSV at the robot's rate) to write; its report goes beside it as
         /// `<stem>.report.json`.
         #[arg(long)]
@@ -57,15 +61,30 @@ pub enum FrankaCommand {
         /// Replace an existing recording.
         #[arg(long)]
         force: bool,
-        /// Print the report as JSON.
-        #[arg(long)]
-        json: bool,
+    },
+    /// The Franka Hand: `home`, `move W`, `grasp W [--force N]`, `stop`, `state`; each
+    /// waits until the fingers settle and prints the hand's state.
+    Gripper {
+        /// home, move, grasp, stop or state.
+        action: String,
+        /// The width in metres (move, grasp).
+        width: Option<f64>,
+        #[command(flatten)]
+        on: On,
+        /// Finger speed (m/s).
+        #[arg(long, default_value_t = 0.05)]
+        speed: f64,
+        /// Grasp force (N).
+        #[arg(long, default_value_t = 20.0)]
+        force: f64,
+        /// Grasp tolerance on both sides of the width (m).
+        #[arg(long, default_value_t = 0.005)]
+        epsilon: f64,
     },
     /// Record the robot's state at its rate without moving it (guide it by hand in Desk).
     Record {
-        /// The robot's address.
-        #[arg(long)]
-        host: String,
+        #[command(flatten)]
+        on: On,
         /// Seconds to record.
         #[arg(long)]
         duration: f64,
@@ -75,72 +94,59 @@ pub enum FrankaCommand {
         /// Replace an existing recording.
         #[arg(long)]
         force: bool,
-        /// Print the report as JSON.
-        #[arg(long)]
-        json: bool,
     },
 }
 
 /// `cps-cli franka`.
 pub fn franka(cmd: &FrankaCommand, stop: &AtomicBool) -> Result<ExitCode> {
     match cmd {
-        FrankaCommand::State { host, json } => {
-            print(&franka::state(host).map_err(cli_error)?, *json)
+        FrankaCommand::State { on } => print(&franka::state(&on.host).map_err(cli_error)?, on.json),
+        FrankaCommand::Gripper {
+            action,
+            width,
+            on,
+            speed,
+            force,
+            epsilon,
+        } => {
+            let command = franka::gripper_command(action, *width, *speed, *force, *epsilon)?;
+            print(
+                &franka::gripper(&on.host, command).map_err(cli_error)?,
+                on.json,
+            )
         }
         FrankaCommand::Execute {
             file,
-            host,
+            on,
             record,
             arm,
             retime,
             approach,
             realtime,
             force,
-            json,
         } => {
             let settings = ExecuteSettings {
-                host: host.clone(),
+                host: on.host.clone(),
                 arm: franka::parse_arm(arm)?,
                 retime: *retime,
                 approach: *approach,
                 realtime: franka::parse_realtime(realtime)?,
             };
-            franka::check_record_target(record, *force)?;
-            let prepared =
-                franka::prepare(file, settings.arm, settings.retime).map_err(cli_error)?;
-            let done = franka::execute(&prepared, &settings, stop).map_err(cli_error)?;
-            let report = done.json();
-            franka::write_recording(record, &done.report.samples, &report).map_err(cli_error)?;
-            let answer = Answer {
-                json: report,
-                lines: done.lines(record),
-            };
-            print(&answer, *json)?;
-            Ok(ExitCode::from(franka::exit_code(&done.report.ending)))
+            let done = franka::execute_file(file, &settings, record, *force, stop);
+            let (answer, code) = done.map_err(cli_error)?;
+            print(&answer, on.json)?;
+            Ok(ExitCode::from(code))
         }
         FrankaCommand::Record {
-            host,
+            on,
             duration,
             out,
             force,
-            json,
         } => {
-            franka::check_record_target(out, *force)?;
-            let (report, lines) = franka::record(host, *duration, out, stop).map_err(cli_error)?;
-            let complete = report["complete"] == true;
-            print(
-                &Answer {
-                    json: report,
-                    lines,
-                },
-                *json,
-            )?;
-            let stopped = stop.load(std::sync::atomic::Ordering::Relaxed);
-            Ok(ExitCode::from(match (stopped, complete) {
-                (true, _) => 130,
-                (false, true) => 0,
-                (false, false) => 1,
-            }))
+            let done = franka::record(&on.host, *duration, out, *force, stop);
+            let (answer, code) = done.map_err(cli_error)?;
+            print(&answer, on.json)?;
+            Ok(ExitCode::from(code))
         }
     }
 }

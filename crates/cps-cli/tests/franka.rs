@@ -331,3 +331,32 @@ fn record_writes_the_state_at_the_robots_rate() {
     ]);
     assert_eq!(o.status.code(), Some(2));
 }
+
+#[test]
+fn the_gripper_from_the_command_line() {
+    let Some(sim) = FrankySim::start("127.0.0.45") else {
+        return;
+    };
+    let o = cli(&["franka", "gripper", "home", "--host", &sim.host]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = cli(&[
+        "franka", "gripper", "move", "0.03", "--host", &sim.host, "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!((v["width"].as_f64().unwrap() - 0.03).abs() < 2e-3, "{v}");
+    let o = cli(&[
+        "franka", "gripper", "grasp", "0.01", "--force", "500", "--host", &sim.host,
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--force: 500 N is not in (0, 140] N"),
+        "{}",
+        stderr(&o)
+    );
+    let o = cli(&["franka", "gripper", "move", "--host", &sim.host]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("give the width"), "{}", stderr(&o));
+    let o = cli(&["franka", "gripper", "wiggle", "--host", &sim.host]);
+    assert_eq!(o.status.code(), Some(2));
+}

@@ -13,8 +13,8 @@ use std::sync::atomic::AtomicBool;
 
 use cps_franka::limits::{Arm, RateLimits};
 use cps_franka::{
-    CheckedStream, Connection, Ending, FrankaError, LoopOptions, MotionReport, Realtime,
-    RobotState, Sample, Start, Timeouts, check_trajectory, execute_stream,
+    CheckedStream, Connection, Ending, FrankaError, Gripper, GripperCommand, LoopOptions,
+    MotionReport, Realtime, RobotState, Sample, Start, Timeouts, check_trajectory, execute_stream,
 };
 use serde_json::{Value, json};
 
@@ -383,14 +383,17 @@ pub fn write_recording(
     crate::files::write_file(&report_path(record), text.as_bytes())
 }
 
-/// `franka record`: the robot's state for `seconds` (or until `stop`), written to `out`;
-/// returns the report (`complete` false when the connection was lost or it was stopped).
+/// `franka record`: the robot's state for `seconds` (or until `stop`), written to `out`
+/// (checked first: a new file, or `force`); returns the report (`complete` false when the
+/// connection was lost or it was stopped) and the exit code: 0, 1 lost, 130 stopped.
 pub fn record(
     host: &str,
     seconds: f64,
     out: &Path,
+    force: bool,
     stop: &AtomicBool,
-) -> Result<(Value, Vec<String>), ExperimentError> {
+) -> Result<(Answer, u8), ExperimentError> {
+    check_record_target(out, force)?;
     if !(seconds.is_finite() && seconds > 0.0 && seconds <= 3600.0) {
         return Err(InputError(format!("--duration: {seconds} s is not in (0, 3600]")).into());
     }
@@ -419,7 +422,113 @@ pub fn record(
             out.display()
         ),
     ];
-    Ok((report, lines))
+    let code = match (stopped, complete) {
+        (true, _) => 130,
+        (false, true) => 0,
+        (false, false) => 1,
+    };
+    Ok((
+        Answer {
+            json: report,
+            lines,
+        },
+        code,
+    ))
+}
+
+/// A gripper action of `franka gripper`: `home`, `move`, `grasp`, `stop`, `state`.
+pub fn gripper_command(
+    action: &str,
+    width: Option<f64>,
+    speed: f64,
+    force: f64,
+    epsilon: f64,
+) -> Result<Option<GripperCommand>, InputError> {
+    let need = |w: Option<f64>| {
+        w.ok_or_else(|| InputError(format!("franka gripper {action}: give the width in metres")))
+    };
+    Ok(Some(match action {
+        "home" => GripperCommand::Homing,
+        "stop" => GripperCommand::Stop,
+        "state" => return Ok(None),
+        "move" => GripperCommand::Move {
+            width: need(width)?,
+            speed,
+        },
+        "grasp" => GripperCommand::Grasp {
+            width: need(width)?,
+            epsilon_inner: epsilon,
+            epsilon_outer: epsilon,
+            speed,
+            force,
+        },
+        other => {
+            return Err(InputError(format!(
+                "franka gripper: `{other}` is not an action (home, move, grasp, stop, state)"
+            )));
+        }
+    }))
+}
+
+/// `franka gripper`: runs `command` (none: only the state) on the hand of the robot at
+/// `host` and answers with the state after it: `{"width", "max_width", "is_grasped",
+/// "temperature", "grasped"?}`. Bad arguments are refused before anything is sent.
+pub fn gripper(host: &str, command: Option<GripperCommand>) -> Result<Answer, ExperimentError> {
+    let mut hand =
+        Gripper::connect(host, std::time::Duration::from_secs(3)).map_err(robot_error)?;
+    let held = match command {
+        Some(c) => Some(hand.run(c).map_err(|e| match e {
+            FrankaError::Input(s) => ExperimentError::Input(InputError(s)),
+            other => robot_error(other),
+        })?),
+        None => None,
+    };
+    let s = hand
+        .state(std::time::Duration::from_secs(1))
+        .map_err(robot_error)?;
+    let mut json = json!({ "host": host, "width": s.width, "max_width": s.max_width, "is_grasped": s.is_grasped, "temperature": s.temperature });
+    let mut lines = vec![format!(
+        "{host} gripper: width {:.4} m of {:.4} m, {}, {} °C",
+        s.width,
+        s.max_width,
+        if s.is_grasped {
+            "holding"
+        } else {
+            "not holding"
+        },
+        s.temperature
+    )];
+    if let (Some(GripperCommand::Grasp { .. }), Some(g)) = (command, held) {
+        json["grasped"] = json!(g);
+        lines.insert(
+            0,
+            if g {
+                "grasped".into()
+            } else {
+                "nothing grasped within the tolerances".into()
+            },
+        );
+    }
+    Ok(Answer { json, lines })
+}
+
+/// `franka execute` whole: the recording's target checked first, the file prepared, the
+/// motion executed, the recording and its report written (complete or not). Returns the
+/// answer and the exit code ([`exit_code`]).
+pub fn execute_file(
+    file: &Path,
+    settings: &ExecuteSettings,
+    record: &Path,
+    force: bool,
+    stop: &AtomicBool,
+) -> Result<(Answer, u8), ExperimentError> {
+    check_record_target(record, force)?;
+    let prepared = prepare(file, settings.arm, settings.retime)?;
+    let done = execute(&prepared, settings, stop)?;
+    let json = done.json();
+    write_recording(record, &done.report.samples, &json)?;
+    let lines = done.lines(record);
+    Ok((Answer { json, lines }, exit_code(&done.report.ending)))
 }
 
 /// Why an execution's exit code is what it is: 0 finished, 130 stopped on request, 1

@@ -47,6 +47,7 @@
 #![deny(missing_docs)]
 
 mod error;
+pub mod gripper;
 pub mod limits;
 mod motion;
 pub mod rt;
@@ -54,6 +55,7 @@ mod session;
 pub mod wire;
 
 pub use error::FrankaError;
+pub use gripper::{Gripper, GripperCommand, GripperState};
 pub use motion::{
     CheckedStream, START_TOLERANCE, Start, approach, check_trajectory, execute_stream,
     record_states,
