@@ -194,6 +194,17 @@ fn refusals_come_before_anything_moves() {
         q.iter().zip(&after).all(|(a, b)| (a - b).abs() < 1e-3),
         "the robot did not move"
     );
+    // Planned for the Panda (its joint 4 reaches -0.0698): outside the FR3's range.
+    let mut panda = q.clone();
+    panda[3] = -0.0698;
+    let file = trajectory(dir.path(), &panda, 0.1);
+    let o = run(&file, &["--approach"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("leaves the fr3's joint range"),
+        "{}",
+        stderr(&o)
+    );
     // Bad input: exit 2.
     let nan = dir.path().join("nan.csv");
     std::fs::write(

@@ -11,7 +11,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 
-use cps_franka::limits::{Arm, RateLimits};
+use cps_franka::limits::{Arm, Quantity, RateLimits};
 use cps_franka::{
     CheckedStream, Connection, Ending, FrankaError, Gripper, GripperCommand, LoopOptions,
     MotionReport, Realtime, RobotState, Sample, Start, Timeouts, check_trajectory, execute_stream,
@@ -230,6 +230,11 @@ pub fn execute(
         Start::Refuse
     };
     let stream = check_trajectory(&limits, from, &prepared.commands, start).map_err(|e| match e {
+        FrankaError::Limit(b) if b.quantity == Quantity::Position => ExperimentError::Message(format!(
+            "{}: refused before sending anything: {b}: the trajectory leaves the {}'s joint range (was it planned for another arm? --arm fr3|panda)",
+            prepared.file.display(),
+            settings.arm.name()
+        )),
         FrankaError::Limit(b) => ExperimentError::Message(format!(
             "{}: refused before sending anything: {b} (pass --retime to retime it to the {}'s limits)",
             prepared.file.display(),

@@ -4,7 +4,7 @@
 use std::sync::atomic::AtomicBool;
 
 use crate::error::FrankaError;
-use crate::limits::{Breach, DT, RateLimits, StreamCheck, check_stream};
+use crate::limits::{Breach, DT, Quantity, RateLimits, StreamCheck, check_stream};
 use crate::rt::{JointPositions, LoopOptions, MotionReport, run_joint_positions, start_position};
 use crate::session::Connection;
 use crate::wire::JOINTS;
@@ -35,15 +35,7 @@ pub fn approach(
         if d == 0.0 {
             continue;
         }
-        // The FR3's velocity curve is lowest near the range's ends: use the smallest bound
-        // anywhere between the two positions (sampled), never above dq_max.
-        let mut vmax = limits.dq_max[i];
-        for k in 0..=32 {
-            let q = from[i] + (to[i] - from[i]) * k as f64 / 32.0;
-            let (lo, hi) = limits.velocity_bounds(i, q);
-            vmax = vmax.min(hi).min(-lo);
-        }
-        let v = (fraction * vmax).max(1e-3);
+        let v = (fraction * slowest_bound(limits, from, to, i)).max(1e-3);
         duration = duration
             .max(SEPTIC_PEAKS[0] * d / v)
             .max((SEPTIC_PEAKS[1] * d / (fraction * limits.ddq_max[i])).sqrt())
@@ -67,6 +59,22 @@ pub fn approach(
         })
         .collect()
 }
+
+/// The smallest speed bound of joint `i` anywhere on the straight line from `from` to `to`
+/// (the FR3's velocity curve is lowest near the range's ends; sampled, never above dq_max).
+fn slowest_bound(limits: &RateLimits, from: [f64; JOINTS], to: [f64; JOINTS], i: usize) -> f64 {
+    let mut vmax = limits.dq_max[i];
+    for k in 0..=32 {
+        let q = from[i] + (to[i] - from[i]) * k as f64 / 32.0;
+        let (lo, hi) = limits.velocity_bounds(i, q);
+        vmax = vmax.min(hi).min(-lo);
+    }
+    vmax
+}
+
+/// The slowest an approach may be limited to on any joint (rad/s): closer to a range's end
+/// than this allows, the FR3 permits almost no speed and the move would take minutes.
+const SLOWEST_APPROACH: f64 = 0.05;
 
 /// How a stream that does not start where the robot is gets there.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -106,6 +114,25 @@ pub fn check_trajectory(
     let Some(first) = trajectory.first() else {
         return Err(FrankaError::Input("the trajectory has no samples".into()));
     };
+    // Every sample inside the arm's range, before anything else is computed.
+    for (k, q) in trajectory.iter().enumerate() {
+        for (i, &x) in q.iter().enumerate() {
+            let (lo, hi) = (limits.q_min[i], limits.q_max[i]);
+            if !x.is_finite() || x < lo || x > hi {
+                return Err(FrankaError::Limit(Breach {
+                    joint: i + 1,
+                    sample: k,
+                    quantity: if x.is_finite() {
+                        Quantity::Position
+                    } else {
+                        Quantity::NotFinite
+                    },
+                    value: x,
+                    limit: if x < lo { lo } else { hi },
+                }));
+            }
+        }
+    }
     let (joint, gap) = (0..JOINTS)
         .map(|i| (i, (first[i] - from[i]).abs()))
         .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
@@ -120,7 +147,19 @@ pub fn check_trajectory(
                     first[joint]
                 )));
             }
-            Start::Approach(f) => commands = approach(limits, from, *first, f),
+            Start::Approach(f) => {
+                if let Some(i) = (0..JOINTS).find(|&i| {
+                    first[i] != from[i] && slowest_bound(limits, from, *first, i) < SLOWEST_APPROACH
+                }) {
+                    return Err(FrankaError::Input(format!(
+                        "joint {} would approach {:.4} rad, so close to the end of its range that the {} allows it almost no speed there; start the trajectory further inside the range",
+                        i + 1,
+                        first[i],
+                        limits.arm.name()
+                    )));
+                }
+                commands = approach(limits, from, *first, f)
+            }
         }
     } else if gap > 0.0 {
         // Within the tolerance: blend into the trajectory's start.
@@ -272,5 +311,21 @@ mod tests {
         );
         let s = check_trajectory(&l, from, &traj, Start::Approach(0.2)).unwrap();
         assert!(s.approach > 100 && s.commands.len() == s.approach + 50);
+        // A Panda trajectory at the Panda's joint-4 bound is outside the FR3's range.
+        let mut panda = from;
+        panda[3] = -0.0698;
+        let e = check_trajectory(&l, from, &[panda], Start::Approach(0.2)).unwrap_err();
+        assert!(
+            matches!(e, FrankaError::Limit(b) if b.joint == 4 && b.quantity == Quantity::Position),
+            "{e}"
+        );
+        // A start a hair inside the FR3's range end, where it allows no speed: refused.
+        let mut edge = from;
+        edge[0] = 2.7437 - 1e-4;
+        let e = check_trajectory(&l, from, &[edge], Start::Approach(0.2)).unwrap_err();
+        assert!(
+            e.to_string().contains("joint 1 would approach 2.7436 rad"),
+            "{e}"
+        );
     }
 }
