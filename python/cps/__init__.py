@@ -26,6 +26,7 @@ from . import _cps
 from ._cps import (
     DMP,
     CpsError,
+    Franka,
     Outcome,
     ProMP,
     QuaternionDMP,
@@ -49,6 +50,7 @@ __all__ = [
     "CpsError",
     "DMP",
     "FminResult",
+    "Franka",
     "Outcome",
     "ProMP",
     "QuaternionDMP",

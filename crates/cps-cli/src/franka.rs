@@ -6,7 +6,7 @@ use std::sync::atomic::AtomicBool;
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
-use cps_experiment::franka::{self, ExecuteSettings};
+use cps_experiment::franka::{self, DmpSettings, ExecuteSettings};
 
 use crate::cli_error;
 use crate::robot::print;
@@ -32,9 +32,10 @@ pub enum FrankaCommand {
         #[command(flatten)]
         on: On,
     },
-    /// Execute a joint trajectory (CSV: t, then q1..q7 in rad) at 1 kHz and record what the
-    /// robot did. Every command is checked against the arm's published limits before the
-    /// motion starts (nothing is sent if one fails) and again while streaming.
+    /// Execute a joint trajectory (CSV: t, then q1..q7 in rad), or step a joint-space DMP
+    /// model (.json) online with phase stopping, at 1 kHz and record what the robot did.
+    /// Every command is checked against the arm's limits before the motion starts
+    /// (nothing is sent if one fails) and again while streaming.
     Execute {
         /// The trajectory file.
         file: PathBuf,
@@ -61,6 +62,15 @@ pub enum FrankaCommand {
         /// Replace an existing recording.
         #[arg(long)]
         force: bool,
+        /// A DMP model: its duration (s; default the model's).
+        #[arg(long)]
+        tau: Option<f64>,
+        /// A DMP model: its goal, seven joint positions (rad; default the model's).
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+        goal: Option<Vec<f64>>,
+        /// A DMP model: the phase slows by 1/(1 + gain · lag in rad) (phase stopping).
+        #[arg(long, default_value_t = franka::DEFAULT_ERROR_GAIN)]
+        error_gain: f64,
     },
     /// The Franka Hand: `home`, `move W`, `grasp W [--force N]`, `stop`, `state`; each
     /// waits until the fingers settle and prints the hand's state.
@@ -124,6 +134,9 @@ pub fn franka(cmd: &FrankaCommand, stop: &AtomicBool) -> Result<ExitCode> {
             approach,
             realtime,
             force,
+            tau,
+            goal,
+            error_gain,
         } => {
             let settings = ExecuteSettings {
                 host: on.host.clone(),
@@ -132,7 +145,12 @@ pub fn franka(cmd: &FrankaCommand, stop: &AtomicBool) -> Result<ExitCode> {
                 approach: *approach,
                 realtime: franka::parse_realtime(realtime)?,
             };
-            let done = franka::execute_file(file, &settings, record, *force, stop);
+            let online = DmpSettings {
+                error_gain: *error_gain,
+                tau: *tau,
+                goal: goal.clone(),
+            };
+            let done = franka::execute_file(file, &settings, &online, record, *force, stop);
             let (answer, code) = done.map_err(cli_error)?;
             print(&answer, on.json)?;
             Ok(ExitCode::from(code))

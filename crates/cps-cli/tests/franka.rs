@@ -371,3 +371,119 @@ fn the_gripper_from_the_command_line() {
     let o = cli(&["franka", "gripper", "wiggle", "--host", &sim.host]);
     assert_eq!(o.status.code(), Some(2));
 }
+
+#[test]
+fn a_dmp_model_is_stepped_online_and_its_phase_waits_for_a_lagging_robot() {
+    let Some(sim) = FrankySim::start("127.0.0.46") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let q = state_q(&sim.host);
+    let file = trajectory(dir.path(), &q, 0.5);
+    let model = dir.path().join("swing.json");
+    let o = cli(&[
+        "imitate",
+        &file,
+        "--columns",
+        "q1,q2,q3,q4,q5,q6,q7",
+        "--formulation",
+        "robust",
+        "--out",
+        model.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rec = dir.path().join("rec.csv");
+    let run = |gain: &str| {
+        let o = cli(&[
+            "franka",
+            "execute",
+            model.to_str().unwrap(),
+            "--host",
+            &sim.host,
+            "--record",
+            rec.to_str().unwrap(),
+            "--realtime",
+            "ignore",
+            "--force",
+            "--json",
+            "--error-gain",
+            gain,
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert_eq!(r["complete"], true, "{r}");
+        assert_eq!(r["trajectory"], "a DMP stepped online with phase stopping");
+        r
+    };
+    // Without phase stopping: the model's 3 s, and the swing back to where it started.
+    let free = run("0");
+    let d0 = free["duration_s"].as_f64().unwrap();
+    assert!((3.0..3.8).contains(&d0), "{d0} s");
+    let text = std::fs::read_to_string(&rec).unwrap();
+    let last: Vec<f64> = text
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|c| c.parse().unwrap())
+        .collect();
+    assert!(
+        (last[22] - q[0]).abs() < 2e-3,
+        "q_d1 ends at {} for a start of {}",
+        last[22],
+        q[0]
+    );
+    // With a strong gain the simulator's PD lag (~0.03 rad at speed) slows the phase.
+    let slowed = run("100");
+    let d1 = slowed["duration_s"].as_f64().unwrap();
+    assert!(
+        d1 > 1.3 * d0,
+        "{d1} s with phase stopping against {d0} s without"
+    );
+    for k in ["velocity", "acceleration", "jerk"] {
+        for u in slowed["limit_usage_percent"][k].as_array().unwrap() {
+            assert!(u.as_f64().unwrap() <= 100.0);
+        }
+    }
+    // A task-space model is refused (2), and so are model options on a trajectory.
+    let xyz = dir.path().join("xyz.csv");
+    std::fs::write(&xyz, "t,x,y,z\n0,0,0,0\n0.5,0.1,0,0\n1,0.2,0,0\n").unwrap();
+    let m3 = dir.path().join("xyz.json");
+    assert!(
+        cli(&[
+            "imitate",
+            xyz.to_str().unwrap(),
+            "--formulation",
+            "robust",
+            "--out",
+            m3.to_str().unwrap()
+        ])
+        .status
+        .success()
+    );
+    let o = cli(&[
+        "franka",
+        "execute",
+        m3.to_str().unwrap(),
+        "--host",
+        &sim.host,
+        "--record",
+        rec.to_str().unwrap(),
+        "--force",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("3-dimensional model"), "{}", stderr(&o));
+    let o = cli(&[
+        "franka",
+        "execute",
+        &file,
+        "--host",
+        &sim.host,
+        "--record",
+        rec.to_str().unwrap(),
+        "--force",
+        "--tau",
+        "5",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}

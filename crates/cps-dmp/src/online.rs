@@ -230,6 +230,13 @@ impl OnlineDmp {
         Ok(())
     }
 
+    /// The forcing term at the current phase, per dimension, in the units of a coupling
+    /// term: a coupling of `−forcing()` switches the movement's shape off, leaving the
+    /// critically damped spring to the goal (how a movement whose phase is over settles).
+    pub fn forcing(&self) -> &[f64] {
+        &self.f
+    }
+
     /// Current position.
     pub fn position(&self) -> &[f64] {
         &self.y
@@ -251,11 +258,6 @@ impl OnlineDmp {
     /// step.
     pub fn acceleration(&self) -> &[f64] {
         &self.acc
-    }
-
-    /// The forcing term at the current phase (without coupling).
-    pub(crate) fn forcing(&self) -> &[f64] {
-        &self.f
     }
 
     /// Current phase `x`.

@@ -143,8 +143,8 @@ pub fn check_record_target(record: &Path, force: bool) -> Result<(), InputError>
 /// A joint trajectory file made ready for a Franka: 1 kHz commands from t = 0.
 #[derive(Debug, Clone)]
 pub struct Prepared {
-    /// The file.
-    pub file: PathBuf,
+    /// Where the trajectory came from (its file), for messages.
+    pub source: String,
     /// One command per millisecond.
     pub commands: Vec<[f64; 7]>,
     /// Whether it was retimed, resampled, or taken command by command.
@@ -156,6 +156,54 @@ pub struct Prepared {
 /// starts and ends at rest, or taken as it is when it is sampled at 1 kHz.
 pub fn prepare(file: &Path, arm: Arm, retime: bool) -> Result<Prepared, ExperimentError> {
     let traj: JointTrajectory = read_joint_trajectory(file, 7)?;
+    prepare_samples(&file.display().to_string(), &traj, arm, retime)
+}
+
+/// [`prepare`] for a trajectory in memory, called `name` in messages (times strictly
+/// increasing and finite, seven finite positions a row).
+pub fn prepare_samples(
+    name: &str,
+    traj: &JointTrajectory,
+    arm: Arm,
+    retime: bool,
+) -> Result<Prepared, ExperimentError> {
+    if traj.times.is_empty() || traj.q.len() != traj.times.len() {
+        return Err(InputError(format!(
+            "{name}: {} times for {} rows of positions",
+            traj.times.len(),
+            traj.q.len()
+        ))
+        .into());
+    }
+    if let Some(k) = traj
+        .times
+        .windows(2)
+        .position(|w| w[1] <= w[0] || !w[1].is_finite())
+    {
+        return Err(InputError(format!(
+            "{name}: time {} follows {}: times must increase strictly",
+            traj.times[k + 1],
+            traj.times[k]
+        ))
+        .into());
+    }
+    if let Some((k, row)) = traj
+        .q
+        .iter()
+        .enumerate()
+        .find(|(_, r)| r.len() != 7 || r.iter().any(|x| !x.is_finite()))
+    {
+        return Err(InputError(format!(
+            "{name}: row {k} has {} values{}; a Franka needs seven finite joint positions (rad)",
+            row.len(),
+            if row.iter().any(|x| !x.is_finite()) {
+                " (not all finite)"
+            } else {
+                ""
+            }
+        ))
+        .into());
+    }
     let (rows, how) = if retime {
         let mut model = load_robot(arm.name(), Some("flange"), None)?;
         let l = RateLimits::of(arm).scaled(RETIME_SHARE);
@@ -166,16 +214,15 @@ pub fn prepare(file: &Path, arm: Arm, retime: bool) -> Result<Prepared, Experime
             .map_err(|e| ExperimentError::Message(e.to_string()))?;
         model.limits.acceleration = Some(l.ddq_max.to_vec());
         model.limits.jerk = Some(l.dddq_max.to_vec());
-        let r = retime_samples(&model, &traj, 1000.0, RetimeMode::Fastest).map_err(|e| {
+        let r = retime_samples(&model, traj, 1000.0, RetimeMode::Fastest).map_err(|e| {
             InputError(format!(
-                "{}: cannot be retimed for the {}: {e}",
-                file.display(),
+                "{name}: cannot be retimed for the {}: {e}",
                 arm.name()
             ))
         })?;
         (r.trajectory.q, "retimed")
     } else {
-        let (_, _, rows, resampled) = at_rate(&traj, 1000.0);
+        let (_, _, rows, resampled) = at_rate(traj, 1000.0);
         (
             rows,
             if resampled {
@@ -190,7 +237,7 @@ pub fn prepare(file: &Path, arm: Arm, retime: bool) -> Result<Prepared, Experime
         .map(|r| <[f64; 7]>::try_from(r.as_slice()).expect("seven joints"))
         .collect();
     Ok(Prepared {
-        file: file.to_path_buf(),
+        source: name.to_string(),
         commands,
         how,
     })
@@ -232,15 +279,15 @@ pub fn execute(
     let stream = check_trajectory(&limits, from, &prepared.commands, start).map_err(|e| match e {
         FrankaError::Limit(b) if b.quantity == Quantity::Position => ExperimentError::Message(format!(
             "{}: refused before sending anything: {b}: the trajectory leaves the {}'s joint range (was it planned for another arm? --arm fr3|panda)",
-            prepared.file.display(),
+            prepared.source,
             settings.arm.name()
         )),
         FrankaError::Limit(b) => ExperimentError::Message(format!(
             "{}: refused before sending anything: {b} (pass --retime to retime it to the {}'s limits)",
-            prepared.file.display(),
+            prepared.source,
             settings.arm.name()
         )),
-        other => ExperimentError::Message(format!("{}: {other}", prepared.file.display())),
+        other => ExperimentError::Message(format!("{}: {other}", prepared.source)),
     })?;
     let options = LoopOptions {
         realtime: settings.realtime,
@@ -254,6 +301,157 @@ pub fn execute(
         stream,
         report,
         how: prepared.how,
+    })
+}
+
+/// How `franka execute-dmp` steps a model online.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DmpSettings {
+    /// Phase stopping gain (1/rad): the phase runs at `1/(1 + gain · e)` with `e` the
+    /// distance between the measured joints and the last command (Ijspeert et al. 2013).
+    pub error_gain: f64,
+    /// The movement's duration τ (s; default the model's).
+    pub tau: Option<f64>,
+    /// The goal (rad; default the model's).
+    pub goal: Option<Vec<f64>>,
+}
+
+/// Whether a DMP stepped online has ended: its phase is over and every joint moves
+/// slower than 0.1 mrad/s (holding the last command then keeps every limit).
+fn settled(q: &[f64; 7], prev: &[f64; 7], phase_over: bool) -> bool {
+    phase_over && q.iter().zip(prev).all(|(a, b)| (a - b).abs() < 1e-4 * 1e-3)
+}
+
+/// Default phase-stopping gain (1/rad): 10 mrad of lag slows the phase by 9 %.
+pub const DEFAULT_ERROR_GAIN: f64 = 10.0;
+
+/// `franka execute-dmp`: a joint-space DMP model (seven dimensions, as `imitate` writes
+/// from a joint recording) started where the robot is and stepped online at the robot's
+/// rate with phase stopping: when the robot lags its commands (a push, a contact) the
+/// phase slows, and it resumes when the lag shrinks. Its nominal movement (no lag) is
+/// checked against the arm's limits before anything is sent; every command is checked
+/// again while streaming.
+pub fn execute_model(
+    model: &Path,
+    settings: &ExecuteSettings,
+    online: &DmpSettings,
+    stop: &AtomicBool,
+) -> Result<Executed, ExperimentError> {
+    use cps_dmp::{OnlineDmp, StepInput};
+    let (file, dmp, weights) = crate::movement::read_model(model)?;
+    if dmp.dims() != 7 {
+        return Err(InputError(format!(
+            "{}: a {}-dimensional model; the robot steps joint-space models of seven dimensions (imitate a joint recording: cps-cli imitate rec.csv --columns q1,q2,q3,q4,q5,q6,q7)",
+            model.display(),
+            dmp.dims()
+        ))
+        .into());
+    }
+    if !(online.error_gain.is_finite() && online.error_gain >= 0.0) {
+        return Err(InputError(format!(
+            "--error-gain: {} must be finite and >= 0",
+            online.error_gain
+        ))
+        .into());
+    }
+    let goal = online.goal.clone().unwrap_or_else(|| file.goal.clone());
+    if goal.len() != 7 || goal.iter().any(|g| !g.is_finite()) {
+        return Err(InputError("--goal: seven finite joint positions (rad)".into()).into());
+    }
+    let mut robot = connect(&settings.host)?;
+    let limits = RateLimits::of(settings.arm);
+    let state = robot.read_state().map_err(robot_error)?;
+    robot.ensure_ready(&state).map_err(robot_error)?;
+    let from = cps_franka::rt::start_position(&state);
+    let dmp = dmp
+        .with_endpoints(&from, &goal)
+        .map_err(|e| InputError(format!("{}: {e}", model.display())))?;
+    let tau = online.tau.unwrap_or(dmp.config().tau);
+    let fresh = || -> Result<OnlineDmp, ExperimentError> {
+        let mut o = OnlineDmp::new(&dmp, &weights).with_error_gain(online.error_gain);
+        o.set_tau(tau)
+            .map_err(|e| InputError(format!("--tau: {e}")))?;
+        Ok(o)
+    };
+    // The nominal movement at 1 kHz, checked whole before anything is sent.
+    let end_phase = (-dmp.config().alpha_x).exp();
+    let mut nominal = fresh()?;
+    // The robot holds `from` while the Move starts: the stream starts there, at rest.
+    let mut commands = Vec::with_capacity((tau * 1000.0) as usize + 2);
+    commands.push(from);
+    let mut prev = from;
+    let mut cancel = [0.0; 7];
+    loop {
+        let over = nominal.phase() <= end_phase;
+        if over {
+            for (c, f) in cancel.iter_mut().zip(nominal.forcing()) {
+                *c = -f;
+            }
+        }
+        let input = StepInput {
+            coupling: over.then_some(&cancel[..]),
+            tracking_error: 0.0,
+        };
+        nominal
+            .step_with(1e-3, input)
+            .map_err(|e| ExperimentError::Message(e.to_string()))?;
+        let q = <[f64; 7]>::try_from(nominal.position()).expect("seven joints");
+        commands.push(q);
+        if settled(&q, &prev, over) || commands.len() > (10.0 * tau * 1000.0) as usize {
+            break;
+        }
+        prev = q;
+    }
+    let name = model.display().to_string();
+    let stream = check_trajectory(&limits, from, &commands, Start::Refuse).map_err(|e| match e {
+        FrankaError::Limit(b) => ExperimentError::Message(format!(
+            "{name}: refused before sending anything: the model's movement from where the robot is breaks a limit: {b} (a longer --tau slows it)"
+        )),
+        other => ExperimentError::Message(format!("{name}: {other}")),
+    })?;
+    // Online: one step per tick, the phase slowed by the measured lag.
+    let mut runner = fresh()?;
+    let mut last = from;
+    let mut cancel = [0.0; 7];
+    let options = LoopOptions {
+        realtime: settings.realtime,
+        max_ticks: 600_000,
+        ..LoopOptions::default()
+    };
+    let report =
+        cps_franka::rt::run_joint_positions(&mut robot, limits, &options, stop, move |state, _| {
+            let lag = (0..7)
+                .map(|j| (state.q[j] - last[j]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            // Once the phase is over the shape is switched off and the spring settles
+            // the movement at the goal (a forcing left at the tail of a fit would drift).
+            let over = runner.phase() <= end_phase;
+            if over {
+                for (c, f) in cancel.iter_mut().zip(runner.forcing()) {
+                    *c = -f;
+                }
+            }
+            let input = StepInput {
+                coupling: over.then_some(&cancel[..]),
+                tracking_error: if over { 0.0 } else { lag },
+            };
+            let stepped = runner.step_with(1e-3, input);
+            let mut q = last;
+            if stepped.is_ok() {
+                q.copy_from_slice(runner.position());
+            }
+            let finished = settled(&q, &last, over) || stepped.is_err();
+            last = q;
+            cps_franka::rt::JointPositions { q, finished }
+        })
+        .map_err(robot_error)?;
+    Ok(Executed {
+        host: settings.host.clone(),
+        arm: settings.arm,
+        stream,
+        report,
+        how: "a DMP stepped online with phase stopping",
     })
 }
 
@@ -388,17 +586,13 @@ pub fn write_recording(
     crate::files::write_file(&report_path(record), text.as_bytes())
 }
 
-/// `franka record`: the robot's state for `seconds` (or until `stop`), written to `out`
-/// (checked first: a new file, or `force`); returns the report (`complete` false when the
-/// connection was lost or it was stopped) and the exit code: 0, 1 lost, 130 stopped.
-pub fn record(
+/// The robot's state for `seconds` (in (0, 3600]) or until `stop`, in memory, with its
+/// report `{"complete", "ending", "host", "samples", "duration_s"}`.
+pub fn record_samples(
     host: &str,
     seconds: f64,
-    out: &Path,
-    force: bool,
     stop: &AtomicBool,
-) -> Result<(Answer, u8), ExperimentError> {
-    check_record_target(out, force)?;
+) -> Result<(Vec<Sample>, Value), ExperimentError> {
     if !(seconds.is_finite() && seconds > 0.0 && seconds <= 3600.0) {
         return Err(InputError(format!("--duration: {seconds} s is not in (0, 3600]")).into());
     }
@@ -411,19 +605,38 @@ pub fn record(
     .map_err(robot_error)?;
     let duration = samples.last().map_or(0.0, |s| s.t);
     let stopped = stop.load(std::sync::atomic::Ordering::Relaxed);
-    let complete = lost.is_none() && !stopped;
     let ending = match (&lost, stopped) {
         (Some(r), _) => format!("the connection was lost: {r}"),
         (None, true) => "stopped on request".into(),
         (None, false) => "recorded for the whole duration".into(),
     };
-    let report = json!({ "complete": complete, "ending": ending, "host": host, "samples": samples.len(), "duration_s": duration });
+    let report = json!({ "complete": lost.is_none() && !stopped, "ending": ending, "host": host, "samples": samples.len(), "duration_s": duration });
+    Ok((samples, report))
+}
+
+/// `franka record`: the robot's state for `seconds` (or until `stop`), written to `out`
+/// (checked first: a new file, or `force`); returns the report (`complete` false when the
+/// connection was lost or it was stopped) and the exit code: 0, 1 lost, 130 stopped.
+pub fn record(
+    host: &str,
+    seconds: f64,
+    out: &Path,
+    force: bool,
+    stop: &AtomicBool,
+) -> Result<(Answer, u8), ExperimentError> {
+    check_record_target(out, force)?;
+    let (samples, report) = record_samples(host, seconds, stop)?;
     write_recording(out, &samples, &report)?;
+    let (complete, stopped) = (
+        report["complete"] == true,
+        stop.load(std::sync::atomic::Ordering::Relaxed),
+    );
     let lines = vec![
-        format!("{host}: {ending}"),
+        format!("{host}: {}", report["ending"].as_str().unwrap_or_default()),
         format!(
-            "  {} samples over {duration:.3} s in {}",
+            "  {} samples over {:.3} s in {}",
             samples.len(),
+            report["duration_s"].as_f64().unwrap_or(0.0),
             out.display()
         ),
     ];
@@ -517,19 +730,35 @@ pub fn gripper(host: &str, command: Option<GripperCommand>) -> Result<Answer, Ex
     Ok(Answer { json, lines })
 }
 
-/// `franka execute` whole: the recording's target checked first, the file prepared, the
-/// motion executed, the recording and its report written (complete or not). Returns the
-/// answer and the exit code ([`exit_code`]).
+/// `franka execute` whole: the recording's target checked first; a joint trajectory CSV
+/// prepared and executed ([`execute`]) or a DMP model (`.json`) stepped online
+/// ([`execute_model`], with `online`); the recording and its report written (complete or
+/// not). Returns the answer and the exit code ([`exit_code`]).
 pub fn execute_file(
     file: &Path,
     settings: &ExecuteSettings,
+    online: &DmpSettings,
     record: &Path,
     force: bool,
     stop: &AtomicBool,
 ) -> Result<(Answer, u8), ExperimentError> {
     check_record_target(record, force)?;
-    let prepared = prepare(file, settings.arm, settings.retime)?;
-    let done = execute(&prepared, settings, stop)?;
+    let is_model = file
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    let done = if is_model {
+        execute_model(file, settings, online, stop)?
+    } else {
+        if online.tau.is_some() || online.goal.is_some() {
+            return Err(InputError(format!(
+                "{}: --tau and --goal apply to DMP models (.json), not to trajectories",
+                file.display()
+            ))
+            .into());
+        }
+        let prepared = prepare(file, settings.arm, settings.retime)?;
+        execute(&prepared, settings, stop)?
+    };
     let json = done.json();
     write_recording(record, &done.report.samples, &json)?;
     let lines = done.lines(record);

@@ -26,6 +26,7 @@ mod cmaes;
 mod dmp;
 mod errors;
 mod experiment;
+mod franka;
 mod interrupt;
 mod kinematics;
 mod learn;
@@ -54,6 +55,7 @@ fn _cps(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<experiment::Table>()?;
     m.add_function(wrap_pyfunction!(experiment::run_experiment, m)?)?;
     m.add_class::<kinematics::Robot>()?;
+    m.add_class::<franka::Franka>()?;
     m.add_class::<promp::PyProMp>()?;
     Ok(())
 }

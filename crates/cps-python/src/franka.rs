@@ -1,0 +1,186 @@
+//! `cps.Franka`: a Franka over the Franka Control Interface from Python — its state, a
+//! joint trajectory executed at 1 kHz and recorded, the state recorded, the hand.
+//! Everything goes through `cps_experiment::franka`, as `cps-cli franka` does.
+
+use cps_experiment::franka::{self, ExecuteSettings};
+use cps_experiment::limits::JointTrajectory;
+use cps_franka::Sample;
+use cps_franka::limits::Arm;
+use cps_franka::rt::Realtime;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::arrays::{array1, array2, matrix, vector};
+use crate::errors::{IntoPyErr, choose, value_error};
+use crate::experiment::json_to_py;
+use crate::interrupt::detached_keep;
+
+/// A Franka robot (FR3, or a Panda on a protocol-10 system) at `host`.
+///
+/// `Franka(host, arm="fr3", realtime="enforce")`: `realtime="ignore"` runs the 1 kHz
+/// loop without SCHED_FIFO where it is not permitted. Nothing connects until a method is
+/// called; each call connects, does its work and disconnects.
+#[pyclass(module = "cps._cps", name = "Franka")]
+pub struct Franka {
+    host: String,
+    arm: Arm,
+    realtime: Realtime,
+    /// The recording of the last execution that Ctrl-C interrupted.
+    last: Option<Py<PyDict>>,
+}
+
+/// The recording as a dict of arrays: `t` (n,), `q`, `dq`, `tau`, `q_d` (n, 7), `tool` (n, 3).
+fn recording<'py>(py: Python<'py>, samples: &[Sample]) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let n = samples.len();
+    d.set_item("t", array1(py, samples.iter().map(|s| s.t).collect()))?;
+    let seven = |f: fn(&Sample) -> [f64; 7]| samples.iter().flat_map(f).collect::<Vec<f64>>();
+    d.set_item("q", array2(py, seven(|s| s.q), n, 7)?)?;
+    d.set_item("dq", array2(py, seven(|s| s.dq), n, 7)?)?;
+    d.set_item("tau", array2(py, seven(|s| s.tau), n, 7)?)?;
+    d.set_item("q_d", array2(py, seven(|s| s.q_c), n, 7)?)?;
+    d.set_item(
+        "tool",
+        array2(py, samples.iter().flat_map(|s| s.tool).collect(), n, 3)?,
+    )?;
+    Ok(d)
+}
+
+#[pymethods]
+impl Franka {
+    #[new]
+    #[pyo3(signature = (host, arm = "fr3", realtime = "enforce"))]
+    fn new(host: &str, arm: &str, realtime: &str) -> PyResult<Self> {
+        if host.trim().is_empty() {
+            return Err(value_error("host: give the robot's address"));
+        }
+        Ok(Franka {
+            host: host.to_string(),
+            arm: choose("arm", arm, &[("fr3", Arm::Fr3), ("panda", Arm::Panda)])?,
+            realtime: choose(
+                "realtime",
+                realtime,
+                &[("enforce", Realtime::Enforce), ("ignore", Realtime::Ignore)],
+            )?,
+            last: None,
+        })
+    }
+
+    /// The robot's address.
+    #[getter]
+    fn host(&self) -> String {
+        self.host.clone()
+    }
+
+    /// The recording of the last execution Ctrl-C stopped (the robot braked to rest), or
+    /// None.
+    #[getter]
+    fn last_recording(&self, py: Python<'_>) -> Option<Py<PyDict>> {
+        self.last.as_ref().map(|d| d.clone_ref(py))
+    }
+
+    fn __repr__(&self) -> String {
+        format!("cps.Franka({:?}, arm={:?})", self.host, self.arm.name())
+    }
+
+    /// One state as a dict: `q`, `dq`, `tau_J`, `q_d`, `O_T_EE` (column-major 4x4),
+    /// `tool_position`, `robot_mode`, `errors`, `control_command_success_rate`.
+    fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let host = self.host.clone();
+        let answer = py.detach(|| franka::state(&host)).map_err(|e| e.py_err())?;
+        json_to_py(py, &answer.json)
+    }
+
+    /// Executes the joint trajectory `q` (n, 7) at times `t` (n,) at 1 kHz: resampled (or
+    /// `retime=True`: the fastest timing within 95 % of every limit), checked against the
+    /// arm's limits from where the robot is before anything is sent (a `CpsError` naming
+    /// joint, time and quantity otherwise; `approach=True` moves to the start first), every
+    /// command checked again while streaming. Returns the recording (`t`, `q`, `dq`, `tau`,
+    /// `q_d`, `tool` arrays) with `report` (loop timing, tracking, limit usage, `complete`
+    /// and how it ended). Ctrl-C brakes the robot to rest within its limits, keeps the
+    /// recording in `last_recording` and raises KeyboardInterrupt.
+    #[pyo3(signature = (t, q, *, retime = false, approach = false))]
+    fn execute<'py>(
+        &mut self,
+        py: Python<'py>,
+        t: &Bound<'py, PyAny>,
+        q: &Bound<'py, PyAny>,
+        retime: bool,
+        approach: bool,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let times = vector(t, "t", None)?;
+        let rows = matrix(q, "q", Some(7), false)?;
+        if rows.rows != times.len() {
+            return Err(value_error(format!(
+                "q: {} rows for {} times in t",
+                rows.rows,
+                times.len()
+            )));
+        }
+        let traj = JointTrajectory {
+            names: (1..=7).map(|j| format!("q{j}")).collect(),
+            times,
+            q: rows.rows_vec(),
+        };
+        let prepared =
+            franka::prepare_samples("q", &traj, self.arm, retime).map_err(|e| e.py_err())?;
+        let settings = ExecuteSettings {
+            host: self.host.clone(),
+            arm: self.arm,
+            retime,
+            approach,
+            realtime: self.realtime,
+        };
+        let (done, interrupt) =
+            detached_keep(py, None, |stop| franka::execute(&prepared, &settings, stop))?;
+        let done = done.map_err(|e| e.py_err())?;
+        let d = recording(py, &done.report.samples)?;
+        d.set_item("report", json_to_py(py, &done.json())?)?;
+        d.set_item("complete", done.complete())?;
+        if let Some(e) = interrupt {
+            self.last = Some(d.unbind());
+            return Err(e);
+        }
+        Ok(d)
+    }
+
+    /// Records the robot's state at its rate for `duration` seconds without moving it (a
+    /// robot guided by hand in Desk): the recording's arrays and `report`.
+    fn record<'py>(&self, py: Python<'py>, duration: f64) -> PyResult<Bound<'py, PyDict>> {
+        let host = self.host.clone();
+        let (out, interrupt) = detached_keep(py, None, |stop| {
+            franka::record_samples(&host, duration, stop)
+        })?;
+        let (samples, report) = out.map_err(|e| e.py_err())?;
+        let d = recording(py, &samples)?;
+        d.set_item("report", json_to_py(py, &report)?)?;
+        if let Some(e) = interrupt {
+            return Err(e);
+        }
+        Ok(d)
+    }
+
+    /// The Franka Hand: `action` is "home", "move", "grasp", "stop" or "state"; `width`
+    /// (m) for move and grasp. Waits until the fingers settle; returns the hand's state
+    /// (`width`, `max_width`, `is_grasped`, `temperature`, and for a grasp `grasped`).
+    #[pyo3(signature = (action, width = None, *, speed = 0.05, force = 20.0, epsilon = 0.005))]
+    fn gripper<'py>(
+        &self,
+        py: Python<'py>,
+        action: &str,
+        width: Option<f64>,
+        speed: f64,
+        force: f64,
+        epsilon: f64,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let command =
+            franka::gripper_command(action, width, speed, force, epsilon).map_err(|e| {
+                value_error(e.0.replace("--force", "force").replace("--speed", "speed"))
+            })?;
+        let host = self.host.clone();
+        let answer = py
+            .detach(|| franka::gripper(&host, command))
+            .map_err(|e| e.py_err())?;
+        json_to_py(py, &answer.json)
+    }
+}
