@@ -508,47 +508,35 @@ pub fn load_robot(
     }
     let names = |n: usize| (1..=n).map(|i| format!("joint{i}")).collect();
     match spec {
-        "panda" => {
+        "panda" | "fr3" => {
+            let fr3_arm = spec == "fr3";
             let (t, words) = match tool.unwrap_or("hand") {
                 "hand" => (PandaTool::HandTcp, "Franka Hand TCP"),
                 "flange" => (PandaTool::Flange, "flange"),
                 other => {
+                    let arm = if fr3_arm { "FR3" } else { "Panda" };
                     return Err(InputError(format!(
-                        "--tool: the Panda has tools `hand` and `flange`, not `{other}`"
+                        "--tool: the {arm} has tools `hand` and `flange`, not `{other}`"
                     )));
                 }
             };
-            Ok(RobotModel {
-                name: "panda".into(),
-                chain: panda(t),
-                ready: PANDA_READY.to_vec(),
-                tool: words.into(),
-                joint_names: names(7),
-                limits: panda_limits().0,
-                inertia: Some(panda_inertia()),
-                cartesian: Some(panda_limits().1),
-            })
-        }
-        "fr3" => {
-            let (t, words) = match tool.unwrap_or("hand") {
-                "hand" => (PandaTool::HandTcp, "Franka Hand TCP"),
-                "flange" => (PandaTool::Flange, "flange"),
-                other => {
-                    return Err(InputError(format!(
-                        "--tool: the FR3 has tools `hand` and `flange`, not `{other}`"
-                    )));
-                }
+            // Franka publishes no FR3 inertias or Cartesian limits of the same form; the
+            // robot's own URDF carries its inertias.
+            let (chain, limits, inertia, cartesian) = if fr3_arm {
+                (fr3(t), fr3_limits(), None, None)
+            } else {
+                let (joint, cartesian) = panda_limits();
+                (panda(t), joint, Some(panda_inertia()), Some(cartesian))
             };
             Ok(RobotModel {
-                name: "fr3".into(),
-                chain: fr3(t),
+                name: spec.into(),
+                chain,
                 ready: PANDA_READY.to_vec(),
                 tool: words.into(),
                 joint_names: names(7),
-                limits: fr3_limits(),
-                // Franka publishes no FR3 inertias; the robot's own URDF carries them.
-                inertia: None,
-                cartesian: None,
+                limits,
+                inertia,
+                cartesian,
             })
         }
         "ur3" | "puma560" => {

@@ -6,7 +6,7 @@
 //! speed, force`), Move 3 (`width, speed`), Stop 4.
 
 use std::io::{ErrorKind, Read, Write};
-use std::net::{SocketAddr, TcpStream, ToSocketAddrs, UdpSocket};
+use std::net::{TcpStream, UdpSocket};
 use std::time::{Duration, Instant};
 
 use crate::error::FrankaError;
@@ -198,32 +198,7 @@ impl Gripper {
     /// Connects to the hand of the robot at `host` (`address`, or `address:port` for
     /// port 1338 elsewhere) and checks its protocol version.
     pub fn connect(host: &str, timeout: Duration) -> Result<Self, FrankaError> {
-        let unreachable = |reason: String| FrankaError::Unreachable {
-            host: host.to_string(),
-            reason,
-        };
-        let target = if host.parse::<SocketAddr>().is_ok() {
-            host.to_string()
-        } else {
-            format!("{host}:{GRIPPER_PORT}")
-        };
-        let addr = target
-            .to_socket_addrs()
-            .ok()
-            .and_then(|mut a| a.next())
-            .ok_or_else(|| unreachable("the address does not resolve".into()))?;
-        let tcp = TcpStream::connect_timeout(&addr, timeout)
-            .map_err(|e| unreachable(format!("the gripper port: {e}")))?;
-        tcp.set_nodelay(true).ok();
-        let ip = tcp
-            .local_addr()
-            .map_err(|e| unreachable(e.to_string()))?
-            .ip();
-        let udp = UdpSocket::bind((ip, 0)).map_err(|e| unreachable(e.to_string()))?;
-        let port = udp
-            .local_addr()
-            .map_err(|e| unreachable(e.to_string()))?
-            .port();
+        let (tcp, udp, port) = crate::session::open(host, GRIPPER_PORT, timeout)?;
         let mut g = Gripper {
             host: host.to_string(),
             tcp,

@@ -60,41 +60,52 @@ fn io_reason(e: &std::io::Error) -> String {
     }
 }
 
+/// Opens the TCP connection to `host` (`address` or `address:port`, else `default_port`)
+/// within `timeout`, and a UDP socket on the same local address for the state; returns
+/// them with the UDP port to announce. Errors name the host.
+pub(crate) fn open(
+    host: &str,
+    default_port: u16,
+    timeout: Duration,
+) -> Result<(TcpStream, UdpSocket, u16), FrankaError> {
+    let unreachable = |reason: String| FrankaError::Unreachable {
+        host: host.to_string(),
+        reason,
+    };
+    let has_port = host.parse::<SocketAddr>().is_ok()
+        || host
+            .rsplit_once(':')
+            .is_some_and(|(h, p)| !h.contains(':') && p.parse::<u16>().is_ok());
+    let with_port = if has_port {
+        host.to_string()
+    } else {
+        format!("{host}:{default_port}")
+    };
+    let addr = with_port
+        .to_socket_addrs()
+        .map_err(|e| unreachable(format!("the address does not resolve: {e}")))?
+        .next()
+        .ok_or_else(|| unreachable("the address does not resolve".into()))?;
+    let tcp = TcpStream::connect_timeout(&addr, timeout).map_err(|e| unreachable(io_reason(&e)))?;
+    tcp.set_nodelay(true).ok();
+    let local_ip = tcp
+        .local_addr()
+        .map_err(|e| unreachable(e.to_string()))?
+        .ip();
+    let udp = UdpSocket::bind((local_ip, 0))
+        .map_err(|e| unreachable(format!("cannot open a UDP port: {e}")))?;
+    let udp_port = udp
+        .local_addr()
+        .map_err(|e| unreachable(e.to_string()))?
+        .port();
+    Ok((tcp, udp, udp_port))
+}
+
 impl Connection {
     /// Connects to the robot at `host` (`address` or `address:port`; the port defaults to
     /// 1337), opens a UDP port for its state and checks that it speaks protocol 10.
     pub fn connect(host: &str, timeouts: Timeouts) -> Result<Self, FrankaError> {
-        let unreachable = |reason: String| FrankaError::Unreachable {
-            host: host.to_string(),
-            reason,
-        };
-        let with_port = if host.parse::<SocketAddr>().is_ok()
-            || host
-                .rsplit_once(':')
-                .is_some_and(|(h, p)| !h.contains(':') && p.parse::<u16>().is_ok())
-        {
-            host.to_string()
-        } else {
-            format!("{host}:{COMMAND_PORT}")
-        };
-        let addr = with_port
-            .to_socket_addrs()
-            .map_err(|e| unreachable(format!("the address does not resolve: {e}")))?
-            .next()
-            .ok_or_else(|| unreachable("the address does not resolve".into()))?;
-        let tcp = TcpStream::connect_timeout(&addr, timeouts.connect)
-            .map_err(|e| unreachable(io_reason(&e)))?;
-        tcp.set_nodelay(true).ok();
-        let local_ip = tcp
-            .local_addr()
-            .map_err(|e| unreachable(e.to_string()))?
-            .ip();
-        let udp = UdpSocket::bind((local_ip, 0))
-            .map_err(|e| unreachable(format!("cannot open a UDP port: {e}")))?;
-        let udp_port = udp
-            .local_addr()
-            .map_err(|e| unreachable(e.to_string()))?
-            .port();
+        let (tcp, udp, udp_port) = open(host, COMMAND_PORT, timeouts.connect)?;
         let mut c = Connection {
             host: host.to_string(),
             tcp,
