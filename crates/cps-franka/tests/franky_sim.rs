@@ -371,3 +371,57 @@ fn the_gripper_homes_moves_and_grasps() {
         .unwrap_err();
     assert!(e.to_string().contains("width 0.5 m is not in [0,"), "{e}");
 }
+
+#[test]
+fn the_robots_own_urdf_agrees_with_the_fr3_model_cps_plans_on() {
+    use cps_kinematics::robots::{PandaTool, fr3};
+    use rand::SeedableRng;
+    let Some(sim) = FrankySim::start("127.0.0.29") else {
+        return;
+    };
+    let mut robot = Connection::connect(&sim.host, Default::default()).unwrap();
+    let xml = robot.robot_model().unwrap();
+    // Read by cps's URDF loader, up to the flange (link8): seven joints with inertias.
+    let urdf = cps_kinematics::chain_from_urdf(&xml, Some("link8")).unwrap();
+    assert_eq!(urdf.chain.dof(), 7);
+    let inertia = urdf
+        .inertia
+        .expect("the FR3's URDF carries <inertial> elements");
+    assert!(
+        inertia.iter().all(|l| l.mass > 0.1 && l.mass < 10.0),
+        "{inertia:?}"
+    );
+    assert_eq!(
+        urdf.effort.unwrap(),
+        vec![87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0]
+    );
+    // The same kinematics as cps's FR3 (the published modified-DH table) everywhere.
+    let ours = fr3(PandaTool::Flange);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    for _ in 0..200 {
+        let q = ours.random_configuration(&mut rng);
+        let (a, b) = (ours.fk(&q).unwrap(), urdf.chain.fk(&q).unwrap());
+        let dp = (a.translation.vector - b.translation.vector).norm();
+        let dr = (a.rotation.matrix() - b.rotation.matrix()).norm();
+        assert!(dp < 1e-9 && dr < 1e-9, "at {q:?}: {dp} m, {dr} rad");
+    }
+    // cps plans within Franka's published FR3 ranges, which lie inside the robot's own
+    // (its URDF allows e.g. joint 1 to ±2.9007 where the datasheet says ±2.7437).
+    let (lo_u, hi_u) = urdf.chain.limits().unwrap();
+    let (lo, hi) = ours.limits().unwrap();
+    for j in 0..7 {
+        assert!(
+            lo_u[j] <= lo[j] && hi[j] <= hi_u[j],
+            "joint {}: [{}, {}] not inside [{}, {}]",
+            j + 1,
+            lo[j],
+            hi[j],
+            lo_u[j],
+            hi_u[j]
+        );
+    }
+    assert_eq!(
+        urdf.chain.velocity_limits().unwrap(),
+        ours.velocity_limits().unwrap()
+    );
+}
