@@ -415,7 +415,9 @@ pub fn execute_model(
     let mut cancel = [0.0; 7];
     let options = LoopOptions {
         realtime: settings.realtime,
-        max_ticks: 600_000,
+        // Phase stopping may stretch the movement: room for four times its nominal
+        // length (then the robot is braked, "the recording was full").
+        max_ticks: 4 * commands.len() + 10_000,
         ..LoopOptions::default()
     };
     let report =

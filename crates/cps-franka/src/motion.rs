@@ -204,7 +204,8 @@ pub fn execute_stream(
     let commands = &stream.commands;
     let mut k = 0usize;
     let mut options = *options;
-    options.max_ticks = options.max_ticks.max(commands.len() + 4000);
+    // The stream, a few held commands, and room for a stop.
+    options.max_ticks = commands.len() + 10 + crate::rt::BRAKE_RESERVE;
     run_joint_positions(conn, limits, &options, stop, move |_, _| {
         let q = commands[k.min(commands.len() - 1)];
         k += 1;

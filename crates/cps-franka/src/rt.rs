@@ -28,6 +28,10 @@ pub enum Realtime {
     Ignore,
 }
 
+/// Ticks kept free in the recording for a stop (2 s: a brake from full speed takes
+/// 0.3 s on the FR3).
+pub const BRAKE_RESERVE: usize = 2000;
+
 /// Settings of a motion.
 #[derive(Debug, Clone, Copy)]
 pub struct LoopOptions {
@@ -36,7 +40,8 @@ pub struct LoopOptions {
     /// A state later than this ends the motion as a lost connection (the robot stops by
     /// itself when commands stop: a real FCI after a few missed ticks).
     pub state_timeout: Duration,
-    /// Ticks the recording holds; the loop stops the robot when it is full.
+    /// Ticks the recording holds (256 bytes each, allocated before the motion); the loop
+    /// starts braking [`BRAKE_RESERVE`] ticks before it is full, so the stop is recorded.
     pub max_ticks: usize,
 }
 
@@ -45,7 +50,7 @@ impl Default for LoopOptions {
         LoopOptions {
             realtime: Realtime::Enforce,
             state_timeout: Duration::from_millis(100),
-            max_ticks: 600_000,
+            max_ticks: 60_000 + BRAKE_RESERVE,
         }
     }
 }
@@ -293,7 +298,7 @@ where
         if matches!(mode, Mode::Follow) {
             if stop.load(Ordering::Relaxed) {
                 brake_reason = Some(Ending::Stopped);
-            } else if samples.len() + 1 >= options.max_ticks {
+            } else if samples.len() + BRAKE_RESERVE >= options.max_ticks {
                 brake_reason = Some(Ending::RecordingFull);
             }
             if brake_reason.is_some() {
