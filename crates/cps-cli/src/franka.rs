@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering::SeqCst};
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
@@ -10,6 +10,9 @@ use cps_experiment::franka::{self, DmpSettings, ExecuteSettings};
 
 use crate::cli_error;
 use crate::robot::print;
+
+/// Set while a robot moves: a second Ctrl-C then does not exit before the brake ends.
+pub static MOVING: AtomicBool = AtomicBool::new(false);
 
 /// The robot's address, and how to print the answer.
 #[derive(Args, Debug)]
@@ -120,10 +123,8 @@ pub fn franka(cmd: &FrankaCommand, stop: &AtomicBool) -> Result<ExitCode> {
             epsilon,
         } => {
             let command = franka::gripper_command(action, *width, *speed, *force, *epsilon)?;
-            print(
-                &franka::gripper(&on.host, command).map_err(cli_error)?,
-                on.json,
-            )
+            let answer = franka::gripper(&on.host, command).map_err(cli_error)?;
+            print(&answer, on.json)
         }
         FrankaCommand::Execute {
             file,
@@ -150,7 +151,9 @@ pub fn franka(cmd: &FrankaCommand, stop: &AtomicBool) -> Result<ExitCode> {
                 tau: *tau,
                 goal: goal.clone(),
             };
+            MOVING.store(true, SeqCst);
             let done = franka::execute_file(file, &settings, &online, record, *force, stop);
+            MOVING.store(false, SeqCst);
             let (answer, code) = done.map_err(cli_error)?;
             print(&answer, on.json)?;
             Ok(ExitCode::from(code))
@@ -161,8 +164,8 @@ pub fn franka(cmd: &FrankaCommand, stop: &AtomicBool) -> Result<ExitCode> {
             out,
             force,
         } => {
-            let done = franka::record(&on.host, *duration, out, *force, stop);
-            let (answer, code) = done.map_err(cli_error)?;
+            let recorded = franka::record(&on.host, *duration, out, *force, stop);
+            let (answer, code) = recorded.map_err(cli_error)?;
             print(&answer, on.json)?;
             Ok(ExitCode::from(code))
         }

@@ -203,7 +203,8 @@ fn main() -> ExitCode {
     // Ctrl-C and SIGTERM (`timeout`, schedulers) stop the run at the end of a generation;
     // a second one exits at once (the staging directory is then left behind, hidden).
     let _ = ctrlc::set_handler(move || {
-        if flag.swap(true, Ordering::SeqCst) {
+        // Never while a robot moves: its brake must finish (the motion then ends by itself).
+        if flag.swap(true, Ordering::SeqCst) && !franka::MOVING.load(Ordering::SeqCst) {
             std::process::exit(130);
         }
     });
