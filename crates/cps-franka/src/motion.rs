@@ -185,8 +185,8 @@ pub fn check_trajectory(
 }
 
 /// Executes a checked stream: one command per answered tick, on the realtime loop.
-/// The robot must still be where the stream was checked from (within
-/// [`START_TOLERANCE`] / 10), else nothing moves.
+/// The robot must still be where the stream was checked from (within 1 µrad), else
+/// nothing moves.
 pub fn execute_stream(
     conn: &mut Connection,
     limits: RateLimits,
@@ -196,7 +196,9 @@ pub fn execute_stream(
 ) -> Result<MotionReport, FrankaError> {
     let state = conn.read_state()?;
     let now = start_position(&state);
-    if (0..JOINTS).any(|i| (now[i] - stream.from[i]).abs() > START_TOLERANCE / 10.0) {
+    // The loop checks the first command against where the robot is then: a robot that
+    // moved by more than a micro-radian would make it a jump (1 rad/s² at 1 urad).
+    if (0..JOINTS).any(|i| (now[i] - stream.from[i]).abs() > 1e-6) {
         return Err(FrankaError::Input(
             "the robot moved since the trajectory was checked; check it again".into(),
         ));
