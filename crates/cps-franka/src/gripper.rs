@@ -5,7 +5,7 @@
 //! settle. Commands: Connect 0, Homing 1, Grasp 2 (`width, epsilon_inner, epsilon_outer,
 //! speed, force`), Move 3 (`width, speed`), Stop 4.
 
-use std::io::{ErrorKind, Read, Write};
+use std::io::Write;
 use std::net::{TcpStream, UdpSocket};
 use std::time::{Duration, Instant};
 
@@ -259,30 +259,8 @@ impl Gripper {
             .write_all(message)
             .map_err(|e| lost(e.to_string()))?;
         let deadline = Instant::now() + timeout;
-        let read = |buf: &mut [u8], tcp: &mut TcpStream| -> Result<(), FrankaError> {
-            let mut got = 0;
-            while got < buf.len() {
-                let left = deadline.saturating_duration_since(Instant::now());
-                if left.is_zero() {
-                    return Err(FrankaError::Timeout {
-                        host: host.clone(),
-                        what,
-                        after: timeout,
-                    });
-                }
-                tcp.set_read_timeout(Some(left)).ok();
-                match tcp.read(&mut buf[got..]) {
-                    Ok(0) => return Err(lost("the gripper closed the connection".into())),
-                    Ok(n) => got += n,
-                    Err(e)
-                        if matches!(
-                            e.kind(),
-                            ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
-                        ) => {}
-                    Err(e) => return Err(lost(e.to_string())),
-                }
-            }
-            Ok(())
+        let read = |buf: &mut [u8], tcp: &mut TcpStream| {
+            crate::session::read_until(tcp, buf, deadline, &host, what, timeout)
         };
         let mut h = [0u8; 10];
         read(&mut h, &mut self.tcp)?;

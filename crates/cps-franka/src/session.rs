@@ -101,6 +101,45 @@ pub(crate) fn open(
     Ok((tcp, udp, udp_port))
 }
 
+/// Reads exactly `buf` from `tcp` before `deadline`; a timeout names `what` and `after`,
+/// a closed or broken connection is lost. Shared by the robot's and the hand's sessions.
+pub(crate) fn read_until(
+    tcp: &mut TcpStream,
+    buf: &mut [u8],
+    deadline: Instant,
+    host: &str,
+    what: &'static str,
+    after: Duration,
+) -> Result<(), FrankaError> {
+    let lost = |reason: String| FrankaError::ConnectionLost {
+        host: host.to_string(),
+        reason,
+    };
+    let mut got = 0;
+    while got < buf.len() {
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(FrankaError::Timeout {
+                host: host.to_string(),
+                what,
+                after,
+            });
+        }
+        tcp.set_read_timeout(Some(left)).ok();
+        match tcp.read(&mut buf[got..]) {
+            Ok(0) => return Err(lost("the peer closed the connection".into())),
+            Ok(n) => got += n,
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
+                ) => {}
+            Err(e) => return Err(lost(e.to_string())),
+        }
+    }
+    Ok(())
+}
+
 impl Connection {
     /// Connects to the robot at `host` (`address` or `address:port`; the port defaults to
     /// 1337), opens a UDP port for its state and checks that it speaks protocol 10.
@@ -232,31 +271,8 @@ impl Connection {
         deadline: Instant,
         what: &'static str,
     ) -> Result<(), FrankaError> {
-        let start = Instant::now();
-        let mut got = 0;
-        while got < buf.len() {
-            let left = deadline.saturating_duration_since(Instant::now());
-            if left.is_zero() {
-                return Err(self.timeout(
-                    what,
-                    deadline
-                        .saturating_duration_since(start)
-                        .max(start.elapsed()),
-                ));
-            }
-            self.tcp.set_read_timeout(Some(left)).ok();
-            match self.tcp.read(&mut buf[got..]) {
-                Ok(0) => return Err(self.lost("the robot closed the connection")),
-                Ok(n) => got += n,
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
-                    ) => {}
-                Err(e) => return Err(self.lost(e.to_string())),
-            }
-        }
-        Ok(())
+        let after = deadline.saturating_duration_since(Instant::now());
+        read_until(&mut self.tcp, buf, deadline, &self.host, what, after)
     }
 
     /// Waits for the reply to command `id` of `kind`, parking any other reply.
