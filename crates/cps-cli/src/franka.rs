@@ -7,12 +7,10 @@ use std::sync::atomic::{AtomicBool, Ordering::SeqCst};
 use anyhow::Result;
 use clap::{Args, Subcommand};
 use cps_experiment::franka::{self, DmpSettings, ExecuteSettings};
+use cps_experiment::franka_backend::MOVING;
 
 use crate::cli_error;
 use crate::robot::print;
-
-/// Set while a robot moves: a second Ctrl-C then does not exit before the brake ends.
-pub static MOVING: AtomicBool = AtomicBool::new(false);
 
 /// The robot's address, and how to print the answer.
 #[derive(Args, Debug)]

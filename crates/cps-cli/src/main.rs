@@ -203,8 +203,12 @@ fn main() -> ExitCode {
     // Ctrl-C and SIGTERM (`timeout`, schedulers) stop the run at the end of a generation;
     // a second one exits at once (the staging directory is then left behind, hidden).
     let _ = ctrlc::set_handler(move || {
-        // Never while a robot moves: its brake must finish (the motion then ends by itself).
-        if flag.swap(true, Ordering::SeqCst) && !franka::MOVING.load(Ordering::SeqCst) {
+        // A robot an experiment moves brakes; never exit while one moves: its brake must
+        // finish (the motion then ends by itself).
+        cps_experiment::franka_backend::STOP.store(true, Ordering::SeqCst);
+        if flag.swap(true, Ordering::SeqCst)
+            && !cps_experiment::franka_backend::MOVING.load(Ordering::SeqCst)
+        {
             std::process::exit(130);
         }
     });

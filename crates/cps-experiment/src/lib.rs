@@ -54,6 +54,7 @@ pub mod export;
 pub mod figures;
 pub mod files;
 pub mod franka;
+pub mod franka_backend;
 mod kinds;
 pub mod limits;
 pub mod movement;

@@ -128,8 +128,9 @@ fn number(x: f64) -> String {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RobotSection {
-    /// `thesis` (the built-in scene, `configs/scenes/thesis.toml`) or a scene file (robot,
-    /// base, initial configuration), relative to the experiment file; default: `thesis`.
+    /// `thesis` (the built-in scene, `configs/scenes/thesis.toml`), `fr3` (the same with a
+    /// Franka Research 3, `configs/scenes/fr3.toml`) or a scene file (robot, base, initial
+    /// configuration), relative to the experiment file; default: `thesis`.
     scene: Option<Spanned<String>>,
     #[serde(default)]
     backend: BackendKind,
@@ -143,6 +144,14 @@ pub struct RobotSection {
     tolerance: Option<Spanned<f64>>,
     max_iterations_per_sample: Option<Spanned<usize>>,
     control: Option<Spanned<Control>>,
+    /// `backend = "franka"`: the robot's address (`ip` or `ip:port`).
+    host: Option<Spanned<String>>,
+    /// `backend = "franka"`, `kind = "viapoint_executed"`: several robots.
+    hosts: Option<Spanned<Vec<Spanned<String>>>>,
+    /// `backend = "franka"`: `fr3` or `panda` (default: the scene's robot).
+    arm: Option<Spanned<String>>,
+    /// `backend = "franka"`: `enforce` (default) or `ignore`.
+    realtime: Option<Spanned<String>>,
 }
 
 /// Who moves the joints on a CoppeliaSim backend.
@@ -161,6 +170,7 @@ enum BackendKind {
     #[default]
     Kinematic,
     Coppelia,
+    Franka,
 }
 
 /// Where trajectories are executed.
@@ -188,6 +198,32 @@ pub enum BackendChoice {
         /// must match it.
         expected_dt: Option<f64>,
     },
+    /// A Franka arm over the Franka Control Interface (`[robot] backend = "franka"`).
+    Franka {
+        /// The robot's address (a pool's first).
+        host: String,
+        /// Every robot of the pool (`[robot] hosts`; else `host` alone).
+        pool: Vec<String>,
+        /// Whose limits the commands are checked against.
+        arm: cps_franka::limits::Arm,
+        /// Realtime scheduling of the loop thread.
+        realtime: cps_franka::Realtime,
+        /// The control period the movement is planned at (s), a whole number of ms.
+        dt: f64,
+    },
+}
+
+impl BackendChoice {
+    /// The names of the backends an experiment opens: the pool's endpoints or hosts, or
+    /// the in-process robot.
+    pub fn pool_names(&self) -> Vec<String> {
+        match self {
+            BackendChoice::Kinematic { .. } => vec!["in-process robot".into()],
+            BackendChoice::Coppelia { pool, .. } | BackendChoice::Franka { pool, .. } => {
+                pool.clone()
+            }
+        }
+    }
 }
 
 /// The robot of an experiment: its model and start, and the backend.
@@ -211,6 +247,10 @@ impl RobotChoice {
     pub fn describe(&self) -> String {
         match &self.backend {
             BackendChoice::Kinematic { dt } => format!("kinematic (in-process, dt {dt} s)"),
+            BackendChoice::Franka { host, arm, dt, .. } => format!(
+                "franka ({}) at {host}, planned every {dt} s, streamed at 1 kHz",
+                arm.name()
+            ),
             BackendChoice::Coppelia {
                 endpoint,
                 simulator_ik,
@@ -255,6 +295,7 @@ impl RobotChoice {
                     .context_with(|| "cannot start the in-process robot".into())?,
             )),
             BackendChoice::Coppelia { endpoint, .. } => self.open_at(endpoint),
+            BackendChoice::Franka { host, .. } => self.open_at(host),
         }
     }
 
@@ -262,8 +303,11 @@ impl RobotChoice {
     /// one, named by its endpoint (the in-process robot alone for the kinematic
     /// backend). The first that cannot be opened is the error.
     pub fn open_pool(&self) -> Result<Vec<crate::sim_pool::NamedBackend>, ExperimentError> {
-        let BackendChoice::Coppelia { pool, .. } = &self.backend else {
-            return Ok(vec![("in-process robot".into(), self.open()?)]);
+        let pool = match &self.backend {
+            BackendChoice::Kinematic { .. } => {
+                return Ok(vec![("in-process robot".into(), self.open()?)]);
+            }
+            BackendChoice::Coppelia { pool, .. } | BackendChoice::Franka { pool, .. } => pool,
         };
         std::thread::scope(|scope| {
             let opening: Vec<_> = pool
@@ -288,6 +332,21 @@ impl RobotChoice {
         let setup = &self.setup;
         match &self.backend {
             BackendChoice::Kinematic { .. } => self.open(),
+            BackendChoice::Franka {
+                arm, realtime, dt, ..
+            } => {
+                let settings = crate::franka_backend::FrankaSettings {
+                    host: endpoint.to_string(),
+                    arm: *arm,
+                    realtime: *realtime,
+                    dt: *dt,
+                };
+                let robot = crate::franka_backend::FrankaBackend::open(&settings, &setup.chain)
+                    .map_err(|e| {
+                        ExperimentError::Message(format!("backend = \"franka\": {endpoint}: {e}"))
+                    })?;
+                Ok(Box::new(robot))
+            }
             BackendChoice::Coppelia {
                 robot_name,
                 timeout,
@@ -1068,8 +1127,15 @@ impl Sections<'_> {
                 .map(|s| (s, "thesis (built in)".to_string()))
         };
         let (scene, scene_name) = match section.and_then(|r| r.scene.as_ref()) {
-            // The built-in scene by name: a file that names it runs from any folder.
+            // The built-in scenes by name: a file that names one runs from any folder.
             Some(s) if s.get_ref() == "thesis" => built_in()?,
+            Some(s) if s.get_ref() == "fr3" => (
+                parse_scene(
+                    Path::new("configs/scenes/fr3.toml"),
+                    crate::scene::FR3_SCENE,
+                )?,
+                "fr3 (built in)".to_string(),
+            ),
             Some(s) => {
                 let p = self
                     .path
@@ -1106,7 +1172,11 @@ impl Sections<'_> {
             execution.max_iterations_per_sample = *m.get_ref();
         }
         let kind = section.map_or(BackendKind::Kinematic, |r| r.backend);
+        if let Some(r) = section {
+            self.backend_keys(r, kind)?;
+        }
         let backend = match kind {
+            BackendKind::Franka => self.franka_choice(section, &scene.robot.name, default_dt)?,
             BackendKind::Kinematic => {
                 if let Some(e) = section.and_then(|r| r.endpoint.as_ref()) {
                     return Err(self.err(
@@ -1192,6 +1262,176 @@ impl Sections<'_> {
             scene: scene_name,
             obstacles: scene.obstacles,
             model: scene.robot,
+        })
+    }
+
+    /// Keys of `[robot]` that belong to another backend than `kind` are named.
+    fn backend_keys(&self, r: &RobotSection, kind: BackendKind) -> Result<(), InputError> {
+        let franka_only = [
+            ("host", r.host.as_ref().map(Spanned::span)),
+            ("hosts", r.hosts.as_ref().map(Spanned::span)),
+            ("arm", r.arm.as_ref().map(Spanned::span)),
+            ("realtime", r.realtime.as_ref().map(Spanned::span)),
+        ];
+        let coppelia_only = [
+            ("endpoint", r.endpoint.as_ref().map(Spanned::span)),
+            ("endpoints", r.endpoints.as_ref().map(Spanned::span)),
+            ("name", None),
+            ("timeout", r.timeout.as_ref().map(Spanned::span)),
+            ("control", r.control.as_ref().map(Spanned::span)),
+        ];
+        let (foreign, owner) = match kind {
+            BackendKind::Franka => (&coppelia_only[..], "coppelia"),
+            _ => (&franka_only[..], "franka"),
+        };
+        for (key, span) in foreign {
+            if let Some(span) = span {
+                return Err(self.err(
+                    span,
+                    format!("[robot] `{key}` is read only with backend = \"{owner}\""),
+                ));
+            }
+        }
+        if kind == BackendKind::Franka && r.name.is_some() {
+            return Err(InputError(format!(
+                "{}: [robot] `name` (the robot's alias in CoppeliaSim) is read only with backend = \"coppelia\"",
+                self.path.display()
+            )));
+        }
+        Ok(())
+    }
+
+    /// `[robot] backend = "franka"`: `host` or `hosts`, `arm`, `realtime`, `dt`.
+    fn franka_choice(
+        &self,
+        section: Option<&RobotSection>,
+        model: &str,
+        default_dt: f64,
+    ) -> Result<BackendChoice, InputError> {
+        use cps_franka::limits::Arm;
+        let Some(r) = section else {
+            unreachable!("backend = \"franka\" is read from a [robot] section")
+        };
+        let check_host = |h: &Spanned<String>, what: &str| -> Result<String, InputError> {
+            let text = h.get_ref().trim();
+            let ok = !text.is_empty()
+                && !text.contains("://")
+                && !text.contains(char::is_whitespace)
+                && text.rsplit_once(':').is_none_or(|(host, p)| {
+                    !host.is_empty() && p.parse::<u16>().is_ok_and(|p| p > 0)
+                });
+            if ok {
+                Ok(text.to_string())
+            } else {
+                Err(self.err(
+                    &h.span(),
+                    format!(
+                        "[robot] {what} must be the robot's address, `ip` or `ip:port` (got `{}`)",
+                        h.get_ref()
+                    ),
+                ))
+            }
+        };
+        let pool = match (&r.host, &r.hosts) {
+            (Some(_), Some(list)) => {
+                return Err(self.err(
+                    &list.span(),
+                    "[robot] give either `host` (one robot) or `hosts` (a pool), not both".into(),
+                ));
+            }
+            (None, None) => {
+                return Err(InputError(format!(
+                    "{}: [robot] backend = \"franka\" needs `host`, the robot's address (e.g. host = \"172.16.0.2\"): cps never guesses which robot to move",
+                    self.path.display()
+                )));
+            }
+            (Some(h), None) => vec![check_host(h, "`host`")?],
+            (None, Some(list)) => {
+                if self.kind != Kind::ViapointExecuted {
+                    return Err(self.err(
+                        &list.span(),
+                        format!(
+                            "[robot] `hosts` (a pool of robots) is read only by kind = \"viapoint_executed\"; kind = \"{}\" executes on one: use `host`",
+                            self.kind.name()
+                        ),
+                    ));
+                }
+                if list.get_ref().is_empty() || list.get_ref().len() > 64 {
+                    return Err(self.err(
+                        &list.span(),
+                        format!(
+                            "[robot] `hosts` must name 1 to 64 robots (got {})",
+                            list.get_ref().len()
+                        ),
+                    ));
+                }
+                let mut pool: Vec<String> = Vec::new();
+                for (i, h) in list.get_ref().iter().enumerate() {
+                    let text = check_host(h, &format!("`hosts[{i}]`"))?;
+                    if let Some(j) = pool.iter().position(|p| *p == text) {
+                        return Err(self.err(
+                            &h.span(),
+                            format!("[robot] `hosts[{i}]` and `hosts[{j}]` name the same robot ({text}): list it once"),
+                        ));
+                    }
+                    pool.push(text);
+                }
+                pool
+            }
+        };
+        let arm = match &r.arm {
+            Some(a) => Arm::from_name(a.get_ref()).ok_or_else(|| {
+                self.err(
+                    &a.span(),
+                    format!("[robot] `arm` must be fr3 or panda (got `{}`)", a.get_ref()),
+                )
+            })?,
+            None => Arm::from_name(model).ok_or_else(|| {
+                InputError(format!(
+                    "{}: [robot] the scene's robot `{model}` is not a Franka arm: set `arm = \"fr3\"` or `\"panda\"` to say whose limits the commands must keep",
+                    self.path.display()
+                ))
+            })?,
+        };
+        let realtime = match &r.realtime {
+            Some(m) => crate::franka::parse_realtime(m.get_ref()).map_err(|_| {
+                self.err(
+                    &m.span(),
+                    format!(
+                        "[robot] `realtime` must be enforce or ignore (got `{}`)",
+                        m.get_ref()
+                    ),
+                )
+            })?,
+            None => cps_franka::Realtime::Enforce,
+        };
+        let dt = match r.dt.as_ref() {
+            Some(d) => {
+                let dt = self.within(d, "[robot] `dt`", 1e-3, 1.0, " s")?;
+                if ((dt * 1e3).round() - dt * 1e3).abs() > 1e-6 {
+                    return Err(self.err(
+                        &d.span(),
+                        format!("[robot] `dt` must be a whole number of milliseconds with backend = \"franka\" (the robot takes a command every millisecond; got {dt} s)"),
+                    ));
+                }
+                dt
+            }
+            None if ((default_dt * 1e3).round() - default_dt * 1e3).abs() > 1e-6
+                || default_dt < 1e-3 =>
+            {
+                return Err(InputError(format!(
+                    "{}: the movement is planned every {default_dt} s, not a whole number of milliseconds: set [robot] dt (e.g. 0.01) for the Franka",
+                    self.path.display()
+                )));
+            }
+            None => default_dt,
+        };
+        Ok(BackendChoice::Franka {
+            host: pool[0].clone(),
+            pool,
+            arm,
+            realtime,
+            dt,
         })
     }
 

@@ -102,6 +102,11 @@ pub fn load_scene(path: &Path) -> Result<Scene, InputError> {
 /// The thesis's scene, built in (the text of `configs/scenes/thesis.toml`).
 pub const THESIS_SCENE: &str = include_str!("../../../configs/scenes/thesis.toml");
 
+/// The thesis's scene with a Franka Research 3 (the text of `configs/scenes/fr3.toml`):
+/// the same table, way points and tool, the base placed so the FR3's start configuration
+/// (inside its range, unlike the thesis's) puts the tool at the same start point.
+pub const FR3_SCENE: &str = include_str!("../../../configs/scenes/fr3.toml");
+
 /// Parses scene text (`path` names it in messages and resolves relative robot files).
 pub fn parse_scene(path: &Path, text: &str) -> Result<Scene, InputError> {
     let text = text.to_string();

@@ -342,8 +342,15 @@ fn the_gripper_homes_moves_and_grasps() {
     };
     let mut hand = Gripper::connect(&sim.host, Duration::from_secs(3)).unwrap();
     assert!(hand.run(GripperCommand::Homing).unwrap());
+    // franky-sim calls a finger motion done once the width changes by less than 10 um per
+    // simulation step for 100 steps, so the fingers may stop a few millimetres short of
+    // their goal (78.4 mm of 80 seen under load): the widths are checked to 5 mm, which
+    // still tells every commanded width here from the others.
     let s = hand.state(Duration::from_secs(1)).unwrap();
-    assert!((s.max_width - 0.08).abs() < 1e-3, "{s:?}");
+    assert!(
+        s.max_width > 0.075 && s.max_width <= 0.0805,
+        "homing measured {s:?}"
+    );
     assert!(
         hand.run(GripperCommand::Move {
             width: 0.03,
@@ -352,7 +359,7 @@ fn the_gripper_homes_moves_and_grasps() {
         .unwrap()
     );
     let s = hand.state(Duration::from_secs(1)).unwrap();
-    assert!((s.width - 0.03).abs() < 2e-3, "{s:?}");
+    assert!((s.width - 0.03).abs() < 5e-3, "{s:?}");
     let grasp = GripperCommand::Grasp {
         width: 0.01,
         epsilon_inner: 0.005,

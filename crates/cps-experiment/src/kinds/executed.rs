@@ -146,10 +146,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         robot,
         weights,
     };
-    let endpoints = match &robot.backend {
-        crate::plan::BackendChoice::Coppelia { pool, .. } => pool.clone(),
-        crate::plan::BackendChoice::Kinematic { .. } => vec!["in-process robot".into()],
-    };
+    let endpoints = robot.backend.pool_names();
     let opened = robot.open_pool()?;
     if let crate::plan::BackendChoice::Coppelia { robot_name, .. } = &robot.backend
         && let Some((endpoint, _)) = opened.iter().find(|(_, b)| !b.runs_sequences())
@@ -264,7 +261,10 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     let summary = Summary {
         backend: match &robot.backend {
             crate::plan::BackendChoice::Coppelia { .. } => "coppelia (a pool of simulators)".into(),
-            crate::plan::BackendChoice::Kinematic { .. } => robot.describe(),
+            crate::plan::BackendChoice::Franka { pool, .. } if pool.len() > 1 => {
+                format!("franka (a pool of {} robots)", pool.len())
+            }
+            _ => robot.describe(),
         },
         simulators: Simulators {
             endpoints,

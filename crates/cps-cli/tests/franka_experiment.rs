@@ -1,0 +1,234 @@
+//! `[robot] backend = "franka"`: the shipped experiment learned on the FR3's model and
+//! executed on franky-sim (a MuJoCo FR3 behind the real protocol); a plan that leaves the
+//! FR3's range refused before the robot moves; bad robot sections named.
+
+mod common;
+#[path = "../../cps-franka/tests/common/mod.rs"]
+mod sim;
+
+use common::{cli, json, write};
+use sim::FrankySim;
+
+const SHIPPED: &str = include_str!("../../../experiments/franka/viapoint_joint.toml");
+
+/// The shipped Franka experiment pointed at `host`, with a short search (the warm start
+/// is already within a millimetre) and realtime scheduling not required.
+fn on(host: &str) -> String {
+    let text = SHIPPED
+        .replace(
+            "host = \"172.16.0.2\"",
+            &format!("host = \"{host}\"\nrealtime = \"ignore\""),
+        )
+        .replace("generations = 1500", "generations = 30");
+    assert!(text.contains(host) && text.contains("generations = 30"));
+    text
+}
+
+fn state_q(host: &str) -> Vec<f64> {
+    let o = cli(&["franka", "state", "--host", host, "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    serde_json::from_value(v["q"].clone()).unwrap()
+}
+
+/// The learned movement runs on the simulated FR3: every row recorded, and the measured
+/// tool passes each via point and reaches the goal. franky-sim's joint PD damps the
+/// absolute velocity (kv/kp = 0.1 s), so the arm runs about 100 ms behind its commands: at
+/// the via-point times the tool is centimetres short, but its path goes through every via
+/// point within millimetres.
+#[test]
+fn the_shipped_experiment_is_executed_on_the_simulated_fr3() {
+    let Some(sim) = FrankySim::start("127.0.0.63") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let file = write(dir.path(), "fr3.toml", &on(&sim.host));
+    let out = dir.path().join("out");
+    let o = cli(&[
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["complete"], true, "{s}");
+    assert!(
+        s["backend"]
+            .as_str()
+            .unwrap()
+            .starts_with("franka (fr3) at 127.0.0.63"),
+        "{s}"
+    );
+    let e = &s["execution"];
+    assert_eq!(e["samples"], 1001, "{e}");
+    assert_eq!(e["within_position_limits"], true, "{e}");
+    // The recording: the measured tool every 10 ms.
+    let text = std::fs::read_to_string(out.join("recording.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+    let (x, y, z) = (col("tool_x"), col("tool_y"), col("tool_z"));
+    let tool: Vec<[f64; 3]> = lines
+        .map(|l| {
+            let c: Vec<f64> = l.split(',').map(|v| v.parse().unwrap()).collect();
+            [c[x], c[y], c[z]]
+        })
+        .collect();
+    assert_eq!(tool.len(), 1001);
+    let points = [
+        [0.78, 0.60, 1.70],
+        [1.12, 0.37, 1.45],
+        [1.15, -0.15, 1.20],
+        [0.90, -0.53, 1.20],
+        [0.55, -0.57, 1.45],
+    ];
+    for p in points {
+        let closest = tool
+            .iter()
+            .map(|t| ((t[0] - p[0]).powi(2) + (t[1] - p[1]).powi(2) + (t[2] - p[2]).powi(2)).sqrt())
+            .fold(f64::INFINITY, f64::min);
+        assert!(closest < 0.01, "the tool passes {p:?} at {closest} m");
+    }
+    // The robot stays where the movement ended: at the goal configuration, within the
+    // simulator's lag at the end of the motion.
+    let q = state_q(&sim.host);
+    let goal: Vec<f64> = serde_json::from_value(s["way_configurations_rad"][5].clone()).unwrap();
+    let far = q
+        .iter()
+        .zip(&goal)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(
+        far < 0.02,
+        "the robot ended {far} rad from the goal configuration"
+    );
+}
+
+/// The thesis's Panda scene planned and checked against the FR3: its start has joint 4
+/// beyond the FR3's range, so nothing is sent, the robot stays, the learned result is kept
+/// with the reason, and the exit code is 1.
+#[test]
+fn a_plan_outside_the_fr3s_range_is_refused_before_the_robot_moves() {
+    let Some(sim) = FrankySim::start("127.0.0.64") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let text = on(&sim.host).replace(
+        "scene = \"fr3\"           # the thesis's scene with an FR3 (built in)",
+        "scene = \"thesis\"\narm = \"fr3\"",
+    );
+    assert!(text.contains("scene = \"thesis\""));
+    let file = write(dir.path(), "panda.toml", &text);
+    let before = state_q(&sim.host);
+    let out = dir.path().join("out");
+    let o = cli(&[
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("refused before sending anything: joint 4")
+            && err.contains("beyond the limit -0.151800 rad"),
+        "{err}"
+    );
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["complete"], false);
+    assert!(s["failure"].as_str().unwrap().contains("joint 4"), "{s}");
+    let after = state_q(&sim.host);
+    let moved = before
+        .iter()
+        .zip(&after)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(moved < 1e-3, "the robot moved by {moved} rad");
+}
+
+/// Bad `[robot]` sections for the Franka, each named with its place, exit 2, nothing
+/// written; no robot needed.
+#[test]
+fn bad_franka_sections_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let refused = |name: &str, toml: String, expected: &str| {
+        let file = write(dir.path(), &format!("{name}.toml"), &toml);
+        let out = dir.path().join(name);
+        let o = cli(&[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert_eq!(o.status.code(), Some(2), "{name}: {err}");
+        assert!(err.contains(expected), "{name}: {err}");
+        assert!(!out.join("summary.json").exists(), "{name}");
+    };
+    let host_line = "host = \"172.16.0.2\"     # the robot's address (`ip` or `ip:port`)";
+    assert!(SHIPPED.contains(host_line));
+    refused(
+        "no_host",
+        SHIPPED.replace(host_line, ""),
+        "backend = \"franka\" needs `host`, the robot's address",
+    );
+    refused(
+        "url",
+        SHIPPED.replace(host_line, "host = \"tcp://10.0.0.2:1337\""),
+        "[robot] `host` must be the robot's address, `ip` or `ip:port`",
+    );
+    refused(
+        "pool",
+        SHIPPED.replace(host_line, "hosts = [\"10.0.0.2\", \"10.0.0.3\"]"),
+        "`hosts` (a pool of robots) is read only by kind = \"viapoint_executed\"",
+    );
+    refused(
+        "arm",
+        SHIPPED.replace(host_line, "host = \"10.0.0.2\"\narm = \"ur5\""),
+        "[robot] `arm` must be fr3 or panda (got `ur5`)",
+    );
+    refused(
+        "dt",
+        SHIPPED.replace(
+            "dt = 0.01               # the movement",
+            "dt = 0.0125 # the movement",
+        ),
+        "`dt` must be a whole number of milliseconds",
+    );
+    refused(
+        "endpoint",
+        SHIPPED.replace(
+            host_line,
+            "host = \"10.0.0.2\"\nendpoint = \"tcp://127.0.0.1:23000\"",
+        ),
+        "[robot] `endpoint` is read only with backend = \"coppelia\"",
+    );
+    let kinematic = SHIPPED.replace("backend = \"franka\"", "backend = \"kinematic\"");
+    refused(
+        "host_on_kinematic",
+        kinematic,
+        "[robot] `host` is read only with backend = \"franka\"",
+    );
+    // A robot that is not there: named, within the connect timeout, before any learning.
+    let started = std::time::Instant::now();
+    let file = write(
+        dir.path(),
+        "absent.toml",
+        &SHIPPED.replace(host_line, "host = \"127.0.0.65\""),
+    );
+    let out = dir.path().join("absent");
+    let o = cli(&[
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("127.0.0.65"), "{err}");
+    assert!(started.elapsed().as_secs() < 30, "{:?}", started.elapsed());
+}

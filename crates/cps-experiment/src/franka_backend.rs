@@ -1,0 +1,365 @@
+//! `[robot] backend = "franka"`: a Franka arm (FR3 or Panda) over the Franka Control
+//! Interface as a [`RobotBackend`], so the robot kinds (imitation, promp, viapoint_joint,
+//! viapoint_executed) execute what they learned on a real or simulated robot.
+//!
+//! The experiment plans every control period `dt` (10 ms in the shipped files) on the
+//! scene's model; the robot takes a command every millisecond. [`FrankaBackend`] runs whole
+//! sequences ([`RobotBackend::runs_sequences`]): the planned rows become 1 kHz commands by
+//! a cubic spline at rest at both ends ([`commands_at_1khz`]), preceded by an approach
+//! from where the robot stands, checked whole against the arm's per-millisecond limits
+//! before anything is sent, streamed by `cps-franka`'s realtime loop, and recorded. Row k
+//! of the recording is the state the robot reported on the tick its command was sent.
+//!
+//! The tool pose of a recording is the scene model's forward kinematics of the measured
+//! joints, in the scene's world frame; at opening, the model's tool in the robot's base
+//! frame is compared with the robot's own `O_T_EE`, so a scene whose tool is not the
+//! robot's end effector is named instead of missing every via point by the difference.
+//!
+//! Stops: [`STOP`] set by the host program (the command line's Ctrl-C) brakes a moving
+//! robot within its limits and ends the execution with an error saying so; [`MOVING`] is
+//! true while a motion runs, so a second Ctrl-C does not exit before the brake ends.
+
+use std::sync::atomic::{AtomicBool, Ordering::SeqCst};
+
+use cps_franka::limits::{Arm, DT, RateLimits};
+use cps_franka::{
+    Connection, Ending, FrankaError, LoopOptions, MotionReport, Realtime, START_TOLERANCE, Start,
+    Timeouts, check_trajectory, execute_stream,
+};
+use cps_kinematics::{JointSpline, KinematicsError, SerialChain};
+use cps_kinematics::{RobotBackend, StepRecording};
+use nalgebra::{IsometryMatrix3, Matrix4};
+
+use crate::franka::APPROACH_SHARE;
+
+/// Set by the host program to brake every robot an experiment moves (Ctrl-C, SIGTERM).
+pub static STOP: AtomicBool = AtomicBool::new(false);
+
+/// True while an experiment's robot moves.
+pub static MOVING: AtomicBool = AtomicBool::new(false);
+
+/// The largest distance (m) allowed between the scene model's tool and the robot's own
+/// end effector (`O_T_EE`), both in the robot's base frame, at the configuration the robot
+/// is found in.
+pub const TOOL_AGREEMENT: f64 = 0.005;
+
+/// A Franka arm as an experiment's robot backend.
+#[derive(Debug)]
+pub struct FrankaBackend {
+    host: String,
+    conn: Connection,
+    limits: RateLimits,
+    options: LoopOptions,
+    model: SerialChain,
+    dt: f64,
+    clock: f64,
+    /// Every motion's report, approaches included, in order.
+    reports: Vec<MotionReport>,
+}
+
+/// The settings of [`FrankaBackend::open`].
+#[derive(Debug, Clone)]
+pub struct FrankaSettings {
+    /// `ip` or `ip:port`.
+    pub host: String,
+    /// Whose limits the commands are checked against.
+    pub arm: Arm,
+    /// Realtime scheduling of the loop thread.
+    pub realtime: Realtime,
+    /// The experiment's control period (s): a whole number of milliseconds.
+    pub dt: f64,
+}
+
+fn backend_error(host: &str, message: impl Into<String>) -> KinematicsError {
+    KinematicsError::Backend {
+        backend: format!("the Franka at {host}"),
+        message: message.into(),
+    }
+}
+
+fn joints7(q: &[f64], what: &str, host: &str) -> Result<[f64; 7], KinematicsError> {
+    <[f64; 7]>::try_from(q)
+        .map_err(|_| backend_error(host, format!("{what} has {} joints, not 7", q.len())))
+}
+
+/// The 1 kHz commands for `rows` planned every `dt` seconds (row k at time k·dt): a cubic
+/// spline through them at rest at both ends, sampled every millisecond from 0 to the last
+/// row's time, so row k is command k·dt/1 ms exactly. `dt` must be a whole number of
+/// milliseconds.
+pub fn commands_at_1khz(rows: &[Vec<f64>], dt: f64) -> Result<Vec<[f64; 7]>, String> {
+    let per_row = (dt / DT).round() as usize;
+    if per_row == 0 || ((per_row as f64) * DT - dt).abs() > 1e-9 {
+        return Err(format!(
+            "the control period {dt} s is not a whole number of milliseconds"
+        ));
+    }
+    if let Some(k) = rows
+        .iter()
+        .position(|r| r.len() != 7 || r.iter().any(|x| !x.is_finite()))
+    {
+        return Err(format!(
+            "planned row {k} is not seven finite joint positions"
+        ));
+    }
+    match rows.len() {
+        0 => return Err("no rows to execute".into()),
+        1 => {
+            return Ok(vec![
+                <[f64; 7]>::try_from(rows[0].as_slice()).expect("seven"),
+            ]);
+        }
+        _ => {}
+    }
+    let knots: Vec<f64> = (0..rows.len()).map(|k| k as f64 * dt).collect();
+    let spline = JointSpline::new(&knots, rows).map_err(|e| e.to_string())?;
+    let n = (rows.len() - 1) * per_row;
+    let mut out = Vec::with_capacity(n + 1);
+    let mut q = [0.0; 7];
+    for i in 0..=n {
+        if i % per_row == 0 {
+            // On a knot the row itself, not the spline's rounding of it.
+            q.copy_from_slice(&rows[i / per_row]);
+        } else {
+            spline.positions_into(i as f64 * DT, &mut q);
+        }
+        out.push(q);
+    }
+    Ok(out)
+}
+
+impl FrankaBackend {
+    /// Connects, checks that the robot is ready (no error, idle) and that `model` (the
+    /// scene's chain, base and tool included) puts the tool where the robot says its end
+    /// effector is, within [`TOOL_AGREEMENT`].
+    pub fn open(settings: &FrankaSettings, model: &SerialChain) -> Result<Self, String> {
+        let host = settings.host.clone();
+        if model.dof() != 7 {
+            return Err(format!(
+                "the scene's robot has {} joints; a Franka has 7",
+                model.dof()
+            ));
+        }
+        let mut conn =
+            Connection::connect(&host, Timeouts::default()).map_err(|e| e.to_string())?;
+        let state = conn.read_state().map_err(|e| e.to_string())?;
+        conn.ensure_ready(&state).map_err(|e| e.to_string())?;
+        // The model's tool in the robot's base frame against the robot's own O_T_EE.
+        let ours = model
+            .fk(&state.q)
+            .map_err(|e| format!("forward kinematics at the robot's joints: {e}"))?;
+        let in_base = model
+            .base()
+            .to_homogeneous()
+            .try_inverse()
+            .ok_or("the scene's base placement is not invertible")?
+            * ours.to_homogeneous();
+        let theirs = Matrix4::from_column_slice(&state.o_t_ee);
+        let p = in_base.fixed_view::<3, 1>(0, 3).into_owned();
+        let gap = ((p.x - theirs[(0, 3)]).powi(2)
+            + (p.y - theirs[(1, 3)]).powi(2)
+            + (p.z - theirs[(2, 3)]).powi(2))
+        .sqrt();
+        if gap > TOOL_AGREEMENT {
+            return Err(format!(
+                "the robot puts its end effector at ({:.4}, {:.4}, {:.4}) m in its base frame, the scene's model puts its tool at ({:.4}, {:.4}, {:.4}) m ({:.1} mm apart): the scene's tool is not the end effector set on the robot (Desk's end-effector settings, SetEEToK/SetNEToEE), or the scene is not this arm",
+                theirs[(0, 3)],
+                theirs[(1, 3)],
+                theirs[(2, 3)],
+                p.x,
+                p.y,
+                p.z,
+                gap * 1e3
+            ));
+        }
+        Ok(FrankaBackend {
+            host,
+            conn,
+            limits: RateLimits::of(settings.arm),
+            options: LoopOptions {
+                realtime: settings.realtime,
+                ..LoopOptions::default()
+            },
+            model: model.clone(),
+            dt: settings.dt,
+            clock: 0.0,
+            reports: Vec::new(),
+        })
+    }
+
+    /// Every motion's report so far, approaches included.
+    pub fn reports(&self) -> &[MotionReport] {
+        &self.reports
+    }
+
+    /// Checks `commands` (1 kHz) from where the robot stands, with an approach when it is
+    /// elsewhere, streams them and keeps the report; the index of the first command after
+    /// the approach is returned with the report. Any ending but a finished motion is an
+    /// error naming it (the report is kept in [`Self::reports`]).
+    fn stream(&mut self, commands: &[[f64; 7]]) -> Result<(usize, usize), KinematicsError> {
+        let host = self.host.clone();
+        let state = self
+            .conn
+            .read_state()
+            .map_err(|e| backend_error(&host, e.to_string()))?;
+        self.conn
+            .ensure_ready(&state)
+            .map_err(|e| backend_error(&host, e.to_string()))?;
+        let from = cps_franka::rt::start_position(&state);
+        let stream = check_trajectory(
+            &self.limits,
+            from,
+            commands,
+            Start::Approach(APPROACH_SHARE),
+        )
+        .map_err(|e| match e {
+            FrankaError::Limit(b) => {
+                backend_error(&host, format!("refused before sending anything: {b}"))
+            }
+            other => backend_error(&host, other.to_string()),
+        })?;
+        if STOP.load(SeqCst) {
+            return Err(backend_error(&host, "stopped on request before moving"));
+        }
+        MOVING.store(true, SeqCst);
+        let report = execute_stream(&mut self.conn, self.limits, &stream, &self.options, &STOP);
+        MOVING.store(false, SeqCst);
+        let report = report.map_err(|e| backend_error(&host, e.to_string()))?;
+        let ending = report.ending.clone();
+        self.reports.push(report);
+        if ending != Ending::Finished {
+            return Err(backend_error(&host, ending.sentence()));
+        }
+        Ok((self.reports.len() - 1, stream.approach))
+    }
+
+    fn unsupported(&self, what: &str) -> KinematicsError {
+        backend_error(
+            &self.host,
+            format!(
+                "{what}: a Franka takes a command every millisecond, so cps streams whole planned sequences (run_joint_targets) instead of stepping"
+            ),
+        )
+    }
+}
+
+impl RobotBackend for FrankaBackend {
+    fn dof(&self) -> usize {
+        7
+    }
+
+    fn time_step(&self) -> f64 {
+        self.dt
+    }
+
+    fn joint_positions(&mut self) -> Result<Vec<f64>, KinematicsError> {
+        let host = self.host.clone();
+        let s = self
+            .conn
+            .read_state()
+            .map_err(|e| backend_error(&host, e.to_string()))?;
+        Ok(s.q.to_vec())
+    }
+
+    fn command_joint_positions(&mut self, _q: &[f64]) -> Result<(), KinematicsError> {
+        Err(self.unsupported("commanding one configuration"))
+    }
+
+    fn command_joint_velocities(&mut self, _dq: &[f64]) -> Result<(), KinematicsError> {
+        Err(self.unsupported("commanding one velocity"))
+    }
+
+    fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, KinematicsError> {
+        let q = self.joint_positions()?;
+        self.model.fk(&q)
+    }
+
+    fn time(&mut self) -> Result<f64, KinematicsError> {
+        Ok(self.clock)
+    }
+
+    fn step(&mut self) -> Result<(), KinematicsError> {
+        Err(self.unsupported("stepping"))
+    }
+
+    /// Moves the robot to `q` (a rest-to-rest approach at 20 % of its limits) and sets the
+    /// clock to 0.
+    fn reset(&mut self, q: &[f64]) -> Result<(), KinematicsError> {
+        let to = joints7(q, "the start configuration", &self.host)?;
+        let state = self
+            .conn
+            .read_state()
+            .map_err(|e| backend_error(&self.host, e.to_string()))?;
+        let from = cps_franka::rt::start_position(&state);
+        if (0..7).any(|i| (from[i] - to[i]).abs() > START_TOLERANCE) {
+            self.stream(&[to])?;
+        }
+        self.clock = 0.0;
+        Ok(())
+    }
+
+    fn runs_sequences(&self) -> bool {
+        true
+    }
+
+    fn run_joint_targets(
+        &mut self,
+        targets: &[Vec<f64>],
+    ) -> Result<StepRecording, KinematicsError> {
+        let commands =
+            commands_at_1khz(targets, self.dt).map_err(|e| backend_error(&self.host, e))?;
+        let (report, first) = self.stream(&commands)?;
+        let per_row = (self.dt / DT).round() as usize;
+        let samples = &self.reports[report].samples;
+        let mut rec = StepRecording::default();
+        for k in 0..targets.len() {
+            let Some(s) = samples.get(first + k * per_row) else {
+                return Err(backend_error(
+                    &self.host,
+                    format!(
+                        "the motion ended after {} of {} planned rows",
+                        k,
+                        targets.len()
+                    ),
+                ));
+            };
+            let q = s.q.to_vec();
+            rec.tool.push(self.model.fk(&q)?);
+            rec.q.push(q);
+            rec.time.push(self.clock + (k + 1) as f64 * self.dt);
+        }
+        self.clock += targets.len() as f64 * self.dt;
+        Ok(rec)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_become_1khz_commands_through_every_row() {
+        // A rest-to-rest cosine per joint, planned every 10 ms for 0.1 s.
+        let f = |t: f64, j: usize| {
+            0.05 * (j + 1) as f64 * (1.0 - (std::f64::consts::PI * t / 0.1).cos())
+        };
+        let rows: Vec<Vec<f64>> = (0..11)
+            .map(|k| (0..7).map(|j| f(k as f64 * 0.01, j)).collect())
+            .collect();
+        let c = commands_at_1khz(&rows, 0.01).unwrap();
+        assert_eq!(c.len(), 101);
+        for (k, r) in rows.iter().enumerate() {
+            assert_eq!(c[k * 10].as_slice(), r.as_slice());
+        }
+        // In between, the spline follows the cosine.
+        for (i, q) in c.iter().enumerate() {
+            for (j, x) in q.iter().enumerate() {
+                assert!((x - f(i as f64 * 1e-3, j)).abs() < 1e-4, "ms {i} joint {j}");
+            }
+        }
+        let e = commands_at_1khz(&rows, 0.0105).unwrap_err();
+        assert!(e.contains("whole number of milliseconds"), "{e}");
+        let mut bad = rows.clone();
+        bad[3][2] = f64::NAN;
+        assert!(commands_at_1khz(&bad, 0.01).unwrap_err().contains("row 3"));
+    }
+}
