@@ -59,7 +59,7 @@ fn the_shipped_experiment_is_executed_on_the_simulated_fr3() {
         s["backend"]
             .as_str()
             .unwrap()
-            .starts_with("franka (fr3) at 127.0.0.63"),
+            .starts_with("franka (fr3 at 127.0.0.63"),
         "{s}"
     );
     let e = &s["execution"];

@@ -248,7 +248,7 @@ impl RobotChoice {
         match &self.backend {
             BackendChoice::Kinematic { dt } => format!("kinematic (in-process, dt {dt} s)"),
             BackendChoice::Franka { host, arm, dt, .. } => format!(
-                "franka ({}) at {host}, planned every {dt} s, streamed at 1 kHz",
+                "franka ({} at {host}, planned every {dt} s, streamed at 1 kHz)",
                 arm.name()
             ),
             BackendChoice::Coppelia {
