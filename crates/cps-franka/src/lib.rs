@@ -60,6 +60,9 @@ pub use motion::{
     CheckedStream, START_TOLERANCE, Start, approach, check_trajectory, execute_stream,
     record_states,
 };
-pub use rt::{Ending, LoopOptions, MotionReport, Realtime, Sample, Timing};
+pub use rt::{
+    Ending, JointPositions, JointVelocities, LoopOptions, MotionReport, Realtime, Sample, Timing,
+    Torques, run_joint_positions, run_joint_velocities, run_torques,
+};
 pub use session::{Connection, Timeouts};
 pub use wire::{Command, RobotMode, RobotState};

@@ -194,7 +194,7 @@ impl std::fmt::Display for Breach {
         match self.quantity {
             Quantity::NotFinite => write!(
                 f,
-                "joint {} at t = {t:.3} s (command {}): the position is not a number",
+                "joint {} at t = {t:.3} s (command {}): the command is not a number",
                 self.joint, self.sample
             ),
             Quantity::StoppingDistance => write!(

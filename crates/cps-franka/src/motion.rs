@@ -242,6 +242,7 @@ pub fn record_states(
             dq: state.dq,
             tau: state.tau_j,
             q_c: state.q_d,
+            tau_c: [0.0; JOINTS],
             tool: state.tool_position(),
         });
         if stop.load(std::sync::atomic::Ordering::Relaxed) {

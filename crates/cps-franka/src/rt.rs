@@ -13,7 +13,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::error::FrankaError;
-use crate::limits::{Brake, Breach, DT, RateLimits, StreamCheck};
+use crate::limits::{Brake, Breach, DT, Quantity, RateLimits, StreamCheck};
 use crate::session::Connection;
 use crate::wire::{
     Command, ControllerMode, JOINTS, MotionGeneratorMode, MoveStatus, RobotMode, RobotState,
@@ -66,8 +66,11 @@ pub struct Sample {
     pub dq: [f64; JOINTS],
     /// Measured joint torques.
     pub tau: [f64; JOINTS],
-    /// The commanded joint positions sent at this tick.
+    /// The commanded joint positions sent at this tick (a velocity motion: the positions
+    /// its velocities integrate to; torque control: zeros).
     pub q_c: [f64; JOINTS],
+    /// The joint torques cps sent at this tick (torque control; zeros otherwise).
+    pub tau_c: [f64; JOINTS],
     /// The end effector's measured position in the base frame.
     pub tool: [f64; 3],
 }
@@ -152,6 +155,9 @@ pub struct MotionReport {
     pub peak_usage: [[f64; JOINTS]; 3],
     /// Ticks spent braking.
     pub brake_ticks: usize,
+    /// Torque control: commands limited to the torque or torque-rate limit before they
+    /// were sent (0 for joint positions and velocities, which are checked, never limited).
+    pub clipped: usize,
 }
 
 /// A joint position generator's answer for one tick.
@@ -211,14 +217,103 @@ pub fn run_joint_positions<F>(
     limits: RateLimits,
     options: &LoopOptions,
     stop: &AtomicBool,
-    control: F,
+    mut control: F,
 ) -> Result<MotionReport, FrankaError>
 where
     F: FnMut(&RobotState, f64) -> JointPositions + Send,
 {
+    let law = PositionLaw::new(limits, false, move |s: &RobotState, t, _| control(s, t));
+    on_own_thread(conn, options, stop, law)
+}
+
+/// Runs a joint velocity motion (the robot's joint velocity generator): `control(state,
+/// t)` gives the velocities for each tick. They are admitted as the positions they
+/// integrate to, so the same [`StreamCheck`] holds them — velocity, acceleration, jerk, the
+/// joint range and the distance a stop needs — and a [`Brake`] replaces any that would
+/// break one. The motion finishes once `finished` is answered and the commanded velocity
+/// is zero. [`Sample::q_c`] records the integrated positions.
+pub fn run_joint_velocities<F>(
+    conn: &mut Connection,
+    limits: RateLimits,
+    options: &LoopOptions,
+    stop: &AtomicBool,
+    mut control: F,
+) -> Result<MotionReport, FrankaError>
+where
+    F: FnMut(&RobotState, f64) -> JointVelocities + Send,
+{
+    let law = PositionLaw::new(
+        limits,
+        true,
+        move |s: &RobotState, t, last: [f64; JOINTS]| {
+            let v = control(s, t);
+            let mut q = last;
+            for (x, dq) in q.iter_mut().zip(v.dq) {
+                *x += dq * DT;
+            }
+            JointPositions {
+                q,
+                finished: v.finished,
+            }
+        },
+    );
+    on_own_thread(conn, options, stop, law)
+}
+
+/// Runs torques computed by cps (the robot's external controller mode; the robot adds
+/// gravity): `control(state, t)` gives the joint torques for each tick. Each command is
+/// limited to the arm's torque and torque rate (1000 N m/s) before it is sent — as
+/// libfranka's rate limiter does — and the limited commands are counted
+/// ([`MotionReport::clipped`]); a torque that is not a number, or a joint measured faster
+/// than [`TORQUE_SPEED_GUARD`] of its speed limit, switches to a damped stop. `stop`
+/// brakes the same way: `τ = −D·dq` within the rate limit until the arm is at rest, then
+/// the motion ends. [`Sample::tau_c`] records what was sent.
+pub fn run_torques<F>(
+    conn: &mut Connection,
+    limits: RateLimits,
+    options: &LoopOptions,
+    stop: &AtomicBool,
+    control: F,
+) -> Result<MotionReport, FrankaError>
+where
+    F: FnMut(&RobotState, f64) -> Torques + Send,
+{
+    on_own_thread(conn, options, stop, TorqueLaw::new(limits, control))
+}
+
+/// The share of a joint's speed limit above which a torque-controlled motion is braked.
+pub const TORQUE_SPEED_GUARD: f64 = 0.9;
+
+/// Damping of the torque-mode stop (N m s/rad), per joint.
+const STOP_DAMPING: [f64; JOINTS] = [40.0, 40.0, 40.0, 40.0, 10.0, 10.0, 5.0];
+
+/// A joint velocity generator's answer for one tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JointVelocities {
+    /// The commanded velocities (rad/s).
+    pub dq: [f64; JOINTS],
+    /// True on the last command (the velocities must then be zero).
+    pub finished: bool,
+}
+
+/// A torque controller's answer for one tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Torques {
+    /// The commanded joint torques without gravity (N m).
+    pub tau: [f64; JOINTS],
+    /// True on the last command.
+    pub finished: bool,
+}
+
+fn on_own_thread<L: Law + Send>(
+    conn: &mut Connection,
+    options: &LoopOptions,
+    stop: &AtomicBool,
+    law: L,
+) -> Result<MotionReport, FrankaError> {
     std::thread::scope(|scope| {
         scope
-            .spawn(move || joint_position_loop(conn, limits, options, stop, control))
+            .spawn(move || run_law(conn, options, stop, law))
             .join()
             .unwrap_or_else(|_| {
                 Err(FrankaError::Input(
@@ -226,6 +321,29 @@ where
                 ))
             })
     })
+}
+
+/// What the loop runs: one command per state, and a controlled stop when asked.
+trait Law {
+    /// The Move's controller and motion generator.
+    fn modes(&self) -> (ControllerMode, MotionGeneratorMode);
+    /// The robot's state before the Move: where the motion starts.
+    fn start(&mut self, state: &RobotState);
+    /// Whether the law still follows its generator (not holding, not stopping).
+    fn following(&self) -> bool;
+    /// Fills `command` for `state` at robot time `t` (the tick's index `tick`); `brake`
+    /// asks for a controlled stop for that reason. True when the command is the last.
+    fn answer(
+        &mut self,
+        state: &RobotState,
+        t: f64,
+        tick: usize,
+        brake: Option<Ending>,
+        command: &mut Command,
+    ) -> bool;
+    /// Why the law stopped on its own or was stopped (if it was); the peak usage; the
+    /// ticks spent stopping; the commands limited before sending.
+    fn outcome(self) -> (Option<Ending>, [[f64; JOINTS]; 3], usize, usize);
 }
 
 // The brake lives in place: boxing it would allocate inside the loop.
@@ -238,35 +356,272 @@ enum Mode {
     Brake(Brake),
 }
 
-fn joint_position_loop<F>(
-    conn: &mut Connection,
+/// Joint positions (or velocities, as the positions they integrate to) through the
+/// [`StreamCheck`], with a [`Brake`] for anything it refuses.
+struct PositionLaw<F> {
+    check: StreamCheck,
+    mode: Mode,
+    control: F,
+    velocity: bool,
+    reason: Option<Ending>,
+    brake_ticks: usize,
+}
+
+impl<F> PositionLaw<F>
+where
+    F: FnMut(&RobotState, f64, [f64; JOINTS]) -> JointPositions,
+{
+    fn new(limits: RateLimits, velocity: bool, control: F) -> Self {
+        PositionLaw {
+            check: StreamCheck::at_rest(limits, [0.0; JOINTS]),
+            mode: Mode::Follow,
+            control,
+            velocity,
+            reason: None,
+            brake_ticks: 0,
+        }
+    }
+}
+
+impl<F> Law for PositionLaw<F>
+where
+    F: FnMut(&RobotState, f64, [f64; JOINTS]) -> JointPositions,
+{
+    fn modes(&self) -> (ControllerMode, MotionGeneratorMode) {
+        let generator = if self.velocity {
+            MotionGeneratorMode::JointVelocity
+        } else {
+            MotionGeneratorMode::JointPosition
+        };
+        (ControllerMode::JointImpedance, generator)
+    }
+
+    fn start(&mut self, state: &RobotState) {
+        self.check = StreamCheck::at_rest(*self.check.limits(), start_position(state));
+    }
+
+    fn following(&self) -> bool {
+        matches!(self.mode, Mode::Follow)
+    }
+
+    fn answer(
+        &mut self,
+        state: &RobotState,
+        t: f64,
+        _tick: usize,
+        brake: Option<Ending>,
+        command: &mut Command,
+    ) -> bool {
+        if let Some(reason) = brake
+            && self.following()
+        {
+            self.reason.get_or_insert(reason);
+            self.mode = Mode::Brake(Brake::from_check(&self.check));
+        }
+        let (desired, finished) = match &mut self.mode {
+            Mode::Follow => {
+                let step = (self.control)(state, t, self.check.last().0);
+                (step.q, step.finished)
+            }
+            Mode::Hold(q) => (*q, true),
+            Mode::Brake(b) => {
+                self.brake_ticks += 1;
+                let q = b.step();
+                (q, b.stopped())
+            }
+        };
+        let (q_c, mut done) = match self.check.admit(&desired) {
+            Ok(()) => (desired, finished),
+            Err(breach) => {
+                // Never sent: brake from the last admitted command instead.
+                let mut b = Brake::from_check(&self.check);
+                let q = b.step();
+                let stopped = b.stopped();
+                self.reason.get_or_insert(Ending::LimitBrake(breach));
+                self.mode = Mode::Brake(b);
+                if self.check.admit(&q).is_err() {
+                    // Cannot happen for a brake from an admitted state (tested); hold.
+                    (self.check.last().0, false)
+                } else {
+                    (q, stopped)
+                }
+            }
+        };
+        if done && !self.check.at_rest_now() {
+            // Not at rest yet: hold the last command (or keep braking) until it is.
+            if self.following() {
+                self.mode = Mode::Hold(q_c);
+            }
+            done = false;
+        }
+        command.q_c = q_c;
+        if self.velocity {
+            // The velocity the admitted position stands for (zero once at rest).
+            command.dq_c = self.check.last().1;
+        }
+        command.motion_generation_finished = done;
+        done
+    }
+
+    fn outcome(self) -> (Option<Ending>, [[f64; JOINTS]; 3], usize, usize) {
+        (self.reason, self.check.peak_usage(), self.brake_ticks, 0)
+    }
+}
+
+/// Torques from cps, limited to the arm's torque and torque rate, with a damped stop.
+struct TorqueLaw<F> {
     limits: RateLimits,
+    control: F,
+    last: [f64; JOINTS],
+    stopping: bool,
+    at_rest_ticks: usize,
+    reason: Option<Ending>,
+    brake_ticks: usize,
+    clipped: usize,
+    /// Peak share of the torque, the torque rate and the speed limit.
+    peak: [[f64; JOINTS]; 3],
+}
+
+impl<F> TorqueLaw<F> {
+    fn new(limits: RateLimits, control: F) -> Self {
+        TorqueLaw {
+            limits,
+            control,
+            last: [0.0; JOINTS],
+            stopping: false,
+            at_rest_ticks: 0,
+            reason: None,
+            brake_ticks: 0,
+            clipped: 0,
+            peak: [[0.0; JOINTS]; 3],
+        }
+    }
+
+    fn stop_for(&mut self, reason: Ending) {
+        if !self.stopping {
+            self.reason.get_or_insert(reason);
+            self.stopping = true;
+        }
+    }
+}
+
+impl<F> Law for TorqueLaw<F>
+where
+    F: FnMut(&RobotState, f64) -> Torques,
+{
+    fn modes(&self) -> (ControllerMode, MotionGeneratorMode) {
+        (
+            ControllerMode::ExternalController,
+            MotionGeneratorMode::None,
+        )
+    }
+
+    fn start(&mut self, _state: &RobotState) {
+        // The robot holds the arm against gravity itself; cps's torques start from zero.
+        self.last = [0.0; JOINTS];
+    }
+
+    fn following(&self) -> bool {
+        !self.stopping
+    }
+
+    fn answer(
+        &mut self,
+        state: &RobotState,
+        t: f64,
+        tick: usize,
+        brake: Option<Ending>,
+        command: &mut Command,
+    ) -> bool {
+        if let Some(reason) = brake {
+            self.stop_for(reason);
+        }
+        let l = self.limits;
+        if let Some(i) = (0..JOINTS).find(|&i| state.dq[i].abs() > TORQUE_SPEED_GUARD * l.dq_max[i])
+        {
+            self.stop_for(Ending::LimitBrake(Breach {
+                joint: i + 1,
+                sample: tick,
+                quantity: Quantity::Velocity,
+                value: state.dq[i],
+                limit: TORQUE_SPEED_GUARD * l.dq_max[i],
+            }));
+        }
+        let mut finished = false;
+        let mut tau = [0.0; JOINTS];
+        if !self.stopping {
+            let c = (self.control)(state, t);
+            if let Some(i) = (0..JOINTS).find(|&i| !c.tau[i].is_finite()) {
+                self.stop_for(Ending::LimitBrake(Breach {
+                    joint: i + 1,
+                    sample: tick,
+                    quantity: Quantity::NotFinite,
+                    value: c.tau[i],
+                    limit: l.tau_max[i],
+                }));
+            } else {
+                tau = c.tau;
+                finished = c.finished;
+            }
+        }
+        if self.stopping {
+            self.brake_ticks += 1;
+            for ((x, d), v) in tau.iter_mut().zip(STOP_DAMPING).zip(state.dq) {
+                *x = -d * v;
+            }
+            let still = state.dq.iter().all(|v| v.abs() < 0.02);
+            self.at_rest_ticks = if still { self.at_rest_ticks + 1 } else { 0 };
+            // At rest for 50 ms, or after 3 s whatever happens (the robot holds itself).
+            finished = self.at_rest_ticks >= 50 || self.brake_ticks >= 3000;
+        }
+        // Within the torque rate, then the torque, of the last command sent.
+        let mut limited = false;
+        for (i, t) in tau.iter_mut().enumerate() {
+            let step = l.dtau_max[i] * DT;
+            let x = t
+                .clamp(self.last[i] - step, self.last[i] + step)
+                .clamp(-l.tau_max[i], l.tau_max[i]);
+            limited |= x != *t;
+            self.peak[0][i] = self.peak[0][i].max(x.abs() / l.tau_max[i]);
+            self.peak[1][i] = self.peak[1][i].max((x - self.last[i]).abs() / step);
+            self.peak[2][i] = self.peak[2][i].max(state.dq[i].abs() / l.dq_max[i]);
+            *t = x;
+        }
+        if limited && !self.stopping {
+            self.clipped += 1;
+        }
+        self.last = tau;
+        command.tau_j_d = tau;
+        command.torque_command_finished = finished;
+        command.motion_generation_finished = finished;
+        finished
+    }
+
+    fn outcome(self) -> (Option<Ending>, [[f64; JOINTS]; 3], usize, usize) {
+        (self.reason, self.peak, self.brake_ticks, self.clipped)
+    }
+}
+
+fn run_law<L: Law>(
+    conn: &mut Connection,
     options: &LoopOptions,
     stop: &AtomicBool,
-    mut control: F,
-) -> Result<MotionReport, FrankaError>
-where
-    F: FnMut(&RobotState, f64) -> JointPositions,
-{
+    mut law: L,
+) -> Result<MotionReport, FrankaError> {
     let realtime = make_realtime(options.realtime)?;
     let (state, _) = conn.newest_state(options.state_timeout.max(Duration::from_millis(500)))?;
     conn.ensure_ready(&state)?;
-    let q0 = start_position(&state);
+    law.start(&state);
     // Everything the loop needs, allocated now.
     let mut samples: Vec<Sample> = Vec::with_capacity(options.max_ticks);
     let mut latency_ns: Vec<u32> = Vec::with_capacity(options.max_ticks);
-    let mut check = StreamCheck::at_rest(limits, q0);
     let mut command = Command::default();
-    let motion_id = conn.start_move(
-        ControllerMode::JointImpedance,
-        MotionGeneratorMode::JointPosition,
-    )?;
+    let (controller, generator) = law.modes();
+    let motion_id = conn.start_move(controller, generator)?;
 
-    let mut mode = Mode::Follow;
     let mut ending: Option<Ending> = None;
-    let mut brake_reason: Option<Ending> = None;
     let (mut first_id, mut last_id) = (None::<u64>, None::<u64>);
-    let (mut missed, mut stale, mut brake_ticks) = (0u64, 0u64, 0usize);
+    let (mut missed, mut stale) = (0u64, 0u64);
     let mut last_errors = String::new();
     let mut finished_sent = false;
     loop {
@@ -295,58 +650,17 @@ where
             break;
         }
         let t = (state.message_id - id0) as f64 * DT;
-        if matches!(mode, Mode::Follow) {
-            if stop.load(Ordering::Relaxed) {
-                brake_reason = Some(Ending::Stopped);
-            } else if samples.len() + BRAKE_RESERVE >= options.max_ticks {
-                brake_reason = Some(Ending::RecordingFull);
-            }
-            if brake_reason.is_some() {
-                mode = Mode::Brake(Brake::from_check(&check));
-            }
-        }
-        let (desired, finished) = match &mut mode {
-            Mode::Follow => {
-                let step = control(&state, t);
-                (step.q, step.finished)
-            }
-            Mode::Hold(q) => (*q, true),
-            Mode::Brake(b) => {
-                brake_ticks += 1;
-                let q = b.step();
-                (q, b.stopped())
-            }
+        let brake = if !law.following() {
+            None
+        } else if stop.load(Ordering::Relaxed) {
+            Some(Ending::Stopped)
+        } else if samples.len() + BRAKE_RESERVE >= options.max_ticks {
+            Some(Ending::RecordingFull)
+        } else {
+            None
         };
-        let (q_c, mut done) = match check.admit(&desired) {
-            Ok(()) => (desired, finished),
-            Err(breach) => {
-                // Never sent: brake from the last admitted command instead.
-                let mut b = Brake::from_check(&check);
-                let q = b.step();
-                let stopped = b.stopped();
-                if check.admit(&q).is_err() {
-                    // Cannot happen for a brake from an admitted state (tested); hold.
-                    let (last, _, _) = check.last();
-                    brake_reason.get_or_insert(Ending::LimitBrake(breach));
-                    mode = Mode::Brake(b);
-                    (last, false)
-                } else {
-                    brake_reason.get_or_insert(Ending::LimitBrake(breach));
-                    mode = Mode::Brake(b);
-                    (q, stopped)
-                }
-            }
-        };
-        if done && !check.at_rest_now() {
-            // Not at rest yet: hold the last command (or keep braking) until it is.
-            if matches!(mode, Mode::Follow) {
-                mode = Mode::Hold(q_c);
-            }
-            done = false;
-        }
+        let done = law.answer(&state, t, samples.len(), brake, &mut command);
         command.message_id = state.message_id;
-        command.q_c = q_c;
-        command.motion_generation_finished = done;
         if let Err(e) = conn.send_command(&command) {
             ending = Some(Ending::Lost(e.to_string()));
             break;
@@ -361,7 +675,8 @@ where
                 q: state.q,
                 dq: state.dq,
                 tau: state.tau_j,
-                q_c,
+                q_c: command.q_c,
+                tau_c: command.tau_j_d,
                 tool: state.tool_position(),
             });
         }
@@ -386,11 +701,12 @@ where
             }
         }
     }
+    let (reason, peak_usage, brake_ticks, clipped) = law.outcome();
     // After the loop: the robot's word on how the motion ended (bounded).
     let ending = match ending {
         Some(e) => e,
         None => match conn.await_move_end(motion_id, Duration::from_secs(2)) {
-            Ok(MoveStatus::Success) if finished_sent => brake_reason.unwrap_or(Ending::Finished),
+            Ok(MoveStatus::Success) if finished_sent => reason.unwrap_or(Ending::Finished),
             Ok(status) => Ending::Robot {
                 status,
                 errors: if last_errors.is_empty() {
@@ -416,7 +732,8 @@ where
         samples,
         timing,
         ending,
-        peak_usage: check.peak_usage(),
+        peak_usage,
         brake_ticks,
+        clipped,
     })
 }

@@ -2,6 +2,9 @@
 //! protocol, with the official client pylibfranka as the second opinion. Each test has a
 //! loopback address of its own; the simulators run one at a time.
 
+// Joint-indexed arrays (commands, states, limits) are read side by side.
+#![allow(clippy::needless_range_loop)]
+
 mod common;
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -434,4 +437,216 @@ fn the_robots_own_urdf_agrees_with_the_fr3_model_cps_plans_on() {
         urdf.chain.velocity_limits().unwrap(),
         ours.velocity_limits().unwrap()
     );
+}
+
+/// The velocities of a 3 s rest-to-rest swing: joints 1 and 4 move 0.3 and −0.2 rad.
+fn swing_velocities(k: usize) -> [f64; 7] {
+    let s = 1.0 - (std::f64::consts::TAU * k as f64 / 3000.0).cos();
+    let mut dq = [0.0; 7];
+    dq[0] = 0.1 * s; // ∫ over 3 s = 0.3 rad
+    dq[3] = -0.2 / 3.0 * s;
+    dq
+}
+
+#[test]
+fn joint_velocities_move_the_arm_as_pylibfranka_does() {
+    // pylibfranka's joint velocity loop on one simulator ...
+    let theirs: Vec<Vec<f64>> = {
+        let Some(sim) = FrankySim::start("127.0.0.71") else {
+            return;
+        };
+        let out = sim.python(
+            r#"
+import json, math, os, pylibfranka as p
+robot = p.Robot(os.environ["HOST"], p.RealtimeConfig.kIgnore)
+ctl = robot.start_joint_velocity_control(p.ControllerMode.JointImpedance)
+rec = []
+for k in range(3001):
+    state, _ = ctl.readOnce()
+    s = 1.0 - math.cos(2 * math.pi * k / 3000)
+    cmd = p.JointVelocities([0.1 * s, 0, 0, -0.2 / 3 * s, 0, 0, 0])
+    if k == 3000:
+        cmd.motion_finished = True
+    ctl.writeOnce(cmd)
+    rec.append(list(state.q))
+print(json.dumps(rec))
+"#,
+        );
+        serde_json::from_str(&out).unwrap()
+    };
+    // ... and cps's on another, the same velocities per answered tick.
+    let Some(sim) = FrankySim::start("127.0.0.72") else {
+        return;
+    };
+    let mut robot = Connection::connect(&sim.host, Default::default()).unwrap();
+    let limits = RateLimits::of(Arm::Fr3);
+    let from = cps_franka::rt::start_position(&robot.read_state().unwrap());
+    let stop = AtomicBool::new(false);
+    let mut k = 0;
+    let report = cps_franka::run_joint_velocities(&mut robot, limits, &options(), &stop, |_, _| {
+        let v = cps_franka::JointVelocities {
+            dq: swing_velocities(k),
+            finished: k >= 3000,
+        };
+        k += 1;
+        v
+    })
+    .unwrap();
+    assert_eq!(
+        report.ending,
+        Ending::Finished,
+        "{}",
+        report.ending.sentence()
+    );
+    // What was sent (as the positions it integrates to) keeps every limit, and ends
+    // 0.3 rad and -0.2 rad out on joints 1 and 4.
+    let sent: Vec<[f64; 7]> = report.samples.iter().map(|s| s.q_c).collect();
+    check_stream(limits, from, &sent).unwrap();
+    let last = sent.last().unwrap();
+    assert!((last[0] - from[0] - 0.3).abs() < 1e-3, "{last:?}");
+    assert!((last[3] - from[3] + 0.2).abs() < 1e-3, "{last:?}");
+    // Tick by tick, the arm moved as under pylibfranka.
+    let mut worst: f64 = 0.0;
+    for (s, q) in report.samples.iter().zip(&theirs) {
+        for (a, b) in s.q.iter().zip(q) {
+            worst = worst.max((a - b).abs());
+        }
+    }
+    eprintln!("joint velocities, cps vs pylibfranka: largest joint difference {worst:.2e} rad");
+    assert!(worst < 5e-3, "the two runs differ by {worst} rad");
+    assert!((report.samples[1500].q[0] - from[0] - 0.15).abs() < 0.03);
+}
+
+/// A joint impedance law computed by cps at 1 kHz (the robot adds gravity): the arm
+/// follows a swing of joint 1, every torque sent within the torque and torque-rate limits.
+#[test]
+fn torques_from_cps_move_the_arm_and_stay_within_the_torque_limits() {
+    let Some(sim) = FrankySim::start("127.0.0.73") else {
+        return;
+    };
+    let mut robot = Connection::connect(&sim.host, Default::default()).unwrap();
+    let limits = RateLimits::of(Arm::Fr3);
+    let q0 = robot.read_state().unwrap().q;
+    let stiffness = [600.0, 600.0, 600.0, 600.0, 250.0, 150.0, 50.0];
+    let damping = [50.0, 50.0, 50.0, 50.0, 20.0, 20.0, 10.0];
+    let target = |t: f64| {
+        let s = if t < 3.0 {
+            0.5 - 0.5 * (std::f64::consts::PI * t / 3.0).cos()
+        } else {
+            1.0
+        };
+        let mut q = q0;
+        q[0] += 0.3 * s;
+        q
+    };
+    let stop = AtomicBool::new(false);
+    let report = cps_franka::run_torques(&mut robot, limits, &options(), &stop, |state, t| {
+        let q_d = target(t);
+        let mut tau = [0.0; 7];
+        for i in 0..7 {
+            tau[i] = stiffness[i] * (q_d[i] - state.q[i]) - damping[i] * state.dq[i];
+        }
+        cps_franka::Torques {
+            tau,
+            finished: t >= 4.0,
+        }
+    })
+    .unwrap();
+    assert_eq!(
+        report.ending,
+        Ending::Finished,
+        "{}",
+        report.ending.sentence()
+    );
+    let mut last = [0.0; 7];
+    for s in &report.samples {
+        for i in 0..7 {
+            assert!(s.tau_c[i].abs() <= limits.tau_max[i] + 1e-9);
+            assert!((s.tau_c[i] - last[i]).abs() <= limits.dtau_max[i] * 1e-3 + 1e-9);
+        }
+        last = s.tau_c;
+    }
+    let end = report.samples.last().unwrap();
+    assert!(
+        (end.q[0] - q0[0] - 0.3).abs() < 0.03,
+        "joint 1 ended at {:?}",
+        end.q[0] - q0[0]
+    );
+    for i in 1..7 {
+        assert!(
+            (end.q[i] - q0[i]).abs() < 0.03,
+            "joint {} drifted {}",
+            i + 1,
+            end.q[i] - q0[i]
+        );
+    }
+    eprintln!(
+        "torque control: joint 1 at {:.4} rad of 0.3, {} commands limited, peak torque use {:.0} %",
+        end.q[0] - q0[0],
+        report.clipped,
+        report.peak_usage[0].iter().fold(0.0f64, |a, &b| a.max(b)) * 100.0
+    );
+
+    // A step of 5 N m on joint 7 is sent as a ramp of 1 N m per tick (the rate limit),
+    // each limited command counted.
+    let report = cps_franka::run_torques(&mut robot, limits, &options(), &stop, |state, t| {
+        let mut tau = [0.0; 7];
+        for i in 0..7 {
+            tau[i] = -damping[i] * state.dq[i];
+        }
+        if t < 0.05 {
+            tau[6] += 5.0;
+        }
+        cps_franka::Torques {
+            tau,
+            finished: t >= 0.3,
+        }
+    })
+    .unwrap();
+    assert_eq!(
+        report.ending,
+        Ending::Finished,
+        "{}",
+        report.ending.sentence()
+    );
+    let ramp: Vec<f64> = report.samples.iter().take(6).map(|s| s.tau_c[6]).collect();
+    assert!(
+        report.clipped >= 4,
+        "{} limited, ramp {ramp:?}",
+        report.clipped
+    );
+    assert!(
+        (ramp[0] - 1.0).abs() < 0.05 && (ramp[3] - 4.0).abs() < 0.1,
+        "{ramp:?}"
+    );
+
+    // A controller that answers NaN: never sent; the arm is damped to rest and the motion
+    // ends naming the joint.
+    let report = cps_franka::run_torques(&mut robot, limits, &options(), &stop, |state, t| {
+        let mut tau = [0.0; 7];
+        tau[2] = if t > 0.5 {
+            f64::NAN
+        } else {
+            -2.0 * state.dq[2]
+        };
+        cps_franka::Torques {
+            tau,
+            finished: false,
+        }
+    })
+    .unwrap();
+    match &report.ending {
+        Ending::LimitBrake(b) => {
+            assert_eq!((b.joint, b.quantity), (3, Quantity::NotFinite), "{b}")
+        }
+        other => panic!("{}", other.sentence()),
+    }
+    assert!(
+        report
+            .samples
+            .iter()
+            .all(|s| s.tau_c.iter().all(|x| x.is_finite()))
+    );
+    let end = report.samples.last().unwrap();
+    assert!(end.dq.iter().all(|v| v.abs() < 0.05), "{:?}", end.dq);
 }
