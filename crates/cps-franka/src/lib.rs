@@ -12,14 +12,17 @@
 //!   [`FrankaError`] naming the host.
 //! - [`rt`]: the realtime loop on a dedicated thread (SCHED_FIFO where permitted): one state
 //!   in, one command out per tick, no allocation, lock or log inside; missed and stale
-//!   states counted; its own latency measured.
+//!   states counted; its own latency measured. Joint positions
+//!   ([`run_joint_positions`]), joint velocities ([`run_joint_velocities`]) or torques
+//!   computed by cps ([`run_torques`], the external controller mode).
 //!
 //! Safety sits between them as a wrapper, not inside generators: [`limits::StreamCheck`]
 //! takes the robot's own per-millisecond differences of every command (position, velocity
 //! — position-dependent on the FR3 — acceleration, jerk, and the distance a stop would
 //! need), over the whole stream before a motion ([`check_trajectory`]) and again for every
 //! command sent; a command it refuses is never sent and a [`limits::Brake`] stops the
-//! robot within the limits instead, as it does on Ctrl-C.
+//! robot within the limits instead, as it does on Ctrl-C. Torques are limited to the arm's
+//! torque and torque rate before they are sent, and a damped stop replaces them on Ctrl-C.
 //!
 //! # Example
 //! Checking a stream needs no robot; executing it needs one (here the address of a
