@@ -53,6 +53,8 @@ pub struct FrankaBackend {
     model: SerialChain,
     dt: f64,
     clock: f64,
+    /// The largest flange distance between the robot's own URDF and the scene's model.
+    model_gap: f64,
     /// Every motion's report, approaches included, in order.
     reports: Vec<MotionReport>,
 }
@@ -127,6 +129,69 @@ pub fn commands_at_1khz(rows: &[Vec<f64>], dt: f64) -> Result<Vec<[f64; 7]>, Str
     Ok(out)
 }
 
+/// The largest flange distance (m) allowed between the robot's own URDF and the scene's
+/// model.
+pub const MODEL_AGREEMENT: f64 = 1e-3;
+
+/// The flange of a Franka arm (URDF `link8`): this far along joint 7's z axis (m), from
+/// Franka's published kinematics.
+const FLANGE: f64 = 0.107;
+
+/// Reads the robot's URDF (GetRobotModel) with cps's URDF loader and compares its flange
+/// (`link8`) with the scene model's (base and tool taken off, the flange put on) at 16 configurations spread
+/// over the model's range: the largest distance, metres.
+fn compare_with_robot_model(conn: &mut Connection, model: &SerialChain) -> Result<f64, String> {
+    let xml = conn
+        .robot_model()
+        .map_err(|e| format!("cannot read the robot's own model (GetRobotModel): {e}"))?;
+    let urdf = cps_kinematics::chain_from_urdf(&xml, Some("link8"))
+        .map_err(|e| format!("the robot's own model (GetRobotModel) cannot be read: {e}"))?;
+    if urdf.chain.dof() != 7 {
+        return Err(format!(
+            "the robot's own model has {} joints up to link8, not 7",
+            urdf.chain.dof()
+        ));
+    }
+    let base_inv = model
+        .base()
+        .to_homogeneous()
+        .try_inverse()
+        .ok_or("the scene's base placement is not invertible")?;
+    let tool_inv = model
+        .tool()
+        .to_homogeneous()
+        .try_inverse()
+        .ok_or("the scene's tool transform is not invertible")?;
+    let (lo, hi) = model
+        .limits()
+        .map(|(l, h)| (l.to_vec(), h.to_vec()))
+        .unwrap_or((vec![-2.8; 7], vec![2.8; 7]));
+    let flange = nalgebra::Translation3::new(0.0, 0.0, FLANGE).to_homogeneous();
+    let mut worst: f64 = 0.0;
+    for k in 0..16 {
+        // Deterministic points inside the range (a low-discrepancy walk per joint).
+        let q: Vec<f64> = (0..7)
+            .map(|j| {
+                let u = ((k as f64 + 0.5) * (0.618_034 + 0.1 * j as f64)).fract();
+                lo[j] + (0.05 + 0.9 * u) * (hi[j] - lo[j])
+            })
+            .collect();
+        // The scene's joint-7 frame, then Franka's flange 0.107 m along its z axis.
+        let ours = base_inv
+            * model.fk(&q).map_err(|e| e.to_string())?.to_homogeneous()
+            * tool_inv
+            * flange;
+        let theirs = urdf.chain.fk(&q).map_err(|e| e.to_string())?;
+        let p = theirs.translation.vector;
+        let gap = ((ours[(0, 3)] - p.x).powi(2)
+            + (ours[(1, 3)] - p.y).powi(2)
+            + (ours[(2, 3)] - p.z).powi(2))
+        .sqrt();
+        worst = worst.max(gap);
+    }
+    Ok(worst)
+}
+
 impl FrankaBackend {
     /// Connects, checks that the robot is ready (no error, idle) and that `model` (the
     /// scene's chain, base and tool included) puts the tool where the robot says its end
@@ -171,8 +236,16 @@ impl FrankaBackend {
                 gap * 1e3
             ));
         }
+        let model_gap = compare_with_robot_model(&mut conn, model)?;
+        if model_gap > MODEL_AGREEMENT {
+            return Err(format!(
+                "the robot's own model (GetRobotModel's URDF, read up to its flange link8) puts the flange {:.1} mm from where the scene's model does at the same joints: the scene's robot is not this arm",
+                model_gap * 1e3
+            ));
+        }
         Ok(FrankaBackend {
             host,
+            model_gap,
             conn,
             limits: RateLimits::of(settings.arm),
             options: LoopOptions {
@@ -184,6 +257,12 @@ impl FrankaBackend {
             clock: 0.0,
             reports: Vec::new(),
         })
+    }
+
+    /// The largest distance (m) between the flange of the robot's own URDF
+    /// (GetRobotModel) and the scene model's, over the configurations compared at opening.
+    pub fn model_gap(&self) -> f64 {
+        self.model_gap
     }
 
     /// Every motion's report so far, approaches included.
