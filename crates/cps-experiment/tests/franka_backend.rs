@@ -34,7 +34,10 @@ fn the_backend_checks_the_model_and_records_every_planned_row() {
     let flange = fr3(PandaTool::Flange);
     drop(robot);
     let e = FrankaBackend::open(&settings, &flange).unwrap_err();
-    assert!(e.contains("the scene's tool is not the end effector"), "{e}");
+    assert!(
+        e.contains("the scene's tool is not the end effector"),
+        "{e}"
+    );
     // A planned sequence: 0.5 s moving joint 7 by 0.2 rad from where the arm stands,
     // planned every 10 ms; recorded row by row, the clock one period per row.
     let mut robot = FrankaBackend::open(&settings, &scene.robot.chain).unwrap();
