@@ -23,33 +23,22 @@ arm runs about 100 ms behind what it is commanded, on both sides.
 """
 
 import argparse
-import csv
 import json
-import os
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
+from franka_loop import start_sim  # this folder: a franky-sim on a loopback address
+
 ROOT = Path(__file__).resolve().parents[2]
-SERVER = ROOT / "crates/cps-franka/tests/sim_server.py"
 EXPERIMENT = ROOT / "experiments/franka/viapoint_joint.toml"
 VIA = [(2.0, [0.78, 0.60, 1.70]), (4.0, [1.12, 0.37, 1.45]), (6.0, [1.15, -0.15, 1.20]),
        (8.0, [0.90, -0.53, 1.20]), (10.0, [0.55, -0.57, 1.45])]
 BASE = np.array([0.42244, 0.02, 0.74177])  # configs/scenes/fr3.toml
 DQ_MAX = np.array([2.62, 2.62, 2.62, 2.62, 5.26, 4.18, 5.26])
-
-
-def start_sim(host):
-    p = subprocess.Popen([sys.executable, str(SERVER), "--host", host],
-                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-    line = p.stdout.readline()
-    if not line.startswith("ready"):
-        raise SystemExit(f"franky-sim did not start on {host}: {line!r}")
-    return p
 
 
 def path_stats(t, tool, t0):

@@ -24,6 +24,19 @@ fn on(host: &str) -> String {
     text
 }
 
+/// `cps-cli run file --out out --quiet`: its output and its standard error.
+fn run(file: &std::path::Path, out: &std::path::Path) -> (std::process::Output, String) {
+    let o = cli(&[
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    (o, err)
+}
+
 fn state_q(host: &str) -> Vec<f64> {
     let o = cli(&["franka", "state", "--host", host, "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -44,14 +57,7 @@ fn the_shipped_experiment_is_executed_on_the_simulated_fr3() {
     let dir = tempfile::tempdir().unwrap();
     let file = write(dir.path(), "fr3.toml", &on(&sim.host));
     let out = dir.path().join("out");
-    let o = cli(&[
-        "run",
-        file.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    let (o, err) = run(&file, &out);
     assert!(o.status.success(), "{err}");
     let s = json(&out.join("summary.json"));
     assert_eq!(s["complete"], true, "{s}");
@@ -124,14 +130,7 @@ fn a_plan_outside_the_fr3s_range_is_refused_before_the_robot_moves() {
     let file = write(dir.path(), "panda.toml", &text);
     let before = state_q(&sim.host);
     let out = dir.path().join("out");
-    let o = cli(&[
-        "run",
-        file.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    let (o, err) = run(&file, &out);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(
         err.contains("refused before sending anything: joint 4")
