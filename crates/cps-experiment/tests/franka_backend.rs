@@ -28,11 +28,7 @@ fn the_backend_checks_the_model_and_records_every_planned_row() {
     // The scene's FR3 with the hand is the simulator's arm: its URDF agrees to far less
     // than a millimetre (the same published kinematics), its end effector to 5 mm.
     let robot = FrankaBackend::open(&settings, &scene.robot.chain).unwrap();
-    assert!(
-        robot.model_gap() < 1e-6 * MODEL_AGREEMENT / 1e-3,
-        "{}",
-        robot.model_gap()
-    );
+    assert!(robot.model_gap() < 1e-6, "{}", robot.model_gap());
     // A model whose tool is the flange, not the hand the robot reports: named.
     let flange = fr3(PandaTool::Flange);
     drop(robot);
