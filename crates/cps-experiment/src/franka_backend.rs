@@ -10,6 +10,12 @@
 //! before anything is sent, streamed by `cps-franka`'s realtime loop, and recorded. Row k
 //! of the recording is the state the robot reported on the tick its command was sent.
 //!
+//! A plan made on the model at 10 ms can break the arm's acceleration or jerk limits at
+//! 1 kHz (an inverse-kinematics controller turning sharply at a via point). Such a sequence
+//! is slowed uniformly — velocities by the factor, accelerations by its square, jerks by its
+//! cube — as little as the check needs, at most [`MAX_SLOWING`]×, and the recording's clock
+//! says so; a sequence that leaves the joint range is refused.
+//!
 //! The tool pose of a recording is the scene model's forward kinematics of the measured
 //! joints, in the scene's world frame; at opening, the model's tool in the robot's base
 //! frame is compared with the robot's own `O_T_EE`, so a scene whose tool is not the
@@ -21,10 +27,10 @@
 
 use std::sync::atomic::{AtomicBool, Ordering::SeqCst};
 
-use cps_franka::limits::{Arm, DT, RateLimits};
+use cps_franka::limits::{Arm, DT, Quantity, RateLimits};
 use cps_franka::{
-    Connection, Ending, FrankaError, LoopOptions, MotionReport, Realtime, START_TOLERANCE, Start,
-    Timeouts, check_trajectory, execute_stream,
+    CheckedStream, Connection, Ending, FrankaError, LoopOptions, MotionReport, Realtime,
+    START_TOLERANCE, Start, Timeouts, check_trajectory, execute_stream,
 };
 use cps_kinematics::{JointSpline, KinematicsError, SerialChain};
 use cps_kinematics::{RobotBackend, StepRecording};
@@ -55,6 +61,8 @@ pub struct FrankaBackend {
     clock: f64,
     /// The largest flange distance between the robot's own URDF and the scene's model.
     model_gap: f64,
+    /// The largest uniform slowing a planned sequence needed so far (1 = none).
+    slowest: f64,
     /// Every motion's report, approaches included, in order.
     reports: Vec<MotionReport>,
 }
@@ -89,6 +97,13 @@ fn joints7(q: &[f64], what: &str, host: &str) -> Result<[f64; 7], KinematicsErro
 /// row's time, so row k is command k·dt/1 ms exactly. `dt` must be a whole number of
 /// milliseconds.
 pub fn commands_at_1khz(rows: &[Vec<f64>], dt: f64) -> Result<Vec<[f64; 7]>, String> {
+    commands_slowed(rows, dt, 1.0)
+}
+
+/// [`commands_at_1khz`] with the movement slowed by `slowing` ≥ 1 (row k at time
+/// k·dt·slowing): velocities shrink by the factor, accelerations by its square, jerks by
+/// its cube. Off 1, the rows are passed through the spline rather than copied.
+pub fn commands_slowed(rows: &[Vec<f64>], dt: f64, slowing: f64) -> Result<Vec<[f64; 7]>, String> {
     let per_row = (dt / DT).round() as usize;
     if per_row == 0 || ((per_row as f64) * DT - dt).abs() > 1e-9 {
         return Err(format!(
@@ -114,11 +129,18 @@ pub fn commands_at_1khz(rows: &[Vec<f64>], dt: f64) -> Result<Vec<[f64; 7]>, Str
     }
     let knots: Vec<f64> = (0..rows.len()).map(|k| k as f64 * dt).collect();
     let spline = JointSpline::new(&knots, rows).map_err(|e| e.to_string())?;
-    let n = (rows.len() - 1) * per_row;
+    let span = (rows.len() - 1) as f64 * dt;
+    let n = if slowing == 1.0 {
+        (rows.len() - 1) * per_row
+    } else {
+        (span * slowing / DT).ceil() as usize
+    };
     let mut out = Vec::with_capacity(n + 1);
     let mut q = [0.0; 7];
     for i in 0..=n {
-        if i % per_row == 0 {
+        if slowing != 1.0 {
+            spline.positions_into((i as f64 * DT / slowing).min(span), &mut q);
+        } else if i % per_row == 0 {
             // On a knot the row itself, not the spline's rounding of it.
             q.copy_from_slice(&rows[i / per_row]);
         } else {
@@ -128,6 +150,10 @@ pub fn commands_at_1khz(rows: &[Vec<f64>], dt: f64) -> Result<Vec<[f64; 7]>, Str
     }
     Ok(out)
 }
+
+/// The most a planned sequence is slowed to keep the arm's rate limits; a sequence that
+/// still breaks one is refused.
+pub const MAX_SLOWING: f64 = 10.0;
 
 /// The largest flange distance (m) allowed between the robot's own URDF and the scene's
 /// model.
@@ -246,6 +272,7 @@ impl FrankaBackend {
         Ok(FrankaBackend {
             host,
             model_gap,
+            slowest: 1.0,
             conn,
             limits: RateLimits::of(settings.arm),
             options: LoopOptions {
@@ -265,16 +292,20 @@ impl FrankaBackend {
         self.model_gap
     }
 
+    /// The largest uniform slowing a planned sequence needed to keep the arm's rate limits
+    /// (1 = every sequence ran at its planned timing).
+    pub fn slowest(&self) -> f64 {
+        self.slowest
+    }
+
     /// Every motion's report so far, approaches included.
     pub fn reports(&self) -> &[MotionReport] {
         &self.reports
     }
 
     /// Checks `commands` (1 kHz) from where the robot stands, with an approach when it is
-    /// elsewhere, streams them and keeps the report; the index of the first command after
-    /// the approach is returned with the report. Any ending but a finished motion is an
-    /// error naming it (the report is kept in [`Self::reports`]).
-    fn stream(&mut self, commands: &[[f64; 7]]) -> Result<(usize, usize), KinematicsError> {
+    /// elsewhere. Nothing is sent.
+    fn check(&mut self, commands: &[[f64; 7]]) -> Result<CheckedStream, KinematicsError> {
         let host = self.host.clone();
         let state = self
             .conn
@@ -284,7 +315,7 @@ impl FrankaBackend {
             .ensure_ready(&state)
             .map_err(|e| backend_error(&host, e.to_string()))?;
         let from = cps_franka::rt::start_position(&state);
-        let stream = check_trajectory(
+        check_trajectory(
             &self.limits,
             from,
             commands,
@@ -295,12 +326,75 @@ impl FrankaBackend {
                 backend_error(&host, format!("refused before sending anything: {b}"))
             }
             other => backend_error(&host, other.to_string()),
-        })?;
+        })
+    }
+
+    /// The planned rows as a checked stream, slowed uniformly as far as the arm's rate
+    /// limits need (at most [`MAX_SLOWING`]×): the stream and the slowing.
+    fn check_slowed(&mut self, rows: &[Vec<f64>]) -> Result<(CheckedStream, f64), KinematicsError> {
+        let state = self
+            .conn
+            .read_state()
+            .map_err(|e| backend_error(&self.host, e.to_string()))?;
+        self.conn
+            .ensure_ready(&state)
+            .map_err(|e| backend_error(&self.host, e.to_string()))?;
+        let mut slowing: f64 = 1.0;
+        loop {
+            let commands = commands_slowed(rows, self.dt, slowing)
+                .map_err(|e| backend_error(&self.host, e))?;
+            let state = self
+                .conn
+                .read_state()
+                .map_err(|e| backend_error(&self.host, e.to_string()))?;
+            let from = cps_franka::rt::start_position(&state);
+            match check_trajectory(
+                &self.limits,
+                from,
+                &commands,
+                Start::Approach(APPROACH_SHARE),
+            ) {
+                Ok(stream) => return Ok((stream, slowing)),
+                Err(FrankaError::Limit(b)) if slowing < MAX_SLOWING => {
+                    // Enough for this breach (velocity ∝ 1/s, acceleration 1/s², jerk
+                    // 1/s³), with 5 % to spare; the next breach may need more.
+                    let ratio = (b.value / b.limit).abs().max(1.0);
+                    let need = match b.quantity {
+                        Quantity::Velocity => ratio,
+                        Quantity::Acceleration => ratio.sqrt(),
+                        Quantity::Jerk => ratio.cbrt(),
+                        Quantity::StoppingDistance => 1.25,
+                        Quantity::Position | Quantity::NotFinite => {
+                            return Err(backend_error(
+                                &self.host,
+                                format!("refused before sending anything: {b}"),
+                            ));
+                        }
+                    };
+                    slowing = (slowing * need * 1.05).min(MAX_SLOWING);
+                }
+                Err(FrankaError::Limit(b)) => {
+                    return Err(backend_error(
+                        &self.host,
+                        format!(
+                            "refused before sending anything: even slowed {MAX_SLOWING}x the planned movement breaks a limit: {b}"
+                        ),
+                    ));
+                }
+                Err(other) => return Err(backend_error(&self.host, other.to_string())),
+            }
+        }
+    }
+
+    /// Streams a checked stream and keeps the report; its index. Any ending but a
+    /// finished motion is an error naming it (the report is kept in [`Self::reports`]).
+    fn send(&mut self, stream: &CheckedStream) -> Result<usize, KinematicsError> {
+        let host = self.host.clone();
         if STOP.load(SeqCst) {
             return Err(backend_error(&host, "stopped on request before moving"));
         }
         MOVING.store(true, SeqCst);
-        let report = execute_stream(&mut self.conn, self.limits, &stream, &self.options, &STOP);
+        let report = execute_stream(&mut self.conn, self.limits, stream, &self.options, &STOP);
         MOVING.store(false, SeqCst);
         let report = report.map_err(|e| backend_error(&host, e.to_string()))?;
         let ending = report.ending.clone();
@@ -308,7 +402,7 @@ impl FrankaBackend {
         if ending != Ending::Finished {
             return Err(backend_error(&host, ending.sentence()));
         }
-        Ok((self.reports.len() - 1, stream.approach))
+        Ok(self.reports.len() - 1)
     }
 
     fn unsupported(&self, what: &str) -> KinematicsError {
@@ -370,7 +464,8 @@ impl RobotBackend for FrankaBackend {
             .map_err(|e| backend_error(&self.host, e.to_string()))?;
         let from = cps_franka::rt::start_position(&state);
         if (0..7).any(|i| (from[i] - to[i]).abs() > START_TOLERANCE) {
-            self.stream(&[to])?;
+            let stream = self.check(&[to])?;
+            self.send(&stream)?;
         }
         self.clock = 0.0;
         Ok(())
@@ -384,14 +479,15 @@ impl RobotBackend for FrankaBackend {
         &mut self,
         targets: &[Vec<f64>],
     ) -> Result<StepRecording, KinematicsError> {
-        let commands =
-            commands_at_1khz(targets, self.dt).map_err(|e| backend_error(&self.host, e))?;
-        let (report, first) = self.stream(&commands)?;
-        let per_row = (self.dt / DT).round() as usize;
+        let (stream, slowing) = self.check_slowed(targets)?;
+        let report = self.send(&stream)?;
+        self.slowest = self.slowest.max(slowing);
+        let per_row = self.dt / DT * slowing;
         let samples = &self.reports[report].samples;
         let mut rec = StepRecording::default();
         for k in 0..targets.len() {
-            let Some(s) = samples.get(first + k * per_row) else {
+            let index = stream.approach + (k as f64 * per_row).round() as usize;
+            let Some(s) = samples.get(index) else {
                 return Err(backend_error(
                     &self.host,
                     format!(
@@ -404,9 +500,10 @@ impl RobotBackend for FrankaBackend {
             let q = s.q.to_vec();
             rec.tool.push(self.model.fk(&q)?);
             rec.q.push(q);
-            rec.time.push(self.clock + (k + 1) as f64 * self.dt);
+            rec.time
+                .push(self.clock + (k + 1) as f64 * self.dt * slowing);
         }
-        self.clock += targets.len() as f64 * self.dt;
+        self.clock += targets.len() as f64 * self.dt * slowing;
         Ok(rec)
     }
 }
@@ -435,6 +532,16 @@ mod tests {
                 assert!((x - f(i as f64 * 1e-3, j)).abs() < 1e-4, "ms {i} joint {j}");
             }
         }
+        // Slowed twice: twice as long, half the speed, the same path's ends.
+        let slow = commands_slowed(&rows, 0.01, 2.0).unwrap();
+        assert_eq!(slow.len(), 201);
+        assert_eq!(slow[200].as_slice(), rows[10].as_slice());
+        let peak = |c: &[[f64; 7]]| {
+            c.windows(2)
+                .map(|w| (w[1][6] - w[0][6]).abs())
+                .fold(0.0, f64::max)
+        };
+        assert!((peak(&slow) / peak(&c) - 0.5).abs() < 0.01);
         let e = commands_at_1khz(&rows, 0.0105).unwrap_err();
         assert!(e.contains("whole number of milliseconds"), "{e}");
         let mut bad = rows.clone();

@@ -67,6 +67,35 @@ fn the_backend_checks_the_model_and_records_every_planned_row() {
         "{:?}",
         last.peak_usage
     );
+    assert_eq!(
+        robot.slowest(),
+        1.0,
+        "a gentle sequence runs at its planned timing"
+    );
+    // A sequence too sharp for the arm at its planned timing (joint 7 by 0.2 rad in 0.1 s,
+    // 99 rad/s² at its peak, ten times the FR3's limit): slowed as far as the limits need, nothing sent beyond them.
+    let q1 = rec.q[50].clone();
+    robot.reset(&q1).unwrap();
+    let sharp: Vec<Vec<f64>> = (0..=10)
+        .map(|k| {
+            let s = 0.5 - 0.5 * (std::f64::consts::PI * k as f64 / 10.0).cos();
+            let mut q = q1.clone();
+            q[6] -= 0.2 * s;
+            q
+        })
+        .collect();
+    let rec = robot.run_joint_targets(&sharp).unwrap();
+    assert!(robot.slowest() > 1.5, "slowed {}x", robot.slowest());
+    let last = robot.reports().last().unwrap();
+    assert!(last.ending.complete(), "{}", last.ending.sentence());
+    assert!(
+        last.peak_usage.iter().flatten().all(|&u| u <= 1.0),
+        "{:?}",
+        last.peak_usage
+    );
+    let planned = 0.11;
+    let took = rec.time[10] - rec.time[0] + 0.01 * robot.slowest();
+    assert!(took > 1.5 * planned, "{took} s");
     // Stepping one command at a time is not how a Franka is driven: named.
     let e = robot.step().unwrap_err().to_string();
     assert!(e.contains("streams whole planned sequences"), "{e}");
