@@ -73,7 +73,8 @@ fn the_backend_checks_the_model_and_records_every_planned_row() {
         "a gentle sequence runs at its planned timing"
     );
     // A sequence too sharp for the arm at its planned timing (joint 7 by 0.2 rad in 0.1 s,
-    // 99 rad/s² at its peak, ten times the FR3's limit): slowed as far as the limits need, nothing sent beyond them.
+    // 99 rad/s² at its peak, ten times the FR3's limit): slowed as far as the limits
+    // need, nothing sent beyond them.
     let q1 = rec.q[50].clone();
     robot.reset(&q1).unwrap();
     let sharp: Vec<Vec<f64>> = (0..=10)
