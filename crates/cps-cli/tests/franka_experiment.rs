@@ -157,13 +157,7 @@ fn bad_franka_sections_are_named() {
     let refused = |name: &str, toml: String, expected: &str| {
         let file = write(dir.path(), &format!("{name}.toml"), &toml);
         let out = dir.path().join(name);
-        let o = cli(&[
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        let (o, err) = run(&file, &out);
         assert_eq!(o.status.code(), Some(2), "{name}: {err}");
         assert!(err.contains(expected), "{name}: {err}");
         assert!(!out.join("summary.json").exists(), "{name}");
@@ -220,13 +214,7 @@ fn bad_franka_sections_are_named() {
         &SHIPPED.replace(host_line, "host = \"127.0.0.65\""),
     );
     let out = dir.path().join("absent");
-    let o = cli(&[
-        "run",
-        file.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    let (o, err) = run(&file, &out);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("127.0.0.65"), "{err}");
     assert!(started.elapsed().as_secs() < 30, "{:?}", started.elapsed());
