@@ -68,6 +68,12 @@ fn the_shipped_experiment_is_executed_on_the_simulated_fr3() {
             .starts_with("franka (fr3 at 127.0.0.63"),
         "{s}"
     );
+    // What was sent: every stream within the limits, the loop's timing.
+    let backend = s["backend"].as_str().unwrap();
+    assert!(
+        backend.contains("motions sent at 1 kHz, at most") && backend.contains("ticks missed"),
+        "{backend}"
+    );
     let e = &s["execution"];
     assert_eq!(e["samples"], 1001, "{e}");
     assert_eq!(e["within_position_limits"], true, "{e}");

@@ -475,6 +475,35 @@ impl RobotBackend for FrankaBackend {
         true
     }
 
+    /// The peak limit usage of every stream sent (approaches included), the largest
+    /// slowing, the loop's worst p99 latency and the ticks missed.
+    fn execution_report(&self) -> Option<String> {
+        if self.reports.is_empty() {
+            return None;
+        }
+        let mut peak = [0.0f64; 3];
+        let (mut p99, mut missed) = (0.0f64, 0u64);
+        for r in &self.reports {
+            for (p, row) in peak.iter_mut().zip(&r.peak_usage) {
+                *p = row.iter().fold(*p, |a, &b| a.max(b));
+            }
+            p99 = p99.max(r.timing.p99_us);
+            missed += r.timing.missed;
+        }
+        Some(format!(
+            "{} motions sent at 1 kHz, at most {:.0} % of the velocity, {:.0} % of the acceleration and {:.0} % of the jerk limits{}; loop p99 {p99:.1} us, {missed} ticks missed",
+            self.reports.len(),
+            peak[0] * 100.0,
+            peak[1] * 100.0,
+            peak[2] * 100.0,
+            if self.slowest > 1.0 {
+                format!(", slowed up to {:.2}x to keep them", self.slowest)
+            } else {
+                String::new()
+            }
+        ))
+    }
+
     fn run_joint_targets(
         &mut self,
         targets: &[Vec<f64>],

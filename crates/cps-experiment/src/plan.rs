@@ -282,6 +282,10 @@ impl RobotChoice {
                 "{}, stepped call by call: the scene has no /{robot_name}/cpsExecutor script (configs/coppeliasim/cpsExecutor.lua)",
                 self.describe()
             ),
+            BackendChoice::Franka { .. } => match backend.execution_report() {
+                Some(r) => format!("{}: {r}", self.describe()),
+                None => self.describe(),
+            },
             _ => self.describe(),
         }
     }

@@ -50,6 +50,12 @@ pub trait RobotBackend {
             message: "it does not follow tool targets; command joint positions".into(),
         })
     }
+    /// A sentence on how the executions so far went on this backend, for summaries (a real
+    /// robot: the limit usage of what was sent, any slowing, the loop's timing); `None`
+    /// where there is nothing beyond the recording to say. Default: `None`.
+    fn execution_report(&self) -> Option<String> {
+        None
+    }
     /// True if [`RobotBackend::run_joint_targets`] runs a whole sequence inside the backend
     /// in a few exchanges (a simulator's scene script), rather than through the per-step
     /// calls of the default. [`crate::execute`] then plans the controller's commands on the
