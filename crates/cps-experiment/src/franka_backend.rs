@@ -303,32 +303,6 @@ impl FrankaBackend {
         &self.reports
     }
 
-    /// Checks `commands` (1 kHz) from where the robot stands, with an approach when it is
-    /// elsewhere. Nothing is sent.
-    fn check(&mut self, commands: &[[f64; 7]]) -> Result<CheckedStream, KinematicsError> {
-        let host = self.host.clone();
-        let state = self
-            .conn
-            .read_state()
-            .map_err(|e| backend_error(&host, e.to_string()))?;
-        self.conn
-            .ensure_ready(&state)
-            .map_err(|e| backend_error(&host, e.to_string()))?;
-        let from = cps_franka::rt::start_position(&state);
-        check_trajectory(
-            &self.limits,
-            from,
-            commands,
-            Start::Approach(APPROACH_SHARE),
-        )
-        .map_err(|e| match e {
-            FrankaError::Limit(b) => {
-                backend_error(&host, format!("refused before sending anything: {b}"))
-            }
-            other => backend_error(&host, other.to_string()),
-        })
-    }
-
     /// The planned rows as a checked stream, slowed uniformly as far as the arm's rate
     /// limits need (at most [`MAX_SLOWING`]×): the stream and the slowing.
     fn check_slowed(&mut self, rows: &[Vec<f64>]) -> Result<(CheckedStream, f64), KinematicsError> {
@@ -464,7 +438,7 @@ impl RobotBackend for FrankaBackend {
             .map_err(|e| backend_error(&self.host, e.to_string()))?;
         let from = cps_franka::rt::start_position(&state);
         if (0..7).any(|i| (from[i] - to[i]).abs() > START_TOLERANCE) {
-            let stream = self.check(&[to])?;
+            let (stream, _) = self.check_slowed(&[to.to_vec()])?;
             self.send(&stream)?;
         }
         self.clock = 0.0;
