@@ -17,6 +17,10 @@
 //! - [`RobotBackend`]: what a robot must offer (joints, tool pose, time, step);
 //!   [`KinematicRobot`] implements it in-process; [`execute`] follows a task-space
 //!   trajectory on any backend and records what the robot did.
+//! - [`ArmModel`]: an arm's mass matrix, Coriolis and gravity torques and tool Jacobian in
+//!   fixed-size arrays, for control loops at the robot's rate.
+//! - [`contact`]: the generalized-momentum observer, the external wrench at the tool and a
+//!   contact flag.
 //! - [`transforms`]: elementary homogeneous transforms (spatial and planar) and the two
 //!   Euler-angle conventions, named.
 //! - [`robots`]: the Franka Emika Panda (modified DH, flange or Franka Hand TCP, limits),
@@ -42,8 +46,10 @@
 //! ```
 #![deny(missing_docs)]
 
+mod arm_model;
 mod backend;
 mod chain;
+pub mod contact;
 pub mod controllers;
 mod dynamics;
 mod error;
@@ -59,6 +65,7 @@ pub mod transforms;
 mod urdf;
 mod workspace;
 
+pub use arm_model::{ArmFrames, ArmModel};
 pub use backend::{KinematicRobot, RobotBackend, StepRecording, run_stepwise};
 pub use chain::{ChainGeometry, ChainPose, DhConvention, DhLink, RevoluteJoint, SerialChain};
 pub use controllers::IkTarget;
