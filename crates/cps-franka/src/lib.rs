@@ -49,6 +49,7 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod control;
 mod error;
 pub mod gripper;
 pub mod limits;

@@ -2,32 +2,148 @@
 for cps's tests. Prints `ready <host>` once it serves, and exits when its standard input
 closes (the test process that started it ended, however it ended).
 
-usage: python sim_server.py --host 127.0.0.11
+usage: python sim_server.py --host 127.0.0.11 [--table 0.40 [--friction 0.3]] [--truth truth.csv]
+
+--table TOP   a table under the hand: a box over x in [0.35, 0.75], y in [-0.3, 0.3] (the
+              robot's base frame is MuJoCo's world frame) with its top at z = TOP.
+--friction MU the table's sliding friction coefficient (1 unless given).
+--truth FILE  MuJoCo's ground truth, one row per simulation step:
+              `id,fx,fy,fz,normal,x,y,z`: the message id of the robot state sent after the
+              step; the total force the table exerts on the robot (world axes, N); the sum
+              of the contacts' normal forces (N); the hand's tool centre point (0.1034 m
+              below the flange, as franky-sim's O_T_EE) in the world (m).
+
+Lines on standard input act on the hand while it runs (a hand pushing the robot):
+  push FX FY FZ            a constant force (N, world axes) on the hand body
+  lead X Y Z SECONDS K D   a spring (K N/m) and damper (D N s/m) pulling the tool centre point
+                           towards an anchor that moves in a straight line from where the
+                           point is now to (X, Y, Z) over SECONDS, then stays there
+  release                  no more force
+  flush                    write the truth out, then print `flushed`
 """
 import argparse
 import logging
 import os
 import sys
 import threading
+import xml.etree.ElementTree as ET
 
 parser = argparse.ArgumentParser()
 parser.add_argument("--host", required=True, help="a loopback address of its own")
 parser.add_argument("--fast", action="store_true", help="step as fast as it can (no 1 kHz pacing)")
+parser.add_argument("--table", type=float, default=None, help="height of the table's top (m)")
+parser.add_argument("--friction", type=float, default=1.0,
+                    help="the table's sliding friction coefficient (MuJoCo's default: 1)")
+parser.add_argument("--truth", default=None, help="file for MuJoCo's ground truth per step")
 args = parser.parse_args()
 logging.basicConfig(level=logging.ERROR)
+
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
 
 import franky_sim  # noqa: E402
 from franky_sim.mujoco_simulator import MujocoSimulator  # noqa: E402
 
+TCP_OFFSET = 0.1034  # along the hand's z axis, from the flange
 
-def exit_with_parent():
-    sys.stdin.read()
+# What the standard input asks of the hand; read by the simulation thread each step.
+action = {"kind": None}
+lock = threading.Lock()
+
+
+def read_commands():
+    for line in sys.stdin:
+        words = line.split()
+        if not words:
+            continue
+        try:
+            values = [float(w) for w in words[1:]]
+            with lock:
+                if words[0] == "push" and len(values) == 3:
+                    action.update(kind="push", force=np.array(values))
+                elif words[0] == "lead" and len(values) == 6:
+                    action.update(kind="lead", goal=np.array(values[:3]), seconds=values[3],
+                                  k=values[4], d=values[5], start=None)
+                elif words[0] == "release":
+                    action.update(kind=None)
+                elif words[0] == "flush":
+                    action["flush"] = True
+                else:
+                    print(f"unknown command: {line.strip()}", file=sys.stderr, flush=True)
+        except ValueError:
+            print(f"bad numbers in: {line.strip()}", file=sys.stderr, flush=True)
     os._exit(0)
 
 
-threading.Thread(target=exit_with_parent, daemon=True).start()
 with MujocoSimulator(enable_visualization=False) as sim:
     sim.add_robot()
+    if args.table is not None:
+        top = args.table
+        table = ET.SubElement(sim.worldbody, "body", name="table", pos=f"0.55 0 {top / 2}")
+        # priority: the table's friction decides its contacts (not the larger of the two).
+        ET.SubElement(table, "geom", name="table_top", type="box",
+                      size=f"0.2 0.3 {top / 2}", rgba="0.6 0.5 0.4 1", priority="1",
+                      friction=f"{args.friction} 0.005 0.0001")
     with franky_sim.SimulationServer(sim, hostname_candidates=[args.host]) as server:
+        robot_server = server.robot_servers[0]
+        state = {"model": None}
+
+        def after_step(s):
+            model, data = s.model, s.data
+            if state["model"] is None:
+                state["model"] = model
+                state["hand"] = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "robot0_hand")
+                state["table"] = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "table_top")
+                state["file"] = open(args.truth, "w", buffering=1 << 20) if args.truth else None
+                if state["file"]:
+                    state["file"].write("id,fx,fy,fz,normal,x,y,z\n")
+            hand = state["hand"]
+            rotation = data.xmat[hand].reshape(3, 3)
+            tcp = data.xpos[hand] + rotation[:, 2] * TCP_OFFSET
+            force, normal = np.zeros(3), 0.0
+            table = state["table"]
+            if table >= 0:
+                f6 = np.zeros(6)
+                for i in range(data.ncon):
+                    c = data.contact[i]
+                    if table not in (c.geom1, c.geom2):
+                        continue
+                    mujoco.mj_contactForce(model, data, i, f6)
+                    normal += f6[0]
+                    # The contact frame's rows are its axes in the world; the force acts
+                    # from geom1 on geom2 along the normal.
+                    world = c.frame.reshape(3, 3).T @ f6[:3]
+                    force += world if c.geom1 == table else -world
+            with lock:
+                kind = action["kind"]
+                applied = np.zeros(3)
+                if kind == "push":
+                    applied = action["force"]
+                elif kind == "lead":
+                    if action["start"] is None:
+                        action["start"], action["t0"] = tcp.copy(), data.time
+                    share = min(1.0, (data.time - action["t0"]) / max(action["seconds"], 1e-9))
+                    anchor = action["start"] + share * (action["goal"] - action["start"])
+                    velocity = np.zeros(6)
+                    mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, hand,
+                                             velocity, 0)
+                    applied = action["k"] * (anchor - tcp) - action["d"] * velocity[3:]
+                flush = action.pop("flush", False)
+            # The force acts at the tool centre point: a force and the moment it makes
+            # about the hand body's origin.
+            data.xfrc_applied[hand, :3] = applied
+            data.xfrc_applied[hand, 3:] = np.cross(tcp - data.xipos[hand], applied)
+            if state["file"]:
+                state["file"].write(
+                    f"{robot_server._FrankaServer__message_id},{force[0]:.4f},{force[1]:.4f},"
+                    f"{force[2]:.4f},{normal:.4f},{tcp[0]:.6f},{tcp[1]:.6f},{tcp[2]:.6f}\n"
+                )
+            if flush:
+                if state["file"]:
+                    state["file"].flush()
+                print("flushed", flush=True)
+
+        sim.register_post_step_callback(after_step)
+        threading.Thread(target=read_commands, daemon=True).start()
         print(f"ready {args.host}", flush=True)
         server.run_forever(realtime=not args.fast)

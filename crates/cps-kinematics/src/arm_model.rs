@@ -43,6 +43,8 @@ pub struct ArmModel<const N: usize> {
     tail: Isometry3<f64>,
     bodies: [Body; N],
     gravity: Vector3<f64>,
+    /// Rotor inertia reflected to each joint (kg m²), added to the mass matrix's diagonal.
+    armature: [f64; N],
 }
 
 /// Every joint axis and link of an [`ArmModel`] placed in the world at one configuration.
@@ -110,6 +112,7 @@ impl<const N: usize> ArmModel<N> {
             tail,
             bodies,
             gravity: Vector3::from(GRAVITY),
+            armature: [0.0; N],
         })
     }
 
@@ -117,6 +120,24 @@ impl<const N: usize> ArmModel<N> {
     pub fn with_gravity(mut self, g: [f64; 3]) -> Self {
         self.gravity = Vector3::from(g);
         self
+    }
+
+    /// The same arm with each joint's rotor inertia reflected through its gear (kg m²,
+    /// MuJoCo's `armature`): it adds to the mass matrix's diagonal. Refused when one is
+    /// negative or not finite.
+    pub fn with_armature(mut self, armature: [f64; N]) -> Result<Self, KinematicsError> {
+        if let Some((i, a)) = armature
+            .iter()
+            .enumerate()
+            .find(|(_, a)| !(a.is_finite() && **a >= 0.0))
+        {
+            return Err(KinematicsError::InvalidModel(format!(
+                "joint {}'s armature {a} kg m² must be finite and ≥ 0",
+                i + 1
+            )));
+        }
+        self.armature = armature;
+        Ok(self)
     }
 
     /// The same arm with the tool point moved by `tool`, given in the current tool frame
@@ -231,7 +252,7 @@ impl<const N: usize> ArmModel<N> {
             };
             m += moment[i] + (f.com[i] - point).cross(&force[i]) + carried;
             fo += force[i];
-            tau[i] = f.axis[i].dot(&m);
+            tau[i] = f.axis[i].dot(&m) + self.armature[i] * ddq[i];
         }
         tau
     }

@@ -24,6 +24,7 @@ use crate::{ArmFrames, ArmModel, KinematicsError};
 #[derive(Debug, Clone)]
 pub struct MomentumObserver<const N: usize> {
     gain: [f64; N],
+    friction: JointFriction<N>,
     started: bool,
     p0: SVector<f64, N>,
     integral: SVector<f64, N>,
@@ -47,12 +48,21 @@ impl<const N: usize> MomentumObserver<N> {
         }
         Ok(MomentumObserver {
             gain,
+            friction: JointFriction::none(),
             started: false,
             p0: SVector::zeros(),
             integral: SVector::zeros(),
             residual: SVector::zeros(),
             last_mass: SMatrix::zeros(),
         })
+    }
+
+    /// The same observer for torques measured before the joints' friction (at the motor,
+    /// as a simulator's applied torques are): the friction `friction` predicts is taken
+    /// off them, so it is not read as an external torque.
+    pub fn with_friction(mut self, friction: JointFriction<N>) -> Self {
+        self.friction = friction;
+        self
     }
 
     /// Starts over at the next update (the residual reads zero there).
@@ -95,13 +105,60 @@ impl<const N: usize> MomentumObserver<N> {
         };
         self.last_mass = mass;
         let coriolis_t = m_dot * v - model.coriolis(frames, dq);
-        let beta = SVector::from(*tau) + coriolis_t - model.gravity(frames);
+        let mut beta = SVector::from(*tau) + coriolis_t - model.gravity(frames);
+        for i in 0..N {
+            beta[i] -= self.friction.torque(i, dq[i]);
+        }
         self.integral += (beta + self.residual) * dt;
         let error = p - self.p0 - self.integral;
         for i in 0..N {
             self.residual[i] = self.gain[i] * error[i];
         }
         self.residual
+    }
+}
+
+/// Friction in each joint: viscous `F_v·q̇` plus Coulomb `F_c·tanh(q̇/v_s)` (N m), the
+/// smooth sign keeping the estimate continuous through zero speed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JointFriction<const N: usize> {
+    /// Viscous coefficient per joint (N m s/rad).
+    pub viscous: [f64; N],
+    /// Coulomb level per joint (N m).
+    pub coulomb: [f64; N],
+    /// The speed below which the Coulomb term fades to zero (rad/s).
+    pub speed: f64,
+}
+
+impl<const N: usize> JointFriction<N> {
+    /// No friction.
+    pub fn none() -> Self {
+        JointFriction {
+            viscous: [0.0; N],
+            coulomb: [0.0; N],
+            speed: 0.01,
+        }
+    }
+
+    /// Checks that every coefficient is finite and ≥ 0 and the speed > 0.
+    pub fn check(&self) -> Result<(), KinematicsError> {
+        let bad = self
+            .viscous
+            .iter()
+            .chain(&self.coulomb)
+            .any(|v| !(v.is_finite() && *v >= 0.0));
+        if bad || !(self.speed.is_finite() && self.speed > 0.0) {
+            return Err(KinematicsError::InvalidModel(
+                "joint friction: every coefficient must be finite and ≥ 0, the speed > 0".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The friction torque of joint `i` moving at `dq` (it opposes the motion: the joint
+    /// loses this much of the torque driving it).
+    pub fn torque(&self, i: usize, dq: f64) -> f64 {
+        self.viscous[i] * dq + self.coulomb[i] * (dq / self.speed).tanh()
     }
 }
 

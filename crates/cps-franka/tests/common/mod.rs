@@ -43,19 +43,65 @@ pub fn python() -> Option<PathBuf> {
 pub struct FrankySim {
     child: std::sync::Arc<Mutex<Child>>,
     pub host: String,
+    /// The simulator's standard output, line by line (after `ready`).
+    lines: Mutex<std::sync::mpsc::Receiver<String>>,
+    /// Where MuJoCo's ground truth is written (with `SimOptions::truth`).
+    truth: Option<PathBuf>,
     _turn: MutexGuard<'static, ()>,
+}
+
+/// What the simulated world holds beyond the arm.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SimOptions {
+    /// A table under the hand with its top at this height (m): x in [0.35, 0.75],
+    /// y in [-0.3, 0.3].
+    pub table: Option<f64>,
+    /// The table's sliding friction coefficient (None: MuJoCo's 1).
+    pub friction: Option<f64>,
+    /// Log MuJoCo's ground truth per step (contact force, tool centre point).
+    pub truth: bool,
+}
+
+/// One simulation step's ground truth (see sim_server.py).
+#[derive(Debug, Clone, Copy)]
+pub struct Truth {
+    /// The message id of the robot state sent after the step.
+    pub id: u64,
+    /// The table's force on the robot, world axes (N).
+    pub force: [f64; 3],
+    /// The contacts' normal forces summed (N).
+    pub normal: f64,
+    /// The hand's tool centre point (m).
+    pub tcp: [f64; 3],
 }
 
 impl FrankySim {
     /// Starts franky-sim on `host` (a loopback address of this test's own) and waits until it
     /// serves; None when franky-sim is not installed (outside CI).
     pub fn start(host: &str) -> Option<Self> {
+        Self::start_with(host, SimOptions::default())
+    }
+
+    /// Starts franky-sim on `host` with a table or the ground truth logged.
+    pub fn start_with(host: &str, options: SimOptions) -> Option<Self> {
         let python = python()?;
         let turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
         let script = workspace().join("crates/cps-franka/tests/sim_server.py");
-        let mut child = Command::new(python)
-            .arg(script)
-            .args(["--host", host])
+        let mut command = Command::new(python);
+        command.arg(script).args(["--host", host]);
+        if let Some(top) = options.table {
+            command.args(["--table", &top.to_string()]);
+        }
+        if let Some(mu) = options.friction {
+            command.args(["--friction", &mu.to_string()]);
+        }
+        let truth = options.truth.then(|| {
+            std::env::temp_dir().join(format!("cps-truth-{}-{host}.csv", std::process::id()))
+        });
+        if let Some(t) = &truth {
+            command.arg("--truth").arg(t);
+        }
+        let mut child = command
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
@@ -64,9 +110,12 @@ impl FrankySim {
         let out = child.stdout.take().unwrap();
         let (tx, rx) = std::sync::mpsc::channel();
         std::thread::spawn(move || {
-            let mut line = String::new();
-            let _ = BufReader::new(out).read_line(&mut line);
-            let _ = tx.send(line);
+            for line in BufReader::new(out).lines() {
+                let Ok(line) = line else { break };
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
         });
         let line = rx.recv_timeout(Duration::from_secs(60)).unwrap_or_default();
         assert!(
@@ -76,8 +125,45 @@ impl FrankySim {
         Some(FrankySim {
             child: std::sync::Arc::new(Mutex::new(child)),
             host: host.to_string(),
+            lines: Mutex::new(rx),
+            truth,
             _turn: turn,
         })
+    }
+
+    /// Sends one line to the simulator (`push FX FY FZ`, `lead X Y Z S K D`, `release`).
+    pub fn send(&self, line: &str) {
+        use std::io::Write;
+        let mut c = self.child.lock().unwrap_or_else(|e| e.into_inner());
+        let stdin = c.stdin.as_mut().expect("the simulator's input");
+        writeln!(stdin, "{line}")
+            .and_then(|_| stdin.flush())
+            .expect("write to the simulator");
+    }
+
+    /// MuJoCo's ground truth so far (the simulator writes it out first).
+    pub fn truth(&self) -> Vec<Truth> {
+        let path = self.truth.as_ref().expect("started with SimOptions::truth");
+        self.send("flush");
+        let rx = self.lines.lock().unwrap_or_else(|e| e.into_inner());
+        let line = rx.recv_timeout(Duration::from_secs(10)).unwrap_or_default();
+        assert_eq!(line, "flushed", "the simulator did not write its truth out");
+        let text = std::fs::read_to_string(path).expect("read the truth file");
+        text.lines()
+            .skip(1)
+            .filter_map(|l| {
+                let v: Vec<f64> = l
+                    .split(',')
+                    .map(|x| x.parse().ok())
+                    .collect::<Option<_>>()?;
+                (v.len() == 8).then(|| Truth {
+                    id: v[0] as u64,
+                    force: [v[1], v[2], v[3]],
+                    normal: v[4],
+                    tcp: [v[5], v[6], v[7]],
+                })
+            })
+            .collect()
     }
 
     /// Kills the simulator (a robot that vanishes mid-motion).
@@ -117,6 +203,9 @@ impl FrankySim {
 impl Drop for FrankySim {
     fn drop(&mut self) {
         self.kill();
+        if let Some(t) = &self.truth {
+            let _ = std::fs::remove_file(t);
+        }
     }
 }
 
