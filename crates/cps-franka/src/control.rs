@@ -444,3 +444,52 @@ impl CartesianImpedance {
         tau.into()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gains_out_of_range_are_named() {
+        let e = JointImpedance::new([600.0; JOINTS], [50.0; JOINTS]).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "joint 5 stiffness 600 N m/rad is out of range: it must lie in [0, 500]"
+        );
+        let mut g = CartesianGains::default();
+        g.translation[1] = 5000.0;
+        let e = CartesianImpedance::new(g, [0.0; JOINTS]).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("translational stiffness along y 5000 N/m is out of range"),
+            "{e}"
+        );
+        let g = CartesianGains {
+            damping_ratio: f64::NAN,
+            ..Default::default()
+        };
+        assert!(
+            CartesianImpedance::new(g, [0.0; JOINTS])
+                .unwrap_err()
+                .to_string()
+                .contains("damping ratio NaN")
+        );
+        let s = SensingOptions {
+            contact_on: 1.0,
+            contact_off: 2.0,
+            ..Default::default()
+        };
+        assert!(Sensing::new(s).is_err());
+    }
+
+    #[test]
+    fn poses_read_column_major() {
+        // A quarter turn about z and a translation, as the FCI sends O_T_EE.
+        let m = [
+            0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.3, 0.1, 0.5, 1.0,
+        ];
+        let p = pose_from_column_major(&m);
+        let x = p * nalgebra::Point3::new(1.0, 0.0, 0.0);
+        assert!((x.coords - Vector3::new(0.3, 1.1, 0.5)).norm() < 1e-12);
+    }
+}

@@ -11,7 +11,8 @@ use std::sync::atomic::AtomicBool;
 
 use common::{FrankySim, SimOptions, Truth};
 use cps_franka::control::{
-    CartesianGains, CartesianImpedance, ForceAlong, Sensing, SensingOptions, robot_dynamics,
+    CartesianGains, CartesianImpedance, ForceAlong, JointImpedance, Sensing, SensingOptions,
+    robot_dynamics,
 };
 use cps_franka::limits::{Arm, RateLimits};
 use cps_franka::{Connection, LoopOptions, Realtime, Torques, run_torques};
@@ -417,4 +418,60 @@ fn finds_a_table_two_centimetres_higher_or_lower() {
             "pressed at z = {z} on a table at {top}"
         );
     }
+}
+
+#[test]
+fn joint_impedance_settles_on_its_target() {
+    let Some(sim) = FrankySim::start("127.0.0.79") else {
+        return;
+    };
+    let mut conn = Connection::connect(&sim.host, Default::default()).unwrap();
+    let (state, _) = conn
+        .newest_state(std::time::Duration::from_secs(2))
+        .unwrap();
+    let model = robot_dynamics(&mut conn, &state).unwrap();
+    let law = JointImpedance::new(
+        [600.0, 600.0, 600.0, 600.0, 250.0, 150.0, 50.0],
+        [50.0, 50.0, 50.0, 20.0, 20.0, 20.0, 10.0],
+    )
+    .unwrap();
+    let mut goal = state.q;
+    goal[0] += 0.2;
+    goal[3] -= 0.2;
+    let stop = AtomicBool::new(false);
+    let report = run_torques(
+        &mut conn,
+        RateLimits::of(Arm::Fr3),
+        &options(),
+        &stop,
+        |s, t| {
+            let frames = model.frames(&s.q);
+            // The goal approached along a 1 s min-jerk, then held for 1.5 s.
+            let x = (t / 1.0).clamp(0.0, 1.0);
+            let share = x * x * x * (10.0 - 15.0 * x + 6.0 * x * x);
+            let mut q_d = state.q;
+            for i in 0..7 {
+                q_d[i] += (goal[i] - state.q[i]) * share;
+            }
+            Torques {
+                tau: law.torques(&model, &frames, s, &q_d, &[0.0; 7]),
+                finished: t > 2.5,
+            }
+        },
+    )
+    .unwrap();
+    assert!(report.ending.complete(), "{}", report.ending.sentence());
+    let last = report.samples.last().unwrap();
+    // Within the joints' friction over the stiffness (1.137 N m / 600 N m/rad ≈ 2 mrad)
+    // and the hand's fingers the model does not carry.
+    for i in 0..7 {
+        assert!(
+            (last.q[i] - goal[i]).abs() < 0.005,
+            "joint {}: {} vs {}",
+            i + 1,
+            last.q[i],
+            goal[i]
+        );
+    }
+    assert_eq!(report.clipped, 0);
 }
