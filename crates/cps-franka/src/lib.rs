@@ -16,6 +16,10 @@
 //!   ([`run_joint_positions`]), joint velocities ([`run_joint_velocities`]) or torques
 //!   computed by cps ([`run_torques`], the external controller mode).
 //!
+//! - [`control`]: torque laws at the robot's rate on the robot's own dynamic model (joint
+//!   and Cartesian impedance, force along a direction) and contact sensing from the
+//!   measured torques (a momentum observer), for [`run_torques`].
+//!
 //! Safety sits between them as a wrapper, not inside generators: [`limits::StreamCheck`]
 //! takes the robot's own per-millisecond differences of every command (position, velocity
 //! — position-dependent on the FR3 — acceleration, jerk, and the distance a stop would

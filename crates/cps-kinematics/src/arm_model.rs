@@ -32,7 +32,8 @@ struct Body {
     inertia: Matrix3<f64>,
 }
 
-/// The rigid-body model of an `N`-joint serial arm (see the [module](self) docs).
+/// The rigid-body model of an `N`-joint serial arm: built once, evaluated per tick through
+/// [`ArmModel::frames`] without allocating.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ArmModel<const N: usize> {
     base: Isometry3<f64>,

@@ -20,7 +20,8 @@ use nalgebra::{Matrix6, SMatrix, SVector};
 
 use crate::{ArmFrames, ArmModel, KinematicsError};
 
-/// The generalized-momentum observer of an `N`-joint arm (see the [module](self) docs).
+/// The generalized-momentum observer of an `N`-joint arm: each joint's residual follows its
+/// external torque as a first-order filter of time constant 1/gain.
 #[derive(Debug, Clone)]
 pub struct MomentumObserver<const N: usize> {
     gain: [f64; N],
