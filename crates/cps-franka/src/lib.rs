@@ -19,6 +19,8 @@
 //! - [`control`]: torque laws at the robot's rate on the robot's own dynamic model (joint
 //!   and Cartesian impedance, force along a direction) and contact sensing from the
 //!   measured torques (a momentum observer), for [`run_torques`].
+//! - [`guide`]: the arm floating under a light damping, recorded while a person moves it
+//!   ([`guide::run_guiding`]).
 //!
 //! Safety sits between them as a wrapper, not inside generators: [`limits::StreamCheck`]
 //! takes the robot's own per-millisecond differences of every command (position, velocity
@@ -56,6 +58,7 @@
 pub mod control;
 mod error;
 pub mod gripper;
+pub mod guide;
 pub mod limits;
 mod motion;
 pub mod rt;

@@ -238,6 +238,7 @@ pub fn record_states(
         }
         samples.push(crate::Sample {
             t,
+            id: state.message_id,
             q: state.q,
             dq: state.dq,
             tau: state.tau_j,

@@ -40,7 +40,7 @@ pub struct LoopOptions {
     /// A state later than this ends the motion as a lost connection (the robot stops by
     /// itself when commands stop: a real FCI after a few missed ticks).
     pub state_timeout: Duration,
-    /// Ticks the recording holds (256 bytes each, allocated before the motion); the loop
+    /// Ticks the recording holds (264 bytes each, allocated before the motion); the loop
     /// starts braking [`BRAKE_RESERVE`] ticks before it is full, so the stop is recorded.
     pub max_ticks: usize,
 }
@@ -60,6 +60,9 @@ impl Default for LoopOptions {
 pub struct Sample {
     /// Robot time since the motion started (s).
     pub t: f64,
+    /// The robot state's message id (the robot's tick counter), to align a recording with
+    /// other logs.
+    pub id: u64,
     /// Measured joint positions.
     pub q: [f64; JOINTS],
     /// Measured joint velocities.
@@ -672,6 +675,7 @@ fn run_law<L: Law>(
         if samples.len() < samples.capacity() {
             samples.push(Sample {
                 t,
+                id: state.message_id,
                 q: state.q,
                 dq: state.dq,
                 tau: state.tau_j,

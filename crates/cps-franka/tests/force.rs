@@ -2,7 +2,7 @@
 //! dynamic model against pinocchio's (the simulator's own), and pressing on a simulated
 //! table with MuJoCo's contact force as the ground truth.
 //!
-//! Loopback addresses: 127.0.0.75–79.
+//! Loopback addresses: 127.0.0.75–80.
 #![allow(clippy::needless_range_loop)]
 
 mod common;
@@ -14,6 +14,7 @@ use cps_franka::control::{
     CartesianGains, CartesianImpedance, ForceAlong, JointImpedance, Sensing, SensingOptions,
     robot_dynamics,
 };
+use cps_franka::guide::{Guiding, run_guiding};
 use cps_franka::limits::{Arm, RateLimits};
 use cps_franka::{Connection, LoopOptions, Realtime, Torques, run_torques};
 use cps_kinematics::contact::JointFriction;
@@ -473,5 +474,107 @@ fn joint_impedance_settles_on_its_target() {
             goal[i]
         );
     }
+    assert_eq!(report.clipped, 0);
+}
+
+#[test]
+fn a_hand_guides_the_floating_arm_and_the_recording_follows_it() {
+    let Some(sim) = FrankySim::start_with(
+        "127.0.0.80",
+        SimOptions {
+            truth: true,
+            ..Default::default()
+        },
+    ) else {
+        return;
+    };
+    let mut conn = Connection::connect(&sim.host, Default::default()).unwrap();
+    let start = conn
+        .newest_state(std::time::Duration::from_secs(2))
+        .unwrap()
+        .0
+        .tool_position();
+    let goal = [0.45, 0.15, 0.45];
+    let guiding = Guiding {
+        duration: 4.0,
+        ..Default::default()
+    };
+    let stop = AtomicBool::new(false);
+    // A hand pulls the tool centre point along a straight line for 2 s, 0.5 s after the
+    // arm starts floating: a spring of 400 N/m to an anchor moving to `goal`.
+    let report = std::thread::scope(|scope| {
+        scope.spawn(|| {
+            std::thread::sleep(std::time::Duration::from_millis(500));
+            sim.send(&format!(
+                "lead {} {} {} 2.0 400 20",
+                goal[0], goal[1], goal[2]
+            ));
+        });
+        run_guiding(
+            &mut conn,
+            RateLimits::of(Arm::Fr3),
+            &options(),
+            &stop,
+            &guiding,
+        )
+        .unwrap()
+    });
+    sim.send("release");
+    assert!(report.ending.complete(), "{}", report.ending.sentence());
+    assert!((report.samples.last().unwrap().t - 4.0).abs() < 0.01);
+    let truth = sim.truth();
+    let by_id: std::collections::HashMap<u64, &Truth> = truth.iter().map(|t| (t.id, t)).collect();
+    // The recording (the robot's O_T_EE) is where MuJoCo had the hand.
+    let mut worst: f64 = 0.0;
+    let mut matched = 0;
+    for s in &report.samples {
+        if let Some(t) = by_id.get(&s.id) {
+            let d = (0..3)
+                .map(|k| (s.tool[k] - t.tcp[k]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            worst = worst.max(d);
+            matched += 1;
+        }
+    }
+    assert!(matched > 3500, "{matched} samples matched MuJoCo's steps");
+    // The recording and MuJoCo's hand are one step apart at most (state after the step).
+    assert!(
+        worst < 1e-3,
+        "the recording is {:.2} mm from MuJoCo's hand",
+        worst * 1e3
+    );
+    // The arm went where the hand pulled it, along the line.
+    let end = report.samples.last().unwrap().tool;
+    let gap = (0..3)
+        .map(|k| (end[k] - goal[k]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let line: Vec<f64> = (0..3).map(|k| goal[k] - start[k]).collect();
+    let length = line.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let off_line = report
+        .samples
+        .iter()
+        .map(|s| {
+            let r: Vec<f64> = (0..3).map(|k| s.tool[k] - start[k]).collect();
+            let along = (0..3).map(|k| r[k] * line[k]).sum::<f64>() / length;
+            ((0..3).map(|k| r[k] * r[k]).sum::<f64>() - along * along)
+                .max(0.0)
+                .sqrt()
+        })
+        .fold(0.0, f64::max);
+    eprintln!(
+        "guided {:.0} mm: ended {:.1} mm from the goal, at most {:.1} mm off the line; recording vs MuJoCo {:.2} mm",
+        length * 1e3,
+        gap * 1e3,
+        off_line * 1e3,
+        worst * 1e3
+    );
+    assert!(
+        gap < 0.01,
+        "ended {:.1} mm from where the hand pulled it",
+        gap * 1e3
+    );
+    assert!(off_line < 0.012, "{:.1} mm off the line", off_line * 1e3);
     assert_eq!(report.clipped, 0);
 }
