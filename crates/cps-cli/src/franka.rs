@@ -6,8 +6,10 @@ use std::sync::atomic::{AtomicBool, Ordering::SeqCst};
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
+use cps_experiment::ExperimentError;
 use cps_experiment::franka::{self, DmpSettings, ExecuteSettings};
 use cps_experiment::franka_backend::MOVING;
+use cps_experiment::robot_file::Answer;
 
 use crate::cli_error;
 use crate::robot::print;
@@ -21,6 +23,18 @@ pub struct On {
     /// Print JSON.
     #[arg(long)]
     json: bool,
+}
+
+/// Which arm, and the loop's scheduling.
+#[derive(Args, Debug)]
+pub struct Arm {
+    /// Which arm's limits: `fr3` or `panda`.
+    #[arg(long, default_value = "fr3")]
+    arm: String,
+    /// `enforce`: the loop needs SCHED_FIFO (as libfranka's default); `ignore`: use it
+    /// where permitted, else run at normal priority.
+    #[arg(long, default_value = "enforce")]
+    realtime: String,
 }
 
 /// `cps-cli franka ...`. Exit codes: 0 done; 1 refused by a check, the robot, or a lost
@@ -46,9 +60,8 @@ pub enum FrankaCommand {
         /// `<stem>.report.json`.
         #[arg(long)]
         record: PathBuf,
-        /// Which arm's limits: `fr3` or `panda`.
-        #[arg(long, default_value = "fr3")]
-        arm: String,
+        #[command(flatten)]
+        arm: Arm,
         /// Retime the trajectory to the fastest timing within 95 % of every limit.
         #[arg(long)]
         retime: bool,
@@ -56,10 +69,6 @@ pub enum FrankaCommand {
         /// the limits) instead of refusing.
         #[arg(long)]
         approach: bool,
-        /// `enforce`: the loop needs SCHED_FIFO (as libfranka's default); `ignore`: use it
-        /// where permitted, else run at normal priority.
-        #[arg(long, default_value = "enforce")]
-        realtime: String,
         /// Replace an existing recording.
         #[arg(long)]
         force: bool,
@@ -93,19 +102,34 @@ pub enum FrankaCommand {
         epsilon: f64,
     },
     /// Record the robot's state at its rate without moving it (guide it by hand in Desk).
-    Record {
+    Record(Recording),
+    /// Teach by guiding: the arm floats (gravity compensated, lightly damped, pushed back
+    /// before its range ends) while you move it by hand; recorded at the robot's rate.
+    Guide {
         #[command(flatten)]
-        on: On,
-        /// Seconds to record.
+        rec: Recording,
+        /// Damping on every joint (N m s/rad, 0 to 20; default 3 on joints 1-4, 1, 1, 0.5).
         #[arg(long)]
-        duration: f64,
-        /// The recording (CSV) to write.
-        #[arg(long)]
-        out: PathBuf,
-        /// Replace an existing recording.
-        #[arg(long)]
-        force: bool,
+        damping: Option<f64>,
+        #[command(flatten)]
+        arm: Arm,
     },
+}
+
+/// A recording of `franka record` and `franka guide`.
+#[derive(Args, Debug)]
+pub struct Recording {
+    #[command(flatten)]
+    on: On,
+    /// Seconds to record.
+    #[arg(long)]
+    duration: f64,
+    /// The recording (CSV) to write.
+    #[arg(long)]
+    out: PathBuf,
+    /// Replace an existing recording.
+    #[arg(long)]
+    force: bool,
 }
 
 /// `cps-cli franka`.
@@ -131,7 +155,6 @@ pub fn franka(cmd: &FrankaCommand, stop: &AtomicBool) -> Result<ExitCode> {
             arm,
             retime,
             approach,
-            realtime,
             force,
             tau,
             goal,
@@ -139,33 +162,55 @@ pub fn franka(cmd: &FrankaCommand, stop: &AtomicBool) -> Result<ExitCode> {
         } => {
             let settings = ExecuteSettings {
                 host: on.host.clone(),
-                arm: franka::parse_arm(arm)?,
+                arm: franka::parse_arm(&arm.arm)?,
                 retime: *retime,
                 approach: *approach,
-                realtime: franka::parse_realtime(realtime)?,
+                realtime: franka::parse_realtime(&arm.realtime)?,
             };
             let online = DmpSettings {
                 error_gain: *error_gain,
                 tau: *tau,
                 goal: goal.clone(),
             };
-            MOVING.store(true, SeqCst);
-            let done = franka::execute_file(file, &settings, &online, record, *force, stop);
-            MOVING.store(false, SeqCst);
-            let (answer, code) = done.map_err(cli_error)?;
-            print(&answer, on.json)?;
-            Ok(ExitCode::from(code))
+            let done =
+                moving(|| franka::execute_file(file, &settings, &online, record, *force, stop));
+            finish(done, on.json)
         }
-        FrankaCommand::Record {
-            on,
-            duration,
-            out,
-            force,
+        FrankaCommand::Record(r) => finish(
+            franka::record(&r.on.host, r.duration, &r.out, r.force, stop),
+            r.on.json,
+        ),
+        FrankaCommand::Guide {
+            rec: r,
+            damping,
+            arm,
         } => {
-            let recorded = franka::record(&on.host, *duration, out, *force, stop);
-            let (answer, code) = recorded.map_err(cli_error)?;
-            print(&answer, on.json)?;
-            Ok(ExitCode::from(code))
+            let settings = franka::GuideSettings {
+                host: r.on.host.clone(),
+                arm: franka::parse_arm(&arm.arm)?,
+                realtime: franka::parse_realtime(&arm.realtime)?,
+                seconds: r.duration,
+                damping: *damping,
+            };
+            finish(
+                moving(|| franka::guide(&settings, &r.out, r.force, stop)),
+                r.on.json,
+            )
         }
     }
+}
+
+/// Runs `f` with [`MOVING`] set (Ctrl-C then brakes the robot instead of exiting).
+fn moving<T>(f: impl FnOnce() -> T) -> T {
+    MOVING.store(true, SeqCst);
+    let done = f();
+    MOVING.store(false, SeqCst);
+    done
+}
+
+/// Prints a motion's answer and exits with its code.
+fn finish(done: Result<(Answer, u8), ExperimentError>, json: bool) -> Result<ExitCode> {
+    let (answer, code) = done.map_err(cli_error)?;
+    print(&answer, json)?;
+    Ok(ExitCode::from(code))
 }

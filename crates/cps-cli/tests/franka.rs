@@ -1,6 +1,7 @@
 //! `cps-cli franka` end to end against franky-sim (a MuJoCo FR3 behind the real protocol):
 //! state, an execution recorded, refusals before anything moves, bad input, a host that is
-//! not there, Ctrl-C mid-motion, a recording without motion.
+//! not there, Ctrl-C mid-motion, a recording without motion, a guided demonstration
+//! imitated and replayed.
 
 mod common;
 #[path = "../../cps-franka/tests/common/mod.rs"]
@@ -486,4 +487,123 @@ fn a_dmp_model_is_stepped_online_and_its_phase_waits_for_a_lagging_robot() {
         "5",
     ]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
+/// The tool's path (columns tool_x, tool_y, tool_z) of a recording.
+fn tool_path(file: &Path) -> Vec<[f64; 3]> {
+    let text = std::fs::read_to_string(file).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let at = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (x, y, z) = (at("tool_x"), at("tool_y"), at("tool_z"));
+    lines
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|c| c.parse().unwrap()).collect();
+            [v[x], v[y], v[z]]
+        })
+        .collect()
+}
+
+#[test]
+fn a_guided_demonstration_is_imitated_and_replayed() {
+    let Some(sim) = FrankySim::start("127.0.0.82") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let demo = dir.path().join("demo.csv");
+    // A hand pulls the tool 0.5 s after the arm floats: 15 cm sideways and down over 2 s.
+    let o = std::thread::scope(|scope| {
+        scope.spawn(|| {
+            std::thread::sleep(Duration::from_millis(700));
+            sim.send("lead 0.50 0.15 0.45 2.0 400 20");
+        });
+        cli(&[
+            "franka",
+            "guide",
+            "--host",
+            &sim.host,
+            "--duration",
+            "3.5",
+            "--out",
+            demo.to_str().unwrap(),
+            "--realtime",
+            "ignore",
+            "--json",
+        ])
+    });
+    sim.send("release");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(report["complete"], true, "{report}");
+    // The recording has the columns of `franka execute --record`.
+    let header = std::fs::read_to_string(&demo)
+        .unwrap()
+        .lines()
+        .next()
+        .unwrap()
+        .to_string();
+    assert!(
+        header.starts_with("t,q1,") && header.ends_with("tool_x,tool_y,tool_z"),
+        "{header}"
+    );
+    let shown = tool_path(&demo);
+    let moved = shown
+        .last()
+        .unwrap()
+        .iter()
+        .zip(&shown[0])
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(moved > 0.15, "the hand moved the tool {moved} m");
+    // Imitated (a joint-space DMP) and replayed from where the arm stands.
+    let model = dir.path().join("model.json");
+    let o = cli(&[
+        "imitate",
+        demo.to_str().unwrap(),
+        "--columns",
+        "q1,q2,q3,q4,q5,q6,q7",
+        "--out",
+        model.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let replay = dir.path().join("replay.csv");
+    // --approach: first back to the demonstration's start, where the model begins.
+    let o = cli(&[
+        "franka",
+        "execute",
+        model.to_str().unwrap(),
+        "--host",
+        &sim.host,
+        "--record",
+        replay.to_str().unwrap(),
+        "--approach",
+        "--realtime",
+        "ignore",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let replayed = tool_path(&replay);
+    // Every point of the replay lies near the demonstrated path, and it ends where the
+    // demonstration did.
+    let near = |p: &[f64; 3]| {
+        shown
+            .iter()
+            .map(|q| (0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f64>().sqrt())
+            .fold(f64::INFINITY, f64::min)
+    };
+    let worst = replayed.iter().map(near).fold(0.0, f64::max);
+    let end = replayed.last().unwrap();
+    let end_gap = (0..3)
+        .map(|k| (end[k] - shown.last().unwrap()[k]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    eprintln!(
+        "guided {:.0} mm; replay at most {:.3} mm from the demonstrated path, ends {:.3} mm from its end; {} rows replayed",
+        moved * 1e3,
+        worst * 1e3,
+        end_gap * 1e3,
+        replayed.len()
+    );
+    assert!(worst < 0.005 && end_gap < 0.005, "{worst} {end_gap}");
 }

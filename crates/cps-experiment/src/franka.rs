@@ -1,6 +1,6 @@
 //! A Franka from files: one state (`cps-cli franka state`), a joint trajectory file
 //! executed at 1 kHz and recorded (`franka execute`), the robot's state recorded for a
-//! while (`franka record`). The protocol, the loop and the limit checks are `cps-franka`'s;
+//! while (`franka record`), or floating while a person guides it (`franka guide`). The protocol, the loop and the limit checks are `cps-franka`'s;
 //! this module reads and writes the files and words the answers.
 //!
 //! A recording is a CSV `t,q1..q7,dq1..dq7,tau1..tau7,q_d1..q_d7,tool_x,tool_y,tool_z` at the
@@ -654,6 +654,79 @@ pub fn record(
         },
         code,
     ))
+}
+
+/// What `franka guide` needs beyond the recording's path.
+#[derive(Debug, Clone)]
+pub struct GuideSettings {
+    /// The robot's address.
+    pub host: String,
+    /// Which arm's range and limits.
+    pub arm: Arm,
+    /// Realtime scheduling of the loop.
+    pub realtime: Realtime,
+    /// Seconds to record (Ctrl-C ends it earlier).
+    pub seconds: f64,
+    /// Damping on every joint (N m s/rad); None: cps's defaults (3 on joints 1–4, 1 on 5–6,
+    /// 0.5 on 7).
+    pub damping: Option<f64>,
+}
+
+/// `franka guide`: the arm floats (gravity compensated by the robot, lightly damped) for
+/// the settings' seconds or until `stop`, recorded at the robot's rate into `out` (checked
+/// first: a new file, or `force`) with its report; the recording has the columns of
+/// `franka execute --record`, ready for `cps-cli imitate`. Returns the answer and the exit
+/// code ([`exit_code`]).
+pub fn guide(
+    settings: &GuideSettings,
+    out: &Path,
+    force: bool,
+    stop: &AtomicBool,
+) -> Result<(Answer, u8), ExperimentError> {
+    let mut guiding = cps_franka::guide::Guiding {
+        duration: settings.seconds,
+        ..Default::default()
+    };
+    if let Some(d) = settings.damping {
+        guiding.damping = [d; 7];
+    }
+    guiding.check().map_err(|e| InputError(e.to_string()))?;
+    check_record_target(out, force)?;
+    let (host, arm) = (&settings.host, settings.arm);
+    let mut robot = connect(host)?;
+    let options = LoopOptions {
+        realtime: settings.realtime,
+        ..Default::default()
+    };
+    let limits = RateLimits::of(arm);
+    let report = cps_franka::guide::run_guiding(&mut robot, limits, &options, stop, &guiding)
+        .map_err(robot_error)?;
+    let t = &report.timing;
+    let duration = report.samples.last().map_or(0.0, |s| s.t);
+    let json = json!({
+        "complete": report.ending.complete(),
+        "ending": report.ending.sentence(),
+        "host": host,
+        "arm": arm.name(),
+        "samples": report.samples.len(),
+        "duration_s": duration,
+        "damping": guiding.damping,
+        "timing": {
+            "ticks": t.ticks, "median_us": t.median_us, "p99_us": t.p99_us, "max_us": t.max_us,
+            "missed_ticks": t.missed, "stale_states": t.stale, "realtime": t.realtime,
+        },
+    });
+    write_recording(out, &report.samples, &json)?;
+    let lines = vec![
+        format!("{host}: guided by hand; {}", report.ending.sentence()),
+        format!(
+            "  {} samples over {duration:.3} s in {} (imitate it: cps-cli imitate {} --columns q1,q2,q3,q4,q5,q6,q7 --out model.json)",
+            report.samples.len(),
+            out.display(),
+            out.display()
+        ),
+    ];
+    Ok((Answer { json, lines }, exit_code(&report.ending)))
 }
 
 /// A gripper action of `franka gripper`: `home`, `move`, `grasp`, `stop`, `state`.

@@ -47,6 +47,7 @@
 #![deny(missing_docs)]
 
 pub mod budget;
+pub mod cmaes_bench;
 mod error;
 pub mod experiment;
 pub mod export;
