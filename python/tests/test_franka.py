@@ -7,6 +7,7 @@ the tests skip. Each test has its own loopback address.
 
 import os
 import subprocess
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -26,14 +27,18 @@ def _sim_python():
     pytest.skip("franky-sim is not installed (see crates/cps-franka/tests/requirements.txt)")
 
 
-@pytest.fixture
-def sim(request):
-    host = request.param
+def _start(host):
     p = subprocess.Popen([_sim_python(), str(ROOT / "crates/cps-franka/tests/sim_server.py"), "--host", host],
                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     line = p.stdout.readline()
     assert line.startswith("ready"), line
-    yield host
+    return p
+
+
+@pytest.fixture
+def sim(request):
+    p = _start(request.param)
+    yield request.param
     p.kill()
     p.wait()
 
@@ -108,3 +113,27 @@ def test_the_gripper(sim):
 def test_a_host_without_a_robot_is_named():
     with pytest.raises(cps.CpsError, match="127.0.0.59: cannot reach the robot"):
         cps.Franka("127.0.0.59").state()
+
+
+def test_guiding_records_what_a_hand_does():
+    host = "127.0.0.54"
+    p = _start(host)
+    try:
+        robot = cps.Franka(host, realtime="ignore")
+        start = np.array(robot.state()["tool_position"])
+        # A hand pulls the tool 10 cm along y, 0.4 s after the arm starts floating.
+        timer = threading.Timer(0.4, lambda: (p.stdin.write(
+            f"lead {start[0]} {start[1] + 0.1} {start[2]} 1.0 400 20\n"), p.stdin.flush()))
+        timer.start()
+        out = robot.guide(2.0)
+        timer.join()
+        assert out["report"]["complete"] is True
+        n = len(out["t"])
+        assert 1900 <= n <= 2002 and out["q"].shape == (n, 7)
+        moved = out["tool"][-1] - start
+        assert abs(moved[1] - 0.1) < 0.01 and abs(moved[0]) < 0.01 and abs(moved[2]) < 0.01, moved
+        with pytest.raises(ValueError, match=r"joint 1 damping .* 50 is out of range"):
+            robot.guide(1.0, damping=50.0)
+    finally:
+        p.kill()
+        p.wait()

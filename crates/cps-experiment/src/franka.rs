@@ -672,17 +672,13 @@ pub struct GuideSettings {
     pub damping: Option<f64>,
 }
 
-/// `franka guide`: the arm floats (gravity compensated by the robot, lightly damped) for
-/// the settings' seconds or until `stop`, recorded at the robot's rate into `out` (checked
-/// first: a new file, or `force`) with its report; the recording has the columns of
-/// `franka execute --record`, ready for `cps-cli imitate`. Returns the answer and the exit
-/// code ([`exit_code`]).
-pub fn guide(
+/// The arm floating (gravity compensated by the robot, lightly damped) for the settings'
+/// seconds or until `stop`, recorded in memory: the samples and the report `{"complete",
+/// "ending", "host", "arm", "samples", "duration_s", "damping", "timing"}`.
+pub fn guide_samples(
     settings: &GuideSettings,
-    out: &Path,
-    force: bool,
     stop: &AtomicBool,
-) -> Result<(Answer, u8), ExperimentError> {
+) -> Result<(Vec<Sample>, Value), ExperimentError> {
     let mut guiding = cps_franka::guide::Guiding {
         duration: settings.seconds,
         ..Default::default()
@@ -691,7 +687,6 @@ pub fn guide(
         guiding.damping = [d; 7];
     }
     guiding.check().map_err(|e| InputError(e.to_string()))?;
-    check_record_target(out, force)?;
     let (host, arm) = (&settings.host, settings.arm);
     let mut robot = connect(host)?;
     let options = LoopOptions {
@@ -702,31 +697,57 @@ pub fn guide(
     let report = cps_franka::guide::run_guiding(&mut robot, limits, &options, stop, &guiding)
         .map_err(robot_error)?;
     let t = &report.timing;
-    let duration = report.samples.last().map_or(0.0, |s| s.t);
     let json = json!({
         "complete": report.ending.complete(),
         "ending": report.ending.sentence(),
         "host": host,
         "arm": arm.name(),
         "samples": report.samples.len(),
-        "duration_s": duration,
+        "duration_s": report.samples.last().map_or(0.0, |s| s.t),
         "damping": guiding.damping,
         "timing": {
             "ticks": t.ticks, "median_us": t.median_us, "p99_us": t.p99_us, "max_us": t.max_us,
             "missed_ticks": t.missed, "stale_states": t.stale, "realtime": t.realtime,
         },
     });
-    write_recording(out, &report.samples, &json)?;
+    Ok((report.samples, json))
+}
+
+/// `franka guide`: [`guide_samples`] written to `out` (checked first: a new file, or
+/// `force`) with its report; the recording has the columns of `franka execute --record`,
+/// ready for `cps-cli imitate`. Returns the answer and the exit code: 0 complete, 130
+/// stopped, 1 otherwise.
+pub fn guide(
+    settings: &GuideSettings,
+    out: &Path,
+    force: bool,
+    stop: &AtomicBool,
+) -> Result<(Answer, u8), ExperimentError> {
+    check_record_target(out, force)?;
+    let (samples, json) = guide_samples(settings, stop)?;
+    write_recording(out, &samples, &json)?;
     let lines = vec![
-        format!("{host}: guided by hand; {}", report.ending.sentence()),
         format!(
-            "  {} samples over {duration:.3} s in {} (imitate it: cps-cli imitate {} --columns q1,q2,q3,q4,q5,q6,q7 --out model.json)",
-            report.samples.len(),
+            "{}: guided by hand; {}",
+            settings.host,
+            json["ending"].as_str().unwrap_or_default()
+        ),
+        format!(
+            "  {} samples over {:.3} s in {} (imitate it: cps-cli imitate {} --columns q1,q2,q3,q4,q5,q6,q7 --out model.json)",
+            samples.len(),
+            samples.last().map_or(0.0, |s| s.t),
             out.display(),
             out.display()
         ),
     ];
-    Ok((Answer { json, lines }, exit_code(&report.ending)))
+    let code = if json["complete"] == true {
+        0
+    } else if stop.load(std::sync::atomic::Ordering::Relaxed) {
+        130
+    } else {
+        1
+    };
+    Ok((Answer { json, lines }, code))
 }
 
 /// A gripper action of `franka gripper`: `home`, `move`, `grasp`, `stop`, `state`.

@@ -48,6 +48,7 @@
 
 pub mod budget;
 pub mod cmaes_bench;
+pub mod contact;
 mod error;
 pub mod experiment;
 pub mod export;

@@ -1,5 +1,6 @@
 //! `cps.Franka`: a Franka over the Franka Control Interface from Python — its state, a
-//! joint trajectory executed at 1 kHz and recorded, the state recorded, the hand.
+//! joint trajectory executed at 1 kHz and recorded, the state recorded, the arm guided by
+//! hand and recorded, the hand.
 //! Everything goes through `cps_experiment::franka`, as `cps-cli franka` does.
 
 use cps_experiment::franka::{self, ExecuteSettings};
@@ -151,6 +152,36 @@ impl Franka {
         let (out, interrupt) = detached_keep(py, None, |stop| {
             franka::record_samples(&host, duration, stop)
         })?;
+        let (samples, report) = out.map_err(|e| e.py_err())?;
+        let d = recording(py, &samples)?;
+        d.set_item("report", json_to_py(py, &report)?)?;
+        if let Some(e) = interrupt {
+            return Err(e);
+        }
+        Ok(d)
+    }
+
+    /// Teaching by guiding: the arm floats (gravity compensated by the robot, `damping` N m
+    /// s/rad on every joint, or cps's light defaults; pushed back before its range ends)
+    /// for `duration` seconds while you move it by hand, recorded at the robot's rate: the
+    /// recording's arrays and `report`. Ctrl-C ends it early (the arm comes to a damped
+    /// rest) and raises KeyboardInterrupt.
+    #[pyo3(signature = (duration, *, damping = None))]
+    fn guide<'py>(
+        &self,
+        py: Python<'py>,
+        duration: f64,
+        damping: Option<f64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let settings = franka::GuideSettings {
+            host: self.host.clone(),
+            arm: self.arm,
+            realtime: self.realtime,
+            seconds: duration,
+            damping,
+        };
+        let (out, interrupt) =
+            detached_keep(py, None, |stop| franka::guide_samples(&settings, stop))?;
         let (samples, report) = out.map_err(|e| e.py_err())?;
         let d = recording(py, &samples)?;
         d.set_item("report", json_to_py(py, &report)?)?;

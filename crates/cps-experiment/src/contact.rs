@@ -1,0 +1,645 @@
+//! Movements that touch: a force primitive (a DMP over the path on a surface and the
+//! force pressed onto it, on one phase — Pastor et al. 2011, Kramberger et al. 2017) and the
+//! hybrid task that executes it on a Franka in torque mode: approach until contact, follow
+//! the path while the force follows its profile, release, lift off.
+//!
+//! The primitive has four dimensions: the tool's offset from the point of contact (x, y, z
+//! in the robot's base frame; the part along the pressing direction is left to the force)
+//! and the force (N) the tool exerts along the pressing direction. It is learned by
+//! imitation of a demonstrated profile ([`ForcePrimitive::imitate`]) or from way points
+//! ([`ForcePrimitive::from_waypoints`], minimum-jerk between them), in the goal-robust
+//! formulation so that a profile may end where it began (0 N to 0 N).
+//!
+//! [`run_contact`] drives the arm with `cps_franka::control`'s Cartesian impedance, with
+//! force along the pressing direction once in contact, and `Sensing`'s momentum observer
+//! for the force. Its stages: hold still while the observer's bias is taken; move above the
+//! surface; descend at a set speed until the force along the direction exceeds the contact
+//! threshold (or give up after the search distance); step the primitive at 1 kHz, its phase
+//! slowed by the force error (`1/(1 + gain·|F_d − F|)`, phase stopping); let the force go;
+//! lift off. A force above the ceiling at any time ends the task: the force is dropped at
+//! once and the tool retreats. Every stop is the loop's controlled stop; every tick is kept.
+
+use std::sync::atomic::AtomicBool;
+
+use cps_dmp::{
+    Demonstration, DiscreteDmp, DmpConfig, Formulation, OnlineDmp, Regression, StepInput,
+};
+use cps_franka::control::{
+    CartesianGains, CartesianImpedance, ForceAlong, Sensing, SensingOptions,
+};
+use cps_franka::limits::RateLimits;
+use cps_franka::{Connection, LoopOptions, MotionReport, Torques};
+use cps_kinematics::ArmModel;
+use nalgebra::{Isometry3, Translation3, Vector3, Vector6};
+
+use crate::{ExperimentError, InputError};
+
+/// A DMP over the tool's offset on the surface and the pressing force.
+#[derive(Debug, Clone)]
+pub struct ForcePrimitive {
+    /// The four-dimensional DMP (offset x, y, z in m; force in N).
+    pub dmp: DiscreteDmp,
+    /// Its weights.
+    pub weights: Vec<f64>,
+}
+
+/// One way point of a contact profile.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactWaypoint {
+    /// Time from contact (s).
+    pub t: f64,
+    /// The tool's offset from the point of contact (m, base frame).
+    pub offset: [f64; 3],
+    /// The force pressed along the pressing direction (N, ≥ 0).
+    pub force: f64,
+}
+
+/// Bases of a force primitive: enough for a press, a slide and a release in a few
+/// seconds.
+pub const PRIMITIVE_BASES: usize = 30;
+
+impl ForcePrimitive {
+    /// Learns the primitive from a demonstration: times (s) and rows `[dx, dy, dz, force]`.
+    pub fn imitate(times: Vec<f64>, rows: &[Vec<f64>]) -> Result<Self, ExperimentError> {
+        let bad = |e: cps_dmp::DmpError| InputError(format!("force primitive: {e}"));
+        if rows.iter().any(|r| r.len() != 4) {
+            return Err(InputError(
+                "force primitive: each sample needs four values: dx, dy, dz (m) and force (N)"
+                    .into(),
+            )
+            .into());
+        }
+        let demo = Demonstration::new(times, rows).map_err(bad)?;
+        let duration = demo.duration();
+        let mut config = DmpConfig::new(PRIMITIVE_BASES, duration, 1e-3);
+        config.formulation = Formulation::GoalRobust;
+        let fit = cps_dmp::imitate(&config, &[demo], Regression::default(), Default::default())
+            .map_err(bad)?;
+        Ok(ForcePrimitive {
+            dmp: fit.dmp,
+            weights: fit.weights,
+        })
+    }
+
+    /// The primitive through `points` (at least two, times increasing from 0, forces in
+    /// [0, 100] N, offsets within 1 m): minimum-jerk between consecutive way points, sampled
+    /// every millisecond, then imitated.
+    pub fn from_waypoints(points: &[ContactWaypoint]) -> Result<Self, ExperimentError> {
+        let bad = |i: usize, why: String| InputError(format!("waypoints[{i}]: {why}"));
+        if points.len() < 2 {
+            return Err(InputError("waypoints: give at least two".into()).into());
+        }
+        for (i, p) in points.iter().enumerate() {
+            if !(p.t.is_finite() && p.force.is_finite() && p.offset.iter().all(|v| v.is_finite())) {
+                return Err(bad(i, "every value must be a finite number".into()).into());
+            }
+            if i == 0 && p.t != 0.0 {
+                return Err(
+                    bad(i, format!("t = {} s: the first way point is at t = 0", p.t)).into(),
+                );
+            }
+            if i > 0 && p.t <= points[i - 1].t {
+                return Err(bad(i, format!("t = {} s: times must increase", p.t)).into());
+            }
+            if !(0.0..=100.0).contains(&p.force) {
+                return Err(bad(
+                    i,
+                    format!(
+                        "force {} N is out of range: it must lie in [0, 100]",
+                        p.force
+                    ),
+                )
+                .into());
+            }
+            if p.offset.iter().any(|v| v.abs() > 1.0) {
+                return Err(bad(i, "offset: each component must be at most 1 m".into()).into());
+            }
+        }
+        let end = points.last().map_or(0.0, |p| p.t);
+        if end > 120.0 {
+            return Err(InputError(format!("waypoints: {end} s long; at most 120 s")).into());
+        }
+        let n = (end / 1e-3).round() as usize;
+        let mut times = Vec::with_capacity(n + 1);
+        let mut rows = Vec::with_capacity(n + 1);
+        let mut seg = 0;
+        for k in 0..=n {
+            let t = (k as f64 * 1e-3).min(end);
+            while seg + 2 < points.len() && t > points[seg + 1].t {
+                seg += 1;
+            }
+            let (a, b) = (&points[seg], &points[seg + 1]);
+            let s = ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0);
+            let m = s * s * s * (10.0 - 15.0 * s + 6.0 * s * s);
+            let mut row: Vec<f64> = (0..3)
+                .map(|d| a.offset[d] + (b.offset[d] - a.offset[d]) * m)
+                .collect();
+            row.push(a.force + (b.force - a.force) * m);
+            times.push(t);
+            rows.push(row);
+        }
+        Self::imitate(times, &rows)
+    }
+
+    /// The primitive's duration (s).
+    pub fn duration(&self) -> f64 {
+        self.dmp.config().tau
+    }
+}
+
+/// Everything the contact task needs besides the robot and its model.
+#[derive(Debug, Clone)]
+pub struct ContactPlan {
+    /// Where the approach starts (base frame, m); the tool keeps the orientation it has.
+    pub above: [f64; 3],
+    /// The direction the tool approaches and presses in (base frame; normalised).
+    pub direction: [f64; 3],
+    /// How far beyond `above` to search for the surface (m).
+    pub search: f64,
+    /// The approach speed (m/s).
+    pub speed: f64,
+    /// Contact is the force along the direction exceeding this (N).
+    pub detect: f64,
+    /// A force along the direction above this ends the task and retreats (N).
+    pub ceiling: f64,
+    /// How far to lift off at the end (m).
+    pub retreat: f64,
+    /// Phase stopping: the primitive's phase runs at `1/(1 + gain·|F_d − F|)` (1/N).
+    pub error_gain: f64,
+    /// The impedance.
+    pub gains: CartesianGains,
+    /// The force loop's gains along the direction (kp, ki in 1/s, damping in N s/m).
+    pub force_gains: (f64, f64, f64),
+    /// Contact sensing.
+    pub sensing: SensingOptions,
+    /// The profile.
+    pub primitive: ForcePrimitive,
+}
+
+impl ContactPlan {
+    /// Checks the plan's numbers; the sentence names the setting.
+    pub fn check(&self) -> Result<(), InputError> {
+        let within = |what: &str, v: f64, lo: f64, hi: f64| {
+            if v.is_finite() && (lo..=hi).contains(&v) {
+                Ok(())
+            } else {
+                Err(InputError(format!(
+                    "{what}: {v} is out of range: it must lie in [{lo}, {hi}]"
+                )))
+            }
+        };
+        within("search (m)", self.search, 0.005, 0.5)?;
+        within("speed (m/s)", self.speed, 0.001, 0.1)?;
+        within("detect (N)", self.detect, 0.5, 50.0)?;
+        within("ceiling (N)", self.ceiling, self.detect, 150.0)?;
+        within("retreat (m)", self.retreat, 0.0, 0.3)?;
+        within("error_gain (1/N)", self.error_gain, 0.0, 10.0)?;
+        let n = Vector3::from(self.direction);
+        if !(n.norm().is_finite() && n.norm() > 1e-6) {
+            return Err(InputError("direction: give a non-zero direction".into()));
+        }
+        if self.above.iter().any(|v| !v.is_finite() || v.abs() > 1.5) {
+            return Err(InputError(
+                "above: three finite coordinates within 1.5 m of the base".into(),
+            ));
+        }
+        let peak = self.primitive.peak_force();
+        if peak >= self.ceiling {
+            return Err(InputError(format!(
+                "the profile presses up to {peak:.1} N, at or above the ceiling of {} N",
+                self.ceiling
+            )));
+        }
+        Ok(())
+    }
+}
+
+impl ForcePrimitive {
+    /// The largest force of the profile's rollout (N).
+    pub fn peak_force(&self) -> f64 {
+        let traj = self.dmp.rollout(&self.weights);
+        traj.position(3).iter().copied().fold(0.0, f64::max)
+    }
+}
+
+/// Stages of the contact task, in order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Stage {
+    /// Holding still while the observer's bias is taken.
+    Tare = 0,
+    /// Moving above the surface.
+    ToAbove = 1,
+    /// Settling there.
+    Settle = 2,
+    /// Descending until contact.
+    Search = 3,
+    /// Following the primitive in contact.
+    Press = 4,
+    /// Letting the force go.
+    Release = 5,
+    /// Lifting off (or retreating).
+    Lift = 6,
+    /// At rest: the last command.
+    Done = 7,
+}
+
+impl Stage {
+    /// The stage's name.
+    pub fn name(self) -> &'static str {
+        [
+            "tare", "to_above", "settle", "search", "press", "release", "lift", "done",
+        ][self as usize]
+    }
+}
+
+/// One tick of the contact task.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactTick {
+    /// Time since the motion started (s).
+    pub t: f64,
+    /// The robot state's message id.
+    pub id: u64,
+    /// The stage.
+    pub stage: Stage,
+    /// The impedance's target position (m).
+    pub target: [f64; 3],
+    /// The tool's position by the model (m).
+    pub tool: [f64; 3],
+    /// The force the world exerts on the tool, estimated (N, base frame).
+    pub force: [f64; 3],
+    /// The force the tool exerts along the pressing direction, estimated (N).
+    pub pressing: f64,
+    /// The force asked for along the direction (N; 0 without force control).
+    pub desired: f64,
+    /// The primitive's phase (1 before contact, falling to ~0).
+    pub phase: f64,
+}
+
+/// How the contact task ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ContactEnding {
+    /// The profile ran through and the tool lifted off.
+    Done,
+    /// No surface within the search distance: the tool went back up without pressing.
+    NoContact {
+        /// How far it searched (m).
+        searched: f64,
+    },
+    /// The force exceeded the ceiling: dropped and retreated.
+    Ceiling {
+        /// The force (N).
+        force: f64,
+        /// When (s).
+        t: f64,
+    },
+    /// The motion ended otherwise (the loop's ending says how).
+    Interrupted,
+}
+
+impl ContactEnding {
+    /// The ending as a sentence.
+    pub fn sentence(&self) -> String {
+        match self {
+            ContactEnding::Done => "pressed along the profile and lifted off".into(),
+            ContactEnding::NoContact { searched } => format!(
+                "no contact within the approach distance ({:.0} mm searched): went back up without pressing",
+                searched * 1e3
+            ),
+            ContactEnding::Ceiling { force, t } => format!(
+                "the force reached {force:.1} N at t = {t:.3} s, above the ceiling: dropped it and retreated"
+            ),
+            ContactEnding::Interrupted => "the motion was interrupted".into(),
+        }
+    }
+}
+
+/// What the contact task did.
+#[derive(Debug, Clone)]
+pub struct ContactOutcome {
+    /// The loop's report (every sample, the timing, how the motion ended).
+    pub report: MotionReport,
+    /// The task's own record, one per tick.
+    pub ticks: Vec<ContactTick>,
+    /// How the task ended.
+    pub ending: ContactEnding,
+    /// Where and when contact was sensed.
+    pub contact: Option<(f64, [f64; 3])>,
+}
+
+impl ContactOutcome {
+    /// Over the pressing stage: RMS of (estimated − desired force) (N), the largest
+    /// estimated force (N), and the RMS of the tool's distance from its target across the
+    /// pressing direction (m).
+    pub fn measures(&self, direction: [f64; 3]) -> (f64, f64, f64) {
+        let n = Vector3::from(direction).normalize();
+        let pressing: Vec<&ContactTick> = self
+            .ticks
+            .iter()
+            .filter(|k| k.stage == Stage::Press)
+            .collect();
+        let count = pressing.len().max(1) as f64;
+        let force_rms = (pressing
+            .iter()
+            .map(|k| (k.pressing - k.desired).powi(2))
+            .sum::<f64>()
+            / count)
+            .sqrt();
+        let peak = self.ticks.iter().map(|k| k.pressing).fold(0.0, f64::max);
+        let path_rms = (pressing
+            .iter()
+            .map(|k| {
+                let e = Vector3::from(k.tool) - Vector3::from(k.target);
+                (e - n * e.dot(&n)).norm_squared()
+            })
+            .sum::<f64>()
+            / count)
+            .sqrt();
+        (force_rms, peak, path_rms)
+    }
+}
+
+fn min_jerk(s: f64) -> f64 {
+    let s = s.clamp(0.0, 1.0);
+    s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+}
+
+/// Seconds held still for the observer's bias, and to settle above the surface.
+const TARE: f64 = 0.3;
+const SETTLE: f64 = 0.3;
+/// Seconds to let the force go and to lift off.
+const RELEASE: f64 = 0.3;
+const LIFT: f64 = 1.0;
+
+/// Runs the contact task `plan` on the robot behind `conn` whose dynamic model is `model`
+/// (from [`cps_franka::control::robot_dynamics`]). Refuses a plan out of range before
+/// anything moves.
+pub fn run_contact(
+    conn: &mut Connection,
+    model: &ArmModel<7>,
+    limits: RateLimits,
+    options: &LoopOptions,
+    plan: &ContactPlan,
+    stop: &AtomicBool,
+) -> Result<ContactOutcome, ExperimentError> {
+    plan.check()?;
+    let robot = |e: cps_franka::FrankaError| ExperimentError::Message(e.to_string());
+    let (state, _) = conn
+        .newest_state(std::time::Duration::from_secs(1))
+        .map_err(robot)?;
+    let start = model.frames(&state.q).tool;
+    let n = Vector3::from(plan.direction).normalize();
+    let above = Vector3::from(plan.above);
+    let to_above = ((above - start.translation.vector).norm() / 0.05).max(1.0);
+    let mut law =
+        CartesianImpedance::new(plan.gains, state.q).map_err(|e| InputError(e.to_string()))?;
+    let mut sensing = Sensing::new(plan.sensing).map_err(|e| InputError(e.to_string()))?;
+    let tau = plan.primitive.duration();
+    let mut online = OnlineDmp::new(&plan.primitive.dmp, &plan.primitive.weights)
+        .with_error_gain(plan.error_gain);
+    let end_phase = (-plan.primitive.dmp.config().alpha_x).exp();
+    let nominal = TARE + to_above + SETTLE + plan.search / plan.speed + tau + RELEASE + LIFT + 1.0;
+    // Phase stopping may stretch the profile up to three times.
+    let capacity = ((nominal + 2.0 * tau) * 1000.0) as usize + cps_franka::rt::BRAKE_RESERVE;
+    let options = LoopOptions {
+        max_ticks: capacity,
+        ..*options
+    };
+    let force_template = ForceAlong {
+        direction: plan.direction,
+        force: 0.0,
+        kp: plan.force_gains.0,
+        ki: plan.force_gains.1,
+        damping: plan.force_gains.2,
+    };
+    let mut ticks: Vec<ContactTick> = Vec::with_capacity(capacity);
+    let (mut stage, mut since_t, mut anchor) = (Stage::Tare, 0.0, start.translation.vector);
+    let mut contact: Option<(f64, [f64; 3])> = None;
+    let mut ending = ContactEnding::Interrupted;
+    let mut last_t = 0.0;
+    let mut last_force = 0.0;
+    let mut cancel = [0.0; 4];
+    let report = cps_franka::run_torques(conn, limits, &options, stop, |state, t| {
+        let frames = model.frames(&state.q);
+        let estimate = sensing.update(model, &frames, state, t);
+        let dt = t - last_t;
+        last_t = t;
+        let tool = frames.tool.translation.vector;
+        let pressing = -estimate.fixed_rows::<3>(0).dot(&n);
+        let since = t - since_t;
+        let mut next: Option<(Stage, Vector3<f64>)> = None;
+        if pressing > plan.ceiling && stage < Stage::Lift {
+            ending = ContactEnding::Ceiling { force: pressing, t };
+            next = Some((Stage::Lift, tool));
+        }
+        let mut force = None;
+        let target = match stage {
+            Stage::Tare => {
+                if since > TARE {
+                    next.get_or_insert((Stage::ToAbove, anchor));
+                }
+                anchor
+            }
+            Stage::ToAbove => {
+                let p = anchor + (above - anchor) * min_jerk(since / to_above);
+                if since > to_above {
+                    next.get_or_insert((Stage::Settle, above));
+                }
+                p
+            }
+            Stage::Settle => {
+                if since > SETTLE {
+                    next.get_or_insert((Stage::Search, above));
+                }
+                anchor
+            }
+            Stage::Search => {
+                let travelled = plan.speed * since;
+                if pressing > plan.detect {
+                    contact = Some((t, tool.into()));
+                    next.get_or_insert((Stage::Press, tool));
+                } else if travelled > plan.search {
+                    ending = ContactEnding::NoContact {
+                        searched: travelled,
+                    };
+                    next.get_or_insert((Stage::Lift, tool));
+                }
+                anchor + n * travelled
+            }
+            Stage::Press => {
+                let over = online.phase() <= end_phase;
+                if over {
+                    for (c, f) in cancel.iter_mut().zip(online.forcing()) {
+                        *c = -f;
+                    }
+                }
+                let err = (last_force - pressing).abs();
+                let input = StepInput {
+                    coupling: over.then_some(&cancel[..]),
+                    tracking_error: if over { 0.0 } else { err },
+                };
+                let _ = online.step_with(dt.max(1e-4), input);
+                let y = online.position();
+                // The force builds up over the first 0.2 s whatever the profile's start.
+                last_force =
+                    y[3].max(0.0) * min_jerk(since / 0.2).max(if since > 0.2 { 1.0 } else { 0.0 });
+                force = Some(ForceAlong {
+                    force: last_force,
+                    ..force_template
+                });
+                if over && online.time() > tau {
+                    ending = ContactEnding::Done;
+                    next.get_or_insert((Stage::Release, tool));
+                }
+                anchor + Vector3::new(y[0], y[1], y[2])
+            }
+            Stage::Release => {
+                force = Some(ForceAlong {
+                    force: last_force * (1.0 - min_jerk(since / RELEASE)),
+                    ..force_template
+                });
+                if since > RELEASE {
+                    next.get_or_insert((Stage::Lift, anchor));
+                }
+                anchor
+            }
+            Stage::Lift | Stage::Done => {
+                if stage == Stage::Lift && since > LIFT + 0.3 {
+                    next.get_or_insert((Stage::Done, anchor - n * plan.retreat));
+                }
+                anchor - n * (plan.retreat * min_jerk(since / LIFT))
+            }
+        };
+        if let Some((s, a)) = next {
+            // A jump to Lift from anywhere drops the force at once.
+            (stage, since_t, anchor) = (s, t, a);
+        }
+        let pose = Isometry3::from_parts(Translation3::from(target), start.rotation);
+        let tau_c = law.torques(
+            model,
+            &frames,
+            state,
+            &pose,
+            &Vector6::zeros(),
+            force.as_ref(),
+            &estimate,
+            dt,
+        );
+        if ticks.len() < ticks.capacity() {
+            ticks.push(ContactTick {
+                t,
+                id: state.message_id,
+                stage,
+                target: target.into(),
+                tool: tool.into(),
+                force: [estimate[0], estimate[1], estimate[2]],
+                pressing,
+                desired: force.map_or(0.0, |f| f.force),
+                phase: if stage >= Stage::Press {
+                    online.phase()
+                } else {
+                    1.0
+                },
+            });
+        }
+        Torques {
+            tau: tau_c,
+            finished: stage == Stage::Done,
+        }
+    })
+    .map_err(robot)?;
+    if !report.ending.complete() {
+        ending = ContactEnding::Interrupted;
+    }
+    Ok(ContactOutcome {
+        report,
+        ticks,
+        ending,
+        contact,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn press_profile() -> Vec<ContactWaypoint> {
+        let w = |t: f64, x: f64, force: f64| ContactWaypoint {
+            t,
+            offset: [x, 0.0, 0.0],
+            force,
+        };
+        vec![
+            w(0.0, 0.0, 0.0),
+            w(1.0, 0.0, 10.0),
+            w(5.0, 0.2, 10.0),
+            w(6.0, 0.2, 0.0),
+        ]
+    }
+
+    #[test]
+    fn a_primitive_from_way_points_passes_through_them() {
+        let p = ForcePrimitive::from_waypoints(&press_profile()).unwrap();
+        assert!((p.duration() - 6.0).abs() < 1e-12);
+        let traj = p.dmp.rollout(&p.weights);
+        let at = |t: f64| (t / p.dmp.config().dt).round() as usize;
+        // The force holds 10 N between 1 s and 5 s and is 0 at both ends; x slides 0.2 m.
+        for t in [1.0, 3.0, 5.0] {
+            assert!(
+                (traj.position(3)[at(t)] - 10.0).abs() < 0.05,
+                "{t}: {}",
+                traj.position(3)[at(t)]
+            );
+        }
+        assert!(traj.position(3)[0].abs() < 1e-9 && traj.position(3)[at(6.0)].abs() < 0.05);
+        assert!((traj.position(0)[at(5.0)] - 0.2).abs() < 1e-3);
+        assert!((p.peak_force() - 10.0).abs() < 0.1);
+    }
+
+    #[test]
+    fn bad_way_points_and_plans_are_named() {
+        let mut w = press_profile();
+        w[2].force = 500.0;
+        let e = ForcePrimitive::from_waypoints(&w).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "waypoints[2]: force 500 N is out of range: it must lie in [0, 100]"
+        );
+        let mut w = press_profile();
+        w[3].t = 4.0;
+        assert!(
+            ForcePrimitive::from_waypoints(&w)
+                .unwrap_err()
+                .to_string()
+                .contains("waypoints[3]: t = 4 s: times must increase")
+        );
+        let plan = ContactPlan {
+            above: [0.45, 0.0, 0.47],
+            direction: [0.0, 0.0, -1.0],
+            search: 0.15,
+            speed: 0.03,
+            detect: 3.0,
+            ceiling: 8.0,
+            retreat: 0.05,
+            error_gain: 0.2,
+            gains: CartesianGains::default(),
+            force_gains: (0.2, 5.0, 30.0),
+            sensing: SensingOptions::default(),
+            primitive: ForcePrimitive::from_waypoints(&press_profile()).unwrap(),
+        };
+        assert!(
+            plan.check()
+                .unwrap_err()
+                .0
+                .contains("at or above the ceiling of 8 N")
+        );
+        let plan = ContactPlan {
+            ceiling: 30.0,
+            speed: 2.0,
+            ..plan
+        };
+        assert_eq!(
+            plan.check().unwrap_err().0,
+            "speed (m/s): 2 is out of range: it must lie in [0.001, 0.1]"
+        );
+    }
+}
