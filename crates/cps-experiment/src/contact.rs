@@ -147,6 +147,57 @@ impl ForcePrimitive {
     }
 }
 
+/// Where the robot's measured joint torques are taken, which decides what the momentum
+/// observer must model beyond the rigid bodies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Drive {
+    /// After the gears, as a Franka's joint torque sensors: nothing more.
+    LinkSide,
+    /// franky-sim's MuJoCo FR3, whose reported torques are the torques it applies before
+    /// its joints' rotor inertia and friction (its MJCF: armature 0.195 kg m² on joints
+    /// 1–4 and 0.074 on 5–7, Coulomb friction 1.137 N m on 1–4, then 0.763, 0.44, 0.248,
+    /// viscous 0.21 N m s/rad).
+    FrankySim,
+}
+
+impl Drive {
+    /// By name: `link` or `franky-sim`.
+    pub fn parse(name: &str) -> Result<Self, InputError> {
+        match name {
+            "link" => Ok(Drive::LinkSide),
+            "franky-sim" => Ok(Drive::FrankySim),
+            other => Err(InputError(format!(
+                "drive: `{other}` is not one of link (a Franka's torque sensors), franky-sim"
+            ))),
+        }
+    }
+
+    /// The name [`Drive::parse`] reads.
+    pub fn name(self) -> &'static str {
+        match self {
+            Drive::LinkSide => "link",
+            Drive::FrankySim => "franky-sim",
+        }
+    }
+
+    /// `model` with the drive's rotor inertia, and `sensing` with its friction.
+    pub fn apply(self, model: ArmModel<7>, sensing: &mut SensingOptions) -> ArmModel<7> {
+        match self {
+            Drive::LinkSide => model,
+            Drive::FrankySim => {
+                sensing.friction = cps_kinematics::contact::JointFriction {
+                    viscous: [0.21; 7],
+                    coulomb: [1.137, 1.137, 1.137, 1.137, 0.763, 0.44, 0.248],
+                    speed: 0.005,
+                };
+                model
+                    .with_armature([0.195, 0.195, 0.195, 0.195, 0.074, 0.074, 0.074])
+                    .expect("the armature values are valid")
+            }
+        }
+    }
+}
+
 /// Everything the contact task needs besides the robot and its model.
 #[derive(Debug, Clone)]
 pub struct ContactPlan {
