@@ -158,7 +158,7 @@ pub fn estimate(exp: &Experiment) -> Estimate {
             per_sample_extra = e.map_or(10, |e| e.plant.substeps) as f64 * 25.0;
             multiplier += e.map_or(0.0, |e| 6.0 * e.speedup_generations as f64 / g.max(1.0));
         }
-        Kind::Viapoint => {}
+        Kind::Viapoint | Kind::Contact => {}
     }
     let lambda = population as f64;
     // The exact solver evaluates no population (via points and imitation's learner).

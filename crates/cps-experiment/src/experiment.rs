@@ -39,6 +39,7 @@ struct File {
     orientation: Option<Spanned<crate::plan::OrientationSection>>,
     export: Option<Spanned<crate::export::ExportSection>>,
     promp: Option<Spanned<crate::plan::ProMpSection>>,
+    contact: Option<Spanned<crate::contact_section::ContactSection>>,
     executed: Option<Spanned<crate::plan::ExecutedSection>>,
 }
 
@@ -199,6 +200,15 @@ pub fn parse(
             at(&e),
             e.message()
         )));
+    }
+    if let Ok(table) = text.parse::<toml::Table>()
+        && table
+            .get("experiment")
+            .and_then(|e| e.get("kind"))
+            .and_then(|k| k.as_str())
+            == Some("contact")
+    {
+        return parse_contact(path, text, seed_override);
     }
     let file: File =
         toml::from_str(text).map_err(|e| InputError(format!("{}: {}", at(&e), e.message())))?;
@@ -417,6 +427,7 @@ pub fn parse(
         orientation: file.orientation.as_ref(),
         export: file.export.as_ref(),
         promp: file.promp.as_ref(),
+        contact: file.contact.as_ref(),
         executed: file.executed.as_ref(),
     };
     let mut plans = sections.parse(&config)?;
@@ -434,6 +445,7 @@ pub fn parse(
         energy: plans.energy,
         pose: plans.pose,
         promp: plans.promp,
+        contact: plans.contact,
         executed: plans.executed,
         export: plans.export,
         estimate: None,
@@ -444,6 +456,92 @@ pub fn parse(
         crate::budget::check(&exp, &factors, ceilings, &|span| location(path, text, span))?;
     exp.estimate = Some(estimate);
     Ok(exp)
+}
+
+/// A `kind = "contact"` file: `[experiment]`, `[robot]`, `[contact]` and `[output]` only
+/// (it learns no via points: `[dmp]`, `[task]`, `[optimizer]` are refused by name). The
+/// learner's configuration is the thesis's, unused.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ContactFile {
+    experiment: ExperimentSection,
+    robot: Option<Spanned<crate::plan::RobotSection>>,
+    contact: Option<Spanned<crate::contact_section::ContactSection>>,
+    #[serde(default)]
+    output: Output,
+}
+
+fn parse_contact(
+    path: &Path,
+    text: &str,
+    seed_override: Option<u64>,
+) -> Result<Experiment, InputError> {
+    let file: ContactFile = toml::from_str(text).map_err(|e| {
+        let at = e
+            .span()
+            .map(|s| location(path, text, &s))
+            .unwrap_or_else(|| path.display().to_string());
+        InputError(format!(
+            "{at}: {} (kind = \"contact\" reads [experiment], [robot], [contact] and [output])",
+            e.message()
+        ))
+    })?;
+    let mut config = ViaPointConfig::new(ViaPointTask::thesis());
+    config.seed = seed_override.unwrap_or(file.experiment.seed);
+    let sections = crate::plan::Sections {
+        path,
+        text,
+        kind: Kind::Contact,
+        robot: file.robot.as_ref(),
+        demonstrations: None,
+        imitation: None,
+        scaling: None,
+        joint: None,
+        plant: None,
+        speedup: None,
+        orientation: None,
+        export: None,
+        promp: None,
+        contact: file.contact.as_ref(),
+        executed: None,
+    };
+    let plans = sections.parse(&config)?;
+    let name = file.experiment.name.clone().unwrap_or_else(|| {
+        path.file_stem()
+            .map_or("contact".into(), |s| s.to_string_lossy().into_owned())
+    });
+    // What it needs: the recording (every tick, the loop's and the task's record).
+    let seconds = plans.contact.as_ref().map_or(60.0, |c| {
+        let p = &c.plan;
+        10.0 + p.search / p.speed + 3.0 * p.primitive.duration()
+    });
+    let samples = seconds * 1000.0;
+    Ok(Experiment {
+        kind: Kind::Contact,
+        source: path.to_path_buf(),
+        name,
+        config,
+        plots: file.output.plots,
+        robot: plans.robot,
+        imitation: None,
+        scaling: None,
+        joint: None,
+        energy: None,
+        pose: None,
+        promp: None,
+        contact: plans.contact,
+        executed: None,
+        export: None,
+        estimate: Some(crate::plan::Estimate {
+            memory_bytes: samples * 600.0,
+            work: samples * 5e4,
+            samples,
+            evaluations: 0.0,
+            dims: 4,
+            parameters: 0,
+            population: 0,
+        }),
+    })
 }
 
 /// The scene's obstacles join the task's (for the kinds that keep obstacles), each

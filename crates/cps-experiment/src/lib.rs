@@ -49,6 +49,7 @@
 pub mod budget;
 pub mod cmaes_bench;
 pub mod contact;
+pub mod contact_section;
 mod error;
 pub mod experiment;
 pub mod export;

@@ -42,6 +42,9 @@ pub enum Kind {
     /// Via-point learning whose cost is measured on the robot: every CMA-ES candidate is
     /// executed (on a pool of simulators) and judged by its recording.
     ViapointExecuted,
+    /// A movement that touches, on a Franka in torque mode: approach a surface until
+    /// contact, follow a force profile along it, release (`[contact]`).
+    Contact,
 }
 
 impl Kind {
@@ -56,6 +59,7 @@ impl Kind {
             Kind::ViapointPose => "viapoint_pose",
             Kind::Promp => "promp",
             Kind::ViapointExecuted => "viapoint_executed",
+            Kind::Contact => "contact",
         }
     }
 }
@@ -90,6 +94,8 @@ pub struct Experiment {
     pub promp: Option<ProMpPlan>,
     /// The executed cost's own weight (`kind = "viapoint_executed"`).
     pub executed: Option<ExecutedPlan>,
+    /// The surface, the force profile and the controller (`kind = "contact"`).
+    pub contact: Option<crate::contact_section::ContactSpec>,
     /// Retiming and export of the robot's movement (`[export]`, kinds with a robot).
     pub export: Option<crate::export::ExportPlan>,
     /// What the run needs (memory, work), estimated when the file was read.
@@ -601,6 +607,7 @@ pub(crate) struct Sections<'a> {
     pub export: Option<&'a Spanned<crate::export::ExportSection>>,
     pub promp: Option<&'a Spanned<ProMpSection>>,
     pub executed: Option<&'a Spanned<ExecutedSection>>,
+    pub contact: Option<&'a Spanned<crate::contact_section::ContactSection>>,
 }
 
 /// The parsed plans of [`Sections::parse`].
@@ -614,6 +621,7 @@ pub(crate) struct Plans {
     pub promp: Option<ProMpPlan>,
     pub executed: Option<ExecutedPlan>,
     pub export: Option<crate::export::ExportPlan>,
+    pub contact: Option<crate::contact_section::ContactSpec>,
 }
 
 impl Sections<'_> {
@@ -667,7 +675,11 @@ impl Sections<'_> {
         // A pose experiment executes when it names a robot; the other two always do.
         let executes = matches!(
             self.kind,
-            Kind::Imitation | Kind::ViapointJoint | Kind::Promp | Kind::ViapointExecuted
+            Kind::Imitation
+                | Kind::ViapointJoint
+                | Kind::Promp
+                | Kind::ViapointExecuted
+                | Kind::Contact
         ) || (self.kind == Kind::ViapointPose && self.robot.is_some());
         if let Some(r) = self.robot
             && !executes
@@ -675,9 +687,23 @@ impl Sections<'_> {
             return Err(only(
                 r.span(),
                 "robot",
-                "kind = \"imitation\", \"promp\", \"viapoint_joint\", \"viapoint_pose\" and \"viapoint_executed\"",
+                "kind = \"imitation\", \"promp\", \"viapoint_joint\", \"viapoint_pose\", \"viapoint_executed\" and \"contact\"",
             ));
         }
+        let contact = match (self.kind, self.contact) {
+            (Kind::Contact, Some(c)) => {
+                let dir = self.path.parent().unwrap_or(Path::new("."));
+                Some(c.get_ref().plan(dir, &|span, m| self.err(span, m))?)
+            }
+            (Kind::Contact, None) => {
+                return Err(InputError(format!(
+                    "{}: kind = \"contact\" needs a [contact] section (the surface's approach and the force profile)",
+                    self.path.display()
+                )));
+            }
+            (_, Some(c)) => return Err(only(c.span(), "contact", "kind = \"contact\"")),
+            _ => None,
+        };
         if let Some(e) = self.executed
             && self.kind != Kind::ViapointExecuted
         {
@@ -734,6 +760,18 @@ impl Sections<'_> {
         } else {
             None
         };
+        if self.kind == Kind::Contact
+            && !matches!(
+                robot.as_ref().map(|r| &r.backend),
+                Some(BackendChoice::Franka { .. })
+            )
+        {
+            let at = self.robot.map_or(0..0, |r| r.span());
+            return Err(self.err(
+                &at,
+                "kind = \"contact\" drives a Franka in torque mode: give [robot] backend = \"franka\" with its host".into(),
+            ));
+        }
         let imitation = if matches!(self.kind, Kind::Imitation | Kind::Promp) {
             Some(self.imitation_plan(learner)?)
         } else {
@@ -817,6 +855,7 @@ impl Sections<'_> {
             promp,
             executed,
             export,
+            contact,
         })
     }
 

@@ -54,6 +54,7 @@ pub fn planned_generations(exp: &Experiment) -> u64 {
         // The speed-up measurement reports `Event::Working`, not generations.
         Kind::ViapointEnergy => config.generations,
         Kind::ViapointExecuted => config.generations,
+        Kind::Contact => 0,
     }
 }
 
@@ -89,9 +90,13 @@ pub fn run(
         Kind::ViapointEnergy => kinds::energy::run(&ctx),
         Kind::ViapointPose => kinds::pose::run(&ctx),
         Kind::ViapointExecuted => kinds::executed::run(&ctx),
+        Kind::Contact => kinds::contact::run(&ctx),
     }?;
-    // Every report also lists the task, the settings and the cost breakdowns.
-    let shared = kinds::shared_report_tables(exp, &outcome.summary);
-    outcome.report.tables.extend(shared);
+    // Every report also lists the task, the settings and the cost breakdowns (a contact
+    // experiment learns no via points: its report has its own).
+    if exp.kind != Kind::Contact {
+        let shared = kinds::shared_report_tables(exp, &outcome.summary);
+        outcome.report.tables.extend(shared);
+    }
     Ok(outcome)
 }
