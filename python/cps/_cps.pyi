@@ -331,6 +331,30 @@ class Franka:
     def execute(self, t: ArrayLike, q: ArrayLike, *, retime: bool = False, approach: bool = False) -> dict[str, Any]: ...
     def record(self, duration: float) -> dict[str, Any]: ...
     def guide(self, duration: float, *, damping: float | None = ...) -> dict[str, Any]: ...
+    def contact(
+        self,
+        waypoints: ArrayLike,
+        *,
+        above: Sequence[float],
+        direction: Sequence[float] = (0.0, 0.0, -1.0),
+        search: float = 0.15,
+        speed: float = 0.03,
+        detect: float = 3.0,
+        ceiling: float = 30.0,
+        retreat: float = 0.05,
+        error_gain: float = 0.2,
+        stiffness: tuple[float, float] = (2000.0, 150.0),
+        force_gains: tuple[float, float, float] = (0.2, 5.0, 30.0),
+        drive: str = "link",
+    ) -> dict[str, Any]: ...
+    def impedance(
+        self,
+        t: ArrayLike,
+        positions: ArrayLike,
+        *,
+        stiffness: tuple[float, float] = (2000.0, 150.0),
+        drive: str = "link",
+    ) -> dict[str, Any]: ...
     def gripper(
         self,
         action: str,

@@ -27,8 +27,8 @@ def _sim_python():
     pytest.skip("franky-sim is not installed (see crates/cps-franka/tests/requirements.txt)")
 
 
-def _start(host):
-    p = subprocess.Popen([_sim_python(), str(ROOT / "crates/cps-franka/tests/sim_server.py"), "--host", host],
+def _start(host, *extra):
+    p = subprocess.Popen([_sim_python(), str(ROOT / "crates/cps-franka/tests/sim_server.py"), "--host", host, *extra],
                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     line = p.stdout.readline()
     assert line.startswith("ready"), line
@@ -134,6 +134,40 @@ def test_guiding_records_what_a_hand_does():
         assert abs(moved[1] - 0.1) < 0.01 and abs(moved[0]) < 0.01 and abs(moved[2]) < 0.01, moved
         with pytest.raises(ValueError, match=r"joint 1 damping .* 50 is out of range"):
             robot.guide(1.0, damping=50.0)
+    finally:
+        p.kill()
+        p.wait()
+
+
+def test_contact_presses_the_simulated_table_and_impedance_follows_a_line():
+    host = "127.0.0.55"
+    p = _start(host, "--table", "0.40", "--friction", "0.5")
+    try:
+        robot = cps.Franka(host, realtime="ignore")
+        waypoints = [[0, 0, 0, 0, 0], [1, 0, 0, 0, 10], [3, 0.1, 0, 0, 10], [4, 0.1, 0, 0, 0]]
+        out = robot.contact(waypoints, above=[0.45, 0.0, 0.47], drive="franky-sim")
+        s = out["summary"]
+        assert s["done"] is True, s
+        assert abs(s["contact_point_m"][2] - 0.40) < 0.015
+        pressing = (np.array(out["stage"]) == "press") & (out["desired"] > 9.9)
+        assert pressing.sum() > 1000
+        assert abs(out["pressing"][pressing].mean() - 10.0) < 1.0
+        assert out["tool"][-1, 2] > 0.43  # lifted off
+        with pytest.raises(ValueError, match="ceiling"):
+            robot.contact(waypoints, above=[0.45, 0.0, 0.47], ceiling=5.0)
+        with pytest.raises(ValueError, match="waypoints"):
+            robot.contact([[0, 0, 0, 0, 0]], above=[0.45, 0.0, 0.47])
+        # Impedance: 8 cm along y in 2 s from where the tool is, in free space above the table.
+        start = np.array(robot.state()["tool_position"])
+        t = np.array([0.0, 2.0])
+        line = np.array([start, start + [0.0, 0.08, 0.0]])
+        f = robot.impedance(t, line, drive="franky-sim")
+        assert f["report"]["complete"] is True
+        end = f["tool"][-1]
+        assert np.linalg.norm(end - line[1]) < 0.01, end
+        assert np.abs(f["wrench"][300:, :3]).max() < 8.0  # nothing touched it
+        with pytest.raises(ValueError, match="stiffness"):
+            robot.impedance(t, line, stiffness=(9000.0, 150.0))
     finally:
         p.kill()
         p.wait()

@@ -245,6 +245,10 @@ impl ContactPlan {
         within("ceiling (N)", self.ceiling, self.detect, 150.0)?;
         within("retreat (m)", self.retreat, 0.0, 0.3)?;
         within("error_gain (1/N)", self.error_gain, 0.0, 10.0)?;
+        let (kp, ki, d) = self.force_gains;
+        within("force gain kp", kp, 0.0, 2.0)?;
+        within("force gain ki (1/s)", ki, 0.0, 50.0)?;
+        within("force damping (N s/m)", d, 0.0, 200.0)?;
         let n = Vector3::from(self.direction);
         if !(n.norm().is_finite() && n.norm() > 1e-6) {
             return Err(InputError("direction: give a non-zero direction".into()));
@@ -606,6 +610,177 @@ pub fn run_contact(
         ticks,
         ending,
         contact,
+    })
+}
+
+/// Where and how to reach the robot.
+#[derive(Debug, Clone)]
+pub struct RobotAt {
+    /// Its address.
+    pub host: String,
+    /// Which arm's limits.
+    pub arm: cps_franka::limits::Arm,
+    /// Realtime scheduling of the loop.
+    pub realtime: cps_franka::Realtime,
+    /// Where its joint torques are measured.
+    pub drive: Drive,
+}
+
+fn robot_error(e: cps_franka::FrankaError) -> ExperimentError {
+    match e {
+        cps_franka::FrankaError::Input(s) => InputError(s).into(),
+        other => ExperimentError::Message(other.to_string()),
+    }
+}
+
+/// Connects, checks the robot is ready, and reads its dynamic model (with `robot.drive`
+/// applied to the model and to `sensing`).
+fn connect_with_model(
+    robot: &RobotAt,
+    sensing: &mut SensingOptions,
+) -> Result<(Connection, ArmModel<7>), ExperimentError> {
+    let mut conn = Connection::connect(&robot.host, Default::default()).map_err(robot_error)?;
+    let (state, _) = conn
+        .newest_state(std::time::Duration::from_secs(1))
+        .map_err(robot_error)?;
+    conn.ensure_ready(&state).map_err(robot_error)?;
+    let model = cps_franka::control::robot_dynamics(&mut conn, &state).map_err(robot_error)?;
+    Ok((conn, robot.drive.apply(model, sensing)))
+}
+
+/// [`run_contact`] on the robot `robot`: connects, reads the robot's model, runs `plan`.
+pub fn contact_on_robot(
+    robot: &RobotAt,
+    plan: &ContactPlan,
+    stop: &AtomicBool,
+) -> Result<ContactOutcome, ExperimentError> {
+    plan.check()?;
+    let mut plan = plan.clone();
+    let (mut conn, model) = connect_with_model(robot, &mut plan.sensing)?;
+    let options = LoopOptions {
+        realtime: robot.realtime,
+        ..Default::default()
+    };
+    let limits = RateLimits::of(robot.arm);
+    run_contact(&mut conn, &model, limits, &options, &plan, stop)
+}
+
+/// What [`follow_with_impedance`] recorded.
+#[derive(Debug, Clone)]
+pub struct Followed {
+    /// The loop's report (every sample).
+    pub report: MotionReport,
+    /// Per sample: the target position (m).
+    pub target: Vec<[f64; 3]>,
+    /// Per sample: the tool's position by the model (m).
+    pub tool: Vec<[f64; 3]>,
+    /// Per sample: the estimated wrench the world exerts on the tool (N, N m).
+    pub wrench: Vec<[f64; 6]>,
+}
+
+/// Follows tool positions `positions` at `times` (s, increasing from 0; the orientation
+/// the tool has is held) with a Cartesian impedance of `gains` in torque mode, from where
+/// the tool stands (the first position must be within 5 cm of it), and records the
+/// estimated external wrench. Between the samples the target moves on a straight line;
+/// after the last it is held for 0.5 s.
+pub fn follow_with_impedance(
+    robot: &RobotAt,
+    times: &[f64],
+    positions: &[[f64; 3]],
+    gains: CartesianGains,
+    stop: &AtomicBool,
+) -> Result<Followed, ExperimentError> {
+    if times.len() != positions.len() || times.len() < 2 {
+        return Err(InputError(format!(
+            "impedance: {} times for {} positions; give at least two of each, as many",
+            times.len(),
+            positions.len()
+        ))
+        .into());
+    }
+    if let Some(i) = (0..times.len()).find(|&i| {
+        !times[i].is_finite()
+            || positions[i].iter().any(|v| !v.is_finite() || v.abs() > 1.5)
+            || (i == 0 && times[0] != 0.0)
+            || (i > 0 && times[i] <= times[i - 1])
+    }) {
+        return Err(InputError(format!(
+            "impedance: sample {i}: times must start at 0 and increase, positions be finite and within 1.5 m of the base"
+        ))
+        .into());
+    }
+    let end = times[times.len() - 1];
+    if end > 600.0 {
+        return Err(InputError(format!("impedance: {end} s long; at most 600 s")).into());
+    }
+    let mut sensing = SensingOptions::default();
+    let (mut conn, model) = connect_with_model(robot, &mut sensing)?;
+    let (state, _) = conn
+        .newest_state(std::time::Duration::from_secs(1))
+        .map_err(robot_error)?;
+    let start = model.frames(&state.q).tool;
+    let gap = (Vector3::from(positions[0]) - start.translation.vector).norm();
+    if gap > 0.05 {
+        return Err(InputError(format!(
+            "impedance: the first position is {:.1} mm from the tool (at most 50 mm): move there first",
+            gap * 1e3
+        ))
+        .into());
+    }
+    let mut law = CartesianImpedance::new(gains, state.q).map_err(|e| InputError(e.to_string()))?;
+    let mut sens = Sensing::new(sensing).map_err(|e| InputError(e.to_string()))?;
+    let ticks = ((end + 0.5) * 1000.0) as usize + cps_franka::rt::BRAKE_RESERVE + 10;
+    let options = LoopOptions {
+        realtime: robot.realtime,
+        max_ticks: ticks,
+        ..Default::default()
+    };
+    let (mut target_log, mut tool_log, mut wrench_log) = (
+        Vec::with_capacity(ticks),
+        Vec::with_capacity(ticks),
+        Vec::with_capacity(ticks),
+    );
+    let mut seg = 0;
+    let mut last_t = 0.0;
+    let report = cps_franka::run_torques(
+        &mut conn,
+        RateLimits::of(robot.arm),
+        &options,
+        stop,
+        |s, t| {
+            let frames = model.frames(&s.q);
+            let w = sens.update(&model, &frames, s, t);
+            let dt = t - last_t;
+            last_t = t;
+            let tt = t.min(end);
+            while seg + 2 < times.len() && tt > times[seg + 1] {
+                seg += 1;
+            }
+            let share = ((tt - times[seg]) / (times[seg + 1] - times[seg])).clamp(0.0, 1.0);
+            let (a, b) = (
+                Vector3::from(positions[seg]),
+                Vector3::from(positions[seg + 1]),
+            );
+            let p = a + (b - a) * share;
+            let pose = Isometry3::from_parts(Translation3::from(p), start.rotation);
+            let tau = law.torques(&model, &frames, s, &pose, &Vector6::zeros(), None, &w, dt);
+            if target_log.len() < target_log.capacity() {
+                target_log.push(p.into());
+                tool_log.push(frames.tool.translation.vector.into());
+                wrench_log.push([w[0], w[1], w[2], w[3], w[4], w[5]]);
+            }
+            Torques {
+                tau,
+                finished: t >= end + 0.5,
+            }
+        },
+    )
+    .map_err(robot_error)?;
+    Ok(Followed {
+        report,
+        target: target_log,
+        tool: tool_log,
+        wrench: wrench_log,
     })
 }
 

@@ -252,6 +252,50 @@ impl ContactSection {
     }
 }
 
+impl ContactSpec {
+    /// The task's length without contact delays (s): tare, the move above (at 5 cm/s),
+    /// settling, the whole search, the profile, release and lift.
+    pub fn nominal_seconds(&self) -> f64 {
+        let p = &self.plan;
+        0.3 + 2.0 + 0.3 + p.search / p.speed + p.primitive.duration() + 0.3 + 1.3
+    }
+
+    /// What `cps-cli check` says of it.
+    pub fn describe(&self, robot: Option<String>) -> Vec<String> {
+        let p = &self.plan;
+        let mut lines = vec![
+            format!(
+                "touches: from {:?} m along {:?}, searching {} m at {} m/s for {} N; then the profile ({}, {:.1} s, up to {:.1} N) with the phase slowed by the force error; ceiling {} N",
+                p.above,
+                p.direction,
+                p.search,
+                p.speed,
+                p.detect,
+                self.profile,
+                p.primitive.duration(),
+                p.primitive.peak_force(),
+                p.ceiling
+            ),
+            format!(
+                "control: Cartesian impedance {} N/m, {} N m/rad; force loop kp {}, ki {} /s, damping {} N s/m; torques measured {}",
+                p.gains.translation[0],
+                p.gains.rotation[0],
+                p.force_gains.0,
+                p.force_gains.1,
+                p.force_gains.2,
+                match self.drive {
+                    Drive::LinkSide => "after the gears (a Franka)",
+                    Drive::FrankySim => "before the joints' friction (franky-sim)",
+                }
+            ),
+        ];
+        if let Some(r) = robot {
+            lines.push(format!("robot: {r} in torque mode"));
+        }
+        lines
+    }
+}
+
 /// A force profile file: a header naming `t, dx, dy, dz, force` (in any order, other
 /// columns ignored), then numbers; at most 10⁶ rows.
 fn read_profile(path: &Path) -> Result<(Vec<f64>, Vec<Vec<f64>>), String> {

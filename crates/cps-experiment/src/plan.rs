@@ -1568,6 +1568,9 @@ impl Experiment {
     /// The plan in words, for `check`: what is learned, by which search with what budget,
     /// and where it is executed.
     pub fn describe(&self) -> Vec<String> {
+        if let Some(c) = &self.contact {
+            return c.describe(self.robot.as_ref().map(|r| r.describe()));
+        }
         let c = &self.config;
         let task = &c.task;
         let bases = task.dmp.n_basis;
@@ -1686,7 +1689,12 @@ impl Experiment {
     /// reach (checked as the run would, so an unreachable point is an error here) and the
     /// estimate of memory and time.
     pub fn check_lines(&self, threads: usize) -> Result<Vec<String>, InputError> {
-        let reach = self.check_reach()?;
+        // A contact task has no way points to reach: the search finds its surface.
+        let reach = if self.kind == Kind::Contact {
+            None
+        } else {
+            self.check_reach()?
+        };
         let mut lines = vec![format!(
             "{}: ok (kind {})",
             self.source.display(),
@@ -1695,7 +1703,14 @@ impl Experiment {
         for line in self.describe().into_iter().chain(reach) {
             lines.push(format!("  {line}"));
         }
-        if let Some(e) = &self.estimate {
+        if let (Some(c), Some(e)) = (&self.contact, &self.estimate) {
+            // A contact task runs in the robot's time, not the machine's.
+            lines.push(format!(
+                "  runs ≈ {:.0} s on the robot (longer while the force lags its profile), recording ≈ {}",
+                c.nominal_seconds(),
+                crate::budget::bytes(e.memory_bytes)
+            ));
+        } else if let Some(e) = &self.estimate {
             lines.push(format!("  {}", e.describe(threads)));
         }
         Ok(lines)

@@ -191,6 +191,180 @@ impl Franka {
         Ok(d)
     }
 
+    /// A movement that touches, in torque mode: move above the surface (`above`, m),
+    /// approach along `direction` at `speed` until the estimated force exceeds `detect` N
+    /// (at most `search` m), then follow `waypoints` — rows `(t, dx, dy, dz, force)` from
+    /// the moment of contact, learned as a DMP over the offset and the force — with the
+    /// force held along the direction and the phase slowed by the force error; let go,
+    /// lift `retreat` m. A force above `ceiling` drops it and retreats. `drive`: "link" (a
+    /// Franka's torque sensors) or "franky-sim". Returns arrays per 1 ms tick (`t`,
+    /// `stage`, `target`, `tool`, `force`, `pressing`, `desired`, `phase`) and `summary`.
+    #[pyo3(signature = (waypoints, *, above, direction = [0.0, 0.0, -1.0], search = 0.15, speed = 0.03, detect = 3.0, ceiling = 30.0, retreat = 0.05, error_gain = 0.2, stiffness = (2000.0, 150.0), force_gains = (0.2, 5.0, 30.0), drive = "link"))]
+    #[allow(clippy::too_many_arguments)]
+    fn contact<'py>(
+        &self,
+        py: Python<'py>,
+        waypoints: &Bound<'py, PyAny>,
+        above: [f64; 3],
+        direction: [f64; 3],
+        search: f64,
+        speed: f64,
+        detect: f64,
+        ceiling: f64,
+        retreat: f64,
+        error_gain: f64,
+        stiffness: (f64, f64),
+        force_gains: (f64, f64, f64),
+        drive: &str,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        use cps_experiment::contact::{
+            ContactPlan, ContactWaypoint, Drive, ForcePrimitive, RobotAt,
+        };
+        let rows = matrix(waypoints, "waypoints", Some(5), false)?;
+        let points: Vec<ContactWaypoint> = rows
+            .rows_vec()
+            .iter()
+            .map(|r| ContactWaypoint {
+                t: r[0],
+                offset: [r[1], r[2], r[3]],
+                force: r[4],
+            })
+            .collect();
+        let primitive = ForcePrimitive::from_waypoints(&points).map_err(|e| e.py_err())?;
+        let gains = cps_franka::control::CartesianGains {
+            translation: [stiffness.0; 3],
+            rotation: [stiffness.1; 3],
+            damping_ratio: 1.0,
+            nullspace: 5.0,
+        };
+        let plan = ContactPlan {
+            above,
+            direction,
+            search,
+            speed,
+            detect,
+            ceiling,
+            retreat,
+            error_gain,
+            gains,
+            force_gains,
+            sensing: Default::default(),
+            primitive,
+        };
+        plan.check().map_err(|e| e.py_err())?;
+        cps_franka::control::CartesianImpedance::new(gains, [0.0; 7])
+            .map_err(|e| value_error(format!("stiffness: {e}")))?;
+        let robot = RobotAt {
+            host: self.host.clone(),
+            arm: self.arm,
+            realtime: self.realtime,
+            drive: Drive::parse(drive).map_err(|e| e.py_err())?,
+        };
+        let (out, interrupt) = detached_keep(py, None, |stop| {
+            cps_experiment::contact::contact_on_robot(&robot, &plan, stop)
+        })?;
+        let out = out.map_err(|e| e.py_err())?;
+        let k = &out.ticks;
+        let n = k.len();
+        let d = PyDict::new(py);
+        d.set_item("t", array1(py, k.iter().map(|x| x.t).collect()))?;
+        d.set_item(
+            "stage",
+            k.iter().map(|x| x.stage.name()).collect::<Vec<_>>(),
+        )?;
+        let three = |f: fn(&cps_experiment::contact::ContactTick) -> [f64; 3]| {
+            k.iter().flat_map(f).collect::<Vec<f64>>()
+        };
+        d.set_item("target", array2(py, three(|x| x.target), n, 3)?)?;
+        d.set_item("tool", array2(py, three(|x| x.tool), n, 3)?)?;
+        d.set_item("force", array2(py, three(|x| x.force), n, 3)?)?;
+        d.set_item(
+            "pressing",
+            array1(py, k.iter().map(|x| x.pressing).collect()),
+        )?;
+        d.set_item("desired", array1(py, k.iter().map(|x| x.desired).collect()))?;
+        d.set_item("phase", array1(py, k.iter().map(|x| x.phase).collect()))?;
+        let (force_rms, peak, path_rms) = out.measures(direction);
+        let summary = serde_json::json!({
+            "ending": out.ending.sentence(),
+            "motion": out.report.ending.sentence(),
+            "done": out.ending == cps_experiment::contact::ContactEnding::Done,
+            "contact_time_s": out.contact.map(|c| c.0),
+            "contact_point_m": out.contact.map(|c| c.1),
+            "force_rms_error_n": force_rms,
+            "peak_force_n": peak,
+            "path_rms_error_m": path_rms,
+            "loop_p99_us": out.report.timing.p99_us,
+        });
+        d.set_item("summary", json_to_py(py, &summary)?)?;
+        if let Some(e) = interrupt {
+            return Err(e);
+        }
+        Ok(d)
+    }
+
+    /// Follows tool positions `positions` (n, 3; m, base frame) at times `t` (n,; from 0)
+    /// with a Cartesian impedance in torque mode (`stiffness` = (N/m, N m/rad), critically
+    /// damped), the tool's orientation held; the first position within 5 cm of the tool.
+    /// Returns the recording's arrays with `target`, `tool_model` (n, 3) and `wrench` (n, 6:
+    /// the estimated force and moment the world exerts on the tool), and `report`.
+    #[pyo3(signature = (t, positions, *, stiffness = (2000.0, 150.0), drive = "link"))]
+    fn impedance<'py>(
+        &self,
+        py: Python<'py>,
+        t: &Bound<'py, PyAny>,
+        positions: &Bound<'py, PyAny>,
+        stiffness: (f64, f64),
+        drive: &str,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        use cps_experiment::contact::{Drive, RobotAt};
+        let times = vector(t, "t", None)?;
+        let rows = matrix(positions, "positions", Some(3), false)?;
+        let points: Vec<[f64; 3]> = rows.rows_vec().iter().map(|r| [r[0], r[1], r[2]]).collect();
+        let gains = cps_franka::control::CartesianGains {
+            translation: [stiffness.0; 3],
+            rotation: [stiffness.1; 3],
+            damping_ratio: 1.0,
+            nullspace: 5.0,
+        };
+        cps_franka::control::CartesianImpedance::new(gains, [0.0; 7])
+            .map_err(|e| value_error(format!("stiffness: {e}")))?;
+        let robot = RobotAt {
+            host: self.host.clone(),
+            arm: self.arm,
+            realtime: self.realtime,
+            drive: Drive::parse(drive).map_err(|e| e.py_err())?,
+        };
+        let (out, interrupt) = detached_keep(py, None, |stop| {
+            cps_experiment::contact::follow_with_impedance(&robot, &times, &points, gains, stop)
+        })?;
+        let out = out.map_err(|e| e.py_err())?;
+        let d = recording(py, &out.report.samples)?;
+        let n = out.target.len();
+        d.set_item(
+            "target",
+            array2(py, out.target.iter().flatten().copied().collect(), n, 3)?,
+        )?;
+        d.set_item(
+            "tool_model",
+            array2(py, out.tool.iter().flatten().copied().collect(), n, 3)?,
+        )?;
+        d.set_item(
+            "wrench",
+            array2(py, out.wrench.iter().flatten().copied().collect(), n, 6)?,
+        )?;
+        let report = serde_json::json!({
+            "complete": out.report.ending.complete(),
+            "ending": out.report.ending.sentence(),
+            "p99_us": out.report.timing.p99_us,
+        });
+        d.set_item("report", json_to_py(py, &report)?)?;
+        if let Some(e) = interrupt {
+            return Err(e);
+        }
+        Ok(d)
+    }
+
     /// The Franka Hand: `action` is "home", "move", "grasp", "stop" or "state"; `width`
     /// (m) for move and grasp. Waits until the fingers settle; returns the hand's state
     /// (`width`, `max_width`, `is_grasped`, `temperature`, and for a grasp `grasped`).

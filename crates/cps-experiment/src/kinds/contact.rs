@@ -10,7 +10,7 @@ use std::sync::atomic::Ordering::SeqCst;
 use serde::Serialize;
 
 use super::Ctx;
-use crate::contact::{ContactEnding, ContactOutcome, Stage, run_contact};
+use crate::contact::{ContactEnding, ContactOutcome, RobotAt, Stage, contact_on_robot};
 use crate::franka_backend::{MOVING, STOP};
 use crate::outcome::{
     Column, Figure, Format, Outcome, Panels, Plot, Report, ReportTable, Series, Table,
@@ -60,29 +60,15 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
             InputError("kind = \"contact\" needs [robot] backend = \"franka\"".into()).into(),
         );
     };
-    let robot_error = |e: cps_franka::FrankaError| ExperimentError::Message(e.to_string());
-    let mut conn =
-        cps_franka::Connection::connect(host, Default::default()).map_err(robot_error)?;
-    let (state, _) = conn
-        .newest_state(std::time::Duration::from_secs(1))
-        .map_err(robot_error)?;
-    conn.ensure_ready(&state).map_err(robot_error)?;
-    let mut plan = spec.plan.clone();
-    let model = cps_franka::control::robot_dynamics(&mut conn, &state).map_err(robot_error)?;
-    let model = spec.drive.apply(model, &mut plan.sensing);
-    let options = cps_franka::LoopOptions {
+    let robot = RobotAt {
+        host: host.clone(),
+        arm: *arm,
         realtime: *realtime,
-        ..Default::default()
+        drive: spec.drive,
     };
+    let plan = &spec.plan;
     MOVING.store(true, SeqCst);
-    let done = run_contact(
-        &mut conn,
-        &model,
-        cps_franka::limits::RateLimits::of(*arm),
-        &options,
-        &plan,
-        &STOP,
-    );
+    let done = contact_on_robot(&robot, plan, &STOP);
     MOVING.store(false, SeqCst);
     let out = done?;
     let stopped = STOP.load(SeqCst);
