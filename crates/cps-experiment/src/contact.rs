@@ -322,6 +322,9 @@ pub struct ContactTick {
     pub tool: [f64; 3],
     /// The force the world exerts on the tool, estimated (N, base frame).
     pub force: [f64; 3],
+    /// The robot's own estimate of the external force at its end effector (`O_F_ext_hat_K`,
+    /// N, base frame): beside cps's on a real Franka (franky-sim reports zeros).
+    pub robot_force: [f64; 3],
     /// The force the tool exerts along the pressing direction, estimated (N).
     pub pressing: f64,
     /// The force asked for along the direction (N; 0 without force control).
@@ -587,6 +590,11 @@ pub fn run_contact(
                 target: target.into(),
                 tool: tool.into(),
                 force: [estimate[0], estimate[1], estimate[2]],
+                robot_force: [
+                    state.o_f_ext_hat_k[0],
+                    state.o_f_ext_hat_k[1],
+                    state.o_f_ext_hat_k[2],
+                ],
                 pressing,
                 desired: force.map_or(0.0, |f| f.force),
                 phase: if stage >= Stage::Press {

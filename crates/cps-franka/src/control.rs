@@ -483,6 +483,53 @@ mod tests {
     }
 
     #[test]
+    fn an_end_effector_that_is_not_a_body_is_refused() {
+        use cps_kinematics::robots::{PandaTool, fr3, panda_inertia};
+        let arm = || ArmModel::<JOINTS>::new(&fr3(PandaTool::Flange), &panda_inertia()).unwrap();
+        let mut state = RobotState::decode(&[0u8; crate::wire::STATE_SIZE]).unwrap();
+        let eye = [
+            1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+        ];
+        state.f_t_ee = eye;
+        let tool = arm().frames(&state.q).tool;
+        let mut o = eye;
+        o[12..15].copy_from_slice(tool.translation.vector.as_slice());
+        state.o_t_ee = o;
+        state.m_ee = 0.73;
+        state.f_x_cee = [-0.01, 0.0, 0.03];
+        state.i_ee = [0.001, 0.0, 0.0, 0.0, 0.0025, 0.0, 0.0, 0.0, 0.0017];
+        assert!(with_end_effector(arm(), &state).is_ok());
+        let mut bad = state;
+        bad.m_ee = -0.5;
+        let e = with_end_effector(arm(), &bad).unwrap_err().to_string();
+        assert!(
+            e.contains("the end effector reported by the robot is not a body's"),
+            "{e}"
+        );
+        let mut bad = state;
+        bad.i_ee = [0.001, 0.0, 0.0, 0.0, 0.0025, 0.0, 0.0, 0.0, 0.01]; // zz > xx + yy
+        assert!(
+            with_end_effector(arm(), &bad)
+                .unwrap_err()
+                .to_string()
+                .contains("principal moments")
+        );
+        let mut bad = state;
+        bad.m_load = 1.0;
+        bad.i_load = [f64::NAN; 9];
+        assert!(
+            with_end_effector(arm(), &bad)
+                .unwrap_err()
+                .to_string()
+                .contains("the load reported")
+        );
+        let mut off = state;
+        off.o_t_ee[14] += 0.01;
+        let e = with_end_effector(arm(), &off).unwrap_err().to_string();
+        assert!(e.contains("10.0 mm from the robot's own O_T_EE"), "{e}");
+    }
+
+    #[test]
     fn poses_read_column_major() {
         // A quarter turn about z and a translation, as the FCI sends O_T_EE.
         let m = [

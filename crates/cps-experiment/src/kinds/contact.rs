@@ -177,7 +177,8 @@ fn lines(s: &Summary) -> Vec<String> {
     l
 }
 
-/// Every tick: `t, id` (the robot state's message id), `stage, target_x..z, tool_x..z, force_x..z, pressing, desired, phase`.
+/// Every tick: `t, id` (the robot state's message id), `stage, target_x..z, tool_x..z,
+/// force_x..z` (cps's estimate), `robot_force_x..z` (the robot's), `pressing, desired, phase`.
 fn table(out: &ContactOutcome) -> Table {
     let k = &out.ticks;
     let num = |name: &str, f: &dyn Fn(&crate::contact::ContactTick) -> f64| {
@@ -198,6 +199,9 @@ fn table(out: &ContactOutcome) -> Table {
     }
     for (d, axis) in ["x", "y", "z"].iter().enumerate() {
         t.push(num(&format!("force_{axis}"), &|x| x.force[d]));
+    }
+    for (d, axis) in ["x", "y", "z"].iter().enumerate() {
+        t.push(num(&format!("robot_force_{axis}"), &|x| x.robot_force[d]));
     }
     t.push(num("pressing", &|x| x.pressing));
     t.push(num("desired", &|x| x.desired));
