@@ -475,6 +475,8 @@ pub fn run_contact(
     let mut ending = ContactEnding::Interrupted;
     let mut last_t = 0.0;
     let mut last_force = 0.0;
+    // The target's velocity, fed forward so the damping does not drag against the path.
+    let mut last_target: Option<Vector3<f64>> = None;
     let mut cancel = [0.0; 4];
     let report = cps_franka::run_torques(conn, limits, &options, stop, |state, t| {
         let frames = model.frames(&state.q);
@@ -567,17 +569,30 @@ pub fn run_contact(
                 anchor - n * (plan.retreat * min_jerk(since / LIFT))
             }
         };
+        let switching = next.is_some();
         if let Some((s, a)) = next {
             // A jump to Lift from anywhere drops the force at once.
             (stage, since_t, anchor) = (s, t, a);
         }
+        let mut velocity = Vector6::zeros();
+        if let Some(last) = last_target
+            && dt > 0.0
+            && !switching
+        {
+            // A jump of the target (a stage's new anchor) is not a velocity.
+            let v = (target - last) / dt;
+            if v.norm() < 0.5 {
+                velocity.fixed_rows_mut::<3>(0).copy_from(&v);
+            }
+        }
+        last_target = Some(target);
         let pose = Isometry3::from_parts(Translation3::from(target), start.rotation);
         let tau_c = law.torques(
             model,
             &frames,
             state,
             &pose,
-            &Vector6::zeros(),
+            &velocity,
             force.as_ref(),
             &estimate,
             dt,
@@ -770,8 +785,14 @@ pub fn follow_with_impedance(
                 Vector3::from(positions[seg + 1]),
             );
             let p = a + (b - a) * share;
+            // The segment's velocity fed forward while the target moves along it.
+            let mut v = Vector6::zeros();
+            if t < end {
+                v.fixed_rows_mut::<3>(0)
+                    .copy_from(&((b - a) / (times[seg + 1] - times[seg])));
+            }
             let pose = Isometry3::from_parts(Translation3::from(p), start.rotation);
-            let tau = law.torques(&model, &frames, s, &pose, &Vector6::zeros(), None, &w, dt);
+            let tau = law.torques(&model, &frames, s, &pose, &v, None, &w, dt);
             if target_log.len() < target_log.capacity() {
                 target_log.push(p.into());
                 tool_log.push(frames.tool.translation.vector.into());

@@ -47,6 +47,31 @@ fn recording<'py>(py: Python<'py>, samples: &[Sample]) -> PyResult<Bound<'py, Py
     Ok(d)
 }
 
+/// A Cartesian impedance of `stiffness` (N/m, N m/rad), critically damped, checked.
+fn impedance_gains(stiffness: (f64, f64)) -> PyResult<cps_franka::control::CartesianGains> {
+    let gains = cps_franka::control::CartesianGains {
+        translation: [stiffness.0; 3],
+        rotation: [stiffness.1; 3],
+        damping_ratio: 1.0,
+        nullspace: 5.0,
+    };
+    cps_franka::control::CartesianImpedance::new(gains, [0.0; 7])
+        .map_err(|e| value_error(format!("stiffness: {e}")))?;
+    Ok(gains)
+}
+
+impl Franka {
+    /// This robot with its torques measured at `drive`.
+    fn at(&self, drive: &str) -> PyResult<cps_experiment::contact::RobotAt> {
+        Ok(cps_experiment::contact::RobotAt {
+            host: self.host.clone(),
+            arm: self.arm,
+            realtime: self.realtime,
+            drive: cps_experiment::contact::Drive::parse(drive).map_err(|e| e.py_err())?,
+        })
+    }
+}
+
 #[pymethods]
 impl Franka {
     #[new]
@@ -217,9 +242,7 @@ impl Franka {
         force_gains: (f64, f64, f64),
         drive: &str,
     ) -> PyResult<Bound<'py, PyDict>> {
-        use cps_experiment::contact::{
-            ContactPlan, ContactWaypoint, Drive, ForcePrimitive, RobotAt,
-        };
+        use cps_experiment::contact::{ContactPlan, ContactWaypoint, ForcePrimitive};
         let rows = matrix(waypoints, "waypoints", Some(5), false)?;
         let points: Vec<ContactWaypoint> = rows
             .rows_vec()
@@ -231,12 +254,7 @@ impl Franka {
             })
             .collect();
         let primitive = ForcePrimitive::from_waypoints(&points).map_err(|e| e.py_err())?;
-        let gains = cps_franka::control::CartesianGains {
-            translation: [stiffness.0; 3],
-            rotation: [stiffness.1; 3],
-            damping_ratio: 1.0,
-            nullspace: 5.0,
-        };
+        let gains = impedance_gains(stiffness)?;
         let plan = ContactPlan {
             above,
             direction,
@@ -252,14 +270,7 @@ impl Franka {
             primitive,
         };
         plan.check().map_err(|e| e.py_err())?;
-        cps_franka::control::CartesianImpedance::new(gains, [0.0; 7])
-            .map_err(|e| value_error(format!("stiffness: {e}")))?;
-        let robot = RobotAt {
-            host: self.host.clone(),
-            arm: self.arm,
-            realtime: self.realtime,
-            drive: Drive::parse(drive).map_err(|e| e.py_err())?,
-        };
+        let robot = self.at(drive)?;
         let (out, interrupt) = detached_keep(py, None, |stop| {
             cps_experiment::contact::contact_on_robot(&robot, &plan, stop)
         })?;
@@ -317,24 +328,11 @@ impl Franka {
         stiffness: (f64, f64),
         drive: &str,
     ) -> PyResult<Bound<'py, PyDict>> {
-        use cps_experiment::contact::{Drive, RobotAt};
         let times = vector(t, "t", None)?;
         let rows = matrix(positions, "positions", Some(3), false)?;
         let points: Vec<[f64; 3]> = rows.rows_vec().iter().map(|r| [r[0], r[1], r[2]]).collect();
-        let gains = cps_franka::control::CartesianGains {
-            translation: [stiffness.0; 3],
-            rotation: [stiffness.1; 3],
-            damping_ratio: 1.0,
-            nullspace: 5.0,
-        };
-        cps_franka::control::CartesianImpedance::new(gains, [0.0; 7])
-            .map_err(|e| value_error(format!("stiffness: {e}")))?;
-        let robot = RobotAt {
-            host: self.host.clone(),
-            arm: self.arm,
-            realtime: self.realtime,
-            drive: Drive::parse(drive).map_err(|e| e.py_err())?,
-        };
+        let gains = impedance_gains(stiffness)?;
+        let robot = self.at(drive)?;
         let (out, interrupt) = detached_keep(py, None, |stop| {
             cps_experiment::contact::follow_with_impedance(&robot, &times, &points, gains, stop)
         })?;
