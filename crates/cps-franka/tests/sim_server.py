@@ -2,7 +2,10 @@
 for cps's tests. Prints `ready <host>` once it serves, and exits when its standard input
 closes (the test process that started it ended, however it ended).
 
-usage: python sim_server.py --host 127.0.0.11 [--table 0.40 [--friction 0.3]] [--truth truth.csv]
+usage: python sim_server.py --host 127.0.0.11 [--table 0.40 [--friction 0.3]] [--truth truth.csv] [--stay]
+
+By hand, in the background: `python sim_server.py --host 127.0.0.1 --table 0.40 --stay &`
+(without --stay it would stop at once: a background job's input is closed).
 
 --table TOP   a table under the hand: a box over x in [0.35, 0.75], y in [-0.3, 0.3] (the
               robot's base frame is MuJoCo's world frame) with its top at z = TOP.
@@ -35,6 +38,8 @@ parser.add_argument("--table", type=float, default=None, help="height of the tab
 parser.add_argument("--friction", type=float, default=1.0,
                     help="the table's sliding friction coefficient (MuJoCo's default: 1)")
 parser.add_argument("--truth", default=None, help="file for MuJoCo's ground truth per step")
+parser.add_argument("--stay", action="store_true",
+                    help="keep serving when standard input closes (run it by hand in the background; stop it with kill)")
 args = parser.parse_args()
 logging.basicConfig(level=logging.ERROR)
 
@@ -144,6 +149,7 @@ with MujocoSimulator(enable_visualization=False) as sim:
                 print("flushed", flush=True)
 
         sim.register_post_step_callback(after_step)
-        threading.Thread(target=read_commands, daemon=True).start()
+        if not args.stay:
+            threading.Thread(target=read_commands, daemon=True).start()
         print(f"ready {args.host}", flush=True)
         server.run_forever(realtime=not args.fast)
