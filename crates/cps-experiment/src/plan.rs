@@ -1708,7 +1708,7 @@ impl Experiment {
             lines.push(format!(
                 "  runs ≈ {:.0} s on the robot (longer while the force lags its profile), recording ≈ {}",
                 c.nominal_seconds(),
-                crate::budget::bytes(e.memory_bytes)
+                crate::source::bytes(e.memory_bytes)
             ));
         } else if let Some(e) = &self.estimate {
             lines.push(format!("  {}", e.describe(threads)));
