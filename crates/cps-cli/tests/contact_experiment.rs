@@ -6,7 +6,7 @@ mod common;
 #[path = "../../cps-franka/tests/common/mod.rs"]
 mod sim;
 
-use common::{cli, write};
+use common::{run_quiet as run, write};
 use sim::{FrankySim, SimOptions};
 
 const SHIPPED: &str = include_str!("../../../experiments/contact.toml");
@@ -15,18 +15,6 @@ fn on(host: &str) -> String {
     let text = SHIPPED.replace("host = \"127.0.0.1\"", &format!("host = \"{host}\""));
     assert!(text.contains(host));
     text
-}
-
-fn run(file: &std::path::Path, out: &std::path::Path) -> (std::process::Output, String) {
-    let o = cli(&[
-        "run",
-        file.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    (o, err)
 }
 
 #[test]

@@ -6,7 +6,7 @@ mod common;
 #[path = "../../cps-franka/tests/common/mod.rs"]
 mod sim;
 
-use common::{cli, json, write};
+use common::{cli, json, run_quiet as run, write};
 use sim::FrankySim;
 
 const SHIPPED: &str = include_str!("../../../experiments/franka/viapoint_joint.toml");
@@ -22,19 +22,6 @@ fn on(host: &str) -> String {
         .replace("generations = 1500", "generations = 30");
     assert!(text.contains(host) && text.contains("generations = 30"));
     text
-}
-
-/// `cps-cli run file --out out --quiet`: its output and its standard error.
-fn run(file: &std::path::Path, out: &std::path::Path) -> (std::process::Output, String) {
-    let o = cli(&[
-        "run",
-        file.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    (o, err)
 }
 
 fn state_q(host: &str) -> Vec<f64> {

@@ -40,6 +40,19 @@ pub fn json(path: &Path) -> serde_json::Value {
 
 /// Starts `cps-cli run file --out out --quiet`, sends it SIGINT (Ctrl-C) after 1.5 s
 /// and returns its exit code.
+/// `cps-cli run FILE --out OUT --quiet`: its output and its standard error.
+pub fn run_quiet(file: &Path, out: &Path) -> (Output, String) {
+    let o = cli(&[
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    (o, err)
+}
+
 pub fn run_interrupted(file: &Path, out: &Path) -> Option<i32> {
     run_signalled(file, out, "INT")
 }
