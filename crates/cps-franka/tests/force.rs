@@ -24,16 +24,28 @@ fn options() -> LoopOptions {
     }
 }
 
-#[test]
-fn the_robot_s_model_agrees_with_pinocchio_s() {
-    let Some(sim) = FrankySim::start("127.0.0.75") else {
-        return;
-    };
+/// A connection to `sim`, its current state and the robot's own dynamic model.
+fn connected(
+    sim: &FrankySim,
+) -> (
+    Connection,
+    cps_franka::RobotState,
+    cps_kinematics::ArmModel<7>,
+) {
     let mut conn = Connection::connect(&sim.host, Default::default()).unwrap();
     let (state, _) = conn
         .newest_state(std::time::Duration::from_secs(2))
         .unwrap();
     let model = robot_dynamics(&mut conn, &state).unwrap();
+    (conn, state, model)
+}
+
+#[test]
+fn the_robot_s_model_agrees_with_pinocchio_s() {
+    let Some(sim) = FrankySim::start("127.0.0.75") else {
+        return;
+    };
+    let (_conn, _, model) = connected(&sim);
     // franky-sim adds gravity with pinocchio on its URDF plus the hand's inertia: the same
     // model read independently.
     let configurations = [
@@ -80,11 +92,7 @@ fn joint_impedance_settles_on_its_target() {
     let Some(sim) = FrankySim::start("127.0.0.79") else {
         return;
     };
-    let mut conn = Connection::connect(&sim.host, Default::default()).unwrap();
-    let (state, _) = conn
-        .newest_state(std::time::Duration::from_secs(2))
-        .unwrap();
-    let model = robot_dynamics(&mut conn, &state).unwrap();
+    let (mut conn, state, model) = connected(&sim);
     let law = JointImpedance::new(
         [600.0, 600.0, 600.0, 600.0, 250.0, 150.0, 50.0],
         [50.0, 50.0, 50.0, 20.0, 20.0, 20.0, 10.0],

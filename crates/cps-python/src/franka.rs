@@ -47,6 +47,22 @@ fn recording<'py>(py: Python<'py>, samples: &[Sample]) -> PyResult<Bound<'py, Py
     Ok(d)
 }
 
+/// A recording in memory as the recording's arrays with its `report`, or the error; an
+/// interruption (Ctrl-C) is raised after the recording was made.
+fn recorded<'py>(
+    py: Python<'py>,
+    out: Result<(Vec<Sample>, serde_json::Value), cps_experiment::ExperimentError>,
+    interrupt: Option<PyErr>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (samples, report) = out.map_err(|e| e.py_err())?;
+    let d = recording(py, &samples)?;
+    d.set_item("report", json_to_py(py, &report)?)?;
+    match interrupt {
+        Some(e) => Err(e),
+        None => Ok(d),
+    }
+}
+
 /// A Cartesian impedance of `stiffness` (N/m, N m/rad), critically damped, checked.
 fn impedance_gains(stiffness: (f64, f64)) -> PyResult<cps_franka::control::CartesianGains> {
     let gains = cps_franka::control::CartesianGains {
@@ -177,13 +193,7 @@ impl Franka {
         let (out, interrupt) = detached_keep(py, None, |stop| {
             franka::record_samples(&host, duration, stop)
         })?;
-        let (samples, report) = out.map_err(|e| e.py_err())?;
-        let d = recording(py, &samples)?;
-        d.set_item("report", json_to_py(py, &report)?)?;
-        if let Some(e) = interrupt {
-            return Err(e);
-        }
-        Ok(d)
+        recorded(py, out, interrupt)
     }
 
     /// Teaching by guiding: the arm floats (gravity compensated by the robot, `damping` N m
@@ -207,13 +217,7 @@ impl Franka {
         };
         let (out, interrupt) =
             detached_keep(py, None, |stop| franka::guide_samples(&settings, stop))?;
-        let (samples, report) = out.map_err(|e| e.py_err())?;
-        let d = recording(py, &samples)?;
-        d.set_item("report", json_to_py(py, &report)?)?;
-        if let Some(e) = interrupt {
-            return Err(e);
-        }
-        Ok(d)
+        recorded(py, out, interrupt)
     }
 
     /// A movement that touches, in torque mode: move above the surface (`above`, m),
