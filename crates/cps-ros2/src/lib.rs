@@ -1,0 +1,61 @@
+//! cps on a live ROS 2 graph, with no ROS installation: a DDS participant (RTPS through
+//! `rustdds`) that speaks ROS 2's names and messages in cps's own CDR, to send a joint
+//! trajectory to a ros2_control `joint_trajectory_controller` (its topic, or its
+//! `FollowJointTrajectory` action with feedback, result and cancel), to record
+//! `sensor_msgs/JointState` in a robot model's joint order, and to show a path as
+//! `visualization_msgs/MarkerArray`.
+//!
+//! Layers: [`cdr`] (bytes), [`msg`] (the messages), [`names`] (ROS names → DDS topics),
+//! [`node`] (the participant, writers and readers), then what is done with them:
+//! [`publish`], [`action`], [`record`], [`markers`]. Files and words (a joint CSV, the
+//! limit check, the report) live in `cps-experiment`'s `ros2` module.
+//!
+//! # Example
+//!
+//! ```no_run
+//! use std::time::Duration;
+//! use cps_ros2::{msg::{JointTrajectory, JointTrajectoryPoint, Time}, names::NodeName, node::Node};
+//!
+//! let node = Node::new(NodeName::from_env("cps", None)?)?;
+//! let trajectory = JointTrajectory {
+//!     joint_names: (1..=7).map(|i| format!("panda_joint{i}")).collect(),
+//!     points: vec![JointTrajectoryPoint {
+//!         positions: vec![0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785],
+//!         time_from_start: Time::from_secs(2.0),
+//!         ..Default::default()
+//!     }],
+//!     ..Default::default()
+//! };
+//! let sent = cps_ros2::publish::publish(
+//!     &node,
+//!     "/panda_arm_controller/joint_trajectory",
+//!     &trajectory,
+//!     cps_ros2::node::Qos::Reliable { depth: 1 },
+//!     Duration::from_secs(5),
+//! )?;
+//! println!("a subscriber was matched after {:.2} s", sent.matched_after_s);
+//! # Ok::<(), cps_ros2::Ros2Error>(())
+//! ```
+
+pub mod action;
+pub mod cdr;
+pub mod markers;
+pub mod msg;
+pub mod names;
+pub mod node;
+pub mod publish;
+pub mod record;
+
+/// What went wrong on the graph.
+#[derive(Debug, thiserror::Error)]
+pub enum Ros2Error {
+    /// A name, domain or argument that cannot be used.
+    #[error("{0}")]
+    Input(String),
+    /// No peer answered in time (no subscriber, no action server, no result, no message).
+    #[error("{0}")]
+    NoPeer(String),
+    /// The DDS layer failed (sockets, a domain's ports taken).
+    #[error("DDS: {0}")]
+    Dds(String),
+}

@@ -1,0 +1,458 @@
+//! A ROS 2 participant over DDS (RTPS, through `rustdds`): a node's name, namespace and
+//! domain, and typed writers and readers of raw CDR samples on ROS 2's topic names.
+//!
+//! The bytes are cps's own ([`crate::cdr`], [`crate::msg`]): rustdds carries them as they
+//! are, so every sample a peer sends is read by cps's bounded reader, and one that is
+//! malformed, oversized or in an encoding ROS 2 does not use is counted and dropped,
+//! never a panic.
+
+use std::time::{Duration, Instant};
+
+use bytes::Bytes;
+use rustdds::no_key::{Decode, DefaultDecoder, DeserializerAdapter, SerializerAdapter};
+use rustdds::{
+    DataReaderStatus, DataWriterStatus, DomainParticipant, DomainParticipantBuilder, Publisher,
+    QosPolicies, QosPolicyBuilder, RepresentationIdentifier, StatusEvented, Subscriber, TopicKind,
+    policy,
+};
+
+use crate::Ros2Error;
+use crate::cdr::{CdrError, CdrReader};
+use crate::msg::Message;
+use crate::names::{NodeName, dds_topic};
+
+/// The largest sample cps reads (16 MiB: a 10 s trajectory at 1 kHz for seven joints,
+/// with velocities and accelerations, is 2 MiB); bigger ones are counted and dropped.
+pub const MAX_SAMPLE_BYTES: usize = 16 << 20;
+
+/// A sample's body as it came (after the encapsulation header) and its byte order.
+#[derive(Debug, Clone)]
+struct Raw {
+    little: bool,
+    /// Over [`MAX_SAMPLE_BYTES`]: the body was not copied.
+    oversized: bool,
+    body: Vec<u8>,
+}
+
+/// rustdds's bridge to cps's bytes: nothing is interpreted here.
+struct RawAdapter;
+
+/// Never produced: copying bytes cannot fail.
+#[derive(Debug)]
+struct NoError;
+
+impl std::fmt::Display for NoError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("no error")
+    }
+}
+
+impl std::error::Error for NoError {}
+
+impl SerializerAdapter<Raw> for RawAdapter {
+    type Error = NoError;
+
+    fn output_encoding() -> RepresentationIdentifier {
+        RepresentationIdentifier::CDR_LE
+    }
+
+    fn to_bytes(value: &Raw) -> Result<Bytes, NoError> {
+        Ok(Bytes::copy_from_slice(&value.body))
+    }
+}
+
+static ENCODINGS: [RepresentationIdentifier; 2] = [
+    RepresentationIdentifier::CDR_LE,
+    RepresentationIdentifier::CDR_BE,
+];
+
+impl DeserializerAdapter<Raw> for RawAdapter {
+    type Error = NoError;
+    type Decoded = Raw;
+
+    fn supported_encodings() -> &'static [RepresentationIdentifier] {
+        &ENCODINGS
+    }
+
+    fn transform_decoded(decoded: Raw) -> Raw {
+        decoded
+    }
+}
+
+#[derive(Clone)]
+struct RawDecoder;
+
+impl<'de> Decode<'de, Raw> for RawDecoder {
+    type Error = NoError;
+
+    fn decode_bytes(
+        self,
+        bytes: &'de [u8],
+        encoding: RepresentationIdentifier,
+    ) -> Result<Raw, NoError> {
+        let oversized = bytes.len() > MAX_SAMPLE_BYTES;
+        Ok(Raw {
+            little: encoding != RepresentationIdentifier::CDR_BE,
+            oversized,
+            body: if oversized {
+                Vec::new()
+            } else {
+                bytes.to_vec()
+            },
+        })
+    }
+}
+
+impl DefaultDecoder<Raw> for RawAdapter {
+    type Decoder = RawDecoder;
+    const DECODER: RawDecoder = RawDecoder;
+}
+
+/// How long cps waits after it has matched a peer before it writes to it. Discovery is
+/// two-sided: cps matches a peer's reader when it hears of it, the peer matches cps's
+/// writer when it hears of that, and a volatile reader (a controller's subscription, a
+/// service's request reader) drops what was written before its own side matched —
+/// CycloneDDS's readers do, measured here: a trajectory written at once was lost every
+/// time, after 0.5 s never. No RTPS message tells a writer that the reader has matched it,
+/// so cps waits this long.
+pub const DISCOVERY_SETTLE: Duration = Duration::from_millis(500);
+
+/// How a topic's samples travel (ROS 2's QoS profiles).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Qos {
+    /// Reliable, volatile, the last `depth` samples kept: ROS 2's default for topics and
+    /// services.
+    Reliable {
+        /// History depth.
+        depth: i32,
+    },
+    /// Reliable and transient-local (late joiners get the last `depth`): ROS 2's
+    /// "latched" topics, an action's status.
+    Latched {
+        /// History depth.
+        depth: i32,
+    },
+    /// Best effort: ROS 2's sensor-data profile; such a reader also hears reliable
+    /// writers.
+    BestEffort {
+        /// History depth.
+        depth: i32,
+    },
+}
+
+impl Qos {
+    fn policies(self) -> QosPolicies {
+        let (reliable, durability, depth) = match self {
+            Qos::Reliable { depth } => (true, policy::Durability::Volatile, depth),
+            Qos::Latched { depth } => (true, policy::Durability::TransientLocal, depth),
+            Qos::BestEffort { depth } => (false, policy::Durability::Volatile, depth),
+        };
+        QosPolicyBuilder::new()
+            .reliability(if reliable {
+                policy::Reliability::Reliable {
+                    max_blocking_time: rustdds::Duration::from_millis(100),
+                }
+            } else {
+                policy::Reliability::BestEffort
+            })
+            .durability(durability)
+            .history(policy::History::KeepLast { depth })
+            .build()
+    }
+}
+
+/// A ROS 2 node: one DDS participant in the node's domain.
+pub struct Node {
+    name: NodeName,
+    participant: DomainParticipant,
+    publisher: Publisher,
+    subscriber: Subscriber,
+}
+
+impl std::fmt::Debug for Node {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Node").field("name", &self.name).finish()
+    }
+}
+
+impl Node {
+    /// Joins the node's DDS domain (discovery starts at once, in rustdds's threads).
+    pub fn new(name: NodeName) -> Result<Self, Ros2Error> {
+        let dds = |what: &str, e: String| Ros2Error::Dds(format!("{what}: {e}"));
+        let participant = DomainParticipantBuilder::new(name.domain)
+            .build()
+            .map_err(|e| {
+                dds(
+                    &format!("joining DDS domain {}", name.domain),
+                    format!("{e:?}"),
+                )
+            })?;
+        let qos = QosPolicies::qos_none();
+        let publisher = participant
+            .create_publisher(&qos)
+            .map_err(|e| dds("a publisher", format!("{e:?}")))?;
+        let subscriber = participant
+            .create_subscriber(&qos)
+            .map_err(|e| dds("a subscriber", format!("{e:?}")))?;
+        Ok(Node {
+            name,
+            participant,
+            publisher,
+            subscriber,
+        })
+    }
+
+    /// The node's name, namespace and domain.
+    pub fn name(&self) -> &NodeName {
+        &self.name
+    }
+
+    fn topic(
+        &self,
+        dds_name: &str,
+        type_name: &str,
+        qos: Qos,
+    ) -> Result<rustdds::Topic, Ros2Error> {
+        self.participant
+            .create_topic(
+                dds_name.to_string(),
+                type_name.to_string(),
+                &qos.policies(),
+                TopicKind::NoKey,
+            )
+            .map_err(|e| Ros2Error::Dds(format!("topic {dds_name}: {e:?}")))
+    }
+
+    /// A writer of `type_name` samples on the DDS topic `dds_name` (`rt/…`, `rq/…`).
+    pub fn writer(&self, dds_name: &str, type_name: &str, qos: Qos) -> Result<Writer, Ros2Error> {
+        let topic = self.topic(dds_name, type_name, qos)?;
+        let inner = self
+            .publisher
+            .create_datawriter_no_key::<Raw, RawAdapter>(&topic, Some(qos.policies()))
+            .map_err(|e| Ros2Error::Dds(format!("a writer on {dds_name}: {e:?}")))?;
+        Ok(Writer {
+            inner,
+            topic: dds_name.to_string(),
+            matched: 0,
+        })
+    }
+
+    /// A reader of `type_name` samples on the DDS topic `dds_name`.
+    pub fn reader(&self, dds_name: &str, type_name: &str, qos: Qos) -> Result<Reader, Ros2Error> {
+        let topic = self.topic(dds_name, type_name, qos)?;
+        let inner = self
+            .subscriber
+            .create_simple_datareader_no_key::<Raw, RawAdapter>(&topic, Some(qos.policies()))
+            .map_err(|e| Ros2Error::Dds(format!("a reader on {dds_name}: {e:?}")))?;
+        Ok(Reader {
+            inner,
+            topic: dds_name.to_string(),
+            matched: 0,
+            counts: Counts::default(),
+        })
+    }
+
+    /// A publisher of `M` on the ROS topic `ros_name` (resolved in the node's namespace).
+    pub fn publisher<M: Message>(&self, ros_name: &str, qos: Qos) -> Result<Writer, Ros2Error> {
+        let t = dds_topic(&self.name, ros_name)?;
+        self.writer(&t, M::TYPE, qos)
+    }
+
+    /// A subscription to `M` on the ROS topic `ros_name`.
+    pub fn subscription<M: Message>(&self, ros_name: &str, qos: Qos) -> Result<Reader, Ros2Error> {
+        let t = dds_topic(&self.name, ros_name)?;
+        self.reader(&t, M::TYPE, qos)
+    }
+}
+
+/// Writes samples of one topic.
+pub struct Writer {
+    inner: rustdds::no_key::DataWriter<Raw, RawAdapter>,
+    topic: String,
+    matched: i32,
+}
+
+impl Writer {
+    /// The DDS topic's name.
+    pub fn topic(&self) -> &str {
+        &self.topic
+    }
+
+    /// Readers matched now (discovery's news taken first).
+    pub fn matched(&mut self) -> i32 {
+        while let Some(s) = self.inner.try_recv_status() {
+            if let DataWriterStatus::PublicationMatched { current, .. } = s {
+                self.matched = current.count();
+            }
+        }
+        self.matched
+    }
+
+    /// Waits until a reader is matched, or `deadline`; whether one is.
+    pub fn wait_matched(&mut self, deadline: Instant) -> bool {
+        loop {
+            if self.matched() > 0 {
+                return true;
+            }
+            if Instant::now() >= deadline {
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+
+    /// Sends one sample (its bytes as [`crate::cdr::CdrWriter::finish`] gives them,
+    /// little-endian encapsulation header first).
+    pub fn write_cdr(&self, sample: &[u8]) -> Result<(), Ros2Error> {
+        debug_assert_eq!(&sample[..2], &[0, 1], "a little-endian CDR sample");
+        self.inner
+            .write(
+                Raw {
+                    little: true,
+                    oversized: false,
+                    body: sample[4..].to_vec(),
+                },
+                None,
+            )
+            .map_err(|e| Ros2Error::Dds(format!("writing on {}: {e:?}", self.topic)))
+    }
+
+    /// Sends one message.
+    pub fn write<M: Message>(&self, m: &M) -> Result<(), Ros2Error> {
+        self.write_cdr(&m.to_cdr())
+    }
+
+    /// Waits until every matched reliable reader has acknowledged what was written, or
+    /// `max_wait`; whether they did.
+    pub fn wait_acknowledged(&self, max_wait: Duration) -> bool {
+        self.inner
+            .wait_for_acknowledgments(max_wait)
+            .unwrap_or(false)
+    }
+}
+
+/// Samples a reader dropped, by reason.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Counts {
+    /// Read whole.
+    pub read: u64,
+    /// Not a valid sample of the topic's type (cut short, a lying length, not UTF-8, …).
+    pub malformed: u64,
+    /// Larger than [`MAX_SAMPLE_BYTES`].
+    pub oversized: u64,
+    /// In an encoding ROS 2 does not use, or refused by DDS before cps saw it.
+    pub undecodable: u64,
+}
+
+/// Reads samples of one topic.
+pub struct Reader {
+    inner: rustdds::no_key::SimpleDataReader<Raw, RawAdapter>,
+    topic: String,
+    matched: i32,
+    counts: Counts,
+}
+
+/// One sample read: the message, who sent it and when it arrived.
+#[derive(Debug)]
+pub struct Received<M> {
+    /// The message.
+    pub message: M,
+    /// When it reached this machine (ns since the Unix epoch).
+    pub received_ns: u64,
+    /// The writer that sent it (its DDS GUID).
+    pub writer: [u8; 16],
+    /// Its number in the writer's sequence (1, 2, …: a gap is a lost sample).
+    pub sequence: i64,
+}
+
+impl Reader {
+    /// The DDS topic's name.
+    pub fn topic(&self) -> &str {
+        &self.topic
+    }
+
+    /// Writers matched now.
+    pub fn matched(&mut self) -> i32 {
+        while let Some(s) = self.inner.try_recv_status() {
+            if let DataReaderStatus::SubscriptionMatched { current, .. } = s {
+                self.matched = current.count();
+            }
+        }
+        self.matched
+    }
+
+    /// Waits until a writer is matched, or `deadline`; whether one is.
+    pub fn wait_matched(&mut self, deadline: Instant) -> bool {
+        loop {
+            if self.matched() > 0 {
+                return true;
+            }
+            if Instant::now() >= deadline {
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+
+    /// An id of this reader unique on the graph: the low 8 bytes of its DDS GUID.
+    pub fn id(&self) -> u64 {
+        let g = self.inner.guid().to_bytes();
+        u64::from_le_bytes(g[8..16].try_into().expect("8 bytes"))
+    }
+
+    /// What was read and dropped so far.
+    pub fn counts(&self) -> Counts {
+        self.counts
+    }
+
+    /// The next sample that `decode` reads whole, if one has arrived; those it cannot
+    /// read are counted and skipped.
+    pub fn take_with<M>(
+        &mut self,
+        mut decode: impl FnMut(&mut CdrReader) -> Result<M, CdrError>,
+    ) -> Option<Received<M>> {
+        self.inner.drain_read_notifications();
+        // At most this many dropped samples per call, so a flood cannot hold the caller.
+        for _ in 0..10_000 {
+            let change = match self.inner.try_take_one() {
+                Ok(Some(c)) => c,
+                Ok(None) => return None,
+                Err(_) => {
+                    self.counts.undecodable += 1;
+                    continue;
+                }
+            };
+            let received_ns = ticks_to_nanos(change.receive_instant.to_ticks());
+            let writer = change.writer_guid.to_bytes();
+            let sequence = i64::from(change.sequence_number);
+            let raw = change.into_value();
+            if raw.oversized {
+                self.counts.oversized += 1;
+                continue;
+            }
+            match decode(&mut CdrReader::new(&raw.body, raw.little)) {
+                Ok(message) => {
+                    self.counts.read += 1;
+                    return Some(Received {
+                        message,
+                        received_ns,
+                        writer,
+                        sequence,
+                    });
+                }
+                Err(_) => self.counts.malformed += 1,
+            }
+        }
+        None
+    }
+
+    /// The next `M` that arrived whole, if any.
+    pub fn take<M: Message>(&mut self) -> Option<Received<M>> {
+        self.take_with(M::decode)
+    }
+}
+
+/// RTPS time (seconds in the high 32 bits, 2^-32 s in the low ones) in nanoseconds.
+fn ticks_to_nanos(ticks: u64) -> u64 {
+    (ticks >> 32) * 1_000_000_000 + (((ticks & 0xffff_ffff) * 1_000_000_000) >> 32)
+}

@@ -1,0 +1,147 @@
+//! The ROS 2 tests' harness: each test runs in a network namespace of its own (only
+//! loopback, multicast routed to it, so DDS discovery never leaves the machine), with a
+//! CycloneDDS peer (tests/peer.py) started inside it.
+//!
+//! A test calls [`inside`] first: outside the namespace it re-runs itself under
+//! `unshare -n` and returns false (the outer run then only checks the inner one passed);
+//! inside, it returns true. The peer's interpreter is `$CPS_ROS2_PYTHON`, else
+//! `target/ros2-venv/bin/python` (what `.ci/run` creates, cyclonedds pinned). Without it,
+//! or without the right to make a namespace, a test skips with a sentence, except under
+//! CI, where it fails.
+
+#![allow(dead_code)]
+
+use std::io::{BufRead, BufReader, Read};
+use std::path::PathBuf;
+use std::process::{Child, ChildStdout, Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn workspace() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn skip_or_fail(why: String) {
+    if std::env::var_os("CI").is_some() {
+        panic!("CI must run the ROS 2 tests: {why}");
+    }
+    eprintln!("skipped: {why}");
+}
+
+/// The interpreter with cyclonedds.
+pub fn python() -> Option<PathBuf> {
+    let p = std::env::var_os("CPS_ROS2_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| workspace().join("target/ros2-venv/bin/python"));
+    if p.exists() {
+        return Some(p);
+    }
+    skip_or_fail(format!(
+        "no CycloneDDS peer ({} missing; python3 -m venv target/ros2-venv && target/ros2-venv/bin/pip install -r crates/cps-ros2/tests/requirements.txt)",
+        p.display()
+    ));
+    None
+}
+
+/// Whether this process is the test's run inside its namespace. Outside, runs `test`
+/// (this test binary's test of that name) in a new namespace and checks it passed.
+pub fn inside(test: &str) -> bool {
+    if std::env::var_os("CPS_IN_NETNS").is_some() {
+        return true;
+    }
+    if python().is_none() {
+        return false;
+    }
+    let exe = std::env::current_exe().expect("the test binary's path");
+    let setup = "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$0\" \"$@\"";
+    let out = Command::new("unshare")
+        .args(["-n", "sh", "-c", setup])
+        .arg(&exe)
+        .args([test, "--exact", "--nocapture", "--test-threads=1"])
+        .env("CPS_IN_NETNS", "1")
+        .output();
+    let out = match out {
+        Ok(o) => o,
+        Err(e) => {
+            skip_or_fail(format!("cannot run unshare for a network namespace: {e}"));
+            return false;
+        }
+    };
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    if !out.status.success() && stderr.contains("unshare failed") {
+        skip_or_fail(format!(
+            "no network namespace for the DDS tests (root is needed): {stderr}"
+        ));
+        return false;
+    }
+    print!("{stdout}");
+    eprint!("{stderr}");
+    assert!(
+        out.status.success(),
+        "{test} failed inside its network namespace"
+    );
+    assert!(
+        stdout.contains("1 passed"),
+        "{test} did not run inside its namespace:\n{stdout}"
+    );
+    false
+}
+
+/// A CycloneDDS peer (tests/peer.py) in this namespace.
+pub struct Peer {
+    child: Child,
+    stdout: BufReader<ChildStdout>,
+}
+
+impl Peer {
+    /// Starts `peer.py args…` and waits (at most 30 s) for its `ready`.
+    pub fn start(args: &[&str]) -> Peer {
+        let python = python().expect("inside a namespace the peer's python exists");
+        let mut child = Command::new(python)
+            .arg(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/peer.py"))
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("the CycloneDDS peer starts");
+        let mut stdout = BufReader::new(child.stdout.take().expect("piped"));
+        let mut line = String::new();
+        stdout.read_line(&mut line).expect("the peer's first line");
+        assert_eq!(line.trim(), "ready", "the peer did not start: {line:?}");
+        Peer { child, stdout }
+    }
+
+    /// Waits (at most `timeout`) for the peer to exit by itself; its further output.
+    pub fn finish(mut self, timeout: Duration) -> String {
+        let end = Instant::now() + timeout;
+        loop {
+            if let Some(status) = self.child.try_wait().expect("the peer's status") {
+                let mut rest = String::new();
+                self.stdout
+                    .read_to_string(&mut rest)
+                    .expect("the peer's output");
+                assert!(status.success(), "the peer failed: {status}\n{rest}");
+                return rest;
+            }
+            assert!(
+                Instant::now() < end,
+                "the peer did not finish within {timeout:?}"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
+impl Drop for Peer {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A file in a fresh temporary folder of this test.
+pub fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("cps-ros2-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).expect("a temporary folder");
+    d.join(name)
+}
