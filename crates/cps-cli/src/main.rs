@@ -11,6 +11,8 @@
 //! cps-cli sim serve [--bind 127.0.0.1:23000] [--scene FILE] [--dt 0.05] [--ik-following]
 //! cps-cli cmaes bench sphere|ellipsoid|cigar|discus|rosenbrock|rastrigin --dim N --seeds A..B [--ipop|--bipop] [--separable] [--json]
 //! cps-cli imitate demo.csv [more.csv ...] [--bases N] [--method lwr|ridge|jerk] [--lambda X|auto] [--tau S] --out model.json [--plot fit.png]
+//! cps-cli ros2 send traj.csv --controller /panda_arm_controller [--topic|--action] [--joint-names a,b,...] [--domain N] [--json]
+//! cps-cli ros2 record --topic /joint_states --duration S --out rec.csv [--domain N]
 //! cps-cli rollout model.json [--start ...] [--goal ...] [--tau S] [--dt S] --out traj.csv [--plot traj.png]
 //! cps-cli promp fit demo*.csv [--bases N] --out p.json | condition p.json --at T --position x,y [--std S] --out q.json
 //! cps-cli promp sample p.json --n K --seed S [--dt S] --out dir/ | stats p.json --out stats.csv
@@ -44,6 +46,7 @@ mod movement;
 mod progress;
 mod promp;
 mod robot;
+mod ros2;
 mod scene;
 mod simserve;
 mod studio;
@@ -137,6 +140,12 @@ enum Command {
     Franka {
         #[command(subcommand)]
         command: franka::FrankaCommand,
+    },
+    /// A ROS 2 graph over DDS (no ROS needed): a trajectory to a ros2_control controller,
+    /// joint states recorded.
+    Ros2 {
+        #[command(subcommand)]
+        command: ros2::Ros2Command,
     },
     /// Scenes: a placed robot and named way points.
     Scene {
@@ -248,6 +257,7 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
         Command::Promp { command } => promp::promp(&command),
         Command::Studio(args) => studio::studio(&args, interrupted),
         Command::Franka { command } => franka::franka(&command, interrupted),
+        Command::Ros2 { command } => ros2::ros2(&command, interrupted),
         Command::Check {
             file,
             ceilings,

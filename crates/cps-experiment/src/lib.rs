@@ -70,6 +70,7 @@ pub mod report;
 pub mod results_dir;
 pub mod retiming;
 pub mod robot_file;
+pub mod ros2;
 mod run;
 pub mod scene;
 pub mod sim_pool;

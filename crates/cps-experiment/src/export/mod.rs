@@ -132,15 +132,15 @@ impl ExportOptions {
 
 /// Samples of a trajectory at a fixed period, from its start (time 0) to its end.
 #[derive(Debug, Clone)]
-struct Samples {
-    t: Vec<f64>,
-    q: Vec<Vec<f64>>,
-    qd: Vec<Vec<f64>>,
-    qdd: Vec<Vec<f64>>,
+pub(crate) struct Samples {
+    pub(crate) t: Vec<f64>,
+    pub(crate) q: Vec<Vec<f64>>,
+    pub(crate) qd: Vec<Vec<f64>>,
+    pub(crate) qdd: Vec<Vec<f64>>,
 }
 
 /// The spline through the trajectory sampled every `period` (the end always included).
-fn sample(traj: &JointTrajectory, period: f64) -> Samples {
+pub(crate) fn sample(traj: &JointTrajectory, period: f64) -> Samples {
     let spline = JointSpline::new(&traj.times, &traj.q)
         .expect("a read trajectory has increasing, finite times");
     let t0 = traj.times[0];

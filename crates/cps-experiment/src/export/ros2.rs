@@ -1,102 +1,12 @@
-//! ROS 2 messages as bytes: plain little-endian CDR (XCDR1, what rmw_fastrtps writes and
-//! MCAP's `cdr` encoding means) and their `ros2msg` schema texts, for the messages an
-//! exported trajectory needs.
-//!
-//! CDR: a 4-byte encapsulation header `00 01 00 00` (little-endian), then the fields in
-//! order, each primitive aligned to its own size counted from the first byte after the
-//! header; a string is a `uint32` length including its NUL, the bytes and the NUL; a
-//! sequence is a `uint32` count and its items.
+//! ROS 2 messages as bytes for MCAP files: plain little-endian CDR (XCDR1, what rmw
+//! writes and MCAP's `cdr` encoding means; written by `cps_ros2::cdr`, which also speaks
+//! them on a live graph) and their `ros2msg` schema texts, for the messages an exported
+//! trajectory needs.
 
 use nalgebra::Isometry3;
 
-/// A CDR message being written.
-pub struct Cdr {
-    bytes: Vec<u8>,
-}
-
-impl Default for Cdr {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl Cdr {
-    /// An empty little-endian message (the encapsulation header only).
-    pub fn new() -> Self {
-        Cdr {
-            bytes: vec![0, 1, 0, 0],
-        }
-    }
-
-    fn align(&mut self, size: usize) {
-        while !(self.bytes.len() - 4).is_multiple_of(size) {
-            self.bytes.push(0);
-        }
-    }
-
-    /// A `uint32`.
-    pub fn u32(&mut self, v: u32) -> &mut Self {
-        self.align(4);
-        self.bytes.extend_from_slice(&v.to_le_bytes());
-        self
-    }
-
-    /// An `int32`.
-    pub fn i32(&mut self, v: i32) -> &mut Self {
-        self.align(4);
-        self.bytes.extend_from_slice(&v.to_le_bytes());
-        self
-    }
-
-    /// A `float64`.
-    pub fn f64(&mut self, v: f64) -> &mut Self {
-        self.align(8);
-        self.bytes.extend_from_slice(&v.to_le_bytes());
-        self
-    }
-
-    /// A `string`.
-    pub fn string(&mut self, s: &str) -> &mut Self {
-        self.u32(s.len() as u32 + 1);
-        self.bytes.extend_from_slice(s.as_bytes());
-        self.bytes.push(0);
-        self
-    }
-
-    /// A `string[]`.
-    pub fn strings(&mut self, v: &[String]) -> &mut Self {
-        self.u32(v.len() as u32);
-        for s in v {
-            self.string(s);
-        }
-        self
-    }
-
-    /// A `float64[]`.
-    pub fn f64s(&mut self, v: &[f64]) -> &mut Self {
-        self.u32(v.len() as u32);
-        for x in v {
-            self.f64(*x);
-        }
-        self
-    }
-
-    /// A `builtin_interfaces/Time` or `Duration` of `ns` nanoseconds.
-    pub fn time(&mut self, ns: u64) -> &mut Self {
-        self.i32((ns / 1_000_000_000) as i32)
-            .u32((ns % 1_000_000_000) as u32)
-    }
-
-    /// A `std_msgs/Header`.
-    pub fn header(&mut self, stamp_ns: u64, frame_id: &str) -> &mut Self {
-        self.time(stamp_ns).string(frame_id)
-    }
-
-    /// The finished bytes.
-    pub fn finish(&mut self) -> Vec<u8> {
-        std::mem::take(&mut self.bytes)
-    }
-}
+use cps_ros2::cdr::CdrWriter as Cdr;
+use cps_ros2::msg::{self, Message};
 
 /// One point of a `trajectory_msgs/JointTrajectory`.
 pub struct TrajectoryPoint<'a> {
@@ -112,29 +22,39 @@ pub struct TrajectoryPoint<'a> {
 
 /// `trajectory_msgs/msg/JointTrajectory` (header stamp 0: start on receipt).
 pub fn joint_trajectory(frame_id: &str, names: &[String], points: &[TrajectoryPoint]) -> Vec<u8> {
-    let mut m = Cdr::new();
-    m.header(0, frame_id)
-        .strings(names)
-        .u32(points.len() as u32);
-    for p in points {
-        m.f64s(p.positions)
-            .f64s(p.velocities)
-            .f64s(p.accelerations)
-            .f64s(&[])
-            .time(p.time_from_start_ns);
+    msg::JointTrajectory {
+        header: msg::Header {
+            stamp: msg::Time::default(),
+            frame_id: frame_id.to_string(),
+        },
+        joint_names: names.to_vec(),
+        points: points
+            .iter()
+            .map(|p| msg::JointTrajectoryPoint {
+                positions: p.positions.to_vec(),
+                velocities: p.velocities.to_vec(),
+                accelerations: p.accelerations.to_vec(),
+                effort: vec![],
+                time_from_start: msg::Time::from_nanos(p.time_from_start_ns),
+            })
+            .collect(),
     }
-    m.finish()
+    .to_cdr()
 }
 
 /// `sensor_msgs/msg/JointState` without efforts.
 pub fn joint_state(stamp_ns: u64, names: &[String], position: &[f64], velocity: &[f64]) -> Vec<u8> {
-    Cdr::new()
-        .header(stamp_ns, "")
-        .strings(names)
-        .f64s(position)
-        .f64s(velocity)
-        .f64s(&[])
-        .finish()
+    msg::JointState {
+        header: msg::Header {
+            stamp: msg::Time::from_nanos(stamp_ns),
+            frame_id: String::new(),
+        },
+        name: names.to_vec(),
+        position: position.to_vec(),
+        velocity: velocity.to_vec(),
+        effort: vec![],
+    }
+    .to_cdr()
 }
 
 /// `tf2_msgs/msg/TFMessage`: `(parent, child, parent → child)` transforms at one stamp.
@@ -244,34 +164,6 @@ pub fn qos(depth: u32, latched: bool) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The byte layouts verified against mcap_ros2's own encoder (robot-ready notes §3).
-    #[test]
-    fn bytes_match_the_reference_encoder() {
-        assert_eq!(
-            Cdr::new().time(1_500_000_000).finish(),
-            [0, 1, 0, 0, 1, 0, 0, 0, 0x00, 0x65, 0xcd, 0x1d]
-        );
-        assert_eq!(string("hi"), [0, 1, 0, 0, 3, 0, 0, 0, 0x68, 0x69, 0]);
-        let names = vec!["a".to_string(), "bc".to_string()];
-        let m = Cdr::new()
-            .header(7_000_000_000, "base")
-            .strings(&names)
-            .f64s(&[1.0, 2.0])
-            .f64s(&[0.25, -0.5])
-            .f64s(&[])
-            .finish();
-        assert_eq!(m.len(), 96);
-        let p = &m[4..];
-        assert_eq!(p[0..4], 7i32.to_le_bytes());
-        assert_eq!(p[8..12], 5u32.to_le_bytes());
-        assert_eq!(&p[12..17], b"base\0");
-        assert_eq!(p[20..24], 2u32.to_le_bytes());
-        assert_eq!(p[40..44], 2u32.to_le_bytes());
-        assert_eq!(p[48..56], 1.0f64.to_le_bytes());
-        assert_eq!(p[80..88], (-0.5f64).to_le_bytes());
-        assert_eq!(p[88..92], 0u32.to_le_bytes());
-    }
 
     #[test]
     fn schemas_separate_dependencies_as_rosbag2_does() {

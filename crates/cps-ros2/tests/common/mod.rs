@@ -20,6 +20,11 @@ fn workspace() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
+/// The peer script (this file is included by the tests of several crates).
+fn peer_script() -> PathBuf {
+    workspace().join("crates/cps-ros2/tests/peer.py")
+}
+
 fn skip_or_fail(why: String) {
     if std::env::var_os("CI").is_some() {
         panic!("CI must run the ROS 2 tests: {why}");
@@ -98,7 +103,7 @@ impl Peer {
     pub fn start(args: &[&str]) -> Peer {
         let python = python().expect("inside a namespace the peer's python exists");
         let mut child = Command::new(python)
-            .arg(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/peer.py"))
+            .arg(peer_script())
             .args(args)
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())

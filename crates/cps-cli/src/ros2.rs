@@ -1,0 +1,157 @@
+//! `cps-cli ros2 ...`: a ROS 2 graph over DDS, no ROS installation needed.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::AtomicBool;
+
+use anyhow::Result;
+use clap::{Args, Subcommand};
+use cps_experiment::ros2::{self, GraphSettings, RecordSettings, SendSettings, Via};
+
+use crate::cli_error;
+use crate::robot::print;
+
+/// The robot, its joints' names and the domain.
+#[derive(Args, Debug)]
+pub struct On {
+    /// The robot whose limits and joint names (its order) apply.
+    #[arg(long, default_value = "panda")]
+    robot: String,
+    /// Joint names instead of the robot's (comma-separated, in the robot's order).
+    #[arg(long, value_delimiter = ',')]
+    joint_names: Option<Vec<String>>,
+    /// DDS domain (default: $ROS_DOMAIN_ID, else 0).
+    #[arg(long)]
+    domain: Option<u16>,
+}
+
+impl On {
+    fn graph(&self) -> GraphSettings {
+        GraphSettings {
+            robot: self.robot.clone(),
+            joint_names: self.joint_names.clone(),
+            domain: self.domain,
+        }
+    }
+}
+
+/// `cps-cli ros2 ...`. Exit codes: 0 done; 1 the controller refused, aborted or did not
+/// answer in time, or the trajectory broke a limit (nothing sent); 2 bad input; 130
+/// stopped by Ctrl-C (a goal is cancelled first; a recording keeps what came).
+#[derive(Subcommand, Debug)]
+pub enum Ros2Command {
+    /// Send a joint trajectory (CSV: t, then one column per joint in rad) to a ros2_control
+    /// joint_trajectory_controller, checked against the robot's limits first.
+    Send {
+        /// The trajectory file.
+        file: PathBuf,
+        /// The controller (`/panda_arm_controller`).
+        #[arg(long)]
+        controller: String,
+        /// Publish on `<controller>/joint_trajectory` (no answer).
+        #[arg(long, conflicts_with = "action")]
+        topic: bool,
+        /// Send a FollowJointTrajectory goal (the default): feedback, result, cancel.
+        #[arg(long)]
+        action: bool,
+        #[command(flatten)]
+        on: On,
+        /// Seconds between the points sent.
+        #[arg(long, default_value_t = 0.01)]
+        period: f64,
+        /// Seconds to wait for the controller.
+        #[arg(long, default_value_t = 10.0)]
+        wait: f64,
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Record sensor_msgs/JointState as a cps joint CSV (t, then the robot's joints in its
+    /// order, matched by name), with a report beside it.
+    Record {
+        /// The JointState topic.
+        #[arg(long, default_value = "/joint_states")]
+        topic: String,
+        /// Seconds to record, from the first message.
+        #[arg(long)]
+        duration: f64,
+        /// The CSV to write.
+        #[arg(long)]
+        out: PathBuf,
+        #[command(flatten)]
+        on: On,
+        /// Seconds to wait for the first message.
+        #[arg(long, default_value_t = 10.0)]
+        wait: f64,
+        /// Also hear best-effort publishers (they may lose samples).
+        #[arg(long)]
+        best_effort: bool,
+        /// Replace an existing recording.
+        #[arg(long)]
+        force: bool,
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// `cps-cli ros2`.
+pub fn ros2(cmd: &Ros2Command, stop: &AtomicBool) -> Result<ExitCode> {
+    let bar = indicatif::ProgressBar::new(1000).with_style(
+        indicatif::ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len}")
+            .expect("a valid template")
+            .progress_chars("=> "),
+    );
+    let (answer, code, json) = match cmd {
+        Ros2Command::Send {
+            file,
+            controller,
+            topic,
+            action: _,
+            on,
+            period,
+            wait,
+            json,
+        } => {
+            let s = SendSettings {
+                controller: controller.clone(),
+                via: if *topic { Via::Topic } else { Via::Action },
+                graph: on.graph(),
+                period: *period,
+                wait: *wait,
+            };
+            bar.set_message("following (‰)");
+            let (a, c) = ros2::send(file, &s, stop, |f| bar.set_position((f * 1000.0) as u64))
+                .map_err(cli_error)?;
+            (a, c, *json)
+        }
+        Ros2Command::Record {
+            topic,
+            duration,
+            out,
+            on,
+            wait,
+            best_effort,
+            force,
+            json,
+        } => {
+            let s = RecordSettings {
+                topic: topic.clone(),
+                duration: *duration,
+                graph: on.graph(),
+                wait: *wait,
+                best_effort: *best_effort,
+            };
+            bar.set_length((*duration * 10.0).ceil() as u64);
+            bar.set_message("recording (0.1 s)");
+            let (a, c) = ros2::record(&s, out, *force, stop, |t| {
+                bar.set_position((t * 10.0) as u64)
+            })
+            .map_err(cli_error)?;
+            (a, c, *json)
+        }
+    };
+    bar.finish_and_clear();
+    print(&answer, json)?;
+    Ok(ExitCode::from(code))
+}
