@@ -102,7 +102,7 @@ fn send_follows_a_goal_and_record_writes_the_robots_joint_states() {
     let rows: Vec<Vec<f64>> = lines
         .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
         .collect();
-    assert!(rows.len() > 300, "200 Hz for 2.5 s: {} rows", rows.len());
+    assert!(rows.len() > 300, "200 Hz for 2.8 s: {} rows", rows.len());
     let last = rows.last().unwrap();
     let goal = [0.2, -0.585, 0.2, -2.156, 0.2, 1.771, 0.985];
     for (j, g) in goal.iter().enumerate() {

@@ -145,20 +145,28 @@ fn joint_states_at_1_khz_are_recorded_in_the_model_order_without_loss() {
     ]);
     let node = node();
     let stop = AtomicBool::new(false);
-    let rec = record_joint_states(
-        &node,
-        &RecordOptions {
-            topic: "/joint_states".into(),
-            joints: joints(),
-            duration: Duration::from_secs_f64(10.5),
-            wait: Duration::from_secs(30),
-            qos: Qos::Reliable { depth: 5000 },
-        },
-        &stop,
-        |_| {},
-    )
-    .unwrap();
-    let said = peer.finish(Duration::from_secs(30));
+    // Recorded until the peer has sent everything (however slow a loaded machine makes
+    // it), then stopped.
+    let (rec, said) = std::thread::scope(|s| {
+        let recording = s.spawn(|| {
+            record_joint_states(
+                &node,
+                &RecordOptions {
+                    topic: "/joint_states".into(),
+                    joints: joints(),
+                    duration: Duration::from_secs(120),
+                    wait: Duration::from_secs(30),
+                    qos: Qos::Reliable { depth: 5000 },
+                },
+                &stop,
+                |_| {},
+            )
+        });
+        let said = peer.finish(Duration::from_secs(120));
+        std::thread::sleep(Duration::from_millis(500));
+        stop.store(true, Ordering::Relaxed);
+        (recording.join().unwrap().unwrap(), said)
+    });
     println!("peer: {said}");
     println!(
         "recorded {} of 10000 JointState at 1 kHz: {} lost, {} incomplete, dropped {:?}, first after {:.3} s",
