@@ -71,6 +71,7 @@ pub mod results_dir;
 pub mod retiming;
 pub mod robot_file;
 pub mod ros2;
+pub mod ros2_backend;
 mod run;
 pub mod scene;
 pub mod sim_pool;

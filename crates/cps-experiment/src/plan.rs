@@ -158,6 +158,12 @@ pub struct RobotSection {
     arm: Option<Spanned<String>>,
     /// `backend = "franka"`: `enforce` (default) or `ignore`.
     realtime: Option<Spanned<String>>,
+    /// `backend = "ros2"`: the joint_trajectory_controller (`/panda_arm_controller`).
+    controller: Option<Spanned<String>>,
+    /// `backend = "ros2"`: the JointState topic (default `/joint_states`).
+    joint_states: Option<Spanned<String>>,
+    /// `backend = "ros2"`: the DDS domain (default: `ROS_DOMAIN_ID`, else 0).
+    domain: Option<Spanned<u16>>,
 }
 
 /// Who moves the joints on a CoppeliaSim backend.
@@ -177,6 +183,7 @@ enum BackendKind {
     Kinematic,
     Coppelia,
     Franka,
+    Ros2,
 }
 
 /// Where trajectories are executed.
@@ -217,6 +224,9 @@ pub enum BackendChoice {
         /// The control period the movement is planned at (s), a whole number of ms.
         dt: f64,
     },
+    /// A ROS 2 robot through ros2_control's joint_trajectory_controller
+    /// (`[robot] backend = "ros2"`).
+    Ros2(crate::ros2_backend::Ros2Settings),
 }
 
 impl BackendChoice {
@@ -228,6 +238,7 @@ impl BackendChoice {
             BackendChoice::Coppelia { pool, .. } | BackendChoice::Franka { pool, .. } => {
                 pool.clone()
             }
+            BackendChoice::Ros2(s) => vec![s.controller.clone()],
         }
     }
 }
@@ -256,6 +267,10 @@ impl RobotChoice {
             BackendChoice::Franka { host, arm, dt, .. } => format!(
                 "franka ({} at {host}, planned every {dt} s, streamed at 1 kHz)",
                 arm.name()
+            ),
+            BackendChoice::Ros2(s) => format!(
+                "ros2 ({}/follow_joint_trajectory, joint states from {}, planned every {} s)",
+                s.controller, s.joint_states, s.dt
             ),
             BackendChoice::Coppelia {
                 endpoint,
@@ -288,10 +303,12 @@ impl RobotChoice {
                 "{}, stepped call by call: the scene has no /{robot_name}/cpsExecutor script (configs/coppeliasim/cpsExecutor.lua)",
                 self.describe()
             ),
-            BackendChoice::Franka { .. } => match backend.execution_report() {
-                Some(r) => format!("{}: {r}", self.describe()),
-                None => self.describe(),
-            },
+            BackendChoice::Franka { .. } | BackendChoice::Ros2(_) => {
+                match backend.execution_report() {
+                    Some(r) => format!("{}: {r}", self.describe()),
+                    None => self.describe(),
+                }
+            }
             _ => self.describe(),
         }
     }
@@ -306,6 +323,7 @@ impl RobotChoice {
             )),
             BackendChoice::Coppelia { endpoint, .. } => self.open_at(endpoint),
             BackendChoice::Franka { host, .. } => self.open_at(host),
+            BackendChoice::Ros2(s) => self.open_at(&s.controller),
         }
     }
 
@@ -317,6 +335,7 @@ impl RobotChoice {
             BackendChoice::Kinematic { .. } => {
                 return Ok(vec![("in-process robot".into(), self.open()?)]);
             }
+            BackendChoice::Ros2(s) => return Ok(vec![(s.controller.clone(), self.open()?)]),
             BackendChoice::Coppelia { pool, .. } | BackendChoice::Franka { pool, .. } => pool,
         };
         std::thread::scope(|scope| {
@@ -342,6 +361,14 @@ impl RobotChoice {
         let setup = &self.setup;
         match &self.backend {
             BackendChoice::Kinematic { .. } => self.open(),
+            BackendChoice::Ros2(settings) => {
+                let robot =
+                    crate::ros2_backend::Ros2Backend::open(settings, &self.model, &setup.chain)
+                        .map_err(|e| {
+                            ExperimentError::Message(format!("backend = \"ros2\": {e}"))
+                        })?;
+                Ok(Box::new(robot))
+            }
             BackendChoice::Franka {
                 arm, realtime, dt, ..
             } => {
@@ -1220,6 +1247,7 @@ impl Sections<'_> {
         }
         let backend = match kind {
             BackendKind::Franka => self.franka_choice(section, &scene.robot.name, default_dt)?,
+            BackendKind::Ros2 => self.ros2_choice(section, default_dt)?,
             BackendKind::Kinematic => {
                 if let Some(e) = section.and_then(|r| r.endpoint.as_ref()) {
                     return Err(self.err(
@@ -1323,25 +1351,90 @@ impl Sections<'_> {
             ("timeout", r.timeout.as_ref().map(Spanned::span)),
             ("control", r.control.as_ref().map(Spanned::span)),
         ];
-        let (foreign, owner) = match kind {
-            BackendKind::Franka => (&coppelia_only[..], "coppelia"),
-            _ => (&franka_only[..], "franka"),
-        };
-        for (key, span) in foreign {
-            if let Some(span) = span {
-                return Err(self.err(
-                    span,
-                    format!("[robot] `{key}` is read only with backend = \"{owner}\""),
-                ));
+        let ros2_only = [
+            ("controller", r.controller.as_ref().map(Spanned::span)),
+            ("joint_states", r.joint_states.as_ref().map(Spanned::span)),
+            ("domain", r.domain.as_ref().map(Spanned::span)),
+        ];
+        let groups = [
+            (BackendKind::Franka, "franka", &franka_only[..]),
+            (BackendKind::Coppelia, "coppelia", &coppelia_only[..]),
+            (BackendKind::Ros2, "ros2", &ros2_only[..]),
+        ];
+        for (owner_kind, owner, keys) in groups {
+            if owner_kind == kind
+                || (owner_kind == BackendKind::Coppelia && kind == BackendKind::Kinematic)
+            {
+                continue;
+            }
+            for (key, span) in keys {
+                if let Some(span) = span {
+                    return Err(self.err(
+                        span,
+                        format!("[robot] `{key}` is read only with backend = \"{owner}\""),
+                    ));
+                }
             }
         }
-        if kind == BackendKind::Franka && r.name.is_some() {
+        if matches!(kind, BackendKind::Franka | BackendKind::Ros2) && r.name.is_some() {
             return Err(InputError(format!(
                 "{}: [robot] `name` (the robot's alias in CoppeliaSim) is read only with backend = \"coppelia\"",
                 self.path.display()
             )));
         }
         Ok(())
+    }
+
+    /// `[robot] backend = "ros2"`: `controller`, `joint_states`, `domain`, `dt`.
+    fn ros2_choice(
+        &self,
+        section: Option<&RobotSection>,
+        default_dt: f64,
+    ) -> Result<BackendChoice, InputError> {
+        let Some(r) = section else {
+            unreachable!("backend = \"ros2\" is read from a [robot] section")
+        };
+        let probe = cps_ros2::names::NodeName::new("cps", "/", 0).expect("a valid node name");
+        let name = |v: &Spanned<String>, what: &str| -> Result<String, InputError> {
+            cps_ros2::names::resolve(&probe, v.get_ref())
+                .map_err(|e| self.err(&v.span(), format!("[robot] `{what}`: {e}")))
+        };
+        let Some(controller) = &r.controller else {
+            return Err(InputError(format!(
+                "{}: [robot] backend = \"ros2\" needs `controller`, the joint_trajectory_controller's name (e.g. controller = \"/panda_arm_controller\"): cps never guesses which robot to move",
+                self.path.display()
+            )));
+        };
+        let controller = name(controller, "controller")?;
+        let joint_states = match &r.joint_states {
+            Some(j) => name(j, "joint_states")?,
+            None => "/joint_states".into(),
+        };
+        let domain = match &r.domain {
+            Some(d) if *d.get_ref() > cps_ros2::names::MAX_DOMAIN => {
+                return Err(self.err(
+                    &d.span(),
+                    format!(
+                        "[robot] `domain` must be 0 to {} (got {})",
+                        cps_ros2::names::MAX_DOMAIN,
+                        d.get_ref()
+                    ),
+                ));
+            }
+            Some(d) => Some(*d.get_ref()),
+            None => None,
+        };
+        let dt = match &r.dt {
+            Some(d) => self.within(d, "[robot] `dt`", 1e-3, 0.1, " s")?,
+            None => default_dt,
+        };
+        Ok(BackendChoice::Ros2(crate::ros2_backend::Ros2Settings {
+            controller,
+            joint_states,
+            domain,
+            dt,
+            wait: Duration::from_secs(20),
+        }))
     }
 
     /// `[robot] backend = "franka"`: `host` or `hosts`, `arm`, `realtime`, `dt`.

@@ -13,7 +13,7 @@ use crate::Ros2Error;
 use crate::cdr::{CdrError, CdrReader};
 use crate::msg::{
     CancelResponse, Feedback, FollowJointTrajectoryGoal, GetResultResponse, GoalId, GoalRequest,
-    GoalStatus, RequestHeader, SendGoalRequest, SendGoalResponse,
+    GoalStatus, RequestHeader, SendGoalRequest, SendGoalResponse, Time,
 };
 use crate::names::{dds_service, dds_topic};
 use crate::node::{Counts, DISCOVERY_SETTLE, Node, Qos, Reader, Writer};
@@ -53,6 +53,10 @@ pub struct FollowOutcome {
     pub discovery_s: f64,
     /// Whether the controller took the goal.
     pub accepted: bool,
+    /// When the controller took it, by its clock (the trajectory's time 0 there).
+    pub accepted_stamp: Time,
+    /// When its answer arrived, by this machine's clock (ns since the Unix epoch).
+    pub accepted_at_ns: u64,
     /// How it ended (for a refused goal: `Unknown`).
     pub status: GoalStatus,
     /// FollowJointTrajectory's `error_code` (0 successful).
@@ -198,6 +202,8 @@ impl FollowJointTrajectoryClient {
             goal_id,
             discovery_s,
             accepted: false,
+            accepted_stamp: Time::default(),
+            accepted_at_ns: 0,
             status: GoalStatus::Unknown,
             error_code: 0,
             error_string: String::new(),
@@ -220,6 +226,10 @@ impl FollowJointTrajectoryClient {
             )));
         };
         outcome.accepted = answer.accepted;
+        outcome.accepted_stamp = answer.stamp;
+        outcome.accepted_at_ns = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos() as u64);
         if !answer.accepted {
             outcome.dropped = self.dropped();
             return Ok(outcome);

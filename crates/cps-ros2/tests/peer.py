@@ -11,10 +11,13 @@ Nothing of cps is imported. Modes:
                                       malformed and --huge oversized samples interleaved);
                                       prints `sent K` when done
   serve ACTION OUT.json [--reject] [--abort] [--joint-states TOPIC] [--rate HZ]
-                                      a FollowJointTrajectory server that plays the goal's
+        [--joints a,b,c --start q1,q2,q3] [--linger S]
+                                      a FollowJointTrajectory server that plays each goal's
                                       trajectory in time (feedback at 50 Hz, joint states
-                                      at HZ), answers get_result at its end, honours cancel;
-                                      what it saw written as JSON at exit
+                                      at HZ, from --start before the first goal), answers
+                                      get_result at its end, honours cancel; leaves S s
+                                      (default 1) after a goal ends with no new one; what
+                                      it saw written as JSON at exit
   markers TOPIC OUT.json              one MarkerArray received (transient local), as JSON
 
 Each mode prints `ready` when its entities exist and exits by itself.
@@ -374,11 +377,13 @@ def serve(dp, action, out):
     js_topic = arg("--joint-states")
     js = DataWriter(dp, Topic(dp, topic_name(js_topic), JointState), qos=qos(depth=1000)) if js_topic else None
     rate = float(arg("--rate", "100"))
+    linger = float(arg("--linger", "1.0"))
+    names = arg("--joints").split(",") if arg("--joints") else None
+    current = [float(x) for x in arg("--start").split(",")] if arg("--start") else None
     print("ready", flush=True)
-    seen = {"goals": [], "cancels": [], "result_requests": 0, "feedback_sent": 0}
+    seen = {"goals": [], "cancels": [], "result_requests": 0, "feedback_sent": 0, "results": []}
     goal, started, result_waiting, ended = None, None, [], None
     last_fb, last_js, k_js = 0.0, 0.0, 0
-    current = None
     deadline = time.time() + 60
     while time.time() < deadline:
         now = time.time()
@@ -387,10 +392,18 @@ def serve(dp, action, out):
             seen["goals"].append({"goal_id": list(req.goal_id), "trajectory": trajectory_json(traj),
                                   "goal_time_tolerance": [req.goal.goal_time_tolerance.sec, req.goal.goal_time_tolerance.nanosec]})
             accept = "--reject" not in sys.argv
+            now_ns = int(now * 1e9)
             goal_rr.write(SendGoalResponse(client=req.client, seq=req.seq, accepted=accept,
-                                           stamp=Time(sec=int(now), nanosec=0)))
+                                           stamp=Time(sec=now_ns // 10**9, nanosec=now_ns % 10**9)))
             if accept:
                 goal, started, ended = req, now, None
+                deadline = max(deadline, now + 60)
+                if names is None:
+                    names = list(traj.joint_names)
+                elif list(traj.joint_names) != names:
+                    order = [list(traj.joint_names).index(n) for n in names]
+                    for p in traj.points:
+                        p.positions = [p.positions[i] for i in order]
         for req in take_valid(res_rq):
             seen["result_requests"] += 1
             result_waiting.append(req)
@@ -421,7 +434,7 @@ def serve(dp, action, out):
             last_js = now
             stamp_ns = int(now * 1e9)
             js.write(JointState(header=Header(stamp=Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)),
-                                name=list(goal.goal.trajectory.joint_names), position=current, velocity=[], effort=[]))
+                                name=names, position=current, velocity=[], effort=[]))
             k_js += 1
         if ended is not None and goal is not None:
             for req in [r for r in result_waiting if list(r.goal_id) == list(goal.goal_id)]:
@@ -429,9 +442,11 @@ def serve(dp, action, out):
                                                error_code=ended[1], error_string=ended[2]))
                 result_waiting.remove(req)
                 seen["result"] = list(ended)
+                seen["results"].append(list(ended))
                 seen["joint_states_sent"] = k_js
-                # Keep publishing the final state a moment, then leave.
-                deadline = min(deadline, time.time() + 1.0)
+                # Keep publishing the final state a moment, then leave (unless a new
+                # goal comes).
+                deadline = min(deadline, time.time() + linger)
         if seen["goals"] and "--reject" in sys.argv:
             deadline = min(deadline, time.time() + 1.0)
         time.sleep(0.001)
