@@ -456,3 +456,26 @@ class ProMP:
     def save(self, path: PathLike, *, force: bool = False) -> None: ...
     @staticmethod
     def load(path: PathLike) -> ProMP: ...
+
+def _ros2_send(
+    t: ArrayLike,
+    q: ArrayLike,
+    controller: str,
+    *,
+    via: str = "action",
+    robot: str = "panda",
+    joint_names: Optional[Sequence[str]] = None,
+    domain: Optional[int] = None,
+    period: float = 0.01,
+    wait: float = 10.0,
+) -> dict[str, Any]: ...
+def _ros2_record(
+    duration: float,
+    *,
+    topic: str = "/joint_states",
+    robot: str = "panda",
+    joint_names: Optional[Sequence[str]] = None,
+    domain: Optional[int] = None,
+    wait: float = 10.0,
+    best_effort: bool = False,
+) -> dict[str, Any]: ...

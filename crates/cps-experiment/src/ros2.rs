@@ -110,29 +110,57 @@ pub fn ros2_error(e: Ros2Error) -> ExperimentError {
     }
 }
 
-/// A joint CSV as the message a controller takes: checked against `model`'s limits at the
-/// points' rate (refused, with the report's lines, when one is broken), then sampled every
-/// `period` s by the spline through the file with velocities and accelerations, from 0 at
-/// the file's first time; `time_from_start` exact to the nanosecond.
+/// A joint CSV as the message a controller takes ([`trajectory_message_of`] after
+/// reading it).
 pub fn trajectory_message(
     file: &Path,
     model: &RobotModel,
     names: &[String],
     period: f64,
 ) -> Result<JointTrajectory, ExperimentError> {
+    let traj = crate::limits::read_joint_trajectory(file, model.chain.dof())?;
+    trajectory_message_of(&file.display().to_string(), &traj, model, names, period)
+}
+
+/// A joint trajectory (called `name` in messages) as the message a controller takes:
+/// checked against `model`'s limits at the points' rate (refused, with the report's lines,
+/// when one is broken), then sampled every `period` s by the spline through it with
+/// velocities and accelerations, from 0 at its first time; `time_from_start` exact to the
+/// nanosecond.
+pub fn trajectory_message_of(
+    name: &str,
+    traj: &crate::limits::JointTrajectory,
+    model: &RobotModel,
+    names: &[String],
+    period: f64,
+) -> Result<JointTrajectory, ExperimentError> {
     crate::export::ExportOptions { period }.check()?;
-    let report = crate::limits::check_file(file, model, 1.0 / period)?;
+    let dof = model.chain.dof();
+    let bad_row = traj
+        .q
+        .iter()
+        .position(|r| r.len() != dof || r.iter().any(|x| !x.is_finite()));
+    let increasing =
+        traj.times.windows(2).all(|w| w[1] > w[0]) && traj.times.iter().all(|t| t.is_finite());
+    if traj.times.len() < 2 || traj.q.len() != traj.times.len() || bad_row.is_some() || !increasing
+    {
+        return Err(InputError(format!(
+            "{name}: a trajectory needs two or more samples at strictly increasing times, {dof} finite joint positions each{}",
+            bad_row.map_or(String::new(), |k| format!(" (row {k} is not)"))
+        ))
+        .into());
+    }
+    let report = crate::limits::check_samples(model, traj, 1.0 / period)
+        .map_err(|e| InputError(format!("{name}: {e}")))?;
     if !report.ok() {
         return Err(ExperimentError::Message(format!(
-            "{}: refused, nothing was sent: the trajectory breaks the {}'s limits at {} Hz\n{}",
-            file.display(),
+            "{name}: refused, nothing was sent: the trajectory breaks the {}'s limits at {} Hz\n{}",
             model.name,
             1.0 / period,
             report.lines().join("\n")
         )));
     }
-    let traj = crate::limits::read_joint_trajectory(file, model.chain.dof())?;
-    let s = crate::export::sample(&traj, period);
+    let s = crate::export::sample(traj, period);
     let points = (0..s.t.len())
         .map(|k| JointTrajectoryPoint {
             positions: s.q[k].clone(),
@@ -170,13 +198,26 @@ pub fn send(
     file: &Path,
     s: &SendSettings,
     stop: &AtomicBool,
+    progress: impl FnMut(f64),
+) -> Result<(Answer, u8), ExperimentError> {
+    let (model, _) = robot_and_names(&s.graph.robot, s.graph.joint_names.as_deref())?;
+    let traj = crate::limits::read_joint_trajectory(file, model.chain.dof())?;
+    send_trajectory(&file.display().to_string(), &traj, s, stop, progress)
+}
+
+/// [`send`] for a trajectory in memory, called `name` in messages.
+pub fn send_trajectory(
+    name: &str,
+    traj: &crate::limits::JointTrajectory,
+    s: &SendSettings,
+    stop: &AtomicBool,
     mut progress: impl FnMut(f64),
 ) -> Result<(Answer, u8), ExperimentError> {
     if !(s.wait.is_finite() && s.wait > 0.0 && s.wait <= 3600.0) {
         return Err(InputError(format!("--wait {}: give seconds in (0, 3600]", s.wait)).into());
     }
     let (model, names) = robot_and_names(&s.graph.robot, s.graph.joint_names.as_deref())?;
-    let message = trajectory_message(file, &model, &names, s.period)?;
+    let message = trajectory_message_of(name, traj, &model, &names, s.period)?;
     let duration = message
         .points
         .last()
@@ -184,7 +225,7 @@ pub fn send(
     let node = node(s.graph.domain)?;
     let wait = Duration::from_secs_f64(s.wait);
     let base = json!({
-        "file": file.display().to_string(),
+        "file": name,
         "controller": s.controller,
         "domain": node.name().domain,
         "joint_names": names,
@@ -336,6 +377,28 @@ pub fn record(
     stop: &AtomicBool,
     progress: impl FnMut(f64),
 ) -> Result<(Answer, u8), ExperimentError> {
+    crate::franka::check_record_target(out, force)?;
+    let (rec, mut answer) = record_in_memory(s, stop, progress)?;
+    let csv = crate::files::table_csv(&recording_table(&rec))?;
+    crate::files::write_file(out, &csv)?;
+    let text = serde_json::to_string_pretty(&answer.json)
+        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    let report_file = crate::franka::report_path(out);
+    crate::files::write_file(&report_file, text.as_bytes())?;
+    answer.lines.push(format!(
+        "wrote {} and {}",
+        out.display(),
+        report_file.display()
+    ));
+    Ok((answer, if rec.stopped { 130 } else { 0 }))
+}
+
+/// [`record`] in memory: the recording and its report (JSON and lines).
+pub fn record_in_memory(
+    s: &RecordSettings,
+    stop: &AtomicBool,
+    progress: impl FnMut(f64),
+) -> Result<(JointRecording, Answer), ExperimentError> {
     if !(s.duration.is_finite() && s.duration > 0.0 && s.duration <= 3600.0) {
         return Err(InputError(format!(
             "--duration {}: give seconds in (0, 3600]",
@@ -346,7 +409,6 @@ pub fn record(
     if !(s.wait.is_finite() && s.wait > 0.0 && s.wait <= 3600.0) {
         return Err(InputError(format!("--wait {}: give seconds in (0, 3600]", s.wait)).into());
     }
-    crate::franka::check_record_target(out, force)?;
     let (model, names) = robot_and_names(&s.graph.robot, s.graph.joint_names.as_deref())?;
     let node = node(s.graph.domain)?;
     let depth = 5000;
@@ -362,7 +424,6 @@ pub fn record(
         },
     };
     let rec = record_joint_states(&node, &options, stop, progress).map_err(ros2_error)?;
-    let table = recording_table(&rec);
     let (times, source) = rec.times();
     let span = times.last().copied().unwrap_or(0.0);
     let mut lines = vec![format!(
@@ -409,21 +470,11 @@ pub fn record(
         "duration_s": span,
         "limits": limits_json,
     });
-    let csv = crate::files::table_csv(&table)?;
-    crate::files::write_file(out, &csv)?;
-    let text = serde_json::to_string_pretty(&report)
-        .map_err(|e| ExperimentError::Message(e.to_string()))?;
-    crate::files::write_file(&crate::franka::report_path(out), text.as_bytes())?;
-    lines.push(format!(
-        "wrote {} and {}",
-        out.display(),
-        crate::franka::report_path(out).display()
-    ));
     Ok((
+        rec,
         Answer {
             json: report,
             lines,
         },
-        if rec.stopped { 130 } else { 0 },
     ))
 }

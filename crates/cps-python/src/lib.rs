@@ -31,6 +31,7 @@ mod interrupt;
 mod kinematics;
 mod learn;
 mod promp;
+mod ros2;
 
 use pyo3::prelude::*;
 
@@ -56,6 +57,8 @@ fn _cps(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(experiment::run_experiment, m)?)?;
     m.add_class::<kinematics::Robot>()?;
     m.add_class::<franka::Franka>()?;
+    m.add_function(wrap_pyfunction!(ros2::_ros2_send, m)?)?;
+    m.add_function(wrap_pyfunction!(ros2::_ros2_record, m)?)?;
     m.add_class::<promp::PyProMp>()?;
     Ok(())
 }

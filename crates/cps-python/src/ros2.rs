@@ -1,0 +1,131 @@
+//! `cps.ros2`: a ROS 2 graph over DDS from Python — a joint trajectory sent to a
+//! ros2_control controller, a robot's joint states recorded. Everything goes through
+//! `cps_experiment::ros2`, as `cps-cli ros2` does.
+
+use cps_experiment::limits::JointTrajectory;
+use cps_experiment::ros2::{self, GraphSettings, RecordSettings, SendSettings, Via};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::arrays::{array1, array2, matrix, vector};
+use crate::errors::{IntoPyErr, choose, value_error};
+use crate::experiment::json_to_py;
+use crate::interrupt::detached_keep;
+
+/// Sends the joint trajectory `q` (rows, rad) at times `t` (s) to `controller`.
+#[pyfunction]
+#[pyo3(signature = (t, q, controller, *, via = "action", robot = "panda", joint_names = None, domain = None, period = 0.01, wait = 10.0))]
+#[allow(clippy::too_many_arguments)]
+pub fn _ros2_send<'py>(
+    py: Python<'py>,
+    t: &Bound<'py, PyAny>,
+    q: &Bound<'py, PyAny>,
+    controller: &str,
+    via: &str,
+    robot: &str,
+    joint_names: Option<Vec<String>>,
+    domain: Option<u16>,
+    period: f64,
+    wait: f64,
+) -> PyResult<Bound<'py, PyAny>> {
+    let via = choose(
+        "via",
+        via,
+        &[("action", Via::Action), ("topic", Via::Topic)],
+    )?;
+    let times = vector(t, "t", None)?;
+    let rows = matrix(q, "q", None, false)?;
+    if rows.rows != times.len() {
+        return Err(value_error(format!(
+            "q: {} rows for {} times in t",
+            rows.rows,
+            times.len()
+        )));
+    }
+    let traj = JointTrajectory {
+        names: (1..=rows.cols).map(|j| format!("q{j}")).collect(),
+        times,
+        q: rows.rows_vec(),
+    };
+    let settings = SendSettings {
+        controller: controller.to_string(),
+        via,
+        graph: GraphSettings {
+            robot: robot.to_string(),
+            joint_names,
+            domain,
+        },
+        period,
+        wait,
+    };
+    let (out, interrupt) = detached_keep(py, None, |stop| {
+        ros2::send_trajectory("q", &traj, &settings, stop, |_| {})
+    })?;
+    let (answer, _) = out.map_err(|e| e.py_err())?;
+    match interrupt {
+        Some(e) => Err(e),
+        None => json_to_py(py, &answer.json),
+    }
+}
+
+/// Records `sensor_msgs/JointState` on `topic` for `duration` s from the first message.
+#[pyfunction]
+#[pyo3(signature = (duration, *, topic = "/joint_states", robot = "panda", joint_names = None, domain = None, wait = 10.0, best_effort = false))]
+#[allow(clippy::too_many_arguments)]
+pub fn _ros2_record<'py>(
+    py: Python<'py>,
+    duration: f64,
+    topic: &str,
+    robot: &str,
+    joint_names: Option<Vec<String>>,
+    domain: Option<u16>,
+    wait: f64,
+    best_effort: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let settings = RecordSettings {
+        topic: topic.to_string(),
+        duration,
+        graph: GraphSettings {
+            robot: robot.to_string(),
+            joint_names,
+            domain,
+        },
+        wait,
+        best_effort,
+    };
+    let (out, interrupt) = detached_keep(py, None, |stop| {
+        ros2::record_in_memory(&settings, stop, |_| {})
+    })?;
+    let (rec, answer) = out.map_err(|e| e.py_err())?;
+    let d = PyDict::new(py);
+    let (times, _) = rec.times();
+    let n = times.len();
+    let dof = rec.joints.len();
+    d.set_item("t", array1(py, times))?;
+    d.set_item(
+        "q",
+        array2(
+            py,
+            rec.positions.iter().flatten().copied().collect(),
+            n,
+            dof,
+        )?,
+    )?;
+    if !rec.velocities.is_empty() {
+        d.set_item(
+            "dq",
+            array2(
+                py,
+                rec.velocities.iter().flatten().copied().collect(),
+                n,
+                dof,
+            )?,
+        )?;
+    }
+    d.set_item("joints", rec.joints.clone())?;
+    d.set_item("report", json_to_py(py, &answer.json)?)?;
+    match interrupt {
+        Some(e) => Err(e),
+        None => Ok(d),
+    }
+}
