@@ -16,7 +16,10 @@ use crate::msg::{
     GoalStatus, RequestHeader, SendGoalRequest, SendGoalResponse, Time,
 };
 use crate::names::{dds_service, dds_topic};
-use crate::node::{Counts, DISCOVERY_SETTLE, Node, Qos, Reader, Writer};
+use crate::node::{Counts, Node, Qos, Reader, Writer, settle};
+
+/// How long after an unanswered cancel it is asked again.
+const CANCEL_AGAIN: Duration = Duration::from_secs(1);
 
 /// One service's two ends.
 struct Service {
@@ -190,7 +193,7 @@ impl FollowJointTrajectoryClient {
             )));
         }
         let discovery_s = start.elapsed().as_secs_f64();
-        std::thread::sleep(DISCOVERY_SETTLE);
+        std::thread::sleep(settle(discovery_s));
         let header = self.next_header();
         let request = SendGoalRequest {
             header,
@@ -243,7 +246,27 @@ impl FollowJointTrajectoryClient {
             .result_cdr(),
         )?;
         let mut deadline = Instant::now() + times.result;
+        // A cancel is asked again each second until the server answers it (asking twice
+        // is harmless; a request the server's reader had not matched yet is lost).
+        let mut cancel_asked: Option<(RequestHeader, Instant)> = None;
+        let mut cancel_answered = false;
         loop {
+            if outcome.cancel_requested && !cancel_answered {
+                if let Some((h, _)) = cancel_asked
+                    && take_reply(&mut self.cancel.reply, h, CancelResponse::decode, |r| {
+                        r.header
+                    })
+                    .is_some()
+                {
+                    cancel_answered = true;
+                } else if cancel_asked.is_none_or(|(_, at)| at.elapsed() >= CANCEL_AGAIN) {
+                    let h = self.next_header();
+                    self.cancel
+                        .request
+                        .write_cdr(&GoalRequest { header: h, goal_id }.cancel_cdr())?;
+                    cancel_asked = Some((h, Instant::now()));
+                }
+            }
             while let Some(f) = self.feedback.take_with(Feedback::decode) {
                 if f.message.goal_id == goal_id {
                     outcome.feedback += 1;
@@ -265,10 +288,6 @@ impl FollowJointTrajectoryClient {
             let late = Instant::now() >= deadline;
             if (cancel.load(Ordering::Relaxed) || late) && !outcome.cancel_requested {
                 outcome.cancel_requested = true;
-                let h = self.next_header();
-                self.cancel
-                    .request
-                    .write_cdr(&GoalRequest { header: h, goal_id }.cancel_cdr())?;
                 deadline = Instant::now() + times.after_cancel;
             } else if late {
                 return Err(Ros2Error::NoPeer(format!(

@@ -114,8 +114,15 @@ impl DefaultDecoder<Raw> for RawAdapter {
 /// service's request reader) drops what was written before its own side matched —
 /// CycloneDDS's readers do, measured here: a trajectory written at once was lost every
 /// time, after 0.5 s never. No RTPS message tells a writer that the reader has matched it,
-/// so cps waits this long.
+/// so cps waits this long, or [`settle`]'s longer time when discovery itself was slow.
 pub const DISCOVERY_SETTLE: Duration = Duration::from_millis(500);
+
+/// The wait after a match that took `discovery_s` seconds: [`DISCOVERY_SETTLE`], or three
+/// times the discovery where that is longer (a loaded machine slows both sides alike), at
+/// most 3 s.
+pub fn settle(discovery_s: f64) -> Duration {
+    DISCOVERY_SETTLE.max(Duration::from_secs_f64((3.0 * discovery_s).min(3.0)))
+}
 
 /// How a topic's samples travel (ROS 2's QoS profiles).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

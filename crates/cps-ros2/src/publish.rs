@@ -1,5 +1,5 @@
 //! One message to a topic, delivered: the writer waits until a subscriber is matched and
-//! [`DISCOVERY_SETTLE`] more (a message written before the subscriber has matched the
+//! [`DISCOVERY_SETTLE`](crate::node::DISCOVERY_SETTLE) more (a message written before the subscriber has matched the
 //! writer in turn is lost on a volatile topic), writes, and waits until the reliable
 //! subscribers have acknowledged it.
 
@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use crate::Ros2Error;
 use crate::msg::Message;
-use crate::node::{DISCOVERY_SETTLE, Node, Qos};
+use crate::node::{Node, Qos, settle};
 
 /// How a message went out.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -23,7 +23,7 @@ pub struct Published {
 }
 
 /// Publishes `message` on `topic` with `qos` once a subscriber is matched (within
-/// `wait`, else an error naming the topic) and [`DISCOVERY_SETTLE`] has passed, then waits up to `wait` again for its
+/// `wait`, else an error naming the topic) and [`DISCOVERY_SETTLE`](crate::node::DISCOVERY_SETTLE) has passed, then waits up to `wait` again for its
 /// acknowledgement. [`Qos::Reliable`] for a command (a controller's `joint_trajectory`),
 /// [`Qos::Latched`] for what late subscribers should see too (markers).
 pub fn publish<M: Message>(
@@ -43,7 +43,7 @@ pub fn publish<M: Message>(
         )));
     }
     let matched_after_s = start.elapsed().as_secs_f64();
-    std::thread::sleep(DISCOVERY_SETTLE);
+    std::thread::sleep(settle(matched_after_s));
     let bytes = message.to_cdr();
     writer.write_cdr(&bytes)?;
     let acknowledged = writer.wait_acknowledged(wait);
