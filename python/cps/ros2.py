@@ -5,15 +5,15 @@ FollowJointTrajectory action, or its ``joint_trajectory`` topic), checked agains
 robot's limits first; ``record`` takes a robot's ``sensor_msgs/JointState`` in the robot
 model's joint order. The DDS domain is ``domain``, else ``ROS_DOMAIN_ID``, else 0.
 
->>> import numpy as np, cps.ros2                     # doctest: +SKIP
->>> t = np.linspace(0.0, 2.0, 201)
->>> q = np.tile([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785], (201, 1))
->>> q[:, 0] = 0.2 * (0.5 - 0.5 * np.cos(np.pi * t / 2.0))
->>> cps.ros2.send(t, q, "/panda_arm_controller")["status"]
-'succeeded'
->>> rec = cps.ros2.record(5.0)                      # 5 s of /joint_states
->>> rec["t"].shape, rec["q"].shape, rec["report"]["lost"]
-((500,), (500, 7), 0)
+Example (a Panda's controller on the graph)::
+
+    import numpy as np, cps.ros2
+    t = np.linspace(0.0, 2.0, 201)
+    q = np.tile([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785], (201, 1))
+    q[:, 0] = 0.2 * (0.5 - 0.5 * np.cos(np.pi * t / 2.0))
+    cps.ros2.send(t, q, "/panda_arm_controller")["status"]   # 'succeeded'
+    rec = cps.ros2.record(5.0)                                # 5 s of /joint_states
+    rec["t"], rec["q"], rec["report"]["lost"]                 # (n,), (n, 7), 0
 """
 
 from __future__ import annotations
