@@ -93,6 +93,34 @@ pub enum Ros2Command {
         #[arg(long)]
         json: bool,
     },
+    /// Show an experiment's learned path, via points, start and goal in RViz or Foxglove
+    /// (visualization_msgs/MarkerArray, latched).
+    Show(ShowArgs),
+}
+
+/// `cps-cli ros2 show`'s arguments.
+#[derive(Args, Debug)]
+pub struct ShowArgs {
+    /// The experiment file (its via points, start and goal).
+    experiment: PathBuf,
+    /// Its results directory (default: results/<name>, where `run` writes).
+    #[arg(long)]
+    results: Option<PathBuf>,
+    /// The MarkerArray topic.
+    #[arg(long, default_value = "/cps/markers")]
+    topic: String,
+    /// The frame of the task's coordinates.
+    #[arg(long, default_value = "world")]
+    frame: String,
+    /// Seconds to stay on the graph (viewers that join meanwhile get the markers).
+    #[arg(long, default_value_t = 30.0)]
+    seconds: f64,
+    /// DDS domain (default: $ROS_DOMAIN_ID, else 0).
+    #[arg(long)]
+    domain: Option<u16>,
+    /// Print JSON.
+    #[arg(long)]
+    json: bool,
 }
 
 /// `cps-cli ros2`.
@@ -103,6 +131,17 @@ pub fn ros2(cmd: &Ros2Command, stop: &AtomicBool) -> Result<ExitCode> {
             .progress_chars("=> "),
     );
     let (answer, code, json) = match cmd {
+        Ros2Command::Show(a) => {
+            let s = ros2::ShowSettings {
+                topic: a.topic.clone(),
+                frame: a.frame.clone(),
+                seconds: a.seconds,
+                domain: a.domain,
+            };
+            let answer =
+                ros2::show(&a.experiment, a.results.as_deref(), &s, stop).map_err(cli_error)?;
+            (answer, 0, a.json)
+        }
         Ros2Command::Send {
             file,
             controller,

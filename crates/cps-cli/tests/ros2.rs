@@ -281,3 +281,62 @@ fn bad_ros2_robot_sections_are_named() {
         assert!(err.contains("bad.toml"), "{err}");
     }
 }
+
+/// `ros2 show`: the thesis's learned path, its four via points, start and goal reach a
+/// viewer (CycloneDDS) that subscribes after cps has published them.
+#[test]
+fn show_puts_the_learned_path_and_its_points_in_a_viewer() {
+    if !graph::inside("show_puts_the_learned_path_and_its_points_in_a_viewer") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("vp");
+    let file = common::repo("experiments/viapoint.toml");
+    let (o, err) = common::run_quiet(std::path::Path::new(&file), &out);
+    assert!(o.status.success(), "{err}");
+    let shower = Command::new(env!("CARGO_BIN_EXE_cps-cli"))
+        .args([
+            "ros2",
+            "show",
+            &file,
+            "--seconds",
+            "4",
+            "--json",
+            "--results",
+        ])
+        .arg(&out)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The viewer joins a second later: the markers are latched.
+    std::thread::sleep(std::time::Duration::from_secs(1));
+    let got = dir.path().join("markers.json");
+    let viewer = graph::Peer::start(&["markers", "/cps/markers", got.to_str().unwrap()]);
+    viewer.finish(std::time::Duration::from_secs(30));
+    let shown = shower.wait_with_output().unwrap();
+    assert!(
+        shown.status.success(),
+        "{}",
+        String::from_utf8_lossy(&shown.stderr)
+    );
+    let answer: serde_json::Value = serde_json::from_slice(&shown.stdout).unwrap();
+    assert_eq!(answer["subscribers"], 1, "{answer}");
+    let markers = common::json(&got);
+    let markers = markers.as_array().unwrap();
+    let rows = std::fs::read_to_string(out.join("trajectory.csv"))
+        .unwrap()
+        .lines()
+        .count()
+        - 1;
+    assert_eq!(markers[0]["points"].as_array().unwrap().len(), rows);
+    assert_eq!(markers[0]["frame_id"], "world");
+    let via = markers[1]["points"].as_array().unwrap();
+    assert_eq!(via.len(), 4);
+    assert_eq!(via[0], serde_json::json!([0.78, 0.6, 1.7]));
+    assert_eq!(
+        markers[4]["position"],
+        serde_json::json!([0.55, -0.57, 1.45])
+    );
+    assert_eq!(markers[5]["text"], "goal");
+}

@@ -241,6 +241,7 @@ impl Node {
             inner,
             topic: dds_name.to_string(),
             matched: 0,
+            ever: 0,
         })
     }
 
@@ -277,6 +278,7 @@ pub struct Writer {
     inner: rustdds::no_key::DataWriter<Raw, RawAdapter>,
     topic: String,
     matched: i32,
+    ever: i32,
 }
 
 impl Writer {
@@ -288,11 +290,18 @@ impl Writer {
     /// Readers matched now (discovery's news taken first).
     pub fn matched(&mut self) -> i32 {
         while let Some(s) = self.inner.try_recv_status() {
-            if let DataWriterStatus::PublicationMatched { current, .. } = s {
+            if let DataWriterStatus::PublicationMatched { current, total, .. } = s {
                 self.matched = current.count();
+                self.ever = total.count();
             }
         }
         self.matched
+    }
+
+    /// Readers matched at any time so far (those gone included).
+    pub fn matched_ever(&mut self) -> i32 {
+        self.matched();
+        self.ever
     }
 
     /// Waits until a reader is matched, or `deadline`; whether one is.
