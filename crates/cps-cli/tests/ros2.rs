@@ -340,3 +340,53 @@ fn show_puts_the_learned_path_and_its_points_in_a_viewer() {
     );
     assert_eq!(markers[5]["text"], "goal");
 }
+
+/// Ctrl-C during a goal: the goal is cancelled on the server, cps waits for its end and
+/// exits 130.
+#[test]
+fn ctrl_c_during_a_goal_cancels_it() {
+    if !graph::inside("ctrl_c_during_a_goal_cancels_it") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let traj = trajectory(dir.path(), 0.2, 6.0);
+    let seen = dir.path().join("server.json");
+    let server = graph::Peer::start(&[
+        "serve",
+        "/panda_arm_controller/follow_joint_trajectory",
+        seen.to_str().unwrap(),
+    ]);
+    let mut send = Command::new(env!("CARGO_BIN_EXE_cps-cli"))
+        .args([
+            "ros2",
+            "send",
+            traj.to_str().unwrap(),
+            "--controller",
+            "/panda_arm_controller",
+            "--json",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_secs(3));
+    let killed = Command::new("kill")
+        .args(["-INT", &send.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let status = send.wait().unwrap();
+    let mut out = String::new();
+    std::io::Read::read_to_string(send.stdout.as_mut().unwrap(), &mut out).unwrap();
+    assert_eq!(status.code(), Some(130), "{out}");
+    let answer: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(answer["status"], "canceled", "{answer}");
+    assert_eq!(answer["cancel_requested"], true);
+    server.finish(std::time::Duration::from_secs(30));
+    let seen = common::json(&seen);
+    assert!(!seen["cancels"].as_array().unwrap().is_empty(), "{seen}");
+    assert_eq!(
+        seen["results"],
+        serde_json::json!([[5, 0, "canceled by the client"]])
+    );
+}

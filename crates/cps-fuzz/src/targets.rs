@@ -153,6 +153,56 @@ fn cbor_request(b: &[u8]) -> bool {
     })
 }
 
+/// A DDS sample as a ROS 2 peer could send it: every message cps reads, either byte
+/// order; true if one of them reads it whole.
+fn ros2_sample(b: &[u8]) -> bool {
+    use cps_ros2::cdr::CdrReader;
+    use cps_ros2::msg::{
+        CancelResponse, Feedback, GetResultResponse, JointState, JointTrajectory, MarkerArray,
+        Message, SendGoalResponse,
+    };
+    let mut any = false;
+    for little in [true, false] {
+        let r = || CdrReader::new(b, little);
+        any |= JointState::decode(&mut r()).is_ok();
+        any |= JointTrajectory::decode(&mut r()).is_ok();
+        any |= MarkerArray::decode(&mut r()).is_ok();
+        any |= Feedback::decode(&mut r()).is_ok();
+        any |= SendGoalResponse::decode(&mut r()).is_ok();
+        any |= GetResultResponse::decode(&mut r()).is_ok();
+        any |= CancelResponse::decode(&mut r()).is_ok();
+    }
+    any
+}
+
+fn ros2_seeds() -> Vec<Vec<u8>> {
+    use cps_ros2::msg::{JointState, JointTrajectory, JointTrajectoryPoint, Message, Time};
+    let names: Vec<String> = (1..=7).map(|i| format!("panda_joint{i}")).collect();
+    let state = JointState {
+        name: names.clone(),
+        position: vec![0.1; 7],
+        velocity: vec![0.0; 7],
+        ..JointState::default()
+    };
+    let trajectory = JointTrajectory {
+        joint_names: names,
+        points: (0..3)
+            .map(|k| JointTrajectoryPoint {
+                positions: vec![k as f64; 7],
+                velocities: vec![0.0; 7],
+                time_from_start: Time::from_secs(k as f64),
+                ..JointTrajectoryPoint::default()
+            })
+            .collect(),
+        ..JointTrajectory::default()
+    };
+    // The bodies, without the encapsulation header (as DDS hands them over).
+    vec![
+        state.to_cdr()[4..].to_vec(),
+        trajectory.to_cdr()[4..].to_vec(),
+    ]
+}
+
 fn file(rel: &str) -> Vec<u8> {
     std::fs::read(repo().join(rel)).unwrap_or_else(|e| panic!("{rel}: {e}"))
 }
@@ -328,6 +378,12 @@ pub fn all() -> Vec<Target> {
             seeds: cbor_seeds(),
             text: false,
             run: cbor_request,
+        },
+        Target {
+            name: "ros2-sample",
+            seeds: ros2_seeds(),
+            text: false,
+            run: ros2_sample,
         },
     ]
 }
