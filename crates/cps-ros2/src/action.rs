@@ -16,7 +16,7 @@ use crate::msg::{
     GoalStatus, RequestHeader, SendGoalRequest, SendGoalResponse, Time,
 };
 use crate::names::{dds_service, dds_topic};
-use crate::node::{Counts, Node, Qos, Reader, Writer, settle};
+use crate::node::{Counts, Node, Qos, Reader, Writer, settle, wait_until};
 
 /// How long after an unanswered cancel it is asked again.
 const CANCEL_AGAIN: Duration = Duration::from_secs(1);
@@ -150,16 +150,9 @@ impl FollowJointTrajectoryClient {
 
     /// Waits until the action server's three services are matched, or `deadline`.
     pub fn wait_for_server(&mut self, deadline: Instant) -> bool {
-        loop {
-            let ready = self.send_goal.ready() && self.get_result.ready() && self.cancel.ready();
-            if ready {
-                return true;
-            }
-            if Instant::now() >= deadline {
-                return false;
-            }
-            std::thread::sleep(Duration::from_millis(2));
-        }
+        wait_until(deadline, || {
+            self.send_goal.ready() && self.get_result.ready() && self.cancel.ready()
+        })
     }
 
     fn next_header(&mut self) -> RequestHeader {

@@ -306,15 +306,7 @@ impl Writer {
 
     /// Waits until a reader is matched, or `deadline`; whether one is.
     pub fn wait_matched(&mut self, deadline: Instant) -> bool {
-        loop {
-            if self.matched() > 0 {
-                return true;
-            }
-            if Instant::now() >= deadline {
-                return false;
-            }
-            std::thread::sleep(Duration::from_millis(2));
-        }
+        wait_until(deadline, || self.matched() > 0)
     }
 
     /// Sends one sample (its bytes as [`crate::cdr::CdrWriter::finish`] gives them,
@@ -399,15 +391,7 @@ impl Reader {
 
     /// Waits until a writer is matched, or `deadline`; whether one is.
     pub fn wait_matched(&mut self, deadline: Instant) -> bool {
-        loop {
-            if self.matched() > 0 {
-                return true;
-            }
-            if Instant::now() >= deadline {
-                return false;
-            }
-            std::thread::sleep(Duration::from_millis(2));
-        }
+        wait_until(deadline, || self.matched() > 0)
     }
 
     /// An id of this reader unique on the graph: the low 8 bytes of its DDS GUID.
@@ -471,4 +455,17 @@ impl Reader {
 /// RTPS time (seconds in the high 32 bits, 2^-32 s in the low ones) in nanoseconds.
 fn ticks_to_nanos(ticks: u64) -> u64 {
     (ticks >> 32) * 1_000_000_000 + (((ticks & 0xffff_ffff) * 1_000_000_000) >> 32)
+}
+
+/// Polls `done` every 2 ms until it holds or `deadline` passes; whether it held.
+pub fn wait_until(deadline: Instant, mut done: impl FnMut() -> bool) -> bool {
+    loop {
+        if done() {
+            return true;
+        }
+        if Instant::now() >= deadline {
+            return false;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
 }
