@@ -230,3 +230,26 @@ pub fn samples_by_dims<'py, 'a>(
     }
     array2(py, out, n, dims)
 }
+
+/// A joint trajectory from times `t` (samples,) and positions `q` (samples, `cols` or any
+/// number of joints), columns named `q1`, `q2`, …
+pub fn joint_trajectory(
+    t: &Bound<'_, PyAny>,
+    q: &Bound<'_, PyAny>,
+    cols: Option<usize>,
+) -> PyResult<cps_experiment::limits::JointTrajectory> {
+    let times = vector(t, "t", None)?;
+    let rows = matrix(q, "q", cols, false)?;
+    if rows.rows != times.len() {
+        return Err(value_error(format!(
+            "q: {} rows for {} times in t",
+            rows.rows,
+            times.len()
+        )));
+    }
+    Ok(cps_experiment::limits::JointTrajectory {
+        names: (1..=rows.cols).map(|j| format!("q{j}")).collect(),
+        times,
+        q: rows.rows_vec(),
+    })
+}

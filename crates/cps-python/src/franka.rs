@@ -4,14 +4,13 @@
 //! Everything goes through `cps_experiment::franka`, as `cps-cli franka` does.
 
 use cps_experiment::franka::{self, ExecuteSettings};
-use cps_experiment::limits::JointTrajectory;
 use cps_franka::Sample;
 use cps_franka::limits::Arm;
 use cps_franka::rt::Realtime;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{array1, array2, matrix, vector};
+use crate::arrays::{array1, array2, joint_trajectory, matrix, vector};
 use crate::errors::{IntoPyErr, choose, value_error};
 use crate::experiment::json_to_py;
 use crate::interrupt::detached_keep;
@@ -150,20 +149,7 @@ impl Franka {
         retime: bool,
         approach: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let times = vector(t, "t", None)?;
-        let rows = matrix(q, "q", Some(7), false)?;
-        if rows.rows != times.len() {
-            return Err(value_error(format!(
-                "q: {} rows for {} times in t",
-                rows.rows,
-                times.len()
-            )));
-        }
-        let traj = JointTrajectory {
-            names: (1..=7).map(|j| format!("q{j}")).collect(),
-            times,
-            q: rows.rows_vec(),
-        };
+        let traj = joint_trajectory(t, q, Some(7))?;
         let prepared =
             franka::prepare_samples("q", &traj, self.arm, retime).map_err(|e| e.py_err())?;
         let settings = ExecuteSettings {

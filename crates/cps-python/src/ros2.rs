@@ -2,13 +2,12 @@
 //! ros2_control controller, a robot's joint states recorded. Everything goes through
 //! `cps_experiment::ros2`, as `cps-cli ros2` does.
 
-use cps_experiment::limits::JointTrajectory;
 use cps_experiment::ros2::{self, GraphSettings, RecordSettings, SendSettings, Via};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{array1, array2, matrix, vector};
-use crate::errors::{IntoPyErr, choose, value_error};
+use crate::arrays::{array1, array2, joint_trajectory};
+use crate::errors::{IntoPyErr, choose};
 use crate::experiment::json_to_py;
 use crate::interrupt::detached_keep;
 
@@ -33,20 +32,7 @@ pub fn _ros2_send<'py>(
         via,
         &[("action", Via::Action), ("topic", Via::Topic)],
     )?;
-    let times = vector(t, "t", None)?;
-    let rows = matrix(q, "q", None, false)?;
-    if rows.rows != times.len() {
-        return Err(value_error(format!(
-            "q: {} rows for {} times in t",
-            rows.rows,
-            times.len()
-        )));
-    }
-    let traj = JointTrajectory {
-        names: (1..=rows.cols).map(|j| format!("q{j}")).collect(),
-        times,
-        q: rows.rows_vec(),
-    };
+    let traj = joint_trajectory(t, q, None)?;
     let settings = SendSettings {
         controller: controller.to_string(),
         via,
