@@ -62,6 +62,16 @@ pub enum Ros2Command {
         /// Seconds to wait for the controller.
         #[arg(long, default_value_t = 10.0)]
         wait: f64,
+        /// Record the robot's joint states while the goal runs (CSV, with a report of the
+        /// tracking and the limits beside it).
+        #[arg(long)]
+        record: Option<PathBuf>,
+        /// The JointState topic recorded.
+        #[arg(long, default_value = "/joint_states")]
+        joint_states: String,
+        /// Replace an existing recording.
+        #[arg(long)]
+        force: bool,
         /// Print JSON.
         #[arg(long)]
         json: bool,
@@ -150,6 +160,9 @@ pub fn ros2(cmd: &Ros2Command, stop: &AtomicBool) -> Result<ExitCode> {
             on,
             period,
             wait,
+            record,
+            joint_states,
+            force,
             json,
         } => {
             let s = SendSettings {
@@ -158,6 +171,11 @@ pub fn ros2(cmd: &Ros2Command, stop: &AtomicBool) -> Result<ExitCode> {
                 graph: on.graph(),
                 period: *period,
                 wait: *wait,
+                record: record.as_ref().map(|out| ros2::SendRecord {
+                    out: out.clone(),
+                    topic: joint_states.clone(),
+                    force: *force,
+                }),
             };
             bar.set_message("following (‰)");
             let (a, c) = ros2::send(file, &s, stop, |f| bar.set_position((f * 1000.0) as u64))

@@ -71,6 +71,8 @@ fn send_follows_a_goal_and_record_writes_the_robots_joint_states() {
         "--wait",
         "30",
         "--json",
+        "--record",
+        dir.path().join("tracked.csv").to_str().unwrap(),
     ]);
     let err = String::from_utf8_lossy(&sent.stderr);
     assert_eq!(sent.status.code(), Some(0), "{err}");
@@ -80,6 +82,12 @@ fn send_follows_a_goal_and_record_writes_the_robots_joint_states() {
     assert_eq!(answer["points"], 201, "2 s at the default 10 ms");
     assert_eq!(answer["joint_names"][6], "panda_joint7");
     assert!(answer["feedback"].as_u64().unwrap() >= 20, "{answer}");
+    // --record: what the robot did while the goal ran, against the points sent.
+    let tracked = &answer["recording"];
+    assert_eq!(tracked["lost"], 0, "{tracked}");
+    let worst = tracked["tracking"]["worst_rad"].as_f64().unwrap();
+    assert!(worst < 1e-3, "{tracked}");
+    assert!(dir.path().join("tracked.report.json").is_file());
     let recorded = recorder.wait_with_output().unwrap();
     assert_eq!(
         recorded.status.code(),

@@ -58,6 +58,19 @@ pub struct SendSettings {
     pub period: f64,
     /// Seconds to wait for the controller to appear on the graph.
     pub wait: f64,
+    /// Record the robot's joint states while the goal runs (action only).
+    pub record: Option<SendRecord>,
+}
+
+/// Where `ros2 send --record` writes what the robot did.
+#[derive(Debug, Clone)]
+pub struct SendRecord {
+    /// The recording (CSV); its report goes beside it as `<stem>.report.json`.
+    pub out: std::path::PathBuf,
+    /// The JointState topic.
+    pub topic: String,
+    /// Replace existing files.
+    pub force: bool,
 }
 
 /// The robot model and the joint names for it (the robot's, or `names` checked against
@@ -217,6 +230,15 @@ pub fn send_trajectory(
         return Err(InputError(format!("--wait {}: give seconds in (0, 3600]", s.wait)).into());
     }
     let (model, names) = robot_and_names(&s.graph.robot, s.graph.joint_names.as_deref())?;
+    if let Some(r) = &s.record {
+        if s.via == Via::Topic {
+            return Err(InputError(
+                "--record needs the action (a topic message has no start the recording could be compared from)".into(),
+            )
+            .into());
+        }
+        crate::franka::check_record_target(&r.out, r.force)?;
+    }
     let message = trajectory_message_of(name, traj, &model, &names, s.period)?;
     let duration = message
         .points
@@ -274,18 +296,127 @@ pub fn send_trajectory(
                 result: Duration::from_secs_f64(duration * 1.5 + 10.0),
                 after_cancel: Duration::from_secs(5),
             };
-            let o = client
-                .follow(&goal, goal_id(&message), times, stop, |f| {
+            let stop_recording = AtomicBool::new(false);
+            let recording = s.record.as_ref().map(|r| RecordOptions {
+                topic: r.topic.clone(),
+                joints: names.clone(),
+                duration: Duration::from_secs_f64(duration * 1.5 + 60.0),
+                wait,
+                qos: Qos::Reliable { depth: 5000 },
+            });
+            let (o, rec) = std::thread::scope(|scope| {
+                let recorder = recording.as_ref().map(|options| {
+                    scope.spawn(|| record_joint_states(&node, options, &stop_recording, |_| {}))
+                });
+                let o = client.follow(&goal, goal_id(&message), times, stop, |f| {
                     if duration > 0.0 {
                         progress((f.desired.time_from_start.secs() / duration).clamp(0.0, 1.0));
                     }
-                })
-                .map_err(ros2_error)?;
-            let (answer, code) = action_answer(base, &action, &o);
+                });
+                if recorder.is_some() {
+                    // The last states are published as the result is: take them too.
+                    std::thread::sleep(Duration::from_millis(200));
+                }
+                stop_recording.store(true, std::sync::atomic::Ordering::Relaxed);
+                (o, recorder.map(|h| h.join()))
+            });
+            let o = o.map_err(ros2_error)?;
+            let (mut answer, code) = action_answer(base, &action, &o);
+            if let (Some(r), Some(rec)) = (&s.record, rec) {
+                let rec = rec
+                    .map_err(|_| ExperimentError::Message("the recorder panicked".into()))?
+                    .map_err(ros2_error)?;
+                write_tracked(r, &rec, &o, &message, &model, &mut answer)?;
+            }
             let stopped = stop.load(std::sync::atomic::Ordering::Relaxed);
             Ok((answer, if stopped && !o.succeeded() { 130 } else { code }))
         }
     }
+}
+
+/// Writes `ros2 send --record`'s recording and its report: the recording's limit check and
+/// how far the robot was from the points sent, at their times from the goal's acceptance.
+fn write_tracked(
+    r: &SendRecord,
+    rec: &JointRecording,
+    o: &FollowOutcome,
+    message: &JointTrajectory,
+    model: &RobotModel,
+    answer: &mut Answer,
+) -> Result<(), ExperimentError> {
+    let at: Vec<f64> = message
+        .points
+        .iter()
+        .map(|p| p.time_from_start.secs())
+        .collect();
+    let tracking = match crate::ros2_backend::rows_at(rec, o, &at) {
+        Some(rows) => {
+            let dof = rows.first().map_or(0, Vec::len);
+            let mut max = vec![0.0f64; dof];
+            let mut sum = vec![0.0f64; dof];
+            for (row, p) in rows.iter().zip(&message.points) {
+                for j in 0..dof {
+                    let e = (row[j] - p.positions[j]).abs();
+                    max[j] = max[j].max(e);
+                    sum[j] += e * e;
+                }
+            }
+            let rms: Vec<f64> = sum.iter().map(|s| (s / rows.len() as f64).sqrt()).collect();
+            let worst = max.iter().copied().fold(0.0, f64::max);
+            answer.lines.push(format!(
+                "tracking: the robot within {worst:.2e} rad of the points sent (worst joint), RMS {:.2e} rad",
+                rms.iter().copied().fold(0.0, f64::max)
+            ));
+            json!({ "max_error_rad": max, "rms_error_rad": rms, "worst_rad": worst })
+        }
+        None => {
+            answer.lines.push(format!(
+                "tracking: not judged, the joint states on {} stop before the goal's end",
+                r.topic
+            ));
+            Value::Null
+        }
+    };
+    let (times, _) = rec.times();
+    let limits = crate::limits::check_samples(
+        model,
+        &crate::limits::JointTrajectory {
+            names: rec.joints.clone(),
+            times: times.clone(),
+            q: rec.positions.clone(),
+        },
+        1000.0,
+    )
+    .ok()
+    .filter(|_| times.len() >= 2 && times.windows(2).all(|w| w[1] > w[0]));
+    if let Some(l) = &limits {
+        answer.lines.extend(l.lines());
+    }
+    let report = json!({
+        "complete": o.succeeded(),
+        "topic": r.topic,
+        "goal_id": o.goal_id.to_string(),
+        "status": o.status.word(),
+        "messages": rec.messages,
+        "kept": rec.positions.len(),
+        "lost": rec.lost,
+        "incomplete": rec.incomplete,
+        "malformed": rec.dropped.malformed,
+        "tracking": tracking,
+        "limits": limits.as_ref().map_or(Value::Null, |l| l.json()),
+    });
+    crate::files::write_file(&r.out, &crate::files::table_csv(&recording_table(rec))?)?;
+    let text = serde_json::to_string_pretty(&report)
+        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    let report_file = crate::franka::report_path(&r.out);
+    crate::files::write_file(&report_file, text.as_bytes())?;
+    answer.json["recording"] = report;
+    answer.lines.push(format!(
+        "wrote {} and {}",
+        r.out.display(),
+        report_file.display()
+    ));
+    Ok(())
 }
 
 fn action_answer(mut json: Value, action: &str, o: &FollowOutcome) -> (Answer, u8) {

@@ -312,7 +312,11 @@ fn goal_trajectory(names: &[String], rows: &[Vec<f64>], dt: f64) -> JointTraject
 
 /// The recorded joints at each time of `at` (s from the goal's acceptance), linearly
 /// between messages; None past the recording's end.
-fn rows_at(rec: &JointRecording, outcome: &FollowOutcome, at: &[f64]) -> Option<Vec<Vec<f64>>> {
+pub(crate) fn rows_at(
+    rec: &JointRecording,
+    outcome: &FollowOutcome,
+    at: &[f64],
+) -> Option<Vec<Vec<f64>>> {
     let (_, source) = rec.times();
     let (times, zero): (&[u64], u64) = if source == "stamp" {
         let s = outcome.accepted_stamp;

@@ -43,6 +43,7 @@ pub fn _ros2_send<'py>(
         },
         period,
         wait,
+        record: None,
     };
     let (out, interrupt) = detached_keep(py, None, |stop| {
         ros2::send_trajectory("q", &traj, &settings, stop, |_| {})
