@@ -113,7 +113,7 @@ pub enum Ros2Command {
 pub struct ShowArgs {
     /// The experiment file (its via points, start and goal).
     experiment: PathBuf,
-    /// Its results directory (default: results/<name>, where `run` writes).
+    /// Its results directory (default: `results/<name>`, where `run` writes).
     #[arg(long)]
     results: Option<PathBuf>,
     /// The MarkerArray topic.
@@ -142,14 +142,15 @@ pub fn ros2(cmd: &Ros2Command, stop: &AtomicBool) -> Result<ExitCode> {
     );
     let (answer, code, json) = match cmd {
         Ros2Command::Show(a) => {
-            let s = ros2::ShowSettings {
+            let s = cps_experiment::ros2_show::ShowSettings {
                 topic: a.topic.clone(),
                 frame: a.frame.clone(),
                 seconds: a.seconds,
                 domain: a.domain,
             };
             let answer =
-                ros2::show(&a.experiment, a.results.as_deref(), &s, stop).map_err(cli_error)?;
+                cps_experiment::ros2_show::show(&a.experiment, a.results.as_deref(), &s, stop)
+                    .map_err(cli_error)?;
             (answer, 0, a.json)
         }
         Ros2Command::Send {

@@ -72,6 +72,7 @@ pub mod retiming;
 pub mod robot_file;
 pub mod ros2;
 pub mod ros2_backend;
+pub mod ros2_show;
 mod run;
 pub mod scene;
 pub mod sim_pool;

@@ -110,7 +110,7 @@ fn robot_and_names(
 }
 
 /// The node, on `domain` or `ROS_DOMAIN_ID`'s.
-fn node(domain: Option<u16>) -> Result<Node, ExperimentError> {
+pub(crate) fn node(domain: Option<u16>) -> Result<Node, ExperimentError> {
     let name = NodeName::from_env(NODE_NAME, domain).map_err(|e| InputError(e.to_string()))?;
     Node::new(name).map_err(ros2_error)
 }
@@ -349,7 +349,7 @@ fn write_tracked(
         .iter()
         .map(|p| p.time_from_start.secs())
         .collect();
-    let tracking = match crate::ros2_backend::rows_at(rec, o, &at) {
+    let tracking = match rows_at(rec, o, &at) {
         Some(rows) => {
             let dof = rows.first().map_or(0, Vec::len);
             let mut max = vec![0.0f64; dof];
@@ -610,105 +610,44 @@ pub fn record_in_memory(
     ))
 }
 
-/// What and where to show.
-#[derive(Debug, Clone)]
-pub struct ShowSettings {
-    /// The MarkerArray topic (`/cps/markers`).
-    pub topic: String,
-    /// The frame the task's coordinates are in (`world`; the scene's base frame).
-    pub frame: String,
-    /// Seconds to stay on the graph (the markers are latched: a viewer that joins in
-    /// that time still gets them).
-    pub seconds: f64,
-    /// The DDS domain (None: `ROS_DOMAIN_ID`, else 0).
-    pub domain: Option<u16>,
-}
-
-/// `ros2 show`: an experiment's learned path (`<results>/trajectory.csv`, columns `x,y,z`;
-/// by default `results/<name>`, where `cps-cli run` writes it),
-/// its via points, start and goal (from the experiment file) as a latched
-/// `visualization_msgs/MarkerArray`, kept on the graph for `settings.seconds` or until
-/// `stop`; the answer says how many viewers subscribed.
-pub fn show(
-    experiment: &Path,
-    results: Option<&Path>,
-    settings: &ShowSettings,
-    stop: &AtomicBool,
-) -> Result<Answer, ExperimentError> {
-    if !(settings.seconds.is_finite() && settings.seconds > 0.0 && settings.seconds <= 86_400.0) {
-        return Err(InputError(format!(
-            "--seconds {}: give seconds in (0, 86400]",
-            settings.seconds
-        ))
-        .into());
-    }
-    let exp = crate::experiment::load(experiment, None, &crate::budget::Ceilings::default())?;
-    let task = &exp.config.task;
-    if task.goal.len() != 3 {
-        return Err(InputError(format!(
-            "{}: its task has {} coordinate(s); markers show 3-D paths",
-            experiment.display(),
-            task.goal.len()
-        ))
-        .into());
-    }
-    let results = results.map_or_else(|| Path::new("results").join(&exp.name), Path::to_path_buf);
-    let csv = results.join("trajectory.csv");
-    if !csv.is_file() {
-        return Err(InputError(format!(
-            "{}: no learned path there (run `cps-cli run {} --out {}` first)",
-            csv.display(),
-            experiment.display(),
-            results.display()
-        ))
-        .into());
-    }
-    let names = ["x", "y", "z"].map(String::from);
-    let (_, demo) = crate::movement::read_demo(&csv, Some(&names))?;
-    let path: Vec<[f64; 3]> = (0..demo.len())
-        .map(|k| {
-            let s = demo.sample(k);
-            [s[0], s[1], s[2]]
-        })
+/// The recorded joints at each time of `at` (s from the goal's acceptance), linearly
+/// between messages; None past the recording's end.
+pub(crate) fn rows_at(
+    rec: &JointRecording,
+    outcome: &FollowOutcome,
+    at: &[f64],
+) -> Option<Vec<Vec<f64>>> {
+    let (_, source) = rec.times();
+    let (times, zero): (&[u64], u64) = if source == "stamp" {
+        let s = outcome.accepted_stamp;
+        (
+            &rec.stamps_ns,
+            s.sec.max(0) as u64 * 1_000_000_000 + s.nanosec as u64,
+        )
+    } else {
+        (&rec.received_ns, outcome.accepted_at_ns)
+    };
+    let t: Vec<f64> = times
+        .iter()
+        .map(|&x| (x as f64 - zero as f64) * 1e-9)
         .collect();
-    let point = |p: &[f64]| [p[0], p[1], p[2]];
-    let via: Vec<[f64; 3]> = task.via.iter().map(|v| point(&v.position)).collect();
-    let mut markers = cps_ros2::markers::path_markers(&settings.frame, &path, &via);
-    // The task's own start and goal, where the path's ends should be.
-    if let Some(m) = markers.markers.iter_mut().find(|m| m.id == 2) {
-        m.position = point(&task.start);
-    }
-    if let Some(m) = markers.markers.iter_mut().find(|m| m.id == 4) {
-        m.position = point(&task.goal);
-    }
-    let node = node(settings.domain)?;
-    let mut writer = node
-        .publisher::<cps_ros2::msg::MarkerArray>(&settings.topic, Qos::Latched { depth: 1 })
-        .map_err(ros2_error)?;
-    writer.write(&markers).map_err(ros2_error)?;
-    let end = std::time::Instant::now() + Duration::from_secs_f64(settings.seconds);
-    while std::time::Instant::now() < end && !stop.load(std::sync::atomic::Ordering::Relaxed) {
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    let most = writer.matched_ever();
-    let json = json!({
-        "topic": settings.topic,
-        "frame": settings.frame,
-        "domain": node.name().domain,
-        "markers": markers.markers.len(),
-        "path_points": path.len(),
-        "via_points": via.len(),
-        "subscribers": most,
-    });
-    let lines = vec![format!(
-        "showed {} markers ({} path points, {} via points, start and goal) on {} in frame {} for {:.0} s: {} viewer(s) subscribed",
-        markers.markers.len(),
-        path.len(),
-        via.len(),
-        settings.topic,
-        settings.frame,
-        settings.seconds,
-        most
-    )];
-    Ok(Answer { json, lines })
+    at.iter()
+        .map(|&want| {
+            let i = t.partition_point(|&x| x < want);
+            if i == t.len() {
+                return None;
+            }
+            if i == 0 {
+                return Some(rec.positions[0].clone());
+            }
+            let s = (want - t[i - 1]) / (t[i] - t[i - 1]);
+            Some(
+                rec.positions[i - 1]
+                    .iter()
+                    .zip(&rec.positions[i])
+                    .map(|(a, b)| a + s * (b - a))
+                    .collect(),
+            )
+        })
+        .collect()
 }

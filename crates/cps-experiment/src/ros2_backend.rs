@@ -10,7 +10,7 @@
 //! goal's acceptance stamp; where the robot sends no stamps, arrival times against the
 //! answer's). The tool pose is the scene model's forward kinematics of those joints.
 //!
-//! [`STOP`](crate::franka_backend::STOP) set by the host program (Ctrl-C) cancels the goal:
+//! [`STOP`] set by the host program (Ctrl-C) cancels the goal:
 //! the controller then stops the arm as it is configured to.
 
 use std::sync::atomic::AtomicBool;
@@ -310,48 +310,6 @@ fn goal_trajectory(names: &[String], rows: &[Vec<f64>], dt: f64) -> JointTraject
     }
 }
 
-/// The recorded joints at each time of `at` (s from the goal's acceptance), linearly
-/// between messages; None past the recording's end.
-pub(crate) fn rows_at(
-    rec: &JointRecording,
-    outcome: &FollowOutcome,
-    at: &[f64],
-) -> Option<Vec<Vec<f64>>> {
-    let (_, source) = rec.times();
-    let (times, zero): (&[u64], u64) = if source == "stamp" {
-        let s = outcome.accepted_stamp;
-        (
-            &rec.stamps_ns,
-            s.sec.max(0) as u64 * 1_000_000_000 + s.nanosec as u64,
-        )
-    } else {
-        (&rec.received_ns, outcome.accepted_at_ns)
-    };
-    let t: Vec<f64> = times
-        .iter()
-        .map(|&x| (x as f64 - zero as f64) * 1e-9)
-        .collect();
-    at.iter()
-        .map(|&want| {
-            let i = t.partition_point(|&x| x < want);
-            if i == t.len() {
-                return None;
-            }
-            if i == 0 {
-                return Some(rec.positions[0].clone());
-            }
-            let s = (want - t[i - 1]) / (t[i] - t[i - 1]);
-            Some(
-                rec.positions[i - 1]
-                    .iter()
-                    .zip(&rec.positions[i])
-                    .map(|(a, b)| a + s * (b - a))
-                    .collect(),
-            )
-        })
-        .collect()
-}
-
 impl RobotBackend for Ros2Backend {
     fn dof(&self) -> usize {
         self.model.chain.dof()
@@ -450,7 +408,7 @@ impl RobotBackend for Ros2Backend {
         }
         let (rec, outcome) = self.follow(targets, dt)?;
         let at: Vec<f64> = (1..=targets.len()).map(|k| k as f64 * dt).collect();
-        let rows = rows_at(&rec, &outcome, &at).ok_or_else(|| {
+        let rows = crate::ros2::rows_at(&rec, &outcome, &at).ok_or_else(|| {
             error(
                 &self.settings,
                 format!(
