@@ -39,8 +39,8 @@ def send(
 ) -> dict:
     """Sends the joint trajectory ``q`` (shape (samples, joints), rad) at times ``t`` (s).
 
-    It is checked against ``robot``'s limits (``ValueError``-free refusal: ``CpsError``
-    saying which limit, nothing sent), sampled every ``period`` s by a spline with
+    It is checked against ``robot``'s limits (a broken one raises ``CpsError`` naming it,
+    and nothing is sent), sampled every ``period`` s by a spline with
     velocities and accelerations, and sent to ``controller``: ``via="action"`` waits for
     the goal's result (Ctrl-C cancels the goal, then raises KeyboardInterrupt);
     ``via="topic"`` publishes on ``<controller>/joint_trajectory`` once the controller

@@ -123,18 +123,6 @@ pub fn ros2_error(e: Ros2Error) -> ExperimentError {
     }
 }
 
-/// A joint CSV as the message a controller takes ([`trajectory_message_of`] after
-/// reading it).
-pub fn trajectory_message(
-    file: &Path,
-    model: &RobotModel,
-    names: &[String],
-    period: f64,
-) -> Result<JointTrajectory, ExperimentError> {
-    let traj = crate::limits::read_joint_trajectory(file, model.chain.dof())?;
-    trajectory_message_of(&file.display().to_string(), &traj, model, names, period)
-}
-
 /// A joint trajectory (called `name` in messages) as the message a controller takes:
 /// checked against `model`'s limits at the points' rate (refused, with the report's lines,
 /// when one is broken), then sampled every `period` s by the spline through it with
