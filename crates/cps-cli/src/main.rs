@@ -13,6 +13,7 @@
 //! cps-cli imitate demo.csv [more.csv ...] [--bases N] [--method lwr|ridge|jerk] [--lambda X|auto] [--tau S] --out model.json [--plot fit.png]
 //! cps-cli ros2 send traj.csv --controller /panda_arm_controller [--topic|--action] [--joint-names a,b,...] [--domain N] [--json]
 //! cps-cli ros2 record --topic /joint_states --duration S --out rec.csv [--domain N]
+//! cps-cli mocap show take.c3d | mocap import take.c3d --markers A,B,C [--to-robot lab.toml] --out demo.csv
 //! cps-cli rollout model.json [--start ...] [--goal ...] [--tau S] [--dt S] --out traj.csv [--plot traj.png]
 //! cps-cli promp fit demo*.csv [--bases N] --out p.json | condition p.json --at T --position x,y [--std S] --out q.json
 //! cps-cli promp sample p.json --n K --seed S [--dt S] --out dir/ | stats p.json --out stats.csv
@@ -42,6 +43,7 @@ macro_rules! say {
 
 mod cmaes_bench;
 mod franka;
+mod mocap;
 mod movement;
 mod progress;
 mod promp;
@@ -146,6 +148,12 @@ enum Command {
     Ros2 {
         #[command(subcommand)]
         command: ros2::Ros2Command,
+    },
+    /// Motion capture: a take (C3D, Motive CSV) shown, or made a demonstration in the
+    /// robot's frame.
+    Mocap {
+        #[command(subcommand)]
+        command: mocap::MocapCommand,
     },
     /// Scenes: a placed robot and named way points.
     Scene {
@@ -258,6 +266,7 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
         Command::Studio(args) => studio::studio(&args, interrupted),
         Command::Franka { command } => franka::franka(&command, interrupted),
         Command::Ros2 { command } => ros2::ros2(&command, interrupted),
+        Command::Mocap { command } => mocap::mocap(&command),
         Command::Check {
             file,
             ceilings,

@@ -167,6 +167,7 @@ fn draw_marker<DB: DrawingBackend>(
             GOAL.filled(),
         )),
         MarkKind::Via => area.draw(&Circle::new(p, 5, BLACK.filled())),
+        MarkKind::Gap => area.draw(&Circle::new(p, 5, OBSTACLE.stroke_width(2))),
         MarkKind::Obstacle => area.draw(&Cross::new(p, 7, OBSTACLE.stroke_width(3))),
     }
 }
@@ -196,6 +197,11 @@ where
                     + Text::new(m.label.clone(), (7, -20), ("sans-serif", 14)),
             ))?;
         }
+        MarkKind::Gap => {
+            chart.draw_series(std::iter::once(
+                EmptyElement::at(at) + Circle::new((0, 0), 5, OBSTACLE.stroke_width(2)),
+            ))?;
+        }
         MarkKind::Obstacle => {
             chart.draw_series(std::iter::once(
                 EmptyElement::at(at)
@@ -215,6 +221,7 @@ fn mark_entries(marks: &[Mark]) -> Vec<(String, Swatch)> {
         (MarkKind::Via, "via points p1, p2, …"),
         (MarkKind::Goal, "goal"),
         (MarkKind::Obstacle, "obstacles o1, o2, …"),
+        (MarkKind::Gap, "gaps filled (motion capture)"),
     ] {
         if marks.iter().any(|m| m.kind == kind) {
             out.push((label.to_string(), Swatch::Mark(kind)));

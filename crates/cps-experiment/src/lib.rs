@@ -60,6 +60,7 @@ pub mod franka;
 pub mod franka_backend;
 mod kinds;
 pub mod limits;
+pub mod mocap;
 pub mod movement;
 mod observer;
 pub mod outcome;

@@ -333,6 +333,8 @@ pub enum MarkKind {
     Goal,
     /// A point obstacle (drawn in 3-D paths; labelled `o1`, `o2`, …).
     Obstacle,
+    /// Where a motion-capture marker's filled gap begins (a hollow circle).
+    Gap,
 }
 
 /// A marked point of a figure: a way point, or a target at a time.

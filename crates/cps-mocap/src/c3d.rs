@@ -167,9 +167,7 @@ pub fn read(path: &Path) -> Result<Take, MocapError> {
     if len > MAX_FILE_BYTES {
         return Err(MocapError::format(
             &name,
-            format!(
-                "{len} bytes is more than the {MAX_FILE_BYTES} a take may have; cut it first"
-            ),
+            format!("{len} bytes is more than the {MAX_FILE_BYTES} a take may have; cut it first"),
         ));
     }
     let bytes = std::fs::read(path).map_err(io)?;
@@ -252,7 +250,8 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Take, MocapError> {
 
     // Labels: POINT:LABELS, then LABELS2, LABELS3… for takes of more than 255 markers.
     let mut labels: Vec<String> = Vec::new();
-    for name in std::iter::once("LABELS".to_string()).chain((2..100).map(|i| format!("LABELS{i}"))) {
+    for name in std::iter::once("LABELS".to_string()).chain((2..100).map(|i| format!("LABELS{i}")))
+    {
         match p("POINT", &name) {
             Some(l) => labels.extend(l.strings()),
             None if name != "LABELS" => break,
@@ -354,7 +353,9 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Take, MocapError> {
         let unsigned = p("ANALOG", "FORMAT")
             .and_then(|f| f.strings().into_iter().next())
             .is_some_and(|f| f.eq_ignore_ascii_case("UNSIGNED"));
-        let mut alabels = p("ANALOG", "LABELS").map(Param::strings).unwrap_or_default();
+        let mut alabels = p("ANALOG", "LABELS")
+            .map(Param::strings)
+            .unwrap_or_default();
         alabels.resize(channels, String::new());
         for (i, l) in alabels.iter_mut().enumerate() {
             if l.is_empty() {
@@ -479,7 +480,9 @@ fn push_point(
 /// `TRIAL:ACTUAL_*_FIELD`: two 16-bit words, low first.
 fn field(p: &Param) -> Option<u64> {
     match &p.data {
-        Data::Ints(v) if v.len() == 2 => Some(u64::from(v[0] as u16) + (u64::from(v[1] as u16) << 16)),
+        Data::Ints(v) if v.len() == 2 => {
+            Some(u64::from(v[0] as u16) + (u64::from(v[1] as u16) << 16))
+        }
         _ => None,
     }
 }
@@ -524,7 +527,9 @@ fn parameters(
             break;
         }
         let name_bytes = b.get(at + 2, n, "a parameter name")?;
-        let name = String::from_utf8_lossy(name_bytes).trim().to_ascii_uppercase();
+        let name = String::from_utf8_lossy(name_bytes)
+            .trim()
+            .to_ascii_uppercase();
         let off_at = at + 2 + n;
         let offset = e.i16(b.two(off_at, &format!("the offset of record {name}"))?);
         let next = if offset == 0 {
@@ -645,10 +650,18 @@ pub fn write(take: &Take, format: Format) -> Result<Vec<u8>, MocapError> {
     ps.ints(1, "USED", &[points as u16 as i16]);
     ps.floats(1, "SCALE", &[scale]);
     ps.floats(1, "RATE", &[take.rate as f32]);
-    let frames_word = if take.frames > 65_535 { -1 } else { take.frames as u16 as i16 };
+    let frames_word = if take.frames > 65_535 {
+        -1
+    } else {
+        take.frames as u16 as i16
+    };
     ps.ints(1, "FRAMES", &[frames_word]);
     for (k, chunk) in take.labels.chunks(255).enumerate() {
-        let name = if k == 0 { "LABELS".to_string() } else { format!("LABELS{}", k + 1) };
+        let name = if k == 0 {
+            "LABELS".to_string()
+        } else {
+            format!("LABELS{}", k + 1)
+        };
         ps.chars(1, &name, chunk, 32);
     }
     ps.chars(1, "UNITS", std::slice::from_ref(&take.units), 4);
@@ -666,9 +679,16 @@ pub fn write(take: &Take, format: Format) -> Result<Vec<u8>, MocapError> {
     ps.ints(
         3,
         "ACTUAL_START_FIELD",
-        &[take.first_frame as u16 as i16, (take.first_frame >> 16) as u16 as i16],
+        &[
+            take.first_frame as u16 as i16,
+            (take.first_frame >> 16) as u16 as i16,
+        ],
     );
-    ps.ints(3, "ACTUAL_END_FIELD", &[last as u16 as i16, (last >> 16) as u16 as i16]);
+    ps.ints(
+        3,
+        "ACTUAL_END_FIELD",
+        &[last as u16 as i16, (last >> 16) as u16 as i16],
+    );
     let mut params = ps.finish();
     let param_blocks = params.len().div_ceil(512);
     params.resize(param_blocks * 512, 0);
@@ -704,7 +724,9 @@ pub fn write(take: &Take, format: Format) -> Result<Vec<u8>, MocapError> {
                     for v in p {
                         out.extend_from_slice(&e.put_f32(v));
                     }
-                    let r = (take.residual[i] / scale.abs()).round().clamp(0.0, 32_767.0) as u16;
+                    let r = (take.residual[i] / scale.abs())
+                        .round()
+                        .clamp(0.0, 32_767.0) as u16;
                     out.extend_from_slice(&[0, 0]);
                     out.extend_from_slice(&e.put_u16(r));
                 } else {
@@ -736,7 +758,9 @@ pub fn write(take: &Take, format: Format) -> Result<Vec<u8>, MocapError> {
                     if float {
                         out.extend_from_slice(&e.put_f32(v as f32));
                     } else {
-                        out.extend_from_slice(&e.put_u16(v.round().clamp(-32_768.0, 32_767.0) as i16 as u16));
+                        out.extend_from_slice(
+                            &e.put_u16(v.round().clamp(-32_768.0, 32_767.0) as i16 as u16),
+                        );
                     }
                 }
             }
@@ -809,7 +833,13 @@ impl ParamWriter {
     }
 
     fn chars(&mut self, id: i8, name: &str, v: &[String], width: usize) -> usize {
-        let width = v.iter().map(String::len).max().unwrap_or(0).clamp(1, 255).max(width.min(255));
+        let width = v
+            .iter()
+            .map(String::len)
+            .max()
+            .unwrap_or(0)
+            .clamp(1, 255)
+            .max(width.min(255));
         let mut data = Vec::with_capacity(width * v.len());
         for s in v {
             let mut b = s.as_bytes().to_vec();

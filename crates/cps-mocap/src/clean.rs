@@ -38,7 +38,11 @@ pub fn reject_outliers(track: &mut [Vec3], half_window: usize, threshold: f64) -
         let median = window.each_mut().map(|w| {
             w.sort_by(f64::total_cmp);
             let k = w.len();
-            if k % 2 == 1 { w[k / 2] } else { (w[k / 2 - 1] + w[k / 2]) / 2.0 }
+            if k % 2 == 1 {
+                w[k / 2]
+            } else {
+                (w[k / 2 - 1] + w[k / 2]) / 2.0
+            }
         });
         if norm(sub(track[i], median)) > threshold {
             out.push(i);
@@ -107,14 +111,18 @@ pub fn fill_gaps(track: &mut [Vec3], max_gap: usize) -> Filled {
         let h = (b - a) as f64;
         let chord = sub(track[b], track[a]).map(|v| v / h);
         let slope_a = if a >= 2 && seen(&track[a - 1]) && seen(&track[a - 2]) {
-            std::array::from_fn(|k| (3.0 * track[a][k] - 4.0 * track[a - 1][k] + track[a - 2][k]) / 2.0)
+            std::array::from_fn(|k| {
+                (3.0 * track[a][k] - 4.0 * track[a - 1][k] + track[a - 2][k]) / 2.0
+            })
         } else if a >= 1 && seen(&track[a - 1]) {
             sub(track[a], track[a - 1])
         } else {
             chord
         };
         let slope_b = if b + 2 < n && seen(&track[b + 1]) && seen(&track[b + 2]) {
-            std::array::from_fn(|k| (-3.0 * track[b][k] + 4.0 * track[b + 1][k] - track[b + 2][k]) / 2.0)
+            std::array::from_fn(|k| {
+                (-3.0 * track[b][k] + 4.0 * track[b + 1][k] - track[b + 2][k]) / 2.0
+            })
         } else if b + 1 < n && seen(&track[b + 1]) {
             sub(track[b + 1], track[b])
         } else {
@@ -146,7 +154,13 @@ fn butterworth(cutoff: f64, rate: f64) -> [f64; 5] {
     let q = std::f64::consts::SQRT_2;
     let norm = 1.0 / (1.0 + q * k + k * k);
     let b0 = k * k * norm;
-    [b0, 2.0 * b0, b0, 2.0 * (k * k - 1.0) * norm, (1.0 - q * k + k * k) * norm]
+    [
+        b0,
+        2.0 * b0,
+        b0,
+        2.0 * (k * k - 1.0) * norm,
+        (1.0 - q * k + k * k) * norm,
+    ]
 }
 
 /// One pass of the filter (transposed direct form II), started in its steady state for
@@ -242,7 +256,11 @@ mod tests {
         let mut slow: Vec<f64> = (0..n).map(|i| (0.5 * i as f64 / rate).sin()).collect();
         let orig = slow.clone();
         smooth(&mut slow, fc, rate);
-        let err = slow.iter().zip(&orig).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        let err = slow
+            .iter()
+            .zip(&orig)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
         // (the ends within 2e-4: the reflection pivots on a fitted line, not on the curve)
         assert!(err < 2e-4, "{err}");
         let mut c = vec![3.25; 50];
@@ -271,12 +289,17 @@ mod tests {
         }
         assert_eq!(r.open.len(), 2);
         assert!(r.open[0].at_edge && r.open[0].len() == 1);
-        assert_eq!((r.open[1].start, r.open[1].end, r.open[1].at_edge), (60, 80, false));
+        assert_eq!(
+            (r.open[1].start, r.open[1].end, r.open[1].at_edge),
+            (60, 80, false)
+        );
     }
 
     #[test]
     fn a_spike_is_rejected_and_a_smooth_track_is_not() {
-        let mut track: Vec<Vec3> = (0..200).map(|i| [(i as f64 * 0.05).sin(), 0.0, 1.0]).collect();
+        let mut track: Vec<Vec3> = (0..200)
+            .map(|i| [(i as f64 * 0.05).sin(), 0.0, 1.0])
+            .collect();
         assert!(reject_outliers(&mut track.clone(), 3, 0.01).is_empty());
         track[50][1] += 0.05;
         track[120][2] -= 0.02;

@@ -20,8 +20,8 @@ use serde::Serialize;
 use crate::clean::{Gap, fill_gaps, reject_outliers, smooth_track};
 use crate::error::MocapError;
 use crate::fit::{
-    IDENTITY, Mat3, Rigid, Vec3, centroid, cross, dot, fit, norm, planarity,
-    quaternion_of, rotation_of, scale, sub, transpose,
+    IDENTITY, Mat3, Rigid, Vec3, centroid, cross, dot, fit, norm, planarity, quaternion_of,
+    rotation_of, scale, sub, transpose,
 };
 use crate::register::{Calibration, Registration};
 use crate::take::{Take, runs};
@@ -248,20 +248,19 @@ pub fn demonstrate(take: &Take, s: &Settings) -> Result<Demonstration, MocapErro
             ))
         })?;
         if index.contains(&i) {
-            return Err(MocapError::Input(format!("{file}: marker \"{m}\" is named twice")));
+            return Err(MocapError::Input(format!(
+                "{file}: marker \"{m}\" is named twice"
+            )));
         }
         index.push(i);
     }
     let pick = |name: &str| -> Result<usize, MocapError> {
-        s.markers
-            .iter()
-            .position(|m| m == name)
-            .ok_or_else(|| {
-                MocapError::Input(format!(
-                    "{file}: \"{name}\" is not one of the body's markers ({})",
-                    s.markers.join(", ")
-                ))
-            })
+        s.markers.iter().position(|m| m == name).ok_or_else(|| {
+            MocapError::Input(format!(
+                "{file}: \"{name}\" is not one of the body's markers ({})",
+                s.markers.join(", ")
+            ))
+        })
     };
     let origin = match &s.origin {
         Origin::Centroid => None,
@@ -354,7 +353,11 @@ pub fn demonstrate(take: &Take, s: &Settings) -> Result<Demonstration, MocapErro
     let mut rms_all = Vec::with_capacity(n);
     let mut fewer = 0usize;
     let mut fit_outliers = vec![0usize; nm];
-    let (mut from, mut to, mut which) = (Vec::with_capacity(nm), Vec::with_capacity(nm), Vec::with_capacity(nm));
+    let (mut from, mut to, mut which) = (
+        Vec::with_capacity(nm),
+        Vec::with_capacity(nm),
+        Vec::with_capacity(nm),
+    );
     for f in 0..n {
         from.clear();
         to.clear();
@@ -578,7 +581,10 @@ fn rigid_body(
         let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
         if p.iter().chain(&q).all(|v| v.is_finite()) && n > 0.5 {
             pos.push(p.map(|v| v * k));
-            quat.push(continuous(quat.iter().rev().find(|q| q[0].is_finite()), q.map(|v| v / n)));
+            quat.push(continuous(
+                quat.iter().rev().find(|q| q[0].is_finite()),
+                q.map(|v| v / n),
+            ));
         } else {
             pos.push([f64::NAN; 3]);
             quat.push([f64::NAN; 4]);
@@ -613,7 +619,9 @@ fn rigid_body(
     }
     let tracked = runs(pos.iter().map(|p| p[0].is_finite()));
     let (Some(a), Some(b)) = (tracked.first(), tracked.last()) else {
-        return Err(MocapError::Refused(format!("{file}: rigid body \"{name}\" is never tracked")));
+        return Err(MocapError::Refused(format!(
+            "{file}: rigid body \"{name}\" is never tracked"
+        )));
     };
     let (first, last) = (a.start, b.end);
     if tracked.len() > 1 {

@@ -133,19 +133,39 @@ pub fn quaternion_of(m: &Mat3) -> [f64; 4] {
     let q = if tr >= m[0][0].max(m[1][1]).max(m[2][2]) {
         let w = (1.0 + tr).max(0.0).sqrt() / 2.0;
         let k = 0.25 / w;
-        [(m[2][1] - m[1][2]) * k, (m[0][2] - m[2][0]) * k, (m[1][0] - m[0][1]) * k, w]
+        [
+            (m[2][1] - m[1][2]) * k,
+            (m[0][2] - m[2][0]) * k,
+            (m[1][0] - m[0][1]) * k,
+            w,
+        ]
     } else if m[0][0] >= m[1][1] && m[0][0] >= m[2][2] {
         let x = (1.0 + 2.0 * m[0][0] - tr).max(0.0).sqrt() / 2.0;
         let k = 0.25 / x;
-        [x, (m[0][1] + m[1][0]) * k, (m[0][2] + m[2][0]) * k, (m[2][1] - m[1][2]) * k]
+        [
+            x,
+            (m[0][1] + m[1][0]) * k,
+            (m[0][2] + m[2][0]) * k,
+            (m[2][1] - m[1][2]) * k,
+        ]
     } else if m[1][1] >= m[2][2] {
         let y = (1.0 + 2.0 * m[1][1] - tr).max(0.0).sqrt() / 2.0;
         let k = 0.25 / y;
-        [(m[0][1] + m[1][0]) * k, y, (m[1][2] + m[2][1]) * k, (m[0][2] - m[2][0]) * k]
+        [
+            (m[0][1] + m[1][0]) * k,
+            y,
+            (m[1][2] + m[2][1]) * k,
+            (m[0][2] - m[2][0]) * k,
+        ]
     } else {
         let z = (1.0 + 2.0 * m[2][2] - tr).max(0.0).sqrt() / 2.0;
         let k = 0.25 / z;
-        [(m[0][2] + m[2][0]) * k, (m[1][2] + m[2][1]) * k, z, (m[1][0] - m[0][1]) * k]
+        [
+            (m[0][2] + m[2][0]) * k,
+            (m[1][2] + m[2][1]) * k,
+            z,
+            (m[1][0] - m[0][1]) * k,
+        ]
     };
     let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
     let s = if q[3] < 0.0 { -1.0 / n } else { 1.0 / n };
@@ -308,7 +328,12 @@ mod tests {
             rotation: r,
             translation: t,
         };
-        let from = [[0.0, 0.0, 0.0], [0.1, 0.0, 0.02], [0.03, 0.08, -0.01], [0.05, 0.02, 0.07]];
+        let from = [
+            [0.0, 0.0, 0.0],
+            [0.1, 0.0, 0.02],
+            [0.03, 0.08, -0.01],
+            [0.05, 0.02, 0.07],
+        ];
         let to: Vec<Vec3> = from.iter().map(|p| truth.apply(*p)).collect();
         let (got, rms) = fit(&from, &to).unwrap();
         assert!(rms < 1e-12, "{rms}");
@@ -323,7 +348,12 @@ mod tests {
 
     #[test]
     fn a_mirror_image_is_fitted_by_a_rotation_not_a_reflection() {
-        let from = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let from = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
         let to: Vec<Vec3> = from.iter().map(|p| [p[0], p[1], -p[2]]).collect();
         let (got, rms) = fit(&from, &to).unwrap();
         let r = got.rotation;
@@ -334,7 +364,12 @@ mod tests {
 
     #[test]
     fn quaternions_and_matrices_round_trip() {
-        for (axis, angle) in [([1.0, 2.0, 3.0], 0.3), ([0.0, 1.0, 0.0], 3.1), ([1.0, 0.0, 0.0], 3.14159), ([0.2, 0.1, -1.0], 1e-9)] {
+        for (axis, angle) in [
+            ([1.0, 2.0, 3.0], 0.3),
+            ([0.0, 1.0, 0.0], 3.1),
+            ([1.0, 0.0, 0.0], 3.14159),
+            ([0.2, 0.1, -1.0], 1e-9),
+        ] {
             let m = rot(axis, angle);
             let back = rotation_of(quaternion_of(&m));
             assert!(angle_between(&m, &back) < 1e-12);

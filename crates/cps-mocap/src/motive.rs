@@ -83,7 +83,8 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Take, MocapError> {
             ));
         };
         let first = r.get(0).unwrap_or("").trim();
-        if first.eq_ignore_ascii_case("Frame") && r.get(1).unwrap_or("").trim().starts_with("Time") {
+        if first.eq_ignore_ascii_case("Frame") && r.get(1).unwrap_or("").trim().starts_with("Time")
+        {
             break (line, r);
         }
         if r.iter().any(|c| !c.trim().is_empty()) {
@@ -101,7 +102,11 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Take, MocapError> {
     let label_of = |r: &csv::StringRecord| -> String {
         let a = r.get(0).unwrap_or("").trim();
         let b = r.get(1).unwrap_or("").trim();
-        if a.is_empty() { b.to_string() } else { a.to_string() }
+        if a.is_empty() {
+            b.to_string()
+        } else {
+            a.to_string()
+        }
     };
     let mut types: Option<&csv::StringRecord> = None;
     let mut names: Option<&csv::StringRecord> = None;
@@ -162,10 +167,19 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Take, MocapError> {
         }
         objects.entry(id).or_default().insert(key, c);
     }
-    let rotation_type = meta.get("Rotation Type").cloned().unwrap_or_else(|| "Quaternion".into());
-    let units = meta.get("Length Units").cloned().unwrap_or_else(|| "Meters".into());
-    let metres = metres_per_unit(&units)
-        .ok_or_else(|| bad(format!("line 1: `Length Units` is \"{units}\"; cps reads Meters, Centimeters and Millimeters")))?;
+    let rotation_type = meta
+        .get("Rotation Type")
+        .cloned()
+        .unwrap_or_else(|| "Quaternion".into());
+    let units = meta
+        .get("Length Units")
+        .cloned()
+        .unwrap_or_else(|| "Meters".into());
+    let metres = metres_per_unit(&units).ok_or_else(|| {
+        bad(format!(
+            "line 1: `Length Units` is \"{units}\"; cps reads Meters, Centimeters and Millimeters"
+        ))
+    })?;
     let rate_key = ["Export Frame Rate", "Capture Frame Rate"]
         .into_iter()
         .find(|k| meta.contains_key(*k))
@@ -174,7 +188,12 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Take, MocapError> {
         .parse()
         .ok()
         .filter(|r: &f64| r.is_finite() && *r > 0.0)
-        .ok_or_else(|| bad(format!("line 1: `{rate_key}` is \"{}\", not a positive number", meta[rate_key])))?;
+        .ok_or_else(|| {
+            bad(format!(
+                "line 1: `{rate_key}` is \"{}\", not a positive number",
+                meta[rate_key]
+            ))
+        })?;
 
     // Markers: Motive's own ("Marker"), and solved rigid-body markers whose name no raw
     // marker has.
@@ -259,7 +278,11 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Take, MocapError> {
         };
         if first_frame.is_none() {
             let f = number(0)?;
-            first_frame = Some(if f.is_finite() && f >= 0.0 { f as u64 } else { 0 });
+            first_frame = Some(if f.is_finite() && f >= 0.0 {
+                f as u64
+            } else {
+                0
+            });
         }
         for (_, cols) in &markers {
             let p = [number(cols[0])?, number(cols[1])?, number(cols[2])?];
@@ -272,7 +295,8 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Take, MocapError> {
             }
         }
         for (b, t) in bodies.iter().zip(tracks.iter_mut()) {
-            t.position.push([number(b.p[0])?, number(b.p[1])?, number(b.p[2])?]);
+            t.position
+                .push([number(b.p[0])?, number(b.p[1])?, number(b.p[2])?]);
             t.quaternion.push(match b.q {
                 Some(q) => [number(q[0])?, number(q[1])?, number(q[2])?, number(q[3])?],
                 None => [f64::NAN; 4],

@@ -88,13 +88,16 @@ impl Calibration {
     /// Parses a calibration file's text.
     pub fn parse(text: &str, file: &str) -> Result<Self, MocapError> {
         let bad = |m: String| MocapError::format(file, m);
-        let f: CalibrationFile = toml::from_str(text).map_err(|e| bad(e.to_string().trim().replace('\n', " ")))?;
+        let f: CalibrationFile =
+            toml::from_str(text).map_err(|e| bad(e.to_string().trim().replace('\n', " ")))?;
         let units = f.mocap_units.unwrap_or_else(|| "m".into());
         let k = metres_per_unit(&units)
             .ok_or_else(|| bad(format!("`mocap_units` is \"{units}\"; use m, cm or mm")))?;
         let max_residual = f.max_residual.unwrap_or(0.005);
         if !(max_residual.is_finite() && max_residual > 0.0) {
-            return Err(bad(format!("`max_residual` must be a positive number of metres (got {max_residual})")));
+            return Err(bad(format!(
+                "`max_residual` must be a positive number of metres (got {max_residual})"
+            )));
         }
         if f.points.len() < 3 {
             return Err(bad(format!(
@@ -106,7 +109,10 @@ impl Calibration {
         let (mut mocap, mut robot) = (Vec::new(), Vec::new());
         for (i, p) in f.points.iter().enumerate() {
             if p.mocap.iter().chain(&p.robot).any(|v| !v.is_finite()) {
-                return Err(bad(format!("[[points]] {}: a coordinate is not a finite number", i + 1)));
+                return Err(bad(format!(
+                    "[[points]] {}: a coordinate is not a finite number",
+                    i + 1
+                )));
             }
             names.push(p.name.clone().unwrap_or_else(|| format!("point {}", i + 1)));
             mocap.push(p.mocap.map(|v| v * k));
@@ -135,7 +141,10 @@ impl Calibration {
             }
         }
         let (transform, rms) = fit(&self.mocap, &self.robot).ok_or_else(|| {
-            MocapError::Input(format!("{}: a registration needs three or more points", self.file))
+            MocapError::Input(format!(
+                "{}: a registration needs three or more points",
+                self.file
+            ))
         })?;
         let (worst, max) = self
             .mocap

@@ -38,7 +38,9 @@ impl Spec {
             [0.04, -0.06, -0.04],
             [-0.1, 0.0, 0.06],
         ];
-        let markers: Vec<Vec3> = (0..n).map(|i| all[i % all.len()].map(|v| v * (1.0 + (i / all.len()) as f64 * 0.5))).collect();
+        let markers: Vec<Vec3> = (0..n)
+            .map(|i| all[i % all.len()].map(|v| v * (1.0 + (i / all.len()) as f64 * 0.5)))
+            .collect();
         Self {
             rate: 240.0,
             frames: 2400,
@@ -103,9 +105,8 @@ pub fn take(spec: &Spec) -> (Take, Vec<Rigid>) {
                 .iter()
                 .any(|&(g, start, n)| g == j && (start..start + n).contains(&f));
             let p = pose.apply(*b);
-            let noisy: [f32; 3] = std::array::from_fn(|k| {
-                ((p[k] + spec.noise_m * rng.sample()) * 1000.0) as f32
-            });
+            let noisy: [f32; 3] =
+                std::array::from_fn(|k| ((p[k] + spec.noise_m * rng.sample()) * 1000.0) as f32);
             if gap {
                 xyz.push([f32::NAN; 3]);
                 residual.push(-1.0);

@@ -7,7 +7,11 @@ use cps_mocap::fit::{angle_between, norm, rotation_of, sub};
 use cps_mocap::register::Calibration;
 use cps_mocap::synthetic::{Spec, take};
 
-fn worst(demo: &cps_mocap::demo::Demonstration, truth: &[cps_mocap::fit::Rigid], offset: usize) -> (f64, f64) {
+fn worst(
+    demo: &cps_mocap::demo::Demonstration,
+    truth: &[cps_mocap::fit::Rigid],
+    offset: usize,
+) -> (f64, f64) {
     let mut e = (0.0f64, 0.0f64);
     for (i, (p, q)) in demo.position.iter().zip(&demo.quaternion).enumerate() {
         let t = &truth[i + offset];
@@ -39,7 +43,8 @@ fn noise_free_markers_give_the_pose_within_a_micrometre_and_a_microradian() {
         )
         .unwrap();
         assert_eq!(demo.t.len(), spec.frames);
-        let c: [f64; 3] = std::array::from_fn(|k| spec.markers.iter().map(|m| m[k]).sum::<f64>() / n as f64);
+        let c: [f64; 3] =
+            std::array::from_fn(|k| spec.markers.iter().map(|m| m[k]).sum::<f64>() / n as f64);
         let r0 = truth[0].rotation;
         let mut ep = 0.0f64;
         let mut er = 0.0f64;
@@ -58,7 +63,12 @@ fn noise_free_markers_give_the_pose_within_a_micrometre_and_a_microradian() {
 fn axes_from_markers_and_an_origin_marker_give_the_tool_frame_itself() {
     // Markers 1 at the origin, 2 on x, 3 in the x-y plane: the body frame is the tool's.
     let mut spec = Spec::tool(4);
-    spec.markers = vec![[0.0, 0.0, 0.0], [0.16, 0.0, 0.0], [0.04, 0.1, 0.0], [0.0, 0.0, 0.08]];
+    spec.markers = vec![
+        [0.0, 0.0, 0.0],
+        [0.16, 0.0, 0.0],
+        [0.04, 0.1, 0.0],
+        [0.0, 0.0, 0.08],
+    ];
     let (t, truth) = take(&spec);
     let demo = demonstrate(
         &t,
@@ -78,7 +88,12 @@ fn axes_from_markers_and_an_origin_marker_give_the_tool_frame_itself() {
 #[test]
 fn gaps_are_filled_outliers_rejected_and_noise_smoothed() {
     let mut spec = Spec::tool(4);
-    spec.markers = vec![[0.0, 0.0, 0.0], [0.16, 0.0, 0.0], [0.04, 0.1, 0.0], [0.0, 0.0, 0.08]];
+    spec.markers = vec![
+        [0.0, 0.0, 0.0],
+        [0.16, 0.0, 0.0],
+        [0.04, 0.1, 0.0],
+        [0.0, 0.0, 0.08],
+    ];
     spec.noise_m = 0.0005;
     spec.gaps = vec![(1, 300, 8), (2, 1000, 40), (0, 2395, 5)];
     let (mut t, truth) = take(&spec);
@@ -97,7 +112,11 @@ fn gaps_are_filled_outliers_rejected_and_noise_smoothed() {
     assert_eq!(r.markers[1].gaps_filled, 1);
     assert_eq!(r.markers[1].frames_filled, 8);
     assert_eq!(r.markers[2].open_gaps, vec![[1001, 1040]]);
-    assert!(r.markers[3].outliers >= 1 && r.markers[0].outliers >= 1, "{:?}", r.markers);
+    assert!(
+        r.markers[3].outliers >= 1 && r.markers[0].outliers >= 1,
+        "{:?}",
+        r.markers
+    );
     assert!(r.frames_with_fewer_markers >= 40);
     let (ep, er) = worst(&demo, &truth, 0);
     let rms = (demo
@@ -111,9 +130,19 @@ fn gaps_are_filled_outliers_rejected_and_noise_smoothed() {
     // 0.5 mm noise per coordinate (0.87 mm in 3-D), smoothed at 10 Hz: under 0.5 mm RMS; within
     // 1.5 mm and a degree (the worst at the last frames, where the origin marker is lost
     // and the filter has only one side).
-    assert!(rms < 5e-4 && ep < 1.5e-3 && er < 0.0175, "{rms} m RMS, {ep} m, {er} rad");
+    assert!(
+        rms < 5e-4 && ep < 1.5e-3 && er < 0.0175,
+        "{rms} m RMS, {ep} m, {er} rad"
+    );
     // Without smoothing the noise comes through larger.
-    let raw = demonstrate(&t, &Settings { cutoff_hz: None, ..s.clone() }).unwrap();
+    let raw = demonstrate(
+        &t,
+        &Settings {
+            cutoff_hz: None,
+            ..s.clone()
+        },
+    )
+    .unwrap();
     let (rp, _) = worst(&raw, &truth, 0);
     assert!(rp > ep, "{rp} vs {ep}");
 }
@@ -123,14 +152,27 @@ fn a_long_gap_that_leaves_two_markers_is_refused_naming_the_frames() {
     let mut spec = Spec::tool(3);
     spec.gaps = vec![(2, 500, 30)];
     let (t, _) = take(&spec);
-    let e = demonstrate(&t, &Settings { markers: spec.labels.clone(), ..Settings::default() })
-        .unwrap_err()
-        .to_string();
+    let e = demonstrate(
+        &t,
+        &Settings {
+            markers: spec.labels.clone(),
+            ..Settings::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("frames 501–530") && e.contains("tool3"), "{e}");
     // A gap at the start is cut instead.
     spec.gaps = vec![(2, 0, 30)];
     let (t, _) = take(&spec);
-    let d = demonstrate(&t, &Settings { markers: spec.labels.clone(), ..Settings::default() }).unwrap();
+    let d = demonstrate(
+        &t,
+        &Settings {
+            markers: spec.labels.clone(),
+            ..Settings::default()
+        },
+    )
+    .unwrap();
     assert_eq!(d.report.cut, [30, 0]);
     assert_eq!(d.report.kept_frames, [31, 2400]);
     assert_eq!(d.t[0], 0.0);
@@ -140,14 +182,31 @@ fn a_long_gap_that_leaves_two_markers_is_refused_naming_the_frames() {
 fn unknown_labels_and_collinear_markers_are_named() {
     let spec = Spec::tool(3);
     let (t, _) = take(&spec);
-    let e = demonstrate(&t, &Settings { markers: vec!["tool1".into(), "tool2".into(), "wrist".into()], ..Settings::default() })
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("\"wrist\"") && e.contains("tool1, tool2, tool3"), "{e}");
+    let e = demonstrate(
+        &t,
+        &Settings {
+            markers: vec!["tool1".into(), "tool2".into(), "wrist".into()],
+            ..Settings::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("\"wrist\"") && e.contains("tool1, tool2, tool3"),
+        "{e}"
+    );
     let mut line = Spec::tool(3);
     line.markers = vec![[0.0, 0.0, 0.0], [0.05, 0.0, 0.0], [0.1, 0.0, 0.0]];
     let (t, _) = take(&line);
-    let e = demonstrate(&t, &Settings { markers: line.labels.clone(), ..Settings::default() }).unwrap_err().to_string();
+    let e = demonstrate(
+        &t,
+        &Settings {
+            markers: line.labels.clone(),
+            ..Settings::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("one line"), "{e}");
 }
 
@@ -158,13 +217,23 @@ fn a_registration_carries_the_pose_into_the_robot_frame() {
         rotation: [[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
         translation: [-0.5, 0.0, -0.2],
     };
-    let pts = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.3, 0.2, 1.0]];
+    let pts = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.3, 0.2, 1.0],
+    ];
     let mut toml = String::from("mocap_units = \"mm\"\n");
     for p in pts {
         let r = lab_to_robot.apply(p);
         toml.push_str(&format!(
             "[[points]]\nmocap = [{}, {}, {}]\nrobot = [{}, {}, {}]\n",
-            p[0] * 1e3, p[1] * 1e3, p[2] * 1e3, r[0], r[1], r[2]
+            p[0] * 1e3,
+            p[1] * 1e3,
+            p[2] * 1e3,
+            r[0],
+            r[1],
+            r[2]
         ));
     }
     let calib = Calibration::parse(&toml, "lab.toml").unwrap();
@@ -186,7 +255,15 @@ fn a_registration_carries_the_pose_into_the_robot_frame() {
     let (ep, er) = worst(&demo, &in_robot, 0);
     assert!(ep < 1e-6 && er < 1e-6, "{ep} m, {er} rad");
     // The same rotation as --up y (without the offset).
-    let up = demonstrate(&t, &Settings { calibration: None, up: Up::Y, ..s.clone() }).unwrap();
+    let up = demonstrate(
+        &t,
+        &Settings {
+            calibration: None,
+            up: Up::Y,
+            ..s.clone()
+        },
+    )
+    .unwrap();
     let d = sub(up.position[0], demo.position[0]);
     assert!(norm(sub(d, [0.5, 0.0, 0.2])) < 1e-9, "{d:?}");
     // Collinear points and a bad point are refused.
@@ -195,9 +272,16 @@ fn a_registration_carries_the_pose_into_the_robot_frame() {
         "line.toml",
     )
     .unwrap();
-    assert!(bad.register().unwrap_err().to_string().contains("collinear"));
+    assert!(
+        bad.register()
+            .unwrap_err()
+            .to_string()
+            .contains("collinear")
+    );
     let off = Calibration::parse(
-        &toml.replacen("robot = [", "robot = [0.05 + ", 0).replace("mocap = [1000,", "mocap = [1030,"),
+        &toml
+            .replacen("robot = [", "robot = [0.05 + ", 0)
+            .replace("mocap = [1000,", "mocap = [1030,"),
         "off.toml",
     )
     .unwrap();
@@ -230,13 +314,22 @@ fn truncated_and_lying_files_are_named_not_panicked_on() {
     let spec = Spec::tool(3);
     let (t, _) = take(&spec);
     let bytes = c3d::write(&t, Format::Float).unwrap();
-    let e = c3d::parse(&bytes[..bytes.len() / 2], "cut.c3d").unwrap_err().to_string();
+    let e = c3d::parse(&bytes[..bytes.len() / 2], "cut.c3d")
+        .unwrap_err()
+        .to_string();
     assert!(e.starts_with("cut.c3d: truncated"), "{e}");
-    let e = c3d::parse(&bytes[..300], "tiny.c3d").unwrap_err().to_string();
+    let e = c3d::parse(&bytes[..300], "tiny.c3d")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("truncated") && e.contains("header"), "{e}");
     let mut lie = bytes.clone();
     lie[1] = 0x51;
-    assert!(c3d::parse(&lie, "x.c3d").unwrap_err().to_string().contains("not a C3D file"));
+    assert!(
+        c3d::parse(&lie, "x.c3d")
+            .unwrap_err()
+            .to_string()
+            .contains("not a C3D file")
+    );
     // Every single-byte corruption of the header and parameters is an error or a take,
     // never a panic.
     for i in 0..1536 {

@@ -1,0 +1,422 @@
+//! Motion capture for the command line, Python and experiment files: a take shown
+//! (`mocap show`), made a demonstration CSV with its report and figures (`mocap import`),
+//! and read as the demonstrations of an experiment. The reading and the numerics are
+//! `cps-mocap`'s; this module adds files, words and figures.
+
+use std::path::{Path, PathBuf};
+
+use cps_mocap::demo::{Demonstration, Settings, demonstrate, read_take};
+use cps_mocap::register::Calibration;
+use cps_mocap::{MocapError, Take};
+use serde_json::json;
+
+use crate::outcome::{Figure, Mark, MarkKind, Panels, Plot, Series};
+use crate::robot_file::Answer;
+use crate::{ExperimentError, InputError};
+
+/// A take's problem as input (exit 2 on the command line).
+pub fn mocap_error(e: MocapError) -> InputError {
+    InputError(e.to_string())
+}
+
+/// Reads a take (`.c3d`, or a Motive `.csv` export).
+pub fn read(path: &Path) -> Result<Take, InputError> {
+    read_take(path).map_err(mocap_error)
+}
+
+/// Makes the demonstration of a take; `calibration` is a registration file.
+pub fn demonstration(
+    take: &Path,
+    settings: &Settings,
+    calibration: Option<&Path>,
+) -> Result<Demonstration, InputError> {
+    let mut s = settings.clone();
+    if let Some(c) = calibration {
+        s.calibration = Some(Calibration::read(c).map_err(mocap_error)?);
+    }
+    let t = read(take)?;
+    demonstrate(&t, &s).map_err(mocap_error)
+}
+
+/// `mocap show`: labels, rate, frames, units, each marker's gaps, analog channels and
+/// rigid bodies.
+pub fn show(path: &Path) -> Result<Answer, InputError> {
+    let t = read(path)?;
+    let kind = match t.source {
+        cps_mocap::take::Source::C3d { float, processor } => format!(
+            "C3D ({}, {processor:?})",
+            if float {
+                "floating point"
+            } else {
+                "16-bit integers"
+            }
+        ),
+        cps_mocap::take::Source::MotiveCsv => "Motive CSV".into(),
+    };
+    let mut lines = vec![
+        format!("{}: {kind}", path.display()),
+        format!(
+            "  {} frames at {} Hz ({:.3} s), first frame {}; lengths in {} ({} m each)",
+            t.frames,
+            t.rate,
+            t.duration(),
+            t.first_frame,
+            t.units,
+            t.metres_per_unit
+        ),
+        format!("  {} markers:", t.markers()),
+    ];
+    let mut markers = Vec::new();
+    for m in 0..t.markers() {
+        let gaps = t.gaps(m);
+        let missing: usize = gaps.iter().map(|g| g.len()).sum();
+        let longest = gaps.iter().map(|g| g.len()).max().unwrap_or(0);
+        lines.push(format!(
+            "    {:<24} seen {:>6.2} %{}",
+            t.labels[m],
+            100.0 * (t.frames - missing) as f64 / t.frames.max(1) as f64,
+            if gaps.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    ", {} gap(s), longest {longest} frames (from frame {})",
+                    gaps.len(),
+                    gaps.iter()
+                        .max_by_key(|g| g.len())
+                        .map_or(0, |g| t.first_frame + g.start as u64)
+                )
+            }
+        ));
+        markers.push(json!({
+            "label": t.labels[m],
+            "missing_frames": missing,
+            "gaps": gaps.len(),
+            "longest_gap_frames": longest,
+            "gap_frames": gaps.iter().map(|g| [t.first_frame + g.start as u64, t.first_frame + g.end as u64 - 1]).collect::<Vec<_>>(),
+        }));
+    }
+    let bodies: Vec<&str> = t.rigid_bodies.iter().map(|b| b.name.as_str()).collect();
+    if !bodies.is_empty() {
+        lines.push(format!("  rigid bodies: {}", bodies.join(", ")));
+    }
+    if let Some(a) = &t.analog {
+        lines.push(format!(
+            "  {} analog channel(s) at {} Hz: {}",
+            a.channels(),
+            a.rate,
+            a.labels.join(", ")
+        ));
+    }
+    for n in &t.notes {
+        lines.push(format!("  note: {n}"));
+    }
+    Ok(Answer {
+        json: json!({
+            "file": path.display().to_string(),
+            "format": kind,
+            "frames": t.frames,
+            "rate_hz": t.rate,
+            "duration_s": t.duration(),
+            "first_frame": t.first_frame,
+            "units": t.units,
+            "metres_per_unit": t.metres_per_unit,
+            "markers": markers,
+            "rigid_bodies": bodies,
+            "analog": t.analog.as_ref().map(|a| json!({
+                "labels": a.labels, "units": a.units, "rate_hz": a.rate,
+                "samples_per_frame": a.samples_per_frame,
+            })),
+            "notes": t.notes,
+        }),
+        lines,
+    })
+}
+
+/// What `mocap import` writes besides the demonstration.
+#[derive(Debug, Clone, Default)]
+pub struct ImportFiles {
+    /// A registration file (`--to-robot`).
+    pub calibration: Option<PathBuf>,
+    /// Figures: `<stem>_markers.png` and `<stem>_demonstration.png` beside this path's
+    /// stem (`--plot demo.png`); SVG when it ends in `.svg`.
+    pub plot: Option<PathBuf>,
+    /// The robot whose reach the demonstration figure shows and the report checks.
+    pub robot: Option<String>,
+}
+
+/// `mocap import`: the demonstration of a take written to `out` (`t,x,y,z,qx,qy,qz,qw`),
+/// with figures if asked; nothing is written when the take is refused.
+pub fn import(
+    take: &Path,
+    settings: &Settings,
+    files: &ImportFiles,
+    out: &Path,
+) -> Result<Answer, ExperimentError> {
+    let demo = demonstration(take, settings, files.calibration.as_deref())?;
+    let reach = match &files.robot {
+        Some(r) => Some(reach_of(r)?),
+        None => None,
+    };
+    crate::files::write_file(out, demo.csv().as_bytes())?;
+    let mut written = vec![out.display().to_string()];
+    if let Some(plot) = &files.plot {
+        for f in figures(&demo, reach.clone()) {
+            let path = figure_path(plot, &f.name);
+            draw(&f, &path)?;
+            written.push(path.display().to_string());
+        }
+    }
+    let r = &demo.report;
+    let beyond = reach.as_ref().map(|r| {
+        demo.position
+            .iter()
+            .filter(|p| cps_mocap::fit::norm(cps_mocap::fit::sub(**p, r.centre)) > r.radius)
+            .count()
+    });
+    let mut lines = vec![
+        format!(
+            "{}: {} poses over {:.3} s (frames {}–{} of {}, cut {} at the start and {} at the end), from {}",
+            out.display(),
+            r.frames,
+            r.duration_s,
+            r.kept_frames[0],
+            r.kept_frames[1],
+            r.frames_in_take,
+            r.cut[0],
+            r.cut[1],
+            r.from
+        ),
+        format!(
+            "  markers within {:.3} mm RMS of the body on average, {:.3} mm at worst; {} frame(s) fitted with fewer than all markers",
+            r.fit_rms_mean_m * 1e3,
+            r.fit_rms_max_m * 1e3,
+            r.frames_with_fewer_markers
+        ),
+    ];
+    for m in &r.markers {
+        if m.missing_frames + m.outliers > 0 {
+            lines.push(format!(
+                "  {}: {} frame(s) missing, {} gap(s) filled ({} frames, longest {}), {} outlier(s) rejected{}",
+                m.label,
+                m.missing_frames,
+                m.gaps_filled,
+                m.frames_filled,
+                m.longest_filled,
+                m.outliers,
+                if m.open_gaps.is_empty() {
+                    String::new()
+                } else {
+                    format!(", {} gap(s) left open", m.open_gaps.len())
+                }
+            ));
+        }
+    }
+    lines.push(match &r.registration {
+        Some(g) => format!(
+            "  in the robot's frame: registration from {} points, {:.3} mm RMS ({:.3} mm at `{}`)",
+            g.points,
+            g.rms_m * 1e3,
+            g.max_m * 1e3,
+            g.worst
+        ),
+        None => format!(
+            "  frame: {} (no registration: the take's own axes)",
+            r.frame
+        ),
+    });
+    if let (Some(n), Some(reach)) = (beyond, &reach) {
+        lines.push(format!(
+            "  {n} of {} poses lie beyond the {}'s reach ({:.3} m from its shoulder at {:.3} m above the base)",
+            r.frames, reach.robot, reach.radius, reach.centre[2]
+        ));
+    }
+    for w in written.iter().skip(1) {
+        lines.push(format!("  figure: {w}"));
+    }
+    Ok(Answer {
+        json: json!({
+            "demonstration": out.display().to_string(),
+            "report": serde_json::to_value(r).unwrap_or_default(),
+            "beyond_reach": beyond,
+            "reach_m": reach.as_ref().map(|r| r.radius),
+            "figures": written[1..],
+        }),
+        lines,
+    })
+}
+
+/// A robot's reach: a sphere about its shoulder (the point on the base's z axis at the
+/// mean height of 4 000 random tool positions within its limits, seed 1) holding them
+/// all; its radius, centre and the robot's name.
+fn reach_of(robot: &str) -> Result<Reach, InputError> {
+    let model = crate::robot_file::load_robot(robot, None, None)?;
+    let pts = cps_kinematics::sample_workspace(&model.chain, 4000, 1);
+    let z = pts.iter().map(|p| p.z).sum::<f64>() / pts.len().max(1) as f64;
+    let centre = [0.0, 0.0, z];
+    let radius = pts
+        .iter()
+        .map(|p| cps_mocap::fit::norm(cps_mocap::fit::sub([p.x, p.y, p.z], centre)))
+        .fold(0.0, f64::max);
+    Ok(Reach {
+        radius,
+        centre,
+        robot: robot.to_string(),
+    })
+}
+
+/// A robot's reach as a sphere.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reach {
+    /// Radius, metres.
+    pub radius: f64,
+    /// Centre in the robot's base frame.
+    pub centre: [f64; 3],
+    /// The robot.
+    pub robot: String,
+}
+
+fn figure_path(plot: &Path, name: &str) -> PathBuf {
+    let stem = plot
+        .file_stem()
+        .map_or("mocap".into(), |s| s.to_string_lossy().into_owned());
+    let ext = plot
+        .extension()
+        .map_or("png".into(), |e| e.to_string_lossy().into_owned());
+    plot.with_file_name(format!("{stem}_{name}.{ext}"))
+}
+
+#[cfg(feature = "figures")]
+fn draw(f: &Figure, path: &Path) -> Result<(), ExperimentError> {
+    crate::figures::draw_file(f, path)
+}
+
+#[cfg(not(feature = "figures"))]
+fn draw(_: &Figure, path: &Path) -> Result<(), ExperimentError> {
+    Err(ExperimentError::Message(format!(
+        "cannot draw {}: cps-experiment was built without its `figures` feature",
+        path.display()
+    )))
+}
+
+/// The figures of a demonstration: its markers and the fitted body over time (a marker's
+/// line breaks where it was not seen), and its path in the output frame with the robot's
+/// reach (its sphere's equator, at the shoulder's height) when a reach is given.
+pub fn figures(demo: &Demonstration, reach: Option<Reach>) -> Vec<Figure> {
+    let t = demo.t.clone();
+    let mut series: Vec<Series> = demo
+        .markers
+        .iter()
+        .zip(&demo.seen)
+        .zip(&demo.labels)
+        .map(|((track, seen), label)| {
+            let values = (0..3)
+                .map(|k| {
+                    track
+                        .iter()
+                        .zip(seen)
+                        .map(|(p, s)| if *s { p[k] } else { f64::NAN })
+                        .collect()
+                })
+                .collect();
+            Series::new(label.clone(), t.clone(), values).faint()
+        })
+        .collect();
+    series.push(Series::new(
+        "body",
+        t.clone(),
+        (0..3)
+            .map(|k| demo.position.iter().map(|p| p[k]).collect())
+            .collect(),
+    ));
+    let gaps: Vec<Mark> = demo
+        .seen
+        .iter()
+        .zip(&demo.markers)
+        .flat_map(|(seen, track)| {
+            cps_mocap::take::runs(seen.iter().map(|s| !s))
+                .into_iter()
+                .map(move |g| (g.start, track[g.start]))
+        })
+        .filter(|(_, p)| p[0].is_finite())
+        .map(|(i, p)| Mark {
+            time: demo.t[i],
+            values: p.to_vec(),
+            kind: MarkKind::Gap,
+            label: String::new(),
+        })
+        .take(50)
+        .collect();
+    let mut out = vec![Figure {
+        name: "markers".into(),
+        caption: format!(
+            "{}: the markers (faint; a line breaks where a marker was not seen, a hollow circle where a filled gap begins) and the fitted body's origin (bold), in the demonstration's frame ({})",
+            demo.report.file, demo.report.frame
+        ),
+        plot: Plot::Panels(
+            Panels::new(vec!["x [m]".into(), "y [m]".into(), "z [m]".into()], series).marks(gaps),
+        ),
+    }];
+    let mut paths = vec![Series::new(
+        "demonstration",
+        t.clone(),
+        (0..3)
+            .map(|k| demo.position.iter().map(|p| p[k]).collect())
+            .collect(),
+    )];
+    if let Some(Reach { radius: r, centre, robot: name }) = &reach {
+        let n = 181;
+        let circle: Vec<f64> = (0..n)
+            .map(|i| i as f64 * std::f64::consts::TAU / (n - 1) as f64)
+            .collect();
+        paths.push(
+            Series::new(
+                format!("{name}'s reach ({r:.2} m)"),
+                circle.clone(),
+                vec![
+                    circle.iter().map(|a| r * a.cos()).collect(),
+                    circle.iter().map(|a| r * a.sin()).collect(),
+                    vec![centre[2]; n],
+                ],
+            )
+            .faint(),
+        );
+    }
+    let marks = match (demo.position.first(), demo.position.last()) {
+        (Some(a), Some(b)) => vec![
+            Mark {
+                time: 0.0,
+                values: a.to_vec(),
+                kind: MarkKind::Start,
+                label: "start".into(),
+            },
+            Mark {
+                time: *demo.t.last().unwrap_or(&0.0),
+                values: b.to_vec(),
+                kind: MarkKind::Goal,
+                label: "end".into(),
+            },
+        ],
+        _ => Vec::new(),
+    };
+    out.push(Figure {
+        name: "demonstration".into(),
+        caption: format!(
+            "The demonstration's path in the {} frame{}",
+            if demo.report.registration.is_some() {
+                "robot's"
+            } else {
+                "take's"
+            },
+            if reach.is_some() {
+                ", with the robot's reach about its base"
+            } else {
+                ""
+            }
+        ),
+        plot: Plot::Path3d {
+            series: paths,
+            marks,
+        },
+    });
+    out
+}
