@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from typing import Any, Callable, NamedTuple, Optional
 
-from . import _cps, ros2
+from . import _cps, mocap, ros2
 from ._cps import (
     DMP,
     CpsError,
@@ -65,6 +65,7 @@ __all__ = [
     "imitate",
     "learn_via_points",
     "run_experiment",
+    "mocap",
     "ros2",
     "sequence",
 ]

@@ -14,6 +14,7 @@ use crate::robot::print;
 /// `cps-cli mocap ...`. Exit codes: 0 done; 2 bad input (a file that cannot be read, an
 /// unknown label, a take refused: nothing is written).
 #[derive(Subcommand, Debug)]
+#[allow(clippy::large_enum_variant)] // parsed once per run
 pub enum MocapCommand {
     /// A take's labels, rate, frames, units and gaps.
     Show {

@@ -363,7 +363,12 @@ pub fn figures(demo: &Demonstration, reach: Option<Reach>) -> Vec<Figure> {
             .map(|k| demo.position.iter().map(|p| p[k]).collect())
             .collect(),
     )];
-    if let Some(Reach { radius: r, centre, robot: name }) = &reach {
+    if let Some(Reach {
+        radius: r,
+        centre,
+        robot: name,
+    }) = &reach
+    {
         let n = 181;
         let circle: Vec<f64> = (0..n)
             .map(|i| i as f64 * std::f64::consts::TAU / (n - 1) as f64)

@@ -10,7 +10,9 @@ use cps_mocap::synthetic::{Spec, take};
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let Some(out) = args.first() else {
-        eprintln!("usage: synthetic_take OUT.c3d [--markers N] [--rate HZ] [--seconds S] [--noise-mm MM] [--gaps] [--integer SCALE]");
+        eprintln!(
+            "usage: synthetic_take OUT.c3d [--markers N] [--rate HZ] [--seconds S] [--noise-mm MM] [--gaps] [--integer SCALE]"
+        );
         std::process::exit(2);
     };
     let value = |name: &str, default: f64| -> f64 {

@@ -606,7 +606,7 @@ fn parameters(
     Ok(out)
 }
 
-/// How [`write`] stores the points.
+/// How [`write()`] stores the points.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Format {
     /// 32-bit floats (`POINT:SCALE` negative: its magnitude scales only the residuals).
@@ -629,7 +629,7 @@ pub fn write(take: &Take, format: Format) -> Result<Vec<u8>, MocapError> {
         Format::Float => (true, -1.0f32),
         Format::Integer { scale } => (false, scale),
     };
-    if !float && !(scale > 0.0 && scale.is_finite()) {
+    if !(float || scale > 0.0 && scale.is_finite()) {
         return Err(MocapError::Input(format!(
             "an integer C3D needs a positive scale (got {scale})"
         )));

@@ -275,17 +275,13 @@ mod tests {
             [0.3 * t * t - t, 2.0 * t + 0.5, -0.7 * t * t]
         };
         let mut track: Vec<Vec3> = (0..100).map(f).collect();
-        for i in 40..46 {
-            track[i] = [f64::NAN; 3];
-        }
-        for i in 60..80 {
-            track[i] = [f64::NAN; 3];
-        }
+        track[40..46].fill([f64::NAN; 3]);
+        track[60..80].fill([f64::NAN; 3]);
         track[0] = [f64::NAN; 3];
         let r = fill_gaps(&mut track, 10);
         assert_eq!((r.gaps, r.frames, r.longest), (1, 6, 6));
-        for i in 40..46 {
-            assert!(norm(sub(track[i], f(i))) < 1e-12, "{i}");
+        for (i, p) in track.iter().enumerate().take(46).skip(40) {
+            assert!(norm(sub(*p, f(i))) < 1e-12, "{i}");
         }
         assert_eq!(r.open.len(), 2);
         assert!(r.open[0].at_edge && r.open[0].len() == 1);

@@ -204,7 +204,7 @@ pub fn read_take(path: &Path) -> Result<Take, MocapError> {
 /// Makes a demonstration of a take.
 pub fn demonstrate(take: &Take, s: &Settings) -> Result<Demonstration, MocapError> {
     let file = &take.file;
-    if !(s.outlier_m > 0.0) {
+    if s.outlier_m.is_nan() || s.outlier_m <= 0.0 {
         return Err(MocapError::Input(format!(
             "the outlier distance must be positive (got {} m)",
             s.outlier_m

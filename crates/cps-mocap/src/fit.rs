@@ -183,6 +183,7 @@ pub fn angle_between(a: &Mat3, b: &Mat3) -> f64 {
 
 /// The eigenvalues and eigenvectors (columns of the second) of a symmetric matrix, by
 /// cyclic Jacobi rotations.
+#[allow(clippy::needless_range_loop)] // the rotations index rows and columns by p, q, k
 pub fn symmetric_eigen<const N: usize>(mut a: [[f64; N]; N]) -> ([f64; N], [[f64; N]; N]) {
     let mut v = [[0.0; N]; N];
     for (i, row) in v.iter_mut().enumerate() {
@@ -367,7 +368,7 @@ mod tests {
         for (axis, angle) in [
             ([1.0, 2.0, 3.0], 0.3),
             ([0.0, 1.0, 0.0], 3.1),
-            ([1.0, 0.0, 0.0], 3.14159),
+            ([1.0, 0.0, 0.0], std::f64::consts::PI - 1e-6),
             ([0.2, 0.1, -1.0], 1e-9),
         ] {
             let m = rot(axis, angle);

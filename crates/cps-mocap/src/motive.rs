@@ -322,8 +322,5 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Take, MocapError> {
         rigid_bodies: tracks,
         notes,
     })
-    .map(|t| {
-        debug_assert_eq!(t.xyz.len(), t.frames * m);
-        t
-    })
+    .inspect(|t| debug_assert_eq!(t.xyz.len(), t.frames * m))
 }

@@ -30,6 +30,7 @@ mod franka;
 mod interrupt;
 mod kinematics;
 mod learn;
+mod mocap;
 mod promp;
 mod ros2;
 
@@ -57,6 +58,8 @@ fn _cps(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(experiment::run_experiment, m)?)?;
     m.add_class::<kinematics::Robot>()?;
     m.add_class::<franka::Franka>()?;
+    m.add_function(wrap_pyfunction!(mocap::_mocap_take, m)?)?;
+    m.add_function(wrap_pyfunction!(mocap::_mocap_read, m)?)?;
     m.add_function(wrap_pyfunction!(ros2::_ros2_send, m)?)?;
     m.add_function(wrap_pyfunction!(ros2::_ros2_record, m)?)?;
     m.add_class::<promp::PyProMp>()?;
