@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Subcommand;
 use cps_experiment::mocap::{self, ImportFiles};
-use cps_mocap::demo::{Origin, Settings, Up};
+use cps_mocap::demo::{Settings, Up};
 
 use crate::cli_error;
 use crate::robot::print;
@@ -104,16 +104,7 @@ pub fn mocap(cmd: &MocapCommand) -> Result<ExitCode> {
             json,
         } => {
             let bad = |m: String| anyhow::Error::new(cps_experiment::InputError(m));
-            let axes = match axes.as_deref() {
-                None => None,
-                Some([o, x, p]) => Some([o.clone(), x.clone(), p.clone()]),
-                Some(other) => {
-                    return Err(bad(format!(
-                        "--axes takes three markers O,X,P (got {})",
-                        other.len()
-                    )));
-                }
-            };
+            let axes = Settings::axes_of(axes.as_deref()).map_err(|e| bad(e.to_string()))?;
             let frames = match frames {
                 None => None,
                 Some(f) => Some(
@@ -135,11 +126,7 @@ pub fn mocap(cmd: &MocapCommand) -> Result<ExitCode> {
             let settings = Settings {
                 markers: markers.clone(),
                 rigid_body: rigid_body.clone(),
-                origin: if origin == "centroid" {
-                    Origin::Centroid
-                } else {
-                    Origin::Marker(origin.clone())
-                },
+                origin: Settings::origin_of(origin),
                 axes,
                 max_gap: *max_gap,
                 cutoff_hz: (*cutoff != 0.0).then_some(*cutoff),

@@ -22,10 +22,6 @@ use std::path::Path;
 use crate::error::MocapError;
 use crate::take::{Analog, Processor, Source, Take, metres_per_unit};
 
-/// At most this many bytes are read (a take of 40 markers at 240 Hz for an hour, in
-/// floats, is 2.2 GB).
-pub const MAX_FILE_BYTES: u64 = 4 << 30;
-
 /// A parameter's value as stored.
 #[derive(Debug, Clone, PartialEq)]
 enum Data {
@@ -158,19 +154,7 @@ impl<'a> Bytes<'a> {
 
 /// Reads a C3D file.
 pub fn read(path: &Path) -> Result<Take, MocapError> {
-    let name = path.display().to_string();
-    let io = |e: std::io::Error| MocapError::Io {
-        file: name.clone(),
-        message: format!("cannot be read: {e}"),
-    };
-    let len = std::fs::metadata(path).map_err(io)?.len();
-    if len > MAX_FILE_BYTES {
-        return Err(MocapError::format(
-            &name,
-            format!("{len} bytes is more than the {MAX_FILE_BYTES} a take may have; cut it first"),
-        ));
-    }
-    let bytes = std::fs::read(path).map_err(io)?;
+    let (bytes, name) = crate::take::read_file(path)?;
     parse(&bytes, &name)
 }
 

@@ -73,6 +73,29 @@ pub struct Settings {
     pub calibration: Option<Calibration>,
 }
 
+impl Settings {
+    /// The origin from a word: `centroid`, or a marker's label.
+    pub fn origin_of(word: &str) -> Origin {
+        if word == "centroid" {
+            Origin::Centroid
+        } else {
+            Origin::Marker(word.to_string())
+        }
+    }
+
+    /// The axes from three labels `[O, X, P]`.
+    pub fn axes_of(labels: Option<&[String]>) -> Result<Option<[String; 3]>, MocapError> {
+        match labels {
+            None => Ok(None),
+            Some([o, x, p]) => Ok(Some([o.clone(), x.clone(), p.clone()])),
+            Some(other) => Err(MocapError::Input(format!(
+                "the axes take three markers O,X,P (got {})",
+                other.len()
+            ))),
+        }
+    }
+}
+
 impl Default for Settings {
     fn default() -> Self {
         Self {

@@ -16,24 +16,9 @@ use std::path::Path;
 use crate::error::MocapError;
 use crate::take::{RigidBodyTrack, Source, Take, metres_per_unit};
 
-/// At most this many bytes are read.
-pub const MAX_FILE_BYTES: u64 = 4 << 30;
-
 /// Reads a Motive CSV export.
 pub fn read(path: &Path) -> Result<Take, MocapError> {
-    let name = path.display().to_string();
-    let io = |e: std::io::Error| MocapError::Io {
-        file: name.clone(),
-        message: format!("cannot be read: {e}"),
-    };
-    let len = std::fs::metadata(path).map_err(io)?.len();
-    if len > MAX_FILE_BYTES {
-        return Err(MocapError::format(
-            &name,
-            format!("{len} bytes is more than the {MAX_FILE_BYTES} a take may have"),
-        ));
-    }
-    let bytes = std::fs::read(path).map_err(io)?;
+    let (bytes, name) = crate::take::read_file(path)?;
     parse(&bytes, &name)
 }
 

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use cps_mocap::demo::{Origin, Settings, Up};
+use cps_mocap::demo::{Settings, Up};
 use numpy::PyArrayMethods;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -87,24 +87,11 @@ pub fn _mocap_read<'py>(
             "read() needs markers=[...] (three or more) or rigid_body=NAME; cps.mocap.take(path) gives the raw markers".into(),
         ));
     }
-    let axes = match axes.as_deref() {
-        None => None,
-        Some([o, x, p]) => Some([o.clone(), x.clone(), p.clone()]),
-        Some(a) => {
-            return Err(bad(format!(
-                "axes takes three markers [O, X, P] (got {})",
-                a.len()
-            )));
-        }
-    };
+    let axes = Settings::axes_of(axes.as_deref()).map_err(|e| bad(e.to_string()))?;
     let settings = Settings {
         markers: markers.unwrap_or_default(),
         rigid_body,
-        origin: if origin == "centroid" {
-            Origin::Centroid
-        } else {
-            Origin::Marker(origin.to_string())
-        },
+        origin: Settings::origin_of(origin),
         axes,
         max_gap,
         cutoff_hz: cutoff.filter(|c| *c != 0.0),
