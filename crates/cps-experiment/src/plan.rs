@@ -473,6 +473,19 @@ pub struct ExecutedPlan {
 pub struct DemonstrationsSection {
     pub(crate) count: Option<Spanned<usize>>,
     via_std: Option<Spanned<f64>>,
+    /// Motion-capture takes (C3D, Motive CSV), relative to the experiment file: they are
+    /// the demonstrations, instead of `count` learned ones.
+    takes: Option<Spanned<Vec<String>>>,
+    /// How each take becomes a demonstration (as `cps-cli mocap import`).
+    markers: Option<Spanned<Vec<String>>>,
+    rigid_body: Option<Spanned<String>>,
+    origin: Option<Spanned<String>>,
+    axes: Option<Spanned<Vec<String>>>,
+    to_robot: Option<Spanned<String>>,
+    y_up: Option<Spanned<bool>>,
+    max_gap: Option<Spanned<usize>>,
+    cutoff: Option<Spanned<f64>>,
+    outlier_mm: Option<Spanned<f64>>,
 }
 
 /// `[imitation]` of `kind = "imitation"`.
@@ -491,6 +504,9 @@ pub struct ImitationSection {
 pub struct ImitationPlan {
     /// Number of demonstrations.
     pub demonstrations: usize,
+    /// Demonstrations read from motion-capture takes (`[demonstrations] takes`), in the
+    /// task's frame; when there are any they replace the learned ones.
+    pub takes: Vec<cps_learn::GivenDemonstration>,
     /// Via-point perturbation per axis, metres.
     pub via_std: f64,
     /// The imitating DMP.
@@ -1571,7 +1587,106 @@ impl Sections<'_> {
         })
     }
 
+    /// `[demonstrations] takes`: each take read and made a demonstration (its errors name
+    /// the take, and the key's place in the experiment file).
+    fn takes(&self) -> Result<Vec<cps_learn::GivenDemonstration>, InputError> {
+        let Some(d) = self.demonstrations.map(Spanned::get_ref) else {
+            return Ok(Vec::new());
+        };
+        let Some(takes) = &d.takes else {
+            for (v, key) in [
+                (d.markers.as_ref().map(Spanned::span), "markers"),
+                (d.rigid_body.as_ref().map(Spanned::span), "rigid_body"),
+                (d.to_robot.as_ref().map(Spanned::span), "to_robot"),
+            ] {
+                if let Some(span) = v {
+                    return Err(self.err(
+                        &span,
+                        format!("[demonstrations] `{key}` describes motion-capture takes: add `takes = [\"take.c3d\", …]`"),
+                    ));
+                }
+            }
+            return Ok(Vec::new());
+        };
+        for (v, key) in [
+            (d.count.as_ref().map(Spanned::span), "count"),
+            (d.via_std.as_ref().map(Spanned::span), "via_std"),
+        ] {
+            if let Some(span) = v {
+                return Err(self.err(
+                    &span,
+                    format!("[demonstrations] `{key}` is for learned demonstrations; with `takes` the takes are the demonstrations"),
+                ));
+            }
+        }
+        if takes.get_ref().is_empty() {
+            return Err(self.err(&takes.span(), "[demonstrations] `takes` is empty".into()));
+        }
+        let dir = self.path.parent().unwrap_or(Path::new("."));
+        let at = |span: Range<usize>, key: &'static str| {
+            move |e: String| self.err(&span, format!("[demonstrations] `{key}`: {e}"))
+        };
+        let axes =
+            cps_mocap::demo::Settings::axes_of(d.axes.as_ref().map(|a| a.get_ref().as_slice()))
+                .map_err(|e| {
+                    at(d.axes.as_ref().map_or(0..0, Spanned::span), "axes")(e.to_string())
+                })?;
+        let settings = cps_mocap::demo::Settings {
+            markers: d
+                .markers
+                .as_ref()
+                .map(|m| m.get_ref().clone())
+                .unwrap_or_default(),
+            rigid_body: d.rigid_body.as_ref().map(|r| r.get_ref().clone()),
+            origin: d
+                .origin
+                .as_ref()
+                .map_or(cps_mocap::demo::Origin::Centroid, |o| {
+                    cps_mocap::demo::Settings::origin_of(o.get_ref())
+                }),
+            axes,
+            max_gap: d.max_gap.as_ref().map_or(10, |m| *m.get_ref()),
+            cutoff_hz: match d.cutoff.as_ref().map(|c| *c.get_ref()) {
+                Some(0.0) => None,
+                Some(c) => Some(c),
+                None => Some(10.0),
+            },
+            outlier_m: d.outlier_mm.as_ref().map_or(20.0, |o| *o.get_ref()) / 1e3,
+            frames: None,
+            up: if d.y_up.as_ref().is_some_and(|y| *y.get_ref()) {
+                cps_mocap::demo::Up::Y
+            } else {
+                cps_mocap::demo::Up::AsRecorded
+            },
+            calibration: None,
+        };
+        if settings.markers.is_empty() && settings.rigid_body.is_none() {
+            return Err(self.err(
+                &takes.span(),
+                "[demonstrations] `takes` needs `markers = [\"A\", \"B\", \"C\"]` (the tool's markers) or `rigid_body = \"NAME\"`".into(),
+            ));
+        }
+        let calibration = d.to_robot.as_ref().map(|c| dir.join(c.get_ref()));
+        let mut out = Vec::new();
+        for name in takes.get_ref() {
+            let demo =
+                crate::mocap::demonstration(&dir.join(name), &settings, calibration.as_deref())
+                    .map_err(|e| at(takes.span(), "takes")(e.0))?;
+            let times = demo.t.clone();
+            let position: Vec<Vec<f64>> = (0..3)
+                .map(|k| demo.position.iter().map(|p| p[k]).collect())
+                .collect();
+            let zeros = vec![vec![0.0; times.len()]; 3];
+            out.push(cps_learn::GivenDemonstration {
+                name: name.clone(),
+                trajectory: cps_dmp::Trajectory::from_parts(times, &position, &zeros, &zeros),
+            });
+        }
+        Ok(out)
+    }
+
     fn imitation_plan(&self, learner: &ViaPointConfig) -> Result<ImitationPlan, InputError> {
+        let takes = self.takes()?;
         let d = self.demonstrations.map(Spanned::get_ref);
         let demonstrations = match d.and_then(|d| d.count.as_ref()) {
             Some(c) if *c.get_ref() == 0 || *c.get_ref() > 10_000 => {
@@ -1584,6 +1699,7 @@ impl Sections<'_> {
                 ));
             }
             Some(c) => *c.get_ref(),
+            None if !takes.is_empty() => takes.len(),
             None => 20,
         };
         let via_std = match d.and_then(|d| d.via_std.as_ref()) {
@@ -1610,6 +1726,13 @@ impl Sections<'_> {
         }
         if let Some(t) = i.and_then(|i| i.tau.as_ref()) {
             dmp.tau = self.within(t, "[imitation] `tau`", 1e-3, 1e5, " s")?;
+        } else if !takes.is_empty() {
+            // The takes' mean duration.
+            dmp.tau = takes
+                .iter()
+                .map(|g| g.trajectory.times().last().copied().unwrap_or(0.0))
+                .sum::<f64>()
+                / takes.len() as f64;
         }
         if let Some(t) = i.and_then(|i| i.dt.as_ref()) {
             dmp.dt = self.within(t, "[imitation] `dt`", 1e-5, 10.0, " s")?;
@@ -1649,6 +1772,7 @@ impl Sections<'_> {
         };
         Ok(ImitationPlan {
             demonstrations,
+            takes,
             via_std,
             dmp,
             ridge_lambda,
@@ -1701,6 +1825,26 @@ impl Experiment {
             )
         };
         let search = match (self.kind, c.solver) {
+            (Kind::Imitation | Kind::Promp, _)
+                if self.imitation.as_ref().is_some_and(|p| !p.takes.is_empty()) =>
+            {
+                let p = self.imitation.as_ref();
+                let takes = p.map_or(Vec::new(), |p| {
+                    p.takes.iter().map(|t| t.name.clone()).collect::<Vec<_>>()
+                });
+                format!(
+                    "{} motion-capture takes ({}) as the demonstrations, each checked and executed from its own start; their mean imitated by ridge and jerk-regularised ridge with {} basis functions over {:.2} s",
+                    takes.len(),
+                    takes.join(", "),
+                    p.map_or(0, |p| p.dmp.n_basis),
+                    p.map_or(0.0, |p| p.dmp.tau)
+                ) + &self.promp.as_ref().map_or(String::new(), |p| {
+                    format!(
+                        "; then a ProMP of the executed demonstrations ({} basis functions per axis) conditioned on {:?} m at {} s, its mean executed",
+                        p.bases, p.position, p.time
+                    )
+                })
+            }
             (Kind::Imitation | Kind::Promp, solver) => {
                 let p = self.imitation.as_ref();
                 format!(

@@ -4,12 +4,14 @@
 //!
 //! 1. **Demonstrations.** The via-point task is perturbed `count` times (each via point
 //!    moved by N(0, σ²) per axis, seeded) and each perturbed task is learned with the
-//!    via-point learner.
+//!    via-point learner — or the demonstrations are given as paths
+//!    ([`ImitationConfig::given`]: motion-capture takes), and this step is skipped.
 //! 2. **Reachability.** Each learned path is followed by inverse kinematics within the
 //!    joint limits on one branch ([`check_path`]); paths that leave the reachable set or
 //!    would need a branch change are dropped, with the reason.
 //! 3. **Execution.** The kept paths are executed on the robot backend with the inverse
-//!    controller from the initial configuration; the tool position and the backend's
+//!    controller from the initial configuration (a given path from the configuration
+//!    the reachability check found at its start); the tool position and the backend's
 //!    clock are recorded.
 //! 4. **Imitation.** The recordings are time-normalised and averaged, and the mean is
 //!    imitated by ridge regression and by jerk-regularised ridge regression.
@@ -25,7 +27,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
 
-use crate::robot::{execute_trajectory, targets_at};
+use crate::robot::{execute_trajectory_from, targets_at};
 use crate::{
     LearnError, RobotSetup, RunResult, ViaPointConfig, ViaPointTask, check_way_points,
     learn_via_points,
@@ -49,6 +51,19 @@ pub struct ImitationConfig {
     pub ridge_lambda: Lambda,
     /// λ of jerk-regularised ridge regression (default: generalised cross-validation).
     pub jerk_lambda: Lambda,
+    /// Demonstrations given as 3-D paths (motion-capture takes in the task's frame):
+    /// when there are any, they are the demonstrations, and `demonstrations`, `via_std`
+    /// and the learner are not used.
+    pub given: Vec<GivenDemonstration>,
+}
+
+/// A demonstration given as a path rather than learned.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GivenDemonstration {
+    /// Its name (the take's file).
+    pub name: String,
+    /// The tool's position over time (3 dimensions, metres, seconds from 0).
+    pub trajectory: Trajectory,
 }
 
 impl ImitationConfig {
@@ -64,6 +79,7 @@ impl ImitationConfig {
             imitation: DmpConfig::new(25, 9.5, dt),
             ridge_lambda: Lambda::Fixed(1e-12),
             jerk_lambda: Lambda::Auto,
+            given: Vec::new(),
         }
     }
 
@@ -89,6 +105,16 @@ impl ImitationConfig {
 
     fn validate(&self) -> Result<(), LearnError> {
         self.learner.task.validate()?;
+        if let Some(g) = self.given.iter().find(|g| g.trajectory.dims() != 3) {
+            return Err(LearnError::task(
+                "given",
+                format!(
+                    "{} has {} dimensions; a tool path has 3",
+                    g.name,
+                    g.trajectory.dims()
+                ),
+            ));
+        }
         if self.demonstrations == 0 {
             return Err(LearnError::task("demonstrations", "must be at least 1"));
         }
@@ -136,10 +162,15 @@ impl ImitationStage {
 pub struct DemonstrationResult {
     /// Its index (0-based).
     pub index: usize,
-    /// The perturbed task it was learned from.
-    pub task: ViaPointTask,
-    /// The learner's result.
-    pub learned: RunResult,
+    /// The perturbed task it was learned from (`None`: given).
+    pub task: Option<ViaPointTask>,
+    /// The learner's result (`None`: given).
+    pub learned: Option<RunResult>,
+    /// A given demonstration's name.
+    pub name: Option<String>,
+    /// The configuration a given demonstration is executed from (where the reachability
+    /// check found its start).
+    pub start_q: Option<Vec<f64>>,
     /// The learned movement on the DMP grid.
     pub trajectory: Trajectory,
     /// Why it was dropped (`None` if it was kept).
@@ -235,7 +266,9 @@ pub fn run_imitation(
         .into());
     }
     // The unperturbed way points must be reachable: a clear error before any work.
-    check_way_points(&config.learner.task, &config.robot)?;
+    if config.given.is_empty() {
+        check_way_points(&config.learner.task, &config.robot)?;
+    }
     let mut out = ImitationOutcome {
         demonstrations: Vec::new(),
         fits: Vec::new(),
@@ -254,45 +287,71 @@ pub fn run_imitation(
     };
     let stopped = || stop.load(std::sync::atomic::Ordering::Relaxed);
 
-    // 1. Learn the demonstrations, in parallel.
+    // 1. Learn the demonstrations, in parallel (or take the given ones).
     let t = Instant::now();
-    let learned: Result<Vec<_>, LearnError> = (0..n)
-        .into_par_iter()
-        .map(|i| {
-            let mut learner = config.learner.clone();
-            learner.task = config.perturbed_task(i);
-            learner.seed = config.demonstration_seed(i);
-            learner.repetitions = 1;
-            // Every generation asks the caller whether to go on (Ctrl-C reaches the runs).
-            let outcome = learn_via_points(&learner, &|_, _| {
-                let finished = done.load(std::sync::atomic::Ordering::Relaxed);
-                if stopped() || progress(ImitationStage::Learning, finished, n).is_break() {
-                    stop.store(true, std::sync::atomic::Ordering::Relaxed);
-                    ControlFlow::Break(())
-                } else {
-                    ControlFlow::Continue(())
-                }
-            })?;
-            report(ImitationStage::Learning, n);
-            let trajectory = outcome.best_trajectory();
-            Ok(DemonstrationResult {
+    let n = if config.given.is_empty() {
+        n
+    } else {
+        config.given.len()
+    };
+    let learned: Result<Vec<_>, LearnError> = if !config.given.is_empty() {
+        Ok(config
+            .given
+            .iter()
+            .enumerate()
+            .map(|(i, g)| DemonstrationResult {
                 index: i,
-                task: learner.task,
-                learned: outcome.best().clone(),
-                trajectory,
+                task: None,
+                learned: None,
+                name: Some(g.name.clone()),
+                start_q: None,
+                trajectory: g.trajectory.clone(),
                 dropped: None,
                 recording: None,
             })
-        })
-        .collect();
+            .collect())
+    } else {
+        (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let mut learner = config.learner.clone();
+                learner.task = config.perturbed_task(i);
+                learner.seed = config.demonstration_seed(i);
+                learner.repetitions = 1;
+                // Every generation asks the caller whether to go on (Ctrl-C reaches the runs).
+                let outcome = learn_via_points(&learner, &|_, _| {
+                    let finished = done.load(std::sync::atomic::Ordering::Relaxed);
+                    if stopped() || progress(ImitationStage::Learning, finished, n).is_break() {
+                        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+                        ControlFlow::Break(())
+                    } else {
+                        ControlFlow::Continue(())
+                    }
+                })?;
+                report(ImitationStage::Learning, n);
+                let trajectory = outcome.best_trajectory();
+                Ok(DemonstrationResult {
+                    index: i,
+                    task: Some(learner.task),
+                    learned: Some(outcome.best().clone()),
+                    name: None,
+                    start_q: None,
+                    trajectory,
+                    dropped: None,
+                    recording: None,
+                })
+            })
+            .collect()
+    };
     out.demonstrations = learned?;
     out.stage_seconds
         .push(("learning", t.elapsed().as_secs_f64()));
     if stopped()
-        || out
-            .demonstrations
-            .iter()
-            .any(|d| d.learned.termination == "interrupted")
+        || out.demonstrations.iter().any(|d| {
+            d.learned
+                .as_ref()
+                .is_some_and(|l| l.termination == "interrupted")
+        })
     {
         return Ok(out);
     }
@@ -310,7 +369,8 @@ pub fn run_imitation(
         restarts: 20,
         ..IkConfig::default()
     };
-    let verdicts: Vec<Option<String>> = out
+    let given = !config.given.is_empty();
+    let verdicts: Vec<Result<Vec<f64>, String>> = out
         .demonstrations
         .par_iter()
         .map(|d| {
@@ -323,15 +383,19 @@ pub fn run_imitation(
                 &ik,
                 max_step.as_deref(),
             ) {
-                Ok(_) => None,
-                Err(e) => Some(e.to_string()),
+                Ok(path) => Ok(path.into_iter().next().unwrap_or_default()),
+                Err(e) => Err(e.to_string()),
             };
             report(ImitationStage::Checking, n);
             verdict
         })
         .collect();
     for (d, v) in out.demonstrations.iter_mut().zip(verdicts) {
-        d.dropped = v;
+        match v {
+            // A given path starts wherever it was recorded: executed from there.
+            Ok(q0) => d.start_q = given.then_some(q0),
+            Err(e) => d.dropped = Some(e),
+        }
     }
     out.stage_seconds
         .push(("checking", t.elapsed().as_secs_f64()));
@@ -352,7 +416,8 @@ pub fn run_imitation(
         .iter_mut()
         .filter(|d| d.dropped.is_none())
     {
-        match execute_trajectory(backend, &config.robot, &d.trajectory) {
+        let from = d.start_q.as_deref().unwrap_or(&config.robot.initial_q);
+        match execute_trajectory_from(backend, &config.robot, &d.trajectory, from) {
             Ok(r) => d.recording = Some(r),
             Err(e) => {
                 // The backend failed: keep what was executed, say what was not.
@@ -425,7 +490,20 @@ pub fn run_imitation(
     let t = Instant::now();
     let total = out.fits.len();
     for (i, fit) in out.fits.iter_mut().enumerate() {
-        match execute_trajectory(backend, &config.robot, &fit.trajectory) {
+        // Given demonstrations start away from the initial configuration: the imitation
+        // is executed from the configuration that reaches its start.
+        let from = if given {
+            match start_configuration(&config.robot, &fit.trajectory, &ik) {
+                Ok(q) => q,
+                Err(e) => {
+                    out.failure = Some(format!("the {} imitation's start: {e}", fit.method));
+                    return Ok(out);
+                }
+            }
+        } else {
+            config.robot.initial_q.clone()
+        };
+        match execute_trajectory_from(backend, &config.robot, &fit.trajectory, &from) {
             Ok(r) => fit.recording = Some(r),
             Err(e) => {
                 out.failure = Some(format!("executing the {} imitation: {e}", fit.method));
@@ -444,4 +522,18 @@ pub fn run_imitation(
         .push(("executing imitations", t.elapsed().as_secs_f64()));
     out.complete = true;
     Ok(out)
+}
+
+/// The configuration at a path's start, found by inverse kinematics from the initial one.
+fn start_configuration(
+    robot: &RobotSetup,
+    traj: &Trajectory,
+    ik: &IkConfig,
+) -> Result<Vec<f64>, LearnError> {
+    let target = cps_kinematics::IkTarget::Position(nalgebra::Vector3::new(
+        traj.position_at(0, 0.0),
+        traj.position_at(1, 0.0),
+        traj.position_at(2, 0.0),
+    ));
+    Ok(cps_kinematics::solve_ik(&robot.chain, &target, &robot.initial_q, ik)?.q)
 }

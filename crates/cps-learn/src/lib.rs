@@ -48,8 +48,8 @@ pub use error::LearnError;
 pub use exact::{ExactOptimum, exact_optimum};
 pub use executed::{ExecutedCost, ExecutedErrors, ExecutedWeights, executed_cost};
 pub use imitation::{
-    DemonstrationResult, ImitationConfig, ImitationFit, ImitationOutcome, ImitationStage,
-    run_imitation,
+    DemonstrationResult, GivenDemonstration, ImitationConfig, ImitationFit, ImitationOutcome,
+    ImitationStage, run_imitation,
 };
 pub use joint::{
     JointCostBreakdown, JointSpaceConfig, JointSpaceCost, JointSpaceOutcome, LimitReport,
@@ -59,7 +59,9 @@ pub use pose::{
     OrientationCostBreakdown, OrientationErrors, OrientationResult, PoseConfig, PoseOutcome,
     learn_pose,
 };
-pub use robot::{RobotSetup, check_way_points, execute_trajectory, targets_at};
+pub use robot::{
+    RobotSetup, check_way_points, execute_trajectory, execute_trajectory_from, targets_at,
+};
 pub use space::{Parametrisation, SearchSpace};
 pub use task::{
     CostBreakdown, CostWeights, MAX_COORDINATE, MAX_WEIGHT, PointObstacle, TaskErrors, ViaPoint,

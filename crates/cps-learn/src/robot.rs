@@ -102,7 +102,17 @@ pub fn execute_trajectory(
     robot: &RobotSetup,
     traj: &Trajectory,
 ) -> Result<Recording, LearnError> {
-    backend.reset(&robot.initial_q)?;
+    execute_trajectory_from(backend, robot, traj, &robot.initial_q)
+}
+
+/// [`execute_trajectory`] from the configuration `q0` instead of the setup's initial one.
+pub fn execute_trajectory_from(
+    backend: &mut dyn RobotBackend,
+    robot: &RobotSetup,
+    traj: &Trajectory,
+    q0: &[f64],
+) -> Result<Recording, LearnError> {
+    backend.reset(q0)?;
     let (_, targets) = targets_at(traj, backend.time_step());
     Ok(execute(backend, &robot.chain, &targets, &robot.execution)?)
 }

@@ -52,11 +52,14 @@ struct Dropped {
 #[derive(Serialize)]
 struct DemoSummary {
     index: usize,
-    seed: u64,
-    via: Vec<ViaPoint>,
-    learned_cost: f64,
-    gap_to_optimum: f64,
-    termination: String,
+    /// A given demonstration's take.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    take: Option<String>,
+    seed: Option<u64>,
+    via: Option<Vec<ViaPoint>>,
+    learned_cost: Option<f64>,
+    gap_to_optimum: Option<f64>,
+    termination: Option<String>,
     kept: bool,
     tracking: Option<Tracking>,
 }
@@ -138,6 +141,7 @@ pub(crate) fn pipeline(ctx: &Ctx<'_>) -> Result<Pipeline, ExperimentError> {
     config.imitation = plan.dmp;
     config.ridge_lambda = plan.ridge_lambda;
     config.jerk_lambda = plan.jerk_lambda;
+    config.given = plan.takes.clone();
 
     let mut backend = robot.open()?;
     let progress = |s: ImitationStage, done: usize, total: usize| {
@@ -257,11 +261,12 @@ pub(crate) fn declare(ctx: &Ctx<'_>, run: &Pipeline) -> Result<Outcome, Experime
             .iter()
             .map(|d| DemoSummary {
                 index: d.index,
-                seed: d.learned.seed,
-                via: d.task.via.clone(),
-                learned_cost: d.learned.cost,
-                gap_to_optimum: d.learned.gap_to_optimum,
-                termination: d.learned.termination.clone(),
+                take: d.name.clone(),
+                seed: d.learned.as_ref().map(|l| l.seed),
+                via: d.task.as_ref().map(|t| t.via.clone()),
+                learned_cost: d.learned.as_ref().map(|l| l.cost),
+                gap_to_optimum: d.learned.as_ref().map(|l| l.gap_to_optimum),
+                termination: d.learned.as_ref().map(|l| l.termination.clone()),
                 kept: d.dropped.is_none(),
                 tracking: d.recording.as_ref().map(Tracking::of),
             })
