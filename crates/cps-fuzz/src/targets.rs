@@ -175,6 +175,58 @@ fn ros2_sample(b: &[u8]) -> bool {
     any
 }
 
+/// A motion-capture take as a file could hold it: C3D (and, as text, a Motive CSV
+/// export); true if it reads. A take that reads is also made a demonstration of its first
+/// three markers (refusals are fine, panics are not).
+fn c3d_take(b: &[u8]) -> bool {
+    take_of(cps_mocap::c3d::parse(b, "fuzz.c3d"))
+}
+
+fn motive_csv(b: &[u8]) -> bool {
+    take_of(cps_mocap::motive::parse(b, "fuzz.csv"))
+}
+
+fn take_of(t: Result<cps_mocap::Take, cps_mocap::MocapError>) -> bool {
+    let Ok(take) = t else { return false };
+    if take.markers() >= 3 && take.frames <= 20_000 {
+        let settings = cps_mocap::demo::Settings {
+            markers: take.labels[..3].to_vec(),
+            ..cps_mocap::demo::Settings::default()
+        };
+        let _ = cps_mocap::demo::demonstrate(&take, &settings);
+    }
+    true
+}
+
+fn take_seeds() -> Vec<Vec<u8>> {
+    let mut spec = cps_mocap::synthetic::Spec::tool(4);
+    spec.frames = 40;
+    spec.gaps = vec![(1, 10, 3)];
+    let (take, _) = cps_mocap::synthetic::take(&spec);
+    let mut out = vec![
+        cps_mocap::c3d::write(&take, cps_mocap::c3d::Format::Float).expect("a take"),
+        cps_mocap::c3d::write(&take, cps_mocap::c3d::Format::Integer { scale: 0.5 }).expect("a take"),
+    ];
+    out.push(file("experiments/demos/takes/pour_2.c3d"));
+    out
+}
+
+fn motive_seeds() -> Vec<Vec<u8>> {
+    let mut text = String::from(
+        "Format Version,1.23,Take Name,t,Capture Frame Rate,120.000000,Export Frame Rate,120.000000,Rotation Type,Quaternion,Length Units,Millimeters\n\n,Type,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Marker,Marker,Marker,Marker,Marker,Marker,Marker,Marker,Marker\n,Name,T,T,T,T,T,T,T,a,a,a,b,b,b,c,c,c\n,ID,1,1,1,1,1,1,1,2,2,2,3,3,3,4,4,4\n,,Rotation,Rotation,Rotation,Rotation,Position,Position,Position,Position,Position,Position,Position,Position,Position,Position,Position,Position\nFrame,Time (Seconds),X,Y,Z,W,X,Y,Z,X,Y,Z,X,Y,Z,X,Y,Z\n",
+    );
+    for f in 0..30 {
+        let x = f as f64;
+        text.push_str(&format!(
+            "{f},{:.6},0,0,0,1,{x},1,2,{x},0,0,{},100,0,{x},0,{},\n",
+            x / 120.0,
+            x + 100.0,
+            if f == 7 { String::new() } else { "90".into() }
+        ));
+    }
+    vec![text.into_bytes()]
+}
+
 fn ros2_seeds() -> Vec<Vec<u8>> {
     use cps_ros2::msg::{JointState, JointTrajectory, JointTrajectoryPoint, Message, Time};
     let names: Vec<String> = (1..=7).map(|i| format!("panda_joint{i}")).collect();
@@ -384,6 +436,18 @@ pub fn all() -> Vec<Target> {
             seeds: ros2_seeds(),
             text: false,
             run: ros2_sample,
+        },
+        Target {
+            name: "c3d",
+            seeds: take_seeds(),
+            text: false,
+            run: c3d_take,
+        },
+        Target {
+            name: "motive-csv",
+            seeds: motive_seeds(),
+            text: true,
+            run: motive_csv,
         },
     ]
 }

@@ -317,6 +317,10 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Take, MocapError> {
             }
         }
     }
+    if frame_bytes == 0 {
+        // No points and no analog values: nothing to read, whatever the count says.
+        frames = 0;
+    }
     if frame_bytes > 0 && frames > whole {
         return Err(bad(format!(
             "truncated: {frames} frames of {frame_bytes} bytes are declared from byte {data_start}, but the file ends at byte {} ({whole} whole frames)",
@@ -376,7 +380,10 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Take, MocapError> {
     let mut xyz = Vec::with_capacity(frames * points);
     let mut residual = Vec::with_capacity(frames * points);
     let mut analog = analog;
-    let data = &bytes[data_start..data_start + frames * frame_bytes];
+    // `frames ≤ whole` above: the data lie within the file.
+    let data = bytes
+        .get(data_start..data_start + frames * frame_bytes)
+        .unwrap_or_default();
     for frame in data.chunks_exact(frame_bytes.max(1)).take(frames) {
         let (pts, ana) = frame.split_at(4 * points * value_bytes);
         if float {

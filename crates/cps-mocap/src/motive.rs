@@ -263,11 +263,12 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Take, MocapError> {
         };
         if first_frame.is_none() {
             let f = number(0)?;
-            first_frame = Some(if f.is_finite() && f >= 0.0 {
-                f as u64
-            } else {
-                0
-            });
+            if !(0.0..=4e9).contains(&f) && !f.is_nan() {
+                return Err(bad(format!(
+                    "line {line}: frame number {f} is not a frame number (0 to 4 000 000 000)"
+                )));
+            }
+            first_frame = Some(if f.is_nan() { 0 } else { f as u64 });
         }
         for (_, cols) in &markers {
             let p = [number(cols[0])?, number(cols[1])?, number(cols[2])?];
