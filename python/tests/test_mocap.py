@@ -263,3 +263,30 @@ def test_the_command_line_imports_into_the_robot_frame_and_refuses_bad_input(tmp
     out.write_text("keep me")
     r = cli("mocap", "import", take, "--markers", "tool1,tool2,tool3", "--out", out, check=False)
     assert r.returncode == 2 and out.read_text() == "keep me"
+
+
+def test_a_take_feeds_the_pose_dmp(tmp_path):
+    """The demonstration's orientation is learned by the quaternion DMP and its position by
+    a position DMP: the rolled-out pose follows the take's (the known motion, here started
+    and ended at rest as a demonstration is, by a minimum-jerk time warp)."""
+    rate, frames = 120.0, 961
+    t = np.arange(frames) / rate
+    duration = t[-1]
+    s = t / duration
+    warped = duration * (10 * s ** 3 - 15 * s ** 4 + 6 * s ** 5)
+    labels = ["tool1", "tool2", "tool3", "tool4"]
+    path = tmp_path / "take.c3d"
+    write_ezc3d(path, markers_mm(warped, 4), rate, labels)
+    demo = cps.mocap.read(path, labels, origin="tool1", axes=["tool1", "tool2", "tool3"], cutoff=None)
+    orientation = cps.QuaternionDMP.learn(demo["t"], demo["quaternion"], bases=40)
+    tq, q, _ = orientation.rollout()
+    p, r = motion(warped)
+    assert len(tq) == frames
+    err = max(angle_between(quat_to_matrix(a), b) for a, b in zip(q, r))
+    # The loop returns near its start: the goal-robust forcing term.
+    position = cps.imitate(demo["t"], demo["position"], bases=40, formulation="goal_robust")
+    _, y, _, _ = position.rollout()
+    print(f"pose DMP of the take: orientation within {np.degrees(err):.3f}°, position within "
+          f"{np.abs(y - p).max() * 1e3:.3f} mm")
+    assert err < math.radians(1.0)
+    assert np.abs(y - p).max() < 2e-3
