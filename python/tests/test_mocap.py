@@ -253,12 +253,17 @@ def test_the_command_line_imports_into_the_robot_frame_and_refuses_bad_input(tmp
     gap = tmp_path / "gap.c3d"
     write_ezc3d(gap, markers_mm(t, 3), rate, labels, gaps=[(2, 500, 560)])
     refused(gap, "--markers", "tool1,tool2,tool3", words=["gap.c3d", "frames", "tool3"])
+    # A parameter section that lies: POINT:LABELS declares 255 × 255 characters.
     lie = bytearray(take.read_bytes())
-    lie[512 + 4 + 5 + 6] = 0xFF  # inflate the first parameter's dimensions
+    at = lie.index(b"LABELS")
+    assert lie[at + 6 + 3] == 2  # two dimensions follow the offset and the type
+    lie[at + 6 + 4] = lie[at + 6 + 5] = 0xFF
     bad = tmp_path / "lie.c3d"
     bad.write_bytes(bytes(lie))
     r = cli("mocap", "show", bad, check=False)
-    assert r.returncode in (0, 2) and "panicked" not in r.stderr
+    assert r.returncode == 2, r.stderr
+    assert "lie.c3d" in r.stderr and "parameter LABELS" in r.stderr and "declares" in r.stderr, r.stderr
+    refused(bad, "--markers", "tool1,tool2,tool3", words=["lie.c3d", "parameter LABELS"])
     # An existing output is kept unless --force.
     out.write_text("keep me")
     r = cli("mocap", "import", take, "--markers", "tool1,tool2,tool3", "--out", out, check=False)

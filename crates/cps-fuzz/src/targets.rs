@@ -205,7 +205,8 @@ fn take_seeds() -> Vec<Vec<u8>> {
     let (take, _) = cps_mocap::synthetic::take(&spec);
     let mut out = vec![
         cps_mocap::c3d::write(&take, cps_mocap::c3d::Format::Float).expect("a take"),
-        cps_mocap::c3d::write(&take, cps_mocap::c3d::Format::Integer { scale: 0.5 }).expect("a take"),
+        cps_mocap::c3d::write(&take, cps_mocap::c3d::Format::Integer { scale: 0.5 })
+            .expect("a take"),
     ];
     out.push(file("experiments/demos/takes/pour_2.c3d"));
     out

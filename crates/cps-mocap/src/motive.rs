@@ -310,3 +310,67 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Take, MocapError> {
     })
     .inspect(|t| debug_assert_eq!(t.xyz.len(), t.frames * m))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn file(header: &str, rows: &[&str]) -> Vec<u8> {
+        let mut s = String::from(header);
+        for r in rows {
+            s.push_str(r);
+            s.push('\n');
+        }
+        s.into_bytes()
+    }
+
+    #[test]
+    fn unlabelled_header_rows_and_a_timecode_column_are_read() {
+        // An older export: no `Type`/`Name` labels, a TimeCode column, metres by default.
+        let b = file(
+            "Format Version,1.21,Take Name,x,Export Frame Rate,100.000000\n\n,,,Marker,Marker,Marker,Marker,Marker,Marker\n,,,Hand:Thumb,Hand:Thumb,Hand:Thumb,Hand:Index,Hand:Index,Hand:Index\n,,,1,1,1,2,2,2\n,,,Position,Position,Position,Position,Position,Position\nFrame,Time (Seconds),TimeCode,X,Y,Z,X,Y,Z\n",
+            &[
+                "0,0.000000,15:26:46:12.02,1,2,3,4,5,6",
+                "1,0.010000,15:26:46:12.03,7,8,9,,,",
+            ],
+        );
+        let t = parse(&b, "old.csv").unwrap();
+        assert_eq!(t.labels, ["Hand:Thumb", "Hand:Index"]);
+        assert_eq!((t.rate, t.frames, t.metres_per_unit), (100.0, 2, 1.0));
+        assert_eq!(t.point(1, 0), [7.0, 8.0, 9.0]);
+        assert!(t.seen(0, 1) && !t.seen(1, 1));
+        assert_eq!(t.find_label("Index"), Some(1));
+    }
+
+    #[test]
+    fn euler_rigid_bodies_and_bad_cells_are_named() {
+        let header = "Format Version,1.23,Capture Frame Rate,120.000000,Rotation Type,XYZ,Length Units,Millimeters\n\n,Type,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body\n,Name,Tool,Tool,Tool,Tool,Tool,Tool\n,ID,1,1,1,1,1,1\n,,Rotation,Rotation,Rotation,Position,Position,Position\nFrame,Time (Seconds),X,Y,Z,X,Y,Z\n";
+        let t = parse(&file(header, &["0,0,10,20,30,1,2,3"]), "euler.csv").unwrap();
+        assert!(t.notes[0].contains("Euler"), "{:?}", t.notes);
+        let e = crate::demo::demonstrate(
+            &t,
+            &crate::demo::Settings {
+                rigid_body: Some("Tool".into()),
+                ..Default::default()
+            },
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("Rotation Type Quaternion"), "{e}");
+        let e = parse(&file(header, &["0,0,10,20,30,1,two,3"]), "bad.csv")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("bad.csv: line 8, column 7 (Tool Y)"), "{e}");
+        let e = parse(b"Frame,Time\n1,2\n", "plain.csv")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not a Motive CSV export"), "{e}");
+        let e = parse(
+            header.replace("Millimeters", "Furlongs").as_bytes(),
+            "u.csv",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("Furlongs"), "{e}");
+    }
+}
