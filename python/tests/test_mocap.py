@@ -122,6 +122,21 @@ def test_gaps_noise_and_analog_against_ezc3d(tmp_path):
     assert np.sqrt((err ** 2).mean()) < np.sqrt((raw_err ** 2).mean())
 
 
+def test_a_take_longer_than_the_header_can_say(tmp_path):
+    # ezc3d writes 70 000 frames with POINT:FRAMES = -1 and the header's last frame at
+    # 65 535 (no TRIAL fields): cps counts the frames the file holds and says so.
+    rate, frames = 100.0, 70_000
+    t = np.arange(frames) / rate
+    path = tmp_path / "long.c3d"
+    write_ezc3d(path, markers_mm(t, 3), rate, ["a", "b", "c"])
+    take = cps.mocap.take(path)
+    assert take["frames"] == frames
+    assert any("counted from the file's length" in n for n in take["notes"]), take["notes"]
+    np.testing.assert_allclose(take["points"][-1], markers_mm(t[-1:], 3)[0], atol=1e-3)
+    # ezc3d 1.7.2 reads its own file back short, at the header's 65 535.
+    assert ezc3d.c3d(str(path))["data"]["points"].shape[2] == 65_535
+
+
 @pytest.mark.parametrize("scale", [0.1, 0.05])
 def test_integer_files_from_py_c3d_read_as_ezc3d_reads_them(tmp_path, scale):
     rate, frames = 120.0, 600

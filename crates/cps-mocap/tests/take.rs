@@ -303,10 +303,22 @@ fn integer_files_hold_the_scale_and_long_takes_their_length() {
             assert!((a[k] - b[k]).abs() <= 0.05 + 1e-3, "{a:?} {b:?}");
         }
     }
-    // Without the TRIAL parameters the length comes from the file's size.
-    let mut copy = t.clone();
-    copy.frames = 70_000;
-    let _ = copy;
+    assert!(back.notes.is_empty(), "{:?}", back.notes);
+    // Without the TRIAL parameters the length comes from the file's size (the block
+    // padding after the last frame left out), and the take says so.
+    let mut blind = bytes.clone();
+    for name in [&b"ACTUAL_END_FIELD"[..], b"ACTUAL_START_FIELD"] {
+        let at = blind.windows(name.len()).position(|w| w == name).unwrap();
+        blind[at] = b'X';
+    }
+    let counted = c3d::parse(&blind, "long.c3d").unwrap();
+    assert_eq!(counted.frames, 70_000);
+    assert!(
+        counted.notes[0].contains("counted from the file's length"),
+        "{:?}",
+        counted.notes
+    );
+    assert_eq!(counted.xyz, back.xyz);
 }
 
 #[test]
