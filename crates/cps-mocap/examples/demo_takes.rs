@@ -12,6 +12,7 @@ use std::path::Path;
 
 use cps_mocap::c3d::{self, Format};
 use cps_mocap::fit::{Rigid, rotation_of};
+use cps_mocap::synthetic::Normal;
 use cps_mocap::take::{Processor, Source, Take};
 
 /// World (z up, metres) → lab (y up, metres).
@@ -19,22 +20,6 @@ fn world_to_lab() -> Rigid {
     Rigid {
         rotation: [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]],
         translation: [-0.3, 0.05, 0.4],
-    }
-}
-
-/// A seeded normal sampler (splitmix64, Box–Muller).
-struct Noise(u64);
-impl Noise {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64 + 1e-12
-    }
-    fn normal(&mut self) -> f64 {
-        let (u, v) = (self.uniform(), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
     }
 }
 
@@ -84,7 +69,7 @@ fn main() {
             [0.008, -0.006, 0.004],
             [-0.006, 0.0, -0.008],
         ][k];
-        let mut noise = Noise(100 + k as u64);
+        let mut noise = Normal(100 + k as u64);
         let mut xyz = Vec::new();
         let mut residual = Vec::new();
         for f in 0..frames {
@@ -103,7 +88,7 @@ fn main() {
             };
             for (j, b) in body.iter().enumerate() {
                 let w = lab.apply(tool.apply(*b));
-                let mut mm = w.map(|v| (v * 1000.0 + 0.3 * noise.normal()) as f32);
+                let mut mm = w.map(|v| (v * 1000.0 + 0.3 * noise.sample()) as f32);
                 let hidden =
                     (k == 1 && j == 2 && (300..308).contains(&f)) || (k == 0 && j == 3 && f < 5);
                 if k == 2 && j == 1 && f == 500 {
@@ -142,7 +127,7 @@ fn main() {
     }
     // The calibration: four points touched with the robot (world frame) and measured by
     // the cameras (lab, mm, 0.3 mm off).
-    let mut noise = Noise(7);
+    let mut noise = Normal(7);
     let mut toml = String::from(
         "# The lab's registration: four points measured by the cameras (lab frame, Y up, mm)\n# and touched with the robot's tool (the experiment's world frame, metres).\nmocap_units = \"mm\"\nmax_residual = 0.002\n",
     );
@@ -152,7 +137,7 @@ fn main() {
         ("table, back left", [0.5, 0.6, 0.8]),
         ("post top", [0.9, 0.0, 1.6]),
     ] {
-        let l = lab.apply(w).map(|v| v * 1000.0 + 0.3 * noise.normal());
+        let l = lab.apply(w).map(|v| v * 1000.0 + 0.3 * noise.sample());
         let _ = write!(
             toml,
             "\n[[points]]\nname = \"{name}\"\nmocap = [{:.2}, {:.2}, {:.2}]\nrobot = [{}, {}, {}]\n",

@@ -473,45 +473,35 @@ pub fn demonstrate(take: &Take, s: &Settings) -> Result<Demonstration, MocapErro
                 .collect()
         })
         .collect();
-    let frame_no = |i: usize| take.first_frame + (range.start + i) as u64;
+    let kept = Kept {
+        take,
+        range: &range,
+        first,
+        last,
+    };
     let markers = reports
         .into_iter()
         .enumerate()
-        .map(|(j, (missing, outliers, filled))| MarkerReport {
-            label: take.labels[index[j]].clone(),
-            missing_frames: missing,
-            outliers: outliers + fit_outliers[j],
-            gaps_filled: filled.gaps,
-            frames_filled: filled.frames,
-            longest_filled: filled.longest,
-            open_gaps: filled
-                .open
-                .iter()
-                .map(|g: &Gap| [frame_no(g.start), frame_no(g.end - 1)])
-                .collect(),
+        .map(|(j, (missing, outliers, filled))| {
+            kept.marker(
+                &take.labels[index[j]],
+                missing,
+                outliers + fit_outliers[j],
+                &filled,
+            )
         })
         .collect();
-    let kept = last - first;
-    let report = Report {
-        file: file.clone(),
-        rate_hz: take.rate,
-        frames_in_take: take.frames,
-        kept_frames: [frame_no(first), frame_no(last - 1)],
-        frames: kept,
-        duration_s: kept.saturating_sub(1) as f64 / take.rate,
-        cut: [first + range.start, take.frames - (range.start + last)],
-        from: format!("markers {}", s.markers.join(", ")),
+    let report = kept.report(
+        s,
+        format!("markers {}", s.markers.join(", ")),
         markers,
-        fit_rms_mean_m: rms_all.iter().sum::<f64>() / rms_all.len().max(1) as f64,
-        fit_rms_max_m: rms_all.iter().copied().fold(0.0, f64::max),
-        frames_with_fewer_markers: fewer,
-        cutoff_hz: s.cutoff_hz,
-        frame: frame_words.to_string(),
+        &rms_all,
+        fewer,
+        frame_words,
         registration,
-        notes: take.notes.clone(),
-    };
+    );
     Ok(Demonstration {
-        t: (0..kept).map(|i| i as f64 / take.rate).collect(),
+        t: kept.times(),
         position,
         quaternion,
         markers: markers_out,
@@ -519,6 +509,85 @@ pub fn demonstrate(take: &Take, s: &Settings) -> Result<Demonstration, MocapErro
         seen: seen.iter().map(|v| v[first..last].to_vec()).collect(),
         report,
     })
+}
+
+/// The frames kept of a take (`first..last` within `range`): frame numbers, times and the
+/// report's common fields.
+struct Kept<'a> {
+    take: &'a Take,
+    range: &'a Range<usize>,
+    first: usize,
+    last: usize,
+}
+
+impl Kept<'_> {
+    /// The take's frame number of index `i` within the range.
+    fn frame_no(&self, i: usize) -> u64 {
+        self.take.first_frame + (self.range.start + i) as u64
+    }
+
+    fn times(&self) -> Vec<f64> {
+        (0..self.last - self.first)
+            .map(|i| i as f64 / self.take.rate)
+            .collect()
+    }
+
+    fn marker(
+        &self,
+        label: &str,
+        missing: usize,
+        outliers: usize,
+        filled: &crate::clean::Filled,
+    ) -> MarkerReport {
+        MarkerReport {
+            label: label.to_string(),
+            missing_frames: missing,
+            outliers,
+            gaps_filled: filled.gaps,
+            frames_filled: filled.frames,
+            longest_filled: filled.longest,
+            open_gaps: filled
+                .open
+                .iter()
+                .map(|g: &Gap| [self.frame_no(g.start), self.frame_no(g.end - 1)])
+                .collect(),
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn report(
+        &self,
+        s: &Settings,
+        from: String,
+        markers: Vec<MarkerReport>,
+        rms: &[f64],
+        fewer: usize,
+        frame_words: &str,
+        registration: Option<Registration>,
+    ) -> Report {
+        let (take, kept) = (self.take, self.last - self.first);
+        Report {
+            file: take.file.clone(),
+            rate_hz: take.rate,
+            frames_in_take: take.frames,
+            kept_frames: [self.frame_no(self.first), self.frame_no(self.last - 1)],
+            frames: kept,
+            duration_s: kept.saturating_sub(1) as f64 / take.rate,
+            cut: [
+                self.first + self.range.start,
+                take.frames - (self.range.start + self.last),
+            ],
+            from,
+            markers,
+            fit_rms_mean_m: rms.iter().sum::<f64>() / rms.len().max(1) as f64,
+            fit_rms_max_m: rms.iter().copied().fold(0.0, f64::max),
+            frames_with_fewer_markers: fewer,
+            cutoff_hz: s.cutoff_hz,
+            frame: frame_words.to_string(),
+            registration,
+            notes: take.notes.clone(),
+        }
+    }
 }
 
 /// The transform into the output frame, its name and the registration.
@@ -669,45 +738,29 @@ fn rigid_body(
         position.push(p.translation);
         quaternion.push(continuous(quaternion.last(), quaternion_of(&p.rotation)));
     }
-    let frame_no = |i: usize| take.first_frame + (range.start + i) as u64;
-    let kept = last - first;
+    let kept = Kept {
+        take,
+        range: &range,
+        first,
+        last,
+    };
+    let marker = kept.marker(name, missing, 0, &filled);
     Ok(Demonstration {
-        t: (0..kept).map(|i| i as f64 / take.rate).collect(),
+        t: kept.times(),
         position,
         quaternion,
         markers: Vec::new(),
         labels: Vec::new(),
         seen: vec![seen[first..last].to_vec()],
-        report: Report {
-            file: file.clone(),
-            rate_hz: take.rate,
-            frames_in_take: take.frames,
-            kept_frames: [frame_no(first), frame_no(last - 1)],
-            frames: kept,
-            duration_s: kept.saturating_sub(1) as f64 / take.rate,
-            cut: [first + range.start, take.frames - (range.start + last)],
-            from: format!("rigid body {name}"),
-            markers: vec![MarkerReport {
-                label: name.to_string(),
-                missing_frames: missing,
-                outliers: 0,
-                gaps_filled: filled.gaps,
-                frames_filled: filled.frames,
-                longest_filled: filled.longest,
-                open_gaps: filled
-                    .open
-                    .iter()
-                    .map(|g| [frame_no(g.start), frame_no(g.end - 1)])
-                    .collect(),
-            }],
-            fit_rms_mean_m: 0.0,
-            fit_rms_max_m: 0.0,
-            frames_with_fewer_markers: 0,
-            cutoff_hz: s.cutoff_hz,
-            frame: frame_words.to_string(),
+        report: kept.report(
+            s,
+            format!("rigid body {name}"),
+            vec![marker],
+            &[],
+            0,
+            frame_words,
             registration,
-            notes: take.notes.clone(),
-        },
+        ),
     })
 }
 

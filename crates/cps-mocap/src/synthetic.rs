@@ -72,8 +72,9 @@ pub fn pose(t: f64) -> Rigid {
     }
 }
 
-/// A deterministic normal sampler (splitmix64 and Box–Muller).
-struct Normal(u64);
+/// A deterministic normal sampler (splitmix64 and Box–Muller): the same seed, the same
+/// numbers on every machine.
+pub struct Normal(pub u64);
 
 impl Normal {
     fn uniform(&mut self) -> f64 {
@@ -84,7 +85,8 @@ impl Normal {
         z ^= z >> 31;
         ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64
     }
-    fn sample(&mut self) -> f64 {
+    /// A standard normal sample.
+    pub fn sample(&mut self) -> f64 {
         let (u, v) = (self.uniform(), self.uniform());
         (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
     }
