@@ -12,8 +12,7 @@ use std::path::Path;
 
 use cps_mocap::c3d::{self, Format};
 use cps_mocap::fit::{Rigid, rotation_of};
-use cps_mocap::synthetic::Normal;
-use cps_mocap::take::{Processor, Source, Take};
+use cps_mocap::synthetic::{Normal, millimetre_take};
 
 /// World (z up, metres) → lab (y up, metres).
 fn world_to_lab() -> Rigid {
@@ -103,24 +102,7 @@ fn main() {
                 }
             }
         }
-        let take = Take {
-            file: String::new(),
-            source: Source::C3d {
-                float: true,
-                processor: Processor::Intel,
-            },
-            labels: labels.clone(),
-            rate,
-            first_frame: 1,
-            frames,
-            units: "mm".into(),
-            metres_per_unit: 0.001,
-            xyz,
-            residual,
-            analog: None,
-            rigid_bodies: Vec::new(),
-            notes: Vec::new(),
-        };
+        let take = millimetre_take(labels.clone(), rate, xyz, residual);
         let out = dir.join("takes").join(format!("pour_{}.c3d", k + 1));
         std::fs::write(&out, c3d::write(&take, Format::Float).expect("a take")).expect("written");
         println!("{}: {frames} frames at {rate} Hz", out.display());

@@ -120,24 +120,35 @@ pub fn take(spec: &Spec) -> (Take, Vec<Rigid>) {
         truth.push(pose);
     }
     (
-        Take {
-            file: "synthetic".into(),
-            source: Source::C3d {
-                float: true,
-                processor: crate::take::Processor::Intel,
-            },
-            labels: spec.labels.clone(),
-            rate: spec.rate,
-            first_frame: 1,
-            frames: spec.frames,
-            units: "mm".into(),
-            metres_per_unit: 0.001,
-            xyz,
-            residual,
-            analog: None,
-            rigid_bodies: Vec::new(),
-            notes: Vec::new(),
-        },
+        millimetre_take(spec.labels.clone(), spec.rate, xyz, residual),
         truth,
     )
+}
+
+/// A take of markers in millimetres (frame-major `xyz`, `residual` negative where
+/// missing), as a C3D file from an Intel machine would hold it.
+pub fn millimetre_take(
+    labels: Vec<String>,
+    rate: f64,
+    xyz: Vec<[f32; 3]>,
+    residual: Vec<f32>,
+) -> Take {
+    Take {
+        file: "synthetic".into(),
+        source: Source::C3d {
+            float: true,
+            processor: crate::take::Processor::Intel,
+        },
+        frames: xyz.len() / labels.len().max(1),
+        labels,
+        rate,
+        first_frame: 1,
+        units: "mm".into(),
+        metres_per_unit: 0.001,
+        xyz,
+        residual,
+        analog: None,
+        rigid_bodies: Vec::new(),
+        notes: Vec::new(),
+    }
 }
