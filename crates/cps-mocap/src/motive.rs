@@ -347,16 +347,6 @@ mod tests {
         let header = "Format Version,1.23,Capture Frame Rate,120.000000,Rotation Type,XYZ,Length Units,Millimeters\n\n,Type,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body\n,Name,Tool,Tool,Tool,Tool,Tool,Tool\n,ID,1,1,1,1,1,1\n,,Rotation,Rotation,Rotation,Position,Position,Position\nFrame,Time (Seconds),X,Y,Z,X,Y,Z\n";
         let t = parse(&file(header, &["0,0,10,20,30,1,2,3"]), "euler.csv").unwrap();
         assert!(t.notes[0].contains("Euler"), "{:?}", t.notes);
-        let e = crate::demo::demonstrate(
-            &t,
-            &crate::demo::Settings {
-                rigid_body: Some("Tool".into()),
-                ..Default::default()
-            },
-        )
-        .unwrap_err()
-        .to_string();
-        assert!(e.contains("Rotation Type Quaternion"), "{e}");
         let e = parse(&file(header, &["0,0,10,20,30,1,two,3"]), "bad.csv")
             .unwrap_err()
             .to_string();

@@ -352,3 +352,22 @@ fn truncated_and_lying_files_are_named_not_panicked_on() {
         }
     }
 }
+
+#[test]
+fn a_motive_rigid_body_with_euler_angles_is_refused_with_the_setting_to_change() {
+    let text = "Format Version,1.23,Capture Frame Rate,120.000000,Rotation Type,XYZ,Length Units,Millimeters\n\n,Type,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body\n,Name,Tool,Tool,Tool,Tool,Tool,Tool\n,ID,1,1,1,1,1,1\n,,Rotation,Rotation,Rotation,Position,Position,Position\nFrame,Time (Seconds),X,Y,Z,X,Y,Z\n0,0,10,20,30,1,2,3\n";
+    let t = cps_mocap::motive::parse(text.as_bytes(), "euler.csv").unwrap();
+    let e = demonstrate(
+        &t,
+        &Settings {
+            rigid_body: Some("Tool".into()),
+            ..Settings::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("euler.csv") && e.contains("Rotation Type Quaternion"),
+        "{e}"
+    );
+}
