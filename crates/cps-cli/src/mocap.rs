@@ -69,9 +69,14 @@ pub enum MocapCommand {
         /// Figures: `<stem>_markers.png` and `<stem>_demonstration.png` beside this path.
         #[arg(long)]
         plot: Option<PathBuf>,
-        /// The robot whose reach the figure shows and the report checks.
+        /// The robot whose reach the figure shows and the report checks (the pose in its
+        /// base frame).
         #[arg(long)]
         robot: Option<String>,
+        /// Or a scene (`thesis`, `fr3`, a file) whose placed robot's reach is shown (the
+        /// pose in its world frame).
+        #[arg(long, conflicts_with = "robot")]
+        scene: Option<String>,
         /// Replace an existing --out.
         #[arg(long)]
         force: bool,
@@ -100,6 +105,7 @@ pub fn mocap(cmd: &MocapCommand) -> Result<ExitCode> {
             out,
             plot,
             robot,
+            scene,
             force,
             json,
         } => {
@@ -139,6 +145,7 @@ pub fn mocap(cmd: &MocapCommand) -> Result<ExitCode> {
                 calibration: to_robot.clone(),
                 plot: plot.clone(),
                 robot: robot.clone(),
+                scene: scene.clone(),
             };
             print(
                 &mocap::import(file, &settings, &files, out).map_err(cli_error)?,

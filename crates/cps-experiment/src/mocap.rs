@@ -140,8 +140,12 @@ pub struct ImportFiles {
     /// Figures: `<stem>_markers.png` and `<stem>_demonstration.png` beside this path's
     /// stem (`--plot demo.png`); SVG when it ends in `.svg`.
     pub plot: Option<PathBuf>,
-    /// The robot whose reach the demonstration figure shows and the report checks.
+    /// The robot whose reach the demonstration figure shows and the report checks (the
+    /// demonstration in its base frame).
     pub robot: Option<String>,
+    /// Or a scene (`thesis`, `fr3` or a file) whose placed robot's reach is shown (the
+    /// demonstration in the scene's world frame).
+    pub scene: Option<String>,
 }
 
 /// `mocap import`: the demonstration of a take written to `out` (`t,x,y,z,qx,qy,qz,qw`),
@@ -153,9 +157,19 @@ pub fn import(
     out: &Path,
 ) -> Result<Answer, ExperimentError> {
     let demo = demonstration(take, settings, files.calibration.as_deref())?;
-    let reach = match &files.robot {
-        Some(r) => Some(reach_of(r)?),
-        None => None,
+    let reach = match (&files.scene, &files.robot) {
+        (Some(s), _) => {
+            let scene = crate::scene::Scene::named_or_file(s)?;
+            Some(reach_of(
+                &scene.robot.chain,
+                &format!("{} in scene {s}", scene.robot.name),
+            ))
+        }
+        (None, Some(r)) => Some(reach_of(
+            &crate::robot_file::load_robot(r, None, None)?.chain,
+            r,
+        )),
+        (None, None) => None,
     };
     crate::files::write_file(out, demo.csv().as_bytes())?;
     let mut written = vec![out.display().to_string()];
@@ -226,8 +240,8 @@ pub fn import(
     });
     if let (Some(n), Some(reach)) = (beyond, &reach) {
         lines.push(format!(
-            "  {n} of {} poses lie beyond the {}'s reach ({:.3} m from its shoulder at {:.3} m above the base)",
-            r.frames, reach.robot, reach.radius, reach.centre[2]
+            "  {n} of {} poses lie beyond the reach of the {} ({:.3} m from its shoulder at ({:.3}, {:.3}, {:.3}) m)",
+            r.frames, reach.robot, reach.radius, reach.centre[0], reach.centre[1], reach.centre[2]
         ));
     }
     for w in written.iter().skip(1) {
@@ -245,23 +259,25 @@ pub fn import(
     })
 }
 
-/// A robot's reach: a sphere about its shoulder (the point on the base's z axis at the
-/// mean height of 4 000 random tool positions within its limits, seed 1) holding them
-/// all; its radius, centre and the robot's name.
-fn reach_of(robot: &str) -> Result<Reach, InputError> {
-    let model = crate::robot_file::load_robot(robot, None, None)?;
-    let pts = cps_kinematics::sample_workspace(&model.chain, 4000, 1);
-    let z = pts.iter().map(|p| p.z).sum::<f64>() / pts.len().max(1) as f64;
-    let centre = [0.0, 0.0, z];
+/// A robot's reach: a sphere about the centroid of 4 000 random tool positions within its
+/// limits (seed 1) — its shoulder, for an arm — holding them all; `name` names it.
+fn reach_of(chain: &cps_kinematics::SerialChain, name: &str) -> Reach {
+    let pts = cps_kinematics::sample_workspace(chain, 4000, 1);
+    let n = pts.len().max(1) as f64;
+    let centre = [
+        pts.iter().map(|p| p.x).sum::<f64>() / n,
+        pts.iter().map(|p| p.y).sum::<f64>() / n,
+        pts.iter().map(|p| p.z).sum::<f64>() / n,
+    ];
     let radius = pts
         .iter()
         .map(|p| cps_mocap::fit::norm(cps_mocap::fit::sub([p.x, p.y, p.z], centre)))
         .fold(0.0, f64::max);
-    Ok(Reach {
+    Reach {
         radius,
         centre,
-        robot: robot.to_string(),
-    })
+        robot: name.to_string(),
+    }
 }
 
 /// A robot's reach as a sphere.
@@ -375,11 +391,11 @@ pub fn figures(demo: &Demonstration, reach: Option<Reach>) -> Vec<Figure> {
             .collect();
         paths.push(
             Series::new(
-                format!("{name}'s reach ({r:.2} m)"),
+                format!("reach of the {name} ({r:.2} m)"),
                 circle.clone(),
                 vec![
-                    circle.iter().map(|a| r * a.cos()).collect(),
-                    circle.iter().map(|a| r * a.sin()).collect(),
+                    circle.iter().map(|a| centre[0] + r * a.cos()).collect(),
+                    circle.iter().map(|a| centre[1] + r * a.sin()).collect(),
                     vec![centre[2]; n],
                 ],
             )

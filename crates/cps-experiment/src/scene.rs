@@ -291,6 +291,15 @@ impl Scene {
         parse_scene(Path::new("configs/scenes/thesis.toml"), THESIS_SCENE)
     }
 
+    /// A built-in scene by name (`thesis`, `fr3`) or a scene file.
+    pub fn named_or_file(word: &str) -> Result<Self, InputError> {
+        match word {
+            "thesis" => Self::thesis(),
+            "fr3" => parse_scene(Path::new("configs/scenes/fr3.toml"), FR3_SCENE),
+            path => load_scene(Path::new(path)),
+        }
+    }
+
     /// The robot's name as CoppeliaSim's scene names it (`Panda` for `panda`).
     pub fn sim_robot_name(&self) -> String {
         match self.robot.name.as_str() {
