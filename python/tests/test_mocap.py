@@ -310,3 +310,20 @@ def test_a_take_feeds_the_pose_dmp(tmp_path):
           f"{np.abs(y - p).max() * 1e3:.3f} mm")
     assert err < math.radians(1.0)
     assert np.abs(y - p).max() < 2e-3
+
+
+def test_the_shipped_takes_lie_within_the_thesis_robots_reach(tmp_path, cli):
+    """The example takes, registered into the thesis scene's world frame, are within the
+    placed Panda's reach; read as if in the Panda's base frame they are not."""
+    from conftest import EXPERIMENTS
+
+    takes = EXPERIMENTS / "demos" / "takes"
+    args = ["mocap", "import", takes / "pour_1.c3d", "--markers", "tip,m2,m3,m4", "--origin", "tip",
+            "--to-robot", takes / "lab.toml", "--out", tmp_path / "pour.csv", "--json", "--force"]
+    placed = json.loads(cli(*args, "--scene", "thesis", "--plot", tmp_path / "pour.png").stdout)
+    assert placed["beyond_reach"] == 0 and 0.8 < placed["reach_m"] < 1.3
+    assert sorted(p.name for p in tmp_path.glob("pour_*.png")) == ["pour_demonstration.png", "pour_markers.png"]
+    assert placed["report"]["registration"]["rms_m"] < 1e-3
+    assert [m["outliers"] for m in placed["report"]["markers"]] == [0, 0, 0, 0]
+    based = json.loads(cli(*args, "--robot", "panda").stdout)
+    assert based["beyond_reach"] == based["report"]["frames"]
