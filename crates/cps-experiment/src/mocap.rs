@@ -146,6 +146,8 @@ pub struct ImportFiles {
     /// Or a scene (`thesis`, `fr3` or a file) whose placed robot's reach is shown (the
     /// demonstration in the scene's world frame).
     pub scene: Option<String>,
+    /// Replace an existing output.
+    pub force: bool,
 }
 
 /// `mocap import`: the demonstration of a take written to `out` (`t,x,y,z,qx,qy,qz,qw`),
@@ -156,6 +158,13 @@ pub fn import(
     files: &ImportFiles,
     out: &Path,
 ) -> Result<Answer, ExperimentError> {
+    if out.exists() && !files.force {
+        return Err(InputError(format!(
+            "{} exists; add --force to replace it",
+            out.display()
+        ))
+        .into());
+    }
     let demo = demonstration(take, settings, files.calibration.as_deref())?;
     let reach = match (&files.scene, &files.robot) {
         (Some(s), _) => {

@@ -1626,12 +1626,7 @@ impl Sections<'_> {
         let at = |span: Range<usize>, key: &'static str| {
             move |e: String| self.err(&span, format!("[demonstrations] `{key}`: {e}"))
         };
-        let axes =
-            cps_mocap::demo::Settings::axes_of(d.axes.as_ref().map(|a| a.get_ref().as_slice()))
-                .map_err(|e| {
-                    at(d.axes.as_ref().map_or(0..0, Spanned::span), "axes")(e.to_string())
-                })?;
-        let settings = cps_mocap::demo::Settings {
+        let words = cps_mocap::demo::Words {
             markers: d
                 .markers
                 .as_ref()
@@ -1641,31 +1636,23 @@ impl Sections<'_> {
             origin: d
                 .origin
                 .as_ref()
-                .map_or(cps_mocap::demo::Origin::Centroid, |o| {
-                    cps_mocap::demo::Settings::origin_of(o.get_ref())
-                }),
-            axes,
+                .map_or("centroid".into(), |o| o.get_ref().clone()),
+            axes: d.axes.as_ref().map(|a| a.get_ref().clone()),
+            y_up: d.y_up.as_ref().is_some_and(|y| *y.get_ref()),
             max_gap: d.max_gap.as_ref().map_or(10, |m| *m.get_ref()),
-            cutoff_hz: match d.cutoff.as_ref().map(|c| *c.get_ref()) {
-                Some(0.0) => None,
-                Some(c) => Some(c),
-                None => Some(10.0),
-            },
-            outlier_m: d.outlier_mm.as_ref().map_or(20.0, |o| *o.get_ref()) / 1e3,
+            cutoff_hz: d.cutoff.as_ref().map_or(10.0, |c| *c.get_ref()),
+            outlier_mm: d.outlier_mm.as_ref().map_or(20.0, |o| *o.get_ref()),
             frames: None,
-            up: if d.y_up.as_ref().is_some_and(|y| *y.get_ref()) {
-                cps_mocap::demo::Up::Y
-            } else {
-                cps_mocap::demo::Up::AsRecorded
-            },
-            calibration: None,
         };
-        if settings.markers.is_empty() && settings.rigid_body.is_none() {
+        if words.markers.is_empty() && words.rigid_body.is_none() {
             return Err(self.err(
                 &takes.span(),
                 "[demonstrations] `takes` needs `markers = [\"A\", \"B\", \"C\"]` (the tool's markers) or `rigid_body = \"NAME\"`".into(),
             ));
         }
+        let settings = words.settings().map_err(|e| {
+            at(d.axes.as_ref().map_or(takes.span(), Spanned::span), "axes")(e.to_string())
+        })?;
         let calibration = d.to_robot.as_ref().map(|c| dir.join(c.get_ref()));
         let mut out = Vec::new();
         for name in takes.get_ref() {

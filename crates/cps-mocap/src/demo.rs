@@ -73,6 +73,81 @@ pub struct Settings {
     pub calibration: Option<Calibration>,
 }
 
+/// [`Settings`] as the command line, Python and experiment files give them: words and
+/// numbers, checked by [`Words::settings`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Words {
+    /// The body's markers.
+    pub markers: Vec<String>,
+    /// Motive's rigid body instead.
+    pub rigid_body: Option<String>,
+    /// `centroid` or a marker's label.
+    pub origin: String,
+    /// Three labels `O, X, P`.
+    pub axes: Option<Vec<String>>,
+    /// The take is Y up.
+    pub y_up: bool,
+    /// The longest gap filled, frames.
+    pub max_gap: usize,
+    /// Smoothing cut-off, Hz (0: none).
+    pub cutoff_hz: f64,
+    /// Outlier distance, mm.
+    pub outlier_mm: f64,
+    /// `FIRST..END` frame indices from 0.
+    pub frames: Option<String>,
+}
+
+impl Default for Words {
+    fn default() -> Self {
+        Self {
+            markers: Vec::new(),
+            rigid_body: None,
+            origin: "centroid".into(),
+            axes: None,
+            y_up: false,
+            max_gap: 10,
+            cutoff_hz: 10.0,
+            outlier_mm: 20.0,
+            frames: None,
+        }
+    }
+}
+
+impl Words {
+    /// The settings these words give (no calibration: the caller reads its file).
+    pub fn settings(&self) -> Result<Settings, MocapError> {
+        if self.markers.is_empty() && self.rigid_body.is_none() {
+            return Err(MocapError::Input(
+                "give the tool's markers (three or more) or a Motive rigid body".into(),
+            ));
+        }
+        let frames = match &self.frames {
+            None => None,
+            Some(f) => Some(
+                f.split_once("..")
+                    .and_then(|(a, b)| Some(a.trim().parse().ok()?..b.trim().parse().ok()?))
+                    .ok_or_else(|| {
+                        MocapError::Input(format!(
+                            "frames {f}: expected FIRST..END (frame indices from 0)"
+                        ))
+                    })?,
+            ),
+        };
+        Ok(Settings {
+            markers: self.markers.clone(),
+            rigid_body: self.rigid_body.clone(),
+            origin: Settings::origin_of(&self.origin),
+            axes: Settings::axes_of(self.axes.as_deref())?,
+            max_gap: self.max_gap,
+            cutoff_hz: (self.cutoff_hz != 0.0).then_some(self.cutoff_hz),
+            outlier_m: self.outlier_mm / 1e3,
+            frames,
+            up: if self.y_up { Up::Y } else { Up::AsRecorded },
+            calibration: None,
+        })
+    }
+}
+
 impl Settings {
     /// The origin from a word: `centroid`, or a marker's label.
     pub fn origin_of(word: &str) -> Origin {

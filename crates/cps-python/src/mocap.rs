@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use cps_mocap::demo::{Settings, Up};
+use cps_mocap::demo::Words;
 use numpy::PyArrayMethods;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -87,19 +87,19 @@ pub fn _mocap_read<'py>(
             "read() needs markers=[...] (three or more) or rigid_body=NAME; cps.mocap.take(path) gives the raw markers".into(),
         ));
     }
-    let axes = Settings::axes_of(axes.as_deref()).map_err(|e| bad(e.to_string()))?;
-    let settings = Settings {
+    let settings = Words {
         markers: markers.unwrap_or_default(),
         rigid_body,
-        origin: Settings::origin_of(origin),
+        origin: origin.to_string(),
         axes,
+        y_up,
         max_gap,
-        cutoff_hz: cutoff.filter(|c| *c != 0.0),
-        outlier_m: outlier_mm / 1e3,
-        frames: frames.map(|(a, b)| a..b),
-        up: if y_up { Up::Y } else { Up::AsRecorded },
-        calibration: None,
-    };
+        cutoff_hz: cutoff.unwrap_or(0.0),
+        outlier_mm,
+        frames: frames.map(|(a, b)| format!("{a}..{b}")),
+    }
+    .settings()
+    .map_err(|e| bad(e.to_string()))?;
     let demo = py
         .detach(|| {
             cps_experiment::mocap::demonstration(
