@@ -6,8 +6,8 @@ use std::path::Path;
 
 use cps_dmp::DmpConfig;
 use cps_learn::{
-    CostWeights, LearnError, Parametrisation, PointObstacle, Solver, ViaPoint, ViaPointConfig,
-    ViaPointTask,
+    CostWeights, Evaluation, LearnError, Parametrisation, PointObstacle, Solver, ViaPoint,
+    ViaPointConfig, ViaPointTask,
 };
 use serde::Deserialize;
 use toml::Spanned;
@@ -126,6 +126,8 @@ struct Optimizer {
     parametrisation: Parametrisation,
     #[serde(default)]
     warm_start: bool,
+    #[serde(default)]
+    evaluation: Evaluation,
     sigma0: Option<Spanned<f64>>,
     population: Option<Spanned<usize>>,
     generations: Spanned<u64>,
@@ -356,6 +358,7 @@ pub fn parse(
     config.solver = o.method;
     config.parametrisation = o.parametrisation;
     config.warm_start = o.warm_start;
+    config.evaluation = o.evaluation;
     config.repetitions = *reps.get_ref();
     config.seed = seed_override.unwrap_or(file.experiment.seed);
     if let Some(s) = &o.sigma0 {
@@ -589,6 +592,12 @@ fn add_scene_obstacles(
             Some(_) => {}
             None => task.weights.obstacle = task.weights.obstacle.max(1e5),
         }
+    }
+    if !config.task.obstacles.is_empty() && config.evaluation == Evaluation::Quadratic {
+        return Err(InputError(format!(
+            "{}: [optimizer] `evaluation` = \"quadratic\" needs a quadratic cost, and the obstacle term is not one: use evaluation = \"rollout\" (or leave it out: \"auto\" picks the rollout here)",
+            path.display()
+        )));
     }
     if !config.task.obstacles.is_empty() && config.solver == Solver::Exact {
         return Err(InputError(format!(

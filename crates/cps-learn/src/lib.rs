@@ -45,7 +45,7 @@ pub use energy::{
     learn_with_effort,
 };
 pub use error::LearnError;
-pub use exact::{ExactOptimum, exact_optimum};
+pub use exact::{ExactOptimum, QuadraticCost, exact_optimum};
 pub use executed::{ExecutedCost, ExecutedErrors, ExecutedWeights, executed_cost};
 pub use imitation::{
     DemonstrationResult, GivenDemonstration, ImitationConfig, ImitationFit, ImitationOutcome,
@@ -68,6 +68,6 @@ pub use task::{
     ViaPointTask,
 };
 pub use viapoint::{
-    GenerationRecord, RunResult, SearchStats, Solver, ViaPointConfig, ViaPointObjective,
-    ViaPointOutcome, history_band, learn_via_points,
+    Evaluation, GenerationRecord, RunResult, SearchStats, Solver, ViaPointConfig,
+    ViaPointObjective, ViaPointOutcome, history_band, learn_via_points,
 };

@@ -12,8 +12,8 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    CostBreakdown, ExactOptimum, LearnError, Parametrisation, SearchSpace, TaskErrors,
-    ViaPointTask, exact_optimum,
+    CostBreakdown, ExactOptimum, LearnError, Parametrisation, QuadraticCost, SearchSpace,
+    TaskErrors, ViaPointTask, exact_optimum,
 };
 
 /// How the weights are found.
@@ -27,6 +27,22 @@ pub enum Solver {
     Exact,
 }
 
+/// How CMA-ES evaluates a candidate's cost.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Evaluation {
+    /// The quadratic form whenever the cost is quadratic (no obstacles), else a rollout.
+    /// Default.
+    #[default]
+    Auto,
+    /// Roll out the DMP and sum the cost along the movement, every candidate.
+    Rollout,
+    /// The cost's exact quadratic form in the parameters ([`QuadraticCost`]): the same
+    /// value to rounding, for `n²` multiply-adds instead of a rollout. Only for costs
+    /// without obstacles.
+    Quadratic,
+}
+
 /// Everything a via-point learning run needs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ViaPointConfig {
@@ -38,6 +54,8 @@ pub struct ViaPointConfig {
     pub solver: Solver,
     /// Start CMA-ES at the exact optimum instead of θ = 0 (zero weights).
     pub warm_start: bool,
+    /// How CMA-ES evaluates a candidate: a rollout, or the cost's quadratic form.
+    pub evaluation: Evaluation,
     /// Initial CMA-ES step size in the units of the search space (metres for
     /// `AnchorOffset`).
     pub sigma0: f64,
@@ -63,6 +81,7 @@ impl ViaPointConfig {
             parametrisation: Parametrisation::default(),
             solver: Solver::default(),
             warm_start: false,
+            evaluation: Evaluation::default(),
             sigma0: 0.5,
             population: None,
             generations: 1000,
@@ -118,7 +137,7 @@ pub struct RunResult {
     pub gap_to_optimum: f64,
     /// Generations run.
     pub generations: u64,
-    /// Cost evaluations (rollouts).
+    /// Cost evaluations (rollouts, or the quadratic form: [`Evaluation`]).
     pub evaluations: u64,
     /// Evaluations whose cost was NaN or infinite.
     pub non_finite_evaluations: u64,
@@ -141,6 +160,9 @@ pub struct ViaPointOutcome {
     pub best_run: usize,
     /// The DMP the weights belong to.
     pub dmp: DiscreteDmp,
+    /// How the searches evaluated candidates: [`Evaluation::Rollout`] or
+    /// [`Evaluation::Quadratic`] (never `Auto`). Every reported cost is a rollout's.
+    pub evaluation: Evaluation,
 }
 
 impl ViaPointOutcome {
@@ -222,6 +244,34 @@ impl Objective for ViaPointObjective<'_> {
 /// Candidates rolled out together by [`ViaPointObjective`].
 const GROUP: usize = 8;
 
+/// A [`QuadraticCost`] as a CMA-ES [`Objective`]: groups of candidates in parallel.
+struct QuadraticObjective<'a>(&'a QuadraticCost);
+
+impl Objective for QuadraticObjective<'_> {
+    fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
+        Ok(self.0.cost(x, &mut Vec::new()))
+    }
+
+    fn evaluate_batch(
+        &self,
+        xs: &[f64],
+        dim: usize,
+        out: &mut [f64],
+    ) -> Result<(), CandidateError> {
+        // A candidate is ~n² multiply-adds (a few microseconds): groups of 16 amortise
+        // the hand-over to a worker.
+        xs.par_chunks(dim * 16)
+            .zip(out.par_chunks_mut(16))
+            .for_each(|(group, costs)| {
+                let mut scratch = Vec::with_capacity(dim);
+                for (x, c) in group.chunks_exact(dim).zip(costs) {
+                    *c = self.0.cost(x, &mut scratch);
+                }
+            });
+        Ok(())
+    }
+}
+
 /// Learns a via-point movement.
 ///
 /// Computes the exact optimum first (it is cheap: one rollout per weight plus a QR), then
@@ -240,7 +290,27 @@ pub fn learn_via_points(
     }
     let space = SearchSpace::new(config.parametrisation, &dmp);
     let optimum = exact_optimum(task, &dmp, &space)?;
-    let objective = ViaPointObjective::new(task, &dmp, &space);
+    let evaluation = match (config.evaluation, task.obstacles.is_empty()) {
+        (Evaluation::Quadratic, false) => {
+            return Err(LearnError::task(
+                "evaluation",
+                "\"quadratic\" needs a quadratic cost, and obstacles make it not one: use \"rollout\" (or \"auto\")",
+            ));
+        }
+        (Evaluation::Auto | Evaluation::Quadratic, true) if config.solver == Solver::Cmaes => {
+            Evaluation::Quadratic
+        }
+        _ => Evaluation::Rollout,
+    };
+    let quadratic = match evaluation {
+        Evaluation::Quadratic => Some(QuadraticCost::of_task(task, &dmp, &space)?),
+        _ => None,
+    };
+    let rollouts = ViaPointObjective::new(task, &dmp, &space);
+    let objective: &dyn Objective = match &quadratic {
+        Some(q) => &QuadraticObjective(q),
+        None => &rollouts,
+    };
     let finish = |seed: u64,
                   params: Vec<f64>,
                   stats: (u64, u64, u64, String, Vec<GenerationRecord>),
@@ -285,7 +355,7 @@ pub fn learn_via_points(
             } else {
                 vec![0.0; space.len()]
             };
-            let (best_x, run) = run_cmaes(&objective, x0, config, seed, &|r| progress(rep, r))?;
+            let (best_x, run) = run_cmaes(objective, x0, config, seed, &|r| progress(rep, r))?;
             let stats = (
                 run.generations,
                 run.evaluations,
@@ -308,6 +378,7 @@ pub fn learn_via_points(
         runs,
         best_run,
         dmp,
+        evaluation,
     })
 }
 

@@ -5,8 +5,8 @@
 use std::ops::ControlFlow;
 
 use cps_learn::{
-    LearnError, Parametrisation, SearchSpace, Solver, ViaPointConfig, ViaPointTask, exact_optimum,
-    learn_via_points,
+    Evaluation, LearnError, Parametrisation, QuadraticCost, SearchSpace, Solver, ViaPointConfig,
+    ViaPointTask, exact_optimum, learn_via_points,
 };
 
 fn cost_at(task: &ViaPointTask, space: &SearchSpace, theta: &[f64]) -> f64 {
@@ -46,6 +46,109 @@ fn the_cost_is_an_exact_quadratic_in_the_parameters() {
     assert!(
         third.abs() < 1e-9 * c0.abs().max(1.0),
         "third difference {third} (cost {c0})"
+    );
+}
+
+#[test]
+fn the_quadratic_form_equals_the_rollout_cost_in_every_space() {
+    let task = ViaPointTask::thesis();
+    let dmp = task.build_dmp().unwrap();
+    for kind in [
+        Parametrisation::AnchorOffset,
+        Parametrisation::ThesisScaling,
+        Parametrisation::Raw,
+    ] {
+        let space = SearchSpace::new(kind, &dmp);
+        let q = QuadraticCost::of_task(&task, &dmp, &space).unwrap();
+        let opt = exact_optimum(&task, &dmp, &space).unwrap();
+        assert!((q.minimum() - opt.cost).abs() < 1e-9 * opt.cost, "{kind:?}");
+        let mut scratch = Vec::new();
+        // Far from the minimum (costs of 1e4 to 1e7) and close to it (a thousandth more).
+        for (seed, scale) in [(3, 1.0), (4, 0.1), (5, 1e-4)] {
+            let d = direction(space.len(), seed);
+            let step = if kind == Parametrisation::AnchorOffset {
+                scale
+            } else {
+                // Weights: a unit of θ moves the movement far less than a metre.
+                scale * 100.0
+            };
+            let theta: Vec<f64> = q
+                .minimiser()
+                .iter()
+                .zip(&d)
+                .map(|(m, d)| m + step * d)
+                .collect();
+            let (by_form, by_rollout) =
+                (q.cost(&theta, &mut scratch), cost_at(&task, &space, &theta));
+            assert!(
+                (by_form - by_rollout).abs() < 1e-9 * by_rollout,
+                "{kind:?}, step {step}: quadratic form {by_form}, rollout {by_rollout}"
+            );
+            assert!(by_rollout > opt.cost);
+        }
+    }
+}
+
+#[test]
+fn cma_es_learns_the_same_by_the_quadratic_form_as_by_rollouts() {
+    // CMA-ES uses the costs' ranks (and tolfun their spread), so equal costs to rounding
+    // give the same search, generation for generation.
+    let run = |evaluation| {
+        let config = ViaPointConfig {
+            evaluation,
+            population: Some(32),
+            generations: 150,
+            ..ViaPointConfig::new(ViaPointTask::thesis())
+        };
+        learn_via_points(&config, &quiet()).unwrap()
+    };
+    let (rollout, quadratic) = (run(Evaluation::Rollout), run(Evaluation::Auto));
+    assert_eq!(rollout.evaluation, Evaluation::Rollout);
+    assert_eq!(quadratic.evaluation, Evaluation::Quadratic);
+    let (a, b) = (rollout.best(), quadratic.best());
+    assert_eq!(a.generations, b.generations);
+    assert!(
+        a.cost < 0.1 * a.history[0].best,
+        "it learned: {} from {}",
+        a.cost,
+        a.history[0].best
+    );
+    assert!(
+        (a.cost - b.cost).abs() < 1e-9 * a.cost,
+        "{} vs {}",
+        a.cost,
+        b.cost
+    );
+    for (x, y) in a.params.iter().zip(&b.params) {
+        assert!((x - y).abs() < 1e-9, "{x} vs {y}");
+    }
+}
+
+#[test]
+fn the_quadratic_form_is_refused_with_obstacles() {
+    let mut task = ViaPointTask::thesis();
+    task.obstacles.push(cps_learn::PointObstacle {
+        position: vec![1.18, 0.10, 1.31],
+        clearance: 0.08,
+    });
+    task.weights.obstacle = 1e6;
+    let config = ViaPointConfig {
+        evaluation: Evaluation::Quadratic,
+        ..ViaPointConfig::new(task.clone())
+    };
+    let err = learn_via_points(&config, &quiet()).unwrap_err().to_string();
+    assert!(
+        err.contains("quadratic") && err.contains("obstacles"),
+        "{err}"
+    );
+    // Auto picks the rollout there.
+    let config = ViaPointConfig {
+        generations: 3,
+        ..ViaPointConfig::new(task)
+    };
+    assert_eq!(
+        learn_via_points(&config, &quiet()).unwrap().evaluation,
+        Evaluation::Rollout
     );
 }
 

@@ -342,6 +342,7 @@ pub fn learn_via_points(
         parametrisation,
         solver,
         warm_start,
+        evaluation: cps_learn::Evaluation::Auto,
         sigma0,
         population,
         generations,

@@ -530,3 +530,12 @@ pub(crate) fn solver_name(s: cps_learn::Solver) -> &'static str {
         cps_learn::Solver::Exact => "exact",
     }
 }
+
+/// The name of how candidates were evaluated, as in the experiment file.
+pub(crate) fn evaluation_name(e: cps_learn::Evaluation) -> &'static str {
+    match e {
+        cps_learn::Evaluation::Auto => "auto",
+        cps_learn::Evaluation::Rollout => "rollout",
+        cps_learn::Evaluation::Quadratic => "quadratic",
+    }
+}

@@ -43,6 +43,7 @@ fn band(values: &[f64]) -> (f64, f64, f64) {
 struct Summary<'a> {
     repetitions: usize,
     generations: u64,
+    evaluation: &'static str,
     optimum_cost: f64,
     verdict: &'a str,
     arms: Vec<ArmSummary>,
@@ -91,6 +92,9 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     let summary = Summary {
         repetitions: exp.config.repetitions,
         generations: exp.config.generations,
+        evaluation: arms
+            .first()
+            .map_or("rollout", |a| super::evaluation_name(a.outcome.evaluation)),
         optimum_cost: arms.first().map_or(f64::NAN, |a| a.outcome.optimum.cost),
         verdict: &verdict,
         arms: arms.iter().map(arm_summary).collect(),

@@ -6,7 +6,8 @@ use serde::Serialize;
 
 use super::Ctx;
 use super::{
-    cost_figure, derivative_figure, position_figures, search_figure, solver_name, way_points, worst,
+    cost_figure, derivative_figure, evaluation_name, position_figures, search_figure, solver_name,
+    way_points, worst,
 };
 use crate::outcome::{
     Column, CostArm, Format, Mark, MarkKind, Outcome, Plot, Report, ReportTable, Series, Table,
@@ -19,6 +20,7 @@ struct Summary<'a> {
     solver: &'static str,
     parametrisation: &'static str,
     warm_start: bool,
+    evaluation: &'static str,
     repetitions: usize,
     best_repetition: usize,
     generations: u64,
@@ -80,6 +82,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         solver: solver_name(config.solver),
         parametrisation: config.parametrisation.name(),
         warm_start: config.warm_start,
+        evaluation: evaluation_name(outcome.evaluation),
         repetitions: outcome.runs.len(),
         best_repetition: outcome.best_run,
         generations: best.generations,
@@ -314,7 +317,7 @@ fn report(ctx: &Ctx<'_>, outcome: &ViaPointOutcome) -> Report {
         (
             "solver",
             format!(
-                "{} in the {} search space{}",
+                "{} in the {} search space{}{}",
                 match config.solver {
                     cps_learn::Solver::Cmaes => "CMA-ES",
                     cps_learn::Solver::Exact => "exact least squares",
@@ -324,6 +327,12 @@ fn report(ctx: &Ctx<'_>, outcome: &ViaPointOutcome) -> Report {
                     ", warm-started at the exact optimum"
                 } else {
                     ""
+                },
+                match (config.solver, outcome.evaluation) {
+                    (cps_learn::Solver::Cmaes, cps_learn::Evaluation::Quadratic) => {
+                        "; candidates evaluated by the cost's exact quadratic form, the result by a rollout"
+                    }
+                    _ => "",
                 }
             ),
         ),
