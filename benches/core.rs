@@ -8,8 +8,9 @@ use std::ops::ControlFlow;
 use cps::cmaes::{Cmaes, CmaesConfig, Objective};
 use cps::dmp::{DiscreteDmp, DmpConfig};
 use cps::learn::{
-    Parametrisation, SearchSpace, ViaPointConfig, ViaPointObjective, ViaPointTask, exact_optimum,
-    learn_via_points,
+    EffortConfig, Evaluation, Parametrisation, PointMassPlant, QuadraticCost, SearchSpace,
+    ViaPointConfig, ViaPointObjective, ViaPointTask, exact_optimum, learn_via_points,
+    learn_with_effort,
 };
 use criterion::{Criterion, criterion_group, criterion_main};
 use rand::{Rng, SeedableRng};
@@ -334,6 +335,17 @@ fn cmaes_generation(c: &mut Criterion) {
     c.bench_function("exact_optimum/thesis", |b| {
         b.iter(|| exact_optimum(&task, &dmp, &space).unwrap())
     });
+    // The same 16 costs by the cost's exact quadratic form (what CMA-ES evaluates when
+    // the cost is quadratic), one thread.
+    let quadratic = QuadraticCost::of_task(&task, &dmp, &space).unwrap();
+    let mut scratch = Vec::new();
+    c.bench_function("quadratic_costs/16x75", |b| {
+        b.iter(|| {
+            for (x, o) in black_box(&xs).chunks_exact(n).zip(out.iter_mut()) {
+                *o = quadratic.cost(x, &mut scratch);
+            }
+        })
+    });
 }
 
 fn viapoint_run(c: &mut Criterion) {
@@ -352,6 +364,48 @@ fn viapoint_run(c: &mut Criterion) {
     group.bench_function("200_generations_all_cores", |b| {
         b.iter(|| learn_via_points(&config, &|_, _| ControlFlow::Continue(())).unwrap())
     });
+    // Every candidate rolled out instead of the quadratic form (the same search).
+    let mut rollouts = config.clone();
+    rollouts.evaluation = Evaluation::Rollout;
+    group.bench_function("200_generations_rollouts", |b| {
+        b.iter(|| {
+            pool.install(|| learn_via_points(&rollouts, &|_, _| ControlFlow::Continue(())).unwrap())
+        })
+    });
+    group.finish();
+}
+
+/// The parallel speed-up of the effort task (thesis eq. 53/54) when every candidate is
+/// simulated: 10 generations of λ = 96 (each candidate a 1 kHz simulation of three
+/// PD-controlled masses) on one thread and on two. (This was the shipped experiment's
+/// `[speedup]` section; a timing belongs here.) Same seed, same bits on both: tested in
+/// crates/cps-learn/tests/pipelines.rs.
+fn energy_population(c: &mut Criterion) {
+    let mut learner = ViaPointConfig::new(ViaPointTask::thesis());
+    learner.warm_start = true;
+    learner.sigma0 = 0.05;
+    learner.population = Some(96);
+    learner.generations = 10;
+    learner.tol_fun = None;
+    learner.evaluation = Evaluation::Rollout;
+    let config = EffortConfig {
+        learner,
+        plant: PointMassPlant::default(),
+        effort_weight: 1e-2,
+    };
+    let mut group = c.benchmark_group("energy_population");
+    group.sample_size(10);
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        group.bench_function(format!("10_generations_96/threads={threads}"), |b| {
+            b.iter(|| {
+                pool.install(|| learn_with_effort(&config, &|_| ControlFlow::Continue(())).unwrap())
+            })
+        });
+    }
     group.finish();
 }
 
@@ -422,6 +476,7 @@ criterion_group!(
     rollout,
     cmaes_overhead,
     cmaes_generation,
-    viapoint_run
+    viapoint_run,
+    energy_population
 );
 criterion_main!(dmp_benches, beyond, benches);

@@ -518,33 +518,61 @@ const ENERGY: &str = include_str!("../../../experiments/viapoint_energy.toml");
 /// The effort experiment learns through the plant, measures its speed-up with identical
 /// results on 1 and 2 threads, and reports.
 #[test]
-fn the_effort_experiment_learns_and_measures_its_speed_up() {
+fn the_effort_experiment_solves_exactly_and_cma_es_is_judged_against_it() {
     let dir = tempfile::tempdir().unwrap();
-    let file = write(
-        dir.path(),
-        "energy.toml",
-        &ENERGY
-            .replace("generations = 500", "generations = 40")
-            .replace("generations = 60  ", "generations = 5   ")
-            .replace("sigma0 = 0.05 ", "sigma0 = 0.005"),
-    );
+    // The shipped file: the exact optimum through the plant.
+    let file = write(dir.path(), "energy.toml", ENERGY);
     let out = dir.path().join("out");
     let o = run(&file, &out);
     assert!(o.status.success(), "{}", text(&o.stderr));
+    let exact = json(&out.join("summary.json"));
+    assert_eq!(exact["kind"], "viapoint_energy");
+    assert_eq!(exact["complete"], true);
+    assert_eq!(exact["solver"], "exact");
+    assert_eq!(exact["search"]["termination"], "exact");
+    let best = exact["cost"].as_f64().unwrap();
+    assert!((best - exact["optimum_cost"].as_f64().unwrap()).abs() < 1e-12 * best);
+    assert!(exact["cost_terms"]["effort"].as_f64().unwrap() > 0.0);
+    assert!(exact["max_position_error_m"].as_f64().unwrap() < 1e-4);
+    // CMA-ES from the plain optimum learns towards it and ends no lower.
+    let file = write(
+        dir.path(),
+        "cmaes.toml",
+        &ENERGY
+            .replace("method = \"exact\"", "method = \"cmaes\"")
+            .replace("generations = 500", "generations = 40")
+            .replace("sigma0 = 0.05 ", "sigma0 = 0.005"),
+    );
+    let out = dir.path().join("cmaes");
+    let o = run(&file, &out);
+    assert!(o.status.success(), "{}", text(&o.stderr));
     let s = json(&out.join("summary.json"));
-    assert_eq!(s["kind"], "viapoint_energy");
-    assert_eq!(s["complete"], true);
-    assert!(s["cost"].as_f64().unwrap() < s["start_cost"].as_f64().unwrap());
-    assert!(s["cost_terms"]["effort"].as_f64().unwrap() > 0.0);
-    let sp = &s["speedup"];
-    assert_eq!(sp["generations"], 5);
-    assert_eq!(sp["identical_results"], true);
-    assert!(sp["speedup"].as_f64().unwrap() > 0.0);
+    assert_eq!(s["solver"], "cmaes");
+    assert_eq!(s["evaluation"], "quadratic");
+    let cost = s["cost"].as_f64().unwrap();
+    assert!(cost < s["start_cost"].as_f64().unwrap());
+    assert!(cost >= best && s["gap_to_optimum"].as_f64().unwrap() >= 0.0);
+    assert!((s["optimum_cost"].as_f64().unwrap() - best).abs() < 1e-9 * best);
     let csv = std::fs::read_to_string(out.join("trajectory.csv")).unwrap();
     assert!(csv.starts_with("t,reference_x,reference_y,reference_z,plant_x,"));
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert_eq!(html.matches("<svg").count(), 5);
-    assert!(html.contains("parallel speed-up"));
+    assert!(html.contains("exact optimum"));
+    // The speed-up measurement left experiments for the benchmarks: an old file says so.
+    let file = write(
+        dir.path(),
+        "old.toml",
+        &ENERGY.replace("[output]", "[speedup]\ngenerations = 60\n\n[output]"),
+    );
+    let o = run(&file, &dir.path().join("old"));
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
+    assert!(
+        text(&o.stderr).contains("[speedup] is no longer part of an experiment")
+            && text(&o.stderr).contains("old.toml:"),
+        "{}",
+        text(&o.stderr)
+    );
+    assert!(!dir.path().join("old").exists());
     // A plant the integrator cannot follow is refused before any work, naming the field.
     let file = write(
         dir.path(),

@@ -156,7 +156,6 @@ pub fn estimate(exp: &Experiment) -> Estimate {
         Kind::ViapointEnergy => {
             let e = exp.energy.as_ref();
             per_sample_extra = e.map_or(10, |e| e.plant.substeps) as f64 * 25.0;
-            multiplier += e.map_or(0.0, |e| 6.0 * e.speedup_generations as f64 / g.max(1.0));
         }
         Kind::Viapoint | Kind::Contact => {}
     }

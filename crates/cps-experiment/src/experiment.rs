@@ -35,7 +35,7 @@ struct File {
     scaling: Option<Spanned<crate::plan::ScalingSection>>,
     joint: Option<Spanned<crate::plan::JointSection>>,
     plant: Option<Spanned<crate::plan::PlantSection>>,
-    speedup: Option<Spanned<crate::plan::SpeedupSection>>,
+    speedup: Option<Spanned<toml::Value>>,
     orientation: Option<Spanned<crate::plan::OrientationSection>>,
     export: Option<Spanned<crate::export::ExportSection>>,
     promp: Option<Spanned<crate::plan::ProMpSection>>,
@@ -664,15 +664,6 @@ fn budget_factors(file: &File, exp: &Experiment) -> crate::budget::Factors {
             count.get_ref().to_string(),
             *count.get_ref() as f64 / 20.0,
             count.span(),
-        ));
-    }
-    if let Some(s) = &file.speedup {
-        let g = &s.get_ref().generations;
-        keys.push((
-            "[speedup] `generations`",
-            g.get_ref().to_string(),
-            *g.get_ref() as f64 / 100.0,
-            g.span(),
         ));
     }
     crate::budget::Factors { keys }

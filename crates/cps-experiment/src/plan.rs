@@ -1,6 +1,6 @@
 //! The plan of a run: the experiment-file sections of the kinds beyond plain via-point
 //! learning (`[robot]`, `[demonstrations]`, `[imitation]`, `[scaling]`, `[joint]`,
-//! `[plant]`, `[speedup]`, `[orientation]`) turned into checked plans, and the robot
+//! `[plant]`, `[orientation]`) turned into checked plans, and the robot
 //! backends they choose.
 
 use std::ops::Range;
@@ -590,22 +590,13 @@ pub struct PlantSection {
     effort_weight: Option<Spanned<f64>>,
 }
 
-/// `[speedup]` of `kind = "viapoint_energy"`.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SpeedupSection {
-    pub(crate) generations: Spanned<u64>,
-}
-
-/// The plant of an effort experiment and its speed-up measurement.
+/// The plant of an effort experiment.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EnergyPlan {
     /// The plant and controller.
     pub plant: cps_learn::PointMassPlant,
     /// Weight of the control effort.
     pub effort_weight: f64,
-    /// Generations timed on 1 and on 2 threads (0: no measurement).
-    pub speedup_generations: u64,
 }
 
 /// `[orientation]` of `kind = "viapoint_pose"`: each orientation is a unit quaternion
@@ -645,7 +636,8 @@ pub(crate) struct Sections<'a> {
     pub scaling: Option<&'a Spanned<ScalingSection>>,
     pub joint: Option<&'a Spanned<JointSection>>,
     pub plant: Option<&'a Spanned<PlantSection>>,
-    pub speedup: Option<&'a Spanned<SpeedupSection>>,
+    /// `[speedup]`, no longer part of an experiment: refused with where it went.
+    pub speedup: Option<&'a Spanned<toml::Value>>,
     pub orientation: Option<&'a Spanned<OrientationSection>>,
     pub export: Option<&'a Spanned<crate::export::ExportSection>>,
     pub promp: Option<&'a Spanned<ProMpSection>>,
@@ -768,15 +760,16 @@ impl Sections<'_> {
         {
             return Err(only(j.span(), "joint", "kind = \"viapoint_joint\""));
         }
-        for (span, name) in [
-            (self.plant.map(Spanned::span), "plant"),
-            (self.speedup.map(Spanned::span), "speedup"),
-        ] {
-            if let Some(s) = span
-                && self.kind != Kind::ViapointEnergy
-            {
-                return Err(only(s, name, "kind = \"viapoint_energy\""));
-            }
+        if let Some(p) = self.plant
+            && self.kind != Kind::ViapointEnergy
+        {
+            return Err(only(p.span(), "plant", "kind = \"viapoint_energy\""));
+        }
+        if let Some(s) = self.speedup {
+            return Err(self.err(
+                &s.span(),
+                "[speedup] is no longer part of an experiment (a timing is a benchmark, and it made the run many times longer): remove the section; `cargo bench --bench core -- energy_population` measures the parallel speed-up".into(),
+            ));
         }
         for (span, name) in [
             (self.demonstrations.map(Spanned::span), "demonstrations"),
@@ -1189,20 +1182,9 @@ impl Sections<'_> {
             Some(v) => self.within(v, "[plant] `effort_weight`", 0.0, cps_learn::MAX_WEIGHT, "")?,
             None => 1e-2,
         };
-        let speedup_generations = match self.speedup {
-            Some(s) if *s.get_ref().generations.get_ref() > 100_000 => {
-                return Err(self.err(
-                    &s.get_ref().generations.span(),
-                    "[speedup] `generations` must be at most 100000".into(),
-                ));
-            }
-            Some(s) => *s.get_ref().generations.get_ref(),
-            None => 0,
-        };
         Ok(EnergyPlan {
             plant,
             effort_weight,
-            speedup_generations,
         })
     }
 
@@ -1868,16 +1850,13 @@ impl Experiment {
                 "{}, then the orientation the same way",
                 cmaes(c.generations, 1)
             ),
-            (Kind::ViapointEnergy, _) => {
-                let extra = self.energy.map_or(0, |e| e.speedup_generations);
-                let mut s = cmaes(c.generations, 1);
-                if extra > 0 {
-                    s.push_str(&format!(
-                        "; then {extra} generations timed 3 times on 1 and on 2 threads (the speed-up)"
-                    ));
-                }
-                s
+            (Kind::ViapointEnergy, cps_learn::Solver::Exact) => {
+                "the exact least-squares optimum through the plant (no search)".to_string()
             }
+            (Kind::ViapointEnergy, _) => format!(
+                "{}; judged against the exact optimum through the plant",
+                cmaes(c.generations, 1)
+            ),
             (_, _) => cmaes(c.generations, c.repetitions),
         };
         let mut lines = vec![learns, format!("search: {search}")];

@@ -23,10 +23,12 @@ use cps_cmaes::GenerationReport;
 use cps_dmp::{DiscreteDmp, Trajectory};
 use serde::{Deserialize, Serialize};
 
+use crate::exact::AffineResiduals;
 use crate::task::Term;
-use crate::viapoint::{Buffered, BufferedCost, run_cmaes};
+use crate::viapoint::{Buffered, BufferedCost, QuadraticObjective, run_cmaes};
 use crate::{
-    LearnError, SearchSpace, SearchStats, Solver, TaskErrors, ViaPointConfig, exact_optimum,
+    Evaluation, LearnError, QuadraticCost, SearchSpace, SearchStats, Solver, TaskErrors,
+    ViaPointConfig, exact_optimum,
 };
 
 /// The simulated plant and its PD controller, the same on every axis.
@@ -188,8 +190,56 @@ pub struct EffortConfig {
     pub effort_weight: f64,
 }
 
-/// The cost of a DMP trajectory through the plant.
-fn breakdown(
+/// The effort cost's weighted residuals (their squares sum to [`effort_cost`]'s total):
+/// the DMP's acceleration and jerk, the plant's goal, via-point and final-velocity
+/// errors, the control forces. The plant is linear and starts at the DMP's start, so every
+/// residual is affine in the DMP's weights.
+fn residuals(
+    config: &EffortConfig,
+    traj: &Trajectory,
+    plant: &mut PlantTrajectory,
+    out: &mut Vec<f64>,
+) {
+    let task = &config.learner.task;
+    config.plant.simulate(traj, plant);
+    out.clear();
+    task.residuals(traj, |term, r| {
+        if matches!(term, Term::Acceleration | Term::Jerk) {
+            out.push(r)
+        }
+    });
+    let w = &task.weights;
+    let (sg, sv, sf, se) = (
+        w.goal.sqrt(),
+        w.via.sqrt(),
+        w.final_velocity.sqrt(),
+        config.effort_weight.sqrt(),
+    );
+    let last = traj.n_samples() - 1;
+    for d in 0..traj.dims() {
+        let (y, v, u) = (&plant.position[d], &plant.velocity[d], &plant.force[d]);
+        out.push(sg * (y[last] - task.goal[d]));
+        out.push(sf * (v[last] - task.goal_velocity[d]));
+        for p in &task.via {
+            out.push(sv * (at_time(traj, y, p.time) - p.position[d]));
+        }
+        out.extend(u.iter().map(|u| se * u));
+    }
+}
+
+/// A plant signal `y` (one value per DMP sample) at time `t`, linearly interpolated.
+fn at_time(traj: &Trajectory, y: &[f64], t: f64) -> f64 {
+    let (k, frac) = traj.locate(t);
+    if frac == 0.0 {
+        y[k]
+    } else {
+        y[k] + frac * (y[k + 1] - y[k])
+    }
+}
+
+/// The effort cost of a DMP trajectory `traj` through the plant, term by term (`plant`
+/// is reused for the simulation).
+pub fn effort_cost(
     config: &EffortConfig,
     traj: &Trajectory,
     plant: &mut PlantTrajectory,
@@ -210,13 +260,7 @@ fn breakdown(
         b.goal += w.goal * (y[last] - task.goal[d]).powi(2);
         b.final_velocity += w.final_velocity * (v[last] - task.goal_velocity[d]).powi(2);
         for p in &task.via {
-            let (k, frac) = traj.locate(p.time);
-            let at = if frac == 0.0 {
-                y[k]
-            } else {
-                y[k] + frac * (y[k + 1] - y[k])
-            };
-            b.via += w.via * (at - p.position[d]).powi(2);
+            b.via += w.via * (at_time(traj, y, p.time) - p.position[d]).powi(2);
         }
         b.effort += config.effort_weight * u.iter().map(|u| u * u).sum::<f64>();
     }
@@ -243,7 +287,7 @@ impl BufferedCost for EffortObjective<'_> {
     fn cost(&self, x: &[f64], (w, traj, plant): &mut Self::Buffers) -> f64 {
         self.space.to_weights(x, w);
         self.dmp.rollout_into(w, traj);
-        breakdown(self.config, traj, plant).total()
+        effort_cost(self.config, traj, plant).total()
     }
 }
 
@@ -260,6 +304,14 @@ pub struct EffortOutcome {
     pub plant: PlantTrajectory,
     /// The cost term by term.
     pub breakdown: EffortCostBreakdown,
+    /// The exact optimum's cost term by term (the cost is quadratic in the weights: the
+    /// plant is linear). With [`Solver::Exact`] it is the result.
+    pub optimum: EffortCostBreakdown,
+    /// Condition number of the cost's Hessian in the search space used.
+    pub hessian_condition: f64,
+    /// How CMA-ES evaluated candidates ([`Evaluation::Rollout`] for the exact solver,
+    /// which evaluates none).
+    pub evaluation: Evaluation,
     /// The cost of the start point (zero weights, or the warm start), term by term.
     pub start: EffortCostBreakdown,
     /// The plant's errors: goal, via points, final speed.
@@ -271,9 +323,14 @@ pub struct EffortOutcome {
 }
 
 /// Learns the via-point task through the plant with the effort term (see the module
-/// documentation). The warm start, if asked for, is the exact optimum of the plain
-/// via-point cost (the DMP alone, without the plant). `progress` is called after every
-/// generation and may stop the run.
+/// documentation).
+///
+/// The plant is linear, so the cost is quadratic in the weights: its exact optimum is
+/// found first (rollouts of unit vectors through the plant, then least squares).
+/// [`Solver::Exact`] returns it; CMA-ES learns from zero weights or, with the warm start,
+/// from the exact optimum of the plain via-point cost (the DMP alone, without the
+/// plant), and is judged against it. `progress` is called after every generation and may
+/// stop the run.
 pub fn learn_with_effort(
     config: &EffortConfig,
     progress: &(dyn Fn(&GenerationReport<'_>) -> ControlFlow<()> + Sync),
@@ -289,28 +346,56 @@ pub fn learn_with_effort(
         ));
     }
     let space = SearchSpace::new(config.learner.parametrisation, &dmp);
-    let x0 = if config.learner.warm_start || config.learner.solver == Solver::Exact {
-        exact_optimum(task, &dmp, &space)?.params
-    } else {
-        vec![0.0; space.len()]
-    };
-    let objective = Buffered::new(EffortObjective {
-        config,
-        dmp: &dmp,
-        space: &space,
-    });
+    // The cost is a sum of squared residuals affine in the weights: its exact optimum.
     let mut plant = PlantTrajectory::default();
-    let start = breakdown(config, &dmp.rollout(&space.weights(&x0)), &mut plant);
-    let (params, search) = run_cmaes(
-        &objective,
-        x0,
-        &config.learner,
-        config.learner.seed,
-        progress,
-    )?;
+    let affine = AffineResiduals::of(&dmp, &space, |traj, out| {
+        residuals(config, traj, &mut plant, out)
+    })?;
+    let (optimum_params, hessian_condition) = affine.solve()?;
+    let optimum = effort_cost(
+        config,
+        &dmp.rollout(&space.weights(&optimum_params)),
+        &mut plant,
+    );
+    let learner = &config.learner;
+    let (start, params, search, evaluation) = if learner.solver == Solver::Exact {
+        (
+            optimum,
+            optimum_params,
+            SearchStats::exact(),
+            Evaluation::Rollout,
+        )
+    } else {
+        // CMA-ES from zero weights, or from the exact optimum of the plain via-point
+        // cost (the DMP alone), which the plant lags behind.
+        let x0 = if learner.warm_start {
+            exact_optimum(task, &dmp, &space)?.params
+        } else {
+            vec![0.0; space.len()]
+        };
+        let start = effort_cost(config, &dmp.rollout(&space.weights(&x0)), &mut plant);
+        let quadratic;
+        let rollouts;
+        let (objective, evaluation): (&dyn cps_cmaes::Objective, _) = match learner.evaluation {
+            Evaluation::Auto | Evaluation::Quadratic => {
+                quadratic = QuadraticCost::from_affine(&affine)?;
+                (&QuadraticObjective(&quadratic), Evaluation::Quadratic)
+            }
+            Evaluation::Rollout => {
+                rollouts = Buffered::new(EffortObjective {
+                    config,
+                    dmp: &dmp,
+                    space: &space,
+                });
+                (&rollouts, Evaluation::Rollout)
+            }
+        };
+        let (params, search) = run_cmaes(objective, x0, learner, learner.seed, progress)?;
+        (start, params, search, evaluation)
+    };
     let weights = space.weights(&params);
     let reference = dmp.rollout(&weights);
-    let breakdown = breakdown(config, &reference, &mut plant);
+    let breakdown = effort_cost(config, &reference, &mut plant);
     let last = reference.n_samples() - 1;
     let dims = reference.dims();
     let dist = |f: &dyn Fn(usize) -> f64| (0..dims).map(|d| f(d).powi(2)).sum::<f64>().sqrt();
@@ -340,6 +425,9 @@ pub fn learn_with_effort(
         reference,
         plant,
         breakdown,
+        optimum,
+        hessian_condition,
+        evaluation,
         start,
         errors,
         search,

@@ -41,7 +41,7 @@ mod task;
 mod viapoint;
 
 pub use energy::{
-    EffortConfig, EffortCostBreakdown, EffortOutcome, PlantTrajectory, PointMassPlant,
+    EffortConfig, EffortCostBreakdown, EffortOutcome, PlantTrajectory, PointMassPlant, effort_cost,
     learn_with_effort,
 };
 pub use error::LearnError;

@@ -245,7 +245,7 @@ impl Objective for ViaPointObjective<'_> {
 const GROUP: usize = 8;
 
 /// A [`QuadraticCost`] as a CMA-ES [`Objective`]: groups of candidates in parallel.
-struct QuadraticObjective<'a>(&'a QuadraticCost);
+pub(crate) struct QuadraticObjective<'a>(pub(crate) &'a QuadraticCost);
 
 impl Objective for QuadraticObjective<'_> {
     fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {

@@ -152,31 +152,35 @@ fn the_plant_tracks_a_step_as_the_critically_damped_solution() {
     }
 }
 
-/// Learning through the plant with the effort term improves on its warm start and gives
-/// the same bits on one and on two threads.
+/// Learning through the plant with the effort term improves on its warm start, gives the
+/// same bits on one and on two threads, and the same search whether candidates are
+/// simulated or evaluated by the cost's quadratic form; it ends no lower than the exact
+/// optimum.
 #[test]
 fn effort_learning_improves_and_is_the_same_on_any_thread_count() {
-    use cps_learn::{EffortConfig, PointMassPlant, learn_with_effort};
+    use cps_learn::{EffortConfig, Evaluation, PointMassPlant, learn_with_effort};
     let mut learner = ViaPointConfig::new(ViaPointTask::thesis());
     learner.warm_start = true;
     learner.sigma0 = 0.005;
     learner.population = Some(32);
     learner.generations = 150;
+    learner.evaluation = Evaluation::Rollout;
     let c = EffortConfig {
         learner,
         plant: PointMassPlant::default(),
         effort_weight: 1e-2,
     };
-    let run = |threads| {
+    let run = |threads, c: &EffortConfig| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap();
-        pool.install(|| learn_with_effort(&c, &|_| ControlFlow::Continue(())))
+        pool.install(|| learn_with_effort(c, &|_| ControlFlow::Continue(())))
             .unwrap()
     };
-    let (one, two) = (run(1), run(2));
+    let (one, two) = (run(1, &c), run(2, &c));
     assert_eq!(one.weights, two.weights);
+    assert_eq!(one.evaluation, Evaluation::Rollout);
     assert!(
         one.breakdown.total() < 0.97 * one.start.total(),
         "{:?} vs {:?}",
@@ -186,6 +190,73 @@ fn effort_learning_improves_and_is_the_same_on_any_thread_count() {
     assert!(one.breakdown.effort > 0.0);
     // The plant lags behind the DMP: the learned reference leads it.
     assert!(one.errors.max_position_error() < 2e-3, "{:?}", one.errors);
+    assert!(one.breakdown.total() >= one.optimum.total());
+    // The quadratic form: the same generations, the same cost to rounding.
+    let mut q = c.clone();
+    q.learner.evaluation = Evaluation::Auto;
+    let by_form = run(2, &q);
+    assert_eq!(by_form.evaluation, Evaluation::Quadratic);
+    assert_eq!(by_form.search.generations, one.search.generations);
+    let (a, b) = (one.breakdown.total(), by_form.breakdown.total());
+    assert!((a - b).abs() < 1e-9 * a, "{a} vs {b}");
+}
+
+/// The effort cost is quadratic in the weights (the plant is linear): the exact solve is
+/// its minimum, checked by simulations of the plant: every perturbation costs more, by
+/// the quadratic's own amount (its third difference vanishes).
+#[test]
+fn the_exact_effort_optimum_is_the_minimum_through_the_plant() {
+    use cps_learn::{EffortConfig, PointMassPlant, SearchSpace, Solver, learn_with_effort};
+    let mut learner = ViaPointConfig::new(ViaPointTask::thesis());
+    learner.solver = Solver::Exact;
+    let c = EffortConfig {
+        learner,
+        plant: PointMassPlant::default(),
+        effort_weight: 1e-2,
+    };
+    let exact = learn_with_effort(&c, &|_| ControlFlow::Continue(())).unwrap();
+    assert_eq!(exact.search.termination, "exact");
+    let best = exact.breakdown.total();
+    assert!((best - exact.optimum.total()).abs() < 1e-12 * best);
+    // The plain via-point optimum (the DMP alone) is worse through the plant.
+    let plain = cps_learn::exact_optimum(
+        &c.learner.task,
+        &exact.dmp,
+        &SearchSpace::new(c.learner.parametrisation, &exact.dmp),
+    )
+    .unwrap();
+    let mut plant = cps_learn::PlantTrajectory::default();
+    let cost_of = |w: &[f64], plant: &mut cps_learn::PlantTrajectory| {
+        cps_learn::effort_cost(&c, &exact.dmp.rollout(w), plant).total()
+    };
+    assert!(cost_of(&plain.weights, &mut plant) > 1.01 * best);
+    // Perturbed weights, by simulations: higher, and quadratic along a line.
+    let n = exact.weights.len();
+    for seed in 1..4u64 {
+        let d: Vec<f64> = (0..n)
+            .map(|i| ((((i as u64 + 7) * 0x9E37_79B9) ^ seed) % 1000) as f64 / 500.0 - 1.0)
+            .collect();
+        let at = |s: f64, plant: &mut cps_learn::PlantTrajectory| {
+            let w: Vec<f64> = exact
+                .weights
+                .iter()
+                .zip(&d)
+                .map(|(w, d)| w + s * d)
+                .collect();
+            cost_of(&w, plant)
+        };
+        let (c1, c2, c3) = (
+            at(1.0, &mut plant),
+            at(2.0, &mut plant),
+            at(3.0, &mut plant),
+        );
+        assert!(c1 > best && at(-1.0, &mut plant) > best, "seed {seed}");
+        let third = c3 - 3.0 * c2 + 3.0 * c1 - best;
+        assert!(
+            third.abs() < 1e-9 * c3,
+            "third difference {third} of costs up to {c3}"
+        );
+    }
 }
 
 /// Pose learning: the position part is the via-point learner's; the orientation part,

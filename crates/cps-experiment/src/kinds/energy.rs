@@ -1,8 +1,6 @@
 //! `kind = "viapoint_energy"`: via-point learning through a simulated plant with the
-//! control-effort term (thesis eq. 53/54), and the measured parallel speed-up.
-
-use std::ops::ControlFlow;
-use std::time::Instant;
+//! control-effort term (thesis eq. 53/54): the exact optimum through the linear plant, or
+//! CMA-ES judged against it.
 
 use cps_learn::{EffortConfig, EffortCostBreakdown, EffortOutcome, learn_with_effort};
 use serde::Serialize;
@@ -13,7 +11,6 @@ use super::{
     way_points, worst,
 };
 use crate::ExperimentError;
-use crate::observer::Event;
 use crate::outcome::{
     Column, CostArm, Figure, Format, Outcome, Panels, Plot, Report, ReportTable, Series, Table,
     fields,
@@ -32,22 +29,17 @@ struct Summary<'a> {
     max_position_error_m: f64,
     final_speed_m_s: f64,
     peak_force_n: f64,
+    solver: &'static str,
+    evaluation: Option<&'static str>,
+    optimum_cost: f64,
+    optimum_cost_terms: EffortCostBreakdown,
+    gap_to_optimum: f64,
+    hessian_condition: f64,
     search: &'a cps_learn::SearchStats,
     learning_seconds: f64,
-    speedup: Option<Speedup>,
 }
 
-/// The same generations timed on one thread and on two (the faster of three runs each).
-#[derive(Serialize, Clone, Copy)]
-struct Speedup {
-    generations: u64,
-    seconds_1_thread: f64,
-    seconds_2_threads: f64,
-    speedup: f64,
-    identical_results: bool,
-}
-
-/// Learns with the plant, measures the speed-up if asked, declares the outcome.
+/// Learns with the plant and declares the outcome.
 pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     let exp = ctx.exp;
     let plan = exp
@@ -63,18 +55,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         .pool
         .install(|| learn_with_effort(&config, &progress))
         .map_err(|e| learn_error(e, "effort run"))?;
-    let mut complete = !outcome.search.interrupted();
-    let speedup = if complete && plan.speedup_generations > 0 {
-        let _ = ctx
-            .observer
-            .event(Event::Stage("measuring the parallel speed-up"));
-        let working = |_: &cps_cmaes::GenerationReport<'_>| ctx.observer.event(Event::Working);
-        let speedup = measure_speedup(&config, plan.speedup_generations, &working)?;
-        complete = speedup.is_some();
-        speedup
-    } else {
-        None
-    };
+    let complete = !outcome.search.interrupted();
     ctx.observer.finished();
     let o = &outcome;
     let peak = o
@@ -95,9 +76,15 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         max_position_error_m: o.errors.max_position_error(),
         final_speed_m_s: o.errors.final_speed,
         peak_force_n: peak,
+        solver: super::solver_name(config.learner.solver),
+        evaluation: (config.learner.solver == cps_learn::Solver::Cmaes)
+            .then(|| super::evaluation_name(o.evaluation)),
+        optimum_cost: o.optimum.total(),
+        optimum_cost_terms: o.optimum,
+        gap_to_optimum: (o.breakdown.total() - o.optimum.total()) / o.optimum.total(),
+        hessian_condition: o.hessian_condition,
         search: &o.search,
         learning_seconds: o.seconds,
-        speedup,
     };
     let mut lines = vec![
         format!(
@@ -116,18 +103,11 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
             worst(&o.errors.via) * 1e3
         ),
     ];
-    if let Some(s) = speedup {
+    if config.learner.solver == cps_learn::Solver::Cmaes {
         lines.push(format!(
-            "  parallel speed-up: {} generations in {:.2} s on 1 thread, {:.2} s on 2 threads: {:.2}x ({})",
-            s.generations,
-            s.seconds_1_thread,
-            s.seconds_2_threads,
-            s.speedup,
-            if s.identical_results {
-                "identical results"
-            } else {
-                "RESULTS DIFFER"
-            }
+            "  the exact optimum through the plant costs {:.6e}: CMA-ES is {:.3} % above it",
+            summary.optimum_cost,
+            summary.gap_to_optimum * 100.0
         ));
     }
     Ok(Outcome {
@@ -142,53 +122,6 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         documents: Vec::new(),
         lines,
     })
-}
-
-/// Times `generations` generations of the same run on 1 and on 2 threads, three times each in
-/// alternation, keeping the faster time of each (the usual guard against a busy machine),
-/// and checks that every run found the same weights, bit for bit. `None` if interrupted.
-fn measure_speedup(
-    config: &EffortConfig,
-    generations: u64,
-    progress: &(dyn Fn(&cps_cmaes::GenerationReport<'_>) -> ControlFlow<()> + Sync),
-) -> Result<Option<Speedup>, ExperimentError> {
-    let mut short = config.clone();
-    short.learner.generations = generations;
-    short.learner.tol_fun = None;
-    let mut pools = Vec::new();
-    for threads in [1, 2] {
-        pools.push(
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .map_err(|e| ExperimentError::Failed {
-                    context: "cannot start the worker threads".into(),
-                    source: Box::new(e),
-                })?,
-        );
-    }
-    let mut best = [f64::INFINITY; 2];
-    let mut weights: Vec<Vec<f64>> = Vec::new();
-    for _round in 0..3 {
-        for (i, pool) in pools.iter().enumerate() {
-            let started = Instant::now();
-            let o = pool
-                .install(|| learn_with_effort(&short, progress))
-                .map_err(|e| learn_error(e, "speed-up measurement"))?;
-            if o.search.interrupted() {
-                return Ok(None);
-            }
-            best[i] = best[i].min(started.elapsed().as_secs_f64());
-            weights.push(o.weights);
-        }
-    }
-    Ok(Some(Speedup {
-        generations,
-        seconds_1_thread: best[0],
-        seconds_2_threads: best[1],
-        speedup: best[0] / best[1],
-        identical_results: weights.windows(2).all(|w| w[0] == w[1]),
-    }))
 }
 
 /// `trajectory.csv`: `t`, the reference `reference_x…`, the plant's position `plant_x…`
@@ -274,6 +207,20 @@ fn report(ctx: &Ctx<'_>, s: &Summary<'_>) -> Report {
     let mm = |v: f64| format!("{:.4} mm", v * 1e3);
     let mut rows = vec![
         (
+            "solver",
+            match s.solver {
+                "exact" => "the exact least-squares optimum through the plant (no search)".into(),
+                _ => format!(
+                    "CMA-ES, candidates evaluated by {}",
+                    match s.evaluation {
+                        Some("quadratic") =>
+                            "the cost's exact quadratic form (the result by a simulation)",
+                        _ => "simulating the plant",
+                    }
+                ),
+            },
+        ),
+        (
             "plant",
             format!(
                 "point mass {} kg per axis, PD gains K_p = {} N/m, K_v = {} N·s/m, {} substeps per sample",
@@ -292,20 +239,13 @@ fn report(ctx: &Ctx<'_>, s: &Summary<'_>) -> Report {
         search_row(s.search),
         ("learning time", format!("{:.2} s", s.learning_seconds)),
     ];
-    if let Some(p) = &s.speedup {
+    if s.solver == "cmaes" {
         rows.push((
-            "parallel speed-up",
+            "exact optimum",
             format!(
-                "{:.2}x: {} generations in {:.2} s on 1 thread, {:.2} s on 2 ({})",
-                p.speedup,
-                p.generations,
-                p.seconds_1_thread,
-                p.seconds_2_threads,
-                if p.identical_results {
-                    "identical results"
-                } else {
-                    "results differ"
-                }
+                "{:.6e} (the cost is quadratic in the weights: the plant is linear); CMA-ES {:.3} % above it",
+                s.optimum_cost,
+                s.gap_to_optimum * 100.0
             ),
         ));
     }
