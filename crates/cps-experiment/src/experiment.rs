@@ -128,6 +128,8 @@ struct Optimizer {
     warm_start: bool,
     #[serde(default)]
     evaluation: Evaluation,
+    #[serde(default)]
+    polish: bool,
     sigma0: Option<Spanned<f64>>,
     population: Option<Spanned<usize>>,
     generations: Spanned<u64>,
@@ -359,6 +361,7 @@ pub fn parse(
     config.parametrisation = o.parametrisation;
     config.warm_start = o.warm_start;
     config.evaluation = o.evaluation;
+    config.polish = o.polish;
     config.repetitions = *reps.get_ref();
     config.seed = seed_override.unwrap_or(file.experiment.seed);
     if let Some(s) = &o.sigma0 {
@@ -592,6 +595,12 @@ fn add_scene_obstacles(
             Some(_) => {}
             None => task.weights.obstacle = task.weights.obstacle.max(1e5),
         }
+    }
+    if config.polish && config.solver != Solver::Cmaes {
+        return Err(InputError(format!(
+            "{}: [optimizer] `polish` = true polishes a CMA-ES result, and `method` is not \"cmaes\": remove `polish` (least squares is already the polish)",
+            path.display()
+        )));
     }
     if !config.task.obstacles.is_empty() && config.evaluation == Evaluation::Quadratic {
         return Err(InputError(format!(

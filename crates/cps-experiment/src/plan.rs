@@ -610,6 +610,7 @@ pub struct OrientationSection {
     #[serde(default)]
     via: Vec<Spanned<Vec<f64>>>,
     sigma0: Option<Spanned<f64>>,
+    method: Option<Spanned<cps_learn::Solver>>,
 }
 
 /// The orientation targets of a pose experiment.
@@ -623,6 +624,8 @@ pub struct PosePlan {
     pub via: Vec<Option<nalgebra::UnitQuaternion<f64>>>,
     /// Initial CMA-ES step of the orientation part, radians.
     pub sigma0: f64,
+    /// How the orientation part is learned (CMA-ES by default).
+    pub method: cps_learn::Solver,
 }
 
 /// The optional sections of a file, with what is needed to name places in errors.
@@ -1150,6 +1153,16 @@ impl Sections<'_> {
             sigma0: match &s.sigma0 {
                 Some(v) => self.within(v, "[orientation] `sigma0`", 1e-6, 10.0, " rad")?,
                 None => 0.3,
+            },
+            method: match &s.method {
+                Some(m) if *m.get_ref() == cps_learn::Solver::Exact => {
+                    return Err(self.err(
+                        &m.span(),
+                        "[orientation] `method` = \"exact\" is for quadratic costs, and the orientation cost is not one: use \"least_squares\" (Levenberg-Marquardt) or \"cmaes\"".into(),
+                    ));
+                }
+                Some(m) => *m.get_ref(),
+                None => cps_learn::Solver::Cmaes,
             },
         })
     }
@@ -1822,6 +1835,7 @@ impl Experiment {
                     p.map_or(0.0, |p| p.via_std),
                     match solver {
                         cps_learn::Solver::Exact => "the exact solver (no search)".to_string(),
+                        cps_learn::Solver::LeastSquares => "Levenberg–Marquardt".to_string(),
                         cps_learn::Solver::Cmaes => cmaes(c.generations, 1),
                     },
                     p.map_or(0, |p| p.dmp.n_basis)

@@ -358,7 +358,8 @@ pub fn learn_with_effort(
         &mut plant,
     );
     let learner = &config.learner;
-    let (start, params, search, evaluation) = if learner.solver == Solver::Exact {
+    // Least squares on a quadratic cost is the exact solve.
+    let (start, params, search, evaluation) = if learner.solver != Solver::Cmaes {
         (
             optimum,
             optimum_params,

@@ -11,10 +11,13 @@
 //!   + w_limit Σ_k Σ_j excess_j(q_k)² + w_speed Σ_k Σ_j excess_j(|q̇_k|)²
 //! ```
 //!
-//! with `excess` the amount by which a joint leaves its position range or exceeds its speed
-//! limit (radians, rad/s). The cost is not quadratic in the weights (forward kinematics is
-//! in it), so CMA-ES is the solver. Its warm start is the exact optimum of the joint-space
-//! surrogate (the via-point cost on the IK configurations), which is quadratic.
+//! with `excess` the amount by which a joint leaves its position range (narrowed by
+//! [`LIMIT_MARGIN`] at each end) or exceeds its speed limit (radians, rad/s). The cost is
+//! not quadratic in the weights (forward kinematics is in it). Its warm start is the exact
+//! optimum of the joint-space surrogate (the via-point cost on the IK configurations),
+//! which is quadratic; from there Levenberg–Marquardt on the residuals
+//! ([`Solver::LeastSquares`]) or CMA-ES learns the rest (the arm is redundant: other
+//! configurations at the via points need less joint acceleration).
 
 use std::ops::ControlFlow;
 use std::time::Instant;
@@ -30,6 +33,11 @@ use crate::{
     LearnError, RobotSetup, SearchSpace, SearchStats, Solver, TaskErrors, ViaPoint, ViaPointConfig,
     ViaPointTask, check_way_points, exact_optimum,
 };
+
+/// How far inside each position limit the limit penalty starts, radians. A penalty lets
+/// its optimum lie a hair beyond where it starts (where the penalty's pull balances the
+/// rest of the cost); starting it 1e-4 rad inside keeps that hair within the limits.
+pub const LIMIT_MARGIN: f64 = 1e-4;
 
 /// Settings of [`learn_joint_space`].
 #[derive(Debug, Clone)]
@@ -153,7 +161,12 @@ impl JointSpaceCost<'_> {
             if let Some((lo, hi)) = limits {
                 let excess: f64 = q
                     .iter()
-                    .map(|&x| (x - hi[j]).max(lo[j] - x).max(0.0).powi(2))
+                    .map(|&x| {
+                        (x - (hi[j] - LIMIT_MARGIN))
+                            .max(lo[j] + LIMIT_MARGIN - x)
+                            .max(0.0)
+                            .powi(2)
+                    })
                     .sum();
                 b.joint_limits += self.limit_weight * excess;
             }
@@ -166,6 +179,63 @@ impl JointSpaceCost<'_> {
             }
         }
         Ok(b)
+    }
+
+    /// Writes the cost's weighted residuals into `out` (cleared first): their squares sum
+    /// to [`Self::breakdown`]'s total. The limit terms are hinges (zero within the limits),
+    /// so the count does not depend on the trajectory.
+    pub fn residuals(&self, traj: &Trajectory, out: &mut Vec<f64>) -> Result<(), KinematicsError> {
+        let w = &self.task.weights;
+        let dof = traj.dims();
+        let last = traj.n_samples() - 1;
+        let chain = &self.robot.chain;
+        out.clear();
+        let mut q = vec![0.0; dof];
+        let tool_error = |q: &[f64], p: &[f64], s: f64, out: &mut Vec<f64>| {
+            let x = chain.fk(q)?.translation.vector;
+            out.extend((0..3).map(|i| s * (x[i] - p[i])));
+            Ok::<(), KinematicsError>(())
+        };
+        for (j, q) in q.iter_mut().enumerate() {
+            *q = traj.position(j)[last];
+        }
+        tool_error(&q, &self.task.goal, w.goal.sqrt(), out)?;
+        for v in &self.task.via {
+            for (j, q) in q.iter_mut().enumerate() {
+                *q = traj.position_at(j, v.time);
+            }
+            tool_error(&q, &v.position, w.via.sqrt(), out)?;
+        }
+        let h = traj.times()[1] - traj.times()[0];
+        let limits = chain.limits();
+        let speeds = chain.velocity_limits();
+        let (sv, sa, sj) = (
+            w.final_velocity.sqrt(),
+            w.acceleration.sqrt(),
+            w.jerk.sqrt() / h,
+        );
+        let (sl, ss) = (self.limit_weight.sqrt(), self.speed_limit_weight.sqrt());
+        for j in 0..dof {
+            let (q, v, a) = (traj.position(j), traj.velocity(j), traj.acceleration(j));
+            out.push(sv * v[last]);
+            if w.acceleration > 0.0 {
+                out.extend(a.iter().map(|a| sa * a));
+            }
+            if w.jerk > 0.0 {
+                out.extend(a.windows(2).map(|p| sj * (p[1] - p[0])));
+            }
+            if let Some((lo, hi)) = limits {
+                out.extend(q.iter().map(|&x| {
+                    sl * (x - (hi[j] - LIMIT_MARGIN))
+                        .max(lo[j] + LIMIT_MARGIN - x)
+                        .max(0.0)
+                }));
+            }
+            if let Some(vmax) = speeds {
+                out.extend(v.iter().map(|&x| ss * (x.abs() - vmax[j]).max(0.0)));
+            }
+        }
+        Ok(())
     }
 
     /// Task-space errors through forward kinematics: goal and via-point distances, and
@@ -246,6 +316,20 @@ impl BufferedCost for JointObjective<'_> {
     }
 }
 
+impl crate::lsq::Residuals for JointObjective<'_> {
+    type Buffers = (Vec<f64>, Trajectory);
+
+    fn buffers(&self) -> Self::Buffers {
+        (vec![0.0; self.space.len()], self.dmp.new_trajectory())
+    }
+
+    fn residuals(&self, x: &[f64], (w, traj): &mut Self::Buffers, out: &mut Vec<f64>) -> bool {
+        self.space.to_weights(x, w);
+        self.dmp.rollout_into(w, traj);
+        self.cost.residuals(traj, out).is_ok()
+    }
+}
+
 /// The result of [`learn_joint_space`].
 #[derive(Debug, Clone)]
 pub struct JointSpaceOutcome {
@@ -322,24 +406,30 @@ pub fn learn_joint_space(
         limit_weight: config.limit_weight,
         speed_limit_weight: config.speed_limit_weight,
     };
-    let objective = Buffered::new(JointObjective {
+    let joint_objective = JointObjective {
         cost: cost.clone(),
         dmp: &dmp,
         space: &space,
-    });
+    };
     let warm = cost.breakdown(&dmp.rollout(&space.weights(&optimum.params)))?;
     let x0 = if config.learner.warm_start || config.learner.solver == Solver::Exact {
         optimum.params.clone()
     } else {
         vec![0.0; space.len()]
     };
-    let (params, search) = run_cmaes(
-        &objective,
-        x0,
-        &config.learner,
-        config.learner.seed,
-        progress,
-    )?;
+    let (params, search) = match config.learner.solver {
+        Solver::LeastSquares => {
+            let settings = crate::lsq::settings(&config.learner);
+            crate::lsq::levenberg_marquardt(&joint_objective, x0, settings, progress)?
+        }
+        _ => run_cmaes(
+            &Buffered::new(joint_objective),
+            x0,
+            &config.learner,
+            config.learner.seed,
+            progress,
+        )?,
+    };
     let weights = space.weights(&params);
     let trajectory = dmp.rollout(&weights);
     Ok(JointSpaceOutcome {

@@ -34,6 +34,7 @@ mod exact;
 mod executed;
 mod imitation;
 mod joint;
+mod lsq;
 mod pose;
 mod robot;
 mod space;
@@ -52,8 +53,8 @@ pub use imitation::{
     ImitationStage, run_imitation,
 };
 pub use joint::{
-    JointCostBreakdown, JointSpaceConfig, JointSpaceCost, JointSpaceOutcome, LimitReport,
-    execute_joint_trajectory, learn_joint_space,
+    JointCostBreakdown, JointSpaceConfig, JointSpaceCost, JointSpaceOutcome, LIMIT_MARGIN,
+    LimitReport, execute_joint_trajectory, learn_joint_space,
 };
 pub use pose::{
     OrientationCostBreakdown, OrientationErrors, OrientationResult, PoseConfig, PoseOutcome,

@@ -22,7 +22,7 @@ use nalgebra::UnitQuaternion;
 use serde::{Deserialize, Serialize};
 
 use crate::viapoint::run_cmaes;
-use crate::{LearnError, SearchStats, ViaPointConfig, ViaPointOutcome, learn_via_points};
+use crate::{LearnError, SearchStats, Solver, ViaPointConfig, ViaPointOutcome, learn_via_points};
 
 /// Settings of [`learn_pose`].
 #[derive(Debug, Clone)]
@@ -37,6 +37,11 @@ pub struct PoseConfig {
     pub via_orientations: Vec<Option<UnitQuaternion<f64>>>,
     /// Initial CMA-ES step of the orientation part, radians.
     pub orientation_sigma0: f64,
+    /// How the orientation part is learned: [`Solver::Cmaes`] (from zero weights, with
+    /// the learner's population, generations and tolfun) or [`Solver::LeastSquares`]
+    /// (Levenberg–Marquardt from zero weights, the learner's generations as its
+    /// iteration budget). The orientation cost is not quadratic: `Exact` is refused.
+    pub orientation_solver: Solver,
 }
 
 /// The orientation cost term by term.
@@ -148,6 +153,45 @@ impl OrientationObjective<'_> {
     }
 }
 
+impl crate::lsq::Residuals for OrientationObjective<'_> {
+    type Buffers = ();
+
+    fn buffers(&self) -> Self::Buffers {}
+
+    /// The residuals whose squares sum to the cost: the rotation vectors (angle × axis)
+    /// from the goal and each via target, the final angular velocity, the angular
+    /// accelerations, each times the square root of its weight.
+    fn residuals(&self, theta: &[f64], _: &mut (), out: &mut Vec<f64>) -> bool {
+        let traj = self.dmp.rollout(&self.weights(theta));
+        let c = self.config;
+        let w = &c.learner.task.weights;
+        let last = traj.orientation.len() - 1;
+        let h = traj.times[1] - traj.times[0];
+        out.clear();
+        let mut push = |s: f64, v: nalgebra::Vector3<f64>| out.extend(v.iter().map(|x| s * x));
+        let error = |q: &UnitQuaternion<f64>, target: &UnitQuaternion<f64>| {
+            (target.inverse() * q).scaled_axis()
+        };
+        push(
+            w.goal.sqrt(),
+            error(&traj.orientation[last], &c.goal_orientation),
+        );
+        for (v, target) in c.learner.task.via.iter().zip(&c.via_orientations) {
+            if let Some(target) = target {
+                push(w.via.sqrt(), error(&orientation_at(&traj, v.time), target));
+            }
+        }
+        push(w.final_velocity.sqrt(), traj.angular_velocity[last]);
+        if w.acceleration > 0.0 {
+            let s = w.acceleration.sqrt() / h;
+            for p in traj.angular_velocity.windows(2) {
+                push(s, p[1] - p[0]);
+            }
+        }
+        true
+    }
+}
+
 impl Objective for OrientationObjective<'_> {
     fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
         let traj = self.dmp.rollout(&self.weights(x));
@@ -232,15 +276,30 @@ pub fn learn_pose(
     let start = config.breakdown(&dmp.rollout(&zero));
     let mut learner = config.learner.clone();
     learner.sigma0 = config.orientation_sigma0;
-    // The orientation cost is not quadratic: always CMA-ES, whatever solves the position.
-    learner.solver = crate::Solver::Cmaes;
-    let (best_x, search) = run_cmaes(
-        &objective,
-        zero,
-        &learner,
-        learner.seed ^ 0x6f72_6965_6e74,
-        &|r| progress(1, r),
-    )?;
+    let (best_x, search) = match config.orientation_solver {
+        Solver::LeastSquares => crate::lsq::levenberg_marquardt(
+            &objective,
+            zero,
+            crate::lsq::settings(&learner),
+            &|r| progress(1, r),
+        )?,
+        Solver::Cmaes => {
+            learner.solver = Solver::Cmaes;
+            run_cmaes(
+                &objective,
+                zero,
+                &learner,
+                learner.seed ^ 0x6f72_6965_6e74,
+                &|r| progress(1, r),
+            )?
+        }
+        Solver::Exact => {
+            return Err(LearnError::task(
+                "orientation.method",
+                "the orientation cost is not quadratic in the weights: use \"least_squares\" or \"cmaes\"",
+            ));
+        }
+    };
     let weights = objective.weights(&best_x);
     let trajectory = dmp.rollout(&weights);
     let orientation = OrientationResult {

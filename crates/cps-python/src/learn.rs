@@ -343,6 +343,7 @@ pub fn learn_via_points(
         solver,
         warm_start,
         evaluation: cps_learn::Evaluation::Auto,
+        polish: false,
         sigma0,
         population,
         generations,

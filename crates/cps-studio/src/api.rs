@@ -356,6 +356,7 @@ pub fn viapoint(
         solver: match config.solver {
             Solver::Exact => "exact",
             Solver::Cmaes => "cmaes",
+            Solver::LeastSquares => "least_squares",
         },
         generations: best.generations,
         robot,

@@ -131,6 +131,7 @@ pub fn save(request: &ViaPointRequest, name: &str) -> Result<String, ApiError> {
     let method = match config.solver {
         cps_learn::Solver::Exact => "exact",
         cps_learn::Solver::Cmaes => "cmaes",
+        cps_learn::Solver::LeastSquares => "least_squares",
     };
     let _ = writeln!(
         s,

@@ -160,6 +160,15 @@ pub(crate) fn shared_report_tables(
             "optimizer",
             match c.solver {
                 cps_learn::Solver::Exact => "exact least squares".to_string(),
+                cps_learn::Solver::LeastSquares => format!(
+                    "Levenberg–Marquardt on the cost's residuals{}, up to {} iterations",
+                    if c.warm_start {
+                        ", from the exact optimum of the quadratic terms"
+                    } else {
+                        ", from zero weights"
+                    },
+                    c.generations
+                ),
                 cps_learn::Solver::Cmaes => format!(
                     "CMA-ES, {} search space, σ0 = {}, population {}, up to {} generations, tol_fun {}, {} repetition(s){}",
                     c.parametrisation.name(),
@@ -528,6 +537,7 @@ pub(crate) fn solver_name(s: cps_learn::Solver) -> &'static str {
     match s {
         cps_learn::Solver::Cmaes => "cmaes",
         cps_learn::Solver::Exact => "exact",
+        cps_learn::Solver::LeastSquares => "least_squares",
     }
 }
 

@@ -119,6 +119,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         goal_orientation: plan.goal,
         via_orientations: plan.via.clone(),
         orientation_sigma0: plan.sigma0,
+        orientation_solver: plan.method,
     };
     let progress = |_: usize, r: &cps_cmaes::GenerationReport<'_>| ctx.generation(r);
     let outcome = ctx

@@ -321,6 +321,7 @@ fn report(ctx: &Ctx<'_>, outcome: &ViaPointOutcome) -> Report {
                 match config.solver {
                     cps_learn::Solver::Cmaes => "CMA-ES",
                     cps_learn::Solver::Exact => "exact least squares",
+                    cps_learn::Solver::LeastSquares => "Levenberg–Marquardt on the residuals",
                 },
                 config.parametrisation.name(),
                 if config.warm_start {
