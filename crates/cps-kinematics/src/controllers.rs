@@ -267,9 +267,8 @@ pub fn control_step(
     let mut dq = match config.method {
         InverseMethod::Transpose { gain } => transpose_step(&j, &e) * gain,
         InverseMethod::PseudoInverse | InverseMethod::Damped { .. } => {
-            let svd = j.clone().svd(true, true);
-            let (u, vt) = (svd.u.expect("u requested"), svd.v_t.expect("v_t requested"));
-            let sv = &svd.singular_values;
+            let (u, sv, vt) = svd_parts(&j);
+            let sv = &sv;
             let smax = sv.iter().fold(0.0f64, |a, &s| a.max(s));
             let smin = if rows <= n {
                 sv.iter().fold(f64::INFINITY, |a, &s| a.min(s))
@@ -350,4 +349,71 @@ pub fn control_step(
         damping,
         speed_scale,
     })
+}
+
+/// The thin SVD `J = U Σ Vᵀ` of a Jacobian: `(U, σ, Vᵀ)`. A 6 × 7 or 3 × 7 Jacobian (a
+/// seven-joint arm, every control step of an execution) is decomposed as a fixed-size
+/// matrix on the stack, by the same algorithm and so to the same bits, without the
+/// dozen heap allocations of the dynamic decomposition.
+fn svd_parts(j: &DMatrix<f64>) -> (DMatrix<f64>, DVector<f64>, DMatrix<f64>) {
+    macro_rules! fixed {
+        ($r:literal, $c:literal) => {{
+            let m = nalgebra::SMatrix::<f64, $r, $c>::from_fn(|r, c| j[(r, c)]);
+            let svd = m.svd(true, true);
+            let (u, vt) = (svd.u.expect("u requested"), svd.v_t.expect("v_t requested"));
+            (
+                DMatrix::from_fn(u.nrows(), u.ncols(), |r, c| u[(r, c)]),
+                DVector::from_iterator(
+                    svd.singular_values.len(),
+                    svd.singular_values.iter().copied(),
+                ),
+                DMatrix::from_fn(vt.nrows(), vt.ncols(), |r, c| vt[(r, c)]),
+            )
+        }};
+    }
+    match (j.nrows(), j.ncols()) {
+        (6, 7) => fixed!(6, 7),
+        (3, 7) => fixed!(3, 7),
+        _ => {
+            let svd = j.clone().svd(true, true);
+            (
+                svd.u.expect("u requested"),
+                svd.singular_values,
+                svd.v_t.expect("v_t requested"),
+            )
+        }
+    }
+}
+
+#[cfg(test)]
+mod svd_tests {
+    use super::*;
+
+    #[test]
+    fn the_fixed_size_svd_is_the_dynamic_one_to_the_bit() {
+        // Jacobians of a seven-joint arm, well and badly conditioned, full and position rows.
+        let mut seed = 0x1234_5678_9abc_def0u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for rows in [6, 3] {
+            for case in 0..50 {
+                let mut j = DMatrix::from_fn(rows, 7, |_, _| next());
+                if case % 5 == 0 {
+                    // Nearly singular: a row almost a multiple of another.
+                    let r0 = j.row(0).clone_owned();
+                    j.row_mut(1).copy_from(&(r0 * 2.0));
+                    j[(1, 3)] += 1e-9;
+                }
+                let (u, sv, vt) = svd_parts(&j);
+                let d = j.clone().svd(true, true);
+                assert_eq!(sv, d.singular_values, "{rows} rows, case {case}");
+                assert_eq!(u, d.u.unwrap());
+                assert_eq!(vt, d.v_t.unwrap());
+            }
+        }
+    }
 }
