@@ -433,7 +433,7 @@ fn joint_space_learning_meets_its_numbers_within_the_limits() {
     let file = write(
         dir.path(),
         "joint.toml",
-        &JOINT.replace("generations = 1500", "generations = 150"),
+        &JOINT.replace("generations = 15 ", "generations = 5  "),
     );
     let out = dir.path().join("out");
     let o = run(&file, &out);
@@ -833,7 +833,7 @@ fn the_report_opens_in_a_headless_browser() {
 #[test]
 fn a_robot_experiment_retimes_and_exports_its_movement() {
     let dir = tempfile::tempdir().unwrap();
-    let body = JOINT.replace("generations = 1500", "generations = 100")
+    let body = JOINT.replace("generations = 15 ", "generations = 5  ")
         + "\n[export]\nretime = \"fastest\"\nformats = [\"ros2-yaml\", \"mcap\", \"csv-1khz\"]\nperiod = 0.02\n";
     let file = write(dir.path(), "joint.toml", &body);
     let out = dir.path().join("out");

@@ -19,8 +19,8 @@ fn on(host: &str) -> String {
             "host = \"172.16.0.2\"",
             &format!("host = \"{host}\"\nrealtime = \"ignore\""),
         )
-        .replace("generations = 1500", "generations = 30");
-    assert!(text.contains(host) && text.contains("generations = 30"));
+        .replace("generations = 15 ", "generations = 5  ");
+    assert!(text.contains(host) && text.contains("generations = 5  "));
     text
 }
 

@@ -193,8 +193,8 @@ fn the_shipped_ros2_experiment_runs_through_the_action_and_is_judged_by_joint_st
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let text = SHIPPED.replace("generations = 1500", "generations = 20");
-    assert!(text.contains("generations = 20"));
+    let text = SHIPPED.replace("generations = 15 ", "generations = 5  ");
+    assert!(text.contains("generations = 5  "));
     let file = common::write(dir.path(), "ros2.toml", &text);
     let seen = dir.path().join("server.json");
     let joints: Vec<String> = (1..=7).map(|i| format!("fr3_joint{i}")).collect();
