@@ -283,7 +283,7 @@ impl QuadraticCost {
 
 /// `a · b` with eight independent sums (a single running sum is a chain of dependent
 /// additions that no processor can overlap, and that the compiler may not reorder).
-fn dot(a: &[f64], b: &[f64]) -> f64 {
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     let mut acc = [0.0; 8];
     let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
     let tail: f64 = ca

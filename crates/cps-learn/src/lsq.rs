@@ -29,6 +29,7 @@ use rayon::prelude::*;
 
 use cps_dmp::{DiscreteDmp, Trajectory};
 
+use crate::exact::dot;
 use crate::viapoint::BufferPool;
 use crate::{GenerationRecord, LearnError, SearchSpace, SearchStats, ViaPointConfig, ViaPointTask};
 
@@ -301,24 +302,6 @@ fn normal_equations(jac: &[f64], r: &[f64], m: usize, n: usize) -> (Vec<f64>, Ve
         }
     }
     (h, g)
-}
-
-/// `a · b` with four independent sums.
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let mut acc = [0.0; 4];
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail: f64 = ca
-        .remainder()
-        .iter()
-        .zip(cb.remainder())
-        .map(|(x, y)| x * y)
-        .sum();
-    for (x, y) in ca.zip(cb) {
-        for k in 0..4 {
-            acc[k] += x[k] * y[k];
-        }
-    }
-    acc.iter().sum::<f64>() + tail
 }
 
 /// Solves `(H + λ diag(H)) δ = −g` by Cholesky; `None` if the damped matrix is not
