@@ -15,6 +15,7 @@ shared, and the best is the least disturbed.
 
 import argparse
 import importlib
+import importlib.util
 import logging
 import sys
 import tempfile
@@ -177,6 +178,48 @@ def retiming(folder):
     d = solve().duration
     row("retime a 1000-sample Panda path (velocity, acceleration)", ours, "toppra", best(solve, repeat=3),
         f"duration {r['duration_s']:.4f} s vs {d:.4f} s ({r['duration_s'] / d:.3f}×)")
+    # Every joint-space limit of the Panda in cps (jerk and torque rate too), against
+    # toppra's time-optimal law with the torque constraint (pinocchio's RNEA on the same
+    # inertias): how close to the optimum the limits toppra cannot hold leave cps.
+    pinocchio = reference("pinocchio")
+    if pinocchio is None:
+        return
+    model, data = panda_rnea(pinocchio)
+    tau = np.array([87.0] * 4 + [12.0] * 3)
+    joint = robot_ready.panda_file(["ddq_max", "dddq_max", "tau_max", "dtau_max", "mass", "com", "inertia"],
+                                   folder)
+    rj = joint.retime(t, q)
+    ours_j = best(lambda: joint.retime(t, q), repeat=3)
+
+    def solve_torque():
+        p = toppra.SplineInterpolator(arc, q, bc_type="natural")
+        cv = constraint.JointVelocityConstraint(np.stack([-vmax, vmax], 1))
+        ca = constraint.JointAccelerationConstraint(np.stack([-amax, amax], 1))
+        ct = constraint.JointTorqueConstraint(lambda x, xd, xdd: pinocchio.rnea(model, data, x, xd, xdd),
+                                              np.stack([-tau, tau], 1), np.zeros(7),
+                                              discretization_scheme=constraint.DiscretizationType.Interpolation)
+        grid = np.linspace(0.0, p.duration, 1001)
+        return algorithm.TOPPRA([cv, ca, ct], p, gridpoints=grid,
+                                parametrizer="ParametrizeConstAccel").compute_trajectory()
+
+    dt = solve_torque().duration
+    row("retime, every joint limit (+ jerk, torque, torque rate)", ours_j, "toppra + torque (pinocchio)",
+        best(solve_torque, repeat=3),
+        f"duration {rj['duration_s']:.4f} s vs {dt:.4f} s ({rj['duration_s'] / dt:.3f}×; toppra holds no jerk or torque rate)")
+    full = cps.Robot("panda")
+    rf = full.retime(t, q)
+    row("retime, every Panda limit (+ Cartesian tool and elbow)", best(lambda: full.retime(t, q), repeat=2),
+        "toppra + torque (pinocchio)", best(solve_torque, repeat=3),
+        f"duration {rf['duration_s']:.4f} s vs {dt:.4f} s ({rf['duration_s'] / dt:.3f}×; the tool's Cartesian limits bind)")
+
+
+def panda_rnea(pinocchio):
+    """pinocchio's model of the Panda with cps's inertias (the tests' URDF)."""
+    spec = importlib.util.spec_from_file_location("gen", ROOT / "crates/cps-kinematics/tests/data/make_panda_rnea.py")
+    gen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gen)
+    model = pinocchio.buildModelFromXML(gen.urdf())
+    return model, model.createData()
 
 
 def rest_to_rest(folder):
@@ -216,11 +259,7 @@ def dynamics():
     pinocchio = reference("pinocchio")
     if pinocchio is None:
         return
-    spec = importlib.util.spec_from_file_location("gen", ROOT / "crates/cps-kinematics/tests/data/make_panda_rnea.py")
-    gen = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(gen)
-    model = pinocchio.buildModelFromXML(gen.urdf())
-    data = model.createData()
+    model, data = panda_rnea(pinocchio)
     err = np.abs(robot.inverse_dynamics(q, qd, qdd) - pinocchio.rnea(model, data, q, qd, qdd)).max()
     row("Panda inverse dynamics, one state", ours, "pinocchio.rnea",
         best(lambda: pinocchio.rnea(model, data, q, qd, qdd), 20000), f"largest difference {err:.1e} N m")
