@@ -197,6 +197,20 @@ def test_learning_keeps_an_obstacles_clearance():
     )
     _, y, _, _ = r.trajectory
     assert cdist(y, o[None]).min() > 0.049
+    # CMA-ES with the polish (Levenberg-Marquardt from its best) ends no higher, in far
+    # fewer generations; the quadratic form is refused where obstacles make the cost not
+    # quadratic.
+    p = cps.learn_via_points(
+        **task, obstacles=[(o, 0.05)], warm_start=True, sigma0=0.02, generations=100, seed=3,
+        polish=True,
+    )
+    assert p.termination.endswith("+polished") and p.cost <= r.cost * 1.0001
+    _, y, _, _ = p.trajectory
+    assert cdist(y, o[None]).min() > 0.0499
+    with pytest.raises(ValueError, match="quadratic"):
+        cps.learn_via_points(**task, obstacles=[(o, 0.05)], evaluation="quadratic")
+    with pytest.raises(ValueError, match="evaluation"):
+        cps.learn_via_points(**task, evaluation="fast")
     with pytest.raises(ValueError, match="clearance"):
         cps.learn_via_points(**task, obstacles=[(o, -1.0)])
 

@@ -221,10 +221,13 @@ impl ViaPointResult {
 }
 
 /// Learns a movement from `start` to `goal` through `via` points (thesis §4.5.2): DMP
-/// weights searched by CMA-ES (or the exact least-squares optimum with
-/// `method="exact"`), the same pipeline as a `kind = "viapoint"` experiment.
+/// weights searched by CMA-ES (or the exact least-squares optimum with `method="exact"`,
+/// or Levenberg–Marquardt from the warm start with `method="least_squares"`), the same
+/// pipeline as a `kind = "viapoint"` experiment. `evaluation` ("auto", "rollout",
+/// "quadratic") is how CMA-ES evaluates candidates; `polish=True` runs
+/// Levenberg–Marquardt after CMA-ES.
 #[pyfunction]
-#[pyo3(signature = (start, goal, via, *, tau=10.0, dt=0.01, bases=25, goal_velocity=None, cost=None, obstacles=None, method="cmaes", parametrisation="anchor_offset", warm_start=false, sigma0=0.5, population=None, generations=1000, tol_fun=Some(1e-9), repetitions=1, seed=1, threads=None, names=None))]
+#[pyo3(signature = (start, goal, via, *, tau=10.0, dt=0.01, bases=25, goal_velocity=None, cost=None, obstacles=None, method="cmaes", parametrisation="anchor_offset", warm_start=false, evaluation="auto", polish=false, sigma0=0.5, population=None, generations=1000, tol_fun=Some(1e-9), repetitions=1, seed=1, threads=None, names=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn learn_via_points(
     py: Python<'_>,
@@ -240,6 +243,8 @@ pub fn learn_via_points(
     method: &str,
     parametrisation: &str,
     warm_start: bool,
+    evaluation: &str,
+    polish: bool,
     sigma0: f64,
     population: Option<usize>,
     generations: u64,
@@ -284,7 +289,20 @@ pub fn learn_via_points(
     let solver = choose(
         "method",
         method,
-        &[("cmaes", Solver::Cmaes), ("exact", Solver::Exact)],
+        &[
+            ("cmaes", Solver::Cmaes),
+            ("exact", Solver::Exact),
+            ("least_squares", Solver::LeastSquares),
+        ],
+    )?;
+    let evaluation = choose(
+        "evaluation",
+        evaluation,
+        &[
+            ("auto", cps_learn::Evaluation::Auto),
+            ("rollout", cps_learn::Evaluation::Rollout),
+            ("quadratic", cps_learn::Evaluation::Quadratic),
+        ],
     )?;
     let parametrisation = choose(
         "parametrisation",
@@ -342,8 +360,8 @@ pub fn learn_via_points(
         parametrisation,
         solver,
         warm_start,
-        evaluation: cps_learn::Evaluation::Auto,
-        polish: false,
+        evaluation,
+        polish,
         sigma0,
         population,
         generations,
