@@ -419,7 +419,7 @@ pub fn learn_joint_space(
     };
     let (params, search) = match config.learner.solver {
         Solver::LeastSquares => {
-            let settings = crate::lsq::settings(&config.learner);
+            let settings = crate::lsq::settings(config.learner.generations);
             crate::lsq::levenberg_marquardt(&joint_objective, x0, settings, progress)?
         }
         _ => run_cmaes(

@@ -37,6 +37,7 @@ mod joint;
 mod lsq;
 mod pose;
 mod robot;
+mod search;
 mod space;
 mod task;
 mod viapoint;

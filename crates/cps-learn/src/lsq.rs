@@ -30,15 +30,15 @@ use rayon::prelude::*;
 use cps_dmp::{DiscreteDmp, Trajectory};
 
 use crate::exact::dot;
-use crate::viapoint::BufferPool;
-use crate::{GenerationRecord, LearnError, SearchSpace, SearchStats, ViaPointConfig, ViaPointTask};
+use crate::search::{BufferPool, GenerationRecord, SearchStats};
+use crate::{LearnError, SearchSpace, ViaPointTask};
 
 /// The settings of a learner's search as Levenberg–Marquardt's: its generation budget as
 /// the iteration budget, and a relative tolerance of 1e-10 (a step that gains less has
 /// reached the minimum to the precision of the forward differences).
-pub(crate) fn settings(config: &ViaPointConfig) -> LmSettings {
+pub(crate) fn settings(generations: u64) -> LmSettings {
     LmSettings {
-        max_iterations: config.generations,
+        max_iterations: generations,
         tol: 1e-10,
     }
 }

@@ -280,7 +280,7 @@ pub fn learn_pose(
         Solver::LeastSquares => crate::lsq::levenberg_marquardt(
             &objective,
             zero,
-            crate::lsq::settings(&learner),
+            crate::lsq::settings(learner.generations),
             &|r| progress(1, r),
         )?,
         Solver::Cmaes => {
