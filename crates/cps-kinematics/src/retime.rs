@@ -738,7 +738,9 @@ pub fn retime(
                 Quantity::Acceleration => f.acceleration *= shrink,
                 Quantity::Torque => f.torque *= shrink,
                 Quantity::Jerk | Quantity::TorqueRate => {
-                    w *= ratio.max(1.05);
+                    // Widen the smoothing, or start it: a robot whose jerk limits are
+                    // Cartesian only begins without one.
+                    w = (w * ratio.max(1.05)).max(2.0 * dt);
                     // Beyond a tenth of the motion, the path's own jerk is the cause:
                     // slow the motion itself.
                     if w > 0.1 * duration {

@@ -198,3 +198,27 @@ fn uniform_slowing_finds_the_smallest_stretch() {
         assert!((r.factor * span - r.duration).abs() < 1e-9);
     }
 }
+
+/// Cartesian jerk limits on a robot without joint jerk limits: the first rounds find the
+/// tool's jerk over its limit and smoothing starts (it once stayed at zero width, and the
+/// retiming gave up after its 40 rounds).
+#[test]
+fn cartesian_jerk_limits_alone_start_the_smoothing() {
+    let arm = panda(PandaTool::HandTcp);
+    let (_, cartesian) = panda_limits();
+    let limits = kinematic_limits(false);
+    let robot = RobotLimits {
+        cartesian: Some(&cartesian),
+        ..limited(&arm, &limits, None)
+    };
+    let a = [0.0, -0.3, 0.0, -2.0, 0.0, 1.8, 0.7];
+    let b = [1.2, 0.2, -0.6, -1.4, 0.5, 2.2, -0.3];
+    let (t, q) = segment(&a, &b, 50);
+    let r = retime(&robot, &t, &q, &RetimeOptions::default()).unwrap();
+    assert!(r.smoothing > 0.0, "no smoothing: {}", r.smoothing);
+    let c = r.check.cartesian.as_ref().unwrap();
+    for (name, usage) in &c.peak_usage {
+        assert!(*usage <= 100.0 + 1e-6, "{name} at {usage} %");
+    }
+    assert!(c.violations.is_empty() && r.check.joints.violations.is_empty());
+}
