@@ -598,7 +598,7 @@ fn the_pose_experiment_learns_position_and_orientation() {
     let file = write(
         dir.path(),
         "pose.toml",
-        &POSE.replace("generations = 1000", "generations = 500"),
+        &POSE.replace("generations = 100 ", "generations = 50  "),
     );
     let out = dir.path().join("out");
     let o = run(&file, &out);
@@ -911,7 +911,7 @@ fn a_robot_experiment_retimes_and_exports_its_movement() {
 #[test]
 fn a_pose_experiment_with_a_robot_executes_and_checks_its_movement() {
     let dir = tempfile::tempdir().unwrap();
-    let body = POSE.replace("generations = 1000", "generations = 100")
+    let body = POSE.replace("generations = 100 ", "generations = 30  ")
         + "\n[robot]\nscene = \"thesis\"\n\n[export]\nformats = [\"csv-1khz\"]\n";
     let file = write(dir.path(), "pose.toml", &body);
     let out = dir.path().join("out");
@@ -929,7 +929,7 @@ fn a_pose_experiment_with_a_robot_executes_and_checks_its_movement() {
     let plain = write(
         dir.path(),
         "plain.toml",
-        &POSE.replace("generations = 1000", "generations = 20"),
+        &POSE.replace("generations = 100 ", "generations = 20  "),
     );
     let out2 = dir.path().join("out2");
     assert!(run(&plain, &out2).status.success());
@@ -1078,10 +1078,13 @@ fn a_scene_s_obstacles_are_kept_by_the_movement_learned_in_it() {
     let obstacle =
         "\n[[obstacle]]\nname = \"lamp\"\nposition = [1.18, 0.10, 1.31]\nclearance = 0.08\n";
     std::fs::write(dir.path().join("scene.toml"), thesis.clone() + obstacle).unwrap();
-    let pose = POSE.replace(
-        "method = \"exact\"",
-        "method = \"cmaes\"\nwarm_start = true\nsigma0 = 0.05",
-    ) + "\n[robot]\nscene = \"scene.toml\"\n";
+    let pose = POSE
+        .replace(
+            "method = \"exact\"",
+            "method = \"cmaes\"\nwarm_start = true\nsigma0 = 0.05",
+        )
+        .replace("generations = 100 ", "generations = 1000")
+        + "\n[robot]\nscene = \"scene.toml\"\n";
     let file = write(dir.path(), "pose.toml", &pose);
     let out = dir.path().join("pose");
     let o = run(&file, &out);

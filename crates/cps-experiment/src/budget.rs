@@ -160,19 +160,42 @@ pub fn estimate(exp: &Experiment) -> Estimate {
         Kind::Viapoint | Kind::Contact => {}
     }
     let lambda = population as f64;
-    // The exact solver evaluates no population (via points and imitation's learner).
-    let searches = !(c.solver == cps_learn::Solver::Exact
-        && matches!(exp.kind, Kind::Viapoint | Kind::Imitation | Kind::Promp));
-    let evaluations = if searches {
-        lambda * g * r * multiplier
-    } else {
-        0.0
-    };
-    let rollout = samples * d * (basis + per_sample_extra);
-    let rows = 3.0 * samples * d;
     let nf = n as f64;
+    use cps_learn::Solver;
+    // Evaluations of one search by `solver` with `g` generations (iterations): CMA-ES a
+    // population each, Levenberg–Marquardt a Jacobian (n) and about two trial steps each;
+    // the exact solver none (the effort task's least squares is its exact solve too).
+    let search = |solver: Solver| match (solver, exp.kind) {
+        (Solver::Exact, _) | (Solver::LeastSquares, Kind::ViapointEnergy) => 0.0,
+        (Solver::LeastSquares, _) => (nf + 2.0) * g,
+        (Solver::Cmaes, _) => lambda * g,
+    };
+    let mut evaluations = match (exp.kind, exp.pose.as_ref()) {
+        // Position and orientation, each by its own solver.
+        (Kind::ViapointPose, Some(p)) => search(c.solver) + search(p.method),
+        (Kind::Imitation | Kind::Promp | Kind::Viapoint | Kind::Scaling, _) => {
+            search(c.solver) * r * multiplier
+        }
+        _ => search(c.solver) * r * multiplier,
+    };
+    // The polish after CMA-ES: at most 1000 Levenberg–Marquardt iterations.
+    if c.polish && c.solver == Solver::Cmaes {
+        evaluations += 1000.0 * (nf + 2.0) * r;
+    }
+    let rollout = samples * d * (basis + per_sample_extra);
+    // CMA-ES evaluates a quadratic cost by its quadratic form (n² multiply-adds), not a
+    // rollout.
+    let quadratic = c.solver == Solver::Cmaes
+        && c.evaluation != cps_learn::Evaluation::Rollout
+        && c.task.obstacles.is_empty()
+        && matches!(
+            exp.kind,
+            Kind::Viapoint | Kind::Scaling | Kind::ViapointEnergy
+        );
+    let per_evaluation = if quadratic { 2.0 * nf * nf } else { rollout };
+    let rows = 3.0 * samples * d;
     let exact = nf * rollout + rows * nf * nf;
-    let work = evaluations * rollout + exact * multiplier.max(1.0);
+    let work = evaluations * per_evaluation + exact * multiplier.max(1.0);
     let memory = 8.0
         * (3.0 * samples * basis
             + 2.0 * lambda * d * 3.0 * samples
