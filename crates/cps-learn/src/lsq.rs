@@ -152,26 +152,20 @@ pub(crate) fn levenberg_marquardt<R: Residuals>(
         // 1. Forward differences, columns in parallel.
         let r_now = &r;
         let x_now = &x;
-        let ok = jac
-            .par_chunks_mut(m)
-            .enumerate()
-            .map(|(j, col)| {
-                let h = 1e-6 * x_now[j].abs().max(1.0);
-                let mut xp = x_now.clone();
-                xp[j] += h;
-                let h = xp[j] - x_now[j]; // the step actually represented
-                let mut rp = Vec::with_capacity(m);
-                if !eval(&xp, &mut rp) {
-                    return false;
-                }
-                for ((c, &a), &b) in col.iter_mut().zip(&rp).zip(r_now) {
-                    *c = (a - b) / h;
-                }
-                true
-            })
-            .collect::<Vec<bool>>()
-            .into_iter()
-            .all(|ok| ok);
+        let ok = jac.par_chunks_mut(m).enumerate().all(|(j, col)| {
+            let h = 1e-6 * x_now[j].abs().max(1.0);
+            let mut xp = x_now.clone();
+            xp[j] += h;
+            let h = xp[j] - x_now[j]; // the step actually represented
+            let mut rp = Vec::with_capacity(m);
+            if !eval(&xp, &mut rp) {
+                return false;
+            }
+            for ((c, &a), &b) in col.iter_mut().zip(&rp).zip(r_now) {
+                *c = (a - b) / h;
+            }
+            true
+        });
         evaluations += n as u64;
         if !ok {
             termination = "evaluation_failed";
