@@ -1,7 +1,8 @@
 //! Learning with the simulator in the loop (`kind = "viapoint_executed"`) on pools of
 //! stand-in simulators started as processes: the same summary for one simulator, four,
 //! and four of which one is killed mid-run; a pool that dies entirely keeps what was
-//! learned; bad pools are refused with the place named.
+//! learned; bad pools are refused with the place named; the in-process robot, one per
+//! worker thread, gives the same summary on any thread count.
 
 mod common;
 
@@ -110,6 +111,53 @@ fn one_simulator_four_and_four_with_one_killed_give_the_same_summary() {
 
     assert_eq!(comparable(s1.clone()), comparable(s4));
     assert_eq!(comparable(s1), comparable(sk));
+}
+
+/// The in-process robot runs one copy per worker thread: one thread and two give the same
+/// summary, and two threads execute on two robots, sharing the executions.
+#[test]
+fn the_in_process_robot_gives_the_same_summary_on_any_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = write(
+        dir.path(),
+        "k.toml",
+        &EXECUTED.replace("generations = 30", "generations = 4"),
+    );
+    let mut summaries = Vec::new();
+    for t in ["1", "2"] {
+        let out = dir.path().join(format!("out{t}"));
+        let o = cli(&[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--threads",
+            t,
+            "--quiet",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        summaries.push(json(&out.join("summary.json")));
+    }
+    let robots = &summaries[1]["simulators"]["endpoints"];
+    assert_eq!(robots.as_array().unwrap().len(), 2, "{robots}");
+    let per_robot = summaries[1]["simulators"]["evaluations"]
+        .as_array()
+        .unwrap();
+    let total: u64 = per_robot.iter().map(|v| v.as_u64().unwrap()).sum();
+    assert_eq!(total, 1 + 16 * 4);
+    assert_eq!(
+        summaries[0]["simulators"]["endpoints"]
+            .as_array()
+            .unwrap()
+            .len(),
+        1
+    );
+    let strip = |s: &serde_json::Value| {
+        let mut s = comparable(s.clone());
+        s.as_object_mut().unwrap().remove("threads");
+        s
+    };
+    assert_eq!(strip(&summaries[0]), strip(&summaries[1]));
 }
 
 /// Every simulator gone: exit 1, what was learned kept with "complete": false and the

@@ -231,10 +231,12 @@ pub enum BackendChoice {
 
 impl BackendChoice {
     /// The names of the backends an experiment opens: the pool's endpoints or hosts, or
-    /// the in-process robot.
-    pub fn pool_names(&self) -> Vec<String> {
+    /// `in_process` in-process robots (one per worker thread; at least one).
+    pub fn pool_names(&self, in_process: usize) -> Vec<String> {
         match self {
-            BackendChoice::Kinematic { .. } => vec!["in-process robot".into()],
+            BackendChoice::Kinematic { .. } => (1..=in_process.max(1))
+                .map(|i| format!("in-process robot {i}"))
+                .collect(),
             BackendChoice::Coppelia { pool, .. } | BackendChoice::Franka { pool, .. } => {
                 pool.clone()
             }
@@ -328,12 +330,21 @@ impl RobotChoice {
     }
 
     /// Opens every simulator of the pool at once, each checked as [`Self::open`] checks
-    /// one, named by its endpoint (the in-process robot alone for the kinematic
-    /// backend). The first that cannot be opened is the error.
-    pub fn open_pool(&self) -> Result<Vec<crate::sim_pool::NamedBackend>, ExperimentError> {
+    /// one, named by its endpoint; for the kinematic backend, `in_process` in-process
+    /// robots (one per worker thread, so that executions run in parallel; at least one).
+    /// The first that cannot be opened is the error.
+    pub fn open_pool(
+        &self,
+        in_process: usize,
+    ) -> Result<Vec<crate::sim_pool::NamedBackend>, ExperimentError> {
         let pool = match &self.backend {
             BackendChoice::Kinematic { .. } => {
-                return Ok(vec![("in-process robot".into(), self.open()?)]);
+                return self
+                    .backend
+                    .pool_names(in_process)
+                    .into_iter()
+                    .map(|name| Ok((name, self.open()?)))
+                    .collect();
             }
             BackendChoice::Ros2(s) => return Ok(vec![(s.controller.clone(), self.open()?)]),
             BackendChoice::Coppelia { pool, .. } | BackendChoice::Franka { pool, .. } => pool,

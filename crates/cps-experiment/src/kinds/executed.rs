@@ -146,8 +146,11 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         robot,
         weights,
     };
-    let endpoints = robot.backend.pool_names();
-    let opened = robot.open_pool()?;
+    // The in-process robot runs one copy per worker thread: the results are the same
+    // for any pool size.
+    let copies = ctx.pool.current_num_threads();
+    let endpoints = robot.backend.pool_names(copies);
+    let opened = robot.open_pool(copies)?;
     if let crate::plan::BackendChoice::Coppelia { robot_name, .. } = &robot.backend
         && let Some((endpoint, _)) = opened.iter().find(|(_, b)| !b.runs_sequences())
     {
@@ -382,13 +385,18 @@ fn executed_table(best: &Judged) -> Table {
 fn lines(ctx: &Ctx<'_>, s: &Summary<'_>, failure: Option<&str>) -> Vec<String> {
     let mut lines = vec![
         format!(
-            "{}: {} in {:.2} s ({} generations, {} executions on {} simulator(s))",
+            "{}: {} in {:.2} s ({} generations, {} executions on {} {})",
             ctx.exp.name,
             s.termination,
             ctx.wall(),
             s.generations,
             s.evaluations,
-            s.simulators.endpoints.len()
+            s.simulators.endpoints.len(),
+            match ctx.exp.robot.as_ref().map(|r| &r.backend) {
+                Some(crate::plan::BackendChoice::Kinematic { .. }) => "in-process robot(s)",
+                Some(crate::plan::BackendChoice::Franka { .. }) => "robot(s)",
+                _ => "simulator(s)",
+            }
         ),
         format!(
             "  executed cost {:.6e} (warm start {:.6e}; its analytic cost {:.6e}); tracking {:.3e}",
