@@ -16,6 +16,7 @@ Timings are the best of several repetitions (the machine is shared). Libraries t
 not installed are skipped.
 """
 
+import importlib.util
 import logging
 import tempfile
 import timeit
@@ -29,6 +30,53 @@ ROOT = Path(__file__).resolve().parents[2]
 VMAX = np.array([2.175] * 4 + [2.61] * 3)
 AMAX = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0])
 JMAX = np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0])
+# configs/robots/panda.toml [cartesian]: [velocity, acceleration, jerk] of the tool point's
+# translation (m/s …) and of its rotation (rad/s …).
+CARTESIAN = ((1.7, 13.0, 6500.0), (2.5, 25.0, 12500.0))
+
+
+def panda_pinocchio(pinocchio):
+    """pinocchio's model of the Panda with cps's inertias, written independently of cps's
+    Rust code (crates/cps-kinematics/tests/data/make_panda_rnea.py), and its data."""
+    spec = importlib.util.spec_from_file_location(
+        "make_panda_rnea", ROOT / "crates/cps-kinematics/tests/data/make_panda_rnea.py")
+    gen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gen)
+    model = pinocchio.buildModelFromXML(gen.urdf())
+    return model, model.createData()
+
+
+def toppra_cartesian(pinocchio, constraint, directions=200):
+    """toppra's second-order constraint for the Panda's Cartesian limits (CARTESIAN) at the
+    Franka Hand's TCP, from pinocchio's frame velocity and classical acceleration: the
+    squared translation and rotation speeds (linear in ṡ²) and the two acceleration norms,
+    each held by the tangent planes of its ball at `directions` points of a Fibonacci
+    sphere. The polyhedron holds the ball from outside, so toppra's duration under it is a
+    lower bound of the optimum. The elbow's limits are joint 3's, held as joint limits."""
+    model, _ = panda_pinocchio(pinocchio)
+    # configs/robots/panda.toml [tools.hand]: 0.2104 m along joint 7's z, turned -45° about it.
+    placement = pinocchio.SE3(pinocchio.utils.rotate("z", -np.pi / 4), np.array([0.0, 0.0, 0.2104]))
+    frame = model.addFrame(pinocchio.Frame("tcp", model.getJointId("j7"), model.getFrameId("link7"),
+                                           placement, pinocchio.FrameType.OP_FRAME))
+    data = model.createData()
+    world = pinocchio.ReferenceFrame.LOCAL_WORLD_ALIGNED
+    (v_lin, a_lin, _), (v_rot, a_rot, _) = CARTESIAN
+
+    def tcp(x, xd, xdd):
+        pinocchio.forwardKinematics(model, data, x, xd, xdd)
+        pinocchio.updateFramePlacement(model, data, frame)
+        acc = pinocchio.getFrameClassicalAcceleration(model, data, frame, world)
+        vel = pinocchio.getFrameVelocity(model, data, frame, world)
+        return np.concatenate([acc.linear, acc.angular, [vel.linear @ vel.linear, vel.angular @ vel.angular]])
+
+    k = np.arange(directions) + 0.5
+    polar, turn = np.arccos(1.0 - 2.0 * k / directions), np.pi * (1.0 + 5.0 ** 0.5) * k
+    d = np.stack([np.cos(turn) * np.sin(polar), np.sin(turn) * np.sin(polar), np.cos(polar)], 1)
+    f = np.zeros((2 * directions + 2, 8))
+    f[:directions, :3], f[directions:-2, 3:6], f[-2, 6], f[-1, 7] = d, d, 1.0, 1.0
+    g = np.concatenate([np.full(directions, a_lin), np.full(directions, a_rot), [v_lin ** 2, v_rot ** 2]])
+    return constraint.SecondOrderConstraint(tcp, lambda x: f, lambda x: g, dof=7,
+                                            discretization_scheme=constraint.DiscretizationType.Interpolation)
 
 
 def best(f, number, repeat=5):

@@ -223,6 +223,40 @@ def test_the_built_in_panda_s_cartesian_limits_hold_by_pinocchio(cli, tmp_path):
     assert max(turn) <= 2.5 * (1 + 1e-9)
 
 
+def test_every_panda_limit_is_within_5_percent_of_toppra_under_the_limits_it_can_hold(cli, tmp_path):
+    """The full Panda (jerk, torque rate and every Cartesian limit held) against toppra's
+    time-optimal law under the joint velocity, acceleration and torque limits (pinocchio's
+    RNEA on an independently written model) and the tool's Cartesian speed and
+    acceleration limits at the Hand's TCP (pinocchio's frame kinematics; an outer
+    polyhedron, so toppra's duration is a lower bound): no faster than that bound, and
+    within 5 % of it."""
+    pin = pytest.importorskip("pinocchio")
+    import sys
+
+    sys.path.insert(0, str(ROOT / "python" / "benchmarks"))
+    import robot_ready
+
+    model, data = robot_ready.panda_pinocchio(pin)
+    tau = np.array([87.0] * 4 + [12.0] * 3)
+    t, q = robot_ready.path()
+    write_path(tmp_path / "p.csv", t, q)
+    r = json.loads(cli("retime", tmp_path / "p.csv", "--robot", "panda", "--out", tmp_path / "r.csv", "--json").stdout)
+    assert r["ok"] and r["peak_usage_after"]["rotation_velocity"] > 99
+    path = toppra.SplineInterpolator(chord_knots(q), q, bc_type="natural")
+    constraints = [
+        ta_constraint.JointVelocityConstraint(np.stack([-VMAX, VMAX], 1)),
+        ta_constraint.JointAccelerationConstraint(np.stack([-AMAX, AMAX], 1)),
+        ta_constraint.JointTorqueConstraint(lambda x, xd, xdd: pin.rnea(model, data, x, xd, xdd),
+                                            np.stack([-tau, tau], 1), np.zeros(7),
+                                            discretization_scheme=ta_constraint.DiscretizationType.Interpolation),
+        robot_ready.toppra_cartesian(pin, ta_constraint),
+    ]
+    algo = ta_algorithm.TOPPRA(constraints, path, gridpoints=np.linspace(0.0, path.duration, 1001),
+                               parametrizer="ParametrizeConstAccel")
+    bound = algo.compute_trajectory().duration
+    assert bound * 0.999 <= r["duration_s"] <= bound * 1.05, (r["duration_s"], bound)
+
+
 def test_python_retime_and_export_match_the_command_line(cli, tmp_path):
     import cps
 
