@@ -258,71 +258,56 @@ pub fn control_step(
     } else {
         6
     };
-    let j6 = chain.jacobian(q)?;
-    let j = DMatrix::from_fn(rows, n, |r, c| j6[(r, c)]);
-    let e: Vec<f64> = (0..rows)
-        .map(|r| config.gain * if r < 3 { ep[r] } else { er[r - 3] })
-        .collect();
+    let mut e = [0.0; 6];
+    for (r, e) in e.iter_mut().enumerate().take(rows) {
+        *e = config.gain * if r < 3 { ep[r] } else { er[r - 3] };
+    }
+    let e = &e[..rows];
+    let mut dq = vec![0.0; n];
     let mut damping = 0.0;
-    let mut dq = match config.method {
-        InverseMethod::Transpose { gain } => transpose_step(&j, &e) * gain,
-        InverseMethod::PseudoInverse | InverseMethod::Damped { .. } => {
-            let (u, sv, vt) = svd_parts(&j);
-            let sv = &sv;
-            let smax = sv.iter().fold(0.0f64, |a, &s| a.max(s));
-            let smin = if rows <= n {
-                sv.iter().fold(f64::INFINITY, |a, &s| a.min(s))
-            } else {
-                0.0
-            };
-            let lambda2 = match config.method {
-                InverseMethod::Damped {
-                    lambda_max,
-                    threshold,
-                } if smin < threshold => {
-                    lambda_max * lambda_max * (1.0 - (smin / threshold).powi(2))
-                }
-                _ => 0.0,
-            };
-            damping = lambda2.sqrt();
-            let ev = DVector::from_column_slice(&e);
-            let mut dq = DVector::zeros(n);
-            for (k, &s) in sv.iter().enumerate() {
-                if lambda2 > 0.0 || s > 1e-15 * smax {
-                    let c = u.column(k).dot(&ev) * s / (s * s + lambda2);
-                    dq += vt.row(k).transpose() * c;
-                }
-            }
-            // Null space of the primary task: I − Σ_{σ_k > tol} v_k v_kᵀ.
-            let z: Option<DVector<f64>> = match &config.null_space {
-                NullSpace::None => None,
-                NullSpace::JointLimits { gain } => chain.limits().map(|(lo, hi)| {
-                    DVector::from_fn(n, |i, _| {
-                        let range = hi[i] - lo[i];
-                        if range.is_finite() {
-                            -gain * (q[i] - 0.5 * (lo[i] + hi[i])) / (range * range)
-                        } else {
-                            0.0
-                        }
-                    })
-                }),
-                NullSpace::Posture { q: pref, gain } => {
-                    Some(DVector::from_fn(n, |i, _| gain * (pref[i] - q[i])))
-                }
-            };
-            if let Some(z) = z {
-                let mut proj = z.clone();
-                for (k, &s) in sv.iter().enumerate() {
-                    if s > 1e-10 * smax.max(1e-300) {
-                        let v = vt.row(k).transpose();
-                        proj -= &v * v.dot(&z);
-                    }
-                }
-                dq += proj;
-            }
-            dq
+    match config.method {
+        InverseMethod::Transpose { gain } => {
+            let j6 = chain.jacobian(q)?;
+            let j = DMatrix::from_fn(rows, n, |r, c| j6[(r, c)]);
+            let t = transpose_step(&j, e) * gain;
+            dq.copy_from_slice(t.as_slice());
         }
-    };
+        InverseMethod::PseudoInverse | InverseMethod::Damped { .. } if n == 7 => {
+            // A seven-joint arm (every control step of an execution): the Jacobian and its
+            // SVD on the stack, the same arithmetic as below.
+            let mut cols = [0.0; 42];
+            chain.pose_and_jacobian(q, &mut cols);
+            let mut z = [0.0; 7];
+            macro_rules! seven {
+                ($r:literal) => {{
+                    let j = nalgebra::SMatrix::<f64, $r, 7>::from_fn(|r, c| cols[6 * c + r]);
+                    let svd = j.svd(true, true);
+                    let (u, vt) = (svd.u.expect("u requested"), svd.v_t.expect("v_t requested"));
+                    let svd = ThinSvd {
+                        rows: $r,
+                        sv: svd.singular_values.as_slice(),
+                        u: u.as_slice(),
+                        vt: vt.as_slice(),
+                    };
+                    svd.step(e, q, chain, config, &mut dq, &mut z)
+                }};
+            }
+            damping = if rows == 3 { seven!(3) } else { seven!(6) };
+        }
+        InverseMethod::PseudoInverse | InverseMethod::Damped { .. } => {
+            let j6 = chain.jacobian(q)?;
+            let j = DMatrix::from_fn(rows, n, |r, c| j6[(r, c)]);
+            let (u, sv, vt) = svd_parts(&j);
+            let mut z = vec![0.0; n];
+            let svd = ThinSvd {
+                rows,
+                sv: sv.as_slice(),
+                u: u.as_slice(),
+                vt: vt.as_slice(),
+            };
+            damping = svd.step(e, q, chain, config, &mut dq, &mut z);
+        }
+    }
     let mut speed_scale = 1.0;
     if config.respect_limits {
         if let Some(vmax) = chain.velocity_limits() {
@@ -332,7 +317,9 @@ pub fn control_step(
                     speed_scale = allowed / d.abs();
                 }
             }
-            dq *= speed_scale;
+            for d in &mut dq {
+                *d *= speed_scale;
+            }
         }
         if let Some((lo, hi)) = chain.limits() {
             for i in 0..n {
@@ -343,12 +330,118 @@ pub fn control_step(
         }
     }
     Ok(ControlStep {
-        dq: dq.iter().copied().collect(),
+        dq,
         position_error: ep.norm(),
         rotation_error: er.norm(),
         damping,
         speed_scale,
     })
+}
+
+/// A thin SVD `J = U Σ Vᵀ` of a `rows` × n Jacobian as column-major slices: `U` is
+/// `rows` × p, `Vᵀ` is p × n, `σ` has p = min(rows, n) values.
+struct ThinSvd<'a> {
+    rows: usize,
+    sv: &'a [f64],
+    u: &'a [f64],
+    vt: &'a [f64],
+}
+
+impl ThinSvd<'_> {
+    /// The damped pseudo-inverse step `Σ_k v_k (u_kᵀ e) σ_k / (σ_k² + λ²)` (λ from the
+    /// smallest singular value when damped), plus the null-space task projected by
+    /// `I − Σ_{σ_k > tol} v_k v_kᵀ`, into `dq` (zeros on entry); `z` is scratch of n.
+    /// Returns the damping λ.
+    fn step(
+        &self,
+        e: &[f64],
+        q: &[f64],
+        chain: &SerialChain,
+        config: &ControllerConfig,
+        dq: &mut [f64],
+        z: &mut [f64],
+    ) -> f64 {
+        let (m, p, n) = (self.rows, self.sv.len(), dq.len());
+        let sv = self.sv;
+        let u = |r: usize, k: usize| self.u[k * m + r];
+        let v = |k: usize, i: usize| self.vt[i * p + k];
+        let smax = sv.iter().fold(0.0f64, |a, &s| a.max(s));
+        let smin = if m <= n {
+            sv.iter().fold(f64::INFINITY, |a, &s| a.min(s))
+        } else {
+            0.0
+        };
+        let lambda2 = match config.method {
+            InverseMethod::Damped {
+                lambda_max,
+                threshold,
+            } if smin < threshold => lambda_max * lambda_max * (1.0 - (smin / threshold).powi(2)),
+            _ => 0.0,
+        };
+        for (k, &s) in sv.iter().enumerate() {
+            if lambda2 > 0.0 || s > 1e-15 * smax {
+                // A dot product summed in order from zero, as nalgebra's for < 8 rows.
+                let mut d = 0.0;
+                for (r, e) in e.iter().enumerate() {
+                    d += u(r, k) * e;
+                }
+                let c = d * s / (s * s + lambda2);
+                for (i, dq) in dq.iter_mut().enumerate() {
+                    *dq += v(k, i) * c;
+                }
+            }
+        }
+        // Null space of the primary task: I − Σ_{σ_k > tol} v_k v_kᵀ.
+        let have = match &config.null_space {
+            NullSpace::None => false,
+            NullSpace::JointLimits { gain } => match chain.limits() {
+                Some((lo, hi)) => {
+                    for (i, z) in z.iter_mut().enumerate() {
+                        let range = hi[i] - lo[i];
+                        *z = if range.is_finite() {
+                            -gain * (q[i] - 0.5 * (lo[i] + hi[i])) / (range * range)
+                        } else {
+                            0.0
+                        };
+                    }
+                    true
+                }
+                None => false,
+            },
+            NullSpace::Posture { q: pref, gain } => {
+                for (i, z) in z.iter_mut().enumerate() {
+                    *z = gain * (pref[i] - q[i]);
+                }
+                true
+            }
+        };
+        if have {
+            let mut proj = [0.0; 16];
+            let mut heap = Vec::new();
+            let proj: &mut [f64] = if n <= 16 {
+                &mut proj[..n]
+            } else {
+                heap.resize(n, 0.0);
+                &mut heap
+            };
+            proj.copy_from_slice(z);
+            for (k, &s) in sv.iter().enumerate() {
+                if s > 1e-10 * smax.max(1e-300) {
+                    let mut d = 0.0;
+                    for (i, z) in z.iter().enumerate() {
+                        d += v(k, i) * z;
+                    }
+                    for (i, p) in proj.iter_mut().enumerate() {
+                        *p -= v(k, i) * d;
+                    }
+                }
+            }
+            for (dq, p) in dq.iter_mut().zip(proj.iter()) {
+                *dq += p;
+            }
+        }
+        lambda2.sqrt()
+    }
 }
 
 /// The thin SVD `J = U Σ Vᵀ` of a Jacobian: `(U, σ, Vᵀ)`. A 6 × 7 or 3 × 7 Jacobian (a
