@@ -190,7 +190,7 @@ def retiming(folder):
     rj = joint.retime(t, q)
     ours_j = best(lambda: joint.retime(t, q), repeat=3)
 
-    def solve_torque():
+    def solve_torque(*more):
         p = toppra.SplineInterpolator(arc, q, bc_type="natural")
         cv = constraint.JointVelocityConstraint(np.stack([-vmax, vmax], 1))
         ca = constraint.JointAccelerationConstraint(np.stack([-amax, amax], 1))
@@ -198,7 +198,7 @@ def retiming(folder):
                                               np.stack([-tau, tau], 1), np.zeros(7),
                                               discretization_scheme=constraint.DiscretizationType.Interpolation)
         grid = np.linspace(0.0, p.duration, 1001)
-        return algorithm.TOPPRA([cv, ca, ct], p, gridpoints=grid,
+        return algorithm.TOPPRA([cv, ca, ct, *more], p, gridpoints=grid,
                                 parametrizer="ParametrizeConstAccel").compute_trajectory()
 
     dt = solve_torque().duration
@@ -216,15 +216,7 @@ def retiming(folder):
     cartesian = robot_ready.toppra_cartesian(pinocchio, constraint)
 
     def solve_cartesian():
-        p = toppra.SplineInterpolator(arc, q, bc_type="natural")
-        cv = constraint.JointVelocityConstraint(np.stack([-vmax, vmax], 1))
-        ca = constraint.JointAccelerationConstraint(np.stack([-amax, amax], 1))
-        ct = constraint.JointTorqueConstraint(lambda x, xd, xdd: pinocchio.rnea(model, data, x, xd, xdd),
-                                              np.stack([-tau, tau], 1), np.zeros(7),
-                                              discretization_scheme=constraint.DiscretizationType.Interpolation)
-        grid = np.linspace(0.0, p.duration, 1001)
-        return algorithm.TOPPRA([cv, ca, ct, cartesian], p, gridpoints=grid,
-                                parametrizer="ParametrizeConstAccel").compute_trajectory()
+        return solve_torque(cartesian)
 
     dc = solve_cartesian().duration
     row("retime, every Panda limit (+ Cartesian tool and elbow)", best(lambda: full.retime(t, q), repeat=2),
