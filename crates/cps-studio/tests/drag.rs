@@ -9,6 +9,7 @@ mod common;
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
+use std::os::unix::process::CommandExt;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -41,6 +42,9 @@ impl Page {
             .arg(url)
             .stderr(Stdio::piped())
             .stdout(Stdio::null())
+            // A group of its own, ended as a whole: Debian's chromium-headless-shell is a
+            // script that runs the browser as its child, which outlives a killed script.
+            .process_group(0)
             .spawn()
             .unwrap();
         // "DevTools listening on ws://127.0.0.1:PORT/devtools/browser/…"
@@ -133,6 +137,9 @@ impl Page {
 
 impl Drop for Page {
     fn drop(&mut self) {
+        // The browser's whole process group (the script, the browser and its helpers).
+        let group = format!("-{}", self.browser.id());
+        let _ = Command::new("kill").args(["-KILL", "--", &group]).status();
         let _ = self.browser.kill();
         let _ = self.browser.wait();
     }
