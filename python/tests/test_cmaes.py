@@ -179,8 +179,11 @@ def test_bad_options_name_the_option(options, pattern):
         cps.CMAES(np.zeros(3), -1.0)
 
 
+# Each script first restores Python's Ctrl-C handler: a shell that starts the tests in the
+# background (`cmd &`) hands them SIGINT ignored, and Python then leaves it ignored.
 FMIN_SCRIPT = textwrap.dedent("""
-    import time, numpy as np, cps
+    import signal, time, numpy as np, cps
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     print("started", flush=True)
     try:
         cps.fmin(lambda x: time.sleep(0.001) or float(x @ x), np.ones(20), 1.0,

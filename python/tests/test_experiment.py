@@ -16,8 +16,9 @@ import pytest
 import cps
 from conftest import EXPERIMENTS, ROOT, read_csv
 
-# Header fields that differ between two runs of the same file (when and how fast).
-VARYING = {"wall_time_s", "threads", "seconds", "versions"}
+# Header fields that differ between two runs of the same file (when and how fast), and
+# which robot of a pool ran what (the in-process robot runs one copy per thread).
+VARYING = {"wall_time_s", "threads", "seconds", "versions", "simulators"}
 
 
 def strip(value):
@@ -140,8 +141,11 @@ def test_progress_is_reported():
     assert all(a["generations"] <= b["generations"] for a, b in zip(seen, seen[1:]))
 
 
+# The script first restores Python's Ctrl-C handler: a shell that starts the tests in the
+# background (`cmd &`) hands them SIGINT ignored, and Python then leaves it ignored.
 SCRIPT = textwrap.dedent("""
-    import sys, cps
+    import signal, sys, cps
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     print("started", flush=True)
     try:
         cps.run_experiment(sys.argv[1], out=sys.argv[2], progress=lambda p: None)
