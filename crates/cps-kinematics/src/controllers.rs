@@ -444,38 +444,15 @@ impl ThinSvd<'_> {
     }
 }
 
-/// The thin SVD `J = U Σ Vᵀ` of a Jacobian: `(U, σ, Vᵀ)`. A 6 × 7 or 3 × 7 Jacobian (a
-/// seven-joint arm, every control step of an execution) is decomposed as a fixed-size
-/// matrix on the stack, by the same algorithm and so to the same bits, without the
-/// dozen heap allocations of the dynamic decomposition.
+/// The thin SVD `J = U Σ Vᵀ` of a Jacobian: `(U, σ, Vᵀ)`. (A seven-joint arm's is taken
+/// on the stack in [`control_step`], to the same bits: `svd_tests`.)
 fn svd_parts(j: &DMatrix<f64>) -> (DMatrix<f64>, DVector<f64>, DMatrix<f64>) {
-    macro_rules! fixed {
-        ($r:literal, $c:literal) => {{
-            let m = nalgebra::SMatrix::<f64, $r, $c>::from_fn(|r, c| j[(r, c)]);
-            let svd = m.svd(true, true);
-            let (u, vt) = (svd.u.expect("u requested"), svd.v_t.expect("v_t requested"));
-            (
-                DMatrix::from_fn(u.nrows(), u.ncols(), |r, c| u[(r, c)]),
-                DVector::from_iterator(
-                    svd.singular_values.len(),
-                    svd.singular_values.iter().copied(),
-                ),
-                DMatrix::from_fn(vt.nrows(), vt.ncols(), |r, c| vt[(r, c)]),
-            )
-        }};
-    }
-    match (j.nrows(), j.ncols()) {
-        (6, 7) => fixed!(6, 7),
-        (3, 7) => fixed!(3, 7),
-        _ => {
-            let svd = j.clone().svd(true, true);
-            (
-                svd.u.expect("u requested"),
-                svd.singular_values,
-                svd.v_t.expect("v_t requested"),
-            )
-        }
-    }
+    let svd = j.clone().svd(true, true);
+    (
+        svd.u.expect("u requested"),
+        svd.singular_values,
+        svd.v_t.expect("v_t requested"),
+    )
 }
 
 #[cfg(test)]
@@ -501,11 +478,24 @@ mod svd_tests {
                     j.row_mut(1).copy_from(&(r0 * 2.0));
                     j[(1, 3)] += 1e-9;
                 }
-                let (u, sv, vt) = svd_parts(&j);
-                let d = j.clone().svd(true, true);
-                assert_eq!(sv, d.singular_values, "{rows} rows, case {case}");
-                assert_eq!(u, d.u.unwrap());
-                assert_eq!(vt, d.v_t.unwrap());
+                // As control_step takes it for a seven-joint arm.
+                macro_rules! fixed {
+                    ($r:literal) => {{
+                        let svd = nalgebra::SMatrix::<f64, $r, 7>::from_fn(|r, c| j[(r, c)])
+                            .svd(true, true);
+                        let (u, vt) = (svd.u.unwrap(), svd.v_t.unwrap());
+                        (
+                            svd.singular_values.as_slice().to_vec(),
+                            u.as_slice().to_vec(),
+                            vt.as_slice().to_vec(),
+                        )
+                    }};
+                }
+                let (sv, u, vt) = if rows == 3 { fixed!(3) } else { fixed!(6) };
+                let (du, dsv, dvt) = svd_parts(&j);
+                assert_eq!(sv, dsv.as_slice(), "{rows} rows, case {case}");
+                assert_eq!(u, du.as_slice());
+                assert_eq!(vt, dvt.as_slice());
             }
         }
     }
