@@ -1,9 +1,12 @@
 #!/usr/bin/env python3
-"""The Python package (crates/cps-python) must resolve every shared dependency with the
-same features as `cargo test --workspace`, so that CI's package build, after the tests,
-reuses the compiled dependencies instead of compiling most of them a second time (≈ 6 min
-on two cores). Compares `cargo tree -e features` of the two and names each difference with
-the line to add to crates/cps-python/Cargo.toml's build-sharing block."""
+"""README's first command (`cargo run -p cps-cli`), the Python package's build (`-p
+cps-python`) and the test command (`cargo test --workspace`) must resolve every shared
+dependency with the same features, so that each dependency is compiled once for all three
+(a difference recompiles it and everything above it: half the tree, minutes on two cores).
+Compares `cargo tree -e features` of each package (its normal and build dependencies: what
+its build compiles) with the workspace's (dev-dependencies included: what the tests
+compile) and names each difference with the line to add to
+crates/cps-workspace-hack/Cargo.toml."""
 
 import collections
 import re
@@ -11,8 +14,8 @@ import subprocess
 import sys
 
 
-def features(*args):
-    out = subprocess.run(["cargo", "tree", "-e", "features", "--prefix", "none", *args],
+def features(edges, *args):
+    out = subprocess.run(["cargo", "tree", "-e", edges, "--prefix", "none", *args],
                          check=True, capture_output=True, text=True).stdout
     found = collections.defaultdict(set)
     for line in out.splitlines():
@@ -26,18 +29,22 @@ def features(*args):
 
 
 def main():
-    package, workspace = features("-p", "cps-python"), features("--workspace")
-    missing = {name: sorted(workspace.get(name, set()) - have) for name, have in package.items()}
-    missing = {name: f for name, f in missing.items() if f}
-    if not missing:
-        print("feature parity: the Python package resolves its dependencies as the workspace's tests do")
-        return 0
-    print("feature parity: crates/cps-python resolves these dependencies with fewer features than "
-          "`cargo test --workspace`, so CI would compile them twice; add them to the build-sharing "
-          "block of crates/cps-python/Cargo.toml:", file=sys.stderr)
-    for name, f in sorted(missing.items()):
-        print(f"  {name}: {', '.join(f)}", file=sys.stderr)
-    return 1
+    workspace = features("features", "--workspace")
+    failed = False
+    for package in ("cps-cli", "cps-python"):
+        have = features("features,normal,build", "-p", package)
+        missing = {name: sorted(workspace.get(name, set()) - f) for name, f in have.items()}
+        missing = {name: f for name, f in missing.items() if f}
+        if not missing:
+            print(f"feature parity: {package} resolves its dependencies as the workspace's tests do")
+            continue
+        failed = True
+        print(f"feature parity: {package} resolves these dependencies with fewer features than "
+              "`cargo test --workspace`, so they would be compiled twice; add them to "
+              "crates/cps-workspace-hack/Cargo.toml:", file=sys.stderr)
+        for name, f in sorted(missing.items()):
+            print(f"  {name}: {', '.join(f)}", file=sys.stderr)
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":
