@@ -2,14 +2,13 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicBool, Ordering::SeqCst};
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
 use cps_experiment::ExperimentError;
 use cps_experiment::franka::{self, DmpSettings, ExecuteSettings};
-use cps_experiment::franka_backend::MOVING;
 use cps_experiment::robot_file::Answer;
+use cps_robot::StopToken;
 
 use crate::cli_error;
 use crate::robot::print;
@@ -133,7 +132,7 @@ pub struct Recording {
 }
 
 /// `cps-cli franka`.
-pub fn franka(cmd: &FrankaCommand, stop: &AtomicBool) -> Result<ExitCode> {
+pub fn franka(cmd: &FrankaCommand, stop: &StopToken) -> Result<ExitCode> {
     match cmd {
         FrankaCommand::State { on } => print(&franka::state(&on.host).map_err(cli_error)?, on.json),
         FrankaCommand::Gripper {
@@ -172,8 +171,7 @@ pub fn franka(cmd: &FrankaCommand, stop: &AtomicBool) -> Result<ExitCode> {
                 tau: *tau,
                 goal: goal.clone(),
             };
-            let done =
-                moving(|| franka::execute_file(file, &settings, &online, record, *force, stop));
+            let done = franka::execute_file(file, &settings, &online, record, *force, stop);
             finish(done, on.json)
         }
         FrankaCommand::Record(r) => finish(
@@ -192,20 +190,9 @@ pub fn franka(cmd: &FrankaCommand, stop: &AtomicBool) -> Result<ExitCode> {
                 seconds: r.duration,
                 damping: *damping,
             };
-            finish(
-                moving(|| franka::guide(&settings, &r.out, r.force, stop)),
-                r.on.json,
-            )
+            finish(franka::guide(&settings, &r.out, r.force, stop), r.on.json)
         }
     }
-}
-
-/// Runs `f` with [`MOVING`] set (Ctrl-C then brakes the robot instead of exiting).
-fn moving<T>(f: impl FnOnce() -> T) -> T {
-    MOVING.store(true, SeqCst);
-    let done = f();
-    MOVING.store(false, SeqCst);
-    done
 }
 
 /// Prints a motion's answer and exits with its code.

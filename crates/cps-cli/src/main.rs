@@ -56,14 +56,14 @@ mod trajectory;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 use cps_experiment::files::{WriteOptions, write_outcome};
 use cps_experiment::results_dir::Staging;
 use cps_experiment::{Experiment, ExperimentError, InputError, RunOptions, budget, experiment};
+use cps_robot::StopToken;
 
 /// The commented default experiment: the file shipped as experiments/viapoint.toml.
 const DEFAULT_EXPERIMENT: &str = include_str!("../../../experiments/viapoint.toml");
@@ -215,21 +215,20 @@ impl CeilingArgs {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let interrupted = Arc::new(AtomicBool::new(false));
-    let flag = interrupted.clone();
-    // Ctrl-C and SIGTERM (`timeout`, schedulers) stop the run at the end of a generation;
-    // a second one exits at once (the staging directory is then left behind, hidden).
+    // Ctrl-C and SIGTERM (`timeout`, schedulers) stop the command through its one stop
+    // token: a robot that moves brakes within its limits, a run ends after its generation.
+    // A second one exits at once (a run's staging directory is then left behind, hidden) —
+    // never while a robot moves: its brake must finish (the motion then ends by itself).
+    let stop = StopToken::new();
+    let handler = stop.clone();
+    let signals = AtomicUsize::new(0);
     let _ = ctrlc::set_handler(move || {
-        // A robot an experiment moves brakes; never exit while one moves: its brake must
-        // finish (the motion then ends by itself).
-        cps_experiment::franka_backend::STOP.store(true, Ordering::SeqCst);
-        if flag.swap(true, Ordering::SeqCst)
-            && !cps_experiment::franka_backend::MOVING.load(Ordering::SeqCst)
-        {
+        handler.stop();
+        if signals.fetch_add(1, Ordering::SeqCst) >= 1 && !handler.is_moving() {
             std::process::exit(130);
         }
     });
-    match run(cli, &interrupted) {
+    match run(cli, &stop) {
         Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e}");
@@ -245,7 +244,7 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
+fn run(cli: Cli, stop: &StopToken) -> Result<ExitCode> {
     match cli.command {
         Command::Default => {
             say!("{}", DEFAULT_EXPERIMENT.trim_end());
@@ -260,12 +259,12 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
         Command::Export(args) => trajectory::export(&args),
         Command::Imitate(args) => movement::run_imitate(&args),
         Command::Cmaes { command } => cmaes_bench::bench(&command),
-        Command::Sim { command } => simserve::sim(&command, interrupted),
+        Command::Sim { command } => simserve::sim(&command, stop.flag()),
         Command::Rollout(args) => movement::run_rollout(&args),
         Command::Promp { command } => promp::promp(&command),
-        Command::Studio(args) => studio::studio(&args, interrupted),
-        Command::Franka { command } => franka::franka(&command, interrupted),
-        Command::Ros2 { command } => ros2::ros2(&command, interrupted),
+        Command::Studio(args) => studio::studio(&args, stop.flag()),
+        Command::Franka { command } => franka::franka(&command, stop),
+        Command::Ros2 { command } => ros2::ros2(&command, stop),
         Command::Mocap { command } => mocap::mocap(&command),
         Command::Check {
             file,
@@ -273,14 +272,17 @@ fn run(cli: Cli, interrupted: &AtomicBool) -> Result<ExitCode> {
             threads,
         } => {
             let exp = experiment::load(&file, None, &ceilings.ceilings()?)?;
-            let options = RunOptions { threads };
+            let options = RunOptions {
+                threads,
+                ..RunOptions::default()
+            };
             options.check()?;
             for line in exp.check_lines(options.threads())? {
                 say!("{line}");
             }
             Ok(ExitCode::SUCCESS)
         }
-        Command::Run(args) => run_experiment(&args, interrupted),
+        Command::Run(args) => run_experiment(&args, stop),
     }
 }
 
@@ -293,7 +295,7 @@ pub(crate) fn cli_error(e: ExperimentError) -> anyhow::Error {
     }
 }
 
-fn run_experiment(args: &RunArgs, interrupted: &AtomicBool) -> Result<ExitCode> {
+fn run_experiment(args: &RunArgs, stop: &StopToken) -> Result<ExitCode> {
     let ceilings = &args.ceilings.ceilings()?;
     let exp: Experiment = experiment::load(&args.file, args.seed, ceilings)?;
     let out = args
@@ -302,11 +304,12 @@ fn run_experiment(args: &RunArgs, interrupted: &AtomicBool) -> Result<ExitCode> 
         .unwrap_or_else(|| Path::new("results").join(&exp.name));
     let options = RunOptions {
         threads: args.threads,
+        stop: stop.clone(),
     };
     options.check()?;
     // The output is checked, and its staging directory made, before any work.
     let stage = Staging::prepare(&out, args.force)?;
-    let observer = progress::Terminal::new(!args.quiet, interrupted);
+    let observer = progress::Terminal::new(!args.quiet, stop.flag());
     let outcome = cps_experiment::run(&exp, &options, &observer).map_err(cli_error)?;
     observer.clear();
     let written = WriteOptions { figures: exp.plots };

@@ -153,7 +153,7 @@ pub fn limits(cmd: &LimitsCommand) -> Result<ExitCode> {
 pub fn robot(cmd: &RobotCommand) -> Result<ExitCode> {
     let RobotCommand::Show { robot, tool, tip } = cmd;
     let model = load_robot(robot, tool.as_deref(), tip.as_deref())?;
-    for line in model.describe() {
+    for line in cps_experiment::robot_file::Describe::describe(&model) {
         say!("{line}");
     }
     Ok(ExitCode::SUCCESS)

@@ -2,11 +2,11 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::atomic::AtomicBool;
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
 use cps_experiment::ros2::{self, GraphSettings, RecordSettings, SendSettings, Via};
+use cps_robot::StopToken;
 
 use crate::cli_error;
 use crate::robot::print;
@@ -134,7 +134,7 @@ pub struct ShowArgs {
 }
 
 /// `cps-cli ros2`.
-pub fn ros2(cmd: &Ros2Command, stop: &AtomicBool) -> Result<ExitCode> {
+pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
     let bar = indicatif::ProgressBar::new(1000).with_style(
         indicatif::ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len}")
             .expect("a valid template")

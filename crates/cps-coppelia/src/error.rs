@@ -52,17 +52,17 @@ pub enum CoppeliaError {
     InvalidConfig(String),
 }
 
-impl From<CoppeliaError> for cps_kinematics::KinematicsError {
+impl From<CoppeliaError> for cps_robot::RobotError {
     fn from(e: CoppeliaError) -> Self {
-        let backend = match &e {
+        let robot = match &e {
             CoppeliaError::Timeout { endpoint, .. }
             | CoppeliaError::Connection { endpoint, .. }
             | CoppeliaError::Remote { endpoint, .. }
             | CoppeliaError::Protocol { endpoint, .. } => format!("CoppeliaSim at {endpoint}"),
             CoppeliaError::InvalidConfig(_) => "CoppeliaSim".into(),
         };
-        cps_kinematics::KinematicsError::Backend {
-            backend,
+        cps_robot::RobotError::Robot {
+            robot,
             message: e.to_string(),
         }
     }

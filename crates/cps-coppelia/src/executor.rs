@@ -22,7 +22,7 @@
 //! This module holds the protocol both sides share: the names, the limits, the run state
 //! the stand-in keeps and the client's reading of the result.
 
-use cps_kinematics::{KinematicsError, StepRecording};
+use cps_robot::RobotError;
 use nalgebra::{IsometryMatrix3, Quaternion, Translation3, UnitQuaternion};
 
 use crate::codec::{self, Value};
@@ -179,10 +179,21 @@ pub(crate) fn read_result(v: &Value, total: usize, dof: usize) -> Result<Progres
     Ok(Progress::Done(rec))
 }
 
-/// A script failure as the backend error the pipelines report.
-pub(crate) fn backend_error(endpoint: &str, message: String) -> KinematicsError {
-    KinematicsError::Backend {
-        backend: format!("CoppeliaSim at {endpoint} ({SCRIPT_ALIAS})"),
+/// A script failure as the robot error the pipelines report.
+pub(crate) fn backend_error(endpoint: &str, message: String) -> RobotError {
+    RobotError::Robot {
+        robot: format!("CoppeliaSim at {endpoint} ({SCRIPT_ALIAS})"),
         message,
     }
+}
+
+/// What the scene script recorded: one entry per step, after the step.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct StepRecording {
+    /// The simulation's clock (s).
+    pub time: Vec<f64>,
+    /// Measured joint positions.
+    pub q: Vec<Vec<f64>>,
+    /// Measured tool pose in the world frame.
+    pub tool: Vec<IsometryMatrix3<f64>>,
 }

@@ -1,14 +1,16 @@
 //! The thesis's Franka scene over the remote API: the robot `/Panda`, its joints
 //! `/Panda_joint1..7`, tool tip `/Panda_tip`, IK target `/Panda_target`, way points `/p0`,
-//! `/p1`, …, `/pT`; and a [`RobotBackend`] that drives the joints.
+//! `/p1`, …, `/pT`; and the scene's robot as a [`Robot`] of the execution contract (and a
+//! [`Stepped`] one) that drives the joints.
 
 use std::time::{Duration, Instant};
 
-use cps_kinematics::{KinematicsError, RobotBackend, StepRecording};
+use cps_kinematics::KinematicsError;
+use cps_robot::{Ending, Plan, Robot, RobotError, RobotModel, Run, Stepped, StopToken};
 use nalgebra::{IsometryMatrix3, Vector3};
 
 use crate::codec;
-use crate::executor::{self, Progress};
+use crate::executor::{self, Progress, StepRecording};
 use crate::sim::{HANDLE_WORLD, SIMULATION_STOPPED};
 use crate::{Client, CoppeliaError, Protocol};
 
@@ -24,19 +26,26 @@ pub struct FrankaScene {
     robot: String,
     /// cps's scene script `/<robot>/cpsExecutor`, when the scene has it and it is used.
     script: Option<i64>,
+    /// The robot's model (what plans are checked against).
+    model: RobotModel,
+    /// The joints as last read, while nothing has moved them since (a read costs a call
+    /// per joint).
+    fresh: Option<Vec<f64>>,
 }
 
 impl FrankaScene {
     /// Looks up `/<robot>_joint1..dof` and `/<robot>_tip` (the thesis: robot `Panda`,
-    /// seven joints), and cps's scene script `/<robot>/cpsExecutor` if the scene has it
-    /// (protocol v2; see [`crate::executor`]). `dt` is the scene's simulation time step in
-    /// seconds.
+    /// seven joints; `dof` is `model`'s), and cps's scene script `/<robot>/cpsExecutor` if
+    /// the scene has it (protocol v2; see [`crate::executor`]). `dt` is the scene's
+    /// simulation time step in seconds; `model` the robot the scene holds, whose limits
+    /// plans are checked against.
     pub fn open(
         mut client: Client,
         robot: &str,
-        dof: usize,
+        model: RobotModel,
         dt: f64,
     ) -> Result<Self, CoppeliaError> {
+        let dof = model.chain.dof();
         let joints = (1..=dof)
             .map(|i| client.get_object(&format!("/{robot}_joint{i}")))
             .collect::<Result<Vec<_>, _>>()?;
@@ -58,6 +67,8 @@ impl FrankaScene {
             target: None,
             robot: robot.to_string(),
             script,
+            model,
+            fresh: None,
         })
     }
 
@@ -75,11 +86,8 @@ impl FrankaScene {
 
     /// Runs one part of a sequence through the scene script: load it, let the simulation
     /// run freely, wait for the recording, take the stepping hold back.
-    fn run_part(
-        &mut self,
-        script: i64,
-        rows: &[Vec<f64>],
-    ) -> Result<StepRecording, KinematicsError> {
+    fn run_part(&mut self, script: i64, rows: &[Vec<f64>]) -> Result<StepRecording, RobotError> {
+        self.fresh = None;
         let endpoint = self.client.endpoint().to_string();
         let dof = self.joints.len();
         let flat: Vec<f64> = rows.iter().flatten().copied().collect();
@@ -113,7 +121,7 @@ impl FrankaScene {
         script: i64,
         total: usize,
         dof: usize,
-    ) -> Result<StepRecording, KinematicsError> {
+    ) -> Result<StepRecording, RobotError> {
         let endpoint = self.client.endpoint().to_string();
         let start = Instant::now();
         let mut progress = (start, 0);
@@ -167,9 +175,10 @@ impl FrankaScene {
         Ok(())
     }
 
-    /// Starts the simulation in stepping mode, so that [`RobotBackend::step`] advances it
+    /// Starts the simulation in stepping mode, so that [`Stepped::step`] advances it
     /// exactly one time step.
     pub fn start_stepping(&mut self) -> Result<(), CoppeliaError> {
+        self.fresh = None;
         self.client.start_simulation()?;
         self.client.set_stepping(true)?;
         Ok(())
@@ -179,6 +188,7 @@ impl FrankaScene {
     /// CoppeliaSim stops asynchronously, restoring the scene over a few passes. Gives up
     /// with [`CoppeliaError::Timeout`] after 10 s.
     pub fn stop(&mut self) -> Result<(), CoppeliaError> {
+        self.fresh = None;
         self.client.stop_simulation()?;
         let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
         while self.client.get_simulation_state()? != SIMULATION_STOPPED {
@@ -196,6 +206,8 @@ impl FrankaScene {
 
     /// The client, for calls this type does not wrap.
     pub fn client(&mut self) -> &mut Client {
+        // Whatever the caller does through it may move the joints.
+        self.fresh = None;
         &mut self.client
     }
 
@@ -239,45 +251,25 @@ impl FrankaScene {
     }
 }
 
-impl RobotBackend for FrankaScene {
-    fn dof(&self) -> usize {
-        self.joints.len()
+impl FrankaScene {
+    fn name(&self) -> String {
+        format!("CoppeliaSim at {}", self.client.endpoint())
     }
 
-    fn time_step(&self) -> f64 {
-        self.dt
-    }
-
-    fn joint_positions(&mut self) -> Result<Vec<f64>, KinematicsError> {
+    fn read_joints(&mut self) -> Result<Vec<f64>, RobotError> {
+        if let Some(q) = &self.fresh {
+            return Ok(q.clone());
+        }
         let joints = self.joints.clone();
-        Ok(joints
+        let q = joints
             .iter()
             .map(|&j| self.client.get_joint_position(j))
-            .collect::<Result<Vec<_>, _>>()?)
+            .collect::<Result<Vec<_>, _>>()?;
+        self.fresh = Some(q.clone());
+        Ok(q)
     }
 
-    fn command_joint_positions(&mut self, q: &[f64]) -> Result<(), KinematicsError> {
-        if q.len() != self.joints.len() {
-            return Err(KinematicsError::JointCount {
-                expected: self.joints.len(),
-                got: q.len(),
-            });
-        }
-        let joints = self.joints.clone();
-        for (j, v) in joints.iter().zip(q) {
-            self.client.set_joint_position(*j, *v)?;
-        }
-        Ok(())
-    }
-
-    fn command_joint_velocities(&mut self, dq: &[f64]) -> Result<(), KinematicsError> {
-        // Kinematic joints: integrate one step here.
-        let q = self.joint_positions()?;
-        let next: Vec<f64> = q.iter().zip(dq).map(|(a, v)| a + v * self.dt).collect();
-        self.command_joint_positions(&next)
-    }
-
-    fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, KinematicsError> {
+    fn read_tool(&mut self) -> Result<IsometryMatrix3<f64>, RobotError> {
         let pose = self.client.get_object_pose(self.tip, HANDLE_WORLD)?;
         Ok(IsometryMatrix3::from_parts(
             pose.translation,
@@ -285,54 +277,37 @@ impl RobotBackend for FrankaScene {
         ))
     }
 
-    fn time(&mut self) -> Result<f64, KinematicsError> {
-        Ok(self.client.get_simulation_time()?)
-    }
-
-    fn step(&mut self) -> Result<(), KinematicsError> {
-        Ok(self.client.step()?)
-    }
-
-    /// Stops the simulation (CoppeliaSim restores the scene and resets its clock), sets
-    /// the joints to `q` and starts stepping again. Following the IK target, the target is
-    /// put on the tip first, so the robot stays where it was set.
-    fn reset(&mut self, q: &[f64]) -> Result<(), KinematicsError> {
-        self.stop()?;
-        self.command_joint_positions(q)?;
-        if let Some(target) = self.target {
-            let tip = self.client.get_object_pose(self.tip, HANDLE_WORLD)?;
-            self.client.set_object_pose(target, &tip, HANDLE_WORLD)?;
-        }
-        self.start_stepping()?;
-        Ok(())
-    }
-
-    fn follows_targets(&self) -> bool {
-        self.target.is_some()
-    }
-
-    fn runs_sequences(&self) -> bool {
+    /// True if whole sequences run inside the simulator through cps's scene script (see
+    /// [`Stepped::prefers_plans`]).
+    pub fn runs_sequences(&self) -> bool {
         self.script.is_some()
     }
 
-    /// Through cps's scene script when the scene has it ([`crate::executor`]), in parts of
-    /// at most [`executor::MAX_STEPS`] steps; otherwise one call per command, step and
-    /// reading.
-    fn run_joint_targets(
-        &mut self,
-        targets: &[Vec<f64>],
-    ) -> Result<StepRecording, KinematicsError> {
+    /// Runs `targets` (one joint-position row per step): before step k the robot is
+    /// commanded row k, then steps once; after each step the measured joints, the tool pose
+    /// and the clock are recorded. Through cps's scene script when the scene has it
+    /// ([`crate::executor`]), in parts of at most [`executor::MAX_STEPS`] steps — a few
+    /// calls a sequence; otherwise one call per command, step and reading.
+    pub fn run_joint_targets(&mut self, targets: &[Vec<f64>]) -> Result<StepRecording, RobotError> {
         let dof = self.joints.len();
         if let Some(row) = targets.iter().find(|r| r.len() != dof) {
             return Err(KinematicsError::JointCount {
                 expected: dof,
                 got: row.len(),
-            });
+            }
+            .into());
         }
-        let Some(script) = self.script else {
-            return cps_kinematics::run_stepwise(self, targets);
-        };
         let mut rec = StepRecording::default();
+        let Some(script) = self.script else {
+            for row in targets {
+                Stepped::command_joint_positions(self, row)?;
+                Stepped::step(self)?;
+                rec.q.push(self.read_joints()?);
+                rec.tool.push(self.read_tool()?);
+                rec.time.push(Stepped::time(self)?);
+            }
+            return Ok(rec);
+        };
         for part in targets.chunks(executor::MAX_STEPS) {
             let r = self.run_part(script, part)?;
             rec.time.extend(r.time);
@@ -342,12 +317,85 @@ impl RobotBackend for FrankaScene {
         Ok(rec)
     }
 
+    /// Stops the simulation (CoppeliaSim restores the scene and resets its clock), sets
+    /// the joints to `q` and starts stepping again. Following the IK target, the target is
+    /// put on the tip first, so the robot stays where it was set.
+    pub fn reset(&mut self, q: &[f64]) -> Result<(), RobotError> {
+        self.stop()?;
+        Stepped::command_joint_positions(self, q)?;
+        if let Some(target) = self.target {
+            let tip = self.client.get_object_pose(self.tip, HANDLE_WORLD)?;
+            self.client.set_object_pose(target, &tip, HANDLE_WORLD)?;
+        }
+        self.start_stepping()?;
+        Ok(())
+    }
+}
+
+impl Stepped for FrankaScene {
+    fn dof(&self) -> usize {
+        self.joints.len()
+    }
+
+    fn time_step(&self) -> f64 {
+        self.dt
+    }
+
+    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
+        self.read_joints()
+    }
+
+    fn command_joint_positions(&mut self, q: &[f64]) -> Result<(), RobotError> {
+        if q.len() != self.joints.len() {
+            return Err(KinematicsError::JointCount {
+                expected: self.joints.len(),
+                got: q.len(),
+            }
+            .into());
+        }
+        self.fresh = None;
+        let joints = self.joints.clone();
+        for (j, v) in joints.iter().zip(q) {
+            self.client.set_joint_position(*j, *v)?;
+        }
+        Ok(())
+    }
+
+    fn command_joint_velocities(&mut self, dq: &[f64]) -> Result<(), RobotError> {
+        // Kinematic joints: integrate one step here.
+        let q = self.read_joints()?;
+        let next: Vec<f64> = q.iter().zip(dq).map(|(a, v)| a + v * self.dt).collect();
+        Stepped::command_joint_positions(self, &next)
+    }
+
+    fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, RobotError> {
+        self.read_tool()
+    }
+
+    fn time(&mut self) -> Result<f64, RobotError> {
+        Ok(self.client.get_simulation_time()?)
+    }
+
+    fn step(&mut self) -> Result<(), RobotError> {
+        // Following the IK target, a step moves the joints without a joint command.
+        self.fresh = None;
+        Ok(self.client.step()?)
+    }
+
+    fn follows_targets(&self) -> bool {
+        self.target.is_some()
+    }
+
+    fn prefers_plans(&self) -> bool {
+        self.script.is_some()
+    }
+
     /// Moves `/<robot>_target`: its position for a position target (orientation kept),
     /// its whole pose for a pose target.
-    fn command_target(&mut self, target: &cps_kinematics::IkTarget) -> Result<(), KinematicsError> {
+    fn command_target(&mut self, target: &cps_kinematics::IkTarget) -> Result<(), RobotError> {
         let Some(handle) = self.target else {
-            return Err(KinematicsError::Backend {
-                backend: format!("CoppeliaSim at {}", self.client.endpoint()),
+            return Err(RobotError::Robot {
+                robot: self.name(),
                 message: "not following the IK target: call follow_ik_target(true) first".into(),
             });
         };
@@ -365,5 +413,99 @@ impl RobotBackend for FrankaScene {
             }
         }
         Ok(())
+    }
+}
+
+impl Robot for FrankaScene {
+    fn name(&self) -> String {
+        FrankaScene::name(self)
+    }
+
+    fn model(&self) -> &RobotModel {
+        &self.model
+    }
+
+    fn dt(&self) -> f64 {
+        self.dt
+    }
+
+    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
+        self.read_joints()
+    }
+
+    /// The simulation's step: the scene steps through a plan's motion sampled at it.
+    fn command_period(&self) -> f64 {
+        self.dt
+    }
+
+    fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, RobotError> {
+        self.read_tool()
+    }
+
+    /// Through cps's scene script when the scene has it
+    /// ([`FrankaScene::run_joint_targets`]), otherwise one call per command, step and
+    /// reading ([`cps_robot::run_stepped`]). The plan's motion is sampled at the scene's
+    /// step, and each of the plan's points gets the step at its time.
+    fn run(&mut self, plan: &Plan, stop: &StopToken) -> Result<Run, RobotError> {
+        plan.check_dof(self.joints.len())?;
+        if self.script.is_none() {
+            return cps_robot::run_stepped(self, plan, stop);
+        }
+        let samples = plan.samples(self.dt);
+        let t0 = self.client.get_simulation_time()?;
+        let first = (self.read_joints()?, self.read_tool()?);
+        if stop.is_stopped() {
+            let mut run = Run::new(Ending::Stopped);
+            run.push(0.0, first.0, first.1);
+            return Ok(run);
+        }
+        let rec = self.run_joint_targets(&samples[1..])?;
+        let mut run = Run::new(Ending::Finished);
+        let at = |i: usize| -> (f64, Vec<f64>, IsometryMatrix3<f64>) {
+            if i == 0 {
+                (0.0, first.0.clone(), first.1)
+            } else {
+                (rec.time[i - 1] - t0, rec.q[i - 1].clone(), rec.tool[i - 1])
+            }
+        };
+        let exact =
+            samples.len() == plan.points().len() && (plan.dt() - self.dt).abs() <= 1e-12 * self.dt;
+        for k in 0..plan.points().len() {
+            let i = if exact {
+                k
+            } else {
+                cps_robot::step_of(plan, k, self.dt, samples.len())
+            };
+            let (t, q, tool) = at(i.min(rec.time.len()));
+            run.push(if exact { t } else { plan.time(k) }, q, tool);
+        }
+        Ok(run)
+    }
+
+    fn teleport(&mut self, q: &[f64]) -> Result<bool, RobotError> {
+        self.reset(q)?;
+        Ok(true)
+    }
+
+    /// How the scene executes: through cps's script, or stepped call by call.
+    fn report(&self) -> Option<String> {
+        let robot = &self.robot;
+        if self.target.is_some() {
+            None
+        } else if self.script.is_some() {
+            Some(format!(
+                "trajectories run by the scene's /{robot}/{} script",
+                executor::SCRIPT_ALIAS
+            ))
+        } else {
+            Some(format!(
+                "stepped call by call: the scene has no /{robot}/{} script (configs/coppeliasim/cpsExecutor.lua)",
+                executor::SCRIPT_ALIAS
+            ))
+        }
+    }
+
+    fn stepped(&mut self) -> Option<&mut dyn Stepped> {
+        Some(self)
     }
 }

@@ -5,7 +5,8 @@
 //!   socket rebuilt on the next call; typed wrappers for the `sim` functions cps uses
 //!   ([`Client::get_object`], [`Client::set_joint_position`], [`Client::step`], …).
 //! - [`FrankaScene`]: the thesis's scene names (`/Panda_joint1..7`, `/Panda_tip`, way points
-//!   `/p0` … `/pT`) and a `RobotBackend` of `cps-kinematics` that drives the joints.
+//!   `/p0` … `/pT`) and the scene's robot as a `cps-robot` [`cps_robot::Robot`] (stepped, or
+//!   whole plans through cps's scene script).
 //! - [`StandInServer`]: the same protocol served by cps, backed by the in-process
 //!   kinematic robot, for machines without CoppeliaSim (tests, CI, students).
 //!

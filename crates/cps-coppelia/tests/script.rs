@@ -8,7 +8,8 @@ use std::time::{Duration, Instant};
 use cps_coppelia::codec::{self, Value};
 use cps_coppelia::{Client, ClientConfig, FrankaScene, SceneSetup, ServerConfig, StandInServer};
 use cps_kinematics::robots::{PandaTool, panda};
-use cps_kinematics::{ExecutionConfig, IkTarget, RobotBackend, SerialChain, execute};
+use cps_kinematics::{IkTarget, SerialChain};
+use cps_robot::{ExecutionConfig, RobotModel, StopToken, execute};
 use nalgebra::{Isometry3, Vector3};
 
 const READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
@@ -52,9 +53,16 @@ fn circle(n: usize) -> Vec<IkTarget> {
         .collect()
 }
 
-fn run(scene: &mut FrankaScene, targets: &[IkTarget]) -> cps_kinematics::Recording {
+fn run(scene: &mut FrankaScene, targets: &[IkTarget]) -> cps_robot::Recording {
     scene.reset(&READY).unwrap();
-    execute(scene, &model(), targets, &ExecutionConfig::default()).unwrap()
+    execute(
+        scene,
+        &model(),
+        targets,
+        &ExecutionConfig::default(),
+        &StopToken::new(),
+    )
+    .unwrap()
 }
 
 #[test]
@@ -63,7 +71,7 @@ fn the_script_records_bit_for_bit_what_stepping_records_in_a_few_calls() {
     let mut scene = FrankaScene::open(
         client(srv.endpoint(), Duration::from_secs(5)),
         "Panda",
-        7,
+        RobotModel::of_chain("Panda", model()),
         0.01,
     )
     .unwrap();
@@ -94,7 +102,7 @@ fn a_scene_without_the_script_is_stepped_call_by_call() {
     let mut scene = FrankaScene::open(
         client(srv.endpoint(), Duration::from_secs(5)),
         "Panda",
-        7,
+        RobotModel::of_chain("Panda", model()),
         0.01,
     )
     .unwrap();
@@ -113,7 +121,7 @@ fn a_run_takes_the_simulators_time_and_a_few_polls() {
     let mut scene = FrankaScene::open(
         client(srv.endpoint(), Duration::from_secs(5)),
         "Panda",
-        7,
+        RobotModel::of_chain("Panda", model()),
         0.01,
     )
     .unwrap();
@@ -201,7 +209,7 @@ fn a_simulation_held_by_another_client_is_a_timeout_naming_it() {
     let mut scene = FrankaScene::open(
         client(srv.endpoint(), Duration::from_millis(500)),
         "Panda",
-        7,
+        RobotModel::of_chain("Panda", model()),
         0.01,
     )
     .unwrap();

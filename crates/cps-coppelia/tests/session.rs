@@ -218,9 +218,16 @@ fn a_dead_server_is_a_timely_error_and_a_restarted_one_is_reached_again() {
 #[test]
 fn execution_on_the_server_matches_the_in_process_robot() {
     use cps_coppelia::FrankaScene;
-    use cps_kinematics::{ExecutionConfig, IkTarget, KinematicRobot, execute};
+    use cps_kinematics::IkTarget;
+    use cps_robot::{ExecutionConfig, KinematicRobot, Stepped, StopToken, execute};
     let srv = server();
-    let mut scene = FrankaScene::open(client(srv.endpoint()), "Panda", 7, 0.05).unwrap();
+    let mut scene = FrankaScene::open(
+        client(srv.endpoint()),
+        "Panda",
+        cps_robot::RobotModel::of_chain("Panda", panda(PandaTool::HandTcp)),
+        0.05,
+    )
+    .unwrap();
     let names: Vec<String> = scene
         .way_points()
         .unwrap()
@@ -230,7 +237,6 @@ fn execution_on_the_server_matches_the_in_process_robot() {
     assert!(names.is_empty() || names.iter().all(|n| n.starts_with('p')));
     let model = panda(PandaTool::HandTcp).with_base(Isometry3::translation(0.5396, 0.02, 0.749));
     let ready = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
-    use cps_kinematics::RobotBackend;
     scene.command_joint_positions(&ready).unwrap();
     scene.start_stepping().unwrap();
     scene.step().unwrap();
@@ -247,9 +253,9 @@ fn execution_on_the_server_matches_the_in_process_robot() {
         max_iterations_per_sample: 1,
         ..ExecutionConfig::default()
     };
-    let remote = execute(&mut scene, &model, &targets, &cfg).unwrap();
+    let remote = execute(&mut scene, &model, &targets, &cfg, &StopToken::new()).unwrap();
     let mut local_robot = KinematicRobot::new(model.clone(), &ready, 0.05).unwrap();
-    let local = execute(&mut local_robot, &model, &targets, &cfg).unwrap();
+    let local = execute(&mut local_robot, &model, &targets, &cfg, &StopToken::new()).unwrap();
     assert_eq!(remote.q.len(), local.q.len());
     for (a, b) in remote.q.iter().zip(&local.q) {
         for (x, y) in a.iter().zip(b) {
@@ -490,7 +496,8 @@ fn a_v1_server_steps_through_its_step_counter_and_takes_v1_setters() {
 #[test]
 fn the_scene_s_own_ik_follows_the_target() {
     use cps_coppelia::FrankaScene;
-    use cps_kinematics::{ExecutionConfig, IkTarget, RobotBackend, execute};
+    use cps_kinematics::IkTarget;
+    use cps_robot::{ExecutionConfig, Stepped, StopToken, execute};
     let model = panda(PandaTool::HandTcp).with_base(Isometry3::translation(0.5396, 0.02, 0.749));
     let srv = StandInServer::start(ServerConfig {
         bind: "127.0.0.1:0".into(),
@@ -507,7 +514,13 @@ fn the_scene_s_own_ik_follows_the_target() {
         limits: cps_coppelia::ServerLimits::default(),
     })
     .unwrap();
-    let mut scene = FrankaScene::open(client(srv.endpoint()), "Panda", 7, 0.05).unwrap();
+    let mut scene = FrankaScene::open(
+        client(srv.endpoint()),
+        "Panda",
+        cps_robot::RobotModel::of_chain("Panda", panda(PandaTool::HandTcp)),
+        0.05,
+    )
+    .unwrap();
     assert!(!scene.follows_targets());
     scene.follow_ik_target(true).unwrap();
     assert!(scene.follows_targets());
@@ -529,7 +542,14 @@ fn the_scene_s_own_ik_follows_the_target() {
             )
         })
         .collect();
-    let rec = execute(&mut scene, &model, &targets, &ExecutionConfig::default()).unwrap();
+    let rec = execute(
+        &mut scene,
+        &model,
+        &targets,
+        &ExecutionConfig::default(),
+        &StopToken::new(),
+    )
+    .unwrap();
     assert!(
         rec.max_position_error() < 1e-4,
         "{}",

@@ -131,7 +131,7 @@ pub fn estimate(exp: &Experiment) -> Estimate {
             if let Some(p) = &exp.imitation {
                 multiplier = p.demonstrations as f64;
                 let robot_samples = exp.robot.as_ref().map_or(samples, |rb| match rb.backend {
-                    crate::plan::BackendChoice::Kinematic { dt } => dmp.tau / dt + 1.0,
+                    crate::robots::BackendChoice::Kinematic { dt } => dmp.tau / dt + 1.0,
                     _ => samples,
                 });
                 let dof = exp.robot.as_ref().map_or(7, |rb| rb.setup.chain.dof()) as f64;

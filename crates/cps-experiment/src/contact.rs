@@ -28,9 +28,10 @@ use cps_franka::control::{
     CartesianGains, CartesianImpedance, ForceAlong, Sensing, SensingOptions,
 };
 use cps_franka::limits::RateLimits;
-use cps_franka::{Connection, LoopOptions, MotionReport, Torques};
-use cps_kinematics::ArmModel;
-use nalgebra::{Isometry3, Translation3, Vector3, Vector6};
+use cps_franka::{Connection, FrankaRobot, FrankaSettings, LoopOptions, MotionReport, Torques};
+use cps_kinematics::{ArmModel, IkConfig, IkTarget, solve_ik};
+use cps_robot::{Guarded, Policy, Robot, StopToken};
+use nalgebra::{Isometry3, IsometryMatrix3, Translation3, Vector3, Vector6};
 
 use crate::{ExperimentError, InputError};
 
@@ -663,29 +664,77 @@ fn connect_with_model(
     sensing: &mut SensingOptions,
 ) -> Result<(Connection, ArmModel<7>), ExperimentError> {
     let mut conn = Connection::connect(&robot.host, Default::default()).map_err(robot_error)?;
+    let model = dynamics(&mut conn, robot, sensing)?;
+    Ok((conn, model))
+}
+
+/// The robot's dynamic model read over `conn` (with `robot.drive` applied to the model and
+/// to `sensing`), once it is ready.
+fn dynamics(
+    conn: &mut Connection,
+    robot: &RobotAt,
+    sensing: &mut SensingOptions,
+) -> Result<ArmModel<7>, ExperimentError> {
     let (state, _) = conn
         .newest_state(std::time::Duration::from_secs(1))
         .map_err(robot_error)?;
     conn.ensure_ready(&state).map_err(robot_error)?;
-    let model = cps_franka::control::robot_dynamics(&mut conn, &state).map_err(robot_error)?;
-    Ok((conn, robot.drive.apply(model, sensing)))
+    let model = cps_franka::control::robot_dynamics(conn, &state).map_err(robot_error)?;
+    Ok(robot.drive.apply(model, sensing))
 }
 
-/// [`run_contact`] on the robot `robot`: connects, reads the robot's model, runs `plan`.
+/// [`run_contact`] on the robot `robot`: connects; moves the tool to the approach's start
+/// above the surface (`plan.above`, keeping its orientation) as a free motion in joint
+/// space — a plan through cps's guard ([`cps_robot::Guarded`]: checked, approached at
+/// [`cps_robot::APPROACH_SHARE`] of the limits, braked by `stop`); then reads the robot's
+/// model and runs `plan` in torque mode from there.
 pub fn contact_on_robot(
     robot: &RobotAt,
     plan: &ContactPlan,
-    stop: &AtomicBool,
+    stop: &StopToken,
 ) -> Result<ContactOutcome, ExperimentError> {
     plan.check()?;
     let mut plan = plan.clone();
-    let (mut conn, model) = connect_with_model(robot, &mut plan.sensing)?;
+    let model = crate::robot_file::load_robot(robot.arm.name(), Some("hand"), None)?;
+    let settings = FrankaSettings {
+        host: robot.host.clone(),
+        arm: robot.arm,
+        realtime: robot.realtime,
+        dt: 0.01,
+    };
+    let mut franka = Guarded::new(
+        FrankaRobot::connect(&settings, model)
+            .map_err(|e| ExperimentError::Message(e.to_string()))?,
+        Policy::EXPERIMENT,
+    );
+    let free = |e: cps_robot::RobotError| {
+        ExperimentError::Message(format!("the free motion above the surface: {e}"))
+    };
+    let q = franka.joint_positions().map_err(free)?;
+    let chain = &franka.model().chain;
+    let tool = chain
+        .fk(&q)
+        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    let target = IkTarget::Pose(IsometryMatrix3::from_parts(
+        Translation3::from(Vector3::from(plan.above)),
+        tool.rotation,
+    ));
+    let above = solve_ik(chain, &target, &q, &IkConfig::default()).map_err(|e| {
+        InputError(format!(
+            "[contact] `above` ({:.3}, {:.3}, {:.3}) m: the tool cannot be put there with its present orientation: {e}",
+            plan.above[0], plan.above[1], plan.above[2]
+        ))
+    })?;
+    franka.move_to(&above.q, stop).map_err(free)?;
+    let conn = franka.inner_mut().connection();
+    let model = dynamics(conn, robot, &mut plan.sensing)?;
     let options = LoopOptions {
         realtime: robot.realtime,
         ..Default::default()
     };
     let limits = RateLimits::of(robot.arm);
-    run_contact(&mut conn, &model, limits, &options, &plan, stop)
+    let _moving = stop.moving();
+    run_contact(conn, &model, limits, &options, &plan, stop.flag())
 }
 
 /// What [`follow_with_impedance`] recorded.

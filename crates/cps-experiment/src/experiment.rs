@@ -29,7 +29,7 @@ struct File {
     optimizer: Optimizer,
     #[serde(default)]
     output: Output,
-    robot: Option<Spanned<crate::plan::RobotSection>>,
+    robot: Option<Spanned<crate::robots::RobotSection>>,
     demonstrations: Option<Spanned<crate::plan::DemonstrationsSection>>,
     imitation: Option<Spanned<crate::plan::ImitationSection>>,
     scaling: Option<Spanned<crate::plan::ScalingSection>>,
@@ -471,7 +471,7 @@ pub fn parse(
 #[serde(deny_unknown_fields)]
 struct ContactFile {
     experiment: ExperimentSection,
-    robot: Option<Spanned<crate::plan::RobotSection>>,
+    robot: Option<Spanned<crate::robots::RobotSection>>,
     contact: Option<Spanned<crate::contact_section::ContactSection>>,
     #[serde(default)]
     output: Output,

@@ -9,12 +9,15 @@
 //! (`<stem>.report.json`) that says whether it is complete and why not.
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::AtomicBool;
 
-use cps_franka::limits::{Arm, Quantity, RateLimits};
+use cps_franka::limits::{Arm, DT, RateLimits};
 use cps_franka::{
-    CheckedStream, Connection, Ending, FrankaError, Gripper, GripperCommand, LoopOptions,
-    MotionReport, Realtime, RobotState, Sample, Start, Timeouts, check_trajectory, execute_stream,
+    Connection, Ending, FrankaError, FrankaRobot, FrankaSettings, Gripper, GripperCommand,
+    LoopOptions, MotionReport, Realtime, RobotState, Sample, Timeouts,
+};
+use cps_kinematics::Quantity;
+use cps_robot::{
+    Guarded, Limit, OnBreach, OnStart, Plan, Policy, Refusal, Robot, RobotError, StopToken,
 };
 use serde_json::{Value, json};
 
@@ -28,9 +31,6 @@ use crate::{ExperimentError, InputError};
 /// The share of each velocity, acceleration and jerk limit `--retime` plans at, so that
 /// the robot's check (at 100 %) always has room.
 pub const RETIME_SHARE: f64 = 0.95;
-
-/// The share of the limits an approach move uses.
-pub const APPROACH_SHARE: f64 = 0.2;
 
 /// Which arm, by name (`fr3`, `panda`).
 pub fn parse_arm(name: &str) -> Result<Arm, InputError> {
@@ -243,63 +243,114 @@ pub fn prepare_samples(
     })
 }
 
-/// An execution: what was checked and sent, what the robot did.
+/// An execution: what was sent, what the robot did.
 #[derive(Debug, Clone)]
 pub struct Executed {
     /// The robot's address.
     pub host: String,
     /// The arm.
     pub arm: Arm,
-    /// The stream checked and sent.
-    pub stream: CheckedStream,
-    /// The loop's report.
+    /// The loop's report (every tick, the approach's included).
     pub report: MotionReport,
+    /// Ticks of the report before the trajectory's start (an approach, a blend into it).
+    pub approach: usize,
     /// How the file was made commands.
     pub how: &'static str,
 }
 
+/// The arm's own model (its flange, its base frame as the world) with its limits: what a
+/// trajectory file for it is checked against.
+fn arm_model(arm: Arm) -> Result<cps_robot::RobotModel, ExperimentError> {
+    Ok(load_robot(arm.name(), Some("flange"), None)?)
+}
+
+/// Connects to the Franka of `settings`, behind the guard with `policy`.
+fn guarded_arm(
+    settings: &ExecuteSettings,
+    policy: Policy,
+) -> Result<Guarded<FrankaRobot>, ExperimentError> {
+    let robot = FrankaRobot::connect(
+        &FrankaSettings {
+            host: settings.host.clone(),
+            arm: settings.arm,
+            realtime: settings.realtime,
+            dt: DT,
+        },
+        arm_model(settings.arm)?,
+    )
+    .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    Ok(Guarded::new(robot, policy))
+}
+
+/// A refusal of the guard in the words of `franka execute` (`source` names the file):
+/// what to pass to get past it.
+fn refusal(source: &str, arm: Arm, e: RobotError) -> ExperimentError {
+    let text = match &e {
+        RobotError::Refused { reason, .. } => match reason {
+            Refusal::Start { .. } => format!(
+                "{source}: refused before sending anything: {reason}; pass --approach to move there first"
+            ),
+            Refusal::Limit(b)
+                if matches!(
+                    b.limit,
+                    Limit::Joint {
+                        quantity: Quantity::Position,
+                        ..
+                    }
+                ) =>
+            {
+                format!(
+                    "{source}: refused before sending anything: {b}: the trajectory leaves the {}'s joint range (was it planned for another arm? --arm fr3|panda)",
+                    arm.name()
+                )
+            }
+            _ => format!(
+                "{source}: refused before sending anything: {reason} (pass --retime to retime it to the {}'s limits)",
+                arm.name()
+            ),
+        },
+        other => format!("{source}: {other}"),
+    };
+    ExperimentError::Message(text)
+}
+
 /// Connects, checks the prepared commands from where the robot is (an approach first when
-/// asked), executes them and returns the recording. A check that fails returns an error
-/// and nothing is sent; once the motion started, every ending is an [`Executed`].
+/// asked) through the guard every robot runs behind, executes them and returns the
+/// recording. A check that fails returns an error and nothing is sent; once the motion
+/// started, every ending is an [`Executed`].
 pub fn execute(
     prepared: &Prepared,
     settings: &ExecuteSettings,
-    stop: &AtomicBool,
+    stop: &StopToken,
 ) -> Result<Executed, ExperimentError> {
-    let mut robot = connect(&settings.host)?;
-    let limits = RateLimits::of(settings.arm);
-    let state = robot.read_state().map_err(robot_error)?;
-    robot.ensure_ready(&state).map_err(robot_error)?;
-    let from = cps_franka::rt::start_position(&state);
-    let start = if settings.approach {
-        Start::Approach(APPROACH_SHARE)
-    } else {
-        Start::Refuse
-    };
-    let stream = check_trajectory(&limits, from, &prepared.commands, start).map_err(|e| match e {
-        FrankaError::Limit(b) if b.quantity == Quantity::Position => ExperimentError::Message(format!(
-            "{}: refused before sending anything: {b}: the trajectory leaves the {}'s joint range (was it planned for another arm? --arm fr3|panda)",
-            prepared.source,
-            settings.arm.name()
-        )),
-        FrankaError::Limit(b) => ExperimentError::Message(format!(
-            "{}: refused before sending anything: {b} (pass --retime to retime it to the {}'s limits)",
-            prepared.source,
-            settings.arm.name()
-        )),
-        other => ExperimentError::Message(format!("{}: {other}", prepared.source)),
-    })?;
-    let options = LoopOptions {
-        realtime: settings.realtime,
-        ..LoopOptions::default()
-    };
-    let report =
-        execute_stream(&mut robot, limits, &stream, &options, stop).map_err(robot_error)?;
+    let mut robot = guarded_arm(
+        settings,
+        Policy {
+            on_breach: OnBreach::Refuse,
+            on_start: if settings.approach {
+                OnStart::Approach
+            } else {
+                OnStart::Refuse
+            },
+        },
+    )?;
+    let plan = Plan::new(DT, prepared.commands.iter().map(|q| q.to_vec()).collect())
+        .map_err(|e| InputError(format!("{}: {e}", prepared.source)))?;
+    let run = robot
+        .run(&plan, stop)
+        .map_err(|e| refusal(&prepared.source, settings.arm, e))?;
+    let franka = robot.inner();
+    let report = franka
+        .reports()
+        .last()
+        .cloned()
+        .ok_or_else(|| ExperimentError::Message("the robot sent no report".into()))?;
+    let blend = franka.last_stream().map_or(0, |s| s.approach);
     Ok(Executed {
         host: settings.host.clone(),
         arm: settings.arm,
-        stream,
         report,
+        approach: blend + (run.approach_s / DT).round() as usize,
         how: prepared.how,
     })
 }
@@ -335,7 +386,7 @@ pub fn execute_model(
     model: &Path,
     settings: &ExecuteSettings,
     online: &DmpSettings,
-    stop: &AtomicBool,
+    stop: &StopToken,
 ) -> Result<Executed, ExperimentError> {
     use cps_dmp::{OnlineDmp, StepInput};
     let (file, dmp, weights) = crate::movement::read_model(model)?;
@@ -358,11 +409,11 @@ pub fn execute_model(
     if goal.len() != 7 || goal.iter().any(|g| !g.is_finite()) {
         return Err(InputError("--goal: seven finite joint positions (rad)".into()).into());
     }
-    let mut robot = connect(&settings.host)?;
-    let limits = RateLimits::of(settings.arm);
-    let state = robot.read_state().map_err(robot_error)?;
-    robot.ensure_ready(&state).map_err(robot_error)?;
-    let from = cps_franka::rt::start_position(&state);
+    let mut robot = guarded_arm(settings, Policy::STRICT)?;
+    let here = robot
+        .joint_positions()
+        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    let from = <[f64; 7]>::try_from(here.as_slice()).expect("seven joints");
     let dmp = dmp
         .with_endpoints(&from, &goal)
         .map_err(|e| InputError(format!("{}: {e}", model.display())))?;
@@ -373,12 +424,13 @@ pub fn execute_model(
             .map_err(|e| InputError(format!("--tau: {e}")))?;
         Ok(o)
     };
-    // The nominal movement at 1 kHz, checked whole before anything is sent.
+    // The nominal movement at 1 kHz (no lag), checked whole by the guard before anything
+    // is sent.
     let end_phase = (-dmp.config().alpha_x).exp();
     let mut nominal = fresh()?;
     // The robot holds `from` while the Move starts: the stream starts there, at rest.
     let mut commands = Vec::with_capacity((tau * 1000.0) as usize + 2);
-    commands.push(from);
+    commands.push(from.to_vec());
     let mut prev = from;
     let mut cancel = [0.0; 7];
     loop {
@@ -396,63 +448,66 @@ pub fn execute_model(
             .step_with(1e-3, input)
             .map_err(|e| ExperimentError::Message(e.to_string()))?;
         let q = <[f64; 7]>::try_from(nominal.position()).expect("seven joints");
-        commands.push(q);
+        commands.push(q.to_vec());
         if settled(&q, &prev, over) || commands.len() > (10.0 * tau * 1000.0) as usize {
             break;
         }
         prev = q;
     }
     let name = model.display().to_string();
-    let stream = check_trajectory(&limits, from, &commands, Start::Refuse).map_err(|e| match e {
-        FrankaError::Limit(b) => ExperimentError::Message(format!(
-            "{name}: refused before sending anything: the model's movement from where the robot is breaks a limit: {b} (a longer --tau slows it)"
-        )),
-        other => ExperimentError::Message(format!("{name}: {other}")),
-    })?;
-    // Online: one step per tick, the phase slowed by the measured lag.
+    let nominal_plan =
+        Plan::new(DT, commands).map_err(|e| ExperimentError::Message(e.to_string()))?;
+    // Online: one step per tick, the phase slowed by the measured lag. Phase stopping may
+    // stretch the movement: room for four times its nominal length (then the robot is
+    // braked).
     let mut runner = fresh()?;
     let mut last = from;
     let mut cancel = [0.0; 7];
-    let options = LoopOptions {
-        realtime: settings.realtime,
-        // Phase stopping may stretch the movement: room for four times its nominal
-        // length (then the robot is braked, "the recording was full").
-        max_ticks: 4 * commands.len() + 10_000,
-        ..LoopOptions::default()
+    let max = 4 * nominal_plan.points().len() + 10_000;
+    let mut next = |measured: &[f64], _t: f64, out: &mut [f64]| -> bool {
+        let lag = (0..7)
+            .map(|j| (measured[j] - last[j]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        // Once the phase is over the shape is switched off and the spring settles the
+        // movement at the goal (a forcing left at the tail of a fit would drift).
+        let over = runner.phase() <= end_phase;
+        if over {
+            for (c, f) in cancel.iter_mut().zip(runner.forcing()) {
+                *c = -f;
+            }
+        }
+        let input = StepInput {
+            coupling: over.then_some(&cancel[..]),
+            tracking_error: if over { 0.0 } else { lag },
+        };
+        let stepped = runner.step_with(1e-3, input);
+        let mut q = last;
+        if stepped.is_ok() {
+            q.copy_from_slice(runner.position());
+        }
+        let finished = settled(&q, &last, over) || stepped.is_err();
+        last = q;
+        out.copy_from_slice(&q);
+        finished
     };
-    let report =
-        cps_franka::rt::run_joint_positions(&mut robot, limits, &options, stop, move |state, _| {
-            let lag = (0..7)
-                .map(|j| (state.q[j] - last[j]).powi(2))
-                .sum::<f64>()
-                .sqrt();
-            // Once the phase is over the shape is switched off and the spring settles
-            // the movement at the goal (a forcing left at the tail of a fit would drift).
-            let over = runner.phase() <= end_phase;
-            if over {
-                for (c, f) in cancel.iter_mut().zip(runner.forcing()) {
-                    *c = -f;
-                }
-            }
-            let input = StepInput {
-                coupling: over.then_some(&cancel[..]),
-                tracking_error: if over { 0.0 } else { lag },
-            };
-            let stepped = runner.step_with(1e-3, input);
-            let mut q = last;
-            if stepped.is_ok() {
-                q.copy_from_slice(runner.position());
-            }
-            let finished = settled(&q, &last, over) || stepped.is_err();
-            last = q;
-            cps_franka::rt::JointPositions { q, finished }
-        })
-        .map_err(robot_error)?;
+    robot.stream(&nominal_plan, &mut next, max, stop).map_err(|e| match e {
+        RobotError::Refused { reason, .. } => ExperimentError::Message(format!(
+            "{name}: refused before sending anything: the model's movement from where the robot is breaks a limit: {reason} (a longer --tau slows it)"
+        )),
+        other => ExperimentError::Message(format!("{name}: {other}")),
+    })?;
+    let report = robot
+        .inner()
+        .reports()
+        .last()
+        .cloned()
+        .ok_or_else(|| ExperimentError::Message("the robot sent no report".into()))?;
     Ok(Executed {
         host: settings.host.clone(),
         arm: settings.arm,
-        stream,
         report,
+        approach: 0,
         how: "a DMP stepped online with phase stopping",
     })
 }
@@ -518,7 +573,7 @@ impl Executed {
             "trajectory": self.how,
             "samples": self.report.samples.len(),
             "duration_s": self.report.samples.last().map_or(0.0, |s| s.t),
-            "approach_s": self.stream.approach as f64 * 1e-3,
+            "approach_s": self.approach as f64 * 1e-3,
             "brake_ticks": self.report.brake_ticks,
             "timing": {
                 "ticks": t.ticks, "median_us": t.median_us, "p99_us": t.p99_us, "max_us": t.max_us,
@@ -547,7 +602,7 @@ impl Executed {
                 self.report.samples.len(),
                 self.report.samples.last().map_or(0.0, |s| s.t),
                 self.how,
-                self.stream.approach as f64 * 1e-3,
+                self.approach as f64 * 1e-3,
                 record.display()
             ),
             format!(
@@ -589,30 +644,37 @@ pub fn write_recording(
 }
 
 /// The robot's state for `seconds` (in (0, 3600]) or until `stop`, in memory, with its
-/// report `{"complete", "ending", "host", "samples", "duration_s"}`.
+/// report `{"complete", "ending", "host", "samples", "duration_s"}`: the arm's
+/// [`Robot::record`], nothing commanded.
 pub fn record_samples(
     host: &str,
     seconds: f64,
-    stop: &AtomicBool,
+    stop: &StopToken,
 ) -> Result<(Vec<Sample>, Value), ExperimentError> {
     if !(seconds.is_finite() && seconds > 0.0 && seconds <= 3600.0) {
         return Err(InputError(format!("--duration: {seconds} s is not in (0, 3600]")).into());
     }
-    let mut robot = connect(host)?;
-    let (samples, lost) = cps_franka::record_states(
-        &mut robot,
-        std::time::Duration::from_secs_f64(seconds),
-        stop,
+    let mut robot = FrankaRobot::connect(
+        &FrankaSettings {
+            host: host.to_string(),
+            arm: Arm::Fr3,
+            realtime: Realtime::Ignore,
+            dt: DT,
+        },
+        arm_model(Arm::Fr3)?,
     )
-    .map_err(robot_error)?;
+    .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    let run = robot
+        .record(std::time::Duration::from_secs_f64(seconds), stop)
+        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    let samples = robot.last_recording().to_vec();
     let duration = samples.last().map_or(0.0, |s| s.t);
-    let stopped = stop.load(std::sync::atomic::Ordering::Relaxed);
-    let ending = match (&lost, stopped) {
-        (Some(r), _) => format!("the connection was lost: {r}"),
-        (None, true) => "stopped on request".into(),
-        (None, false) => "recorded for the whole duration".into(),
+    let ending = match &run.ending {
+        cps_robot::Ending::Failed(r) => r.clone(),
+        cps_robot::Ending::Stopped => "stopped on request".into(),
+        cps_robot::Ending::Finished => "recorded for the whole duration".into(),
     };
-    let report = json!({ "complete": lost.is_none() && !stopped, "ending": ending, "host": host, "samples": samples.len(), "duration_s": duration });
+    let report = json!({ "complete": run.ending.complete(), "ending": ending, "host": host, "samples": samples.len(), "duration_s": duration });
     Ok((samples, report))
 }
 
@@ -624,15 +686,12 @@ pub fn record(
     seconds: f64,
     out: &Path,
     force: bool,
-    stop: &AtomicBool,
+    stop: &StopToken,
 ) -> Result<(Answer, u8), ExperimentError> {
     check_record_target(out, force)?;
     let (samples, report) = record_samples(host, seconds, stop)?;
     write_recording(out, &samples, &report)?;
-    let (complete, stopped) = (
-        report["complete"] == true,
-        stop.load(std::sync::atomic::Ordering::Relaxed),
-    );
+    let (complete, stopped) = (report["complete"] == true, stop.is_stopped());
     let lines = vec![
         format!("{host}: {}", report["ending"].as_str().unwrap_or_default()),
         format!(
@@ -677,7 +736,7 @@ pub struct GuideSettings {
 /// "ending", "host", "arm", "samples", "duration_s", "damping", "timing"}`.
 pub fn guide_samples(
     settings: &GuideSettings,
-    stop: &AtomicBool,
+    stop: &StopToken,
 ) -> Result<(Vec<Sample>, Value), ExperimentError> {
     let mut guiding = cps_franka::guide::Guiding {
         duration: settings.seconds,
@@ -694,8 +753,11 @@ pub fn guide_samples(
         ..Default::default()
     };
     let limits = RateLimits::of(arm);
-    let report = cps_franka::guide::run_guiding(&mut robot, limits, &options, stop, &guiding)
-        .map_err(robot_error)?;
+    let report = {
+        let _moving = stop.moving();
+        cps_franka::guide::run_guiding(&mut robot, limits, &options, stop.flag(), &guiding)
+    }
+    .map_err(robot_error)?;
     let t = &report.timing;
     let json = json!({
         "complete": report.ending.complete(),
@@ -721,7 +783,7 @@ pub fn guide(
     settings: &GuideSettings,
     out: &Path,
     force: bool,
-    stop: &AtomicBool,
+    stop: &StopToken,
 ) -> Result<(Answer, u8), ExperimentError> {
     check_record_target(out, force)?;
     let (samples, json) = guide_samples(settings, stop)?;
@@ -742,7 +804,7 @@ pub fn guide(
     ];
     let code = if json["complete"] == true {
         0
-    } else if stop.load(std::sync::atomic::Ordering::Relaxed) {
+    } else if stop.is_stopped() {
         130
     } else {
         1
@@ -836,7 +898,7 @@ pub fn execute_file(
     online: &DmpSettings,
     record: &Path,
     force: bool,
-    stop: &AtomicBool,
+    stop: &StopToken,
 ) -> Result<(Answer, u8), ExperimentError> {
     check_record_target(record, force)?;
     let is_model = file

@@ -23,44 +23,17 @@ use toml::Spanned;
 use crate::InputError;
 use crate::source::location;
 
-/// A robot ready for kinematics commands.
-#[derive(Debug, Clone)]
-pub struct RobotModel {
-    /// Its name (built-in name, the file's `name`, or the URDF robot's name).
-    pub name: String,
-    /// The chain with the chosen tool point and base.
-    pub chain: SerialChain,
-    /// A configuration to start inverse kinematics from.
-    pub ready: Vec<f64>,
-    /// Which tool point the chain ends at, in words.
-    pub tool: String,
-    /// Joint names (URDF) or `joint1..n`.
-    pub joint_names: Vec<String>,
-    /// Limits beyond the chain's range and speed (empty where the robot's data have none).
-    pub limits: JointLimits,
-    /// Link inertias for inverse dynamics, when the robot's data give them.
-    pub inertia: Option<Vec<LinkInertia>>,
-    /// Limits of the tool's (and the elbow's) Cartesian motion, when the robot's data give
-    /// them (the Panda's; TOML `[cartesian]`).
-    pub cartesian: Option<CartesianLimits>,
-}
+pub use cps_robot::RobotModel;
 
-impl RobotModel {
-    /// The robot's limits and dynamics as checks and retiming take them (gravity along the
-    /// world's −z).
-    pub fn robot_limits(&self) -> cps_kinematics::RobotLimits<'_> {
-        cps_kinematics::RobotLimits {
-            chain: &self.chain,
-            limits: &self.limits,
-            inertia: self.inertia.as_deref(),
-            gravity: nalgebra::Vector3::from(cps_kinematics::GRAVITY),
-            cartesian: self.cartesian.as_ref(),
-        }
-    }
-
+/// Words about a robot model.
+pub trait Describe {
     /// The robot in words, one line each: its kinematic description (DH table or URDF
     /// joints) with the joint limits, then the base and the tool frame.
-    pub fn describe(&self) -> Vec<String> {
+    fn describe(&self) -> Vec<String>;
+}
+
+impl Describe for RobotModel {
+    fn describe(&self) -> Vec<String> {
         let mut out = Vec::new();
         macro_rules! put {
             ($($arg:tt)*) => { out.push(format!($($arg)*)) };

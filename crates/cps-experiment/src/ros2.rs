@@ -5,16 +5,15 @@
 //! `cps-ros2`'s.
 
 use std::path::Path;
-use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
-use cps_ros2::action::{FollowJointTrajectoryClient, FollowOutcome, FollowTimes};
-use cps_ros2::msg::{
-    FollowJointTrajectoryGoal, GoalId, JointTrajectory, JointTrajectoryPoint, Time, error_code_word,
-};
+use cps_robot::{Guarded, Plan, Policy, Refusal, RobotError, StopToken};
+use cps_ros2::action::FollowOutcome;
+use cps_ros2::msg::{JointTrajectory, error_code_word};
 use cps_ros2::names::NodeName;
 use cps_ros2::node::{Node, Qos};
 use cps_ros2::record::{JointRecording, RecordOptions, record_joint_states};
+use cps_ros2::robot::{Ros2Robot, Ros2Settings, rows_at, trajectory_message};
 use cps_ros2::{Ros2Error, publish};
 use serde_json::{Value, json};
 
@@ -22,8 +21,7 @@ use crate::outcome::{Column, Format, Table};
 use crate::robot_file::{Answer, RobotModel, load_robot};
 use crate::{ExperimentError, InputError};
 
-/// The node name cps takes on the graph.
-pub const NODE_NAME: &str = "cps";
+pub use cps_ros2::robot::NODE_NAME;
 
 /// How a trajectory reaches the controller.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -123,20 +121,14 @@ pub fn ros2_error(e: Ros2Error) -> ExperimentError {
     }
 }
 
-/// A joint trajectory (called `name` in messages) as the message a controller takes:
-/// checked against `model`'s limits at the points' rate (refused, with the report's lines,
-/// when one is broken), then sampled every `period` s by the spline through it with
-/// velocities and accelerations, from 0 at its first time; `time_from_start` exact to the
-/// nanosecond.
-pub fn trajectory_message_of(
+/// A joint trajectory (called `name` in messages) as a plan: its own samples when they are
+/// evenly spaced, else the cubic spline through them (at rest at both ends) sampled every
+/// millisecond; times from its first sample.
+pub fn plan_of(
     name: &str,
     traj: &crate::limits::JointTrajectory,
-    model: &RobotModel,
-    names: &[String],
-    period: f64,
-) -> Result<JointTrajectory, ExperimentError> {
-    crate::export::ExportOptions { period }.check()?;
-    let dof = model.chain.dof();
+    dof: usize,
+) -> Result<Plan, ExperimentError> {
     let bad_row = traj
         .q
         .iter()
@@ -151,45 +143,34 @@ pub fn trajectory_message_of(
         ))
         .into());
     }
-    let report = crate::limits::check_samples(model, traj, 1.0 / period)
-        .map_err(|e| InputError(format!("{name}: {e}")))?;
-    if !report.ok() {
-        return Err(ExperimentError::Message(format!(
-            "{name}: refused, nothing was sent: the trajectory breaks the {}'s limits at {} Hz\n{}",
-            model.name,
-            1.0 / period,
-            report.lines().join("\n")
-        )));
-    }
-    let s = crate::export::sample(traj, period);
-    let points = (0..s.t.len())
-        .map(|k| JointTrajectoryPoint {
-            positions: s.q[k].clone(),
-            velocities: s.qd[k].clone(),
-            accelerations: s.qdd[k].clone(),
-            effort: vec![],
-            time_from_start: Time::from_secs(s.t[k]),
-        })
-        .collect();
-    Ok(JointTrajectory {
-        joint_names: names.to_vec(),
-        points,
-        ..JointTrajectory::default()
-    })
+    let first = traj.times[1] - traj.times[0];
+    let even = traj
+        .times
+        .windows(2)
+        .all(|w| ((w[1] - w[0]) - first).abs() <= 1e-9 * first);
+    let plan = if even {
+        Plan::new(first, traj.q.clone())
+    } else {
+        let (_, dt, rows, _) = crate::limits::at_rate(traj, 1.0 / cps_robot::CHECK_PERIOD);
+        Plan::new(dt, rows)
+    };
+    plan.map_err(|e| InputError(format!("{name}: {e}")).into())
 }
 
-/// A goal id from the trajectory's own bytes and the time: unique per send, the same
-/// bytes never needed twice.
-fn goal_id(message: &JointTrajectory) -> GoalId {
-    use cps_ros2::msg::Message;
-    let bytes = message.to_cdr();
-    let h = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
-        (h ^ *b as u64).wrapping_mul(0x0100_0000_01b3)
-    });
-    let now = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_nanos());
-    GoalId::from_bits(((h as u128) << 64) ^ now)
+/// A refusal of the guard in `ros2 send`'s words.
+fn refused(name: &str, model: &RobotModel, e: RobotError) -> ExperimentError {
+    match e {
+        RobotError::Refused { reason, .. } => ExperimentError::Message(format!(
+            "{name}: refused, nothing was sent: the trajectory breaks the {}'s limits: {reason}{}",
+            model.name,
+            if matches!(reason, Refusal::Start { .. }) {
+                "; pass --approach to move there first"
+            } else {
+                ""
+            }
+        )),
+        other => ExperimentError::Message(format!("{name}: {other}")),
+    }
 }
 
 /// `ros2 send`: the file checked, then sent; returns the answer and the exit code (0
@@ -198,7 +179,7 @@ fn goal_id(message: &JointTrajectory) -> GoalId {
 pub fn send(
     file: &Path,
     s: &SendSettings,
-    stop: &AtomicBool,
+    stop: &StopToken,
     progress: impl FnMut(f64),
 ) -> Result<(Answer, u8), ExperimentError> {
     let (model, _) = robot_and_names(&s.graph.robot, s.graph.joint_names.as_deref())?;
@@ -206,12 +187,16 @@ pub fn send(
     send_trajectory(&file.display().to_string(), &traj, s, stop, progress)
 }
 
-/// [`send`] for a trajectory in memory, called `name` in messages.
+/// [`send`] for a trajectory in memory, called `name` in messages: a plan ([`plan_of`])
+/// checked by the guard every robot runs behind (its limits; its start too where the
+/// robot's joint states are read), made the controller's message by the one goal builder
+/// ([`trajectory_message`]: points every `period`, with the motion's velocities and
+/// accelerations), then published or followed as a goal.
 pub fn send_trajectory(
     name: &str,
     traj: &crate::limits::JointTrajectory,
     s: &SendSettings,
-    stop: &AtomicBool,
+    stop: &StopToken,
     mut progress: impl FnMut(f64),
 ) -> Result<(Answer, u8), ExperimentError> {
     if !(s.wait.is_finite() && s.wait > 0.0 && s.wait <= 3600.0) {
@@ -227,26 +212,33 @@ pub fn send_trajectory(
         }
         crate::franka::check_record_target(&r.out, r.force)?;
     }
-    let message = trajectory_message_of(name, traj, &model, &names, s.period)?;
-    let duration = message
-        .points
-        .last()
-        .map_or(0.0, |p| p.time_from_start.secs());
-    let node = node(s.graph.domain)?;
+    crate::export::ExportOptions { period: s.period }.check()?;
+    let plan = plan_of(name, traj, model.chain.dof())?;
     let wait = Duration::from_secs_f64(s.wait);
-    let base = json!({
-        "file": name,
-        "controller": s.controller,
-        "domain": node.name().domain,
-        "joint_names": names,
-        "points": message.points.len(),
-        "duration_s": duration,
-    });
     match s.via {
         Via::Topic => {
+            let verdict = cps_robot::check(&model, &plan, cps_robot::CHECK_PERIOD)
+                .map_err(|e| InputError(format!("{name}: {e}")))?;
+            if let Some(b) = verdict.breach {
+                return Err(refused(
+                    name,
+                    &model,
+                    RobotError::Refused {
+                        robot: String::new(),
+                        reason: Refusal::Limit(b),
+                    },
+                ));
+            }
+            let message = trajectory_message(&names, &plan, Some(s.period));
+            let node = node(s.graph.domain)?;
+            let base = answer_base(name, s, &node, &names, &message);
             let topic = format!("{}/joint_trajectory", s.controller.trim_end_matches('/'));
             let sent = publish::publish(&node, &topic, &message, Qos::Reliable { depth: 1 }, wait)
                 .map_err(ros2_error)?;
+            let duration = message
+                .points
+                .last()
+                .map_or(0.0, |p| p.time_from_start.secs());
             let mut json = base;
             json["via"] = json!("topic");
             json["topic"] = json!(topic);
@@ -269,57 +261,79 @@ pub fn send_trajectory(
             ))
         }
         Via::Action => {
+            // A bad name or domain is the user's: named before anything joins the graph.
+            NodeName::from_env(NODE_NAME, s.graph.domain).map_err(|e| InputError(e.to_string()))?;
+            let settings = Ros2Settings {
+                controller: s.controller.clone(),
+                joint_states: s.record.as_ref().map_or(String::new(), |r| r.topic.clone()),
+                domain: s.graph.domain,
+                dt: s.period,
+                goal_period: Some(s.period),
+                wait,
+                joint_names: Some(names.clone()),
+                read_start: false,
+            };
+            let robot = Ros2Robot::open(&settings, model.clone()).map_err(|e| match e {
+                RobotError::Robot { message, .. } => ExperimentError::Message(message),
+                other => ExperimentError::Message(other.to_string()),
+            })?;
+            let mut robot = Guarded::new(robot, Policy::STRICT);
+            let prepared = robot.prepare(&plan).map_err(|e| refused(name, &model, e))?;
+            let message = trajectory_message(&names, &prepared.plan, Some(s.period));
             let action = format!(
                 "{}/follow_joint_trajectory",
                 s.controller.trim_end_matches('/')
             );
-            let mut client =
-                FollowJointTrajectoryClient::new(&node, &action).map_err(ros2_error)?;
-            let goal = FollowJointTrajectoryGoal {
-                trajectory: message.clone(),
-                goal_time_tolerance: Time::default(),
-            };
-            let times = FollowTimes {
-                server: wait,
-                result: Duration::from_secs_f64(duration * 1.5 + 10.0),
-                after_cancel: Duration::from_secs(5),
-            };
-            let stop_recording = AtomicBool::new(false);
-            let recording = s.record.as_ref().map(|r| RecordOptions {
-                topic: r.topic.clone(),
-                joints: names.clone(),
-                duration: Duration::from_secs_f64(duration * 1.5 + 60.0),
-                wait,
-                qos: Qos::Reliable { depth: 5000 },
-            });
-            let (o, rec) = std::thread::scope(|scope| {
-                let recorder = recording.as_ref().map(|options| {
-                    scope.spawn(|| record_joint_states(&node, options, &stop_recording, |_| {}))
-                });
-                let o = client.follow(&goal, goal_id(&message), times, stop, |f| {
+            let base = answer_base(name, s, robot.inner().node(), &names, &message);
+            let duration = message
+                .points
+                .last()
+                .map_or(0.0, |p| p.time_from_start.secs());
+            let last = robot
+                .inner_mut()
+                .follow(message.clone(), stop, |share| {
                     if duration > 0.0 {
-                        progress((f.desired.time_from_start.secs() / duration).clamp(0.0, 1.0));
+                        progress(share)
                     }
-                });
-                if recorder.is_some() {
-                    // The last states are published as the result is: take them too.
-                    std::thread::sleep(Duration::from_millis(200));
-                }
-                stop_recording.store(true, std::sync::atomic::Ordering::Relaxed);
-                (o, recorder.map(|h| h.join()))
-            });
-            let o = o.map_err(ros2_error)?;
-            let (mut answer, code) = action_answer(base, &action, &o);
-            if let (Some(r), Some(rec)) = (&s.record, rec) {
-                let rec = rec
-                    .map_err(|_| ExperimentError::Message("the recorder panicked".into()))?
-                    .map_err(ros2_error)?;
-                write_tracked(r, &rec, &o, &message, &model, &mut answer)?;
+                })
+                .map_err(|e| match e {
+                    RobotError::Robot { message, .. } => ExperimentError::Message(message),
+                    other => ExperimentError::Message(other.to_string()),
+                })?
+                .clone();
+            let o = &last.outcome;
+            let (mut answer, code) = action_answer(base, &action, o);
+            if let (Some(r), Some(rec)) = (&s.record, &last.recording) {
+                write_tracked(r, rec, o, &message, &model, &mut answer)?;
             }
-            let stopped = stop.load(std::sync::atomic::Ordering::Relaxed);
-            Ok((answer, if stopped && !o.succeeded() { 130 } else { code }))
+            Ok((
+                answer,
+                if stop.is_stopped() && !o.succeeded() {
+                    130
+                } else {
+                    code
+                },
+            ))
         }
     }
+}
+
+/// What every `ros2 send` answer starts with.
+fn answer_base(
+    name: &str,
+    s: &SendSettings,
+    node: &Node,
+    names: &[String],
+    message: &JointTrajectory,
+) -> Value {
+    json!({
+        "file": name,
+        "controller": s.controller,
+        "domain": node.name().domain,
+        "joint_names": names,
+        "points": message.points.len(),
+        "duration_s": message.points.last().map_or(0.0, |p| p.time_from_start.secs()),
+    })
 }
 
 /// Writes `ros2 send --record`'s recording and its report: the recording's limit check and
@@ -493,7 +507,7 @@ pub fn record(
     s: &RecordSettings,
     out: &Path,
     force: bool,
-    stop: &AtomicBool,
+    stop: &StopToken,
     progress: impl FnMut(f64),
 ) -> Result<(Answer, u8), ExperimentError> {
     crate::franka::check_record_target(out, force)?;
@@ -515,7 +529,7 @@ pub fn record(
 /// [`record`] in memory: the recording and its report (JSON and lines).
 pub fn record_in_memory(
     s: &RecordSettings,
-    stop: &AtomicBool,
+    stop: &StopToken,
     progress: impl FnMut(f64),
 ) -> Result<(JointRecording, Answer), ExperimentError> {
     if !(s.duration.is_finite() && s.duration > 0.0 && s.duration <= 3600.0) {
@@ -542,7 +556,7 @@ pub fn record_in_memory(
             Qos::Reliable { depth }
         },
     };
-    let rec = record_joint_states(&node, &options, stop, progress).map_err(ros2_error)?;
+    let rec = record_joint_states(&node, &options, stop.flag(), progress).map_err(ros2_error)?;
     let (times, source) = rec.times();
     let span = times.last().copied().unwrap_or(0.0);
     let mut lines = vec![format!(
@@ -596,46 +610,4 @@ pub fn record_in_memory(
             lines,
         },
     ))
-}
-
-/// The recorded joints at each time of `at` (s from the goal's acceptance), linearly
-/// between messages; None past the recording's end.
-pub(crate) fn rows_at(
-    rec: &JointRecording,
-    outcome: &FollowOutcome,
-    at: &[f64],
-) -> Option<Vec<Vec<f64>>> {
-    let (_, source) = rec.times();
-    let (times, zero): (&[u64], u64) = if source == "stamp" {
-        let s = outcome.accepted_stamp;
-        (
-            &rec.stamps_ns,
-            s.sec.max(0) as u64 * 1_000_000_000 + s.nanosec as u64,
-        )
-    } else {
-        (&rec.received_ns, outcome.accepted_at_ns)
-    };
-    let t: Vec<f64> = times
-        .iter()
-        .map(|&x| (x as f64 - zero as f64) * 1e-9)
-        .collect();
-    at.iter()
-        .map(|&want| {
-            let i = t.partition_point(|&x| x < want);
-            if i == t.len() {
-                return None;
-            }
-            if i == 0 {
-                return Some(rec.positions[0].clone());
-            }
-            let s = (want - t[i - 1]) / (t[i] - t[i - 1]);
-            Some(
-                rec.positions[i - 1]
-                    .iter()
-                    .zip(&rec.positions[i])
-                    .map(|(a, b)| a + s * (b - a))
-                    .collect(),
-            )
-        })
-        .collect()
 }

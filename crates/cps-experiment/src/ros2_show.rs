@@ -3,7 +3,6 @@
 //! the robot backend uses, because it reads experiment files.)
 
 use std::path::Path;
-use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use cps_ros2::node::Qos;
@@ -36,7 +35,7 @@ pub fn show(
     experiment: &Path,
     results: Option<&Path>,
     settings: &ShowSettings,
-    stop: &AtomicBool,
+    stop: &cps_robot::StopToken,
 ) -> Result<Answer, ExperimentError> {
     if !(settings.seconds.is_finite() && settings.seconds > 0.0 && settings.seconds <= 86_400.0) {
         return Err(InputError(format!(
@@ -90,7 +89,7 @@ pub fn show(
         .map_err(ros2_error)?;
     writer.write(&markers).map_err(ros2_error)?;
     let end = std::time::Instant::now() + Duration::from_secs_f64(settings.seconds);
-    while std::time::Instant::now() < end && !stop.load(std::sync::atomic::Ordering::Relaxed) {
+    while std::time::Instant::now() < end && !stop.is_stopped() {
         std::thread::sleep(Duration::from_millis(50));
     }
     let most = writer.matched_ever();

@@ -11,10 +11,14 @@ use crate::plan::{Experiment, Kind};
 use crate::{ExperimentError, InputError};
 
 /// How to run (what does not change the results).
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Default)]
 pub struct RunOptions {
     /// Worker threads (default: one per core). The results do not depend on it.
     pub threads: Option<usize>,
+    /// Stops the run: a robot that moves brakes within its limits (the observer's
+    /// `Break` stops learning between generations; this reaches a motion under way). The
+    /// host program's Ctrl-C handler, Python's KeyboardInterrupt, a caller's cancel.
+    pub stop: cps_robot::StopToken,
 }
 
 impl RunOptions {
@@ -79,7 +83,7 @@ pub fn run(
         context: "cannot start the worker threads".into(),
         source: Box::new(e),
     })?;
-    let ctx = Ctx::new(exp, &pool, observer, started);
+    let ctx = Ctx::new(exp, &pool, observer, &options.stop, started);
     observer.started(planned_generations(exp));
     let mut outcome = match exp.kind {
         Kind::Viapoint => kinds::viapoint::run(&ctx),

@@ -12,11 +12,11 @@
 use std::collections::VecDeque;
 use std::sync::{Condvar, Mutex};
 
-use cps_kinematics::RobotBackend;
+use cps_robot::Robot;
 use serde::Serialize;
 
 /// An opened backend named by its endpoint.
-pub type NamedBackend = (String, Box<dyn RobotBackend + Send>);
+pub type NamedBackend = (String, Box<dyn Robot>);
 
 /// Why a job did not give a result.
 #[derive(Debug, Clone, PartialEq)]
@@ -53,7 +53,7 @@ pub struct Dropped {
 
 struct Member {
     endpoint: String,
-    backend: Box<dyn RobotBackend + Send>,
+    backend: Box<dyn Robot>,
     evaluations: u64,
 }
 
@@ -123,7 +123,7 @@ impl SimulatorPool {
     pub fn run<T: Send>(
         &mut self,
         n: usize,
-        job: &(dyn Fn(usize, &mut dyn RobotBackend) -> Result<T, JobError> + Sync),
+        job: &(dyn Fn(usize, &mut dyn Robot) -> Result<T, JobError> + Sync),
     ) -> Result<Vec<T>, PoolError> {
         let queue = Mutex::new(Queue {
             pending: (0..n).collect(),
@@ -179,7 +179,7 @@ fn serve<T>(
     m: &mut Member,
     queue: &Mutex<Queue<T>>,
     wake: &Condvar,
-    job: &(dyn Fn(usize, &mut dyn RobotBackend) -> Result<T, JobError> + Sync),
+    job: &(dyn Fn(usize, &mut dyn Robot) -> Result<T, JobError> + Sync),
 ) -> Option<String> {
     let lock = || queue.lock().unwrap_or_else(|e| e.into_inner());
     loop {
@@ -231,8 +231,8 @@ fn serve<T>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use cps_kinematics::KinematicRobot;
     use cps_kinematics::robots::{PandaTool, panda};
+    use cps_robot::KinematicRobot;
 
     const READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
 
@@ -240,18 +240,16 @@ mod tests {
         (0..n)
             .map(|i| {
                 let r = KinematicRobot::new(panda(PandaTool::HandTcp), &READY, 0.01).unwrap();
-                (
-                    format!("robot{i}"),
-                    Box::new(r) as Box<dyn RobotBackend + Send>,
-                )
+                (format!("robot{i}"), Box::new(r) as Box<dyn Robot>)
             })
             .collect()
     }
 
     /// Job i: reset, move joint 1 by i mrad in i steps, report the clock and joint 1.
-    fn job(i: usize, b: &mut dyn RobotBackend) -> Result<(f64, f64), JobError> {
-        b.reset(&READY)
+    fn job(i: usize, b: &mut dyn Robot) -> Result<(f64, f64), JobError> {
+        b.teleport(&READY)
             .map_err(|e| JobError::Simulator(e.to_string()))?;
+        let b = b.stepped().expect("the in-process robot steps");
         for k in 0..i {
             let mut q = READY.to_vec();
             q[0] = 1e-3 * (k + 1) as f64;
@@ -280,7 +278,7 @@ mod tests {
         let calls = AtomicUsize::new(0);
         let failed = [AtomicBool::new(false), AtomicBool::new(false)];
         // The simulator that first takes job 5, and the one that first takes job 17, die.
-        let flaky = |i: usize, b: &mut dyn RobotBackend| {
+        let flaky = |i: usize, b: &mut dyn Robot| {
             calls.fetch_add(1, Ordering::SeqCst);
             let slot = match i {
                 5 => Some(&failed[0]),
@@ -308,14 +306,14 @@ mod tests {
             30
         );
         // Every simulator fails: exhausted.
-        let dead = |_: usize, _: &mut dyn RobotBackend| -> Result<(), JobError> {
+        let dead = |_: usize, _: &mut dyn Robot| -> Result<(), JobError> {
             Err(JobError::Simulator("gone".into()))
         };
         assert_eq!(pool.run(3, &dead), Err(PoolError::Exhausted));
         assert!(pool.is_empty() && pool.dropped().len() == 4);
         // A fatal job stops the run without dropping anyone.
         let mut pool = SimulatorPool::new(robots(3));
-        let fatal = |i: usize, b: &mut dyn RobotBackend| {
+        let fatal = |i: usize, b: &mut dyn Robot| {
             if i == 4 {
                 Err(JobError::Fatal("bad job".into()))
             } else {

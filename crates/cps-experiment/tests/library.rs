@@ -46,6 +46,7 @@ fn run_quiet(exp: &Experiment, threads: usize) -> Outcome {
         exp,
         &RunOptions {
             threads: Some(threads),
+            ..RunOptions::default()
         },
         &(),
     )

@@ -18,7 +18,15 @@ fn repo() -> &'static Path {
 fn the_shipped_takes_are_imitated_along_the_path_they_were_recorded_on() {
     let path = repo().join("experiments/mocap_imitation.toml");
     let exp = cps_experiment::experiment::load(&path, None, &Ceilings::default()).expect("loads");
-    let out = run(&exp, &RunOptions { threads: Some(2) }, &()).expect("runs");
+    let out = run(
+        &exp,
+        &RunOptions {
+            threads: Some(2),
+            ..RunOptions::default()
+        },
+        &(),
+    )
+    .expect("runs");
     assert!(out.header.complete);
     let s = &out.summary;
     assert_eq!(s["demonstrations"]["kept"], 3, "{}", s["dropped"]);

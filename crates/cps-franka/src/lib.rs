@@ -21,6 +21,9 @@
 //!   measured torques (a momentum observer), for [`run_torques`].
 //! - [`guide`]: the arm floating under a light damping, recorded while a person moves it
 //!   ([`guide::run_guiding`]).
+//! - [`FrankaRobot`]: the arm as a robot of cps's execution contract
+//!   ([`cps_robot::Robot`]): a plan's motion streamed at 1 kHz and recorded, so every cps
+//!   front end drives a Franka through the same guard and stop token as any robot.
 //!
 //! Safety sits between them as a wrapper, not inside generators: [`limits::StreamCheck`]
 //! takes the robot's own per-millisecond differences of every command (position, velocity
@@ -61,6 +64,7 @@ pub mod gripper;
 pub mod guide;
 pub mod limits;
 mod motion;
+mod robot;
 pub mod rt;
 mod session;
 pub mod wire;
@@ -71,6 +75,7 @@ pub use motion::{
     CheckedStream, START_TOLERANCE, Start, approach, check_trajectory, execute_stream,
     record_states,
 };
+pub use robot::{FrankaRobot, FrankaSettings, MODEL_AGREEMENT, TOOL_AGREEMENT};
 pub use rt::{
     Ending, JointPositions, JointVelocities, LoopOptions, MotionReport, Realtime, Sample, Timing,
     Torques, run_joint_positions, run_joint_velocities, run_torques,

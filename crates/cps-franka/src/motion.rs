@@ -3,60 +3,41 @@
 
 use std::sync::atomic::AtomicBool;
 
+pub use cps_robot::START_TOLERANCE;
+use cps_robot::rest_to_rest;
+
 use crate::error::FrankaError;
 use crate::limits::{Breach, DT, Quantity, RateLimits, StreamCheck, check_stream};
 use crate::rt::{JointPositions, LoopOptions, MotionReport, run_joint_positions, start_position};
 use crate::session::Connection;
 use crate::wire::JOINTS;
 
-/// The rest-to-rest profile `s(τ) = 35τ⁴ − 84τ⁵ + 70τ⁶ − 20τ⁷` (zero velocity,
-/// acceleration and jerk at both ends) and the peaks of its first three derivatives.
-fn septic(tau: f64) -> f64 {
-    let t4 = tau.powi(4);
-    t4 * (35.0 - 84.0 * tau + 70.0 * tau * tau - 20.0 * tau.powi(3))
-}
-
-/// Peak |s'|, |s''|, |s'''| of [`septic`] on [0, 1] (derivatives taken analytically and
-/// maximised on a fine grid in the tests: 2.1875, 7.5132, 52.5).
-const SEPTIC_PEAKS: [f64; 3] = [2.1875, 7.5132, 52.5];
-
 /// A rest-to-rest move from `from` to `to` along a straight line in joint space, at
-/// `fraction` (0 < f ≤ 1) of every joint's velocity, acceleration and jerk limit, sampled
-/// every millisecond (the first sample one period after `from`, the last exactly `to`).
+/// `fraction` (0 < f ≤ 1) of every joint's velocity (its slowest bound along the line, on
+/// the FR3's position-dependent curve), acceleration and jerk limit: cps-robot's
+/// [`rest_to_rest`] profile, sampled every millisecond (the first sample one period after
+/// `from`, the last exactly `to`).
 pub fn approach(
     limits: &RateLimits,
     from: [f64; JOINTS],
     to: [f64; JOINTS],
     fraction: f64,
 ) -> Vec<[f64; JOINTS]> {
-    let mut duration: f64 = 0.0;
-    for i in 0..JOINTS {
-        let d = (to[i] - from[i]).abs();
-        if d == 0.0 {
-            continue;
-        }
-        let v = (fraction * slowest_bound(limits, from, to, i)).max(1e-3);
-        duration = duration
-            .max(SEPTIC_PEAKS[0] * d / v)
-            .max((SEPTIC_PEAKS[1] * d / (fraction * limits.ddq_max[i])).sqrt())
-            .max((SEPTIC_PEAKS[2] * d / (fraction * limits.dddq_max[i])).cbrt());
-    }
-    let steps = (duration / DT).ceil() as usize;
-    (1..=steps)
-        .map(|k| {
-            let s = if k == steps {
-                1.0
-            } else {
-                septic(k as f64 / steps as f64)
-            };
-            let mut q = to;
-            if k < steps {
-                for i in 0..JOINTS {
-                    q[i] = from[i] + (to[i] - from[i]) * s;
-                }
-            }
-            q
-        })
+    let profile = rest_to_rest(
+        &from,
+        &to,
+        |i| {
+            [
+                Some((fraction * slowest_bound(limits, from, to, i)).max(1e-3)),
+                Some(fraction * limits.ddq_max[i]),
+                Some(fraction * limits.dddq_max[i]),
+            ]
+        },
+        DT,
+    );
+    profile[1..]
+        .iter()
+        .map(|q| <[f64; JOINTS]>::try_from(q.as_slice()).expect("seven joints"))
         .collect()
 }
 
@@ -97,10 +78,6 @@ pub struct CheckedStream {
     /// The check's peak usage (velocity, acceleration, jerk; 1.0 = at the limit).
     pub peak_usage: [[f64; JOINTS]; 3],
 }
-
-/// The largest start difference taken without an approach (rad): a robot at rest holds
-/// its desired position to far less.
-pub const START_TOLERANCE: f64 = 1e-3;
 
 /// Checks a trajectory of commands at 1 kHz for a robot at rest at `from`; prepends an
 /// approach when asked. Nothing is sent: a breach is returned naming joint, time and
@@ -262,24 +239,6 @@ pub fn record_states(
 mod tests {
     use super::*;
     use crate::limits::Arm;
-
-    #[test]
-    fn septic_peaks_are_its_derivatives_maxima() {
-        let n = 200_000;
-        let h = 1.0 / n as f64;
-        let d1 =
-            |t: f64| 140.0 * t.powi(3) - 420.0 * t.powi(4) + 420.0 * t.powi(5) - 140.0 * t.powi(6);
-        let d2 =
-            |t: f64| 420.0 * t * t - 1680.0 * t.powi(3) + 2100.0 * t.powi(4) - 840.0 * t.powi(5);
-        let d3 = |t: f64| 840.0 * t - 5040.0 * t * t + 8400.0 * t.powi(3) - 4200.0 * t.powi(4);
-        let peak =
-            |f: &dyn Fn(f64) -> f64| (0..=n).map(|k| f(k as f64 * h).abs()).fold(0.0, f64::max);
-        assert!((peak(&d1) - SEPTIC_PEAKS[0]).abs() < 1e-4);
-        assert!((peak(&d2) - SEPTIC_PEAKS[1]).abs() < 1e-3 && peak(&d2) <= SEPTIC_PEAKS[1]);
-        assert!((peak(&d3) - SEPTIC_PEAKS[2]).abs() < 1e-3);
-        // s' is d1, checked against a difference of septic.
-        assert!((d1(0.3) - (septic(0.3 + 1e-6) - septic(0.3 - 1e-6)) / 2e-6).abs() < 1e-6);
-    }
 
     #[test]
     fn approaches_keep_every_limit_and_end_at_the_target() {

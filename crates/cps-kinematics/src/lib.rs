@@ -1,5 +1,5 @@
 //! Robot kinematics for cps: serial chains, forward and inverse kinematics, inverse
-//! controllers, and a robot to run trajectories on.
+//! controllers, dynamics, limits and retiming.
 //!
 //! - [`SerialChain`]: revolute joints from a Denavit-Hartenberg table in an explicitly
 //!   named convention ([`DhConvention::Standard`] or [`DhConvention::Modified`], never mixed
@@ -14,9 +14,8 @@
 //! - [`solve_ik`]: inverse kinematics (position or full pose) with joint limits and seeded
 //!   random restarts; failure carries the best residual. [`check_path`]: is a whole
 //!   Cartesian path reachable on one branch?
-//! - [`RobotBackend`]: what a robot must offer (joints, tool pose, time, step);
-//!   [`KinematicRobot`] implements it in-process; [`execute`] follows a task-space
-//!   trajectory on any backend and records what the robot did.
+//! - Robots themselves — the execution contract, the in-process stand-in and executing a
+//!   trajectory on a robot — are `cps-robot`'s, built on this crate.
 //! - [`ArmModel`]: an arm's mass matrix, Coriolis and gravity torques and tool Jacobian in
 //!   fixed-size arrays, for control loops at the robot's rate.
 //! - [`contact`]: the generalized-momentum observer, the external wrench at the tool and a
@@ -47,13 +46,11 @@
 #![deny(missing_docs)]
 
 mod arm_model;
-mod backend;
 mod chain;
 pub mod contact;
 pub mod controllers;
 mod dynamics;
 mod error;
-mod execute;
 mod fastmath;
 mod ik;
 mod limits;
@@ -66,12 +63,10 @@ mod urdf;
 mod workspace;
 
 pub use arm_model::{ArmFrames, ArmModel};
-pub use backend::{KinematicRobot, RobotBackend, StepRecording, run_stepwise};
 pub use chain::{ChainGeometry, ChainPose, DhConvention, DhLink, RevoluteJoint, SerialChain};
 pub use controllers::IkTarget;
 pub use dynamics::{GRAVITY, LinkInertia};
 pub use error::KinematicsError;
-pub use execute::{ExecutionConfig, Recording, execute};
 pub use ik::{IkConfig, IkSolution, solve_ik};
 pub use limits::{
     CARTESIAN_QUANTITIES, CartesianCheck, CartesianLimits, CartesianViolation, CommandCheck,

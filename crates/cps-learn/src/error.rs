@@ -21,9 +21,12 @@ pub enum LearnError {
         /// What is wrong with it.
         problem: String,
     },
-    /// The robot model, inverse kinematics or a robot backend failed.
+    /// The robot model or inverse kinematics failed.
     #[error(transparent)]
     Kinematics(#[from] cps_kinematics::KinematicsError),
+    /// A robot refused a plan or failed while running it.
+    #[error(transparent)]
+    Robot(#[from] cps_robot::RobotError),
     /// A way point the robot's tool cannot reach within the joint limits.
     #[error(
         "`{point}` at ({x:.4}, {y:.4}, {z:.4}) is outside the robot's reachable workspace: the closest reachable point within the joint limits is {distance:.4} m away",

@@ -4,7 +4,7 @@
 //! what the DMP says (the thesis's case for learning in simulation).
 
 use cps_dmp::Trajectory;
-use cps_kinematics::Recording;
+use cps_robot::Recording;
 use serde::{Deserialize, Serialize};
 
 use crate::task::{CostBreakdown, ViaPointTask};

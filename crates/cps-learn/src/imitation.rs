@@ -21,7 +21,8 @@ use std::ops::ControlFlow;
 use std::time::Instant;
 
 use cps_dmp::{Combine, DmpConfig, Imitation, Imitator, Lambda, Regression, Trajectory};
-use cps_kinematics::{IkConfig, KinematicsError, Recording, RobotBackend, check_path};
+use cps_kinematics::{IkConfig, KinematicsError, check_path};
+use cps_robot::{Recording, Robot, StopToken};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -250,18 +251,20 @@ impl ImitationOutcome {
 /// finishes and may return `ControlFlow::Break(())` to stop: the outcome then holds the
 /// finished stages and `complete == false`. A backend that fails during an execution (a
 /// simulator that died or timed out) ends the run the same way, with the reason in
-/// `failure`: the executions done before it are kept. The results do not depend on the number of
-/// threads.
+/// `failure`: the executions done before it are kept. `stop` brakes a robot that moves (and
+/// ends the run as a failure of that execution). The results do not depend on the number
+/// of threads.
 pub fn run_imitation(
     config: &ImitationConfig,
-    backend: &mut dyn RobotBackend,
+    backend: &mut dyn Robot,
     progress: &(dyn Fn(ImitationStage, usize, usize) -> ControlFlow<()> + Sync),
+    stop: &StopToken,
 ) -> Result<ImitationOutcome, LearnError> {
     config.validate()?;
-    if backend.dof() != config.robot.chain.dof() {
+    if backend.model().chain.dof() != config.robot.chain.dof() {
         return Err(KinematicsError::JointCount {
             expected: config.robot.chain.dof(),
-            got: backend.dof(),
+            got: backend.model().chain.dof(),
         }
         .into());
     }
@@ -277,15 +280,15 @@ pub fn run_imitation(
         failure: None,
     };
     let n = config.demonstrations;
-    let stop = std::sync::atomic::AtomicBool::new(false);
+    let halt = std::sync::atomic::AtomicBool::new(false);
     let done = std::sync::atomic::AtomicUsize::new(0);
     let report = |stage, total| {
         let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         if progress(stage, d, total).is_break() {
-            stop.store(true, std::sync::atomic::Ordering::Relaxed);
+            halt.store(true, std::sync::atomic::Ordering::Relaxed);
         }
     };
-    let stopped = || stop.load(std::sync::atomic::Ordering::Relaxed);
+    let stopped = || halt.load(std::sync::atomic::Ordering::Relaxed);
 
     // 1. Learn the demonstrations, in parallel (or take the given ones).
     let t = Instant::now();
@@ -322,7 +325,7 @@ pub fn run_imitation(
                 let outcome = learn_via_points(&learner, &|_, _| {
                     let finished = done.load(std::sync::atomic::Ordering::Relaxed);
                     if stopped() || progress(ImitationStage::Learning, finished, n).is_break() {
-                        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+                        halt.store(true, std::sync::atomic::Ordering::Relaxed);
                         ControlFlow::Break(())
                     } else {
                         ControlFlow::Continue(())
@@ -359,7 +362,7 @@ pub fn run_imitation(
     // 2. Reachability of every path within the joint limits, in parallel.
     let t = Instant::now();
     done.store(0, std::sync::atomic::Ordering::Relaxed);
-    let dt = backend.time_step();
+    let dt = backend.dt();
     let chain = &config.robot.chain;
     let max_step: Option<Vec<f64>> = chain
         .velocity_limits()
@@ -417,7 +420,7 @@ pub fn run_imitation(
         .filter(|d| d.dropped.is_none())
     {
         let from = d.start_q.as_deref().unwrap_or(&config.robot.initial_q);
-        match execute_trajectory_from(backend, &config.robot, &d.trajectory, from) {
+        match execute_trajectory_from(backend, &config.robot, &d.trajectory, from, stop) {
             Ok(r) => d.recording = Some(r),
             Err(e) => {
                 // The backend failed: keep what was executed, say what was not.
@@ -503,7 +506,7 @@ pub fn run_imitation(
         } else {
             config.robot.initial_q.clone()
         };
-        match execute_trajectory_from(backend, &config.robot, &fit.trajectory, &from) {
+        match execute_trajectory_from(backend, &config.robot, &fit.trajectory, &from, stop) {
             Ok(r) => fit.recording = Some(r),
             Err(e) => {
                 out.failure = Some(format!("executing the {} imitation: {e}", fit.method));

@@ -24,7 +24,8 @@ use std::time::Instant;
 
 use cps_cmaes::GenerationReport;
 use cps_dmp::{DiscreteDmp, Formulation, Trajectory};
-use cps_kinematics::{KinematicsError, Recording, RobotBackend};
+use cps_kinematics::KinematicsError;
+use cps_robot::{Plan, Recording, Robot, StopToken, move_to};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
@@ -446,22 +447,23 @@ pub fn learn_joint_space(
     })
 }
 
-/// Plays a joint trajectory on `backend`: reset to its first configuration, then one
-/// commanded configuration per control period (linear interpolation between grid
-/// samples), recording the tool and the joints. `position_error` is the distance of the
-/// measured tool from the model's tool at the commanded configuration.
+/// Plays a joint trajectory on `backend`: the robot put at (or moved to) its first
+/// configuration, then one commanded configuration per control period (linear
+/// interpolation between grid samples) as one plan, recording the tool and the joints.
+/// `position_error` is the distance of the measured tool from the model's tool at the
+/// commanded configuration. `stop` brakes a robot that moves.
 pub fn execute_joint_trajectory(
-    backend: &mut dyn RobotBackend,
+    backend: &mut dyn Robot,
     robot: &RobotSetup,
     traj: &Trajectory,
+    stop: &StopToken,
 ) -> Result<Recording, LearnError> {
     let dof = traj.dims();
     let start: Vec<f64> = (0..dof).map(|j| traj.position(j)[0]).collect();
-    backend.reset(&start)?;
-    let dt = backend.time_step();
+    move_to(backend, &start, stop)?;
+    let dt = backend.dt();
     let end = *traj.times().last().unwrap_or(&0.0);
     let samples = (end / dt + 1e-9).floor() as usize + 1;
-    let t0 = backend.time()?;
     let commands: Vec<Vec<f64>> = (0..samples)
         .map(|k| {
             (0..dof)
@@ -469,29 +471,30 @@ pub fn execute_joint_trajectory(
                 .collect()
         })
         .collect();
-    // One call on a simulator with cps's scene script, a few per step otherwise.
-    let run = backend.run_joint_targets(&commands)?;
+    // One plan: one call on a simulator with cps's scene script, one goal on a ROS 2
+    // controller, one stream on a Franka.
+    let run = backend.run(&Plan::new(dt, commands.clone())?, stop)?;
+    if !run.ending.complete() || run.len() != samples {
+        return Err(cps_robot::RobotError::Robot {
+            robot: backend.name(),
+            message: format!(
+                "asked to run {samples} points, it recorded {}: {}",
+                run.len(),
+                run.ending.sentence()
+            ),
+        }
+        .into());
+    }
     let mut rec = Recording {
         steps: samples,
         ..Recording::default()
     };
     for (k, q) in commands.iter().enumerate() {
-        let (Some(pose), Some(measured), Some(time)) =
-            (run.tool.get(k), run.q.get(k), run.time.get(k))
-        else {
-            return Err(cps_kinematics::KinematicsError::Backend {
-                backend: "the robot backend".into(),
-                message: format!(
-                    "asked to run {samples} steps, it recorded {}",
-                    run.time.len()
-                ),
-            }
-            .into());
-        };
+        let (pose, measured, time) = (&run.tool[k], &run.q[k], run.time[k]);
         let want = robot.chain.fk(q)?.translation.vector;
         let p = pose.translation.vector;
         let o = nalgebra::UnitQuaternion::from_rotation_matrix(&pose.rotation);
-        rec.time.push(time - t0);
+        rec.time.push(time);
         rec.q.push(measured.clone());
         rec.position.push([p.x, p.y, p.z]);
         rec.orientation.push([o.i, o.j, o.k, o.w]);

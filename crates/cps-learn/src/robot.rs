@@ -2,10 +2,8 @@
 //! controller targets at the robot's control period, and execution on any backend.
 
 use cps_dmp::Trajectory;
-use cps_kinematics::{
-    ExecutionConfig, IkConfig, IkTarget, KinematicsError, Recording, RobotBackend, SerialChain,
-    execute, solve_ik,
-};
+use cps_kinematics::{IkConfig, IkTarget, KinematicsError, SerialChain, solve_ik};
+use cps_robot::{ExecutionConfig, Recording, Robot, StopToken, execute, move_to};
 use nalgebra::Vector3;
 
 use crate::{LearnError, ViaPointTask};
@@ -95,24 +93,32 @@ pub fn targets_at(traj: &Trajectory, dt: f64) -> (Vec<f64>, Vec<IkTarget>) {
 }
 
 /// Executes a 3-D trajectory on `backend` from the setup's initial configuration: the
-/// backend is reset there (clock at 0), then follows one target per control period
-/// ([`execute`]).
+/// robot is put there (a simulator, clock at 0) or moves there ([`move_to`]), then follows
+/// one target per control period ([`execute`]). `stop` brakes a robot that moves.
 pub fn execute_trajectory(
-    backend: &mut dyn RobotBackend,
+    backend: &mut dyn Robot,
     robot: &RobotSetup,
     traj: &Trajectory,
+    stop: &StopToken,
 ) -> Result<Recording, LearnError> {
-    execute_trajectory_from(backend, robot, traj, &robot.initial_q)
+    execute_trajectory_from(backend, robot, traj, &robot.initial_q, stop)
 }
 
 /// [`execute_trajectory`] from the configuration `q0` instead of the setup's initial one.
 pub fn execute_trajectory_from(
-    backend: &mut dyn RobotBackend,
+    backend: &mut dyn Robot,
     robot: &RobotSetup,
     traj: &Trajectory,
     q0: &[f64],
+    stop: &StopToken,
 ) -> Result<Recording, LearnError> {
-    backend.reset(q0)?;
-    let (_, targets) = targets_at(traj, backend.time_step());
-    Ok(execute(backend, &robot.chain, &targets, &robot.execution)?)
+    move_to(backend, q0, stop)?;
+    let (_, targets) = targets_at(traj, backend.dt());
+    Ok(execute(
+        backend,
+        &robot.chain,
+        &targets,
+        &robot.execution,
+        stop,
+    )?)
 }

@@ -4,11 +4,11 @@
 use std::ops::ControlFlow;
 
 use cps_kinematics::robots::{PandaTool, panda};
-use cps_kinematics::{ExecutionConfig, KinematicRobot};
 use cps_learn::{
     ImitationConfig, LearnError, RobotSetup, Solver, ViaPointConfig, ViaPointTask,
     check_way_points, run_imitation,
 };
+use cps_robot::{ExecutionConfig, KinematicRobot, StopToken};
 use nalgebra::Isometry3;
 
 const THESIS_Q0: [f64; 7] = [
@@ -41,7 +41,13 @@ fn config(demos: usize) -> ImitationConfig {
 fn the_thesis_pipeline_imitates_the_mean_within_a_millimetre() {
     let c = config(20);
     let mut robot = KinematicRobot::new(c.robot.chain.clone(), &THESIS_Q0, 0.01).unwrap();
-    let out = run_imitation(&c, &mut robot, &|_, _, _| ControlFlow::Continue(())).unwrap();
+    let out = run_imitation(
+        &c,
+        &mut robot,
+        &|_, _, _| ControlFlow::Continue(()),
+        &StopToken::new(),
+    )
+    .unwrap();
     assert!(out.complete);
     assert_eq!(out.demonstrations.len(), 20);
     let kept = out.kept().count();
@@ -116,7 +122,8 @@ fn joint_space_learning_reaches_the_points_within_limits() {
     assert!(out.errors.max_position_error() < 1e-3);
     assert!(out.limits.within());
     let mut robot = KinematicRobot::new(c.robot.chain.clone(), &THESIS_Q0, 0.01).unwrap();
-    let rec = execute_joint_trajectory(&mut robot, &c.robot, &out.trajectory).unwrap();
+    let rec =
+        execute_joint_trajectory(&mut robot, &c.robot, &out.trajectory, &StopToken::new()).unwrap();
     assert!(
         rec.max_position_error() < 1e-9,
         "{}",

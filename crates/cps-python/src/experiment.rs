@@ -6,7 +6,6 @@
 use std::ops::ControlFlow;
 use std::path::PathBuf;
 use std::sync::Mutex;
-use std::sync::atomic::AtomicBool;
 
 use cps_experiment::budget::Ceilings;
 use cps_experiment::files::{WriteOptions, table_csv, write_outcome};
@@ -213,7 +212,7 @@ struct Progress {
 
 /// The observer of a Python run: the cancel flag, and progress for the callback.
 struct PyObserver<'a> {
-    cancel: &'a AtomicBool,
+    cancel: &'a cps_robot::StopToken,
     progress: &'a Mutex<Progress>,
 }
 
@@ -271,7 +270,10 @@ pub fn run_experiment(
         )
     })?;
     let exp = experiment::load(&path, seed, &ceilings).py()?;
-    let options = RunOptions { threads };
+    let options = RunOptions {
+        threads,
+        ..RunOptions::default()
+    };
     options
         .check()
         .map_err(|e| value_error(e.0.replace("--threads", "threads")))?;
@@ -303,6 +305,12 @@ pub fn run_experiment(
         let observer = PyObserver {
             cancel,
             progress: &shared,
+        };
+        // A KeyboardInterrupt stops learning after its generation and brakes a robot that
+        // moves.
+        let options = RunOptions {
+            stop: cancel.clone(),
+            ..options.clone()
         };
         cps_experiment::run(&exp, &options, &observer)
     })?;

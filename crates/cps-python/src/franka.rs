@@ -324,7 +324,13 @@ impl Franka {
         let gains = impedance_gains(stiffness)?;
         let robot = self.at(drive)?;
         let (out, interrupt) = detached_keep(py, None, |stop| {
-            cps_experiment::contact::follow_with_impedance(&robot, &times, &points, gains, stop)
+            cps_experiment::contact::follow_with_impedance(
+                &robot,
+                &times,
+                &points,
+                gains,
+                stop.flag(),
+            )
         })?;
         let out = out.map_err(|e| e.py_err())?;
         let d = recording(py, &out.report.samples)?;

@@ -2,14 +2,15 @@
 //!
 //! Python runs signal handlers in the main thread only, between bytecodes, so Rust work
 //! runs on a helper thread while the calling thread waits without the GIL and, every
-//! 50 ms, lets Python check for signals (and report progress). A KeyboardInterrupt sets
-//! the work's cancel flag — runs see it through their observer and stop after the current
-//! generation, keeping what they finished — and is raised once the work has wound down.
+//! 50 ms, lets Python check for signals (and report progress). A KeyboardInterrupt stops
+//! the work's [`StopToken`] — a robot that moves brakes within its limits, runs see it
+//! through their observer and stop after the current generation, keeping what they
+//! finished — and is raised once the work has wound down.
 
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::time::Duration;
 
+use cps_robot::StopToken;
 use pyo3::prelude::*;
 
 use crate::errors::failure;
@@ -26,9 +27,9 @@ pub type OnPoll<'a> = &'a mut dyn FnMut(Python<'_>) -> PyResult<()>;
 pub fn detached_keep<T: Send>(
     py: Python<'_>,
     mut on_poll: Option<OnPoll<'_>>,
-    work: impl FnOnce(&AtomicBool) -> T + Send,
+    work: impl FnOnce(&StopToken) -> T + Send,
 ) -> PyResult<(T, Option<PyErr>)> {
-    let cancel = AtomicBool::new(false);
+    let cancel = StopToken::new();
     let mut interrupt: Option<PyErr> = None;
     let outcome = std::thread::scope(|scope| {
         let (done_tx, done_rx) = mpsc::channel::<()>();
@@ -59,7 +60,7 @@ pub fn detached_keep<T: Send>(
                 _ => Ok(()),
             };
             if let Err(e) = polled.and_then(|()| py.check_signals()) {
-                cancel.store(true, Ordering::Relaxed);
+                cancel.stop();
                 interrupt.get_or_insert(e);
             }
         }
@@ -77,10 +78,7 @@ pub fn detached_keep<T: Send>(
 
 /// [`detached_keep`] for work whose partial result is of no use: raises the
 /// KeyboardInterrupt instead of returning.
-pub fn detached<T: Send>(
-    py: Python<'_>,
-    work: impl FnOnce(&AtomicBool) -> T + Send,
-) -> PyResult<T> {
+pub fn detached<T: Send>(py: Python<'_>, work: impl FnOnce(&StopToken) -> T + Send) -> PyResult<T> {
     match detached_keep(py, None, work)? {
         (_, Some(e)) => Err(e),
         (value, None) => Ok(value),
@@ -97,17 +95,17 @@ const INLINE_WORK: f64 = 2e7;
 pub fn run<T: Send>(
     py: Python<'_>,
     multiply_adds: f64,
-    work: impl FnOnce(&AtomicBool) -> T + Send,
+    work: impl FnOnce(&StopToken) -> T + Send,
 ) -> PyResult<T> {
     if multiply_adds < INLINE_WORK {
-        let never = AtomicBool::new(false);
+        let never = StopToken::new();
         Ok(py.detach(|| work(&never)))
     } else {
         detached(py, work)
     }
 }
 
-/// Whether a cancel flag is set.
-pub fn cancelled(cancel: &AtomicBool) -> bool {
-    cancel.load(Ordering::Relaxed)
+/// Whether a stop was asked for.
+pub fn cancelled(cancel: &StopToken) -> bool {
+    cancel.is_stopped()
 }

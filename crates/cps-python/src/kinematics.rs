@@ -515,7 +515,7 @@ impl Robot {
 
     /// The robot in words: its kinematic description, limits, base and tool.
     fn describe(&self) -> String {
-        self.model.describe().join("\n")
+        cps_experiment::robot_file::Describe::describe(&self.model).join("\n")
     }
 
     fn __repr__(&self) -> String {

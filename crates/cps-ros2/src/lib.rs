@@ -7,8 +7,10 @@
 //!
 //! Layers: [`cdr`] (bytes), [`msg`] (the messages), [`names`] (ROS names → DDS topics),
 //! [`node`] (the participant, writers and readers), then what is done with them:
-//! [`publish`], [`action`], [`record`], [`markers`]. Files and words (a joint CSV, the
-//! limit check, the report) live in `cps-experiment`'s `ros2` module.
+//! [`publish`], [`action`], [`record`], [`markers`], and [`robot`]: a ros2_control
+//! controller as a robot of cps's execution contract ([`robot::Ros2Robot`]) and the one
+//! place a plan becomes a `JointTrajectory` ([`robot::trajectory_message`]). Files and
+//! words (a joint CSV, the report) live in the experiments layer.
 //!
 //! # Example
 //!
@@ -45,6 +47,7 @@ pub mod names;
 pub mod node;
 pub mod publish;
 pub mod record;
+pub mod robot;
 
 /// What went wrong on the graph.
 #[derive(Debug, thiserror::Error)]

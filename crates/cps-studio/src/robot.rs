@@ -3,8 +3,9 @@
 //! executed on it — the same reachability check and inverse controller the pipelines use.
 
 use cps_dmp::Trajectory;
-use cps_kinematics::{KinematicRobot, SerialChain};
+use cps_kinematics::SerialChain;
 use cps_learn::{LearnError, RobotSetup, ViaPointTask, check_way_points, execute_trajectory};
+use cps_robot::{KinematicRobot, Recording, StopToken};
 use serde::Serialize;
 
 /// Drawn poses per second of movement (the execution runs at the movement's dt).
@@ -65,7 +66,7 @@ impl StudioRobot {
             setup: RobotSetup {
                 chain: scene.robot.chain.clone(),
                 initial_q: scene.initial_q,
-                execution: cps_kinematics::ExecutionConfig::default(),
+                execution: cps_robot::ExecutionConfig::default(),
             },
             model: scene.robot,
         })
@@ -132,14 +133,15 @@ impl StudioRobot {
 
 impl StudioRobot {
     /// Executes `traj` from the initial configuration, stepped every `dt`.
-    fn run(&self, traj: &Trajectory, dt: f64) -> Result<cps_kinematics::Recording, String> {
+    fn run(&self, traj: &Trajectory, dt: f64) -> Result<Recording, String> {
         let mut robot = KinematicRobot::new(self.setup.chain.clone(), &self.setup.initial_q, dt)
             .map_err(|e| e.to_string())?;
-        execute_trajectory(&mut robot, &self.setup, traj).map_err(|e| e.to_string())
+        execute_trajectory(&mut robot, &self.setup, traj, &StopToken::new())
+            .map_err(|e| e.to_string())
     }
 
     /// The executed joints as a named joint trajectory.
-    fn joints(&self, rec: &cps_kinematics::Recording) -> cps_experiment::limits::JointTrajectory {
+    fn joints(&self, rec: &Recording) -> cps_experiment::limits::JointTrajectory {
         cps_experiment::limits::JointTrajectory {
             names: self.model.joint_names.clone(),
             times: rec.time.clone(),

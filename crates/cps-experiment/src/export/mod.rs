@@ -166,18 +166,7 @@ pub(crate) fn sample(traj: &JointTrajectory, period: f64) -> Samples {
 /// The joint names an export uses: the robot's, or `<robot>_joint<i>` for the generic
 /// `joint<i>` of DH robots (`panda_joint1`, as franka_description names them).
 pub fn joint_names(robot: &RobotModel) -> Vec<String> {
-    let generic = robot
-        .joint_names
-        .iter()
-        .enumerate()
-        .all(|(i, n)| *n == format!("joint{}", i + 1));
-    if generic {
-        (1..=robot.joint_names.len())
-            .map(|i| format!("{}_joint{i}", robot.name))
-            .collect()
-    } else {
-        robot.joint_names.clone()
-    }
+    robot.published_joint_names()
 }
 
 /// A number as a YAML float that PyYAML and ROS read as `float64`: always with a point and,

@@ -5,17 +5,14 @@
 //! ended, the loop's timing), the `contact` table (every tick), the force figure (desired
 //! and estimated over time) and the path figure.
 
-use std::sync::atomic::Ordering::SeqCst;
-
 use serde::Serialize;
 
 use super::Ctx;
 use crate::contact::{ContactEnding, ContactOutcome, RobotAt, Stage, contact_on_robot};
-use crate::franka_backend::{MOVING, STOP};
 use crate::outcome::{
     Column, Figure, Format, Outcome, Panels, Plot, Report, ReportTable, Series, Table,
 };
-use crate::plan::BackendChoice;
+use crate::robots::BackendChoice;
 use crate::{ExperimentError, InputError};
 
 #[derive(Serialize)]
@@ -67,11 +64,8 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         drive: spec.drive,
     };
     let plan = &spec.plan;
-    MOVING.store(true, SeqCst);
-    let done = contact_on_robot(&robot, plan, &STOP);
-    MOVING.store(false, SeqCst);
-    let out = done?;
-    let stopped = STOP.load(SeqCst);
+    let out = contact_on_robot(&robot, plan, ctx.stop)?;
+    let stopped = ctx.stop.is_stopped();
     let (force_rms, peak, path_rms) = out.measures(plan.direction);
     let t = &out.report.timing;
     let summary = Summary {

@@ -15,11 +15,11 @@ use std::ops::ControlFlow;
 
 use cps_cmaes::{Cmaes, CmaesConfig, StopRule};
 use cps_dmp::{DiscreteDmp, Trajectory};
-use cps_kinematics::{KinematicsError, Recording, RobotBackend};
 use cps_learn::{
     ExecutedCost, ExecutedErrors, GenerationRecord, LearnError, SearchSpace, exact_optimum,
     execute_trajectory, executed_cost, targets_at,
 };
+use cps_robot::{Recording, Robot, RobotError, StopToken};
 use serde::Serialize;
 
 use super::movement_files::movement_files;
@@ -27,7 +27,7 @@ use super::{Ctx, history_table, learn_error, position_figures, search_figure, wa
 use crate::ExperimentError;
 use crate::observer::Event;
 use crate::outcome::{Column, Format, Outcome, Report, ReportTable, Series, Table, fields};
-use crate::plan::RobotChoice;
+use crate::robots::RobotChoice;
 use crate::sim_pool::{Dropped, JobError, PoolError, SimulatorPool};
 
 /// One candidate executed and judged.
@@ -46,21 +46,23 @@ struct Judge<'a> {
     task: &'a cps_learn::ViaPointTask,
     robot: &'a RobotChoice,
     weights: cps_learn::ExecutedWeights,
+    stop: &'a StopToken,
 }
 
 impl Judge<'_> {
     /// Rolls θ out, executes it on `backend` from the initial configuration and costs
     /// the recording. A backend failure is the simulator's; anything else is the job's.
-    fn judge(&self, theta: &[f64], backend: &mut dyn RobotBackend) -> Result<Judged, JobError> {
+    fn judge(&self, theta: &[f64], backend: &mut dyn Robot) -> Result<Judged, JobError> {
         let trajectory = self.dmp.rollout(&self.space.weights(theta));
-        let recording = match execute_trajectory(backend, &self.robot.setup, &trajectory) {
+        let recording = match execute_trajectory(backend, &self.robot.setup, &trajectory, self.stop)
+        {
             Ok(r) => r,
-            Err(LearnError::Kinematics(e @ KinematicsError::Backend { .. })) => {
+            Err(LearnError::Robot(e @ RobotError::Robot { .. })) => {
                 return Err(JobError::Simulator(e.to_string()));
             }
             Err(e) => return Err(JobError::Fatal(e.to_string())),
         };
-        let (times, _) = targets_at(&trajectory, backend.time_step());
+        let (times, _) = targets_at(&trajectory, backend.dt());
         let (cost, errors) = executed_cost(
             self.task,
             &trajectory,
@@ -145,15 +147,19 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         task,
         robot,
         weights,
+        stop: ctx.stop,
     };
     // The in-process robot runs one copy per worker thread: the results are the same
     // for any pool size.
     let copies = ctx.pool.current_num_threads();
     let endpoints = robot.backend.pool_names(copies);
-    let opened = robot.open_pool(copies)?;
-    if let crate::plan::BackendChoice::Coppelia { robot_name, .. } = &robot.backend
-        && let Some((endpoint, _)) = opened.iter().find(|(_, b)| !b.runs_sequences())
+    let mut opened = robot.open_pool(copies)?;
+    if let crate::robots::BackendChoice::Coppelia { robot_name, .. } = &robot.backend
+        && let Some(i) = opened
+            .iter_mut()
+            .position(|(_, b)| b.stepped().is_some_and(|s| !s.prefers_plans()))
     {
+        let endpoint = &opened[i].0;
         return Err(ExperimentError::Message(format!(
             "{endpoint}: the scene has no /{robot_name}/cpsExecutor script, and learning on the executed cost steps thousands of executions: add configs/coppeliasim/cpsExecutor.lua to the scene as a child of /{robot_name} (the stand-in server has it unless started with --without-script)"
         )));
@@ -263,8 +269,10 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     )?;
     let summary = Summary {
         backend: match &robot.backend {
-            crate::plan::BackendChoice::Coppelia { .. } => "coppelia (a pool of simulators)".into(),
-            crate::plan::BackendChoice::Franka { pool, .. } if pool.len() > 1 => {
+            crate::robots::BackendChoice::Coppelia { .. } => {
+                "coppelia (a pool of simulators)".into()
+            }
+            crate::robots::BackendChoice::Franka { pool, .. } if pool.len() > 1 => {
                 format!("franka (a pool of {} robots)", pool.len())
             }
             _ => robot.describe(),
@@ -393,8 +401,8 @@ fn lines(ctx: &Ctx<'_>, s: &Summary<'_>, failure: Option<&str>) -> Vec<String> {
             s.evaluations,
             s.simulators.endpoints.len(),
             match ctx.exp.robot.as_ref().map(|r| &r.backend) {
-                Some(crate::plan::BackendChoice::Kinematic { .. }) => "in-process robot(s)",
-                Some(crate::plan::BackendChoice::Franka { .. }) => "robot(s)",
+                Some(crate::robots::BackendChoice::Kinematic { .. }) => "in-process robot(s)",
+                Some(crate::robots::BackendChoice::Franka { .. }) => "robot(s)",
                 _ => "simulator(s)",
             }
         ),

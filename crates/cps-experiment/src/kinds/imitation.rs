@@ -2,8 +2,8 @@
 //! perturbed via points, executed, time-normalised, averaged and imitated).
 
 use cps_dmp::DmpModel;
-use cps_kinematics::Recording;
 use cps_learn::{ImitationConfig, ImitationOutcome, ImitationStage, ViaPoint};
+use cps_robot::Recording;
 use serde::Serialize;
 
 use super::movement_files::movement_files;
@@ -122,7 +122,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
 pub(crate) struct Pipeline {
     pub config: ImitationConfig,
     pub outcome: ImitationOutcome,
-    pub backend: Box<dyn cps_kinematics::RobotBackend>,
+    pub backend: Box<dyn cps_robot::Robot>,
 }
 
 /// Runs the imitation pipeline on the experiment's backend.
@@ -151,7 +151,7 @@ pub(crate) fn pipeline(ctx: &Ctx<'_>) -> Result<Pipeline, ExperimentError> {
     // The backend stays on this thread; learning and checks fan out in the pool.
     let outcome = ctx
         .pool
-        .install(|| cps_learn::run_imitation(&config, backend.as_mut(), &progress))
+        .install(|| cps_learn::run_imitation(&config, backend.as_mut(), &progress, ctx.stop))
         .map_err(|e| learn_error(e, "imitation run"))?;
     ctx.observer.finished();
     Ok(Pipeline {

@@ -1,11 +1,11 @@
 //! `kind = "viapoint_joint"`: via-point learning with one DMP per joint, judged in task
 //! space, executed on the robot backend.
 
-use cps_kinematics::Recording;
 use cps_learn::{
     JointCostBreakdown, JointSpaceConfig, JointSpaceOutcome, LimitReport, execute_joint_trajectory,
     learn_joint_space,
 };
+use cps_robot::Recording;
 use serde::Serialize;
 
 use super::movement_files::movement_files;
@@ -124,7 +124,12 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     let recording = if interrupted {
         None
     } else {
-        match execute_joint_trajectory(backend.as_mut(), &robot.setup, &outcome.trajectory) {
+        match execute_joint_trajectory(
+            backend.as_mut(),
+            &robot.setup,
+            &outcome.trajectory,
+            ctx.stop,
+        ) {
             Ok(r) => Some(r),
             Err(e) => {
                 failure = Some(format!("executing the learned movement: {e}"));

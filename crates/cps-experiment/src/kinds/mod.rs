@@ -38,6 +38,8 @@ pub(crate) struct Ctx<'a> {
     pub pool: &'a rayon::ThreadPool,
     /// The caller's observer.
     pub observer: &'a dyn Observer,
+    /// The run's stop: robots brake on it.
+    pub stop: &'a cps_robot::StopToken,
     started: Instant,
 }
 
@@ -47,12 +49,14 @@ impl<'a> Ctx<'a> {
         exp: &'a Experiment,
         pool: &'a rayon::ThreadPool,
         observer: &'a dyn Observer,
+        stop: &'a cps_robot::StopToken,
         started: Instant,
     ) -> Self {
         Self {
             exp,
             pool,
             observer,
+            stop,
             started,
         }
     }
@@ -480,7 +484,7 @@ pub(crate) const CONTROL_RATE: f64 = 1000.0;
 /// positions each), as its controller would see it at [`CONTROL_RATE`]: the JSON of
 /// `cps-cli limits check`.
 pub(crate) fn limit_usage(
-    robot: &crate::plan::RobotChoice,
+    robot: &crate::robots::RobotChoice,
     times: &[f64],
     q: Vec<Vec<f64>>,
 ) -> Result<crate::limits::LimitsReport, ExperimentError> {

@@ -8,8 +8,9 @@ use crate::ExperimentError;
 use crate::export::export_samples;
 use crate::limits::{JointTrajectory, LimitsReport};
 use crate::outcome::{Document, Table};
-use crate::plan::{Experiment, RobotChoice};
+use crate::plan::Experiment;
 use crate::retiming::retime_samples;
+use crate::robots::RobotChoice;
 
 /// A robot movement's report and files.
 pub(crate) struct MovementFiles {

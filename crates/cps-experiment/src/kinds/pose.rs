@@ -89,19 +89,20 @@ fn pose_targets(outcome: &PoseOutcome, dt: f64) -> Vec<cps_kinematics::IkTarget>
 
 /// Executes the learned pose on the experiment's robot: the recording, or why not.
 fn execute_pose(
-    robot: &crate::plan::RobotChoice,
+    robot: &crate::robots::RobotChoice,
     outcome: &PoseOutcome,
-) -> Result<cps_kinematics::Recording, String> {
+    stop: &cps_robot::StopToken,
+) -> Result<cps_robot::Recording, String> {
     let mut backend = robot.open().map_err(|e| e.to_string())?;
-    backend
-        .reset(&robot.setup.initial_q)
+    cps_robot::move_to(backend.as_mut(), &robot.setup.initial_q, stop)
         .map_err(|e| e.to_string())?;
-    let targets = pose_targets(outcome, backend.time_step());
-    cps_kinematics::execute(
+    let targets = pose_targets(outcome, backend.dt());
+    cps_robot::execute(
         backend.as_mut(),
         &robot.setup.chain,
         &targets,
         &robot.setup.execution,
+        stop,
     )
     .map_err(|e| e.to_string())
 }
@@ -163,7 +164,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     let mut failure = None;
     if let (Some(robot), true) = (&exp.robot, complete) {
         summary.backend = Some(robot.describe());
-        match execute_pose(robot, &outcome) {
+        match execute_pose(robot, &outcome, ctx.stop) {
             Ok(rec) => {
                 summary.execution = Some(PoseExecution {
                     samples: rec.time.len(),

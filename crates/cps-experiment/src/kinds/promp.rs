@@ -3,7 +3,7 @@
 //! new via point (`[promp.via]`), and the conditioned mean executed on the robot.
 
 use cps_dmp::Trajectory;
-use cps_kinematics::Recording;
+use cps_robot::Recording;
 use serde::Serialize;
 
 use super::Ctx;
@@ -103,7 +103,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     // Execute the conditioned mean unless the pipeline stopped early.
     let executed = if outcome.header.complete && outcome.header.failure.is_none() {
         let robot = &run.config.robot;
-        match cps_learn::execute_trajectory(run.backend.as_mut(), robot, &traj) {
+        match cps_learn::execute_trajectory(run.backend.as_mut(), robot, &traj, ctx.stop) {
             Ok(r) => Some(r),
             Err(e) => {
                 outcome.header.complete = false;

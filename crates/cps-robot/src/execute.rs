@@ -1,11 +1,14 @@
 //! Trajectory execution: follow a task-space trajectory with the inverse controller on any
-//! [`RobotBackend`], recording what the robot really did (the thesis's "Jacobian inverse
-//! control with recording", with an iteration cap instead of its endless loop).
+//! [`Robot`], recording what the robot really did (the thesis's "Jacobian inverse control
+//! with recording", with an iteration cap instead of its endless loop).
 
+use cps_kinematics::controllers::{ControllerConfig, control_step, task_error};
+use cps_kinematics::{IkTarget, KinematicsError, SerialChain};
 use nalgebra::UnitQuaternion;
 
-use crate::controllers::{ControllerConfig, control_step, task_error};
-use crate::{IkTarget, KinematicsError, RobotBackend, SerialChain};
+use crate::plan::Plan;
+use crate::robot::Robot;
+use crate::{RobotError, StopToken};
 
 /// Settings of [`execute`].
 #[derive(Debug, Clone, PartialEq)]
@@ -67,52 +70,61 @@ impl Recording {
     }
 }
 
-/// Follows `targets` (one per control period) on `backend`, whose kinematics `model`
+/// Follows `targets` (one per control period) on `robot`, whose kinematics `model`
 /// describes: per sample, up to `max_iterations_per_sample` control steps
 /// ([`control_step`], limits respected), each commanded as joint positions and followed by
-/// one backend step, stopping early once the model says the sample is reached. Then the
-/// backend's measured state is recorded. Never loops without bound. A backend that
-/// [follows targets itself](RobotBackend::follows_targets) (CoppeliaSim's IK) is given
-/// the sample as its target and stepped the same way, without cps's controller.
+/// one step, stopping early once the model says the sample is reached. Then the robot's
+/// measured state is recorded. Never loops without bound. A robot that [follows targets
+/// itself](crate::Stepped::follows_targets) (CoppeliaSim's IK) is given the sample as its target
+/// and stepped the same way, without cps's controller.
 ///
-/// A backend that [runs sequences](RobotBackend::runs_sequences) (a simulator with cps's
-/// scene script) gets the whole command sequence at once: the controller is run against
-/// the model, which predicts that each command is reached at the next step, and the
-/// backend executes the commands and records every step in a few exchanges instead of
-/// several per step. Where the robot follows its commands (the kinematic robot, the
-/// stand-in server) both ways give the same recording; where it lags (dynamics), the
-/// recording shows the tracking error instead of the controller correcting it.
+/// A robot that does not step, or [prefers plans](crate::Stepped::prefers_plans) (a simulator with
+/// cps's scene script), gets the whole command sequence as one [`Plan`] at its period: the
+/// controller is run against the model, which predicts that each command is reached at the
+/// next step, and the robot runs the commands and records every one (through the guard
+/// when the robot is [guarded](crate::Guarded)). Where the robot follows its commands (the
+/// kinematic robot, the stand-in server) both ways give the same recording; where it lags
+/// (dynamics), the recording shows the tracking error instead of the controller
+/// correcting it. `stop` ends a plan's run (the robot brakes; an error says how far it
+/// got); a simulator's closed loop runs to its end (milliseconds).
 pub fn execute(
-    backend: &mut (impl RobotBackend + ?Sized),
+    robot: &mut dyn Robot,
     model: &SerialChain,
     targets: &[IkTarget],
     config: &ExecutionConfig,
-) -> Result<Recording, KinematicsError> {
-    if backend.dof() != model.dof() {
+    stop: &StopToken,
+) -> Result<Recording, RobotError> {
+    if robot.model().chain.dof() != model.dof() {
         return Err(KinematicsError::JointCount {
             expected: model.dof(),
-            got: backend.dof(),
-        });
+            got: robot.model().chain.dof(),
+        }
+        .into());
     }
     config.controller.validate(model)?;
     if !(config.tolerance > 0.0 && config.rotation_tolerance > 0.0) {
-        return Err(KinematicsError::InvalidConfig(
-            "execution tolerances must be > 0".into(),
-        ));
+        return Err(
+            KinematicsError::InvalidConfig("execution tolerances must be > 0".into()).into(),
+        );
     }
     if config.max_iterations_per_sample == 0 {
         return Err(KinematicsError::InvalidConfig(
             "max_iterations_per_sample must be at least 1".into(),
-        ));
+        )
+        .into());
     }
-    if backend.runs_sequences() && !backend.follows_targets() {
-        return execute_planned(backend, model, targets, config);
+    let closed_loop = robot
+        .stepped()
+        .is_some_and(|s| !s.prefers_plans() || s.follows_targets());
+    if !closed_loop {
+        return execute_planned(robot, model, targets, config, stop);
     }
+    let backend = robot.stepped().expect("a stepped robot");
     let dt = backend.time_step();
     let mut rec = Recording::default();
     let t0 = backend.time()?;
     // The measured configuration is read once per control step and reused: a remote
-    // backend pays a round trip per joint and call.
+    // robot pays a round trip per joint and call.
     let mut q = backend.joint_positions()?;
     for target in targets {
         let mut reached = false;
@@ -150,19 +162,19 @@ pub fn execute(
     Ok(rec)
 }
 
-/// [`execute`] for a backend that [runs sequences](RobotBackend::runs_sequences): the
-/// controller's commands are planned on the model, sent at once, and the recording of
-/// each sample's last step is kept.
+/// [`execute`] as one plan: the controller's commands are planned on the model, run at
+/// once, and the recording of each sample's last step is kept.
 fn execute_planned(
-    backend: &mut (impl RobotBackend + ?Sized),
+    robot: &mut dyn Robot,
     model: &SerialChain,
     targets: &[IkTarget],
     config: &ExecutionConfig,
-) -> Result<Recording, KinematicsError> {
-    let dt = backend.time_step();
-    let t0 = backend.time()?;
-    let mut q = backend.joint_positions()?;
-    let mut commands: Vec<Vec<f64>> = Vec::new();
+    stop: &StopToken,
+) -> Result<Recording, RobotError> {
+    let dt = robot.dt();
+    let q0 = robot.joint_positions()?;
+    let mut q = q0.clone();
+    let mut points: Vec<Vec<f64>> = vec![q0];
     let mut last_step = Vec::with_capacity(targets.len());
     let mut unconverged = 0;
     for target in targets {
@@ -172,7 +184,7 @@ fn execute_planned(
             for (a, b) in q.iter_mut().zip(&st.dq) {
                 *a += b;
             }
-            commands.push(q.clone());
+            points.push(q.clone());
             let (ep, er) = task_error(&model.fk(&q)?, target);
             if ep.norm() <= config.tolerance && er.norm() <= config.rotation_tolerance {
                 reached = true;
@@ -180,23 +192,34 @@ fn execute_planned(
             }
         }
         unconverged += usize::from(!reached);
-        last_step.push(commands.len() - 1);
+        last_step.push(points.len() - 1);
     }
-    let run = backend.run_joint_targets(&commands)?;
-    let n = commands.len();
-    if run.q.len() != n || run.tool.len() != n || run.time.len() != n {
-        return Err(KinematicsError::Backend {
-            backend: "the robot backend".into(),
+    let n = points.len();
+    let plan = Plan::new(dt, points)?;
+    let run = robot.run(&plan, stop)?;
+    if !run.ending.complete() {
+        return Err(RobotError::Robot {
+            robot: robot.name(),
             message: format!(
-                "asked to run {n} steps, it recorded {} joint rows, {} poses and {} times",
-                run.q.len(),
-                run.tool.len(),
-                run.time.len()
+                "{} after {} of {} steps",
+                run.ending.sentence(),
+                run.len().saturating_sub(1),
+                n - 1
+            ),
+        });
+    }
+    if run.len() != n {
+        return Err(RobotError::Robot {
+            robot: robot.name(),
+            message: format!(
+                "asked to run {} steps, it recorded {}",
+                n - 1,
+                run.len().saturating_sub(1)
             ),
         });
     }
     let mut rec = Recording {
-        steps: n,
+        steps: n - 1,
         unconverged,
         ..Recording::default()
     };
@@ -205,7 +228,7 @@ fn execute_planned(
         let (ep, er) = task_error(pose, target);
         let p = pose.translation.vector;
         let o = UnitQuaternion::from_rotation_matrix(&pose.rotation);
-        rec.time.push(run.time[k] - t0);
+        rec.time.push(run.time[k]);
         rec.q.push(run.q[k].clone());
         rec.position.push([p.x, p.y, p.z]);
         rec.orientation.push([o.i, o.j, o.k, o.w]);

@@ -1,0 +1,256 @@
+//! The in-process stand-in: a robot simulated at the kinematic level, stepped, and able to
+//! run plans like any other robot.
+
+use cps_kinematics::{KinematicsError, SerialChain};
+use nalgebra::IsometryMatrix3;
+
+use crate::plan::{Plan, Run};
+use crate::robot::{Generator, Robot, Stepped, Streaming, run_stepped};
+use crate::{RobotError, RobotModel, StopToken};
+
+#[derive(Debug, Clone, PartialEq)]
+enum Command {
+    Hold,
+    Position(Vec<f64>),
+    Velocity(Vec<f64>),
+}
+
+/// A robot simulated at the kinematic level: joints move exactly as commanded, within the
+/// chain's position and speed limits (a drive saturates); no dynamics. Deterministic and
+/// instantaneous to query, it is the default robot and the reference the simulators are
+/// compared with.
+///
+/// A joint that starts outside a position limit (the thesis's initial configuration has
+/// joint 4 just above its upper limit) is accepted, but is never moved further out.
+#[derive(Debug, Clone)]
+pub struct KinematicRobot {
+    model: RobotModel,
+    q: Vec<f64>,
+    command: Command,
+    dt: f64,
+    time: f64,
+    steps: u64,
+}
+
+impl KinematicRobot {
+    /// A robot of `chain` at configuration `q0`, stepped every `dt` seconds.
+    pub fn new(chain: SerialChain, q0: &[f64], dt: f64) -> Result<Self, KinematicsError> {
+        KinematicRobot::of_model(RobotModel::of_chain("in-process robot", chain), q0, dt)
+    }
+
+    /// A robot of `model` (its chain, and the limits plans are checked against) at `q0`,
+    /// stepped every `dt` seconds.
+    pub fn of_model(model: RobotModel, q0: &[f64], dt: f64) -> Result<Self, KinematicsError> {
+        model.chain.check(q0)?;
+        if !(dt > 0.0 && dt.is_finite()) {
+            return Err(KinematicsError::InvalidConfig(format!(
+                "the robot's time step must be finite and > 0 (got {dt})"
+            )));
+        }
+        Ok(Self {
+            model,
+            q: q0.to_vec(),
+            command: Command::Hold,
+            dt,
+            time: 0.0,
+            steps: 0,
+        })
+    }
+
+    /// The robot's model.
+    pub fn chain(&self) -> &SerialChain {
+        &self.model.chain
+    }
+
+    /// The current joint positions.
+    pub fn q(&self) -> &[f64] {
+        &self.q
+    }
+
+    /// The control period (s).
+    pub fn time_step(&self) -> f64 {
+        self.dt
+    }
+
+    /// Measured joint positions (rad).
+    pub fn joint_positions(&mut self) -> Result<Vec<f64>, KinematicsError> {
+        Ok(self.q.clone())
+    }
+
+    /// The robot's clock (s): steps × the time step.
+    pub fn time(&mut self) -> Result<f64, KinematicsError> {
+        Ok(self.time)
+    }
+
+    /// The tool's world pose.
+    pub fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, KinematicsError> {
+        self.model.chain.fk(&self.q)
+    }
+
+    /// Moves joint i by `dq_i`, held within the speed limit for one step and within the
+    /// position limits (or towards them when outside).
+    fn apply(&mut self, dq: &[f64]) {
+        let vmax = self.model.chain.velocity_limits();
+        let limits = self.model.chain.limits();
+        for i in 0..self.q.len() {
+            let mut d = dq[i];
+            if let Some(v) = vmax {
+                d = d.clamp(-v[i] * self.dt, v[i] * self.dt);
+            }
+            if let Some((lo, hi)) = limits {
+                d = d.clamp((lo[i] - self.q[i]).min(0.0), (hi[i] - self.q[i]).max(0.0));
+            }
+            self.q[i] += d;
+        }
+    }
+
+    fn checked(&self, v: &[f64], what: &str) -> Result<Vec<f64>, KinematicsError> {
+        self.model.chain.check(v).map_err(|e| match e {
+            KinematicsError::NotFinite { joint, value } => KinematicsError::InvalidConfig(format!(
+                "commanded {what} of joint {joint} is not finite ({value})"
+            )),
+            other => other,
+        })?;
+        Ok(v.to_vec())
+    }
+
+    /// Commands joint positions, reached at the next step as far as the limits allow.
+    pub fn command_joint_positions(&mut self, q: &[f64]) -> Result<(), KinematicsError> {
+        self.command = Command::Position(self.checked(q, "position")?);
+        Ok(())
+    }
+
+    /// Commands joint velocities (rad/s), held until the next command.
+    pub fn command_joint_velocities(&mut self, dq: &[f64]) -> Result<(), KinematicsError> {
+        self.command = Command::Velocity(self.checked(dq, "velocity")?);
+        Ok(())
+    }
+
+    /// Advances one time step.
+    pub fn step(&mut self) -> Result<(), KinematicsError> {
+        let dq: Vec<f64> = match &self.command {
+            Command::Hold => vec![0.0; self.q.len()],
+            Command::Position(target) => target.iter().zip(&self.q).map(|(t, q)| t - q).collect(),
+            Command::Velocity(v) => v.iter().map(|v| v * self.dt).collect(),
+        };
+        self.apply(&dq);
+        self.steps += 1;
+        // Time as steps × dt: no drift from repeated additions.
+        self.time = self.steps as f64 * self.dt;
+        Ok(())
+    }
+
+    /// Puts the robot at `q` at rest with its clock at 0.
+    pub fn reset(&mut self, q: &[f64]) -> Result<(), KinematicsError> {
+        self.model.chain.check(q)?;
+        self.q = q.to_vec();
+        self.command = Command::Hold;
+        self.steps = 0;
+        self.time = 0.0;
+        Ok(())
+    }
+}
+
+impl Stepped for KinematicRobot {
+    fn dof(&self) -> usize {
+        self.model.chain.dof()
+    }
+    fn time_step(&self) -> f64 {
+        self.dt
+    }
+    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
+        Ok(self.q.clone())
+    }
+    fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, RobotError> {
+        Ok(self.model.chain.fk(&self.q)?)
+    }
+    fn time(&mut self) -> Result<f64, RobotError> {
+        Ok(self.time)
+    }
+    fn command_joint_positions(&mut self, q: &[f64]) -> Result<(), RobotError> {
+        Ok(KinematicRobot::command_joint_positions(self, q)?)
+    }
+    fn command_joint_velocities(&mut self, dq: &[f64]) -> Result<(), RobotError> {
+        Ok(KinematicRobot::command_joint_velocities(self, dq)?)
+    }
+    fn step(&mut self) -> Result<(), RobotError> {
+        Ok(KinematicRobot::step(self)?)
+    }
+}
+
+impl Robot for KinematicRobot {
+    fn name(&self) -> String {
+        "the in-process robot".into()
+    }
+    fn model(&self) -> &RobotModel {
+        &self.model
+    }
+    fn dt(&self) -> f64 {
+        self.dt
+    }
+    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
+        Ok(self.q.clone())
+    }
+    /// Its step: it steps through a plan's motion sampled at it.
+    fn command_period(&self) -> f64 {
+        self.dt
+    }
+    fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, RobotError> {
+        Ok(self.model.chain.fk(&self.q)?)
+    }
+    fn run(&mut self, plan: &Plan, stop: &StopToken) -> Result<Run, RobotError> {
+        run_stepped(self, plan, stop)
+    }
+    fn teleport(&mut self, q: &[f64]) -> Result<bool, RobotError> {
+        self.reset(q)?;
+        Ok(true)
+    }
+    fn stepped(&mut self) -> Option<&mut dyn Stepped> {
+        Some(self)
+    }
+    fn streaming(&mut self) -> Option<&mut dyn Streaming> {
+        Some(self)
+    }
+}
+
+impl Streaming for KinematicRobot {
+    fn command_period(&self) -> f64 {
+        self.dt
+    }
+
+    fn stream(
+        &mut self,
+        next: &mut Generator<'_>,
+        max_commands: usize,
+        stop: &StopToken,
+    ) -> Result<Run, RobotError> {
+        let mut run = Run::new(crate::Ending::Finished);
+        let t0 = self.time;
+        run.push(0.0, self.q.clone(), self.model.chain.fk(&self.q)?);
+        let mut command = self.q.clone();
+        for k in 0.. {
+            if stop.is_stopped() {
+                run.ending = crate::Ending::Stopped;
+                break;
+            }
+            if k == max_commands {
+                run.ending = crate::Ending::Failed(format!(
+                    "{max_commands} commands were not enough to finish"
+                ));
+                break;
+            }
+            let last = next(&self.q, self.time - t0, &mut command);
+            KinematicRobot::command_joint_positions(self, &command)?;
+            KinematicRobot::step(self)?;
+            run.push(
+                self.time - t0,
+                self.q.clone(),
+                self.model.chain.fk(&self.q)?,
+            );
+            if last {
+                break;
+            }
+        }
+        Ok(run)
+    }
+}
