@@ -245,6 +245,55 @@ impl<R: Robot + ?Sized> Robot for Box<R> {
     }
 }
 
+impl<R: Robot + ?Sized> Robot for &mut R {
+    fn name(&self) -> String {
+        (**self).name()
+    }
+    fn model(&self) -> &RobotModel {
+        (**self).model()
+    }
+    fn dt(&self) -> f64 {
+        (**self).dt()
+    }
+    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
+        (**self).joint_positions()
+    }
+    fn command_period(&self) -> f64 {
+        (**self).command_period()
+    }
+    fn standing(&mut self) -> Result<Option<Vec<f64>>, RobotError> {
+        (**self).standing()
+    }
+    fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, RobotError> {
+        (**self).tool_pose()
+    }
+    fn run(&mut self, plan: &Plan, stop: &StopToken) -> Result<Run, RobotError> {
+        (**self).run(plan, stop)
+    }
+    fn teleport(&mut self, q: &[f64]) -> Result<bool, RobotError> {
+        (**self).teleport(q)
+    }
+    fn record(
+        &mut self,
+        duration: std::time::Duration,
+        stop: &StopToken,
+    ) -> Result<Run, RobotError> {
+        (**self).record(duration, stop)
+    }
+    fn check(&mut self, plan: &Plan) -> Result<Option<Breach>, RobotError> {
+        (**self).check(plan)
+    }
+    fn report(&self) -> Option<String> {
+        (**self).report()
+    }
+    fn stepped(&mut self) -> Option<&mut dyn Stepped> {
+        (**self).stepped()
+    }
+    fn streaming(&mut self) -> Option<&mut dyn Streaming> {
+        (**self).streaming()
+    }
+}
+
 /// Runs a plan on a stepped robot: the plan's motion sampled at the robot's step
 /// ([`Plan::samples`]: the points themselves when the plan is at the robot's period), each
 /// sample after the first commanded and followed by one step, the joints, the tool and the

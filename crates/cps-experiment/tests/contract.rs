@@ -1,0 +1,273 @@
+//! One plan, every robot: the same refused, slowed and approached plans run through the
+//! guard on each robot cps drives — the in-process robot, CoppeliaSim's stand-in server
+//! (through cps's scene script), a Franka (franky-sim: MuJoCo behind the real protocol) and
+//! a ROS 2 controller (a CycloneDDS FollowJointTrajectory server) — and what each says and
+//! sends is compared: the same refusal in the same words, the same slowing, the same
+//! approach, the same plan sent.
+//!
+//! The whole test runs in a network namespace of its own (DDS discovery never leaves it);
+//! franky-sim listens on 127.0.0.91 inside it.
+
+#[path = "../../cps-ros2/tests/common/mod.rs"]
+mod graph;
+#[path = "../../cps-franka/tests/common/mod.rs"]
+mod sim;
+
+use std::time::Duration;
+
+use cps_coppelia::{Client, ClientConfig, FrankaScene, SceneSetup, ServerConfig, StandInServer};
+use cps_franka::limits::Arm;
+use cps_franka::{FrankaRobot, FrankaSettings, Realtime};
+use cps_kinematics::robots::{PandaTool, fr3, fr3_limits};
+use cps_robot::{
+    Guarded, KinematicRobot, Plan, Policy, Refusal, Robot, RobotError, RobotModel, StopToken,
+};
+use cps_ros2::robot::{Ros2Robot, Ros2Settings};
+
+/// The FR3 with its hand, in its base frame, with the arm's own limits.
+fn model() -> RobotModel {
+    let mut m = RobotModel::of_chain("fr3", fr3(PandaTool::HandTcp));
+    m.limits = fr3_limits();
+    m
+}
+
+/// Joint `j` swings by `amplitude` and back to rest in `seconds` from `q0`, every 10 ms.
+fn swing(q0: &[f64], j: usize, amplitude: f64, seconds: f64) -> Plan {
+    let n = (seconds / 0.01).round() as usize;
+    let points = (0..=n)
+        .map(|k| {
+            let s = 0.5 - 0.5 * (std::f64::consts::TAU * k as f64 / n as f64).cos();
+            let mut q = q0.to_vec();
+            q[j] += amplitude * s;
+            q
+        })
+        .collect();
+    Plan::new(0.01, points).unwrap()
+}
+
+/// A 0.05 rad step of joint 2 at 0.5 s, commanded every millisecond.
+fn step(q0: &[f64]) -> Plan {
+    let points = (0..=1000)
+        .map(|k| {
+            let mut q = q0.to_vec();
+            if k >= 500 {
+                q[1] += 0.05;
+            }
+            q
+        })
+        .collect();
+    Plan::new(1e-3, points).unwrap()
+}
+
+fn reason(e: RobotError) -> Refusal {
+    match e {
+        RobotError::Refused { reason, .. } => reason,
+        other => panic!("not a refusal: {other}"),
+    }
+}
+
+#[test]
+fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
+    if !graph::inside("the_same_plan_is_judged_and_sent_the_same_on_every_robot") {
+        return;
+    }
+    let Some(franky) = sim::FrankySim::start("127.0.0.91") else {
+        return;
+    };
+    let stop = StopToken::new();
+    let settings = FrankaSettings {
+        host: franky.host.clone(),
+        arm: Arm::Fr3,
+        realtime: Realtime::Ignore,
+        dt: 0.001,
+    };
+    let mut franka = FrankaRobot::connect(&settings, model()).unwrap();
+    // Every robot starts where the simulated arm holds.
+    let q0 = franka.joint_positions().unwrap();
+    let start = q0
+        .iter()
+        .map(|x| x.to_string())
+        .collect::<Vec<_>>()
+        .join(",");
+    let names: Vec<String> = (1..=7).map(|i| format!("fr3_joint{i}")).collect();
+    let seen = graph::temp("server.json");
+    let peer = graph::Peer::start(&[
+        "serve",
+        "/fr3_arm_controller/follow_joint_trajectory",
+        seen.to_str().unwrap(),
+        "--joint-states",
+        "/joint_states",
+        "--rate",
+        "250",
+        "--joints",
+        &names.join(","),
+        "--start",
+        &start,
+        "--linger",
+        "15",
+    ]);
+    let ros = Ros2Robot::open(
+        &Ros2Settings {
+            controller: "/fr3_arm_controller".into(),
+            joint_states: "/joint_states".into(),
+            domain: None,
+            dt: 0.001,
+            goal_period: None,
+            wait: Duration::from_secs(20),
+            joint_names: None,
+            read_start: true,
+        },
+        model(),
+    )
+    .unwrap();
+    let server = StandInServer::start(ServerConfig::new(
+        "127.0.0.1:0",
+        SceneSetup {
+            robot_name: "FR3".into(),
+            chain: model().chain,
+            initial_q: q0.clone(),
+            dummies: vec![],
+            dt: 0.001,
+            ik_following: false,
+            step_cost: Duration::ZERO,
+            script: true,
+        },
+    ))
+    .unwrap();
+    let client = Client::connect(ClientConfig {
+        endpoint: server.endpoint().into(),
+        ..ClientConfig::default()
+    })
+    .unwrap();
+    let mut scene = FrankaScene::open(client, "FR3", model(), 0.001).unwrap();
+    scene.reset(&q0).unwrap();
+    let mut kinematic = KinematicRobot::of_model(model(), &q0, 0.001).unwrap();
+    let mut ros = ros;
+    let mut robots: Vec<(&str, &mut dyn Robot)> = vec![
+        ("in-process", &mut kinematic),
+        ("coppelia", &mut scene),
+        ("franka", &mut franka),
+        ("ros2", &mut ros),
+    ];
+
+    // Refused: the same sentence from every robot, and nothing moves.
+    for plan in [step(&q0), {
+        let mut far = swing(&q0, 1, 0.1, 1.0).points().to_vec();
+        for q in &mut far {
+            q[1] += 0.2;
+        }
+        Plan::new(0.01, far).unwrap()
+    }] {
+        let said: Vec<String> = robots
+            .iter_mut()
+            .map(|(_, r)| {
+                let mut guarded = Guarded::new(&mut **r, Policy::STRICT);
+                reason(guarded.run(&plan, &stop).unwrap_err()).to_string()
+            })
+            .collect();
+        println!("refused: {}", said[0]);
+        assert!(said.iter().all(|s| *s == said[0]), "{said:#?}");
+        for (name, r) in &mut robots {
+            let q = r.joint_positions().unwrap();
+            let moved = q
+                .iter()
+                .zip(&q0)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(moved < 1e-3, "{name} moved {moved} rad");
+        }
+    }
+    assert!(
+        format!("{}", reason(Guarded::new(&mut *robots[0].1, Policy::STRICT).run(&step(&q0), &stop).unwrap_err()))
+            .starts_with("joint 2 at t = 0.500 s (command 500): velocity 50.000000 rad/s beyond the limit 2.620000 rad/s")
+    );
+
+    // Slowed: joint 1 by 0.4 rad and back in 0.5 s is too fast for the FR3 (its
+    // acceleration peaks at 2π²·0.4/0.25 = 31.6 rad/s²); every robot slows it by the same
+    // factor, is sent the same plan, and runs it to its end.
+    let fast = swing(&q0, 0, 0.4, 0.5);
+    let mut slowings = Vec::new();
+    for (name, r) in &mut robots {
+        let mut guarded = Guarded::new(&mut **r, Policy::EXPERIMENT);
+        let prepared = guarded.prepare(&fast).unwrap();
+        assert_eq!(prepared.approach_points, 0, "{name}");
+        let slowing = prepared.slowing;
+        let sent = prepared.plan.clone();
+        let run = guarded.run_prepared(prepared, &stop).unwrap();
+        assert!(run.ending.complete(), "{name}: {:?}", run.ending);
+        assert_eq!(run.len(), fast.points().len(), "{name}");
+        assert!((sent.dt() - 0.01 * slowing).abs() < 1e-12 && sent.points() == fast.points());
+        // Where the robot holds now (a Franka: its last command) is the plan's end.
+        let end = r.joint_positions().unwrap();
+        let off = end
+            .iter()
+            .zip(fast.end())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(off < 1e-3, "{name} holds {off} rad from the plan's end");
+        slowings.push((*name, slowing));
+    }
+    println!("slowed: {slowings:?}");
+    assert!(slowings[0].1 > 1.7 && slowings[0].1 < 2.5, "{slowings:?}");
+    assert!(
+        slowings.iter().all(|(_, s)| *s == slowings[0].1),
+        "{slowings:?}"
+    );
+    // What the Franka streamed is the slowed plan's motion every millisecond (after its
+    // blend into the start); what the ROS 2 controller was sent is the plan's points at the
+    // slowed times.
+    drop(robots);
+    let slowed = fast.slowed(slowings[0].1);
+    let stream = franka.last_stream().unwrap();
+    let motion = slowed.samples(1e-3);
+    assert_eq!(stream.commands.len() - stream.approach, motion.len());
+    for (c, m) in stream.commands[stream.approach..].iter().zip(&motion) {
+        assert!(c.iter().zip(m).all(|(a, b)| (a - b).abs() < 1e-12));
+    }
+    let goal = &ros.last_goal().unwrap().message;
+    assert_eq!(goal.points.len(), slowed.points().len());
+    for (k, p) in goal.points.iter().enumerate() {
+        assert_eq!(p.positions, slowed.points()[k]);
+        assert!((p.time_from_start.secs() - slowed.time(k)).abs() < 1e-9);
+    }
+    let mut robots: Vec<(&str, &mut dyn Robot)> = vec![
+        ("in-process", &mut kinematic),
+        ("coppelia", &mut scene),
+        ("franka", &mut franka),
+        ("ros2", &mut ros),
+    ];
+
+    // Approached: a plan 0.2 rad away on joint 2 is approached from where each robot
+    // stands, in about the same time, then run.
+    let mut far = swing(&q0, 1, 0.1, 1.0).points().to_vec();
+    for q in &mut far {
+        q[1] -= 0.2;
+    }
+    let far = Plan::new(0.01, far).unwrap();
+    let mut approaches = Vec::new();
+    for (name, r) in &mut robots {
+        let mut guarded = Guarded::new(&mut **r, Policy::EXPERIMENT);
+        let run = guarded.run(&far, &stop).unwrap();
+        assert!(run.ending.complete(), "{name}: {:?}", run.ending);
+        assert_eq!(run.len(), far.points().len(), "{name}");
+        approaches.push((*name, run.approach_s));
+    }
+    println!("approached: {approaches:?}");
+    let a0 = approaches[0].1;
+    assert!(a0 > 0.5, "{approaches:?}");
+    assert!(
+        approaches.iter().all(|(_, a)| (a - a0).abs() < 0.05),
+        "{approaches:?}"
+    );
+    drop(robots);
+    // The controller got the two goals the plans made, point for point.
+    peer.finish(Duration::from_secs(60));
+    let seen: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&seen).unwrap()).unwrap();
+    let goals = seen["goals"].as_array().unwrap();
+    assert_eq!(goals.len(), 2, "{seen}");
+    assert_eq!(
+        goals[0]["trajectory"]["points"].as_array().unwrap().len(),
+        fast.points().len()
+    );
+}
