@@ -144,6 +144,9 @@ pub(crate) fn positive(field: &'static str, value: f64) -> Result<(), DmpError> 
 
 /// Most steps `round(tau / dt)` accepted by [`DmpConfig::validate`].
 pub const MAX_STEPS: usize = 10_000_000;
+/// Largest magnitude of a coordinate (a start, a goal, a via point, a demonstration's
+/// sample) that cps takes: 1e6 task units (a thousand kilometres in metres).
+pub const MAX_COORDINATE: f64 = 1e6;
 /// Most samples × basis functions accepted by [`DmpConfig::validate`].
 pub const MAX_FEATURES: usize = 100_000_000;
 /// Largest `alpha_z`, `beta_z` accepted by [`DmpConfig::validate`].

@@ -74,7 +74,8 @@ mod trajectory;
 pub use basis::GaussianBasis;
 pub use canonical::CanonicalSystem;
 pub use config::{
-    DmpConfig, Formulation, MAX_BASIS, MAX_FEATURES, MAX_GAIN, MAX_PHASE_DECAY, MAX_STEPS, MAX_TAU,
+    DmpConfig, Formulation, MAX_BASIS, MAX_COORDINATE, MAX_FEATURES, MAX_GAIN, MAX_PHASE_DECAY,
+    MAX_STEPS, MAX_TAU,
 };
 pub use coupling::{Coupling, Couplings, DynamicPotential, SteeringAngle, check_endpoints};
 pub use dmp::DiscreteDmp;

@@ -48,38 +48,30 @@
 
 pub mod budget;
 pub mod cmaes_bench;
-pub mod contact;
 pub mod contact_section;
-mod error;
 pub mod experiment;
-pub mod export;
-#[cfg(feature = "figures")]
-pub mod figures;
-pub mod files;
-pub mod franka;
 mod kinds;
-pub mod limits;
-pub mod mocap;
-pub mod movement;
 mod observer;
-pub mod outcome;
 pub mod plan;
-pub mod promp;
-#[cfg(feature = "figures")]
-pub mod report;
-pub mod results_dir;
-pub mod retiming;
-pub mod robot_file;
 pub mod robots;
-pub mod ros2;
 pub mod ros2_show;
 mod run;
-pub mod scene;
 pub mod sim_pool;
-mod source;
 
-pub use error::{Context, ExperimentError, InputError};
+/// Writing an outcome: `cps-outcome`'s files (a table as CSV, atomic writes) and
+/// `cps-report`'s result directory (summary, tables, figures, report.html).
+pub mod files {
+    pub use cps_outcome::files::*;
+    pub use cps_report::write::*;
+}
+
+pub use cps_drive::{contact, franka, ros2};
+pub use cps_movement::{export, limits, mocap, movement, promp, retiming, robot_file, scene};
+pub use cps_outcome::{
+    Context, ExperimentError, InputError, Outcome, outcome, results_dir, source,
+};
+#[cfg(feature = "figures")]
+pub use cps_report::{figures, report};
 pub use observer::{Event, Observer};
-pub use outcome::Outcome;
 pub use plan::{Experiment, Kind};
 pub use run::{RunOptions, planned_generations, run};

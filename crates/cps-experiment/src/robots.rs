@@ -577,7 +577,19 @@ impl Sections<'_> {
             },
             backend,
             scene: scene_name,
-            obstacles: scene.obstacles,
+            obstacles: scene
+                .obstacles
+                .into_iter()
+                .map(|(name, o)| {
+                    (
+                        name,
+                        cps_learn::PointObstacle {
+                            position: o.position.to_vec(),
+                            clearance: o.clearance,
+                        },
+                    )
+                })
+                .collect(),
             model: scene.robot,
         })
     }

@@ -122,8 +122,9 @@ pub struct ViaPointTask {
 }
 
 /// Largest magnitude of a coordinate (start, goal, via points, goal velocity) that
-/// [`ViaPointTask::validate`] accepts: 1e6 task units (a thousand kilometres in metres).
-pub const MAX_COORDINATE: f64 = 1e6;
+/// [`ViaPointTask::validate`] accepts: cps-dmp's, 1e6 task units (a thousand kilometres in
+/// metres).
+pub use cps_dmp::MAX_COORDINATE;
 /// Largest cost weight [`ViaPointTask::validate`] accepts: beyond 1e12 the cost's terms
 /// differ by more than double precision can weigh against each other.
 pub const MAX_WEIGHT: f64 = 1e12;

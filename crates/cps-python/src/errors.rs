@@ -141,7 +141,7 @@ impl IntoPyErr for LearnError {
             LearnError::Dmp(e) => e.py_err(),
             LearnError::Cmaes(e) => e.py_err(),
             LearnError::Kinematics(e) => e.py_err(),
-            LearnError::Exact(_) => failure(self.to_string()),
+            LearnError::Exact(_) | LearnError::Robot(_) => failure(self.to_string()),
             other => value_error(other.to_string()),
         }
     }
@@ -151,7 +151,6 @@ impl IntoPyErr for ExperimentError {
     fn py_err(self) -> PyErr {
         match self {
             ExperimentError::Input(e) => e.py_err(),
-            ExperimentError::Learn(e) => e.py_err(),
             other => failure(chain(&other)),
         }
     }

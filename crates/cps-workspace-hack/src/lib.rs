@@ -3,7 +3,5 @@
 //! -p cps-python` and `cargo test --workspace` resolve one feature set and compile each
 //! dependency once. See its Cargo.toml; `.ci/feature-parity.py` keeps it complete.
 //!
-//! ```
-//! // Nothing to call: depending on the crate is all it does.
-//! ```
+//! There is nothing to call: depending on the crate is all it does.
 #![deny(missing_docs)]

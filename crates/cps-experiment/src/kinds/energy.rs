@@ -12,8 +12,7 @@ use super::{
 };
 use crate::ExperimentError;
 use crate::outcome::{
-    Column, CostArm, Figure, Format, Outcome, Panels, Plot, Report, ReportTable, Series, Table,
-    fields,
+    Column, Figure, Format, Outcome, Panels, Plot, Report, ReportTable, Series, Table, fields,
 };
 
 #[derive(Serialize)]
@@ -196,7 +195,7 @@ fn figures(ctx: &Ctx<'_>, o: &EffortOutcome) -> Vec<Figure> {
     );
     figures.extend(cost_figure(
         "Best cost so far per generation.",
-        vec![CostArm::new("CMA-ES", &[&o.search.history])],
+        vec![super::cost_arm("CMA-ES", &[&o.search.history])],
         None,
     ));
     figures.extend(search_figure(&[("CMA-ES", &o.search.history)]));

@@ -309,7 +309,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     let lines = lines(ctx, &summary, failure.as_deref());
     let figures = position_figures(
         vec![
-            Series::of_trajectory("commanded", &best.trajectory),
+            crate::movement::trajectory_series("commanded", &best.trajectory),
             Series::new(
                 "executed",
                 best.times.clone(),

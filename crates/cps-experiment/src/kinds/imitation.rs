@@ -418,7 +418,7 @@ fn figures(outcome: &ImitationOutcome, task: &cps_learn::ViaPointTask) -> Vec<Fi
         first.imitation.reference.clone(),
     ));
     for f in &outcome.fits {
-        series.push(Series::of_trajectory(
+        series.push(crate::movement::trajectory_series(
             format!("imitation ({})", f.method.replace('_', " ")),
             &f.trajectory,
         ));

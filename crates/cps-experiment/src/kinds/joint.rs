@@ -15,8 +15,7 @@ use super::{
     worst,
 };
 use crate::outcome::{
-    Column, CostArm, Figure, Format, Outcome, Panels, Plot, Report, ReportTable, Series, Table,
-    fields,
+    Column, Figure, Format, Outcome, Panels, Plot, Report, ReportTable, Series, Table, fields,
 };
 use crate::{Context, ExperimentError};
 
@@ -225,7 +224,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     ));
     figures.extend(cost_figure(
         "Best cost so far per generation.",
-        vec![CostArm::new("CMA-ES", &[&outcome.search.history])],
+        vec![super::cost_arm("CMA-ES", &[&outcome.search.history])],
         None,
     ));
     figures.extend(search_figure(&[("CMA-ES", &outcome.search.history)]));

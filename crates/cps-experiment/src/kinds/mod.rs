@@ -73,7 +73,10 @@ impl<'a> Ctx<'a> {
             kind: self.exp.kind.name(),
             complete,
             seed: self.exp.config.seed,
-            versions: Versions::now(),
+            versions: Versions {
+                cps: env!("CARGO_PKG_VERSION"),
+                commit: env!("CPS_BUILD_COMMIT"),
+            },
             threads: self.pool.current_num_threads(),
             wall_time_s: self.wall(),
             failure: None,
@@ -87,6 +90,21 @@ impl<'a> Ctx<'a> {
             best_so_far: r.best_so_far,
             sigma: r.sigma,
         })
+    }
+}
+
+/// The cost figure's arm of one or more searches' histories: the mean best-so-far cost per
+/// generation with its 95 % band, and the range of every positive finite cost.
+pub(crate) fn cost_arm(label: impl Into<String>, histories: &[&[GenerationRecord]]) -> CostArm {
+    let positive = histories
+        .iter()
+        .flat_map(|h| h.iter().map(|r| r.best_so_far))
+        .filter(|v| v.is_finite() && *v > 0.0);
+    CostArm {
+        label: label.into(),
+        repetitions: histories.len(),
+        band: cps_learn::history_band(histories),
+        range: positive.fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v))),
     }
 }
 

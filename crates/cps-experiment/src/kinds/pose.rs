@@ -11,8 +11,8 @@ use super::{
 };
 use crate::ExperimentError;
 use crate::outcome::{
-    Column, CostArm, Figure, Format, Mark, MarkKind, Outcome, Panels, Plot, Report, ReportTable,
-    Series, Table, fields,
+    Column, Figure, Format, Mark, MarkKind, Outcome, Panels, Plot, Report, ReportTable, Series,
+    Table, fields,
 };
 
 #[derive(Serialize)]
@@ -298,7 +298,7 @@ fn figures(ctx: &Ctx<'_>, outcome: &PoseOutcome, config: &PoseConfig) -> Vec<Fig
     let task = &ctx.exp.config.task;
     let p = outcome.position.best_trajectory();
     let mut figures = position_figures(
-        vec![Series::of_trajectory("learned path", &p)],
+        vec![crate::movement::trajectory_series("learned path", &p)],
         way_points(task),
         "Position per coordinate, with the start, the via points p1… and the goal.",
         "The path in 3-D.",
@@ -376,7 +376,7 @@ fn figures(ctx: &Ctx<'_>, outcome: &PoseOutcome, config: &PoseConfig) -> Vec<Fig
     ]
     .into_iter()
     .filter(|(_, h)| !h.is_empty())
-    .map(|(label, h)| CostArm::new(label, &[h.as_slice()]))
+    .map(|(label, h)| super::cost_arm(label, &[h.as_slice()]))
     .collect();
     figures.extend(cost_figure("Best cost so far per generation.", arms, None));
     figures.extend(search_figure(&[

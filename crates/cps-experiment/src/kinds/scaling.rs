@@ -5,11 +5,11 @@ use cps_learn::{Parametrisation, ViaPointOutcome, learn_via_points};
 use serde::Serialize;
 
 use super::Ctx;
-use super::{cost_figure, position_figures_with, way_points, worst};
+use super::{cost_figure, learn_error, position_figures_with, way_points, worst};
 use crate::ExperimentError;
 use crate::observer::Event;
 use crate::outcome::{
-    Band, Column, CostArm, Figure, Format, Outcome, Report, ReportTable, Series, Table, fields,
+    Band, Column, Figure, Format, Outcome, Report, ReportTable, Series, Table, fields,
 };
 
 /// One arm of the comparison.
@@ -75,7 +75,10 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         // Stopping is decided by the generations that follow.
         let _ = ctx.observer.event(Event::Stage(&stage));
         let progress = |_rep: usize, r: &cps_cmaes::GenerationReport<'_>| ctx.generation(r);
-        let outcome = ctx.pool.install(|| learn_via_points(&config, &progress))?;
+        let outcome = ctx
+            .pool
+            .install(|| learn_via_points(&config, &progress))
+            .map_err(|e| learn_error(e, "scaling run"))?;
         let stop = outcome.interrupted();
         arms.push(Arm {
             parametrisation: p,
@@ -290,7 +293,7 @@ fn figures(ctx: &Ctx<'_>, arms: &[Arm], bands: &[TrajectoryBand]) -> Vec<Figure>
                 .iter()
                 .map(|r| r.history.as_slice())
                 .collect();
-            CostArm::new(a.parametrisation.name(), &h)
+            super::cost_arm(a.parametrisation.name(), &h)
         })
         .collect();
     let mut figures: Vec<Figure> = cost_figure(

@@ -10,8 +10,7 @@ use super::{
     way_points, worst,
 };
 use crate::outcome::{
-    Column, CostArm, Format, Mark, MarkKind, Outcome, Plot, Report, ReportTable, Series, Table,
-    fields,
+    Column, Format, Mark, MarkKind, Outcome, Plot, Report, ReportTable, Table, fields,
 };
 use crate::{ExperimentError, InputError};
 
@@ -120,7 +119,10 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     let histories: Vec<&[cps_learn::GenerationRecord]> =
         outcome.runs.iter().map(|r| r.history.as_slice()).collect();
     let mut figures = position_figures(
-        vec![Series::of_trajectory("learned trajectory", &traj)],
+        vec![crate::movement::trajectory_series(
+            "learned trajectory",
+            &traj,
+        )],
         way_points(&config.task),
         "Each coordinate over time with the start, the via points p1… and the goal.",
         "The path in 3-D, world frame.",
@@ -140,7 +142,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     figures.push(derivative_figure(&traj, true));
     figures.extend(cost_figure(
         "Best cost so far per generation (log scale): the mean over the repetitions with its 95 % band, and the exact optimum.",
-        vec![CostArm::new("CMA-ES", &histories)],
+        vec![super::cost_arm("CMA-ES", &histories)],
         Some(outcome.optimum.cost),
     ));
     figures.extend(search_figure(&[("CMA-ES", histories[0])]));

@@ -9,10 +9,10 @@ use std::sync::Once;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::ExperimentError;
+use cps_outcome::ExperimentError;
 use plotters::coord::CoordTranslate;
 
-use crate::outcome::{CostArm, Figure, Mark, MarkKind, Panels, Plot, Series};
+use cps_outcome::outcome::{CostArm, Figure, Mark, MarkKind, Panels, Plot, Series};
 
 static FONT: Once = Once::new();
 
@@ -694,7 +694,7 @@ fn path_plot<DB: DrawingBackend>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::outcome::{Band, CostArm};
+    use cps_outcome::outcome::{Band, CostArm};
 
     fn series(times: Vec<f64>, values: Vec<Vec<f64>>) -> Series {
         Series::new("s", times, values)

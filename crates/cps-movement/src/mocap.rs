@@ -10,9 +10,9 @@ use cps_mocap::register::Calibration;
 use cps_mocap::{MocapError, Take};
 use serde_json::json;
 
-use crate::outcome::{Figure, Mark, MarkKind, Panels, Plot, Series};
 use crate::robot_file::Answer;
-use crate::{ExperimentError, InputError};
+use cps_outcome::outcome::{Figure, Mark, MarkKind, Panels, Plot, Series};
+use cps_outcome::{ExperimentError, InputError};
 
 /// A take's problem as input (exit 2 on the command line).
 pub fn mocap_error(e: MocapError) -> InputError {
@@ -180,7 +180,7 @@ pub fn import(
         )),
         (None, None) => None,
     };
-    crate::files::write_file(out, demo.csv().as_bytes())?;
+    cps_outcome::files::write_file(out, demo.csv().as_bytes())?;
     let mut written = vec![out.display().to_string()];
     if let Some(plot) = &files.plot {
         for f in figures(&demo, reach.clone()) {
@@ -312,7 +312,7 @@ fn figure_path(plot: &Path, name: &str) -> PathBuf {
 
 #[cfg(feature = "figures")]
 fn draw(f: &Figure, path: &Path) -> Result<(), ExperimentError> {
-    crate::figures::draw_file(f, path)
+    cps_report::figures::draw_file(f, path)
 }
 
 #[cfg(not(feature = "figures"))]

@@ -1,4 +1,4 @@
-//! The contact task (`cps_experiment::contact`) on franky-sim's FR3 with a table, MuJoCo's
+//! The contact task (`cps_drive::contact`) on franky-sim's FR3 with a table, MuJoCo's
 //! contact force as the ground truth: a 10 N press while sliding 20 cm, at tables 2 cm
 //! higher and lower than nominal; no table within reach; a force above the ceiling; the
 //! simulator killed while pressing.
@@ -10,7 +10,7 @@ mod sim;
 
 use std::sync::atomic::AtomicBool;
 
-use cps_experiment::contact::{
+use cps_drive::contact::{
     ContactEnding, ContactOutcome, ContactPlan, ContactWaypoint, Drive, ForcePrimitive, Stage,
     run_contact,
 };

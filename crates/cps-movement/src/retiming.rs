@@ -12,10 +12,10 @@ use cps_kinematics::retime::{RetimeOptions, uniform};
 use cps_kinematics::{CommandCheck, JointSpline, retime};
 use serde_json::{Value, json};
 
-use crate::InputError;
 use crate::limits::{JointTrajectory, LimitsReport, check_samples, read_joint_trajectory};
-use crate::outcome::{Column, Format, Table};
 use crate::robot_file::RobotModel;
+use cps_outcome::InputError;
+use cps_outcome::outcome::{Column, Format, Table};
 
 /// How to retime.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -17,16 +17,6 @@ pub struct Versions {
     pub commit: &'static str,
 }
 
-impl Versions {
-    /// This build's versions.
-    pub fn now() -> Self {
-        Self {
-            cps: env!("CARGO_PKG_VERSION"),
-            commit: env!("CPS_BUILD_COMMIT"),
-        }
-    }
-}
-
 /// The fields every `summary.json` opens with: which experiment, whether it finished,
 /// the seed, the versions, the threads and the wall time.
 #[derive(Debug, Clone, Serialize)]
@@ -273,17 +263,6 @@ impl Series {
         }
     }
 
-    /// The positions of a trajectory as a bold series.
-    pub fn of_trajectory(label: impl Into<String>, traj: &cps_dmp::Trajectory) -> Self {
-        Self::new(
-            label,
-            traj.times().to_vec(),
-            (0..traj.dims())
-                .map(|d| traj.position(d).to_vec())
-                .collect(),
-        )
-    }
-
     /// The same series, drawn faint.
     pub fn faint(mut self) -> Self {
         self.faint = true;
@@ -304,22 +283,6 @@ pub struct CostArm {
     /// The smallest and largest positive finite best-so-far cost of any repetition
     /// (`(inf, 0)` when there is none): the figure's range.
     pub range: (f64, f64),
-}
-
-impl CostArm {
-    /// The arm of one or more searches' histories.
-    pub fn new(label: impl Into<String>, histories: &[&[cps_learn::GenerationRecord]]) -> Self {
-        let positive = histories
-            .iter()
-            .flat_map(|h| h.iter().map(|r| r.best_so_far))
-            .filter(|v| v.is_finite() && *v > 0.0);
-        Self {
-            label: label.into(),
-            repetitions: histories.len(),
-            band: cps_learn::history_band(histories),
-            range: positive.fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v))),
-        }
-    }
 }
 
 /// What a marked point is, which decides how it is drawn and labelled.
@@ -554,7 +517,7 @@ impl Outcome {
 }
 
 /// A kind's typed summary as ordered fields (its `Serialize` field order is kept).
-pub(crate) fn fields(summary: &impl Serialize) -> Map<String, Value> {
+pub fn fields(summary: &impl Serialize) -> Map<String, Value> {
     match serde_json::to_value(summary) {
         Ok(Value::Object(m)) => m,
         // A summary struct always serialises to an object; anything else is kept whole.

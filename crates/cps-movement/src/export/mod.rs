@@ -29,11 +29,11 @@ use cps_kinematics::JointSpline;
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use serde_json::{Value, json};
 
-use crate::InputError;
 use crate::limits::{JointTrajectory, check_samples, read_joint_trajectory};
-use crate::outcome::{Column, Format, Table};
-use crate::results_dir::FileKind;
 use crate::robot_file::RobotModel;
+use cps_outcome::InputError;
+use cps_outcome::outcome::{Column, Format, Table};
+use cps_outcome::results_dir::FileKind;
 pub use section::{ExportPlan, ExportSection};
 pub use urdf::{Frames, robot_description};
 
@@ -379,9 +379,8 @@ pub fn export_samples(
     let mut topics = None;
     let bytes = match format {
         ExportFormat::Ros2Yaml => ros2_yaml(&names, &s).into_bytes(),
-        ExportFormat::Csv1khz => {
-            crate::files::table_csv(&csv_table(&names, &s)).map_err(|e| fail(e.to_string()))?
-        }
+        ExportFormat::Csv1khz => cps_outcome::files::table_csv(&csv_table(&names, &s))
+            .map_err(|e| fail(e.to_string()))?,
         ExportFormat::Mcap => {
             let (bytes, counts) = mcap_bytes(robot, &names, &s).map_err(|e| fail(e.to_string()))?;
             topics = Some(counts);

@@ -33,7 +33,7 @@ use cps_kinematics::{ArmModel, IkConfig, IkTarget, solve_ik};
 use cps_robot::{Guarded, Policy, Robot, StopToken};
 use nalgebra::{Isometry3, IsometryMatrix3, Translation3, Vector3, Vector6};
 
-use crate::{ExperimentError, InputError};
+use cps_outcome::{ExperimentError, InputError};
 
 /// A DMP over the tool's offset on the surface and the pressing force.
 #[derive(Debug, Clone)]
@@ -695,7 +695,7 @@ pub fn contact_on_robot(
 ) -> Result<ContactOutcome, ExperimentError> {
     plan.check()?;
     let mut plan = plan.clone();
-    let model = crate::robot_file::load_robot(robot.arm.name(), Some("hand"), None)?;
+    let model = cps_movement::robot_file::load_robot(robot.arm.name(), Some("hand"), None)?;
     let settings = FrankaSettings {
         host: robot.host.clone(),
         arm: robot.arm,

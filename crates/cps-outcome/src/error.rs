@@ -33,9 +33,6 @@ pub enum ExperimentError {
     /// The input cannot be run (exit 2 on the command line): its sentence names the place.
     #[error(transparent)]
     Input(#[from] InputError),
-    /// The learning library failed.
-    #[error(transparent)]
-    Learn(#[from] cps_learn::LearnError),
 }
 
 /// `.context(...)` for library results: wraps any error with what was being done.

@@ -21,12 +21,12 @@ use cps_robot::{
 };
 use serde_json::{Value, json};
 
-use crate::limits::{JointTrajectory, at_rate, read_joint_trajectory};
-use crate::outcome::{Column, Format, Table};
-use crate::results_dir::{FileKind, check_file_target};
-use crate::retiming::{RetimeMode, retime_samples};
-use crate::robot_file::{Answer, load_robot};
-use crate::{ExperimentError, InputError};
+use cps_movement::limits::{JointTrajectory, at_rate, read_joint_trajectory};
+use cps_movement::retiming::{RetimeMode, retime_samples};
+use cps_movement::robot_file::{Answer, load_robot};
+use cps_outcome::outcome::{Column, Format, Table};
+use cps_outcome::results_dir::{FileKind, check_file_target};
+use cps_outcome::{ExperimentError, InputError};
 
 /// The share of each velocity, acceleration and jerk limit `--retime` plans at, so that
 /// the robot's check (at 100 %) always has room.
@@ -389,7 +389,7 @@ pub fn execute_model(
     stop: &StopToken,
 ) -> Result<Executed, ExperimentError> {
     use cps_dmp::{OnlineDmp, StepInput};
-    let (file, dmp, weights) = crate::movement::read_model(model)?;
+    let (file, dmp, weights) = cps_movement::movement::read_model(model)?;
     if dmp.dims() != 7 {
         return Err(InputError(format!(
             "{}: a {}-dimensional model; the robot steps joint-space models of seven dimensions (imitate a joint recording: cps-cli imitate rec.csv --columns q1,q2,q3,q4,q5,q6,q7)",
@@ -636,11 +636,11 @@ pub fn write_recording(
     samples: &[Sample],
     report: &Value,
 ) -> Result<(), ExperimentError> {
-    let csv = crate::files::table_csv(&recording_table(samples))?;
-    crate::files::write_file(record, &csv)?;
+    let csv = cps_outcome::files::table_csv(&recording_table(samples))?;
+    cps_outcome::files::write_file(record, &csv)?;
     let text = serde_json::to_string_pretty(report)
         .map_err(|e| ExperimentError::Message(e.to_string()))?;
-    crate::files::write_file(&report_path(record), text.as_bytes())
+    cps_outcome::files::write_file(&report_path(record), text.as_bytes())
 }
 
 /// The robot's state for `seconds` (in (0, 3600]) or until `stop`, in memory, with its

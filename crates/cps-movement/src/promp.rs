@@ -7,10 +7,12 @@ use std::path::Path;
 
 use cps_promp::{Observation, ProMp, ProMpError, ProMpModel};
 
-use crate::InputError;
 use crate::movement::{Columns, read_demos, with_units};
-use crate::outcome::{Band, Column, Figure, Format, Mark, MarkKind, Panels, Plot, Series, Table};
 use crate::robot_file::Answer;
+use cps_outcome::InputError;
+use cps_outcome::outcome::{
+    Band, Column, Figure, Format, Mark, MarkKind, Panels, Plot, Series, Table,
+};
 
 /// The largest ProMP file read: 256 MiB.
 pub const MAX_PROMP_BYTES: u64 = 256 << 20;
@@ -47,7 +49,7 @@ impl NamedProMp {
 
     /// Reads and checks a ProMP file (at most [`MAX_PROMP_BYTES`]); errors name the file.
     pub fn read(path: &Path) -> Result<Self, InputError> {
-        let text = crate::source::read_text(path, MAX_PROMP_BYTES, "ProMP file")?;
+        let text = cps_outcome::source::read_text(path, MAX_PROMP_BYTES, "ProMP file")?;
         let place = path.display().to_string();
         let model = ProMpModel::from_json(&text).map_err(|e| promp_error(&place, e))?;
         let promp = model.to_promp().map_err(|e| promp_error(&place, e))?;
@@ -229,12 +231,12 @@ pub fn write_samples(
     count: usize,
     seed: u64,
     dt: f64,
-) -> Result<String, crate::ExperimentError> {
-    let stage = crate::results_dir::Staging::prepare(out, force)?;
+) -> Result<String, cps_outcome::ExperimentError> {
+    let stage = cps_outcome::results_dir::Staging::prepare(out, force)?;
     let promp = NamedProMp::read(model)?;
     let times = promp.grid(dt, count.saturating_mul(promp.names.len() + 1))?;
     for table in promp.sample_tables(count, seed, &times)? {
-        let csv = crate::files::table_csv(&table)?;
+        let csv = cps_outcome::files::table_csv(&table)?;
         stage.write(&format!("{}.csv", table.name), &csv)?;
     }
     stage.commit()?;
@@ -252,13 +254,13 @@ pub fn write_stats(
     out: &Path,
     force: bool,
     dt: f64,
-) -> Result<String, crate::ExperimentError> {
-    use crate::results_dir::{FileKind, check_file_target};
+) -> Result<String, cps_outcome::ExperimentError> {
+    use cps_outcome::results_dir::{FileKind, check_file_target};
     check_file_target(out, FileKind::TrajectoryCsv, force)?;
     let promp = NamedProMp::read(model)?;
     let times = promp.grid(dt, 2 * promp.names.len() + 1)?;
-    let csv = crate::files::table_csv(&promp.stats_table(&times))?;
-    crate::files::write_file(out, &csv)?;
+    let csv = cps_outcome::files::table_csv(&promp.stats_table(&times))?;
+    cps_outcome::files::write_file(out, &csv)?;
     Ok(format!(
         "mean and σ at {} times written to {}",
         times.len(),

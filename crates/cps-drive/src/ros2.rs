@@ -17,9 +17,9 @@ use cps_ros2::robot::{Ros2Robot, Ros2Settings, rows_at, trajectory_message};
 use cps_ros2::{Ros2Error, publish};
 use serde_json::{Value, json};
 
-use crate::outcome::{Column, Format, Table};
-use crate::robot_file::{Answer, RobotModel, load_robot};
-use crate::{ExperimentError, InputError};
+use cps_movement::robot_file::{Answer, RobotModel, load_robot};
+use cps_outcome::outcome::{Column, Format, Table};
+use cps_outcome::{ExperimentError, InputError};
 
 pub use cps_ros2::robot::NODE_NAME;
 
@@ -80,7 +80,7 @@ fn robot_and_names(
     let model = load_robot(robot, None, None)?;
     let dof = model.chain.dof();
     let names = match names {
-        None => crate::export::joint_names(&model),
+        None => cps_movement::export::joint_names(&model),
         Some(n) => {
             if n.len() != dof {
                 return Err(InputError(format!(
@@ -108,7 +108,7 @@ fn robot_and_names(
 }
 
 /// The node, on `domain` or `ROS_DOMAIN_ID`'s.
-pub(crate) fn node(domain: Option<u16>) -> Result<Node, ExperimentError> {
+pub fn node(domain: Option<u16>) -> Result<Node, ExperimentError> {
     let name = NodeName::from_env(NODE_NAME, domain).map_err(|e| InputError(e.to_string()))?;
     Node::new(name).map_err(ros2_error)
 }
@@ -126,7 +126,7 @@ pub fn ros2_error(e: Ros2Error) -> ExperimentError {
 /// millisecond; times from its first sample.
 pub fn plan_of(
     name: &str,
-    traj: &crate::limits::JointTrajectory,
+    traj: &cps_movement::limits::JointTrajectory,
     dof: usize,
 ) -> Result<Plan, ExperimentError> {
     let bad_row = traj
@@ -151,7 +151,7 @@ pub fn plan_of(
     let plan = if even {
         Plan::new(first, traj.q.clone())
     } else {
-        let (_, dt, rows, _) = crate::limits::at_rate(traj, 1.0 / cps_robot::CHECK_PERIOD);
+        let (_, dt, rows, _) = cps_movement::limits::at_rate(traj, 1.0 / cps_robot::CHECK_PERIOD);
         Plan::new(dt, rows)
     };
     plan.map_err(|e| InputError(format!("{name}: {e}")).into())
@@ -183,7 +183,7 @@ pub fn send(
     progress: impl FnMut(f64),
 ) -> Result<(Answer, u8), ExperimentError> {
     let (model, _) = robot_and_names(&s.graph.robot, s.graph.joint_names.as_deref())?;
-    let traj = crate::limits::read_joint_trajectory(file, model.chain.dof())?;
+    let traj = cps_movement::limits::read_joint_trajectory(file, model.chain.dof())?;
     send_trajectory(&file.display().to_string(), &traj, s, stop, progress)
 }
 
@@ -194,7 +194,7 @@ pub fn send(
 /// accelerations), then published or followed as a goal.
 pub fn send_trajectory(
     name: &str,
-    traj: &crate::limits::JointTrajectory,
+    traj: &cps_movement::limits::JointTrajectory,
     s: &SendSettings,
     stop: &StopToken,
     mut progress: impl FnMut(f64),
@@ -212,7 +212,7 @@ pub fn send_trajectory(
         }
         crate::franka::check_record_target(&r.out, r.force)?;
     }
-    crate::export::ExportOptions { period: s.period }.check()?;
+    cps_movement::export::ExportOptions { period: s.period }.check()?;
     let plan = plan_of(name, traj, model.chain.dof())?;
     let wait = Duration::from_secs_f64(s.wait);
     match s.via {
@@ -380,9 +380,9 @@ fn write_tracked(
         }
     };
     let (times, _) = rec.times();
-    let limits = crate::limits::check_samples(
+    let limits = cps_movement::limits::check_samples(
         model,
-        &crate::limits::JointTrajectory {
+        &cps_movement::limits::JointTrajectory {
             names: rec.joints.clone(),
             times: times.clone(),
             q: rec.positions.clone(),
@@ -407,11 +407,14 @@ fn write_tracked(
         "tracking": tracking,
         "limits": limits.as_ref().map_or(Value::Null, |l| l.json()),
     });
-    crate::files::write_file(&r.out, &crate::files::table_csv(&recording_table(rec))?)?;
+    cps_outcome::files::write_file(
+        &r.out,
+        &cps_outcome::files::table_csv(&recording_table(rec))?,
+    )?;
     let text = serde_json::to_string_pretty(&report)
         .map_err(|e| ExperimentError::Message(e.to_string()))?;
     let report_file = crate::franka::report_path(&r.out);
-    crate::files::write_file(&report_file, text.as_bytes())?;
+    cps_outcome::files::write_file(&report_file, text.as_bytes())?;
     answer.json["recording"] = report;
     answer.lines.push(format!(
         "wrote {} and {}",
@@ -512,12 +515,12 @@ pub fn record(
 ) -> Result<(Answer, u8), ExperimentError> {
     crate::franka::check_record_target(out, force)?;
     let (rec, mut answer) = record_in_memory(s, stop, progress)?;
-    let csv = crate::files::table_csv(&recording_table(&rec))?;
-    crate::files::write_file(out, &csv)?;
+    let csv = cps_outcome::files::table_csv(&recording_table(&rec))?;
+    cps_outcome::files::write_file(out, &csv)?;
     let text = serde_json::to_string_pretty(&answer.json)
         .map_err(|e| ExperimentError::Message(e.to_string()))?;
     let report_file = crate::franka::report_path(out);
-    crate::files::write_file(&report_file, text.as_bytes())?;
+    cps_outcome::files::write_file(&report_file, text.as_bytes())?;
     answer.lines.push(format!(
         "wrote {} and {}",
         out.display(),
@@ -567,9 +570,9 @@ pub fn record_in_memory(
         rec.incomplete,
         rec.dropped.malformed + rec.dropped.oversized + rec.dropped.undecodable
     )];
-    let limits = crate::limits::check_samples(
+    let limits = cps_movement::limits::check_samples(
         &model,
-        &crate::limits::JointTrajectory {
+        &cps_movement::limits::JointTrajectory {
             names: names.clone(),
             times: times.clone(),
             q: rec.positions.clone(),

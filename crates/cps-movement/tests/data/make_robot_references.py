@@ -1,8 +1,8 @@
 """Regenerates robots_pinocchio.json: forward kinematics and inverse dynamics of the UR3 and
-the FANUC CRX-10iA by pinocchio, for crates/cps-experiment/tests/robots.rs.
+the FANUC CRX-10iA by pinocchio, for crates/cps-movement/tests/robots.rs.
 
     pip install pin numpy
-    python crates/cps-experiment/tests/data/make_robot_references.py
+    python crates/cps-movement/tests/data/make_robot_references.py
 
 UR3: a URDF written here from Universal Robots' standard-DH table and link masses and
 centres of mass (UR support article "DH Parameters for calculations of kinematics and
@@ -71,7 +71,7 @@ def main():
     crx_data = crx.createData()
     out = {
         "generator": "pinocchio on a URDF of UR's DH table and point masses, and on configs/robots/crx10ia.urdf "
-                     "(crates/cps-experiment/tests/data/make_robot_references.py)",
+                     "(crates/cps-movement/tests/data/make_robot_references.py)",
         "versions": {"pinocchio": pinocchio.__version__, "numpy": np.__version__},
         "gravity": [0.0, 0.0, -9.81],
         "ur3": states(ur3, "flange", rng),

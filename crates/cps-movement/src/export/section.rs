@@ -13,8 +13,8 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::{ExportFormat, ExportOptions};
-use crate::InputError;
 use crate::retiming::RetimeMode;
+use cps_outcome::InputError;
 
 /// `[export]` as written.
 #[derive(Debug, Deserialize)]
@@ -39,7 +39,7 @@ pub struct ExportPlan {
 
 impl ExportSection {
     /// Checks the section; `err` names a place of the file.
-    pub(crate) fn plan(
+    pub fn plan(
         &self,
         err: &dyn Fn(&Range<usize>, String) -> InputError,
     ) -> Result<ExportPlan, InputError> {

@@ -13,8 +13,8 @@ use std::path::Path;
 use cps_kinematics::{CommandCheck, Quantity, check_commands};
 use serde_json::{Map, Value, json};
 
-use crate::InputError;
 use crate::robot_file::RobotModel;
+use cps_outcome::InputError;
 
 /// Positions of a joint trajectory file.
 #[derive(Debug, Clone)]
@@ -30,7 +30,7 @@ pub struct JointTrajectory {
 /// Reads a joint trajectory CSV for a robot of `dof` joints (at most 256 MiB): the time
 /// column and the first `dof` columns after it. Errors name the file and the line.
 pub fn read_joint_trajectory(path: &Path, dof: usize) -> Result<JointTrajectory, InputError> {
-    let text = crate::source::read_text(path, crate::movement::MAX_DEMO_BYTES, "trajectory")?;
+    let text = cps_outcome::source::read_text(path, crate::movement::MAX_DEMO_BYTES, "trajectory")?;
     let header: Vec<String> = text
         .lines()
         .next()

@@ -15,8 +15,8 @@ use cps_dmp::{
     Trajectory,
 };
 
-use crate::InputError;
-use crate::outcome::{Column, Figure, Format, Mark, MarkKind, Panels, Plot, Series, Table};
+use cps_outcome::InputError;
+use cps_outcome::outcome::{Column, Figure, Format, Mark, MarkKind, Panels, Plot, Series, Table};
 
 /// The largest demonstration file read: 256 MiB (≈ 10⁷ samples of three coordinates).
 pub const MAX_DEMO_BYTES: u64 = 256 << 20;
@@ -30,7 +30,7 @@ pub fn read_demo(
     path: &Path,
     columns: Option<&[String]>,
 ) -> Result<(Vec<String>, Demonstration), InputError> {
-    let text = crate::source::read_text(path, MAX_DEMO_BYTES, "demonstration")?;
+    let text = cps_outcome::source::read_text(path, MAX_DEMO_BYTES, "demonstration")?;
     parse_demo_columns(path, &text, columns)
 }
 
@@ -259,7 +259,7 @@ impl Imitated {
                 traj.times().to_vec(),
                 self.fit.reference.clone(),
             ),
-            Series::of_trajectory("DMP", &traj),
+            trajectory_series("DMP", &traj),
         ];
         Figure {
             name: "imitation".into(),
@@ -416,7 +416,7 @@ impl RolledOut {
             plot: Plot::Panels(
                 Panels::new(
                     with_units(&self.names),
-                    vec![Series::of_trajectory("rollout", traj)],
+                    vec![trajectory_series("rollout", traj)],
                 )
                 .marks(vec![
                     Mark {
@@ -440,7 +440,7 @@ impl RolledOut {
 /// Reads a model file (at most 16 MiB) and checks it: the
 /// record, its DMP and its weights. Errors name the file.
 pub fn read_model(path: &Path) -> Result<(DmpModel, DiscreteDmp, Vec<f64>), InputError> {
-    let text = crate::source::read_text(path, crate::source::MAX_FILE_BYTES, "model")?;
+    let text = cps_outcome::source::read_text(path, cps_outcome::source::MAX_FILE_BYTES, "model")?;
     let in_model = |e: DmpError| InputError(format!("{}: {e}", path.display()));
     let file = DmpModel::from_json(&text).map_err(in_model)?;
     let (dmp, weights) = file.to_dmp().map_err(in_model)?;
@@ -465,11 +465,11 @@ pub fn rollout_file(model: &Path, spec: &RolloutSpec) -> Result<RolledOut, Input
         ))),
         Some(v)
             if v.iter()
-                .any(|x| !x.is_finite() || x.abs() > cps_learn::MAX_COORDINATE) =>
+                .any(|x| !x.is_finite() || x.abs() > cps_dmp::MAX_COORDINATE) =>
         {
             Err(InputError(format!(
                 "--{what}: values must be finite and at most {:e} in magnitude",
-                cps_learn::MAX_COORDINATE
+                cps_dmp::MAX_COORDINATE
             )))
         }
         Some(v) => Ok(v.clone()),
@@ -516,4 +516,15 @@ pub fn rollout_table(names: &[String], traj: &Trajectory) -> Table {
         }
     }
     t
+}
+
+/// The positions of a trajectory as a bold series of a figure.
+pub fn trajectory_series(label: impl Into<String>, traj: &Trajectory) -> Series {
+    Series::new(
+        label,
+        traj.times().to_vec(),
+        (0..traj.dims())
+            .map(|d| traj.position(d).to_vec())
+            .collect(),
+    )
 }

@@ -2,9 +2,9 @@
 //! table, the outcome's report tables, then every figure as inline SVG with its caption —
 //! that opens offline and can be handed out.
 
-use crate::outcome::{Outcome, ReportTable};
-use crate::results_dir::Staging;
-use crate::{Context, ExperimentError};
+use cps_outcome::outcome::{Outcome, ReportTable};
+use cps_outcome::results_dir::Staging;
+use cps_outcome::{Context, ExperimentError};
 
 fn escape(s: &str) -> String {
     s.replace('&', "&amp;")

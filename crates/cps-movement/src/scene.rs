@@ -9,9 +9,9 @@ use nalgebra::Vector3;
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::InputError;
 use crate::robot_file::{Frame, RobotModel, load_robot};
-use crate::source::location;
+use cps_outcome::InputError;
+use cps_outcome::source::location;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -20,12 +20,12 @@ struct File {
     #[serde(default)]
     object: Vec<Spanned<Object>>,
     #[serde(default)]
-    obstacle: Vec<Spanned<Obstacle>>,
+    obstacle: Vec<Spanned<ObstacleEntry>>,
 }
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct Obstacle {
+struct ObstacleEntry {
     name: String,
     position: [f64; 3],
     clearance: f64,
@@ -79,6 +79,16 @@ pub struct StandIn {
     pub describe: String,
 }
 
+/// A point obstacle of a scene (`[[obstacle]]`): movements learned in the scene keep
+/// `clearance` from `position` (world frame, m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Obstacle {
+    /// Where it is.
+    pub position: [f64; 3],
+    /// The distance to keep (> 0).
+    pub clearance: f64,
+}
+
 /// A loaded scene.
 #[derive(Debug, Clone)]
 pub struct Scene {
@@ -90,12 +100,13 @@ pub struct Scene {
     pub objects: Vec<(String, Vector3<f64>)>,
     /// Named point obstacles (`[[obstacle]]`), in file order: movements learned in this
     /// scene keep their clearance.
-    pub obstacles: Vec<(String, cps_learn::PointObstacle)>,
+    pub obstacles: Vec<(String, Obstacle)>,
 }
 
 /// Reads a scene file; a relative robot file path is resolved against the scene's folder.
 pub fn load_scene(path: &Path) -> Result<Scene, InputError> {
-    let text = crate::source::read_text(path, crate::source::MAX_FILE_BYTES, "scene file")?;
+    let text =
+        cps_outcome::source::read_text(path, cps_outcome::source::MAX_FILE_BYTES, "scene file")?;
     parse_scene(path, &text)
 }
 
@@ -162,7 +173,7 @@ pub fn parse_scene(path: &Path, text: &str) -> Result<Scene, InputError> {
         }
         objects.push((v.name.clone(), Vector3::from(v.position)));
     }
-    let mut obstacles: Vec<(String, cps_learn::PointObstacle)> = Vec::new();
+    let mut obstacles: Vec<(String, Obstacle)> = Vec::new();
     for o in &file.obstacle {
         let v = o.get_ref();
         let at = || location(path, &text, &o.span());
@@ -189,8 +200,8 @@ pub fn parse_scene(path: &Path, text: &str) -> Result<Scene, InputError> {
         }
         obstacles.push((
             v.name.clone(),
-            cps_learn::PointObstacle {
-                position: v.position.to_vec(),
+            Obstacle {
+                position: v.position,
                 clearance: v.clearance,
             },
         ));

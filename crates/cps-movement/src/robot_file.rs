@@ -20,8 +20,8 @@ use nalgebra::{Isometry3, IsometryMatrix3, Quaternion, Translation3, UnitQuatern
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::InputError;
-use crate::source::location;
+use cps_outcome::InputError;
+use cps_outcome::source::location;
 
 pub use cps_robot::RobotModel;
 
@@ -389,7 +389,7 @@ fn apply_side_file(model: &mut RobotModel, path: &Path, text: &str) -> Result<()
     let at = |span: std::ops::Range<usize>, m: String| {
         InputError(format!(
             "{}: {m}",
-            crate::source::location(path, text, &span)
+            cps_outcome::source::location(path, text, &span)
         ))
     };
     let file: SideFile = toml::from_str(text).map_err(|e| {
@@ -453,7 +453,11 @@ pub fn load_robot(
     let lower = spec.to_ascii_lowercase();
     if lower.ends_with(".toml") || lower.ends_with(".urdf") {
         let path = Path::new(spec);
-        let text = crate::source::read_text(path, crate::source::MAX_FILE_BYTES, "robot file")?;
+        let text = cps_outcome::source::read_text(
+            path,
+            cps_outcome::source::MAX_FILE_BYTES,
+            "robot file",
+        )?;
         if lower.ends_with(".urdf") {
             if tool.is_some() {
                 return Err(InputError(
@@ -465,8 +469,11 @@ pub fn load_robot(
             // The limits a URDF has no tag for, from `ROBOT.limits.toml` beside it.
             let side = path.with_extension("limits.toml");
             if side.is_file() {
-                let text =
-                    crate::source::read_text(&side, crate::source::MAX_FILE_BYTES, "limits file")?;
+                let text = cps_outcome::source::read_text(
+                    &side,
+                    cps_outcome::source::MAX_FILE_BYTES,
+                    "limits file",
+                )?;
                 apply_side_file(&mut model, &side, &text)?;
             }
             return Ok(model);

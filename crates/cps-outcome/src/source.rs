@@ -57,7 +57,7 @@ pub fn bytes(b: f64) -> String {
 }
 
 /// `file:line:column` of a byte offset.
-pub(crate) fn location(path: &Path, text: &str, span: &Range<usize>) -> String {
+pub fn location(path: &Path, text: &str, span: &Range<usize>) -> String {
     let before = &text[..span.start.min(text.len())];
     let line = before.matches('\n').count() + 1;
     let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;

@@ -3,8 +3,8 @@
 //! (tests/data/make_robot_references.py), the TOML and built-in copies against each other,
 //! and the published figures the CRX's data must reproduce.
 
-use cps_experiment::robot_file::load_robot;
 use cps_kinematics::GRAVITY;
+use cps_movement::robot_file::load_robot;
 use nalgebra::Vector3;
 use serde_json::Value;
 
@@ -166,7 +166,7 @@ fn a_urdf_robot_takes_its_other_limits_from_a_side_file() {
     );
     let dir = tempfile::tempdir().unwrap();
     let urdf = dir.path().join("arm.urdf");
-    std::fs::write(&urdf, cps_experiment::robot_file::CRX10IA_URDF).unwrap();
+    std::fs::write(&urdf, cps_movement::robot_file::CRX10IA_URDF).unwrap();
     let plain = load_robot(urdf.to_str().unwrap(), None, None).unwrap();
     assert!(plain.limits.acceleration.is_none() && plain.cartesian.is_none());
     let side = dir.path().join("arm.limits.toml");

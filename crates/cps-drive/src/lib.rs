@@ -1,0 +1,27 @@
+//! Driving robots from files and words, through cps's execution contract (`cps-robot`):
+//! every motion is a plan checked by the guard and run with a stop token.
+//!
+//! - [`franka`]: `cps-cli franka …` and Python's `cps.Franka`: a joint trajectory file
+//!   made 1 kHz commands (retimed, resampled or taken as it is) and executed with its
+//!   recording and report; a DMP model stepped online with phase stopping; the robot's
+//!   state recorded; teaching by hand; the gripper.
+//! - [`ros2`]: `cps-cli ros2 send|record` and `cps.ros2`: a joint trajectory checked and
+//!   sent to a ros2_control controller (its topic or its FollowJointTrajectory action),
+//!   joint states recorded with a report.
+//! - [`contact`]: movements that touch — force primitives and the hybrid contact task on
+//!   a Franka in torque mode.
+//!
+//! Its realtime closures (the online DMP's, the contact task's) run inside cps-franka's
+//! 1 kHz loop: nothing in them allocates, locks or logs.
+//!
+//! # Example
+//! Bad input is named before anything connects:
+//! ```
+//! let e = cps_drive::franka::parse_arm("ur5").unwrap_err();
+//! assert!(e.0.contains("not a Franka arm"));
+//! ```
+#![deny(missing_docs)]
+
+pub mod contact;
+pub mod franka;
+pub mod ros2;

@@ -1,0 +1,35 @@
+//! Movements and the robots they are for, as files — everything cps reads and writes
+//! about a movement without learning it or driving a robot:
+//!
+//! - [`robot_file`]: `--robot` values (a built-in name, a TOML robot file, URDF) as
+//!   [`RobotModel`](cps_robot::RobotModel)s with their limits, in words ([`robot_file::Describe`]);
+//! - [`scene`]: scene files (a placed robot, its start, named way points and obstacles);
+//! - [`movement`]: demonstration CSVs, imitation into DMP models, a model's rollout;
+//! - [`limits`]: a joint trajectory file at a control rate against a robot's limits;
+//! - [`retiming`]: a trajectory retimed for a robot (the fastest timing of its path, or the
+//!   smallest uniform slowing);
+//! - [`export`]: joint trajectories for ROS 2 and viewers (YAML, MCAP, 1 kHz CSV, URDF);
+//! - [`promp`]: ProMPs from demonstration files (fit, condition, sample, statistics);
+//! - [`mocap`]: motion-capture takes (C3D, Motive CSV) as demonstrations in a robot's
+//!   frame, with their report — and `[demonstrations] takes` of experiment files.
+//!
+//! Every error names the file (and line) and the rule broken. Driving a robot is
+//! `cps-drive`'s; experiments are `cps-experiment`'s.
+//!
+//! # Example
+//! ```
+//! let panda = cps_movement::robot_file::load_robot("panda", Some("hand"), None)?;
+//! assert_eq!(panda.chain.dof(), 7);
+//! assert_eq!(panda.published_joint_names()[0], "panda_joint1");
+//! # Ok::<(), cps_outcome::InputError>(())
+//! ```
+#![deny(missing_docs)]
+
+pub mod export;
+pub mod limits;
+pub mod mocap;
+pub mod movement;
+pub mod promp;
+pub mod retiming;
+pub mod robot_file;
+pub mod scene;
