@@ -1,5 +1,7 @@
 //! Serial chains from URDF (Unified Robot Description Format) text, so users can bring any
-//! arm whose description they have. Parsing uses urdf-rs; this module only walks the tree.
+//! arm whose description they have. The XML is read here (the part robot descriptions use:
+//! elements and attributes; text, comments and unknown elements such as visuals and
+//! transmissions are passed over), every number checked, and the tree walked.
 //!
 //! The chain runs from the root link (the one link that is no joint's child) to a tip link.
 //! Fixed joints fold into the neighbouring transforms; revolute joints keep their limits
@@ -10,9 +12,69 @@
 use std::collections::HashMap;
 
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
-use urdf_rs::JointType;
 
 use crate::{KinematicsError, LinkInertia, RevoluteJoint, SerialChain};
+
+/// A joint's `type`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum JointType {
+    Revolute,
+    Continuous,
+    Prismatic,
+    Fixed,
+    Floating,
+    Planar,
+}
+
+/// `<origin xyz rpy>` (zero when absent).
+#[derive(Debug, Clone, Copy, Default)]
+struct Pose {
+    xyz: [f64; 3],
+    rpy: [f64; 3],
+}
+
+/// A link's `<inertial>` (zero when absent): its origin, mass and inertia tensor about the
+/// centre of mass (`ixx ixy ixz iyy iyz izz`).
+#[derive(Debug, Clone, Copy, Default)]
+struct Inertial {
+    origin: Pose,
+    mass: f64,
+    inertia: [f64; 6],
+}
+
+#[derive(Debug)]
+struct Link {
+    name: String,
+    inertial: Inertial,
+}
+
+/// A joint's `<limit>` (zero when absent or not given).
+#[derive(Debug, Clone, Copy, Default)]
+struct Limit {
+    lower: f64,
+    upper: f64,
+    effort: f64,
+    velocity: f64,
+}
+
+#[derive(Debug)]
+struct Joint {
+    name: String,
+    joint_type: JointType,
+    parent: String,
+    child: String,
+    origin: Pose,
+    axis: [f64; 3],
+    limit: Limit,
+    mimic: bool,
+}
+
+#[derive(Debug)]
+struct Robot {
+    name: String,
+    links: Vec<Link>,
+    joints: Vec<Joint>,
+}
 
 /// A chain read from a URDF description.
 #[derive(Debug, Clone)]
@@ -35,15 +97,10 @@ pub struct UrdfChain {
 }
 
 /// A link's `<inertial>` in the link's frame (its origin's rotation applied).
-fn inertial(link: &urdf_rs::Link) -> Result<LinkInertia, KinematicsError> {
+fn inertial(link: &Link) -> Result<LinkInertia, KinematicsError> {
     let i = &link.inertial;
-    let m = &i.inertia;
-    let own = LinkInertia::new(
-        i.mass.value,
-        [0.0; 3],
-        [m.ixx, m.ixy, m.ixz, m.iyy, m.iyz, m.izz],
-    )
-    .map_err(|e| invalid(format!("link `{}`: {e}", link.name)))?;
+    let own = LinkInertia::new(i.mass, [0.0; 3], i.inertia)
+        .map_err(|e| invalid(format!("link `{}`: {e}", link.name)))?;
     let origin =
         pose(&i.origin).map_err(|m| invalid(format!("link `{}` inertial: {m}", link.name)))?;
     Ok(LinkInertia::combine(&[(own, origin)]))
@@ -53,7 +110,7 @@ fn invalid(msg: String) -> KinematicsError {
     KinematicsError::InvalidModel(format!("URDF: {msg}"))
 }
 
-fn pose(p: &urdf_rs::Pose) -> Result<Isometry3<f64>, String> {
+fn pose(p: &Pose) -> Result<Isometry3<f64>, String> {
     if !p.xyz.iter().chain(p.rpy.iter()).all(|v| v.is_finite()) {
         return Err("origin has a non-finite value".into());
     }
@@ -117,9 +174,397 @@ fn nesting_depth(xml: &str) -> usize {
     max
 }
 
+/// The robot of a URDF document: its links and joints with their numbers checked (`xyz`,
+/// `rpy`, limits, masses, inertias), unknown elements passed over.
+fn read_robot(xml: &str) -> Result<Robot, String> {
+    let root = parse_xml(xml)?;
+    if root.name != "robot" {
+        return Err(format!(
+            "line {}: the root element is `<{}>`, not `<robot>`",
+            root.line, root.name
+        ));
+    }
+    let numbers = |e: &Element, key: &str, what: &str| -> Result<Vec<f64>, String> {
+        match e.attr(key) {
+            None => Ok(Vec::new()),
+            Some(v) => v
+                .split_whitespace()
+                .map(|x| {
+                    x.parse::<f64>().map_err(|_| {
+                        format!("line {}: {what}: `{key}` has `{x}`, not a number", e.line)
+                    })
+                })
+                .collect(),
+        }
+    };
+    let three =
+        |e: &Element, key: &str, what: &str, default: [f64; 3]| -> Result<[f64; 3], String> {
+            let v = numbers(e, key, what)?;
+            if e.attr(key).is_none() {
+                return Ok(default);
+            }
+            <[f64; 3]>::try_from(v.as_slice()).map_err(|_| {
+                format!(
+                    "line {}: {what}: `{key}` must be three numbers (got {})",
+                    e.line,
+                    v.len()
+                )
+            })
+        };
+    let one = |e: &Element, key: &str, what: &str| -> Result<f64, String> {
+        let v = numbers(e, key, what)?;
+        match v.as_slice() {
+            [] => Ok(0.0),
+            [x] => Ok(*x),
+            _ => Err(format!(
+                "line {}: {what}: `{key}` must be one number",
+                e.line
+            )),
+        }
+    };
+    let origin = |parent: &Element, what: &str| -> Result<Pose, String> {
+        Ok(match parent.child("origin") {
+            Some(o) => Pose {
+                xyz: three(o, "xyz", what, [0.0; 3])?,
+                rpy: three(o, "rpy", what, [0.0; 3])?,
+            },
+            None => Pose::default(),
+        })
+    };
+    let name = |e: &Element| -> Result<String, String> {
+        e.attr("name")
+            .map(str::to_string)
+            .ok_or_else(|| format!("line {}: a `<{}>` without a name", e.line, e.name))
+    };
+    let mut links = Vec::new();
+    for l in root.children("link") {
+        let link = name(l)?;
+        let what = format!("link `{link}`");
+        let inertial = match l.child("inertial") {
+            None => Inertial::default(),
+            Some(i) => Inertial {
+                origin: origin(i, &what)?,
+                mass: match i.child("mass") {
+                    Some(m) => one(m, "value", &what)?,
+                    None => 0.0,
+                },
+                inertia: match i.child("inertia") {
+                    Some(m) => {
+                        let mut t = [0.0; 6];
+                        for (k, key) in ["ixx", "ixy", "ixz", "iyy", "iyz", "izz"]
+                            .iter()
+                            .enumerate()
+                        {
+                            t[k] = one(m, key, &what)?;
+                        }
+                        t
+                    }
+                    None => [0.0; 6],
+                },
+            },
+        };
+        links.push(Link {
+            name: link,
+            inertial,
+        });
+    }
+    let mut joints = Vec::new();
+    for j in root.children("joint") {
+        let joint = name(j)?;
+        let what = format!("joint `{joint}`");
+        let joint_type = match j.attr("type") {
+            Some("revolute") => JointType::Revolute,
+            Some("continuous") => JointType::Continuous,
+            Some("prismatic") => JointType::Prismatic,
+            Some("fixed") => JointType::Fixed,
+            Some("floating") => JointType::Floating,
+            Some("planar") => JointType::Planar,
+            Some(other) => {
+                return Err(format!(
+                    "line {}: {what} has type `{other}`, not one of URDF's (revolute, continuous, prismatic, fixed, floating, planar)",
+                    j.line
+                ));
+            }
+            None => return Err(format!("line {}: {what} has no type", j.line)),
+        };
+        let end = |role: &str| -> Result<String, String> {
+            j.child(role)
+                .and_then(|e| e.attr("link"))
+                .map(str::to_string)
+                .ok_or_else(|| format!("line {}: {what} has no `<{role} link=…>`", j.line))
+        };
+        let limit = match j.child("limit") {
+            Some(l) => Limit {
+                lower: one(l, "lower", &what)?,
+                upper: one(l, "upper", &what)?,
+                effort: one(l, "effort", &what)?,
+                velocity: one(l, "velocity", &what)?,
+            },
+            None => Limit::default(),
+        };
+        joints.push(Joint {
+            joint_type,
+            parent: end("parent")?,
+            child: end("child")?,
+            origin: origin(j, &what)?,
+            axis: match j.child("axis") {
+                Some(a) => three(a, "xyz", &what, [1.0, 0.0, 0.0])?,
+                None => [1.0, 0.0, 0.0],
+            },
+            limit,
+            mimic: j.child("mimic").is_some(),
+            name: joint,
+        });
+    }
+    Ok(Robot {
+        name: root.attr("name").unwrap_or_default().to_string(),
+        links,
+        joints,
+    })
+}
+
+/// A URDF element: its name, attributes and child elements (text is not kept: URDF puts
+/// everything cps reads in attributes).
+#[derive(Debug)]
+struct Element {
+    name: String,
+    attrs: Vec<(String, String)>,
+    children: Vec<Element>,
+    line: usize,
+}
+
+impl Element {
+    fn attr(&self, key: &str) -> Option<&str> {
+        self.attrs
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
+    }
+
+    fn child(&self, name: &str) -> Option<&Element> {
+        self.children.iter().find(|c| c.name == name)
+    }
+
+    fn children<'a>(&'a self, name: &'a str) -> impl Iterator<Item = &'a Element> + 'a {
+        self.children.iter().filter(move |c| c.name == name)
+    }
+}
+
+/// Reads the element tree of an XML document — the part of XML robot descriptions use:
+/// elements, attributes in single or double quotes with the five named entities and
+/// character references, comments, processing instructions, a DOCTYPE without an internal
+/// subset, CDATA (skipped). Every error names the line. No recursion: nesting is bounded
+/// by [`MAX_URDF_DEPTH`].
+fn parse_xml(xml: &str) -> Result<Element, String> {
+    let b = xml.as_bytes();
+    let mut i = if xml.starts_with('\u{feff}') { 3 } else { 0 };
+    let line_at = |at: usize| 1 + b[..at.min(b.len())].iter().filter(|&&c| c == b'\n').count();
+    let skip_to = |from: usize, pat: &str, what: &str| -> Result<usize, String> {
+        xml[from..]
+            .find(pat)
+            .map(|p| from + p + pat.len())
+            .ok_or_else(|| format!("line {}: {what} is not closed", line_at(from)))
+    };
+    let mut stack: Vec<Element> = Vec::new();
+    let mut root: Option<Element> = None;
+    while i < b.len() {
+        if b[i] != b'<' {
+            if root.is_some() && !b[i].is_ascii_whitespace() {
+                return Err(format!("line {}: text after the root element", line_at(i)));
+            }
+            i += 1;
+            continue;
+        }
+        let rest = &xml[i..];
+        if rest.starts_with("<!--") {
+            i = skip_to(i + 4, "-->", "a comment")?;
+        } else if rest.starts_with("<![CDATA[") {
+            i = skip_to(i + 9, "]]>", "a CDATA section")?;
+        } else if rest.starts_with("<?") {
+            i = skip_to(i + 2, "?>", "a processing instruction")?;
+        } else if rest.starts_with("<!") {
+            if rest[..rest.find('>').unwrap_or(rest.len())].contains('[') {
+                return Err(format!(
+                    "line {}: a DOCTYPE with an internal subset is not read",
+                    line_at(i)
+                ));
+            }
+            i = skip_to(i + 2, ">", "a declaration")?;
+        } else if let Some(close) = rest.strip_prefix("</") {
+            let end = close
+                .find('>')
+                .ok_or_else(|| format!("line {}: a closing tag is not closed", line_at(i)))?;
+            let name = close[..end].trim();
+            let Some(open) = stack.pop() else {
+                return Err(format!("line {}: `</{name}>` closes nothing", line_at(i)));
+            };
+            if open.name != name {
+                return Err(format!(
+                    "line {}: `</{name}>` closes `<{}>` of line {}",
+                    line_at(i),
+                    open.name,
+                    open.line
+                ));
+            }
+            i += 2 + end + 1;
+            attach(open, &mut stack, &mut root, line_at(i))?;
+        } else {
+            let line = line_at(i);
+            let (element, closed, next) = start_tag(xml, i, line)?;
+            i = next;
+            if closed {
+                attach(element, &mut stack, &mut root, line)?;
+            } else {
+                if stack.len() >= MAX_URDF_DEPTH {
+                    return Err(format!(
+                        "line {line}: elements are nested deeper than the {MAX_URDF_DEPTH} a robot description needs"
+                    ));
+                }
+                stack.push(element);
+            }
+        }
+    }
+    if let Some(open) = stack.last() {
+        return Err(format!(
+            "`<{}>` of line {} is not closed",
+            open.name, open.line
+        ));
+    }
+    root.ok_or_else(|| "no element".to_string())
+}
+
+/// A finished element goes to its parent, or becomes the root (only one).
+fn attach(
+    element: Element,
+    stack: &mut [Element],
+    root: &mut Option<Element>,
+    line: usize,
+) -> Result<(), String> {
+    match stack.last_mut() {
+        Some(parent) => parent.children.push(element),
+        None if root.is_none() => *root = Some(element),
+        None => {
+            return Err(format!(
+                "line {line}: a second root element `<{}>`",
+                element.name
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The start tag at `at` (`<name a="v" …>` or `…/>`): the element, whether it closed
+/// itself, and where the text after it begins.
+fn start_tag(xml: &str, at: usize, line: usize) -> Result<(Element, bool, usize), String> {
+    let b = xml.as_bytes();
+    let name_char = |c: u8| c.is_ascii_alphanumeric() || matches!(c, b'_' | b':' | b'-' | b'.');
+    let mut i = at + 1;
+    let start = i;
+    while i < b.len() && name_char(b[i]) {
+        i += 1;
+    }
+    if i == start {
+        return Err(format!("line {line}: `<` starts no element"));
+    }
+    let mut element = Element {
+        name: xml[start..i].to_string(),
+        attrs: Vec::new(),
+        children: Vec::new(),
+        line,
+    };
+    loop {
+        while i < b.len() && b[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        match b.get(i) {
+            None => return Err(format!("line {line}: `<{}` is not closed", element.name)),
+            Some(b'>') => return Ok((element, false, i + 1)),
+            Some(b'/') if b.get(i + 1) == Some(&b'>') => return Ok((element, true, i + 2)),
+            _ => {}
+        }
+        let key_start = i;
+        while i < b.len() && name_char(b[i]) {
+            i += 1;
+        }
+        let key = &xml[key_start..i];
+        while i < b.len() && b[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        if key.is_empty() || b.get(i) != Some(&b'=') {
+            return Err(format!(
+                "line {line}: a malformed attribute in `<{}>`",
+                element.name
+            ));
+        }
+        i += 1;
+        while i < b.len() && b[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        let quote = match b.get(i) {
+            Some(&q @ (b'"' | b'\'')) => q,
+            _ => {
+                return Err(format!(
+                    "line {line}: the value of `{key}` in `<{}>` is not quoted",
+                    element.name
+                ));
+            }
+        };
+        let value_start = i + 1;
+        let len = b[value_start..]
+            .iter()
+            .position(|&c| c == quote)
+            .ok_or_else(|| format!("line {line}: the value of `{key}` is not closed"))?;
+        let value = unescape(&xml[value_start..value_start + len])
+            .map_err(|e| format!("line {line}: `{key}`: {e}"))?;
+        if element.attrs.iter().any(|(k, _)| k == key) {
+            return Err(format!(
+                "line {line}: `{key}` appears twice in `<{}>`",
+                element.name
+            ));
+        }
+        element.attrs.push((key.to_string(), value));
+        i = value_start + len + 1;
+    }
+}
+
+/// An attribute value with its entity and character references replaced.
+fn unescape(v: &str) -> Result<String, String> {
+    if !v.contains('&') {
+        return Ok(v.to_string());
+    }
+    let mut out = String::with_capacity(v.len());
+    let mut rest = v;
+    while let Some(p) = rest.find('&') {
+        out.push_str(&rest[..p]);
+        let end = rest[p..].find(';').ok_or("a `&` starts no reference")?;
+        let entity = &rest[p + 1..p + end];
+        let c = match entity {
+            "lt" => '<',
+            "gt" => '>',
+            "amp" => '&',
+            "quot" => '"',
+            "apos" => '\'',
+            e if e.starts_with("#x") => u32::from_str_radix(&e[2..], 16)
+                .ok()
+                .and_then(char::from_u32)
+                .ok_or_else(|| format!("`&{e};` is no character"))?,
+            e if e.starts_with('#') => e[1..]
+                .parse::<u32>()
+                .ok()
+                .and_then(char::from_u32)
+                .ok_or_else(|| format!("`&{e};` is no character"))?,
+            e => return Err(format!("`&{e};` is not an XML entity")),
+        };
+        out.push(c);
+        rest = &rest[p + end + 1..];
+    }
+    out.push_str(rest);
+    Ok(out)
+}
+
 /// Whole-model checks, before any walk: unique names, joints between existing links,
 /// finite origins, finite non-zero axes where a joint moves, finite ordered limits.
-fn validate(robot: &urdf_rs::Robot) -> Result<(), KinematicsError> {
+fn validate(robot: &Robot) -> Result<(), KinematicsError> {
     let mut links = std::collections::HashSet::new();
     for l in &robot.links {
         if !links.insert(l.name.as_str()) {
@@ -132,17 +577,17 @@ fn validate(robot: &urdf_rs::Robot) -> Result<(), KinematicsError> {
         if !joints.insert(j.name.as_str()) {
             return Err(invalid(format!("two joints are named `{}`", j.name)));
         }
-        for (role, link) in [("parent", &j.parent.link), ("child", &j.child.link)] {
+        for (role, link) in [("parent", &j.parent), ("child", &j.child)] {
             if !links.contains(link.as_str()) {
                 return Err(at(format!("its {role} link `{link}` does not exist")));
             }
         }
-        if j.parent.link == j.child.link {
+        if j.parent == j.child {
             return Err(at("its parent and child are the same link".into()));
         }
         pose(&j.origin).map_err(at)?;
         if !matches!(j.joint_type, JointType::Fixed) {
-            let a = j.axis.xyz.0;
+            let a = j.axis;
             let norm = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
             if !(norm.is_finite() && norm > 1e-12) {
                 return Err(at(format!(
@@ -185,14 +630,14 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
             "elements are nested {depth} deep, more than the {MAX_URDF_DEPTH} a robot description needs"
         )));
     }
-    let robot = urdf_rs::read_from_string(xml).map_err(|e| invalid(format!("{e}")))?;
+    let robot = read_robot(xml).map_err(invalid)?;
     validate(&robot)?;
     let mut parent_joint: HashMap<&str, usize> = HashMap::new();
     for (i, j) in robot.joints.iter().enumerate() {
-        if parent_joint.insert(j.child.link.as_str(), i).is_some() {
+        if parent_joint.insert(j.child.as_str(), i).is_some() {
             return Err(invalid(format!(
                 "link `{}` is the child of two joints: not a tree",
-                j.child.link
+                j.child
             )));
         }
     }
@@ -221,7 +666,7 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
                 return None; // a cycle
             }
             path.push(j);
-            at = robot.joints[j].parent.link.as_str();
+            at = robot.joints[j].parent.as_str();
         }
         path.reverse();
         (at == root).then_some(path)
@@ -240,11 +685,7 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
             t.to_string()
         }
         None => {
-            let parents: Vec<&str> = robot
-                .joints
-                .iter()
-                .map(|j| j.parent.link.as_str())
-                .collect();
+            let parents: Vec<&str> = robot.joints.iter().map(|j| j.parent.as_str()).collect();
             let mut best: Vec<(&str, usize)> = Vec::new();
             for l in robot.links.iter().map(|l| l.name.as_str()) {
                 if parents.contains(&l) {
@@ -301,7 +742,7 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
         let j = &robot.joints[ji];
         let origin =
             pending * pose(&j.origin).map_err(|m| invalid(format!("joint `{}`: {m}", j.name)))?;
-        if j.mimic.is_some() {
+        if j.mimic {
             return Err(invalid(format!(
                 "joint `{}` mimics another joint: not supported",
                 j.name
@@ -310,12 +751,12 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
         match &j.joint_type {
             JointType::Fixed => {
                 pending = origin;
-                if let (Some(last), Some(l)) = (parts.last_mut(), link(&j.child.link)) {
+                if let (Some(last), Some(l)) = (parts.last_mut(), link(&j.child)) {
                     last.push((inertial(l)?, origin));
                 }
             }
             JointType::Revolute | JointType::Continuous => {
-                let a = Vector3::from(j.axis.xyz.0);
+                let a = Vector3::from(j.axis);
                 let axis = Unit::try_new(a, 1e-12)
                     .filter(|_| a.iter().all(|v| v.is_finite()))
                     .ok_or_else(|| {
@@ -346,7 +787,7 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
                 }
                 speed.push(j.limit.velocity);
                 effort.push(j.limit.effort);
-                let own = match link(&j.child.link) {
+                let own = match link(&j.child) {
                     Some(l) => inertial(l)?,
                     None => LinkInertia::combine(&[]),
                 };
@@ -492,6 +933,54 @@ mod tests {
                 r#"<joint name="j3" type="fixed"><parent link="b"/><child link="base"/></joint></robot>"#,
             ),
             "root",
+        );
+    }
+
+    #[test]
+    fn the_xml_reader_takes_what_descriptions_use_and_names_the_line_of_what_it_refuses() {
+        let xml = "\u{feff}<?xml version=\"1.0\"?>\n<!DOCTYPE robot>\n<!-- a <comment> -->\n<robot name='a &amp; b &#x3C;&#62;'>\n  <link name=\"l\"><visual><geometry>text is passed over</geometry></visual></link>\n  <![CDATA[ <not/> ]]>\n  <xacro:property name=\"x\" value=\"1\"/>\n</robot>\n";
+        let root = parse_xml(xml).unwrap();
+        assert_eq!(root.name, "robot");
+        assert_eq!(root.attr("name"), Some("a & b <>"));
+        assert_eq!(root.children.len(), 2);
+        assert_eq!(root.children[0].line, 5);
+        for (bad, says) in [
+            (
+                "<robot><link></robot>",
+                "line 1: `</robot>` closes `<link>` of line 1",
+            ),
+            (
+                "<robot>\n<link name='a'>",
+                "`<link>` of line 2 is not closed",
+            ),
+            ("<robot/><robot/>", "a second root element"),
+            ("<robot name=a/>", "is not quoted"),
+            ("<robot name='a' name='b'/>", "appears twice"),
+            ("<robot name='&bogus;'/>", "is not an XML entity"),
+            ("<!DOCTYPE r [<!ENTITY x 'y'>]><robot/>", "internal subset"),
+            ("<robot/>junk", "text after the root element"),
+            ("</robot>", "closes nothing"),
+            ("<robot><!-- open", "a comment is not closed"),
+            ("", "no element"),
+        ] {
+            let e = parse_xml(bad).unwrap_err();
+            assert!(e.contains(says), "{bad}: {e}");
+        }
+        // Numbers are checked where they are read.
+        refused(
+            &TWO_LINK.replace(r#"xyz="0.2 0 0""#, r#"xyz="0.2 zero 0""#),
+            "joint `j2`: `xyz` has `zero`, not a number",
+        );
+        refused(
+            &TWO_LINK.replace(r#"xyz="0.2 0 0""#, r#"xyz="0.2 0""#),
+            "`xyz` must be three numbers (got 2)",
+        );
+        refused(
+            &TWO_LINK.replace(
+                r#"type="revolute"><parent link="a"/>"#,
+                r#"type="hinge"><parent link="a"/>"#,
+            ),
+            "has type `hinge`",
         );
     }
 

@@ -310,11 +310,29 @@ pub fn draw(figure: &Figure, path: &Path) -> Result<(), ExperimentError> {
             .and_then(|()| root.present())
             .map_err(|e| fail(e.to_string()))
     } else {
-        let root = BitMapBackend::new(path, size).into_drawing_area();
-        plot_on(&root, &figure.plot)
-            .and_then(|()| root.present())
-            .map_err(|e| fail(e.to_string()))
+        // Drawn into memory, then encoded by the `png` crate (plotters' own encoder would
+        // bring the whole `image` crate for one format).
+        let (w, h) = size;
+        let mut rgb = vec![255u8; w as usize * h as usize * 3];
+        {
+            let root = BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area();
+            plot_on(&root, &figure.plot)
+                .and_then(|()| root.present())
+                .map_err(|e| fail(e.to_string()))?;
+        }
+        encode_png(path, &rgb, size).map_err(fail)
     }
+}
+
+/// Writes an RGB image as a PNG file (8 bits a channel, default compression).
+fn encode_png(path: &Path, rgb: &[u8], (w, h): (u32, u32)) -> Result<(), String> {
+    let file = std::fs::File::create(path).map_err(|e| e.to_string())?;
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), w, h);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
+    writer.write_image_data(rgb).map_err(|e| e.to_string())?;
+    writer.finish().map_err(|e| e.to_string())
 }
 
 /// Draws `figure` to a file of its own at `path`: drawn beside it under a temporary name
