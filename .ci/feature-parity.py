@@ -2,11 +2,12 @@
 """README's first command (`cargo run -p cps-cli`), the Python package's build (`-p
 cps-python`) and the test command (`cargo test --workspace`) must resolve every shared
 dependency with the same features, so that each dependency is compiled once for all three
-(a difference recompiles it and everything above it: half the tree, minutes on two cores).
-Compares `cargo tree -e features` of each package (its normal and build dependencies: what
-its build compiles) with the workspace's (dev-dependencies included: what the tests
-compile) and names each difference with the line to add to
-crates/cps-workspace-hack/Cargo.toml."""
+(a difference recompiles it and everything above it: with serde's derive macro, the whole
+tree — minutes on two cores). Compares the features `cargo tree` resolves for each package
+(its normal and build dependencies: what its build compiles) with the workspace's
+(dev-dependencies included: what the tests compile), crate by crate and version by
+version, and names each difference with what to add to crates/cps-workspace-hack/Cargo.toml
+(a procedural macro's dependencies go under [build-dependencies] there)."""
 
 import collections
 import re
@@ -15,24 +16,27 @@ import sys
 
 
 def features(edges, *args):
-    out = subprocess.run(["cargo", "tree", "-e", edges, "--prefix", "none", *args],
+    out = subprocess.run(["cargo", "tree", "-e", edges, "--prefix", "none", "--format", "{p}|{f}", *args],
                          check=True, capture_output=True, text=True).stdout
     found = collections.defaultdict(set)
     for line in out.splitlines():
         line = line.replace(" (*)", "").strip()
-        m = re.match(r'(\S+) feature "([^"]+)"', line)
-        if m:
-            found[m.group(1)].add(m.group(2))
-        elif m := re.match(r"(\S+) v", line):
-            found[m.group(1)]
+        if "|" not in line:
+            continue
+        package, feats = line.rsplit("|", 1)
+        m = re.match(r"(\S+) v(\S+)", package)
+        if not m or package.endswith("(proc-macro)") and False:
+            continue
+        key = f"{m.group(1)} {m.group(2)}"
+        found[key] |= {f for f in feats.split(",") if f}
     return found
 
 
 def main():
-    workspace = features("features", "--workspace")
+    workspace = features("normal,build,dev", "--workspace")
     failed = False
     for package in ("cps-cli", "cps-python"):
-        have = features("features,normal,build", "-p", package)
+        have = features("normal,build", "-p", package)
         missing = {name: sorted(workspace.get(name, set()) - f) for name, f in have.items()}
         missing = {name: f for name, f in missing.items() if f}
         if not missing:

@@ -228,7 +228,7 @@ fn coppelia(c: &mut Criterion) {
             step_cost: std::time::Duration::ZERO,
             script: true,
         },
-        limits: cps_coppelia::ServerLimits::default(),
+        limits: cps::coppelia::ServerLimits::default(),
     })
     .unwrap();
     let mut sim = Client::connect(ClientConfig {
