@@ -60,8 +60,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
-use cps_experiment::files::{WriteOptions, write_outcome};
-use cps_experiment::results_dir::Staging;
+use cps_experiment::files::{Results, WriteOptions};
 use cps_experiment::{Experiment, ExperimentError, InputError, RunOptions, budget, experiment};
 use cps_robot::StopToken;
 
@@ -308,13 +307,11 @@ fn run_experiment(args: &RunArgs, stop: &StopToken) -> Result<ExitCode> {
     };
     options.check()?;
     // The output is checked, and its staging directory made, before any work.
-    let stage = Staging::prepare(&out, args.force)?;
+    let results = Results::prepare(&out, args.force, WriteOptions { figures: exp.plots })?;
     let observer = progress::Terminal::new(!args.quiet, stop.flag());
-    let outcome = cps_experiment::run(&exp, &options, &observer).map_err(cli_error)?;
+    let outcome =
+        cps_experiment::run_into(&exp, &options, &observer, Some(results)).map_err(cli_error)?;
     observer.clear();
-    let written = WriteOptions { figures: exp.plots };
-    write_outcome(&outcome, &stage, &written).map_err(cli_error)?;
-    stage.commit().map_err(cli_error)?;
     if !args.quiet {
         for line in &outcome.lines {
             say!("{line}");

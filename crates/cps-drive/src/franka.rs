@@ -8,7 +8,7 @@
 //! tool's position from the robot's own kinematics), with a report beside it
 //! (`<stem>.report.json`) that says whether it is complete and why not.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use cps_franka::limits::{Arm, DT, RateLimits};
 use cps_franka::{
@@ -25,8 +25,9 @@ use cps_movement::limits::{JointTrajectory, at_rate, read_joint_trajectory};
 use cps_movement::retiming::{RetimeMode, retime_samples};
 use cps_movement::robot_file::{Answer, load_robot};
 use cps_outcome::outcome::{Column, Format, Table};
-use cps_outcome::results_dir::{FileKind, check_file_target};
 use cps_outcome::{ExperimentError, InputError};
+
+use crate::recording::{check_record_target, report_path};
 
 /// The share of each velocity, acceleration and jerk limit `--retime` plans at, so that
 /// the robot's check (at 100 %) always has room.
@@ -117,27 +118,6 @@ pub struct ExecuteSettings {
     pub approach: bool,
     /// Realtime scheduling of the loop.
     pub realtime: Realtime,
-}
-
-/// The recording's file and its report beside it: `rec.csv` → `rec.report.json`.
-pub fn report_path(record: &Path) -> PathBuf {
-    let stem = record
-        .file_stem()
-        .map_or("recording".into(), |s| s.to_string_lossy().into_owned());
-    record.with_file_name(format!("{stem}.report.json"))
-}
-
-/// Checks before anything moves that the recording and its report may be written.
-pub fn check_record_target(record: &Path, force: bool) -> Result<(), InputError> {
-    check_file_target(record, FileKind::TrajectoryCsv, force)?;
-    let report = report_path(record);
-    if report.exists() && !force {
-        return Err(InputError(format!(
-            "{}: exists (the report of an earlier recording); pass --force to replace it",
-            report.display()
-        )));
-    }
-    Ok(())
 }
 
 /// A joint trajectory file made ready for a Franka: 1 kHz commands from t = 0.

@@ -10,6 +10,7 @@
 //!   joint states recorded with a report.
 //! - [`contact`]: movements that touch — force primitives and the hybrid contact task on
 //!   a Franka in torque mode.
+//! - [`recording`]: a recording and its report on disk, the same for every robot.
 //!
 //! Its realtime closures (the online DMP's, the contact task's) run inside cps-franka's
 //! 1 kHz loop: nothing in them allocates, locks or logs.
@@ -24,4 +25,5 @@
 
 pub mod contact;
 pub mod franka;
+pub mod recording;
 pub mod ros2;

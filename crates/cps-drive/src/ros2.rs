@@ -210,7 +210,7 @@ pub fn send_trajectory(
             )
             .into());
         }
-        crate::franka::check_record_target(&r.out, r.force)?;
+        crate::recording::check_record_target(&r.out, r.force)?;
     }
     cps_movement::export::ExportOptions { period: s.period }.check()?;
     let plan = plan_of(name, traj, model.chain.dof())?;
@@ -413,7 +413,7 @@ fn write_tracked(
     )?;
     let text = serde_json::to_string_pretty(&report)
         .map_err(|e| ExperimentError::Message(e.to_string()))?;
-    let report_file = crate::franka::report_path(&r.out);
+    let report_file = crate::recording::report_path(&r.out);
     cps_outcome::files::write_file(&report_file, text.as_bytes())?;
     answer.json["recording"] = report;
     answer.lines.push(format!(
@@ -513,13 +513,13 @@ pub fn record(
     stop: &StopToken,
     progress: impl FnMut(f64),
 ) -> Result<(Answer, u8), ExperimentError> {
-    crate::franka::check_record_target(out, force)?;
+    crate::recording::check_record_target(out, force)?;
     let (rec, mut answer) = record_in_memory(s, stop, progress)?;
     let csv = cps_outcome::files::table_csv(&recording_table(&rec))?;
     cps_outcome::files::write_file(out, &csv)?;
     let text = serde_json::to_string_pretty(&answer.json)
         .map_err(|e| ExperimentError::Message(e.to_string()))?;
-    let report_file = crate::franka::report_path(out);
+    let report_file = crate::recording::report_path(out);
     cps_outcome::files::write_file(&report_file, text.as_bytes())?;
     answer.lines.push(format!(
         "wrote {} and {}",

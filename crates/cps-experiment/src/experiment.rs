@@ -39,7 +39,7 @@ struct File {
     orientation: Option<Spanned<crate::plan::OrientationSection>>,
     export: Option<Spanned<crate::export::ExportSection>>,
     promp: Option<Spanned<crate::plan::ProMpSection>>,
-    contact: Option<Spanned<crate::contact_section::ContactSection>>,
+    contact: Option<Spanned<crate::sections::contact::ContactSection>>,
     executed: Option<Spanned<crate::plan::ExecutedSection>>,
 }
 
@@ -419,7 +419,7 @@ pub fn parse(
         .kind
         .as_ref()
         .map_or(Kind::default(), |k| *k.get_ref());
-    let sections = crate::plan::Sections {
+    let sections = crate::sections::Sections {
         path,
         text,
         kind,
@@ -436,7 +436,7 @@ pub fn parse(
         contact: file.contact.as_ref(),
         executed: file.executed.as_ref(),
     };
-    let mut plans = sections.parse(&config)?;
+    let mut plans = crate::plan::parse(&sections, &config)?;
     add_scene_obstacles(&file, path, kind, &mut plans, &mut config)?;
     let mut exp = Experiment {
         kind,
@@ -472,7 +472,7 @@ pub fn parse(
 struct ContactFile {
     experiment: ExperimentSection,
     robot: Option<Spanned<crate::robots::RobotSection>>,
-    contact: Option<Spanned<crate::contact_section::ContactSection>>,
+    contact: Option<Spanned<crate::sections::contact::ContactSection>>,
     #[serde(default)]
     output: Output,
 }
@@ -494,7 +494,7 @@ fn parse_contact(
     })?;
     let mut config = ViaPointConfig::new(ViaPointTask::thesis());
     config.seed = seed_override.unwrap_or(file.experiment.seed);
-    let sections = crate::plan::Sections {
+    let sections = crate::sections::Sections {
         path,
         text,
         kind: Kind::Contact,
@@ -511,7 +511,7 @@ fn parse_contact(
         contact: file.contact.as_ref(),
         executed: None,
     };
-    let plans = sections.parse(&config)?;
+    let plans = crate::plan::parse(&sections, &config)?;
     let name = file.experiment.name.clone().unwrap_or_else(|| {
         path.file_stem()
             .map_or("contact".into(), |s| s.to_string_lossy().into_owned())

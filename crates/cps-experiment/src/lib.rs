@@ -1,26 +1,26 @@
 //! cps experiments as a library: read an experiment file, run it, get its outcome as data,
 //! write it as a result directory.
 //!
-//! The layers, in the order a run passes through them:
+//! The layers, in the order a run passes through them (each module imports only the ones
+//! above it in this list; `.ci/module-layers.py` checks it):
 //!
-//! 1. **file format** ([`experiment`]): `Experiment::from_path` reads and validates a TOML
-//!    file of any kind; every error names the file, line and column. Scenes
-//!    ([`scene`]) and robot files ([`robot_file`]) come with it, and [`budget`] refuses
-//!    a file that asks more of the machine than a ceiling.
-//! 2. **plan** ([`plan`]): each kind's sections as checked plans, and the robot backend
-//!    (in-process or CoppeliaSim) a file chooses.
-//! 3. **run** ([`run()`]): one entry point for every kind, with progress and
-//!    cancellation through an [`Observer`]; no terminal, no signals, no files.
-//! 4. **outcome** ([`outcome`]): one result model for every kind — the run header,
-//!    summary fields, named tables, named figures, documents and the report's words.
+//! 1. **sections** ([`sections`]): each kind's own sections of the file (`[imitation]`,
+//!    `[joint]`, `[contact]`, …) and `[robot]`, each read into its kind's plan by its own
+//!    module, every error placed at its file, line and column.
+//! 2. **robots** ([`robots`]): the robot a file chooses opened behind the guard of cps's
+//!    execution contract (`cps-robot`): in-process, CoppeliaSim, a Franka, ROS 2.
+//! 3. **plan** ([`plan`]): the sections checked against the kind, one [`Experiment`];
+//!    [`budget`] refuses one that asks more of the machine than a ceiling.
+//! 4. **file** ([`experiment`]): `Experiment::from_path` reads and validates a TOML file
+//!    of any kind; scenes and robot files come from `cps-movement`.
+//! 5. **kinds and run** ([`run()`], [`run_into`]): one entry point for every kind, with
+//!    progress and cancellation through an [`Observer`]; the outcome is `cps-outcome`'s
+//!    model, written as a result directory by `cps-report` ([`files`]) — never touching a
+//!    file cps did not write. Figures and the report need the `figures` feature (default);
+//!    without it plotters is not compiled.
 //!
-//! [`movement`] holds the DMP layer alone for single movements: demonstrations from CSV,
-//! imitation, a model's rollout.
-//!
-//! 5. **files** ([`files`]): any outcome as `summary.json`, CSVs, figures (PNG + SVG)
-//!    and `report.html`, written through [`results_dir`], which never touches a file cps
-//!    did not write. Figures and the report need the `figures` feature (default); without
-//!    it plotters is not compiled.
+//! The modules of `cps-outcome`, `cps-report`, `cps-movement` and `cps-drive` are
+//! re-exported under their old names ([`outcome`], [`files`], [`movement`], [`franka`], …).
 //!
 //! Running the shipped via-point experiment from Rust:
 //!
@@ -48,7 +48,6 @@
 
 pub mod budget;
 pub mod cmaes_bench;
-pub mod contact_section;
 pub mod experiment;
 mod kinds;
 mod observer;
@@ -56,6 +55,7 @@ pub mod plan;
 pub mod robots;
 pub mod ros2_show;
 mod run;
+pub mod sections;
 pub mod sim_pool;
 
 /// Writing an outcome: `cps-outcome`'s files (a table as CSV, atomic writes) and
@@ -74,4 +74,4 @@ pub use cps_outcome::{
 pub use cps_report::{figures, report};
 pub use observer::{Event, Observer};
 pub use plan::{Experiment, Kind};
-pub use run::{RunOptions, planned_generations, run};
+pub use run::{RunOptions, planned_generations, run, run_into};

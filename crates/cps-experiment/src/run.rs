@@ -1,6 +1,7 @@
 //! Running an experiment: [`run`] takes a read [`Experiment`] of any kind, runs its
 //! pipeline and gives back an [`Outcome`]. Progress and cancellation go through an
-//! [`Observer`]; nothing here touches a terminal, a signal or a file.
+//! [`Observer`]; nothing here touches a terminal or a signal. [`run_into`] is the run
+//! with its result directory, as the command line and Python do it.
 
 use std::time::Instant;
 
@@ -38,6 +39,23 @@ impl RunOptions {
             std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
         })
     }
+}
+
+/// A run into a result directory claimed before it ([`Results::prepare`](crate::files::Results::prepare),
+/// so that a target that cannot be used fails before any work): the run, then its files
+/// written and moved into place. An interrupted run keeps what it finished (`"complete":
+/// false`); a run that fails writes nothing. Without `results` it is [`run`].
+pub fn run_into(
+    exp: &Experiment,
+    options: &RunOptions,
+    observer: &dyn Observer,
+    results: Option<crate::files::Results>,
+) -> Result<Outcome, ExperimentError> {
+    let outcome = run(exp, options, observer)?;
+    if let Some(results) = results {
+        results.finish(&outcome)?;
+    }
+    Ok(outcome)
 }
 
 /// The number of generations a run of `exp` reports through [`crate::Event::Generation`] (its

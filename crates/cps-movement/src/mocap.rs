@@ -38,6 +38,32 @@ pub fn demonstration(
     demonstrate(&t, &s).map_err(mocap_error)
 }
 
+/// Motion-capture takes (`names`, relative to `dir`) made demonstrations as
+/// `demonstration` makes each: the tool's path over time in the task's frame (its
+/// velocities and accelerations left at zero for the learner to estimate), in the order
+/// given. An experiment's `[demonstrations] takes` are read here. Errors name the take.
+pub fn demonstrations(
+    dir: &Path,
+    names: &[String],
+    settings: &Settings,
+    calibration: Option<&Path>,
+) -> Result<Vec<(String, cps_dmp::Trajectory)>, InputError> {
+    let mut out = Vec::with_capacity(names.len());
+    for name in names {
+        let demo = demonstration(&dir.join(name), settings, calibration)?;
+        let times = demo.t.clone();
+        let position: Vec<Vec<f64>> = (0..3)
+            .map(|k| demo.position.iter().map(|p| p[k]).collect())
+            .collect();
+        let zeros = vec![vec![0.0; times.len()]; 3];
+        out.push((
+            name.clone(),
+            cps_dmp::Trajectory::from_parts(times, &position, &zeros, &zeros),
+        ));
+    }
+    Ok(out)
+}
+
 /// `mocap show`: labels, rate, frames, units, each marker's gaps, analog channels and
 /// rigid bodies.
 pub fn show(path: &Path) -> Result<Answer, InputError> {

@@ -364,6 +364,10 @@ pub fn imitate_demos(
             DmpError::InvalidConfig { field, rule, value } => {
                 InputError(format!("--{}: {rule} (got {value:?})", option_name(field)))
             }
+            // The way past it, in the command line's words.
+            e @ DmpError::DegenerateAmplitude { .. } => {
+                InputError(format!("{e}: pass --formulation robust"))
+            }
             other => InputError(other.to_string()),
         })?;
     Ok(Imitated {

@@ -803,7 +803,13 @@ pub fn imitate(
     let fit = run(py, size, |_| {
         imitator(config).and_then(|im| im.imitate(&demos, regression, combine))
     })?
-    .map_err(IntoPyErr::py_err)?;
+    .map_err(|e| match e {
+        // The way past it, in Python's words.
+        e @ cps_dmp::DmpError::DegenerateAmplitude { .. } => {
+            crate::errors::value_error(format!("{e}: pass formulation=\"robust\""))
+        }
+        other => other.py_err(),
+    })?;
     let mut out = Dmp::from_parts(fit.dmp, fit.weights, names);
     out.fit = Some(fit.report);
     Ok(out)

@@ -8,9 +8,8 @@ use std::path::PathBuf;
 use std::sync::Mutex;
 
 use cps_experiment::budget::Ceilings;
-use cps_experiment::files::{WriteOptions, table_csv, write_outcome};
+use cps_experiment::files::{Results, WriteOptions, table_csv};
 use cps_experiment::outcome::{Table as RustTable, Values};
-use cps_experiment::results_dir::Staging;
 use cps_experiment::{Event, Observer, RunOptions, experiment};
 use numpy::PyArray1;
 use pyo3::exceptions::{PyKeyError, PyRuntimeWarning};
@@ -168,15 +167,11 @@ impl Outcome {
         force: bool,
         figures: Option<bool>,
     ) -> PyResult<()> {
-        let stage = Staging::prepare(&out, force).map_err(file_error)?;
         let options = WriteOptions {
             figures: figures.unwrap_or(self.plots),
         };
-        py.detach(|| {
-            write_outcome(&self.inner, &stage, &options)?;
-            stage.commit()
-        })
-        .py()
+        let results = Results::prepare(&out, force, options).map_err(file_error)?;
+        py.detach(|| results.finish(&self.inner)).py()
     }
 
     fn __repr__(&self) -> String {
@@ -278,8 +273,13 @@ pub fn run_experiment(
         .check()
         .map_err(|e| value_error(e.0.replace("--threads", "threads")))?;
     // The output is checked, and its staging directory made, before any work.
-    let stage = match &out {
-        Some(o) => Some(Staging::prepare(o, force).map_err(file_error)?),
+    let results = match &out {
+        Some(o) => {
+            let written = WriteOptions {
+                figures: figures.unwrap_or(exp.plots),
+            };
+            Some(Results::prepare(o, force, written).map_err(file_error)?)
+        }
         None => None,
     };
     let shared = Mutex::new(Progress::default());
@@ -312,22 +312,14 @@ pub fn run_experiment(
             stop: cancel.clone(),
             ..options.clone()
         };
-        cps_experiment::run(&exp, &options, &observer)
+        // The result directory is written, and moved into place, before the interrupt
+        // is raised: what was finished is kept.
+        cps_experiment::run_into(&exp, &options, &observer, results)
     })?;
     let outcome = match result {
         Ok(o) => o,
         Err(e) => return Err(interrupt.unwrap_or_else(|| e.py_err())),
     };
-    if let Some(stage) = stage {
-        let written = WriteOptions {
-            figures: figures.unwrap_or(exp.plots),
-        };
-        py.detach(|| {
-            write_outcome(&outcome, &stage, &written)?;
-            stage.commit()
-        })
-        .py()?;
-    }
     if let Some(e) = interrupt {
         return Err(e);
     }

@@ -54,17 +54,46 @@ pub fn write_outcome(
     Ok(())
 }
 
+/// A result directory claimed before a run and filled after it: [`Results::prepare`]
+/// checks the target and makes its staging directory before any work (a target that
+/// cannot be used fails at once), [`Results::finish`] writes the outcome and moves it into
+/// place. The one sequence behind `cps-cli run`, Python's `run_experiment(out=…)` and
+/// [`save`]; a results directory dropped without `finish` leaves nothing behind.
+#[derive(Debug)]
+pub struct Results {
+    stage: Staging,
+    options: WriteOptions,
+}
+
+impl Results {
+    /// Claims `out` (see [`cps_outcome::results_dir`] for what `force` allows).
+    pub fn prepare(
+        out: &Path,
+        force: bool,
+        options: WriteOptions,
+    ) -> Result<Self, cps_outcome::InputError> {
+        Ok(Self {
+            stage: Staging::prepare(out, force)?,
+            options,
+        })
+    }
+
+    /// Writes every file of `outcome` and moves them into place.
+    pub fn finish(self, outcome: &Outcome) -> Result<(), ExperimentError> {
+        write_outcome(outcome, &self.stage, &self.options)?;
+        self.stage.commit()
+    }
+}
+
 /// Writes `outcome` as a result directory at `out` (see [`cps_outcome::results_dir`] for what
 /// `force` allows): checked, staged, then moved into place. A caller that runs for long
-/// should call [`Staging::prepare`] before the run instead, so that a target that cannot
-/// be used fails before any work.
+/// should claim the directory with [`Results::prepare`] before the run instead, so that a
+/// target that cannot be used fails before any work.
 pub fn save(
     outcome: &Outcome,
     out: &Path,
     force: bool,
     options: &WriteOptions,
 ) -> Result<(), ExperimentError> {
-    let stage = Staging::prepare(out, force)?;
-    write_outcome(outcome, &stage, options)?;
-    stage.commit()
+    Results::prepare(out, force, *options)?.finish(outcome)
 }

@@ -196,103 +196,62 @@ pub trait Stepped {
     }
 }
 
-impl<R: Robot + ?Sized> Robot for Box<R> {
-    fn name(&self) -> String {
-        (**self).name()
-    }
-    fn model(&self) -> &RobotModel {
-        (**self).model()
-    }
-    fn dt(&self) -> f64 {
-        (**self).dt()
-    }
-    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
-        (**self).joint_positions()
-    }
-    fn command_period(&self) -> f64 {
-        (**self).command_period()
-    }
-    fn standing(&mut self) -> Result<Option<Vec<f64>>, RobotError> {
-        (**self).standing()
-    }
-    fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, RobotError> {
-        (**self).tool_pose()
-    }
-    fn run(&mut self, plan: &Plan, stop: &StopToken) -> Result<Run, RobotError> {
-        (**self).run(plan, stop)
-    }
-    fn teleport(&mut self, q: &[f64]) -> Result<bool, RobotError> {
-        (**self).teleport(q)
-    }
-    fn record(
-        &mut self,
-        duration: std::time::Duration,
-        stop: &StopToken,
-    ) -> Result<Run, RobotError> {
-        (**self).record(duration, stop)
-    }
-    fn check(&mut self, plan: &Plan) -> Result<Option<Breach>, RobotError> {
-        (**self).check(plan)
-    }
-    fn report(&self) -> Option<String> {
-        (**self).report()
-    }
-    fn stepped(&mut self) -> Option<&mut dyn Stepped> {
-        (**self).stepped()
-    }
-    fn streaming(&mut self) -> Option<&mut dyn Streaming> {
-        (**self).streaming()
-    }
+/// A robot behind a pointer is that robot: every method forwarded.
+macro_rules! forward_robot {
+    ($pointer:ty) => {
+        impl<R: Robot + ?Sized> Robot for $pointer {
+            fn name(&self) -> String {
+                (**self).name()
+            }
+            fn model(&self) -> &RobotModel {
+                (**self).model()
+            }
+            fn dt(&self) -> f64 {
+                (**self).dt()
+            }
+            fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
+                (**self).joint_positions()
+            }
+            fn command_period(&self) -> f64 {
+                (**self).command_period()
+            }
+            fn standing(&mut self) -> Result<Option<Vec<f64>>, RobotError> {
+                (**self).standing()
+            }
+            fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, RobotError> {
+                (**self).tool_pose()
+            }
+            fn run(&mut self, plan: &Plan, stop: &StopToken) -> Result<Run, RobotError> {
+                (**self).run(plan, stop)
+            }
+            fn teleport(&mut self, q: &[f64]) -> Result<bool, RobotError> {
+                (**self).teleport(q)
+            }
+            fn record(
+                &mut self,
+                duration: std::time::Duration,
+                stop: &StopToken,
+            ) -> Result<Run, RobotError> {
+                (**self).record(duration, stop)
+            }
+            fn check(&mut self, plan: &Plan) -> Result<Option<Breach>, RobotError> {
+                (**self).check(plan)
+            }
+            fn report(&self) -> Option<String> {
+                (**self).report()
+            }
+            fn stepped(&mut self) -> Option<&mut dyn Stepped> {
+                (**self).stepped()
+            }
+            fn streaming(&mut self) -> Option<&mut dyn Streaming> {
+                (**self).streaming()
+            }
+        }
+    };
 }
 
-impl<R: Robot + ?Sized> Robot for &mut R {
-    fn name(&self) -> String {
-        (**self).name()
-    }
-    fn model(&self) -> &RobotModel {
-        (**self).model()
-    }
-    fn dt(&self) -> f64 {
-        (**self).dt()
-    }
-    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
-        (**self).joint_positions()
-    }
-    fn command_period(&self) -> f64 {
-        (**self).command_period()
-    }
-    fn standing(&mut self) -> Result<Option<Vec<f64>>, RobotError> {
-        (**self).standing()
-    }
-    fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, RobotError> {
-        (**self).tool_pose()
-    }
-    fn run(&mut self, plan: &Plan, stop: &StopToken) -> Result<Run, RobotError> {
-        (**self).run(plan, stop)
-    }
-    fn teleport(&mut self, q: &[f64]) -> Result<bool, RobotError> {
-        (**self).teleport(q)
-    }
-    fn record(
-        &mut self,
-        duration: std::time::Duration,
-        stop: &StopToken,
-    ) -> Result<Run, RobotError> {
-        (**self).record(duration, stop)
-    }
-    fn check(&mut self, plan: &Plan) -> Result<Option<Breach>, RobotError> {
-        (**self).check(plan)
-    }
-    fn report(&self) -> Option<String> {
-        (**self).report()
-    }
-    fn stepped(&mut self) -> Option<&mut dyn Stepped> {
-        (**self).stepped()
-    }
-    fn streaming(&mut self) -> Option<&mut dyn Streaming> {
-        (**self).streaming()
-    }
-}
+forward_robot!(Box<R>);
+forward_robot!(&mut R);
 
 /// Runs a plan on a stepped robot: the plan's motion sampled at the robot's step
 /// ([`Plan::samples`]: the points themselves when the plan is at the robot's period), each

@@ -1,28 +1,16 @@
-//! The stand-in server: CoppeliaSim's ZMQ remote API (protocol v2) served by cps itself,
-//! backed by the in-process kinematic robot and a scene of named objects, so clients (ours
-//! and the official Python one) run where CoppeliaSim is not installed.
-//!
-//! What it models: a robot whose joints are `/<robot>_joint1..n` and whose tool point is
-//! `/<robot>_tip` (positions from forward kinematics), the robot's base `/<robot>`, and
-//! dummies with poses (created, aliased, moved, coloured and removed by clients). Joint
-//! positions are set kinematically. Simulation time advances by `dt` per step: with
-//! `sim.step` for a client that set stepping, else one step per request while running.
-//! It binds loopback by default and never executes code it is sent.
+//! The stand-in's scene and its side of the remote API, without the network: a robot
+//! (joints set kinematically, the tip by forward kinematics, optionally following an IK
+//! target), dummies, simulation time and each client's stepping, and [`handle`]: one
+//! CBOR request in, one reply out.
 
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
-use std::thread::JoinHandle;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use cps_kinematics::SerialChain;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
-use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::oneshot;
 
-use crate::zmtp::{Connection, SocketType, ZmtpError};
-
-use crate::CoppeliaError;
+use super::log::LogBuffer;
 use crate::codec::{self, Value};
 use crate::executor::{self, Run};
 
@@ -107,9 +95,9 @@ struct PendingCallback {
     calls: u32,
 }
 
-struct Sim {
+pub(super) struct Sim {
     /// Messages of `sim.addLog`, for the server's owner to print.
-    log: Arc<LogBuffer>,
+    pub(super) log: Arc<LogBuffer>,
     setup: SceneSetup,
     q: Vec<f64>,
     objects: HashMap<i64, Object>,
@@ -127,7 +115,7 @@ struct Sim {
 type Reply = Result<Vec<Value>, String>;
 
 impl Sim {
-    fn new(setup: SceneSetup, lease: Duration) -> Self {
+    pub(super) fn new(setup: SceneSetup, lease: Duration) -> Self {
         let mut objects = HashMap::new();
         let name = setup.robot_name.clone();
         objects.insert(
@@ -782,73 +770,9 @@ const CONSTANTS: &[(&str, i64)] = &[
     ("verbosity_once", 0x20000),
 ];
 
-/// The level names of CoppeliaSim's verbosity constants (flags masked off).
-fn verbosity_name(v: i64) -> &'static str {
-    match v & 0xfff {
-        100 => "none",
-        200 => "error",
-        300 => "warning",
-        400 => "loadinfo",
-        410 => "question",
-        420 => "script error",
-        430 => "script warning",
-        450 => "script info",
-        500 => "info",
-        600 => "debug",
-        700 => "trace",
-        800 => "trace lua",
-        900 => "trace all",
-        _ => "log",
-    }
-}
-
-/// One message of `sim.addLog`.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct LogLine {
-    /// The verbosity level's name (`script info`, `warning`, …).
-    pub level: &'static str,
-    /// The message, control characters replaced, at most 4096 characters.
-    pub message: String,
-}
-
-/// The messages clients logged, kept until the owner takes them (the oldest dropped
-/// beyond 10 000).
-#[derive(Debug, Default)]
-struct LogBuffer {
-    lines: Mutex<std::collections::VecDeque<LogLine>>,
-    dropped: AtomicU64,
-}
-
-impl LogBuffer {
-    const MAX_LINES: usize = 10_000;
-
-    fn push(&self, verbosity: i64, message: &str) {
-        // A peer's text never reaches a terminal as control sequences.
-        let message: String = message
-            .chars()
-            .take(4096)
-            .map(|c| if c.is_control() { '·' } else { c })
-            .collect();
-        let mut lines = self.lines.lock().unwrap_or_else(|p| p.into_inner());
-        if lines.len() >= Self::MAX_LINES {
-            lines.pop_front();
-            self.dropped.fetch_add(1, Ordering::Relaxed);
-        }
-        lines.push_back(LogLine {
-            level: verbosity_name(verbosity),
-            message,
-        });
-    }
-
-    fn take(&self) -> Vec<LogLine> {
-        let mut lines = self.lines.lock().unwrap_or_else(|p| p.into_inner());
-        lines.drain(..).collect()
-    }
-}
-
 /// One request in, one reply out (never blocks: a stepping client is parked with
 /// `_*wait*_`).
-fn handle(sim: &mut Sim, bytes: &[u8]) -> Value {
+pub(super) fn handle(sim: &mut Sim, bytes: &[u8]) -> Value {
     let err = |m: String| codec::map([("err", codec::text(&m))]);
     let request = match codec::decode(bytes) {
         Ok(v) => v,
@@ -974,7 +898,7 @@ impl std::fmt::Debug for RequestHandler {
 }
 
 impl RequestHandler {
-    /// A scene as [`StandInServer::start`] would serve it, with clients' stepping holds
+    /// A scene as [`StandInServer::start`](crate::StandInServer::start) would serve it, with clients' stepping holds
     /// released after `client_lease` of silence.
     pub fn new(scene: SceneSetup, client_lease: Duration) -> Self {
         Self {
@@ -988,310 +912,9 @@ impl RequestHandler {
     }
 }
 
-/// Settings of [`StandInServer::start`].
-#[derive(Debug, Clone)]
-pub struct ServerConfig {
-    /// `host:port` to bind (port 0 picks a free one). Default `127.0.0.1:23000`.
-    pub bind: String,
-    /// The scene.
-    pub scene: SceneSetup,
-    /// What one peer may ask of the server.
-    pub limits: ServerLimits,
-}
-
-impl ServerConfig {
-    /// A server for `scene` on `bind`, with the default [`ServerLimits`].
-    pub fn new(bind: impl Into<String>, scene: SceneSetup) -> Self {
-        Self {
-            bind: bind.into(),
-            scene,
-            limits: ServerLimits::default(),
-        }
-    }
-}
-
-/// Bounds that keep one peer from hurting the others.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ServerLimits {
-    /// The largest request (all frames) accepted; a peer declaring more is disconnected
-    /// before anything is allocated for it. Default 16 MiB.
-    pub max_message_bytes: usize,
-    /// Connections served at once; more are closed on arrival. Default 64.
-    pub max_connections: usize,
-    /// A client silent for longer loses its stepping hold (and its state), so the
-    /// simulation runs on for the others. Default 60 s.
-    pub client_lease: Duration,
-    /// Time a new connection has to finish the ZMTP handshake, and a reply has to be taken
-    /// by its client, before the peer is dropped. Default 10 s.
-    pub io_timeout: Duration,
-}
-
-impl Default for ServerLimits {
-    fn default() -> Self {
-        Self {
-            max_message_bytes: crate::zmtp::DEFAULT_MAX_MESSAGE_BYTES,
-            max_connections: 64,
-            client_lease: Duration::from_secs(60),
-            io_timeout: Duration::from_secs(10),
-        }
-    }
-}
-
-impl ServerLimits {
-    fn check(&self) -> Result<(), CoppeliaError> {
-        let bad = |m: &str| Err(CoppeliaError::InvalidConfig(m.into()));
-        if !(64..=1 << 30).contains(&self.max_message_bytes) {
-            return bad("the message limit must be between 64 bytes and 1 GiB");
-        }
-        if !(1..=4096).contains(&self.max_connections) {
-            return bad("the connection limit must be between 1 and 4096");
-        }
-        let secs = |d: Duration| d.as_secs_f64();
-        if !(0.01..=86_400.0).contains(&secs(self.client_lease)) {
-            return bad("the client lease must be between 0.01 s and one day");
-        }
-        if !(0.01..=3_600.0).contains(&secs(self.io_timeout)) {
-            return bad("the I/O timeout must be between 0.01 s and one hour");
-        }
-        Ok(())
-    }
-}
-
-/// A running stand-in server; dropping it stops it.
-#[derive(Debug)]
-pub struct StandInServer {
-    endpoint: String,
-    stop: Option<oneshot::Sender<()>>,
-    thread: Option<JoinHandle<()>>,
-    stats: Arc<Stats>,
-}
-
-/// Counters shared with the serving thread.
-#[derive(Debug, Default)]
-struct Stats {
-    log: Arc<LogBuffer>,
-    requests: AtomicU64,
-    dropped_peers: AtomicU64,
-}
-
-/// One connection: handshake, then request → reply until the peer leaves or misbehaves.
-/// After each request the task yields, so every other ready client is served before this
-/// one's next request (round-robin: a flooding client delays another by at most one
-/// request per connected client).
-async fn serve_peer(
-    stream: TcpStream,
-    sim: Arc<Mutex<Sim>>,
-    limits: ServerLimits,
-    stats: Arc<Stats>,
-) {
-    let _ = stream.set_nodelay(true);
-    let handshake = Connection::handshake(stream, SocketType::Rep, limits.max_message_bytes);
-    let mut conn = match tokio::time::timeout(limits.io_timeout, handshake).await {
-        Ok(Ok(c)) => c,
-        _ => {
-            stats.dropped_peers.fetch_add(1, Ordering::Relaxed);
-            return;
-        }
-    };
-    loop {
-        let (envelope, body) = match conn.recv_request().await {
-            Ok(r) => r,
-            Err(ZmtpError::Io(_)) => return,
-            Err(_) => {
-                stats.dropped_peers.fetch_add(1, Ordering::Relaxed);
-                return;
-            }
-        };
-        stats.requests.fetch_add(1, Ordering::Relaxed);
-        let reply = {
-            let mut sim = sim.lock().unwrap_or_else(|p| p.into_inner());
-            codec::encode(&handle(&mut sim, &body))
-        };
-        let sent = tokio::time::timeout(limits.io_timeout, conn.reply(&envelope, &reply)).await;
-        if !matches!(sent, Ok(Ok(()))) {
-            stats.dropped_peers.fetch_add(1, Ordering::Relaxed);
-            return;
-        }
-        tokio::task::yield_now().await;
-    }
-}
-
-impl StandInServer {
-    /// Binds and starts serving on a background thread.
-    pub fn start(config: ServerConfig) -> Result<Self, CoppeliaError> {
-        config
-            .scene
-            .chain
-            .check(&config.scene.initial_q)
-            .map_err(|e| CoppeliaError::InvalidConfig(format!("initial joint positions: {e}")))?;
-        if !(config.scene.dt.is_finite() && config.scene.dt >= 1e-6 && config.scene.dt <= 10.0) {
-            return Err(CoppeliaError::InvalidConfig(
-                "the simulation time step must be between 1e-6 s and 10 s".into(),
-            ));
-        }
-        config.limits.check()?;
-        let bind = config.bind.trim_start_matches("tcp://").to_string();
-        let (ready_tx, ready_rx) = std::sync::mpsc::channel();
-        let (stop_tx, stop_rx) = oneshot::channel::<()>();
-        let stats = Arc::new(Stats::default());
-        let counter = Arc::clone(&stats);
-        let limits = config.limits.clone();
-        let thread = std::thread::Builder::new()
-            .name("cps-sim-server".into())
-            .spawn(move || {
-                let rt = match tokio::runtime::Builder::new_current_thread()
-                    .enable_all()
-                    .build()
-                {
-                    Ok(rt) => rt,
-                    Err(e) => {
-                        let _ = ready_tx.send(Err(format!("cannot start the I/O runtime: {e}")));
-                        return;
-                    }
-                };
-                rt.block_on(async move {
-                    let listener = match TcpListener::bind(&bind).await {
-                        Ok(l) => l,
-                        Err(e) => {
-                            let _ = ready_tx.send(Err(format!("cannot bind {bind}: {e}")));
-                            return;
-                        }
-                    };
-                    let endpoint = match listener.local_addr() {
-                        Ok(a) => format!("tcp://{a}"),
-                        Err(e) => {
-                            let _ = ready_tx.send(Err(format!("cannot bind {bind}: {e}")));
-                            return;
-                        }
-                    };
-                    let _ = ready_tx.send(Ok(endpoint));
-                    let mut sim = Sim::new(config.scene, limits.client_lease);
-                    sim.log = Arc::clone(&counter.log);
-                    let sim = Arc::new(Mutex::new(sim));
-                    let slots = Arc::new(tokio::sync::Semaphore::new(limits.max_connections));
-                    let mut stop_rx = stop_rx;
-                    loop {
-                        let accepted = tokio::select! {
-                            _ = &mut stop_rx => break,
-                            a = listener.accept() => a,
-                        };
-                        let Ok((stream, _)) = accepted else {
-                            // Out of descriptors and the like: wait a little, go on.
-                            tokio::time::sleep(Duration::from_millis(10)).await;
-                            continue;
-                        };
-                        let Ok(permit) = Arc::clone(&slots).try_acquire_owned() else {
-                            counter.dropped_peers.fetch_add(1, Ordering::Relaxed);
-                            drop(stream);
-                            continue;
-                        };
-                        let (sim, limits, stats) =
-                            (Arc::clone(&sim), limits.clone(), Arc::clone(&counter));
-                        tokio::spawn(async move {
-                            serve_peer(stream, sim, limits, stats).await;
-                            drop(permit);
-                        });
-                    }
-                });
-            })
-            .map_err(|e| {
-                CoppeliaError::InvalidConfig(format!("cannot start the server thread: {e}"))
-            })?;
-        let endpoint = ready_rx
-            .recv()
-            .map_err(|_| CoppeliaError::InvalidConfig("the server thread ended early".into()))?
-            .map_err(CoppeliaError::InvalidConfig)?;
-        Ok(Self {
-            endpoint,
-            stop: Some(stop_tx),
-            thread: Some(thread),
-            stats,
-        })
-    }
-
-    /// The bound endpoint, e.g. `tcp://127.0.0.1:40321`.
-    pub fn endpoint(&self) -> &str {
-        &self.endpoint
-    }
-
-    /// The messages clients sent with `sim.addLog` since the last call (CoppeliaSim
-    /// prints them in its status bar; `cps-cli sim serve` prints them on stderr).
-    pub fn take_logs(&self) -> Vec<LogLine> {
-        self.stats.log.take()
-    }
-
-    /// Requests served so far.
-    pub fn requests(&self) -> u64 {
-        self.stats.requests.load(Ordering::Relaxed)
-    }
-
-    /// Peers disconnected for breaking the protocol or a limit (oversized messages, slow
-    /// handshakes, replies not taken, connections beyond the limit).
-    pub fn dropped_peers(&self) -> u64 {
-        self.stats.dropped_peers.load(Ordering::Relaxed)
-    }
-
-    /// What the server did, in words: `N requests (M peers dropped for breaking the
-    /// protocol or a limit)`.
-    pub fn served(&self) -> String {
-        format!(
-            "{} requests ({} peers dropped for breaking the protocol or a limit)",
-            self.requests(),
-            self.dropped_peers()
-        )
-    }
-
-    /// Blocks until the server stops (for `cps-cli sim serve`).
-    pub fn wait(mut self) {
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
-impl Drop for StandInServer {
-    fn drop(&mut self) {
-        if let Some(stop) = self.stop.take() {
-            let _ = stop.send(());
-        }
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
 
-    /// `sim.addLog` keeps a peer's message for the owner, never its control characters,
-    /// at most 4096 characters of it, and at most 10 000 messages (the oldest dropped).
-    #[test]
-    fn logged_messages_are_kept_bounded_and_harmless() {
-        let log = LogBuffer::default();
-        log.push(450, "plain");
-        log.push(300 | 0x10000, "\x1b[2Jred\x07");
-        log.push(7, &"y".repeat(10_000));
-        let lines = log.take();
-        assert_eq!(
-            lines[0],
-            LogLine {
-                level: "script info",
-                message: "plain".into()
-            }
-        );
-        assert_eq!(lines[1].level, "warning");
-        assert_eq!(lines[1].message, "·[2Jred·");
-        assert_eq!(lines[2].level, "log");
-        assert_eq!(lines[2].message.chars().count(), 4096);
-        assert!(log.take().is_empty(), "taken once");
-        for k in 0..10_005 {
-            log.push(450, &k.to_string());
-        }
-        let lines = log.take();
-        assert_eq!(lines.len(), 10_000);
-        assert_eq!(lines[0].message, "5");
-        assert_eq!(log.dropped.load(Ordering::Relaxed), 5);
-    }
     use super::*;
     use cps_kinematics::robots::{PandaTool, panda};
     use rand::{Rng, SeedableRng};
