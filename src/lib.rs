@@ -3,21 +3,29 @@
 //! This facade re-exports the workspace's crates so one dependency gives you all of them:
 //!
 //! - [`dmp`] (`cps-dmp`): Dynamic Movement Primitives and their rollouts.
+//! - [`promp`] (`cps-promp`): probabilistic movement primitives — learned from
+//!   demonstrations, conditioned on via points, sampled.
 //! - [`cmaes`] (`cps-cmaes`): CMA-ES with deterministic parallel evaluation.
 //! - [`learn`] (`cps-learn`): the learning pipelines (via-point, imitation, joint space,
 //!   effort, pose).
 //! - [`kinematics`] (`cps-kinematics`): robot maths: chains from DH tables or URDF, FK,
-//!   Jacobians, IK, controllers, the robot-backend trait and the in-process robot.
-//! - [`coppelia`] (`cps-coppelia`): CoppeliaSim's ZMQ remote API (client and stand-in
-//!   server).
+//!   Jacobians, IK, inverse dynamics, limits, retiming, controllers.
+//! - [`robot`] (`cps-robot`): the execution contract every robot implements (a plan run
+//!   from where the robot stands, limits checked by one guard, a stop token) and the
+//!   in-process robot.
+//! - [`coppelia`] (`cps-coppelia`): CoppeliaSim's ZMQ remote API (client, stand-in
+//!   server, the scene as a robot).
 //! - [`franka`] (`cps-franka`): the Franka Control Interface (protocol 10): a robot
 //!   driven at 1 kHz, every command checked against its published limits.
+//! - [`ros2`] (`cps-ros2`): a ROS 2 graph over DDS without ROS: trajectories to
+//!   ros2_control, joint states recorded.
+//! - [`mocap`] (`cps-mocap`): motion-capture takes (C3D, Motive CSV) made demonstrations.
+//! - [`outcome`] (`cps-outcome`), [`report`] (`cps-report`), [`movement`]
+//!   (`cps-movement`), [`drive`] (`cps-drive`): a run's outcome as data and as files; robot,
+//!   scene, trajectory and demonstration files; robots driven from files.
 //! - [`experiment`] (`cps-experiment`): experiments as a library — read an experiment
 //!   file of any kind, run it, get its outcome as data (summary, tables, figures), write
-//!   it as a result directory; scenes, robot files, single movements; retiming and export
-//!   of robot trajectories.
-//! - [`promp`] (`cps-promp`): probabilistic movement primitives — learned from
-//!   demonstrations, conditioned on via points, sampled.
+//!   it as a result directory.
 //!
 //! See ARCHITECTURE.md for how they fit, and `cps-cli` for the command line.
 //!
@@ -47,8 +55,24 @@
 pub use cps_cmaes as cmaes;
 pub use cps_coppelia as coppelia;
 pub use cps_dmp as dmp;
+pub use cps_drive as drive;
 pub use cps_experiment as experiment;
 pub use cps_franka as franka;
 pub use cps_kinematics as kinematics;
 pub use cps_learn as learn;
+pub use cps_mocap as mocap;
+pub use cps_movement as movement;
+pub use cps_outcome as outcome;
 pub use cps_promp as promp;
+pub use cps_report as report;
+pub use cps_robot as robot;
+pub use cps_ros2 as ros2;
+
+// The Rust examples of README.md and docs/experiments.md are tested as written.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeExamples;
+
+#[cfg(doctest)]
+#[doc = include_str!("../docs/experiments.md")]
+pub struct ExperimentsExamples;
