@@ -49,14 +49,6 @@ pub enum KinematicsError {
     /// A setting out of its range; the message names it and the rule.
     #[error("invalid setting: {0}")]
     InvalidConfig(String),
-    /// A robot backend (simulator connection, hardware) failed.
-    #[error("robot backend {backend}: {message}")]
-    Backend {
-        /// Which backend (e.g. the endpoint of a simulator).
-        backend: String,
-        /// What went wrong.
-        message: String,
-    },
     /// A Cartesian path that the robot cannot follow within its limits.
     #[error("path sample {sample} (t = {time:.3} s) is not reachable: {reason}")]
     PathUnreachable {

@@ -127,9 +127,7 @@ impl IntoPyErr for CmaesError {
 impl IntoPyErr for KinematicsError {
     fn py_err(self) -> PyErr {
         match self {
-            KinematicsError::Unreachable { .. } | KinematicsError::Backend { .. } => {
-                failure(self.to_string())
-            }
+            KinematicsError::Unreachable { .. } => failure(self.to_string()),
             other => value_error(other.to_string()),
         }
     }
