@@ -84,6 +84,7 @@ LAYERS = {
     "cps-ros2": [
         ["cdr", "names"],
         ["msg"],
+        ["discovery"],
         ["markers", "node"],
         ["action", "publish", "record"],
         ["robot"],

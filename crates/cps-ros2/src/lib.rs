@@ -6,7 +6,8 @@
 //! `visualization_msgs/MarkerArray`.
 //!
 //! Layers: [`cdr`] (bytes), [`msg`] (the messages), [`names`] (ROS names → DDS topics),
-//! [`node`] (the participant, writers and readers), then what is done with them:
+//! [`discovery`] (the graph's announcements), [`node`] (the participant, writers and
+//! readers, announced on the graph), then what is done with them:
 //! [`publish`], [`action`], [`record`], [`markers`], and [`robot`]: a ros2_control
 //! controller as a robot of cps's execution contract ([`robot::Ros2Robot`]) and the one
 //! place a plan becomes a `JointTrajectory` ([`robot::trajectory_message`]). Files and
@@ -41,6 +42,7 @@
 
 pub mod action;
 pub mod cdr;
+pub mod discovery;
 pub mod markers;
 pub mod msg;
 pub mod names;

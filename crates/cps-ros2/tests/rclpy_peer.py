@@ -1,0 +1,92 @@
+"""A real ROS 2 node for cps's tests: rclpy (ROS 2 Jazzy, from the Python package index's
+binary wheels) on the middleware RMW_IMPLEMENTATION names (rmw_fastrtps_cpp, ROS 2's
+default). Nothing of cps is imported; what rclpy sees and receives is printed as JSON.
+
+Modes (each prints `ready` once its node exists, then works as below):
+
+  graph NODE        reads commands on stdin, one a line:
+                      wait S     until NODE (a node name) is on the graph, at most S s,
+                                 then a snapshot
+                      gone S     until NODE is no longer on the graph, at most S s, then
+                                 a snapshot
+                      snapshot   the graph as rclpy's graph API gives it, one JSON line:
+                                 nodes, and NODE's publishers, subscribers, services,
+                                 clients and action clients, and, for each of NODE's
+                                 topics, the node names rclpy gives its endpoints
+                      quit
+"""
+
+import json
+import sys
+import time
+
+import rclpy
+import rclpy.action
+from rclpy.node import Node
+
+
+def snapshot(node, name):
+    nodes = sorted(f"{ns.rstrip('/')}/{n}" for n, ns in node.get_node_names_and_namespaces())
+    out = {"rmw": rclpy.get_rmw_implementation_identifier(), "nodes": nodes}
+    ns = next((ns for n, ns in node.get_node_names_and_namespaces() if n == name), None)
+    if ns is None:
+        return out
+    by_node = {
+        "publishers": node.get_publisher_names_and_types_by_node,
+        "subscribers": node.get_subscriber_names_and_types_by_node,
+        "services": node.get_service_names_and_types_by_node,
+        "clients": node.get_client_names_and_types_by_node,
+    }
+    for key, f in by_node.items():
+        out[key] = {t: types for t, types in f(name, ns)}
+    out["action_clients"] = {
+        t: types for t, types in rclpy.action.get_action_client_names_and_types_by_node(node, name, ns)
+    }
+    endpoints = {}
+    for topic in list(out["publishers"]) + list(out["subscribers"]):
+        infos = node.get_publishers_info_by_topic(topic) + node.get_subscriptions_info_by_topic(topic)
+        endpoints[topic] = sorted(
+            {f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in infos}
+        )
+    out["endpoint_nodes"] = endpoints
+    return out
+
+
+def listed(node, name):
+    return any(n == name for n, _ in node.get_node_names_and_namespaces())
+
+
+def graph(node, name):
+    for line in sys.stdin:
+        words = line.split()
+        if not words:
+            continue
+        if words[0] == "quit":
+            return
+        if words[0] in ("wait", "gone"):
+            want = words[0] == "wait"
+            end = time.monotonic() + float(words[1])
+            while listed(node, name) != want and time.monotonic() < end:
+                time.sleep(0.02)
+            # The node's endpoints may be announced a moment after the node itself.
+            time.sleep(0.3)
+        print(json.dumps(snapshot(node, name)), flush=True)
+
+
+def main():
+    mode, args = sys.argv[1], sys.argv[2:]
+    rclpy.init()
+    node = Node("rclpy_peer")
+    print("ready", flush=True)
+    try:
+        if mode == "graph":
+            graph(node, args[0])
+        else:
+            raise SystemExit(f"unknown mode {mode}")
+    finally:
+        node.destroy_node()
+        rclpy.shutdown()
+
+
+if __name__ == "__main__":
+    main()
