@@ -86,7 +86,8 @@ LAYERS = {
         ["msg"],
         ["discovery"],
         ["markers", "node"],
-        ["action", "publish", "record"],
+        ["publish", "record", "service"],
+        ["action"],
         ["robot"],
     ],
     "cps-outcome": [

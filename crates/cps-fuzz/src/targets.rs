@@ -154,23 +154,40 @@ fn cbor_request(b: &[u8]) -> bool {
 }
 
 /// A DDS sample as a ROS 2 peer could send it: every message cps reads, either byte
-/// order; true if one of them reads it whole.
+/// order, service replies with Cyclone's 16-byte header and without it (Fast DDS's), and
+/// the graph's `ros_discovery_info` in both GID layouts; true if one of them reads it
+/// whole.
 fn ros2_sample(b: &[u8]) -> bool {
-    use cps_ros2::cdr::CdrReader;
+    use cps_ros2::cdr::{CdrError, CdrReader};
+    use cps_ros2::discovery::ParticipantEntities;
     use cps_ros2::msg::{
-        CancelResponse, Feedback, GetResultResponse, JointState, JointTrajectory, MarkerArray,
-        Message, SendGoalResponse,
+        Action, CancelAnswer, Feedback, FollowJointTrajectory, GoalAnswer, GoalId, GoalResult,
+        JointState, JointTrajectory, MarkerArray, Message,
     };
+    type Decoder = fn(&mut CdrReader) -> Result<(), CdrError>;
+    let replies: [Decoder; 4] = [
+        |r| GoalAnswer::decode(r).map(drop),
+        |r| GoalResult::decode(r, FollowJointTrajectory::decode_result).map(drop),
+        |r| CancelAnswer::decode(r).map(drop),
+        |r| {
+            let _: GoalId = GoalId(r.array("goal_id")?);
+            Feedback::decode(r).map(drop)
+        },
+    ];
     let mut any = false;
     for little in [true, false] {
         let r = || CdrReader::new(b, little);
         any |= JointState::decode(&mut r()).is_ok();
         any |= JointTrajectory::decode(&mut r()).is_ok();
         any |= MarkerArray::decode(&mut r()).is_ok();
-        any |= Feedback::decode(&mut r()).is_ok();
-        any |= SendGoalResponse::decode(&mut r()).is_ok();
-        any |= GetResultResponse::decode(&mut r()).is_ok();
-        any |= CancelResponse::decode(&mut r()).is_ok();
+        any |= ParticipantEntities::decode_any(b, little).is_ok();
+        for decode in replies {
+            any |= decode(&mut r()).is_ok();
+            let mut with_header = r();
+            any |= with_header.u64("client").is_ok()
+                && with_header.i64("sequence").is_ok()
+                && decode(&mut with_header).is_ok();
+        }
     }
     any
 }

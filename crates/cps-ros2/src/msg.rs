@@ -223,29 +223,30 @@ impl std::fmt::Display for GoalId {
     }
 }
 
-/// rmw_cyclonedds's header before every service request and reply: the client's id and
-/// the request's sequence number, copied by the server into its reply.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct RequestHeader {
-    /// The client (the last 8 bytes of its request writer's GUID).
-    pub client: u64,
-    /// The request's number, from 1.
-    pub sequence: i64,
+/// A ROS 2 action's types: the stem of its DDS type names and how its goal, result and
+/// feedback are written and read. The action's services and topics
+/// (`…_SendGoal_Request_`, `…_GetResult_Response_`, `…_FeedbackMessage_`) wrap them with a
+/// goal id as rosidl does.
+pub trait Action {
+    /// The stem: `control_msgs::action::dds_::FollowJointTrajectory`.
+    const TYPE: &'static str;
+    /// What is asked.
+    type Goal;
+    /// What the server answers at the end.
+    type Result;
+    /// What the server says while it works.
+    type Feedback;
+    /// Writes a goal's fields.
+    fn encode_goal(goal: &Self::Goal, w: &mut CdrWriter);
+    /// Reads a result's fields.
+    fn decode_result(r: &mut CdrReader) -> Result<Self::Result, CdrError>;
+    /// Reads a feedback's fields.
+    fn decode_feedback(r: &mut CdrReader) -> Result<Self::Feedback, CdrError>;
 }
 
-impl RequestHeader {
-    /// Writes it.
-    pub fn encode(self, w: &mut CdrWriter) {
-        w.u64(self.client).u64(self.sequence as u64);
-    }
-
-    /// Reads it.
-    pub fn decode(r: &mut CdrReader) -> Result<Self, CdrError> {
-        Ok(RequestHeader {
-            client: r.u64("request header")?,
-            sequence: r.i64("request header")?,
-        })
-    }
+/// The DDS type name of one of action `A`'s parts (`SendGoal_Request`, `FeedbackMessage`).
+pub fn action_type<A: Action>(part: &str) -> String {
+    format!("{}_{part}_", A::TYPE)
 }
 
 /// `control_msgs/FollowJointTrajectory`'s goal, with its tolerances left to the
@@ -270,92 +271,29 @@ impl FollowJointTrajectoryGoal {
     }
 }
 
-/// `…/_action/send_goal`'s request: a goal and its id.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SendGoalRequest {
-    /// The service header.
-    pub header: RequestHeader,
-    /// The goal's id.
-    pub goal_id: GoalId,
-    /// The goal.
-    pub goal: FollowJointTrajectoryGoal,
-}
-
-impl SendGoalRequest {
-    /// The DDS type name.
-    pub const TYPE: &'static str =
-        "control_msgs::action::dds_::FollowJointTrajectory_SendGoal_Request_";
-
-    /// The sample's bytes.
-    pub fn to_cdr(&self) -> Vec<u8> {
-        let mut w = CdrWriter::new();
-        self.header.encode(&mut w);
-        w.raw(&self.goal_id.0);
-        self.goal.encode(&mut w);
-        w.finish()
-    }
-}
-
-/// `…/_action/send_goal`'s reply.
+/// `…/_action/send_goal`'s reply (the body after any service header).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SendGoalResponse {
-    /// The service header (the request's).
-    pub header: RequestHeader,
-    /// Whether the controller took the goal.
+pub struct GoalAnswer {
+    /// Whether the server took the goal.
     pub accepted: bool,
     /// When it did.
     pub stamp: Time,
 }
 
-impl SendGoalResponse {
-    /// The DDS type name.
-    pub const TYPE: &'static str =
-        "control_msgs::action::dds_::FollowJointTrajectory_SendGoal_Response_";
-
+impl GoalAnswer {
     /// Reads one.
     pub fn decode(r: &mut CdrReader) -> Result<Self, CdrError> {
-        Ok(SendGoalResponse {
-            header: RequestHeader::decode(r)?,
+        Ok(GoalAnswer {
             accepted: r.bool("accepted")?,
             stamp: Time::decode(r, "stamp")?,
         })
     }
 }
 
-/// `…/_action/get_result`'s request (and, with [`RequestHeader`], cancel's goal).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GoalRequest {
-    /// The service header.
-    pub header: RequestHeader,
-    /// The goal.
-    pub goal_id: GoalId,
-}
-
-impl GoalRequest {
-    /// The DDS type name of a get_result request.
-    pub const GET_RESULT_TYPE: &'static str =
-        "control_msgs::action::dds_::FollowJointTrajectory_GetResult_Request_";
-
-    /// The bytes of a get_result request.
-    pub fn result_cdr(&self) -> Vec<u8> {
-        let mut w = CdrWriter::new();
-        self.header.encode(&mut w);
-        w.raw(&self.goal_id.0);
-        w.finish()
-    }
-
-    /// The DDS type name of a cancel_goal request.
-    pub const CANCEL_TYPE: &'static str = "action_msgs::srv::dds_::CancelGoal_Request_";
-
-    /// The bytes of a cancel_goal request (`action_msgs/GoalInfo`: the id, stamp zero).
-    pub fn cancel_cdr(&self) -> Vec<u8> {
-        let mut w = CdrWriter::new();
-        self.header.encode(&mut w);
-        w.raw(&self.goal_id.0);
-        Time::default().encode(&mut w);
-        w.finish()
-    }
-}
+/// The DDS type name of `action_msgs/CancelGoal`'s request.
+pub const CANCEL_REQUEST_TYPE: &str = "action_msgs::srv::dds_::CancelGoal_Request_";
+/// The DDS type name of `action_msgs/CancelGoal`'s reply.
+pub const CANCEL_REPLY_TYPE: &str = "action_msgs::srv::dds_::CancelGoal_Response_";
 
 /// A goal's state (`action_msgs/GoalStatus`'s `status`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -408,33 +346,63 @@ impl GoalStatus {
     }
 }
 
-/// `…/_action/get_result`'s reply: the goal's end and FollowJointTrajectory's result.
+/// `…/_action/get_result`'s reply (the body after any service header): how the goal
+/// ended and the action's result.
 #[derive(Debug, Clone, PartialEq)]
-pub struct GetResultResponse {
-    /// The service header.
-    pub header: RequestHeader,
+pub struct GoalResult<R> {
     /// How the goal ended.
     pub status: GoalStatus,
-    /// FollowJointTrajectory's `error_code` (0 successful, −1 invalid goal, −2 invalid
-    /// joints, −3 old header timestamp, −4 path tolerance, −5 goal tolerance violated).
+    /// The action's result.
+    pub result: R,
+}
+
+impl<R> GoalResult<R> {
+    /// Reads one whose result `result` reads.
+    pub fn decode(
+        r: &mut CdrReader,
+        result: impl FnOnce(&mut CdrReader) -> Result<R, CdrError>,
+    ) -> Result<Self, CdrError> {
+        Ok(GoalResult {
+            status: GoalStatus::from_i8(r.u8("status")? as i8),
+            result: result(r)?,
+        })
+    }
+}
+
+/// `control_msgs/action/FollowJointTrajectory`, the action ros2_control's
+/// joint_trajectory_controller serves.
+#[derive(Debug, Clone, Copy)]
+pub struct FollowJointTrajectory;
+
+/// FollowJointTrajectory's result.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FollowJointTrajectoryResult {
+    /// 0 successful, −1 invalid goal, −2 invalid joints, −3 old header timestamp, −4 path
+    /// tolerance, −5 goal tolerance violated.
     pub error_code: i32,
     /// The controller's words.
     pub error_string: String,
 }
 
-impl GetResultResponse {
-    /// The DDS type name.
-    pub const TYPE: &'static str =
-        "control_msgs::action::dds_::FollowJointTrajectory_GetResult_Response_";
+impl Action for FollowJointTrajectory {
+    const TYPE: &'static str = "control_msgs::action::dds_::FollowJointTrajectory";
+    type Goal = FollowJointTrajectoryGoal;
+    type Result = FollowJointTrajectoryResult;
+    type Feedback = Feedback;
 
-    /// Reads one.
-    pub fn decode(r: &mut CdrReader) -> Result<Self, CdrError> {
-        Ok(GetResultResponse {
-            header: RequestHeader::decode(r)?,
-            status: GoalStatus::from_i8(r.u8("status")? as i8),
+    fn encode_goal(goal: &FollowJointTrajectoryGoal, w: &mut CdrWriter) {
+        goal.encode(w);
+    }
+
+    fn decode_result(r: &mut CdrReader) -> Result<FollowJointTrajectoryResult, CdrError> {
+        Ok(FollowJointTrajectoryResult {
             error_code: r.i32("error_code")?,
             error_string: r.string("error_string")?,
         })
+    }
+
+    fn decode_feedback(r: &mut CdrReader) -> Result<Feedback, CdrError> {
+        Feedback::decode(r)
     }
 }
 
@@ -451,24 +419,18 @@ pub fn error_code_word(code: i32) -> &'static str {
     }
 }
 
-/// `action_msgs/CancelGoal`'s reply.
+/// `action_msgs/CancelGoal`'s reply (the body after any service header).
 #[derive(Debug, Clone, PartialEq)]
-pub struct CancelResponse {
-    /// The service header.
-    pub header: RequestHeader,
+pub struct CancelAnswer {
     /// 0 none, 1 rejected, 2 unknown goal id, 3 goal terminated.
     pub return_code: i8,
     /// The goals now canceling.
     pub goals_canceling: Vec<GoalId>,
 }
 
-impl CancelResponse {
-    /// The DDS type name.
-    pub const TYPE: &'static str = "action_msgs::srv::dds_::CancelGoal_Response_";
-
+impl CancelAnswer {
     /// Reads one.
     pub fn decode(r: &mut CdrReader) -> Result<Self, CdrError> {
-        let header = RequestHeader::decode(r)?;
         let return_code = r.u8("return_code")? as i8;
         let n = r.count("goals_canceling", 24)?;
         let mut goals_canceling = Vec::with_capacity(n);
@@ -476,19 +438,16 @@ impl CancelResponse {
             goals_canceling.push(GoalId(r.array("goal_id")?));
             Time::decode(r, "stamp")?;
         }
-        Ok(CancelResponse {
-            header,
+        Ok(CancelAnswer {
             return_code,
             goals_canceling,
         })
     }
 }
 
-/// `…/_action/feedback`: what the controller is doing now, for one goal.
+/// FollowJointTrajectory's feedback: what the controller is doing now.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Feedback {
-    /// The goal it is about.
-    pub goal_id: GoalId,
     /// When.
     pub header: Header,
     /// The joints, in the order of the points' values.
@@ -502,14 +461,9 @@ pub struct Feedback {
 }
 
 impl Feedback {
-    /// The DDS type name.
-    pub const TYPE: &'static str =
-        "control_msgs::action::dds_::FollowJointTrajectory_FeedbackMessage_";
-
     /// Reads one (the fields up to `error`; later ones differ between releases).
     pub fn decode(r: &mut CdrReader) -> Result<Self, CdrError> {
         Ok(Feedback {
-            goal_id: GoalId(r.array("goal_id")?),
             header: Header::decode(r)?,
             joint_names: r.strings("joint_names")?,
             desired: JointTrajectoryPoint::decode(r)?,
@@ -744,25 +698,5 @@ mod tests {
         assert_eq!(s.len(), 36);
         assert_eq!(&s[14..15], "4");
         assert!(matches!(&s[19..20], "8" | "9" | "a" | "b"), "{s}");
-    }
-
-    #[test]
-    fn a_send_goal_request_starts_with_the_service_header_and_the_id() {
-        let req = SendGoalRequest {
-            header: RequestHeader {
-                client: 0x0102030405060708,
-                sequence: 3,
-            },
-            goal_id: GoalId([9; 16]),
-            goal: FollowJointTrajectoryGoal::default(),
-        };
-        let b = req.to_cdr();
-        assert_eq!(b[4..12], 0x0102030405060708u64.to_le_bytes());
-        assert_eq!(b[12..20], 3u64.to_le_bytes());
-        assert_eq!(b[20..36], [9; 16]);
-        // trajectory: an empty header (stamp 8, frame_id 4 + 1, padded to 16), no names
-        // (4), no points (4); multi_dof the same; four empty tolerance lists;
-        // goal_time_tolerance.
-        assert_eq!(b.len(), 4 + 32 + 24 + 24 + 16 + 8);
     }
 }

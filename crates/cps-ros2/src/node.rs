@@ -6,15 +6,17 @@
 //! malformed, oversized or in an encoding ROS 2 does not use is counted and dropped,
 //! never a panic.
 
+use std::collections::{BTreeMap, BTreeSet};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use bytes::Bytes;
 use rustdds::no_key::{Decode, DefaultDecoder, DeserializerAdapter, SerializerAdapter};
 use rustdds::{
-    DataReaderStatus, DataWriterStatus, DomainParticipant, DomainParticipantBuilder, Publisher,
-    QosPolicies, QosPolicyBuilder, RTPSEntity, RepresentationIdentifier, StatusEvented, Subscriber,
-    TopicKind, policy,
+    DataReaderStatus, DataWriterStatus, DomainParticipant, DomainParticipantBuilder,
+    DomainParticipantStatusEvent, DomainParticipantStatusListener, GUID, Publisher, QosPolicies,
+    QosPolicyBuilder, RTPSEntity, RepresentationIdentifier, SampleIdentity, SequenceNumber,
+    StatusEvented, Subscriber, TopicKind, WriteOptionsBuilder, policy,
 };
 
 use crate::Ros2Error;
@@ -176,6 +178,7 @@ impl Qos {
 pub struct Node {
     name: NodeName,
     announcer: Arc<Announcer>,
+    vendors: Vendors,
     publisher: Publisher,
     subscriber: Subscriber,
     participant: DomainParticipant,
@@ -226,6 +229,120 @@ impl Announcer {
             let _ = self.writer.wait_for_acknowledgments(LEAVE_WAIT);
         }
     }
+}
+
+/// The participants discovery has told of, by GUID prefix, with their vendor ids.
+struct Peers {
+    status: DomainParticipantStatusListener,
+    vendors: BTreeMap<[u8; 12], [u8; 2]>,
+}
+
+impl Peers {
+    /// Takes discovery's news (at most a bounded number per call).
+    fn drain(&mut self) {
+        for _ in 0..10_000 {
+            match self.status.try_recv_status() {
+                Some(DomainParticipantStatusEvent::ParticipantDiscovered { dpd }) => {
+                    let prefix: [u8; 12] = dpd.guid.to_bytes()[..12].try_into().expect("12 bytes");
+                    self.vendors.insert(prefix, dpd.vendor_id.vendor_id);
+                }
+                Some(DomainParticipantStatusEvent::ParticipantLost { id, .. }) => {
+                    let prefix: [u8; 12] = id.as_ref().try_into().expect("12 bytes");
+                    self.vendors.remove(&prefix);
+                }
+                Some(_) => {}
+                None => break,
+            }
+        }
+    }
+}
+
+/// What discovery told of the participants' vendors; cloned handles share it.
+#[derive(Clone)]
+pub struct Vendors(Arc<Mutex<Peers>>);
+
+impl Vendors {
+    /// The DDS vendor of the participant that holds the entity `gid` (a reader, a writer
+    /// or the participant itself): what its discovery said, else what its GUID's first two
+    /// bytes say (Fast DDS, CycloneDDS and RustDDS put their vendor id there).
+    pub fn of(&self, gid: &Gid) -> Vendor {
+        let mut peers = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        peers.drain();
+        let prefix: [u8; 12] = gid[..12].try_into().expect("12 bytes");
+        match peers.vendors.get(&prefix) {
+            Some(v) => Vendor(*v),
+            None => Vendor([gid[0], gid[1]]),
+        }
+    }
+
+    /// The participants discovered so far (their GUID prefixes) and their vendors.
+    pub fn participants(&self) -> Vec<([u8; 12], Vendor)> {
+        let mut peers = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        peers.drain();
+        peers
+            .vendors
+            .iter()
+            .map(|(k, v)| (*k, Vendor(*v)))
+            .collect()
+    }
+}
+
+/// A DDS implementation, by its RTPS vendor id.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Vendor(pub [u8; 2]);
+
+impl Vendor {
+    /// eProsima Fast DDS (under `rmw_fastrtps_cpp`, ROS 2's default).
+    pub const FAST_DDS: Vendor = Vendor([0x01, 0x0f]);
+    /// Eclipse CycloneDDS (under `rmw_cyclonedds_cpp`).
+    pub const CYCLONE: Vendor = Vendor([0x01, 0x10]);
+    /// RTI Connext DDS (under `rmw_connextdds`).
+    pub const CONNEXT: Vendor = Vendor([0x01, 0x01]);
+    /// RustDDS (cps itself).
+    pub const RUSTDDS: Vendor = Vendor([0x01, 0x12]);
+
+    /// Its name as users know it.
+    pub fn name(self) -> String {
+        match self {
+            Vendor::FAST_DDS => "Fast DDS".into(),
+            Vendor::CYCLONE => "CycloneDDS".into(),
+            Vendor::CONNEXT => "RTI Connext".into(),
+            Vendor::RUSTDDS => "RustDDS".into(),
+            Vendor([0x01, 0x02]) => "OpenDDS (OCI)".into(),
+            Vendor([0x01, 0x03]) => "OpenSplice".into(),
+            Vendor([0x01, 0x06]) => "GurumDDS".into(),
+            Vendor([a, b]) => format!("vendor {a:02x}{b:02x}"),
+        }
+    }
+}
+
+/// A sample's identity on the wire: the writer's GUID and the sample's number in its
+/// sequence (what DDS-RPC and Fast DDS's services use to tie a reply to its request).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SampleId {
+    /// The writer's GID.
+    pub writer: Gid,
+    /// The sample's sequence number (unknown: −1 · 2^32).
+    pub sequence: i64,
+}
+
+impl SampleId {
+    fn to_dds(self) -> SampleIdentity {
+        SampleIdentity {
+            writer_guid: GUID::from_bytes(self.writer),
+            sequence_number: SequenceNumber::from(self.sequence),
+        }
+    }
+
+    fn from_dds(s: SampleIdentity) -> Self {
+        SampleId {
+            writer: s.writer_guid.to_bytes(),
+            sequence: i64::from(s.sequence_number),
+        }
+    }
+
+    /// RTPS's "unknown" sequence number.
+    pub const UNKNOWN_SEQUENCE: i64 = (u32::MAX as i64) << 32;
 }
 
 /// How long a node that is dropped waits for the graph to take its leaving.
@@ -321,9 +438,14 @@ impl Node {
             }),
         });
         announcer.change(|_| ())?;
+        let vendors = Vendors(Arc::new(Mutex::new(Peers {
+            status: participant.status_listener(),
+            vendors: BTreeMap::new(),
+        })));
         Ok(Node {
             name,
             announcer,
+            vendors,
             publisher,
             subscriber,
             participant,
@@ -338,6 +460,12 @@ impl Node {
     /// The node's name, namespace and domain.
     pub fn name(&self) -> &NodeName {
         &self.name
+    }
+
+    /// The participants' vendors, as discovery tells them (shared: a handle that stays
+    /// current).
+    pub fn vendors(&self) -> Vendors {
+        self.vendors.clone()
     }
 
     fn topic(
@@ -370,6 +498,7 @@ impl Node {
             topic: dds_name.to_string(),
             matched: 0,
             ever: 0,
+            readers: BTreeSet::new(),
         })
     }
 
@@ -410,6 +539,7 @@ pub struct Writer {
     topic: String,
     matched: i32,
     ever: i32,
+    readers: BTreeSet<Gid>,
 }
 
 impl Writer {
@@ -426,12 +556,28 @@ impl Writer {
     /// Readers matched now (discovery's news taken first).
     pub fn matched(&mut self) -> i32 {
         while let Some(s) = self.inner.try_recv_status() {
-            if let DataWriterStatus::PublicationMatched { current, total, .. } = s {
+            if let DataWriterStatus::PublicationMatched {
+                current,
+                total,
+                reader,
+            } = s
+            {
                 self.matched = current.count();
                 self.ever = total.count();
+                if current.count_change() > 0 {
+                    self.readers.insert(reader.to_bytes());
+                } else if current.count_change() < 0 {
+                    self.readers.remove(&reader.to_bytes());
+                }
             }
         }
         self.matched
+    }
+
+    /// The readers matched now, by GID.
+    pub fn matched_readers(&mut self) -> Vec<Gid> {
+        self.matched();
+        self.readers.iter().copied().collect()
     }
 
     /// Readers matched at any time so far (those gone included).
@@ -459,6 +605,27 @@ impl Writer {
                 None,
             )
             .map_err(|e| Ros2Error::Dds(format!("writing on {}: {e:?}", self.topic)))
+    }
+
+    /// Sends one sample's body (CDR, little-endian, without the encapsulation header) with
+    /// `related` as its related sample identity (inline QoS `PID_RELATED_SAMPLE_IDENTITY`,
+    /// both 0x0083 and Fast DDS's older 0x800f); the sample's own sequence number.
+    pub fn write_body_related(&self, body: &[u8], related: SampleId) -> Result<i64, Ros2Error> {
+        let options = WriteOptionsBuilder::new()
+            .related_sample_identity(related.to_dds())
+            .build();
+        let id = self
+            .inner
+            .write_with_options(
+                Raw {
+                    little: true,
+                    oversized: false,
+                    body: body.to_vec(),
+                },
+                options,
+            )
+            .map_err(|e| Ros2Error::Dds(format!("writing on {}: {e:?}", self.topic)))?;
+        Ok(i64::from(id.sequence_number))
     }
 
     /// Sends one message.
@@ -508,6 +675,11 @@ pub struct Received<M> {
     pub writer: [u8; 16],
     /// Its number in the writer's sequence (1, 2, …: a gap is a lost sample).
     pub sequence: i64,
+    /// When the writer wrote it, by the writer's clock (ns since the Unix epoch), if it
+    /// said (RTPS INFO_TS; every DDS sends it).
+    pub source_ns: Option<u64>,
+    /// The sample it answers (Fast DDS's service replies carry their request's).
+    pub related: Option<SampleId>,
 }
 
 impl Reader {
@@ -567,6 +739,10 @@ impl Reader {
             let received_ns = ticks_to_nanos(change.receive_instant.to_ticks());
             let writer = change.writer_guid.to_bytes();
             let sequence = i64::from(change.sequence_number);
+            let source_ns = change
+                .source_timestamp()
+                .map(|t| ticks_to_nanos(t.to_ticks()));
+            let related = change.related_sample_identity().map(SampleId::from_dds);
             let raw = change.into_value();
             if raw.oversized {
                 self.counts.oversized += 1;
@@ -580,6 +756,8 @@ impl Reader {
                         received_ns,
                         writer,
                         sequence,
+                        source_ns,
+                        related,
                     });
                 }
                 Err(_) => self.counts.malformed += 1,

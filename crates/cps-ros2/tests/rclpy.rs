@@ -6,11 +6,15 @@ mod common;
 
 use std::time::{Duration, Instant};
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use common::{Peer, inside_rclpy};
-use cps_ros2::action::FollowJointTrajectoryClient;
-use cps_ros2::msg::{JointState, MarkerArray};
+use cps_ros2::action::{ActionClient, FollowJointTrajectoryClient, FollowTimes};
+use cps_ros2::cdr::{CdrError, CdrReader, CdrWriter};
+use cps_ros2::msg::{Action, GoalId, GoalStatus, JointState, MarkerArray};
 use cps_ros2::names::NodeName;
-use cps_ros2::node::{Node, Qos};
+use cps_ros2::node::{Node, Qos, Vendor};
+use cps_ros2::service::{Mapping, MappingChoice, ServiceClient};
 use serde_json::Value;
 
 const FAST_DDS: &str = "rmw_fastrtps_cpp";
@@ -95,6 +99,187 @@ fn rclpy_on_fast_dds_lists_cps_its_topics_and_its_action_client() {
     assert!(
         !names(&s["nodes"]).contains(&"/cps_test".to_string()),
         "{s}"
+    );
+    peer.send("quit");
+    peer.finish(Duration::from_secs(10));
+}
+
+/// `test_msgs/action/Fibonacci`, declared here as any user would declare an action of
+/// their own: cps's action client is not tied to FollowJointTrajectory.
+struct Fibonacci;
+
+fn i32s(r: &mut CdrReader) -> Result<Vec<i32>, CdrError> {
+    let n = r.count("sequence", 4)?;
+    (0..n).map(|_| r.i32("sequence")).collect()
+}
+
+impl Action for Fibonacci {
+    const TYPE: &'static str = "test_msgs::action::dds_::Fibonacci";
+    type Goal = i32;
+    type Result = Vec<i32>;
+    type Feedback = Vec<i32>;
+
+    fn encode_goal(order: &i32, w: &mut CdrWriter) {
+        w.i32(*order);
+    }
+
+    fn decode_result(r: &mut CdrReader) -> Result<Vec<i32>, CdrError> {
+        i32s(r)
+    }
+
+    fn decode_feedback(r: &mut CdrReader) -> Result<Vec<i32>, CdrError> {
+        i32s(r)
+    }
+}
+
+fn times() -> FollowTimes {
+    FollowTimes {
+        server: Duration::from_secs(15),
+        result: Duration::from_secs(20),
+        after_cancel: Duration::from_secs(10),
+    }
+}
+
+/// `rcl_interfaces/ParameterValue`: its type and integer value (the rest read and
+/// dropped).
+fn parameter_value(r: &mut CdrReader) -> Result<(u8, i64), CdrError> {
+    let kind = r.u8("type")?;
+    r.bool("bool_value")?;
+    let int = r.i64("integer_value")?;
+    r.f64("double_value")?;
+    r.string("string_value")?;
+    r.bytes("byte_array_value")?;
+    r.bytes("bool_array_value")?;
+    let n = r.count("integer_array_value", 8)?;
+    for _ in 0..n {
+        r.i64("integer_array_value")?;
+    }
+    r.f64s("double_array_value")?;
+    r.strings("string_array_value")?;
+    Ok((kind, int))
+}
+
+fn get_parameters(choice: MappingChoice) -> (ServiceClient, Node) {
+    let node = Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap();
+    let client = ServiceClient::new(
+        &node,
+        "/rclpy_peer/get_parameters",
+        "rcl_interfaces::srv::dds_::GetParameters_Request_",
+        "rcl_interfaces::srv::dds_::GetParameters_Response_",
+        choice,
+    )
+    .unwrap();
+    (client, node)
+}
+
+fn ask_answer(client: &mut ServiceClient, wait: Duration) -> Option<Vec<(u8, i64)>> {
+    assert!(
+        client.wait_for_server(Instant::now() + Duration::from_secs(15)),
+        "rclpy's parameter service was not found"
+    );
+    std::thread::sleep(Duration::from_millis(500));
+    let sent = client
+        .send(|w| {
+            w.strings(&["answer".to_string(), "use_sim_time".to_string()]);
+        })
+        .unwrap();
+    client.wait_reply(sent, Instant::now() + wait, |r| {
+        let n = r.count("values", 1)?;
+        (0..n).map(|_| parameter_value(r)).collect()
+    })
+}
+
+#[test]
+fn a_service_of_rclpy_on_fast_dds_answers_in_fast_ddss_mapping_and_only_in_it() {
+    if !inside_rclpy("a_service_of_rclpy_on_fast_dds_answers_in_fast_ddss_mapping_and_only_in_it") {
+        return;
+    }
+    let mut peer = Peer::rclpy(FAST_DDS, &["serve", "0.05"]);
+    // Chosen from the server's vendor.
+    let (mut client, node) = get_parameters(MappingChoice::Auto);
+    let values = ask_answer(&mut client, Duration::from_secs(10))
+        .expect("rclpy answered the parameter request");
+    assert_eq!(client.mapping(), Mapping::FastDds);
+    // PARAMETER_INTEGER 42, then PARAMETER_BOOL (every rclpy node's use_sim_time).
+    assert_eq!(values, [(2, 42), (1, 0)]);
+    drop((client, node));
+    // Cyclone's mapping, forced: the server reads the header as part of the request and
+    // its reply carries no identity cps could match: no answer.
+    let (mut client, _node) = get_parameters(MappingChoice::Force(Mapping::Cyclone));
+    assert_eq!(ask_answer(&mut client, Duration::from_secs(2)), None);
+    peer.send("quit");
+    peer.finish(Duration::from_secs(10));
+}
+
+#[test]
+fn an_action_of_rclpy_on_fast_dds_runs_to_its_result_and_is_cancelled() {
+    if !inside_rclpy("an_action_of_rclpy_on_fast_dds_runs_to_its_result_and_is_cancelled") {
+        return;
+    }
+    let mut peer = Peer::rclpy(FAST_DDS, &["serve", "0.05"]);
+    let node = Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap();
+    let mut client =
+        ActionClient::<Fibonacci>::new(&node, "/fibonacci", MappingChoice::Auto).unwrap();
+    let never = AtomicBool::new(false);
+
+    // Goal, feedback, result.
+    let mut feedback = Vec::new();
+    let o = client
+        .follow(&10, GoalId::from_bits(1), times(), &never, |f| {
+            feedback.push(f.clone())
+        })
+        .unwrap();
+    assert_eq!(o.mapping, Mapping::FastDds);
+    assert!(o.accepted);
+    assert_eq!(o.status, GoalStatus::Succeeded);
+    assert_eq!(o.result.unwrap(), [0, 1, 1, 2, 3, 5, 8, 13, 21, 34, 55]);
+    // One feedback per number grown (9), each the sequence so far; a late joiner may miss
+    // none here, the reader matched before the goal was sent.
+    assert_eq!(feedback.len(), 9, "{feedback:?}");
+    assert_eq!(feedback[0], [0, 1, 1]);
+    assert_eq!(o.feedback, 9);
+    let line: Value = serde_json::from_str(&peer.line()).unwrap();
+    assert_eq!(line["event"], "goal");
+    assert_eq!(line["order"], 10);
+
+    // Refused.
+    let o = client
+        .follow(&-1, GoalId::from_bits(2), times(), &never, |_| {})
+        .unwrap();
+    assert!(!o.accepted);
+    assert!(o.result.is_none());
+
+    // Cancelled while it runs: the flag is raised from another thread after 0.5 s.
+    let cancel = AtomicBool::new(false);
+    let started = Instant::now();
+    let o = std::thread::scope(|s| {
+        s.spawn(|| {
+            std::thread::sleep(Duration::from_millis(500));
+            cancel.store(true, Ordering::Relaxed);
+        });
+        client
+            .follow(&1000, GoalId::from_bits(3), times(), &cancel, |_| {})
+            .unwrap()
+    });
+    assert!(o.cancel_requested);
+    assert_eq!(o.status, GoalStatus::Canceled);
+    let kept = o.result.unwrap();
+    assert!(kept.len() > 2 && kept.len() < 1001, "{}", kept.len());
+    assert!(started.elapsed() < Duration::from_secs(15));
+    let events: Vec<Value> = (0..4)
+        .map(|_| serde_json::from_str(&peer.line()).unwrap())
+        .collect();
+    let words: Vec<&str> = events
+        .iter()
+        .map(|e| e["status"].as_str().unwrap_or(e["event"].as_str().unwrap()))
+        .collect();
+    assert_eq!(words, ["succeeded", "goal", "goal", "cancel"], "{events:?}");
+    // Discovery told the server's vendor.
+    assert!(
+        node.vendors()
+            .participants()
+            .iter()
+            .any(|(_, v)| *v == Vendor::FAST_DDS)
     );
     peer.send("quit");
     peer.finish(Duration::from_secs(10));

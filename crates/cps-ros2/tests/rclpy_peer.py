@@ -14,9 +14,18 @@ Modes (each prints `ready` once its node exists, then works as below):
                                  clients and action clients, and, for each of NODE's
                                  topics, the node names rclpy gives its endpoints
                       quit
+  serve DELAY       a node with the parameter `answer` = 42 (so its built-in
+                    rcl_interfaces parameter services have something to give) and a
+                    test_msgs/action/Fibonacci server at /fibonacci: a goal of order n < 0
+                    is rejected; otherwise the sequence 0, 1, 1, 2, … grows one number
+                    every DELAY s, each step sent as feedback, until it holds n + 1
+                    numbers (succeeded) or a cancel comes (canceled, with what it had);
+                    what it saw is printed as JSON lines (`goal`, `cancel`, `end`); runs
+                    until `quit` on stdin
 """
 
 import json
+import os
 import sys
 import time
 
@@ -73,14 +82,76 @@ def graph(node, name):
         print(json.dumps(snapshot(node, name)), flush=True)
 
 
+def say(**what):
+    print(json.dumps(what), flush=True)
+
+
+def serve(node, delay):
+    import threading
+
+    from rclpy.action import ActionServer, CancelResponse, GoalResponse
+    from rclpy.callback_groups import ReentrantCallbackGroup
+    from rclpy.executors import MultiThreadedExecutor
+    from test_msgs.action import Fibonacci
+
+    node.declare_parameter("answer", 42)
+
+    def on_goal(request):
+        say(event="goal", order=request.order)
+        return GoalResponse.REJECT if request.order < 0 else GoalResponse.ACCEPT
+
+    def on_cancel(_handle):
+        say(event="cancel")
+        return CancelResponse.ACCEPT
+
+    def execute(handle):
+        sequence = [0, 1][: handle.request.order + 1]
+        while len(sequence) < handle.request.order + 1:
+            if handle.is_cancel_requested:
+                handle.canceled()
+                say(event="end", status="canceled", length=len(sequence))
+                return Fibonacci.Result(sequence=sequence)
+            time.sleep(delay)
+            sequence.append(sequence[-1] + sequence[-2])
+            handle.publish_feedback(Fibonacci.Feedback(sequence=sequence))
+        handle.succeed()
+        say(event="end", status="succeeded", length=len(sequence))
+        return Fibonacci.Result(sequence=sequence)
+
+    ActionServer(
+        node,
+        Fibonacci,
+        "/fibonacci",
+        execute_callback=execute,
+        goal_callback=on_goal,
+        cancel_callback=on_cancel,
+        callback_group=ReentrantCallbackGroup(),
+    )
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(node)
+    spinning = threading.Thread(target=executor.spin, daemon=True)
+    spinning.start()
+    print("ready", flush=True)
+    for line in sys.stdin:
+        if line.strip() == "quit":
+            break
+    # Out at once: an executor's shutdown waits for its callbacks, and a test's hostile
+    # request may have left one stuck in rclpy; what the server saw is already printed.
+    sys.stdout.flush()
+    os._exit(0)
+
+
 def main():
     mode, args = sys.argv[1], sys.argv[2:]
     rclpy.init()
     node = Node("rclpy_peer")
-    print("ready", flush=True)
+    if mode != "serve":
+        print("ready", flush=True)
     try:
         if mode == "graph":
             graph(node, args[0])
+        elif mode == "serve":
+            serve(node, float(args[0]))
         else:
             raise SystemExit(f"unknown mode {mode}")
     finally:
