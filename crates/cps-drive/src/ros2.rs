@@ -402,6 +402,7 @@ fn write_tracked(
         "messages": rec.messages,
         "kept": rec.positions.len(),
         "lost": rec.lost,
+        "older": rec.older,
         "incomplete": rec.incomplete,
         "malformed": rec.dropped.malformed,
         "tracking": tracking,
@@ -563,10 +564,11 @@ pub fn record_in_memory(
     let (times, source) = rec.times();
     let span = times.last().copied().unwrap_or(0.0);
     let mut lines = vec![format!(
-        "recorded {} JointState message(s) over {span:.3} s from {} ({} lost, {} without every joint, {} unreadable), times from each message's {source}",
+        "recorded {} JointState message(s) over {span:.3} s from {} ({} lost, {} published before the recording began and dropped, {} without every joint, {} unreadable), times from each message's {source}",
         rec.positions.len(),
         s.topic,
         rec.lost,
+        rec.older,
         rec.incomplete,
         rec.dropped.malformed + rec.dropped.oversized + rec.dropped.undecodable
     )];
@@ -597,6 +599,7 @@ pub fn record_in_memory(
         "messages": rec.messages,
         "kept": rec.positions.len(),
         "lost": rec.lost,
+        "older": rec.older,
         "incomplete": rec.incomplete,
         "malformed": rec.dropped.malformed,
         "oversized": rec.dropped.oversized,

@@ -167,6 +167,7 @@ pub struct Ros2Robot {
     latest: Option<Vec<f64>>,
     goals: u64,
     lost: u64,
+    older: u64,
     last: Option<LastGoal>,
 }
 
@@ -225,6 +226,7 @@ impl Ros2Robot {
             latest: None,
             goals: 0,
             lost: 0,
+            older: 0,
             last: None,
         };
         if robot.states.is_some() && settings.read_start {
@@ -366,6 +368,7 @@ impl Ros2Robot {
         };
         if let Some(r) = &recording {
             self.lost += r.lost;
+            self.older += r.older;
             if let Some(q) = r.positions.last() {
                 self.latest = Some(q.clone());
             }
@@ -476,8 +479,19 @@ impl Robot for Ros2Robot {
     fn report(&self) -> Option<String> {
         (self.goals > 0).then(|| {
             format!(
-                "{} goal(s) to {}/follow_joint_trajectory, joint states from {} ({} lost)",
-                self.goals, self.settings.controller, self.settings.joint_states, self.lost
+                "{} goal(s) to {}/follow_joint_trajectory, joint states from {} ({} lost){}",
+                self.goals,
+                self.settings.controller,
+                self.settings.joint_states,
+                self.lost,
+                if self.older > 0 {
+                    format!(
+                        "; {} published before a recording began, dropped",
+                        self.older
+                    )
+                } else {
+                    String::new()
+                }
             )
         })
     }

@@ -14,6 +14,7 @@ use cps_ros2::cdr::{CdrError, CdrReader, CdrWriter};
 use cps_ros2::msg::{Action, GoalId, GoalStatus, JointState, MarkerArray};
 use cps_ros2::names::NodeName;
 use cps_ros2::node::{Node, Qos, Vendor};
+use cps_ros2::record::{RecordOptions, record_joint_states};
 use cps_ros2::service::{Mapping, MappingChoice, ServiceClient};
 use serde_json::Value;
 
@@ -283,4 +284,83 @@ fn an_action_of_rclpy_on_fast_dds_runs_to_its_result_and_is_cancelled() {
     );
     peer.send("quit");
     peer.finish(Duration::from_secs(10));
+}
+
+fn panda_joints() -> Vec<String> {
+    (1..=7).map(|i| format!("panda_joint{i}")).collect()
+}
+
+fn record(node: &Node, seconds: f64, qos: Qos) -> cps_ros2::record::JointRecording {
+    record_joint_states(
+        node,
+        &RecordOptions {
+            topic: "/joint_states".into(),
+            joints: panda_joints(),
+            duration: Duration::from_secs_f64(seconds),
+            wait: Duration::from_secs(15),
+            qos,
+        },
+        &AtomicBool::new(false),
+        |_| {},
+    )
+    .unwrap()
+}
+
+fn unix_ns() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_nanos() as u64
+}
+
+/// Records 4 s of rclpy's 200 Hz JointState (reliable, keep-last 1000, `durability`)
+/// 2 s after it began publishing, with a reader of `qos`; checks the recording holds what
+/// was published while it ran; the messages published before it began that came.
+fn late_recording(durability: &[&str], qos: Qos) -> u64 {
+    let mut args = vec!["states", "200", "9", "1000"];
+    args.extend(durability);
+    let mut peer = Peer::rclpy(FAST_DDS, &args);
+    std::thread::sleep(Duration::from_secs(2));
+    let node = Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap();
+    let began = unix_ns();
+    let rec = record(&node, 4.0, qos);
+    println!(
+        "{durability:?}: {} messages, {} kept, {} older, {} lost",
+        rec.messages,
+        rec.positions.len(),
+        rec.older,
+        rec.lost
+    );
+    // Every kept message was stamped (rclpy's clock is this machine's) after the start,
+    // and they span the 4 s asked for, at 200 Hz.
+    let first = rec.stamps_ns[0];
+    let last = *rec.stamps_ns.last().unwrap();
+    assert!(
+        first + 5_000_000 >= began,
+        "kept a message stamped {} ms before the start",
+        (began - first) / 1_000_000
+    );
+    let span = (last - first) as f64 * 1e-9;
+    assert!((3.98..=4.0).contains(&span), "{span} s kept");
+    assert!(
+        (796..=801).contains(&rec.positions.len()),
+        "{} kept",
+        rec.positions.len()
+    );
+    assert_eq!(rec.lost, 0);
+    peer.send("quit");
+    rec.older
+}
+
+#[test]
+fn a_late_recording_keeps_only_what_was_published_while_it_ran() {
+    if !inside_rclpy("a_late_recording_keeps_only_what_was_published_while_it_ran") {
+        return;
+    }
+    // The case (a volatile publisher): whatever history comes is not kept.
+    late_recording(&[], Qos::Reliable { depth: 5000 });
+    // A transient-local publisher and reader: the writer must hand its history to the
+    // late reader — about 2 s of it here, all counted as older and none kept.
+    let older = late_recording(&["latched"], Qos::Latched { depth: 5000 });
+    assert!((300..=1000).contains(&older), "{older} older");
 }

@@ -22,9 +22,16 @@ Modes (each prints `ready` once its node exists, then works as below):
                     numbers (succeeded) or a cancel comes (canceled, with what it had);
                     what it saw is printed as JSON lines (`goal`, `cancel`, `end`); runs
                     until `quit` on stdin
+  states RATE SECONDS DEPTH [latched]
+                    sensor_msgs/JointState on /joint_states (reliable, keep-last DEPTH,
+                    volatile or, with `latched`, transient-local)
+                    at RATE Hz for SECONDS s: joints panda_joint1..7, q_i = 0.1 i +
+                    sin(t + i), header stamps from the node's clock; then prints
+                    `{"sent": K}`
 """
 
 import json
+import math
 import os
 import sys
 import time
@@ -141,17 +148,51 @@ def serve(node, delay):
     os._exit(0)
 
 
+def states(node, rate, seconds, depth, latched):
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
+
+    durability = DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE
+    qos = QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE, durability=durability)
+    pub = node.create_publisher(JointState, "/joint_states", qos)
+    print("ready", flush=True)
+    names = [f"panda_joint{i}" for i in range(1, 8)]
+    start = time.monotonic()
+    sent = 0
+    while True:
+        due = start + sent / rate
+        if due - start >= seconds:
+            break
+        delay = due - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        t = sent / rate
+        m = JointState()
+        m.header.stamp = node.get_clock().now().to_msg()
+        m.name = names
+        m.position = [0.1 * i + math.sin(t + i) for i in range(7)]
+        pub.publish(m)
+        sent += 1
+    print(json.dumps({"sent": sent}), flush=True)
+    # Stay until the reader has had everything (reliable delivery), then leave.
+    for line in sys.stdin:
+        if line.strip() == "quit":
+            break
+
+
 def main():
     mode, args = sys.argv[1], sys.argv[2:]
     rclpy.init()
     node = Node("rclpy_peer")
-    if mode != "serve":
+    if mode not in ("serve", "states"):
         print("ready", flush=True)
     try:
         if mode == "graph":
             graph(node, args[0])
         elif mode == "serve":
             serve(node, float(args[0]))
+        elif mode == "states":
+            states(node, float(args[0]), float(args[1]), int(args[2]), args[3:] == ["latched"])
         else:
             raise SystemExit(f"unknown mode {mode}")
     finally:
