@@ -86,7 +86,7 @@ LAYERS = {
         ["msg"],
         ["discovery"],
         ["markers", "node"],
-        ["publish", "record", "service"],
+        ["graph", "publish", "record", "service"],
         ["action"],
         ["robot"],
     ],
@@ -106,7 +106,7 @@ LAYERS = {
         ["export"],
     ],
     "cps-drive": [
-        ["recording"],
+        ["recording", "ros2_graph"],
         ["contact", "franka", "ros2"],
     ],
     "cps-experiment": [

@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
+use cps_experiment::ros2::MappingChoice;
 use cps_experiment::ros2::{self, GraphSettings, RecordSettings, SendSettings, Via};
 use cps_robot::StopToken;
 
@@ -72,6 +73,9 @@ pub enum Ros2Command {
         /// Replace an existing recording.
         #[arg(long)]
         force: bool,
+        /// Request/reply mapping: auto (the controller's middleware's), cyclone or fastdds.
+        #[arg(long, default_value = "auto", value_parser = parse_mapping)]
+        service_mapping: MappingChoice,
         /// Print JSON.
         #[arg(long)]
         json: bool,
@@ -82,7 +86,7 @@ pub enum Ros2Command {
         /// The JointState topic.
         #[arg(long, default_value = "/joint_states")]
         topic: String,
-        /// Seconds to record, from the first message.
+        /// Seconds to record, from the first message published after it began.
         #[arg(long)]
         duration: f64,
         /// The CSV to write.
@@ -106,6 +110,23 @@ pub enum Ros2Command {
     /// Show an experiment's learned path, via points, start and goal in RViz or Foxglove
     /// (visualization_msgs/MarkerArray, latched).
     Show(ShowArgs),
+    /// List what is on the graph: the nodes and their middleware, topics with types and
+    /// QoS, services and actions with the nodes at each end.
+    Graph {
+        /// DDS domain (default: $ROS_DOMAIN_ID, else 0).
+        #[arg(long)]
+        domain: Option<u16>,
+        /// Seconds to watch before listing (discovery takes about a second).
+        #[arg(long, default_value_t = 2.0)]
+        seconds: f64,
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+fn parse_mapping(s: &str) -> Result<MappingChoice, String> {
+    s.parse::<MappingChoice>().map_err(|e| e.to_string())
 }
 
 /// `cps-cli ros2 show`'s arguments.
@@ -141,6 +162,19 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
             .progress_chars("=> "),
     );
     let (answer, code, json) = match cmd {
+        Ros2Command::Graph {
+            domain,
+            seconds,
+            json,
+        } => {
+            let look = cps_experiment::ros2_graph::GraphLook {
+                domain: *domain,
+                seconds: *seconds,
+            };
+            bar.set_message("watching the graph");
+            let answer = cps_experiment::ros2_graph::graph(&look, stop).map_err(cli_error)?;
+            (answer, 0, *json)
+        }
         Ros2Command::Show(a) => {
             let s = cps_experiment::ros2_show::ShowSettings {
                 topic: a.topic.clone(),
@@ -164,9 +198,11 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
             record,
             joint_states,
             force,
+            service_mapping,
             json,
         } => {
             let s = SendSettings {
+                service_mapping: *service_mapping,
                 controller: controller.clone(),
                 via: if *topic { Via::Topic } else { Via::Action },
                 graph: on.graph(),

@@ -278,6 +278,11 @@ fn bad_ros2_robot_sections_are_named() {
             "host = \"127.0.0.1\" ",
             "`host` is read only with backend = \"franka\"",
         ),
+        (
+            "# domain = 0 ",
+            "service_mapping = \"zenoh\" ",
+            "[robot] `service_mapping`: service mapping `zenoh`: give auto, cyclone or fastdds",
+        ),
     ];
     for (from, to, says) in cases {
         assert!(SHIPPED.contains(from), "{from}");

@@ -8,6 +8,9 @@
 //! - [`ros2`]: `cps-cli ros2 send|record` and `cps.ros2`: a joint trajectory checked and
 //!   sent to a ros2_control controller (its topic or its FollowJointTrajectory action),
 //!   joint states recorded with a report.
+//! - [`ros2_graph`]: `cps-cli ros2 graph`: the nodes, topics, services and actions cps
+//!   sees, with their middleware and QoS; what a command says when its controller is
+//!   missing.
 //! - [`contact`]: movements that touch — force primitives and the hybrid contact task on
 //!   a Franka in torque mode.
 //! - [`recording`]: a recording and its report on disk, the same for every robot.
@@ -27,3 +30,4 @@ pub mod contact;
 pub mod franka;
 pub mod recording;
 pub mod ros2;
+pub mod ros2_graph;

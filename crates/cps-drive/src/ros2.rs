@@ -12,16 +12,18 @@ use cps_ros2::action::FollowOutcome;
 use cps_ros2::msg::{JointTrajectory, error_code_word};
 use cps_ros2::names::NodeName;
 use cps_ros2::node::{Node, Qos};
+use cps_ros2::publish;
 use cps_ros2::record::{JointRecording, RecordOptions, record_joint_states};
 use cps_ros2::robot::{Ros2Robot, Ros2Settings, rows_at, trajectory_message};
-use cps_ros2::{Ros2Error, publish};
 use serde_json::{Value, json};
 
 use cps_movement::robot_file::{Answer, RobotModel, load_robot};
 use cps_outcome::outcome::{Column, Format, Table};
 use cps_outcome::{ExperimentError, InputError};
 
+pub use crate::ros2_graph::{node, ros2_error};
 pub use cps_ros2::robot::NODE_NAME;
+pub use cps_ros2::service::{Mapping, MappingChoice};
 
 /// How a trajectory reaches the controller.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -58,6 +60,8 @@ pub struct SendSettings {
     pub wait: f64,
     /// Record the robot's joint states while the goal runs (action only).
     pub record: Option<SendRecord>,
+    /// The action's request/reply mapping (default: the controller's middleware's).
+    pub service_mapping: MappingChoice,
 }
 
 /// Where `ros2 send --record` writes what the robot did.
@@ -105,20 +109,6 @@ fn robot_and_names(
         }
     };
     Ok((model, names))
-}
-
-/// The node, on `domain` or `ROS_DOMAIN_ID`'s.
-pub fn node(domain: Option<u16>) -> Result<Node, ExperimentError> {
-    let name = NodeName::from_env(NODE_NAME, domain).map_err(|e| InputError(e.to_string()))?;
-    Node::new(name).map_err(ros2_error)
-}
-
-/// A graph failure as cps reports it (bad names and domains are input).
-pub fn ros2_error(e: Ros2Error) -> ExperimentError {
-    match e {
-        Ros2Error::Input(m) => InputError(m).into(),
-        other => ExperimentError::Message(other.to_string()),
-    }
 }
 
 /// A joint trajectory (called `name` in messages) as a plan: its own samples when they are
@@ -267,6 +257,7 @@ pub fn send_trajectory(
                 controller: s.controller.clone(),
                 joint_states: s.record.as_ref().map_or(String::new(), |r| r.topic.clone()),
                 domain: s.graph.domain,
+                service_mapping: s.service_mapping,
                 dt: s.period,
                 goal_period: Some(s.period),
                 wait,
@@ -289,18 +280,27 @@ pub fn send_trajectory(
                 .points
                 .last()
                 .map_or(0.0, |p| p.time_from_start.secs());
-            let last = robot
+            let followed = robot
                 .inner_mut()
                 .follow(message.clone(), stop, |share| {
                     if duration > 0.0 {
                         progress(share)
                     }
                 })
-                .map_err(|e| match e {
-                    RobotError::Robot { message, .. } => ExperimentError::Message(message),
-                    other => ExperimentError::Message(other.to_string()),
-                })?
-                .clone();
+                .cloned();
+            let last = followed.map_err(|e| {
+                let text = match e {
+                    RobotError::Robot { message, .. } => message,
+                    other => other.to_string(),
+                };
+                // No server: say what the graph offers instead.
+                let hint = if text.contains("no action server answered") {
+                    crate::ros2_graph::action_hint(robot.inner().node(), &action)
+                } else {
+                    String::new()
+                };
+                ExperimentError::Message(format!("{text}{hint}"))
+            })?;
             let o = &last.outcome;
             let (mut answer, code) = action_answer(base, &action, o);
             if let (Some(r), Some(rec)) = (&s.record, &last.recording) {

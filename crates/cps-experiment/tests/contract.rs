@@ -111,6 +111,7 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
             controller: "/fr3_arm_controller".into(),
             joint_states: "/joint_states".into(),
             domain: None,
+            service_mapping: Default::default(),
             dt: 0.001,
             goal_period: None,
             wait: Duration::from_secs(20),

@@ -34,6 +34,7 @@ pub fn _ros2_send<'py>(
     )?;
     let traj = joint_trajectory(t, q, None)?;
     let settings = SendSettings {
+        service_mapping: Default::default(),
         controller: controller.to_string(),
         via,
         graph: GraphSettings {

@@ -162,7 +162,7 @@ impl<A: Action> ActionClient<A> {
                 .wait_reply(sent, Instant::now() + times.server, GoalAnswer::decode);
         let Some(answer) = answer else {
             return Err(Ros2Error::NoPeer(format!(
-                "{} did not answer the goal within {:.1} s (the server speaks {}'s request/reply mapping, judged by its vendor; see --service-mapping)",
+                "{} did not answer the goal within {:.1} s (cps spoke {}'s request/reply mapping to it; a server on another middleware needs --service-mapping)",
                 self.name,
                 times.server.as_secs_f64(),
                 mapping_name(mapping),

@@ -8,7 +8,8 @@
 //! Layers: [`cdr`] (bytes), [`msg`] (the messages), [`names`] (ROS names → DDS topics),
 //! [`discovery`] (the graph's announcements), [`node`] (the participant, writers and
 //! readers, announced on the graph), [`service`] (a service client on Cyclone's or Fast
-//! DDS's request/reply mapping), then what is done with them: [`publish`], [`action`], [`record`], [`markers`], and [`robot`]: a ros2_control
+//! DDS's request/reply mapping), [`graph`] (what cps sees of the graph), then what is done
+//! with them: [`publish`], [`action`], [`record`], [`markers`], and [`robot`]: a ros2_control
 //! controller as a robot of cps's execution contract ([`robot::Ros2Robot`]) and the one
 //! place a plan becomes a `JointTrajectory` ([`robot::trajectory_message`]). Files and
 //! words (a joint CSV, the report) live in the experiments layer.
@@ -43,6 +44,7 @@
 pub mod action;
 pub mod cdr;
 pub mod discovery;
+pub mod graph;
 pub mod markers;
 pub mod msg;
 pub mod names;

@@ -512,7 +512,7 @@ impl Node {
         let entry = Entry::new(&self.announcer, inner.guid().to_bytes(), true)?;
         Ok(Reader {
             inner,
-            _entry: entry,
+            _entry: Some(entry),
             topic: dds_name.to_string(),
             matched: 0,
             counts: Counts::default(),
@@ -523,6 +523,29 @@ impl Node {
     pub fn publisher<M: Message>(&self, ros_name: &str, qos: Qos) -> Result<Writer, Ros2Error> {
         let t = dds_topic(&self.name, ros_name)?;
         self.writer(&t, M::TYPE, qos)
+    }
+
+    /// A reader of the graph's announcements (`ros_discovery_info`), which, as rmw's own,
+    /// is no node's and is not announced.
+    pub fn graph_reader(&self) -> Result<Reader, Ros2Error> {
+        let qos = Qos::Latched { depth: 1000 };
+        let topic = self.topic(crate::discovery::TOPIC, ParticipantEntities::TYPE, qos)?;
+        let inner = self
+            .subscriber
+            .create_simple_datareader_no_key::<Raw, RawAdapter>(&topic, Some(qos.policies()))
+            .map_err(|e| Ros2Error::Dds(format!("a reader of the graph: {e:?}")))?;
+        Ok(Reader {
+            inner,
+            _entry: None,
+            topic: crate::discovery::TOPIC.to_string(),
+            matched: 0,
+            counts: Counts::default(),
+        })
+    }
+
+    /// The DDS participant (discovery's lists of the readers and writers it has seen).
+    pub(crate) fn participant(&self) -> &DomainParticipant {
+        &self.participant
     }
 
     /// A subscription to `M` on the ROS topic `ros_name`.
@@ -658,7 +681,7 @@ pub struct Counts {
 /// Reads samples of one topic.
 pub struct Reader {
     inner: rustdds::no_key::SimpleDataReader<Raw, RawAdapter>,
-    _entry: Entry,
+    _entry: Option<Entry>,
     topic: String,
     matched: i32,
     counts: Counts,

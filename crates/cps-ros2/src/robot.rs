@@ -25,6 +25,7 @@ use crate::msg::{
 use crate::names::NodeName;
 use crate::node::{Node, Qos, Reader};
 use crate::record::{JointRecording, RecordOptions, record_joint_states};
+use crate::service::MappingChoice;
 
 /// The node name cps takes on the graph.
 pub const NODE_NAME: &str = "cps";
@@ -129,6 +130,8 @@ pub struct Ros2Settings {
     pub joint_states: String,
     /// The DDS domain (None: `ROS_DOMAIN_ID`, else 0).
     pub domain: Option<u16>,
+    /// The action's request/reply mapping (default: the controller's middleware's).
+    pub service_mapping: MappingChoice,
     /// The period plans are made at for it (s).
     pub dt: f64,
     /// The goal's point spacing (None: the plan's own points).
@@ -200,7 +203,9 @@ impl Ros2Robot {
             "{}/follow_joint_trajectory",
             settings.controller.trim_end_matches('/')
         );
-        let client = FollowJointTrajectoryClient::new(&node, &action).map_err(e)?;
+        let client =
+            FollowJointTrajectoryClient::with_mapping(&node, &action, settings.service_mapping)
+                .map_err(e)?;
         let states = if settings.joint_states.is_empty() {
             None
         } else {

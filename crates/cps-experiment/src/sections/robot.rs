@@ -50,6 +50,9 @@ pub struct RobotSection {
     joint_states: Option<Spanned<String>>,
     /// `backend = "ros2"`: the DDS domain (default: `ROS_DOMAIN_ID`, else 0).
     domain: Option<Spanned<u16>>,
+    /// `backend = "ros2"`: the services' request/reply mapping (`auto`, `cyclone`,
+    /// `fastdds`; default `auto`: the controller's middleware's).
+    service_mapping: Option<Spanned<String>>,
 }
 
 /// Who moves the joints on a CoppeliaSim backend.
@@ -399,6 +402,10 @@ impl Sections<'_> {
             ("controller", r.controller.as_ref().map(Spanned::span)),
             ("joint_states", r.joint_states.as_ref().map(Spanned::span)),
             ("domain", r.domain.as_ref().map(Spanned::span)),
+            (
+                "service_mapping",
+                r.service_mapping.as_ref().map(Spanned::span),
+            ),
         ];
         let groups = [
             (BackendKind::Franka, "franka", &franka_only[..]),
@@ -472,10 +479,18 @@ impl Sections<'_> {
             Some(d) => self.within(d, "[robot] `dt`", 1e-3, 0.1, " s")?,
             None => default_dt,
         };
+        let service_mapping = match &r.service_mapping {
+            Some(m) => m
+                .get_ref()
+                .parse()
+                .map_err(|e| self.err(&m.span(), format!("[robot] `service_mapping`: {e}")))?,
+            None => Default::default(),
+        };
         Ok(BackendChoice::Ros2(Ros2Settings {
             controller,
             joint_states,
             domain,
+            service_mapping,
             dt,
             goal_period: None,
             wait: Duration::from_secs(20),
