@@ -470,7 +470,9 @@ def _ros2_send(
     domain: Optional[int] = None,
     period: float = 0.01,
     wait: float = 10.0,
+    service_mapping: str = "auto",
 ) -> dict[str, Any]: ...
+def _ros2_graph(*, domain: Optional[int] = None, seconds: float = 2.0) -> dict[str, Any]: ...
 def _ros2_record(
     duration: float,
     *,

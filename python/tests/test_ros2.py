@@ -98,3 +98,26 @@ def test_bad_input_is_refused_before_the_graph():
     fast_t, fast_q = _move(seconds=0.1, amplitude=1.2)
     with pytest.raises(cps.CpsError, match="refused, nothing was sent"):
         cps.ros2.send(fast_t, fast_q, "/arm", wait=1.0)
+    with pytest.raises(ValueError, match="service_mapping"):
+        cps.ros2.send(t, q, "/arm", service_mapping="zenoh")
+    with pytest.raises(ValueError, match="--seconds 0"):
+        cps.ros2.graph(seconds=0.0)
+
+
+def test_graph_shows_the_cyclone_server_and_its_middleware(tmp_path):
+    if not _inside("test_graph_shows_the_cyclone_server_and_its_middleware"):
+        return
+    peer = subprocess.Popen(
+        [_peer_python(), str(PEER), "serve", "/arm/follow_joint_trajectory",
+         str(tmp_path / "server.json"), "--linger", "30"],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert peer.stdout.readline().strip() == "ready"
+        g = cps.ros2.graph(seconds=1.5)
+    finally:
+        peer.kill()
+    assert [p["middleware"] for p in g["participants"]] == ["CycloneDDS"], g["participants"]
+    action = g["actions"]["/arm/follow_joint_trajectory"]
+    assert action["types"] == ["control_msgs/action/FollowJointTrajectory"]
+    assert [s["middleware"] for s in action["servers"]] == ["CycloneDDS"]
+    assert g["nodes"] == []

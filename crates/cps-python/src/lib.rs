@@ -62,6 +62,7 @@ fn _cps(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(mocap::_mocap_read, m)?)?;
     m.add_function(wrap_pyfunction!(ros2::_ros2_send, m)?)?;
     m.add_function(wrap_pyfunction!(ros2::_ros2_record, m)?)?;
+    m.add_function(wrap_pyfunction!(ros2::_ros2_graph, m)?)?;
     m.add_class::<promp::PyProMp>()?;
     Ok(())
 }

@@ -2,7 +2,9 @@
 //! ros2_control controller, a robot's joint states recorded. Everything goes through
 //! `cps_experiment::ros2`, as `cps-cli ros2` does.
 
-use cps_experiment::ros2::{self, GraphSettings, RecordSettings, SendSettings, Via};
+use cps_experiment::ros2::{
+    self, GraphSettings, Mapping, MappingChoice, RecordSettings, SendSettings, Via,
+};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -13,7 +15,7 @@ use crate::interrupt::detached_keep;
 
 /// Sends the joint trajectory `q` (rows, rad) at times `t` (s) to `controller`.
 #[pyfunction]
-#[pyo3(signature = (t, q, controller, *, via = "action", robot = "panda", joint_names = None, domain = None, period = 0.01, wait = 10.0))]
+#[pyo3(signature = (t, q, controller, *, via = "action", robot = "panda", joint_names = None, domain = None, period = 0.01, wait = 10.0, service_mapping = "auto"))]
 #[allow(clippy::too_many_arguments)]
 pub fn _ros2_send<'py>(
     py: Python<'py>,
@@ -26,7 +28,17 @@ pub fn _ros2_send<'py>(
     domain: Option<u16>,
     period: f64,
     wait: f64,
+    service_mapping: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let service_mapping = choose(
+        "service_mapping",
+        service_mapping,
+        &[
+            ("auto", MappingChoice::Auto),
+            ("cyclone", MappingChoice::Force(Mapping::Cyclone)),
+            ("fastdds", MappingChoice::Force(Mapping::FastDds)),
+        ],
+    )?;
     let via = choose(
         "via",
         via,
@@ -34,7 +46,7 @@ pub fn _ros2_send<'py>(
     )?;
     let traj = joint_trajectory(t, q, None)?;
     let settings = SendSettings {
-        service_mapping: Default::default(),
+        service_mapping,
         controller: controller.to_string(),
         via,
         graph: GraphSettings {
@@ -115,5 +127,24 @@ pub fn _ros2_record<'py>(
     match interrupt {
         Some(e) => Err(e),
         None => Ok(d),
+    }
+}
+
+/// What is on the graph after watching it `seconds` s (`cps-cli ros2 graph --json`).
+#[pyfunction]
+#[pyo3(signature = (*, domain = None, seconds = 2.0))]
+pub fn _ros2_graph<'py>(
+    py: Python<'py>,
+    domain: Option<u16>,
+    seconds: f64,
+) -> PyResult<Bound<'py, PyAny>> {
+    let look = cps_experiment::ros2_graph::GraphLook { domain, seconds };
+    let (out, interrupt) = detached_keep(py, None, |stop| {
+        cps_experiment::ros2_graph::graph(&look, stop)
+    })?;
+    let answer = out.map_err(|e| e.py_err())?;
+    match interrupt {
+        Some(e) => Err(e),
+        None => json_to_py(py, &answer.json),
     }
 }
