@@ -9,10 +9,12 @@ use std::time::{Duration, Instant};
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use common::{Peer, inside_rclpy};
+use common::{Peer, control_msgs, inside_rclpy};
 use cps_ros2::action::{ActionClient, FollowJointTrajectoryClient, FollowTimes};
 use cps_ros2::cdr::{CdrError, CdrReader, CdrWriter};
-use cps_ros2::msg::{Action, GoalId, GoalStatus, JointState, Marker, MarkerArray};
+use cps_ros2::msg::{
+    Action, FollowJointTrajectoryGoal, GoalId, GoalStatus, JointState, Marker, MarkerArray,
+};
 use cps_ros2::names::NodeName;
 use cps_ros2::node::{Node, Qos, Vendor};
 use cps_ros2::record::{RecordOptions, record_joint_states};
@@ -467,5 +469,92 @@ fn joint_states_from_rclpy_at_1_khz_are_recorded_without_loss() {
             "{q:?}"
         );
     }
+    peer.send("quit");
+}
+
+#[test]
+fn follow_joint_trajectory_against_an_rclpy_server_on_fast_dds() {
+    if control_msgs().is_none()
+        || !inside_rclpy("follow_joint_trajectory_against_an_rclpy_server_on_fast_dds")
+    {
+        return;
+    }
+    let dir = common::temp("fjt").with_file_name("fjt-goals");
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut peer = Peer::rclpy(
+        FAST_DDS,
+        &[
+            "fjt",
+            "/arm_controller/follow_joint_trajectory",
+            dir.to_str().unwrap(),
+        ],
+    );
+    let node = Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap();
+    let mut client =
+        FollowJointTrajectoryClient::new(&node, "/arm_controller/follow_joint_trajectory").unwrap();
+    let never = AtomicBool::new(false);
+
+    // A 2 s goal at 100 Hz: received exactly, followed point by point, succeeded.
+    let goal = FollowJointTrajectoryGoal {
+        trajectory: support::trajectory(2.0, 100.0),
+        ..Default::default()
+    };
+    let mut desired = Vec::new();
+    let started = Instant::now();
+    let o = client
+        .follow(&goal, GoalId::from_bits(7), times(), &never, |f| {
+            desired.push(f.desired.positions.clone())
+        })
+        .unwrap();
+    let took = started.elapsed().as_secs_f64();
+    assert!(o.succeeded(), "{o:?}");
+    assert_eq!(o.mapping, Mapping::FastDds);
+    assert_eq!(o.error_code, 0);
+    let said: Value = serde_json::from_str(&peer.line()).unwrap();
+    assert_eq!(said["points"], 201);
+    let got: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("goal-1.json")).unwrap()).unwrap();
+    support::assert_same_trajectory(&got, &goal.trajectory);
+    assert_eq!(desired.len(), 201);
+    assert_eq!(desired[200], goal.trajectory.points[200].positions);
+    assert_eq!(o.feedback, 201);
+    let end: Value = serde_json::from_str(&peer.line()).unwrap();
+    assert_eq!(end["end"], "succeeded");
+    println!(
+        "Fast DDS FollowJointTrajectory: discovery {:.3} s, a 2 s goal followed in {took:.3} s",
+        o.discovery_s
+    );
+
+    // Refused (no joint names).
+    let mut empty = goal.clone();
+    empty.trajectory.joint_names.clear();
+    let o = client
+        .follow(&empty, GoalId::from_bits(8), times(), &never, |_| {})
+        .unwrap();
+    assert!(!o.accepted);
+    peer.line();
+
+    // Cancelled 0.5 s into a 10 s goal.
+    let long = FollowJointTrajectoryGoal {
+        trajectory: support::trajectory(2.0, 100.0),
+        ..Default::default()
+    };
+    let cancel = AtomicBool::new(false);
+    let started = Instant::now();
+    let o = std::thread::scope(|s| {
+        s.spawn(|| {
+            std::thread::sleep(Duration::from_millis(500));
+            cancel.store(true, Ordering::Relaxed);
+        });
+        client
+            .follow(&long, GoalId::from_bits(9), times(), &cancel, |_| {})
+            .unwrap()
+    });
+    assert!(o.cancel_requested);
+    assert_eq!(o.status, GoalStatus::Canceled);
+    assert!(started.elapsed() < Duration::from_secs(8));
+    peer.line();
+    let end: Value = serde_json::from_str(&peer.line()).unwrap();
+    assert_eq!(end["end"], "canceled");
     peer.send("quit");
 }

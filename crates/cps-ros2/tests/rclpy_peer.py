@@ -32,6 +32,14 @@ Modes (each prints `ready` once its node exists, then works as below):
                     as one JSON line: joint_names, points (positions, velocities,
                     accelerations, effort, time_from_start [sec, nanosec]) and
                     `received_ns`, when it came (this machine's clock)
+  fjt ACTION DIR    a control_msgs/action/FollowJointTrajectory server (control_msgs built
+                    by tests/control_msgs/build) at ACTION that plays each goal in time:
+                    a feedback at each point (desired = actual = the point), then
+                    succeeded (error_code 0), or canceled when asked; a goal without joint
+                    names is rejected. Goal k's trajectory is written to DIR/goal-k.json
+                    (as `listen` prints one) and `{"goal": k, "points": n}` printed (a pipe
+                    would hold a long goal's JSON and block the callback); each end is
+                    printed as `{"end": status}`; runs until `quit` on stdin
   markers TOPIC     the first visualization_msgs/MarkerArray on TOPIC (transient-local,
                     so one published before this subscribed still comes), as one JSON
                     line: its markers' ns, id, type, frame_id and points
@@ -196,6 +204,71 @@ def first_message(node, msg_type, topic, qos):
     return got[0]
 
 
+def trajectory_json(m):
+    point = lambda p: {
+        "positions": list(p.positions), "velocities": list(p.velocities),
+        "accelerations": list(p.accelerations), "effort": list(p.effort),
+        "time_from_start": [p.time_from_start.sec, p.time_from_start.nanosec],
+    }
+    return {"joint_names": list(m.joint_names), "points": [point(p) for p in m.points]}
+
+
+def fjt(node, action, out_dir):
+    import threading
+    from pathlib import Path
+
+    goals = []
+
+    from control_msgs.action import FollowJointTrajectory
+    from rclpy.action import ActionServer, CancelResponse, GoalResponse
+    from rclpy.callback_groups import ReentrantCallbackGroup
+    from rclpy.executors import MultiThreadedExecutor
+
+    def on_goal(request):
+        goals.append(1)
+        k = len(goals)
+        with open(Path(out_dir) / f"goal-{k}.json", "w") as f:
+            json.dump(trajectory_json(request.trajectory), f)
+        say(goal=k, points=len(request.trajectory.points))
+        if not request.trajectory.joint_names:
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    def execute(handle):
+        t = handle.request.trajectory
+        start = time.monotonic()
+        for p in t.points:
+            due = start + p.time_from_start.sec + p.time_from_start.nanosec * 1e-9
+            while time.monotonic() < due:
+                if handle.is_cancel_requested:
+                    handle.canceled()
+                    say(end="canceled")
+                    return FollowJointTrajectory.Result()
+                time.sleep(min(0.002, max(0.0, due - time.monotonic())))
+            f = FollowJointTrajectory.Feedback()
+            f.header.stamp = node.get_clock().now().to_msg()
+            f.joint_names = list(t.joint_names)
+            f.desired = p
+            f.actual = p
+            handle.publish_feedback(f)
+        handle.succeed()
+        say(end="succeeded")
+        return FollowJointTrajectory.Result(error_code=0, error_string="")
+
+    ActionServer(node, FollowJointTrajectory, action, execute_callback=execute,
+                 goal_callback=on_goal, cancel_callback=lambda _h: CancelResponse.ACCEPT,
+                 callback_group=ReentrantCallbackGroup())
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(node)
+    threading.Thread(target=executor.spin, daemon=True).start()
+    print("ready", flush=True)
+    for line in sys.stdin:
+        if line.strip() == "quit":
+            break
+    sys.stdout.flush()
+    os._exit(0)
+
+
 def listen(node, topic):
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from trajectory_msgs.msg import JointTrajectory
@@ -203,12 +276,7 @@ def listen(node, topic):
     m, at = first_message(
         node, JointTrajectory, topic, QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
     )
-    point = lambda p: {
-        "positions": list(p.positions), "velocities": list(p.velocities),
-        "accelerations": list(p.accelerations), "effort": list(p.effort),
-        "time_from_start": [p.time_from_start.sec, p.time_from_start.nanosec],
-    }
-    say(joint_names=list(m.joint_names), points=[point(p) for p in m.points], received_ns=at)
+    say(**trajectory_json(m), received_ns=at)
 
 
 def markers(node, topic):
@@ -226,13 +294,15 @@ def main():
     mode, args = sys.argv[1], sys.argv[2:]
     rclpy.init()
     node = Node("rclpy_peer")
-    if mode not in ("serve", "states", "listen", "markers"):
+    if mode not in ("serve", "states", "listen", "markers", "fjt"):
         print("ready", flush=True)
     try:
         if mode == "graph":
             graph(node, args[0])
         elif mode == "serve":
             serve(node, float(args[0]))
+        elif mode == "fjt":
+            fjt(node, args[0], args[1])
         elif mode == "listen":
             listen(node, args[0])
         elif mode == "markers":

@@ -64,6 +64,26 @@ pub fn rclpy_python() -> Option<PathBuf> {
     None
 }
 
+fn built_control_msgs() -> Option<PathBuf> {
+    let p = std::env::var_os("CPS_CONTROL_MSGS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| workspace().join("target/control-msgs"));
+    p.join("share/control_msgs").exists().then_some(p)
+}
+
+/// control_msgs built for rclpy (`$CPS_CONTROL_MSGS`, else `target/control-msgs`, what
+/// `.ci/run` builds with tests/control_msgs/build), so an rclpy peer can serve
+/// FollowJointTrajectory; without it a test skips with a sentence, except under CI.
+pub fn control_msgs() -> Option<PathBuf> {
+    let p = built_control_msgs();
+    if p.is_none() {
+        skip_or_fail(
+            "control_msgs is not built for rclpy (crates/cps-ros2/tests/control_msgs/build target/rclpy-venv target/control-msgs)".into(),
+        );
+    }
+    p
+}
+
 /// Whether this process is the test's run inside its namespace. Outside, runs `test`
 /// (this test binary's test of that name) in a new namespace and checks it passed.
 pub fn inside(test: &str) -> bool {
@@ -135,15 +155,39 @@ impl Peer {
     }
 
     /// Starts `rclpy_peer.py args…` (a ROS 2 node, rclpy on `rmw`, e.g.
-    /// `rmw_fastrtps_cpp`) and waits for its `ready`.
+    /// `rmw_fastrtps_cpp`) and waits for its `ready`. With control_msgs built
+    /// ([`control_msgs`]), its Python package and libraries are on the peer's paths.
     pub fn rclpy(rmw: &str, args: &[&str]) -> Peer {
         let python = rclpy_python().expect("inside a namespace rclpy's python exists");
-        let mut c = Command::new(python);
+        let mut c = Command::new(&python);
         c.arg(workspace().join("crates/cps-ros2/tests/rclpy_peer.py"))
             .args(args)
             .env("RMW_IMPLEMENTATION", rmw)
             .env("ROS_DOMAIN_ID", "0")
             .env_remove("ROS_DISTRO");
+        if let Some(prefix) = built_control_msgs() {
+            let venv = python
+                .parent()
+                .and_then(|b| b.parent())
+                .expect("a venv's python");
+            let site = std::fs::read_dir(prefix.join("lib"))
+                .into_iter()
+                .flatten()
+                .flatten()
+                .map(|e| e.path())
+                .find(|p| {
+                    p.file_name()
+                        .is_some_and(|n| n.to_string_lossy().starts_with("python3"))
+                })
+                .map(|p| p.join("site-packages"));
+            if let Some(site) = site {
+                c.env("PYTHONPATH", site);
+            }
+            c.env("LD_LIBRARY_PATH", prefix.join("lib")).env(
+                "AMENT_PREFIX_PATH",
+                format!("{}:{}", prefix.display(), venv.display()),
+            );
+        }
         Self::spawn(c)
     }
 
