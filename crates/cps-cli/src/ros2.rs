@@ -43,70 +43,10 @@ impl On {
 pub enum Ros2Command {
     /// Send a joint trajectory (CSV: t, then one column per joint in rad) to a ros2_control
     /// joint_trajectory_controller, checked against the robot's limits first.
-    Send {
-        /// The trajectory file.
-        file: PathBuf,
-        /// The controller (`/panda_arm_controller`).
-        #[arg(long)]
-        controller: String,
-        /// Publish on `<controller>/joint_trajectory` (no answer).
-        #[arg(long, conflicts_with = "action")]
-        topic: bool,
-        /// Send a FollowJointTrajectory goal (the default): feedback, result, cancel.
-        #[arg(long)]
-        action: bool,
-        #[command(flatten)]
-        on: On,
-        /// Seconds between the points sent.
-        #[arg(long, default_value_t = 0.01)]
-        period: f64,
-        /// Seconds to wait for the controller.
-        #[arg(long, default_value_t = 10.0)]
-        wait: f64,
-        /// Record the robot's joint states while the goal runs (CSV, with a report of the
-        /// tracking and the limits beside it).
-        #[arg(long)]
-        record: Option<PathBuf>,
-        /// The JointState topic recorded.
-        #[arg(long, default_value = "/joint_states")]
-        joint_states: String,
-        /// Replace an existing recording.
-        #[arg(long)]
-        force: bool,
-        /// Request/reply mapping: auto (the controller's middleware's), cyclone or fastdds.
-        #[arg(long, default_value = "auto", value_parser = parse_mapping)]
-        service_mapping: MappingChoice,
-        /// Print JSON.
-        #[arg(long)]
-        json: bool,
-    },
+    Send(SendArgs),
     /// Record sensor_msgs/JointState as a cps joint CSV (t, then the robot's joints in its
     /// order, matched by name), with a report beside it.
-    Record {
-        /// The JointState topic.
-        #[arg(long, default_value = "/joint_states")]
-        topic: String,
-        /// Seconds to record, from the first message published after it began.
-        #[arg(long)]
-        duration: f64,
-        /// The CSV to write.
-        #[arg(long)]
-        out: PathBuf,
-        #[command(flatten)]
-        on: On,
-        /// Seconds to wait for the first message.
-        #[arg(long, default_value_t = 10.0)]
-        wait: f64,
-        /// Also hear best-effort publishers (they may lose samples).
-        #[arg(long)]
-        best_effort: bool,
-        /// Replace an existing recording.
-        #[arg(long)]
-        force: bool,
-        /// Print JSON.
-        #[arg(long)]
-        json: bool,
-    },
+    Record(RecordArgs),
     /// Show an experiment's learned path, via points, start and goal in RViz or Foxglove
     /// (visualization_msgs/MarkerArray, latched).
     Show(ShowArgs),
@@ -125,8 +65,72 @@ pub enum Ros2Command {
     },
 }
 
-fn parse_mapping(s: &str) -> Result<MappingChoice, String> {
-    s.parse::<MappingChoice>().map_err(|e| e.to_string())
+/// `cps-cli ros2 send`'s arguments.
+#[derive(Args, Debug)]
+pub struct SendArgs {
+    /// The trajectory file.
+    file: PathBuf,
+    /// The controller (`/panda_arm_controller`).
+    #[arg(long)]
+    controller: String,
+    /// Publish on `<controller>/joint_trajectory` (no answer).
+    #[arg(long, conflicts_with = "action")]
+    topic: bool,
+    /// Send a FollowJointTrajectory goal (the default): feedback, result, cancel.
+    #[arg(long)]
+    action: bool,
+    #[command(flatten)]
+    on: On,
+    /// Seconds between the points sent.
+    #[arg(long, default_value_t = 0.01)]
+    period: f64,
+    /// Seconds to wait for the controller.
+    #[arg(long, default_value_t = 10.0)]
+    wait: f64,
+    /// Record the robot's joint states while the goal runs (CSV, with a report of the
+    /// tracking and the limits beside it).
+    #[arg(long)]
+    record: Option<PathBuf>,
+    /// The JointState topic recorded.
+    #[arg(long, default_value = "/joint_states")]
+    joint_states: String,
+    /// Replace an existing recording.
+    #[arg(long)]
+    force: bool,
+    /// Request/reply mapping: auto (the controller's middleware's), cyclone or fastdds.
+    #[arg(long, default_value = "auto", value_parser = |s: &str| s.parse::<MappingChoice>().map_err(|e| e.to_string()))]
+    service_mapping: MappingChoice,
+    /// Print JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `cps-cli ros2 record`'s arguments.
+#[derive(Args, Debug)]
+pub struct RecordArgs {
+    /// The JointState topic.
+    #[arg(long, default_value = "/joint_states")]
+    topic: String,
+    /// Seconds to record, from the first message published after it began.
+    #[arg(long)]
+    duration: f64,
+    /// The CSV to write.
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    on: On,
+    /// Seconds to wait for the first message.
+    #[arg(long, default_value_t = 10.0)]
+    wait: f64,
+    /// Also hear best-effort publishers (they may lose samples).
+    #[arg(long)]
+    best_effort: bool,
+    /// Replace an existing recording.
+    #[arg(long)]
+    force: bool,
+    /// Print JSON.
+    #[arg(long)]
+    json: bool,
 }
 
 /// `cps-cli ros2 show`'s arguments.
@@ -187,62 +191,38 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
                     .map_err(cli_error)?;
             (answer, 0, a.json)
         }
-        Ros2Command::Send {
-            file,
-            controller,
-            topic,
-            action: _,
-            on,
-            period,
-            wait,
-            record,
-            joint_states,
-            force,
-            service_mapping,
-            json,
-        } => {
+        Ros2Command::Send(a) => {
             let s = SendSettings {
-                service_mapping: *service_mapping,
-                controller: controller.clone(),
-                via: if *topic { Via::Topic } else { Via::Action },
-                graph: on.graph(),
-                period: *period,
-                wait: *wait,
-                record: record.as_ref().map(|out| ros2::SendRecord {
+                service_mapping: a.service_mapping,
+                controller: a.controller.clone(),
+                via: if a.topic { Via::Topic } else { Via::Action },
+                graph: a.on.graph(),
+                period: a.period,
+                wait: a.wait,
+                record: a.record.as_ref().map(|out| ros2::SendRecord {
                     out: out.clone(),
-                    topic: joint_states.clone(),
-                    force: *force,
+                    topic: a.joint_states.clone(),
+                    force: a.force,
                 }),
             };
             bar.set_message("following (‰)");
-            let (a, c) = ros2::send(file, &s, stop, |f| bar.set_position((f * 1000.0) as u64))
-                .map_err(cli_error)?;
-            (a, c, *json)
+            let send = |f: f64| bar.set_position((f * 1000.0) as u64);
+            let (answer, c) = ros2::send(&a.file, &s, stop, send).map_err(cli_error)?;
+            (answer, c, a.json)
         }
-        Ros2Command::Record {
-            topic,
-            duration,
-            out,
-            on,
-            wait,
-            best_effort,
-            force,
-            json,
-        } => {
+        Ros2Command::Record(a) => {
             let s = RecordSettings {
-                topic: topic.clone(),
-                duration: *duration,
-                graph: on.graph(),
-                wait: *wait,
-                best_effort: *best_effort,
+                topic: a.topic.clone(),
+                duration: a.duration,
+                graph: a.on.graph(),
+                wait: a.wait,
+                best_effort: a.best_effort,
             };
-            bar.set_length((*duration * 10.0).ceil() as u64);
+            bar.set_length((a.duration * 10.0).ceil() as u64);
             bar.set_message("recording (0.1 s)");
-            let (a, c) = ros2::record(&s, out, *force, stop, |t| {
-                bar.set_position((t * 10.0) as u64)
-            })
-            .map_err(cli_error)?;
-            (a, c, *json)
+            let tick = |t: f64| bar.set_position((t * 10.0) as u64);
+            let (answer, c) = ros2::record(&s, &a.out, a.force, stop, tick).map_err(cli_error)?;
+            (answer, c, a.json)
         }
     };
     bar.finish_and_clear();

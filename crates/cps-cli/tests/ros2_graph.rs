@@ -17,6 +17,17 @@ fn names(v: &Value) -> Vec<String> {
         .collect()
 }
 
+/// A 1 s trajectory that stays at the Panda's ready pose.
+fn still(dir: &std::path::Path) -> std::path::PathBuf {
+    let traj = dir.join("t.csv");
+    std::fs::write(
+        &traj,
+        "t,q1,q2,q3,q4,q5,q6,q7\n0,0,-0.785,0,-2.356,0,1.571,0.785\n0.5,0,-0.785,0,-2.356,0,1.571,0.785\n1,0,-0.785,0,-2.356,0,1.571,0.785\n",
+    )
+    .unwrap();
+    traj
+}
+
 fn middlewares(ends: &Value) -> Vec<String> {
     ends.as_array()
         .unwrap()
@@ -102,12 +113,7 @@ fn graph_lists_the_nodes_topics_services_and_actions_of_both_middlewares() {
     );
 
     // A controller that is not there: the error says what is.
-    let traj = dir.path().join("t.csv");
-    std::fs::write(
-        &traj,
-        "t,q1,q2,q3,q4,q5,q6,q7\n0,0,-0.785,0,-2.356,0,1.571,0.785\n0.5,0,-0.785,0,-2.356,0,1.571,0.785\n1,0,-0.785,0,-2.356,0,1.571,0.785\n",
-    )
-    .unwrap();
+    let traj = still(dir.path());
     let out = cli(&[
         "ros2",
         "send",
@@ -177,12 +183,7 @@ fn a_forced_mapping_the_server_does_not_speak_gets_no_answer() {
         "--linger",
         "30",
     ]);
-    let traj = dir.path().join("t.csv");
-    std::fs::write(
-        &traj,
-        "t,q1,q2,q3,q4,q5,q6,q7\n0,0,-0.785,0,-2.356,0,1.571,0.785\n0.5,0,-0.785,0,-2.356,0,1.571,0.785\n1,0,-0.785,0,-2.356,0,1.571,0.785\n",
-    )
-    .unwrap();
+    let traj = still(dir.path());
     let out = cli(&[
         "ros2",
         "send",

@@ -63,6 +63,9 @@ pub struct ActionClient<A: Action> {
     get_result: ServiceClient,
     cancel: ServiceClient,
     feedback: Reader,
+    /// Whether the wait after matching was spent on the server matched now (a second
+    /// goal to a server still matched need not wait again).
+    settled: bool,
     _action: std::marker::PhantomData<A>,
 }
 
@@ -100,6 +103,7 @@ impl<A: Action> ActionClient<A> {
             get_result,
             cancel,
             feedback,
+            settled: false,
             _action: std::marker::PhantomData,
         })
     }
@@ -129,6 +133,10 @@ impl<A: Action> ActionClient<A> {
         mut on_feedback: impl FnMut(&A::Feedback),
     ) -> Result<ActionOutcome<A::Result>, Ros2Error> {
         let start = Instant::now();
+        let still_matched = self.settled
+            && self.send_goal.ready()
+            && self.get_result.ready()
+            && self.cancel.ready();
         if !self.wait_for_server(start + times.server) {
             let partial = self.partial();
             return Err(Ros2Error::NoPeer(format!(
@@ -139,7 +147,10 @@ impl<A: Action> ActionClient<A> {
             )));
         }
         let discovery_s = start.elapsed().as_secs_f64();
-        std::thread::sleep(settle(discovery_s));
+        if !still_matched {
+            std::thread::sleep(settle(discovery_s));
+            self.settled = true;
+        }
         let mapping = self.send_goal.mapping();
         let sent = self
             .send_goal

@@ -137,16 +137,21 @@ pub fn ros_type(dds: &str) -> String {
     dds.to_string()
 }
 
+/// A node's full name, `/ns/name`.
+fn node_path(n: &crate::discovery::NodeEntities) -> String {
+    if n.namespace.ends_with('/') {
+        format!("{}{}", n.namespace, n.name)
+    } else {
+        format!("{}/{}", n.namespace, n.name)
+    }
+}
+
 /// What one announcement says of each endpoint: its node.
 fn node_of_endpoints(announced: &BTreeMap<[u8; 12], ParticipantEntities>) -> BTreeMap<Gid, String> {
     let mut m = BTreeMap::new();
     for p in announced.values() {
         for n in &p.nodes {
-            let name = if n.namespace.ends_with('/') {
-                format!("{}{}", n.namespace, n.name)
-            } else {
-                format!("{}/{}", n.namespace, n.name)
-            };
+            let name = node_path(n);
             for g in n.readers.iter().chain(&n.writers) {
                 m.insert(*g, name.clone());
             }
@@ -235,29 +240,21 @@ pub fn observe(node: &Node, watch: Duration) -> Result<Graph, Ros2Error> {
             dds_type: dds_type.clone(),
         };
         let ty = ros_type(&dds_type);
-        let (entry, list) = match ros_name(&dds_topic) {
+        // (types, the writers' list, the readers' list). A server reads requests and
+        // writes replies, a client the reverse: each end is counted once, by its request
+        // half.
+        let (entry, writers, readers) = match ros_name(&dds_topic) {
             Some(RosName::Topic(t)) => {
                 let e = graph.topics.entry(t).or_default();
-                let list = if writer {
-                    &mut e.publishers
-                } else {
-                    &mut e.subscriptions
-                };
-                (&mut e.types, list)
+                (&mut e.types, &mut e.publishers, &mut e.subscriptions)
             }
-            // A server reads requests and writes replies; a client the reverse. Each
-            // end is counted once, by its request half.
             Some(RosName::Request(s)) => {
                 let e = graph.services.entry(s).or_default();
-                let list = if writer {
-                    &mut e.clients
-                } else {
-                    &mut e.servers
-                };
-                (&mut e.types, list)
+                (&mut e.types, &mut e.clients, &mut e.servers)
             }
             Some(RosName::Reply(_)) | None => continue,
         };
+        let list = if writer { writers } else { readers };
         if !entry.contains(&ty) {
             entry.push(ty);
         }
@@ -279,18 +276,7 @@ pub fn observe(node: &Node, watch: Duration) -> Result<Graph, Ros2Error> {
         .map(|(p, vendor)| {
             let mut nodes: Vec<String> = announced
                 .get(&p)
-                .map(|a| {
-                    a.nodes
-                        .iter()
-                        .map(|n| {
-                            if n.namespace.ends_with('/') {
-                                format!("{}{}", n.namespace, n.name)
-                            } else {
-                                format!("{}/{}", n.namespace, n.name)
-                            }
-                        })
-                        .collect()
-                })
+                .map(|a| a.nodes.iter().map(node_path).collect())
                 .unwrap_or_default();
             nodes.sort();
             Participant {

@@ -38,6 +38,19 @@ struct Raw {
     body: Vec<u8>,
 }
 
+impl Raw {
+    /// The body of a little-endian sample as [`crate::cdr::CdrWriter::finish`] gives it
+    /// (encapsulation header first).
+    fn of_sample(sample: &[u8]) -> Self {
+        debug_assert_eq!(&sample[..2], &[0, 1], "a little-endian CDR sample");
+        Raw {
+            little: true,
+            oversized: false,
+            body: sample[4..].to_vec(),
+        }
+    }
+}
+
 /// rustdds's bridge to cps's bytes: nothing is interpreted here.
 struct RawAdapter;
 
@@ -194,16 +207,8 @@ struct Announcer {
 
 impl Announcer {
     fn publish(&self, entities: &ParticipantEntities) -> Result<(), Ros2Error> {
-        let sample = entities.to_cdr_as(self.layout);
         self.writer
-            .write(
-                Raw {
-                    little: true,
-                    oversized: false,
-                    body: sample[4..].to_vec(),
-                },
-                None,
-            )
+            .write(Raw::of_sample(&entities.to_cdr_as(self.layout)), None)
             .map_err(|e| Ros2Error::Dds(format!("announcing the node on the graph: {e:?}")))
     }
 
@@ -617,16 +622,8 @@ impl Writer {
     /// Sends one sample (its bytes as [`crate::cdr::CdrWriter::finish`] gives them,
     /// little-endian encapsulation header first).
     pub fn write_cdr(&self, sample: &[u8]) -> Result<(), Ros2Error> {
-        debug_assert_eq!(&sample[..2], &[0, 1], "a little-endian CDR sample");
         self.inner
-            .write(
-                Raw {
-                    little: true,
-                    oversized: false,
-                    body: sample[4..].to_vec(),
-                },
-                None,
-            )
+            .write(Raw::of_sample(sample), None)
             .map_err(|e| Ros2Error::Dds(format!("writing on {}: {e:?}", self.topic)))
     }
 

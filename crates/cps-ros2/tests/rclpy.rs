@@ -23,6 +23,10 @@ use serde_json::Value;
 
 const FAST_DDS: &str = "rmw_fastrtps_cpp";
 
+fn cps_node() -> Node {
+    Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap()
+}
+
 fn names(v: &Value) -> Vec<String> {
     v.as_array()
         .unwrap_or(&Vec::new())
@@ -54,7 +58,7 @@ fn rclpy_on_fast_dds_lists_cps_its_topics_and_its_action_client() {
     if !inside_rclpy("rclpy_on_fast_dds_lists_cps_its_topics_and_its_action_client") {
         return;
     }
-    let node = Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap();
+    let node = cps_node();
     let markers = node
         .publisher::<MarkerArray>("/cps/markers", Qos::Latched { depth: 1 })
         .unwrap();
@@ -164,7 +168,7 @@ fn parameter_value(r: &mut CdrReader) -> Result<(u8, i64), CdrError> {
 }
 
 fn get_parameters(choice: MappingChoice) -> (ServiceClient, Node) {
-    let node = Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap();
+    let node = cps_node();
     let client = ServiceClient::new(
         &node,
         "/rclpy_peer/get_parameters",
@@ -217,7 +221,7 @@ fn an_action_of_rclpy_on_fast_dds_runs_to_its_result_and_is_cancelled() {
         return;
     }
     let mut peer = Peer::rclpy(FAST_DDS, &["serve", "0.05"]);
-    let node = Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap();
+    let node = cps_node();
     let mut client =
         ActionClient::<Fibonacci>::new(&node, "/fibonacci", MappingChoice::Auto).unwrap();
     let never = AtomicBool::new(false);
@@ -334,7 +338,7 @@ fn late_recording(durability: &[&str], qos: Qos) -> u64 {
     args.extend(durability);
     let mut peer = Peer::rclpy(FAST_DDS, &args);
     std::thread::sleep(Duration::from_secs(2));
-    let node = Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap();
+    let node = cps_node();
     let began = unix_ns();
     let rec = record(&node, 4.0, qos);
     println!(
@@ -386,7 +390,7 @@ fn rclpy_on_fast_dds_receives_a_10_s_trajectory_whole_and_exact() {
         return;
     }
     let mut peer = Peer::rclpy(FAST_DDS, &["listen", "/arm_controller/joint_trajectory"]);
-    let node = Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap();
+    let node = cps_node();
     let t = support::trajectory(10.0, 100.0);
     let sent = cps_ros2::publish::publish(
         &node,
@@ -412,7 +416,7 @@ fn rclpy_on_fast_dds_gets_latched_markers_published_before_it_subscribed() {
     if !inside_rclpy("rclpy_on_fast_dds_gets_latched_markers_published_before_it_subscribed") {
         return;
     }
-    let node = Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap();
+    let node = cps_node();
     let writer = node
         .publisher::<MarkerArray>("/cps/markers", Qos::Latched { depth: 1 })
         .unwrap();
@@ -446,7 +450,7 @@ fn joint_states_from_rclpy_at_1_khz_are_recorded_without_loss() {
         return;
     }
     let mut peer = Peer::rclpy(FAST_DDS, &["states", "1000", "5", "1000"]);
-    let node = Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap();
+    let node = cps_node();
     let rec = record(&node, 3.0, Qos::Reliable { depth: 5000 });
     println!(
         "{} messages, {} kept, {} lost, {} older",
@@ -489,7 +493,7 @@ fn follow_joint_trajectory_against_an_rclpy_server_on_fast_dds() {
             dir.to_str().unwrap(),
         ],
     );
-    let node = Node::new(NodeName::new("cps_test", "/", 0).unwrap()).unwrap();
+    let node = cps_node();
     let mut client =
         FollowJointTrajectoryClient::new(&node, "/arm_controller/follow_joint_trajectory").unwrap();
     let never = AtomicBool::new(false);

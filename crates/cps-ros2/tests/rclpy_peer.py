@@ -104,16 +104,32 @@ def graph(node, name):
         print(json.dumps(snapshot(node, name)), flush=True)
 
 
+def serve_until_quit(node):
+    """Spins `node` on four threads, says `ready`, and exits when stdin says `quit`."""
+    import threading
+
+    from rclpy.executors import MultiThreadedExecutor
+
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(node)
+    threading.Thread(target=executor.spin, daemon=True).start()
+    print("ready", flush=True)
+    for line in sys.stdin:
+        if line.strip() == "quit":
+            break
+    # Out at once: an executor's shutdown waits for its callbacks, and a callback may be
+    # stuck in rclpy; what the server saw is already printed.
+    sys.stdout.flush()
+    os._exit(0)
+
+
 def say(**what):
     print(json.dumps(what), flush=True)
 
 
 def serve(node, delay):
-    import threading
-
     from rclpy.action import ActionServer, CancelResponse, GoalResponse
     from rclpy.callback_groups import ReentrantCallbackGroup
-    from rclpy.executors import MultiThreadedExecutor
     from test_msgs.action import Fibonacci
 
     node.declare_parameter("answer", 42)
@@ -149,18 +165,7 @@ def serve(node, delay):
         cancel_callback=on_cancel,
         callback_group=ReentrantCallbackGroup(),
     )
-    executor = MultiThreadedExecutor(num_threads=4)
-    executor.add_node(node)
-    spinning = threading.Thread(target=executor.spin, daemon=True)
-    spinning.start()
-    print("ready", flush=True)
-    for line in sys.stdin:
-        if line.strip() == "quit":
-            break
-    # Out at once: an executor's shutdown waits for its callbacks, and a test's hostile
-    # request may have left one stuck in rclpy; what the server saw is already printed.
-    sys.stdout.flush()
-    os._exit(0)
+    serve_until_quit(node)
 
 
 def states(node, rate, seconds, depth, latched):
@@ -214,15 +219,13 @@ def trajectory_json(m):
 
 
 def fjt(node, action, out_dir):
-    import threading
     from pathlib import Path
-
-    goals = []
 
     from control_msgs.action import FollowJointTrajectory
     from rclpy.action import ActionServer, CancelResponse, GoalResponse
     from rclpy.callback_groups import ReentrantCallbackGroup
-    from rclpy.executors import MultiThreadedExecutor
+
+    goals = []
 
     def on_goal(request):
         goals.append(1)
@@ -258,15 +261,7 @@ def fjt(node, action, out_dir):
     ActionServer(node, FollowJointTrajectory, action, execute_callback=execute,
                  goal_callback=on_goal, cancel_callback=lambda _h: CancelResponse.ACCEPT,
                  callback_group=ReentrantCallbackGroup())
-    executor = MultiThreadedExecutor(num_threads=4)
-    executor.add_node(node)
-    threading.Thread(target=executor.spin, daemon=True).start()
-    print("ready", flush=True)
-    for line in sys.stdin:
-        if line.strip() == "quit":
-            break
-    sys.stdout.flush()
-    os._exit(0)
+    serve_until_quit(node)
 
 
 def listen(node, topic):
