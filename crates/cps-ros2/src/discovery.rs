@@ -245,6 +245,38 @@ mod tests {
     }
 
     #[test]
+    fn a_thousand_nodes_are_read_and_more_than_the_bound_refused() {
+        let node = |k: usize| NodeEntities {
+            namespace: "/fleet".into(),
+            name: format!("arm_{k}"),
+            readers: vec![gid(k as u8)],
+            writers: vec![
+                gid((k as u8).wrapping_add(1)),
+                gid((k as u8).wrapping_add(2)),
+            ],
+        };
+        let many = ParticipantEntities {
+            gid: gid(9),
+            nodes: (0..1000).map(node).collect(),
+        };
+        let bytes = many.to_cdr();
+        let (back, _) = ParticipantEntities::decode_any(&bytes[4..], true).unwrap();
+        assert_eq!(back, many);
+        let too_many = ParticipantEntities {
+            gid: gid(9),
+            nodes: (0..MAX_NODES + 1)
+                .map(|_| NodeEntities::default())
+                .collect(),
+        };
+        let bytes = too_many.to_cdr();
+        let e = ParticipantEntities::decode_any(&bytes[4..], true).unwrap_err();
+        assert!(
+            e.to_string().contains("more than the 10000 cps keeps"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn malformed_samples_are_errors() {
         let bytes = sample().to_cdr();
         for cut in [0, 10, 20, bytes.len() - 8] {
