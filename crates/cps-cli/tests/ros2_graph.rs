@@ -28,6 +28,38 @@ fn still(dir: &std::path::Path) -> std::path::PathBuf {
     traj
 }
 
+/// `ros2 send` of [`still`] to `controller` with `more` arguments: its exit code and
+/// what it said on stderr.
+fn send_still(dir: &std::path::Path, controller: &str, more: &[&str]) -> (Option<i32>, String) {
+    let traj = still(dir);
+    let mut args = vec![
+        "ros2",
+        "send",
+        traj.to_str().unwrap(),
+        "--controller",
+        controller,
+    ];
+    args.extend(more);
+    let out = cli(&args);
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// cps-ros2's CycloneDDS FollowJointTrajectory server at
+/// `/arm_controller/follow_joint_trajectory`, staying 30 s.
+fn cyclone_server(dir: &std::path::Path) -> graph::Peer {
+    let seen = dir.join("server.json");
+    graph::Peer::start(&[
+        "serve",
+        "/arm_controller/follow_joint_trajectory",
+        seen.to_str().unwrap(),
+        "--linger",
+        "30",
+    ])
+}
+
 fn middlewares(ends: &Value) -> Vec<String> {
     ends.as_array()
         .unwrap()
@@ -45,14 +77,7 @@ fn graph_lists_the_nodes_topics_services_and_actions_of_both_middlewares() {
     }
     let dir = tempfile::tempdir().unwrap();
     let _rclpy = graph::Peer::rclpy("rmw_fastrtps_cpp", &["serve", "0.05"]);
-    let seen = dir.path().join("server.json");
-    let _cyclone = graph::Peer::start(&[
-        "serve",
-        "/arm_controller/follow_joint_trajectory",
-        seen.to_str().unwrap(),
-        "--linger",
-        "30",
-    ]);
+    let _cyclone = cyclone_server(dir.path());
     let out = cli(&["ros2", "graph", "--seconds", "2", "--json"]);
     assert!(
         out.status.success(),
@@ -113,18 +138,8 @@ fn graph_lists_the_nodes_topics_services_and_actions_of_both_middlewares() {
     );
 
     // A controller that is not there: the error says what is.
-    let traj = still(dir.path());
-    let out = cli(&[
-        "ros2",
-        "send",
-        traj.to_str().unwrap(),
-        "--controller",
-        "/panda_arm_controller",
-        "--wait",
-        "2",
-    ]);
-    assert_eq!(out.status.code(), Some(1));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let (code, err) = send_still(dir.path(), "/panda_arm_controller", &["--wait", "2"]);
+    assert_eq!(code, Some(1));
     assert!(
         err.contains("actions on domain 0: /arm_controller/follow_joint_trajectory (an unnamed CycloneDDS endpoint), /fibonacci (/rclpy_peer)"),
         "{err}"
@@ -175,28 +190,13 @@ fn a_forced_mapping_the_server_does_not_speak_gets_no_answer() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let seen = dir.path().join("server.json");
-    let _cyclone = graph::Peer::start(&[
-        "serve",
-        "/arm_controller/follow_joint_trajectory",
-        seen.to_str().unwrap(),
-        "--linger",
-        "30",
-    ]);
-    let traj = still(dir.path());
-    let out = cli(&[
-        "ros2",
-        "send",
-        traj.to_str().unwrap(),
-        "--controller",
+    let _cyclone = cyclone_server(dir.path());
+    let (code, err) = send_still(
+        dir.path(),
         "/arm_controller",
-        "--wait",
-        "3",
-        "--service-mapping",
-        "fastdds",
-    ]);
-    assert_eq!(out.status.code(), Some(1));
-    let err = String::from_utf8_lossy(&out.stderr);
+        &["--wait", "3", "--service-mapping", "fastdds"],
+    );
+    assert_eq!(code, Some(1));
     assert!(
         err.contains(
             "did not answer the goal within 3.0 s (cps spoke Fast DDS's request/reply mapping to it"

@@ -131,8 +131,7 @@ impl ServiceClient {
         let qos = Qos::Reliable { depth: 100 };
         let request = node.writer(&rq, request_type, qos)?;
         let reply = node.reader(&rr, reply_type, qos)?;
-        let g = reply.gid();
-        let client = u64::from_le_bytes(g[8..16].try_into().expect("8 bytes"));
+        let client = reply.id();
         Ok(ServiceClient {
             name: name.to_string(),
             request,

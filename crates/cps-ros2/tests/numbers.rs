@@ -23,6 +23,10 @@ use cps_ros2::node::{Node, Qos};
 use cps_ros2::record::{RecordOptions, record_joint_states};
 use serde_json::Value;
 
+fn cps_node() -> Node {
+    Node::new(NodeName::new("cps_numbers", "/", 0).unwrap()).unwrap()
+}
+
 fn unix_ns() -> u64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
@@ -35,7 +39,7 @@ fn unix_ns() -> u64 {
 fn trajectory(middleware: &str, received: impl FnOnce() -> (Value, u64)) {
     let started_ns = unix_ns();
     let start = Instant::now();
-    let node = Node::new(NodeName::new("cps_numbers", "/", 0).unwrap()).unwrap();
+    let node = cps_node();
     let t = support::trajectory(10.0, 100.0);
     let sent = cps_ros2::publish::publish(
         &node,
@@ -61,7 +65,7 @@ fn trajectory(middleware: &str, received: impl FnOnce() -> (Value, u64)) {
 
 /// JointState at 1 kHz for 10 s from the peer, recorded until it says it is done.
 fn joint_states(middleware: &str, peer: Peer) {
-    let node = Node::new(NodeName::new("cps_numbers", "/", 0).unwrap()).unwrap();
+    let node = cps_node();
     let stop = AtomicBool::new(false);
     let (rec, said) = std::thread::scope(|s| {
         let recording = s.spawn(|| {
@@ -96,7 +100,7 @@ fn joint_states(middleware: &str, peer: Peer) {
 /// A goal's round trip (a one-point goal: sent → accepted → result) five times, and the
 /// time from a cancel to the goal's end.
 fn action(middleware: &str, name: &str) {
-    let node = Node::new(NodeName::new("cps_numbers", "/", 0).unwrap()).unwrap();
+    let node = cps_node();
     let mut client = FollowJointTrajectoryClient::new(&node, name).unwrap();
     let times = FollowTimes {
         server: Duration::from_secs(20),
