@@ -1,6 +1,6 @@
 //! The ROS 2 numbers of docs/ros2.md, side by side on Fast DDS (rclpy 7.1.6 on
-//! `rmw_fastrtps_cpp`) and CycloneDDS (11.0.1): a benchmark, not a test — every case is
-//! `#[ignore]`d and prints what it measured:
+//! `rmw_fastrtps_cpp`) and CycloneDDS (11.0.1), and rclpy doing the same work itself: a
+//! benchmark, not a test — every case is `#[ignore]`d and prints what it measured:
 //!
 //! ```text
 //! cargo test --profile checked -p cps-ros2 --test numbers -- --ignored --nocapture --test-threads=1
@@ -224,4 +224,59 @@ fn numbers_on_cyclonedds() {
         "30",
     ]);
     action("CycloneDDS", "/arm_controller/follow_joint_trajectory");
+}
+
+/// rclpy's own figures for the same work on Fast DDS (tests/rclpy_peer.py's `send`,
+/// `count` and `goals`): rclpy to rclpy, measured the same way.
+#[test]
+#[ignore]
+fn numbers_of_rclpy_on_fast_dds() {
+    if control_msgs().is_none() || !inside_rclpy("numbers_of_rclpy_on_fast_dds") {
+        return;
+    }
+    let rmw = "rmw_fastrtps_cpp";
+    let mut listener = Peer::rclpy(rmw, &["listen", "/arm_controller/joint_trajectory"]);
+    let mut sender = Peer::rclpy(rmw, &["send", "/arm_controller/joint_trajectory"]);
+    let sent: Value = serde_json::from_str(&sender.line()).unwrap();
+    let got: Value = serde_json::from_str(&listener.line()).unwrap();
+    sender.send("quit");
+    support::assert_same_trajectory(&got, &support::trajectory(10.0, 100.0));
+    let started = sent["started_ns"].as_u64().unwrap();
+    let at = got["received_ns"].as_u64().unwrap();
+    println!(
+        "| rclpy, Fast DDS | discovery (rclpy's publisher matched) | {:.3} s |",
+        sent["matched_s"].as_f64().unwrap()
+    );
+    println!(
+        "| rclpy, Fast DDS | rclpy.init → a 10 s trajectory received, every number equal | {:.3} s |",
+        at.saturating_sub(started) as f64 * 1e-9
+    );
+
+    let mut counter = Peer::rclpy(rmw, &["count"]);
+    let mut states = Peer::rclpy(rmw, &["states", "1000", "10", "5000"]);
+    let said = states.line();
+    std::thread::sleep(Duration::from_millis(500));
+    counter.send("quit");
+    states.send("quit");
+    let counted = counter.line();
+    println!("| rclpy, Fast DDS | JointState at 1 kHz, 10 s (the peer: {said}) | {counted} |");
+
+    let dir = temp("goals").with_file_name("goals");
+    std::fs::create_dir_all(&dir).unwrap();
+    let action = "/arm_controller/follow_joint_trajectory";
+    let mut server = Peer::rclpy(rmw, &["fjt", action, dir.to_str().unwrap()]);
+    let mut client = Peer::rclpy(rmw, &["goals", action]);
+    let said: Value = serde_json::from_str(&client.line()).unwrap();
+    server.send("quit");
+    let mut trips = support::floats(&said["trips_ms"])[1..].to_vec();
+    trips.sort_by(f64::total_cmp);
+    println!(
+        "| rclpy, Fast DDS | goal → accepted → result, one-point goal, 5 times | median {:.1} ms (min {:.1}, max {:.1}) |",
+        trips[2], trips[0], trips[4]
+    );
+    println!(
+        "| rclpy, Fast DDS | cancel of a running 10 s goal → its end reported (status {}) | {:.1} ms |",
+        said["cancel_status"],
+        said["cancel_ms"].as_f64().unwrap()
+    );
 }

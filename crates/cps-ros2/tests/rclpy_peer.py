@@ -43,6 +43,20 @@ Modes (each prints `ready` once its node exists, then works as below):
   markers TOPIC     the first visualization_msgs/MarkerArray on TOPIC (transient-local,
                     so one published before this subscribed still comes), as one JSON
                     line: its markers' ns, id, type, frame_id and points
+
+rclpy's own figures for the work cps's benchmark (tests/numbers.rs) measures, the same
+way:
+
+  send TOPIC        publishes tests/support's 10 s trajectory at 100 Hz (1001 points,
+                    reliable, keep-last 1) once a subscriber has matched, and prints
+                    `{"started_ns": …, "matched_s": …}`: when this process began (before
+                    rclpy.init) and how long until the subscriber matched
+  count             counts sensor_msgs/JointState on /joint_states (reliable, keep-last
+                    5000) until `quit` on stdin, then prints `{"received": K}`
+  goals ACTION      a FollowJointTrajectory client: six one-point goals (sent → accepted
+                    → result; the first includes discovery), then a 10 s goal cancelled
+                    after 1.5 s; prints `{"trips_ms": [...], "cancel_ms": …}`, the last
+                    the time from asking the cancel to the goal's end
 """
 
 import json
@@ -285,6 +299,110 @@ def markers(node, topic):
                   "points": [[p.x, p.y, p.z] for p in k.points]} for k in m.markers])
 
 
+def support_trajectory(seconds, rate):
+    """tests/support's `trajectory`, number for number."""
+    from builtin_interfaces.msg import Duration
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+    m = JointTrajectory()
+    m.joint_names = [f"panda_joint{i}" for i in range(1, 8)]
+    step_ns = round(1e9 / rate)
+    for k in range(round(seconds * rate) + 1):
+        t = k / rate
+        p = JointTrajectoryPoint()
+        p.positions = [0.1 * i + 0.3 * math.sin(t + i) for i in range(7)]
+        p.velocities = [0.3 * math.cos(t + i) for i in range(7)]
+        p.accelerations = [-0.3 * math.sin(t + i) for i in range(7)]
+        ns = k * step_ns
+        p.time_from_start = Duration(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+        m.points.append(p)
+    return m
+
+
+def send(node, topic):
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from trajectory_msgs.msg import JointTrajectory
+
+    pub = node.create_publisher(
+        JointTrajectory, topic, QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
+    )
+    m = support_trajectory(10.0, 100.0)
+    began = time.monotonic()
+    while pub.get_subscription_count() == 0:
+        time.sleep(0.001)
+    matched = time.monotonic() - began
+    pub.publish(m)
+    say(started_ns=STARTED_NS, matched_s=matched)
+    # Stay until the subscriber has it (reliable delivery), then leave.
+    for line in sys.stdin:
+        if line.strip() == "quit":
+            break
+
+
+def count(node):
+    import threading
+
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
+
+    received = [0]
+
+    def on_state(_m):
+        received[0] += 1
+
+    qos = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
+    node.create_subscription(JointState, "/joint_states", on_state, qos)
+    done = threading.Event()
+
+    def wait_quit():
+        for line in sys.stdin:
+            if line.strip() == "quit":
+                break
+        done.set()
+
+    threading.Thread(target=wait_quit, daemon=True).start()
+    while not done.is_set():
+        rclpy.spin_once(node, timeout_sec=0.05)
+    say(received=received[0])
+
+
+def goals(node, action):
+    from control_msgs.action import FollowJointTrajectory
+    from rclpy.action import ActionClient
+
+    client = ActionClient(node, FollowJointTrajectory, action)
+
+    def until(future):
+        while not future.done():
+            rclpy.spin_once(node, timeout_sec=0.01)
+        return future.result()
+
+    client.wait_for_server()
+    trips = []
+    goal = FollowJointTrajectory.Goal(trajectory=support_trajectory(0.0, 100.0))
+    for _ in range(6):
+        start = time.monotonic()
+        handle = until(client.send_goal_async(goal))
+        assert handle.accepted
+        result = until(handle.get_result_async())
+        assert result.status == 4, result.status  # succeeded
+        trips.append((time.monotonic() - start) * 1e3)
+    handle = until(client.send_goal_async(
+        FollowJointTrajectory.Goal(trajectory=support_trajectory(10.0, 100.0))))
+    assert handle.accepted
+    result = handle.get_result_async()
+    end = time.monotonic() + 1.5
+    while time.monotonic() < end:
+        rclpy.spin_once(node, timeout_sec=0.01)
+    asked = time.monotonic()
+    handle.cancel_goal_async()
+    status = until(result).status
+    say(trips_ms=trips, cancel_ms=(time.monotonic() - asked) * 1e3, cancel_status=status)
+
+
+STARTED_NS = time.time_ns()
+
+
 def main():
     mode, args = sys.argv[1], sys.argv[2:]
     rclpy.init()
@@ -302,6 +420,12 @@ def main():
             listen(node, args[0])
         elif mode == "markers":
             markers(node, args[0])
+        elif mode == "send":
+            send(node, args[0])
+        elif mode == "count":
+            count(node)
+        elif mode == "goals":
+            goals(node, args[0])
         elif mode == "states":
             states(node, float(args[0]), float(args[1]), int(args[2]), args[3:] == ["latched"])
         else:
