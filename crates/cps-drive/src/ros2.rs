@@ -438,7 +438,10 @@ fn action_answer(mut json: Value, action: &str, o: &FollowOutcome) -> (Answer, u
     json["cancel_requested"] = json!(o.cancel_requested);
     json["dropped"] = json!(o.dropped.malformed + o.dropped.oversized + o.dropped.undecodable);
     json["succeeded"] = json!(o.succeeded());
-    let mut lines = vec![if !o.accepted {
+    json["lost"] = json!(o.lost);
+    let mut lines = vec![if let Some(lost) = &o.lost {
+        lost.clone()
+    } else if !o.accepted {
         format!("{action} refused the goal {}", o.goal_id)
     } else {
         format!(

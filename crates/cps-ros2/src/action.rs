@@ -54,7 +54,13 @@ pub struct ActionOutcome<R> {
     pub cancel_requested: bool,
     /// Samples dropped on the action's topics (malformed, oversized, undecodable).
     pub dropped: Counts,
+    /// Why the end of an accepted goal is not known, in a sentence: the server left while
+    /// it ran, or sent no result even after a cancel ([`GoalStatus::Unknown`] then).
+    pub lost: Option<String>,
 }
+
+/// How often a running goal's server is looked for on the graph.
+const SERVER_CHECK: Duration = Duration::from_millis(50);
 
 /// A client of one action of type `A`.
 pub struct ActionClient<A: Action> {
@@ -123,7 +129,10 @@ impl<A: Action> ActionClient<A> {
     /// Sends `goal` with `goal_id`, follows it to its end and returns what it came to;
     /// `on_feedback` sees each feedback message of this goal; when `cancel` turns true
     /// the goal is cancelled and its end still awaited (within `times.after_cancel`).
-    /// Errors: no server within `times.server`, no answer to the goal, no result.
+    /// Errors: no server within `times.server`, no answer to the goal. Once the goal is
+    /// accepted the answer is an outcome: a server that leaves while the goal runs (a
+    /// crash is noticed when its participant's lease runs out) or sends no result even
+    /// after a cancel ends it at once with [`ActionOutcome::lost`] saying so.
     pub fn follow(
         &mut self,
         goal: &A::Goal,
@@ -167,6 +176,7 @@ impl<A: Action> ActionClient<A> {
             feedback: 0,
             cancel_requested: false,
             dropped: Counts::default(),
+            lost: None,
         };
         let answer =
             self.send_goal
@@ -192,6 +202,7 @@ impl<A: Action> ActionClient<A> {
             w.raw(&goal_id.0);
         })?;
         let mut deadline = Instant::now() + times.result;
+        let mut server_checked = Instant::now();
         // A cancel is asked again each second until the server answers it (asking twice
         // is harmless; a request the server's reader had not matched yet is lost).
         let mut cancel_asked: Option<(Pending, Instant)> = None;
@@ -230,16 +241,30 @@ impl<A: Action> ActionClient<A> {
                 outcome.dropped = self.dropped();
                 return Ok(outcome);
             }
+            if server_checked.elapsed() >= SERVER_CHECK {
+                server_checked = Instant::now();
+                if !self.get_result.ready() {
+                    outcome.lost = Some(format!(
+                        "the action server {} left while goal {goal_id} ran ({} feedback message(s) had come); where the robot stopped is not known",
+                        self.name, outcome.feedback
+                    ));
+                    outcome.dropped = self.dropped();
+                    return Ok(outcome);
+                }
+            }
             let late = Instant::now() >= deadline;
             if (cancel.load(Ordering::Relaxed) || late) && !outcome.cancel_requested {
                 outcome.cancel_requested = true;
                 deadline = Instant::now() + times.after_cancel;
             } else if late {
-                return Err(Ros2Error::NoPeer(format!(
-                    "{} sent no result for goal {goal_id} (cancelled after {:.1} s without one; the controller may still be moving)",
+                outcome.lost = Some(format!(
+                    "{} sent no result for goal {goal_id} (cancelled after {:.1} s without one, and none came {:.1} s after that); the controller may still be moving",
                     self.name,
-                    times.result.as_secs_f64()
-                )));
+                    times.result.as_secs_f64(),
+                    times.after_cancel.as_secs_f64()
+                ));
+                outcome.dropped = self.dropped();
+                return Ok(outcome);
             }
             std::thread::sleep(Duration::from_millis(1));
         }
@@ -318,6 +343,8 @@ pub struct FollowOutcome {
     pub dropped: Counts,
     /// The request/reply mapping spoken with the controller.
     pub mapping: Mapping,
+    /// Why the end of an accepted goal is not known ([`ActionOutcome::lost`]).
+    pub lost: Option<String>,
 }
 
 impl FollowOutcome {
@@ -393,6 +420,7 @@ impl FollowJointTrajectoryClient {
             cancel_requested: o.cancel_requested,
             dropped: o.dropped,
             mapping: o.mapping,
+            lost: o.lost,
         })
     }
 }

@@ -389,7 +389,9 @@ impl Ros2Robot {
 
 /// A goal that did not succeed, in words.
 pub fn goal_sentence(outcome: &FollowOutcome) -> String {
-    if !outcome.accepted {
+    if let Some(lost) = &outcome.lost {
+        lost.clone()
+    } else if !outcome.accepted {
         "the controller refused the goal".into()
     } else {
         format!(
@@ -444,7 +446,7 @@ impl Robot for Ros2Robot {
         }
         let mut run = Run::new(if outcome.succeeded() {
             Ending::Finished
-        } else if stop.is_stopped() {
+        } else if stop.is_stopped() && outcome.lost.is_none() {
             Ending::Stopped
         } else {
             Ending::Failed(goal_sentence(outcome))

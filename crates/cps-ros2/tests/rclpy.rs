@@ -10,6 +10,8 @@ use std::time::{Duration, Instant};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use common::{Peer, control_msgs, inside_rclpy};
+use cps_kinematics::robots::{PandaTool, panda};
+use cps_robot::{RobotModel, StopToken};
 use cps_ros2::action::{ActionClient, FollowJointTrajectoryClient, FollowTimes};
 use cps_ros2::cdr::{CdrError, CdrReader, CdrWriter};
 use cps_ros2::msg::{
@@ -18,6 +20,7 @@ use cps_ros2::msg::{
 use cps_ros2::names::NodeName;
 use cps_ros2::node::{Node, Qos, Vendor};
 use cps_ros2::record::{RecordOptions, record_joint_states};
+use cps_ros2::robot::{Ros2Robot, Ros2Settings};
 use cps_ros2::service::{Mapping, MappingChoice, ServiceClient};
 use serde_json::Value;
 
@@ -485,13 +488,18 @@ fn follow_joint_trajectory_against_an_rclpy_server_on_fast_dds() {
     }
     let dir = common::temp("fjt").with_file_name("fjt-goals");
     std::fs::create_dir_all(&dir).unwrap();
-    let mut peer = Peer::rclpy(
+    // A participant lease of 2 s (Fast DDS's default is 20 s), so the server's crash at
+    // the end is noticed soon.
+    let profile = common::temp("fjt").with_file_name("short-lease.xml");
+    std::fs::write(&profile, SHORT_LEASE).unwrap();
+    let mut peer = Peer::rclpy_with(
         FAST_DDS,
         &[
             "fjt",
             "/arm_controller/follow_joint_trajectory",
             dir.to_str().unwrap(),
         ],
+        &[("FASTRTPS_DEFAULT_PROFILES_FILE", profile.to_str().unwrap())],
     );
     let node = cps_node();
     let mut client =
@@ -538,9 +546,9 @@ fn follow_joint_trajectory_against_an_rclpy_server_on_fast_dds() {
     assert!(!o.accepted);
     peer.line();
 
-    // Cancelled 0.5 s into a 10 s goal.
+    // Cancelled 0.5 s into a 10 s goal (1001 points: fragmented).
     let long = FollowJointTrajectoryGoal {
-        trajectory: support::trajectory(2.0, 100.0),
+        trajectory: support::trajectory(10.0, 100.0),
         ..Default::default()
     };
     let cancel = AtomicBool::new(false);
@@ -560,5 +568,90 @@ fn follow_joint_trajectory_against_an_rclpy_server_on_fast_dds() {
     peer.line();
     let end: Value = serde_json::from_str(&peer.line()).unwrap();
     assert_eq!(end["end"], "canceled");
-    peer.send("quit");
+
+    // The server crashes 1 s into a 30 s goal: the goal ends as lost as soon as the
+    // server's lease runs out (long before the goal's own end or the 55 s result
+    // deadline), with a sentence, and the joint states recorded until then are kept.
+    drop(client);
+    drop(node);
+    let model = RobotModel::of_chain("panda", panda(PandaTool::HandTcp));
+    let mut robot = Ros2Robot::open(
+        &Ros2Settings {
+            controller: "/arm_controller".into(),
+            joint_states: "/joint_states".into(),
+            domain: None,
+            service_mapping: Default::default(),
+            dt: 0.01,
+            goal_period: None,
+            wait: Duration::from_secs(20),
+            joint_names: None,
+            read_start: false,
+        },
+        model,
+    )
+    .unwrap();
+    let stop = StopToken::new();
+    let second_in = AtomicBool::new(false);
+    let last = std::thread::scope(|s| {
+        let follower = s.spawn(|| {
+            robot
+                .follow(support::trajectory(30.0, 100.0), &stop, |done| {
+                    if done >= 1.0 / 30.0 {
+                        second_in.store(true, Ordering::Relaxed);
+                    }
+                })
+                .map(|l| l.clone())
+        });
+        let said: Value = serde_json::from_str(&peer.line()).unwrap();
+        assert_eq!(said["points"], 3001);
+        let give_up = Instant::now() + Duration::from_secs(60);
+        while !second_in.load(Ordering::Relaxed) && Instant::now() < give_up {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        peer.kill();
+        follower.join().unwrap()
+    })
+    .unwrap();
+    let o = &last.outcome;
+    assert!(o.accepted && !o.succeeded(), "{o:?}");
+    assert_eq!(o.status, GoalStatus::Unknown);
+    let lost = o.lost.as_deref().expect("the goal is lost");
+    assert!(
+        lost.starts_with(
+            "the action server /arm_controller/follow_joint_trajectory left while goal"
+        ),
+        "{lost}"
+    );
+    assert_eq!(cps_ros2::robot::goal_sentence(o), lost);
+    assert!(o.feedback >= 50 && o.feedback < 3001, "{}", o.feedback);
+    let rec = last
+        .recording
+        .as_ref()
+        .expect("the joint states were recorded");
+    assert!(rec.positions.len() >= 50, "{} kept", rec.positions.len());
+    assert!(rec.positions.len() < 3001);
+    // What was recorded is the goal's start, point for point.
+    let sent = support::trajectory(10.0, 100.0);
+    assert_eq!(rec.positions[0], sent.points[0].positions);
+    println!(
+        "a server crash 1 s into a 30 s goal: {} feedback, {} joint states kept; {lost}",
+        o.feedback,
+        rec.positions.len()
+    );
 }
+
+/// A Fast DDS profile: participants announce a lease of 2 s, every 0.5 s.
+const SHORT_LEASE: &str = r#"<?xml version="1.0" encoding="UTF-8" ?>
+<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <participant profile_name="short_lease" is_default_profile="true">
+    <rtps>
+      <builtin>
+        <discovery_config>
+          <leaseDuration><sec>2</sec></leaseDuration>
+          <leaseAnnouncement><sec>0</sec><nanosec>500000000</nanosec></leaseAnnouncement>
+        </discovery_config>
+      </builtin>
+    </rtps>
+  </participant>
+</profiles>
+"#;

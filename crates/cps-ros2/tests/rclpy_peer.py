@@ -34,9 +34,10 @@ Modes (each prints `ready` once its node exists, then works as below):
                     `received_ns`, when it came (this machine's clock)
   fjt ACTION DIR    a control_msgs/action/FollowJointTrajectory server (control_msgs built
                     by tests/control_msgs/build) at ACTION that plays each goal in time:
-                    a feedback at each point (desired = actual = the point), then
-                    succeeded (error_code 0), or canceled when asked; a goal without joint
-                    names is rejected. Goal k's trajectory is written to DIR/goal-k.json
+                    a feedback at each point (desired = actual = the point) and a
+                    sensor_msgs/JointState of it on /joint_states (reliable, keep-last
+                    100), then succeeded (error_code 0), or canceled when asked; a goal
+                    without joint names is rejected. Goal k's trajectory is written to DIR/goal-k.json
                     (as `listen` prints one) and `{"goal": k, "points": n}` printed (a pipe
                     would hold a long goal's JSON and block the callback); each end is
                     printed as `{"end": status}`; runs until `quit` on stdin
@@ -239,6 +240,12 @@ def fjt(node, action, out_dir):
     from rclpy.action import ActionServer, CancelResponse, GoalResponse
     from rclpy.callback_groups import ReentrantCallbackGroup
 
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
+
+    states = node.create_publisher(
+        JointState, "/joint_states", QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+    )
     goals = []
 
     def on_goal(request):
@@ -268,6 +275,11 @@ def fjt(node, action, out_dir):
             f.desired = p
             f.actual = p
             handle.publish_feedback(f)
+            state = JointState()
+            state.header.stamp = f.header.stamp
+            state.name = list(t.joint_names)
+            state.position = list(p.positions)
+            states.publish(state)
         handle.succeed()
         say(end="succeeded")
         return FollowJointTrajectory.Result(error_code=0, error_string="")

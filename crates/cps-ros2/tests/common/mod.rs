@@ -164,10 +164,16 @@ impl Peer {
     /// `rmw_fastrtps_cpp`) and waits for its `ready`. With control_msgs built
     /// ([`control_msgs`]), its Python package and libraries are on the peer's paths.
     pub fn rclpy(rmw: &str, args: &[&str]) -> Peer {
+        Self::rclpy_with(rmw, args, &[])
+    }
+
+    /// [`Peer::rclpy`] with more environment variables (a Fast DDS profile file, say).
+    pub fn rclpy_with(rmw: &str, args: &[&str], env: &[(&str, &str)]) -> Peer {
         let python = rclpy_python().expect("inside a namespace rclpy's python exists");
         let mut c = Command::new(&python);
         c.arg(workspace().join("crates/cps-ros2/tests/rclpy_peer.py"))
             .args(args)
+            .envs(env.iter().copied())
             .env("RMW_IMPLEMENTATION", rmw)
             .env("ROS_DOMAIN_ID", "0")
             .env_remove("ROS_DISTRO");
@@ -227,6 +233,12 @@ impl Peer {
         let mut line = String::new();
         self.stdout.read_line(&mut line).expect("the peer's output");
         line.trim_end().to_string()
+    }
+
+    /// Ends the peer at once (SIGKILL: nothing of it says goodbye on the network).
+    pub fn kill(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
     }
 
     /// Waits (at most `timeout`) for the peer to exit by itself; its further output.
