@@ -600,7 +600,7 @@ fn follow_joint_trajectory_against_an_rclpy_server_on_fast_dds() {
                         second_in.store(true, Ordering::Relaxed);
                     }
                 })
-                .map(|l| l.clone())
+                .cloned()
         });
         let said: Value = serde_json::from_str(&peer.line()).unwrap();
         assert_eq!(said["points"], 3001);
