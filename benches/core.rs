@@ -64,6 +64,31 @@ fn kinematics(c: &mut Criterion) {
                 .unwrap()
         })
     });
+    // Forward dynamics (q̈ from τ) of the same arm with franky-sim's armature and friction,
+    // the frames included: the articulated-body algorithm, and the mass matrix by the
+    // composite-rigid-body algorithm with a Cholesky solve.
+    let model = cps::kinematics::ArmModel::<7>::new(&arm, &links)
+        .unwrap()
+        .with_armature([0.195, 0.195, 0.195, 0.195, 0.074, 0.074, 0.074])
+        .unwrap();
+    let friction = cps::kinematics::contact::JointFriction {
+        viscous: [0.21; 7],
+        coulomb: [1.137, 1.137, 1.137, 1.137, 0.763, 0.44, 0.248],
+        speed: 0.01,
+    };
+    let tau = [5.0, -3.0, 2.0, 1.0, 0.5, -0.2, 0.1];
+    c.bench_function("forward_dynamics/aba_panda", |b| {
+        b.iter(|| {
+            let f = model.frames(black_box(&q));
+            model.forward_dynamics(&f, &qd, &tau, Some(&friction))
+        })
+    });
+    c.bench_function("forward_dynamics/crba_cholesky_panda", |b| {
+        b.iter(|| {
+            let f = model.frames(black_box(&q));
+            model.forward_dynamics_crba(&f, &qd, &tau, Some(&friction))
+        })
+    });
     retiming(c);
     ik(c);
 }

@@ -26,10 +26,10 @@ use crate::{GRAVITY, KinematicsError, LinkInertia, SerialChain};
 
 /// One link's inertia in its joint's rotating frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Body {
-    mass: f64,
-    com: Vector3<f64>,
-    inertia: Matrix3<f64>,
+pub(crate) struct Body {
+    pub(crate) mass: f64,
+    pub(crate) com: Vector3<f64>,
+    pub(crate) inertia: Matrix3<f64>,
 }
 
 /// The rigid-body model of an `N`-joint serial arm: built once, evaluated per tick through
@@ -42,10 +42,10 @@ pub struct ArmModel<const N: usize> {
     origins: [Isometry3<f64>; N],
     /// The tool in the last joint's rotating frame.
     tail: Isometry3<f64>,
-    bodies: [Body; N],
-    gravity: Vector3<f64>,
+    pub(crate) bodies: [Body; N],
+    pub(crate) gravity: Vector3<f64>,
     /// Rotor inertia reflected to each joint (kg m²), added to the mass matrix's diagonal.
-    armature: [f64; N],
+    pub(crate) armature: [f64; N],
 }
 
 /// Every joint axis and link of an [`ArmModel`] placed in the world at one configuration.
@@ -54,13 +54,13 @@ pub struct ArmFrames<const N: usize> {
     /// The joint positions these frames are for.
     pub q: [f64; N],
     /// A point on each joint's axis (the joint frame's origin).
-    point: [Vector3<f64>; N],
+    pub(crate) point: [Vector3<f64>; N],
     /// Each joint's axis (unit).
-    axis: [Vector3<f64>; N],
+    pub(crate) axis: [Vector3<f64>; N],
     /// Each link's centre of mass.
-    com: [Vector3<f64>; N],
+    pub(crate) com: [Vector3<f64>; N],
     /// Each link's inertia about its centre of mass, in world axes.
-    inertia: [Matrix3<f64>; N],
+    pub(crate) inertia: [Matrix3<f64>; N],
     /// The tool's pose.
     pub tool: Isometry3<f64>,
 }

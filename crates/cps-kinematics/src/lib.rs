@@ -17,7 +17,9 @@
 //! - Robots themselves — the execution contract, the in-process stand-in and executing a
 //!   trajectory on a robot — are `cps-robot`'s, built on this crate.
 //! - [`ArmModel`]: an arm's mass matrix, Coriolis and gravity torques and tool Jacobian in
-//!   fixed-size arrays, for control loops at the robot's rate.
+//!   fixed-size arrays, for control loops at the robot's rate, and its forward dynamics
+//!   ([`ArmModel::forward_dynamics`], the articulated-body algorithm, with rotor inertia and
+//!   joint friction) for simulating one.
 //! - [`contact`]: the generalized-momentum observer, the external wrench at the tool and a
 //!   contact flag.
 //! - [`transforms`]: elementary homogeneous transforms (spatial and planar) and the two
@@ -52,6 +54,7 @@ pub mod controllers;
 mod dynamics;
 mod error;
 mod fastmath;
+mod forward;
 mod ik;
 mod limits;
 pub mod retime;
