@@ -45,6 +45,11 @@ LAYERS = {
         ["retime", "robots", "workspace"],
         ["arm_model"],
         ["contact"],
+        ["forward"],
+    ],
+    "cps-dynamics": [
+        ["arm", "controller"],
+        ["robot"],
     ],
     "cps-robot": [
         ["model", "plan", "stop"],

@@ -89,8 +89,65 @@ fn kinematics(c: &mut Criterion) {
             model.forward_dynamics_crba(&f, &qd, &tau, Some(&friction))
         })
     });
+    dynamics_robot(c);
     retiming(c);
     ik(c);
+}
+
+/// A 10 s movement of every joint run on the dynamics robot (the Panda with franky-sim's
+/// rotor inertia and friction, franky-sim's PD, 1 kHz): 10 000 control periods, each the
+/// controller's Coriolis and gravity torques and one forward-dynamics step. Ten simulated
+/// seconds over the time measured is the real-time factor (BENCHMARKS.md › Dynamics).
+fn dynamics_robot(c: &mut Criterion) {
+    use cps::dynamics::{Arm, Controller, DynamicsRobot, DynamicsSettings, Integrator};
+    use cps::kinematics::robots::{PandaTool, panda, panda_inertia};
+    use cps::robot::{Plan, Robot, RobotModel, StopToken};
+    let chain = panda(PandaTool::HandTcp);
+    let model = cps::kinematics::ArmModel::<7>::new(&chain, &panda_inertia())
+        .unwrap()
+        .with_armature([0.195, 0.195, 0.195, 0.195, 0.074, 0.074, 0.074])
+        .unwrap();
+    let friction = cps::kinematics::contact::JointFriction {
+        viscous: [0.21; 7],
+        coulomb: [1.137, 1.137, 1.137, 1.137, 0.763, 0.44, 0.248],
+        speed: 0.01,
+    };
+    let start = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    let points = (0..=1000)
+        .map(|k| {
+            let s = (std::f64::consts::PI * k as f64 / 1000.0).sin().powi(2);
+            start.iter().map(|q| q + 0.3 * s).collect()
+        })
+        .collect();
+    let plan = Plan::new(0.01, points).unwrap();
+    for integrator in [Integrator::SemiImplicitEuler, Integrator::Rk4] {
+        let mut arm = Arm::at_rest(
+            model.clone(),
+            friction,
+            [87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0],
+            start,
+        );
+        arm.integrator = integrator;
+        let mut robot = DynamicsRobot::new(
+            RobotModel::of_chain("panda", chain.clone()),
+            arm,
+            DynamicsSettings {
+                controller: Controller::franky_sim(),
+                control_period: 0.001,
+                dt: 0.01,
+                noise: 0.0,
+                seed: 0,
+            },
+        )
+        .unwrap();
+        let stop = StopToken::new();
+        c.bench_function(&format!("dynamics/run_10s_pd_{}", integrator.name()), |b| {
+            b.iter(|| {
+                robot.teleport(&start).unwrap();
+                robot.run(black_box(&plan), &stop).unwrap()
+            })
+        });
+    }
 }
 
 /// A smooth random 7-joint path of 1000 samples inside the Panda's range (the path of

@@ -13,6 +13,9 @@
 //! - [`robot`] (`cps-robot`): the execution contract every robot implements (a plan run
 //!   from where the robot stands, limits checked by one guard, a stop token) and the
 //!   in-process robot.
+//! - [`dynamics`] (`cps-dynamics`): a robot arm with dynamics as a robot: forward dynamics
+//!   integrated at 1 kHz under a joint-level controller (franky-sim's PD, computed torque,
+//!   joint impedance).
 //! - [`coppelia`] (`cps-coppelia`): CoppeliaSim's ZMQ remote API (client, stand-in
 //!   server, the scene as a robot).
 //! - [`franka`] (`cps-franka`): the Franka Control Interface (protocol 10): a robot
@@ -56,6 +59,7 @@ pub use cps_cmaes as cmaes;
 pub use cps_coppelia as coppelia;
 pub use cps_dmp as dmp;
 pub use cps_drive as drive;
+pub use cps_dynamics as dynamics;
 pub use cps_experiment as experiment;
 pub use cps_franka as franka;
 pub use cps_kinematics as kinematics;

@@ -138,6 +138,15 @@ impl<const N: usize> ArmModel<N> {
         ddq
     }
 
+    /// The links' potential energy in the model's gravity (J, zero with every centre of
+    /// mass at the world origin): with the kinetic energy `½ q̇ᵀ M q̇`, what an arm without
+    /// friction or torque keeps.
+    pub fn potential_energy(&self, f: &ArmFrames<N>) -> f64 {
+        (0..N)
+            .map(|i| -self.bodies[i].mass * self.gravity.dot(&f.com[i]))
+            .sum()
+    }
+
     /// `M(q)` by the composite-rigid-body algorithm, the armature on its diagonal: equal
     /// to [`ArmModel::mass_matrix`] to rounding, at a fraction of its cost.
     pub fn mass_matrix_crba(&self, f: &ArmFrames<N>) -> SMatrix<f64, N, N> {

@@ -37,6 +37,40 @@ pub struct Plan {
     rests: Vec<usize>,
 }
 
+/// A plan's motion sampled at a constant period ([`Plan::motion`]): positions, velocities
+/// and accelerations, row-major (sample `i`, joint `j` at `i·dof + j`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SampledMotion {
+    /// Joints.
+    pub dof: usize,
+    /// The period between samples (s).
+    pub period: f64,
+    /// Positions (rad).
+    pub q: Vec<f64>,
+    /// Velocities (rad/s; zero where the motion holds and at its ends).
+    pub dq: Vec<f64>,
+    /// Accelerations (rad/s²).
+    pub ddq: Vec<f64>,
+}
+
+impl SampledMotion {
+    /// Samples.
+    pub fn len(&self) -> usize {
+        self.q.len() / self.dof.max(1)
+    }
+
+    /// Whether there is no sample (never, for a plan's motion).
+    pub fn is_empty(&self) -> bool {
+        self.q.is_empty()
+    }
+
+    /// Sample `i`'s positions, velocities and accelerations.
+    pub fn at(&self, i: usize) -> (&[f64], &[f64], &[f64]) {
+        let r = i * self.dof..(i + 1) * self.dof;
+        (&self.q[r.clone()], &self.dq[r.clone()], &self.ddq[r])
+    }
+}
+
 impl Plan {
     /// A plan of `points` (one row of joint positions each, radians) every `dt` seconds; the
     /// first is where the robot must stand at the start.
@@ -266,6 +300,49 @@ impl Plan {
         out
     }
 
+    /// The motion's positions, velocities and accelerations every `period` seconds from 0
+    /// to the end, the last sample exactly at the end (as [`Plan::samples`]): what a robot
+    /// that takes positions and their derivatives each control period is fed, computed
+    /// once before it moves.
+    pub fn motion(&self, period: f64) -> SampledMotion {
+        let n = self.dof();
+        let span = self.duration();
+        let count = if span == 0.0 {
+            1
+        } else {
+            (span / period - 1e-9).ceil().max(1.0) as usize + 1
+        };
+        let mut out = SampledMotion {
+            dof: n,
+            period,
+            q: Vec::with_capacity(count * n),
+            dq: vec![0.0; count * n],
+            ddq: vec![0.0; count * n],
+        };
+        out.q = self.samples(period).concat();
+        let parts = self.parts();
+        let splines: Vec<Option<JointSpline>> = parts.iter().map(|p| self.part_motion(p)).collect();
+        let mut part = 0;
+        let mut point = PathPoint {
+            q: vec![0.0; n],
+            d1: vec![0.0; n],
+            d2: vec![0.0; n],
+            d3: vec![0.0; n],
+        };
+        for i in 0..count.saturating_sub(1) {
+            let t = i as f64 * period;
+            while part + 1 < parts.len() && t > self.time(parts[part].end - 1) {
+                part += 1;
+            }
+            if let Some(s) = &splines[part] {
+                s.point_into(t, &mut point);
+                out.dq[i * n..(i + 1) * n].copy_from_slice(&point.d1);
+                out.ddq[i * n..(i + 1) * n].copy_from_slice(&point.d2);
+            }
+        }
+        out
+    }
+
     /// The same path `factor` (≥ 1) times slower: the same points, each `factor` times
     /// later, so velocities shrink by the factor, accelerations by its square and jerks by
     /// its cube.
@@ -452,6 +529,31 @@ mod tests {
                 assert!((x - f(k as f64 * 0.002, j)).abs() < 1e-4);
             }
         }
+    }
+
+    #[test]
+    fn the_sampled_motion_carries_the_spline_s_derivatives() {
+        // The cosine's velocity and acceleration, which the spline through its points
+        // follows.
+        let w = std::f64::consts::PI / 0.1;
+        let plan = cosine(0.01, 10);
+        let m = plan.motion(CHECK_PERIOD);
+        assert_eq!(m.len(), 101);
+        assert_eq!(m.q, plan.samples(CHECK_PERIOD).concat());
+        for i in 1..100 {
+            let t = i as f64 * 1e-3;
+            let (_, dq, ddq) = m.at(i);
+            for j in 0..7 {
+                let a = 0.05 * (j + 1) as f64;
+                assert!(
+                    (dq[j] - a * w * (w * t).sin()).abs() < 0.02 * a * w,
+                    "dq {i} {j}"
+                );
+                assert!((ddq[j] - a * w * w * (w * t).cos()).abs() < 0.1 * a * w * w);
+            }
+        }
+        // From rest to rest.
+        assert!(m.at(0).1.iter().chain(m.at(100).1).all(|v| v.abs() < 1e-9));
     }
 
     #[test]

@@ -1,0 +1,405 @@
+//! [`DynamicsRobot`]: the simulated arm as a cps robot. Every control period (1 ms by
+//! default) its controller reads the joints (with seeded noise if asked), computes its
+//! torques, the drives clip them, gravity is cancelled, and the arm is integrated one
+//! step. It runs plans ([`Robot::run`]: the plan's motion sampled at the control period is
+//! the controller's target), steps ([`Stepped`]: the commanded positions interpolated over
+//! each step) and streams ([`Streaming`]).
+
+use cps_robot::{
+    Ending, Generator, Plan, Robot, RobotError, RobotModel, Run, Stepped, StopToken, Streaming,
+};
+use nalgebra::{Isometry3, IsometryMatrix3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+use crate::arm::Arm;
+use crate::controller::{Controller, Desired};
+
+/// How a [`DynamicsRobot`] runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DynamicsSettings<const N: usize> {
+    /// The joint-level controller.
+    pub controller: Controller<N>,
+    /// The control and integration period (s): 0.001, a Franka's.
+    pub control_period: f64,
+    /// The period plans are made at (s).
+    pub dt: f64,
+    /// Measurement noise: the standard deviation of what each joint reads (rad, 0: none).
+    pub noise: f64,
+    /// The noise's seed: every run draws the same noise from it, so a plan's result does
+    /// not depend on which robot of a pool ran it or what ran before.
+    pub seed: u64,
+}
+
+/// How long a stop may take to bring the arm to rest before the run ends anyway (s).
+const BRAKE_WITHIN: f64 = 2.0;
+/// The speed below which a braking arm counts as at rest (rad/s).
+const AT_REST: f64 = 1e-3;
+
+/// A robot arm with dynamics, driven by its joint-level controller.
+#[derive(Debug, Clone)]
+pub struct DynamicsRobot<const N: usize> {
+    model: RobotModel,
+    arm: Arm<N>,
+    settings: DynamicsSettings<N>,
+    rng: ChaCha8Rng,
+    noise: Option<Normal<f64>>,
+    time: f64,
+    /// The stepped interface's last two commands.
+    command: [f64; N],
+    previous: [f64; N],
+    /// Control periods simulated, and those where a drive's torque was clipped.
+    ticks: u64,
+    clipped: u64,
+}
+
+fn pose(p: &Isometry3<f64>) -> IsometryMatrix3<f64> {
+    IsometryMatrix3::from_parts(p.translation, p.rotation.to_rotation_matrix())
+}
+
+impl<const N: usize> DynamicsRobot<N> {
+    /// The robot `model` (kinematics, names, limits) simulated as `arm` under `settings`.
+    /// Errors: a model of another joint count, periods that are not finite and positive, a
+    /// plan period that is not a whole number of control periods, noise that is negative
+    /// or not finite.
+    pub fn new(
+        model: RobotModel,
+        arm: Arm<N>,
+        settings: DynamicsSettings<N>,
+    ) -> Result<Self, RobotError> {
+        let bad = |m: String| RobotError::Robot {
+            robot: "the dynamics robot".into(),
+            message: m,
+        };
+        if model.chain.dof() != N {
+            return Err(bad(format!(
+                "the model {} has {} joints, the dynamics {N}",
+                model.name,
+                model.chain.dof()
+            )));
+        }
+        let (period, dt) = (settings.control_period, settings.dt);
+        if !(period.is_finite() && period > 0.0 && dt.is_finite() && dt > 0.0) {
+            return Err(bad(format!(
+                "the control period ({period} s) and the plans' period ({dt} s) must be finite and > 0"
+            )));
+        }
+        let ratio = dt / period;
+        if (ratio - ratio.round()).abs() > 1e-9 || ratio.round() < 1.0 {
+            return Err(bad(format!(
+                "the plans' period {dt} s must be a whole number of control periods ({period} s)"
+            )));
+        }
+        if !(settings.noise.is_finite() && settings.noise >= 0.0) {
+            return Err(bad(format!(
+                "measurement noise {} rad must be finite and ≥ 0",
+                settings.noise
+            )));
+        }
+        let noise = (settings.noise > 0.0)
+            .then(|| Normal::new(0.0, settings.noise).expect("a finite positive deviation"));
+        let q = arm.q;
+        Ok(DynamicsRobot {
+            model,
+            arm,
+            settings,
+            rng: ChaCha8Rng::seed_from_u64(settings.seed),
+            noise,
+            time: 0.0,
+            command: q,
+            previous: q,
+            ticks: 0,
+            clipped: 0,
+        })
+    }
+
+    /// The simulated arm (its true state).
+    pub fn arm(&self) -> &Arm<N> {
+        &self.arm
+    }
+
+    /// What the joints read now: the true positions, plus noise when asked for.
+    fn measured(&mut self) -> [f64; N] {
+        let mut q = self.arm.q;
+        if let Some(n) = &self.noise {
+            for x in &mut q {
+                *x += n.sample(&mut self.rng);
+            }
+        }
+        q
+    }
+
+    /// One control period towards `desired`.
+    fn tick(&mut self, desired: Desired<'_>) {
+        let measured = self.measured();
+        let seen = self.arm.model.frames(&measured);
+        let command =
+            self.settings
+                .controller
+                .torques(&self.arm.model, &seen, &self.arm.dq, desired);
+        let limited = self.arm.clip(&command);
+        let truth = if self.noise.is_some() {
+            self.arm.model.frames(&self.arm.q)
+        } else {
+            seen
+        };
+        // The robot cancels gravity itself (with its model, at what it measures).
+        let gravity = self.arm.model.gravity(&seen);
+        let total: [f64; N] = std::array::from_fn(|i| limited[i] + gravity[i]);
+        let applied = self.arm.clip(&total);
+        if applied != total || limited != command {
+            self.clipped += 1;
+        }
+        self.arm
+            .step(&truth, &applied, self.settings.control_period);
+        self.time += self.settings.control_period;
+        self.ticks += 1;
+    }
+
+    fn entry(&self) -> (Vec<f64>, IsometryMatrix3<f64>) {
+        let f = self.arm.model.frames(&self.arm.q);
+        (self.arm.q.to_vec(), pose(&f.tool))
+    }
+
+    /// Holds where the arm is when a stop comes until it is at rest (at most
+    /// [`BRAKE_WITHIN`]).
+    fn brake(&mut self) {
+        let hold = self.arm.q;
+        let zero = [0.0; N];
+        let mut t = 0.0;
+        while t < BRAKE_WITHIN && self.arm.dq.iter().any(|v| v.abs() > AT_REST) {
+            self.tick(Desired {
+                q: &hold,
+                dq: &zero,
+                ddq: &zero,
+            });
+            t += self.settings.control_period;
+        }
+        self.command = self.arm.q;
+        self.previous = self.arm.q;
+    }
+
+    fn ticks_per_step(&self) -> usize {
+        (self.settings.dt / self.settings.control_period).round() as usize
+    }
+}
+
+impl<const N: usize> Robot for DynamicsRobot<N> {
+    fn name(&self) -> String {
+        format!("the dynamics robot ({})", self.settings.controller.name())
+    }
+
+    fn model(&self) -> &RobotModel {
+        &self.model
+    }
+
+    fn dt(&self) -> f64 {
+        self.settings.dt
+    }
+
+    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
+        Ok(self.arm.q.to_vec())
+    }
+
+    /// Its control period: it follows the plan's motion sampled at it.
+    fn command_period(&self) -> f64 {
+        self.settings.control_period
+    }
+
+    fn run(&mut self, plan: &Plan, stop: &StopToken) -> Result<Run, RobotError> {
+        plan.check_dof(N)?;
+        self.rng = ChaCha8Rng::seed_from_u64(self.settings.seed);
+        let motion = plan.motion(self.settings.control_period);
+        let per_point = plan.dt() / self.settings.control_period;
+        let mut run = Run::new(Ending::Finished);
+        let points = plan.points().len();
+        let mut next = 0;
+        for i in 0..motion.len() {
+            let t = i as f64 * self.settings.control_period;
+            while next < points && ((next as f64 * per_point).round() as usize) <= i {
+                let (q, tool) = self.entry();
+                run.push(plan.time(next), q, tool);
+                next += 1;
+            }
+            if i + 1 == motion.len() {
+                break;
+            }
+            if stop.is_stopped() {
+                self.brake();
+                let (q, tool) = self.entry();
+                run.push(t, q, tool);
+                run.ending = Ending::Stopped;
+                return Ok(run);
+            }
+            let (q, dq, ddq) = motion.at(i);
+            self.tick(Desired { q, dq, ddq });
+        }
+        // The points the last control period reached (a plan shorter than one period).
+        while next < points {
+            let (q, tool) = self.entry();
+            run.push(plan.time(next), q, tool);
+            next += 1;
+        }
+        self.command = self.arm.q;
+        self.previous = self.arm.q;
+        Ok(run)
+    }
+
+    fn teleport(&mut self, q: &[f64]) -> Result<bool, RobotError> {
+        let q: [f64; N] = q.try_into().map_err(|_| RobotError::Robot {
+            robot: self.name(),
+            message: format!("{} joint positions given, the arm has {N}", q.len()),
+        })?;
+        self.arm.q = q;
+        self.arm.dq = [0.0; N];
+        self.command = q;
+        self.previous = q;
+        self.time = 0.0;
+        Ok(true)
+    }
+
+    fn report(&self) -> Option<String> {
+        (self.ticks > 0).then(|| {
+            format!(
+                "{} control periods simulated ({}), a drive's torque clipped in {}",
+                self.ticks,
+                self.settings.controller.name(),
+                self.clipped
+            )
+        })
+    }
+
+    fn stepped(&mut self) -> Option<&mut dyn Stepped> {
+        Some(self)
+    }
+
+    fn streaming(&mut self) -> Option<&mut dyn Streaming> {
+        Some(self)
+    }
+}
+
+impl<const N: usize> Stepped for DynamicsRobot<N> {
+    fn dof(&self) -> usize {
+        N
+    }
+
+    fn time_step(&self) -> f64 {
+        self.settings.dt
+    }
+
+    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
+        Ok(self.arm.q.to_vec())
+    }
+
+    fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, RobotError> {
+        Ok(self.entry().1)
+    }
+
+    fn time(&mut self) -> Result<f64, RobotError> {
+        Ok(self.time)
+    }
+
+    fn command_joint_positions(&mut self, q: &[f64]) -> Result<(), RobotError> {
+        self.command = q.try_into().map_err(|_| RobotError::Robot {
+            robot: self.name(),
+            message: format!("{} joint positions commanded, the arm has {N}", q.len()),
+        })?;
+        Ok(())
+    }
+
+    fn command_joint_velocities(&mut self, dq: &[f64]) -> Result<(), RobotError> {
+        let dq: [f64; N] = dq.try_into().map_err(|_| RobotError::Robot {
+            robot: self.name(),
+            message: format!("{} joint velocities commanded, the arm has {N}", dq.len()),
+        })?;
+        let dt = self.settings.dt;
+        self.command = std::array::from_fn(|i| self.previous[i] + dt * dq[i]);
+        Ok(())
+    }
+
+    /// One step of the plans' period: the command reached from the last one along a
+    /// straight line, one control period at a time.
+    fn step(&mut self) -> Result<(), RobotError> {
+        let ticks = self.ticks_per_step();
+        let (from, to) = (self.previous, self.command);
+        let velocity: [f64; N] = std::array::from_fn(|i| (to[i] - from[i]) / self.settings.dt);
+        let zero = [0.0; N];
+        for k in 1..=ticks {
+            let s = k as f64 / ticks as f64;
+            let q: [f64; N] = std::array::from_fn(|i| from[i] + s * (to[i] - from[i]));
+            self.tick(Desired {
+                q: &q,
+                dq: &velocity,
+                ddq: &zero,
+            });
+        }
+        self.previous = to;
+        Ok(())
+    }
+}
+
+impl<const N: usize> Streaming for DynamicsRobot<N> {
+    fn command_period(&self) -> f64 {
+        self.settings.control_period
+    }
+
+    fn stream(
+        &mut self,
+        next: &mut Generator<'_>,
+        max_commands: usize,
+        stop: &StopToken,
+    ) -> Result<Run, RobotError> {
+        self.rng = ChaCha8Rng::seed_from_u64(self.settings.seed);
+        let mut run = Run::new(Ending::Finished);
+        let (q, tool) = self.entry();
+        run.push(0.0, q, tool);
+        let period = self.settings.control_period;
+        let mut command = self.arm.q.to_vec();
+        let mut previous = self.arm.q;
+        let zero = [0.0; N];
+        for k in 0.. {
+            if stop.is_stopped() {
+                self.brake();
+                let (q, tool) = self.entry();
+                run.push(k as f64 * period, q, tool);
+                run.ending = Ending::Stopped;
+                break;
+            }
+            if k == max_commands {
+                self.brake();
+                run.ending =
+                    Ending::Failed(format!("{max_commands} commands were not enough to finish"));
+                break;
+            }
+            let measured = self.measured();
+            let last = next(&measured, k as f64 * period, &mut command);
+            let target: [f64; N] =
+                command
+                    .as_slice()
+                    .try_into()
+                    .map_err(|_| RobotError::Robot {
+                        robot: self.name(),
+                        message: format!(
+                            "{} joint positions commanded, the arm has {N}",
+                            command.len()
+                        ),
+                    })?;
+            let velocity: [f64; N] = std::array::from_fn(|i| (target[i] - previous[i]) / period);
+            self.tick(Desired {
+                q: &target,
+                dq: &velocity,
+                ddq: &zero,
+            });
+            previous = target;
+            let (q, tool) = self.entry();
+            run.push((k + 1) as f64 * period, q, tool);
+            if last {
+                break;
+            }
+        }
+        self.command = self.arm.q;
+        self.previous = self.arm.q;
+        Ok(run)
+    }
+}
