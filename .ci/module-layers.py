@@ -50,6 +50,7 @@ LAYERS = {
     "cps-dynamics": [
         ["arm", "controller"],
         ["robot"],
+        ["options"],
     ],
     "cps-robot": [
         ["model", "plan", "stop"],

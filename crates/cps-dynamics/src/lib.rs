@@ -15,6 +15,8 @@
 //!   default, or RK4).
 //! - [`controller`]: the joint-level controllers.
 //! - [`robot`]: the robot, [`DynamicsRobot`].
+//! - [`options`]: a dynamics robot from a robot model and words ([`open`]), as an
+//!   experiment's `[robot] backend = "dynamics"` builds one.
 //!
 //! # Example
 //! ```
@@ -53,8 +55,10 @@
 
 pub mod arm;
 pub mod controller;
+pub mod options;
 pub mod robot;
 
 pub use arm::{Arm, Integrator};
 pub use controller::{CONTROLLERS, Controller, Desired, FRANKY_SIM_KP};
+pub use options::{Drive, DynamicsOptions, default_gains, open};
 pub use robot::{DynamicsRobot, DynamicsSettings};

@@ -132,6 +132,7 @@ pub fn estimate(exp: &Experiment) -> Estimate {
                 multiplier = p.demonstrations as f64;
                 let robot_samples = exp.robot.as_ref().map_or(samples, |rb| match rb.backend {
                     crate::robots::BackendChoice::Kinematic { dt } => dmp.tau / dt + 1.0,
+                    crate::robots::BackendChoice::Dynamics(ref o) => dmp.tau / o.dt + 1.0,
                     _ => samples,
                 });
                 let dof = exp.robot.as_ref().map_or(7, |rb| rb.setup.chain.dof()) as f64;

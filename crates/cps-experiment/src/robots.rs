@@ -1,7 +1,7 @@
 //! Opening an experiment's robot: the [`RobotChoice`] read from `[robot]`
 //! ([`crate::sections::robot`]) opened behind the guard of cps's execution contract
-//! (`cps-robot`) — the in-process robot, CoppeliaSim, a Franka or a ROS 2 controller, one
-//! or a pool. Adding a backend is one [`BackendChoice`] variant with its keys (in
+//! (`cps-robot`) — the in-process robot, the robot with dynamics, CoppeliaSim, a Franka
+//! or a ROS 2 controller, one or a pool. Adding a backend is one [`BackendChoice`] variant with its keys (in
 //! `sections/robot.rs`) and its opening in [`RobotChoice::open`] here; the kinds need no
 //! change.
 
@@ -25,6 +25,19 @@ impl RobotChoice {
             BackendChoice::Ros2(s) => format!(
                 "ros2 ({}/follow_joint_trajectory, joint states from {}, planned every {} s)",
                 s.controller, s.joint_states, s.dt
+            ),
+            BackendChoice::Dynamics(o) => format!(
+                "dynamics (in-process, {} controller, {} drive, {} at {} s, planned every {} s{})",
+                o.controller,
+                o.drive.name(),
+                o.integrator.name(),
+                o.control_period,
+                o.dt,
+                if o.noise > 0.0 {
+                    format!(", noise {} rad, seed {}", o.noise, o.seed)
+                } else {
+                    String::new()
+                }
             ),
             BackendChoice::Coppelia {
                 endpoint,
@@ -78,6 +91,13 @@ impl RobotChoice {
                         .context_with(|| "cannot start the in-process robot".into())?;
                 Ok(guarded(Box::new(robot)))
             }
+            BackendChoice::Dynamics(o) => {
+                let robot = cps_dynamics::open(self.placed_model(), &self.setup.initial_q, o)
+                    .map_err(|e| {
+                        ExperimentError::Message(format!("backend = \"dynamics\": {e}"))
+                    })?;
+                Ok(guarded(robot))
+            }
             BackendChoice::Coppelia { endpoint, .. } => self.open_at(endpoint),
             BackendChoice::Franka { host, .. } => self.open_at(host),
             BackendChoice::Ros2(s) => self.open_at(&s.controller),
@@ -93,7 +113,7 @@ impl RobotChoice {
         in_process: usize,
     ) -> Result<Vec<crate::sim_pool::NamedBackend>, ExperimentError> {
         let pool = match &self.backend {
-            BackendChoice::Kinematic { .. } => {
+            BackendChoice::Kinematic { .. } | BackendChoice::Dynamics(_) => {
                 return self
                     .backend
                     .pool_names(in_process)
@@ -127,7 +147,7 @@ impl RobotChoice {
     fn open_at(&self, endpoint: &str) -> Result<Box<dyn Robot>, ExperimentError> {
         let setup = &self.setup;
         match &self.backend {
-            BackendChoice::Kinematic { .. } => self.open(),
+            BackendChoice::Kinematic { .. } | BackendChoice::Dynamics(_) => self.open(),
             BackendChoice::Ros2(settings) => {
                 let robot = Ros2Robot::open(settings, self.placed_model())
                     .map_err(|e| ExperimentError::Message(format!("backend = \"ros2\": {e}")))?;

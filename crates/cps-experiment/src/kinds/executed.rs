@@ -403,6 +403,7 @@ fn lines(ctx: &Ctx<'_>, s: &Summary<'_>, failure: Option<&str>) -> Vec<String> {
             match ctx.exp.robot.as_ref().map(|r| &r.backend) {
                 Some(crate::robots::BackendChoice::Kinematic { .. }) => "in-process robot(s)",
                 Some(crate::robots::BackendChoice::Franka { .. }) => "robot(s)",
+                Some(crate::robots::BackendChoice::Dynamics(_)) => "dynamics robot(s)",
                 _ => "simulator(s)",
             }
         ),

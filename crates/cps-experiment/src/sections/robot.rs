@@ -44,8 +44,23 @@ pub struct RobotSection {
     arm: Option<Spanned<String>>,
     /// `backend = "franka"`: `enforce` (default) or `ignore`.
     realtime: Option<Spanned<String>>,
-    /// `backend = "ros2"`: the joint_trajectory_controller (`/panda_arm_controller`).
+    /// `backend = "ros2"`: the joint_trajectory_controller (`/panda_arm_controller`);
+    /// `backend = "dynamics"`: the joint-level controller (`joint_pd`, `computed_torque`,
+    /// `joint_impedance`).
     controller: Option<Spanned<String>>,
+    /// `backend = "dynamics"`: the controller's first gains, one per joint (kp, or the
+    /// impedance's stiffness).
+    kp: Option<Spanned<Vec<f64>>>,
+    /// `backend = "dynamics"`: its second gains (kv, or the impedance's damping).
+    kv: Option<Spanned<Vec<f64>>>,
+    /// `backend = "dynamics"`: the joints' drive (`franky-sim`, `rigid`).
+    drive: Option<Spanned<String>>,
+    /// `backend = "dynamics"`: `euler` (default) or `rk4`.
+    integrator: Option<Spanned<String>>,
+    /// `backend = "dynamics"`: measurement noise, rad (default 0).
+    noise: Option<Spanned<f64>>,
+    /// `backend = "dynamics"`: the noise's seed (default 0).
+    seed: Option<Spanned<u64>>,
     /// `backend = "ros2"`: the JointState topic (default `/joint_states`).
     joint_states: Option<Spanned<String>>,
     /// `backend = "ros2"`: the DDS domain (default: `ROS_DOMAIN_ID`, else 0).
@@ -73,6 +88,7 @@ enum BackendKind {
     Coppelia,
     Franka,
     Ros2,
+    Dynamics,
 }
 
 /// Where trajectories are executed.
@@ -116,6 +132,9 @@ pub enum BackendChoice {
     /// A ROS 2 robot through ros2_control's joint_trajectory_controller
     /// (`[robot] backend = "ros2"`).
     Ros2(Ros2Settings),
+    /// The scene's robot with dynamics, in process (`[robot] backend = "dynamics"`): one
+    /// per worker thread.
+    Dynamics(cps_dynamics::DynamicsOptions),
 }
 
 impl BackendChoice {
@@ -125,6 +144,9 @@ impl BackendChoice {
         match self {
             BackendChoice::Kinematic { .. } => (1..=in_process.max(1))
                 .map(|i| format!("in-process robot {i}"))
+                .collect(),
+            BackendChoice::Dynamics(_) => (1..=in_process.max(1))
+                .map(|i| format!("dynamics robot {i}"))
                 .collect(),
             BackendChoice::Coppelia { pool, .. } | BackendChoice::Franka { pool, .. } => {
                 pool.clone()
@@ -283,6 +305,7 @@ impl Sections<'_> {
         let backend = match kind {
             BackendKind::Franka => self.franka_choice(section, &scene.robot.name, default_dt)?,
             BackendKind::Ros2 => self.ros2_choice(section, default_dt)?,
+            BackendKind::Dynamics => self.dynamics_choice(section, &scene.robot, default_dt)?,
             BackendKind::Kinematic => {
                 if let Some(e) = section.and_then(|r| r.endpoint.as_ref()) {
                     return Err(self.err(
@@ -398,8 +421,23 @@ impl Sections<'_> {
             ("timeout", r.timeout.as_ref().map(Spanned::span)),
             ("control", r.control.as_ref().map(Spanned::span)),
         ];
+        let dynamics_only = [
+            ("kp", r.kp.as_ref().map(Spanned::span)),
+            ("kv", r.kv.as_ref().map(Spanned::span)),
+            ("drive", r.drive.as_ref().map(Spanned::span)),
+            ("integrator", r.integrator.as_ref().map(Spanned::span)),
+            ("noise", r.noise.as_ref().map(Spanned::span)),
+            ("seed", r.seed.as_ref().map(Spanned::span)),
+        ];
+        if !matches!(kind, BackendKind::Ros2 | BackendKind::Dynamics)
+            && let Some(c) = &r.controller
+        {
+            return Err(self.err(
+                &c.span(),
+                "[robot] `controller` is read only with backend = \"ros2\" (the joint_trajectory_controller) or backend = \"dynamics\" (the joint-level controller)".into(),
+            ));
+        }
         let ros2_only = [
-            ("controller", r.controller.as_ref().map(Spanned::span)),
             ("joint_states", r.joint_states.as_ref().map(Spanned::span)),
             ("domain", r.domain.as_ref().map(Spanned::span)),
             (
@@ -411,6 +449,7 @@ impl Sections<'_> {
             (BackendKind::Franka, "franka", &franka_only[..]),
             (BackendKind::Coppelia, "coppelia", &coppelia_only[..]),
             (BackendKind::Ros2, "ros2", &ros2_only[..]),
+            (BackendKind::Dynamics, "dynamics", &dynamics_only[..]),
         ];
         for (owner_kind, owner, keys) in groups {
             if owner_kind == kind
@@ -427,13 +466,126 @@ impl Sections<'_> {
                 }
             }
         }
-        if matches!(kind, BackendKind::Franka | BackendKind::Ros2) && r.name.is_some() {
+        if matches!(
+            kind,
+            BackendKind::Franka | BackendKind::Ros2 | BackendKind::Dynamics
+        ) && r.name.is_some()
+        {
             return Err(InputError(format!(
                 "{}: [robot] `name` (the robot's alias in CoppeliaSim) is read only with backend = \"coppelia\"",
                 self.path.display()
             )));
         }
         Ok(())
+    }
+
+    /// `[robot] backend = "dynamics"`: `controller`, `kp`, `kv`, `drive`, `integrator`,
+    /// `noise`, `seed`, `dt` (a whole number of milliseconds: the robot is controlled every
+    /// millisecond).
+    fn dynamics_choice(
+        &self,
+        section: Option<&RobotSection>,
+        robot: &crate::robot_file::RobotModel,
+        default_dt: f64,
+    ) -> Result<BackendChoice, InputError> {
+        let Some(r) = section else {
+            unreachable!("backend = \"dynamics\" is read from a [robot] section")
+        };
+        let dof = robot.chain.dof();
+        if robot.inertia.is_none() || !(6..=7).contains(&dof) {
+            let at = self.robot.map_or(0..0, |r| r.span());
+            return Err(self.err(
+                &at,
+                format!(
+                    "[robot] backend = \"dynamics\" simulates arms of 6 or 7 joints whose link inertias are known: the scene's robot {} has {dof} joints{} (the built-in scenes' Panda has Gaz et al.'s; a URDF gives them with <inertial>)",
+                    robot.name,
+                    if robot.inertia.is_none() { " and no link inertias" } else { "" }
+                ),
+            ));
+        }
+        let mut o = cps_dynamics::DynamicsOptions::default();
+        if let Some(c) = &r.controller {
+            if !cps_dynamics::CONTROLLERS.contains(&c.get_ref().as_str()) {
+                return Err(self.err(
+                    &c.span(),
+                    format!(
+                        "[robot] `controller` = \"{}\" is not one of {} (backend = \"dynamics\")",
+                        c.get_ref(),
+                        cps_dynamics::CONTROLLERS.join(", ")
+                    ),
+                ));
+            }
+            o.controller = c.get_ref().clone();
+        }
+        for (key, gains, slot) in [("kp", &r.kp, &mut o.kp), ("kv", &r.kv, &mut o.kv)] {
+            if let Some(g) = gains {
+                if let Some((i, v)) = g
+                    .get_ref()
+                    .iter()
+                    .enumerate()
+                    .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
+                {
+                    return Err(self.err(
+                        &g.span(),
+                        format!("[robot] `{key}[{i}]` is {v}: a gain must be finite and ≥ 0"),
+                    ));
+                }
+                if g.get_ref().len() != dof {
+                    return Err(self.err(
+                        &g.span(),
+                        format!(
+                            "[robot] `{key}` has {} values: one per joint of the {} ({dof})",
+                            g.get_ref().len(),
+                            robot.name
+                        ),
+                    ));
+                }
+                *slot = Some(g.get_ref().clone());
+            }
+        }
+        if let Some(d) = &r.drive {
+            o.drive = cps_dynamics::Drive::parse(d.get_ref()).ok_or_else(|| {
+                self.err(
+                    &d.span(),
+                    format!(
+                        "[robot] `drive` = \"{}\" is not one of franky-sim (franky-sim's FR3: rotor inertia and joint friction), rigid",
+                        d.get_ref()
+                    ),
+                )
+            })?;
+        }
+        if let Some(i) = &r.integrator {
+            o.integrator = cps_dynamics::Integrator::parse(i.get_ref()).ok_or_else(|| {
+                self.err(
+                    &i.span(),
+                    format!(
+                        "[robot] `integrator` = \"{}\" is not one of euler, rk4",
+                        i.get_ref()
+                    ),
+                )
+            })?;
+        }
+        if let Some(n) = &r.noise {
+            o.noise = self.within(n, "[robot] `noise`", 0.0, 0.1, " rad")?;
+        }
+        if let Some(s) = &r.seed {
+            o.seed = *s.get_ref();
+        }
+        o.dt = match &r.dt {
+            Some(d) => {
+                let dt = self.within(d, "[robot] `dt`", 1e-3, 0.1, " s")?;
+                let ms = dt * 1e3;
+                if (ms - ms.round()).abs() > 1e-9 {
+                    return Err(self.err(
+                        &d.span(),
+                        format!("[robot] `dt` = {dt} s must be a whole number of milliseconds (the dynamics robot is controlled every millisecond)"),
+                    ));
+                }
+                dt
+            }
+            None => default_dt,
+        };
+        Ok(BackendChoice::Dynamics(o))
     }
 
     /// `[robot] backend = "ros2"`: `controller`, `joint_states`, `domain`, `dt`.

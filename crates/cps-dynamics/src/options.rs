@@ -1,0 +1,208 @@
+//! A dynamics robot from words: the robot's model (with its link inertias) and the
+//! options an experiment's `[robot] backend = "dynamics"` gives — controller by name with
+//! its gains, the joints' drive, the integrator, noise — checked, with sentences that name
+//! what is wrong.
+
+use cps_kinematics::contact::JointFriction;
+use cps_kinematics::{ArmModel, LinkInertia};
+use cps_robot::{Robot, RobotError, RobotModel};
+
+use crate::arm::{Arm, Integrator};
+use crate::controller::{Controller, FRANKY_SIM_KP};
+use crate::robot::{DynamicsRobot, DynamicsSettings};
+
+/// What a joint's drive adds to the rigid bodies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Drive {
+    /// franky-sim's FR3 (its MJCF): rotor inertia 0.195 kg m² on joints 1–4 and 0.074 on
+    /// 5–7, viscous friction 0.21 N m s/rad, Coulomb friction 1.137 N m on joints 1–4, then
+    /// 0.763, 0.44, 0.248 (smoothed over 0.01 rad/s).
+    #[default]
+    FrankySim,
+    /// Rigid bodies only: no rotor inertia, no friction.
+    Rigid,
+}
+
+impl Drive {
+    /// By name: `franky-sim` or `rigid`.
+    pub fn parse(name: &str) -> Option<Self> {
+        match name {
+            "franky-sim" => Some(Drive::FrankySim),
+            "rigid" => Some(Drive::Rigid),
+            _ => None,
+        }
+    }
+
+    /// The name [`Drive::parse`] reads.
+    pub fn name(self) -> &'static str {
+        match self {
+            Drive::FrankySim => "franky-sim",
+            Drive::Rigid => "rigid",
+        }
+    }
+}
+
+/// How to build a dynamics robot (`[robot] backend = "dynamics"`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DynamicsOptions {
+    /// The controller's name ([`crate::CONTROLLERS`]).
+    pub controller: String,
+    /// Its first gains (kp, or the impedance's stiffness), one per joint; None: its
+    /// defaults ([`default_gains`]).
+    pub kp: Option<Vec<f64>>,
+    /// Its second gains (kv, or the impedance's damping).
+    pub kv: Option<Vec<f64>>,
+    /// The joints' drive.
+    pub drive: Drive,
+    /// The integrator.
+    pub integrator: Integrator,
+    /// Measurement noise (rad, standard deviation).
+    pub noise: f64,
+    /// The noise's seed.
+    pub seed: u64,
+    /// The period plans are made at (s).
+    pub dt: f64,
+    /// The control and integration period (s).
+    pub control_period: f64,
+}
+
+impl Default for DynamicsOptions {
+    /// franky-sim's PD and drive, semi-implicit Euler at 1 ms, plans every 10 ms, no noise.
+    fn default() -> Self {
+        DynamicsOptions {
+            controller: "joint_pd".into(),
+            kp: None,
+            kv: None,
+            drive: Drive::FrankySim,
+            integrator: Integrator::SemiImplicitEuler,
+            noise: 0.0,
+            seed: 0,
+            dt: 0.01,
+            control_period: 0.001,
+        }
+    }
+}
+
+/// A controller's default gains on `n` joints: `joint_pd` franky-sim's (on seven joints;
+/// 1000 and 100 on others), `computed_torque` kp 400 /s², kv 40 /s (critically damped at
+/// 20 rad/s), `joint_impedance` cps's torque mode's defaults on a Franka.
+pub fn default_gains(controller: &str, n: usize) -> (Vec<f64>, Vec<f64>) {
+    match controller {
+        "joint_pd" if n == 7 => (
+            FRANKY_SIM_KP.to_vec(),
+            FRANKY_SIM_KP.iter().map(|k| k / 10.0).collect(),
+        ),
+        "joint_pd" => (vec![1000.0; n], vec![100.0; n]),
+        "computed_torque" => (vec![400.0; n], vec![40.0; n]),
+        _ => {
+            let k = [600.0, 600.0, 600.0, 600.0, 250.0, 150.0, 50.0];
+            let d = [50.0, 50.0, 50.0, 20.0, 20.0, 20.0, 10.0];
+            (
+                (0..n).map(|i| k[i.min(6)]).collect(),
+                (0..n).map(|i| d[i.min(6)]).collect(),
+            )
+        }
+    }
+}
+
+fn fixed<const N: usize>(v: &[f64]) -> [f64; N] {
+    std::array::from_fn(|i| v[i])
+}
+
+fn open_n<const N: usize>(
+    model: RobotModel,
+    links: &[LinkInertia],
+    start: &[f64],
+    options: &DynamicsOptions,
+    kp: &[f64],
+    kv: &[f64],
+    torque: &[f64],
+) -> Result<Box<dyn Robot>, RobotError> {
+    let bad = |m: String| RobotError::Robot {
+        robot: "the dynamics robot".into(),
+        message: m,
+    };
+    let mut dynamics = ArmModel::<N>::new(&model.chain, links).map_err(|e| bad(e.to_string()))?;
+    let friction = match options.drive {
+        Drive::Rigid => JointFriction::none(),
+        Drive::FrankySim => {
+            dynamics = dynamics
+                .with_armature(std::array::from_fn(|i| if i < 4 { 0.195 } else { 0.074 }))
+                .map_err(|e| bad(e.to_string()))?;
+            let coulomb = [1.137, 1.137, 1.137, 1.137, 0.763, 0.44, 0.248];
+            JointFriction {
+                viscous: [0.21; N],
+                coulomb: std::array::from_fn(|i| coulomb[i.min(6)]),
+                speed: 0.01,
+            }
+        }
+    };
+    let controller =
+        Controller::<N>::by_name(&options.controller, fixed(kp), fixed(kv)).map_err(bad)?;
+    let mut arm = Arm::at_rest(dynamics, friction, fixed(torque), fixed(start));
+    arm.integrator = options.integrator;
+    let robot = DynamicsRobot::new(
+        model,
+        arm,
+        DynamicsSettings {
+            controller,
+            control_period: options.control_period,
+            dt: options.dt,
+            noise: options.noise,
+            seed: options.seed,
+        },
+    )?;
+    Ok(Box::new(robot))
+}
+
+/// The dynamics robot of `model` at rest at `start`, built as `options` say. Errors, each
+/// a sentence: a model without link inertias, a joint count other than 6 or 7, gains of
+/// the wrong count, negative or not finite, an unknown controller.
+pub fn open(
+    model: RobotModel,
+    start: &[f64],
+    options: &DynamicsOptions,
+) -> Result<Box<dyn Robot>, RobotError> {
+    let bad = |m: String| RobotError::Robot {
+        robot: "the dynamics robot".into(),
+        message: m,
+    };
+    let n = model.chain.dof();
+    let Some(links) = model.inertia.clone() else {
+        return Err(bad(format!(
+            "the robot {} has no link inertias, so its dynamics cannot be simulated (the built-in panda and fr3 have them; a URDF gives them with <inertial>)",
+            model.name
+        )));
+    };
+    if start.len() != n {
+        return Err(bad(format!(
+            "{} start positions for a {n}-joint robot",
+            start.len()
+        )));
+    }
+    let (dkp, dkv) = default_gains(&options.controller, n);
+    let kp = options.kp.clone().unwrap_or(dkp);
+    let kv = options.kv.clone().unwrap_or(dkv);
+    for (what, v) in [("kp", &kp), ("kv", &kv)] {
+        if v.len() != n {
+            return Err(bad(format!(
+                "{what} has {} values, the robot {} has {n} joints",
+                v.len(),
+                model.name
+            )));
+        }
+    }
+    let torque = model
+        .limits
+        .torque
+        .clone()
+        .unwrap_or_else(|| vec![f64::INFINITY; n]);
+    match n {
+        7 => open_n::<7>(model, &links, start, options, &kp, &kv, &torque),
+        6 => open_n::<6>(model, &links, start, options, &kp, &kv, &torque),
+        _ => Err(bad(format!(
+            "the robot {} has {n} joints; the dynamics robot simulates arms of 6 or 7",
+            model.name
+        ))),
+    }
+}
