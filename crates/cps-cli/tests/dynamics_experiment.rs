@@ -123,10 +123,15 @@ fn bad_dynamics_sections_are_named_with_their_place() {
         SHIPPED.replace("[robot]", "[robot]\ncontroller = \"joint_pd\""),
         "[robot] `controller` is read only with backend = \"ros2\"",
     );
-    // The FR3 scene's robot carries no link inertias yet.
+    // A bare FR3 flange carries no link inertias (with the hand it carries MuJoCo's).
+    write(
+        dir.path(),
+        "bare_scene.toml",
+        "[robot]\nmodel = \"fr3\"\ntool = \"flange\"\ninitial_q = [0.0, 0.0, 0.0, -0.3, 0.0, 1.87, 0.785]\n",
+    );
     refused(
-        "fr3",
-        on_dynamics("").replace("scene = \"thesis\"", "scene = \"fr3\""),
-        "no link inertias",
+        "bare",
+        on_dynamics("").replace("scene = \"thesis\"", "scene = \"bare_scene.toml\""),
+        "the scene's robot fr3 has 7 joints and no link inertias",
     );
 }

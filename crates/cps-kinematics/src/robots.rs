@@ -168,6 +168,40 @@ pub fn panda_inertia() -> Vec<crate::LinkInertia> {
         .collect()
 }
 
+/// The FR3's link inertias with the Franka Hand (links 1–7, in the modified-DH link frames
+/// of [`fr3`]): MuJoCo Menagerie's `franka_fr3` model as franky-sim 1.0.4 simulates it
+/// (its `assets/fr3.xml`: each link's mass, centre of mass and principal inertia with
+/// their rotation, here as full tensors in the link frame), the hand (0.73 kg) and its two
+/// fingers (0.015 kg each, closed) lumped into link 7. Franka publishes no FR3 inertias;
+/// a robot's own URDF may differ. Checked against MuJoCo's model in
+/// `tests/dynamics_references.rs`.
+pub fn fr3_inertia() -> Vec<crate::LinkInertia> {
+    // mass (kg), centre of mass (m), inertia about it [xx, xy, xz, yy, yz, zz] (kg m²)
+    #[allow(clippy::type_complexity)]
+    const LINKS: [(f64, [f64; 3], [f64; 6]); 7] = [
+        // link 1
+        (2.92747, [4.128e-07, -0.0181251, -0.038603600000000016], [0.0239272947453272, 1.3317329788107953e-05, -0.00011405132217046329, 0.022482145850047302, -0.0019950291857125674, 0.006350099404625492]),
+        // link 2
+        (2.93554, [0.003182889999999998, -0.07432219999999999, 0.008814609999999997], [0.04193888988947939, 0.00020260103310274513, 0.004077780185739441, 0.025145189270313572, -0.004225231794533555, 0.061702120840206945]),
+        // link 3
+        (2.2449, [0.040701599999999956, -0.004820059999999997, -0.02897309999999996], [0.024101442056873063, 0.002404684264507136, -0.002856268891830047, 0.019740547576264283, -0.0021042136745217186, 0.019044510366862537]),
+        // link 4
+        (2.6156, [-0.04591009999999996, 0.06304929999999995, -0.008518789999999993], [0.03453001857862377, 0.013225509072017213, 0.010151429202577247, 0.02888165694155812, -0.0009763068693925302, 0.04125472447981795]),
+        // link 5
+        (2.32712, [-0.0016039599999999978, 0.02925359999999996, -0.0972966], [0.0516103145079603, -0.005715182416436148, -0.003567316377181673, 0.047877334885637494, 0.010673987029002994, 0.016423650606401916]),
+        // link 6
+        (1.81704, [0.0597130999999999, -0.04102950000000002, -0.010169299999999982], [0.005412321871612666, 0.006193448335563139, 0.001421924523039488, 0.014058346410593439, -0.001314072230401392, 0.01608082171779377]),
+        // link 7 with the Franka Hand and its fingers
+        (1.3871429999999998, [-0.0016765216664566803, 0.007621228667541727, 0.06836735617603923], [0.010170559799783563, 0.000719976729484289, 0.0006396728947933015, 0.010179652955212788, 0.00019046598882967758, 0.0018094573697561018]),
+    ];
+    LINKS
+        .iter()
+        .map(|(m, c, i)| {
+            crate::LinkInertia::new(*m, *c, *i).expect("MuJoCo's FR3 inertias are physical")
+        })
+        .collect()
+}
+
 /// The Puma 560 in standard DH (Corke's Robotics Toolbox model `Puma560`), for teaching
 /// the standard convention.
 pub fn puma560() -> SerialChain {

@@ -17,7 +17,7 @@ use std::path::PathBuf;
 use std::process::Command;
 
 use cps_kinematics::contact::JointFriction;
-use cps_kinematics::robots::{PandaTool, fr3};
+use cps_kinematics::robots::{PandaTool, fr3, fr3_inertia};
 use cps_kinematics::{ArmModel, LinkInertia, chain_from_urdf};
 use nalgebra::{Matrix3, Vector3};
 use serde_json::Value;
@@ -167,6 +167,12 @@ fn forward_dynamics_equals_mujoco_s_qacc_on_franky_sim_s_fr3() {
             }
         })
         .collect();
+    // cps's built-in FR3 inertias are MuJoCo's, hand included.
+    for (i, (mine, theirs)) in fr3_inertia().iter().zip(&links).enumerate() {
+        assert!((mine.mass - theirs.mass).abs() < 1e-12, "link {}", i + 1);
+        assert!((mine.com - theirs.com).norm() < 1e-12, "link {}", i + 1);
+        assert!((mine.inertia - theirs.inertia).amax() < 1e-12, "link {}", i + 1);
+    }
     let armature: [f64; 7] = floats(&mj["armature"]).try_into().unwrap();
     let damping: [f64; 7] = floats(&mj["damping"]).try_into().unwrap();
     let model = ArmModel::<7>::new(&chain, &links)

@@ -9,7 +9,7 @@
 use std::path::Path;
 
 use cps_kinematics::robots::{
-    PandaTool, fr3, fr3_limits, panda, panda_inertia, panda_limits, puma560, ur3, ur3_inertia,
+    PandaTool, fr3, fr3_inertia, fr3_limits, panda, panda_inertia, panda_limits, puma560, ur3, ur3_inertia,
     ur3_limits,
 };
 use cps_kinematics::{
@@ -500,10 +500,12 @@ pub fn load_robot(
                     )));
                 }
             };
-            // Franka publishes no FR3 inertias or Cartesian limits of the same form; the
-            // robot's own URDF carries its inertias.
+            // Franka publishes no FR3 inertias or Cartesian limits of the same form: with
+            // the hand, the FR3 carries MuJoCo Menagerie's inertias (franky-sim's model);
+            // a bare flange carries none (the robot's own URDF has them).
             let (chain, limits, inertia, cartesian) = if fr3_arm {
-                (fr3(t), fr3_limits(), None, None)
+                let inertia = (t == PandaTool::HandTcp).then(fr3_inertia);
+                (fr3(t), fr3_limits(), inertia, None)
             } else {
                 let (joint, cartesian) = panda_limits();
                 (panda(t), joint, Some(panda_inertia()), Some(cartesian))
