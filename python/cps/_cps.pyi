@@ -399,6 +399,15 @@ class Robot:
     def inverse_dynamics(
         self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, *, gravity: Optional[ArrayLike] = None
     ) -> F64: ...
+    def forward_dynamics(
+        self,
+        q: ArrayLike,
+        qd: ArrayLike,
+        tau: ArrayLike,
+        *,
+        gravity: Optional[ArrayLike] = None,
+        armature: Optional[ArrayLike] = None,
+    ) -> F64: ...
     def check_limits(self, t: ArrayLike, q: ArrayLike, *, rate: float = 1000.0) -> dict[str, Any]: ...
     def retime(
         self, t: ArrayLike, q: ArrayLike, *, mode: Literal["fastest", "uniform"] = "fastest", rate: float = 1000.0

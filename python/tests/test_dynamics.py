@@ -51,6 +51,30 @@ def test_panda_torques_match_pinocchio_on_random_states():
     assert np.abs(zero_g).max() == 0.0
 
 
+def test_panda_forward_dynamics_matches_pinocchio_s_aba_and_inverts_newton_euler():
+    pin, model, data = pinocchio_model()
+    panda = cps.Robot("panda")
+    lo, hi = panda.limits
+    rng = np.random.default_rng(12)
+    q = rng.uniform(lo, hi, size=(300, 7))
+    qd = rng.uniform(-2.175, 2.175, size=(300, 7))
+    tau = rng.uniform(-40.0, 40.0, size=(300, 7))
+    armature = np.array([0.195, 0.195, 0.195, 0.195, 0.074, 0.074, 0.074])
+    model.armature = armature
+    mine = panda.forward_dynamics(q, qd, tau, armature=armature)
+    assert mine.shape == (300, 7)
+    reference = np.array([pin.aba(model, data, *state) for state in zip(q, qd, tau)])
+    assert np.abs(mine - reference).max() < 1e-9
+    # Without armature it inverts inverse_dynamics.
+    qdd = panda.forward_dynamics(q, qd, tau)
+    np.testing.assert_allclose(panda.inverse_dynamics(q, qd, qdd), tau, atol=1e-9)
+    np.testing.assert_array_equal(panda.forward_dynamics(q[0], qd[0], tau[0]), qdd[0])
+    with pytest.raises(ValueError, match="armature"):
+        panda.forward_dynamics(q[0], qd[0], tau[0], armature=[0.1] * 6)
+    with pytest.raises(ValueError, match="tau: expected the shape of q"):
+        panda.forward_dynamics(q, qd, tau[:3])
+
+
 def test_check_limits_equals_the_command_line(tmp_path, cli):
     panda = cps.Robot("panda")
     t = np.linspace(0.0, 1.0, 101)

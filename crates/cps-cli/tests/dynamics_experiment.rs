@@ -52,7 +52,10 @@ fn the_joint_experiment_runs_on_the_dynamics_robot_and_shows_its_controller() {
     let ct_gap = executed_gap(&ct);
     assert!(ct_gap < 1e-3, "{ct_gap} m");
     let ct_friction = executed_gap(&go("ctf", "controller = \"computed_torque\""));
-    assert!(ct_friction > ct_gap && ct_friction < pd_gap / 3.0, "{ct_friction} m");
+    assert!(
+        ct_friction > ct_gap && ct_friction < pd_gap / 3.0,
+        "{ct_friction} m"
+    );
     // The same file, the same run, bit for bit (noise from its seed included).
     let noisy = "noise = 1e-4\nseed = 3";
     let (a, b) = (go("a", noisy), go("b", noisy));

@@ -178,6 +178,7 @@ pub fn panda_inertia() -> Vec<crate::LinkInertia> {
 pub fn fr3_inertia() -> Vec<crate::LinkInertia> {
     // mass (kg), centre of mass (m), inertia about it [xx, xy, xz, yy, yz, zz] (kg m²)
     #[allow(clippy::type_complexity)]
+    #[rustfmt::skip]
     const LINKS: [(f64, [f64; 3], [f64; 6]); 7] = [
         // link 1
         (2.92747, [4.128e-07, -0.0181251, -0.038603600000000016], [0.0239272947453272, 1.3317329788107953e-05, -0.00011405132217046329, 0.022482145850047302, -0.0019950291857125674, 0.006350099404625492]),

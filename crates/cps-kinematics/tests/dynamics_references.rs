@@ -171,7 +171,11 @@ fn forward_dynamics_equals_mujoco_s_qacc_on_franky_sim_s_fr3() {
     for (i, (mine, theirs)) in fr3_inertia().iter().zip(&links).enumerate() {
         assert!((mine.mass - theirs.mass).abs() < 1e-12, "link {}", i + 1);
         assert!((mine.com - theirs.com).norm() < 1e-12, "link {}", i + 1);
-        assert!((mine.inertia - theirs.inertia).amax() < 1e-12, "link {}", i + 1);
+        assert!(
+            (mine.inertia - theirs.inertia).amax() < 1e-12,
+            "link {}",
+            i + 1
+        );
     }
     let armature: [f64; 7] = floats(&mj["armature"]).try_into().unwrap();
     let damping: [f64; 7] = floats(&mj["damping"]).try_into().unwrap();

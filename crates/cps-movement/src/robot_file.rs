@@ -9,8 +9,8 @@
 use std::path::Path;
 
 use cps_kinematics::robots::{
-    PandaTool, fr3, fr3_inertia, fr3_limits, panda, panda_inertia, panda_limits, puma560, ur3, ur3_inertia,
-    ur3_limits,
+    PandaTool, fr3, fr3_inertia, fr3_limits, panda, panda_inertia, panda_limits, puma560, ur3,
+    ur3_inertia, ur3_limits,
 };
 use cps_kinematics::{
     CartesianLimits, ChainGeometry, DhConvention, DhLink, IkTarget, JointLimits, LinkInertia,

@@ -419,6 +419,75 @@ impl Robot {
         }
     }
 
+    /// Joint accelerations (rad/s²) of forward dynamics (the articulated-body algorithm) at
+    /// positions `q` and velocities `qd` under joint torques `tau` (N m), each (dof,) or
+    /// (m, dof); gravity (0, 0, −9.81) m/s² unless given; `armature` the rotor inertia
+    /// reflected to each joint (kg m², MuJoCo's and pinocchio's `armature`; default none).
+    /// The inverse of `inverse_dynamics`. Needs the robot's link inertias.
+    #[pyo3(signature = (q, qd, tau, *, gravity=None, armature=None))]
+    fn forward_dynamics<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        tau: &Bound<'py, PyAny>,
+        gravity: Option<&Bound<'py, PyAny>>,
+        armature: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let Some(links) = &self.model.inertia else {
+            return Err(value_error(format!(
+                "{}: the robot's link inertias are not known, so its dynamics cannot be computed",
+                self.model.name
+            )));
+        };
+        let (q, m, batched) = self.configurations(q)?;
+        let n = self.dof();
+        let rows = |a: &Bound<'py, PyAny>, name: &str| -> PyResult<Vec<f64>> {
+            let f = floats(a, name)?;
+            if f.values().len() != m * n {
+                return Err(value_error(format!(
+                    "{name}: expected the shape of q ({}), got {}",
+                    if batched {
+                        format!("({m}, {n})")
+                    } else {
+                        format!("({n},)")
+                    },
+                    shape_text(f.shape())
+                )));
+            }
+            Ok(f.values().to_vec())
+        };
+        let (qd, tau) = (rows(qd, "qd")?, rows(tau, "tau")?);
+        let g = match gravity {
+            Some(g) if !g.is_none() => vector(g, "gravity", Some(3))?,
+            _ => cps_kinematics::GRAVITY.to_vec(),
+        };
+        let armature = match armature {
+            Some(a) if !a.is_none() => vector(a, "armature", Some(n))?,
+            _ => vec![0.0; n],
+        };
+        let chain = &self.model.chain;
+        let out = py
+            .detach(|| match n {
+                2 => forward::<2>(chain, links, &g, &armature, &q, &qd, &tau),
+                3 => forward::<3>(chain, links, &g, &armature, &q, &qd, &tau),
+                4 => forward::<4>(chain, links, &g, &armature, &q, &qd, &tau),
+                5 => forward::<5>(chain, links, &g, &armature, &q, &qd, &tau),
+                6 => forward::<6>(chain, links, &g, &armature, &q, &qd, &tau),
+                7 => forward::<7>(chain, links, &g, &armature, &q, &qd, &tau),
+                8 => forward::<8>(chain, links, &g, &armature, &q, &qd, &tau),
+                _ => Err(cps_kinematics::KinematicsError::InvalidModel(format!(
+                    "forward dynamics is computed for arms of 2 to 8 joints; this one has {n}"
+                ))),
+            })
+            .py()?;
+        if batched {
+            Ok(array2(py, out, m, n)?.into_any())
+        } else {
+            Ok(array1(py, out).into_any())
+        }
+    }
+
     /// Checks a joint trajectory (`t` (samples,), `q` (samples, dof)) against every limit of
     /// the robot as its controller sees it at `rate` Hz — what `cps-cli limits check`
     /// prints as JSON: `{"ok", "peak_usage", "violations", "not_checked", …}`.
@@ -526,4 +595,26 @@ impl Robot {
             self.model.tool
         )
     }
+}
+
+/// Forward dynamics of `N` joints for every row of `q`, `qd`, `tau` (flat, row-major).
+fn forward<const N: usize>(
+    chain: &cps_kinematics::SerialChain,
+    links: &[cps_kinematics::LinkInertia],
+    gravity: &[f64],
+    armature: &[f64],
+    q: &[f64],
+    qd: &[f64],
+    tau: &[f64],
+) -> Result<Vec<f64>, cps_kinematics::KinematicsError> {
+    let model = cps_kinematics::ArmModel::<N>::new(chain, links)?
+        .with_gravity([gravity[0], gravity[1], gravity[2]])
+        .with_armature(std::array::from_fn(|i| armature[i]))?;
+    let mut out = Vec::with_capacity(q.len());
+    let row = |v: &[f64], k: usize| -> [f64; N] { std::array::from_fn(|i| v[k * N + i]) };
+    for k in 0..q.len() / N {
+        let f = model.frames(&row(q, k));
+        out.extend(model.forward_dynamics(&f, &row(qd, k), &row(tau, k), None));
+    }
+    Ok(out)
 }
