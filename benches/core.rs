@@ -67,15 +67,7 @@ fn kinematics(c: &mut Criterion) {
     // Forward dynamics (q̈ from τ) of the same arm with franky-sim's armature and friction,
     // the frames included: the articulated-body algorithm, and the mass matrix by the
     // composite-rigid-body algorithm with a Cholesky solve.
-    let model = cps::kinematics::ArmModel::<7>::new(&arm, &links)
-        .unwrap()
-        .with_armature([0.195, 0.195, 0.195, 0.195, 0.074, 0.074, 0.074])
-        .unwrap();
-    let friction = cps::kinematics::contact::JointFriction {
-        viscous: [0.21; 7],
-        coulomb: [1.137, 1.137, 1.137, 1.137, 0.763, 0.44, 0.248],
-        speed: 0.01,
-    };
+    let (model, friction) = franky_sim_panda();
     let tau = [5.0, -3.0, 2.0, 1.0, 0.5, -0.2, 0.1];
     c.bench_function("forward_dynamics/aba_panda", |b| {
         b.iter(|| {
@@ -94,16 +86,14 @@ fn kinematics(c: &mut Criterion) {
     ik(c);
 }
 
-/// A 10 s movement of every joint run on the dynamics robot (the Panda with franky-sim's
-/// rotor inertia and friction, franky-sim's PD, 1 kHz): 10 000 control periods, each the
-/// controller's Coriolis and gravity torques and one forward-dynamics step. Ten simulated
-/// seconds over the time measured is the real-time factor (BENCHMARKS.md › Dynamics).
-fn dynamics_robot(c: &mut Criterion) {
-    use cps::dynamics::{Arm, Controller, DynamicsRobot, DynamicsSettings, Integrator};
+/// The Panda with its hand (Gaz et al.'s inertias) and franky-sim's rotor inertia and
+/// joint friction.
+fn franky_sim_panda() -> (
+    cps::kinematics::ArmModel<7>,
+    cps::kinematics::contact::JointFriction<7>,
+) {
     use cps::kinematics::robots::{PandaTool, panda, panda_inertia};
-    use cps::robot::{Plan, Robot, RobotModel, StopToken};
-    let chain = panda(PandaTool::HandTcp);
-    let model = cps::kinematics::ArmModel::<7>::new(&chain, &panda_inertia())
+    let model = cps::kinematics::ArmModel::<7>::new(&panda(PandaTool::HandTcp), &panda_inertia())
         .unwrap()
         .with_armature([0.195, 0.195, 0.195, 0.195, 0.074, 0.074, 0.074])
         .unwrap();
@@ -112,6 +102,19 @@ fn dynamics_robot(c: &mut Criterion) {
         coulomb: [1.137, 1.137, 1.137, 1.137, 0.763, 0.44, 0.248],
         speed: 0.01,
     };
+    (model, friction)
+}
+
+/// A 10 s movement of every joint run on the dynamics robot (the Panda with franky-sim's
+/// rotor inertia and friction, franky-sim's PD, 1 kHz): 10 000 control periods, each the
+/// controller's Coriolis and gravity torques and one forward-dynamics step. Ten simulated
+/// seconds over the time measured is the real-time factor (BENCHMARKS.md › Dynamics).
+fn dynamics_robot(c: &mut Criterion) {
+    use cps::dynamics::{Arm, Controller, DynamicsRobot, DynamicsSettings, Integrator};
+    use cps::kinematics::robots::{PandaTool, panda};
+    use cps::robot::{Plan, Robot, RobotModel, StopToken};
+    let chain = panda(PandaTool::HandTcp);
+    let (model, friction) = franky_sim_panda();
     let start = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
     let points = (0..=1000)
         .map(|k| {

@@ -71,16 +71,11 @@ fn the_joint_experiment_runs_on_the_dynamics_robot_and_shows_its_controller() {
 fn bad_dynamics_sections_are_named_with_their_place() {
     let dir = tempfile::tempdir().unwrap();
     let refused = |name: &str, toml: String, expected: &str| {
-        let file = write(dir.path(), &format!("{name}.toml"), &toml);
-        let out = dir.path().join(name);
-        let (o, err) = run(&file, &out);
-        assert_eq!(o.status.code(), Some(2), "{name}: {err}");
-        assert!(err.contains(expected), "{name}: {err}");
+        let err = common::refused(dir.path(), name, &toml, expected);
         assert!(
             err.contains(&format!("{name}.toml:")),
             "{name}: no place in {err}"
         );
-        assert!(!out.join("summary.json").exists(), "{name}");
     };
     refused(
         "controller",

@@ -148,12 +148,7 @@ fn a_plan_outside_the_fr3s_range_is_refused_before_the_robot_moves() {
 fn bad_franka_sections_are_named() {
     let dir = tempfile::tempdir().unwrap();
     let refused = |name: &str, toml: String, expected: &str| {
-        let file = write(dir.path(), &format!("{name}.toml"), &toml);
-        let out = dir.path().join(name);
-        let (o, err) = run(&file, &out);
-        assert_eq!(o.status.code(), Some(2), "{name}: {err}");
-        assert!(err.contains(expected), "{name}: {err}");
-        assert!(!out.join("summary.json").exists(), "{name}");
+        common::refused(dir.path(), name, &toml, expected);
     };
     let host_line = "host = \"172.16.0.2\"     # the robot's address (`ip` or `ip:port`)";
     assert!(SHIPPED.contains(host_line));

@@ -77,6 +77,50 @@ impl Robot {
         })
     }
 
+    /// The link inertias and a batch of states for the dynamics: `q` as
+    /// [`Self::configurations`] reads it and two more arrays of its shape (named).
+    fn dynamics_state<'py>(
+        &self,
+        q: &Bound<'py, PyAny>,
+        a: (&Bound<'py, PyAny>, &str),
+        b: (&Bound<'py, PyAny>, &str),
+    ) -> PyResult<(&[cps_kinematics::LinkInertia], State)> {
+        let Some(links) = &self.model.inertia else {
+            return Err(value_error(format!(
+                "{}: the robot's link inertias are not known, so its dynamics cannot be computed",
+                self.model.name
+            )));
+        };
+        let (q, m, batched) = self.configurations(q)?;
+        let n = self.dof();
+        let rows = |(x, name): (&Bound<'py, PyAny>, &str)| -> PyResult<Vec<f64>> {
+            let f = floats(x, name)?;
+            if f.values().len() != m * n {
+                return Err(value_error(format!(
+                    "{name}: expected the shape of q ({}), got {}",
+                    if batched {
+                        format!("({m}, {n})")
+                    } else {
+                        format!("({n},)")
+                    },
+                    shape_text(f.shape())
+                )));
+            }
+            Ok(f.values().to_vec())
+        };
+        let (a, b) = (rows(a)?, rows(b)?);
+        Ok((
+            links,
+            State {
+                q,
+                m,
+                batched,
+                a,
+                b,
+            },
+        ))
+    }
+
     /// Configurations from `q`: (dof,) → one, (m, dof) → m. Returns (values, m, batched).
     fn configurations(&self, q: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, usize, bool)> {
         let n = self.dof();
@@ -365,30 +409,17 @@ impl Robot {
         qdd: &Bound<'py, PyAny>,
         gravity: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let Some(links) = &self.model.inertia else {
-            return Err(value_error(format!(
-                "{}: the robot's link inertias are not known, so its dynamics cannot be computed",
-                self.model.name
-            )));
-        };
-        let (q, m, batched) = self.configurations(q)?;
+        let (
+            links,
+            State {
+                q,
+                m,
+                batched,
+                a: qd,
+                b: qdd,
+            },
+        ) = self.dynamics_state(q, (qd, "qd"), (qdd, "qdd"))?;
         let n = self.dof();
-        let rows = |a: &Bound<'py, PyAny>, name: &str| -> PyResult<Vec<f64>> {
-            let f = floats(a, name)?;
-            if f.values().len() != m * n {
-                return Err(value_error(format!(
-                    "{name}: expected the shape of q ({}), got {}",
-                    if batched {
-                        format!("({m}, {n})")
-                    } else {
-                        format!("({n},)")
-                    },
-                    shape_text(f.shape())
-                )));
-            }
-            Ok(f.values().to_vec())
-        };
-        let (qd, qdd) = (rows(qd, "qd")?, rows(qdd, "qdd")?);
         let g = match gravity {
             Some(g) if !g.is_none() => {
                 nalgebra::Vector3::from_column_slice(&vector(g, "gravity", Some(3))?)
@@ -434,30 +465,17 @@ impl Robot {
         gravity: Option<&Bound<'py, PyAny>>,
         armature: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let Some(links) = &self.model.inertia else {
-            return Err(value_error(format!(
-                "{}: the robot's link inertias are not known, so its dynamics cannot be computed",
-                self.model.name
-            )));
-        };
-        let (q, m, batched) = self.configurations(q)?;
+        let (
+            links,
+            State {
+                q,
+                m,
+                batched,
+                a: qd,
+                b: tau,
+            },
+        ) = self.dynamics_state(q, (qd, "qd"), (tau, "tau"))?;
         let n = self.dof();
-        let rows = |a: &Bound<'py, PyAny>, name: &str| -> PyResult<Vec<f64>> {
-            let f = floats(a, name)?;
-            if f.values().len() != m * n {
-                return Err(value_error(format!(
-                    "{name}: expected the shape of q ({}), got {}",
-                    if batched {
-                        format!("({m}, {n})")
-                    } else {
-                        format!("({n},)")
-                    },
-                    shape_text(f.shape())
-                )));
-            }
-            Ok(f.values().to_vec())
-        };
-        let (qd, tau) = (rows(qd, "qd")?, rows(tau, "tau")?);
         let g = match gravity {
             Some(g) if !g.is_none() => vector(g, "gravity", Some(3))?,
             _ => cps_kinematics::GRAVITY.to_vec(),
@@ -617,4 +635,13 @@ fn forward<const N: usize>(
         out.extend(model.forward_dynamics(&f, &row(qd, k), &row(tau, k), None));
     }
     Ok(out)
+}
+
+/// A batch of dynamic states: positions and two more arrays of their shape, flat.
+struct State {
+    q: Vec<f64>,
+    m: usize,
+    batched: bool,
+    a: Vec<f64>,
+    b: Vec<f64>,
 }

@@ -136,3 +136,15 @@ pub fn csv_columns(path: &std::path::Path, names: &[&str]) -> Vec<Vec<f64>> {
         .map(|&i| rows.iter().map(|r: &Vec<f64>| r[i]).collect())
         .collect()
 }
+
+/// Runs `toml` (written as `NAME.toml` in `dir`) and checks it is refused as bad input:
+/// exit 2, `expected` in the error, nothing written.
+pub fn refused(dir: &Path, name: &str, toml: &str, expected: &str) -> String {
+    let file = write(dir, &format!("{name}.toml"), toml);
+    let out = dir.join(name);
+    let (o, err) = run_quiet(&file, &out);
+    assert_eq!(o.status.code(), Some(2), "{name}: {err}");
+    assert!(err.contains(expected), "{name}: {err}");
+    assert!(!out.join("summary.json").exists(), "{name}");
+    err
+}
