@@ -197,6 +197,12 @@ pub fn open(
         .torque
         .clone()
         .unwrap_or_else(|| vec![f64::INFINITY; n]);
+    if torque.len() != n || torque.iter().any(|t| t.is_nan() || *t <= 0.0) {
+        return Err(bad(format!(
+            "the robot {}'s torque limits must be {n} values > 0 (got {torque:?})",
+            model.name
+        )));
+    }
     match n {
         7 => open_n::<7>(model, &links, start, options, &kp, &kv, &torque),
         6 => open_n::<6>(model, &links, start, options, &kp, &kv, &torque),

@@ -315,11 +315,10 @@ impl Plan {
         let mut out = SampledMotion {
             dof: n,
             period,
-            q: Vec::with_capacity(count * n),
+            q: self.samples(period).concat(),
             dq: vec![0.0; count * n],
             ddq: vec![0.0; count * n],
         };
-        out.q = self.samples(period).concat();
         let parts = self.parts();
         let splines: Vec<Option<JointSpline>> = parts.iter().map(|p| self.part_motion(p)).collect();
         let mut part = 0;

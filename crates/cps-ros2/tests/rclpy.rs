@@ -143,6 +143,18 @@ impl Action for Fibonacci {
     }
 }
 
+/// `run` with a cancel flag raised from another thread after `after`.
+fn cancelled_after<T>(after: Duration, run: impl FnOnce(&AtomicBool) -> T) -> T {
+    let cancel = AtomicBool::new(false);
+    std::thread::scope(|s| {
+        s.spawn(|| {
+            std::thread::sleep(after);
+            cancel.store(true, Ordering::Relaxed);
+        });
+        run(&cancel)
+    })
+}
+
 fn times() -> FollowTimes {
     FollowTimes {
         server: Duration::from_secs(15),
@@ -257,15 +269,10 @@ fn an_action_of_rclpy_on_fast_dds_runs_to_its_result_and_is_cancelled() {
     assert!(o.result.is_none());
 
     // Cancelled while it runs: the flag is raised from another thread after 0.5 s.
-    let cancel = AtomicBool::new(false);
     let started = Instant::now();
-    let o = std::thread::scope(|s| {
-        s.spawn(|| {
-            std::thread::sleep(Duration::from_millis(500));
-            cancel.store(true, Ordering::Relaxed);
-        });
+    let o = cancelled_after(Duration::from_millis(500), |cancel| {
         client
-            .follow(&1000, GoalId::from_bits(3), times(), &cancel, |_| {})
+            .follow(&1000, GoalId::from_bits(3), times(), cancel, |_| {})
             .unwrap()
     });
     assert!(o.cancel_requested);
@@ -551,15 +558,10 @@ fn follow_joint_trajectory_against_an_rclpy_server_on_fast_dds() {
         trajectory: support::trajectory(10.0, 100.0),
         ..Default::default()
     };
-    let cancel = AtomicBool::new(false);
     let started = Instant::now();
-    let o = std::thread::scope(|s| {
-        s.spawn(|| {
-            std::thread::sleep(Duration::from_millis(500));
-            cancel.store(true, Ordering::Relaxed);
-        });
+    let o = cancelled_after(Duration::from_millis(500), |cancel| {
         client
-            .follow(&long, GoalId::from_bits(9), times(), &cancel, |_| {})
+            .follow(&long, GoalId::from_bits(9), times(), cancel, |_| {})
             .unwrap()
     });
     assert!(o.cancel_requested);
