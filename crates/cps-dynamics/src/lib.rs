@@ -36,6 +36,7 @@
 //!     dt: 0.01,
 //!     noise: 0.0,
 //!     seed: 0,
+//!     reflexes: true,
 //! };
 //! let mut robot = DynamicsRobot::new(RobotModel::of_chain("panda", chain), arm, settings).unwrap();
 //! // Joint 1 turns 0.2 rad in one second; the PD lags, then settles.
@@ -61,4 +62,4 @@ pub mod robot;
 pub use arm::{Arm, Integrator};
 pub use controller::{CONTROLLERS, Controller, Desired, FRANKY_SIM_KP};
 pub use options::{Drive, DynamicsOptions, default_gains, open};
-pub use robot::{DynamicsRobot, DynamicsSettings};
+pub use robot::{DynamicsRobot, DynamicsSettings, REFLEX_MARGIN};

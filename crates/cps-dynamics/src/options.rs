@@ -64,6 +64,8 @@ pub struct DynamicsOptions {
     pub dt: f64,
     /// The control and integration period (s).
     pub control_period: f64,
+    /// Whether a joint leaving its range stops the arm ([`crate::DynamicsSettings::reflexes`]).
+    pub reflexes: bool,
 }
 
 impl Default for DynamicsOptions {
@@ -79,6 +81,7 @@ impl Default for DynamicsOptions {
             seed: 0,
             dt: 0.01,
             control_period: 0.001,
+            reflexes: true,
         }
     }
 }
@@ -150,6 +153,7 @@ fn open_n<const N: usize>(
             dt: options.dt,
             noise: options.noise,
             seed: options.seed,
+            reflexes: options.reflexes,
         },
     )?;
     Ok(Box::new(robot))

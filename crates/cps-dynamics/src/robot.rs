@@ -30,7 +30,17 @@ pub struct DynamicsSettings<const N: usize> {
     /// The noise's seed: every run draws the same noise from it, so a plan's result does
     /// not depend on which robot of a pool ran it or what ran before.
     pub seed: u64,
+    /// Whether a joint leaving its position range stops the arm, as a real arm's reflex
+    /// does (the run brakes and ends failed, saying which joint and where). Off only where
+    /// a learner judges candidates by what the arm does, its limits in the cost.
+    pub reflexes: bool,
 }
+
+/// How far beyond a joint's published range its reflex fires (rad). Plans keep the
+/// published range; a real arm's reflex fires at its hardware limits a little beyond it,
+/// so an arm resting at a limit (the thesis's Panda start has joint 4 there) is not stopped
+/// by the controller's micro-radians of settling.
+pub const REFLEX_MARGIN: f64 = 5e-3;
 
 /// How long a stop may take to bring the arm to rest before the run ends anyway (s).
 const BRAKE_WITHIN: f64 = 2.0;
@@ -52,6 +62,8 @@ pub struct DynamicsRobot<const N: usize> {
     /// Control periods simulated, and those where a drive's torque was clipped.
     ticks: u64,
     clipped: u64,
+    /// The joints' position range, when the model has one and reflexes are on.
+    range: Option<([f64; N], [f64; N])>,
 }
 
 fn pose(p: &Isometry3<f64>) -> IsometryMatrix3<f64> {
@@ -100,6 +112,16 @@ impl<const N: usize> DynamicsRobot<N> {
         let noise = (settings.noise > 0.0)
             .then(|| Normal::new(0.0, settings.noise).expect("a finite positive deviation"));
         let q = arm.q;
+        let range = model
+            .chain
+            .limits()
+            .filter(|_| settings.reflexes)
+            .map(|(lo, hi)| {
+                (
+                    std::array::from_fn(|i| lo[i]),
+                    std::array::from_fn(|i| hi[i]),
+                )
+            });
         Ok(DynamicsRobot {
             model,
             arm,
@@ -111,6 +133,7 @@ impl<const N: usize> DynamicsRobot<N> {
             previous: q,
             ticks: 0,
             clipped: 0,
+            range,
         })
     }
 
@@ -155,6 +178,22 @@ impl<const N: usize> DynamicsRobot<N> {
             .step(&truth, &applied, self.settings.control_period);
         self.time += self.settings.control_period;
         self.ticks += 1;
+    }
+
+    /// The reflex's sentence when a joint has left its position range.
+    fn out_of_range(&self) -> Option<String> {
+        let (lo, hi) = self.range.as_ref()?;
+        let j = (0..N).find(|&j| {
+            self.arm.q[j] < lo[j] - REFLEX_MARGIN || self.arm.q[j] > hi[j] + REFLEX_MARGIN
+        })?;
+        Some(format!(
+            "reflex: joint {} reached {:.4} rad at {:.3} s, beyond its range [{:.4}, {:.4}] rad; the arm braked to rest",
+            j + 1,
+            self.arm.q[j],
+            self.time,
+            lo[j],
+            hi[j]
+        ))
     }
 
     fn entry(&self) -> (Vec<f64>, IsometryMatrix3<f64>) {
@@ -234,6 +273,13 @@ impl<const N: usize> Robot for DynamicsRobot<N> {
             }
             let (q, dq, ddq) = motion.at(i);
             self.tick(Desired { q, dq, ddq });
+            if let Some(reflex) = self.out_of_range() {
+                self.brake();
+                let (q, tool) = self.entry();
+                run.push(t + self.settings.control_period, q, tool);
+                run.ending = Ending::Failed(reflex);
+                return Ok(run);
+            }
         }
         // The points the last control period reached (a plan shorter than one period).
         while next < points {
@@ -333,6 +379,13 @@ impl<const N: usize> Stepped for DynamicsRobot<N> {
                 dq: &velocity,
                 ddq: &zero,
             });
+            if let Some(reflex) = self.out_of_range() {
+                self.brake();
+                return Err(RobotError::Robot {
+                    robot: self.name(),
+                    message: reflex,
+                });
+            }
         }
         self.previous = to;
         Ok(())
@@ -394,6 +447,13 @@ impl<const N: usize> Streaming for DynamicsRobot<N> {
             previous = target;
             let (q, tool) = self.entry();
             run.push((k + 1) as f64 * period, q, tool);
+            if let Some(reflex) = self.out_of_range() {
+                self.brake();
+                let (q, tool) = self.entry();
+                run.push((k + 1) as f64 * period, q, tool);
+                run.ending = Ending::Failed(reflex);
+                break;
+            }
             if last {
                 break;
             }

@@ -10,7 +10,7 @@ use cps_robot::{Ending, Plan, Robot, RobotModel, StopToken};
 const START: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
 
 fn robot(controller: Controller<7>, noise: f64, seed: u64) -> DynamicsRobot<7> {
-    robot_with(controller, noise, seed, Integrator::SemiImplicitEuler)
+    robot_with(controller, noise, seed, Integrator::SemiImplicitEuler, true)
 }
 
 /// The Panda (Gaz et al.'s inertias) with franky-sim's rotor inertia, no friction.
@@ -19,6 +19,7 @@ fn robot_with(
     noise: f64,
     seed: u64,
     integrator: Integrator,
+    reflexes: bool,
 ) -> DynamicsRobot<7> {
     let chain = panda(PandaTool::HandTcp);
     let dynamics = ArmModel::<7>::new(&chain, &panda_inertia())
@@ -41,6 +42,7 @@ fn robot_with(
             dt: 0.01,
             noise,
             seed,
+            reflexes,
         },
     )
     .unwrap()
@@ -157,6 +159,44 @@ fn a_stop_brings_the_arm_to_rest_and_keeps_what_was_recorded() {
 }
 
 #[test]
+fn a_joint_leaving_its_range_stops_the_arm_as_a_reflex_does() {
+    // Joint 4 driven 3 rad up in 2 s: its range ends at −0.0698 rad, 2.29 rad away.
+    let p = plan(2.0, 3, |t| 1.5 * t);
+    let mut r = robot(Controller::franky_sim(), 0.0, 0);
+    let run = r.run(&p, &StopToken::new()).unwrap();
+    let Ending::Failed(why) = &run.ending else {
+        panic!("{:?}", run.ending)
+    };
+    assert!(
+        why.contains("reflex: joint 4") && why.contains("beyond its range"),
+        "{why}"
+    );
+    // What was recorded before is kept; the arm has braked just past the limit (its
+    // wrist keeps chattering at franky-sim's gains, < 0.1 rad/s, see docs/robots.md).
+    assert!(run.q.len() > 150 && run.q.len() < 201, "{}", run.q.len());
+    let hi = panda(PandaTool::HandTcp).limits().unwrap().1[3];
+    let q4 = r.arm().q[3];
+    assert!(
+        q4 > hi + cps_dynamics::REFLEX_MARGIN && q4 < hi + 0.05,
+        "{q4}"
+    );
+    let dq = r.arm().dq;
+    assert!(dq[..4].iter().all(|v| v.abs() <= 0.02), "{dq:?}");
+    assert!(dq.iter().all(|v| v.abs() <= 0.1), "{dq:?}");
+    // Without reflexes the same plan runs to its end.
+    let mut free = robot_with(
+        Controller::franky_sim(),
+        0.0,
+        0,
+        Integrator::SemiImplicitEuler,
+        false,
+    );
+    let run = free.run(&p, &StopToken::new()).unwrap();
+    assert_eq!(run.ending, Ending::Finished);
+    assert_eq!(run.q.len(), 201);
+}
+
+#[test]
 fn the_stepped_and_streaming_interfaces_move_the_arm_where_commanded() {
     let mut r = robot(Controller::franky_sim(), 0.0, 0);
     let stepped = r.stepped().unwrap();
@@ -202,7 +242,7 @@ fn the_stepped_and_streaming_interfaces_move_the_arm_where_commanded() {
 fn rk4_and_euler_agree_on_a_controlled_motion() {
     let p = plan(1.0, 1, |t| 0.2 * (std::f64::consts::PI * t).sin().powi(2));
     let go = |integrator| {
-        robot_with(Controller::franky_sim(), 0.0, 0, integrator)
+        robot_with(Controller::franky_sim(), 0.0, 0, integrator, true)
             .run(&p, &StopToken::new())
             .unwrap()
             .q

@@ -16,7 +16,7 @@ use crate::sections::Sections;
 pub use crate::sections::energy::{EnergyPlan, PlantSection};
 pub use crate::sections::executed::{ExecutedPlan, ExecutedSection};
 pub use crate::sections::imitation::{DemonstrationsSection, ImitationPlan, ImitationSection};
-pub use crate::sections::joint::{JointPlan, JointSection};
+pub use crate::sections::joint::{JointPlan, JointSection, LearnOn};
 pub use crate::sections::pose::{OrientationSection, PosePlan};
 pub use crate::sections::promp::{ProMpPlan, ProMpSection, ProMpVia};
 pub use crate::sections::scaling::{ScalingPlan, ScalingSection};
@@ -220,7 +220,11 @@ pub(crate) fn parse(file: &Sections<'_>, learner: &ViaPointConfig) -> Result<Pla
         None
     };
     let joint = if file.kind == Kind::ViapointJoint {
-        Some(file.joint_plan()?)
+        let dynamics = matches!(
+            robot.as_ref().map(|r| &r.backend),
+            Some(BackendChoice::Dynamics(_))
+        );
+        Some(file.joint_plan(dynamics)?)
     } else {
         None
     };

@@ -104,6 +104,28 @@ impl RobotChoice {
         }
     }
 
+    /// For learning on what the robot does: a way to open, once per worker, the robot
+    /// with dynamics this backend describes, unguarded and without reflexes (a candidate
+    /// is judged by what the simulated arm does, the limits are in its cost; the learned
+    /// command runs through the guard afterwards), and the period its plans are made at.
+    /// `None` for other backends.
+    pub fn learning_robots(&self) -> Option<(Box<cps_learn::OpenRobot<'_>>, f64)> {
+        let BackendChoice::Dynamics(o) = &self.backend else {
+            return None;
+        };
+        let options = cps_dynamics::DynamicsOptions {
+            reflexes: false,
+            ..o.clone()
+        };
+        let dt = options.dt;
+        Some((
+            Box::new(move || {
+                cps_dynamics::open(self.placed_model(), &self.setup.initial_q, &options)
+            }),
+            dt,
+        ))
+    }
+
     /// Opens every robot of the pool at once, each checked as [`Self::open`] checks one,
     /// named by its endpoint; for the kinematic backend, `in_process` in-process robots
     /// (one per worker thread, so that executions run in parallel; at least one). The

@@ -11,10 +11,11 @@ By hand, in the background: `python sim_server.py --host 127.0.0.1 --table 0.40 
               robot's base frame is MuJoCo's world frame) with its top at z = TOP.
 --friction MU the table's sliding friction coefficient (1 unless given).
 --truth FILE  MuJoCo's ground truth, one row per simulation step:
-              `id,fx,fy,fz,normal,x,y,z`: the message id of the robot state sent after the
+              `id,fx,fy,fz,normal,x,y,z,q1..q7`: the message id of the robot state sent after the
               step; the total force the table exerts on the robot (world axes, N); the sum
               of the contacts' normal forces (N); the hand's tool centre point (0.1034 m
-              below the flange, as franky-sim's O_T_EE) in the world (m).
+              below the flange, as franky-sim's O_T_EE) in the world (m); the joint
+              positions q1..q7 (rad, MuJoCo's qpos, which the robot state reports).
 
 Lines on standard input act on the hand while it runs (a hand pushing the robot):
   push FX FY FZ            a constant force (N, world axes) on the hand body
@@ -101,7 +102,7 @@ with MujocoSimulator(enable_visualization=False) as sim:
                 state["table"] = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "table_top")
                 state["file"] = open(args.truth, "w", buffering=1 << 20) if args.truth else None
                 if state["file"]:
-                    state["file"].write("id,fx,fy,fz,normal,x,y,z\n")
+                    state["file"].write("id,fx,fy,fz,normal,x,y,z," + ",".join(f"q{i}" for i in range(1, 8)) + "\n")
             hand = state["hand"]
             rotation = data.xmat[hand].reshape(3, 3)
             tcp = data.xpos[hand] + rotation[:, 2] * TCP_OFFSET
@@ -141,7 +142,8 @@ with MujocoSimulator(enable_visualization=False) as sim:
             if state["file"]:
                 state["file"].write(
                     f"{robot_server._FrankaServer__message_id},{force[0]:.4f},{force[1]:.4f},"
-                    f"{force[2]:.4f},{normal:.4f},{tcp[0]:.6f},{tcp[1]:.6f},{tcp[2]:.6f}\n"
+                    f"{force[2]:.4f},{normal:.4f},{tcp[0]:.6f},{tcp[1]:.6f},{tcp[2]:.6f},"
+                    + ",".join(f"{x:.9f}" for x in data.qpos[:7]) + "\n"
                 )
             if flush:
                 if state["file"]:

@@ -40,6 +40,13 @@ use crate::{
 /// rest of the cost); starting it 1e-4 rad inside keeps that hair within the limits.
 pub const LIMIT_MARGIN: f64 = 1e-4;
 
+/// Judged on an execution, the final-velocity weight is the robot's, and the command must
+/// end at rest as a limit (weighted as the position limits): a plan's spline stops at its
+/// last point, so a command still moving there ends in a jump of acceleration — and of
+/// torque, beyond a real arm's torque-rate limit. Its final acceleration counts as the
+/// velocity it would build in this many seconds.
+pub const END_AT_REST: f64 = 0.1;
+
 /// Settings of [`learn_joint_space`].
 #[derive(Debug, Clone)]
 pub struct JointSpaceConfig {
@@ -83,6 +90,9 @@ pub struct JointCostBreakdown {
     pub joint_limits: f64,
     /// Speed-limit penalty.
     pub speed_limits: f64,
+    /// Position-limit penalty on the executed joints (0 when judged on the model).
+    #[serde(default)]
+    pub executed_joint_limits: f64,
 }
 
 impl JointCostBreakdown {
@@ -95,6 +105,7 @@ impl JointCostBreakdown {
             + self.jerk
             + self.joint_limits
             + self.speed_limits
+            + self.executed_joint_limits
     }
 }
 
@@ -126,30 +137,61 @@ pub struct JointSpaceCost<'a> {
     speed_limit_weight: f64,
 }
 
-impl JointSpaceCost<'_> {
+impl<'a> JointSpaceCost<'a> {
+    /// The cost `config` describes: its task, robot and limit weights.
+    pub fn new(config: &'a JointSpaceConfig) -> Self {
+        JointSpaceCost {
+            task: &config.learner.task,
+            robot: &config.robot,
+            limit_weight: config.limit_weight,
+            speed_limit_weight: config.speed_limit_weight,
+        }
+    }
+
     /// The cost of a joint trajectory, term by term.
     pub fn breakdown(&self, traj: &Trajectory) -> Result<JointCostBreakdown, KinematicsError> {
+        self.breakdown_of(traj, None)
+    }
+
+    /// The cost of a commanded joint trajectory, term by term, with the goal, via-point
+    /// and final-velocity terms judged on what a robot did with it when `executed` is
+    /// given (and its executed positions' limit excess in `executed_joint_limits`).
+    pub fn breakdown_of(
+        &self,
+        traj: &Trajectory,
+        executed: Option<&ExecutedJoints>,
+    ) -> Result<JointCostBreakdown, KinematicsError> {
         let w = &self.task.weights;
         let dof = traj.dims();
-        let last = traj.n_samples() - 1;
+        let reached = Reached::new(traj, executed);
         let chain = &self.robot.chain;
         let mut b = JointCostBreakdown::default();
-        let q_at = |t: f64| (0..dof).map(|j| traj.position_at(j, t)).collect::<Vec<_>>();
-        let dist2 = |q: &[f64], p: &[f64]| -> Result<f64, KinematicsError> {
-            let x = chain.fk(q)?.translation.vector;
+        let mut q = vec![0.0; dof];
+        let mut dist2 = |t: Option<f64>, p: &[f64]| -> Result<f64, KinematicsError> {
+            reached.q_at(t, &mut q);
+            let x = chain.fk(&q)?.translation.vector;
             Ok((x - Vector3::new(p[0], p[1], p[2])).norm_squared())
         };
-        let end: Vec<f64> = (0..dof).map(|j| traj.position(j)[last]).collect();
-        b.goal = w.goal * dist2(&end, &self.task.goal)?;
+        b.goal = w.goal * dist2(None, &self.task.goal)?;
         for v in &self.task.via {
-            b.via += w.via * dist2(&q_at(v.time), &v.position)?;
+            b.via += w.via * dist2(Some(v.time), &v.position)?;
         }
         let h = traj.times()[1] - traj.times()[0];
         let limits = chain.limits();
         let speeds = chain.velocity_limits();
         for j in 0..dof {
             let (q, v, a) = (traj.position(j), traj.velocity(j), traj.acceleration(j));
-            b.final_velocity += w.final_velocity * v[last] * v[last];
+            let (v_end, a_end) = (v[v.len() - 1], a[a.len() - 1]);
+            match executed {
+                None => b.final_velocity += w.final_velocity * v_end * v_end,
+                // The robot ends at rest, and the command must end at rest (see
+                // [`END_AT_REST`]).
+                Some(e) => {
+                    b.final_velocity += w.final_velocity * e.final_velocity(j).powi(2);
+                    b.joint_limits +=
+                        self.limit_weight * (v_end.powi(2) + (END_AT_REST * a_end).powi(2));
+                }
+            }
             if w.acceleration > 0.0 {
                 b.acceleration += w.acceleration * a.iter().map(|a| a * a).sum::<f64>();
             }
@@ -160,16 +202,12 @@ impl JointSpaceCost<'_> {
                         .sum::<f64>();
             }
             if let Some((lo, hi)) = limits {
-                let excess: f64 = q
-                    .iter()
-                    .map(|&x| {
-                        (x - (hi[j] - LIMIT_MARGIN))
-                            .max(lo[j] + LIMIT_MARGIN - x)
-                            .max(0.0)
-                            .powi(2)
-                    })
-                    .sum();
-                b.joint_limits += self.limit_weight * excess;
+                let excess = |x: f64| limit_excess(x, lo[j], hi[j]).powi(2);
+                b.joint_limits += self.limit_weight * q.iter().map(|&x| excess(x)).sum::<f64>();
+                if let Some(e) = executed {
+                    b.executed_joint_limits +=
+                        self.limit_weight * e.q.iter().map(|q| excess(q[j])).sum::<f64>();
+                }
             }
             if let Some(vmax) = speeds {
                 let excess: f64 = v
@@ -186,26 +224,33 @@ impl JointSpaceCost<'_> {
     /// to [`Self::breakdown`]'s total. The limit terms are hinges (zero within the limits),
     /// so the count does not depend on the trajectory.
     pub fn residuals(&self, traj: &Trajectory, out: &mut Vec<f64>) -> Result<(), KinematicsError> {
+        self.residuals_of(traj, None, out)
+    }
+
+    /// [`Self::residuals`] with the task terms judged on `executed` when it is given
+    /// (their squares sum to [`Self::breakdown_of`]'s total): the executed positions'
+    /// limit hinges come last, one per point and joint.
+    pub fn residuals_of(
+        &self,
+        traj: &Trajectory,
+        executed: Option<&ExecutedJoints>,
+        out: &mut Vec<f64>,
+    ) -> Result<(), KinematicsError> {
         let w = &self.task.weights;
         let dof = traj.dims();
-        let last = traj.n_samples() - 1;
+        let reached = Reached::new(traj, executed);
         let chain = &self.robot.chain;
         out.clear();
         let mut q = vec![0.0; dof];
-        let tool_error = |q: &[f64], p: &[f64], s: f64, out: &mut Vec<f64>| {
-            let x = chain.fk(q)?.translation.vector;
+        let mut tool_error = |t: Option<f64>, p: &[f64], s: f64, out: &mut Vec<f64>| {
+            reached.q_at(t, &mut q);
+            let x = chain.fk(&q)?.translation.vector;
             out.extend((0..3).map(|i| s * (x[i] - p[i])));
             Ok::<(), KinematicsError>(())
         };
-        for (j, q) in q.iter_mut().enumerate() {
-            *q = traj.position(j)[last];
-        }
-        tool_error(&q, &self.task.goal, w.goal.sqrt(), out)?;
+        tool_error(None, &self.task.goal, w.goal.sqrt(), out)?;
         for v in &self.task.via {
-            for (j, q) in q.iter_mut().enumerate() {
-                *q = traj.position_at(j, v.time);
-            }
-            tool_error(&q, &v.position, w.via.sqrt(), out)?;
+            tool_error(Some(v.time), &v.position, w.via.sqrt(), out)?;
         }
         let h = traj.times()[1] - traj.times()[0];
         let limits = chain.limits();
@@ -218,7 +263,15 @@ impl JointSpaceCost<'_> {
         let (sl, ss) = (self.limit_weight.sqrt(), self.speed_limit_weight.sqrt());
         for j in 0..dof {
             let (q, v, a) = (traj.position(j), traj.velocity(j), traj.acceleration(j));
-            out.push(sv * v[last]);
+            let (v_end, a_end) = (v[v.len() - 1], a[a.len() - 1]);
+            match executed {
+                None => out.push(sv * v_end),
+                Some(e) => out.extend([
+                    sv * e.final_velocity(j),
+                    sl * v_end,
+                    sl * END_AT_REST * a_end,
+                ]),
+            }
             if w.acceleration > 0.0 {
                 out.extend(a.iter().map(|a| sa * a));
             }
@@ -226,14 +279,15 @@ impl JointSpaceCost<'_> {
                 out.extend(a.windows(2).map(|p| sj * (p[1] - p[0])));
             }
             if let Some((lo, hi)) = limits {
-                out.extend(q.iter().map(|&x| {
-                    sl * (x - (hi[j] - LIMIT_MARGIN))
-                        .max(lo[j] + LIMIT_MARGIN - x)
-                        .max(0.0)
-                }));
+                out.extend(q.iter().map(|&x| sl * limit_excess(x, lo[j], hi[j])));
             }
             if let Some(vmax) = speeds {
                 out.extend(v.iter().map(|&x| ss * (x.abs() - vmax[j]).max(0.0)));
+            }
+        }
+        if let (Some(e), Some((lo, hi))) = (executed, limits) {
+            for j in 0..dof {
+                out.extend(e.q.iter().map(|q| sl * limit_excess(q[j], lo[j], hi[j])));
             }
         }
         Ok(())
@@ -242,28 +296,35 @@ impl JointSpaceCost<'_> {
     /// Task-space errors through forward kinematics: goal and via-point distances, and
     /// the tool's speed at the end (finite difference of the last two samples).
     pub fn task_errors(&self, traj: &Trajectory) -> Result<TaskErrors, KinematicsError> {
-        let dof = traj.dims();
-        let last = traj.n_samples() - 1;
+        self.task_errors_of(traj, None)
+    }
+
+    /// [`Self::task_errors`] of what a robot did with `traj` when `executed` is given.
+    pub fn task_errors_of(
+        &self,
+        traj: &Trajectory,
+        executed: Option<&ExecutedJoints>,
+    ) -> Result<TaskErrors, KinematicsError> {
+        let reached = Reached::new(traj, executed);
         let chain = &self.robot.chain;
-        let tool = |k: usize| -> Result<Vector3<f64>, KinematicsError> {
-            let q: Vec<f64> = (0..dof).map(|j| traj.position(j)[k]).collect();
-            Ok(chain.fk(&q)?.translation.vector)
-        };
-        let tool_at = |t: f64| -> Result<Vector3<f64>, KinematicsError> {
-            let q: Vec<f64> = (0..dof).map(|j| traj.position_at(j, t)).collect();
+        let mut q = vec![0.0; traj.dims()];
+        let mut tool = |t: Option<f64>| -> Result<Vector3<f64>, KinematicsError> {
+            reached.q_at(t, &mut q);
             Ok(chain.fk(&q)?.translation.vector)
         };
         let p = |v: &[f64]| Vector3::new(v[0], v[1], v[2]);
-        let h = traj.times()[1] - traj.times()[0];
+        let h = reached.period();
+        let end = tool(None)?;
+        let before = tool(Some(reached.end_time() - h))?;
         Ok(TaskErrors {
-            goal: (tool(last)? - p(&self.task.goal)).norm(),
+            goal: (end - p(&self.task.goal)).norm(),
             via: self
                 .task
                 .via
                 .iter()
-                .map(|v| Ok((tool_at(v.time)? - p(&v.position)).norm()))
+                .map(|v| Ok((tool(Some(v.time))? - p(&v.position)).norm()))
                 .collect::<Result<_, KinematicsError>>()?,
-            final_speed: (tool(last)? - tool(last - 1)?).norm() / h,
+            final_speed: (end - before).norm() / h,
         })
     }
 
@@ -290,6 +351,87 @@ impl JointSpaceCost<'_> {
             }
         }
         r
+    }
+}
+
+/// How far `x` lies beyond the range `[lo, hi]` narrowed by [`LIMIT_MARGIN`] (0 inside).
+fn limit_excess(x: f64, lo: f64, hi: f64) -> f64 {
+    (x - (hi - LIMIT_MARGIN))
+        .max(lo + LIMIT_MARGIN - x)
+        .max(0.0)
+}
+
+/// The joints as a robot executed a commanded joint trajectory: their positions at the
+/// plan's points, every `dt` from the start (point 0 at t = 0).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ExecutedJoints {
+    /// The plan's period (s).
+    pub dt: f64,
+    /// Measured joint positions at each point (rad).
+    pub q: Vec<Vec<f64>>,
+}
+
+impl ExecutedJoints {
+    /// Joint `j`'s velocity at the end: the last interval's mean.
+    fn final_velocity(&self, j: usize) -> f64 {
+        let n = self.q.len();
+        (self.q[n - 1][j] - self.q[n - 2][j]) / self.dt
+    }
+}
+
+/// Where the task terms read the joints: the commanded trajectory or its execution.
+enum Reached<'a> {
+    Commanded(&'a Trajectory),
+    Executed(&'a ExecutedJoints),
+}
+
+impl<'a> Reached<'a> {
+    fn new(traj: &'a Trajectory, executed: Option<&'a ExecutedJoints>) -> Self {
+        executed.map_or(Reached::Commanded(traj), Reached::Executed)
+    }
+
+    /// The joints at `t` (linear between points, clamped), or at the end for `None`.
+    fn q_at(&self, t: Option<f64>, q: &mut [f64]) {
+        match self {
+            Reached::Commanded(traj) => {
+                let last = traj.n_samples() - 1;
+                for (j, q) in q.iter_mut().enumerate() {
+                    *q = t.map_or(traj.position(j)[last], |t| traj.position_at(j, t));
+                }
+            }
+            Reached::Executed(e) => {
+                let last = e.q.len() - 1;
+                let s = t.map_or(last as f64, |t| (t / e.dt).clamp(0.0, last as f64));
+                let (k, frac) = if (s - s.round()).abs() < 1e-9 {
+                    (s.round() as usize, 0.0)
+                } else {
+                    (s.floor() as usize, s - s.floor())
+                };
+                for (j, q) in q.iter_mut().enumerate() {
+                    *q = if frac == 0.0 {
+                        e.q[k][j]
+                    } else {
+                        e.q[k][j] + frac * (e.q[k + 1][j] - e.q[k][j])
+                    };
+                }
+            }
+        }
+    }
+
+    /// The sampling period.
+    fn period(&self) -> f64 {
+        match self {
+            Reached::Commanded(traj) => traj.times()[1] - traj.times()[0],
+            Reached::Executed(e) => e.dt,
+        }
+    }
+
+    /// The time of the last sample.
+    fn end_time(&self) -> f64 {
+        match self {
+            Reached::Commanded(traj) => *traj.times().last().unwrap_or(&0.0),
+            Reached::Executed(e) => (e.q.len() - 1) as f64 * e.dt,
+        }
     }
 }
 
@@ -401,12 +543,7 @@ pub fn learn_joint_space(
     let dmp = surrogate.build_dmp()?;
     let space = SearchSpace::new(config.learner.parametrisation, &dmp);
     let optimum = exact_optimum(&surrogate, &dmp, &space)?;
-    let cost = JointSpaceCost {
-        task,
-        robot: &config.robot,
-        limit_weight: config.limit_weight,
-        speed_limit_weight: config.speed_limit_weight,
-    };
+    let cost = JointSpaceCost::new(config);
     let joint_objective = JointObjective {
         cost: cost.clone(),
         dmp: &dmp,

@@ -34,6 +34,7 @@ mod exact;
 mod executed;
 mod imitation;
 mod joint;
+mod joint_executed;
 mod lsq;
 mod pose;
 mod robot;
@@ -54,9 +55,10 @@ pub use imitation::{
     ImitationStage, run_imitation,
 };
 pub use joint::{
-    JointCostBreakdown, JointSpaceConfig, JointSpaceCost, JointSpaceOutcome, LIMIT_MARGIN,
-    LimitReport, execute_joint_trajectory, learn_joint_space,
+    ExecutedJoints, JointCostBreakdown, JointSpaceConfig, JointSpaceCost, JointSpaceOutcome,
+    LIMIT_MARGIN, LimitReport, execute_joint_trajectory, learn_joint_space,
 };
+pub use joint_executed::{ExecutedJointOutcome, ExecutedSearch, OpenRobot, learn_joint_executed};
 pub use pose::{
     OrientationCostBreakdown, OrientationErrors, OrientationResult, PoseConfig, PoseOutcome,
     learn_pose,

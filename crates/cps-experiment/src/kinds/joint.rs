@@ -1,8 +1,10 @@
 //! `kind = "viapoint_joint"`: via-point learning with one DMP per joint, judged in task
 //! space, executed on the robot backend.
 
+use cps_dmp::Trajectory;
 use cps_learn::{
-    JointCostBreakdown, JointSpaceConfig, JointSpaceOutcome, LimitReport, execute_joint_trajectory,
+    ExecutedJointOutcome, ExecutedJoints, ExecutedSearch, JointCostBreakdown, JointSpaceConfig,
+    JointSpaceOutcome, LimitReport, TaskErrors, execute_joint_trajectory, learn_joint_executed,
     learn_joint_space,
 };
 use cps_robot::Recording;
@@ -37,7 +39,51 @@ struct Summary<'a> {
     limit_usage: serde_json::Value,
     search: &'a cps_learn::SearchStats,
     learning_seconds: f64,
+    /// On a robot with dynamics: the command learned on what the robot does.
+    executed_learning: Option<ExecutedLearning>,
     execution: Option<ExecutionSummary>,
+}
+
+/// The second stage on a robot with dynamics: from the model-learned command, the
+/// command whose execution passes the via points.
+#[derive(Serialize)]
+struct ExecutedLearning {
+    /// The model-learned command as the robot executed it (the search's start).
+    model_learned_goal_error_m: f64,
+    model_learned_via_errors_m: Vec<f64>,
+    model_learned_cost: f64,
+    /// The learned command as the robot executed it.
+    goal_error_m: f64,
+    via_errors_m: Vec<f64>,
+    final_tool_speed_m_s: f64,
+    cost: f64,
+    cost_terms: JointCostBreakdown,
+    /// The learned command itself on the model (it leads where the robot lags).
+    commanded_via_errors_m: Vec<f64>,
+    iterations: u64,
+    executions: u64,
+    termination: String,
+    seconds: f64,
+}
+
+impl ExecutedLearning {
+    fn new(r: &ExecutedJointOutcome) -> Self {
+        ExecutedLearning {
+            model_learned_goal_error_m: r.warm_start_errors.goal,
+            model_learned_via_errors_m: r.warm_start_errors.via.clone(),
+            model_learned_cost: r.warm_start.total(),
+            goal_error_m: r.errors.goal,
+            via_errors_m: r.errors.via.clone(),
+            final_tool_speed_m_s: r.errors.final_speed,
+            cost: r.breakdown.total(),
+            cost_terms: r.breakdown,
+            commanded_via_errors_m: r.commanded_errors.via.clone(),
+            iterations: r.search.generations,
+            executions: r.search.evaluations + 2,
+            termination: r.search.termination.clone(),
+            seconds: r.seconds,
+        }
+    }
 }
 
 #[derive(Serialize)]
@@ -63,14 +109,48 @@ impl From<LimitReport> for LimitSummary {
 struct ExecutionSummary {
     samples: usize,
     duration_s: f64,
+    /// The tool as the robot reported it, at the via points' times and at the end.
+    goal_error_m: f64,
+    via_errors_m: Vec<f64>,
+    final_tool_speed_m_s: f64,
     max_tool_deviation_m: f64,
     within_position_limits: bool,
     max_speed_ratio: f64,
 }
 
+/// The task's errors as the robot reported its tool: at each via point's time (between
+/// the plan's points, `dt` apart, linearly) and at the last point.
+fn recorded_errors(rec: &Recording, task: &cps_learn::ViaPointTask, dt: f64) -> TaskErrors {
+    let n = rec.position.len();
+    let at = |t: f64| -> nalgebra::Vector3<f64> {
+        let s = (t / dt).clamp(0.0, (n - 1) as f64);
+        let k = (s.floor() as usize).min(n.saturating_sub(2));
+        let f = s - k as f64;
+        let (a, b) = (rec.position[k], rec.position[(k + 1).min(n - 1)]);
+        nalgebra::Vector3::from_fn(|d, _| a[d] + f * (b[d] - a[d]))
+    };
+    let p = |v: &[f64]| nalgebra::Vector3::new(v[0], v[1], v[2]);
+    let end = at((n - 1) as f64 * dt);
+    TaskErrors {
+        goal: (end - p(&task.goal)).norm(),
+        via: task
+            .via
+            .iter()
+            .map(|v| (at(v.time) - p(&v.position)).norm())
+            .collect(),
+        final_speed: (end - at((n as f64 - 2.0).max(0.0) * dt)).norm() / dt,
+    }
+}
+
 /// Checks a recording against the robot's limits: positions within range and speeds
 /// (differences of consecutive samples over the control period) within the speed limits.
-fn execution_summary(rec: &Recording, chain: &cps_kinematics::SerialChain) -> ExecutionSummary {
+fn execution_summary(
+    rec: &Recording,
+    chain: &cps_kinematics::SerialChain,
+    task: &cps_learn::ViaPointTask,
+    dt: f64,
+) -> ExecutionSummary {
+    let errors = recorded_errors(rec, task, dt);
     let within = match chain.limits() {
         Some((lo, hi)) => rec.q.iter().all(|q| {
             q.iter()
@@ -91,6 +171,9 @@ fn execution_summary(rec: &Recording, chain: &cps_kinematics::SerialChain) -> Ex
     ExecutionSummary {
         samples: rec.time.len(),
         duration_s: rec.time.last().copied().unwrap_or(0.0),
+        goal_error_m: errors.goal,
+        via_errors_m: errors.via,
+        final_tool_speed_m_s: errors.final_speed,
         max_tool_deviation_m: rec.max_position_error(),
         within_position_limits: within,
         max_speed_ratio: ratio,
@@ -115,20 +198,44 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         .pool
         .install(|| learn_joint_space(&config, &|r| ctx.generation(r)))
         .map_err(|e| learn_error(e, "joint-space run"))?;
+    // On a robot with dynamics, the command is then learned on what the robot does.
+    let learning = robot
+        .learning_robots()
+        .filter(|_| plan.learn_on == crate::plan::LearnOn::Execution);
+    let refined = match learning {
+        Some((open, dt)) if !outcome.search.interrupted() => {
+            let search = ExecutedSearch {
+                open: open.as_ref(),
+                dt,
+                iterations: exp.config.generations,
+                stop: ctx.stop,
+            };
+            Some(
+                ctx.pool
+                    .install(|| {
+                        learn_joint_executed(&config, &outcome, &search, &|r| ctx.generation(r))
+                    })
+                    .map_err(|e| learn_error(e, "learning on the executed movement"))?,
+            )
+        }
+        _ => None,
+    };
     ctx.observer.finished();
-    let interrupted = outcome.search.interrupted();
+    let interrupted =
+        outcome.search.interrupted() || refined.as_ref().is_some_and(|r| r.search.interrupted());
+    // What is kept, exported and executed: the command learned on the executions, else
+    // on the model.
+    let (trajectory, errors, limits) = match &refined {
+        Some(r) => (&r.trajectory, &r.errors, r.limits),
+        None => (&outcome.trajectory, &outcome.errors, outcome.limits),
+    };
     // A backend that fails here (a simulator that died) costs the execution, not the
     // learned result: it is kept, marked incomplete, with the reason.
     let mut failure = None;
     let recording = if interrupted {
         None
     } else {
-        match execute_joint_trajectory(
-            backend.as_mut(),
-            &robot.setup,
-            &outcome.trajectory,
-            ctx.stop,
-        ) {
+        match execute_joint_trajectory(backend.as_mut(), &robot.setup, trajectory, ctx.stop) {
             Ok(r) => Some(r),
             Err(e) => {
                 failure = Some(format!("executing the learned movement: {e}"));
@@ -136,9 +243,10 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
             }
         }
     };
+    let plan_dt = backend.dt();
     let execution = recording
         .as_ref()
-        .map(|r| execution_summary(r, &robot.setup.chain));
+        .map(|r| execution_summary(r, &robot.setup.chain, &exp.config.task, plan_dt));
     let mut header = ctx.header(!interrupted);
     if let Some(f) = &failure {
         header.complete = false;
@@ -146,7 +254,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     }
     // The learned movement as its controller will see it, against every limit; retimed
     // and exported as `[export]` asks.
-    let traj = &outcome.trajectory;
+    let traj = trajectory;
     let movement = movement_files(
         exp,
         robot,
@@ -168,14 +276,14 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
         via_errors_m: &outcome.errors.via,
         max_position_error_m: outcome.errors.max_position_error(),
         final_tool_speed_m_s: outcome.errors.final_speed,
-        limits: outcome.limits.into(),
+        limits: limits.into(),
         limit_usage: movement.usage.json(),
         search: &outcome.search,
         learning_seconds: outcome.seconds,
+        executed_learning: refined.as_ref().map(ExecutedLearning::new),
         execution,
     };
     // The tool in task space, through forward kinematics.
-    let traj = &outcome.trajectory;
     let dof = traj.dims();
     let mut tool: [Vec<f64>; 3] = Default::default();
     for k in 0..traj.n_samples() {
@@ -191,10 +299,10 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
             tool[d].push(p[d]);
         }
     }
-    let mut tables = vec![trajectory(&outcome, &tool)];
+    let mut tables = vec![trajectory_table(traj, &tool)];
     tables.extend(recording.as_ref().map(|r| recording_table(r, dof)));
     tables.push(history_table(&[("joints", &outcome.search.history)]));
-    let mut figures = vec![joints_figure(ctx, &outcome, &config)];
+    let mut figures = vec![joints_figure(ctx, traj, &outcome, &config)];
     // Joint speeds with the speed limits (the trajectory's `q1_vel…` columns).
     let speed_limits = config
         .robot
@@ -216,8 +324,29 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
             .limits(speed_limits),
         ),
     });
+    let mut tools = vec![Series::new(
+        if refined.is_some() {
+            "tool commanded"
+        } else {
+            "tool (forward kinematics)"
+        },
+        traj.times().to_vec(),
+        tool.to_vec(),
+    )];
+    if let Some(r) = &refined {
+        tools.push(executed_tool(
+            "executed (robot with dynamics)",
+            &r.executed,
+            &config,
+        )?);
+        tools.push(executed_tool(
+            "model-learned command, executed",
+            &r.warm_start_executed,
+            &config,
+        )?);
+    }
     figures.extend(position_figures(
-        vec![Series::new("tool (forward kinematics)", traj.times().to_vec(), tool.to_vec())],
+        tools,
         way_points(&exp.config.task),
         "The tool in task space (forward kinematics), with the start, the via points p1… and the goal.",
         "The tool's path in 3-D.",
@@ -244,21 +373,35 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
             summary.goal_error_m * 1e3,
             worst(&outcome.errors.via) * 1e3
         ),
-        format!(
-            "  limits: {} (smallest margin {:.4} rad, speeds up to {:.0} % of their limits)",
-            if outcome.limits.within() {
-                "none exceeded"
-            } else {
-                "EXCEEDED"
-            },
-            outcome.limits.min_position_margin,
-            outcome.limits.max_speed_ratio * 100.0
-        ),
     ];
+    if let Some(r) = &summary.executed_learning {
+        lines.push(format!(
+            "  on the robot with dynamics: the model-learned command passes its via points up to {:.3} mm away as executed; learned on the executions ({}, {} iterations, {} executions, {:.2} s): goal {:.3} mm, worst via point {:.3} mm as executed",
+            worst(&r.model_learned_via_errors_m) * 1e3,
+            r.termination,
+            r.iterations,
+            r.executions,
+            r.seconds,
+            errors.goal * 1e3,
+            worst(&errors.via) * 1e3,
+        ));
+    }
+    lines.push(format!(
+        "  limits: {} (smallest margin {:.4} rad, speeds up to {:.0} % of their limits)",
+        if limits.within() {
+            "none exceeded"
+        } else {
+            "EXCEEDED"
+        },
+        limits.min_position_margin,
+        limits.max_speed_ratio * 100.0
+    ));
     if let Some(e) = &summary.execution {
         lines.push(format!(
-            "  executed: {} samples, tool within {:.3e} m of the model, {}",
+            "  executed: {} samples, goal {:.3} mm, worst via point {:.3} mm as the robot reported its tool, tool within {:.3e} m of the model, {}",
             e.samples,
+            e.goal_error_m * 1e3,
+            worst(&e.via_errors_m) * 1e3,
             e.max_tool_deviation_m,
             if e.within_position_limits && e.max_speed_ratio <= 1.0 + 1e-9 {
                 "within the joint limits"
@@ -271,10 +414,34 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     Ok(movement.outcome(header, report, fields(&summary), tables, figures, lines))
 }
 
+/// The tool where the robot put it, through forward kinematics of its executed joints.
+fn executed_tool(
+    name: &str,
+    executed: &ExecutedJoints,
+    config: &JointSpaceConfig,
+) -> Result<Series, ExperimentError> {
+    let mut tool: [Vec<f64>; 3] = Default::default();
+    for q in &executed.q {
+        let p = config
+            .robot
+            .chain
+            .fk(q)
+            .context_with(|| "forward kinematics of the executed movement".into())?
+            .translation
+            .vector;
+        for d in 0..3 {
+            tool[d].push(p[d]);
+        }
+    }
+    let times = (0..executed.q.len())
+        .map(|k| k as f64 * executed.dt)
+        .collect();
+    Ok(Series::new(name, times, tool.to_vec()))
+}
+
 /// `trajectory.csv`: `t`, joint angles `q1…`, their speeds `q1_vel…`, the tool position
 /// `tool_x, tool_y, tool_z` (forward kinematics).
-fn trajectory(outcome: &JointSpaceOutcome, tool: &[Vec<f64>; 3]) -> Table {
-    let traj = &outcome.trajectory;
+fn trajectory_table(traj: &Trajectory, tool: &[Vec<f64>; 3]) -> Table {
     let dof = traj.dims();
     let mut t = Table::new("trajectory").with(Column::numbers(
         "t",
@@ -327,8 +494,12 @@ fn recording_table(rec: &Recording, dof: usize) -> Table {
 }
 
 /// The joints with their limits and the way points' IK configurations.
-fn joints_figure(ctx: &Ctx<'_>, outcome: &JointSpaceOutcome, config: &JointSpaceConfig) -> Figure {
-    let traj = &outcome.trajectory;
+fn joints_figure(
+    ctx: &Ctx<'_>,
+    traj: &Trajectory,
+    outcome: &JointSpaceOutcome,
+    config: &JointSpaceConfig,
+) -> Figure {
     let dof = traj.dims();
     let task = &ctx.exp.config.task;
     let series = vec![Series::new(

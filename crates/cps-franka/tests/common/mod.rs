@@ -73,6 +73,8 @@ pub struct Truth {
     pub normal: f64,
     /// The hand's tool centre point (m).
     pub tcp: [f64; 3],
+    /// The joint positions (rad).
+    pub q: [f64; 7],
 }
 
 impl FrankySim {
@@ -156,11 +158,12 @@ impl FrankySim {
                     .split(',')
                     .map(|x| x.parse().ok())
                     .collect::<Option<_>>()?;
-                (v.len() == 8).then(|| Truth {
+                (v.len() == 15).then(|| Truth {
                     id: v[0] as u64,
                     force: [v[1], v[2], v[3]],
                     normal: v[4],
                     tcp: [v[5], v[6], v[7]],
+                    q: std::array::from_fn(|i| v[8 + i]),
                 })
             })
             .collect()
