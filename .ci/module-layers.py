@@ -65,6 +65,7 @@ LAYERS = {
         ["executed", "lsq"],
         ["viapoint"],
         ["energy", "imitation", "joint", "pose"],
+        ["joint_executed"],
     ],
     "cps-mocap": [
         ["error", "fit"],

@@ -3,7 +3,7 @@
 //! higher and lower than nominal; no table within reach; a force above the ceiling; the
 //! simulator killed while pressing.
 //!
-//! Loopback addresses: 127.0.0.83–88.
+//! Loopback addresses: 127.0.0.84–88.
 
 #[path = "../../cps-franka/tests/common/mod.rs"]
 mod sim;
@@ -114,12 +114,10 @@ fn truth_force(
 }
 
 #[test]
-fn presses_ten_newtons_along_the_profile_on_tables_at_three_heights() {
-    for (host, top) in [
-        ("127.0.0.83", 0.40),
-        ("127.0.0.84", 0.42),
-        ("127.0.0.85", 0.38),
-    ] {
+fn presses_ten_newtons_along_the_profile_on_tables_at_two_heights() {
+    // The highest and the lowest table of the plan's reach (a third, at 0.40 m, between
+    // them, cost CI 20 s of real time and was dropped; contact_experiment.rs presses on it).
+    for (host, top) in [("127.0.0.84", 0.42), ("127.0.0.85", 0.38)] {
         let Some((out, truth)) = run(host, Some(top), &plan(), |_| {}) else {
             return;
         };

@@ -599,29 +599,11 @@ pub fn execute_joint_trajectory(
     let start: Vec<f64> = (0..dof).map(|j| traj.position(j)[0]).collect();
     move_to(backend, &start, stop)?;
     let dt = backend.dt();
-    let end = *traj.times().last().unwrap_or(&0.0);
-    let samples = (end / dt + 1e-9).floor() as usize + 1;
-    let commands: Vec<Vec<f64>> = (0..samples)
-        .map(|k| {
-            (0..dof)
-                .map(|j| traj.position_at(j, k as f64 * dt))
-                .collect()
-        })
-        .collect();
+    let commands = joint_commands(traj, dt);
+    let samples = commands.len();
     // One plan: one call on a simulator with cps's scene script, one goal on a ROS 2
     // controller, one stream on a Franka.
-    let run = backend.run(&Plan::new(dt, commands.clone())?, stop)?;
-    if !run.ending.complete() || run.len() != samples {
-        return Err(cps_robot::RobotError::Robot {
-            robot: backend.name(),
-            message: format!(
-                "asked to run {samples} points, it recorded {}: {}",
-                run.len(),
-                run.ending.sentence()
-            ),
-        }
-        .into());
-    }
+    let run = run_whole(backend, commands.clone(), dt, stop)?;
     let mut rec = Recording {
         steps: samples,
         ..Recording::default()
@@ -639,4 +621,40 @@ pub fn execute_joint_trajectory(
         rec.rotation_error.push(0.0);
     }
     Ok(rec)
+}
+
+/// A joint trajectory sampled every `dt` from its start to its end: a plan's points.
+pub(crate) fn joint_commands(traj: &Trajectory, dt: f64) -> Vec<Vec<f64>> {
+    let end = *traj.times().last().unwrap_or(&0.0);
+    let samples = (end / dt + 1e-9).floor() as usize + 1;
+    (0..samples)
+        .map(|k| {
+            (0..traj.dims())
+                .map(|j| traj.position_at(j, k as f64 * dt))
+                .collect()
+        })
+        .collect()
+}
+
+/// Runs `commands` every `dt` as one plan on `robot`; a run that ends early (stopped,
+/// failed, a reflex) is the robot's error, with its sentence.
+pub(crate) fn run_whole(
+    robot: &mut dyn Robot,
+    commands: Vec<Vec<f64>>,
+    dt: f64,
+    stop: &StopToken,
+) -> Result<cps_robot::Run, cps_robot::RobotError> {
+    let samples = commands.len();
+    let run = robot.run(&Plan::new(dt, commands)?, stop)?;
+    if !run.ending.complete() || run.len() != samples {
+        return Err(cps_robot::RobotError::Robot {
+            robot: robot.name(),
+            message: format!(
+                "asked to run {samples} points, it recorded {}: {}",
+                run.len(),
+                run.ending.sentence()
+            ),
+        });
+    }
+    Ok(run)
 }

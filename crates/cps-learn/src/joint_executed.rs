@@ -21,9 +21,9 @@ use std::time::Instant;
 
 use cps_cmaes::GenerationReport;
 use cps_dmp::{DiscreteDmp, Trajectory};
-use cps_robot::{Plan, Robot, RobotError, StopToken};
+use cps_robot::{Robot, RobotError, StopToken};
 
-use crate::joint::ExecutedJoints;
+use crate::joint::{ExecutedJoints, joint_commands, run_whole};
 use crate::{
     JointCostBreakdown, JointSpaceConfig, JointSpaceCost, JointSpaceOutcome, LearnError,
     LimitReport, SearchSpace, SearchStats, TaskErrors,
@@ -82,39 +82,23 @@ fn execute(
     stop: &StopToken,
     into: &mut ExecutedJoints,
 ) -> Result<(), RobotError> {
-    let dof = traj.dims();
-    let end = *traj.times().last().unwrap_or(&0.0);
-    let samples = (end / dt + 1e-9).floor() as usize + 1;
-    if samples < 2 {
+    let commands = joint_commands(traj, dt);
+    if commands.len() < 2 {
         return Err(RobotError::Robot {
             robot: robot.name(),
-            message: format!("a movement of {end} s is shorter than one plan period ({dt} s)"),
+            message: format!(
+                "a movement of {} s is shorter than one plan period ({dt} s)",
+                traj.times().last().unwrap_or(&0.0)
+            ),
         });
     }
-    let commands: Vec<Vec<f64>> = (0..samples)
-        .map(|k| {
-            (0..dof)
-                .map(|j| traj.position_at(j, k as f64 * dt))
-                .collect()
-        })
-        .collect();
     if !robot.teleport(&commands[0])? {
         return Err(RobotError::Robot {
             robot: robot.name(),
             message: "cannot be put at the start: learning on executions needs a simulated robot (backend = \"dynamics\")".into(),
         });
     }
-    let run = robot.run(&Plan::new(dt, commands)?, stop)?;
-    if !run.ending.complete() || run.len() != samples {
-        return Err(RobotError::Robot {
-            robot: robot.name(),
-            message: format!(
-                "asked to run {samples} points, it recorded {}: {}",
-                run.len(),
-                run.ending.sentence()
-            ),
-        });
-    }
+    let run = run_whole(robot, commands, dt, stop)?;
     into.dt = dt;
     into.q = run.q;
     Ok(())
