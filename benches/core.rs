@@ -140,6 +140,7 @@ fn dynamics_robot(c: &mut Criterion) {
                 dt: 0.01,
                 noise: 0.0,
                 seed: 0,
+                reflexes: true,
             },
         )
         .unwrap();
