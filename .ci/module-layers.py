@@ -50,6 +50,7 @@ LAYERS = {
     "cps-dynamics": [
         ["arm", "controller"],
         ["robot"],
+        ["identify"],
         ["options"],
     ],
     "cps-robot": [
@@ -106,7 +107,7 @@ LAYERS = {
         ["write"],
     ],
     "cps-movement": [
-        ["robot_file"],
+        ["calibration", "robot_file"],
         ["movement", "scene"],
         ["limits", "mocap", "promp"],
         ["retiming"],
@@ -115,6 +116,7 @@ LAYERS = {
     "cps-drive": [
         ["recording", "ros2_graph"],
         ["contact", "franka", "ros2"],
+        ["identify"],
     ],
     "cps-experiment": [
         # what the others use: progress events, a pool of robots, the optimiser's bench

@@ -141,6 +141,7 @@ fn dynamics_robot(c: &mut Criterion) {
                 noise: 0.0,
                 seed: 0,
                 reflexes: true,
+                lag: 0,
             },
         )
         .unwrap();

@@ -308,6 +308,14 @@ class Outcome:
     def lines(self) -> list[str]: ...
     def save(self, out: PathLike, *, force: bool = False, figures: Optional[bool] = None) -> None: ...
 
+def identify(
+    recording: PathLike,
+    *,
+    out: PathLike,
+    robot: str = "fr3",
+    force: bool = False,
+) -> dict[str, Any]: ...
+
 def run_experiment(
     path: PathLike,
     *,

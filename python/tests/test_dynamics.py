@@ -143,3 +143,56 @@ def test_the_crx10ia_agrees_with_pinocchio_on_fanuc_s_urdf():
         np.testing.assert_allclose(crx.inverse_dynamics(q, qd, qdd), pin.rnea(model, data, q, qd, qdd), atol=1e-9)
         pin.framesForwardKinematics(model, data, q)
         np.testing.assert_allclose(crx.fk(q)[:3, 3], data.oMf[model.getFrameId("flange")].translation, atol=1e-12)
+
+
+def test_identify_recovers_a_controller_simulated_in_numpy(tmp_path):
+    """A robot of franky-sim's kind (PD with gravity and Coriolis compensation, rotor
+    inertia, viscous friction) integrated here step by step with cps's forward dynamics,
+    recorded as a Franka reports it; cps.identify recovers its gains and predicts the
+    quarter of the recording it held back. (Wrist gains below franky-sim's, which explicit
+    Euler at 1 ms keeps stable only by clipping the torques.)"""
+    fr3 = cps.Robot("fr3", tool="hand")
+    kp = np.array([4500.0, 4500.0, 3500.0, 3500.0, 1000.0, 800.0, 400.0])
+    kv = np.array([450.0, 450.0, 350.0, 350.0, 80.0, 60.0, 30.0])
+    armature = np.array([0.195] * 4 + [0.074] * 3)
+    viscous = 0.21
+    h = 0.001
+    center = np.array([0.0, -0.3, 0.0, -2.0, 0.0, 1.8, 0.785])
+    q, dq, tau = center.copy(), np.zeros(7), np.zeros(7)
+    zero = np.zeros(7)
+    rows = []
+    steps = 3000
+    for k in range(steps):
+        t = k * h
+        fade = min(1.0, t / 0.3) * min(1.0, (steps * h - t) / 0.3)
+        phase = 2 * np.pi * (0.3 * t + 0.35 * t * t) + 0.9 * np.arange(7)
+        q_c = center + 0.05 * fade * np.sin(phase)
+        rows.append([t, *q, *dq, *tau, *q_c])
+        gravity = fr3.inverse_dynamics(q, zero, zero)
+        coriolis = fr3.inverse_dynamics(q, dq, zero, gravity=[0.0, 0.0, 0.0])
+        tau = kp * (q_c - q) - kv * dq + coriolis + gravity
+        ddq = fr3.forward_dynamics(q, dq, tau - viscous * dq, armature=armature)
+        dq = dq + h * ddq
+        q = q + h * dq
+    names = ["t"] + [f"{p}{j}" for p in ("q", "dq", "tau", "q_d") for j in range(1, 8)]
+    recording = tmp_path / "rec.csv"
+    np.savetxt(recording, np.array(rows), delimiter=",", header=",".join(names), comments="", fmt="%.12g")
+    out = tmp_path / "robot.toml"
+    found = cps.identify(recording, out=out)
+    c = found["calibration"]
+    np.testing.assert_allclose(c["kp"], kp, rtol=1e-3)
+    np.testing.assert_allclose(c["kv"], kv, rtol=1e-3)
+    np.testing.assert_allclose(c["armature"], armature, atol=0.01)
+    np.testing.assert_allclose(c["viscous"], viscous, atol=0.05)
+    assert c["lag_ms"] == 0 and c["robot"] == "fr3"
+    assert max(found["fit"]["held_back_rms_mrad"]) < 0.01
+    assert out.read_text().startswith("# A robot's calibration, identified by cps")
+    # An existing calibration is replaced only when asked; a recording of another kind is
+    # named.
+    with pytest.raises(ValueError, match="already exists"):
+        cps.identify(recording, out=out)
+    cps.identify(recording, out=out, force=True)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,q1\n0,0\n")
+    with pytest.raises(ValueError, match="bad.csv"):
+        cps.identify(bad, out=tmp_path / "other.toml")

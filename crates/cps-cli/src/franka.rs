@@ -7,6 +7,7 @@ use anyhow::Result;
 use clap::{Args, Subcommand};
 use cps_experiment::ExperimentError;
 use cps_experiment::franka::{self, DmpSettings, ExecuteSettings};
+use cps_experiment::identify;
 use cps_experiment::robot_file::Answer;
 use cps_robot::StopToken;
 
@@ -100,6 +101,25 @@ pub enum FrankaCommand {
         #[arg(long, default_value_t = 0.005)]
         epsilon: f64,
     },
+    /// Identify the robot's joint controller (gains, lag) and drives (rotor inertia,
+    /// friction), so that `backend = "dynamics"` with `[robot] calibration` behaves like
+    /// it: 9 s of chirps on every joint where the arm stands, within 40 % of its limits,
+    /// recorded at 1 kHz, the last 3 s held back to judge the fit.
+    Identify {
+        #[command(flatten)]
+        on: On,
+        /// The calibration file to write (TOML).
+        #[arg(long)]
+        out: PathBuf,
+        /// Also keep the recording (CSV at the robot's rate).
+        #[arg(long)]
+        record: Option<PathBuf>,
+        #[command(flatten)]
+        arm: Arm,
+        /// Replace existing files.
+        #[arg(long)]
+        force: bool,
+    },
     /// Record the robot's state at its rate without moving it (guide it by hand in Desk).
     Record(Recording),
     /// Teach by guiding: the arm floats (gravity compensated, lightly damped, pushed back
@@ -173,6 +193,21 @@ pub fn franka(cmd: &FrankaCommand, stop: &StopToken) -> Result<ExitCode> {
             };
             let done = franka::execute_file(file, &settings, &online, record, *force, stop);
             finish(done, on.json)
+        }
+        FrankaCommand::Identify {
+            on,
+            out,
+            record,
+            arm,
+            force,
+        } => {
+            let (a, r) = (
+                franka::parse_arm(&arm.arm)?,
+                franka::parse_realtime(&arm.realtime)?,
+            );
+            let settings = identify::IdentifySettings::new(&on.host, a, r);
+            let done = identify::franka_identify(&settings, out, record.as_deref(), *force, stop);
+            print(&done.map_err(cli_error)?, on.json)
         }
         FrankaCommand::Record(r) => finish(
             franka::record(&r.on.host, r.duration, &r.out, r.force, stop),

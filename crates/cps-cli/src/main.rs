@@ -98,6 +98,25 @@ enum Command {
     Fk(robot::FkArgs),
     /// Inverse kinematics: joint angles that reach `--target`.
     Ik(robot::IkArgs),
+    /// Identify a robot's joint controller and drives from a recording of `cps-cli franka
+    /// execute` or `franka record` (t, q, dq, tau, q_d at 1 kHz), its last quarter held
+    /// back to judge the fit; writes a calibration for `[robot] calibration`.
+    Identify {
+        /// The recording (CSV).
+        recording: PathBuf,
+        /// The robot recorded (its model, with the hand's inertias).
+        #[arg(long, default_value = "fr3")]
+        robot: String,
+        /// The calibration file to write (TOML).
+        #[arg(long)]
+        out: PathBuf,
+        /// Replace an existing calibration.
+        #[arg(long)]
+        force: bool,
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// Robot models.
     Robot {
         #[command(subcommand)]
@@ -263,6 +282,17 @@ fn run(cli: Cli, stop: &StopToken) -> Result<ExitCode> {
         Command::Promp { command } => promp::promp(&command),
         Command::Studio(args) => studio::studio(&args, stop.flag()),
         Command::Franka { command } => franka::franka(&command, stop),
+        Command::Identify {
+            recording: r,
+            robot: arm,
+            out,
+            force,
+            json,
+        } => robot::print(
+            &cps_experiment::identify::identify_recording(&r, &arm, &out, force)
+                .map_err(cli_error)?,
+            json,
+        ),
         Command::Ros2 { command } => ros2::ros2(&command, stop),
         Command::Mocap { command } => mocap::mocap(&command),
         Command::Check {

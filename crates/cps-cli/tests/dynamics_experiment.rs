@@ -118,6 +118,16 @@ fn bad_dynamics_sections_are_named_with_their_place() {
     );
     refused("noise", on_dynamics("noise = -1.0"), "[robot] `noise`");
     refused(
+        "calibration_missing",
+        on_dynamics("calibration = \"missing.toml\""),
+        "[robot] `calibration`: ",
+    );
+    refused(
+        "calibration_and_gains",
+        on_dynamics("calibration = \"missing.toml\"\nkp = [1, 1, 1, 1, 1, 1, 1]"),
+        "[robot] `kp` and `calibration` both say how the robot is driven: give one",
+    );
+    refused(
         "learn_on",
         on_dynamics("").replace("learn_on = \"model\"", "learn_on = \"robot\""),
         "[joint] learn_on must be \"execution\" or \"model\" (got \"robot\")",
@@ -272,4 +282,90 @@ fn transfers_to_franky_sim(command: &std::path::Path, dir: &std::path::Path) {
     }
     eprintln!("franky-sim passes the via points {errors:?} mm away");
     assert!(errors.iter().all(|e| *e < 3.0), "{errors:?} mm");
+}
+
+/// `cps-cli franka identify` on franky-sim: 9 s of chirps where the arm stands, its joint
+/// controller recovered (franky-sim's kp, and kv = kp/10, within 5 %) and the calibrated
+/// robot within 2 mrad RMS of the 3 s held back; the same from the recording
+/// (`cps-cli identify`); an experiment run on the calibrated robot, and one of another
+/// robot refused with its place.
+#[test]
+fn franky_sims_controller_is_identified_and_calibrates_the_dynamics_robot() {
+    let Some(sim) = sim::FrankySim::start("127.0.0.96") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (out, rec) = (dir.path().join("robot.toml"), dir.path().join("rec.csv"));
+    let o = common::cli(&[
+        "franka",
+        "identify",
+        "--host",
+        &sim.host,
+        "--out",
+        out.to_str().unwrap(),
+        "--record",
+        rec.to_str().unwrap(),
+        "--realtime",
+        "ignore",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    drop(sim);
+    let franky_kp = [4500.0, 4500.0, 3500.0, 3500.0, 2000.0, 2000.0, 2000.0];
+    let judge = |answer: &serde_json::Value| {
+        let list = |v: &serde_json::Value| -> Vec<f64> {
+            v.as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect()
+        };
+        let c = &answer["calibration"];
+        let (kp, kv) = (list(&c["kp"]), list(&c["kv"]));
+        eprintln!("kp {kp:?}\nkv {kv:?}\nfit {}", answer["fit"]);
+        for j in 0..7 {
+            assert!((kp[j] / franky_kp[j] - 1.0).abs() < 0.05, "kp {kp:?}");
+            assert!(
+                (kv[j] / (franky_kp[j] / 10.0) - 1.0).abs() < 0.05,
+                "kv {kv:?}"
+            );
+        }
+        let held = list(&answer["fit"]["held_back_rms_mrad"]);
+        assert!(held.iter().all(|e| *e <= 2.0), "{held:?} mrad");
+    };
+    judge(&serde_json::from_slice(&o.stdout).unwrap());
+    // The same from the recording, for a robot cps does not drive.
+    let again = dir.path().join("again.toml");
+    let o = common::cli(&[
+        "identify",
+        rec.to_str().unwrap(),
+        "--out",
+        again.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    judge(&serde_json::from_slice(&o.stdout).unwrap());
+    // The shipped dynamics experiment on the calibrated robot (learned on the model: a
+    // short run).
+    let shipped =
+        std::fs::read_to_string(repo("experiments/dynamics/viapoint_joint.toml")).unwrap();
+    let drive = shipped.lines().find(|l| l.starts_with("drive = ")).unwrap();
+    let calibrated = shipped
+        .replace(drive, "calibration = \"robot.toml\"")
+        .replace("[joint]\n", "[joint]\nlearn_on = \"model\"\n");
+    let file = write(dir.path(), "calibrated.toml", &calibrated);
+    let (o, err) = run(&file, &dir.path().join("calibrated"));
+    assert!(o.status.success(), "{err}");
+    let s = json(&dir.path().join("calibrated/summary.json"));
+    let backend = s["backend"].as_str().unwrap();
+    assert!(backend.contains("calibrated (lag"), "{backend}");
+    // The Panda's scene with the FR3's calibration.
+    let wrong = on_dynamics("calibration = \"robot.toml\"");
+    let err = common::refused(
+        dir.path(),
+        "panda_calibrated",
+        &wrong,
+        "it calibrates the robot fr3, not panda",
+    );
+    assert!(err.contains("panda_calibrated.toml:"), "{err}");
 }

@@ -13,6 +13,8 @@
 //!   missing.
 //! - [`contact`]: movements that touch — force primitives and the hybrid contact task on
 //!   a Franka in torque mode.
+//! - [`identify`]: `cps-cli franka identify` and `cps-cli identify`: a robot's joint
+//!   controller and drives identified from a recording, for the dynamics robot.
 //! - [`recording`]: a recording and its report on disk, the same for every robot.
 //!
 //! Its realtime closures (the online DMP's, the contact task's) run inside cps-franka's
@@ -28,6 +30,7 @@
 
 pub mod contact;
 pub mod franka;
+pub mod identify;
 pub mod recording;
 pub mod ros2;
 pub mod ros2_graph;

@@ -37,6 +37,7 @@
 //!     noise: 0.0,
 //!     seed: 0,
 //!     reflexes: true,
+//!     lag: 0,
 //! };
 //! let mut robot = DynamicsRobot::new(RobotModel::of_chain("panda", chain), arm, settings).unwrap();
 //! // Joint 1 turns 0.2 rad in one second; the PD lags, then settles.
@@ -56,10 +57,12 @@
 
 pub mod arm;
 pub mod controller;
+pub mod identify;
 pub mod options;
 pub mod robot;
 
 pub use arm::{Arm, Integrator};
 pub use controller::{CONTROLLERS, Controller, Desired, FRANKY_SIM_KP};
+pub use identify::{Calibration, Chirps, Identified, Recorded, excitation, identify, predict};
 pub use options::{Drive, DynamicsOptions, default_gains, open};
-pub use robot::{DynamicsRobot, DynamicsSettings, REFLEX_MARGIN};
+pub use robot::{DynamicsRobot, DynamicsSettings, MAX_LAG, REFLEX_MARGIN};

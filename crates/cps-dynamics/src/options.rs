@@ -66,6 +66,87 @@ pub struct DynamicsOptions {
     pub control_period: f64,
     /// Whether a joint leaving its range stops the arm ([`crate::DynamicsSettings::reflexes`]).
     pub reflexes: bool,
+    /// The controller and drives identified on a robot (`cps-cli identify`): they replace
+    /// the drive, the gains and the lag.
+    pub calibration: Option<CalibrationValues>,
+}
+
+/// A calibration's values for any joint count (see [`crate::Calibration`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrationValues {
+    /// The robot it was identified on (its model's name).
+    pub robot: String,
+    /// Position gains (N m/rad).
+    pub kp: Vec<f64>,
+    /// Velocity gains (N m s/rad).
+    pub kv: Vec<f64>,
+    /// The command's lag (control periods).
+    pub lag: usize,
+    /// Rotor inertia (kg m²).
+    pub armature: Vec<f64>,
+    /// Viscous friction (N m s/rad).
+    pub viscous: Vec<f64>,
+    /// Coulomb friction (N m).
+    pub coulomb: Vec<f64>,
+    /// The speed the Coulomb term fades over (rad/s).
+    pub speed: f64,
+}
+
+impl CalibrationValues {
+    /// The values of a calibration of `robot`.
+    pub fn of<const N: usize>(robot: &str, c: &crate::Calibration<N>) -> Self {
+        CalibrationValues {
+            robot: robot.to_string(),
+            kp: c.kp.to_vec(),
+            kv: c.kv.to_vec(),
+            lag: c.lag,
+            armature: c.armature.to_vec(),
+            viscous: c.friction.viscous.to_vec(),
+            coulomb: c.friction.coulomb.to_vec(),
+            speed: c.friction.speed,
+        }
+    }
+
+    /// Checks it against a robot named `robot` with `n` joints: the same robot, every
+    /// list one value a joint, every value finite and ≥ 0, the lag at most
+    /// [`crate::MAX_LAG`]. The sentence names what is wrong.
+    pub fn check(&self, robot: &str, n: usize) -> Result<(), String> {
+        if self.robot != robot {
+            return Err(format!(
+                "it calibrates the robot {}, not {robot}",
+                self.robot
+            ));
+        }
+        for (what, v) in [
+            ("kp", &self.kp),
+            ("kv", &self.kv),
+            ("armature", &self.armature),
+            ("viscous", &self.viscous),
+            ("coulomb", &self.coulomb),
+        ] {
+            if v.len() != n {
+                return Err(format!("{what} has {} values for {n} joints", v.len()));
+            }
+            if let Some(j) = v.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
+                return Err(format!(
+                    "{what} of joint {} is {}: it must be finite and ≥ 0",
+                    j + 1,
+                    v[j]
+                ));
+            }
+        }
+        if self.lag > crate::MAX_LAG {
+            return Err(format!(
+                "a lag of {} control periods is more than the {} simulated",
+                self.lag,
+                crate::MAX_LAG
+            ));
+        }
+        if !(self.speed.is_finite() && self.speed > 0.0) {
+            return Err(format!("the Coulomb speed {} must be > 0", self.speed));
+        }
+        Ok(())
+    }
 }
 
 impl Default for DynamicsOptions {
@@ -82,6 +163,7 @@ impl Default for DynamicsOptions {
             dt: 0.01,
             control_period: 0.001,
             reflexes: true,
+            calibration: None,
         }
     }
 }
@@ -126,9 +208,21 @@ fn open_n<const N: usize>(
         message: m,
     };
     let mut dynamics = ArmModel::<N>::new(&model.chain, links).map_err(|e| bad(e.to_string()))?;
-    let friction = match options.drive {
-        Drive::Rigid => JointFriction::none(),
-        Drive::FrankySim => {
+    let friction = match (&options.calibration, options.drive) {
+        (Some(c), _) => {
+            c.check(&model.name, N)
+                .map_err(|e| bad(format!("the calibration: {e}")))?;
+            dynamics = dynamics
+                .with_armature(fixed(&c.armature))
+                .map_err(|e| bad(e.to_string()))?;
+            JointFriction {
+                viscous: fixed(&c.viscous),
+                coulomb: fixed(&c.coulomb),
+                speed: c.speed,
+            }
+        }
+        (None, Drive::Rigid) => JointFriction::none(),
+        (None, Drive::FrankySim) => {
             dynamics = dynamics
                 .with_armature(std::array::from_fn(|i| if i < 4 { 0.195 } else { 0.074 }))
                 .map_err(|e| bad(e.to_string()))?;
@@ -154,6 +248,7 @@ fn open_n<const N: usize>(
             noise: options.noise,
             seed: options.seed,
             reflexes: options.reflexes,
+            lag: options.calibration.as_ref().map_or(0, |c| c.lag),
         },
     )?;
     Ok(Box::new(robot))
@@ -184,7 +279,17 @@ pub fn open(
             start.len()
         )));
     }
-    let (dkp, dkv) = default_gains(&options.controller, n);
+    let (dkp, dkv) = match &options.calibration {
+        // A calibration identifies franky-sim's kind of controller, and its gains.
+        Some(c) if options.controller == "joint_pd" => (c.kp.clone(), c.kv.clone()),
+        Some(_) => {
+            return Err(bad(format!(
+                "a calibration identifies a joint_pd controller; the controller is {}",
+                options.controller
+            )));
+        }
+        None => default_gains(&options.controller, n),
+    };
     let kp = options.kp.clone().unwrap_or(dkp);
     let kv = options.kv.clone().unwrap_or(dkv);
     for (what, v) in [("kp", &kp), ("kv", &kv)] {

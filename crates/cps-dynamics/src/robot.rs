@@ -34,7 +34,13 @@ pub struct DynamicsSettings<const N: usize> {
     /// does (the run brakes and ends failed, saying which joint and where). Off only where
     /// a learner judges candidates by what the arm does, its limits in the cost.
     pub reflexes: bool,
+    /// How many control periods old the command the controller acts on is (0 to
+    /// [`MAX_LAG`]): a real arm's command reaches its controller late.
+    pub lag: usize,
 }
+
+/// The longest command lag a dynamics robot simulates (control periods).
+pub const MAX_LAG: usize = 7;
 
 /// How far beyond a joint's published range its reflex fires (rad). Plans keep the
 /// published range; a real arm's reflex fires at its hardware limits a little beyond it,
@@ -64,6 +70,12 @@ pub struct DynamicsRobot<const N: usize> {
     clipped: u64,
     /// The joints' position range, when the model has one and reflexes are on.
     range: Option<([f64; N], [f64; N])>,
+    /// The last `MAX_LAG + 1` targets (positions, velocities, accelerations), the newest
+    /// at `head − 1`: the controller acts on the one `lag` periods older.
+    targets: [[[f64; N]; 3]; MAX_LAG + 1],
+    head: usize,
+    /// The torques the drives applied in the last control period (gravity included).
+    applied: [f64; N],
 }
 
 fn pose(p: &Isometry3<f64>) -> IsometryMatrix3<f64> {
@@ -103,6 +115,12 @@ impl<const N: usize> DynamicsRobot<N> {
                 "the plans' period {dt} s must be a whole number of control periods ({period} s)"
             )));
         }
+        if settings.lag > MAX_LAG {
+            return Err(bad(format!(
+                "a command lag of {} control periods is more than the {MAX_LAG} simulated",
+                settings.lag
+            )));
+        }
         if !(settings.noise.is_finite() && settings.noise >= 0.0) {
             return Err(bad(format!(
                 "measurement noise {} rad must be finite and ≥ 0",
@@ -134,12 +152,21 @@ impl<const N: usize> DynamicsRobot<N> {
             ticks: 0,
             clipped: 0,
             range,
+            targets: [[q, [0.0; N], [0.0; N]]; MAX_LAG + 1],
+            head: 0,
+            applied: [0.0; N],
         })
     }
 
     /// The simulated arm (its true state).
     pub fn arm(&self) -> &Arm<N> {
         &self.arm
+    }
+
+    /// The torques the drives applied in the last control period, gravity included (what
+    /// a Franka reports as `tau_J`).
+    pub fn applied_torques(&self) -> [f64; N] {
+        self.applied
     }
 
     /// What the joints read now: the true positions, plus noise when asked for.
@@ -153,8 +180,33 @@ impl<const N: usize> DynamicsRobot<N> {
         q
     }
 
-    /// One control period towards `desired`.
+    /// One control period towards `desired` (or, with a lag, towards the target given
+    /// `lag` periods ago).
     fn tick(&mut self, desired: Desired<'_>) {
+        let lag = self.settings.lag;
+        if lag > 0 {
+            let slot = &mut self.targets[self.head];
+            slot[0].copy_from_slice(desired.q);
+            slot[1].copy_from_slice(desired.dq);
+            slot[2].copy_from_slice(desired.ddq);
+            self.head = (self.head + 1) % (MAX_LAG + 1);
+            let old = self.targets[(self.head + MAX_LAG - lag) % (MAX_LAG + 1)];
+            return self.tick_towards(Desired {
+                q: &old[0],
+                dq: &old[1],
+                ddq: &old[2],
+            });
+        }
+        self.tick_towards(desired);
+    }
+
+    /// Forgets the targets given so far: the arm holds `q` until new ones are `lag` old.
+    fn hold_targets(&mut self, q: [f64; N]) {
+        self.targets = [[q, [0.0; N], [0.0; N]]; MAX_LAG + 1];
+    }
+
+    /// One control period towards `desired`, now.
+    fn tick_towards(&mut self, desired: Desired<'_>) {
         let measured = self.measured();
         let seen = self.arm.model.frames(&measured);
         let command =
@@ -174,6 +226,7 @@ impl<const N: usize> DynamicsRobot<N> {
         if applied != total || limited != command {
             self.clipped += 1;
         }
+        self.applied = applied;
         self.arm
             .step(&truth, &applied, self.settings.control_period);
         self.time += self.settings.control_period;
@@ -299,6 +352,7 @@ impl<const N: usize> Robot for DynamicsRobot<N> {
         })?;
         self.arm.q = q;
         self.arm.dq = [0.0; N];
+        self.hold_targets(q);
         self.command = q;
         self.previous = q;
         self.time = 0.0;

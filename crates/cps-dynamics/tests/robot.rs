@@ -43,6 +43,7 @@ fn robot_with(
             noise,
             seed,
             reflexes,
+            lag: 0,
         },
     )
     .unwrap()

@@ -65,8 +65,10 @@ pub mod files {
     pub use cps_report::write::*;
 }
 
-pub use cps_drive::{contact, franka, ros2, ros2_graph};
-pub use cps_movement::{export, limits, mocap, movement, promp, retiming, robot_file, scene};
+pub use cps_drive::{contact, franka, identify, ros2, ros2_graph};
+pub use cps_movement::{
+    calibration, export, limits, mocap, movement, promp, retiming, robot_file, scene,
+};
 pub use cps_outcome::{
     Context, ExperimentError, InputError, Outcome, outcome, results_dir, source,
 };

@@ -29,7 +29,10 @@ impl RobotChoice {
             BackendChoice::Dynamics(o) => format!(
                 "dynamics (in-process, {} controller, {} drive, {} at {} s, planned every {} s{})",
                 o.controller,
-                o.drive.name(),
+                match &o.calibration {
+                    Some(c) => format!("calibrated (lag {} ms)", c.lag),
+                    None => o.drive.name().to_string(),
+                },
                 o.integrator.name(),
                 o.control_period,
                 o.dt,

@@ -1,6 +1,7 @@
 //! Movements and the robots they are for, as files — everything cps reads and writes
 //! about a movement without learning it or driving a robot:
 //!
+//! - [`calibration`]: a robot's controller and drives as identified (`cps-cli identify`);
 //! - [`robot_file`]: `--robot` values (a built-in name, a TOML robot file, URDF) as
 //!   [`RobotModel`](cps_robot::RobotModel)s with their limits, in words ([`robot_file::Describe`]);
 //! - [`scene`]: scene files (a placed robot, its start, named way points and obstacles);
@@ -25,6 +26,7 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod calibration;
 pub mod export;
 pub mod limits;
 pub mod mocap;

@@ -382,7 +382,12 @@ pub enum FileKind {
     Mcap,
     /// A JointTrajectory in YAML flow style as `cps-cli export` writes it.
     TrajectoryYaml,
+    /// A robot's calibration as `cps-cli identify` writes it (its first line says so).
+    Calibration,
 }
+
+/// The first line of every calibration file cps writes.
+pub const CALIBRATION_HEADER: &str = "# A robot's calibration, identified by cps";
 
 fn looks_like(path: &Path, kind: FileKind) -> bool {
     let Ok(bytes) = fs::read(path) else {
@@ -396,6 +401,7 @@ fn looks_like(path: &Path, kind: FileKind) -> bool {
         FileKind::TrajectoryCsv => text.starts_with("time,") || text.starts_with("t,"),
         FileKind::Mcap => head.starts_with(b"\x89MCAP0\r\n"),
         FileKind::TrajectoryYaml => text.starts_with("{header: "),
+        FileKind::Calibration => text.starts_with(CALIBRATION_HEADER),
         FileKind::Figure => {
             head.starts_with(b"\x89PNG\r\n\x1a\n")
                 || text.trim_start().starts_with("<svg")

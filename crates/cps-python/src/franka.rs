@@ -383,3 +383,25 @@ impl Franka {
         json_to_py(py, &answer.json)
     }
 }
+
+/// `cps.identify(recording, *, out, robot="fr3", force=False)`: a robot's joint controller
+/// (gains, lag) and drives (rotor inertia, friction) identified from a recording at 1 kHz
+/// (`t`, `q1..7`, `dq1..7`, `tau1..7`, `q_d1..7`, as `Franka.execute` and `cps-cli franka
+/// execute` write it), its last quarter held back to judge the fit; the calibration is
+/// written to `out` for `[robot] calibration`. Returns `{"out", "calibration", "fit"}`
+/// as `cps-cli identify --json` prints it.
+#[pyfunction]
+#[pyo3(signature = (recording, *, out, robot = "fr3", force = false))]
+pub fn identify<'py>(
+    py: Python<'py>,
+    recording: std::path::PathBuf,
+    out: std::path::PathBuf,
+    robot: &str,
+    force: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    let robot = robot.to_string();
+    let answer = py
+        .detach(|| cps_experiment::identify::identify_recording(&recording, &robot, &out, force))
+        .map_err(|e| e.py_err())?;
+    json_to_py(py, &answer.json)
+}

@@ -58,6 +58,7 @@ fn _cps(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(experiment::run_experiment, m)?)?;
     m.add_class::<kinematics::Robot>()?;
     m.add_class::<franka::Franka>()?;
+    m.add_function(wrap_pyfunction!(franka::identify, m)?)?;
     m.add_function(wrap_pyfunction!(mocap::_mocap_take, m)?)?;
     m.add_function(wrap_pyfunction!(mocap::_mocap_read, m)?)?;
     m.add_function(wrap_pyfunction!(ros2::_ros2_send, m)?)?;

@@ -61,6 +61,9 @@ pub struct RobotSection {
     noise: Option<Spanned<f64>>,
     /// `backend = "dynamics"`: the noise's seed (default 0).
     seed: Option<Spanned<u64>>,
+    /// `backend = "dynamics"`: a calibration file (`cps-cli identify`), relative to the
+    /// experiment file: the robot's identified gains, lag and drives.
+    calibration: Option<Spanned<String>>,
     /// `backend = "ros2"`: the JointState topic (default `/joint_states`).
     joint_states: Option<Spanned<String>>,
     /// `backend = "ros2"`: the DDS domain (default: `ROS_DOMAIN_ID`, else 0).
@@ -428,6 +431,7 @@ impl Sections<'_> {
             ("integrator", r.integrator.as_ref().map(Spanned::span)),
             ("noise", r.noise.as_ref().map(Spanned::span)),
             ("seed", r.seed.as_ref().map(Spanned::span)),
+            ("calibration", r.calibration.as_ref().map(Spanned::span)),
         ];
         if !matches!(kind, BackendKind::Ros2 | BackendKind::Dynamics)
             && let Some(c) = &r.controller
@@ -477,6 +481,70 @@ impl Sections<'_> {
             )));
         }
         Ok(())
+    }
+
+    /// `[robot] calibration`: the file read and checked against the scene's robot; the
+    /// keys it replaces (`kp`, `kv`, `drive`; a controller other than `joint_pd`) refused.
+    fn calibration(
+        &self,
+        c: &Spanned<String>,
+        r: &RobotSection,
+        robot: &crate::robot_file::RobotModel,
+    ) -> Result<cps_dynamics::options::CalibrationValues, InputError> {
+        for (key, span) in [
+            ("kp", r.kp.as_ref().map(Spanned::span)),
+            ("kv", r.kv.as_ref().map(Spanned::span)),
+            ("drive", r.drive.as_ref().map(Spanned::span)),
+        ] {
+            if let Some(at) = span {
+                return Err(self.err(
+                    &at,
+                    format!("[robot] `{key}` and `calibration` both say how the robot is driven: give one"),
+                ));
+            }
+        }
+        if let Some(ctl) = r.controller.as_ref().filter(|c| c.get_ref() != "joint_pd") {
+            return Err(self.err(
+                &ctl.span(),
+                format!(
+                    "[robot] a calibration identifies a joint_pd controller, not {}",
+                    ctl.get_ref()
+                ),
+            ));
+        }
+        let path = self
+            .path
+            .parent()
+            .unwrap_or(Path::new("."))
+            .join(c.get_ref());
+        let file = crate::calibration::read_calibration(&path)
+            .map_err(|e| self.err(&c.span(), format!("[robot] `calibration`: {}", e.0)))?;
+        let k = file.calibration;
+        let values = cps_dynamics::options::CalibrationValues {
+            robot: k.robot,
+            kp: k.kp,
+            kv: k.kv,
+            lag: k.lag_ms,
+            armature: k.armature,
+            viscous: k.viscous,
+            coulomb: k.coulomb,
+            speed: k.coulomb_speed,
+        };
+        let check = if k.controller != "joint_pd" {
+            Err(format!(
+                "its controller is {}; cps identifies joint_pd",
+                k.controller
+            ))
+        } else {
+            values.check(&robot.name, robot.chain.dof())
+        };
+        check.map_err(|e| {
+            self.err(
+                &c.span(),
+                format!("[robot] `calibration` {}: {e}", path.display()),
+            )
+        })?;
+        Ok(values)
     }
 
     /// `[robot] backend = "dynamics"`: `controller`, `kp`, `kv`, `drive`, `integrator`,
@@ -570,6 +638,9 @@ impl Sections<'_> {
         }
         if let Some(s) = &r.seed {
             o.seed = *s.get_ref();
+        }
+        if let Some(c) = &r.calibration {
+            o.calibration = Some(self.calibration(c, r, robot)?);
         }
         o.dt = match &r.dt {
             Some(d) => {

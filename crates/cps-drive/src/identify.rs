@@ -1,0 +1,367 @@
+//! Calibrating the dynamics robot to a real one: `cps-cli franka identify` excites a
+//! Franka where it stands (a chirp on every joint, within 40 % of its limits, from rest to
+//! rest), records it at 1 kHz and identifies its joint controller and drives
+//! ([`cps_dynamics::identify`]); `cps-cli identify` does the same from a recording already
+//! made. Either way the calibration is judged on a part of the recording it was not
+//! fitted to — the calibrated robot driven by that part's commands from its first state —
+//! and written as a calibration file ([`cps_movement::calibration`]).
+
+use std::path::Path;
+
+use cps_dynamics::{Calibration, Chirps, Identified, Recorded, excitation, identify, predict};
+use cps_franka::Sample;
+use cps_franka::limits::Arm;
+use cps_franka::rt::Realtime;
+use cps_kinematics::ArmModel;
+use cps_movement::calibration::{Calibrated, CalibrationFile, FitRecord, calibration_text};
+use cps_movement::robot_file::{Answer, load_robot};
+use cps_outcome::results_dir::{FileKind, check_file_target};
+use cps_outcome::{ExperimentError, InputError};
+use cps_robot::{RobotModel, StopToken};
+use serde_json::json;
+
+use crate::franka::{ExecuteSettings, Prepared, execute, state, write_recording};
+use crate::recording::check_record_target;
+
+/// The control period of a Franka (s).
+const PERIOD: f64 = 0.001;
+
+/// What `franka identify` does.
+#[derive(Debug, Clone)]
+pub struct IdentifySettings {
+    /// The robot's address.
+    pub host: String,
+    /// Which arm.
+    pub arm: Arm,
+    /// Realtime scheduling of the loop.
+    pub realtime: Realtime,
+    /// The excitation fitted on.
+    pub fit: Chirps,
+    /// The excitation held back to judge the fit, right after it.
+    pub check: Chirps,
+}
+
+impl IdentifySettings {
+    /// Six seconds of chirps from 0.2 to 1.5 Hz to fit on, then three from 1.2 down to
+    /// 0.3 Hz, the joints in other phases, held back.
+    pub fn new(host: &str, arm: Arm, realtime: Realtime) -> Self {
+        IdentifySettings {
+            host: host.to_string(),
+            arm,
+            realtime,
+            fit: Chirps::default(),
+            check: Chirps {
+                seconds: 3.0,
+                from_hz: 1.2,
+                to_hz: 0.3,
+                phase: 2.1,
+                ..Chirps::default()
+            },
+        }
+    }
+}
+
+/// The arm as a dynamics model: its hand's inertias included (the robot carries it).
+fn dynamics_model(arm: &str) -> Result<(RobotModel, ArmModel<7>), ExperimentError> {
+    let model = load_robot(arm, Some("hand"), None)?;
+    let links = model.inertia.clone().ok_or_else(|| {
+        ExperimentError::Message(format!("the {arm}'s link inertias are not known"))
+    })?;
+    if model.chain.dof() != 7 {
+        return Err(ExperimentError::Message(format!(
+            "{arm}: identification is for seven-joint arms"
+        )));
+    }
+    let dynamics = ArmModel::<7>::new(&model.chain, &links)
+        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    Ok((model, dynamics))
+}
+
+fn torque_limits(model: &RobotModel) -> Result<[f64; 7], ExperimentError> {
+    let t = model.limits.torque.as_ref().ok_or_else(|| {
+        ExperimentError::Message(format!("the {}'s torque limits are not known", model.name))
+    })?;
+    Ok(std::array::from_fn(|j| t[j]))
+}
+
+/// Samples as a recording to identify from.
+fn recorded(samples: &[Sample]) -> Recorded<7> {
+    Recorded {
+        period: PERIOD,
+        time: samples.iter().map(|s| s.t).collect(),
+        q: samples.iter().map(|s| s.q).collect(),
+        dq: samples.iter().map(|s| s.dq).collect(),
+        tau: samples.iter().map(|s| s.tau).collect(),
+        q_c: samples.iter().map(|s| s.q_c).collect(),
+    }
+}
+
+/// Fits on `fit`, predicts `held` from its first state under its commands, and returns the
+/// identification with the prediction's RMS per joint (rad).
+fn fit_and_judge(
+    model: &RobotModel,
+    dynamics: &ArmModel<7>,
+    fit: &Recorded<7>,
+    held: &Recorded<7>,
+) -> Result<(Identified<7>, [f64; 7]), ExperimentError> {
+    let limits = torque_limits(model)?;
+    let found = identify(dynamics, fit, &limits).map_err(ExperimentError::Message)?;
+    if held.q.len() < 2 {
+        return Err(ExperimentError::Message(
+            "nothing was held back to judge the calibration on".into(),
+        ));
+    }
+    let predicted = predict(dynamics, model.clone(), &found.calibration, limits, held)
+        .map_err(ExperimentError::Message)?;
+    let n = predicted.len().min(held.q.len() - 1);
+    let rms = std::array::from_fn(|j| {
+        let sum: f64 = (0..n)
+            .map(|k| (predicted[k][j] - held.q[k + 1][j]).powi(2))
+            .sum();
+        (sum / n.max(1) as f64).sqrt()
+    });
+    Ok((found, rms))
+}
+
+/// The calibration file of `found` on `robot`, judged at `held_back` (rad).
+fn calibration_file(
+    robot: &str,
+    found: &Identified<7>,
+    held_back: &[f64; 7],
+    source: String,
+    samples: usize,
+) -> CalibrationFile {
+    let c: &Calibration<7> = &found.calibration;
+    let round = |v: &[f64], digits: i32| -> Vec<f64> {
+        let s = 10f64.powi(digits);
+        v.iter().map(|x| (x * s).round() / s).collect()
+    };
+    CalibrationFile {
+        calibration: Calibrated {
+            robot: robot.to_string(),
+            controller: "joint_pd".into(),
+            kp: round(&c.kp, 3),
+            kv: round(&c.kv, 4),
+            lag_ms: c.lag,
+            armature: round(&c.armature, 5),
+            viscous: round(&c.friction.viscous, 5),
+            coulomb: round(&c.friction.coulomb, 5),
+            coulomb_speed: c.friction.speed,
+        },
+        fit: Some(FitRecord {
+            source,
+            samples,
+            controller_rms_nm: round(&found.controller_rms, 5),
+            drive_rms_nm: round(&found.drive_rms, 5),
+            held_back_rms_mrad: round(&held_back.map(|r| r * 1e3), 4),
+        }),
+    }
+}
+
+/// The answer every identification gives: JSON of the file and the lines to print.
+fn answer(file: &CalibrationFile, out: &Path) -> Answer {
+    let c = &file.calibration;
+    let fit = file.fit.as_ref().expect("a fit record");
+    let list = |v: &[f64]| {
+        v.iter()
+            .map(|x| format!("{x:.4}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let worst = fit.held_back_rms_mrad.iter().fold(0.0f64, |a, b| a.max(*b));
+    Answer {
+        json: json!({
+            "out": out.display().to_string(),
+            "calibration": c,
+            "fit": fit,
+        }),
+        lines: vec![
+            format!("{}: calibration written to {}", c.robot, out.display()),
+            format!("  kp [{}] N m/rad", list(&c.kp)),
+            format!("  kv [{}] N m s/rad, lag {} ms", list(&c.kv), c.lag_ms),
+            format!(
+                "  rotor inertia [{}] kg m², viscous [{}] N m s/rad, Coulomb [{}] N m",
+                list(&c.armature),
+                list(&c.viscous),
+                list(&c.coulomb)
+            ),
+            format!(
+                "  held back: the calibrated robot within {worst:.3} mrad RMS of the recording (worst joint)"
+            ),
+        ],
+    }
+}
+
+fn write(out: &Path, file: &CalibrationFile, comment: &[String]) -> Result<(), ExperimentError> {
+    cps_outcome::files::write_file(out, calibration_text(file, comment).as_bytes())
+}
+
+/// `cps-cli franka identify`: excites the robot where it stands, records it (into
+/// `record` too, when given), identifies it and writes the calibration to `out` (both
+/// checked before anything moves: new files, or `force`).
+pub fn franka_identify(
+    settings: &IdentifySettings,
+    out: &Path,
+    record: Option<&Path>,
+    force: bool,
+    stop: &StopToken,
+) -> Result<Answer, ExperimentError> {
+    check_file_target(out, FileKind::Calibration, force)?;
+    if let Some(r) = record {
+        check_record_target(r, force)?;
+    }
+    let (model, dynamics) = dynamics_model(settings.arm.name())?;
+    let here = state(&settings.host)?;
+    let center: Vec<f64> = serde_json::from_value(here.json["q"].clone())
+        .map_err(|e| ExperimentError::Message(format!("the robot's state: {e}")))?;
+    let fit = excitation(&model, &center, &settings.fit, PERIOD)
+        .map_err(|e| ExperimentError::Message(format!("the excitation: {e}")))?;
+    let check = excitation(&model, &center, &settings.check, PERIOD)
+        .map_err(|e| ExperimentError::Message(format!("the held-back excitation: {e}")))?;
+    let split = fit.len();
+    let commands: Vec<[f64; 7]> = fit
+        .iter()
+        .chain(check.iter().skip(1))
+        .map(|q| std::array::from_fn(|j| q[j]))
+        .collect();
+    let prepared = Prepared {
+        source: "the excitation".into(),
+        commands,
+        how: "chirps on every joint",
+    };
+    let executed = execute(
+        &prepared,
+        &ExecuteSettings {
+            host: settings.host.clone(),
+            arm: settings.arm,
+            retime: false,
+            approach: false,
+            realtime: settings.realtime,
+        },
+        stop,
+    )?;
+    let samples = &executed.report.samples[executed.approach..];
+    if let Some(r) = record {
+        let report = json!({
+            "complete": executed.complete(),
+            "ending": executed.report.ending.sentence(),
+            "host": settings.host,
+            "samples": samples.len(),
+            "what": "cps-cli franka identify's excitation",
+        });
+        write_recording(r, samples, &report)?;
+    }
+    if !executed.complete() {
+        return Err(ExperimentError::Message(format!(
+            "the excitation did not finish: {}; nothing was identified",
+            executed.report.ending.sentence()
+        )));
+    }
+    let whole = recorded(samples);
+    let (fit_part, held) = split_at(&whole, split.min(samples.len()));
+    let (found, rms) = fit_and_judge(&model, &dynamics, &fit_part, &held)?;
+    let file = calibration_file(
+        &model.name,
+        &found,
+        &rms,
+        format!(
+            "cps-cli franka identify: {:.1} s of chirps on the {} at {}, the last {:.1} s held back",
+            (samples.len() as f64) * PERIOD,
+            settings.arm.name(),
+            settings.host,
+            held.q.len() as f64 * PERIOD
+        ),
+        fit_part.q.len(),
+    );
+    write(
+        out,
+        &file,
+        &[format!(
+            "{}'s joint controller and drives; `[robot] calibration = \"{}\"` with backend = \"dynamics\" simulates them",
+            settings.arm.name(),
+            out.display()
+        )],
+    )?;
+    Ok(answer(&file, out))
+}
+
+/// The recording split at sample `at`: what is fitted on and what is held back.
+fn split_at(rec: &Recorded<7>, at: usize) -> (Recorded<7>, Recorded<7>) {
+    let part = |r: std::ops::Range<usize>| Recorded {
+        period: rec.period,
+        time: rec.time[r.clone()].to_vec(),
+        q: rec.q[r.clone()].to_vec(),
+        dq: rec.dq[r.clone()].to_vec(),
+        tau: rec.tau[r.clone()].to_vec(),
+        q_c: rec.q_c[r].to_vec(),
+    };
+    (part(0..at), part(at..rec.q.len()))
+}
+
+/// `cps-cli identify`: identifies the robot `arm` from a recording `cps-cli franka
+/// execute`/`record` wrote (`t`, `q1..7`, `dq1..7`, `tau1..7`, `q_d1..7` at 1 kHz), its
+/// last quarter held back, and writes the calibration to `out`.
+pub fn identify_recording(
+    recording: &Path,
+    arm: &str,
+    out: &Path,
+    force: bool,
+) -> Result<Answer, ExperimentError> {
+    check_file_target(out, FileKind::Calibration, force)?;
+    let (model, dynamics) = dynamics_model(arm)?;
+    let text = cps_outcome::source::read_text(
+        recording,
+        cps_movement::movement::MAX_DEMO_BYTES,
+        "recording",
+    )?;
+    let mut names = Vec::new();
+    for prefix in ["q", "dq", "tau", "q_d"] {
+        names.extend((1..=7).map(|j| format!("{prefix}{j}")));
+    }
+    let (_, demo) = cps_movement::movement::parse_demo_columns(recording, &text, Some(&names))
+        .map_err(|e| {
+            InputError(format!(
+                "{} (a recording of `cps-cli franka execute` or `franka record` has t, q1..7, dq1..7, tau1..7, q_d1..7)",
+                e.0
+            ))
+        })?;
+    let times = demo.times();
+    let row = |k: usize, block: usize| -> [f64; 7] {
+        let s = demo.sample(k);
+        std::array::from_fn(|j| s[7 * block + j])
+    };
+    let n = demo.len();
+    let whole = Recorded {
+        period: PERIOD,
+        time: times.to_vec(),
+        q: (0..n).map(|k| row(k, 0)).collect(),
+        dq: (0..n).map(|k| row(k, 1)).collect(),
+        tau: (0..n).map(|k| row(k, 2)).collect(),
+        q_c: (0..n).map(|k| row(k, 3)).collect(),
+    };
+    let split = n * 3 / 4;
+    let (fit_part, held) = split_at(&whole, split);
+    let (found, rms) = fit_and_judge(&model, &dynamics, &fit_part, &held)
+        .map_err(|e| ExperimentError::Message(format!("{}: {e}", recording.display())))?;
+    let file = calibration_file(
+        &model.name,
+        &found,
+        &rms,
+        format!(
+            "cps-cli identify {}: {:.1} s, the last {:.1} s held back",
+            recording.display(),
+            n as f64 * PERIOD,
+            held.q.len() as f64 * PERIOD
+        ),
+        fit_part.q.len(),
+    );
+    write(
+        out,
+        &file,
+        &[format!(
+            "{arm}'s joint controller and drives, identified from {}",
+            recording.display()
+        )],
+    )?;
+    Ok(answer(&file, out))
+}
