@@ -258,30 +258,50 @@ pub fn franka_identify(
         )));
     }
     let whole = recorded(samples);
-    let (fit_part, held) = split_at(&whole, split.min(samples.len()));
-    let (found, rms) = fit_and_judge(&model, &dynamics, &fit_part, &held)?;
+    let seconds = samples.len() as f64 * PERIOD;
+    conclude(
+        &model,
+        &dynamics,
+        &whole,
+        split.min(samples.len()),
+        out,
+        &|held| {
+            format!(
+                "cps-cli franka identify: {seconds:.1} s of chirps on the {} at {}, the last {held:.1} s held back",
+                settings.arm.name(),
+                settings.host,
+            )
+        },
+        format!(
+            "{}'s joint controller and drives; `[robot] calibration = \"{}\"` with backend = \"dynamics\" simulates them",
+            settings.arm.name(),
+            out.display()
+        ),
+    )
+}
+
+/// Splits `whole` at `split`, fits on the first part, judges on the rest, writes the
+/// calibration to `out` (its source said by `source` of the seconds held back, a
+/// `comment` on top) and answers.
+fn conclude(
+    model: &RobotModel,
+    dynamics: &ArmModel<7>,
+    whole: &Recorded<7>,
+    split: usize,
+    out: &Path,
+    source: &dyn Fn(f64) -> String,
+    comment: String,
+) -> Result<Answer, ExperimentError> {
+    let (fit_part, held) = split_at(whole, split);
+    let (found, rms) = fit_and_judge(model, dynamics, &fit_part, &held)?;
     let file = calibration_file(
         &model.name,
         &found,
         &rms,
-        format!(
-            "cps-cli franka identify: {:.1} s of chirps on the {} at {}, the last {:.1} s held back",
-            (samples.len() as f64) * PERIOD,
-            settings.arm.name(),
-            settings.host,
-            held.q.len() as f64 * PERIOD
-        ),
+        source(held.q.len() as f64 * PERIOD),
         fit_part.q.len(),
     );
-    write(
-        out,
-        &file,
-        &[format!(
-            "{}'s joint controller and drives; `[robot] calibration = \"{}\"` with backend = \"dynamics\" simulates them",
-            settings.arm.name(),
-            out.display()
-        )],
-    )?;
+    write(out, &file, &[comment])?;
     Ok(answer(&file, out))
 }
 
@@ -339,29 +359,28 @@ pub fn identify_recording(
         tau: (0..n).map(|k| row(k, 2)).collect(),
         q_c: (0..n).map(|k| row(k, 3)).collect(),
     };
-    let split = n * 3 / 4;
-    let (fit_part, held) = split_at(&whole, split);
-    let (found, rms) = fit_and_judge(&model, &dynamics, &fit_part, &held)
-        .map_err(|e| ExperimentError::Message(format!("{}: {e}", recording.display())))?;
-    let file = calibration_file(
-        &model.name,
-        &found,
-        &rms,
-        format!(
-            "cps-cli identify {}: {:.1} s, the last {:.1} s held back",
-            recording.display(),
-            n as f64 * PERIOD,
-            held.q.len() as f64 * PERIOD
-        ),
-        fit_part.q.len(),
-    );
-    write(
+    let seconds = n as f64 * PERIOD;
+    conclude(
+        &model,
+        &dynamics,
+        &whole,
+        n * 3 / 4,
         out,
-        &file,
-        &[format!(
+        &|held| {
+            format!(
+                "cps-cli identify {}: {seconds:.1} s, the last {held:.1} s held back",
+                recording.display()
+            )
+        },
+        format!(
             "{arm}'s joint controller and drives, identified from {}",
             recording.display()
-        )],
-    )?;
-    Ok(answer(&file, out))
+        ),
+    )
+    .map_err(|e| match e {
+        ExperimentError::Message(m) => {
+            ExperimentError::Message(format!("{}: {m}", recording.display()))
+        }
+        other => other,
+    })
 }

@@ -345,11 +345,29 @@ impl<const N: usize> Robot for DynamicsRobot<N> {
         Ok(run)
     }
 
+    /// Puts the arm at rest at `q`; with reflexes on, refuses a `q` beyond the joints'
+    /// range (a real arm cannot be there).
     fn teleport(&mut self, q: &[f64]) -> Result<bool, RobotError> {
         let q: [f64; N] = q.try_into().map_err(|_| RobotError::Robot {
             robot: self.name(),
             message: format!("{} joint positions given, the arm has {N}", q.len()),
         })?;
+        if let Some((lo, hi)) = &self.range
+            && let Some(j) = (0..N).find(|&j| {
+                q[j] < lo[j] - REFLEX_MARGIN || q[j] > hi[j] + REFLEX_MARGIN
+            })
+        {
+            return Err(RobotError::Robot {
+                robot: self.name(),
+                message: format!(
+                    "cannot be put at rest with joint {} at {:.4} rad, beyond its range [{:.4}, {:.4}] rad: a real arm cannot be there (a scene's initial configuration outside the robot's range?)",
+                    j + 1,
+                    q[j],
+                    lo[j],
+                    hi[j]
+                ),
+            });
+        }
         self.arm.q = q;
         self.arm.dq = [0.0; N];
         self.hold_targets(q);
@@ -382,6 +400,13 @@ impl<const N: usize> Robot for DynamicsRobot<N> {
 impl<const N: usize> Stepped for DynamicsRobot<N> {
     fn dof(&self) -> usize {
         N
+    }
+
+    /// Yes: an arm with dynamics runs in time. Its controller's commands are planned on the
+    /// model and the arm follows them as a real arm does — iterating a sample until a
+    /// lagging arm reaches it would stretch the movement's time.
+    fn prefers_plans(&self) -> bool {
+        true
     }
 
     fn time_step(&self) -> f64 {

@@ -184,6 +184,15 @@ fn a_joint_leaving_its_range_stops_the_arm_as_a_reflex_does() {
     let dq = r.arm().dq;
     assert!(dq[..4].iter().all(|v| v.abs() <= 0.02), "{dq:?}");
     assert!(dq.iter().all(|v| v.abs() <= 0.1), "{dq:?}");
+    // Nor can the arm be put where a real one cannot be (the thesis's Panda start has
+    // joint 4 at 0 rad, beyond its range).
+    let mut outside = START;
+    outside[3] = 0.0;
+    let e = robot(Controller::franky_sim(), 0.0, 0)
+        .teleport(&outside)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("joint 4 at 0.0000 rad, beyond its range"), "{e}");
     // Without reflexes the same plan runs to its end.
     let mut free = robot_with(
         Controller::franky_sim(),
