@@ -353,9 +353,8 @@ impl<const N: usize> Robot for DynamicsRobot<N> {
             message: format!("{} joint positions given, the arm has {N}", q.len()),
         })?;
         if let Some((lo, hi)) = &self.range
-            && let Some(j) = (0..N).find(|&j| {
-                q[j] < lo[j] - REFLEX_MARGIN || q[j] > hi[j] + REFLEX_MARGIN
-            })
+            && let Some(j) =
+                (0..N).find(|&j| q[j] < lo[j] - REFLEX_MARGIN || q[j] > hi[j] + REFLEX_MARGIN)
         {
             return Err(RobotError::Robot {
                 robot: self.name(),
