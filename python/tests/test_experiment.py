@@ -52,6 +52,27 @@ def test_run_experiment_equals_the_command_line(tmp_path, cli, name):
             np.testing.assert_allclose(table[column], data[column], rtol=0, atol=1e-12)
 
 
+def test_run_experiment_on_the_robot_with_dynamics_equals_the_command_line(tmp_path, cli):
+    """The joint experiment on the FR3 with dynamics, learned on its executions (a short
+    search), from Python on one thread and from the command line on two: the same
+    summary, the same command."""
+    text = (EXPERIMENTS / "dynamics" / "viapoint_joint.toml").read_text()
+    text = text.replace("generations = 15 ", "generations = 2  ")
+    assert "generations = 2  " in text
+    path = tmp_path / "dynamics.toml"
+    path.write_text(text)
+    cli("run", path, "--out", tmp_path / "cli", "--quiet", "--threads", 2)
+    outcome = cps.run_experiment(path, out=tmp_path / "py", threads=1, figures=False)
+    assert outcome.complete and outcome.kind == "viapoint_joint"
+    from_cli = json.loads((tmp_path / "cli" / "summary.json").read_text())
+    assert strip(outcome.summary) == strip(from_cli)
+    learned = outcome.summary["executed_learning"]
+    assert learned["iterations"] == 2
+    assert max(learned["via_errors_m"]) < max(learned["model_learned_via_errors_m"]) / 3
+    assert outcome.summary["backend"].startswith("dynamics (in-process, joint_pd controller")
+    assert (tmp_path / "py" / "trajectory.csv").read_text() == (tmp_path / "cli" / "trajectory.csv").read_text()
+
+
 def without_clock(csv_text):
     """The CSV without the columns of the clock (the thesis's weights table stamps the
     wall time and the compute time)."""

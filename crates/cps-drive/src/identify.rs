@@ -1,7 +1,7 @@
 //! Calibrating the dynamics robot to a real one: `cps-cli franka identify` excites a
 //! Franka where it stands (a chirp on every joint, within 40 % of its limits, from rest to
 //! rest), records it at 1 kHz and identifies its joint controller and drives
-//! ([`cps_dynamics::identify`]); `cps-cli identify` does the same from a recording already
+//! ([`cps_dynamics::identify()`]); `cps-cli identify` does the same from a recording already
 //! made. Either way the calibration is judged on a part of the recording it was not
 //! fitted to — the calibrated robot driven by that part's commands from its first state —
 //! and written as a calibration file ([`cps_movement::calibration`]).
