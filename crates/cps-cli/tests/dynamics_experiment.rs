@@ -75,6 +75,15 @@ fn the_joint_experiment_runs_on_the_dynamics_robot_and_shows_its_controller() {
 
 #[test]
 fn bad_dynamics_sections_are_named_with_their_place() {
+    // What a good file does, in words: both stages of the search, and the robot.
+    let o = common::cli(&["check", &repo("experiments/dynamics/viapoint_joint.toml")]);
+    let said = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{said}");
+    assert!(
+        said.contains("then on the executions: Levenberg–Marquardt, up to 15 iterations")
+            && said.contains("on the dynamics (in-process, joint_pd controller, franky-sim drive"),
+        "{said}"
+    );
     let dir = tempfile::tempdir().unwrap();
     let refused = |name: &str, toml: String, expected: &str| {
         let err = common::refused(dir.path(), name, &toml, expected);

@@ -66,6 +66,11 @@ impl Ceilings {
     }
 }
 
+/// Operations of one control period of the robot with dynamics (the controller, the drives,
+/// forward dynamics, a step): 1.34 µs measured on the reference machine (BENCHMARKS.md ›
+/// Dynamics) at [`OPERATIONS_PER_SECOND`].
+pub const OPERATIONS_PER_CONTROL_PERIOD: f64 = 6700.0;
+
 /// Operations per second of one thread assumed for time estimates: the via-point rollout
 /// measured 6.8e9 on the 2-vCPU reference machine (BENCHMARKS.md); rounded down.
 pub const OPERATIONS_PER_SECOND: f64 = 5e9;
@@ -196,7 +201,18 @@ pub fn estimate(exp: &Experiment) -> Estimate {
     let per_evaluation = if quadratic { 2.0 * nf * nf } else { rollout };
     let rows = 3.0 * samples * d;
     let exact = nf * rollout + rows * nf * nf;
-    let work = evaluations * per_evaluation + exact * multiplier.max(1.0);
+    // Learning on the executions of the robot with dynamics: at most a Jacobian (n
+    // executions) and two trial runs an iteration, each a control period's dynamics per
+    // simulated period.
+    let executions = match (exp.joint, exp.robot.as_ref().map(|r| &r.backend)) {
+        (Some(j), Some(crate::robots::BackendChoice::Dynamics(o)))
+            if exp.kind == Kind::ViapointJoint && j.learn_on == crate::plan::LearnOn::Execution =>
+        {
+            (nf + 2.0) * g * (dmp.tau / o.control_period) * OPERATIONS_PER_CONTROL_PERIOD
+        }
+        _ => 0.0,
+    };
+    let work = evaluations * per_evaluation + exact * multiplier.max(1.0) + executions;
     let memory = 8.0
         * (3.0 * samples * basis
             + 2.0 * lambda * d * 3.0 * samples

@@ -371,6 +371,27 @@ impl Experiment {
                 "{}; judged against the exact optimum through the plant",
                 cmaes(c.generations, 1)
             ),
+            (Kind::ViapointJoint, solver) => {
+                let model = match solver {
+                    cps_learn::Solver::Exact => {
+                        "the exact optimum of the IK way points".to_string()
+                    }
+                    cps_learn::Solver::LeastSquares => format!(
+                        "Levenberg–Marquardt on the model, up to {} iterations",
+                        c.generations
+                    ),
+                    cps_learn::Solver::Cmaes => cmaes(c.generations, c.repetitions),
+                };
+                match self.joint.map(|j| j.learn_on) {
+                    Some(LearnOn::Execution) => format!(
+                        "{model}; then on the executions: Levenberg–Marquardt, up to {} iterations, each candidate run on the robot with dynamics ({} s, a Jacobian of {} runs kept while its steps gain)",
+                        c.generations,
+                        task.dmp.tau,
+                        dims * bases
+                    ),
+                    _ => model,
+                }
+            }
             (_, _) => cmaes(c.generations, c.repetitions),
         };
         let mut lines = vec![learns, format!("search: {search}")];
