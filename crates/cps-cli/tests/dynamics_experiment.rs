@@ -361,7 +361,8 @@ fn franky_sims_controller_is_identified_and_calibrates_the_dynamics_robot() {
     let drive = shipped.lines().find(|l| l.starts_with("drive = ")).unwrap();
     let calibrated = shipped
         .replace(drive, "calibration = \"robot.toml\"")
-        .replace("[joint]\n", "[joint]\nlearn_on = \"model\"\n");
+        .replace("learn_on = \"execution\"", "learn_on = \"model\"    ");
+    assert!(calibrated.contains("learn_on = \"model\""));
     let file = write(dir.path(), "calibrated.toml", &calibrated);
     let (o, err) = run(&file, &dir.path().join("calibrated"));
     assert!(o.status.success(), "{err}");
