@@ -125,9 +125,8 @@ mod tests {
             },
             fit: None,
         };
-        let dir = std::env::temp_dir().join(format!("cps-calibration-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("robot.toml");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("robot.toml");
         let text = calibration_text(&file, &["made by a test".into()]);
         assert!(text.starts_with(CALIBRATION_HEADER));
         std::fs::write(&path, &text).unwrap();
@@ -140,6 +139,5 @@ mod tests {
         );
         let line = text.lines().position(|l| l.starts_with("lag_ms")).unwrap() + 1;
         assert!(e.contains(&format!(":{line}:")), "{e}");
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

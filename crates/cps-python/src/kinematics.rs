@@ -420,12 +420,7 @@ impl Robot {
             },
         ) = self.dynamics_state(q, (qd, "qd"), (qdd, "qdd"))?;
         let n = self.dof();
-        let g = match gravity {
-            Some(g) if !g.is_none() => {
-                nalgebra::Vector3::from_column_slice(&vector(g, "gravity", Some(3))?)
-            }
-            _ => nalgebra::Vector3::from(cps_kinematics::GRAVITY),
-        };
+        let g = nalgebra::Vector3::from(gravity_of(gravity)?);
         let chain = &self.model.chain;
         let out = py
             .detach(|| -> Result<Vec<f64>, cps_kinematics::KinematicsError> {
@@ -443,11 +438,7 @@ impl Robot {
                 Ok(out)
             })
             .py()?;
-        if batched {
-            Ok(array2(py, out, m, n)?.into_any())
-        } else {
-            Ok(array1(py, out).into_any())
-        }
+        shaped(py, out, m, n, batched)
     }
 
     /// Joint accelerations (rad/s²) of forward dynamics (the articulated-body algorithm) at
@@ -476,10 +467,7 @@ impl Robot {
             },
         ) = self.dynamics_state(q, (qd, "qd"), (tau, "tau"))?;
         let n = self.dof();
-        let g = match gravity {
-            Some(g) if !g.is_none() => vector(g, "gravity", Some(3))?,
-            _ => cps_kinematics::GRAVITY.to_vec(),
-        };
+        let g = gravity_of(gravity)?.to_vec();
         let armature = match armature {
             Some(a) if !a.is_none() => vector(a, "armature", Some(n))?,
             _ => vec![0.0; n],
@@ -499,11 +487,7 @@ impl Robot {
                 ))),
             })
             .py()?;
-        if batched {
-            Ok(array2(py, out, m, n)?.into_any())
-        } else {
-            Ok(array1(py, out).into_any())
-        }
+        shaped(py, out, m, n, batched)
     }
 
     /// Checks a joint trajectory (`t` (samples,), `q` (samples, dof)) against every limit of
@@ -644,4 +628,31 @@ struct State {
     batched: bool,
     a: Vec<f64>,
     b: Vec<f64>,
+}
+
+/// The `gravity` keyword of the dynamics methods: three numbers, (0, 0, −9.81) m/s² unless
+/// given.
+fn gravity_of(gravity: Option<&Bound<'_, PyAny>>) -> PyResult<[f64; 3]> {
+    match gravity {
+        Some(g) if !g.is_none() => {
+            let v = vector(g, "gravity", Some(3))?;
+            Ok([v[0], v[1], v[2]])
+        }
+        _ => Ok(cps_kinematics::GRAVITY),
+    }
+}
+
+/// `m` rows of `n` values as the caller gave its states: (m, n), or (n,) for one state.
+fn shaped(
+    py: Python<'_>,
+    out: Vec<f64>,
+    m: usize,
+    n: usize,
+    batched: bool,
+) -> PyResult<Bound<'_, PyAny>> {
+    if batched {
+        Ok(array2(py, out, m, n)?.into_any())
+    } else {
+        Ok(array1(py, out).into_any())
+    }
 }
