@@ -288,11 +288,13 @@ fn run(cli: Cli, stop: &StopToken) -> Result<ExitCode> {
             out,
             force,
             json,
-        } => robot::print(
-            &cps_experiment::identify::identify_recording(&r, &arm, &out, force)
-                .map_err(cli_error)?,
-            json,
-        ),
+        } => match cps_experiment::identify::identify_recording(&r, &arm, &out, force, stop) {
+            Err(e) if stop.is_stopped() => {
+                eprintln!("interrupted: {e}");
+                Ok(ExitCode::from(130))
+            }
+            done => robot::print(&done.map_err(cli_error)?, json),
+        },
         Command::Ros2 { command } => ros2::ros2(&command, stop),
         Command::Mocap { command } => mocap::mocap(&command),
         Command::Check {
@@ -349,10 +351,17 @@ fn run_experiment(args: &RunArgs, stop: &StopToken) -> Result<ExitCode> {
         say!("  results and report.html in {}", out.display());
     }
     if let Some(failure) = outcome.failure() {
-        eprintln!(
-            "error: the run stopped early: {failure}\n  what was finished is in {} (summary.json says \"complete\": false and counts what was done)",
-            out.display()
-        );
+        if outcome.complete() {
+            eprintln!(
+                "error: the run failed: {failure}\n  what it made is in {} (summary.json says why)",
+                out.display()
+            );
+        } else {
+            eprintln!(
+                "error: the run stopped early: {failure}\n  what was finished is in {} (summary.json says \"complete\": false and counts what was done)",
+                out.display()
+            );
+        }
         return Ok(ExitCode::from(1));
     }
     if !outcome.complete() {

@@ -22,7 +22,7 @@ pub struct On {
     #[arg(long, value_delimiter = ',')]
     joint_names: Option<Vec<String>>,
     /// DDS domain (default: $ROS_DOMAIN_ID, else 0).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_domain)]
     domain: Option<u16>,
 }
 
@@ -54,7 +54,7 @@ pub enum Ros2Command {
     /// QoS, services and actions with the nodes at each end.
     Graph {
         /// DDS domain (default: $ROS_DOMAIN_ID, else 0).
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true, value_parser = parse_domain)]
         domain: Option<u16>,
         /// Seconds to watch before listing (discovery takes about a second).
         #[arg(long, default_value_t = 2.0)]
@@ -151,7 +151,7 @@ pub struct ShowArgs {
     #[arg(long, default_value_t = 30.0)]
     seconds: f64,
     /// DDS domain (default: $ROS_DOMAIN_ID, else 0).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_domain)]
     domain: Option<u16>,
     /// Print JSON.
     #[arg(long)]
@@ -228,4 +228,14 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
     bar.finish_and_clear();
     print(&answer, json)?;
     Ok(ExitCode::from(code))
+}
+
+/// `--domain`: a DDS domain, 0 to 232 (their ports must fit in 16 bits).
+fn parse_domain(s: &str) -> std::result::Result<u16, String> {
+    let max = cps_ros2::names::MAX_DOMAIN;
+    s.trim()
+        .parse::<u16>()
+        .ok()
+        .filter(|d| *d <= max)
+        .ok_or_else(|| format!("give a DDS domain, a whole number from 0 to {max} (their ports must fit in 16 bits)"))
 }

@@ -784,7 +784,12 @@ fn files_cps_did_not_write_are_never_touched() {
     assert!(run(&ours, false).status.success());
     let manifest = json(&ours.join("cps-manifest.json"));
     let listed = manifest["files"].as_array().unwrap();
-    assert!(listed.iter().any(|f| f == "summary.json"));
+    assert!(listed.iter().any(|f| f["path"] == "summary.json"));
+    // Each file with the size and SHA-256 it was written with.
+    let summary = std::fs::read(ours.join("summary.json")).unwrap();
+    let entry = listed.iter().find(|f| f["path"] == "summary.json").unwrap();
+    assert_eq!(entry["size"], summary.len());
+    assert_eq!(entry["sha256"].as_str().unwrap().len(), 64);
     assert!(
         run(&ours, true).status.success(),
         "--force replaces cps's own results"
@@ -794,6 +799,42 @@ fn files_cps_did_not_write_are_never_touched() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("`notes.txt`"), "{}", stderr(&o));
     assert_eq!(std::fs::read(ours.join("notes.txt")).unwrap(), b"mine");
+    std::fs::remove_file(ours.join("notes.txt")).unwrap();
+
+    // A manifest entry `lnk/victim.txt` where `lnk` links to another directory: --force
+    // deleted the file there. And a hand-made manifest naming a user's thesis.tex made
+    // --force delete it. Both are refused now, and the files stay.
+    let elsewhere = dir.path().join("elsewhere");
+    std::fs::create_dir(&elsewhere).unwrap();
+    std::fs::write(elsewhere.join("victim.txt"), b"precious").unwrap();
+    std::os::unix::fs::symlink(&elsewhere, ours.join("lnk")).unwrap();
+    let mut m = json(&ours.join("cps-manifest.json"));
+    let mut victim = m["files"][0].clone();
+    victim["path"] = "lnk/victim.txt".into();
+    m["files"].as_array_mut().unwrap().push(victim);
+    std::fs::write(ours.join("cps-manifest.json"), m.to_string()).unwrap();
+    let o = run(&ours, true);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("symbolic link"), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read(elsewhere.join("victim.txt")).unwrap(),
+        b"precious"
+    );
+    let thesis = dir.path().join("thesis");
+    std::fs::create_dir(&thesis).unwrap();
+    std::fs::write(thesis.join("thesis.tex"), b"\\documentclass{book}").unwrap();
+    std::fs::write(
+        thesis.join("cps-manifest.json"),
+        r#"{"files": ["thesis.tex"], "format": "cps-results", "version": 1}"#,
+    )
+    .unwrap();
+    let o = run(&thesis, true);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("cannot verify"), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read(thesis.join("thesis.tex")).unwrap(),
+        b"\\documentclass{book}"
+    );
 
     let model = dir.path().join("model.json");
     std::fs::write(&model, b"{\"mine\": true}").unwrap();

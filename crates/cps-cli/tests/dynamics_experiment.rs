@@ -132,6 +132,46 @@ fn bad_dynamics_sections_are_named_with_their_place() {
         "[robot] `calibration`: ",
     );
     refused(
+        "calibration_empty",
+        on_dynamics("calibration = \"\""),
+        "[robot] `calibration` is empty: give the path of a calibration file",
+    );
+    // A calibration's values are judged where they are read, at their line and column in
+    // the calibration file (they ran, failing later without a place, or with the arm
+    // standing).
+    let calibration = |name: &str, key: &str, value: &str| {
+        let good = "# A robot's calibration, identified by cps\n\n[calibration]\nrobot = \"panda\"\ncontroller = \"joint_pd\"\nkp = [4500.0, 4500.0, 3500.0, 3500.0, 2000.0, 2000.0, 2000.0]\nkv = [450.0, 450.0, 350.0, 350.0, 200.0, 200.0, 200.0]\nlag_ms = 0\narmature = [0.2, 0.2, 0.2, 0.2, 0.07, 0.07, 0.07]\nviscous = [0.2, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2]\ncoulomb = [1.1, 1.1, 1.1, 1.1, 0.7, 0.4, 0.2]\ncoulomb_speed = 0.01\n";
+        let line = good
+            .lines()
+            .find(|l| l.starts_with(&format!("{key} =")))
+            .unwrap();
+        let number = good.lines().position(|l| l == line).unwrap() + 1;
+        let text = good.replace(line, &format!("{key} = {value}"));
+        std::fs::write(dir.path().join(format!("{name}.calibration.toml")), text).unwrap();
+        (
+            on_dynamics(&format!("calibration = \"{name}.calibration.toml\"")),
+            format!("{name}.calibration.toml:{number}:1"),
+        )
+    };
+    for (name, key, value, says) in [
+        (
+            "kp_zero",
+            "kp",
+            "[0.0, 4500.0, 3500.0, 3500.0, 2000.0, 2000.0, 2000.0]",
+            "kp of joint 1 is 0: it must be finite and > 0",
+        ),
+        (
+            "coulomb_huge",
+            "coulomb",
+            "[1e6, 1.1, 1.1, 1.1, 0.7, 0.4, 0.2]",
+            "coulomb of joint 1 is 1000000 N m, at or above its drive's 87 N m",
+        ),
+    ] {
+        let (toml, place) = calibration(name, key, value);
+        let err = common::refused(dir.path(), name, &toml, says);
+        assert!(err.contains(&place), "{name}: {err}");
+    }
+    refused(
         "calibration_and_gains",
         on_dynamics("calibration = \"missing.toml\"\nkp = [1, 1, 1, 1, 1, 1, 1]"),
         "[robot] `kp` and `calibration` both say how the robot is driven: give one",

@@ -475,3 +475,78 @@ fn retime_writes_a_trajectory_that_limits_check_accepts_and_never_overwrites_una
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("`quickest`") && stderr(&o).contains("`uniform`"));
 }
+
+/// Careless or hostile arguments are refused before anything connects, with exit 2 and a
+/// sentence that states the rule (each was accepted, exited 1, or stated a wrong range).
+#[test]
+fn hostile_arguments_exit_2_stating_the_rule() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut seven = String::from("t,q1,q2,q3,q4,q5,q6,q7\n");
+    for k in 0..3 {
+        seven.push_str(&format!("{},0,-0.3,0,-2.2,0,2.0,0.8\n", k as f64 * 0.5));
+    }
+    let file = write(dir.path(), "seven.csv", &seven);
+    let file = file.to_str().unwrap();
+    let refused = |args: &[&str], says: &str| {
+        let o = cli(args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+    };
+    let range = "a whole number from 0 to 232";
+    refused(&["ros2", "graph", "--domain", "-1"], range);
+    refused(&["ros2", "graph", "--domain", "99999"], range);
+    refused(
+        &["ros2", "graph", "--seconds", "0"],
+        "--seconds 0: give a time above 0 and at most 600 s",
+    );
+    refused(
+        &["ros2", "send", file, "--controller", ""],
+        "--controller ``: give the controller's name",
+    );
+    refused(
+        &["ros2", "send", file, "--controller", "/arm controller!"],
+        "--controller `/arm controller!`",
+    );
+    refused(
+        &["franka", "state", "--host", "not a host!"],
+        "--host `not a host!`: not an address",
+    );
+    // A 6-joint file with velocities given for the 7-joint Panda: its `q1_vel` was read as
+    // joint 7, and `limits check` said it was within the limits.
+    let six = write(
+        dir.path(),
+        "six.csv",
+        "t,q1,q2,q3,q4,q5,q6,q1_vel,q2_vel,q3_vel,q4_vel,q5_vel,q6_vel\n0,0,-0.3,0,-2.2,0,2.0,0,0,0,0,0,0\n1,0,-0.3,0,-2.2,0,2.0,0,0,0,0,0,0\n",
+    );
+    for args in [
+        vec!["limits", "check", six.to_str().unwrap(), "--robot", "panda"],
+        vec![
+            "ros2",
+            "send",
+            six.to_str().unwrap(),
+            "--controller",
+            "/arm",
+        ],
+    ] {
+        refused(
+            &args,
+            "6 joint position column(s) (q1, q2, q3, q4, q5, q6) for a 7-joint robot",
+        );
+    }
+    // `franka identify`'s calibration over its own recording: refused before connecting.
+    let same = dir.path().join("same.csv");
+    refused(
+        &[
+            "franka",
+            "identify",
+            "--host",
+            "127.0.0.1",
+            "--out",
+            same.to_str().unwrap(),
+            "--record",
+            same.to_str().unwrap(),
+        ],
+        "the calibration would be written over the recording",
+    );
+}

@@ -55,7 +55,7 @@ pub fn parse_realtime(name: &str) -> Result<Realtime, InputError> {
 
 fn robot_error(e: FrankaError) -> ExperimentError {
     match e {
-        FrankaError::Input(s) => ExperimentError::Message(s),
+        FrankaError::Input(s) => InputError(s).into(),
         other => ExperimentError::Message(other.to_string()),
     }
 }

@@ -8,7 +8,9 @@
 
 use std::path::Path;
 
-use cps_dynamics::{Calibration, Chirps, Identified, Recorded, excitation, identify, predict};
+use cps_dynamics::{
+    Calibration, Chirps, Identified, Recorded, excitation, identify, predict_until,
+};
 use cps_franka::Sample;
 use cps_franka::limits::Arm;
 use cps_franka::rt::Realtime;
@@ -21,7 +23,7 @@ use cps_robot::{RobotModel, StopToken};
 use serde_json::json;
 
 use crate::franka::{ExecuteSettings, Prepared, execute, state, write_recording};
-use crate::recording::check_record_target;
+use crate::recording::{check_record_target, report_path};
 
 /// The control period of a Franka (s).
 const PERIOD: f64 = 0.001;
@@ -103,16 +105,26 @@ fn fit_and_judge(
     dynamics: &ArmModel<7>,
     fit: &Recorded<7>,
     held: &Recorded<7>,
+    stop: &StopToken,
 ) -> Result<(Identified<7>, [f64; 7]), ExperimentError> {
     let limits = torque_limits(model)?;
     let found = identify(dynamics, fit, &limits).map_err(ExperimentError::Message)?;
+    stopped(stop)?;
     if held.q.len() < 2 {
         return Err(ExperimentError::Message(
             "nothing was held back to judge the calibration on".into(),
         ));
     }
-    let predicted = predict(dynamics, model.clone(), &found.calibration, limits, held)
-        .map_err(ExperimentError::Message)?;
+    let predicted = predict_until(
+        dynamics,
+        model.clone(),
+        &found.calibration,
+        limits,
+        held,
+        stop,
+    )
+    .map_err(ExperimentError::Message)?;
+    stopped(stop)?;
     let n = predicted.len().min(held.q.len() - 1);
     let rms = std::array::from_fn(|j| {
         let sum: f64 = (0..n)
@@ -192,8 +204,55 @@ fn answer(file: &CalibrationFile, out: &Path) -> Answer {
     }
 }
 
-fn write(out: &Path, file: &CalibrationFile, comment: &[String]) -> Result<(), ExperimentError> {
-    cps_outcome::files::write_file(out, calibration_text(file, comment).as_bytes())
+/// Whether two paths name one file: equal once their folders are resolved.
+fn same_file(a: &Path, b: &Path) -> bool {
+    let resolve = |p: &Path| {
+        let dir = p
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        std::fs::canonicalize(dir)
+            .ok()
+            .map(|d| d.join(p.file_name().unwrap_or_default()))
+    };
+    matches!((resolve(a), resolve(b)), (Some(x), Some(y)) if x == y)
+}
+
+/// The error of an identification stopped by Ctrl-C or SIGTERM, once `stop` says so.
+fn stopped(stop: &StopToken) -> Result<(), ExperimentError> {
+    if stop.is_stopped() {
+        return Err(ExperimentError::Message(
+            "stopped before the calibration was complete; nothing was written".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// Where the calibration goes: its path, and whether a file (checked to be a calibration
+/// cps wrote, and `--force` given) was there when the command began.
+struct Target<'a> {
+    path: &'a Path,
+    existed: bool,
+}
+
+impl<'a> Target<'a> {
+    /// Checks `path` before any work ([`check_file_target`]).
+    fn check(path: &'a Path, force: bool) -> Result<Self, InputError> {
+        check_file_target(path, FileKind::Calibration, force)?;
+        Ok(Target {
+            path,
+            existed: std::fs::symlink_metadata(path).is_ok(),
+        })
+    }
+
+    /// Writes the calibration; a file that appeared at the path meanwhile is left alone.
+    fn write(&self, file: &CalibrationFile, comment: &[String]) -> Result<(), ExperimentError> {
+        cps_outcome::files::write_file_unless_new_there(
+            self.path,
+            calibration_text(file, comment).as_bytes(),
+            self.existed,
+        )
+    }
 }
 
 /// `cps-cli franka identify`: excites the robot where it stands, records it (into
@@ -206,9 +265,23 @@ pub fn franka_identify(
     force: bool,
     stop: &StopToken,
 ) -> Result<Answer, ExperimentError> {
-    check_file_target(out, FileKind::Calibration, force)?;
+    let target = Target::check(out, force)?;
     if let Some(r) = record {
         check_record_target(r, force)?;
+        let same = |a: &Path, b: &Path| a == b || (same_file(a, b));
+        for (what, path) in [
+            ("the recording", r.to_path_buf()),
+            ("its report", report_path(r)),
+        ] {
+            if same(out, &path) {
+                return Err(InputError(format!(
+                    "--out {} and --record {}: the calibration would be written over {what}; give two different files",
+                    out.display(),
+                    r.display()
+                ))
+                .into());
+            }
+        }
     }
     let (model, dynamics) = dynamics_model(settings.arm.name())?;
     let here = state(&settings.host)?;
@@ -260,11 +333,11 @@ pub fn franka_identify(
     let whole = recorded(samples);
     let seconds = samples.len() as f64 * PERIOD;
     conclude(
-        &model,
-        &dynamics,
+        (&model, &dynamics),
         &whole,
         split.min(samples.len()),
-        out,
+        &target,
+        stop,
         &|held| {
             format!(
                 "cps-cli franka identify: {seconds:.1} s of chirps on the {} at {}, the last {held:.1} s held back",
@@ -280,20 +353,20 @@ pub fn franka_identify(
     )
 }
 
-/// Splits `whole` at `split`, fits on the first part, judges on the rest, writes the
+/// Splits `whole` at `split`, fits the arm (its model and dynamics) on the first part, judges on the rest, writes the
 /// calibration to `out` (its source said by `source` of the seconds held back, a
 /// `comment` on top) and answers.
 fn conclude(
-    model: &RobotModel,
-    dynamics: &ArmModel<7>,
+    (model, dynamics): (&RobotModel, &ArmModel<7>),
     whole: &Recorded<7>,
     split: usize,
-    out: &Path,
+    out: &Target<'_>,
+    stop: &StopToken,
     source: &dyn Fn(f64) -> String,
     comment: String,
 ) -> Result<Answer, ExperimentError> {
     let (fit_part, held) = split_at(whole, split);
-    let (found, rms) = fit_and_judge(model, dynamics, &fit_part, &held)?;
+    let (found, rms) = fit_and_judge(model, dynamics, &fit_part, &held, stop)?;
     let file = calibration_file(
         &model.name,
         &found,
@@ -301,8 +374,8 @@ fn conclude(
         source(held.q.len() as f64 * PERIOD),
         fit_part.q.len(),
     );
-    write(out, &file, &[comment])?;
-    Ok(answer(&file, out))
+    out.write(&file, &[comment])?;
+    Ok(answer(&file, out.path))
 }
 
 /// The recording split at sample `at`: what is fitted on and what is held back.
@@ -320,14 +393,17 @@ fn split_at(rec: &Recorded<7>, at: usize) -> (Recorded<7>, Recorded<7>) {
 
 /// `cps-cli identify`: identifies the robot `arm` from a recording `cps-cli franka
 /// execute`/`record` wrote (`t`, `q1..7`, `dq1..7`, `tau1..7`, `q_d1..7` at 1 kHz), its
-/// last quarter held back, and writes the calibration to `out`.
+/// last quarter held back, and writes the calibration to `out` (checked before any work: a
+/// new file, or with `force` a calibration cps wrote; a file that appears there meanwhile
+/// is left alone). Ends early, writing nothing, once `stop` is stopped.
 pub fn identify_recording(
     recording: &Path,
     arm: &str,
     out: &Path,
     force: bool,
+    stop: &StopToken,
 ) -> Result<Answer, ExperimentError> {
-    check_file_target(out, FileKind::Calibration, force)?;
+    let target = Target::check(out, force)?;
     let (model, dynamics) = dynamics_model(arm)?;
     let text = cps_outcome::source::read_text(
         recording,
@@ -360,12 +436,13 @@ pub fn identify_recording(
         q_c: (0..n).map(|k| row(k, 3)).collect(),
     };
     let seconds = n as f64 * PERIOD;
+    stopped(stop)?;
     conclude(
-        &model,
-        &dynamics,
+        (&model, &dynamics),
         &whole,
         n * 3 / 4,
-        out,
+        &target,
+        stop,
         &|held| {
             format!(
                 "cps-cli identify {}: {seconds:.1} s, the last {held:.1} s held back",
@@ -383,4 +460,45 @@ pub fn identify_recording(
         }
         other => other,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Ctrl-C or SIGTERM ends `cps-cli identify` (it ran on, deaf to both): a stopped
+    /// identification writes nothing and says so.
+    #[test]
+    fn a_stopped_identification_writes_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut text = String::from("t");
+        for prefix in ["q", "dq", "tau", "q_d"] {
+            for j in 1..=7 {
+                text.push_str(&format!(",{prefix}{j}"));
+            }
+        }
+        for k in 0..3 {
+            text.push_str(&format!("\n{}", k as f64 * 1e-3));
+            text.push_str(&",0".repeat(28));
+        }
+        let rec = dir.path().join("rec.csv");
+        std::fs::write(&rec, text).unwrap();
+        let out = dir.path().join("robot.toml");
+        let stop = StopToken::new();
+        stop.stop();
+        let e = identify_recording(&rec, "fr3", &out, false, &stop)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("stopped before the calibration was complete"),
+            "{e}"
+        );
+        assert!(!out.exists());
+        // Not stopped, the same recording is judged for what it is.
+        let e = identify_recording(&rec, "fr3", &out, false, &StopToken::new())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("too few"), "{e}");
+        assert!(!out.exists());
+    }
 }

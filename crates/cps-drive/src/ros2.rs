@@ -193,6 +193,19 @@ pub fn send_trajectory(
         return Err(InputError(format!("--wait {}: give seconds in (0, 3600]", s.wait)).into());
     }
     let (model, names) = robot_and_names(&s.graph.robot, s.graph.joint_names.as_deref())?;
+    // A bad name or domain is the user's: named before anything joins the graph.
+    let me =
+        NodeName::from_env(NODE_NAME, s.graph.domain).map_err(|e| InputError(e.to_string()))?;
+    let controller = s.controller.trim_end_matches('/');
+    if controller.is_empty() {
+        return Err(InputError(format!(
+            "--controller `{}`: give the controller's name, e.g. /panda_arm_controller",
+            s.controller
+        ))
+        .into());
+    }
+    cps_ros2::names::resolve(&me, &format!("{controller}/joint_trajectory"))
+        .map_err(|e| InputError(format!("--controller `{}`: {e}", s.controller)))?;
     if let Some(r) = &s.record {
         if s.via == Via::Topic {
             return Err(InputError(
@@ -251,8 +264,6 @@ pub fn send_trajectory(
             ))
         }
         Via::Action => {
-            // A bad name or domain is the user's: named before anything joins the graph.
-            NodeName::from_env(NODE_NAME, s.graph.domain).map_err(|e| InputError(e.to_string()))?;
             let settings = Ros2Settings {
                 controller: s.controller.clone(),
                 joint_states: s.record.as_ref().map_or(String::new(), |r| r.topic.clone()),

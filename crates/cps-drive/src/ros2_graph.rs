@@ -196,7 +196,7 @@ pub fn graph_lines(g: &Graph) -> Vec<String> {
 pub fn graph(look: &GraphLook, stop: &StopToken) -> Result<Answer, ExperimentError> {
     if !(look.seconds.is_finite() && look.seconds > 0.0 && look.seconds <= 600.0) {
         return Err(InputError(format!(
-            "--seconds {}: give a time from 0 to 600 s to watch the graph",
+            "--seconds {}: give a time above 0 and at most 600 s to watch the graph",
             look.seconds
         ))
         .into());

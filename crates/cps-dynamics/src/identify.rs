@@ -33,6 +33,16 @@ use crate::robot::{DynamicsRobot, DynamicsSettings, MAX_LAG};
 /// model ([`JointFriction::speed`]) smooths it.
 pub const COULOMB_SPEED: f64 = 0.01;
 
+/// The longest run of missed periods a recording may hold (0.1 s at 1 kHz): a robot that
+/// reports no state for longer has lost its connection, and what it did meanwhile is not
+/// in the recording. Bounding it bounds the work and memory of [`predict`] by the
+/// recording's length, whatever its clock says.
+pub const MAX_MISSED_PERIODS: usize = 100;
+
+/// How far each joint's command must range over a recording (rad) for its controller to be
+/// identified: a robot standing still, its sensors' noise aside, determines no gains.
+pub const MIN_EXCITATION: f64 = 0.02;
+
 /// A robot's joint-level controller and drives, as identified ([`identify`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Calibration<const N: usize> {
@@ -107,15 +117,44 @@ impl<const N: usize> Recorded<N> {
                 self.q.len()
             ));
         }
-        if let Some(k) = (1..self.time.len()).find(|&k| {
-            let steps = (self.time[k] - self.time[k - 1]) / self.period;
-            !(steps.is_finite() && steps > 0.5 && (steps - steps.round()).abs() < 0.25)
-        }) {
+        if let Some(k) = (0..self.time.len()).find(|&k| !self.time[k].is_finite()) {
+            return Err(format!("sample {}: its time is not finite", k + 1));
+        }
+        let mut missed_pairs = 0;
+        for k in 1..self.time.len() {
+            let gap = self.time[k] - self.time[k - 1];
+            let steps = gap / self.period;
+            if !(steps.is_finite() && steps > 0.5 && (steps - steps.round()).abs() < 0.25) {
+                return Err(format!(
+                    "samples {k} and {} are {gap:.4} s apart: not a whole number of control periods ({} s, {:.0} Hz)",
+                    k + 1,
+                    self.period,
+                    1.0 / self.period
+                ));
+            }
+            if steps.round() > (MAX_MISSED_PERIODS + 1) as f64 {
+                return Err(format!(
+                    "samples {k} and {} are {gap:.4} s apart: the robot reported nothing for more than {MAX_MISSED_PERIODS} control periods ({:.3} s), so the recording does not say what it did; identify from a recording without such a gap (or from each part of it)",
+                    k + 1,
+                    MAX_MISSED_PERIODS as f64 * self.period
+                ));
+            }
+            if steps.round() >= 2.0 {
+                missed_pairs += 1;
+            }
+        }
+        // A robot under load misses a period now and then; a recording that misses most is
+        // one made at another rate.
+        if self.time.len() > 2 && 2 * missed_pairs > self.time.len() - 1 {
+            let mut gaps: Vec<f64> = self.time.windows(2).map(|w| w[1] - w[0]).collect();
+            gaps.sort_by(f64::total_cmp);
+            let typical = gaps[gaps.len() / 2];
             return Err(format!(
-                "samples {k} and {} are {:.4} s apart: not a whole number of control periods ({} s)",
-                k + 1,
-                self.time[k] - self.time[k - 1],
-                self.period
+                "its samples are typically {:.4} s apart ({:.0} Hz): identification needs a recording at the control rate, one sample every {} s ({:.0} Hz)",
+                typical,
+                1.0 / typical,
+                self.period,
+                1.0 / self.period
             ));
         }
         Ok(())
@@ -212,6 +251,23 @@ pub fn identify<const N: usize>(
             "{n} samples are too few to identify from: record at least a second of motion"
         ));
     }
+    for j in 0..N {
+        let (lo, hi) = rec
+            .q_c
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), c| {
+                (lo.min(c[j]), hi.max(c[j]))
+            });
+        let span = hi - lo;
+        if span.is_nan() || span < MIN_EXCITATION {
+            return Err(format!(
+                "joint {}: its command ranges over {:.2} mrad only: the recording does not excite it, so its controller cannot be identified (record a motion of every joint of at least {} mrad; `cps-cli franka identify` makes one)",
+                j + 1,
+                span * 1e3,
+                MIN_EXCITATION * 1e3
+            ));
+        }
+    }
     // The torque the controller asked for, gravity and Coriolis taken out, per sample and
     // torque-to-state delay (0: the state of the same sample, 1: the one before).
     let mut gravity = Vec::with_capacity(n);
@@ -268,6 +324,12 @@ pub fn identify<const N: usize>(
                 j + 1
             )
         })?;
+        if !(p > 0.0 && v >= 0.0) {
+            return Err(format!(
+                "joint {}: the fit gives kp = {p:.4} N m/rad and kv = {v:.4} N m s/rad, which no stable position controller has (kp > 0, kv ≥ 0): the recording does not determine its gains",
+                j + 1
+            ));
+        }
         kp[j] = p;
         kv[j] = v;
         controller_rms[j] = rms;
@@ -457,6 +519,25 @@ pub fn predict<const N: usize>(
     torque_limit: [f64; N],
     held: &Recorded<N>,
 ) -> Result<Vec<[f64; N]>, String> {
+    predict_until(
+        model,
+        robot,
+        calibration,
+        torque_limit,
+        held,
+        &StopToken::new(),
+    )
+}
+
+/// [`predict`], ending early (with an error saying so) once `stop` is stopped.
+pub fn predict_until<const N: usize>(
+    model: &ArmModel<N>,
+    robot: RobotModel,
+    calibration: &Calibration<N>,
+    torque_limit: [f64; N],
+    held: &Recorded<N>,
+    stop: &StopToken,
+) -> Result<Vec<[f64; N]>, String> {
     let n = held.q.len();
     if n < 2 || held.dq.len() != n || held.q_c.len() != n {
         return Err(format!(
@@ -505,8 +586,11 @@ pub fn predict<const N: usize>(
         command.copy_from_slice(&commands[p]);
         p + 1 >= periods
     });
-    let run = Streaming::stream(&mut sim, &mut next, periods + 1, &StopToken::new())
-        .map_err(|e| e.to_string())?;
+    let run =
+        Streaming::stream(&mut sim, &mut next, periods + 1, stop).map_err(|e| e.to_string())?;
+    if stop.is_stopped() {
+        return Err("stopped before the prediction was complete".into());
+    }
     (1..n)
         .map(|k| {
             let q = run
@@ -698,6 +782,77 @@ mod tests {
             q_c: vec![START; 1000],
         };
         let e = identify(&rigid, &still, &[87.0; 7]).unwrap_err();
-        assert!(e.contains("does not determine its gains"), "{e}");
+        assert!(e.contains("does not excite it"), "{e}");
+    }
+
+    /// Recordings a careless user or a broken logger makes: refused with a sentence, never
+    /// a panic, negative gains, or memory that grows with a gap in the clock.
+    #[test]
+    fn hostile_recordings_are_refused() {
+        let rigid = ArmModel::<7>::new(&fr3(PandaTool::HandTcp), &fr3_inertia()).unwrap();
+        let model = fr3_model();
+        let commands = excitation(&model, &START, &Chirps::default(), 0.001).unwrap();
+        let rec = record(&truth(), &commands);
+        let n = rec.q.len();
+        let clock = |rec: &Recorded<7>, f: &dyn Fn(usize) -> f64| Recorded {
+            time: (0..rec.q.len()).map(f).collect(),
+            ..rec.clone()
+        };
+        // A last time stamp of 1e300 (it panicked on a capacity overflow).
+        let far = clock(&rec, &|k| if k + 1 == n { 1e300 } else { k as f64 * 1e-3 });
+        let e = identify(&rigid, &far, &[87.0; 7]).unwrap_err();
+        assert!(e.contains("reported nothing for more than 100"), "{e}");
+        let e = predict(&rigid, model.clone(), &truth(), [87.0; 7], &far).unwrap_err();
+        assert!(e.contains("reported nothing"), "{e}");
+        // A gap of 10 000 s (it took 2.4 GB): refused before anything is allocated for it.
+        let gap = clock(&rec, &|k| {
+            k as f64 * 1e-3 + if k > n / 2 { 1e4 } else { 0.0 }
+        });
+        let e = predict(&rigid, model.clone(), &truth(), [87.0; 7], &gap).unwrap_err();
+        assert!(
+            e.contains(&format!("samples {} and {}", n / 2 + 1, n / 2 + 2)),
+            "{e}"
+        );
+        // A recording at 500 Hz is named as such (it was refused for clipped torques).
+        let slow = clock(&rec, &|k| k as f64 * 2e-3);
+        let e = identify(&rigid, &slow, &[87.0; 7]).unwrap_err();
+        assert!(e.contains("(500 Hz)") && e.contains("(1000 Hz)"), "{e}");
+        // A still robot with sensor noise (it got negative gains).
+        let mut rng = 12345u64;
+        let mut noise = |scale: f64| {
+            rng = rng
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((rng >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * scale
+        };
+        let mut still = Recorded::<7> {
+            period: 0.001,
+            ..Recorded::default()
+        };
+        for _ in 0..3000 {
+            still
+                .q
+                .push(std::array::from_fn(|j| START[j] + noise(1e-4)));
+            still.dq.push(std::array::from_fn(|_| noise(1e-3)));
+            still.tau.push(std::array::from_fn(|_| noise(0.1)));
+            still
+                .q_c
+                .push(std::array::from_fn(|j| START[j] + noise(1e-5)));
+        }
+        let e = identify(&rigid, &still, &[87.0; 7]).unwrap_err();
+        assert!(
+            e.contains("joint 1") && e.contains("does not excite it"),
+            "{e}"
+        );
+        // Torques that push away from the command (a sign flipped in a logger): no stable
+        // controller fits.
+        let mut deaf = rec.clone();
+        for k in 0..n {
+            let f = rigid.frames(&rec.q[k]);
+            let (g, c) = (rigid.gravity(&f), rigid.coriolis(&f, &rec.dq[k]));
+            deaf.tau[k] = std::array::from_fn(|j| 2.0 * (g[j] + c[j]) - rec.tau[k][j]);
+        }
+        let e = identify(&rigid, &deaf, &[87.0; 7]).unwrap_err();
+        assert!(e.contains("no stable position controller"), "{e}");
     }
 }

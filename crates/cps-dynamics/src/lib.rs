@@ -63,6 +63,9 @@ pub mod robot;
 
 pub use arm::{Arm, Integrator};
 pub use controller::{CONTROLLERS, Controller, Desired, FRANKY_SIM_KP};
-pub use identify::{Calibration, Chirps, Identified, Recorded, excitation, identify, predict};
+pub use identify::{
+    Calibration, Chirps, Identified, MAX_MISSED_PERIODS, MIN_EXCITATION, Recorded, excitation,
+    identify, predict, predict_until,
+};
 pub use options::{Drive, DynamicsOptions, default_gains, open};
 pub use robot::{DynamicsRobot, DynamicsSettings, MAX_LAG, REFLEX_MARGIN};

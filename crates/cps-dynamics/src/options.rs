@@ -107,43 +107,84 @@ impl CalibrationValues {
         }
     }
 
-    /// Checks it against a robot named `robot` with `n` joints: the same robot, every
-    /// list one value a joint, every value finite and ≥ 0, the lag at most
-    /// [`crate::MAX_LAG`]. The sentence names what is wrong.
-    pub fn check(&self, robot: &str, n: usize) -> Result<(), String> {
+    /// Checks it against a robot named `robot` with `n` joints and, where known, its
+    /// drives' torque limits: the same robot, every list one value a joint, every value
+    /// finite, the gains of a stable controller (kp > 0, kv ≥ 0), rotor inertia and
+    /// friction ≥ 0, Coulomb friction below the drive's torque (else the joint could never
+    /// move), the lag at most [`crate::MAX_LAG`]. The error names the key (`kp`, `kv`,
+    /// `lag_ms`, `armature`, `viscous`, `coulomb`, `coulomb_speed`, or `robot`) and says
+    /// what is wrong.
+    pub fn check(
+        &self,
+        robot: &str,
+        n: usize,
+        torque: Option<&[f64]>,
+    ) -> Result<(), (&'static str, String)> {
         if self.robot != robot {
-            return Err(format!(
-                "it calibrates the robot {}, not {robot}",
-                self.robot
+            return Err((
+                "robot",
+                format!("it calibrates the robot {}, not {robot}", self.robot),
             ));
         }
-        for (what, v) in [
-            ("kp", &self.kp),
-            ("kv", &self.kv),
-            ("armature", &self.armature),
-            ("viscous", &self.viscous),
-            ("coulomb", &self.coulomb),
-        ] {
+        type Rule = fn(f64) -> bool;
+        let rules: [(&'static str, &Vec<f64>, Rule, &str); 5] = [
+            (
+                "kp",
+                &self.kp,
+                |x| x > 0.0,
+                "> 0 (a position controller pulls toward its command)",
+            ),
+            ("kv", &self.kv, |x| x >= 0.0, "≥ 0"),
+            ("armature", &self.armature, |x| x >= 0.0, "≥ 0"),
+            ("viscous", &self.viscous, |x| x >= 0.0, "≥ 0"),
+            ("coulomb", &self.coulomb, |x| x >= 0.0, "≥ 0"),
+        ];
+        for (what, v, rule, needs) in rules {
             if v.len() != n {
-                return Err(format!("{what} has {} values for {n} joints", v.len()));
+                return Err((
+                    what,
+                    format!("{what} has {} values for {n} joints", v.len()),
+                ));
             }
-            if let Some(j) = v.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
-                return Err(format!(
-                    "{what} of joint {} is {}: it must be finite and ≥ 0",
-                    j + 1,
-                    v[j]
+            if let Some(j) = v.iter().position(|&x| !(x.is_finite() && rule(x))) {
+                return Err((
+                    what,
+                    format!(
+                        "{what} of joint {} is {}: it must be finite and {needs}",
+                        j + 1,
+                        v[j]
+                    ),
                 ));
             }
         }
+        if let Some(limit) = torque
+            && let Some(j) = (0..n.min(limit.len())).find(|&j| self.coulomb[j] >= limit[j])
+        {
+            return Err((
+                "coulomb",
+                format!(
+                    "coulomb of joint {} is {} N m, at or above its drive's {} N m: the joint could never move",
+                    j + 1,
+                    self.coulomb[j],
+                    limit[j]
+                ),
+            ));
+        }
         if self.lag > crate::MAX_LAG {
-            return Err(format!(
-                "a lag of {} control periods is more than the {} simulated",
-                self.lag,
-                crate::MAX_LAG
+            return Err((
+                "lag_ms",
+                format!(
+                    "a lag of {} control periods is more than the {} simulated",
+                    self.lag,
+                    crate::MAX_LAG
+                ),
             ));
         }
         if !(self.speed.is_finite() && self.speed > 0.0) {
-            return Err(format!("the Coulomb speed {} must be > 0", self.speed));
+            return Err((
+                "coulomb_speed",
+                format!("the Coulomb speed {} must be > 0", self.speed),
+            ));
         }
         Ok(())
     }
@@ -210,8 +251,8 @@ fn open_n<const N: usize>(
     let mut dynamics = ArmModel::<N>::new(&model.chain, links).map_err(|e| bad(e.to_string()))?;
     let friction = match (&options.calibration, options.drive) {
         (Some(c), _) => {
-            c.check(&model.name, N)
-                .map_err(|e| bad(format!("the calibration: {e}")))?;
+            c.check(&model.name, N, Some(torque))
+                .map_err(|(_, e)| bad(format!("the calibration: {e}")))?;
             dynamics = dynamics
                 .with_armature(fixed(&c.armature))
                 .map_err(|e| bad(e.to_string()))?;

@@ -256,7 +256,8 @@ impl<const N: usize> DynamicsRobot<N> {
 
     /// Holds where the arm is when a stop comes until it is at rest (at most
     /// [`BRAKE_WITHIN`]).
-    fn brake(&mut self) {
+    /// Brakes to rest (within [`BRAKE_WITHIN`]) and returns the time it took (s).
+    fn brake(&mut self) -> f64 {
         let hold = self.arm.q;
         let zero = [0.0; N];
         let mut t = 0.0;
@@ -270,6 +271,18 @@ impl<const N: usize> DynamicsRobot<N> {
         }
         self.command = self.arm.q;
         self.previous = self.arm.q;
+        t
+    }
+
+    /// Brakes, and records where the arm came to rest: at `at` plus the braking time,
+    /// unless the recording already holds that instant (an arm already at rest), so no
+    /// two entries of a recording share a time.
+    fn brake_into(&mut self, run: &mut Run, at: f64) {
+        let t = at + self.brake();
+        if run.time.last().is_none_or(|&last| t > last) {
+            let (q, tool) = self.entry();
+            run.push(t, q, tool);
+        }
     }
 
     fn ticks_per_step(&self) -> usize {
@@ -318,18 +331,14 @@ impl<const N: usize> Robot for DynamicsRobot<N> {
                 break;
             }
             if stop.is_stopped() {
-                self.brake();
-                let (q, tool) = self.entry();
-                run.push(t, q, tool);
+                self.brake_into(&mut run, t);
                 run.ending = Ending::Stopped;
                 return Ok(run);
             }
             let (q, dq, ddq) = motion.at(i);
             self.tick(Desired { q, dq, ddq });
             if let Some(reflex) = self.out_of_range() {
-                self.brake();
-                let (q, tool) = self.entry();
-                run.push(t + self.settings.control_period, q, tool);
+                self.brake_into(&mut run, t + self.settings.control_period);
                 run.ending = Ending::Failed(reflex);
                 return Ok(run);
             }
@@ -458,7 +467,7 @@ impl<const N: usize> Stepped for DynamicsRobot<N> {
                 ddq: &zero,
             });
             if let Some(reflex) = self.out_of_range() {
-                self.brake();
+                let _ = self.brake();
                 return Err(RobotError::Robot {
                     robot: self.name(),
                     message: reflex,
@@ -491,14 +500,12 @@ impl<const N: usize> Streaming for DynamicsRobot<N> {
         let zero = [0.0; N];
         for k in 0.. {
             if stop.is_stopped() {
-                self.brake();
-                let (q, tool) = self.entry();
-                run.push(k as f64 * period, q, tool);
+                self.brake_into(&mut run, k as f64 * period);
                 run.ending = Ending::Stopped;
                 break;
             }
             if k == max_commands {
-                self.brake();
+                self.brake_into(&mut run, k as f64 * period);
                 run.ending =
                     Ending::Failed(format!("{max_commands} commands were not enough to finish"));
                 break;
@@ -526,9 +533,7 @@ impl<const N: usize> Streaming for DynamicsRobot<N> {
             let (q, tool) = self.entry();
             run.push((k + 1) as f64 * period, q, tool);
             if let Some(reflex) = self.out_of_range() {
-                self.brake();
-                let (q, tool) = self.entry();
-                run.push((k + 1) as f64 * period, q, tool);
+                self.brake_into(&mut run, (k + 1) as f64 * period);
                 run.ending = Ending::Failed(reflex);
                 break;
             }

@@ -155,7 +155,8 @@ fn a_stop_brings_the_arm_to_rest_and_keeps_what_was_recorded() {
     let mut r = robot(Controller::franky_sim(), 0.0, 0);
     let run = r.run(&p, &stop).unwrap();
     assert_eq!(run.ending, Ending::Stopped);
-    assert_eq!(run.q.len(), 2);
+    // The start, once: a stop before moving records no second entry at the same time.
+    assert_eq!(run.q.len(), 1);
     assert!(r.arm().dq.iter().all(|v| v.abs() <= 1e-3));
 }
 
@@ -184,6 +185,38 @@ fn a_joint_leaving_its_range_stops_the_arm_as_a_reflex_does() {
     let dq = r.arm().dq;
     assert!(dq[..4].iter().all(|v| v.abs() <= 0.02), "{dq:?}");
     assert!(dq.iter().all(|v| v.abs() <= 0.1), "{dq:?}");
+    // Where it came to rest is recorded after the braking, never at a time already held.
+    let increasing = |t: &[f64]| t.windows(2).all(|w| w[1] > w[0]);
+    assert!(
+        increasing(&run.time),
+        "{:?}",
+        &run.time[run.time.len() - 3..]
+    );
+    // The same when streamed: the reflex's entry comes after the braking.
+    let mut r = robot(Controller::franky_sim(), 0.0, 0);
+    let streamed = r
+        .streaming()
+        .unwrap()
+        .stream(
+            &mut |_q, t, cmd| {
+                cmd.copy_from_slice(&START);
+                cmd[3] = START[3] + 1.5 * t;
+                t >= 2.0
+            },
+            3000,
+            &StopToken::new(),
+        )
+        .unwrap();
+    assert!(
+        matches!(streamed.ending, Ending::Failed(_)),
+        "{:?}",
+        streamed.ending
+    );
+    assert!(
+        increasing(&streamed.time),
+        "{:?}",
+        &streamed.time[streamed.time.len() - 3..]
+    );
     // Nor can the arm be put where a real one cannot be (the thesis's Panda start has
     // joint 4 at 0 rad, beyond its range).
     let mut outside = START;

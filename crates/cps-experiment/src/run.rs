@@ -120,5 +120,40 @@ pub fn run(
         let shared = kinds::shared_report_tables(exp, &outcome.summary);
         outcome.report.tables.extend(shared);
     }
+    if exp.robot.as_ref().is_none_or(|r| r.enforce_limits) {
+        fail_on_broken_limits(&mut outcome);
+    }
     Ok(outcome)
+}
+
+/// A learned movement that breaks a limit of its robot is a failed run, not a result: its
+/// trajectory would be refused by `cps-cli limits check`, `ros2 send` and `franka
+/// execute`. The outcome keeps everything, and says why it failed.
+fn fail_on_broken_limits(outcome: &mut Outcome) {
+    let Some(usage) = outcome.summary.get("limit_usage") else {
+        return;
+    };
+    if outcome.header.failure.is_some() || usage.get("ok") != Some(&serde_json::Value::Bool(false))
+    {
+        return;
+    }
+    let count = usage
+        .get("violations")
+        .and_then(|v| v.as_array())
+        .map_or(0, Vec::len);
+    let first = usage
+        .get("violations")
+        .and_then(|v| v.get(0))
+        .map(|v| {
+            format!(
+                " (first: joint {} {} at {} s)",
+                v.get("joint").unwrap_or(&serde_json::Value::Null),
+                v.get("quantity").and_then(|q| q.as_str()).unwrap_or("?"),
+                v.get("time").unwrap_or(&serde_json::Value::Null),
+            )
+        })
+        .unwrap_or_default();
+    outcome.header.failure = Some(format!(
+        "the learned movement breaks its robot's limits at 1 kHz: {count} violation(s){first}, listed in summary.json `limit_usage`; `limits check`, `ros2 send` and `franka execute` would refuse its trajectory"
+    ));
 }

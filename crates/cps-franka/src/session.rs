@@ -63,6 +63,37 @@ fn io_reason(e: &std::io::Error) -> String {
 /// Opens the TCP connection to `host` (`address` or `address:port`, else `default_port`)
 /// within `timeout`, and a UDP socket on the same local address for the state; returns
 /// them with the UDP port to announce. Errors name the host.
+/// Refuses an address that is not one: an IP address (with a port or not) or a host name
+/// of letters, digits, `-` and `.` (RFC 1123), optionally `:port`.
+fn check_host(host: &str) -> Result<(), FrankaError> {
+    if host.parse::<std::net::IpAddr>().is_ok() || host.parse::<SocketAddr>().is_ok() {
+        return Ok(());
+    }
+    let (name, port) = match host.rsplit_once(':') {
+        Some((h, p)) => (h, Some(p)),
+        None => (host, None),
+    };
+    let name_ok = !name.is_empty()
+        && name.len() <= 253
+        && name.split('.').all(|label| {
+            !label.is_empty()
+                && label.len() <= 63
+                && !label.starts_with('-')
+                && !label.ends_with('-')
+                && label
+                    .bytes()
+                    .all(|b| b.is_ascii_alphanumeric() || b == b'-')
+        });
+    let port_ok = port.is_none_or(|p| p.parse::<u16>().is_ok_and(|p| p > 0));
+    if name_ok && port_ok {
+        Ok(())
+    } else {
+        Err(FrankaError::Input(format!(
+            "--host `{host}`: not an address; give the robot's IP address or host name (optionally with :port), e.g. 172.16.0.2"
+        )))
+    }
+}
+
 pub(crate) fn open(
     host: &str,
     default_port: u16,
@@ -72,6 +103,7 @@ pub(crate) fn open(
         host: host.to_string(),
         reason,
     };
+    check_host(host)?;
     let has_port = host.parse::<SocketAddr>().is_ok()
         || host
             .rsplit_once(':')

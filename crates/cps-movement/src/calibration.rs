@@ -94,6 +94,25 @@ pub fn read_calibration(path: &Path) -> Result<CalibrationFile, InputError> {
     })
 }
 
+/// `path:line:col` of `key` in the `[calibration]` table of the calibration file at
+/// `path` (just the path when the key is not found), for errors about its value.
+pub fn place_of(path: &Path, key: &str) -> String {
+    let text = std::fs::read_to_string(path).unwrap_or_default();
+    let mut in_table = false;
+    for (i, line) in text.lines().enumerate() {
+        let t = line.trim_start();
+        if t.starts_with('[') {
+            in_table = t.starts_with("[calibration]");
+            continue;
+        }
+        let name = t.split('=').next().unwrap_or("").trim();
+        if in_table && t.contains('=') && name == key {
+            return format!("{}:{}:{}", path.display(), i + 1, line.len() - t.len() + 1);
+        }
+    }
+    path.display().to_string()
+}
+
 /// The file's text: its header line, `comment` lines, then the TOML.
 pub fn calibration_text(file: &CalibrationFile, comment: &[String]) -> String {
     let mut text = format!("{CALIBRATION_HEADER}\n");

@@ -1,8 +1,12 @@
 //! A joint trajectory file against a robot's limits (`cps-cli limits check`).
 //!
 //! A joint trajectory CSV has a header, the time in seconds first, then one position column
-//! per joint in radians; further columns (velocities `q1_vel`, …, or anything named) are
-//! allowed and not read. The controller receives positions at its control rate: a file
+//! per joint in radians, read by their names: in cps's dialect (derivative columns
+//! `q1_vel`, `q1_acc`, … present) the positions are the columns with a `_vel` column beside
+//! them, otherwise every column after the time. Their count must be the robot's joint
+//! count, and where their names number the joints (`q1`, `joint3`, `panda_joint7`, from 1
+//! or from 0) the numbers must be the robot's joints — they are read in that order. A file
+//! of another robot is refused, never read with a velocity as a position. The controller receives positions at its control rate: a file
 //! sampled at that rate is taken command by command; any other file is resampled at the
 //! rate by a cubic spline per joint that starts and ends at rest (zero end velocities, as
 //! the controller requires), the last position held once the file's time is over. The
@@ -28,7 +32,8 @@ pub struct JointTrajectory {
 }
 
 /// Reads a joint trajectory CSV for a robot of `dof` joints (at most 256 MiB): the time
-/// column and the first `dof` columns after it. Errors name the file and the line.
+/// column and the position columns, chosen by name (see the module docs). Errors name the
+/// file, the columns and the line.
 pub fn read_joint_trajectory(path: &Path, dof: usize) -> Result<JointTrajectory, InputError> {
     let text = cps_outcome::source::read_text(path, crate::movement::MAX_DEMO_BYTES, "trajectory")?;
     let header: Vec<String> = text
@@ -38,14 +43,24 @@ pub fn read_joint_trajectory(path: &Path, dof: usize) -> Result<JointTrajectory,
         .split(',')
         .map(|h| h.trim().to_string())
         .collect();
-    if header.len() < dof + 1 {
+    if header.len() < 2 {
         return Err(InputError(format!(
             "{}: the header has {} column(s); a {dof}-joint robot needs the time and {dof} joint positions (radians)",
             path.display(),
             header.len()
         )));
     }
-    let names = header[1..=dof].to_vec();
+    let positions = crate::movement::pick_columns(&header, None)
+        .map_err(|m| InputError(format!("{}: {m}", path.display())))?;
+    let names: Vec<String> = positions.iter().map(|&c| header[c].clone()).collect();
+    let names = joint_columns(&names, dof).map_err(|m| {
+        InputError(format!(
+            "{}: {m} (the columns after the time `{}`: {})",
+            path.display(),
+            header[0],
+            header[1..].join(", ")
+        ))
+    })?;
     let (names, demo) = crate::movement::parse_demo_columns(path, &text, Some(&names))?;
     let q = (0..demo.len()).map(|k| demo.sample(k).to_vec()).collect();
     Ok(JointTrajectory {
@@ -53,6 +68,44 @@ pub fn read_joint_trajectory(path: &Path, dof: usize) -> Result<JointTrajectory,
         times: demo.times().to_vec(),
         q,
     })
+}
+
+/// The position columns `found` in a file, in the order of a `dof`-joint robot's joints:
+/// as many as it has joints, and where the names number the joints, exactly its joints.
+fn joint_columns(found: &[String], dof: usize) -> Result<Vec<String>, String> {
+    let listed = |v: &[String]| v.join(", ");
+    if found.len() != dof {
+        return Err(format!(
+            "{} joint position column(s) ({}) for a {dof}-joint robot; a {dof}-joint robot needs the time and {dof} joint positions (radians), optionally followed by their `_vel` and `_acc` columns",
+            found.len(),
+            listed(found)
+        ));
+    }
+    let numbers: Option<Vec<usize>> = found
+        .iter()
+        .map(|name| {
+            let digits = name.len() - name.trim_end_matches(|c: char| c.is_ascii_digit()).len();
+            (digits > 0)
+                .then(|| name[name.len() - digits..].parse().ok())
+                .flatten()
+        })
+        .collect();
+    let Some(numbers) = numbers else {
+        return Ok(found.to_vec()); // names that do not number joints: taken in order
+    };
+    let base = *numbers.iter().min().unwrap_or(&0);
+    let mut sorted = numbers.clone();
+    sorted.sort_unstable();
+    if base > 1 || sorted.iter().enumerate().any(|(i, &k)| k != base + i) {
+        return Err(format!(
+            "the position columns ({}) do not name the joints of a {dof}-joint robot (1..{dof}, or 0..{})",
+            listed(found),
+            dof - 1
+        ));
+    }
+    let mut ordered: Vec<(usize, &String)> = numbers.into_iter().zip(found).collect();
+    ordered.sort_by_key(|(k, _)| *k);
+    Ok(ordered.into_iter().map(|(_, n)| n.clone()).collect())
 }
 
 /// The commands the controller receives at `rate` Hz: `(t0, dt, rows, resampled)`.
@@ -257,5 +310,55 @@ impl LimitsReport {
             }
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(header: &str, row: &str, dof: usize) -> Result<JointTrajectory, InputError> {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("joints.csv");
+        // The row at three times (its first value is the time).
+        let (one, two) = (row.replacen('0', "1", 1), row.replacen('0', "2", 1));
+        std::fs::write(&p, format!("{header}\n{row}\n{one}\n{two}\n")).unwrap();
+        read_joint_trajectory(&p, dof)
+    }
+
+    /// A joint file is read by its column names: a 6-joint file with velocities is not a
+    /// 7-joint one (its `q1_vel` was read as joint 7's position), and named joints are
+    /// read in their robot's order.
+    #[test]
+    fn joint_files_are_read_by_their_names() {
+        let six = "t,q1,q2,q3,q4,q5,q6,q1_vel,q2_vel,q3_vel,q4_vel,q5_vel,q6_vel";
+        let e = read(six, "0,1,2,3,4,5,6,0,0,0,0,0,0", 7).unwrap_err().0;
+        assert!(
+            e.contains("6 joint position column(s) (q1, q2, q3, q4, q5, q6) for a 7-joint robot"),
+            "{e}"
+        );
+        assert_eq!(
+            read(six, "0,1,2,3,4,5,6,0,0,0,0,0,0", 6).unwrap().q[0],
+            [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
+        );
+        // Too many positions, or names of joints the robot does not have.
+        let e = read("t,a,b,c", "0,1,2,3", 2).unwrap_err().0;
+        assert!(e.contains("3 joint position column(s)"), "{e}");
+        let e = read("t,q1,q2,q9", "0,1,2,3", 3).unwrap_err().0;
+        assert!(e.contains("do not name the joints"), "{e}");
+        // Names read in the joints' order, from 1 or from 0; other names in file order.
+        let t = read("t,panda_joint2,panda_joint1", "0,2,1", 2).unwrap();
+        assert_eq!(
+            (t.q[0].clone(), t.names),
+            (
+                vec![1.0, 2.0],
+                vec!["panda_joint1".to_string(), "panda_joint2".into()]
+            )
+        );
+        assert_eq!(read("t,q0,q1", "0,1,2", 2).unwrap().q[0], [1.0, 2.0]);
+        assert_eq!(
+            read("t,shoulder,elbow", "0,1,2", 2).unwrap().q[0],
+            [1.0, 2.0]
+        );
     }
 }

@@ -129,7 +129,10 @@ pub fn parse_demo_columns(
 }
 
 /// The indices of the position columns (see [`parse_demo_columns`]).
-fn pick_columns(header: &[String], columns: Option<&[String]>) -> Result<Vec<usize>, String> {
+pub(crate) fn pick_columns(
+    header: &[String],
+    columns: Option<&[String]>,
+) -> Result<Vec<usize>, String> {
     let data = &header[1..];
     let index = |name: &str| header.iter().skip(1).position(|h| h == name).map(|i| i + 1);
     if let Some(wanted) = columns {

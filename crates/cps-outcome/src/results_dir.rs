@@ -2,30 +2,41 @@
 //! file it did not write.
 //!
 //! A result directory carries `cps-manifest.json`, the list of the files cps wrote into
-//! it. The rules, checked before any work starts ([`Staging::prepare`]):
+//! it, each with the size and SHA-256 it had when cps wrote it. A file counts as cps's only
+//! while it still has that size and hash and is reached through real directories (never a
+//! symbolic link), so a hand-made or copied manifest cannot make `--force` remove someone
+//! else's file. The rules, checked before any work starts ([`Staging::prepare`]):
 //!
 //! - a path that does not exist: the results are written into a hidden staging directory
 //!   beside it and renamed into place when complete (a reader never sees half a result);
 //! - an empty directory (including `--out .` in an empty folder): the results are staged
 //!   inside it and moved into place file by file;
-//! - a directory that holds only cps's results (every entry is in its manifest): refused
-//!   without `--force`; with `--force` the files of the manifest are replaced (each file
-//!   atomically) and nothing else is touched;
-//! - a directory that holds anything cps did not write (no manifest, or entries not in
-//!   it): refused, with or without `--force`, naming the directory and one such entry;
+//! - a directory that holds only cps's results (every entry, at every depth, is a file of
+//!   its manifest, unchanged): refused without `--force`; with `--force` the files of the
+//!   manifest are replaced (each file atomically) and nothing else is touched;
+//! - a directory that holds anything cps did not write (no manifest, an entry not in it, a
+//!   listed file whose size or hash changed, a symbolic link at any depth): refused, with or
+//!   without `--force`, naming the directory and one such entry;
+//! - a manifest of an earlier cps (no sizes and hashes): refused, since nothing in it can be
+//!   verified;
 //! - a file, a symbolic link, a literal `~`, or a place that cannot be written: refused
 //!   with a sentence saying so.
+//!
+//! The same checks are made again when the results are moved into place: a file that
+//! changed or a directory that became a link during the run is left alone.
 //!
 //! Staging directories are created with a fresh name (never reused, never cleared). A
 //! staging directory knows the files cps asked for in it ([`Staging::path`]): only those
 //! are moved into place and listed in the manifest, and a failed run removes only those
 //! and then the directory if it is empty — never a whole tree.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::fs;
-use std::io::Write;
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
+
+use sha2::{Digest, Sha256};
 
 use crate::InputError;
 use crate::{Context, ExperimentError};
@@ -34,6 +45,8 @@ use crate::{Context, ExperimentError};
 pub const MANIFEST: &str = "cps-manifest.json";
 /// The manifest's `format` tag.
 const MANIFEST_FORMAT: &str = "cps-results";
+/// The manifest's version: 2 records each file's size and SHA-256 (version 1 listed names).
+const MANIFEST_VERSION: u64 = 2;
 /// Prefix of the staging directories cps creates (inside a target, or beside it as
 /// `.<name>.cps-staging-…`).
 const STAGING_TAG: &str = "cps-staging-";
@@ -44,11 +57,87 @@ enum Target {
     /// Nothing there yet: stage beside it, rename into place.
     New,
     /// A directory that is empty or holds only cps's files (listed): stage inside it.
-    Existing { old: BTreeSet<String> },
+    Existing { old: Manifest },
 }
 
-/// The files listed in a directory's manifest, or `None` when it has none.
-fn read_manifest(dir: &Path) -> Result<Option<BTreeSet<String>>, InputError> {
+/// What cps recorded of a file it wrote.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Stamp {
+    size: u64,
+    sha256: String,
+}
+
+/// A manifest's files: relative path → the stamps a file there may have (one, or two while
+/// a commit replaces it).
+type Manifest = BTreeMap<String, Vec<Stamp>>;
+
+/// The size and SHA-256 of a regular file, read in blocks.
+fn stamp(path: &Path) -> std::io::Result<Stamp> {
+    let mut f = fs::File::open(path)?;
+    let mut hash = Sha256::new();
+    let mut buf = vec![0u8; 1 << 16];
+    let mut size = 0u64;
+    loop {
+        let n = f.read(&mut buf)?;
+        if n == 0 {
+            break;
+        }
+        size += n as u64;
+        hash.update(&buf[..n]);
+    }
+    let sha256 = hash.finalize().iter().map(|b| format!("{b:02x}")).collect();
+    Ok(Stamp { size, sha256 })
+}
+
+/// Where a manifest's path stands in a directory.
+#[derive(Debug, PartialEq, Eq)]
+enum Standing {
+    /// Nothing there, and every directory above it inside the target is a real directory.
+    Absent,
+    /// A regular file with a size and hash the manifest records for it.
+    Ours,
+    /// Something cps may not touch; the reason completes "`path` …".
+    Foreign(String),
+}
+
+/// Judges `rel` inside `root` against the stamps `manifest` records for it.
+fn standing(root: &Path, rel: &str, manifest: &Manifest) -> Standing {
+    let mut at = root.to_path_buf();
+    let parts: Vec<&str> = rel.split('/').collect();
+    for (i, part) in parts.iter().enumerate() {
+        at.push(part);
+        let last = i + 1 == parts.len();
+        let meta = match fs::symlink_metadata(&at) {
+            Ok(m) => m,
+            Err(_) => return Standing::Absent,
+        };
+        if meta.file_type().is_symlink() {
+            return Standing::Foreign(format!(
+                "is reached through a symbolic link (`{}`), which cps never writes or deletes through",
+                parts[..=i].join("/")
+            ));
+        }
+        if !last && !meta.is_dir() {
+            return Standing::Foreign(format!("has `{}` in its way", parts[..=i].join("/")));
+        }
+        if last && !meta.is_file() {
+            return Standing::Foreign("is not a regular file".into());
+        }
+    }
+    let Some(stamps) = manifest.get(rel) else {
+        return Standing::Foreign("was not written by cps".into());
+    };
+    match stamp(&at) {
+        Ok(s) if stamps.contains(&s) => Standing::Ours,
+        Ok(_) => Standing::Foreign(
+            "has changed since cps wrote it (its size or SHA-256 is not the manifest's)".into(),
+        ),
+        Err(e) => Standing::Foreign(format!("cannot be read ({e})")),
+    }
+}
+
+/// The files listed in a directory's manifest with their stamps, or `None` when it has none.
+fn read_manifest(dir: &Path) -> Result<Option<Manifest>, InputError> {
     let path = dir.join(MANIFEST);
     let text = match fs::read_to_string(&path) {
         Ok(t) => t,
@@ -71,15 +160,89 @@ fn read_manifest(dir: &Path) -> Result<Option<BTreeSet<String>>, InputError> {
         return Err(bad());
     }
     let files = v.get("files").and_then(|f| f.as_array()).ok_or_else(bad)?;
-    let mut set = BTreeSet::new();
+    let mut manifest = Manifest::new();
+    let mut legacy = false;
     for f in files {
-        let name = f.as_str().ok_or_else(bad)?;
+        let (name, stamp) = match f {
+            serde_json::Value::String(name) => {
+                legacy = true;
+                (name.as_str(), None)
+            }
+            entry => {
+                let name = entry.get("path").and_then(|p| p.as_str()).ok_or_else(bad)?;
+                let size = entry.get("size").and_then(|p| p.as_u64()).ok_or_else(bad)?;
+                let sha256 = entry
+                    .get("sha256")
+                    .and_then(|p| p.as_str())
+                    .ok_or_else(bad)?;
+                if sha256.len() != 64 || !sha256.bytes().all(|b| b.is_ascii_hexdigit()) {
+                    return Err(bad());
+                }
+                let sha256 = sha256.to_ascii_lowercase();
+                (name, Some(Stamp { size, sha256 }))
+            }
+        };
         if !is_plain_relative(name) {
             return Err(bad());
         }
-        set.insert(name.to_string());
+        let stamps = manifest.entry(name.to_string()).or_default();
+        stamps.extend(stamp);
     }
-    Ok(Some(set))
+    if legacy || v.get("version").and_then(|n| n.as_u64()) != Some(MANIFEST_VERSION) {
+        return Err(InputError(format!(
+            "{}: written by an earlier cps (or by hand) without the size and SHA-256 of each file, so cps cannot verify which files there are its own and leaves the directory alone (choose another --out, or remove the old results yourself)",
+            path.display()
+        )));
+    }
+    Ok(Some(manifest))
+}
+
+/// The first entry under `root/rel` (a directory) that is not cps's, with the reason.
+fn first_foreign(root: &Path, rel: &str, manifest: &Manifest) -> Option<(String, String)> {
+    let dir = if rel.is_empty() {
+        root.to_path_buf()
+    } else {
+        root.join(rel)
+    };
+    let entries = match fs::read_dir(&dir) {
+        Ok(e) => e,
+        Err(e) => return Some((rel.to_string(), format!("cannot be listed ({e})"))),
+    };
+    let mut names: Vec<String> = entries
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    for name in names {
+        if rel.is_empty() && (name == MANIFEST || name.starts_with(&format!(".{STAGING_TAG}"))) {
+            continue;
+        }
+        let path = if rel.is_empty() {
+            name.clone()
+        } else {
+            format!("{rel}/{name}")
+        };
+        let meta = match fs::symlink_metadata(dir.join(&name)) {
+            Ok(m) => m,
+            Err(e) => return Some((path, format!("cannot be looked at ({e})"))),
+        };
+        if meta.is_dir() {
+            let prefix = format!("{path}/");
+            if !manifest.keys().any(|f| f.starts_with(&prefix)) {
+                return Some((path, "was not written by cps".into()));
+            }
+            if let Some(found) = first_foreign(root, &path, manifest) {
+                return Some(found);
+            }
+            continue;
+        }
+        match standing(root, &path, manifest) {
+            Standing::Ours => {}
+            Standing::Foreign(why) => return Some((path, why)),
+            Standing::Absent => return Some((path, "vanished while cps looked".into())),
+        }
+    }
+    None
 }
 
 /// A relative path without `..`, root or prefix components (what a manifest may list).
@@ -124,31 +287,18 @@ fn inspect(out: &Path, force: bool) -> Result<Target, InputError> {
         )));
     }
     let old = read_manifest(out)?;
-    let mut foreign = None;
-    let mut any = false;
-    let entries = fs::read_dir(out).map_err(|e| {
-        InputError(format!(
-            "--out {shown}: cannot list it ({e}); choose another --out"
-        ))
-    })?;
-    for entry in entries.flatten() {
-        let name = entry.file_name().to_string_lossy().into_owned();
-        if name == MANIFEST || name.starts_with(&format!(".{STAGING_TAG}")) {
-            continue;
-        }
-        any = true;
-        let ours = old.as_ref().is_some_and(|files| {
-            files.contains(&name) || files.iter().any(|f| f.starts_with(&format!("{name}/")))
-        });
-        if !ours && foreign.is_none() {
-            foreign = Some(name);
-        }
-    }
-    if let Some(name) = foreign {
+    let listed = old.clone().unwrap_or_default();
+    if let Some((name, why)) = first_foreign(out, "", &listed) {
         return Err(InputError(format!(
-            "--out {shown}: holds `{name}`, which cps did not write; cps writes only into a new or empty directory or over its own results, and never touches other files (choose another --out, or move `{name}` away)"
+            "--out {shown}: holds `{name}`, which {why}; cps writes only into a new or empty directory or over its own unchanged results, and never touches other files (choose another --out, or move `{name}` away)"
         )));
     }
+    let any = fs::read_dir(out).is_ok_and(|entries| {
+        entries.flatten().any(|e| {
+            let n = e.file_name().to_string_lossy().into_owned();
+            n != MANIFEST && !n.starts_with(&format!(".{STAGING_TAG}"))
+        })
+    });
     match old {
         Some(files) if any || !files.is_empty() => {
             if !force {
@@ -160,7 +310,7 @@ fn inspect(out: &Path, force: bool) -> Result<Target, InputError> {
             Ok(Target::Existing { old: files })
         }
         _ => Ok(Target::Existing {
-            old: BTreeSet::new(),
+            old: Manifest::new(),
         }),
     }
 }
@@ -253,6 +403,9 @@ impl Staging {
     /// Writes a whole file.
     pub fn write(&self, file: &str, bytes: &[u8]) -> Result<(), ExperimentError> {
         let p = self.path(file);
+        if let Some(dir) = p.parent() {
+            fs::create_dir_all(dir).context_with(|| format!("cannot create {}", dir.display()))?;
+        }
         let mut f =
             fs::File::create(&p).context_with(|| format!("cannot create {}", p.display()))?;
         f.write_all(bytes)
@@ -260,14 +413,21 @@ impl Staging {
         Ok(())
     }
 
-    /// Moves the finished results into place. Only files of the old manifest are replaced
-    /// or removed; a file that appeared in the target during the run and is not cps's
-    /// stops the commit, and the results stay in the staging directory (named in the error).
+    /// Moves the finished results into place. Only files of the old manifest that are
+    /// still as cps wrote them are replaced or removed, never through a symbolic link; a file
+    /// that appeared in the target during the run and is not cps's stops the commit, and the
+    /// results stay in the staging directory (named in the error).
     pub fn commit(mut self) -> Result<(), ExperimentError> {
         let files = self.staged_files();
+        let mut new = Manifest::new();
+        for f in &files {
+            let s = stamp(&self.tmp.join(f))
+                .context_with(|| format!("cannot read {} back", self.tmp.join(f).display()))?;
+            new.insert(f.clone(), vec![s]);
+        }
         match &self.kind {
             Target::New => {
-                write_manifest(&self.tmp, &files)?;
+                write_manifest(&self.tmp, &new)?;
                 if let Err(e) = fs::rename(&self.tmp, &self.target) {
                     self.done = true; // keep the results where they are
                     return Err(ExperimentError::Message(format!(
@@ -278,38 +438,43 @@ impl Staging {
                 }
             }
             Target::Existing { old } => {
-                // A file that appeared during the run and is not ours: stop, keep results.
-                if let Some(clash) = files
-                    .iter()
-                    .find(|f| !old.contains(*f) && self.target.join(f).exists())
+                // A file that is not ours (it appeared, changed, or lies behind a link that
+                // appeared during the run): stop, keep the results.
+                if let Some((clash, why)) =
+                    files
+                        .iter()
+                        .find_map(|f| match standing(&self.target, f, old) {
+                            Standing::Foreign(why) => Some((f, why)),
+                            _ => None,
+                        })
                 {
                     self.done = true;
                     return Err(ExperimentError::Message(format!(
-                        "{}: `{clash}` appeared during the run and cps did not write it, so it is left alone; the results are in {}",
+                        "{}: `{clash}` appeared during the run or changed ({why}), so it is left alone; the results are in {}",
                         self.target.display(),
                         self.tmp.display()
                     )));
                 }
                 // The manifest covers old and new files at every moment.
-                let union: Vec<String> = old.iter().cloned().chain(files.iter().cloned()).collect();
-                write_manifest(&self.target, &dedup(union))?;
+                let mut union = old.clone();
+                for (f, stamps) in &new {
+                    union
+                        .entry(f.clone())
+                        .or_default()
+                        .extend(stamps.iter().cloned());
+                }
+                write_manifest(&self.target, &union)?;
                 for f in &files {
-                    let to = self.target.join(f);
-                    if let Some(dir) = to.parent() {
-                        fs::create_dir_all(dir)
-                            .context_with(|| format!("cannot create {}", dir.display()))?;
-                    }
-                    fs::rename(self.tmp.join(f), &to)
+                    make_parents(&self.target, f)?;
+                    fs::rename(self.tmp.join(f), self.target.join(f))
                         .context_with(|| format!("cannot move {f} into place"))?;
                 }
-                let new: BTreeSet<&String> = files.iter().collect();
-                for f in old.iter().filter(|f| !new.contains(f)) {
-                    let p = self.target.join(f);
-                    if fs::symlink_metadata(&p).is_ok_and(|m| m.is_file()) {
-                        fs::remove_file(&p).ok();
+                for f in old.keys().filter(|f| !new.contains_key(*f)) {
+                    if standing(&self.target, f, old) == Standing::Ours {
+                        fs::remove_file(self.target.join(f)).ok();
                     }
                 }
-                write_manifest(&self.target, &files)?;
+                write_manifest(&self.target, &new)?;
                 remove_empty_tree(&self.tmp);
             }
         }
@@ -318,13 +483,29 @@ impl Staging {
     }
 }
 
-fn dedup(mut v: Vec<String>) -> Vec<String> {
-    v.sort();
-    v.dedup();
-    v
+/// Creates the directories above `rel` inside `root`, each a real directory (never
+/// through a symbolic link).
+fn make_parents(root: &Path, rel: &str) -> Result<(), ExperimentError> {
+    let parts: Vec<&str> = rel.split('/').collect();
+    let mut at = root.to_path_buf();
+    for part in &parts[..parts.len() - 1] {
+        at.push(part);
+        match fs::symlink_metadata(&at) {
+            Ok(m) if m.is_dir() => {}
+            Ok(_) => {
+                return Err(ExperimentError::Message(format!(
+                    "{}: is not a directory cps can write into (a link or a file appeared during the run); `{rel}` is left in the staging directory",
+                    at.display()
+                )));
+            }
+            Err(_) => {
+                fs::create_dir(&at).context_with(|| format!("cannot create {}", at.display()))?
+            }
+        }
+    }
+    Ok(())
 }
 
-/// Removes a staging tree whose files have all been moved out (directories only).
 fn remove_empty_tree(dir: &Path) {
     if let Ok(entries) = fs::read_dir(dir) {
         for e in entries.flatten() {
@@ -337,12 +518,20 @@ fn remove_empty_tree(dir: &Path) {
 }
 
 /// Writes the manifest through a temporary file and a rename.
-fn write_manifest(dir: &Path, files: &[String]) -> Result<(), ExperimentError> {
+fn write_manifest(dir: &Path, files: &Manifest) -> Result<(), ExperimentError> {
+    let entries: Vec<serde_json::Value> = files
+        .iter()
+        .flat_map(|(path, stamps)| {
+            stamps
+                .iter()
+                .map(move |s| serde_json::json!({"path": path, "sha256": s.sha256, "size": s.size}))
+        })
+        .collect();
     // Keys in alphabetical order (as manifests have always been written).
     let text = serde_json::to_string_pretty(&serde_json::json!({
-        "files": files,
+        "files": entries,
         "format": MANIFEST_FORMAT,
-        "version": 1,
+        "version": MANIFEST_VERSION,
         "written_by": format!("cps {}", env!("CARGO_PKG_VERSION")),
     }))
     .context_with(|| "cannot encode the manifest".into())?;
@@ -491,6 +680,11 @@ mod tests {
         Ok(())
     }
 
+    /// The paths a directory's manifest lists.
+    fn listed(dir: &Path) -> BTreeSet<String> {
+        read_manifest(dir).unwrap().unwrap().into_keys().collect()
+    }
+
     fn names(dir: &Path) -> BTreeSet<String> {
         let mut v = Vec::new();
         list_files(dir, "", &mut v).unwrap();
@@ -531,7 +725,7 @@ mod tests {
         fs::write(s.tmp.join("stray.txt"), b"x").unwrap();
         let staging = s.tmp.clone();
         s.commit().unwrap();
-        let listed = read_manifest(&out).unwrap().unwrap();
+        let listed = listed(&out);
         assert_eq!(listed, ["a.txt".to_string()].into_iter().collect());
         assert!(!out.join("stray.txt").exists());
         assert_eq!(fs::read(staging.join("stray.txt")).unwrap(), b"x");
@@ -553,7 +747,7 @@ mod tests {
         s.commit().unwrap();
         assert_eq!(fs::read(out.join("a.txt")).unwrap(), b"new");
         assert!(!out.join("gone.txt").exists());
-        let listed = read_manifest(&out).unwrap().unwrap();
+        let listed = listed(&out);
         assert_eq!(listed, ["a.txt".to_string()].into_iter().collect());
     }
 
@@ -654,5 +848,101 @@ mod tests {
         let q = d.path().join("notes.csv");
         fs::write(&q, b"name,grade\n").unwrap();
         assert!(check_file_target(&q, FileKind::TrajectoryCsv, true).is_err());
+    }
+
+    /// A hostile or stale manifest never makes `--force` delete or replace a file cps did
+    /// not write: not through a linked directory (inside or outside `--out`), not a file it
+    /// names without a hash, not one whose content is not what cps wrote.
+    #[test]
+    fn force_never_follows_links_nor_trusts_a_manifest_it_cannot_verify() {
+        let d = tempfile::tempdir().unwrap();
+        let elsewhere = d.path().join("elsewhere");
+        fs::create_dir(&elsewhere).unwrap();
+        fs::write(elsewhere.join("victim.txt"), b"precious").unwrap();
+
+        // A results directory whose `lnk` is a link to another directory, with a manifest
+        // (correct size and hash) naming `lnk/victim.txt`.
+        let out = d.path().join("r");
+        let s = Staging::prepare(&out, false).unwrap();
+        s.write("a.txt", b"1").unwrap();
+        s.commit().unwrap();
+        std::os::unix::fs::symlink(&elsewhere, out.join("lnk")).unwrap();
+        let mut m = read_manifest(&out).unwrap().unwrap();
+        m.insert(
+            "lnk/victim.txt".into(),
+            vec![stamp(&elsewhere.join("victim.txt")).unwrap()],
+        );
+        write_manifest(&out, &m).unwrap();
+        let e = Staging::prepare(&out, true).unwrap_err();
+        assert!(
+            e.0.contains("`lnk`") && e.0.contains("symbolic link"),
+            "{e}"
+        );
+        assert_eq!(fs::read(elsewhere.join("victim.txt")).unwrap(), b"precious");
+
+        // The link appears during the run: the commit does not remove through it either.
+        let out = d.path().join("r2");
+        let s = Staging::prepare(&out, false).unwrap();
+        s.write("sub/victim.txt", b"precious").unwrap();
+        s.write("a.txt", b"1").unwrap();
+        s.commit().unwrap();
+        let s = Staging::prepare(&out, true).unwrap();
+        s.write("a.txt", b"2").unwrap();
+        fs::remove_file(out.join("sub/victim.txt")).unwrap();
+        fs::remove_dir(out.join("sub")).unwrap();
+        std::os::unix::fs::symlink(&elsewhere, out.join("sub")).unwrap();
+        s.commit().unwrap();
+        assert_eq!(fs::read(elsewhere.join("victim.txt")).unwrap(), b"precious");
+        assert_eq!(fs::read(out.join("a.txt")).unwrap(), b"2");
+
+        // A hand-made manifest naming a user's file, without hashes: refused, kept.
+        let thesis = d.path().join("thesis");
+        fs::create_dir(&thesis).unwrap();
+        fs::write(thesis.join("thesis.tex"), b"\\documentclass").unwrap();
+        fs::write(
+            thesis.join(MANIFEST),
+            r#"{"files":["thesis.tex"],"format":"cps-results","version":1}"#,
+        )
+        .unwrap();
+        let e = Staging::prepare(&thesis, true).unwrap_err();
+        assert!(e.0.contains("cannot verify"), "{e}");
+        // …and with a hash that is not the file's.
+        fs::write(
+            thesis.join(MANIFEST),
+            format!(
+                r#"{{"files":[{{"path":"thesis.tex","sha256":"{}","size":14}}],"format":"cps-results","version":2}}"#,
+                "0".repeat(64)
+            ),
+        )
+        .unwrap();
+        let e = Staging::prepare(&thesis, true).unwrap_err();
+        assert!(
+            e.0.contains("`thesis.tex`") && e.0.contains("changed"),
+            "{e}"
+        );
+        assert_eq!(
+            fs::read(thesis.join("thesis.tex")).unwrap(),
+            b"\\documentclass"
+        );
+
+        // A result the user edited is theirs now: --force leaves it, before and at commit.
+        let out = d.path().join("r3");
+        let s = Staging::prepare(&out, false).unwrap();
+        s.write("a.txt", b"1").unwrap();
+        s.write("b.txt", b"1").unwrap();
+        s.commit().unwrap();
+        fs::write(out.join("a.txt"), b"edited").unwrap();
+        let e = Staging::prepare(&out, true).unwrap_err();
+        assert!(e.0.contains("`a.txt`") && e.0.contains("changed"), "{e}");
+        fs::write(out.join("a.txt"), b"1").unwrap();
+        let s = Staging::prepare(&out, true).unwrap();
+        s.write("a.txt", b"2").unwrap();
+        fs::write(out.join("b.txt"), b"edited during the run").unwrap();
+        s.commit().unwrap();
+        assert_eq!(
+            fs::read(out.join("b.txt")).unwrap(),
+            b"edited during the run"
+        );
+        assert_eq!(listed(&out), ["a.txt".to_string()].into_iter().collect());
     }
 }

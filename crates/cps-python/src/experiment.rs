@@ -328,7 +328,7 @@ pub fn run_experiment(
             py,
             &py.get_type::<PyRuntimeWarning>(),
             &std::ffi::CString::new(format!(
-                "the run stopped early: {f}; the outcome holds what was finished (complete is False)"
+                "the run failed: {f}; the outcome holds what it made (see its summary; complete says whether it finished)"
             ))
             .unwrap_or_default(),
             1,

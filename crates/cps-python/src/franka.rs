@@ -400,8 +400,9 @@ pub fn identify<'py>(
     force: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     let robot = robot.to_string();
-    let answer = py
-        .detach(|| cps_experiment::identify::identify_recording(&recording, &robot, &out, force))
-        .map_err(|e| e.py_err())?;
+    let answer = crate::interrupt::detached(py, |stop| {
+        cps_experiment::identify::identify_recording(&recording, &robot, &out, force, stop)
+    })?
+    .map_err(|e| e.py_err())?;
     json_to_py(py, &answer.json)
 }

@@ -276,11 +276,28 @@ pub fn run_stepped(
             run.ending = crate::Ending::Stopped;
             break;
         }
-        robot.command_joint_positions(point)?;
-        robot.step()?;
-        q.push(robot.joint_positions()?);
-        tool.push(robot.tool_pose()?);
-        times.push(robot.time()? - t0);
+        // Once the robot has moved, a failure ends the run with what was recorded.
+        let mut advance = || -> Result<_, RobotError> {
+            robot.command_joint_positions(point)?;
+            robot.step()?;
+            Ok((
+                robot.joint_positions()?,
+                robot.tool_pose()?,
+                robot.time()? - t0,
+            ))
+        };
+        match advance() {
+            Ok((qk, toolk, tk)) => {
+                q.push(qk);
+                tool.push(toolk);
+                times.push(tk);
+            }
+            Err(e) if times.len() == 1 => return Err(e), // nothing moved
+            Err(e) => {
+                run.ending = crate::Ending::Failed(e.to_string());
+                break;
+            }
+        }
     }
     if samples.len() == plan.points().len() && (plan.dt() - dt).abs() <= 1e-12 * dt {
         run.time = times;

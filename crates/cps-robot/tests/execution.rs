@@ -214,3 +214,79 @@ fn sequences_planned_on_the_model_record_what_the_closed_loop_records() {
         lagging.max_position_error()
     );
 }
+
+/// A stepped robot whose connection dies after `left` steps.
+struct Dying {
+    robot: KinematicRobot,
+    left: usize,
+}
+
+impl Stepped for Dying {
+    fn dof(&self) -> usize {
+        Stepped::dof(&self.robot)
+    }
+    fn time_step(&self) -> f64 {
+        Stepped::time_step(&self.robot)
+    }
+    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
+        Stepped::joint_positions(&mut self.robot)
+    }
+    fn tool_pose(&mut self) -> Result<nalgebra::IsometryMatrix3<f64>, RobotError> {
+        Stepped::tool_pose(&mut self.robot)
+    }
+    fn time(&mut self) -> Result<f64, RobotError> {
+        Stepped::time(&mut self.robot)
+    }
+    fn command_joint_positions(&mut self, q: &[f64]) -> Result<(), RobotError> {
+        Stepped::command_joint_positions(&mut self.robot, q)
+    }
+    fn command_joint_velocities(&mut self, dq: &[f64]) -> Result<(), RobotError> {
+        Stepped::command_joint_velocities(&mut self.robot, dq)
+    }
+    fn step(&mut self) -> Result<(), RobotError> {
+        if self.left == 0 {
+            return Err(RobotError::Robot {
+                robot: "the dying robot".into(),
+                message: "the connection was lost".into(),
+            });
+        }
+        self.left -= 1;
+        Stepped::step(&mut self.robot)
+    }
+}
+
+/// `Robot::run` promises an error only when nothing moved: a stepped robot that fails
+/// mid-plan ends the run Failed with what it recorded (it returned the error and lost the
+/// recording); one that fails at its first step moved nothing and says so as an error.
+#[test]
+fn a_stepped_robot_failing_mid_plan_keeps_its_recording() {
+    let arm = panda(PandaTool::HandTcp);
+    let points: Vec<Vec<f64>> = (0..=50)
+        .map(|k| {
+            let mut q = READY.to_vec();
+            q[0] += 0.002 * k as f64;
+            q
+        })
+        .collect();
+    let plan = Plan::new(0.01, points).unwrap();
+    let mut dying = Dying {
+        robot: KinematicRobot::new(arm.clone(), &READY, 0.01).unwrap(),
+        left: 20,
+    };
+    let run = run_stepped(&mut dying, &plan, &StopToken::new()).unwrap();
+    assert_eq!(run.len(), 21, "the start and the 20 steps made");
+    match &run.ending {
+        cps_robot::Ending::Failed(why) => assert!(why.contains("connection was lost"), "{why}"),
+        other => panic!("{other:?}"),
+    }
+    assert!(
+        (run.q[20][0] - (READY[0] + 0.04)).abs() < 1e-9,
+        "{:?}",
+        run.q[20]
+    );
+    let mut dead = Dying {
+        robot: KinematicRobot::new(arm, &READY, 0.01).unwrap(),
+        left: 0,
+    };
+    assert!(run_stepped(&mut dead, &plan, &StopToken::new()).is_err());
+}

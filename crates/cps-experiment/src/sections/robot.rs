@@ -71,6 +71,10 @@ pub struct RobotSection {
     /// `backend = "ros2"`: the services' request/reply mapping (`auto`, `cyclone`,
     /// `fastdds`; default `auto`: the controller's middleware's).
     service_mapping: Option<Spanned<String>>,
+    /// What a learned movement beyond the robot's limits is: `enforce` (default: a failed
+    /// run, exit 1) or `report` (a result whose `limit_usage` says so, for reproducing a
+    /// study whose robot was not the real one — it is not a movement to send).
+    limits: Option<Spanned<String>>,
 }
 
 /// Who moves the joints on a CoppeliaSim backend.
@@ -173,6 +177,9 @@ pub struct RobotChoice {
     pub model: crate::robot_file::RobotModel,
     /// The scene's named obstacles (added to the task's by the kinds that keep them).
     pub obstacles: Vec<(String, cps_learn::PointObstacle)>,
+    /// Whether a learned movement beyond the robot's limits fails the run (`[robot] limits
+    /// = "enforce"`, the default) or is only reported (`"report"`).
+    pub enforce_limits: bool,
 }
 
 impl Sections<'_> {
@@ -384,7 +391,22 @@ impl Sections<'_> {
                 }
             }
         };
+        let enforce_limits = match section.and_then(|r| r.limits.as_ref()) {
+            None => true,
+            Some(l) if l.get_ref() == "enforce" => true,
+            Some(l) if l.get_ref() == "report" => false,
+            Some(l) => {
+                return Err(self.err(
+                    &l.span(),
+                    format!(
+                        "[robot] `limits` = \"{}\" is not one of enforce (a movement beyond the robot's limits fails the run), report",
+                        l.get_ref()
+                    ),
+                ));
+            }
+        };
         Ok(RobotChoice {
+            enforce_limits,
             setup: RobotSetup {
                 chain: scene.robot.chain.clone(),
                 initial_q: scene.initial_q,
@@ -512,6 +534,12 @@ impl Sections<'_> {
                 ),
             ));
         }
+        if c.get_ref().trim().is_empty() {
+            return Err(self.err(
+                &c.span(),
+                "[robot] `calibration` is empty: give the path of a calibration file (`cps-cli identify` writes one), relative to this file".into(),
+            ));
+        }
         let path = self
             .path
             .parent()
@@ -531,17 +559,27 @@ impl Sections<'_> {
             speed: k.coulomb_speed,
         };
         let check = if k.controller != "joint_pd" {
-            Err(format!(
-                "its controller is {}; cps identifies joint_pd",
-                k.controller
+            Err((
+                "controller",
+                format!(
+                    "its controller is {}; cps identifies joint_pd",
+                    k.controller
+                ),
             ))
         } else {
-            values.check(&robot.name, robot.chain.dof())
+            values.check(
+                &robot.name,
+                robot.chain.dof(),
+                robot.limits.torque.as_deref(),
+            )
         };
-        check.map_err(|e| {
+        check.map_err(|(key, e)| {
             self.err(
                 &c.span(),
-                format!("[robot] `calibration` {}: {e}", path.display()),
+                format!(
+                    "[robot] `calibration`: {}: {e}",
+                    crate::calibration::place_of(&path, key)
+                ),
             )
         })?;
         Ok(values)
