@@ -56,7 +56,7 @@ LAYERS = {
     "cps-robot": [
         ["model", "plan", "stop"],
         ["check"],
-        ["robot"],
+        ["robot", "watch"],
         ["execute", "guard", "kinematic"],
     ],
     "cps-learn": [

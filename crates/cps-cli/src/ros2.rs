@@ -237,5 +237,9 @@ fn parse_domain(s: &str) -> std::result::Result<u16, String> {
         .parse::<u16>()
         .ok()
         .filter(|d| *d <= max)
-        .ok_or_else(|| format!("give a DDS domain, a whole number from 0 to {max} (their ports must fit in 16 bits)"))
+        .ok_or_else(|| {
+            format!(
+                "domain {s}: give a DDS domain, a whole number from 0 to {max} (their ports must fit in 16 bits)"
+            )
+        })
 }

@@ -7,7 +7,7 @@
 use std::path::Path;
 use std::time::Duration;
 
-use cps_robot::{Guarded, Plan, Policy, Refusal, RobotError, StopToken};
+use cps_robot::{Guarded, Plan, Policy, Refusal, Robot, RobotError, StopToken};
 use cps_ros2::action::FollowOutcome;
 use cps_ros2::msg::{JointTrajectory, error_code_word};
 use cps_ros2::names::NodeName;
@@ -220,24 +220,30 @@ pub fn send_trajectory(
     let wait = Duration::from_secs_f64(s.wait);
     match s.via {
         Via::Topic => {
-            let verdict = cps_robot::check(&model, &plan, cps_robot::CHECK_PERIOD)
-                .map_err(|e| InputError(format!("{name}: {e}")))?;
-            if let Some(b) = verdict.breach {
-                return Err(refused(
-                    name,
-                    &model,
-                    RobotError::Refused {
-                        robot: String::new(),
-                        reason: Refusal::Limit(b),
-                    },
+            // Through the guard: checked as every plan is, then published by the topic's
+            // robot (one message, no answer).
+            let topic = format!("{controller}/joint_trajectory");
+            let mut robot = Guarded::new(
+                TopicRobot {
+                    domain: s.graph.domain,
+                    topic: topic.clone(),
+                    names: names.clone(),
+                    model: model.clone(),
+                    period: s.period,
+                    wait,
+                    sent: None,
+                },
+                Policy::STRICT,
+            );
+            let run = robot
+                .run(&plan, stop)
+                .map_err(|e| sent_or_refused(name, &model, e))?;
+            let Some((node, message, sent)) = robot.into_inner().sent else {
+                return Err(ExperimentError::Message(
+                    "the topic's run sent nothing".into(),
                 ));
-            }
-            let message = trajectory_message(&names, &plan, Some(s.period));
-            let node = node(s.graph.domain)?;
+            };
             let base = answer_base(name, s, &node, &names, &message);
-            let topic = format!("{}/joint_trajectory", s.controller.trim_end_matches('/'));
-            let sent = publish::publish(&node, &topic, &message, Qos::Reliable { depth: 1 }, wait)
-                .map_err(ros2_error)?;
             let duration = message
                 .points
                 .last()
@@ -260,7 +266,7 @@ pub fn send_trajectory(
             ];
             Ok((
                 Answer { json, lines },
-                if sent.acknowledged { 0 } else { 1 },
+                if run.ending.complete() { 0 } else { 1 },
             ))
         }
         Via::Action => {
@@ -282,36 +288,46 @@ pub fn send_trajectory(
             let mut robot = Guarded::new(robot, Policy::STRICT);
             let prepared = robot.prepare(&plan).map_err(|e| refused(name, &model, e))?;
             let message = trajectory_message(&names, &prepared.plan, Some(s.period));
-            let action = format!(
-                "{}/follow_joint_trajectory",
-                s.controller.trim_end_matches('/')
-            );
+            let action = format!("{controller}/follow_joint_trajectory");
             let base = answer_base(name, s, robot.inner().node(), &names, &message);
-            let duration = message
-                .points
-                .last()
-                .map_or(0.0, |p| p.time_from_start.secs());
-            let followed = robot
-                .inner_mut()
-                .follow(message.clone(), stop, |share| {
-                    if duration > 0.0 {
-                        progress(share)
-                    }
-                })
-                .cloned();
-            let last = followed.map_err(|e| {
-                let text = match e {
-                    RobotError::Robot { message, .. } => message,
-                    other => other.to_string(),
-                };
-                // No server: say what the graph offers instead.
-                let hint = if text.contains("no action server answered") {
-                    crate::ros2_graph::action_hint(robot.inner().node(), &action)
-                } else {
-                    String::new()
-                };
-                ExperimentError::Message(format!("{text}{hint}"))
-            })?;
+            // The goal runs through the guard (`run_prepared`); its progress is read here
+            // from the robot's share while it runs.
+            let share = robot.inner().progress();
+            let ran = std::thread::scope(|scope| {
+                let runner = scope.spawn(|| robot.run_prepared(prepared, stop));
+                while !runner.is_finished() {
+                    progress(f64::from_bits(
+                        share.load(std::sync::atomic::Ordering::Relaxed),
+                    ));
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+                runner.join()
+            });
+            let ran =
+                ran.map_err(|_| ExperimentError::Message("the goal's runner panicked".into()))?;
+            // A goal the controller answered (done, aborted, refused) is worded from its
+            // outcome; anything else could not reach the controller.
+            let last = match (ran, robot.inner().last_goal()) {
+                (_, Some(last)) => last.clone(),
+                (Err(e), None) => {
+                    let text = match e {
+                        RobotError::Robot { message, .. } => message,
+                        other => other.to_string(),
+                    };
+                    // No server: say what the graph offers instead.
+                    let hint = if text.contains("no action server answered") {
+                        crate::ros2_graph::action_hint(robot.inner().node(), &action)
+                    } else {
+                        String::new()
+                    };
+                    return Err(ExperimentError::Message(format!("{text}{hint}")));
+                }
+                (Ok(_), None) => {
+                    return Err(ExperimentError::Message(
+                        "the goal ran but left no outcome".into(),
+                    ));
+                }
+            };
             let o = &last.outcome;
             let (mut answer, code) = action_answer(base, &action, o);
             if let (Some(r), Some(rec)) = (&s.record, &last.recording) {
@@ -326,6 +342,80 @@ pub fn send_trajectory(
                 },
             ))
         }
+    }
+}
+
+/// A joint_trajectory_controller's topic as a robot: blind (it is trusted to start from a
+/// plan's first point), a plan published as one JointTrajectory message, with no answer.
+/// Only [`send_trajectory`] drives it, behind the guard.
+struct TopicRobot {
+    /// The DDS domain the node joins, once a plan has passed the guard.
+    domain: Option<u16>,
+    topic: String,
+    names: Vec<String>,
+    model: RobotModel,
+    period: f64,
+    wait: Duration,
+    /// The node that published, the message and how it went.
+    sent: Option<(Node, JointTrajectory, publish::Published)>,
+}
+
+impl Robot for TopicRobot {
+    fn name(&self) -> String {
+        format!("ros2 {}", self.topic)
+    }
+    fn model(&self) -> &RobotModel {
+        &self.model
+    }
+    fn dt(&self) -> f64 {
+        self.period
+    }
+    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
+        Err(RobotError::Robot {
+            robot: self.name(),
+            message: "a topic reports no joint states".into(),
+        })
+    }
+    fn standing(&mut self) -> Result<Option<Vec<f64>>, RobotError> {
+        Ok(None)
+    }
+    /// Publishes the plan: the run holds its start only (a topic says nothing of what the
+    /// robot did), Finished when the subscriber acknowledged the message.
+    fn run(&mut self, plan: &Plan, _stop: &StopToken) -> Result<cps_robot::Run, RobotError> {
+        let message = trajectory_message(&self.names, plan, Some(self.period));
+        let graph = |e: cps_ros2::Ros2Error| RobotError::Robot {
+            robot: format!("ros2 {}", self.topic),
+            message: e.to_string(),
+        };
+        let node =
+            Node::new(NodeName::from_env(NODE_NAME, self.domain).map_err(graph)?).map_err(graph)?;
+        let sent = publish::publish(
+            &node,
+            &self.topic,
+            &message,
+            Qos::Reliable { depth: 1 },
+            self.wait,
+        )
+        .map_err(graph)?;
+        let mut run = cps_robot::Run::new(if sent.acknowledged {
+            cps_robot::Ending::Finished
+        } else {
+            cps_robot::Ending::Failed("the message was not acknowledged in time".into())
+        });
+        let start = plan.start().to_vec();
+        let tool = self.model.chain.fk(&start)?;
+        run.push(0.0, start, tool);
+        self.sent = Some((node, message, sent));
+        Ok(run)
+    }
+}
+
+/// A topic robot's error: a refusal worded as every refusal, anything else as it is.
+fn sent_or_refused(name: &str, model: &RobotModel, e: RobotError) -> ExperimentError {
+    match e {
+        RobotError::Refused { .. } => refused(name, model, e),
+        RobotError::Robot { message, .. } => ExperimentError::Message(message),
+        other => ExperimentError::Message(other.to_string()),
     }
 }
 

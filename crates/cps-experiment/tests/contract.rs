@@ -178,6 +178,24 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
             assert!(moved < 1e-3, "{name} moved {moved} rad");
         }
     }
+    // Stopped before moving: every robot reports it one way (it was an error on the
+    // Franka): a run that ends Stopped with where the robot stands, nothing sent.
+    let stopped = StopToken::new();
+    stopped.stop();
+    for (name, r) in &mut robots {
+        let mut guarded = Guarded::new(&mut **r, Policy::STRICT);
+        let run = guarded
+            .run(&swing(&q0, 0, 0.05, 1.0), &stopped)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(run.ending, cps_robot::Ending::Stopped, "{name}");
+        assert_eq!(run.len(), 1, "{name}");
+        let off = run.q[0]
+            .iter()
+            .zip(&q0)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(off < 1e-3, "{name} stands {off} rad from where it stood");
+    }
     assert!(
         format!("{}", reason(Guarded::new(&mut *robots[0].1, Policy::STRICT).run(&step(&q0), &stop).unwrap_err()))
             .starts_with("joint 2 at t = 0.500 s (command 500): velocity 50.000000 rad/s beyond the limit 2.620000 rad/s")

@@ -72,6 +72,9 @@ pub struct FrankaRobot {
     reports: Vec<MotionReport>,
     /// The stream of the last motion (its approach, its commands).
     last_stream: Option<CheckedStream>,
+    /// The last plan checked, from where, and its stream: the guard's check and the run
+    /// that follows it build the stream once.
+    checked: Option<(Plan, [f64; 7], CheckedStream)>,
     /// The last recording without motion.
     recorded: Vec<crate::Sample>,
 }
@@ -185,6 +188,7 @@ impl FrankaRobot {
             model_gap: None,
             reports: Vec::new(),
             last_stream: None,
+            checked: None,
             recorded: Vec::new(),
         })
     }
@@ -306,8 +310,17 @@ impl FrankaRobot {
             .map(|q| <[f64; 7]>::try_from(q.as_slice()).expect("seven joints"))
             .collect();
         let from = start_position(&state);
+        if let Some((p, f, stream)) = &self.checked
+            && p == plan
+            && *f == from
+        {
+            return Ok(Ok(stream.clone()));
+        }
         match check_trajectory(&self.limits, from, &commands, Start::Approach(BLEND_SHARE)) {
-            Ok(stream) => Ok(Ok(stream)),
+            Ok(stream) => {
+                self.checked = Some((plan.clone(), from, stream.clone()));
+                Ok(Ok(stream))
+            }
             Err(FrankaError::Limit(b)) => Ok(Err(breach(&b))),
             Err(e) => Err(franka_error(&host, e)),
         }
@@ -389,7 +402,12 @@ impl Streaming for FrankaRobot {
     ) -> Result<Run, RobotError> {
         let host = self.host.clone();
         if stop.is_stopped() {
-            return Err(robot_error(&host, "stopped on request before moving"));
+            // Stopped before moving: where it stands, as every robot reports it.
+            let q = Robot::joint_positions(self)?;
+            let tool = self.model.chain.fk(&q)?;
+            let mut run = Run::new(RunEnding::Stopped);
+            run.push(0.0, q, tool);
+            return Ok(run);
         }
         let state = self.conn.read_state().map_err(|e| franka_error(&host, e))?;
         self.conn
@@ -399,6 +417,7 @@ impl Streaming for FrankaRobot {
             max_ticks: max_commands + 10 + crate::rt::BRAKE_RESERVE,
             ..self.options
         };
+        self.checked = None; // the robot moves: the stream was for where it stood
         let report = {
             let _moving = stop.moving();
             run_joint_positions(
@@ -472,7 +491,12 @@ impl Robot for FrankaRobot {
             }
         };
         if stop.is_stopped() {
-            return Err(robot_error(&host, "stopped on request before moving"));
+            // Stopped before moving: where it stands, as every robot reports it.
+            let q = self.joint_positions()?;
+            let tool = self.model.chain.fk(&q)?;
+            let mut run = Run::new(RunEnding::Stopped);
+            run.push(0.0, q, tool);
+            return Ok(run);
         }
         let report = {
             let _moving = stop.moving();

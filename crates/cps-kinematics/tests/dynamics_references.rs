@@ -30,12 +30,7 @@ fn python() -> Option<PathBuf> {
     if p.exists() {
         return Some(p);
     }
-    assert!(
-        std::env::var_os("CI").is_none(),
-        "CI must provide MuJoCo: {} does not exist (.ci/run creates it)",
-        p.display()
-    );
-    eprintln!("skipped: no MuJoCo ({} missing)", p.display());
+    cps_testkit::skip(&format!("no MuJoCo ({} missing)", p.display()));
     None
 }
 

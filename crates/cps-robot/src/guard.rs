@@ -7,6 +7,7 @@
 use crate::check::{Breach, Verdict, check};
 use crate::plan::{Plan, Run};
 use crate::robot::{Generator, Robot, Stepped, Streaming};
+use crate::watch::CommandWatch;
 use crate::{RobotError, RobotModel, StopToken};
 
 /// The share of each velocity, acceleration and jerk limit an approach to a plan's start
@@ -196,6 +197,14 @@ pub struct Guarded<R> {
     slowest: f64,
     /// The verdict on the last plan sent.
     last: Option<Verdict>,
+    /// The commands sent one step at a time since the robot last stood (see
+    /// [`Stepped for Guarded`](#impl-Stepped-for-Guarded%3CR%3E)).
+    watch: Option<CommandWatch>,
+    /// Whether a joint command came since the last step.
+    commanded: bool,
+    /// The stepped robot's `follows_targets` and `prefers_plans`, read when its stepped
+    /// view was last asked for.
+    stepping: (bool, bool),
 }
 
 /// A plan made ready by the guard: what will be sent, and how it came to be.
@@ -219,6 +228,9 @@ impl<R: Robot> Guarded<R> {
             policy,
             slowest: 1.0,
             last: None,
+            watch: None,
+            commanded: false,
+            stepping: (false, false),
         }
     }
 
@@ -461,9 +473,11 @@ impl<R: Robot> Robot for Guarded<R> {
     /// says) and runs it.
     fn run(&mut self, plan: &Plan, stop: &StopToken) -> Result<Run, RobotError> {
         let prepared = self.prepare(plan)?;
+        self.watch = None;
         self.run_prepared(prepared, stop)
     }
     fn teleport(&mut self, q: &[f64]) -> Result<bool, RobotError> {
+        self.watch = None;
         self.robot.teleport(q)
     }
     /// Nothing is commanded: the robot's own recording.
@@ -489,13 +503,108 @@ impl<R: Robot> Robot for Guarded<R> {
             inner
         }
     }
+    /// The guard's own stepped view when the robot steps: every joint command judged
+    /// before it is sent (see [`Stepped for Guarded`](#impl-Stepped-for-Guarded%3CR%3E)).
     fn stepped(&mut self) -> Option<&mut dyn Stepped> {
-        self.robot.stepped()
+        let inner = self.robot.stepped()?;
+        self.stepping = (inner.follows_targets(), inner.prefers_plans());
+        Some(self)
     }
-    /// The robot's streaming interface, unchecked: [`Guarded::stream`] checks the nominal
-    /// movement first.
+    /// None: a guarded robot streams only through [`Guarded::stream`], which checks the
+    /// movement's nominal plan first (handing out the inner robot's interface would be a
+    /// way around the guard).
     fn streaming(&mut self) -> Option<&mut dyn Streaming> {
-        self.robot.streaming()
+        None
+    }
+}
+
+impl<R: Robot> Guarded<R> {
+    /// A stepped command refused: what was sent before stands, this one is not sent.
+    fn command_refused(&self, breach: &Breach) -> RobotError {
+        RobotError::Robot {
+            robot: self.robot.name(),
+            message: format!(
+                "a command breaks a limit, so it was not sent (the robot holds the one before): {breach}"
+            ),
+        }
+    }
+
+    /// The inner robot's stepped interface (the guard hands out only its own).
+    fn inner_stepped(&mut self) -> &mut dyn Stepped {
+        self.robot
+            .stepped()
+            .expect("a guarded robot is stepped only when its robot steps")
+    }
+}
+
+/// A guarded robot stepped one control period at a time (cps's closed-loop executor on a
+/// simulator): each joint command is judged with the checks a plan gets — the position
+/// range, velocity, acceleration and jerk by backward differences from where the robot
+/// stood at rest, torque and torque rate where the robot has inertias — and one that
+/// breaks a limit is refused ([`RobotError::Robot`] naming it, the robot holding its last
+/// command) instead of sent. A step without a new command holds the last one, and is judged as
+/// that. Joint velocities are not taken (command positions). A robot that follows tool
+/// targets itself (CoppeliaSim's IK) moves its joints on its own: those are the
+/// simulator's, not commands cps sends. The commands count from where the robot stands
+/// after a plan, a reset or the first command.
+impl<R: Robot> Stepped for Guarded<R> {
+    fn dof(&self) -> usize {
+        self.robot.model().chain.dof()
+    }
+    fn time_step(&self) -> f64 {
+        self.robot.command_period()
+    }
+    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
+        Stepped::joint_positions(self.inner_stepped())
+    }
+    fn tool_pose(&mut self) -> Result<nalgebra::IsometryMatrix3<f64>, RobotError> {
+        Stepped::tool_pose(self.inner_stepped())
+    }
+    fn time(&mut self) -> Result<f64, RobotError> {
+        self.inner_stepped().time()
+    }
+    fn command_joint_positions(&mut self, q: &[f64]) -> Result<(), RobotError> {
+        if self.watch.is_none() {
+            let here = Stepped::joint_positions(self.inner_stepped())?;
+            let dt = self.inner_stepped().time_step();
+            self.watch = Some(CommandWatch::new(&here, dt));
+        }
+        let watch = self.watch.as_mut().expect("just made");
+        if let Err(breach) = watch.judge(self.robot.model(), q) {
+            return Err(self.command_refused(&breach));
+        }
+        self.commanded = true;
+        self.inner_stepped().command_joint_positions(q)
+    }
+    fn command_joint_velocities(&mut self, _dq: &[f64]) -> Result<(), RobotError> {
+        Err(RobotError::Robot {
+            robot: self.robot.name(),
+            message:
+                "a guarded robot takes joint positions, judged before they are sent; command those"
+                    .into(),
+        })
+    }
+    fn step(&mut self) -> Result<(), RobotError> {
+        // No new command: the robot holds its last one, and that is a command too.
+        if !self.commanded
+            && let Some(watch) = self.watch.as_mut()
+        {
+            let hold = watch.last().to_vec();
+            if let Err(breach) = watch.judge(self.robot.model(), &hold) {
+                return Err(self.command_refused(&breach));
+            }
+        }
+        self.commanded = false;
+        self.inner_stepped().step()
+    }
+    fn follows_targets(&self) -> bool {
+        self.stepping.0
+    }
+    fn command_target(&mut self, target: &cps_kinematics::IkTarget) -> Result<(), RobotError> {
+        self.inner_stepped().command_target(target)
+    }
+    fn prefers_plans(&self) -> bool {
+        self.stepping.1
     }
 }
 

@@ -64,6 +64,7 @@ mod model;
 mod plan;
 mod robot;
 mod stop;
+mod watch;
 
 pub use check::{Breach, Limit, OUTSIDE_SLACK, Verdict, check};
 pub use execute::{ExecutionConfig, Recording, execute};

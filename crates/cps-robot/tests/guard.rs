@@ -220,6 +220,9 @@ fn a_movement_generated_online_is_checked_on_its_nominal_plan_then_streamed() {
         )
         .unwrap_err();
     assert!(matches!(e, RobotError::Refused { .. }), "{e}");
+    // No way around that check: the guarded robot hands out no streaming interface (it
+    // handed out the inner robot's, which streamed whatever it was given).
+    assert!(Robot::streaming(&mut r).is_none());
 }
 
 #[test]
@@ -231,4 +234,56 @@ fn a_stop_ends_a_run_where_it_is_with_the_recording_kept() {
     let run = r.run(&plan, &stop).unwrap();
     assert_eq!(run.ending, cps_robot::Ending::Stopped);
     assert_eq!(run.len(), 1, "only where it stood");
+}
+
+/// A guarded robot's stepped interface is the guard's own: each joint command is judged
+/// as a plan's commands are (a command clamped to a limit is at it, not beyond), and one
+/// that breaks a limit is refused and not sent (the
+/// inner robot's interface was handed out, and the closed-loop executor's commands went
+/// unchecked beyond speed and range).
+#[test]
+fn stepping_a_guarded_robot_judges_every_command() {
+    let swing = swing(0, 0.2, 2.0, 0.01);
+    // The plan's points, commanded one step at a time: every one accepted.
+    let mut r = robot(Policy::STRICT, 0.01);
+    {
+        let stepped = Robot::stepped(&mut r).expect("the in-process robot steps");
+        for q in &swing.points()[1..] {
+            stepped.command_joint_positions(q).unwrap();
+            stepped.step().unwrap();
+        }
+        let end = stepped.joint_positions().unwrap();
+        assert!((end[0] - HOME[0]).abs() < 1e-9, "{end:?}");
+    }
+    // A jump: its acceleration (0.01 rad in one step from rest: 100 rad/s²) is refused in
+    // the words a plan's is, and the robot does not move.
+    let mut r = robot(Policy::STRICT, 0.01);
+    let stepped = Robot::stepped(&mut r).unwrap();
+    let mut jump = HOME.to_vec();
+    jump[0] += 0.01;
+    let e = stepped
+        .command_joint_positions(&jump)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("not sent") && e.contains("joint 1 at t = 0.010 s (command 1): acceleration"),
+        "{e}"
+    );
+    stepped.step().unwrap();
+    assert_eq!(stepped.joint_positions().unwrap(), HOME.to_vec());
+    // Stopping dead from speed is refused too: a step without a new command holds the
+    // last one.
+    let mut r = robot(Policy::STRICT, 0.01);
+    let stepped = Robot::stepped(&mut r).unwrap();
+    let mut moving = false;
+    for q in &swing.points()[1..60] {
+        stepped.command_joint_positions(q).unwrap();
+        stepped.step().unwrap();
+        moving = true;
+    }
+    assert!(moving);
+    let e = stepped.step().unwrap_err().to_string();
+    assert!(e.contains("not sent") && e.contains("acceleration"), "{e}");
+    // Velocities are not taken: they would go around the judgement.
+    assert!(stepped.command_joint_velocities(&[0.0; 7]).is_err());
 }

@@ -11,7 +11,8 @@
 //! forward kinematics of those joints. A stop token cancels the goal: the controller then
 //! stops the arm as it is configured to.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use cps_robot::{Ending, Plan, Robot, RobotError, RobotModel, Run, StopToken};
@@ -172,6 +173,8 @@ pub struct Ros2Robot {
     lost: u64,
     older: u64,
     last: Option<LastGoal>,
+    /// The share of the running goal the controller reports done (`f64` bits).
+    progress: Arc<AtomicU64>,
 }
 
 impl std::fmt::Debug for Ros2Robot {
@@ -233,6 +236,7 @@ impl Ros2Robot {
             lost: 0,
             older: 0,
             last: None,
+            progress: Arc::new(AtomicU64::new(0f64.to_bits())),
         };
         if robot.states.is_some() && settings.read_start {
             robot.measured()?;
@@ -248,6 +252,12 @@ impl Ros2Robot {
     /// The joint names on the graph, in the model's order.
     pub fn joint_names(&self) -> &[String] {
         &self.names
+    }
+
+    /// The share (0 to 1, `f64` bits) of the running goal the controller reports done, for a
+    /// caller watching [`Robot::run`] from another thread.
+    pub fn progress(&self) -> Arc<AtomicU64> {
+        Arc::clone(&self.progress)
     }
 
     /// The last goal: its message, the controller's answer, the joint states recorded.
@@ -438,8 +448,24 @@ impl Robot for Ros2Robot {
     /// aborts or that is cancelled ends the run with what was recorded.
     fn run(&mut self, plan: &Plan, stop: &StopToken) -> Result<Run, RobotError> {
         plan.check_dof(self.model.chain.dof())?;
+        if stop.is_stopped() {
+            // Stopped before moving: no goal is sent; where it stands, when it is read.
+            let mut run = Run::new(Ending::Stopped);
+            if self.settings.read_start {
+                let q = self.measured()?;
+                let tool = self.model.chain.fk(&q)?;
+                run.push(0.0, q, tool);
+            }
+            return Ok(run);
+        }
         let message = trajectory_message(&self.names, plan, self.settings.goal_period);
-        let last = self.follow(message, stop, |_| {})?.clone();
+        let share = Arc::clone(&self.progress);
+        share.store(0f64.to_bits(), Ordering::Relaxed);
+        let last = self
+            .follow(message, stop, |done| {
+                share.store(done.to_bits(), Ordering::Relaxed)
+            })?
+            .clone();
         let outcome = &last.outcome;
         if !outcome.accepted {
             return Err(self.error(goal_sentence(outcome)));

@@ -18,11 +18,7 @@ pub fn browser() -> Option<String> {
             .map(String::from)
     });
     if found.is_none() {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "CI must provide a headless Chromium (chromium-headless-shell)"
-        );
-        eprintln!("skipped: no headless Chromium on the PATH");
+        cps_testkit::skip("no headless Chromium (chromium-headless-shell) on the PATH");
     }
     found
 }

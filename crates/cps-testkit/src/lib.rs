@@ -1,0 +1,60 @@
+//! Support for cps's own tests (a dev-dependency, never shipped).
+//!
+//! Many of cps's tests meet a real peer: franky-sim behind the Franka protocol, CycloneDDS
+//! and rclpy in a network namespace, MuJoCo, a headless Chromium, the official CoppeliaSim
+//! client. `.ci/peers` installs them all; a fresh clone has none. A test whose peer is
+//! missing calls [`skip`]:
+//!
+//! - under CI (`CI` set) that is a failure: CI must run every test;
+//! - elsewhere the test returns having checked nothing, and says so: a sentence on its
+//!   standard error, and a line in the file `$CPS_SKIP_LOG` names, so that the test command
+//!   of the README (`bash test.sh`, which sets it) counts the test as skipped, not passed,
+//!   and closes with how many were skipped and the command that installs their peers.
+//!
+//! ```no_run
+//! fn franky_sim_python() -> Option<std::path::PathBuf> {
+//!     let p = std::path::PathBuf::from("target/franka-venv/bin/python");
+//!     if p.exists() {
+//!         return Some(p);
+//!     }
+//!     // Outside CI: recorded as skipped; under CI: a failure naming what is missing.
+//!     cps_testkit::skip(&format!("no franky-sim ({} missing)", p.display()));
+//!     None
+//! }
+//! # let _ = franky_sim_python();
+//! ```
+
+use std::io::Write;
+
+/// The environment variable naming the file skips are recorded in.
+pub const SKIP_LOG: &str = "CPS_SKIP_LOG";
+
+/// The command that installs every peer the tests meet.
+pub const INSTALL_PEERS: &str = "bash .ci/peers";
+
+/// Says that the running test could not meet its peer (`why`, a sentence naming what is
+/// missing): a failure under CI; elsewhere a line on standard error and in `$CPS_SKIP_LOG`
+/// (the test's name, then `why`). The caller then returns without checking anything.
+///
+/// # Panics
+/// Under CI (`CI` set), always: a missing peer there is a broken install.
+pub fn skip(why: &str) {
+    if std::env::var_os("CI").is_some() {
+        panic!("CI must run this test, but {why} (`{INSTALL_PEERS}` installs every peer)");
+    }
+    let test = std::thread::current()
+        .name()
+        .unwrap_or("a test")
+        .to_string();
+    eprintln!("skipped: {why} (`{INSTALL_PEERS}` installs every peer)");
+    if let Some(path) = std::env::var_os(SKIP_LOG) {
+        // One short line, appended: concurrent tests do not interleave within it.
+        if let Ok(mut f) = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)
+        {
+            let _ = writeln!(f, "{test}: {why}");
+        }
+    }
+}
