@@ -19,6 +19,9 @@
 --                     then the last row is held. Returns n.
 --   cpsResult()       {done = k, total = n} while running; once k == n also
 --                     time (n numbers), q (n * dof) and pose (n * 7: x y z qx qy qz qw).
+--   cpsStop()         ends the sequence where it is (a stop asked of cps): no further row
+--                     is commanded, the last one commanded is held; returns cpsResult()'s
+--                     whole answer, with total = done.
 -- Stopping the simulation forgets the sequence (simulation scripts start afresh).
 
 sim = require 'sim'
@@ -93,6 +96,14 @@ function cpsResult()
         r.time, r.q, r.pose = recTime, recQ, recPose
     end
     return r
+end
+
+function cpsStop()
+    if not targets then
+        error('cpsStop(): no sequence loaded (call cpsLoad first)')
+    end
+    total = done
+    return cpsResult()
 end
 
 function sysCall_actuation()

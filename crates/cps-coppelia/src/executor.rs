@@ -13,6 +13,9 @@
 //!   after it (sensing), then holds the last row. Returns `n`.
 //! - `cpsResult()`: a map `{done, total}` while the run goes on; once `done == total` also
 //!   `time` (n numbers), `q` (n · dof) and `pose` (n · 7: x y z qx qy qz qw, world frame).
+//! - `cpsStop()`: ends the sequence where it is — no further row is commanded, the last
+//!   one commanded is held — and answers as `cpsResult` does once a run is over, with
+//!   `total = done` (a stop asked of cps, seen at the client's next poll).
 //!
 //! The client loads the sequence, lets the simulation run freely (it releases its
 //! stepping hold), polls `cpsResult` a few times, paced by the progress it reads, and
@@ -33,6 +36,8 @@ pub const SCRIPT_ALIAS: &str = "cpsExecutor";
 pub const LOAD: &str = "cpsLoad";
 /// The function that reports progress and, at the end, the recording.
 pub const RESULT: &str = "cpsResult";
+/// The function that ends a sequence where it is and returns what it recorded.
+pub const STOP: &str = "cpsStop";
 /// The most steps one `cpsLoad` takes. A recording of that many steps of a 7-joint robot
 /// is ≈ 7 MB of CBOR, within the remote API's message ceiling; the client sends longer
 /// sequences in parts.
@@ -101,6 +106,12 @@ impl Run {
     pub(crate) fn next_target(&self) -> Option<&[f64]> {
         let k = self.done();
         (k < self.total()).then(|| &self.targets[k * self.dof..(k + 1) * self.dof])
+    }
+
+    /// Ends the sequence where it is (`cpsStop`): no further row will be commanded.
+    pub(crate) fn stop(&mut self) {
+        let done = self.done();
+        self.targets.truncate(done * self.dof);
     }
 
     /// Records the state after a step.

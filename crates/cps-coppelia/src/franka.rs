@@ -14,6 +14,9 @@ use crate::executor::{self, Progress, StepRecording};
 use crate::sim::{HANDLE_WORLD, SIMULATION_STOPPED};
 use crate::{Client, CoppeliaError, Protocol};
 
+/// The longest wait between two looks at a running sequence (s): a stop is seen within it.
+pub const STOP_POLL: f64 = 0.01;
+
 /// The handles of a robot in a CoppeliaSim scene, named as in the thesis.
 #[derive(Debug)]
 pub struct FrankaScene {
@@ -85,8 +88,14 @@ impl FrankaScene {
     }
 
     /// Runs one part of a sequence through the scene script: load it, let the simulation
-    /// run freely, wait for the recording, take the stepping hold back.
-    fn run_part(&mut self, script: i64, rows: &[Vec<f64>]) -> Result<StepRecording, RobotError> {
+    /// run freely, wait for the recording (or stop the script where it is, once `stop` is
+    /// stopped: then true), take the stepping hold back.
+    fn run_part(
+        &mut self,
+        script: i64,
+        rows: &[Vec<f64>],
+        stop: &StopToken,
+    ) -> Result<(StepRecording, bool), RobotError> {
         self.fresh = None;
         let endpoint = self.client.endpoint().to_string();
         let dof = self.joints.len();
@@ -105,7 +114,7 @@ impl FrankaScene {
             ));
         }
         self.client.set_stepping(false)?;
-        let result = self.await_run(script, rows.len(), dof);
+        let result = self.await_run(script, rows.len(), dof, stop);
         let hold = self.client.set_stepping(true);
         let rec = result?;
         hold?;
@@ -113,19 +122,55 @@ impl FrankaScene {
     }
 
     /// Polls `cpsResult` until the run is over, sleeping between polls for the time the
-    /// remaining steps take at the pace seen so far (1 ms to 1 s), so a run costs a few
-    /// polls. No progress for the call timeout is a [`CoppeliaError::Timeout`] (another
-    /// client holding the simulation, or a hung simulator).
+    /// remaining steps take at the pace seen so far, at most [`STOP_POLL`], so a stop is
+    /// seen within that: the script is then told to stop where it is (`cpsStop`) and its
+    /// recording so far returned, with true. No progress for the call timeout is a
+    /// [`CoppeliaError::Timeout`] (another client holding the simulation, or a hung
+    /// simulator).
     fn await_run(
         &mut self,
         script: i64,
         total: usize,
         dof: usize,
-    ) -> Result<StepRecording, RobotError> {
+        stop: &StopToken,
+    ) -> Result<(StepRecording, bool), RobotError> {
         let endpoint = self.client.endpoint().to_string();
         let start = Instant::now();
         let mut progress = (start, 0);
         loop {
+            if stop.is_stopped() {
+                let reply = self
+                    .client
+                    .call_script_function(executor::STOP, script, vec![])?;
+                let value = reply.first().ok_or_else(|| {
+                    executor::backend_error(
+                        &endpoint,
+                        format!("{} returned nothing", executor::STOP),
+                    )
+                })?;
+                let done = codec::get(value, "done")
+                    .and_then(codec::as_i64)
+                    .and_then(|n| usize::try_from(n).ok())
+                    .filter(|&n| n <= total)
+                    .ok_or_else(|| {
+                        executor::backend_error(
+                            &endpoint,
+                            format!(
+                                "{}: `done` must be a count of at most {total}",
+                                executor::STOP
+                            ),
+                        )
+                    })?;
+                return match executor::read_result(value, done, dof).map_err(|m| {
+                    executor::backend_error(&endpoint, format!("{}: {m}", executor::STOP))
+                })? {
+                    Progress::Done(rec) => Ok((rec, true)),
+                    Progress::Running(_) => Err(executor::backend_error(
+                        &endpoint,
+                        format!("{} left the sequence running", executor::STOP),
+                    )),
+                };
+            }
             let reply = self
                 .client
                 .call_script_function(executor::RESULT, script, vec![])?;
@@ -135,7 +180,7 @@ impl FrankaScene {
             let done = match executor::read_result(value, total, dof).map_err(|m| {
                 executor::backend_error(&endpoint, format!("{}: {m}", executor::RESULT))
             })? {
-                Progress::Done(rec) => return Ok(rec),
+                Progress::Done(rec) => return Ok((rec, false)),
                 Progress::Running(done) => done,
             };
             let now = Instant::now();
@@ -157,7 +202,7 @@ impl FrankaScene {
             } else {
                 (total - done) as f64 * start.elapsed().as_secs_f64() / done as f64
             };
-            std::thread::sleep(Duration::from_secs_f64(pace.clamp(0.001, 1.0)));
+            std::thread::sleep(Duration::from_secs_f64(pace.clamp(0.001, STOP_POLL)));
         }
     }
 
@@ -289,6 +334,18 @@ impl FrankaScene {
     /// ([`crate::executor`]), in parts of at most [`executor::MAX_STEPS`] steps — a few
     /// calls a sequence; otherwise one call per command, step and reading.
     pub fn run_joint_targets(&mut self, targets: &[Vec<f64>]) -> Result<StepRecording, RobotError> {
+        self.run_joint_targets_until(targets, &StopToken::new())
+            .map(|(rec, _)| rec)
+    }
+
+    /// [`FrankaScene::run_joint_targets`], ended where it is once `stop` is stopped (seen
+    /// within [`STOP_POLL`] through the scene script, at the next step without it): the
+    /// recording so far, and whether it was stopped.
+    pub fn run_joint_targets_until(
+        &mut self,
+        targets: &[Vec<f64>],
+        stop: &StopToken,
+    ) -> Result<(StepRecording, bool), RobotError> {
         let dof = self.joints.len();
         if let Some(row) = targets.iter().find(|r| r.len() != dof) {
             return Err(KinematicsError::JointCount {
@@ -300,21 +357,27 @@ impl FrankaScene {
         let mut rec = StepRecording::default();
         let Some(script) = self.script else {
             for row in targets {
+                if stop.is_stopped() {
+                    return Ok((rec, true));
+                }
                 Stepped::command_joint_positions(self, row)?;
                 Stepped::step(self)?;
                 rec.q.push(self.read_joints()?);
                 rec.tool.push(self.read_tool()?);
                 rec.time.push(Stepped::time(self)?);
             }
-            return Ok(rec);
+            return Ok((rec, false));
         };
         for part in targets.chunks(executor::MAX_STEPS) {
-            let r = self.run_part(script, part)?;
+            let (r, stopped) = self.run_part(script, part, stop)?;
             rec.time.extend(r.time);
             rec.q.extend(r.q);
             rec.tool.extend(r.tool);
+            if stopped {
+                return Ok((rec, true));
+            }
         }
-        Ok(rec)
+        Ok((rec, false))
     }
 
     /// Stops the simulation (CoppeliaSim restores the scene and resets its clock), sets
@@ -459,8 +522,12 @@ impl Robot for FrankaScene {
             run.push(0.0, first.0, first.1);
             return Ok(run);
         }
-        let rec = self.run_joint_targets(&samples[1..])?;
-        let mut run = Run::new(Ending::Finished);
+        let (rec, stopped) = self.run_joint_targets_until(&samples[1..], stop)?;
+        let mut run = Run::new(if stopped {
+            Ending::Stopped
+        } else {
+            Ending::Finished
+        });
         let at = |i: usize| -> (f64, Vec<f64>, IsometryMatrix3<f64>) {
             if i == 0 {
                 (0.0, first.0.clone(), first.1)
@@ -476,6 +543,9 @@ impl Robot for FrankaScene {
             } else {
                 cps_robot::step_of(plan, k, self.dt, samples.len())
             };
+            if stopped && i > rec.time.len() {
+                break; // not reached: the run was stopped before
+            }
             let (t, q, tool) = at(i.min(rec.time.len()));
             run.push(if exact { t } else { plan.time(k) }, q, tool);
         }

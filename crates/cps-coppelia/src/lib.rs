@@ -49,6 +49,6 @@ pub mod zmtp;
 
 pub use client::{Client, ClientConfig, Protocol};
 pub use error::CoppeliaError;
-pub use franka::FrankaScene;
+pub use franka::{FrankaScene, STOP_POLL};
 pub use server::{LogLine, RequestHandler, SceneSetup, ServerConfig, ServerLimits, StandInServer};
 pub use zmtp::DEFAULT_MAX_MESSAGE_BYTES;

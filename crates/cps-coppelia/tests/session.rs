@@ -892,3 +892,68 @@ fn server_scene(chain: cps_kinematics::SerialChain) -> SceneSetup {
         script: true,
     }
 }
+
+/// A stop reaches a plan the scene script is running: cps tells the script to stop where
+/// it is (`cpsStop`), and the run ends Stopped with what was recorded, the points not
+/// reached left out, no time twice, and the robot holding where it stopped (the script ran
+/// every plan to its end, blind to the stop).
+#[test]
+fn a_stop_reaches_a_plan_the_scene_script_runs() {
+    use cps_coppelia::FrankaScene;
+    use cps_robot::{Ending, Plan, Robot, Stepped, StopToken};
+    // Each step costs a millisecond: the 4 s plan below takes 4 s of wall time.
+    let srv = StandInServer::start(ServerConfig::new(
+        "127.0.0.1:0",
+        SceneSetup {
+            robot_name: "Panda".into(),
+            chain: panda(PandaTool::HandTcp),
+            initial_q: THESIS_Q0.to_vec(),
+            dummies: vec![],
+            dt: 0.001,
+            ik_following: false,
+            step_cost: Duration::from_millis(1),
+            script: true,
+        },
+    ))
+    .unwrap();
+    let mut scene = FrankaScene::open(
+        client(srv.endpoint()),
+        "Panda",
+        cps_robot::RobotModel::of_chain("Panda", panda(PandaTool::HandTcp)),
+        0.001,
+    )
+    .unwrap();
+    assert!(scene.has_script());
+    let ready = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    scene.reset(&ready).unwrap();
+    let points: Vec<Vec<f64>> = (0..=400)
+        .map(|k| {
+            let mut q = ready.to_vec();
+            q[0] += 0.2 * (1.0 - (std::f64::consts::PI * k as f64 / 400.0).cos()) / 2.0;
+            q
+        })
+        .collect();
+    let plan = Plan::new(0.01, points).unwrap();
+    let stop = StopToken::new();
+    let stopper = stop.clone();
+    let t = std::thread::spawn(move || {
+        std::thread::sleep(Duration::from_millis(300));
+        stopper.stop();
+    });
+    let run = scene.run(&plan, &stop).unwrap();
+    t.join().unwrap();
+    assert_eq!(run.ending, Ending::Stopped);
+    assert!(
+        run.len() > 1 && run.len() < plan.points().len(),
+        "{} of {} points",
+        run.len(),
+        plan.points().len()
+    );
+    assert!(run.time.windows(2).all(|w| w[1] > w[0]));
+    // Nothing more is commanded: the robot holds where the recording ends.
+    let held = Robot::joint_positions(&mut scene).unwrap();
+    Stepped::step(&mut scene).unwrap();
+    assert_eq!(Robot::joint_positions(&mut scene).unwrap(), held);
+    let last = run.q.last().unwrap();
+    assert!((held[0] - last[0]).abs() < 0.01, "{held:?} vs {last:?}");
+}

@@ -1,9 +1,10 @@
-//! One plan, every robot: the same refused, slowed and approached plans run through the
-//! guard on each robot cps drives — the in-process robot, CoppeliaSim's stand-in server
-//! (through cps's scene script), a Franka (franky-sim: MuJoCo behind the real protocol) and
-//! a ROS 2 controller (a CycloneDDS FollowJointTrajectory server) — and what each says and
-//! sends is compared: the same refusal in the same words, the same slowing, the same
-//! approach, the same plan sent.
+//! One plan, every robot: the same refused, stopped, slowed and approached plans run through
+//! the guard on each robot cps drives — the in-process robot, CoppeliaSim's stand-in server
+//! (through cps's scene script), a Franka (franky-sim: MuJoCo behind the real protocol), a
+//! ROS 2 controller (a CycloneDDS FollowJointTrajectory server) and the robot with dynamics
+//! (computed torque on the FR3's inertias) — and what each says and sends is compared: the
+//! same refusal in the same words, the same slowing, the same approach, the same plan
+//! sent.
 //!
 //! The whole test runs in a network namespace of its own (DDS discovery never leaves it);
 //! franky-sim listens on 127.0.0.91 inside it.
@@ -16,9 +17,12 @@ mod sim;
 use std::time::Duration;
 
 use cps_coppelia::{Client, ClientConfig, FrankaScene, SceneSetup, ServerConfig, StandInServer};
+use cps_dynamics::{Arm as DynamicArm, Controller, DynamicsRobot, DynamicsSettings};
 use cps_franka::limits::Arm;
 use cps_franka::{FrankaRobot, FrankaSettings, Realtime};
-use cps_kinematics::robots::{PandaTool, fr3, fr3_limits};
+use cps_kinematics::ArmModel;
+use cps_kinematics::contact::JointFriction;
+use cps_kinematics::robots::{PandaTool, fr3, fr3_inertia, fr3_limits};
 use cps_robot::{
     Guarded, KinematicRobot, Plan, Policy, Refusal, Robot, RobotError, RobotModel, StopToken,
 };
@@ -143,12 +147,37 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
     let mut scene = FrankaScene::open(client, "FR3", model(), 0.001).unwrap();
     scene.reset(&q0).unwrap();
     let mut kinematic = KinematicRobot::of_model(model(), &q0, 0.001).unwrap();
+    // The FR3 with its inertias under computed torque (the model is the robot: it tracks).
+    let at: [f64; 7] = q0.as_slice().try_into().unwrap();
+    let mut dynamics = DynamicsRobot::new(
+        model(),
+        DynamicArm::at_rest(
+            ArmModel::<7>::new(&model().chain, &fr3_inertia()).unwrap(),
+            JointFriction::none(),
+            [87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0],
+            at,
+        ),
+        DynamicsSettings {
+            controller: Controller::ComputedTorque {
+                kp: [900.0; 7],
+                kv: [60.0; 7],
+            },
+            control_period: 0.001,
+            dt: 0.001,
+            noise: 0.0,
+            seed: 0,
+            reflexes: true,
+            lag: 0,
+        },
+    )
+    .unwrap();
     let mut ros = ros;
     let mut robots: Vec<(&str, &mut dyn Robot)> = vec![
         ("in-process", &mut kinematic),
         ("coppelia", &mut scene),
         ("franka", &mut franka),
         ("ros2", &mut ros),
+        ("dynamics", &mut dynamics),
     ];
 
     // Refused: the same sentence from every robot, and nothing moves.
@@ -254,6 +283,7 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
         ("coppelia", &mut scene),
         ("franka", &mut franka),
         ("ros2", &mut ros),
+        ("dynamics", &mut dynamics),
     ];
 
     // Approached: a plan 0.2 rad away on joint 2 is approached from where each robot

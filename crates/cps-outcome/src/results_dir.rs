@@ -125,7 +125,7 @@ fn standing(root: &Path, rel: &str, manifest: &Manifest) -> Standing {
         }
     }
     let Some(stamps) = manifest.get(rel) else {
-        return Standing::Foreign("was not written by cps".into());
+        return Standing::Foreign("cps did not write".into());
     };
     match stamp(&at) {
         Ok(s) if stamps.contains(&s) => Standing::Ours,
@@ -229,7 +229,7 @@ fn first_foreign(root: &Path, rel: &str, manifest: &Manifest) -> Option<(String,
         if meta.is_dir() {
             let prefix = format!("{path}/");
             if !manifest.keys().any(|f| f.starts_with(&prefix)) {
-                return Some((path, "was not written by cps".into()));
+                return Some((path, "cps did not write".into()));
             }
             if let Some(found) = first_foreign(root, &path, manifest) {
                 return Some(found);

@@ -372,6 +372,13 @@ impl Sim {
                 Some(run) => Ok(vec![run.result()]),
                 None => Err("cpsResult(): no sequence loaded (call cpsLoad first)".into()),
             },
+            executor::STOP => match &mut self.run {
+                Some(run) => {
+                    run.stop();
+                    Ok(vec![run.result()])
+                }
+                None => Err("cpsStop(): no sequence loaded (call cpsLoad first)".into()),
+            },
             other => Err(format!(
                 "Failed calling script function: {other} does not exist in {}.",
                 executor::SCRIPT_ALIAS

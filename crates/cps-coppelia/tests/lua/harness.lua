@@ -66,6 +66,7 @@ end
 
 sysCall_init()
 refuses('no sequence loaded', cpsResult)
+refuses('no sequence loaded', cpsStop)
 refuses('argument 1 must be a table', cpsLoad, 'q')
 refuses('are not whole rows of 3', cpsLoad, {1, 2, 3, 4})
 refuses('row 2, joint 1: ', cpsLoad, {0, 0, 0, 0 / 0, 0, 0})
@@ -95,6 +96,14 @@ assert(r.q[4] == 0.3 and r.q[5] == 0.4 and math.abs(r.q[6] - 0.5) < 1e-12)
 -- The pose row k is the tip after step k: x y z qx qy qz qw.
 assert(r.pose[8] == 0.3 and r.pose[9] == 0.4 and r.pose[14] == 1.0)
 assert(joints[11] == 0.3 and motorTarget[13] == 0.8)
+-- A stop ends a sequence where it is: what was done is the whole answer, the last row
+-- commanded is held and no further row is.
+assert(cpsLoad({0.5, 0.5, 0.5, 0.6, 0.6, 0.6, 0.7, 0.7, 0.7}) == 3)
+step()
+r = cpsStop()
+assert(r.done == 1 and r.total == 1 and #r.time == 1 and #r.q == 3)
+step()
+assert(cpsResult().done == 1 and joints[11] == 0.5)
 -- A new load starts afresh; cleanup forgets it.
 assert(cpsLoad({1, 1, 1}) == 1)
 assert(cpsResult().done == 0)
