@@ -5,10 +5,10 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
+use cps_drive::franka::{self, DmpSettings, ExecuteSettings};
+use cps_drive::identify;
 use cps_experiment::ExperimentError;
-use cps_experiment::franka::{self, DmpSettings, ExecuteSettings};
-use cps_experiment::identify;
-use cps_experiment::robot_file::Answer;
+use cps_movement::robot_file::Answer;
 use cps_robot::StopToken;
 
 use crate::cli_error;

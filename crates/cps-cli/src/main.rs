@@ -288,7 +288,7 @@ fn run(cli: Cli, stop: &StopToken) -> Result<ExitCode> {
             out,
             force,
             json,
-        } => match cps_experiment::identify::identify_recording(&r, &arm, &out, force, stop) {
+        } => match cps_drive::identify::identify_recording(&r, &arm, &out, force, stop) {
             Err(e) if stop.is_stopped() => {
                 eprintln!("interrupted: {e}");
                 Ok(ExitCode::from(130))

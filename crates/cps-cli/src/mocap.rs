@@ -5,8 +5,8 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
-use cps_experiment::mocap::{self, ImportFiles};
 use cps_mocap::demo::Words;
+use cps_movement::mocap::{self, ImportFiles};
 
 use crate::cli_error;
 use crate::robot::print;

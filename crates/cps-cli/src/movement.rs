@@ -1,6 +1,6 @@
 //! `cps-cli imitate` and `cps-cli rollout`: DMP models from demonstrations (CSV) and
 //! trajectories from models (JSON), for users who want the DMP layer alone. The work is
-//! `cps_experiment::movement`'s; this is arguments, output files and the terminal.
+//! `cps_movement::movement`'s; this is arguments, output files and the terminal.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -11,8 +11,8 @@ use cps_dmp::{Combine, Formulation, Lambda, Regression};
 use cps_experiment::InputError;
 use cps_experiment::figures::draw_file;
 use cps_experiment::files::{table_csv, write_file};
-use cps_experiment::movement::{ImitationSpec, RolloutSpec, imitate_files, rollout_file};
 use cps_experiment::results_dir::{FileKind, check_file_targets};
+use cps_movement::movement::{ImitationSpec, RolloutSpec, imitate_files, rollout_file};
 
 use crate::cli_error;
 

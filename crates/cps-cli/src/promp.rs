@@ -1,5 +1,5 @@
 //! `cps-cli promp fit|condition|sample|stats`: probabilistic movement primitives from
-//! demonstrations. The work is `cps_experiment::promp`'s; this is arguments and files.
+//! demonstrations. The work is `cps_movement::promp`'s; this is arguments and files.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -10,11 +10,11 @@ use cps_experiment::InputError;
 use cps_experiment::figures::draw_file;
 use cps_experiment::files::write_file;
 use cps_experiment::outcome::Figure;
-use cps_experiment::promp::{
+use cps_experiment::results_dir::{FileKind, check_file_targets};
+use cps_movement::promp::{
     NamedProMp, ViaPoints, condition, fit_files, write_samples, write_stats,
 };
-use cps_experiment::results_dir::{FileKind, check_file_targets};
-use cps_experiment::robot_file::Answer;
+use cps_movement::robot_file::Answer;
 
 use crate::cli_error;
 use crate::movement::Output;

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::{Args, Subcommand};
 use cps_experiment::InputError;
-use cps_experiment::robot_file::{Answer, RobotModel, joint_solution, load_robot, tool_pose};
+use cps_movement::robot_file::{Answer, RobotModel, joint_solution, load_robot, tool_pose};
 
 /// Which robot and tool point a kinematics command works on.
 #[derive(Args, Debug)]
@@ -141,7 +141,7 @@ pub enum LimitsCommand {
 /// `cps-cli limits check`.
 pub fn limits(cmd: &LimitsCommand) -> Result<ExitCode> {
     let LimitsCommand::Check { file, arm, rate } = cmd;
-    let report = cps_experiment::limits::check_file(file, &arm.load()?, *rate)?;
+    let report = cps_movement::limits::check_file(file, &arm.load()?, *rate)?;
     print(
         &report.answer(format!("{} on {}:", file.display(), arm.robot)),
         arm.json,
@@ -153,7 +153,7 @@ pub fn limits(cmd: &LimitsCommand) -> Result<ExitCode> {
 pub fn robot(cmd: &RobotCommand) -> Result<ExitCode> {
     let RobotCommand::Show { robot, tool, tip } = cmd;
     let model = load_robot(robot, tool.as_deref(), tip.as_deref())?;
-    for line in cps_experiment::robot_file::Describe::describe(&model) {
+    for line in cps_movement::robot_file::Describe::describe(&model) {
         say!("{line}");
     }
     Ok(ExitCode::SUCCESS)

@@ -5,8 +5,8 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
-use cps_experiment::ros2::MappingChoice;
-use cps_experiment::ros2::{self, GraphSettings, RecordSettings, SendSettings, Via};
+use cps_drive::ros2::MappingChoice;
+use cps_drive::ros2::{self, GraphSettings, RecordSettings, SendSettings, Via};
 use cps_robot::StopToken;
 
 use crate::cli_error;
@@ -22,7 +22,7 @@ pub struct On {
     #[arg(long, value_delimiter = ',')]
     joint_names: Option<Vec<String>>,
     /// DDS domain (default: $ROS_DOMAIN_ID, else 0).
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_domain)]
+    #[arg(long, allow_hyphen_values = true, value_parser = cps_ros2::names::parse_domain)]
     domain: Option<u16>,
 }
 
@@ -54,7 +54,7 @@ pub enum Ros2Command {
     /// QoS, services and actions with the nodes at each end.
     Graph {
         /// DDS domain (default: $ROS_DOMAIN_ID, else 0).
-        #[arg(long, allow_hyphen_values = true, value_parser = parse_domain)]
+        #[arg(long, allow_hyphen_values = true, value_parser = cps_ros2::names::parse_domain)]
         domain: Option<u16>,
         /// Seconds to watch before listing (discovery takes about a second).
         #[arg(long, default_value_t = 2.0)]
@@ -151,7 +151,7 @@ pub struct ShowArgs {
     #[arg(long, default_value_t = 30.0)]
     seconds: f64,
     /// DDS domain (default: $ROS_DOMAIN_ID, else 0).
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_domain)]
+    #[arg(long, allow_hyphen_values = true, value_parser = cps_ros2::names::parse_domain)]
     domain: Option<u16>,
     /// Print JSON.
     #[arg(long)]
@@ -171,12 +171,12 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
             seconds,
             json,
         } => {
-            let look = cps_experiment::ros2_graph::GraphLook {
+            let look = cps_drive::ros2_graph::GraphLook {
                 domain: *domain,
                 seconds: *seconds,
             };
             bar.set_message("watching the graph");
-            let answer = cps_experiment::ros2_graph::graph(&look, stop).map_err(cli_error)?;
+            let answer = cps_drive::ros2_graph::graph(&look, stop).map_err(cli_error)?;
             (answer, 0, *json)
         }
         Ros2Command::Show(a) => {
@@ -228,18 +228,4 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
     bar.finish_and_clear();
     print(&answer, json)?;
     Ok(ExitCode::from(code))
-}
-
-/// `--domain`: a DDS domain, 0 to 232 (their ports must fit in 16 bits).
-fn parse_domain(s: &str) -> std::result::Result<u16, String> {
-    let max = cps_ros2::names::MAX_DOMAIN;
-    s.trim()
-        .parse::<u16>()
-        .ok()
-        .filter(|d| *d <= max)
-        .ok_or_else(|| {
-            format!(
-                "domain {s}: give a DDS domain, a whole number from 0 to {max} (their ports must fit in 16 bits)"
-            )
-        })
 }

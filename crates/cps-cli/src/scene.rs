@@ -1,6 +1,6 @@
 //! `cps-cli scene check`: where the tool is at a scene's initial configuration and which
 //! objects the tool can reach within the joint limits. The scene format and the check
-//! are `cps_experiment::scene`'s; this prints them.
+//! are `cps_movement::scene`'s; this prints them.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Subcommand;
 
-use cps_experiment::scene::load_scene;
+use cps_movement::scene::load_scene;
 
 /// `cps-cli scene ...`.
 #[derive(Subcommand, Debug)]

@@ -8,7 +8,7 @@ use std::sync::atomic::AtomicBool;
 use anyhow::Result;
 use clap::{Args, Subcommand};
 use cps_experiment::InputError;
-use cps_experiment::scene::{
+use cps_movement::scene::{
     Scene, ServeEnd, StandInOptions, load_scene, serve_until, start_stand_ins,
 };
 

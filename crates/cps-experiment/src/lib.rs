@@ -65,8 +65,10 @@ pub mod files {
     pub use cps_report::write::*;
 }
 
-pub use cps_drive::{contact, franka, identify, ros2, ros2_graph};
-pub use cps_movement::{
+// The file and driving layers, by their own names inside this crate (`crate::limits`, …);
+// not re-exported: a user of them depends on cps-movement or cps-drive, visibly.
+use cps_drive::{contact, franka, ros2};
+use cps_movement::{
     calibration, export, limits, mocap, movement, promp, retiming, robot_file, scene,
 };
 pub use cps_outcome::{

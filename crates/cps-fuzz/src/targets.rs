@@ -43,7 +43,7 @@ fn exercise(chain: &cps_kinematics::SerialChain) -> bool {
 
 fn robot_toml(b: &[u8]) -> bool {
     let Some(t) = text(b) else { return false };
-    match cps_experiment::robot_file::parse_robot_toml(Path::new("fuzz.toml"), t, None) {
+    match cps_movement::robot_file::parse_robot_toml(Path::new("fuzz.toml"), t, None) {
         Ok(m) => exercise(&m.chain),
         Err(_) => false,
     }
@@ -59,12 +59,12 @@ fn urdf(b: &[u8]) -> bool {
 
 fn scene(b: &[u8]) -> bool {
     let Some(t) = text(b) else { return false };
-    cps_experiment::scene::parse_scene(&repo().join("configs/scenes/fuzz.toml"), t).is_ok()
+    cps_movement::scene::parse_scene(&repo().join("configs/scenes/fuzz.toml"), t).is_ok()
 }
 
 fn demo_csv(b: &[u8]) -> bool {
     let Some(t) = text(b) else { return false };
-    let Ok((_, demo)) = cps_experiment::movement::parse_demo(Path::new("fuzz.csv"), t) else {
+    let Ok((_, demo)) = cps_movement::movement::parse_demo(Path::new("fuzz.csv"), t) else {
         return false;
     };
     {

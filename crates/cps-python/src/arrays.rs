@@ -237,7 +237,7 @@ pub fn joint_trajectory(
     t: &Bound<'_, PyAny>,
     q: &Bound<'_, PyAny>,
     cols: Option<usize>,
-) -> PyResult<cps_experiment::limits::JointTrajectory> {
+) -> PyResult<cps_movement::limits::JointTrajectory> {
     let times = vector(t, "t", None)?;
     let rows = matrix(q, "q", cols, false)?;
     if rows.rows != times.len() {
@@ -247,7 +247,7 @@ pub fn joint_trajectory(
             times.len()
         )));
     }
-    Ok(cps_experiment::limits::JointTrajectory {
+    Ok(cps_movement::limits::JointTrajectory {
         names: (1..=rows.cols).map(|j| format!("q{j}")).collect(),
         times,
         q: rows.rows_vec(),

@@ -554,7 +554,7 @@ impl Dmp {
     /// Reads a model file written by `save` or `cps-cli imitate`.
     #[staticmethod]
     fn load(path: PathBuf) -> PyResult<Self> {
-        let (model, dmp, weights) = cps_experiment::movement::read_model(&path).py()?;
+        let (model, dmp, weights) = cps_movement::movement::read_model(&path).py()?;
         Ok(Self::from_parts(dmp, weights, model.names))
     }
 

@@ -1,9 +1,9 @@
 //! `cps.Franka`: a Franka over the Franka Control Interface from Python — its state, a
 //! joint trajectory executed at 1 kHz and recorded, the state recorded, the arm guided by
 //! hand and recorded, the hand.
-//! Everything goes through `cps_experiment::franka`, as `cps-cli franka` does.
+//! Everything goes through `cps_drive::franka`, as `cps-cli franka` does.
 
-use cps_experiment::franka::{self, ExecuteSettings};
+use cps_drive::franka::{self, ExecuteSettings};
 use cps_franka::Sample;
 use cps_franka::limits::Arm;
 use cps_franka::rt::Realtime;
@@ -77,12 +77,12 @@ fn impedance_gains(stiffness: (f64, f64)) -> PyResult<cps_franka::control::Carte
 
 impl Franka {
     /// This robot with its torques measured at `drive`.
-    fn at(&self, drive: &str) -> PyResult<cps_experiment::contact::RobotAt> {
-        Ok(cps_experiment::contact::RobotAt {
+    fn at(&self, drive: &str) -> PyResult<cps_drive::contact::RobotAt> {
+        Ok(cps_drive::contact::RobotAt {
             host: self.host.clone(),
             arm: self.arm,
             realtime: self.realtime,
-            drive: cps_experiment::contact::Drive::parse(drive).map_err(|e| e.py_err())?,
+            drive: cps_drive::contact::Drive::parse(drive).map_err(|e| e.py_err())?,
         })
     }
 }
@@ -232,7 +232,7 @@ impl Franka {
         force_gains: (f64, f64, f64),
         drive: &str,
     ) -> PyResult<Bound<'py, PyDict>> {
-        use cps_experiment::contact::{ContactPlan, ContactWaypoint, ForcePrimitive};
+        use cps_drive::contact::{ContactPlan, ContactWaypoint, ForcePrimitive};
         let rows = matrix(waypoints, "waypoints", Some(5), false)?;
         let points: Vec<ContactWaypoint> = rows
             .rows_vec()
@@ -262,7 +262,7 @@ impl Franka {
         plan.check().map_err(|e| e.py_err())?;
         let robot = self.at(drive)?;
         let (out, interrupt) = detached_keep(py, None, |stop| {
-            cps_experiment::contact::contact_on_robot(&robot, &plan, stop)
+            cps_drive::contact::contact_on_robot(&robot, &plan, stop)
         })?;
         let out = out.map_err(|e| e.py_err())?;
         let k = &out.ticks;
@@ -273,7 +273,7 @@ impl Franka {
             "stage",
             k.iter().map(|x| x.stage.name()).collect::<Vec<_>>(),
         )?;
-        let three = |f: fn(&cps_experiment::contact::ContactTick) -> [f64; 3]| {
+        let three = |f: fn(&cps_drive::contact::ContactTick) -> [f64; 3]| {
             k.iter().flat_map(f).collect::<Vec<f64>>()
         };
         d.set_item("target", array2(py, three(|x| x.target), n, 3)?)?;
@@ -289,7 +289,7 @@ impl Franka {
         let summary = serde_json::json!({
             "ending": out.ending.sentence(),
             "motion": out.report.ending.sentence(),
-            "done": out.ending == cps_experiment::contact::ContactEnding::Done,
+            "done": out.ending == cps_drive::contact::ContactEnding::Done,
             "contact_time_s": out.contact.map(|c| c.0),
             "contact_point_m": out.contact.map(|c| c.1),
             "force_rms_error_n": force_rms,
@@ -324,13 +324,7 @@ impl Franka {
         let gains = impedance_gains(stiffness)?;
         let robot = self.at(drive)?;
         let (out, interrupt) = detached_keep(py, None, |stop| {
-            cps_experiment::contact::follow_with_impedance(
-                &robot,
-                &times,
-                &points,
-                gains,
-                stop.flag(),
-            )
+            cps_drive::contact::follow_with_impedance(&robot, &times, &points, gains, stop.flag())
         })?;
         let out = out.map_err(|e| e.py_err())?;
         let d = recording(py, &out.report.samples)?;
@@ -401,7 +395,7 @@ pub fn identify<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let robot = robot.to_string();
     let answer = crate::interrupt::detached(py, |stop| {
-        cps_experiment::identify::identify_recording(&recording, &robot, &out, force, stop)
+        cps_drive::identify::identify_recording(&recording, &robot, &out, force, stop)
     })?
     .map_err(|e| e.py_err())?;
     json_to_py(py, &answer.json)

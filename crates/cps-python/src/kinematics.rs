@@ -2,19 +2,19 @@
 //! geometric Jacobian and inverse kinematics, each on one configuration or batched over
 //! the rows of an array; the joint limits.
 
-use cps_experiment::robot_file::{RobotModel, ik_target, load_robot};
 use cps_kinematics::{IkConfig, IkTarget, solve_ik};
+use cps_movement::robot_file::{RobotModel, ik_target, load_robot};
 use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, Translation3};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use rayon::prelude::*;
 
-use cps_experiment::export::{ExportFormat, ExportOptions, export_samples};
 use cps_experiment::files::write_file;
-use cps_experiment::limits::{JointTrajectory, check_samples};
 use cps_experiment::outcome::Values;
 use cps_experiment::results_dir::check_file_target;
-use cps_experiment::retiming::{RetimeMode, retime_samples};
+use cps_movement::export::{ExportFormat, ExportOptions, export_samples};
+use cps_movement::limits::{JointTrajectory, check_samples};
+use cps_movement::retiming::{RetimeMode, retime_samples};
 use pyo3::types::PyDict;
 
 use crate::arrays::{array1, array2, floats, matrix, shape_text, vector};
@@ -586,7 +586,7 @@ impl Robot {
 
     /// The robot in words: its kinematic description, limits, base and tool.
     fn describe(&self) -> String {
-        cps_experiment::robot_file::Describe::describe(&self.model).join("\n")
+        cps_movement::robot_file::Describe::describe(&self.model).join("\n")
     }
 
     fn __repr__(&self) -> String {

@@ -1,5 +1,5 @@
 //! `cps.mocap`: motion-capture takes from Python — a take's markers as arrays, and a take
-//! made a demonstration (the tool's pose over time) through `cps_experiment::mocap`, as
+//! made a demonstration (the tool's pose over time) through `cps_movement::mocap`, as
 //! `cps-cli mocap import` does.
 
 use std::path::{Path, PathBuf};
@@ -18,7 +18,7 @@ use crate::experiment::json_to_py;
 #[pyfunction]
 pub fn _mocap_take<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
     let t = py
-        .detach(|| cps_experiment::mocap::read(&path))
+        .detach(|| cps_movement::mocap::read(&path))
         .map_err(|e| e.py_err())?;
     let d = PyDict::new(py);
     let (f, m) = (t.frames, t.markers());
@@ -102,11 +102,7 @@ pub fn _mocap_read<'py>(
     .map_err(|e| bad(e.to_string()))?;
     let demo = py
         .detach(|| {
-            cps_experiment::mocap::demonstration(
-                &path,
-                &settings,
-                to_robot.as_deref().map(Path::new),
-            )
+            cps_movement::mocap::demonstration(&path, &settings, to_robot.as_deref().map(Path::new))
         })
         .map_err(|e| e.py_err())?;
     let d = PyDict::new(py);

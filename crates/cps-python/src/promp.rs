@@ -318,8 +318,8 @@ impl PyProMp {
     /// Reads a ProMP file written by `save` or `cps-cli promp fit|condition`.
     #[staticmethod]
     fn load(path: std::path::PathBuf) -> PyResult<Self> {
-        let named = cps_experiment::promp::NamedProMp::read(&path)
-            .map_err(|e| value_error(e.to_string()))?;
+        let named =
+            cps_movement::promp::NamedProMp::read(&path).map_err(|e| value_error(e.to_string()))?;
         Ok(PyProMp { inner: named.promp })
     }
 

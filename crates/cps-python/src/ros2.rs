@@ -1,8 +1,8 @@
 //! `cps.ros2`: a ROS 2 graph over DDS from Python — a joint trajectory sent to a
 //! ros2_control controller, a robot's joint states recorded. Everything goes through
-//! `cps_experiment::ros2`, as `cps-cli ros2` does.
+//! `cps_drive::ros2`, as `cps-cli ros2` does.
 
-use cps_experiment::ros2::{
+use cps_drive::ros2::{
     self, GraphSettings, Mapping, MappingChoice, RecordSettings, SendSettings, Via,
 };
 use pyo3::prelude::*;
@@ -138,10 +138,9 @@ pub fn _ros2_graph<'py>(
     domain: Option<u16>,
     seconds: f64,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let look = cps_experiment::ros2_graph::GraphLook { domain, seconds };
-    let (out, interrupt) = detached_keep(py, None, |stop| {
-        cps_experiment::ros2_graph::graph(&look, stop)
-    })?;
+    let look = cps_drive::ros2_graph::GraphLook { domain, seconds };
+    let (out, interrupt) =
+        detached_keep(py, None, |stop| cps_drive::ros2_graph::graph(&look, stop))?;
     let answer = out.map_err(|e| e.py_err())?;
     match interrupt {
         Some(e) => Err(e),

@@ -75,6 +75,20 @@ pub fn domain_from_env(value: Option<&str>) -> Result<u16, Ros2Error> {
     }
 }
 
+/// A domain as a user writes it (`--domain 7`): a whole number from 0 to [`MAX_DOMAIN`],
+/// or a sentence stating that range.
+pub fn parse_domain(s: &str) -> Result<u16, String> {
+    s.trim()
+        .parse::<u16>()
+        .ok()
+        .filter(|d| *d <= MAX_DOMAIN)
+        .ok_or_else(|| {
+            format!(
+                "domain {s}: give a DDS domain, a whole number from 0 to {MAX_DOMAIN} (their ports must fit in 16 bits)"
+            )
+        })
+}
+
 fn check_domain(d: u16) -> Result<(), Ros2Error> {
     if d > MAX_DOMAIN {
         return Err(Ros2Error::Input(format!(

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use cps_dmp::{Combine, Formulation, Lambda, Regression};
-use cps_experiment::movement::{ImitationSpec, imitate_demos, parse_demo};
+use cps_movement::movement::{ImitationSpec, imitate_demos, parse_demo};
 use serde::{Deserialize, Serialize};
 
 use crate::api::ApiError;
@@ -192,7 +192,7 @@ pub fn imitate(request: &ImitateRequest) -> Result<ImitateAnswer, ApiError> {
     let drawn: Vec<Curve> = raw.iter().map(|(t, rows)| thin(t, rows)).collect();
     let promp = if demos.len() >= 2 {
         let labels: Vec<String> = request.demos.iter().map(|d| d.name.clone()).collect();
-        let fit = cps_experiment::promp::fit_demos(raw, names.clone(), &labels, bases, None)
+        let fit = cps_movement::promp::fit_demos(raw, names.clone(), &labels, bases, None)
             .map_err(|e| ApiError(e.0))?;
         let duration = fit.promp.promp.duration();
         let t: Vec<f64> = (0..=200).map(|k| duration * k as f64 / 200.0).collect();
@@ -200,13 +200,13 @@ pub fn imitate(request: &ImitateRequest) -> Result<ImitateAnswer, ApiError> {
         let conditioned = if request.via.is_empty() {
             None
         } else {
-            let via = cps_experiment::promp::ViaPoints {
+            let via = cps_movement::promp::ViaPoints {
                 at: request.via.iter().map(|v| v.time).collect(),
                 positions: request.via.iter().map(|v| v.position.clone()).collect(),
                 stds: request.via.iter().map(|v| v.std).collect(),
                 ..Default::default()
             };
-            let c = cps_experiment::promp::condition(fit.promp, &via)
+            let c = cps_movement::promp::condition(fit.promp, &via)
                 .map_err(|e| ApiError(format!("via: {}", e.0)))?;
             Some(c.posterior.promp.stats(&t).into_iter().unzip())
         };

@@ -19,7 +19,7 @@ pub struct StudioRobot {
     /// Model, initial configuration, execution settings.
     pub setup: RobotSetup,
     /// Its joint names, limits and inertias (for the limit check and the exports).
-    pub model: cps_experiment::robot_file::RobotModel,
+    pub model: cps_movement::robot_file::RobotModel,
 }
 
 /// The robot at rest, for the page to draw before anything is learned.
@@ -60,7 +60,7 @@ pub struct RobotAnswer {
 impl StudioRobot {
     /// The thesis's scene: the Panda placed as in its CoppeliaSim scene.
     pub fn thesis() -> Result<Self, String> {
-        let scene = cps_experiment::scene::Scene::thesis().map_err(|e| e.to_string())?;
+        let scene = cps_movement::scene::Scene::thesis().map_err(|e| e.to_string())?;
         Ok(Self {
             name: scene.robot.name.clone(),
             setup: RobotSetup {
@@ -112,7 +112,7 @@ impl StudioRobot {
         let rec = self.run(traj, dt)?;
         if limits {
             let usage =
-                cps_experiment::limits::check_samples(&self.model, &self.joints(&rec), 1000.0)
+                cps_movement::limits::check_samples(&self.model, &self.joints(&rec), 1000.0)
                     .map_err(|e| e.to_string())?;
             answer.limit_usage = usage.json();
             answer.limit_lines = usage.lines();
@@ -141,8 +141,8 @@ impl StudioRobot {
     }
 
     /// The executed joints as a named joint trajectory.
-    fn joints(&self, rec: &Recording) -> cps_experiment::limits::JointTrajectory {
-        cps_experiment::limits::JointTrajectory {
+    fn joints(&self, rec: &Recording) -> cps_movement::limits::JointTrajectory {
+        cps_movement::limits::JointTrajectory {
             names: self.model.joint_names.clone(),
             times: rec.time.clone(),
             q: rec.q.clone(),
@@ -157,7 +157,7 @@ impl StudioRobot {
         dt: f64,
         format: &str,
     ) -> Result<(String, Vec<u8>), String> {
-        use cps_experiment::export::{ExportFormat, ExportOptions, export_samples};
+        use cps_movement::export::{ExportFormat, ExportOptions, export_samples};
         let format = ExportFormat::parse(format)?;
         let rec = self.run(traj, dt)?;
         let e = export_samples(
