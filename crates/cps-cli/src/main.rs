@@ -350,7 +350,9 @@ fn run_experiment(args: &RunArgs, stop: &StopToken) -> Result<ExitCode> {
         }
         say!("  results and report.html in {}", out.display());
     }
-    if let Some(failure) = outcome.failure() {
+    // A run the stop ended is interrupted, whatever its robot said of the stop.
+    let interrupted = stop.is_stopped() && !outcome.complete();
+    if let Some(failure) = outcome.failure().filter(|_| !interrupted) {
         if outcome.complete() {
             eprintln!(
                 "error: the run failed: {failure}\n  what it made is in {} (summary.json says why)",

@@ -57,6 +57,9 @@ impl Judge<'_> {
         let recording = match execute_trajectory(backend, &self.robot.setup, &trajectory, self.stop)
         {
             Ok(r) => r,
+            // A run the stop ended (the scene script stopped where it was) is the stop's,
+            // not a dead simulator's.
+            Err(_) if self.stop.is_stopped() => return Err(JobError::Stopped),
             Err(LearnError::Robot(e @ RobotError::Robot { .. })) => {
                 return Err(JobError::Simulator(e.to_string()));
             }
@@ -168,7 +171,19 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     let x0 = optimum.params.clone();
     let n = x0.len();
     let mut failure = None;
-    let warm = match pool.run(1, &|_, b| judge.judge(&x0, b)) {
+    // The warm start is executed whole on a simulator even once a stop is asked (seconds of
+    // simulated motion), so an interrupted run keeps one judged execution; a real robot
+    // (a Franka, a ROS 2 arm) stops at once as always.
+    let never = StopToken::new();
+    let simulated = !matches!(
+        robot.backend,
+        crate::robots::BackendChoice::Franka { .. } | crate::robots::BackendChoice::Ros2 { .. }
+    );
+    let warm_judge = Judge {
+        stop: if simulated { &never } else { ctx.stop },
+        ..judge
+    };
+    let warm = match pool.run(1, &|_, b| warm_judge.judge(&x0, b)) {
         Ok(mut w) => w.remove(0),
         Err(e) => {
             return Err(ExperimentError::Message(pool_failure(
