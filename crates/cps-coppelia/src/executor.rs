@@ -150,13 +150,7 @@ pub(crate) enum Progress {
 /// Reads a `cpsResult` answer for a sequence of `total` steps of `dof` joints; a wrong
 /// shape is a sentence saying what was wrong.
 pub(crate) fn read_result(v: &Value, total: usize, dof: usize) -> Result<Progress, String> {
-    let count = |key: &str| {
-        codec::get(v, key)
-            .and_then(codec::as_i64)
-            .and_then(|n| usize::try_from(n).ok())
-            .ok_or(format!("`{key}` must be a count"))
-    };
-    let (done, reported) = (count("done")?, count("total")?);
+    let (done, reported) = (count(v, "done")?, count(v, "total")?);
     if reported != total || done > total {
         return Err(format!(
             "the script reports {done} of {reported} steps for a sequence of {total}"
@@ -188,6 +182,29 @@ pub(crate) fn read_result(v: &Value, total: usize, dof: usize) -> Result<Progres
         ));
     }
     Ok(Progress::Done(rec))
+}
+
+/// A count in an answer of the script.
+fn count(v: &Value, key: &str) -> Result<usize, String> {
+    codec::get(v, key)
+        .and_then(codec::as_i64)
+        .and_then(|n| usize::try_from(n).ok())
+        .ok_or(format!("`{key}` must be a count"))
+}
+
+/// Reads a `cpsStop` answer for a sequence of at most `total` steps: the recording up to
+/// where the sequence was stopped.
+pub(crate) fn read_stopped(v: &Value, total: usize, dof: usize) -> Result<StepRecording, String> {
+    let reported = count(v, "total")?;
+    if reported > total {
+        return Err(format!(
+            "the script reports {reported} steps for a sequence of {total}"
+        ));
+    }
+    match read_result(v, reported, dof)? {
+        Progress::Done(rec) => Ok(rec),
+        Progress::Running(_) => Err("the sequence is still running".into()),
+    }
 }
 
 /// A script failure as the robot error the pipelines report.

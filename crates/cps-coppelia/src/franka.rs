@@ -148,28 +148,10 @@ impl FrankaScene {
                         format!("{} returned nothing", executor::STOP),
                     )
                 })?;
-                let done = codec::get(value, "done")
-                    .and_then(codec::as_i64)
-                    .and_then(|n| usize::try_from(n).ok())
-                    .filter(|&n| n <= total)
-                    .ok_or_else(|| {
-                        executor::backend_error(
-                            &endpoint,
-                            format!(
-                                "{}: `done` must be a count of at most {total}",
-                                executor::STOP
-                            ),
-                        )
-                    })?;
-                return match executor::read_result(value, done, dof).map_err(|m| {
+                let rec = executor::read_stopped(value, total, dof).map_err(|m| {
                     executor::backend_error(&endpoint, format!("{}: {m}", executor::STOP))
-                })? {
-                    Progress::Done(rec) => Ok((rec, true)),
-                    Progress::Running(_) => Err(executor::backend_error(
-                        &endpoint,
-                        format!("{} left the sequence running", executor::STOP),
-                    )),
-                };
+                })?;
+                return Ok((rec, true));
             }
             let reply = self
                 .client

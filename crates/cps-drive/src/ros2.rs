@@ -225,7 +225,7 @@ pub fn send_trajectory(
             let topic = format!("{controller}/joint_trajectory");
             let mut robot = Guarded::new(
                 TopicRobot {
-                    domain: s.graph.domain,
+                    node_name: me,
                     topic: topic.clone(),
                     names: names.clone(),
                     model: model.clone(),
@@ -281,10 +281,7 @@ pub fn send_trajectory(
                 joint_names: Some(names.clone()),
                 read_start: false,
             };
-            let robot = Ros2Robot::open(&settings, model.clone()).map_err(|e| match e {
-                RobotError::Robot { message, .. } => ExperimentError::Message(message),
-                other => ExperimentError::Message(other.to_string()),
-            })?;
+            let robot = Ros2Robot::open(&settings, model.clone()).map_err(robot_message)?;
             let mut robot = Guarded::new(robot, Policy::STRICT);
             let prepared = robot.prepare(&plan).map_err(|e| refused(name, &model, e))?;
             let message = trajectory_message(&names, &prepared.plan, Some(s.period));
@@ -293,12 +290,18 @@ pub fn send_trajectory(
             // The goal runs through the guard (`run_prepared`); its progress is read here
             // from the robot's share while it runs.
             let share = robot.inner().progress();
+            let moves = message
+                .points
+                .last()
+                .is_some_and(|p| p.time_from_start.secs() > 0.0);
             let ran = std::thread::scope(|scope| {
                 let runner = scope.spawn(|| robot.run_prepared(prepared, stop));
                 while !runner.is_finished() {
-                    progress(f64::from_bits(
-                        share.load(std::sync::atomic::Ordering::Relaxed),
-                    ));
+                    if moves {
+                        progress(f64::from_bits(
+                            share.load(std::sync::atomic::Ordering::Relaxed),
+                        ));
+                    }
                     std::thread::sleep(Duration::from_millis(20));
                 }
                 runner.join()
@@ -310,10 +313,7 @@ pub fn send_trajectory(
             let last = match (ran, robot.inner().last_goal()) {
                 (_, Some(last)) => last.clone(),
                 (Err(e), None) => {
-                    let text = match e {
-                        RobotError::Robot { message, .. } => message,
-                        other => other.to_string(),
-                    };
+                    let text = robot_message(e).to_string();
                     // No server: say what the graph offers instead.
                     let hint = if text.contains("no action server answered") {
                         crate::ros2_graph::action_hint(robot.inner().node(), &action)
@@ -349,8 +349,8 @@ pub fn send_trajectory(
 /// plan's first point), a plan published as one JointTrajectory message, with no answer.
 /// Only [`send_trajectory`] drives it, behind the guard.
 struct TopicRobot {
-    /// The DDS domain the node joins, once a plan has passed the guard.
-    domain: Option<u16>,
+    /// The node that joins the graph, once a plan has passed the guard.
+    node_name: NodeName,
     topic: String,
     names: Vec<String>,
     model: RobotModel,
@@ -387,8 +387,7 @@ impl Robot for TopicRobot {
             robot: format!("ros2 {}", self.topic),
             message: e.to_string(),
         };
-        let node =
-            Node::new(NodeName::from_env(NODE_NAME, self.domain).map_err(graph)?).map_err(graph)?;
+        let node = Node::new(self.node_name.clone()).map_err(graph)?;
         let sent = publish::publish(
             &node,
             &self.topic,
@@ -414,6 +413,13 @@ impl Robot for TopicRobot {
 fn sent_or_refused(name: &str, model: &RobotModel, e: RobotError) -> ExperimentError {
     match e {
         RobotError::Refused { .. } => refused(name, model, e),
+        other => robot_message(other),
+    }
+}
+
+/// A robot's failure in its own words (the robot's name is in the caller's sentence).
+fn robot_message(e: RobotError) -> ExperimentError {
+    match e {
         RobotError::Robot { message, .. } => ExperimentError::Message(message),
         other => ExperimentError::Message(other.to_string()),
     }

@@ -137,13 +137,13 @@ fn fail_on_broken_limits(outcome: &mut Outcome) {
     {
         return;
     }
-    let count = usage
+    let violations = usage
         .get("violations")
         .and_then(|v| v.as_array())
-        .map_or(0, Vec::len);
-    let first = usage
-        .get("violations")
-        .and_then(|v| v.get(0))
+        .map_or(&[][..], Vec::as_slice);
+    let count = violations.len();
+    let first = violations
+        .first()
         .map(|v| {
             format!(
                 " (first: joint {} {} at {} s)",

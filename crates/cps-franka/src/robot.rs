@@ -295,6 +295,15 @@ impl FrankaRobot {
         &mut self.conn
     }
 
+    /// A run stopped before it moved: where the robot stands, as every robot reports it.
+    fn stopped_before_moving(&mut self) -> Result<Run, RobotError> {
+        let q = Robot::joint_positions(self)?;
+        let tool = self.model.chain.fk(&q)?;
+        let mut run = Run::new(RunEnding::Stopped);
+        run.push(0.0, q, tool);
+        Ok(run)
+    }
+
     /// A plan's motion as 1 kHz commands, checked from where the robot holds its position
     /// (a difference within [`START_TOLERANCE`] blended into).
     fn stream(&mut self, plan: &Plan) -> Result<Result<CheckedStream, Breach>, RobotError> {
@@ -304,18 +313,19 @@ impl FrankaRobot {
         self.conn
             .ensure_ready(&state)
             .map_err(|e| franka_error(&host, e))?;
+        let from = start_position(&state);
+        // The same plan from the same place: the stream the guard's check built.
+        if let Some((p, f, stream)) = &self.checked
+            && *f == from
+            && p == plan
+        {
+            return Ok(Ok(stream.clone()));
+        }
         let commands: Vec<[f64; 7]> = plan
             .samples(DT)
             .iter()
             .map(|q| <[f64; 7]>::try_from(q.as_slice()).expect("seven joints"))
             .collect();
-        let from = start_position(&state);
-        if let Some((p, f, stream)) = &self.checked
-            && p == plan
-            && *f == from
-        {
-            return Ok(Ok(stream.clone()));
-        }
         match check_trajectory(&self.limits, from, &commands, Start::Approach(BLEND_SHARE)) {
             Ok(stream) => {
                 self.checked = Some((plan.clone(), from, stream.clone()));
@@ -402,12 +412,7 @@ impl Streaming for FrankaRobot {
     ) -> Result<Run, RobotError> {
         let host = self.host.clone();
         if stop.is_stopped() {
-            // Stopped before moving: where it stands, as every robot reports it.
-            let q = Robot::joint_positions(self)?;
-            let tool = self.model.chain.fk(&q)?;
-            let mut run = Run::new(RunEnding::Stopped);
-            run.push(0.0, q, tool);
-            return Ok(run);
+            return self.stopped_before_moving();
         }
         let state = self.conn.read_state().map_err(|e| franka_error(&host, e))?;
         self.conn
@@ -417,7 +422,6 @@ impl Streaming for FrankaRobot {
             max_ticks: max_commands + 10 + crate::rt::BRAKE_RESERVE,
             ..self.options
         };
-        self.checked = None; // the robot moves: the stream was for where it stood
         let report = {
             let _moving = stop.moving();
             run_joint_positions(
@@ -491,12 +495,7 @@ impl Robot for FrankaRobot {
             }
         };
         if stop.is_stopped() {
-            // Stopped before moving: where it stands, as every robot reports it.
-            let q = self.joint_positions()?;
-            let tool = self.model.chain.fk(&q)?;
-            let mut run = Run::new(RunEnding::Stopped);
-            run.push(0.0, q, tool);
-            return Ok(run);
+            return self.stopped_before_moving();
         }
         let report = {
             let _moving = stop.moving();

@@ -60,9 +60,6 @@ fn io_reason(e: &std::io::Error) -> String {
     }
 }
 
-/// Opens the TCP connection to `host` (`address` or `address:port`, else `default_port`)
-/// within `timeout`, and a UDP socket on the same local address for the state; returns
-/// them with the UDP port to announce. Errors name the host.
 /// Refuses an address that is not one: an IP address (with a port or not) or a host name
 /// of letters, digits, `-` and `.` (RFC 1123), optionally `:port`.
 fn check_host(host: &str) -> Result<(), FrankaError> {
@@ -94,6 +91,9 @@ fn check_host(host: &str) -> Result<(), FrankaError> {
     }
 }
 
+/// Opens the TCP connection to `host` (`address` or `address:port`, else `default_port`)
+/// within `timeout`, and a UDP socket on the same local address for the state; returns
+/// them with the UDP port to announce. Errors name the host.
 pub(crate) fn open(
     host: &str,
     default_port: u16,

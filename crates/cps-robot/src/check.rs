@@ -150,6 +150,15 @@ pub struct Verdict {
 /// while, then brings it in).
 pub const OUTSIDE_SLACK: f64 = 1e-4;
 
+/// Whether a joint at `value`, beyond its `bound`, is allowed there because it started
+/// beyond that bound (at `start`) and has not gone further out (by more than
+/// [`OUTSIDE_SLACK`]): moving back from outside a bound is allowed, never further out.
+pub(crate) fn beyond_allowed(start: f64, value: f64, bound: f64) -> bool {
+    let started_outside =
+        (value > bound) == (start > bound) && (start - bound).abs() > POSITION_TOLERANCE;
+    started_outside && (value - bound).abs() <= (start - bound).abs() + OUTSIDE_SLACK
+}
+
 /// Checks `plan`'s motion, sampled every `period` (the robot's
 /// [`command_period`](crate::Robot::command_period)), against every limit of `model`.
 ///
@@ -169,12 +178,7 @@ pub fn check(model: &RobotModel, plan: &Plan, period: f64) -> Result<Verdict, Ro
             if v.quantity != Quantity::Position {
                 return true;
             }
-            // Moving back from outside a bound is allowed; never further out.
-            let s = start[v.joint - 1];
-            let started_outside =
-                (v.value > v.limit) == (s > v.limit) && (s - v.limit).abs() > POSITION_TOLERANCE;
-            let beyond = (v.value - v.limit).abs();
-            !(started_outside && beyond <= (s - v.limit).abs() + OUTSIDE_SLACK)
+            !beyond_allowed(start[v.joint - 1], v.value, v.limit)
         })
         .map(|v| Breach {
             limit: Limit::Joint {

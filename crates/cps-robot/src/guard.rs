@@ -357,6 +357,7 @@ impl<R: Robot> Guarded<R> {
         prepared: Prepared,
         stop: &StopToken,
     ) -> Result<Run, RobotError> {
+        self.watch = None; // after a plan, stepped commands count from where it stands
         let mut run = self.robot.run(&prepared.plan, stop)?;
         self.slowest = self.slowest.max(prepared.slowing);
         let skip = prepared.approach_points;
@@ -473,7 +474,6 @@ impl<R: Robot> Robot for Guarded<R> {
     /// says) and runs it.
     fn run(&mut self, plan: &Plan, stop: &StopToken) -> Result<Run, RobotError> {
         let prepared = self.prepare(plan)?;
-        self.watch = None;
         self.run_prepared(prepared, stop)
     }
     fn teleport(&mut self, q: &[f64]) -> Result<bool, RobotError> {

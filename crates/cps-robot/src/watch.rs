@@ -9,7 +9,7 @@
 use cps_kinematics::{POSITION_TOLERANCE, Quantity};
 
 use crate::RobotModel;
-use crate::check::{Breach, Limit, OUTSIDE_SLACK};
+use crate::check::{Breach, Limit, beyond_allowed};
 
 /// The relative excess over a limit taken as rounding.
 const ROUNDING: f64 = 1e-9;
@@ -26,6 +26,11 @@ pub(crate) struct CommandWatch {
     tau: Option<Vec<f64>>,
     /// Commands accepted so far.
     commands: usize,
+    /// The next command's velocity, acceleration, and jerk or torque rate: reused, so a
+    /// command allocates nothing beyond inverse dynamics' answer.
+    next_v: Vec<f64>,
+    next_a: Vec<f64>,
+    scratch: Vec<f64>,
 }
 
 impl CommandWatch {
@@ -40,6 +45,9 @@ impl CommandWatch {
             a: vec![0.0; n],
             tau: None,
             commands: 0,
+            next_v: vec![0.0; n],
+            next_a: vec![0.0; n],
+            scratch: vec![0.0; n],
         }
     }
 
@@ -53,6 +61,41 @@ impl CommandWatch {
     pub(crate) fn judge(&mut self, model: &RobotModel, q: &[f64]) -> Result<(), Breach> {
         let dt = self.dt;
         let n = q.len().min(self.q.len());
+        let (mut v, mut a, mut jerk) = (
+            std::mem::take(&mut self.next_v),
+            std::mem::take(&mut self.next_a),
+            std::mem::take(&mut self.scratch),
+        );
+        for j in 0..n {
+            v[j] = (q[j] - self.q[j]) / dt;
+            a[j] = (v[j] - self.v[j]) / dt;
+            jerk[j] = (a[j] - self.a[j]) / dt;
+        }
+        let verdict = self.judge_derivatives(model, q, &v[..n], &a[..n], &mut jerk[..n]);
+        // The buffers go back: the accepted command's as its derivatives, the old ones as
+        // the next command's scratch.
+        if verdict.is_ok() {
+            self.q[..n].copy_from_slice(&q[..n]);
+            std::mem::swap(&mut self.v, &mut v);
+            std::mem::swap(&mut self.a, &mut a);
+            self.commands += 1;
+        }
+        (self.next_v, self.next_a, self.scratch) = (v, a, jerk);
+        verdict
+    }
+
+    /// [`CommandWatch::judge`] on the command's derivatives (`jerk` is then reused for the
+    /// torque rate); sets the torque on success.
+    fn judge_derivatives(
+        &mut self,
+        model: &RobotModel,
+        q: &[f64],
+        v: &[f64],
+        a: &[f64],
+        jerk: &mut [f64],
+    ) -> Result<(), Breach> {
+        let dt = self.dt;
+        let n = v.len();
         let time = (self.commands + 1) as f64 * dt;
         let breach = |joint: usize, quantity: Quantity, value: f64, bound: f64| Breach {
             limit: Limit::Joint {
@@ -64,9 +107,6 @@ impl CommandWatch {
             value,
             bound,
         };
-        let v: Vec<f64> = (0..n).map(|j| (q[j] - self.q[j]) / dt).collect();
-        let a: Vec<f64> = (0..n).map(|j| (v[j] - self.v[j]) / dt).collect();
-        let jerk: Vec<f64> = (0..n).map(|j| (a[j] - self.a[j]) / dt).collect();
         if let Some((lo, hi)) = model.chain.limits() {
             for j in 0..n {
                 let bound = if q[j] < 0.5 * (lo[j] + hi[j]) {
@@ -74,14 +114,9 @@ impl CommandWatch {
                 } else {
                     hi[j]
                 };
-                let outside = (q[j] - bound).abs();
                 let beyond =
                     (q[j] < lo[j] - POSITION_TOLERANCE) || (q[j] > hi[j] + POSITION_TOLERANCE);
-                // Moving back from beyond a bound it started beyond is allowed.
-                let s = self.start[j];
-                let started_beyond =
-                    (q[j] > bound) == (s > bound) && (s - bound).abs() > POSITION_TOLERANCE;
-                if beyond && !(started_beyond && outside <= (s - bound).abs() + OUTSIDE_SLACK) {
+                if beyond && !beyond_allowed(self.start[j], q[j], bound) {
                     return Err(breach(j, Quantity::Position, q[j], bound));
                 }
             }
@@ -95,9 +130,9 @@ impl CommandWatch {
                 .map(|j| breach(j, quantity, values[j], max[j].copysign(values[j])))
         };
         let limits = &model.limits;
-        let found = symmetric(Quantity::Velocity, &v, model.chain.velocity_limits())
-            .or_else(|| symmetric(Quantity::Acceleration, &a, limits.acceleration.as_deref()))
-            .or_else(|| symmetric(Quantity::Jerk, &jerk, limits.jerk.as_deref()));
+        let found = symmetric(Quantity::Velocity, v, model.chain.velocity_limits())
+            .or_else(|| symmetric(Quantity::Acceleration, a, limits.acceleration.as_deref()))
+            .or_else(|| symmetric(Quantity::Jerk, jerk, limits.jerk.as_deref()));
         if let Some(b) = found {
             return Err(b);
         }
@@ -105,26 +140,25 @@ impl CommandWatch {
         let mut tau = None;
         if let (true, Some(links)) = (wants_torque, model.inertia.as_deref()) {
             let gravity = model.robot_limits().gravity;
-            if let Ok(t) = model.chain.inverse_dynamics(links, gravity, q, &v, &a) {
+            if let Ok(t) = model.chain.inverse_dynamics(links, gravity, &q[..n], v, a) {
                 if let Some(b) = symmetric(Quantity::Torque, &t, limits.torque.as_deref()) {
                     return Err(b);
                 }
                 // The first command's rate is taken from itself, as a plan's is.
                 let before = self.tau.as_deref().unwrap_or(&t);
-                let rate: Vec<f64> = (0..n).map(|j| (t[j] - before[j]) / dt).collect();
+                let rate = jerk;
+                for j in 0..n {
+                    rate[j] = (t[j] - before[j]) / dt;
+                }
                 if let Some(b) =
-                    symmetric(Quantity::TorqueRate, &rate, limits.torque_rate.as_deref())
+                    symmetric(Quantity::TorqueRate, rate, limits.torque_rate.as_deref())
                 {
                     return Err(b);
                 }
                 tau = Some(t);
             }
         }
-        self.q = q.to_vec();
-        self.v = v;
-        self.a = a;
         self.tau = tau;
-        self.commands += 1;
         Ok(())
     }
 }
