@@ -90,8 +90,7 @@ LAYERS = {
         ["robot"],
     ],
     "cps-ros2": [
-        ["cdr", "names"],
-        ["msg"],
+        ["names"],
         ["discovery"],
         ["markers", "node"],
         ["graph", "publish", "record", "service"],
@@ -114,7 +113,7 @@ LAYERS = {
         ["export"],
     ],
     "cps-drive": [
-        ["recording", "ros2_graph"],
+        ["recording", "ros2_graph", "stand_in"],
         ["contact", "franka", "ros2"],
         ["identify"],
     ],

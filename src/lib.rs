@@ -22,6 +22,7 @@
 //!   driven at 1 kHz, every command checked against its published limits.
 //! - [`ros2`] (`cps-ros2`): a ROS 2 graph over DDS without ROS: trajectories to
 //!   ros2_control, joint states recorded.
+//! - [`ros2_msg`] (`cps-ros2-msg`): the ROS 2 messages and their CDR bytes, no transport.
 //! - [`mocap`] (`cps-mocap`): motion-capture takes (C3D, Motive CSV) made demonstrations.
 //! - [`outcome`] (`cps-outcome`), [`report`] (`cps-report`), [`movement`]
 //!   (`cps-movement`), [`drive`] (`cps-drive`): a run's outcome as data and as files; robot,
@@ -71,6 +72,7 @@ pub use cps_promp as promp;
 pub use cps_report as report;
 pub use cps_robot as robot;
 pub use cps_ros2 as ros2;
+pub use cps_ros2_msg as ros2_msg;
 
 // The Rust examples of README.md and docs/experiments.md are tested as written.
 #[cfg(doctest)]

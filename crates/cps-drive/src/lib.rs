@@ -16,6 +16,8 @@
 //! - [`identify`]: `cps-cli franka identify` and `cps-cli identify`: a robot's joint
 //!   controller and drives identified from a recording, for the dynamics robot.
 //! - [`recording`]: a recording and its report on disk, the same for every robot.
+//! - [`stand_in`]: `cps-cli sim serve` and `sim pool`: stand-in CoppeliaSim servers for a
+//!   scene file, their options checked, served until a stop.
 //!
 //! Its realtime closures (the online DMP's, the contact task's) run inside cps-franka's
 //! 1 kHz loop: nothing in them allocates, locks or logs.
@@ -34,3 +36,4 @@ pub mod identify;
 pub mod recording;
 pub mod ros2;
 pub mod ros2_graph;
+pub mod stand_in;

@@ -9,12 +9,12 @@ use std::time::Duration;
 
 use cps_robot::{Guarded, Plan, Policy, Refusal, Robot, RobotError, StopToken};
 use cps_ros2::action::FollowOutcome;
-use cps_ros2::msg::{JointTrajectory, error_code_word};
 use cps_ros2::names::NodeName;
 use cps_ros2::node::{Node, Qos};
 use cps_ros2::publish;
 use cps_ros2::record::{JointRecording, RecordOptions, record_joint_states};
 use cps_ros2::robot::{Ros2Robot, Ros2Settings, rows_at, trajectory_message};
+use cps_ros2_msg::msg::{JointTrajectory, error_code_word};
 use serde_json::{Value, json};
 
 use cps_movement::robot_file::{Answer, RobotModel, load_robot};

@@ -85,7 +85,7 @@ pub fn show(
     }
     let node = node(settings.domain)?;
     let mut writer = node
-        .publisher::<cps_ros2::msg::MarkerArray>(&settings.topic, Qos::Latched { depth: 1 })
+        .publisher::<cps_ros2_msg::msg::MarkerArray>(&settings.topic, Qos::Latched { depth: 1 })
         .map_err(ros2_error)?;
     writer.write(&markers).map_err(ros2_error)?;
     let end = std::time::Instant::now() + Duration::from_secs_f64(settings.seconds);

@@ -158,9 +158,9 @@ fn cbor_request(b: &[u8]) -> bool {
 /// the graph's `ros_discovery_info` in both GID layouts; true if one of them reads it
 /// whole.
 fn ros2_sample(b: &[u8]) -> bool {
-    use cps_ros2::cdr::{CdrError, CdrReader};
     use cps_ros2::discovery::ParticipantEntities;
-    use cps_ros2::msg::{
+    use cps_ros2_msg::cdr::{CdrError, CdrReader};
+    use cps_ros2_msg::msg::{
         Action, CancelAnswer, Feedback, FollowJointTrajectory, GoalAnswer, GoalId, GoalResult,
         JointState, JointTrajectory, MarkerArray, Message,
     };
@@ -246,7 +246,7 @@ fn motive_seeds() -> Vec<Vec<u8>> {
 }
 
 fn ros2_seeds() -> Vec<Vec<u8>> {
-    use cps_ros2::msg::{JointState, JointTrajectory, JointTrajectoryPoint, Message, Time};
+    use cps_ros2_msg::msg::{JointState, JointTrajectory, JointTrajectoryPoint, Message, Time};
     let names: Vec<String> = (1..=7).map(|i| format!("panda_joint{i}")).collect();
     let state = JointState {
         name: names.clone(),

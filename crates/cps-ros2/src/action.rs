@@ -11,14 +11,14 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::Ros2Error;
-use crate::cdr::CdrWriter;
-use crate::msg::{
-    Action, CANCEL_REPLY_TYPE, CANCEL_REQUEST_TYPE, CancelAnswer, Feedback, FollowJointTrajectory,
-    FollowJointTrajectoryGoal, GoalAnswer, GoalId, GoalResult, GoalStatus, Time, action_type,
-};
 use crate::names::dds_topic;
 use crate::node::{Counts, Node, Qos, Reader, settle, wait_until};
 use crate::service::{Mapping, MappingChoice, Pending, ServiceClient};
+use cps_ros2_msg::cdr::CdrWriter;
+use cps_ros2_msg::msg::{
+    Action, CANCEL_REPLY_TYPE, CANCEL_REQUEST_TYPE, CancelAnswer, Feedback, FollowJointTrajectory,
+    FollowJointTrajectoryGoal, GoalAnswer, GoalId, GoalResult, GoalStatus, Time, action_type,
+};
 
 /// How long after an unanswered cancel it is asked again.
 const CANCEL_AGAIN: Duration = Duration::from_secs(1);

@@ -10,8 +10,8 @@
 //! GUID (12-byte prefix, 4-byte entity id): 16 bytes since Iron (rmw_dds_common 2), 24 on
 //! Humble (the GUID and 8 zero bytes). cps writes 16 unless told Humble and reads both.
 
-use crate::cdr::{CdrError, CdrReader, CdrWriter};
-use crate::msg::Message;
+use cps_ros2_msg::cdr::{CdrError, CdrReader, CdrWriter};
+use cps_ros2_msg::msg::Message;
 
 /// The DDS topic of the graph's announcements.
 pub const TOPIC: &str = "ros_discovery_info";

@@ -5,7 +5,8 @@
 //! `sensor_msgs/JointState` in a robot model's joint order, and to show a path as
 //! `visualization_msgs/MarkerArray`.
 //!
-//! Layers: [`cdr`] (bytes), [`msg`] (the messages), [`names`] (ROS names → DDS topics),
+//! The messages and their CDR bytes are crate cps-ros2-msg's ([`cps_ros2_msg`]), which
+//! builds no transport. Layers here: [`names`] (ROS names → DDS topics),
 //! [`discovery`] (the graph's announcements), [`node`] (the participant, writers and
 //! readers, announced on the graph), [`service`] (a service client on Cyclone's or Fast
 //! DDS's request/reply mapping), [`graph`] (what cps sees of the graph), then what is done
@@ -18,7 +19,8 @@
 //!
 //! ```no_run
 //! use std::time::Duration;
-//! use cps_ros2::{msg::{JointTrajectory, JointTrajectoryPoint, Time}, names::NodeName, node::Node};
+//! use cps_ros2::{names::NodeName, node::Node};
+//! use cps_ros2_msg::msg::{JointTrajectory, JointTrajectoryPoint, Time};
 //!
 //! let node = Node::new(NodeName::from_env("cps", None)?)?;
 //! let trajectory = JointTrajectory {
@@ -42,11 +44,9 @@
 //! ```
 
 pub mod action;
-pub mod cdr;
 pub mod discovery;
 pub mod graph;
 pub mod markers;
-pub mod msg;
 pub mod names;
 pub mod node;
 pub mod publish;

@@ -2,7 +2,7 @@
 //! via points as spheres, the start and goal as larger spheres with their names, all in
 //! one frame, for RViz or Foxglove.
 
-use crate::msg::{Header, Marker, MarkerArray};
+use cps_ros2_msg::msg::{Header, Marker, MarkerArray};
 
 /// Marker types used here.
 const SPHERE: i32 = 2;

@@ -1,7 +1,7 @@
 //! A ROS 2 participant over DDS (RTPS, through `rustdds`): a node's name, namespace and
 //! domain, and typed writers and readers of raw CDR samples on ROS 2's topic names.
 //!
-//! The bytes are cps's own ([`crate::cdr`], [`crate::msg`]): rustdds carries them as they
+//! The bytes are cps's own ([`cps_ros2_msg::cdr`], [`cps_ros2_msg::msg`]): rustdds carries them as they
 //! are, so every sample a peer sends is read by cps's bounded reader, and one that is
 //! malformed, oversized or in an encoding ROS 2 does not use is counted and dropped,
 //! never a panic.
@@ -20,10 +20,10 @@ use rustdds::{
 };
 
 use crate::Ros2Error;
-use crate::cdr::{CdrError, CdrReader};
 use crate::discovery::{Gid, GidLayout, NodeEntities, ParticipantEntities};
-use crate::msg::Message;
 use crate::names::{NodeName, dds_topic};
+use cps_ros2_msg::cdr::{CdrError, CdrReader};
+use cps_ros2_msg::msg::Message;
 
 /// The largest sample cps reads (16 MiB: a 10 s trajectory at 1 kHz for seven joints,
 /// with velocities and accelerations, is 2 MiB); bigger ones are counted and dropped.
@@ -39,7 +39,7 @@ struct Raw {
 }
 
 impl Raw {
-    /// The body of a little-endian sample as [`crate::cdr::CdrWriter::finish`] gives it
+    /// The body of a little-endian sample as [`cps_ros2_msg::cdr::CdrWriter::finish`] gives it
     /// (encapsulation header first).
     fn of_sample(sample: &[u8]) -> Self {
         debug_assert_eq!(&sample[..2], &[0, 1], "a little-endian CDR sample");
@@ -619,7 +619,7 @@ impl Writer {
         wait_until(deadline, || self.matched() > 0)
     }
 
-    /// Sends one sample (its bytes as [`crate::cdr::CdrWriter::finish`] gives them,
+    /// Sends one sample (its bytes as [`cps_ros2_msg::cdr::CdrWriter::finish`] gives them,
     /// little-endian encapsulation header first).
     pub fn write_cdr(&self, sample: &[u8]) -> Result<(), Ros2Error> {
         self.inner

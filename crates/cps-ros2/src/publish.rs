@@ -6,8 +6,8 @@
 use std::time::{Duration, Instant};
 
 use crate::Ros2Error;
-use crate::msg::Message;
 use crate::node::{Node, Qos, settle};
+use cps_ros2_msg::msg::Message;
 
 /// How a message went out.
 #[derive(Debug, Clone, Copy, PartialEq)]

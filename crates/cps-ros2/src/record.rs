@@ -17,8 +17,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::Ros2Error;
-use crate::msg::JointState;
 use crate::node::{Counts, Node, Qos};
+use cps_ros2_msg::msg::JointState;
 
 /// What to record.
 #[derive(Debug, Clone)]

@@ -19,14 +19,14 @@ use cps_robot::{Ending, Plan, Robot, RobotError, RobotModel, Run, StopToken};
 
 use crate::Ros2Error;
 use crate::action::{FollowJointTrajectoryClient, FollowOutcome, FollowTimes};
-use crate::msg::{
-    FollowJointTrajectoryGoal, GoalId, JointState, JointTrajectory, JointTrajectoryPoint, Time,
-    error_code_word,
-};
 use crate::names::NodeName;
 use crate::node::{Node, Qos, Reader};
 use crate::record::{JointRecording, RecordOptions, record_joint_states};
 use crate::service::MappingChoice;
+use cps_ros2_msg::msg::{
+    FollowJointTrajectoryGoal, GoalId, JointState, JointTrajectory, JointTrajectoryPoint, Time,
+    error_code_word,
+};
 
 /// The node name cps takes on the graph.
 pub const NODE_NAME: &str = "cps";
@@ -111,7 +111,7 @@ pub fn rows_at(rec: &JointRecording, outcome: &FollowOutcome, at: &[f64]) -> Opt
 
 /// A goal id from the trajectory's own bytes, a counter and the time: unique per goal.
 pub fn goal_id(message: &JointTrajectory, counter: u64) -> GoalId {
-    use crate::msg::Message;
+    use cps_ros2_msg::msg::Message;
     let bytes = message.to_cdr();
     let h = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
         (h ^ *b as u64).wrapping_mul(0x0100_0000_01b3)

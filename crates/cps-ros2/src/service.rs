@@ -19,9 +19,9 @@
 use std::time::{Duration, Instant};
 
 use crate::Ros2Error;
-use crate::cdr::{CdrError, CdrReader, CdrWriter};
 use crate::names::dds_service;
 use crate::node::{Counts, Node, Qos, Reader, SampleId, Vendor, Vendors, Writer, wait_until};
+use cps_ros2_msg::cdr::{CdrError, CdrReader, CdrWriter};
 
 /// How a service's replies are tied to their requests.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

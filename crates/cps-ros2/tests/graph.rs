@@ -12,10 +12,10 @@ use std::time::{Duration, Instant};
 use common::{Peer, inside, temp};
 use cps_ros2::Ros2Error;
 use cps_ros2::action::{FollowJointTrajectoryClient, FollowTimes};
-use cps_ros2::msg::{FollowJointTrajectoryGoal, GoalId, GoalStatus, JointTrajectory, Time};
 use cps_ros2::names::NodeName;
 use cps_ros2::node::{Node, Qos};
 use cps_ros2::record::{RecordOptions, record_joint_states};
+use cps_ros2_msg::msg::{FollowJointTrajectoryGoal, GoalId, GoalStatus, JointTrajectory, Time};
 use serde_json::Value;
 use support::{assert_same_trajectory, floats, joints, trajectory};
 

@@ -17,10 +17,10 @@ use std::time::{Duration, Instant};
 
 use common::{Peer, control_msgs, inside, inside_rclpy, temp};
 use cps_ros2::action::{FollowJointTrajectoryClient, FollowTimes};
-use cps_ros2::msg::{FollowJointTrajectoryGoal, GoalId};
 use cps_ros2::names::NodeName;
 use cps_ros2::node::{Node, Qos};
 use cps_ros2::record::{RecordOptions, record_joint_states};
+use cps_ros2_msg::msg::{FollowJointTrajectoryGoal, GoalId};
 use serde_json::Value;
 
 fn cps_node() -> Node {

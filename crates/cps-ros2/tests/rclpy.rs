@@ -13,15 +13,15 @@ use common::{Peer, control_msgs, inside_rclpy};
 use cps_kinematics::robots::{PandaTool, panda};
 use cps_robot::{RobotModel, StopToken};
 use cps_ros2::action::{ActionClient, FollowJointTrajectoryClient, FollowTimes};
-use cps_ros2::cdr::{CdrError, CdrReader, CdrWriter};
-use cps_ros2::msg::{
-    Action, FollowJointTrajectoryGoal, GoalId, GoalStatus, JointState, Marker, MarkerArray,
-};
 use cps_ros2::names::NodeName;
 use cps_ros2::node::{Node, Qos, Vendor};
 use cps_ros2::record::{RecordOptions, record_joint_states};
 use cps_ros2::robot::{Ros2Robot, Ros2Settings};
 use cps_ros2::service::{Mapping, MappingChoice, ServiceClient};
+use cps_ros2_msg::cdr::{CdrError, CdrReader, CdrWriter};
+use cps_ros2_msg::msg::{
+    Action, FollowJointTrajectoryGoal, GoalId, GoalStatus, JointState, Marker, MarkerArray,
+};
 use serde_json::Value;
 
 const FAST_DDS: &str = "rmw_fastrtps_cpp";

@@ -1,12 +1,12 @@
 //! ROS 2 messages as bytes for MCAP files: plain little-endian CDR (XCDR1, what rmw
-//! writes and MCAP's `cdr` encoding means; written by `cps_ros2::cdr`, which also speaks
+//! writes and MCAP's `cdr` encoding means; written by `cps_ros2_msg::cdr`, which also speaks
 //! them on a live graph) and their `ros2msg` schema texts, for the messages an exported
 //! trajectory needs.
 
 use nalgebra::Isometry3;
 
-use cps_ros2::cdr::CdrWriter as Cdr;
-use cps_ros2::msg::{self, Message};
+use cps_ros2_msg::cdr::CdrWriter as Cdr;
+use cps_ros2_msg::msg::{self, Message};
 
 /// One point of a `trajectory_msgs/JointTrajectory`.
 pub struct TrajectoryPoint<'a> {

@@ -3,7 +3,7 @@
 
 #![allow(dead_code)]
 
-use cps_ros2::msg::{JointTrajectory, JointTrajectoryPoint, Time};
+use cps_ros2_msg::msg::{JointTrajectory, JointTrajectoryPoint, Time};
 use serde_json::Value;
 
 pub fn joints() -> Vec<String> {
