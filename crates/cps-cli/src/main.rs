@@ -60,8 +60,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
-use cps_experiment::files::{Results, WriteOptions};
 use cps_experiment::{Experiment, ExperimentError, InputError, RunOptions, budget, experiment};
+use cps_report::write::{Results, WriteOptions};
 use cps_robot::StopToken;
 
 /// The commented default experiment: the file shipped as experiments/viapoint.toml.

@@ -9,10 +9,10 @@ use anyhow::Result;
 use clap::{Args, ValueEnum};
 use cps_dmp::{Combine, Formulation, Lambda, Regression};
 use cps_experiment::InputError;
-use cps_experiment::figures::draw_file;
-use cps_experiment::files::{table_csv, write_file};
-use cps_experiment::results_dir::{FileKind, check_file_targets};
 use cps_movement::movement::{ImitationSpec, RolloutSpec, imitate_files, rollout_file};
+use cps_outcome::files::{table_csv, write_file};
+use cps_outcome::results_dir::{FileKind, check_file_targets};
+use cps_report::figures::draw_file;
 
 use crate::cli_error;
 

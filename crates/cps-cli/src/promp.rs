@@ -7,14 +7,14 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::{Args, Subcommand};
 use cps_experiment::InputError;
-use cps_experiment::figures::draw_file;
-use cps_experiment::files::write_file;
-use cps_experiment::outcome::Figure;
-use cps_experiment::results_dir::{FileKind, check_file_targets};
 use cps_movement::promp::{
     NamedProMp, ViaPoints, condition, fit_files, write_samples, write_stats,
 };
 use cps_movement::robot_file::Answer;
+use cps_outcome::files::write_file;
+use cps_outcome::outcome::Figure;
+use cps_outcome::results_dir::{FileKind, check_file_targets};
+use cps_report::figures::draw_file;
 
 use crate::cli_error;
 use crate::movement::Output;

@@ -6,11 +6,11 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Args;
 use cps_experiment::InputError;
-use cps_experiment::files::{table_csv, write_file};
-use cps_experiment::results_dir::{FileKind, check_file_target};
 use cps_movement::export::{ExportFormat, ExportOptions, export_file, usage};
 use cps_movement::retiming::{RetimeMode, retime_file};
 use cps_movement::robot_file::Answer;
+use cps_outcome::files::{table_csv, write_file};
+use cps_outcome::results_dir::{FileKind, check_file_target};
 
 use crate::cli_error;
 use crate::robot::{RobotArgs, print};

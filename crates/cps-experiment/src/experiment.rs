@@ -16,7 +16,7 @@ use crate::InputError;
 use crate::budget::Ceilings;
 pub use crate::plan::{Experiment, Kind};
 use crate::source::location;
-pub use crate::source::{MAX_FILE_BYTES, read_text};
+use crate::source::{MAX_FILE_BYTES, read_text};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -190,7 +190,7 @@ pub fn parse(
             "{}: the experiment file has {} bytes, more than the {} cps reads",
             path.display(),
             text.len(),
-            crate::budget::bytes(MAX_FILE_BYTES as f64)
+            crate::source::bytes(MAX_FILE_BYTES as f64)
         )));
     }
     let at = |e: &toml::de::Error| {

@@ -40,7 +40,7 @@
 //! // Written as a result directory (summary.json, CSVs, figures, report.html):
 //! # let tmp = tempfile::tempdir().unwrap();
 //! let dir = tmp.path().join("viapoint"); // a new folder: save creates it
-//! cps_experiment::files::save(&outcome, &dir, false, &Default::default())?;
+//! cps_report::write::save(&outcome, &dir, false, &Default::default())?;
 //! assert!(dir.join("summary.json").is_file());
 //! # Ok::<(), cps_experiment::ExperimentError>(())
 //! ```
@@ -58,24 +58,17 @@ mod run;
 pub mod sections;
 pub mod sim_pool;
 
-/// Writing an outcome: `cps-outcome`'s files (a table as CSV, atomic writes) and
-/// `cps-report`'s result directory (summary, tables, figures, report.html).
-pub mod files {
-    pub use cps_outcome::files::*;
-    pub use cps_report::write::*;
-}
-
 // The file and driving layers, by their own names inside this crate (`crate::limits`, …);
 // not re-exported: a user of them depends on cps-movement or cps-drive, visibly.
 use cps_drive::{contact, franka, ros2};
 use cps_movement::{
     calibration, export, limits, mocap, movement, promp, retiming, robot_file, scene,
 };
-pub use cps_outcome::{
-    Context, ExperimentError, InputError, Outcome, outcome, results_dir, source,
-};
-#[cfg(feature = "figures")]
-pub use cps_report::{figures, report};
+// The outcome layer's modules by their own names inside this crate; a user writing files
+// or drawing depends on cps-outcome or cps-report, visibly. Only the types `run` takes and
+// returns are re-exported.
+pub use cps_outcome::{Context, ExperimentError, InputError, Outcome};
+use cps_outcome::{outcome, source};
 pub use observer::{Event, Observer};
 pub use plan::{Experiment, Kind};
 pub use run::{RunOptions, planned_generations, run, run_into};

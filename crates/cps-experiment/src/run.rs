@@ -41,7 +41,7 @@ impl RunOptions {
     }
 }
 
-/// A run into a result directory claimed before it ([`Results::prepare`](crate::files::Results::prepare),
+/// A run into a result directory claimed before it ([`Results::prepare`](cps_report::write::Results::prepare),
 /// so that a target that cannot be used fails before any work): the run, then its files
 /// written and moved into place. An interrupted run keeps what it finished (`"complete":
 /// false`); a run that fails writes nothing. Without `results` it is [`run`].
@@ -49,7 +49,7 @@ pub fn run_into(
     exp: &Experiment,
     options: &RunOptions,
     observer: &dyn Observer,
-    results: Option<crate::files::Results>,
+    results: Option<cps_report::write::Results>,
 ) -> Result<Outcome, ExperimentError> {
     let outcome = run(exp, options, observer)?;
     if let Some(results) = results {

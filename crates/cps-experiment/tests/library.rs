@@ -7,9 +7,10 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use cps_experiment::budget::Ceilings;
-use cps_experiment::files::{WriteOptions, save, table_csv};
-use cps_experiment::outcome::{Column, Format, Table};
 use cps_experiment::{Event, Experiment, ExperimentError, Observer, Outcome, RunOptions, run};
+use cps_outcome::files::table_csv;
+use cps_outcome::outcome::{Column, Format, Table};
+use cps_report::write::{WriteOptions, save};
 
 /// The thesis's via-point task, small enough for a test: `generations` of CMA-ES with a
 /// population of 16, `repetitions` runs.

@@ -53,11 +53,11 @@ fn the_shipped_takes_are_imitated_along_the_path_they_were_recorded_on() {
         .find(|t| t.name == "recordings")
         .expect("recordings");
     let col = |n: &str| match &rec.column(n).unwrap().values {
-        cps_experiment::outcome::Values::Numbers(v) => v.clone(),
+        cps_outcome::outcome::Values::Numbers(v) => v.clone(),
         _ => panic!("{n} numbers"),
     };
     let kinds = match &rec.column("type").unwrap().values {
-        cps_experiment::outcome::Values::Texts(v) => v.clone(),
+        cps_outcome::outcome::Values::Texts(v) => v.clone(),
         _ => panic!("types"),
     };
     let (x, y, z) = (col("x"), col("y"), col("z"));

@@ -11,7 +11,7 @@ use cps_dmp::{
     FitReport, Formulation, Imitator, Lambda, OnlineDmp, QuaternionDmp, Regression, Retarget,
     RhythmicDmp, SteeringAngle, StepInput,
 };
-use cps_experiment::results_dir::{FileKind, check_file_targets};
+use cps_outcome::results_dir::{FileKind, check_file_targets};
 use nalgebra::{Quaternion, UnitQuaternion};
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -547,7 +547,7 @@ impl Dmp {
     fn save(&self, py: Python<'_>, path: PathBuf, force: bool) -> PyResult<()> {
         check_file_targets(&path, FileKind::Model, None, force).map_err(file_error)?;
         let text = self.to_json();
-        py.detach(|| cps_experiment::files::write_file(&path, text.as_bytes()))
+        py.detach(|| cps_outcome::files::write_file(&path, text.as_bytes()))
             .py()
     }
 

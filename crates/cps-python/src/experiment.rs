@@ -8,9 +8,10 @@ use std::path::PathBuf;
 use std::sync::Mutex;
 
 use cps_experiment::budget::Ceilings;
-use cps_experiment::files::{Results, WriteOptions, table_csv};
-use cps_experiment::outcome::{Table as RustTable, Values};
 use cps_experiment::{Event, Observer, RunOptions, experiment};
+use cps_outcome::files::table_csv;
+use cps_outcome::outcome::{Table as RustTable, Values};
+use cps_report::write::{Results, WriteOptions};
 use numpy::PyArray1;
 use pyo3::exceptions::{PyKeyError, PyRuntimeWarning};
 use pyo3::prelude::*;

@@ -9,12 +9,12 @@ use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use rayon::prelude::*;
 
-use cps_experiment::files::write_file;
-use cps_experiment::outcome::Values;
-use cps_experiment::results_dir::check_file_target;
 use cps_movement::export::{ExportFormat, ExportOptions, export_samples};
 use cps_movement::limits::{JointTrajectory, check_samples};
 use cps_movement::retiming::{RetimeMode, retime_samples};
+use cps_outcome::files::write_file;
+use cps_outcome::outcome::Values;
+use cps_outcome::results_dir::check_file_target;
 use pyo3::types::PyDict;
 
 use crate::arrays::{array1, array2, floats, matrix, shape_text, vector};

@@ -308,10 +308,10 @@ impl PyProMp {
     /// `force=True`, and only if it is a cps ProMP file.
     #[pyo3(signature = (path, *, force=false))]
     fn save(&self, path: std::path::PathBuf, force: bool) -> PyResult<()> {
-        use cps_experiment::results_dir::{FileKind, check_file_targets};
+        use cps_outcome::results_dir::{FileKind, check_file_targets};
         check_file_targets(&path, FileKind::ProMp, None, force)
             .map_err(crate::errors::file_error)?;
-        cps_experiment::files::write_file(&path, self.to_json().as_bytes())
+        cps_outcome::files::write_file(&path, self.to_json().as_bytes())
             .map_err(|e| value_error(e.to_string()))
     }
 

@@ -1,6 +1,6 @@
 //! One module per experiment kind. Each runs its pipeline (`cps-learn`) and declares its
 //! outcome: summary fields, tables, figures, report rows and terminal lines. Nothing here
-//! writes a file or draws: [`crate::files`] does that for every kind alike.
+//! writes a file or draws: [`cps_report::write`] does that for every kind alike.
 //!
 //! To add a kind: a `Kind` variant and its sections (`experiment.rs`, `plan.rs`), a
 //! module here with `pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError>`,
