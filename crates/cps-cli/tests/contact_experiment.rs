@@ -118,7 +118,7 @@ fn bad_contact_sections_are_named_with_their_place() {
         ),
         (
             SHIPPED.replace("drive = \"franky-sim\"", "drive = \"mujoco\"    "),
-            "[contact] drive: `mujoco` is not one of link (a Franka's torque sensors), franky-sim",
+            "[contact] drive: `mujoco` is not one of franky-sim (franky-sim's FR3: rotor inertia and joint friction), rigid (or link: a Franka's torque sensors, after the gears)",
         ),
         (
             SHIPPED

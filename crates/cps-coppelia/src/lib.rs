@@ -21,7 +21,7 @@
 //! let scene = SceneSetup {
 //!     robot_name: "Panda".into(),
 //!     chain: panda(PandaTool::HandTcp),
-//!     initial_q: vec![0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785],
+//!     initial_q: cps_kinematics::robots::PANDA_READY.to_vec(),
 //!     dummies: vec![],
 //!     dt: 0.05,
 //!     ik_following: false,

@@ -12,7 +12,7 @@ use cps_kinematics::{IkTarget, SerialChain};
 use cps_robot::{ExecutionConfig, RobotModel, StopToken, execute};
 use nalgebra::{Isometry3, Vector3};
 
-const READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+const READY: [f64; 7] = cps_kinematics::robots::PANDA_READY;
 
 fn model() -> SerialChain {
     panda(PandaTool::HandTcp).with_base(Isometry3::translation(0.5396, 0.02, 0.749))

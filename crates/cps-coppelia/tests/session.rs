@@ -236,7 +236,7 @@ fn execution_on_the_server_matches_the_in_process_robot() {
         .collect();
     assert!(names.is_empty() || names.iter().all(|n| n.starts_with('p')));
     let model = panda(PandaTool::HandTcp).with_base(Isometry3::translation(0.5396, 0.02, 0.749));
-    let ready = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    let ready = cps_kinematics::robots::PANDA_READY;
     scene.command_joint_positions(&ready).unwrap();
     scene.start_stepping().unwrap();
     scene.step().unwrap();
@@ -524,7 +524,7 @@ fn the_scene_s_own_ik_follows_the_target() {
     assert!(!scene.follows_targets());
     scene.follow_ik_target(true).unwrap();
     assert!(scene.follows_targets());
-    let ready = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    let ready = cps_kinematics::robots::PANDA_READY;
     scene.reset(&ready).unwrap();
     // Reset put the target on the tip: a step does not move the robot.
     scene.step().unwrap();
@@ -924,7 +924,7 @@ fn a_stop_reaches_a_plan_the_scene_script_runs() {
     )
     .unwrap();
     assert!(scene.has_script());
-    let ready = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    let ready = cps_kinematics::robots::PANDA_READY;
     scene.reset(&ready).unwrap();
     let points: Vec<Vec<f64>> = (0..=400)
         .map(|k| {

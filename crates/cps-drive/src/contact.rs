@@ -24,6 +24,7 @@ use std::sync::atomic::AtomicBool;
 use cps_dmp::{
     Demonstration, DiscreteDmp, DmpConfig, Formulation, OnlineDmp, Regression, StepInput,
 };
+use cps_dynamics::Drive;
 use cps_franka::control::{
     CartesianGains, CartesianImpedance, ForceAlong, Sensing, SensingOptions,
 };
@@ -145,57 +146,6 @@ impl ForcePrimitive {
     /// The primitive's duration (s).
     pub fn duration(&self) -> f64 {
         self.dmp.config().tau
-    }
-}
-
-/// Where the robot's measured joint torques are taken, which decides what the momentum
-/// observer must model beyond the rigid bodies.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Drive {
-    /// After the gears, as a Franka's joint torque sensors: nothing more.
-    LinkSide,
-    /// franky-sim's MuJoCo FR3, whose reported torques are the torques it applies before
-    /// its joints' rotor inertia and friction (its MJCF: armature 0.195 kg m² on joints
-    /// 1–4 and 0.074 on 5–7, Coulomb friction 1.137 N m on 1–4, then 0.763, 0.44, 0.248,
-    /// viscous 0.21 N m s/rad).
-    FrankySim,
-}
-
-impl Drive {
-    /// By name: `link` or `franky-sim`.
-    pub fn parse(name: &str) -> Result<Self, InputError> {
-        match name {
-            "link" => Ok(Drive::LinkSide),
-            "franky-sim" => Ok(Drive::FrankySim),
-            other => Err(InputError(format!(
-                "drive: `{other}` is not one of link (a Franka's torque sensors), franky-sim"
-            ))),
-        }
-    }
-
-    /// The name [`Drive::parse`] reads.
-    pub fn name(self) -> &'static str {
-        match self {
-            Drive::LinkSide => "link",
-            Drive::FrankySim => "franky-sim",
-        }
-    }
-
-    /// `model` with the drive's rotor inertia, and `sensing` with its friction.
-    pub fn apply(self, model: ArmModel<7>, sensing: &mut SensingOptions) -> ArmModel<7> {
-        match self {
-            Drive::LinkSide => model,
-            Drive::FrankySim => {
-                sensing.friction = cps_kinematics::contact::JointFriction {
-                    viscous: [0.21; 7],
-                    coulomb: [1.137, 1.137, 1.137, 1.137, 0.763, 0.44, 0.248],
-                    speed: 0.005,
-                };
-                model
-                    .with_armature([0.195, 0.195, 0.195, 0.195, 0.074, 0.074, 0.074])
-                    .expect("the armature values are valid")
-            }
-        }
     }
 }
 
@@ -646,7 +596,8 @@ pub struct RobotAt {
     pub arm: cps_franka::limits::Arm,
     /// Realtime scheduling of the loop.
     pub realtime: cps_franka::Realtime,
-    /// Where its joint torques are measured.
+    /// Where its joint torques are measured: [`Drive::Rigid`] after the gears (a Franka's
+    /// sensors), [`Drive::FrankySim`] before franky-sim's rotor inertia and friction.
     pub drive: Drive,
 }
 
@@ -680,7 +631,12 @@ fn dynamics(
         .map_err(robot_error)?;
     conn.ensure_ready(&state).map_err(robot_error)?;
     let model = cps_franka::control::robot_dynamics(conn, &state).map_err(robot_error)?;
-    Ok(robot.drive.apply(model, sensing))
+    let (model, friction) = robot
+        .drive
+        .apply(model)
+        .map_err(|e| ExperimentError::Message(format!("the drive's model: {e}")))?;
+    sensing.friction = friction;
+    Ok(model)
 }
 
 /// [`run_contact`] on the robot `robot`: connects; moves the tool to the approach's start

@@ -11,9 +11,9 @@ mod sim;
 use std::sync::atomic::AtomicBool;
 
 use cps_drive::contact::{
-    ContactEnding, ContactOutcome, ContactPlan, ContactWaypoint, Drive, ForcePrimitive, Stage,
-    run_contact,
+    ContactEnding, ContactOutcome, ContactPlan, ContactWaypoint, ForcePrimitive, Stage, run_contact,
 };
+use cps_dynamics::Drive;
 use cps_franka::control::{CartesianGains, SensingOptions, robot_dynamics};
 use cps_franka::limits::{Arm, RateLimits};
 use cps_franka::{Connection, Ending, LoopOptions, Realtime};
@@ -73,10 +73,10 @@ fn run(
         .newest_state(std::time::Duration::from_secs(2))
         .unwrap();
     let mut plan = plan.clone();
-    let model = Drive::FrankySim.apply(
-        robot_dynamics(&mut conn, &state).unwrap(),
-        &mut plan.sensing,
-    );
+    let (model, friction) = Drive::FrankySim
+        .apply(robot_dynamics(&mut conn, &state).unwrap())
+        .unwrap();
+    plan.sensing.friction = friction;
     let stop = AtomicBool::new(false);
     let options = LoopOptions {
         realtime: Realtime::Ignore,

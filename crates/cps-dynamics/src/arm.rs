@@ -5,6 +5,29 @@
 use cps_kinematics::contact::JointFriction;
 use cps_kinematics::{ArmFrames, ArmModel};
 
+/// franky-sim's FR3 drives, as its MJCF (`franky_sim/assets/fr3.xml`) gives them: rotor
+/// inertia (`armature`, kg m²) per joint.
+pub const FRANKY_SIM_ARMATURE: [f64; 7] = [0.195, 0.195, 0.195, 0.195, 0.074, 0.074, 0.074];
+
+/// The speed (rad/s) over which a franky-sim joint's Coulomb friction rises to its level,
+/// as `tanh(q̇ / speed)`. MuJoCo's `frictionloss` is a soft constraint: below its level a
+/// torque makes the joint creep at a speed in proportion to it. Measured on franky-sim's
+/// FR3 (MuJoCo 3, its 1 ms step, `implicitfast`, gravity and actuators off, half the
+/// friction level applied to one joint at a time): creep at 0.87, 4.2, 4.7, 3.1, 7.1, 3.7
+/// and 3.4 mrad/s on joints 2, 1, 3, 4, 5, 6, 7 at half the level, i.e. a slope at zero
+/// speed of `level / 4 mrad/s` on average, which this smoothing matches. The one value the
+/// dynamics robot, the contact task's observer and identification use.
+pub const FRANKY_SIM_COULOMB_SPEED: f64 = 0.004;
+
+/// franky-sim's FR3 joint friction (its MJCF): viscous 0.21 N m s/rad (`damping`), Coulomb
+/// 1.137 N m on joints 1–4, then 0.763, 0.44, 0.248 (`frictionloss`), smoothed over
+/// [`FRANKY_SIM_COULOMB_SPEED`].
+pub const FRANKY_SIM_FRICTION: JointFriction<7> = JointFriction {
+    viscous: [0.21; 7],
+    coulomb: [1.137, 1.137, 1.137, 1.137, 0.763, 0.44, 0.248],
+    speed: FRANKY_SIM_COULOMB_SPEED,
+};
+
 /// How a step is integrated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Integrator {

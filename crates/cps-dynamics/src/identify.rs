@@ -13,7 +13,8 @@
 //! 2. **the drive**: what the applied torque does beyond the rigid bodies, `τ − RNEA(q, q̇,
 //!    q̈) = J_rotor·q̈ + b·q̇ + c·tanh(q̇/s)`, with `q̈` from consecutive velocities: least
 //!    squares for the rotor inertia `J_rotor`, viscous `b` and Coulomb `c` friction
-//!    (`s` = [`COULOMB_SPEED`]).
+//!    (`s` = [`FRANKY_SIM_COULOMB_SPEED`](crate::FRANKY_SIM_COULOMB_SPEED), the speed franky-sim's
+//!    friction rises over).
 //!
 //! [`excitation`] makes the commands to record from (a chirp on every joint, within a
 //! share of the limits, starting and ending at rest); [`predict`] runs a calibrated robot
@@ -25,13 +26,9 @@ use cps_kinematics::ArmModel;
 use cps_kinematics::contact::JointFriction;
 use cps_robot::{Generator, RobotModel, StopToken, Streaming};
 
-use crate::arm::Arm;
+use crate::arm::{Arm, FRANKY_SIM_COULOMB_SPEED as COULOMB_SPEED};
 use crate::controller::Controller;
 use crate::robot::{DynamicsRobot, DynamicsSettings, MAX_LAG};
-
-/// The speed over which identified Coulomb friction fades to zero (rad/s), as the drives'
-/// model ([`JointFriction::speed`]) smooths it.
-pub const COULOMB_SPEED: f64 = 0.01;
 
 /// The longest run of missed periods a recording may hold (0.1 s at 1 kHz): a robot that
 /// reports no state for longer has lost its connection, and what it did meanwhile is not

@@ -28,7 +28,7 @@
 //!
 //! let chain = panda(PandaTool::HandTcp);
 //! let dynamics = ArmModel::<7>::new(&chain, &panda_inertia()).unwrap();
-//! let start = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+//! let start = cps_kinematics::robots::PANDA_READY;
 //! let arm = Arm::at_rest(dynamics, JointFriction::none(), [87.0; 7], start);
 //! let settings = DynamicsSettings {
 //!     controller: Controller::franky_sim(),
@@ -61,7 +61,9 @@ pub mod identify;
 pub mod options;
 pub mod robot;
 
-pub use arm::{Arm, Integrator};
+pub use arm::{
+    Arm, FRANKY_SIM_ARMATURE, FRANKY_SIM_COULOMB_SPEED, FRANKY_SIM_FRICTION, Integrator,
+};
 pub use controller::{CONTROLLERS, Controller, Desired, FRANKY_SIM_KP};
 pub use identify::{
     Calibration, Chirps, Identified, MAX_MISSED_PERIODS, MIN_EXCITATION, Recorded, excitation,

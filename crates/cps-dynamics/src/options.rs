@@ -7,28 +7,33 @@ use cps_kinematics::contact::JointFriction;
 use cps_kinematics::{ArmModel, LinkInertia};
 use cps_robot::{Robot, RobotError, RobotModel};
 
-use crate::arm::{Arm, Integrator};
+use crate::arm::{Arm, FRANKY_SIM_ARMATURE, FRANKY_SIM_FRICTION, Integrator};
 use crate::controller::{Controller, FRANKY_SIM_KP};
 use crate::robot::{DynamicsRobot, DynamicsSettings};
 
-/// What a joint's drive adds to the rigid bodies.
+/// What a joint's drive adds to the rigid bodies: the dynamics robot's plant, and what the
+/// contact task's momentum observer must model beyond the rigid bodies where the robot's
+/// torques are measured.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Drive {
-    /// franky-sim's FR3 (its MJCF): rotor inertia 0.195 kg m² on joints 1–4 and 0.074 on
-    /// 5–7, viscous friction 0.21 N m s/rad, Coulomb friction 1.137 N m on joints 1–4, then
-    /// 0.763, 0.44, 0.248 (smoothed over 0.01 rad/s).
+    /// franky-sim's FR3: [`FRANKY_SIM_ARMATURE`] and [`FRANKY_SIM_FRICTION`] (its reported
+    /// torques are those it applies before them).
     #[default]
     FrankySim,
-    /// Rigid bodies only: no rotor inertia, no friction.
+    /// Rigid bodies only: no rotor inertia, no friction (a Franka's torque sensors sit
+    /// after the gears, so its measured torques need nothing more: `link` names it too).
     Rigid,
 }
 
 impl Drive {
-    /// By name: `franky-sim` or `rigid`.
+    /// Every drive's name, for messages.
+    pub const NAMES: &str = "franky-sim (franky-sim's FR3: rotor inertia and joint friction), rigid (or link: a Franka's torque sensors, after the gears)";
+
+    /// By name: `franky-sim`, or `rigid` (also `link`).
     pub fn parse(name: &str) -> Option<Self> {
         match name {
             "franky-sim" => Some(Drive::FrankySim),
-            "rigid" => Some(Drive::Rigid),
+            "rigid" | "link" => Some(Drive::Rigid),
             _ => None,
         }
     }
@@ -38,6 +43,30 @@ impl Drive {
         match self {
             Drive::FrankySim => "franky-sim",
             Drive::Rigid => "rigid",
+        }
+    }
+
+    /// `model` with this drive's rotor inertia, and the drive's joint friction, on `N`
+    /// joints (franky-sim's on seven; a longer arm repeats its last joint's values).
+    pub fn apply<const N: usize>(
+        self,
+        model: ArmModel<N>,
+    ) -> Result<(ArmModel<N>, JointFriction<N>), cps_kinematics::KinematicsError> {
+        match self {
+            Drive::Rigid => Ok((model, JointFriction::none())),
+            Drive::FrankySim => {
+                let f = FRANKY_SIM_FRICTION;
+                let model =
+                    model.with_armature(std::array::from_fn(|i| FRANKY_SIM_ARMATURE[i.min(6)]))?;
+                Ok((
+                    model,
+                    JointFriction {
+                        viscous: std::array::from_fn(|i| f.viscous[i.min(6)]),
+                        coulomb: std::array::from_fn(|i| f.coulomb[i.min(6)]),
+                        speed: f.speed,
+                    },
+                ))
+            }
         }
     }
 }
@@ -262,17 +291,10 @@ fn open_n<const N: usize>(
                 speed: c.speed,
             }
         }
-        (None, Drive::Rigid) => JointFriction::none(),
-        (None, Drive::FrankySim) => {
-            dynamics = dynamics
-                .with_armature(std::array::from_fn(|i| if i < 4 { 0.195 } else { 0.074 }))
-                .map_err(|e| bad(e.to_string()))?;
-            let coulomb = [1.137, 1.137, 1.137, 1.137, 0.763, 0.44, 0.248];
-            JointFriction {
-                viscous: [0.21; N],
-                coulomb: std::array::from_fn(|i| coulomb[i.min(6)]),
-                speed: 0.01,
-            }
+        (None, drive) => {
+            let (with_drive, friction) = drive.apply(dynamics).map_err(|e| bad(e.to_string()))?;
+            dynamics = with_drive;
+            friction
         }
     };
     let controller =

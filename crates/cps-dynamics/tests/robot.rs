@@ -7,7 +7,7 @@ use cps_kinematics::contact::JointFriction;
 use cps_kinematics::robots::{PandaTool, panda, panda_inertia};
 use cps_robot::{Ending, Plan, Robot, RobotModel, StopToken};
 
-const START: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+const START: [f64; 7] = cps_kinematics::robots::PANDA_READY;
 
 fn robot(controller: Controller<7>, noise: f64, seed: u64) -> DynamicsRobot<7> {
     robot_with(controller, noise, seed, Integrator::SemiImplicitEuler, true)

@@ -234,7 +234,7 @@ mod tests {
     use cps_kinematics::robots::{PandaTool, panda};
     use cps_robot::KinematicRobot;
 
-    const READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    const READY: [f64; 7] = cps_kinematics::robots::PANDA_READY;
 
     fn robots(n: usize) -> Vec<NamedBackend> {
         (0..n)

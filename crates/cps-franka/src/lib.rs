@@ -40,7 +40,7 @@
 //! use cps_franka::limits::{check_stream, Arm, RateLimits};
 //! use cps_franka::{approach, check_trajectory, Start};
 //! let limits = RateLimits::of(Arm::Fr3);
-//! let home = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+//! let home = cps_kinematics::robots::PANDA_READY;
 //! let mut goal = home;
 //! goal[0] += 0.5;
 //! // A rest-to-rest move at 30 % of every limit passes the robot's own check ...

@@ -33,7 +33,7 @@ fn state(id: u64, mode: RobotMode, errors: Errors) -> [u8; STATE_SIZE] {
     let mut buf = [0u8; STATE_SIZE];
     let mut s = RobotState::decode(&buf).unwrap();
     s.message_id = id;
-    s.q = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    s.q = cps_kinematics::robots::PANDA_READY;
     s.q_d = s.q;
     s.robot_mode = mode;
     s.errors = errors;

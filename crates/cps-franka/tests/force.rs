@@ -49,7 +49,7 @@ fn the_robot_s_model_agrees_with_pinocchio_s() {
     // franky-sim adds gravity with pinocchio on its URDF plus the hand's inertia: the same
     // model read independently.
     let configurations = [
-        [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785],
+        cps_kinematics::robots::PANDA_READY,
         [0.5, 0.3, -0.4, -1.8, 0.7, 2.2, -0.3],
         [-1.2, -0.9, 1.1, -0.9, -1.5, 0.9, 1.9],
     ];

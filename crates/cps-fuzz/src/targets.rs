@@ -131,7 +131,7 @@ thread_local! {
             cps_coppelia::SceneSetup {
                 robot_name: "Panda".into(),
                 chain: cps_kinematics::robots::panda(cps_kinematics::robots::PandaTool::HandTcp),
-                initial_q: vec![0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785],
+                initial_q: cps_kinematics::robots::PANDA_READY.to_vec(),
                 dummies: vec![("p0".into(), [0.75, 0.02, 1.87])],
                 dt: 0.05,
                 ik_following: true,

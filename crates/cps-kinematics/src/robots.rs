@@ -24,6 +24,10 @@ pub const PANDA_Q_MIN: [f64; 7] = [
 pub const PANDA_Q_MAX: [f64; 7] = [2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973];
 /// Joint speed limits in rad/s.
 pub const PANDA_DQ_MAX: [f64; 7] = [2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61];
+/// The ready pose of the Panda and the FR3, in radians: Franka's home configuration
+/// (q2 = −π/4, q4 = −3π/4, q6 = π/2, q7 = π/4) to three decimals, as franka_ros, MoveIt's
+/// `ready` state and the thesis give it. The one copy cps's code and tests use.
+pub const PANDA_READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
 
 /// The Franka Emika Panda in its published modified-DH table (Franka documentation),
 /// base at the world origin, ending at `tool`, with position and speed limits.

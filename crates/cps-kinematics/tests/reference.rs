@@ -210,7 +210,7 @@ mod inverse {
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
-    const READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    const READY: [f64; 7] = cps_kinematics::robots::PANDA_READY;
 
     /// FK∘IK round trips: random in-limit configurations give reachable poses; IK from the
     /// ready pose reaches at least 99.9 % of 1000 of them to 1e-9 m / 1e-9 rad inside the
@@ -450,7 +450,7 @@ mod control_and_execution {
         std::f64::consts::FRAC_PI_2,
         std::f64::consts::FRAC_PI_4,
     ];
-    const READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    const READY: [f64; 7] = cps_kinematics::robots::PANDA_READY;
 
     /// A secondary task in the null space does not move the tool (to first order), and a
     /// posture task brings the redundant joint towards the preferred posture.
@@ -846,7 +846,7 @@ mod limits {
         &c.peak_usage.iter().find(|(k, _)| *k == q).unwrap().1
     }
 
-    const READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    const READY: [f64; 7] = cps_kinematics::robots::PANDA_READY;
 
     #[test]
     fn standing_still_uses_only_the_torque_against_gravity() {
@@ -1015,7 +1015,7 @@ mod cartesian {
     fn a_turn_about_the_base_is_a_circle() {
         let chain = panda(PandaTool::Flange);
         let (_, limits) = panda_limits();
-        let q0 = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+        let q0 = cps_kinematics::robots::PANDA_READY;
         let r = chain.fk(&q0).unwrap().translation.vector.xy().norm();
         let omega = 1.0;
         let dt = 0.001;

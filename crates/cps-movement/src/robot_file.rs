@@ -259,9 +259,6 @@ pub fn joint_solution(
     })
 }
 
-/// The Panda's "ready" configuration (Franka's default start pose).
-pub const PANDA_READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
-
 /// The built-in robot names.
 pub const BUILT_IN: &str = "panda, fr3, ur3, crx10ia, puma560";
 
@@ -513,7 +510,7 @@ pub fn load_robot(
             Ok(RobotModel {
                 name: spec.into(),
                 chain,
-                ready: PANDA_READY.to_vec(),
+                ready: cps_kinematics::robots::PANDA_READY.to_vec(),
                 tool: words.into(),
                 joint_names: names(7),
                 limits,

@@ -82,7 +82,13 @@ impl Franka {
             host: self.host.clone(),
             arm: self.arm,
             realtime: self.realtime,
-            drive: cps_drive::contact::Drive::parse(drive).map_err(|e| e.py_err())?,
+            drive: cps_dynamics::Drive::parse(drive).ok_or_else(|| {
+                cps_outcome::InputError(format!(
+                    "drive: `{drive}` is not one of {}",
+                    cps_dynamics::Drive::NAMES
+                ))
+                .py_err()
+            })?,
         })
     }
 }

@@ -27,7 +27,7 @@
 //! use cps_kinematics::robots::{panda, PandaTool};
 //! use cps_robot::{Guarded, KinematicRobot, Plan, Policy, Refusal, Robot, RobotError, StopToken};
 //! # fn main() -> Result<(), RobotError> {
-//! let start = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+//! let start = cps_kinematics::robots::PANDA_READY;
 //! let robot = KinematicRobot::new(panda(PandaTool::HandTcp), &start, 0.01)?;
 //! let mut robot = Guarded::new(robot, Policy::STRICT);
 //! // Joint 1 swings by 0.3 rad in 2 s and back to rest, one point every 10 ms.

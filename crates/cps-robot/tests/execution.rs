@@ -19,7 +19,7 @@ const THESIS_Q0: [f64; 7] = [
     std::f64::consts::FRAC_PI_2,
     std::f64::consts::FRAC_PI_4,
 ];
-const READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+const READY: [f64; 7] = cps_kinematics::robots::PANDA_READY;
 
 #[test]
 fn kinematic_robot_integrates_commands_within_limits() {

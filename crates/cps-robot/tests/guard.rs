@@ -9,7 +9,7 @@ use cps_robot::{
     Refusal, Robot, RobotError, RobotModel, StopToken,
 };
 
-const HOME: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+const HOME: [f64; 7] = cps_kinematics::robots::PANDA_READY;
 
 fn fr3_model() -> RobotModel {
     let mut m = RobotModel::of_chain("fr3", fr3(PandaTool::HandTcp));

@@ -26,7 +26,7 @@
 //! let trajectory = JointTrajectory {
 //!     joint_names: (1..=7).map(|i| format!("panda_joint{i}")).collect(),
 //!     points: vec![JointTrajectoryPoint {
-//!         positions: vec![0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785],
+//!         positions: cps_kinematics::robots::PANDA_READY.to_vec(),
 //!         time_from_start: Time::from_secs(2.0),
 //!         ..Default::default()
 //!     }],

@@ -28,7 +28,8 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use crate::InputError;
-use crate::contact::{ContactPlan, ContactWaypoint, Drive, ForcePrimitive};
+use crate::contact::{ContactPlan, ContactWaypoint, ForcePrimitive};
+use cps_dynamics::Drive;
 
 /// `[contact]` as written.
 #[derive(Debug, Deserialize)]
@@ -170,9 +171,17 @@ impl ContactSection {
             }
         };
         let drive = match &self.drive {
-            None => Drive::LinkSide,
-            Some(d) => Drive::parse(d.get_ref())
-                .map_err(|e| err(&d.span(), format!("[contact] {}", e.0)))?,
+            None => Drive::Rigid,
+            Some(d) => Drive::parse(d.get_ref()).ok_or_else(|| {
+                err(
+                    &d.span(),
+                    format!(
+                        "[contact] drive: `{}` is not one of {}",
+                        d.get_ref(),
+                        Drive::NAMES
+                    ),
+                )
+            })?,
         };
         let (primitive, profile) = match (&self.demonstration, self.waypoints.first()) {
             (Some(d), Some(_)) => {
@@ -284,7 +293,7 @@ impl ContactSpec {
                 p.force_gains.1,
                 p.force_gains.2,
                 match self.drive {
-                    Drive::LinkSide => "after the gears (a Franka)",
+                    Drive::Rigid => "after the gears (a Franka)",
                     Drive::FrankySim => "before the joints' friction (franky-sim)",
                 }
             ),

@@ -654,8 +654,9 @@ impl Sections<'_> {
                 self.err(
                     &d.span(),
                     format!(
-                        "[robot] `drive` = \"{}\" is not one of franky-sim (franky-sim's FR3: rotor inertia and joint friction), rigid",
-                        d.get_ref()
+                        "[robot] `drive` = \"{}\" is not one of {}",
+                        d.get_ref(),
+                        cps_dynamics::Drive::NAMES
                     ),
                 )
             })?;
