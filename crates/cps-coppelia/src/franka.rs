@@ -6,7 +6,7 @@
 use std::time::{Duration, Instant};
 
 use cps_kinematics::KinematicsError;
-use cps_robot::{Ending, Plan, Robot, RobotError, RobotModel, Run, Stepped, StopToken};
+use cps_robot::{Ending, Plan, Robot, RobotError, RobotModel, Run, Stepped, Stepping, StopToken};
 use nalgebra::{IsometryMatrix3, Vector3};
 
 use crate::codec;
@@ -305,7 +305,7 @@ impl FrankaScene {
     }
 
     /// True if whole sequences run inside the simulator through cps's scene script (see
-    /// [`Stepped::prefers_plans`]).
+    /// [`Stepped::stepping`]: whole plans, or targets with plans).
     pub fn runs_sequences(&self) -> bool {
         self.script.is_some()
     }
@@ -378,18 +378,6 @@ impl FrankaScene {
 }
 
 impl Stepped for FrankaScene {
-    fn dof(&self) -> usize {
-        self.joints.len()
-    }
-
-    fn time_step(&self) -> f64 {
-        self.dt
-    }
-
-    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
-        self.read_joints()
-    }
-
     fn command_joint_positions(&mut self, q: &[f64]) -> Result<(), RobotError> {
         if q.len() != self.joints.len() {
             return Err(KinematicsError::JointCount {
@@ -406,17 +394,6 @@ impl Stepped for FrankaScene {
         Ok(())
     }
 
-    fn command_joint_velocities(&mut self, dq: &[f64]) -> Result<(), RobotError> {
-        // Kinematic joints: integrate one step here.
-        let q = self.read_joints()?;
-        let next: Vec<f64> = q.iter().zip(dq).map(|(a, v)| a + v * self.dt).collect();
-        Stepped::command_joint_positions(self, &next)
-    }
-
-    fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, RobotError> {
-        self.read_tool()
-    }
-
     fn time(&mut self) -> Result<f64, RobotError> {
         Ok(self.client.get_simulation_time()?)
     }
@@ -427,12 +404,16 @@ impl Stepped for FrankaScene {
         Ok(self.client.step()?)
     }
 
-    fn follows_targets(&self) -> bool {
-        self.target.is_some()
-    }
-
-    fn prefers_plans(&self) -> bool {
-        self.script.is_some()
+    /// Targets when the scene's IK follows `/<robot>_target`; else whole plans when the
+    /// scene has cps's script (a few exchanges a plan); else joint commands.
+    fn stepping(&self) -> Stepping {
+        match (self.target, &self.script) {
+            (Some(_), script) => Stepping::Targets {
+                plans: script.is_some(),
+            },
+            (None, Some(_)) => Stepping::Plans,
+            (None, None) => Stepping::Joints,
+        }
     }
 
     /// Moves `/<robot>_target`: its position for a position target (orientation kept),

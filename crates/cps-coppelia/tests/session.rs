@@ -497,7 +497,7 @@ fn a_v1_server_steps_through_its_step_counter_and_takes_v1_setters() {
 fn the_scene_s_own_ik_follows_the_target() {
     use cps_coppelia::FrankaScene;
     use cps_kinematics::IkTarget;
-    use cps_robot::{ExecutionConfig, Stepped, StopToken, execute};
+    use cps_robot::{ExecutionConfig, Robot, Stepped, Stepping, StopToken, execute};
     let model = panda(PandaTool::HandTcp).with_base(Isometry3::translation(0.5396, 0.02, 0.749));
     let srv = StandInServer::start(ServerConfig {
         bind: "127.0.0.1:0".into(),
@@ -521,9 +521,9 @@ fn the_scene_s_own_ik_follows_the_target() {
         0.05,
     )
     .unwrap();
-    assert!(!scene.follows_targets());
+    assert!(!matches!(scene.stepping(), Stepping::Targets { .. }));
     scene.follow_ik_target(true).unwrap();
-    assert!(scene.follows_targets());
+    assert!(matches!(scene.stepping(), Stepping::Targets { .. }));
     let ready = cps_kinematics::robots::PANDA_READY;
     scene.reset(&ready).unwrap();
     // Reset put the target on the tip: a step does not move the robot.

@@ -6,7 +6,8 @@
 //! each step) and streams ([`Streaming`]).
 
 use cps_robot::{
-    Ending, Generator, Plan, Robot, RobotError, RobotModel, Run, Stepped, StopToken, Streaming,
+    Ending, Generator, Plan, Robot, RobotError, RobotModel, Run, Stepped, Stepping, StopToken,
+    Streaming,
 };
 use nalgebra::{Isometry3, IsometryMatrix3};
 use rand::SeedableRng;
@@ -307,6 +308,11 @@ impl<const N: usize> Robot for DynamicsRobot<N> {
         Ok(self.arm.q.to_vec())
     }
 
+    /// The tool's pose from the arm's own frames (what its recordings hold).
+    fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, RobotError> {
+        Ok(self.entry().1)
+    }
+
     /// Its control period: it follows the plan's motion sampled at it.
     fn command_period(&self) -> f64 {
         self.settings.control_period
@@ -406,27 +412,11 @@ impl<const N: usize> Robot for DynamicsRobot<N> {
 }
 
 impl<const N: usize> Stepped for DynamicsRobot<N> {
-    fn dof(&self) -> usize {
-        N
-    }
-
-    /// Yes: an arm with dynamics runs in time. Its controller's commands are planned on the
-    /// model and the arm follows them as a real arm does — iterating a sample until a
-    /// lagging arm reaches it would stretch the movement's time.
-    fn prefers_plans(&self) -> bool {
-        true
-    }
-
-    fn time_step(&self) -> f64 {
-        self.settings.dt
-    }
-
-    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
-        Ok(self.arm.q.to_vec())
-    }
-
-    fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, RobotError> {
-        Ok(self.entry().1)
+    /// Whole plans: an arm with dynamics runs in time. Its controller's commands are
+    /// planned on the model and the arm follows them as a real arm does — iterating a
+    /// sample until a lagging arm reaches it would stretch the movement's time.
+    fn stepping(&self) -> Stepping {
+        Stepping::Plans
     }
 
     fn time(&mut self) -> Result<f64, RobotError> {
@@ -438,16 +428,6 @@ impl<const N: usize> Stepped for DynamicsRobot<N> {
             robot: self.name(),
             message: format!("{} joint positions commanded, the arm has {N}", q.len()),
         })?;
-        Ok(())
-    }
-
-    fn command_joint_velocities(&mut self, dq: &[f64]) -> Result<(), RobotError> {
-        let dq: [f64; N] = dq.try_into().map_err(|_| RobotError::Robot {
-            robot: self.name(),
-            message: format!("{} joint velocities commanded, the arm has {N}", dq.len()),
-        })?;
-        let dt = self.settings.dt;
-        self.command = std::array::from_fn(|i| self.previous[i] + dt * dq[i]);
         Ok(())
     }
 
@@ -480,10 +460,6 @@ impl<const N: usize> Stepped for DynamicsRobot<N> {
 }
 
 impl<const N: usize> Streaming for DynamicsRobot<N> {
-    fn command_period(&self) -> f64 {
-        self.settings.control_period
-    }
-
     fn stream(
         &mut self,
         next: &mut Generator<'_>,

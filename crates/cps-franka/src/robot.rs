@@ -397,10 +397,6 @@ fn ending(e: &Ending) -> RunEnding {
 }
 
 impl Streaming for FrankaRobot {
-    fn command_period(&self) -> f64 {
-        DT
-    }
-
     /// The generator runs inside the realtime loop, once per tick, with the measured joints;
     /// every command passes the arm's per-millisecond check or the robot brakes. One entry
     /// per tick.

@@ -75,10 +75,10 @@ impl Recording {
 /// ([`control_step`], limits respected), each commanded as joint positions and followed by
 /// one step, stopping early once the model says the sample is reached. Then the robot's
 /// measured state is recorded. Never loops without bound. A robot that [follows targets
-/// itself](crate::Stepped::follows_targets) (CoppeliaSim's IK) is given the sample as its target
+/// itself](crate::Stepping::Targets) (CoppeliaSim's IK) is given the sample as its target
 /// and stepped the same way, without cps's controller.
 ///
-/// A robot that does not step, or [prefers plans](crate::Stepped::prefers_plans) (a simulator with
+/// A robot that does not step, or [prefers plans](crate::Stepping::Plans) (a simulator with
 /// cps's scene script), gets the whole command sequence as one [`Plan`] at its period: the
 /// controller is run against the model, which predicts that each command is reached at the
 /// next step, and the robot runs the commands and records every one (through the guard
@@ -115,12 +115,12 @@ pub fn execute(
     }
     let closed_loop = robot
         .stepped()
-        .is_some_and(|s| !s.prefers_plans() || s.follows_targets());
+        .is_some_and(|s| s.stepping() != crate::Stepping::Plans);
     if !closed_loop {
         return execute_planned(robot, model, targets, config, stop);
     }
     let backend = robot.stepped().expect("a stepped robot");
-    let dt = backend.time_step();
+    let dt = backend.dt();
     let mut rec = Recording::default();
     let t0 = backend.time()?;
     // The measured configuration is read once per control step and reused: a remote
@@ -128,7 +128,7 @@ pub fn execute(
     let mut q = backend.joint_positions()?;
     for target in targets {
         let mut reached = false;
-        let follows = backend.follows_targets();
+        let follows = matches!(backend.stepping(), crate::Stepping::Targets { .. });
         if follows {
             backend.command_target(target)?;
         }

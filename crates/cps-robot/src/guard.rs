@@ -202,9 +202,8 @@ pub struct Guarded<R> {
     watch: Option<CommandWatch>,
     /// Whether a joint command came since the last step.
     commanded: bool,
-    /// The stepped robot's `follows_targets` and `prefers_plans`, read when its stepped
-    /// view was last asked for.
-    stepping: (bool, bool),
+    /// How the stepped robot is driven, read when its stepped view was last asked for.
+    stepping: crate::Stepping,
 }
 
 /// A plan made ready by the guard: what will be sent, and how it came to be.
@@ -230,7 +229,7 @@ impl<R: Robot> Guarded<R> {
             last: None,
             watch: None,
             commanded: false,
-            stepping: (false, false),
+            stepping: crate::Stepping::Joints,
         }
     }
 
@@ -507,7 +506,7 @@ impl<R: Robot> Robot for Guarded<R> {
     /// before it is sent (see [`Stepped for Guarded`](#impl-Stepped-for-Guarded%3CR%3E)).
     fn stepped(&mut self) -> Option<&mut dyn Stepped> {
         let inner = self.robot.stepped()?;
-        self.stepping = (inner.follows_targets(), inner.prefers_plans());
+        self.stepping = inner.stepping();
         Some(self)
     }
     /// None: a guarded robot streams only through [`Guarded::stream`], which checks the
@@ -543,30 +542,18 @@ impl<R: Robot> Guarded<R> {
 /// stood at rest, torque and torque rate where the robot has inertias — and one that
 /// breaks a limit is refused ([`RobotError::Robot`] naming it, the robot holding its last
 /// command) instead of sent. A step without a new command holds the last one, and is judged as
-/// that. Joint velocities are not taken (command positions). A robot that follows tool
+/// that. A robot that follows tool
 /// targets itself (CoppeliaSim's IK) moves its joints on its own: those are the
 /// simulator's, not commands cps sends. The commands count from where the robot stands
 /// after a plan, a reset or the first command.
 impl<R: Robot> Stepped for Guarded<R> {
-    fn dof(&self) -> usize {
-        self.robot.model().chain.dof()
-    }
-    fn time_step(&self) -> f64 {
-        self.robot.command_period()
-    }
-    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
-        Stepped::joint_positions(self.inner_stepped())
-    }
-    fn tool_pose(&mut self) -> Result<nalgebra::IsometryMatrix3<f64>, RobotError> {
-        Stepped::tool_pose(self.inner_stepped())
-    }
     fn time(&mut self) -> Result<f64, RobotError> {
         self.inner_stepped().time()
     }
     fn command_joint_positions(&mut self, q: &[f64]) -> Result<(), RobotError> {
         if self.watch.is_none() {
-            let here = Stepped::joint_positions(self.inner_stepped())?;
-            let dt = self.inner_stepped().time_step();
+            let here = self.robot.joint_positions()?;
+            let dt = self.robot.dt();
             self.watch = Some(CommandWatch::new(&here, dt));
         }
         let watch = self.watch.as_mut().expect("just made");
@@ -575,14 +562,6 @@ impl<R: Robot> Stepped for Guarded<R> {
         }
         self.commanded = true;
         self.inner_stepped().command_joint_positions(q)
-    }
-    fn command_joint_velocities(&mut self, _dq: &[f64]) -> Result<(), RobotError> {
-        Err(RobotError::Robot {
-            robot: self.robot.name(),
-            message:
-                "a guarded robot takes joint positions, judged before they are sent; command those"
-                    .into(),
-        })
     }
     fn step(&mut self) -> Result<(), RobotError> {
         // No new command: the robot holds its last one, and that is a command too.
@@ -597,14 +576,11 @@ impl<R: Robot> Stepped for Guarded<R> {
         self.commanded = false;
         self.inner_stepped().step()
     }
-    fn follows_targets(&self) -> bool {
-        self.stepping.0
+    fn stepping(&self) -> crate::Stepping {
+        self.stepping
     }
     fn command_target(&mut self, target: &cps_kinematics::IkTarget) -> Result<(), RobotError> {
         self.inner_stepped().command_target(target)
-    }
-    fn prefers_plans(&self) -> bool {
-        self.stepping.1
     }
 }
 

@@ -67,11 +67,6 @@ impl KinematicRobot {
         &self.q
     }
 
-    /// The control period (s).
-    pub fn time_step(&self) -> f64 {
-        self.dt
-    }
-
     /// Measured joint positions (rad).
     pub fn joint_positions(&mut self) -> Result<Vec<f64>, KinematicsError> {
         Ok(self.q.clone())
@@ -152,26 +147,11 @@ impl KinematicRobot {
 }
 
 impl Stepped for KinematicRobot {
-    fn dof(&self) -> usize {
-        self.model.chain.dof()
-    }
-    fn time_step(&self) -> f64 {
-        self.dt
-    }
-    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
-        Ok(self.q.clone())
-    }
-    fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, RobotError> {
-        Ok(self.model.chain.fk(&self.q)?)
-    }
     fn time(&mut self) -> Result<f64, RobotError> {
         Ok(self.time)
     }
     fn command_joint_positions(&mut self, q: &[f64]) -> Result<(), RobotError> {
         Ok(KinematicRobot::command_joint_positions(self, q)?)
-    }
-    fn command_joint_velocities(&mut self, dq: &[f64]) -> Result<(), RobotError> {
-        Ok(KinematicRobot::command_joint_velocities(self, dq)?)
     }
     fn step(&mut self) -> Result<(), RobotError> {
         Ok(KinematicRobot::step(self)?)
@@ -214,10 +194,6 @@ impl Robot for KinematicRobot {
 }
 
 impl Streaming for KinematicRobot {
-    fn command_period(&self) -> f64 {
-        self.dt
-    }
-
     fn stream(
         &mut self,
         next: &mut Generator<'_>,

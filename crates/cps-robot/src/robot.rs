@@ -137,13 +137,12 @@ pub type Generator<'a> = dyn FnMut(&[f64], f64, &mut [f64]) -> bool + Send + 'a;
 /// robot lags). What cannot be checked before (the commands depend on the robot) is
 /// checked command by command by the robot's own loop: a command that would break a limit
 /// is not sent, and the robot brakes instead. [`crate::Guarded::stream`] checks the
-/// movement's nominal plan first.
-pub trait Streaming {
-    /// The command period (s).
-    fn command_period(&self) -> f64;
-    /// Runs `next` every command period from where the robot holds its position, at most
-    /// `max_commands` times (then the robot brakes: the run is [`crate::Ending::Failed`]).
-    /// `stop` brakes it. One entry per command period.
+/// movement's nominal plan first. The command period is the robot's
+/// [`Robot::command_period`].
+pub trait Streaming: Robot {
+    /// Runs `next` every [command period](Robot::command_period) from where the robot
+    /// holds its position, at most `max_commands` times (then the robot brakes: the run is
+    /// [`crate::Ending::Failed`]). `stop` brakes it. One entry per command period.
     fn stream(
         &mut self,
         next: &mut Generator<'_>,
@@ -152,47 +151,54 @@ pub trait Streaming {
     ) -> Result<Run, RobotError>;
 }
 
-/// A robot that is stepped one control period at a time (the in-process stand-in,
-/// CoppeliaSim): commands take effect at the next [`Stepped::step`]. cps's closed-loop
-/// controller ([`crate::execute`]) runs on it; its commands keep the limits themselves
-/// (`control_step`).
-pub trait Stepped {
-    /// Number of joints.
-    fn dof(&self) -> usize;
-    /// The control period (s).
-    fn time_step(&self) -> f64;
-    /// Measured joint positions (rad).
-    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError>;
-    /// The measured world pose of the tool point.
-    fn tool_pose(&mut self) -> Result<IsometryMatrix3<f64>, RobotError>;
+/// How cps's closed-loop executor ([`crate::execute`]) drives a [`Stepped`] robot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Stepping {
+    /// cps's controller commands joint positions, one step at a time (the in-process
+    /// robot, a scene without cps's script).
+    #[default]
+    Joints,
+    /// The robot moves its joints itself to follow a commanded tool target
+    /// ([`Stepped::command_target`]), as CoppeliaSim's IK follows `/Panda_target`: the
+    /// executor commands targets instead of running cps's controller. `plans`: whether it
+    /// also runs whole plans cheaply (a scene with cps's script), for [`Robot::run`].
+    Targets {
+        /// It runs whole plans cheaply too.
+        plans: bool,
+    },
+    /// Whole plans are cheaper than steps (a simulator running cps's scene script: a few
+    /// exchanges a plan instead of several a step), or truer (an arm with dynamics runs in
+    /// time, and iterating a sample until a lagging arm reaches it would stretch the
+    /// movement): the executor plans the controller's commands on the model and runs them
+    /// as one plan.
+    Plans,
+}
+
+/// A robot that is stepped one period at a time (the in-process robot, CoppeliaSim, the
+/// dynamics robot): commands take effect at the next [`Stepped::step`], which advances
+/// [`Robot::dt`]. What it measures (joints, tool) and its period are the [`Robot`]'s;
+/// stepping adds a clock, commands and the step. cps's closed-loop controller
+/// ([`crate::execute`]) runs on it, and a [guarded](crate::Guarded) robot judges each
+/// command as a plan's.
+pub trait Stepped: Robot {
     /// The robot's clock (s).
     fn time(&mut self) -> Result<f64, RobotError>;
     /// Commands joint positions, reached at the next step.
     fn command_joint_positions(&mut self, q: &[f64]) -> Result<(), RobotError>;
-    /// Commands joint velocities (rad/s), held until the next command.
-    fn command_joint_velocities(&mut self, dq: &[f64]) -> Result<(), RobotError>;
-    /// Advances one control period.
+    /// Advances one period ([`Robot::dt`]).
     fn step(&mut self) -> Result<(), RobotError>;
-    /// True if the robot moves its joints itself to follow a commanded tool target
-    /// ([`Stepped::command_target`]), as CoppeliaSim's IK follows `/Panda_target`;
-    /// [`crate::execute`] then commands targets instead of running cps's controller.
-    fn follows_targets(&self) -> bool {
-        false
+    /// How the executor drives it. Default: [`Stepping::Joints`].
+    fn stepping(&self) -> Stepping {
+        Stepping::Joints
     }
-    /// Commands the tool target, followed from the next step on. Only for robots that
-    /// [follow targets](Stepped::follows_targets); the default refuses.
+    /// Commands the tool target, followed from the next step on. Only for robots whose
+    /// [`Stepped::stepping`] is [`Stepping::Targets`]; the default refuses.
     fn command_target(&mut self, target: &IkTarget) -> Result<(), RobotError> {
         let _ = target;
         Err(RobotError::Robot {
-            robot: "this robot".into(),
+            robot: self.name(),
             message: "it does not follow tool targets; command joint positions".into(),
         })
-    }
-    /// True if whole plans are cheaper than steps on this robot (a simulator running cps's
-    /// scene script: a few exchanges a plan instead of several a step); [`crate::execute`]
-    /// then plans the controller's commands on the model and runs them as one plan.
-    fn prefers_plans(&self) -> bool {
-        false
     }
 }
 
@@ -263,8 +269,8 @@ pub fn run_stepped(
     plan: &Plan,
     stop: &StopToken,
 ) -> Result<Run, RobotError> {
-    plan.check_dof(robot.dof())?;
-    let dt = robot.time_step();
+    plan.check_dof(robot.model().chain.dof())?;
+    let dt = robot.dt();
     let samples = plan.samples(dt);
     let mut run = Run::new(crate::Ending::Finished);
     let t0 = robot.time()?;
@@ -319,4 +325,12 @@ pub fn run_stepped(
 /// `k`'s time.
 pub fn step_of(plan: &Plan, k: usize, dt: f64, samples: usize) -> usize {
     ((plan.time(k) / dt).round() as usize).min(samples - 1)
+}
+
+impl Stepping {
+    /// Whether whole plans run cheaply on it ([`Stepping::Plans`], or targets with
+    /// `plans`): a learner that runs thousands of plans needs it.
+    pub fn runs_plans(self) -> bool {
+        matches!(self, Stepping::Plans | Stepping::Targets { plans: true })
+    }
 }

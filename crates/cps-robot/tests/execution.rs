@@ -5,8 +5,8 @@ use cps_kinematics::IkTarget;
 use cps_kinematics::KinematicsError;
 use cps_kinematics::robots::{PANDA_DQ_MAX, PANDA_Q_MAX, PANDA_Q_MIN, PandaTool, panda};
 use cps_robot::{
-    ExecutionConfig, KinematicRobot, Plan, Robot, RobotError, RobotModel, Run, Stepped, StopToken,
-    execute, run_stepped,
+    ExecutionConfig, KinematicRobot, Plan, Robot, RobotError, RobotModel, Run, Stepped, Stepping,
+    StopToken, execute, run_stepped,
 };
 use nalgebra::Vector3;
 
@@ -118,32 +118,17 @@ fn execution_tracks_a_circle_and_respects_limits_at_every_step() {
 struct Batched(KinematicRobot);
 
 impl Stepped for Batched {
-    fn dof(&self) -> usize {
-        Stepped::dof(&self.0)
-    }
-    fn time_step(&self) -> f64 {
-        Stepped::time_step(&self.0)
-    }
-    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
-        Stepped::joint_positions(&mut self.0)
-    }
-    fn tool_pose(&mut self) -> Result<nalgebra::IsometryMatrix3<f64>, RobotError> {
-        Stepped::tool_pose(&mut self.0)
-    }
     fn time(&mut self) -> Result<f64, RobotError> {
         Stepped::time(&mut self.0)
     }
     fn command_joint_positions(&mut self, q: &[f64]) -> Result<(), RobotError> {
         Stepped::command_joint_positions(&mut self.0, q)
     }
-    fn command_joint_velocities(&mut self, dq: &[f64]) -> Result<(), RobotError> {
-        Stepped::command_joint_velocities(&mut self.0, dq)
-    }
     fn step(&mut self) -> Result<(), RobotError> {
         Stepped::step(&mut self.0)
     }
-    fn prefers_plans(&self) -> bool {
-        true
+    fn stepping(&self) -> Stepping {
+        Stepping::Plans
     }
 }
 
@@ -222,26 +207,11 @@ struct Dying {
 }
 
 impl Stepped for Dying {
-    fn dof(&self) -> usize {
-        Stepped::dof(&self.robot)
-    }
-    fn time_step(&self) -> f64 {
-        Stepped::time_step(&self.robot)
-    }
-    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
-        Stepped::joint_positions(&mut self.robot)
-    }
-    fn tool_pose(&mut self) -> Result<nalgebra::IsometryMatrix3<f64>, RobotError> {
-        Stepped::tool_pose(&mut self.robot)
-    }
     fn time(&mut self) -> Result<f64, RobotError> {
         Stepped::time(&mut self.robot)
     }
     fn command_joint_positions(&mut self, q: &[f64]) -> Result<(), RobotError> {
         Stepped::command_joint_positions(&mut self.robot, q)
-    }
-    fn command_joint_velocities(&mut self, dq: &[f64]) -> Result<(), RobotError> {
-        Stepped::command_joint_velocities(&mut self.robot, dq)
     }
     fn step(&mut self) -> Result<(), RobotError> {
         if self.left == 0 {
@@ -252,6 +222,27 @@ impl Stepped for Dying {
         }
         self.left -= 1;
         Stepped::step(&mut self.robot)
+    }
+}
+
+impl Robot for Dying {
+    fn name(&self) -> String {
+        "the dying robot".into()
+    }
+    fn model(&self) -> &RobotModel {
+        Robot::model(&self.robot)
+    }
+    fn dt(&self) -> f64 {
+        Robot::dt(&self.robot)
+    }
+    fn joint_positions(&mut self) -> Result<Vec<f64>, RobotError> {
+        Robot::joint_positions(&mut self.robot)
+    }
+    fn tool_pose(&mut self) -> Result<nalgebra::IsometryMatrix3<f64>, RobotError> {
+        Robot::tool_pose(&mut self.robot)
+    }
+    fn run(&mut self, plan: &Plan, stop: &StopToken) -> Result<Run, RobotError> {
+        run_stepped(self, plan, stop)
     }
 }
 

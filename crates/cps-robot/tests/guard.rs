@@ -284,6 +284,4 @@ fn stepping_a_guarded_robot_judges_every_command() {
     assert!(moving);
     let e = stepped.step().unwrap_err().to_string();
     assert!(e.contains("not sent") && e.contains("acceleration"), "{e}");
-    // Velocities are not taken: they would go around the judgement.
-    assert!(stepped.command_joint_velocities(&[0.0; 7]).is_err());
 }

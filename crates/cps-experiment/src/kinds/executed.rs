@@ -160,7 +160,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     if let crate::robots::BackendChoice::Coppelia { robot_name, .. } = &robot.backend
         && let Some(i) = opened
             .iter_mut()
-            .position(|(_, b)| b.stepped().is_some_and(|s| !s.prefers_plans()))
+            .position(|(_, b)| b.stepped().is_some_and(|s| !s.stepping().runs_plans()))
     {
         let endpoint = &opened[i].0;
         return Err(ExperimentError::Message(format!(
