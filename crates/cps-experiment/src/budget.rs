@@ -114,7 +114,7 @@ pub fn estimate(exp: &Experiment) -> Estimate {
     let c = &exp.config;
     let dmp = &c.task.dmp;
     let samples = (dmp.tau / dmp.dt).round() + 1.0;
-    let dims = match (exp.kind, &exp.robot) {
+    let dims = match (exp.kind(), &exp.robot) {
         (Kind::ViapointJoint, Some(r)) => r.setup.chain.dof(),
         _ => c.task.start.len(),
     };
@@ -128,12 +128,12 @@ pub fn estimate(exp: &Experiment) -> Estimate {
     let mut multiplier = 1.0;
     let mut per_sample_extra = 0.0;
     let mut recordings = 0.0;
-    match exp.kind {
+    match exp.kind() {
         Kind::Scaling => {
-            multiplier = exp.scaling.as_ref().map_or(1, |s| s.compare.len()) as f64;
+            multiplier = exp.scaling().map_or(1, |s| s.compare.len()) as f64;
         }
         Kind::Imitation | Kind::Promp => {
-            if let Some(p) = &exp.imitation {
+            if let Some(p) = exp.imitation() {
                 multiplier = p.demonstrations as f64;
                 let robot_samples = exp.robot.as_ref().map_or(samples, |rb| match rb.backend {
                     crate::robots::BackendChoice::Kinematic { dt } => dmp.tau / dt + 1.0,
@@ -160,7 +160,7 @@ pub fn estimate(exp: &Experiment) -> Estimate {
             per_sample_extra = 300.0;
         }
         Kind::ViapointEnergy => {
-            let e = exp.energy.as_ref();
+            let e = exp.energy();
             per_sample_extra = e.map_or(10, |e| e.plant.substeps) as f64 * 25.0;
         }
         Kind::Viapoint | Kind::Contact => {}
@@ -171,12 +171,12 @@ pub fn estimate(exp: &Experiment) -> Estimate {
     // Evaluations of one search by `solver` with `g` generations (iterations): CMA-ES a
     // population each, Levenberg–Marquardt a Jacobian (n) and about two trial steps each;
     // the exact solver none (the effort task's least squares is its exact solve too).
-    let search = |solver: Solver| match (solver, exp.kind) {
+    let search = |solver: Solver| match (solver, exp.kind()) {
         (Solver::Exact, _) | (Solver::LeastSquares, Kind::ViapointEnergy) => 0.0,
         (Solver::LeastSquares, _) => (nf + 2.0) * g,
         (Solver::Cmaes, _) => lambda * g,
     };
-    let mut evaluations = match (exp.kind, exp.pose.as_ref()) {
+    let mut evaluations = match (exp.kind(), exp.pose()) {
         // Position and orientation, each by its own solver.
         (Kind::ViapointPose, Some(p)) => search(c.solver) + search(p.method),
         (Kind::Imitation | Kind::Promp | Kind::Viapoint | Kind::Scaling, _) => {
@@ -195,7 +195,7 @@ pub fn estimate(exp: &Experiment) -> Estimate {
         && c.evaluation != cps_learn::Evaluation::Rollout
         && c.task.obstacles.is_empty()
         && matches!(
-            exp.kind,
+            exp.kind(),
             Kind::Viapoint | Kind::Scaling | Kind::ViapointEnergy
         );
     let per_evaluation = if quadratic { 2.0 * nf * nf } else { rollout };
@@ -204,9 +204,10 @@ pub fn estimate(exp: &Experiment) -> Estimate {
     // Learning on the executions of the robot with dynamics: at most a Jacobian (n
     // executions) and two trial runs an iteration, each a control period's dynamics per
     // simulated period.
-    let executions = match (exp.joint, exp.robot.as_ref().map(|r| &r.backend)) {
+    let executions = match (exp.joint(), exp.robot.as_ref().map(|r| &r.backend)) {
         (Some(j), Some(crate::robots::BackendChoice::Dynamics(o)))
-            if exp.kind == Kind::ViapointJoint && j.learn_on == crate::plan::LearnOn::Execution =>
+            if exp.kind() == Kind::ViapointJoint
+                && j.learn_on == crate::plan::LearnOn::Execution =>
         {
             (nf + 2.0) * g * (dmp.tau / o.control_period) * OPERATIONS_PER_CONTROL_PERIOD
         }

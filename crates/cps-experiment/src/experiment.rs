@@ -439,20 +439,12 @@ pub fn parse(
     let mut plans = crate::plan::parse(&sections, &config)?;
     add_scene_obstacles(&file, path, kind, &mut plans, &mut config)?;
     let mut exp = Experiment {
-        kind,
+        plan: plans.plan,
         source: path.to_path_buf(),
         name,
         config,
         plots: file.output.plots,
         robot: plans.robot,
-        imitation: plans.imitation,
-        scaling: plans.scaling,
-        joint: plans.joint,
-        energy: plans.energy,
-        pose: plans.pose,
-        promp: plans.promp,
-        contact: plans.contact,
-        executed: plans.executed,
         export: plans.export,
         estimate: None,
     };
@@ -517,26 +509,21 @@ fn parse_contact(
             .map_or("contact".into(), |s| s.to_string_lossy().into_owned())
     });
     // What it needs: the recording (every tick, the loop's and the task's record).
-    let seconds = plans.contact.as_ref().map_or(60.0, |c| {
-        let p = &c.plan;
-        10.0 + p.search / p.speed + 3.0 * p.primitive.duration()
-    });
+    let seconds = match &plans.plan {
+        crate::plan::KindPlan::Contact(c) => {
+            let p = &c.plan;
+            10.0 + p.search / p.speed + 3.0 * p.primitive.duration()
+        }
+        _ => 60.0,
+    };
     let samples = seconds * 1000.0;
     Ok(Experiment {
-        kind: Kind::Contact,
+        plan: plans.plan,
         source: path.to_path_buf(),
         name,
         config,
         plots: file.output.plots,
         robot: plans.robot,
-        imitation: None,
-        scaling: None,
-        joint: None,
-        energy: None,
-        pose: None,
-        promp: None,
-        contact: plans.contact,
-        executed: None,
         export: None,
         estimate: Some(crate::plan::Estimate {
             memory_bytes: samples * 600.0,

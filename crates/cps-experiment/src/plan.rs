@@ -21,12 +21,12 @@ pub use crate::sections::pose::{OrientationSection, PosePlan};
 pub use crate::sections::promp::{ProMpPlan, ProMpSection, ProMpVia};
 pub use crate::sections::scaling::{ScalingPlan, ScalingSection};
 
-/// A parsed and validated experiment of one kind (`kind`), with the plan of its kind's
-/// own sections.
+/// A parsed and validated experiment: its kind with that kind's own plan ([`KindPlan`]),
+/// the learner's configuration, the robot and what the run needs.
 #[derive(Debug, Clone)]
 pub struct Experiment {
-    /// What the file runs.
-    pub kind: Kind,
+    /// What the file runs, with the plan of its kind's own sections.
+    pub plan: KindPlan,
     /// The file it was read from (names it in messages).
     pub source: std::path::PathBuf,
     /// Experiment name (file stem unless given).
@@ -37,26 +37,124 @@ pub struct Experiment {
     pub plots: bool,
     /// The robot and backend (`[robot]`), for kinds that execute.
     pub robot: Option<RobotChoice>,
-    /// The imitation pipeline's settings (`kind = "imitation"`).
-    pub imitation: Option<ImitationPlan>,
-    /// The parametrisations compared (`kind = "scaling"`).
-    pub scaling: Option<ScalingPlan>,
-    /// The limit penalties (`kind = "viapoint_joint"`).
-    pub joint: Option<JointPlan>,
-    /// The plant and the speed-up measurement (`kind = "viapoint_energy"`).
-    pub energy: Option<EnergyPlan>,
-    /// The orientation targets (`kind = "viapoint_pose"`).
-    pub pose: Option<PosePlan>,
-    /// The ProMP and its via point (`kind = "promp"`).
-    pub promp: Option<ProMpPlan>,
-    /// The executed cost's own weight (`kind = "viapoint_executed"`).
-    pub executed: Option<ExecutedPlan>,
-    /// The surface, the force profile and the controller (`kind = "contact"`).
-    pub contact: Option<crate::sections::contact::ContactSpec>,
     /// Retiming and export of the robot's movement (`[export]`, kinds with a robot).
     pub export: Option<crate::export::ExportPlan>,
     /// What the run needs (memory, work), estimated when the file was read.
     pub estimate: Option<Estimate>,
+}
+
+/// An experiment kind with the checked plan of its own sections: one variant per kind,
+/// so a kind's plan exists exactly when the file is of that kind. A new kind is a variant
+/// here, its [`Kind`] word, its sections' module in `sections/`, its run in `kinds/`.
+#[derive(Debug, Clone)]
+pub enum KindPlan {
+    /// Via-point learning (`kind = "viapoint"`): the learner's configuration is all.
+    Viapoint,
+    /// The imitation pipeline's settings (`kind = "imitation"`).
+    Imitation(ImitationPlan),
+    /// The parametrisations compared (`kind = "scaling"`).
+    Scaling(ScalingPlan),
+    /// The limit penalties (`kind = "viapoint_joint"`).
+    ViapointJoint(JointPlan),
+    /// The plant and its effort term (`kind = "viapoint_energy"`).
+    ViapointEnergy(EnergyPlan),
+    /// The orientation targets (`kind = "viapoint_pose"`).
+    ViapointPose(PosePlan),
+    /// The demonstrations imitated, and the ProMP and its via point (`kind = "promp"`).
+    Promp(ImitationPlan, ProMpPlan),
+    /// The executed cost's own weight (`kind = "viapoint_executed"`).
+    ViapointExecuted(ExecutedPlan),
+    /// The surface, the force profile and the controller (`kind = "contact"`; boxed: it
+    /// is the largest plan by far).
+    Contact(Box<crate::sections::contact::ContactSpec>),
+}
+
+impl KindPlan {
+    /// Its kind.
+    pub fn kind(&self) -> Kind {
+        match self {
+            KindPlan::Viapoint => Kind::Viapoint,
+            KindPlan::Imitation(_) => Kind::Imitation,
+            KindPlan::Scaling(_) => Kind::Scaling,
+            KindPlan::ViapointJoint(_) => Kind::ViapointJoint,
+            KindPlan::ViapointEnergy(_) => Kind::ViapointEnergy,
+            KindPlan::ViapointPose(_) => Kind::ViapointPose,
+            KindPlan::Promp(..) => Kind::Promp,
+            KindPlan::ViapointExecuted(_) => Kind::ViapointExecuted,
+            KindPlan::Contact(_) => Kind::Contact,
+        }
+    }
+}
+
+impl Experiment {
+    /// What the file runs.
+    pub fn kind(&self) -> Kind {
+        self.plan.kind()
+    }
+
+    /// The imitation pipeline's settings: the imitation and ProMP kinds'.
+    pub fn imitation(&self) -> Option<&ImitationPlan> {
+        match &self.plan {
+            KindPlan::Imitation(p) | KindPlan::Promp(p, _) => Some(p),
+            _ => None,
+        }
+    }
+
+    /// The parametrisations compared, for the scaling kind.
+    pub fn scaling(&self) -> Option<&ScalingPlan> {
+        match &self.plan {
+            KindPlan::Scaling(p) => Some(p),
+            _ => None,
+        }
+    }
+
+    /// The limit penalties, for the joint kind.
+    pub fn joint(&self) -> Option<JointPlan> {
+        match &self.plan {
+            KindPlan::ViapointJoint(p) => Some(*p),
+            _ => None,
+        }
+    }
+
+    /// The plant, for the energy kind.
+    pub fn energy(&self) -> Option<&EnergyPlan> {
+        match &self.plan {
+            KindPlan::ViapointEnergy(p) => Some(p),
+            _ => None,
+        }
+    }
+
+    /// The orientation targets, for the pose kind.
+    pub fn pose(&self) -> Option<&PosePlan> {
+        match &self.plan {
+            KindPlan::ViapointPose(p) => Some(p),
+            _ => None,
+        }
+    }
+
+    /// The ProMP and its via point, for the ProMP kind.
+    pub fn promp(&self) -> Option<&ProMpPlan> {
+        match &self.plan {
+            KindPlan::Promp(_, p) => Some(p),
+            _ => None,
+        }
+    }
+
+    /// The executed cost's weight, for the executed kind.
+    pub fn executed(&self) -> Option<&ExecutedPlan> {
+        match &self.plan {
+            KindPlan::ViapointExecuted(p) => Some(p),
+            _ => None,
+        }
+    }
+
+    /// The contact task, for the contact kind.
+    pub fn contact(&self) -> Option<&crate::sections::contact::ContactSpec> {
+        match &self.plan {
+            KindPlan::Contact(p) => Some(p),
+            _ => None,
+        }
+    }
 }
 
 /// What a run would need (computed by [`crate::budget`]).
@@ -81,15 +179,8 @@ pub struct Estimate {
 /// The parsed plans of [`parse`].
 pub(crate) struct Plans {
     pub robot: Option<RobotChoice>,
-    pub imitation: Option<ImitationPlan>,
-    pub scaling: Option<ScalingPlan>,
-    pub joint: Option<JointPlan>,
-    pub energy: Option<EnergyPlan>,
-    pub pose: Option<PosePlan>,
-    pub promp: Option<ProMpPlan>,
-    pub executed: Option<ExecutedPlan>,
+    pub plan: KindPlan,
     pub export: Option<crate::export::ExportPlan>,
-    pub contact: Option<crate::sections::contact::ContactSpec>,
 }
 
 /// Checks that each section belongs to the kind and parses them.
@@ -204,62 +295,46 @@ pub(crate) fn parse(file: &Sections<'_>, learner: &ViaPointConfig) -> Result<Pla
             "kind = \"contact\" drives a Franka in torque mode: give [robot] backend = \"franka\" with its host".into(),
         ));
     }
-    let imitation = if matches!(file.kind, Kind::Imitation | Kind::Promp) {
-        Some(file.imitation_plan(learner)?)
-    } else {
-        None
-    };
-    let promp = if file.kind == Kind::Promp {
-        Some(file.promp_plan(learner.task.dmp.tau, imitation.as_ref())?)
-    } else {
-        None
-    };
-    let scaling = if file.kind == Kind::Scaling {
-        Some(file.scaling_plan()?)
-    } else {
-        None
-    };
-    let joint = if file.kind == Kind::ViapointJoint {
-        let dynamics = matches!(
-            robot.as_ref().map(|r| &r.backend),
-            Some(BackendChoice::Dynamics(_))
-        );
-        Some(file.joint_plan(dynamics)?)
-    } else {
-        None
-    };
-    let energy = if file.kind == Kind::ViapointEnergy {
-        Some(file.energy_plan(learner)?)
-    } else {
-        None
-    };
-    let pose = match (file.kind, file.orientation) {
-        (Kind::ViapointPose, Some(o)) => Some(file.pose_plan(o, learner)?),
-        (Kind::ViapointPose, None) => {
-            return Err(InputError(format!(
-                "{}: kind = \"viapoint_pose\" needs an [orientation] section (start, goal, one orientation per via point)",
-                file.path.display()
-            )));
+    if let Some(o) = file.orientation
+        && file.kind != Kind::ViapointPose
+    {
+        return Err(only(o.span(), "orientation", "kind = \"viapoint_pose\""));
+    }
+    let plan = match file.kind {
+        Kind::Viapoint => KindPlan::Viapoint,
+        Kind::Imitation => KindPlan::Imitation(file.imitation_plan(learner)?),
+        Kind::Promp => {
+            let imitation = file.imitation_plan(learner)?;
+            let promp = file.promp_plan(learner.task.dmp.tau, Some(&imitation))?;
+            KindPlan::Promp(imitation, promp)
         }
-        (_, Some(o)) => return Err(only(o.span(), "orientation", "kind = \"viapoint_pose\"")),
-        _ => None,
-    };
-    let executed = if file.kind == Kind::ViapointExecuted {
-        Some(file.executed_plan(learner)?)
-    } else {
-        None
+        Kind::Scaling => KindPlan::Scaling(file.scaling_plan()?),
+        Kind::ViapointJoint => {
+            let dynamics = matches!(
+                robot.as_ref().map(|r| &r.backend),
+                Some(BackendChoice::Dynamics(_))
+            );
+            KindPlan::ViapointJoint(file.joint_plan(dynamics)?)
+        }
+        Kind::ViapointEnergy => KindPlan::ViapointEnergy(file.energy_plan(learner)?),
+        Kind::ViapointPose => match file.orientation {
+            Some(o) => KindPlan::ViapointPose(file.pose_plan(o, learner)?),
+            None => {
+                return Err(InputError(format!(
+                    "{}: kind = \"viapoint_pose\" needs an [orientation] section (start, goal, one orientation per via point)",
+                    file.path.display()
+                )));
+            }
+        },
+        Kind::ViapointExecuted => KindPlan::ViapointExecuted(file.executed_plan(learner)?),
+        Kind::Contact => KindPlan::Contact(Box::new(
+            contact.expect("a contact file has its plan (above)"),
+        )),
     };
     Ok(Plans {
         robot,
-        imitation,
-        scaling,
-        joint,
-        energy,
-        pose,
-        promp,
-        executed,
+        plan,
         export,
-        contact,
     })
 }
 
@@ -267,14 +342,14 @@ impl Experiment {
     /// The plan in words, for `check`: what is learned, by which search with what budget,
     /// and where it is executed.
     pub fn describe(&self) -> Vec<String> {
-        if let Some(c) = &self.contact {
+        if let Some(c) = self.contact() {
             return c.describe(self.robot.as_ref().map(|r| r.describe()));
         }
         let c = &self.config;
         let task = &c.task;
         let bases = task.dmp.n_basis;
         let via = task.via.len();
-        let (dims, what) = match (self.kind, &self.robot) {
+        let (dims, what) = match (self.kind(), &self.robot) {
             (Kind::ViapointJoint, Some(r)) => (r.setup.chain.dof(), "joint DMPs"),
             _ => (task.start.len(), "position DMPs"),
         };
@@ -283,7 +358,7 @@ impl Experiment {
             dims * bases,
             task.dmp.tau
         );
-        if self.kind == Kind::ViapointPose {
+        if self.kind() == Kind::ViapointPose {
             learns.push_str(&format!(
                 ", and 1 orientation DMP × {bases} (3 × {bases} weights)"
             ));
@@ -294,7 +369,7 @@ impl Experiment {
         let cmaes = |generations: u64, repetitions: usize| {
             format!(
                 "CMA-ES{}, population {population}, up to {generations} generations × {repetitions} repetition(s){}",
-                if self.kind == Kind::Scaling {
+                if self.kind() == Kind::Scaling {
                     String::new()
                 } else {
                     format!(" in the {} search space", c.parametrisation.name())
@@ -306,11 +381,11 @@ impl Experiment {
                 }
             )
         };
-        let search = match (self.kind, c.solver) {
+        let search = match (self.kind(), c.solver) {
             (Kind::Imitation | Kind::Promp, _)
-                if self.imitation.as_ref().is_some_and(|p| !p.takes.is_empty()) =>
+                if self.imitation().is_some_and(|p| !p.takes.is_empty()) =>
             {
-                let p = self.imitation.as_ref();
+                let p = self.imitation();
                 let takes = p.map_or(Vec::new(), |p| {
                     p.takes.iter().map(|t| t.name.clone()).collect::<Vec<_>>()
                 });
@@ -320,7 +395,7 @@ impl Experiment {
                     takes.join(", "),
                     p.map_or(0, |p| p.dmp.n_basis),
                     p.map_or(0.0, |p| p.dmp.tau)
-                ) + &self.promp.as_ref().map_or(String::new(), |p| {
+                ) + &self.promp().map_or(String::new(), |p| {
                     format!(
                         "; then a ProMP of the executed demonstrations ({} basis functions per axis) conditioned on {:?} m at {} s, its mean executed",
                         p.bases, p.position, p.time
@@ -328,7 +403,7 @@ impl Experiment {
                 })
             }
             (Kind::Imitation | Kind::Promp, solver) => {
-                let p = self.imitation.as_ref();
+                let p = self.imitation();
                 format!(
                     "{} demonstrations (via points moved by N(0, {}²) m), each learned by {}; their mean imitated by ridge and jerk-regularised ridge with {} basis functions",
                     p.map_or(0, |p| p.demonstrations),
@@ -339,7 +414,7 @@ impl Experiment {
                         cps_learn::Solver::Cmaes => cmaes(c.generations, 1),
                     },
                     p.map_or(0, |p| p.dmp.n_basis)
-                ) + &self.promp.as_ref().map_or(String::new(), |p| {
+                ) + &self.promp().map_or(String::new(), |p| {
                     format!(
                         "; then a ProMP of the executed demonstrations ({} basis functions per axis) conditioned on {:?} m at {} s, its mean executed",
                         p.bases, p.position, p.time
@@ -350,7 +425,7 @@ impl Experiment {
                 "the exact least-squares optimum (no search)".to_string()
             }
             (Kind::Scaling, _) => {
-                let arms = self.scaling.as_ref().map_or(Vec::new(), |s| {
+                let arms = self.scaling().map_or(Vec::new(), |s| {
                     s.compare.iter().map(|p| p.name()).collect::<Vec<_>>()
                 });
                 format!(
@@ -382,7 +457,7 @@ impl Experiment {
                     ),
                     cps_learn::Solver::Cmaes => cmaes(c.generations, c.repetitions),
                 };
-                match self.joint.map(|j| j.learn_on) {
+                match self.joint().map(|j| j.learn_on) {
                     Some(LearnOn::Execution) => format!(
                         "{model}; then on the executions: Levenberg–Marquardt, up to {} iterations, each candidate run on the robot with dynamics ({} s, a Jacobian of {} runs kept while its steps gain)",
                         c.generations,
@@ -428,7 +503,7 @@ impl Experiment {
     /// estimate of memory and time.
     pub fn check_lines(&self, threads: usize) -> Result<Vec<String>, InputError> {
         // A contact task has no way points to reach: the search finds its surface.
-        let reach = if self.kind == Kind::Contact {
+        let reach = if self.kind() == Kind::Contact {
             None
         } else {
             self.check_reach()?
@@ -436,12 +511,12 @@ impl Experiment {
         let mut lines = vec![format!(
             "{}: ok (kind {})",
             self.source.display(),
-            self.kind.name()
+            self.kind().name()
         )];
         for line in self.describe().into_iter().chain(reach) {
             lines.push(format!("  {line}"));
         }
-        if let (Some(c), Some(e)) = (&self.contact, &self.estimate) {
+        if let (Some(c), Some(e)) = (self.contact(), &self.estimate) {
             // A contact task runs in the robot's time, not the machine's.
             lines.push(format!(
                 "  runs ≈ {:.0} s on the robot (longer while the force lags its profile), recording ≈ {}",

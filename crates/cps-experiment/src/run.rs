@@ -8,7 +8,7 @@ use std::time::Instant;
 use crate::kinds::{self, Ctx};
 use crate::observer::Observer;
 use crate::outcome::Outcome;
-use crate::plan::{Experiment, Kind};
+use crate::plan::{Experiment, Kind, KindPlan};
 use crate::{ExperimentError, InputError};
 
 /// How to run (what does not change the results).
@@ -63,12 +63,12 @@ pub fn run_into(
 /// reports stages.
 pub fn planned_generations(exp: &Experiment) -> u64 {
     let config = &exp.config;
-    match exp.kind {
+    match exp.kind() {
         Kind::Viapoint => config.generations * config.repetitions as u64,
         Kind::Scaling => {
             config.generations
                 * config.repetitions as u64
-                * exp.scaling.as_ref().map_or(1, |s| s.compare.len() as u64)
+                * exp.scaling().map_or(1, |s| s.compare.len() as u64)
         }
         Kind::Imitation | Kind::Promp => 0,
         Kind::ViapointJoint => config.generations,
@@ -103,20 +103,20 @@ pub fn run(
     })?;
     let ctx = Ctx::new(exp, &pool, observer, &options.stop, started);
     observer.started(planned_generations(exp));
-    let mut outcome = match exp.kind {
-        Kind::Viapoint => kinds::viapoint::run(&ctx),
-        Kind::Imitation => kinds::imitation::run(&ctx),
-        Kind::Promp => kinds::promp::run(&ctx),
-        Kind::Scaling => kinds::scaling::run(&ctx),
-        Kind::ViapointJoint => kinds::joint::run(&ctx),
-        Kind::ViapointEnergy => kinds::energy::run(&ctx),
-        Kind::ViapointPose => kinds::pose::run(&ctx),
-        Kind::ViapointExecuted => kinds::executed::run(&ctx),
-        Kind::Contact => kinds::contact::run(&ctx),
+    let mut outcome = match &exp.plan {
+        KindPlan::Viapoint => kinds::viapoint::run(&ctx),
+        KindPlan::Imitation(_) => kinds::imitation::run(&ctx),
+        KindPlan::Promp(_, plan) => kinds::promp::run(&ctx, plan),
+        KindPlan::Scaling(plan) => kinds::scaling::run(&ctx, plan),
+        KindPlan::ViapointJoint(plan) => kinds::joint::run(&ctx, *plan),
+        KindPlan::ViapointEnergy(plan) => kinds::energy::run(&ctx, plan),
+        KindPlan::ViapointPose(plan) => kinds::pose::run(&ctx, plan),
+        KindPlan::ViapointExecuted(plan) => kinds::executed::run(&ctx, plan),
+        KindPlan::Contact(spec) => kinds::contact::run(&ctx, spec),
     }?;
     // Every report also lists the task, the settings and the cost breakdowns (a contact
     // experiment learns no via points: its report has its own).
-    if exp.kind != Kind::Contact {
+    if exp.kind() != Kind::Contact {
         let shared = kinds::shared_report_tables(exp, &outcome.summary);
         outcome.report.tables.extend(shared);
     }

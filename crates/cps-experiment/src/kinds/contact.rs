@@ -40,12 +40,11 @@ struct Summary {
 }
 
 /// Runs the contact task on the experiment's Franka.
-pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
+pub(crate) fn run(
+    ctx: &Ctx<'_>,
+    spec: &crate::sections::contact::ContactSpec,
+) -> Result<Outcome, ExperimentError> {
     let exp = ctx.exp;
-    let spec = exp
-        .contact
-        .as_ref()
-        .ok_or_else(|| ExperimentError::Message("a contact experiment has its [contact]".into()))?;
     let Some(BackendChoice::Franka {
         host,
         arm,

@@ -39,11 +39,11 @@ struct Summary<'a> {
 }
 
 /// Learns with the plant and declares the outcome.
-pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
+pub(crate) fn run(
+    ctx: &Ctx<'_>,
+    plan: &crate::plan::EnergyPlan,
+) -> Result<Outcome, ExperimentError> {
     let exp = ctx.exp;
-    let plan = exp
-        .energy
-        .ok_or_else(|| ExperimentError::Message("an effort experiment has its plant".into()))?;
     let config = EffortConfig {
         learner: exp.config.clone(),
         plant: plan.plant,

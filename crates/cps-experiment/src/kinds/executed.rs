@@ -124,20 +124,17 @@ struct Simulators<'a> {
 }
 
 /// Learns on the executed cost and declares the outcome.
-pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
+pub(crate) fn run(
+    ctx: &Ctx<'_>,
+    plan: &crate::plan::ExecutedPlan,
+) -> Result<Outcome, ExperimentError> {
     let exp = ctx.exp;
     let config = &exp.config;
     let task = &config.task;
     let robot = exp.robot.as_ref().ok_or_else(|| {
         ExperimentError::Message("an executed-cost experiment has a robot".into())
     })?;
-    let weights = exp.executed.map_or(
-        cps_learn::ExecutedWeights {
-            tracking: 1e5,
-            speed_usage: 0.0,
-        },
-        |p| p.weights,
-    );
+    let weights = plan.weights;
     let dmp = task.build_dmp().map_err(|e| learn_error(e, "DMP"))?;
     let space = SearchSpace::new(config.parametrisation, &dmp);
     let optimum = ctx

@@ -132,7 +132,7 @@ pub(crate) fn pipeline(ctx: &Ctx<'_>) -> Result<Pipeline, ExperimentError> {
         .robot
         .as_ref()
         .ok_or_else(|| ExperimentError::Message("an imitation experiment has a robot".into()))?;
-    let plan = exp.imitation.as_ref().ok_or_else(|| {
+    let plan = exp.imitation().ok_or_else(|| {
         ExperimentError::Message("an imitation experiment has its settings".into())
     })?;
     let mut config = ImitationConfig::thesis(exp.config.clone(), robot.setup.clone());

@@ -181,15 +181,12 @@ fn execution_summary(
 }
 
 /// Learns in joint space, executes the result and declares the outcome.
-pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
+pub(crate) fn run(ctx: &Ctx<'_>, plan: crate::plan::JointPlan) -> Result<Outcome, ExperimentError> {
     let exp = ctx.exp;
     let robot = exp
         .robot
         .as_ref()
         .ok_or_else(|| ExperimentError::Message("a joint-space experiment has a robot".into()))?;
-    let plan = exp.joint.ok_or_else(|| {
-        ExperimentError::Message("a joint-space experiment has its limit weights".into())
-    })?;
     let mut config = JointSpaceConfig::new(exp.config.clone(), robot.setup.clone());
     config.limit_weight = plan.limit_weight;
     config.speed_limit_weight = plan.speed_limit_weight;

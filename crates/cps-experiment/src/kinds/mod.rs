@@ -70,7 +70,7 @@ impl<'a> Ctx<'a> {
     pub fn header(&self, complete: bool) -> RunHeader {
         RunHeader {
             experiment: self.exp.name.clone(),
-            kind: self.exp.kind.name(),
+            kind: self.exp.kind().name(),
             complete,
             seed: self.exp.config.seed,
             versions: Versions {

@@ -108,12 +108,8 @@ fn execute_pose(
 }
 
 /// Learns position and orientation and declares the outcome.
-pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
+pub(crate) fn run(ctx: &Ctx<'_>, plan: &crate::plan::PosePlan) -> Result<Outcome, ExperimentError> {
     let exp = ctx.exp;
-    let plan = exp
-        .pose
-        .as_ref()
-        .ok_or_else(|| ExperimentError::Message("a pose experiment has its orientations".into()))?;
     let config = PoseConfig {
         learner: exp.config.clone(),
         start_orientation: plan.start,

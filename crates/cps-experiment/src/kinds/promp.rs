@@ -56,12 +56,11 @@ struct Executed {
 const AXES: [&str; 3] = ["x", "y", "z"];
 
 /// Runs the pipeline, then the ProMP stage, and declares both.
-pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
+pub(crate) fn run(
+    ctx: &Ctx<'_>,
+    plan: &crate::plan::ProMpPlan,
+) -> Result<Outcome, ExperimentError> {
     let exp = ctx.exp;
-    let plan = exp
-        .promp
-        .as_ref()
-        .ok_or_else(|| ExperimentError::Message("a ProMP experiment has its settings".into()))?;
     let mut run = pipeline(ctx)?;
     let mut outcome = declare(ctx, &run)?;
     let raw: Vec<(Vec<f64>, Vec<Vec<f64>>)> = run

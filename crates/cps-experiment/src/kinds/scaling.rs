@@ -61,12 +61,11 @@ struct ArmSummary {
 }
 
 /// Runs every arm (the same seeds for each) and declares the outcome.
-pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
+pub(crate) fn run(
+    ctx: &Ctx<'_>,
+    plan: &crate::plan::ScalingPlan,
+) -> Result<Outcome, ExperimentError> {
     let exp = ctx.exp;
-    let plan = exp
-        .scaling
-        .as_ref()
-        .ok_or_else(|| ExperimentError::Message("a scaling experiment has its arms".into()))?;
     let mut arms = Vec::new();
     for (i, &p) in plan.compare.iter().enumerate() {
         let mut config = exp.config.clone();
