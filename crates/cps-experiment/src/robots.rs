@@ -2,7 +2,7 @@
 //! ([`crate::sections::robot`]) opened behind the guard of cps's execution contract
 //! (`cps-robot`) — the in-process robot, the robot with dynamics, CoppeliaSim, a Franka
 //! or a ROS 2 controller, one or a pool. Adding a backend is one [`BackendChoice`] variant with its keys (in
-//! `sections/robot.rs`) and its opening in [`RobotChoice::open`] here; the kinds need no
+//! `sections/robot/`) and its opening in [`RobotChoice::open`] here; the kinds need no
 //! change.
 
 use cps_coppelia::{Client, ClientConfig, FrankaScene};
