@@ -3,8 +3,7 @@
 //! `[contact]` sections named with their place in the file.
 
 mod common;
-#[path = "../../cps-franka/tests/common/mod.rs"]
-mod sim;
+use cps_testkit::franky_sim as sim;
 
 use common::{run_quiet as run, write};
 use sim::{FrankySim, SimOptions};

@@ -4,8 +4,7 @@
 //! FR3 behind the real protocol); bad robot sections named with their place.
 
 mod common;
-#[path = "../../cps-franka/tests/common/mod.rs"]
-mod sim;
+use cps_testkit::franky_sim as sim;
 
 use common::{csv_columns, json, repo, run_quiet as run, write};
 

@@ -4,8 +4,7 @@
 //! imitated and replayed.
 
 mod common;
-#[path = "../../cps-franka/tests/common/mod.rs"]
-mod sim;
+use cps_testkit::franky_sim as sim;
 
 use std::path::Path;
 use std::process::{Command, Output};

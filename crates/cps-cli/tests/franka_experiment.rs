@@ -3,8 +3,7 @@
 //! FR3's range refused before the robot moves; bad robot sections named.
 
 mod common;
-#[path = "../../cps-franka/tests/common/mod.rs"]
-mod sim;
+use cps_testkit::franky_sim as sim;
 
 use common::{cli, json, run_quiet as run, write};
 use sim::FrankySim;

@@ -3,8 +3,7 @@
 //! test's own; and the refusals that happen before anything reaches the graph.
 
 mod common;
-#[path = "../../cps-ros2/tests/common/mod.rs"]
-mod graph;
+use cps_testkit::ros2_graph as graph;
 
 use std::process::{Command, Stdio};
 

@@ -3,8 +3,7 @@
 //! (tests/peer.py) on one graph, in a network namespace of the test's own.
 
 mod common;
-#[path = "../../cps-ros2/tests/common/mod.rs"]
-mod graph;
+use cps_testkit::ros2_graph as graph;
 
 use common::cli;
 use serde_json::Value;

@@ -5,8 +5,7 @@
 //!
 //! Loopback addresses: 127.0.0.84–88.
 
-#[path = "../../cps-franka/tests/common/mod.rs"]
-mod sim;
+use cps_testkit::franky_sim as sim;
 
 use std::sync::atomic::AtomicBool;
 

@@ -9,10 +9,8 @@
 //! The whole test runs in a network namespace of its own (DDS discovery never leaves it);
 //! franky-sim listens on 127.0.0.91 inside it.
 
-#[path = "../../cps-ros2/tests/common/mod.rs"]
-mod graph;
-#[path = "../../cps-franka/tests/common/mod.rs"]
-mod sim;
+use cps_testkit::franky_sim as sim;
+use cps_testkit::ros2_graph as graph;
 
 use std::time::Duration;
 

@@ -7,7 +7,7 @@
 //! Loopback addresses: 127.0.0.75, .79, .80.
 #![allow(clippy::needless_range_loop)]
 
-mod common;
+use cps_testkit::franky_sim as common;
 
 use std::sync::atomic::AtomicBool;
 

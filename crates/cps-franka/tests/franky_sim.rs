@@ -5,7 +5,7 @@
 // Joint-indexed arrays (commands, states, limits) are read side by side.
 #![allow(clippy::needless_range_loop)]
 
-mod common;
+use cps_testkit::franky_sim as common;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;

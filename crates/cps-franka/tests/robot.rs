@@ -4,7 +4,7 @@
 //! point, a sequence too sharp for the arm slowed by the guard. (Moved here from
 //! cps-experiment's `FrankaBackend` tests with the code.)
 
-mod common;
+use cps_testkit::franky_sim as common;
 
 use common::FrankySim;
 use cps_franka::limits::Arm;

@@ -3,7 +3,7 @@
 //! rejects, aborts and sees a cancel, markers, and no peer at all. Each test runs in a
 //! network namespace of its own (tests/common).
 
-mod common;
+use cps_testkit::ros2_graph as common;
 mod support;
 
 use std::sync::atomic::{AtomicBool, Ordering};

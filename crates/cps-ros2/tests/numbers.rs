@@ -9,7 +9,7 @@
 //! Each runs in a network namespace of its own (tests/common), against the test peers
 //! (tests/rclpy_peer.py, tests/peer.py).
 
-mod common;
+use cps_testkit::ros2_graph as common;
 mod support;
 
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -2,7 +2,7 @@
 //! `rmw_fastrtps_cpp`, ROS 2's default middleware (tests/rclpy_peer.py). Each test runs
 //! in a network namespace of its own (tests/common).
 
-mod common;
+use cps_testkit::ros2_graph as common;
 mod support;
 
 use std::time::{Duration, Instant};

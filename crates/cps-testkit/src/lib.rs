@@ -1,4 +1,6 @@
-//! Support for cps's own tests (a dev-dependency, never shipped).
+//! Support for cps's own tests (a dev-dependency, never shipped): [`skip`], how a test
+//! whose peer is missing says so; [`franky_sim`], franky-sim started for a test; and
+//! [`ros2_graph`], a test in a network namespace of its own with a DDS or ROS 2 peer.
 //!
 //! Many of cps's tests meet a real peer: franky-sim behind the Franka protocol, CycloneDDS
 //! and rclpy in a network namespace, MuJoCo, a headless Chromium, the official CoppeliaSim
@@ -25,6 +27,9 @@
 //! ```
 
 use std::io::Write;
+
+pub mod franky_sim;
+pub mod ros2_graph;
 
 /// The environment variable naming the file skips are recorded in.
 pub const SKIP_LOG: &str = "CPS_SKIP_LOG";

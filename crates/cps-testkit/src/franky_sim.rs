@@ -4,8 +4,6 @@
 //! workspace (what `.ci/run` creates: franky-sim and pylibfranka, pinned). Without it the
 //! tests skip with a sentence, except under CI, where they fail.
 
-#![allow(dead_code)]
-
 use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
@@ -20,6 +18,7 @@ fn workspace() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
+/// franky-sim's interpreter, or None (recorded as a skip; a failure under CI).
 pub fn python() -> Option<PathBuf> {
     let p = std::env::var_os("CPS_FRANKA_PYTHON")
         .map(PathBuf::from)
@@ -27,15 +26,18 @@ pub fn python() -> Option<PathBuf> {
     if p.exists() {
         return Some(p);
     }
-    cps_testkit::skip(&format!(
+    crate::skip(&format!(
         "no franky-sim and pylibfranka ({} missing)",
         p.display()
     ));
     None
 }
 
+/// A franky-sim server on its own loopback address, stopped when dropped; one at a time
+/// per test program.
 pub struct FrankySim {
     child: std::sync::Arc<Mutex<Child>>,
+    /// The address it serves on.
     pub host: String,
     /// The simulator's standard output, line by line (after `ready`).
     lines: Mutex<std::sync::mpsc::Receiver<String>>,

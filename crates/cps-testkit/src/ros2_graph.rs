@@ -11,8 +11,6 @@
 //! it, or without the right to make a namespace, a test skips with a sentence, except
 //! under CI, where it fails.
 
-#![allow(dead_code)]
-
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::PathBuf;
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
@@ -28,7 +26,7 @@ fn peer_script() -> PathBuf {
 }
 
 fn skip_or_fail(why: String) {
-    cps_testkit::skip(&why);
+    crate::skip(&why);
 }
 
 /// The interpreter with cyclonedds.
