@@ -328,38 +328,64 @@ impl FrankaScene {
         targets: &[Vec<f64>],
         stop: &StopToken,
     ) -> Result<(StepRecording, bool), RobotError> {
+        let (rec, outcome) = self.run_joint_targets_partly(targets, stop);
+        outcome.map(|stopped| (rec, stopped.is_some()))
+    }
+
+    /// [`FrankaScene::run_joint_targets_until`] that keeps what was recorded when it
+    /// fails: the recording, and how it ended — `Ok(None)` ran to the end, `Ok(Some(()))`
+    /// stopped, `Err` failed (the steps of a part the scene script was running when the
+    /// simulator went away are lost with it; those of the parts before are kept).
+    fn run_joint_targets_partly(
+        &mut self,
+        targets: &[Vec<f64>],
+        stop: &StopToken,
+    ) -> (StepRecording, Result<Option<()>, RobotError>) {
+        let mut rec = StepRecording::default();
         let dof = self.joints.len();
         if let Some(row) = targets.iter().find(|r| r.len() != dof) {
-            return Err(KinematicsError::JointCount {
+            let e = KinematicsError::JointCount {
                 expected: dof,
                 got: row.len(),
-            }
-            .into());
+            };
+            return (rec, Err(e.into()));
         }
-        let mut rec = StepRecording::default();
         let Some(script) = self.script else {
             for row in targets {
                 if stop.is_stopped() {
-                    return Ok((rec, true));
+                    return (rec, Ok(Some(())));
                 }
-                Stepped::command_joint_positions(self, row)?;
-                Stepped::step(self)?;
-                rec.q.push(self.read_joints()?);
-                rec.tool.push(self.read_tool()?);
-                rec.time.push(Stepped::time(self)?);
+                let step = (|| -> Result<(), RobotError> {
+                    Stepped::command_joint_positions(self, row)?;
+                    Stepped::step(self)?;
+                    let q = self.read_joints()?;
+                    let tool = self.read_tool()?;
+                    let t = Stepped::time(self)?;
+                    rec.q.push(q);
+                    rec.tool.push(tool);
+                    rec.time.push(t);
+                    Ok(())
+                })();
+                if let Err(e) = step {
+                    return (rec, Err(e));
+                }
             }
-            return Ok((rec, false));
+            return (rec, Ok(None));
         };
         for part in targets.chunks(executor::MAX_STEPS) {
-            let (r, stopped) = self.run_part(script, part, stop)?;
-            rec.time.extend(r.time);
-            rec.q.extend(r.q);
-            rec.tool.extend(r.tool);
-            if stopped {
-                return Ok((rec, true));
+            match self.run_part(script, part, stop) {
+                Ok((r, stopped)) => {
+                    rec.time.extend(r.time);
+                    rec.q.extend(r.q);
+                    rec.tool.extend(r.tool);
+                    if stopped {
+                        return (rec, Ok(Some(())));
+                    }
+                }
+                Err(e) => return (rec, Err(e)),
             }
         }
-        Ok((rec, false))
+        (rec, Ok(None))
     }
 
     /// Stops the simulation (CoppeliaSim restores the scene and resets its clock), sets
@@ -485,11 +511,23 @@ impl Robot for FrankaScene {
             run.push(0.0, first.0, first.1);
             return Ok(run);
         }
-        let (rec, stopped) = self.run_joint_targets_until(&samples[1..], stop)?;
-        let mut run = Run::new(if stopped {
-            Ending::Stopped
-        } else {
-            Ending::Finished
+        let moving = stop.moving(); // while the scene script runs the sequence
+        let (rec, outcome) = self.run_joint_targets_partly(&samples[1..], stop);
+        drop(moving);
+        // Once the scene script was sent the sequence, the robot may have moved: a failure
+        // then ends the run Failed with what was recorded (the start, and every part the
+        // script finished), not an error.
+        let (stopped, failed) = match outcome {
+            Ok(stopped) => (stopped.is_some(), None),
+            Err(e) => (false, Some(e.to_string())),
+        };
+        // A stop that came after the script's last step found the motion finished.
+        let stopped = stopped && rec.time.len() + 1 < samples.len();
+        let cut = stopped || failed.is_some();
+        let mut run = Run::new(match failed {
+            Some(why) => Ending::Failed(why),
+            None if stopped => Ending::Stopped,
+            None => Ending::Finished,
         });
         let at = |i: usize| -> (f64, Vec<f64>, IsometryMatrix3<f64>) {
             if i == 0 {
@@ -506,8 +544,8 @@ impl Robot for FrankaScene {
             } else {
                 cps_robot::step_of(plan, k, self.dt, samples.len())
             };
-            if stopped && i > rec.time.len() {
-                break; // not reached: the run was stopped before
+            if cut && i > rec.time.len() {
+                break; // not reached: the run was stopped or failed before
             }
             let (t, q, tool) = at(i.min(rec.time.len()));
             run.push(if exact { t } else { plan.time(k) }, q, tool);

@@ -12,8 +12,8 @@ use std::path::Path;
 
 use cps_franka::limits::{Arm, DT, RateLimits};
 use cps_franka::{
-    Connection, Ending, FrankaError, FrankaRobot, FrankaSettings, Gripper, GripperCommand,
-    LoopOptions, MotionReport, Realtime, RobotState, Sample, Timeouts,
+    Connection, FrankaError, FrankaRobot, FrankaSettings, Gripper, GripperCommand, LoopOptions,
+    MotionEnd, MotionReport, Realtime, RobotState, Sample, Timeouts,
 };
 use cps_kinematics::Quantity;
 use cps_robot::{
@@ -120,9 +120,10 @@ pub struct ExecuteSettings {
     pub realtime: Realtime,
 }
 
-/// A joint trajectory file made ready for a Franka: 1 kHz commands from t = 0.
+/// A joint trajectory file made ready for a Franka: 1 kHz commands from t = 0 (what
+/// [`execute`] streams through the guard, which makes its own [`cps_robot::Prepared`] plan).
 #[derive(Debug, Clone)]
-pub struct Prepared {
+pub struct FrankaCommands {
     /// Where the trajectory came from (its file), for messages.
     pub source: String,
     /// One command per millisecond.
@@ -134,7 +135,7 @@ pub struct Prepared {
 /// Reads a joint trajectory (`t`, then seven positions in rad) and makes it 1 kHz commands:
 /// retimed to the arm's limits (at [`RETIME_SHARE`]), or resampled by a cubic spline that
 /// starts and ends at rest, or taken as it is when it is sampled at 1 kHz.
-pub fn prepare(file: &Path, arm: Arm, retime: bool) -> Result<Prepared, ExperimentError> {
+pub fn prepare(file: &Path, arm: Arm, retime: bool) -> Result<FrankaCommands, ExperimentError> {
     let traj: JointTrajectory = read_joint_trajectory(file, 7)?;
     prepare_samples(&file.display().to_string(), &traj, arm, retime)
 }
@@ -146,7 +147,7 @@ pub fn prepare_samples(
     traj: &JointTrajectory,
     arm: Arm,
     retime: bool,
-) -> Result<Prepared, ExperimentError> {
+) -> Result<FrankaCommands, ExperimentError> {
     if traj.times.is_empty() || traj.q.len() != traj.times.len() {
         return Err(InputError(format!(
             "{name}: {} times for {} rows of positions",
@@ -216,7 +217,7 @@ pub fn prepare_samples(
         .iter()
         .map(|r| <[f64; 7]>::try_from(r.as_slice()).expect("seven joints"))
         .collect();
-    Ok(Prepared {
+    Ok(FrankaCommands {
         source: name.to_string(),
         commands,
         how,
@@ -299,7 +300,7 @@ fn refusal(source: &str, arm: Arm, e: RobotError) -> ExperimentError {
 /// recording. A check that fails returns an error and nothing is sent; once the motion
 /// started, every ending is an [`Executed`].
 pub fn execute(
-    prepared: &Prepared,
+    prepared: &FrankaCommands,
     settings: &ExecuteSettings,
     stop: &StopToken,
 ) -> Result<Executed, ExperimentError> {
@@ -905,10 +906,10 @@ pub fn execute_file(
 
 /// Why an execution's exit code is what it is: 0 finished, 130 stopped on request, 1
 /// otherwise.
-pub fn exit_code(ending: &Ending) -> u8 {
+pub fn exit_code(ending: &MotionEnd) -> u8 {
     match ending {
-        Ending::Finished => 0,
-        Ending::Stopped => 130,
+        MotionEnd::Finished => 0,
+        MotionEnd::Stopped => 130,
         _ => 1,
     }
 }

@@ -22,7 +22,7 @@ use cps_outcome::{ExperimentError, InputError};
 use cps_robot::{RobotModel, StopToken};
 use serde_json::json;
 
-use crate::franka::{ExecuteSettings, Prepared, execute, state, write_recording};
+use crate::franka::{ExecuteSettings, FrankaCommands, execute, state, write_recording};
 use crate::recording::{check_record_target, report_path};
 
 /// The control period of a Franka (s).
@@ -297,7 +297,7 @@ pub fn franka_identify(
         .chain(check.iter().skip(1))
         .map(|q| std::array::from_fn(|j| q[j]))
         .collect();
-    let prepared = Prepared {
+    let prepared = FrankaCommands {
         source: "the excitation".into(),
         commands,
         how: "chirps on every joint",

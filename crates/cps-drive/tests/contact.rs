@@ -15,7 +15,7 @@ use cps_drive::contact::{
 use cps_dynamics::Drive;
 use cps_franka::control::{CartesianGains, SensingOptions, robot_dynamics};
 use cps_franka::limits::{Arm, RateLimits};
-use cps_franka::{Connection, Ending, LoopOptions, Realtime};
+use cps_franka::{Connection, LoopOptions, MotionEnd, Realtime};
 use sim::{FrankySim, SimOptions, Truth};
 
 fn plan() -> ContactPlan {
@@ -263,7 +263,7 @@ fn the_simulator_killed_while_pressing_ends_lost_with_every_tick_kept() {
         return;
     };
     assert!(
-        matches!(out.report.ending, Ending::Lost(_)),
+        matches!(out.report.ending, MotionEnd::Lost(_)),
         "{}",
         out.report.ending.sentence()
     );

@@ -323,6 +323,7 @@ impl<const N: usize> Robot for DynamicsRobot<N> {
         self.rng = ChaCha8Rng::seed_from_u64(self.settings.seed);
         let motion = plan.motion(self.settings.control_period);
         let per_point = plan.dt() / self.settings.control_period;
+        let _moving = stop.moving(); // from the first tick to the last
         let mut run = Run::new(Ending::Finished);
         let points = plan.points().len();
         let mut next = 0;

@@ -1,10 +1,11 @@
-//! One plan, every robot: the same refused, stopped, slowed and approached plans run through
-//! the guard on each robot cps drives — the in-process robot, CoppeliaSim's stand-in server
-//! (through cps's scene script), a Franka (franky-sim: MuJoCo behind the real protocol), a
-//! ROS 2 controller (a CycloneDDS FollowJointTrajectory server) and the robot with dynamics
-//! (computed torque on the FR3's inertias) — and what each says and sends is compared: the
-//! same refusal in the same words, the same slowing, the same approach, the same plan
-//! sent.
+//! One plan, every robot: the same refused, stopped-before-moving, slowed, approached,
+//! stopped-mid-plan and failed-mid-plan plans run through the guard on each robot cps
+//! drives — the in-process robot, CoppeliaSim's stand-in server (through cps's scene
+//! script), a Franka (franky-sim: MuJoCo behind the real protocol), a ROS 2 controller (a
+//! CycloneDDS FollowJointTrajectory server) and the robot with dynamics (computed torque
+//! on the FR3's inertias) — and what each says, sends and records is compared: the same
+//! refusal in the same words, the same slowing, the same approach, the same plan sent, a
+//! stop or a failure mid-plan ending the run with its recording kept.
 //!
 //! The whole test runs in a network namespace of its own (DDS discovery never leaves it);
 //! franky-sim listens on 127.0.0.91 inside it.
@@ -35,7 +36,12 @@ fn model() -> RobotModel {
 
 /// Joint `j` swings by `amplitude` and back to rest in `seconds` from `q0`, every 10 ms.
 fn swing(q0: &[f64], j: usize, amplitude: f64, seconds: f64) -> Plan {
-    let n = (seconds / 0.01).round() as usize;
+    swing_every(q0, j, amplitude, seconds, 0.01)
+}
+
+/// [`swing`] with its points every `dt`.
+fn swing_every(q0: &[f64], j: usize, amplitude: f64, seconds: f64, dt: f64) -> Plan {
+    let n = (seconds / dt).round() as usize;
     let points = (0..=n)
         .map(|k| {
             let s = 0.5 - 0.5 * (std::f64::consts::TAU * k as f64 / n as f64).cos();
@@ -44,7 +50,7 @@ fn swing(q0: &[f64], j: usize, amplitude: f64, seconds: f64) -> Plan {
             q
         })
         .collect();
-    Plan::new(0.01, points).unwrap()
+    Plan::new(dt, points).unwrap()
 }
 
 /// A 0.05 rad step of joint 2 at 0.5 s, commanded every millisecond.
@@ -60,6 +66,9 @@ fn step(q0: &[f64]) -> Plan {
         .collect();
     Plan::new(1e-3, points).unwrap()
 }
+
+/// What ends a robot's far end (its server, its simulator).
+type Kill = Box<dyn FnOnce() + Send>;
 
 fn reason(e: RobotError) -> Refusal {
     match e {
@@ -132,7 +141,9 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
             dummies: vec![],
             dt: 0.001,
             ik_following: false,
-            step_cost: Duration::ZERO,
+            // A simulator 200 times faster than time (a zero cost runs a loaded sequence
+            // at once, before a stop can reach it).
+            step_cost: Duration::from_micros(5),
             script: true,
         },
     ))
@@ -306,15 +317,173 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
         approaches.iter().all(|(_, a)| (a - a0).abs() < 0.05),
         "{approaches:?}"
     );
+
+    // Stopped mid-plan: a slow 200 s swing of joint 1, stopped while it runs — after 1 s
+    // on the robots that run in real time (the Franka, the ROS 2 controller), halfway
+    // through its run on those that run faster than time (in process, the stand-in's
+    // script, dynamics).
+    // Every one ends Stopped with what it did recorded (times strictly increasing, no
+    // duplicate), moved and then stands still within its limits.
+    // Every robot stands where the approached plan ended.
+    let here = far.end().to_vec();
+    let long = swing_every(&here, 0, 0.2, 200.0, 0.05);
+    // The robot with dynamics integrates its arm every millisecond at about a quarter of
+    // real time here: it runs a 10 s swing, the others the 200 s one.
+    let short = swing_every(&here, 0, 0.2, 10.0, 0.05);
+    let mut stops = Vec::new();
+    for (name, r) in &mut robots {
+        let long = if *name == "dynamics" { &short } else { &long };
+        // A robot faster than time is stopped halfway through the time the whole plan
+        // takes it (run once first: the swing ends where it began), wherever it is.
+        let after = match *name {
+            "franka" | "ros2" => Duration::from_secs(1),
+            _ => {
+                // How long it moves: from when it says it moves to the run's end.
+                let token = StopToken::new();
+                let (whole, moved_for) = std::thread::scope(|s| {
+                    let watcher = token.clone();
+                    let seen = s.spawn(move || {
+                        let begun = std::time::Instant::now();
+                        while !watcher.is_moving() && begun.elapsed() < Duration::from_secs(30) {
+                            std::thread::sleep(Duration::from_micros(100));
+                        }
+                        std::time::Instant::now()
+                    });
+                    let whole = Guarded::new(&mut **r, Policy::STRICT).run(long, &token);
+                    let end = std::time::Instant::now();
+                    (whole, end - seen.join().unwrap())
+                });
+                let whole = whole.unwrap();
+                assert!(whole.ending.complete(), "{name}: {:?}", whole.ending);
+                moved_for / 2
+            }
+        };
+        let token = StopToken::new();
+        let run = std::thread::scope(|s| {
+            let watcher = token.clone();
+            s.spawn(move || {
+                let begun = std::time::Instant::now();
+                while !watcher.is_moving() && begun.elapsed() < Duration::from_secs(30) {
+                    std::thread::sleep(Duration::from_micros(200));
+                }
+                std::thread::sleep(after);
+                watcher.stop();
+            });
+            Guarded::new(&mut **r, Policy::STRICT).run(long, &token)
+        })
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(run.ending, cps_robot::Ending::Stopped, "{name}");
+        assert!(
+            run.len() > 1 && run.len() < long.points().len(),
+            "{name}: {} entries of a {}-point plan (stopped {after:?} after it moved), ending at {:?} s",
+            run.len(),
+            long.points().len(),
+            run.time.last()
+        );
+        assert!(
+            run.time.windows(2).all(|w| w[1] > w[0]),
+            "{name}: its recording's times do not increase"
+        );
+        let moved = run
+            .q
+            .iter()
+            .map(|q| (q[0] - here[0]).abs())
+            .fold(0.0, f64::max);
+        assert!(moved > 0.0, "{name} did not move before the stop");
+        let now = r.joint_positions().unwrap();
+        std::thread::sleep(Duration::from_millis(200));
+        let later = r.joint_positions().unwrap();
+        let drift = now
+            .iter()
+            .zip(&later)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            drift < 1e-4,
+            "{name} still moves {drift} rad after its stop"
+        );
+        let fr3 = model();
+        let (lo, hi) = fr3.chain.limits().unwrap();
+        assert!(
+            later
+                .iter()
+                .enumerate()
+                .all(|(j, q)| *q >= lo[j] && *q <= hi[j]),
+            "{name} stands outside its range: {later:?}"
+        );
+        stops.push((*name, after, run.len(), *run.time.last().unwrap()));
+    }
+    println!("stopped mid-plan (robot, stopped after, entries, last time s): {stops:?}");
+    for (name, _, _, last) in &stops {
+        if matches!(*name, "franka" | "ros2") {
+            assert!(*last > 0.5 && *last < 3.0, "{name} recorded up to {last} s");
+        }
+    }
     drop(robots);
-    // The controller got the two goals the plans made, point for point.
+    // The controller got the three goals the plans made (the last one stopped), point for
+    // point.
     peer.finish(Duration::from_secs(60));
     let seen: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&seen).unwrap()).unwrap();
     let goals = seen["goals"].as_array().unwrap();
-    assert_eq!(goals.len(), 2, "{seen}");
+    assert_eq!(goals.len(), 3, "{seen}");
     assert_eq!(
         goals[0]["trajectory"]["points"].as_array().unwrap().len(),
         fast.points().len()
     );
+
+    // Failed mid-plan: the far end dies while the robot runs a plan — the stand-in server
+    // stopped after 0.6 s of motion (its script runs 50 000 steps a part, 0.25 s each),
+    // franky-sim killed after 1 s. The run is not an error:
+    // it ends Failed, saying why, with what was recorded up to then. (The in-process and
+    // dynamics robots have no far end to lose; the ROS 2 controller's loss is
+    // crates/cps-ros2/tests/graph.rs's.)
+    let kill_server: Kill = Box::new(move || drop(server));
+    let kill_franky: Kill = Box::new(franky.killer());
+    let dying: Vec<(&str, &mut dyn Robot, Kill, Duration)> = vec![
+        (
+            "coppelia",
+            &mut scene,
+            kill_server,
+            Duration::from_millis(20),
+        ),
+        ("franka", &mut franka, kill_franky, Duration::from_secs(1)),
+    ];
+    let mut failures = Vec::new();
+    for (name, r, kill, after) in dying {
+        let at = r.joint_positions().unwrap();
+        let plan = swing_every(&at, 0, 0.2, 200.0, 0.05);
+        let token = StopToken::new();
+        let run = std::thread::scope(|s| {
+            let watcher = token.clone();
+            s.spawn(move || {
+                let begun = std::time::Instant::now();
+                while !watcher.is_moving() && begun.elapsed() < Duration::from_secs(30) {
+                    std::thread::sleep(Duration::from_micros(200));
+                }
+                std::thread::sleep(after);
+                kill();
+            });
+            Guarded::new(r, Policy::STRICT).run(&plan, &token)
+        })
+        .unwrap_or_else(|e| panic!("{name}: an error, not a failed run with its recording: {e}"));
+        let why = match &run.ending {
+            cps_robot::Ending::Failed(why) => why.clone(),
+            other => panic!("{name}: {other:?}"),
+        };
+        // The Franka's every millisecond is recorded; the scene script's part under way
+        // when its simulator went away is lost with it (the parts before are kept).
+        let least = if name == "franka" { 2 } else { 1 };
+        assert!(
+            run.len() >= least && run.len() < plan.points().len(),
+            "{name}: {} entries",
+            run.len()
+        );
+        assert!(
+            run.time.windows(2).all(|w| w[1] > w[0]),
+            "{name}: its recording's times do not increase"
+        );
+        failures.push((name, run.len(), why));
+    }
+    println!("failed mid-plan (robot, entries, why): {failures:#?}");
 }

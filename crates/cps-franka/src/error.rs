@@ -2,7 +2,7 @@
 
 use std::time::Duration;
 
-use crate::limits::Breach;
+use crate::limits::CommandBreach;
 use crate::wire::WireError;
 
 /// What went wrong talking to a Franka.
@@ -81,7 +81,7 @@ pub enum FrankaError {
     },
     /// A command stream that breaks a limit, refused before anything was sent.
     #[error("refused before sending anything: {0}")]
-    Limit(Breach),
+    Limit(CommandBreach),
     /// Bad input from the caller (a trajectory of the wrong shape, a bad option).
     #[error("{0}")]
     Input(String),

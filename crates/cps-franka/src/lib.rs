@@ -77,8 +77,8 @@ pub use motion::{
 };
 pub use robot::{FrankaRobot, FrankaSettings, MODEL_AGREEMENT, TOOL_AGREEMENT};
 pub use rt::{
-    Ending, JointPositions, JointVelocities, LoopOptions, MotionReport, Realtime, Sample, Timing,
-    Torques, run_joint_positions, run_joint_velocities, run_torques,
+    JointPositions, JointVelocities, LoopOptions, MotionEnd, MotionReport, Realtime, Sample,
+    Timing, Torques, run_joint_positions, run_joint_velocities, run_torques,
 };
 pub use session::{Connection, Timeouts};
 pub use wire::{Command, RobotMode, RobotState};

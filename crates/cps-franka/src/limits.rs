@@ -132,9 +132,11 @@ impl RateLimits {
     }
 }
 
-/// A limited quantity of the commanded signal.
+/// A limited quantity of the commanded signal, as the 1 kHz loop checks each command (with
+/// the stopping distance and a non-number, which a plan's check has no need of); the
+/// contract's plan check names a [`cps_kinematics::Quantity`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Quantity {
+pub enum CommandQuantity {
     /// Position outside the joint's range.
     Position,
     /// Velocity beyond its (position-dependent) bound.
@@ -149,55 +151,57 @@ pub enum Quantity {
     NotFinite,
 }
 
-impl Quantity {
+impl CommandQuantity {
     /// `position`, `velocity`, …
     pub fn name(self) -> &'static str {
         match self {
-            Quantity::Position => "position",
-            Quantity::Velocity => "velocity",
-            Quantity::Acceleration => "acceleration",
-            Quantity::Jerk => "jerk",
-            Quantity::StoppingDistance => "stopping distance",
-            Quantity::NotFinite => "value",
+            CommandQuantity::Position => "position",
+            CommandQuantity::Velocity => "velocity",
+            CommandQuantity::Acceleration => "acceleration",
+            CommandQuantity::Jerk => "jerk",
+            CommandQuantity::StoppingDistance => "stopping distance",
+            CommandQuantity::NotFinite => "value",
         }
     }
 
     fn unit(self) -> &'static str {
         match self {
-            Quantity::Position | Quantity::StoppingDistance => "rad",
-            Quantity::Velocity => "rad/s",
-            Quantity::Acceleration => "rad/s²",
-            Quantity::Jerk => "rad/s³",
-            Quantity::NotFinite => "",
+            CommandQuantity::Position | CommandQuantity::StoppingDistance => "rad",
+            CommandQuantity::Velocity => "rad/s",
+            CommandQuantity::Acceleration => "rad/s²",
+            CommandQuantity::Jerk => "rad/s³",
+            CommandQuantity::NotFinite => "",
         }
     }
 }
 
-/// A command that breaks a limit: which joint, when, what, by how much.
+/// A command that breaks a limit: which joint, when, what, by how much — the loop's own
+/// record (`Copy`, made without allocating inside the loop); [`crate::FrankaRobot`] words
+/// it as the contract's [`cps_robot::Breach`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Breach {
+pub struct CommandBreach {
     /// 1-based joint number.
     pub joint: usize,
     /// Index of the command in the stream (0 = the first).
     pub sample: usize,
     /// The quantity.
-    pub quantity: Quantity,
+    pub quantity: CommandQuantity,
     /// Its value.
     pub value: f64,
     /// The limit it passes (for positions, the bound).
     pub limit: f64,
 }
 
-impl std::fmt::Display for Breach {
+impl std::fmt::Display for CommandBreach {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let t = self.sample as f64 * DT;
         match self.quantity {
-            Quantity::NotFinite => write!(
+            CommandQuantity::NotFinite => write!(
                 f,
                 "joint {} at t = {t:.3} s (command {}): the command is not a number",
                 self.joint, self.sample
             ),
-            Quantity::StoppingDistance => write!(
+            CommandQuantity::StoppingDistance => write!(
                 f,
                 "joint {} at t = {t:.3} s (command {}): moving this fast, a stop would end at {:.4} rad, past the bound {:.4} rad",
                 self.joint, self.sample, self.value, self.limit
@@ -266,12 +270,12 @@ impl StreamCheck {
 
     /// Admits the next command `q` (one period after the last) if every joint keeps every
     /// limit, and returns the first breach otherwise (the state is then unchanged).
-    pub fn admit(&mut self, q: &[f64; JOINTS]) -> Result<(), Breach> {
+    pub fn admit(&mut self, q: &[f64; JOINTS]) -> Result<(), CommandBreach> {
         let l = &self.limits;
         let mut v = [0.0; JOINTS];
         let mut a = [0.0; JOINTS];
         let mut usage = [[0.0; JOINTS]; 3];
-        let breach = |joint: usize, quantity, value, limit| Breach {
+        let breach = |joint: usize, quantity, value, limit| CommandBreach {
             joint: joint + 1,
             sample: self.sample,
             quantity,
@@ -281,37 +285,47 @@ impl StreamCheck {
         for i in 0..JOINTS {
             let qi = q[i];
             if !qi.is_finite() {
-                return Err(breach(i, Quantity::NotFinite, qi, 0.0));
+                return Err(breach(i, CommandQuantity::NotFinite, qi, 0.0));
             }
             if qi < l.q_min[i] {
-                return Err(breach(i, Quantity::Position, qi, l.q_min[i]));
+                return Err(breach(i, CommandQuantity::Position, qi, l.q_min[i]));
             }
             if qi > l.q_max[i] {
-                return Err(breach(i, Quantity::Position, qi, l.q_max[i]));
+                return Err(breach(i, CommandQuantity::Position, qi, l.q_max[i]));
             }
             v[i] = (qi - self.q[i]) / DT;
             let (lo, hi) = l.velocity_bounds(i, qi);
             if v[i] > hi || v[i] < lo {
                 let limit = if v[i] > hi { hi } else { lo };
-                return Err(breach(i, Quantity::Velocity, v[i], limit));
+                return Err(breach(i, CommandQuantity::Velocity, v[i], limit));
             }
             a[i] = (v[i] - self.v[i]) / DT;
             if a[i].abs() > l.ddq_max[i] {
-                return Err(breach(i, Quantity::Acceleration, a[i], l.ddq_max[i]));
+                return Err(breach(i, CommandQuantity::Acceleration, a[i], l.ddq_max[i]));
             }
             let j = (a[i] - self.a[i]) / DT;
             if j.abs() > l.dddq_max[i] {
-                return Err(breach(i, Quantity::Jerk, j, l.dddq_max[i]));
+                return Err(breach(i, CommandQuantity::Jerk, j, l.dddq_max[i]));
             }
             // Where a full stop from here would end: the acceleration ramps to its limit
             // at full jerk (ddq/dddq seconds), then brakes at the limit.
             let ramp = l.ddq_max[i] / l.dddq_max[i];
             let stop = qi + v[i] * ramp + v[i] * v[i].abs() / (2.0 * l.ddq_max[i]);
             if stop > l.q_max[i] + 1e-9 {
-                return Err(breach(i, Quantity::StoppingDistance, stop, l.q_max[i]));
+                return Err(breach(
+                    i,
+                    CommandQuantity::StoppingDistance,
+                    stop,
+                    l.q_max[i],
+                ));
             }
             if stop < l.q_min[i] - 1e-9 {
-                return Err(breach(i, Quantity::StoppingDistance, stop, l.q_min[i]));
+                return Err(breach(
+                    i,
+                    CommandQuantity::StoppingDistance,
+                    stop,
+                    l.q_min[i],
+                ));
             }
             let vmax = if v[i] >= 0.0 { hi } else { -lo };
             usage[0][i] = if vmax > 0.0 { v[i].abs() / vmax } else { 0.0 };
@@ -343,7 +357,7 @@ pub fn check_stream(
     limits: RateLimits,
     q0: [f64; JOINTS],
     stream: &[[f64; JOINTS]],
-) -> Result<StreamCheck, Breach> {
+) -> Result<StreamCheck, CommandBreach> {
     let mut c = StreamCheck::at_rest(limits, q0);
     for q in stream {
         c.admit(q)?;
@@ -470,7 +484,10 @@ mod tests {
             q[3] += 0.01;
         }
         let b = check_stream(l, q0, &stream).unwrap_err();
-        assert_eq!((b.joint, b.sample, b.quantity), (4, 50, Quantity::Velocity));
+        assert_eq!(
+            (b.joint, b.sample, b.quantity),
+            (4, 50, CommandQuantity::Velocity)
+        );
         assert_eq!(
             b.to_string(),
             "joint 4 at t = 0.050 s (command 50): velocity 10.000000 rad/s beyond the limit 2.620000 rad/s"
@@ -480,13 +497,13 @@ mod tests {
         small[5][0] += 1e-4;
         assert_eq!(
             check_stream(l, q0, &small).unwrap_err().quantity,
-            Quantity::Acceleration
+            CommandQuantity::Acceleration
         );
         let mut nan = vec![q0; 3];
         nan[2][6] = f64::NAN;
         assert_eq!(
             check_stream(l, q0, &nan).unwrap_err().quantity,
-            Quantity::NotFinite
+            CommandQuantity::NotFinite
         );
     }
 

@@ -24,10 +24,10 @@ use cps_robot::{
 use nalgebra::{IsometryMatrix3, Matrix4};
 
 use crate::FrankaError;
-use crate::limits::{Arm, DT, Quantity, RateLimits};
+use crate::limits::{Arm, CommandQuantity, DT, RateLimits};
 use crate::motion::{CheckedStream, Start, check_trajectory, execute_stream, record_states};
 use crate::rt::{
-    Ending, JointPositions, LoopOptions, MotionReport, Realtime, run_joint_positions,
+    JointPositions, LoopOptions, MotionEnd, MotionReport, Realtime, run_joint_positions,
     start_position,
 };
 use crate::session::{Connection, Timeouts};
@@ -357,13 +357,13 @@ fn with_arm_limits(mut model: RobotModel, limits: &RateLimits) -> Result<RobotMo
 
 /// The robot's own breach in the contract's words: joint quantities as joint limits, the
 /// distance a stop needs as the robot's rule.
-fn breach(b: &crate::limits::Breach) -> Breach {
+fn breach(b: &crate::limits::CommandBreach) -> Breach {
     let quantity = match b.quantity {
-        Quantity::Position | Quantity::NotFinite => JointQuantity::Position,
-        Quantity::Velocity => JointQuantity::Velocity,
-        Quantity::Acceleration => JointQuantity::Acceleration,
-        Quantity::Jerk => JointQuantity::Jerk,
-        Quantity::StoppingDistance => {
+        CommandQuantity::Position | CommandQuantity::NotFinite => JointQuantity::Position,
+        CommandQuantity::Velocity => JointQuantity::Velocity,
+        CommandQuantity::Acceleration => JointQuantity::Acceleration,
+        CommandQuantity::Jerk => JointQuantity::Jerk,
+        CommandQuantity::StoppingDistance => {
             return Breach {
                 limit: Limit::Robot {
                     joint: b.joint,
@@ -388,10 +388,10 @@ fn breach(b: &crate::limits::Breach) -> Breach {
     }
 }
 
-fn ending(e: &Ending) -> RunEnding {
+fn ending(e: &MotionEnd) -> RunEnding {
     match e {
-        Ending::Finished => RunEnding::Finished,
-        Ending::Stopped => RunEnding::Stopped,
+        MotionEnd::Finished => RunEnding::Finished,
+        MotionEnd::Stopped => RunEnding::Stopped,
         other => RunEnding::Failed(other.sentence()),
     }
 }

@@ -13,7 +13,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::error::FrankaError;
-use crate::limits::{Brake, Breach, DT, Quantity, RateLimits, StreamCheck};
+use crate::limits::{Brake, CommandBreach, CommandQuantity, DT, RateLimits, StreamCheck};
 use crate::session::Connection;
 use crate::wire::{
     Command, ControllerMode, JOINTS, MotionGeneratorMode, MoveStatus, RobotMode, RobotState,
@@ -97,16 +97,17 @@ pub struct Timing {
     pub realtime: bool,
 }
 
-/// How a motion ended.
+/// How a motion of the 1 kHz loop ended, in the loop's own terms; [`crate::FrankaRobot`]
+/// turns it into the contract's [`cps_robot::Ending`] (finished, stopped, failed).
 #[derive(Debug, Clone, PartialEq)]
-pub enum Ending {
+pub enum MotionEnd {
     /// The generator finished and the robot confirmed the motion's end.
     Finished,
     /// Stopped on request (Ctrl-C, SIGTERM): braked to rest within the limits, then ended.
     Stopped,
     /// The generator asked for a command beyond a limit: it was never sent; the robot was
     /// braked to rest from the last admitted command.
-    LimitBrake(Breach),
+    LimitBrake(CommandBreach),
     /// The recording was full: braked to rest.
     RecordingFull,
     /// The robot ended the motion itself (a reflex, the user stop, a preemption).
@@ -120,26 +121,26 @@ pub enum Ending {
     Lost(String),
 }
 
-impl Ending {
+impl MotionEnd {
     /// Whether the motion ran to its end as planned.
     pub fn complete(&self) -> bool {
-        matches!(self, Ending::Finished)
+        matches!(self, MotionEnd::Finished)
     }
 
     /// The ending as a sentence.
     pub fn sentence(&self) -> String {
         match self {
-            Ending::Finished => "the motion finished".into(),
-            Ending::Stopped => "stopped on request: braked to rest within the limits".into(),
-            Ending::LimitBrake(b) => {
+            MotionEnd::Finished => "the motion finished".into(),
+            MotionEnd::Stopped => "stopped on request: braked to rest within the limits".into(),
+            MotionEnd::LimitBrake(b) => {
                 format!("a command beyond a limit was not sent ({b}); braked to rest")
             }
-            Ending::RecordingFull => "the recording was full: braked to rest".into(),
-            Ending::Robot { status, errors } => format!(
+            MotionEnd::RecordingFull => "the recording was full: braked to rest".into(),
+            MotionEnd::Robot { status, errors } => format!(
                 "the robot ended the motion: {} (errors: {errors})",
                 status.sentence()
             ),
-            Ending::Lost(r) => format!("the connection was lost: {r}"),
+            MotionEnd::Lost(r) => format!("the connection was lost: {r}"),
         }
     }
 }
@@ -152,7 +153,7 @@ pub struct MotionReport {
     /// The loop's timing.
     pub timing: Timing,
     /// How the motion ended.
-    pub ending: Ending,
+    pub ending: MotionEnd,
     /// Peak usage of velocity, acceleration and jerk per joint of every command sent
     /// (1.0 = at the published limit).
     pub peak_usage: [[f64; JOINTS]; 3],
@@ -214,7 +215,7 @@ pub fn start_position(state: &RobotState) -> [f64; JOINTS] {
 ///
 /// Errors before the motion starts (the robot not ready, the Move refused, realtime not
 /// permitted) are returned as errors and nothing moved; everything after the start ends in
-/// a [`MotionReport`] whose [`Ending`] says how, with every sample recorded.
+/// a [`MotionReport`] whose [`MotionEnd`] says how, with every sample recorded.
 pub fn run_joint_positions<F>(
     conn: &mut Connection,
     limits: RateLimits,
@@ -341,12 +342,12 @@ trait Law {
         state: &RobotState,
         t: f64,
         tick: usize,
-        brake: Option<Ending>,
+        brake: Option<MotionEnd>,
         command: &mut Command,
     ) -> bool;
     /// Why the law stopped on its own or was stopped (if it was); the peak usage; the
     /// ticks spent stopping; the commands limited before sending.
-    fn outcome(self) -> (Option<Ending>, [[f64; JOINTS]; 3], usize, usize);
+    fn outcome(self) -> (Option<MotionEnd>, [[f64; JOINTS]; 3], usize, usize);
 }
 
 // The brake lives in place: boxing it would allocate inside the loop.
@@ -366,7 +367,7 @@ struct PositionLaw<F> {
     mode: Mode,
     control: F,
     velocity: bool,
-    reason: Option<Ending>,
+    reason: Option<MotionEnd>,
     brake_ticks: usize,
 }
 
@@ -412,7 +413,7 @@ where
         state: &RobotState,
         t: f64,
         _tick: usize,
-        brake: Option<Ending>,
+        brake: Option<MotionEnd>,
         command: &mut Command,
     ) -> bool {
         if let Some(reason) = brake
@@ -440,7 +441,7 @@ where
                 let mut b = Brake::from_check(&self.check);
                 let q = b.step();
                 let stopped = b.stopped();
-                self.reason.get_or_insert(Ending::LimitBrake(breach));
+                self.reason.get_or_insert(MotionEnd::LimitBrake(breach));
                 self.mode = Mode::Brake(b);
                 if self.check.admit(&q).is_err() {
                     // Cannot happen for a brake from an admitted state (tested); hold.
@@ -466,7 +467,7 @@ where
         done
     }
 
-    fn outcome(self) -> (Option<Ending>, [[f64; JOINTS]; 3], usize, usize) {
+    fn outcome(self) -> (Option<MotionEnd>, [[f64; JOINTS]; 3], usize, usize) {
         (self.reason, self.check.peak_usage(), self.brake_ticks, 0)
     }
 }
@@ -478,7 +479,7 @@ struct TorqueLaw<F> {
     last: [f64; JOINTS],
     stopping: bool,
     at_rest_ticks: usize,
-    reason: Option<Ending>,
+    reason: Option<MotionEnd>,
     brake_ticks: usize,
     clipped: usize,
     /// Peak share of the torque, the torque rate and the speed limit.
@@ -500,7 +501,7 @@ impl<F> TorqueLaw<F> {
         }
     }
 
-    fn stop_for(&mut self, reason: Ending) {
+    fn stop_for(&mut self, reason: MotionEnd) {
         if !self.stopping {
             self.reason.get_or_insert(reason);
             self.stopping = true;
@@ -533,7 +534,7 @@ where
         state: &RobotState,
         t: f64,
         tick: usize,
-        brake: Option<Ending>,
+        brake: Option<MotionEnd>,
         command: &mut Command,
     ) -> bool {
         if let Some(reason) = brake {
@@ -542,10 +543,10 @@ where
         let l = self.limits;
         if let Some(i) = (0..JOINTS).find(|&i| state.dq[i].abs() > TORQUE_SPEED_GUARD * l.dq_max[i])
         {
-            self.stop_for(Ending::LimitBrake(Breach {
+            self.stop_for(MotionEnd::LimitBrake(CommandBreach {
                 joint: i + 1,
                 sample: tick,
-                quantity: Quantity::Velocity,
+                quantity: CommandQuantity::Velocity,
                 value: state.dq[i],
                 limit: TORQUE_SPEED_GUARD * l.dq_max[i],
             }));
@@ -555,10 +556,10 @@ where
         if !self.stopping {
             let c = (self.control)(state, t);
             if let Some(i) = (0..JOINTS).find(|&i| !c.tau[i].is_finite()) {
-                self.stop_for(Ending::LimitBrake(Breach {
+                self.stop_for(MotionEnd::LimitBrake(CommandBreach {
                     joint: i + 1,
                     sample: tick,
-                    quantity: Quantity::NotFinite,
+                    quantity: CommandQuantity::NotFinite,
                     value: c.tau[i],
                     limit: l.tau_max[i],
                 }));
@@ -600,7 +601,7 @@ where
         finished
     }
 
-    fn outcome(self) -> (Option<Ending>, [[f64; JOINTS]; 3], usize, usize) {
+    fn outcome(self) -> (Option<MotionEnd>, [[f64; JOINTS]; 3], usize, usize) {
         (self.reason, self.peak, self.brake_ticks, self.clipped)
     }
 }
@@ -622,7 +623,7 @@ fn run_law<L: Law>(
     let (controller, generator) = law.modes();
     let motion_id = conn.start_move(controller, generator)?;
 
-    let mut ending: Option<Ending> = None;
+    let mut ending: Option<MotionEnd> = None;
     let (mut first_id, mut last_id) = (None::<u64>, None::<u64>);
     let (mut missed, mut stale) = (0u64, 0u64);
     let mut last_errors = String::new();
@@ -631,7 +632,7 @@ fn run_law<L: Law>(
         let (state, skipped) = match conn.newest_state(options.state_timeout) {
             Ok(s) => s,
             Err(e) => {
-                ending = Some(Ending::Lost(e.to_string()));
+                ending = Some(MotionEnd::Lost(e.to_string()));
                 break;
             }
         };
@@ -656,16 +657,16 @@ fn run_law<L: Law>(
         let brake = if !law.following() {
             None
         } else if stop.load(Ordering::Relaxed) {
-            Some(Ending::Stopped)
+            Some(MotionEnd::Stopped)
         } else if samples.len() + BRAKE_RESERVE >= options.max_ticks {
-            Some(Ending::RecordingFull)
+            Some(MotionEnd::RecordingFull)
         } else {
             None
         };
         let done = law.answer(&state, t, samples.len(), brake, &mut command);
         command.message_id = state.message_id;
         if let Err(e) = conn.send_command(&command) {
-            ending = Some(Ending::Lost(e.to_string()));
+            ending = Some(MotionEnd::Lost(e.to_string()));
             break;
         }
         let ns = t_in.elapsed().as_nanos().min(u128::from(u32::MAX)) as u32;
@@ -692,14 +693,14 @@ fn run_law<L: Law>(
             match conn.poll_move_end(motion_id) {
                 Ok(None) => {}
                 Ok(Some(status)) => {
-                    ending = Some(Ending::Robot {
+                    ending = Some(MotionEnd::Robot {
                         status,
                         errors: state.errors.describe(),
                     });
                     break;
                 }
                 Err(e) => {
-                    ending = Some(Ending::Lost(e.to_string()));
+                    ending = Some(MotionEnd::Lost(e.to_string()));
                     break;
                 }
             }
@@ -710,8 +711,8 @@ fn run_law<L: Law>(
     let ending = match ending {
         Some(e) => e,
         None => match conn.await_move_end(motion_id, Duration::from_secs(2)) {
-            Ok(MoveStatus::Success) if finished_sent => reason.unwrap_or(Ending::Finished),
-            Ok(status) => Ending::Robot {
+            Ok(MoveStatus::Success) if finished_sent => reason.unwrap_or(MotionEnd::Finished),
+            Ok(status) => MotionEnd::Robot {
                 status,
                 errors: if last_errors.is_empty() {
                     "none".into()
@@ -719,7 +720,7 @@ fn run_law<L: Law>(
                     last_errors
                 },
             },
-            Err(e) => Ending::Lost(e.to_string()),
+            Err(e) => MotionEnd::Lost(e.to_string()),
         },
     };
     latency_ns.sort_unstable();

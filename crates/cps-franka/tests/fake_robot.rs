@@ -11,8 +11,8 @@ use std::time::{Duration, Instant};
 use cps_franka::limits::{Arm, RateLimits};
 use cps_franka::wire::{Errors, RobotState, STATE_SIZE};
 use cps_franka::{
-    Connection, Ending, FrankaError, LoopOptions, Realtime, RobotMode, Start, Timeouts, approach,
-    check_trajectory, execute_stream,
+    Connection, FrankaError, LoopOptions, MotionEnd, Realtime, RobotMode, Start, Timeouts,
+    approach, check_trajectory, execute_stream,
 };
 
 #[derive(Clone, Copy)]
@@ -213,7 +213,7 @@ fn a_reflex_during_a_motion_ends_it_with_the_reason_and_the_recording() {
     let host = fake(Scenario::ReflexDuringMotion);
     let r = try_motion(&host).unwrap();
     match &r.ending {
-        Ending::Robot { status, .. } => {
+        MotionEnd::Robot { status, .. } => {
             assert_eq!(
                 *status,
                 cps_franka::wire::MoveStatus::ReflexAborted,
@@ -236,7 +236,7 @@ fn a_truncated_datagram_ends_the_motion_naming_it() {
     let host = fake(Scenario::Truncated);
     let r = try_motion(&host).unwrap();
     match &r.ending {
-        Ending::Lost(reason) => assert!(
+        MotionEnd::Lost(reason) => assert!(
             reason.contains("1000 bytes but protocol 10 has 1377"),
             "{reason}"
         ),

@@ -11,9 +11,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use common::FrankySim;
-use cps_franka::limits::{Arm, Quantity, RateLimits, check_stream};
+use cps_franka::limits::{Arm, CommandQuantity, RateLimits, check_stream};
 use cps_franka::{
-    Connection, Ending, FrankaError, LoopOptions, Realtime, RobotMode, Start, approach,
+    Connection, FrankaError, LoopOptions, MotionEnd, Realtime, RobotMode, Start, approach,
     check_trajectory, execute_stream,
 };
 
@@ -113,7 +113,7 @@ fn a_trajectory_is_executed_within_the_limits_and_tracked() {
     let report = execute_stream(&mut robot, limits, &stream, &options(), &stop).unwrap();
     assert_eq!(
         report.ending,
-        Ending::Finished,
+        MotionEnd::Finished,
         "{}",
         report.ending.sentence()
     );
@@ -170,7 +170,7 @@ fn a_step_is_refused_before_anything_is_sent_and_the_robot_stays() {
         Err(FrankaError::Limit(b)) => {
             assert_eq!(
                 (b.joint, b.sample, b.quantity),
-                (3, 250, Quantity::Velocity)
+                (3, 250, CommandQuantity::Velocity)
             );
         }
         other => panic!("expected a refusal, got {other:?}"),
@@ -207,7 +207,7 @@ fn a_stop_request_brakes_within_the_limits_and_keeps_the_recording() {
         });
         execute_stream(&mut robot, limits, &stream, &options(), &stop).unwrap()
     });
-    assert_eq!(report.ending, Ending::Stopped);
+    assert_eq!(report.ending, MotionEnd::Stopped);
     assert!(report.brake_ticks > 0 && report.samples.len() < stream.commands.len());
     let sent: Vec<[f64; 7]> = report.samples.iter().map(|s| s.q_c).collect();
     let check = check_stream(limits, from, &sent).unwrap();
@@ -249,7 +249,7 @@ fn a_simulator_killed_mid_motion_ends_as_lost_with_the_recording_kept() {
         r
     });
     match &report.ending {
-        Ending::Lost(reason) => assert!(reason.contains("127.0.0.25"), "{reason}"),
+        MotionEnd::Lost(reason) => assert!(reason.contains("127.0.0.25"), "{reason}"),
         other => panic!("expected a lost connection, got {other:?}"),
     }
     assert!(
@@ -316,7 +316,7 @@ print(json.dumps({"q": rec, "median_us": lat[len(lat) // 2] * 1e6, "p99_us": lat
     let stream = check_trajectory(&limits, from, &swing(from), Start::Refuse).unwrap();
     let stop = AtomicBool::new(false);
     let ours = execute_stream(&mut robot, limits, &stream, &options(), &stop).unwrap();
-    assert_eq!(ours.ending, Ending::Finished);
+    assert_eq!(ours.ending, MotionEnd::Finished);
     let theirs_q: Vec<Vec<f64>> = serde_json::from_value(theirs["q"].clone()).unwrap();
     // Tick by tick, the measured joints agree to the simulator's own spread (commands that
     // reach it a tick late are re-applied, so the two runs differ by a tick here and there).
@@ -494,7 +494,7 @@ print(json.dumps(rec))
     .unwrap();
     assert_eq!(
         report.ending,
-        Ending::Finished,
+        MotionEnd::Finished,
         "{}",
         report.ending.sentence()
     );
@@ -554,7 +554,7 @@ fn torques_from_cps_move_the_arm_and_stay_within_the_torque_limits() {
     .unwrap();
     assert_eq!(
         report.ending,
-        Ending::Finished,
+        MotionEnd::Finished,
         "{}",
         report.ending.sentence()
     );
@@ -605,7 +605,7 @@ fn torques_from_cps_move_the_arm_and_stay_within_the_torque_limits() {
     .unwrap();
     assert_eq!(
         report.ending,
-        Ending::Finished,
+        MotionEnd::Finished,
         "{}",
         report.ending.sentence()
     );
@@ -636,8 +636,12 @@ fn torques_from_cps_move_the_arm_and_stay_within_the_torque_limits() {
     })
     .unwrap();
     match &report.ending {
-        Ending::LimitBrake(b) => {
-            assert_eq!((b.joint, b.quantity), (3, Quantity::NotFinite), "{b}")
+        MotionEnd::LimitBrake(b) => {
+            assert_eq!(
+                (b.joint, b.quantity),
+                (3, CommandQuantity::NotFinite),
+                "{b}"
+            )
         }
         other => panic!("{}", other.sentence()),
     }

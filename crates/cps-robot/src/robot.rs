@@ -272,6 +272,7 @@ pub fn run_stepped(
     plan.check_dof(robot.model().chain.dof())?;
     let dt = robot.dt();
     let samples = plan.samples(dt);
+    let _moving = stop.moving(); // from the first command to the last
     let mut run = Run::new(crate::Ending::Finished);
     let t0 = robot.time()?;
     let mut times = vec![0.0];
