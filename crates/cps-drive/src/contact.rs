@@ -682,7 +682,11 @@ pub fn contact_on_robot(
         ))
     })?;
     franka.move_to(&above.q, stop).map_err(free)?;
-    let conn = franka.inner_mut().connection();
+    // The free motions are the guard's; the torque loop is no plan: it runs on the
+    // connection, each torque checked by cps-franka's 1 kHz loop (rates, the robot's
+    // torque limits, the force ceiling), so the guard is let go here.
+    let mut franka = franka.into_inner();
+    let conn = franka.connection();
     let model = dynamics(conn, robot, &mut plan.sensing)?;
     let options = LoopOptions {
         realtime: robot.realtime,

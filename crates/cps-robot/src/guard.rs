@@ -238,12 +238,8 @@ impl<R: Robot> Guarded<R> {
         &self.robot
     }
 
-    /// The robot inside, mutably (for what only it offers: a Franka's reports).
-    pub fn inner_mut(&mut self) -> &mut R {
-        &mut self.robot
-    }
-
-    /// The robot inside, unwrapped.
+    /// The robot inside, unwrapped: the guard is let go, and nothing sent to the robot
+    /// from then on is its (there is no way to reach the robot mutably while it guards).
     pub fn into_inner(self) -> R {
         self.robot
     }
