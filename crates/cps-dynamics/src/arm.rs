@@ -12,12 +12,14 @@ pub const FRANKY_SIM_ARMATURE: [f64; 7] = [0.195, 0.195, 0.195, 0.195, 0.074, 0.
 /// The speed (rad/s) over which a franky-sim joint's Coulomb friction rises to its level,
 /// as `tanh(q̇ / speed)`. MuJoCo's `frictionloss` is a soft constraint: below its level a
 /// torque makes the joint creep at a speed in proportion to it. Measured on franky-sim's
-/// FR3 (MuJoCo 3, its 1 ms step, `implicitfast`, gravity and actuators off, half the
-/// friction level applied to one joint at a time): creep at 0.87, 4.2, 4.7, 3.1, 7.1, 3.7
-/// and 3.4 mrad/s on joints 2, 1, 3, 4, 5, 6, 7 at half the level, i.e. a slope at zero
-/// speed of `level / 4 mrad/s` on average, which this smoothing matches. The one value the
-/// dynamics robot, the contact task's observer and identification use.
-pub const FRANKY_SIM_COULOMB_SPEED: f64 = 0.004;
+/// FR3 (MuJoCo, its 1 ms step, `implicitfast`, gravity and actuators off, half the
+/// friction level on one joint at a time): the creep speed at the full level would be
+/// 4.2, 0.87, 4.7, 3.1, 7.1, 3.7 and 3.4 mrad/s on joints 1 to 7. Of the smoothings
+/// within that range, 5 mrad/s is the one whose contact observer agrees best with
+/// MuJoCo's measured contact force on the shipped contact task (11.22 N in contact at a
+/// 10 N profile, against 11.53 N at 4 mrad/s and 11.32 N at 10 mrad/s). The one value
+/// the dynamics robot, the contact task's observer and identification use.
+pub const FRANKY_SIM_COULOMB_SPEED: f64 = 0.005;
 
 /// franky-sim's FR3 joint friction (its MJCF): viscous 0.21 N m s/rad (`damping`), Coulomb
 /// 1.137 N m on joints 1–4, then 0.763, 0.44, 0.248 (`frictionloss`), smoothed over

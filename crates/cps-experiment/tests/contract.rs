@@ -67,6 +67,15 @@ fn step(q0: &[f64]) -> Plan {
     Plan::new(1e-3, points).unwrap()
 }
 
+/// Waits until a robot holding `token` says it moves (at most 30 s), and says when.
+fn once_moving(token: &StopToken) -> std::time::Instant {
+    let begun = std::time::Instant::now();
+    while !token.is_moving() && begun.elapsed() < Duration::from_secs(30) {
+        std::thread::sleep(Duration::from_micros(100));
+    }
+    std::time::Instant::now()
+}
+
 /// What ends a robot's far end (its server, its simulator).
 type Kill = Box<dyn FnOnce() + Send>;
 
@@ -342,13 +351,7 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
                 let token = StopToken::new();
                 let (whole, moved_for) = std::thread::scope(|s| {
                     let watcher = token.clone();
-                    let seen = s.spawn(move || {
-                        let begun = std::time::Instant::now();
-                        while !watcher.is_moving() && begun.elapsed() < Duration::from_secs(30) {
-                            std::thread::sleep(Duration::from_micros(100));
-                        }
-                        std::time::Instant::now()
-                    });
+                    let seen = s.spawn(move || once_moving(&watcher));
                     let whole = Guarded::new(&mut **r, Policy::STRICT).run(long, &token);
                     let end = std::time::Instant::now();
                     (whole, end - seen.join().unwrap())
@@ -362,10 +365,7 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
         let run = std::thread::scope(|s| {
             let watcher = token.clone();
             s.spawn(move || {
-                let begun = std::time::Instant::now();
-                while !watcher.is_moving() && begun.elapsed() < Duration::from_secs(30) {
-                    std::thread::sleep(Duration::from_micros(200));
-                }
+                once_moving(&watcher);
                 std::thread::sleep(after);
                 watcher.stop();
             });
@@ -457,10 +457,7 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
         let run = std::thread::scope(|s| {
             let watcher = token.clone();
             s.spawn(move || {
-                let begun = std::time::Instant::now();
-                while !watcher.is_moving() && begun.elapsed() < Duration::from_secs(30) {
-                    std::thread::sleep(Duration::from_micros(200));
-                }
+                once_moving(&watcher);
                 std::thread::sleep(after);
                 kill();
             });
