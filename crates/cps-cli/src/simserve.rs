@@ -7,9 +7,7 @@ use std::sync::atomic::AtomicBool;
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
-use cps_drive::stand_in::{
-    ServeEnd, StandInOptions, pool_configs, serve_until, server_config, start_stand_ins,
-};
+use cps_drive::stand_in::{self, ServeEnd, StandInOptions, serve_until, start_stand_ins};
 use cps_experiment::InputError;
 use cps_movement::scene::{Scene, load_scene};
 
@@ -114,7 +112,7 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
             crash_after,
         } => {
             let (scene, options) = served.options(bind)?;
-            let stand_in = server_config(&scene, &options)?;
+            let stand_in = stand_in::server_config(&scene, &options)?;
             let describe = stand_in.describe.clone();
             let servers = start_stand_ins(vec![stand_in])?;
             let at = servers[0].endpoint();
@@ -128,7 +126,7 @@ pub fn sim(cmd: &SimCommand, interrupted: &AtomicBool) -> Result<ExitCode> {
             served,
         } => {
             let (scene, options) = served.options(&format!("{host}:0"))?;
-            let configs = pool_configs(&scene, &options, *n, *base_port)?;
+            let configs = stand_in::pool_configs(&scene, &options, *n, *base_port)?;
             let describe = configs[0].describe.clone();
             let servers = start_stand_ins(configs)?;
             say!("{n} stand-in CoppeliaSim servers ({describe}); Ctrl-C stops them all");
