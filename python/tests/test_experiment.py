@@ -57,8 +57,10 @@ def test_run_experiment_on_the_robot_with_dynamics_equals_the_command_line(tmp_p
     search), from Python on one thread and from the command line on two: the same
     summary, the same command."""
     text = (EXPERIMENTS / "dynamics" / "viapoint_joint.toml").read_text()
-    text = text.replace("generations = 15 ", "generations = 2  ")
-    assert "generations = 2  " in text
+    # Three iterations: on franky-sim's drives (friction smoothed over 5 mrad/s) the second
+    # has taken the worst via point from 39 to 15 mm, the third to 7.7 mm.
+    text = text.replace("generations = 15 ", "generations = 3  ")
+    assert "generations = 3  " in text
     path = tmp_path / "dynamics.toml"
     path.write_text(text)
     cli("run", path, "--out", tmp_path / "cli", "--quiet", "--threads", 2)
@@ -67,7 +69,7 @@ def test_run_experiment_on_the_robot_with_dynamics_equals_the_command_line(tmp_p
     from_cli = json.loads((tmp_path / "cli" / "summary.json").read_text())
     assert strip(outcome.summary) == strip(from_cli)
     learned = outcome.summary["executed_learning"]
-    assert learned["iterations"] == 2
+    assert learned["iterations"] == 3
     assert max(learned["via_errors_m"]) < max(learned["model_learned_via_errors_m"]) / 3
     assert outcome.summary["backend"].startswith("dynamics (in-process, joint_pd controller")
     assert (tmp_path / "py" / "trajectory.csv").read_text() == (tmp_path / "cli" / "trajectory.csv").read_text()
