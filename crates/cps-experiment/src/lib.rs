@@ -15,12 +15,13 @@
 //!    of any kind; scenes and robot files come from `cps-movement`.
 //! 5. **kinds and run** ([`run()`], [`run_into`]): one entry point for every kind, with
 //!    progress and cancellation through an [`Observer`]; the outcome is `cps-outcome`'s
-//!    model, written as a result directory by `cps-report` ([`files`]) — never touching a
+//!    model, written as a result directory by `cps-report` (`cps_report::write`) — never touching a
 //!    file cps did not write. Figures and the report need the `figures` feature (default);
 //!    without it plotters is not compiled.
 //!
-//! The modules of `cps-outcome`, `cps-report`, `cps-movement` and `cps-drive` are
-//! re-exported under their old names ([`outcome`], [`files`], [`movement`], [`franka`], …).
+//! It re-exports no module of another crate: a user of `cps-outcome`, `cps-report`,
+//! `cps-movement` or `cps-drive` depends on it by name; only the types [`run()`] takes and
+//! returns ([`Outcome`], [`InputError`], [`ExperimentError`], [`Context`]) are re-exported.
 //!
 //! Running the shipped via-point experiment from Rust:
 //!
