@@ -140,14 +140,6 @@ impl Experiment {
         }
     }
 
-    /// The executed cost's weight, for the executed kind.
-    pub fn executed(&self) -> Option<&ExecutedPlan> {
-        match &self.plan {
-            KindPlan::ViapointExecuted(p) => Some(p),
-            _ => None,
-        }
-    }
-
     /// The contact task, for the contact kind.
     pub fn contact(&self) -> Option<&crate::sections::contact::ContactSpec> {
         match &self.plan {
