@@ -76,6 +76,26 @@ fn once_moving(token: &StopToken) -> std::time::Instant {
     std::time::Instant::now()
 }
 
+/// Runs `plan` on `r` through a strict guard, doing `then` `after` the robot starts
+/// moving (stopping the run, killing its far end).
+fn run_and_then(
+    r: &mut dyn Robot,
+    plan: &Plan,
+    after: Duration,
+    then: impl FnOnce(&StopToken) + Send,
+) -> Result<cps_robot::Run, RobotError> {
+    let token = StopToken::new();
+    std::thread::scope(|s| {
+        let watcher = token.clone();
+        s.spawn(move || {
+            once_moving(&watcher);
+            std::thread::sleep(after);
+            then(&watcher);
+        });
+        Guarded::new(r, Policy::STRICT).run(plan, &token)
+    })
+}
+
 /// What ends a robot's far end (its server, its simulator).
 type Kill = Box<dyn FnOnce() + Send>;
 
@@ -353,17 +373,8 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
             "coppelia" | "dynamics" => Duration::from_millis(300),
             _ => Duration::from_millis(10),
         };
-        let token = StopToken::new();
-        let run = std::thread::scope(|s| {
-            let watcher = token.clone();
-            s.spawn(move || {
-                once_moving(&watcher);
-                std::thread::sleep(after);
-                watcher.stop();
-            });
-            Guarded::new(&mut **r, Policy::STRICT).run(long, &token)
-        })
-        .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let run = run_and_then(&mut **r, long, after, |token| token.stop())
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(run.ending, cps_robot::Ending::Stopped, "{name}");
         assert!(
             run.len() > 1 && run.len() < long.points().len(),
@@ -437,7 +448,7 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
             "coppelia",
             &mut scene,
             kill_server,
-            Duration::from_millis(20),
+            Duration::from_millis(600),
         ),
         ("franka", &mut franka, kill_franky, Duration::from_secs(1)),
     ];
@@ -445,17 +456,9 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
     for (name, r, kill, after) in dying {
         let at = r.joint_positions().unwrap();
         let plan = swing_every(&at, 0, 0.2, 200.0, 0.05);
-        let token = StopToken::new();
-        let run = std::thread::scope(|s| {
-            let watcher = token.clone();
-            s.spawn(move || {
-                once_moving(&watcher);
-                std::thread::sleep(after);
-                kill();
-            });
-            Guarded::new(r, Policy::STRICT).run(&plan, &token)
-        })
-        .unwrap_or_else(|e| panic!("{name}: an error, not a failed run with its recording: {e}"));
+        let run = run_and_then(r, &plan, after, |_| kill()).unwrap_or_else(|e| {
+            panic!("{name}: an error, not a failed run with its recording: {e}")
+        });
         let why = match &run.ending {
             cps_robot::Ending::Failed(why) => why.clone(),
             other => panic!("{name}: {other:?}"),
