@@ -329,18 +329,18 @@ impl FrankaScene {
         stop: &StopToken,
     ) -> Result<(StepRecording, bool), RobotError> {
         let (rec, outcome) = self.run_joint_targets_partly(targets, stop);
-        outcome.map(|stopped| (rec, stopped.is_some()))
+        outcome.map(|stopped| (rec, stopped))
     }
 
     /// [`FrankaScene::run_joint_targets_until`] that keeps what was recorded when it
-    /// fails: the recording, and how it ended — `Ok(None)` ran to the end, `Ok(Some(()))`
+    /// fails: the recording, and how it ended — `Ok(false)` ran to the end, `Ok(true)`
     /// stopped, `Err` failed (the steps of a part the scene script was running when the
     /// simulator went away are lost with it; those of the parts before are kept).
     fn run_joint_targets_partly(
         &mut self,
         targets: &[Vec<f64>],
         stop: &StopToken,
-    ) -> (StepRecording, Result<Option<()>, RobotError>) {
+    ) -> (StepRecording, Result<bool, RobotError>) {
         let mut rec = StepRecording::default();
         let dof = self.joints.len();
         if let Some(row) = targets.iter().find(|r| r.len() != dof) {
@@ -353,7 +353,7 @@ impl FrankaScene {
         let Some(script) = self.script else {
             for row in targets {
                 if stop.is_stopped() {
-                    return (rec, Ok(Some(())));
+                    return (rec, Ok(true));
                 }
                 let step = (|| -> Result<(), RobotError> {
                     Stepped::command_joint_positions(self, row)?;
@@ -370,7 +370,7 @@ impl FrankaScene {
                     return (rec, Err(e));
                 }
             }
-            return (rec, Ok(None));
+            return (rec, Ok(false));
         };
         for part in targets.chunks(executor::MAX_STEPS) {
             match self.run_part(script, part, stop) {
@@ -379,13 +379,13 @@ impl FrankaScene {
                     rec.q.extend(r.q);
                     rec.tool.extend(r.tool);
                     if stopped {
-                        return (rec, Ok(Some(())));
+                        return (rec, Ok(true));
                     }
                 }
                 Err(e) => return (rec, Err(e)),
             }
         }
-        (rec, Ok(None))
+        (rec, Ok(false))
     }
 
     /// Stops the simulation (CoppeliaSim restores the scene and resets its clock), sets
@@ -518,7 +518,7 @@ impl Robot for FrankaScene {
         // then ends the run Failed with what was recorded (the start, and every part the
         // script finished), not an error.
         let (stopped, failed) = match outcome {
-            Ok(stopped) => (stopped.is_some(), None),
+            Ok(stopped) => (stopped, None),
             Err(e) => (false, Some(e.to_string())),
         };
         // A stop that came after the script's last step found the motion finished.

@@ -26,7 +26,7 @@ use cps_kinematics::ArmModel;
 use cps_kinematics::contact::JointFriction;
 use cps_robot::{Generator, RobotModel, StopToken, Streaming};
 
-use crate::arm::{Arm, FRANKY_SIM_COULOMB_SPEED as COULOMB_SPEED};
+use crate::arm::{Arm, FRANKY_SIM_COULOMB_SPEED};
 use crate::controller::Controller;
 use crate::robot::{DynamicsRobot, DynamicsSettings, MAX_LAG};
 
@@ -350,14 +350,14 @@ pub fn identify<const N: usize>(
             }
             let v = rec.dq[s][j];
             drive_rows[j].push((
-                [ddq[j], v, (v / COULOMB_SPEED).tanh()],
+                [ddq[j], v, (v / FRANKY_SIM_COULOMB_SPEED).tanh()],
                 rec.tau[k][j] - rigid[j],
             ));
         }
     }
     let mut armature = [0.0; N];
     let mut friction = JointFriction::none();
-    friction.speed = COULOMB_SPEED;
+    friction.speed = FRANKY_SIM_COULOMB_SPEED;
     let mut drive_rms = [0.0; N];
     for j in 0..N {
         let ([a, b, c], rms) = least_squares(&drive_rows[j]).ok_or_else(|| {
@@ -662,7 +662,7 @@ mod tests {
             friction: JointFriction {
                 viscous: [0.2, 0.25, 0.18, 0.2, 0.1, 0.12, 0.05],
                 coulomb: [1.1, 1.2, 1.0, 1.1, 0.7, 0.4, 0.25],
-                speed: COULOMB_SPEED,
+                speed: FRANKY_SIM_COULOMB_SPEED,
             },
         }
     }

@@ -67,13 +67,12 @@ fn step(q0: &[f64]) -> Plan {
     Plan::new(1e-3, points).unwrap()
 }
 
-/// Waits until a robot holding `token` says it moves (at most 30 s), and says when.
-fn once_moving(token: &StopToken) -> std::time::Instant {
+/// Waits until a robot holding `token` says it moves (at most 30 s).
+fn once_moving(token: &StopToken) {
     let begun = std::time::Instant::now();
     while !token.is_moving() && begun.elapsed() < Duration::from_secs(30) {
         std::thread::sleep(Duration::from_micros(100));
     }
-    std::time::Instant::now()
 }
 
 /// Runs `plan` on `r` through a strict guard, doing `then` `after` the robot starts

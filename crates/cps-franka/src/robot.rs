@@ -305,8 +305,10 @@ impl FrankaRobot {
     }
 
     /// A plan's motion as 1 kHz commands, checked from where the robot holds its position
-    /// (a difference within [`START_TOLERANCE`] blended into).
-    fn stream(&mut self, plan: &Plan) -> Result<Result<CheckedStream, Breach>, RobotError> {
+    /// (a difference within [`START_TOLERANCE`] blended into), kept in `self.checked`
+    /// (built once for the guard's check and the run that follows it, never copied); its
+    /// breach if it has one.
+    fn stream(&mut self, plan: &Plan) -> Result<Option<Breach>, RobotError> {
         plan.check_dof(7)?;
         let host = self.host.clone();
         let state = self.conn.read_state().map_err(|e| franka_error(&host, e))?;
@@ -315,12 +317,13 @@ impl FrankaRobot {
             .map_err(|e| franka_error(&host, e))?;
         let from = start_position(&state);
         // The same plan from the same place: the stream the guard's check built.
-        if let Some((p, f, stream)) = &self.checked
+        if let Some((p, f, _)) = &self.checked
             && *f == from
             && p == plan
         {
-            return Ok(Ok(stream.clone()));
+            return Ok(None);
         }
+        self.checked = None;
         let commands: Vec<[f64; 7]> = plan
             .samples(DT)
             .iter()
@@ -328,10 +331,10 @@ impl FrankaRobot {
             .collect();
         match check_trajectory(&self.limits, from, &commands, Start::Approach(BLEND_SHARE)) {
             Ok(stream) => {
-                self.checked = Some((plan.clone(), from, stream.clone()));
-                Ok(Ok(stream))
+                self.checked = Some((plan.clone(), from, stream));
+                Ok(None)
             }
-            Err(FrankaError::Limit(b)) => Ok(Err(breach(&b))),
+            Err(FrankaError::Limit(b)) => Ok(Some(breach(&b))),
             Err(e) => Err(franka_error(&host, e)),
         }
     }
@@ -476,20 +479,21 @@ impl Robot for FrankaRobot {
     /// The arm's own rules on the plan's 1 kHz commands (the FR3's position-dependent
     /// speed, the distance a stop needs), from where it holds its position.
     fn check(&mut self, plan: &Plan) -> Result<Option<Breach>, RobotError> {
-        Ok(self.stream(plan)?.err())
+        self.stream(plan)
     }
 
     fn run(&mut self, plan: &Plan, stop: &StopToken) -> Result<Run, RobotError> {
         let host = self.host.clone();
-        let stream = match self.stream(plan)? {
-            Ok(s) => s,
-            Err(b) => {
-                return Err(RobotError::Refused {
-                    robot: self.name(),
-                    reason: cps_robot::Refusal::Limit(b),
-                });
-            }
-        };
+        if let Some(b) = self.stream(plan)? {
+            return Err(RobotError::Refused {
+                robot: self.name(),
+                reason: cps_robot::Refusal::Limit(b),
+            });
+        }
+        let (_, _, stream) = self
+            .checked
+            .take()
+            .expect("stream() keeps the checked stream");
         if stop.is_stopped() {
             return self.stopped_before_moving();
         }
