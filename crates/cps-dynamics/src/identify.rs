@@ -13,7 +13,7 @@
 //! 2. **the drive**: what the applied torque does beyond the rigid bodies, `τ − RNEA(q, q̇,
 //!    q̈) = J_rotor·q̈ + b·q̇ + c·tanh(q̇/s)`, with `q̈` from consecutive velocities: least
 //!    squares for the rotor inertia `J_rotor`, viscous `b` and Coulomb `c` friction
-//!    (`s` = [`FRANKY_SIM_COULOMB_SPEED`](crate::FRANKY_SIM_COULOMB_SPEED), the speed franky-sim's
+//!    (`s` = [`FRANKY_SIM_COULOMB_SPEED`], the speed franky-sim's
 //!    friction rises over).
 //!
 //! [`excitation`] makes the commands to record from (a chirp on every joint, within a
