@@ -2,8 +2,8 @@
 
 use std::time::Duration;
 
-use crate::limits::CommandBreach;
 use crate::wire::WireError;
+use cps_robot::Breach;
 
 /// What went wrong talking to a Franka.
 #[derive(Debug, thiserror::Error)]
@@ -81,7 +81,7 @@ pub enum FrankaError {
     },
     /// A command stream that breaks a limit, refused before anything was sent.
     #[error("refused before sending anything: {0}")]
-    Limit(CommandBreach),
+    Limit(Breach),
     /// Bad input from the caller (a trajectory of the wrong shape, a bad option).
     #[error("{0}")]
     Input(String),

@@ -15,6 +15,9 @@
 //! curve at the published range itself rather than the slightly wider constants libfranka
 //! uses, so it is a little stricter than the robot.
 
+use cps_kinematics::Quantity;
+use cps_robot::{Breach, Limit};
+
 use crate::wire::JOINTS;
 
 /// Which Franka arm, for its limits.
@@ -132,93 +135,34 @@ impl RateLimits {
     }
 }
 
-/// A limited quantity of the commanded signal, as the 1 kHz loop checks each command (with
-/// the stopping distance and a non-number, which a plan's check has no need of); the
-/// contract's plan check names a [`cps_kinematics::Quantity`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CommandQuantity {
-    /// Position outside the joint's range.
-    Position,
-    /// Velocity beyond its (position-dependent) bound.
-    Velocity,
-    /// Acceleration.
-    Acceleration,
-    /// Jerk.
-    Jerk,
-    /// A stop at this moment could not keep the joint inside its range.
-    StoppingDistance,
-    /// Not a number.
-    NotFinite,
-}
+/// The rule beyond the contract's joint limits that the 1 kHz loop keeps: where a stop
+/// begun at this command would end (worded after it: "… would end at 2.9 rad, beyond the
+/// limit 2.8 rad").
+pub const STOPPING_RULE: &str = "a stop from this speed would end at";
 
-impl CommandQuantity {
-    /// `position`, `velocity`, …
-    pub fn name(self) -> &'static str {
-        match self {
-            CommandQuantity::Position => "position",
-            CommandQuantity::Velocity => "velocity",
-            CommandQuantity::Acceleration => "acceleration",
-            CommandQuantity::Jerk => "jerk",
-            CommandQuantity::StoppingDistance => "stopping distance",
-            CommandQuantity::NotFinite => "value",
-        }
-    }
-
-    fn unit(self) -> &'static str {
-        match self {
-            CommandQuantity::Position | CommandQuantity::StoppingDistance => "rad",
-            CommandQuantity::Velocity => "rad/s",
-            CommandQuantity::Acceleration => "rad/s²",
-            CommandQuantity::Jerk => "rad/s³",
-            CommandQuantity::NotFinite => "",
-        }
+/// The contract's [`Breach`] of `quantity` at joint `joint` (1-based) by command `command`
+/// of a 1 kHz stream (a `value` that is not a number is worded as such): made without
+/// allocating, so the realtime loop can build it.
+#[inline]
+pub fn joint_breach(
+    joint: usize,
+    quantity: Quantity,
+    command: usize,
+    value: f64,
+    bound: f64,
+) -> Breach {
+    Breach {
+        limit: Limit::Joint { joint, quantity },
+        time: command as f64 * DT,
+        command,
+        value,
+        bound,
     }
 }
 
-/// A command that breaks a limit: which joint, when, what, by how much — the loop's own
-/// record (`Copy`, made without allocating inside the loop); [`crate::FrankaRobot`] words
-/// it as the contract's [`cps_robot::Breach`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CommandBreach {
-    /// 1-based joint number.
-    pub joint: usize,
-    /// Index of the command in the stream (0 = the first).
-    pub sample: usize,
-    /// The quantity.
-    pub quantity: CommandQuantity,
-    /// Its value.
-    pub value: f64,
-    /// The limit it passes (for positions, the bound).
-    pub limit: f64,
-}
-
-impl std::fmt::Display for CommandBreach {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let t = self.sample as f64 * DT;
-        match self.quantity {
-            CommandQuantity::NotFinite => write!(
-                f,
-                "joint {} at t = {t:.3} s (command {}): the command is not a number",
-                self.joint, self.sample
-            ),
-            CommandQuantity::StoppingDistance => write!(
-                f,
-                "joint {} at t = {t:.3} s (command {}): moving this fast, a stop would end at {:.4} rad, past the bound {:.4} rad",
-                self.joint, self.sample, self.value, self.limit
-            ),
-            q => write!(
-                f,
-                "joint {} at t = {t:.3} s (command {}): {} {:.6} {} beyond the limit {:.6} {}",
-                self.joint,
-                self.sample,
-                q.name(),
-                self.value,
-                q.unit(),
-                self.limit,
-                q.unit()
-            ),
-        }
-    }
+/// Joint `joint`'s (1-based) limit of `quantity`, as the contract names it.
+pub fn joint_limit(joint: usize, quantity: Quantity) -> Limit {
+    Limit::Joint { joint, quantity }
 }
 
 /// The derivatives of a commanded joint stream, checked command by command as the robot
@@ -270,62 +214,58 @@ impl StreamCheck {
 
     /// Admits the next command `q` (one period after the last) if every joint keeps every
     /// limit, and returns the first breach otherwise (the state is then unchanged).
-    pub fn admit(&mut self, q: &[f64; JOINTS]) -> Result<(), CommandBreach> {
+    pub fn admit(&mut self, q: &[f64; JOINTS]) -> Result<(), Breach> {
         let l = &self.limits;
         let mut v = [0.0; JOINTS];
         let mut a = [0.0; JOINTS];
         let mut usage = [[0.0; JOINTS]; 3];
-        let breach = |joint: usize, quantity, value, limit| CommandBreach {
-            joint: joint + 1,
-            sample: self.sample,
-            quantity,
+        let sample = self.sample;
+        let breach =
+            |i: usize, quantity, value, bound| joint_breach(i + 1, quantity, sample, value, bound);
+        let stopping = |i: usize, value, bound| Breach {
+            limit: Limit::Robot {
+                joint: i + 1,
+                rule: STOPPING_RULE,
+            },
+            time: sample as f64 * DT,
+            command: sample,
             value,
-            limit,
+            bound,
         };
         for i in 0..JOINTS {
             let qi = q[i];
             if !qi.is_finite() {
-                return Err(breach(i, CommandQuantity::NotFinite, qi, 0.0));
+                return Err(breach(i, Quantity::Position, qi, 0.0));
             }
             if qi < l.q_min[i] {
-                return Err(breach(i, CommandQuantity::Position, qi, l.q_min[i]));
+                return Err(breach(i, Quantity::Position, qi, l.q_min[i]));
             }
             if qi > l.q_max[i] {
-                return Err(breach(i, CommandQuantity::Position, qi, l.q_max[i]));
+                return Err(breach(i, Quantity::Position, qi, l.q_max[i]));
             }
             v[i] = (qi - self.q[i]) / DT;
             let (lo, hi) = l.velocity_bounds(i, qi);
             if v[i] > hi || v[i] < lo {
                 let limit = if v[i] > hi { hi } else { lo };
-                return Err(breach(i, CommandQuantity::Velocity, v[i], limit));
+                return Err(breach(i, Quantity::Velocity, v[i], limit));
             }
             a[i] = (v[i] - self.v[i]) / DT;
             if a[i].abs() > l.ddq_max[i] {
-                return Err(breach(i, CommandQuantity::Acceleration, a[i], l.ddq_max[i]));
+                return Err(breach(i, Quantity::Acceleration, a[i], l.ddq_max[i]));
             }
             let j = (a[i] - self.a[i]) / DT;
             if j.abs() > l.dddq_max[i] {
-                return Err(breach(i, CommandQuantity::Jerk, j, l.dddq_max[i]));
+                return Err(breach(i, Quantity::Jerk, j, l.dddq_max[i]));
             }
             // Where a full stop from here would end: the acceleration ramps to its limit
             // at full jerk (ddq/dddq seconds), then brakes at the limit.
             let ramp = l.ddq_max[i] / l.dddq_max[i];
             let stop = qi + v[i] * ramp + v[i] * v[i].abs() / (2.0 * l.ddq_max[i]);
             if stop > l.q_max[i] + 1e-9 {
-                return Err(breach(
-                    i,
-                    CommandQuantity::StoppingDistance,
-                    stop,
-                    l.q_max[i],
-                ));
+                return Err(stopping(i, stop, l.q_max[i]));
             }
             if stop < l.q_min[i] - 1e-9 {
-                return Err(breach(
-                    i,
-                    CommandQuantity::StoppingDistance,
-                    stop,
-                    l.q_min[i],
-                ));
+                return Err(stopping(i, stop, l.q_min[i]));
             }
             let vmax = if v[i] >= 0.0 { hi } else { -lo };
             usage[0][i] = if vmax > 0.0 { v[i].abs() / vmax } else { 0.0 };
@@ -357,7 +297,7 @@ pub fn check_stream(
     limits: RateLimits,
     q0: [f64; JOINTS],
     stream: &[[f64; JOINTS]],
-) -> Result<StreamCheck, CommandBreach> {
+) -> Result<StreamCheck, Breach> {
     let mut c = StreamCheck::at_rest(limits, q0);
     for q in stream {
         c.admit(q)?;
@@ -485,8 +425,8 @@ mod tests {
         }
         let b = check_stream(l, q0, &stream).unwrap_err();
         assert_eq!(
-            (b.joint, b.sample, b.quantity),
-            (4, 50, CommandQuantity::Velocity)
+            (b.limit, b.command),
+            (joint_limit(4, Quantity::Velocity), 50)
         );
         assert_eq!(
             b.to_string(),
@@ -496,14 +436,16 @@ mod tests {
         let mut small = vec![q0; 10];
         small[5][0] += 1e-4;
         assert_eq!(
-            check_stream(l, q0, &small).unwrap_err().quantity,
-            CommandQuantity::Acceleration
+            check_stream(l, q0, &small).unwrap_err().limit,
+            joint_limit(1, Quantity::Acceleration)
         );
         let mut nan = vec![q0; 3];
         nan[2][6] = f64::NAN;
+        let b = check_stream(l, q0, &nan).unwrap_err();
+        assert!(b.value.is_nan(), "{b:?}");
         assert_eq!(
-            check_stream(l, q0, &nan).unwrap_err().quantity,
-            CommandQuantity::NotFinite
+            b.to_string(),
+            "joint 7 at t = 0.002 s (command 2): the commanded position is not a number"
         );
     }
 

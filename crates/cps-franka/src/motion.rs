@@ -7,10 +7,12 @@ pub use cps_robot::START_TOLERANCE;
 use cps_robot::rest_to_rest;
 
 use crate::error::FrankaError;
-use crate::limits::{CommandBreach, CommandQuantity, DT, RateLimits, StreamCheck, check_stream};
+use crate::limits::{DT, RateLimits, StreamCheck, check_stream, joint_breach};
 use crate::rt::{JointPositions, LoopOptions, MotionReport, run_joint_positions, start_position};
 use crate::session::Connection;
 use crate::wire::JOINTS;
+use cps_kinematics::Quantity;
+use cps_robot::Breach;
 
 /// A rest-to-rest move from `from` to `to` along a straight line in joint space, at
 /// `fraction` (0 < f ≤ 1) of every joint's velocity (its slowest bound along the line, on
@@ -96,17 +98,13 @@ pub fn check_trajectory(
         for (i, &x) in q.iter().enumerate() {
             let (lo, hi) = (limits.q_min[i], limits.q_max[i]);
             if !x.is_finite() || x < lo || x > hi {
-                return Err(FrankaError::Limit(CommandBreach {
-                    joint: i + 1,
-                    sample: k,
-                    quantity: if x.is_finite() {
-                        CommandQuantity::Position
-                    } else {
-                        CommandQuantity::NotFinite
-                    },
-                    value: x,
-                    limit: if x < lo { lo } else { hi },
-                }));
+                return Err(FrankaError::Limit(joint_breach(
+                    i + 1,
+                    Quantity::Position,
+                    k,
+                    x,
+                    if x < lo { lo } else { hi },
+                )));
             }
         }
     }
@@ -144,16 +142,18 @@ pub fn check_trajectory(
     }
     let approach_len = commands.len();
     commands.extend_from_slice(trajectory);
-    let check: StreamCheck =
-        check_stream(*limits, from, &commands).map_err(|b: CommandBreach| {
-            let mut b = b;
-            if b.sample >= approach_len {
-                b.sample -= approach_len;
-                FrankaError::Limit(b)
-            } else {
-                FrankaError::Input(format!("the approach move breaks a limit: {b}"))
-            }
-        })?;
+    let check: StreamCheck = check_stream(*limits, from, &commands).map_err(|b: Breach| {
+        if b.command >= approach_len {
+            let command = b.command - approach_len;
+            FrankaError::Limit(Breach {
+                command,
+                time: command as f64 * DT,
+                ..b
+            })
+        } else {
+            FrankaError::Input(format!("the approach move breaks a limit: {b}"))
+        }
+    })?;
     Ok(CheckedStream {
         commands,
         approach: approach_len,
@@ -281,7 +281,7 @@ mod tests {
         panda[3] = -0.0698;
         let e = check_trajectory(&l, from, &[panda], Start::Approach(0.2)).unwrap_err();
         assert!(
-            matches!(e, FrankaError::Limit(b) if b.joint == 4 && b.quantity == CommandQuantity::Position),
+            matches!(e, FrankaError::Limit(b) if b.limit == crate::limits::joint_limit(4, Quantity::Position)),
             "{e}"
         );
         // A start a hair inside the FR3's range end, where it allows no speed: refused.

@@ -16,15 +16,14 @@
 //! `O_T_EE`, and the model's flange with the robot's own URDF (`GetRobotModel`), so a
 //! model that is not this arm is named instead of missing every target by the difference.
 
-use cps_kinematics::Quantity as JointQuantity;
 use cps_robot::{
-    BLEND_SHARE, Breach, Ending as RunEnding, Generator, Limit, Plan, Robot, RobotError,
-    RobotModel, Run, StopToken, Streaming,
+    BLEND_SHARE, Breach, Ending as RunEnding, Generator, Plan, Robot, RobotError, RobotModel, Run,
+    StopToken, Streaming,
 };
 use nalgebra::{IsometryMatrix3, Matrix4};
 
 use crate::FrankaError;
-use crate::limits::{Arm, CommandQuantity, DT, RateLimits};
+use crate::limits::{Arm, DT, RateLimits};
 use crate::motion::{CheckedStream, Start, check_trajectory, execute_stream, record_states};
 use crate::rt::{
     JointPositions, LoopOptions, MotionEnd, MotionReport, Realtime, run_joint_positions,
@@ -334,7 +333,7 @@ impl FrankaRobot {
                 self.checked = Some((plan.clone(), from, stream));
                 Ok(None)
             }
-            Err(FrankaError::Limit(b)) => Ok(Some(breach(&b))),
+            Err(FrankaError::Limit(b)) => Ok(Some(b)),
             Err(e) => Err(franka_error(&host, e)),
         }
     }
@@ -356,39 +355,6 @@ fn with_arm_limits(mut model: RobotModel, limits: &RateLimits) -> Result<RobotMo
     // Joint motion: the arm holds no Cartesian limit on it.
     model.cartesian = None;
     Ok(model)
-}
-
-/// The robot's own breach in the contract's words: joint quantities as joint limits, the
-/// distance a stop needs as the robot's rule.
-fn breach(b: &crate::limits::CommandBreach) -> Breach {
-    let quantity = match b.quantity {
-        CommandQuantity::Position | CommandQuantity::NotFinite => JointQuantity::Position,
-        CommandQuantity::Velocity => JointQuantity::Velocity,
-        CommandQuantity::Acceleration => JointQuantity::Acceleration,
-        CommandQuantity::Jerk => JointQuantity::Jerk,
-        CommandQuantity::StoppingDistance => {
-            return Breach {
-                limit: Limit::Robot {
-                    joint: b.joint,
-                    rule: "a stop from this speed would end at",
-                },
-                time: b.sample as f64 * DT,
-                command: b.sample,
-                value: b.value,
-                bound: b.limit,
-            };
-        }
-    };
-    Breach {
-        limit: Limit::Joint {
-            joint: b.joint,
-            quantity,
-        },
-        time: b.sample as f64 * DT,
-        command: b.sample,
-        value: b.value,
-        bound: b.limit,
-    }
 }
 
 fn ending(e: &MotionEnd) -> RunEnding {

@@ -13,11 +13,13 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::error::FrankaError;
-use crate::limits::{Brake, CommandBreach, CommandQuantity, DT, RateLimits, StreamCheck};
+use crate::limits::{Brake, DT, RateLimits, StreamCheck, joint_breach};
 use crate::session::Connection;
 use crate::wire::{
     Command, ControllerMode, JOINTS, MotionGeneratorMode, MoveStatus, RobotMode, RobotState,
 };
+use cps_kinematics::Quantity;
+use cps_robot::Breach;
 
 /// Whether the loop thread asks for realtime scheduling (libfranka's `RealtimeConfig`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -107,7 +109,7 @@ pub enum MotionEnd {
     Stopped,
     /// The generator asked for a command beyond a limit: it was never sent; the robot was
     /// braked to rest from the last admitted command.
-    LimitBrake(CommandBreach),
+    LimitBrake(Breach),
     /// The recording was full: braked to rest.
     RecordingFull,
     /// The robot ended the motion itself (a reflex, the user stop, a preemption).
@@ -543,26 +545,26 @@ where
         let l = self.limits;
         if let Some(i) = (0..JOINTS).find(|&i| state.dq[i].abs() > TORQUE_SPEED_GUARD * l.dq_max[i])
         {
-            self.stop_for(MotionEnd::LimitBrake(CommandBreach {
-                joint: i + 1,
-                sample: tick,
-                quantity: CommandQuantity::Velocity,
-                value: state.dq[i],
-                limit: TORQUE_SPEED_GUARD * l.dq_max[i],
-            }));
+            self.stop_for(MotionEnd::LimitBrake(joint_breach(
+                i + 1,
+                Quantity::Velocity,
+                tick,
+                state.dq[i],
+                TORQUE_SPEED_GUARD * l.dq_max[i],
+            )));
         }
         let mut finished = false;
         let mut tau = [0.0; JOINTS];
         if !self.stopping {
             let c = (self.control)(state, t);
             if let Some(i) = (0..JOINTS).find(|&i| !c.tau[i].is_finite()) {
-                self.stop_for(MotionEnd::LimitBrake(CommandBreach {
-                    joint: i + 1,
-                    sample: tick,
-                    quantity: CommandQuantity::NotFinite,
-                    value: c.tau[i],
-                    limit: l.tau_max[i],
-                }));
+                self.stop_for(MotionEnd::LimitBrake(joint_breach(
+                    i + 1,
+                    Quantity::Torque,
+                    tick,
+                    c.tau[i],
+                    l.tau_max[i],
+                )));
             } else {
                 tau = c.tau;
                 finished = c.finished;

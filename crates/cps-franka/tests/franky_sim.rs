@@ -11,11 +11,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use common::FrankySim;
-use cps_franka::limits::{Arm, CommandQuantity, RateLimits, check_stream};
+use cps_franka::limits::{Arm, RateLimits, check_stream, joint_limit};
 use cps_franka::{
     Connection, FrankaError, LoopOptions, MotionEnd, Realtime, RobotMode, Start, approach,
     check_trajectory, execute_stream,
 };
+use cps_kinematics::Quantity;
 
 fn options() -> LoopOptions {
     LoopOptions {
@@ -169,8 +170,8 @@ fn a_step_is_refused_before_anything_is_sent_and_the_robot_stays() {
     match check_trajectory(&limits, from, &trajectory, Start::Refuse) {
         Err(FrankaError::Limit(b)) => {
             assert_eq!(
-                (b.joint, b.sample, b.quantity),
-                (3, 250, CommandQuantity::Velocity)
+                (b.limit, b.command),
+                (joint_limit(3, Quantity::Velocity), 250)
             );
         }
         other => panic!("expected a refusal, got {other:?}"),
@@ -638,8 +639,8 @@ fn torques_from_cps_move_the_arm_and_stay_within_the_torque_limits() {
     match &report.ending {
         MotionEnd::LimitBrake(b) => {
             assert_eq!(
-                (b.joint, b.quantity),
-                (3, CommandQuantity::NotFinite),
+                (b.limit, b.value.is_nan()),
+                (joint_limit(3, Quantity::Torque), true),
                 "{b}"
             )
         }

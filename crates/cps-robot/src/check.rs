@@ -13,7 +13,7 @@ use crate::plan::Plan;
 use crate::{RobotError, RobotModel};
 
 /// What a breach is of.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Limit {
     /// A joint's quantity (1-based joint).
     Joint {
@@ -35,8 +35,11 @@ pub enum Limit {
     },
 }
 
-/// The first place where a plan's motion passes a limit.
-#[derive(Debug, Clone, PartialEq)]
+/// The first place where a plan's motion passes a limit — or, where a robot checks each
+/// command as it goes (the Franka's 1 kHz loop), the first command that would: one type
+/// for both, `Copy`, made without allocating. A `value` that is not a number is worded as
+/// such.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Breach {
     /// What is passed.
     pub limit: Limit,
@@ -72,6 +75,18 @@ fn unit(quantity: &str) -> &'static str {
 impl std::fmt::Display for Breach {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let (t, c) = (self.time, self.command);
+        if !self.value.is_finite() {
+            let (place, what) = match &self.limit {
+                Limit::Joint { joint, quantity } => (format!("joint {joint}"), quantity.name()),
+                Limit::Tool(q) => ("the tool".to_string(), *q),
+                Limit::Robot { joint, .. } => (format!("joint {joint}"), "position"),
+            };
+            return write!(
+                f,
+                "{place} at t = {t:.3} s (command {c}): the commanded {} is not a number",
+                what.replace('_', " ")
+            );
+        }
         match &self.limit {
             Limit::Joint {
                 joint,
@@ -117,8 +132,11 @@ impl Breach {
     /// How many times slower the plan must run for this breach to go, at least (velocities
     /// shrink with the slowing, accelerations with its square, jerks with its cube; the
     /// dynamic part of a torque like an acceleration); None where no slowing can help (a
-    /// position out of range).
+    /// position out of range, a value that is not a number).
     pub fn slowing_needed(&self) -> Option<f64> {
+        if !self.value.is_finite() {
+            return None;
+        }
         let ratio = (self.value / self.bound).abs().max(1.0);
         let order = match &self.limit {
             Limit::Joint { quantity, .. } => match quantity {
