@@ -316,7 +316,7 @@ impl<R: Robot> Guarded<R> {
                 None => main,
             };
             let verdict = check(self.robot.model(), &whole, self.robot.command_period())?;
-            let breach = match verdict.breach.clone() {
+            let breach = match verdict.breach {
                 Some(b) => Some(b),
                 None => self.robot.check(&whole)?,
             };
