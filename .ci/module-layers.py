@@ -39,7 +39,7 @@ LAYERS = {
     ],
     "cps-kinematics": [
         ["error", "fastmath", "transforms"],
-        ["chain", "spline"],
+        ["chain", "spline", "urdf_collision"],
         ["controllers", "dynamics"],
         ["ik", "limits", "urdf"],
         ["retime", "robots", "workspace"],
@@ -67,6 +67,11 @@ LAYERS = {
         ["viapoint"],
         ["energy", "imitation", "joint", "pose"],
         ["joint_executed"],
+    ],
+    "cps-geometry": [
+        ["error", "gjk"],
+        ["hull"],
+        ["mesh", "shape"],
     ],
     "cps-mocap": [
         ["error", "fit"],

@@ -24,6 +24,7 @@
 //!   ros2_control, joint states recorded.
 //! - [`ros2_msg`] (`cps-ros2-msg`): the ROS 2 messages and their CDR bytes, no transport.
 //! - [`mocap`] (`cps-mocap`): motion-capture takes (C3D, Motive CSV) made demonstrations.
+//! - [`geometry`] (`cps-geometry`): shapes, meshes as convex hulls, signed distances.
 //! - [`outcome`] (`cps-outcome`), [`report`] (`cps-report`), [`movement`]
 //!   (`cps-movement`), [`drive`] (`cps-drive`): a run's outcome as data and as files; robot,
 //!   scene, trajectory and demonstration files; robots driven from files.
@@ -63,6 +64,7 @@ pub use cps_drive as drive;
 pub use cps_dynamics as dynamics;
 pub use cps_experiment as experiment;
 pub use cps_franka as franka;
+pub use cps_geometry as geometry;
 pub use cps_kinematics as kinematics;
 pub use cps_learn as learn;
 pub use cps_mocap as mocap;
