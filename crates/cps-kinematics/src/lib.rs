@@ -63,6 +63,7 @@ mod spline;
 pub mod transforms;
 #[cfg(feature = "urdf")]
 mod urdf;
+mod urdf_collision;
 mod workspace;
 
 pub use arm_model::{ArmFrames, ArmModel};
@@ -80,4 +81,5 @@ pub use retime::{RetimeOptions, Retimed, UniformSlowing, retime};
 pub use spline::{JointSpline, PathPoint};
 #[cfg(feature = "urdf")]
 pub use urdf::{UrdfChain, chain_from_urdf};
+pub use urdf_collision::{CollisionElement, CollisionGeometry};
 pub use workspace::{check_path, degrees_of_freedom, sample_workspace};

@@ -13,6 +13,9 @@ use std::collections::HashMap;
 
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
 
+use crate::urdf_collision::{
+    Carry, CollisionElement, CollisionGeometry, PlaceJoint, UrdfCollision, place,
+};
 use crate::{KinematicsError, LinkInertia, RevoluteJoint, SerialChain};
 
 /// A joint's `type`.
@@ -46,6 +49,7 @@ struct Inertial {
 struct Link {
     name: String,
     inertial: Inertial,
+    collisions: Vec<UrdfCollision>,
 }
 
 /// A joint's `<limit>` (zero when absent or not given).
@@ -94,6 +98,12 @@ pub struct UrdfChain {
     /// Each moving link's `<inertial>` (with the links fixed to it merged in), when any
     /// moving link has a mass.
     pub inertia: Option<Vec<LinkInertia>>,
+    /// Every `<collision>` element the chain carries, placed on its frames (empty when the
+    /// description has none: nothing can then be checked for collisions).
+    pub collisions: Vec<CollisionElement>,
+    /// Links with collision elements behind a moving joint off the chain, which the
+    /// chain's angles cannot place.
+    pub unplaced: Vec<String>,
 }
 
 /// A link's `<inertial>` in the link's frame (its origin's rotation applied).
@@ -125,6 +135,96 @@ pub const MAX_URDF_BYTES: usize = 16 << 20;
 /// The deepest element nesting [`chain_from_urdf`] accepts (checked before parsing, so a
 /// hostile file cannot exhaust the parser's stack).
 pub const MAX_URDF_DEPTH: usize = 64;
+
+/// Reads three numbers of an attribute (with a default when it is absent).
+type Three<'a> = &'a dyn Fn(&Element, &str, &str, [f64; 3]) -> Result<[f64; 3], String>;
+/// Reads one number of an attribute.
+type One<'a> = &'a dyn Fn(&Element, &str, &str) -> Result<f64, String>;
+
+/// A `<collision>`'s `<geometry>`: one shape, every size a positive number.
+fn collision_geometry(
+    c: &Element,
+    what: &str,
+    three: Three<'_>,
+    one: One<'_>,
+) -> Result<CollisionGeometry, String> {
+    let g = c
+        .child("geometry")
+        .ok_or_else(|| format!("line {}: {what} has no `<geometry>`", c.line))?;
+    let Some(shape) = g.children.first() else {
+        return Err(format!(
+            "line {}: {what}: `<geometry>` holds no shape",
+            g.line
+        ));
+    };
+    let size = |key: &str| -> Result<f64, String> {
+        if shape.attr(key).is_none() {
+            return Err(format!(
+                "line {}: {what}: `<{}>` has no `{key}`",
+                shape.line, shape.name
+            ));
+        }
+        let v = one(shape, key, what)?;
+        if v > 0.0 && v.is_finite() {
+            Ok(v)
+        } else {
+            Err(format!(
+                "line {}: {what}: `<{}>`'s `{key}` is {v}, not a positive number of metres",
+                shape.line, shape.name
+            ))
+        }
+    };
+    Ok(match shape.name.as_str() {
+        "box" => {
+            if shape.attr("size").is_none() {
+                return Err(format!(
+                    "line {}: {what}: `<box>` has no `size`",
+                    shape.line
+                ));
+            }
+            let v = three(shape, "size", what, [0.0; 3])?;
+            if let Some(bad) = v.iter().find(|x| !(**x > 0.0 && x.is_finite())) {
+                return Err(format!(
+                    "line {}: {what}: `<box>`'s `size` has {bad}, not a positive number of metres",
+                    shape.line
+                ));
+            }
+            CollisionGeometry::Box { size: v }
+        }
+        "cylinder" => CollisionGeometry::Cylinder {
+            radius: size("radius")?,
+            length: size("length")?,
+        },
+        "capsule" => CollisionGeometry::Capsule {
+            radius: size("radius")?,
+            length: size("length")?,
+        },
+        "sphere" => CollisionGeometry::Sphere {
+            radius: size("radius")?,
+        },
+        "mesh" => {
+            let filename = shape
+                .attr("filename")
+                .filter(|f| !f.trim().is_empty())
+                .ok_or_else(|| format!("line {}: {what}: `<mesh>` has no `filename`", shape.line))?
+                .to_string();
+            let scale = three(shape, "scale", what, [1.0; 3])?;
+            if let Some(bad) = scale.iter().find(|x| !(**x > 0.0 && x.is_finite())) {
+                return Err(format!(
+                    "line {}: {what}: `<mesh>`'s `scale` has {bad}, not a positive number",
+                    shape.line
+                ));
+            }
+            CollisionGeometry::Mesh { filename, scale }
+        }
+        other => {
+            return Err(format!(
+                "line {}: {what}: `<{other}>` is not a URDF shape (box, cylinder, sphere, capsule, mesh)",
+                shape.line
+            ));
+        }
+    })
+}
 
 /// How deeply the elements of `xml` nest, by a scan that needs no stack: comments,
 /// processing instructions, declarations and quoted attribute values are skipped.
@@ -263,9 +363,21 @@ fn read_robot(xml: &str) -> Result<Robot, String> {
                 },
             },
         };
+        let mut collisions = Vec::new();
+        for c in l.children("collision") {
+            let what = format!("link `{link}` collision");
+            let at =
+                pose(&origin(c, &what)?).map_err(|m| format!("line {}: {what}: {m}", c.line))?;
+            collisions.push(UrdfCollision {
+                origin: at,
+                geometry: collision_geometry(c, &what, &three, &one)?,
+                line: c.line,
+            });
+        }
         links.push(Link {
             name: link,
             inertial,
+            collisions,
         });
     }
     let mut joints = Vec::new();
@@ -735,6 +847,9 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
     let (mut lower, mut upper, mut speed, mut effort) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut pending = Isometry3::identity();
+    // Each link on the chain: the frame that carries it and its pose there.
+    let mut on_chain: HashMap<String, (usize, Isometry3<f64>)> = HashMap::new();
+    on_chain.insert(root.to_string(), (0, Isometry3::identity()));
     // Per moving link: the inertial parts rigidly attached to it, in its frame.
     let mut parts: Vec<Vec<(LinkInertia, Isometry3<f64>)>> = Vec::new();
     let link = |name: &str| robot.links.iter().find(|l| l.name == name);
@@ -751,6 +866,7 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
         match &j.joint_type {
             JointType::Fixed => {
                 pending = origin;
+                on_chain.insert(j.child.clone(), (joints.len(), pending));
                 if let (Some(last), Some(l)) = (parts.last_mut(), link(&j.child)) {
                     last.push((inertial(l)?, origin));
                 }
@@ -793,6 +909,7 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
                 };
                 parts.push(vec![(own, Isometry3::identity())]);
                 pending = Isometry3::identity();
+                on_chain.insert(j.child.clone(), (joints.len(), pending));
             }
             other => {
                 return Err(invalid(format!(
@@ -815,6 +932,29 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
         chain = chain.with_velocity_limits(&speed)?;
     }
     let inertia: Vec<LinkInertia> = parts.iter().map(|p| LinkInertia::combine(p)).collect();
+    let mut carriers = Vec::new();
+    for j in &robot.joints {
+        carriers.push(PlaceJoint {
+            parent: &j.parent,
+            child: &j.child,
+            origin: pose(&j.origin).map_err(|m| invalid(format!("joint `{}`: {m}", j.name)))?,
+            axis: Vector3::from(j.axis)
+                .try_normalize(1e-12)
+                .unwrap_or_default(),
+            carry: match j.joint_type {
+                JointType::Fixed => Carry::Rigid(0.0),
+                JointType::Prismatic if j.limit.upper.is_finite() => Carry::Rigid(j.limit.upper),
+                JointType::Prismatic => Carry::Rigid(0.0),
+                _ => Carry::Moving,
+            },
+        });
+    }
+    let link_collisions: Vec<(&str, &[UrdfCollision])> = robot
+        .links
+        .iter()
+        .map(|l| (l.name.as_str(), l.collisions.as_slice()))
+        .collect();
+    let (collisions, unplaced) = place(&link_collisions, &on_chain, &carriers);
     Ok(UrdfChain {
         name: robot.name.clone(),
         chain,
@@ -826,6 +966,8 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
             .all(|e| e.is_finite() && *e > 0.0)
             .then_some(effort),
         inertia: inertia.iter().any(|l| l.mass > 0.0).then_some(inertia),
+        collisions,
+        unplaced,
     })
 }
 
