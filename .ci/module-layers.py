@@ -72,6 +72,7 @@ LAYERS = {
         ["error", "gjk"],
         ["hull"],
         ["mesh", "shape"],
+        ["model"],
     ],
     "cps-mocap": [
         ["error", "fit"],
@@ -111,7 +112,7 @@ LAYERS = {
         ["write"],
     ],
     "cps-movement": [
-        ["calibration", "robot_file"],
+        ["calibration", "collision", "robot_file"],
         ["movement", "scene"],
         ["limits", "mocap", "promp"],
         ["retiming"],

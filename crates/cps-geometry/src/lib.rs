@@ -23,9 +23,11 @@ mod error;
 mod gjk;
 mod hull;
 mod mesh;
+mod model;
 mod shape;
 
 pub use error::GeometryError;
 pub use hull::Hull;
 pub use mesh::{MAX_MESH_BYTES, Mesh};
+pub use model::{Body, CollisionModel, Contact, Obstacle, Other, PathCheck};
 pub use shape::{DISTANCE_TOLERANCE, Separation, Shape, distance, distance_hinted};

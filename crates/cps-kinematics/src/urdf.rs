@@ -104,6 +104,10 @@ pub struct UrdfChain {
     /// Links with collision elements behind a moving joint off the chain, which the
     /// chain's angles cannot place.
     pub unplaced: Vec<String>,
+    /// Pairs of links with collision elements that a joint joins (looking through links
+    /// without any): their shapes touch at the joint, so they are not checked against
+    /// each other.
+    pub adjacent: Vec<(String, String)>,
 }
 
 /// A link's `<inertial>` in the link's frame (its origin's rotation applied).
@@ -954,7 +958,7 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
         .iter()
         .map(|l| (l.name.as_str(), l.collisions.as_slice()))
         .collect();
-    let (collisions, unplaced) = place(&link_collisions, &on_chain, &carriers);
+    let placed = place(&link_collisions, &on_chain, &carriers);
     Ok(UrdfChain {
         name: robot.name.clone(),
         chain,
@@ -966,8 +970,9 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
             .all(|e| e.is_finite() && *e > 0.0)
             .then_some(effort),
         inertia: inertia.iter().any(|l| l.mass > 0.0).then_some(inertia),
-        collisions,
-        unplaced,
+        collisions: placed.elements,
+        unplaced: placed.unplaced,
+        adjacent: placed.adjacent,
     })
 }
 

@@ -27,6 +27,7 @@
 #![deny(missing_docs)]
 
 pub mod calibration;
+pub mod collision;
 pub mod export;
 pub mod limits;
 pub mod mocap;

@@ -1,0 +1,322 @@
+//! A robot's bodies and its scene's obstacles, and the pairs of them that can collide:
+//! what the guard checks a plan against.
+//!
+//! Bodies ride on numbered frames (0 the robot's base, `k` the link joint `k` moves); a
+//! caller gives the frames' world poses, from forward kinematics, and gets distances.
+//! Pairs that cannot change are left out: two bodies on one frame never move against each
+//! other, and a link and the link its joint hangs from touch at the joint whatever its
+//! angle (the `skip` pairs, with any pair a robot file declares).
+//!
+//! A path is checked configuration by configuration with [`PathCheck`]. Between two
+//! configurations no point of a body moves further than its bounding sphere's centre
+//! does plus the sphere's radius times the chord of its frame's turn, so a pair known to
+//! be `d` apart stays apart until the bodies' motion since adds up to `d`: only then is
+//! its distance computed again. At a robot's control rate a pair 10 cm apart is computed
+//! once in many steps.
+
+use nalgebra::{Isometry3, Point3, Vector3};
+
+use crate::shape::{Separation, Shape, distance_hinted};
+
+type V = Vector3<f64>;
+
+/// A shape carried by one of the robot's frames.
+#[derive(Debug, Clone)]
+pub struct Body {
+    /// The link it belongs to (its URDF name).
+    pub link: String,
+    /// The frame that carries it: 0 the base, `k` the link joint `k` moves.
+    pub frame: usize,
+    /// Its pose in that frame.
+    pub origin: Isometry3<f64>,
+    /// Its shape.
+    pub shape: Shape,
+}
+
+/// A shape fixed in the world (the robot's base frame).
+#[derive(Debug, Clone)]
+pub struct Obstacle {
+    /// Its name, as the scene file gives it.
+    pub name: String,
+    /// Its pose.
+    pub pose: Isometry3<f64>,
+    /// Its shape.
+    pub shape: Shape,
+}
+
+/// The second member of a pair; the first is always a body.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Other {
+    /// Another of the robot's bodies (index into [`CollisionModel::bodies`]).
+    Body(usize),
+    /// An obstacle (index into [`CollisionModel::obstacles`]).
+    Obstacle(usize),
+}
+
+/// Two shapes at a configuration and how far apart they are.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Contact {
+    /// Which pair ([`CollisionModel::pair`]).
+    pub pair: usize,
+    /// Their signed distance (negative: overlapping) and closest points.
+    pub separation: Separation,
+}
+
+/// A robot's bodies, its scene's obstacles, and the pairs to check.
+#[derive(Debug, Clone)]
+pub struct CollisionModel {
+    bodies: Vec<Body>,
+    obstacles: Vec<Obstacle>,
+    pairs: Vec<(usize, Other)>,
+    /// Per body: its bounding sphere's centre in its frame, and radius.
+    body_bounds: Vec<(V, f64)>,
+    /// Per obstacle: its bounding sphere's centre in the world, and radius.
+    obstacle_bounds: Vec<(V, f64)>,
+    frames: usize,
+}
+
+impl CollisionModel {
+    /// The model of `bodies` among `obstacles`, every pair checked except two bodies on one
+    /// frame and the pairs `skip` names (link names, or a link and an obstacle's name; either
+    /// order).
+    pub fn new(bodies: Vec<Body>, obstacles: Vec<Obstacle>, skip: &[(String, String)]) -> Self {
+        let skipped = |a: &str, b: &str| {
+            skip.iter()
+                .any(|(x, y)| (x == a && y == b) || (x == b && y == a))
+        };
+        let mut pairs = Vec::new();
+        for (i, a) in bodies.iter().enumerate() {
+            for (j, b) in bodies.iter().enumerate().skip(i + 1) {
+                if a.frame != b.frame && a.link != b.link && !skipped(&a.link, &b.link) {
+                    pairs.push((i, Other::Body(j)));
+                }
+            }
+        }
+        for (i, a) in bodies.iter().enumerate() {
+            for (k, o) in obstacles.iter().enumerate() {
+                if !skipped(&a.link, &o.name) {
+                    pairs.push((i, Other::Obstacle(k)));
+                }
+            }
+        }
+        let body_bounds = bodies
+            .iter()
+            .map(|b| {
+                let (c, r) = b.shape.bounds();
+                ((b.origin * Point3::from(c)).coords, r)
+            })
+            .collect();
+        let obstacle_bounds = obstacles
+            .iter()
+            .map(|o| {
+                let (c, r) = o.shape.bounds();
+                ((o.pose * Point3::from(c)).coords, r)
+            })
+            .collect();
+        let frames = bodies.iter().map(|b| b.frame + 1).max().unwrap_or(0);
+        CollisionModel {
+            bodies,
+            obstacles,
+            pairs,
+            body_bounds,
+            obstacle_bounds,
+            frames,
+        }
+    }
+
+    /// The robot's bodies.
+    pub fn bodies(&self) -> &[Body] {
+        &self.bodies
+    }
+
+    /// The scene's obstacles.
+    pub fn obstacles(&self) -> &[Obstacle] {
+        &self.obstacles
+    }
+
+    /// How many frames the bodies ride on (the length [`CollisionModel::distance`]'s
+    /// `frames` must have at least).
+    pub fn frames(&self) -> usize {
+        self.frames
+    }
+
+    /// How many pairs are checked.
+    pub fn pair_count(&self) -> usize {
+        self.pairs.len()
+    }
+
+    /// Pair `p`: a body and what it is checked against.
+    pub fn pair(&self, p: usize) -> (usize, Other) {
+        self.pairs[p]
+    }
+
+    /// The names of pair `p`'s members: a link, and a link or an obstacle.
+    pub fn pair_names(&self, p: usize) -> (&str, &str) {
+        let (a, b) = self.pairs[p];
+        let second = match b {
+            Other::Body(j) => self.bodies[j].link.as_str(),
+            Other::Obstacle(k) => self.obstacles[k].name.as_str(),
+        };
+        (self.bodies[a].link.as_str(), second)
+    }
+
+    /// The signed distance of pair `p` with the frames at `frames` (world poses, indexed
+    /// by frame).
+    pub fn distance(&self, p: usize, frames: &[Isometry3<f64>]) -> Separation {
+        self.distance_hinted(p, frames, &mut [0, 0])
+    }
+
+    fn pose(&self, i: usize, frames: &[Isometry3<f64>]) -> Isometry3<f64> {
+        frames[self.bodies[i].frame] * self.bodies[i].origin
+    }
+
+    fn distance_hinted(
+        &self,
+        p: usize,
+        frames: &[Isometry3<f64>],
+        hints: &mut [u32; 2],
+    ) -> Separation {
+        let (a, b) = self.pairs[p];
+        let pa = self.pose(a, frames);
+        match b {
+            Other::Body(j) => distance_hinted(
+                &self.bodies[a].shape,
+                &pa,
+                &self.bodies[j].shape,
+                &self.pose(j, frames),
+                hints,
+            ),
+            Other::Obstacle(k) => distance_hinted(
+                &self.bodies[a].shape,
+                &pa,
+                &self.obstacles[k].shape,
+                &self.obstacles[k].pose,
+                hints,
+            ),
+        }
+    }
+
+    /// Every pair closer than `limit` (m) at `frames`, closest first. Pairs whose bounding
+    /// spheres are `limit` apart are not computed.
+    pub fn within(&self, frames: &[Isometry3<f64>], limit: f64) -> Vec<Contact> {
+        let centres: Vec<V> = (0..self.bodies.len())
+            .map(|i| (frames[self.bodies[i].frame] * Point3::from(self.body_bounds[i].0)).coords)
+            .collect();
+        let mut out = Vec::new();
+        for p in 0..self.pairs.len() {
+            let (a, b) = self.pairs[p];
+            let (cb, rb) = match b {
+                Other::Body(j) => (centres[j], self.body_bounds[j].1),
+                Other::Obstacle(k) => self.obstacle_bounds[k],
+            };
+            if (centres[a] - cb).norm() - self.body_bounds[a].1 - rb >= limit {
+                continue;
+            }
+            let s = self.distance(p, frames);
+            if s.distance < limit {
+                out.push(Contact {
+                    pair: p,
+                    separation: s,
+                });
+            }
+        }
+        out.sort_by(|x, y| x.separation.distance.total_cmp(&y.separation.distance));
+        out
+    }
+}
+
+/// A path's check, one configuration after another (see the module's text): the pairs
+/// within `watch` of each other are computed exactly at every configuration, the others
+/// only when their bodies' motion could have brought them within it. Nothing is allocated
+/// after [`PathCheck::new`].
+#[derive(Debug, Clone)]
+pub struct PathCheck<'a> {
+    model: &'a CollisionModel,
+    watch: f64,
+    lower: Vec<f64>,
+    hints: Vec<[u32; 2]>,
+    centres: Vec<V>,
+    rotations: Vec<nalgebra::UnitQuaternion<f64>>,
+    moved: Vec<f64>,
+    started: bool,
+    queries: usize,
+    near: Vec<Contact>,
+}
+
+impl<'a> PathCheck<'a> {
+    /// A check of `model` that computes exactly every pair closer than `watch` (m).
+    pub fn new(model: &'a CollisionModel, watch: f64) -> Self {
+        let n = model.bodies.len();
+        PathCheck {
+            model,
+            watch,
+            lower: vec![f64::NEG_INFINITY; model.pairs.len()],
+            hints: vec![[0, 0]; model.pairs.len()],
+            centres: vec![V::zeros(); n],
+            rotations: vec![nalgebra::UnitQuaternion::identity(); n],
+            moved: vec![0.0; n],
+            started: false,
+            queries: 0,
+            near: Vec::with_capacity(model.pairs.len()),
+        }
+    }
+
+    /// How many exact distances were computed so far.
+    pub fn queries(&self) -> usize {
+        self.queries
+    }
+
+    /// Every pair closer than `watch` at the last configuration, in pair order.
+    pub fn near(&self) -> &[Contact] {
+        &self.near
+    }
+
+    /// The next configuration's frames: the closest pair closer than `watch`, if any.
+    pub fn step(&mut self, frames: &[Isometry3<f64>]) -> Option<Contact> {
+        let m = self.model;
+        for i in 0..m.bodies.len() {
+            let f = &frames[m.bodies[i].frame];
+            let c = (f * Point3::from(m.body_bounds[i].0)).coords;
+            let r = f.rotation;
+            self.moved[i] = if self.started {
+                // The chord a point at the sphere's radius travels: 2 r sin(θ/2), with
+                // cos(θ/2) the two rotations' quaternion dot product.
+                let d = r.coords.dot(&self.rotations[i].coords).abs().min(1.0);
+                (c - self.centres[i]).norm() + 2.0 * m.body_bounds[i].1 * (1.0 - d * d).sqrt()
+            } else {
+                f64::INFINITY
+            };
+            self.centres[i] = c;
+            self.rotations[i] = r;
+        }
+        self.started = true;
+        self.near.clear();
+        let mut closest: Option<Contact> = None;
+        for p in 0..m.pairs.len() {
+            let (a, b) = m.pairs[p];
+            let motion = self.moved[a]
+                + match b {
+                    Other::Body(j) => self.moved[j],
+                    Other::Obstacle(_) => 0.0,
+                };
+            self.lower[p] -= motion;
+            if self.lower[p] >= self.watch {
+                continue;
+            }
+            let s = m.distance_hinted(p, frames, &mut self.hints[p]);
+            self.queries += 1;
+            self.lower[p] = s.distance;
+            if s.distance < self.watch {
+                let c = Contact {
+                    pair: p,
+                    separation: s,
+                };
+                self.near.push(c);
+                if closest.is_none_or(|c| s.distance < c.separation.distance) {
+                    closest = Some(c);
+                }
+            }
+        }
+        closest
+    }
+}
