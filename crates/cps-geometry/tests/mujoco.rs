@@ -25,17 +25,10 @@ fn pose(v: &serde_json::Value) -> Isometry3<f64> {
 
 #[test]
 fn distances_between_franka_link_hulls_agree_with_mujoco_within_a_millimetre() {
-    let Some(python) = cps_testkit::franky_sim::python() else {
+    let Some((python, assets)) = cps_testkit::franky_sim::assets() else {
         return;
     };
-    let out = Command::new(&python)
-        .args([
-            "-c",
-            "import franky_sim, os; print(os.path.dirname(franky_sim.__file__))",
-        ])
-        .output()
-        .expect("run franky-sim's python");
-    let meshes = PathBuf::from(String::from_utf8_lossy(&out.stdout).trim()).join("assets/meshes");
+    let meshes = assets.join("meshes");
     let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/mujoco_pairs.py");
     let mut errors: Vec<f64> = Vec::new();
     let mut overlapping = 0;

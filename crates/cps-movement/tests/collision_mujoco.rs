@@ -22,17 +22,9 @@ const CONFIGURATIONS: usize = 400;
 
 #[test]
 fn the_fr3_collision_model_agrees_with_mujoco_within_a_millimetre() {
-    let Some(python) = cps_testkit::franky_sim::python() else {
+    let Some((python, assets)) = cps_testkit::franky_sim::assets() else {
         return;
     };
-    let out = Command::new(&python)
-        .args([
-            "-c",
-            "import franky_sim, os; print(os.path.dirname(franky_sim.__file__))",
-        ])
-        .output()
-        .expect("run franky-sim's python");
-    let assets = PathBuf::from(String::from_utf8_lossy(&out.stdout).trim()).join("assets");
     let urdf = assets.join("fr3.urdf");
     let text = std::fs::read_to_string(&urdf).unwrap();
     let chain = chain_from_urdf(&text, Some("fr3_hand_tcp")).unwrap();

@@ -33,6 +33,27 @@ pub fn python() -> Option<PathBuf> {
     None
 }
 
+/// franky-sim's interpreter and the folder of its robot model (`fr3.urdf`, `fr3.xml`,
+/// `meshes/` with franka_description's collision meshes), or None (a skip; a failure
+/// under CI).
+pub fn assets() -> Option<(PathBuf, PathBuf)> {
+    let python = python()?;
+    let out = Command::new(&python)
+        .args([
+            "-c",
+            "import franky_sim, os; print(os.path.dirname(franky_sim.__file__))",
+        ])
+        .output()
+        .expect("run franky-sim's interpreter");
+    assert!(
+        out.status.success(),
+        "franky_sim does not import: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let dir = PathBuf::from(String::from_utf8_lossy(&out.stdout).trim()).join("assets");
+    Some((python, dir))
+}
+
 /// A franky-sim server on its own loopback address, stopped when dropped; one at a time
 /// per test program.
 pub struct FrankySim {
