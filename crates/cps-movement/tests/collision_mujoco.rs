@@ -149,3 +149,87 @@ fn the_fr3_collision_model_agrees_with_mujoco_within_a_millimetre() {
     assert!((4..=40).contains(&self_hits), "{self_hits} self collisions");
     assert!((15..=80).contains(&box_hits), "{box_hits} box collisions");
 }
+
+/// Measurement (`bash test.sh -- --ignored`): a 10 s plan at 1 kHz (10 001 configurations,
+/// a smooth swing of every joint) of the FR3 with its hand and fingers, against its own
+/// links and a scene of 10 boxes, checked with a 5 mm margin; and every pair computed at
+/// every configuration, for comparison.
+#[test]
+#[ignore]
+fn time_a_ten_second_plan_of_the_fr3_among_ten_shapes() {
+    let Some((_, assets)) = cps_testkit::franky_sim::assets() else {
+        return;
+    };
+    let urdf = assets.join("fr3.urdf");
+    let chain = chain_from_urdf(
+        &std::fs::read_to_string(&urdf).unwrap(),
+        Some("fr3_hand_tcp"),
+    )
+    .unwrap();
+    let geometry = urdf_geometry(&chain, &urdf).unwrap();
+    let obstacles: Vec<Obstacle> = (0..10)
+        .map(|k| {
+            let a = k as f64 * std::f64::consts::TAU / 10.0;
+            Obstacle {
+                name: format!("box{k}"),
+                pose: Isometry3::translation(0.75 * a.cos(), 0.75 * a.sin(), 0.1 + 0.05 * k as f64),
+                shape: Shape::cuboid([0.1, 0.1, 0.2], "box").unwrap(),
+            }
+        })
+        .collect();
+    let model = CollisionModel::new(geometry.bodies, obstacles, &geometry.adjacent);
+    let (lo, hi) = chain.chain.limits().unwrap();
+    let mid: Vec<f64> = lo.iter().zip(hi).map(|(l, h)| 0.5 * (l + h)).collect();
+    let plan: Vec<Vec<f64>> = (0..=10_000)
+        .map(|k| {
+            let s = (std::f64::consts::PI * k as f64 / 10_000.0).sin();
+            mid.iter()
+                .zip(lo.iter().zip(hi))
+                .map(|(m, (l, h))| m + 0.4 * (h - l) * 0.5 * s)
+                .collect()
+        })
+        .collect();
+    let frames_of = |q: &[f64]| {
+        let poses = chain.chain.fk_frames(q).unwrap();
+        let mut frames = vec![Isometry3::identity()];
+        frames.extend(poses.link_frames.iter().map(|f| {
+            Isometry3::from_parts(
+                f.translation,
+                UnitQuaternion::from_rotation_matrix(&f.rotation),
+            )
+        }));
+        frames
+    };
+    let all_frames: Vec<Vec<Isometry3<f64>>> = plan.iter().map(|q| frames_of(q)).collect();
+    let t = std::time::Instant::now();
+    for q in &plan {
+        std::hint::black_box(frames_of(q));
+    }
+    let fk = t.elapsed();
+    let t = std::time::Instant::now();
+    let mut check = cps_geometry::PathCheck::new(&model, 0.005);
+    let mut closest = f64::INFINITY;
+    for f in &all_frames {
+        if let Some(c) = check.step(f) {
+            closest = closest.min(c.separation.distance);
+        }
+    }
+    let lazy = t.elapsed();
+    let t = std::time::Instant::now();
+    for f in all_frames.iter().step_by(10) {
+        for p in 0..model.pair_count() {
+            std::hint::black_box(model.distance(p, f));
+        }
+    }
+    let every = t.elapsed() * 10;
+    eprintln!(
+        "{} bodies, {} pairs; 10 001 configurations: forward kinematics {:.1} ms, the path check {:.1} ms ({} distances), every pair at every configuration {:.0} ms ({:.2} µs a configuration); closest within the margin {closest}",
+        model.bodies().len(),
+        model.pair_count(),
+        fk.as_secs_f64() * 1e3,
+        lazy.as_secs_f64() * 1e3,
+        check.queries(),
+        every.as_secs_f64() * 1e3,
+        every.as_secs_f64() * 1e6 / 10_001.0
+    );
+}
