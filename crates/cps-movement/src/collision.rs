@@ -133,3 +133,131 @@ pub fn urdf_geometry(chain: &UrdfChain, urdf: &Path) -> Result<RobotGeometry, In
         notes,
     })
 }
+
+/// Which Franka arm's collision meshes ([`franka_geometry`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FrankaArm {
+    /// Franka Research 3.
+    Fr3,
+    /// Franka Emika Panda (franka_description's `fer`).
+    Panda,
+}
+
+/// franka_description's collision meshes (configs/robots/franka, Apache-2.0, its NOTICE
+/// beside them), built in: link0 … link7 of each arm and the Franka Hand.
+const FR3_MESHES: [&[u8]; 8] = [
+    include_bytes!("../../../configs/robots/franka/fr3/link0.stl"),
+    include_bytes!("../../../configs/robots/franka/fr3/link1.stl"),
+    include_bytes!("../../../configs/robots/franka/fr3/link2.stl"),
+    include_bytes!("../../../configs/robots/franka/fr3/link3.stl"),
+    include_bytes!("../../../configs/robots/franka/fr3/link4.stl"),
+    include_bytes!("../../../configs/robots/franka/fr3/link5.stl"),
+    include_bytes!("../../../configs/robots/franka/fr3/link6.stl"),
+    include_bytes!("../../../configs/robots/franka/fr3/link7.stl"),
+];
+const PANDA_MESHES: [&[u8]; 8] = [
+    include_bytes!("../../../configs/robots/franka/fer/link0.stl"),
+    include_bytes!("../../../configs/robots/franka/fer/link1.stl"),
+    include_bytes!("../../../configs/robots/franka/fer/link2.stl"),
+    include_bytes!("../../../configs/robots/franka/fer/link3.stl"),
+    include_bytes!("../../../configs/robots/franka/fer/link4.stl"),
+    include_bytes!("../../../configs/robots/franka/fer/link5.stl"),
+    include_bytes!("../../../configs/robots/franka/fer/link6.stl"),
+    include_bytes!("../../../configs/robots/franka/fer/link7.stl"),
+];
+const HAND_MESH: &[u8] = include_bytes!("../../../configs/robots/franka/hand.stl");
+
+/// How far each finger of the hand is open in the built-in model (m): fully, the most room
+/// the hand can take.
+pub const FINGER_OPENING: f64 = 0.04;
+
+fn built_in_hull(bytes: &[u8], name: &str) -> Arc<cps_geometry::Hull> {
+    let mesh = Mesh::from_stl(bytes, name).expect("a built-in mesh reads");
+    Arc::new(mesh.hull(name).expect("a built-in mesh has a hull"))
+}
+
+/// A Franka arm's collision bodies on its built-in chain's frames (the modified DH frames
+/// of `cps_kinematics::robots`, which are franka_description's link frames), with the hand
+/// and its fingers (open, [`FINGER_OPENING`]) when `hand`. The same as franka_description's
+/// URDF read by [`urdf_geometry`] (tested against franky-sim's).
+pub fn franka_geometry(arm: FrankaArm, hand: bool) -> RobotGeometry {
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+    let (prefix, meshes) = match arm {
+        FrankaArm::Fr3 => ("fr3", &FR3_MESHES),
+        FrankaArm::Panda => ("panda", &PANDA_MESHES),
+    };
+    let name = |part: &str| format!("{prefix}_{part}");
+    let mut bodies: Vec<Body> = meshes
+        .iter()
+        .enumerate()
+        .map(|(k, bytes)| Body {
+            link: name(&format!("link{k}")),
+            frame: k,
+            origin: Isometry3::identity(),
+            shape: Shape::Convex(built_in_hull(bytes, &format!("{prefix} link{k}"))),
+        })
+        .collect();
+    let mut adjacent: Vec<(String, String)> = (0..7)
+        .map(|k| (name(&format!("link{k}")), name(&format!("link{}", k + 1))))
+        .collect();
+    if hand {
+        // The flange 0.107 m along link 7's z, the hand turned −45° about it.
+        let at_hand = Isometry3::from_parts(
+            Translation3::new(0.0, 0.0, 0.107),
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), -std::f64::consts::FRAC_PI_4),
+        );
+        bodies.push(Body {
+            link: name("hand"),
+            frame: 7,
+            origin: at_hand,
+            shape: Shape::Convex(built_in_hull(HAND_MESH, "Franka Hand")),
+        });
+        adjacent.push((name("link7"), name("hand")));
+        // Each finger: four boxes (centre, roll about x, size), 0.0584 m along the hand's z,
+        // slid open along its y; the right finger turned half a turn about z.
+        let boxes = |roll: f64| {
+            [
+                ([0.0, 0.0185, 0.011], 0.0, [0.022, 0.015, 0.020]),
+                ([0.0, 0.0068, 0.0022], 0.0, [0.022, 0.0088, 0.0038]),
+                ([0.0, 0.0159, 0.02835], roll, [0.0175, 0.007, 0.0235]),
+                ([0.0, 0.00758, 0.04525], 0.0, [0.0175, 0.0152, 0.0185]),
+            ]
+        };
+        for (finger, turn, roll, yaw) in [
+            ("leftfinger", 0.0, std::f64::consts::FRAC_PI_6, 0.0),
+            (
+                "rightfinger",
+                std::f64::consts::PI,
+                -std::f64::consts::FRAC_PI_6,
+                std::f64::consts::PI,
+            ),
+        ] {
+            let at_finger = at_hand
+                * Isometry3::from_parts(
+                    Translation3::new(0.0, 0.0, 0.0584),
+                    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn),
+                )
+                * Isometry3::translation(0.0, FINGER_OPENING, 0.0);
+            for (k, (xyz, r, size)) in boxes(roll).into_iter().enumerate() {
+                let tilt = if k == 2 {
+                    UnitQuaternion::from_euler_angles(r, 0.0, yaw)
+                } else {
+                    UnitQuaternion::identity()
+                };
+                bodies.push(Body {
+                    link: name(finger),
+                    frame: 7,
+                    origin: at_finger
+                        * Isometry3::from_parts(Translation3::new(xyz[0], xyz[1], xyz[2]), tilt),
+                    shape: Shape::cuboid(size, "a finger's box").expect("a built-in box"),
+                });
+            }
+            adjacent.push((name("hand"), name(finger)));
+        }
+    }
+    RobotGeometry {
+        bodies,
+        adjacent,
+        notes: Vec::new(),
+    }
+}

@@ -233,3 +233,74 @@ fn time_a_ten_second_plan_of_the_fr3_among_ten_shapes() {
         every.as_secs_f64() * 1e6 / 10_001.0
     );
 }
+
+/// The built-in FR3 (its modified DH chain, franka_description's meshes shipped in
+/// configs/robots/franka, the hand and open fingers written in code) is the same model as
+/// franky-sim's fr3.urdf read by cps: at random configurations, every pair of links (the
+/// closest of their shapes) and every link against a box the same distance apart.
+#[test]
+fn the_built_in_fr3_is_its_urdf() {
+    use cps_kinematics::robots::{PandaTool, fr3};
+    use cps_movement::collision::{FrankaArm, franka_geometry};
+    use std::collections::BTreeMap;
+    let Some((_, assets)) = cps_testkit::franky_sim::assets() else {
+        return;
+    };
+    let urdf = assets.join("fr3.urdf");
+    let chain = chain_from_urdf(
+        &std::fs::read_to_string(&urdf).unwrap(),
+        Some("fr3_hand_tcp"),
+    )
+    .unwrap();
+    let from_file = urdf_geometry(&chain, &urdf).unwrap();
+    let built_in = franka_geometry(FrankaArm::Fr3, true);
+    assert_eq!(built_in.bodies.len(), from_file.bodies.len());
+    let scene = || {
+        vec![Obstacle {
+            name: "box".into(),
+            pose: Isometry3::translation(0.45, 0.1, 0.3),
+            shape: Shape::cuboid([0.2, 0.3, 0.4], "box").unwrap(),
+        }]
+    };
+    let a = CollisionModel::new(from_file.bodies, scene(), &from_file.adjacent);
+    let b = CollisionModel::new(built_in.bodies, scene(), &built_in.adjacent);
+    assert_eq!(a.pair_count(), b.pair_count());
+    let dh = fr3(PandaTool::HandTcp);
+    let frames = |c: &cps_kinematics::SerialChain, q: &[f64]| {
+        let poses = c.fk_frames(q).unwrap();
+        let mut f = vec![Isometry3::identity()];
+        f.extend(poses.link_frames.iter().map(|m| {
+            Isometry3::from_parts(
+                m.translation,
+                UnitQuaternion::from_rotation_matrix(&m.rotation),
+            )
+        }));
+        f
+    };
+    let by_links = |m: &CollisionModel, f: &[Isometry3<f64>]| {
+        let mut out: BTreeMap<(String, String), f64> = BTreeMap::new();
+        for c in m.within(f, 100.0) {
+            let (x, y) = m.pair_names(c.pair);
+            let key = (x.min(y).to_string(), x.max(y).to_string());
+            let d = out.entry(key).or_insert(f64::INFINITY);
+            *d = d.min(c.separation.distance);
+        }
+        out
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    for _ in 0..100 {
+        let q = chain.chain.random_configuration(&mut rng);
+        let (da, db) = (
+            by_links(&a, &frames(&chain.chain, &q)),
+            by_links(&b, &frames(&dh, &q)),
+        );
+        assert_eq!(da.len(), db.len());
+        for (k, x) in &da {
+            assert!(
+                (x - db[k]).abs() < 1e-9,
+                "{k:?} at {q:?}: URDF {x}, built in {}",
+                db[k]
+            );
+        }
+    }
+}
