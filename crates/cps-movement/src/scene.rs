@@ -1,6 +1,13 @@
 //! Scene files (`configs/scenes/`): a robot placed in the world with its initial
-//! configuration, named objects (way-point dummies) and point obstacles with the
-//! clearance a movement must keep.
+//! configuration, named objects (way-point dummies), and obstacles: points with the
+//! clearance a movement must keep, or shapes the robot must not touch.
+//!
+//! An `[[obstacle]]` is a point (`name`, `position`, `clearance`) or a shape: `name`,
+//! `shape = "box" | "sphere" | "cylinder" | "capsule" | "mesh"`, `xyz` and `rpy` (its pose
+//! in the world frame: metres, and radians as URDF's roll, pitch, yaw), `size = [sx, sy,
+//! sz]` (a box's full edge lengths), `radius`, `length` (a cylinder's or a capsule's, about
+//! its z axis), `file` (a mesh, STL or OBJ, relative to the scene file; collided as its
+//! convex hull).
 
 use std::path::Path;
 
@@ -27,8 +34,15 @@ struct File {
 #[serde(deny_unknown_fields)]
 struct ObstacleEntry {
     name: String,
-    position: [f64; 3],
-    clearance: f64,
+    position: Option<[f64; 3]>,
+    clearance: Option<f64>,
+    shape: Option<String>,
+    xyz: Option<[f64; 3]>,
+    rpy: Option<[f64; 3]>,
+    size: Option<[f64; 3]>,
+    radius: Option<f64>,
+    length: Option<f64>,
+    file: Option<String>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -67,9 +81,11 @@ pub struct Scene {
     pub initial_q: Vec<f64>,
     /// Named objects and their world positions, in file order.
     pub objects: Vec<(String, Vector3<f64>)>,
-    /// Named point obstacles (`[[obstacle]]`), in file order: movements learned in this
-    /// scene keep their clearance.
+    /// Named point obstacles (`[[obstacle]]` with a `position`), in file order: movements
+    /// learned in this scene keep their clearance.
     pub obstacles: Vec<(String, Obstacle)>,
+    /// Obstacles with a shape (`[[obstacle]]` with a `shape`), in file order, world frame.
+    pub shapes: Vec<cps_geometry::Obstacle>,
 }
 
 /// Reads a scene file; a relative robot file path is resolved against the scene's folder.
@@ -143,6 +159,7 @@ pub fn parse_scene(path: &Path, text: &str) -> Result<Scene, InputError> {
         objects.push((v.name.clone(), Vector3::from(v.position)));
     }
     let mut obstacles: Vec<(String, Obstacle)> = Vec::new();
+    let mut shapes: Vec<cps_geometry::Obstacle> = Vec::new();
     for o in &file.obstacle {
         let v = o.get_ref();
         let at = || location(path, &text, &o.span());
@@ -150,6 +167,7 @@ pub fn parse_scene(path: &Path, text: &str) -> Result<Scene, InputError> {
             || v.name.contains('/')
             || objects.iter().any(|(n, _)| n == &v.name)
             || obstacles.iter().any(|(n, _)| n == &v.name)
+            || shapes.iter().any(|s| s.name == v.name)
         {
             return Err(InputError(format!(
                 "{}: obstacle names are non-empty, without `/`, and not an object's or another obstacle's (got `{}`)",
@@ -157,21 +175,51 @@ pub fn parse_scene(path: &Path, text: &str) -> Result<Scene, InputError> {
                 v.name
             )));
         }
-        if !v.position.iter().all(|x| x.is_finite()) {
+        if v.shape.is_some() {
+            shapes
+                .push(shaped_obstacle(v, path).map_err(|m| InputError(format!("{}: {m}", at())))?);
+            continue;
+        }
+        let (Some(position), Some(clearance)) = (v.position, v.clearance) else {
+            return Err(InputError(format!(
+                "{}: obstacle `{}` needs a `position` and a `clearance` (a point), or a `shape`",
+                at(),
+                v.name
+            )));
+        };
+        if let Some(extra) = [
+            ("xyz", v.xyz.is_some()),
+            ("rpy", v.rpy.is_some()),
+            ("size", v.size.is_some()),
+            ("radius", v.radius.is_some()),
+            ("length", v.length.is_some()),
+            ("file", v.file.is_some()),
+        ]
+        .iter()
+        .find(|(_, given)| *given)
+        {
+            return Err(InputError(format!(
+                "{}: obstacle `{}` is a point (`position`): `{}` belongs to an obstacle with a `shape`",
+                at(),
+                v.name,
+                extra.0
+            )));
+        }
+        if !position.iter().all(|x| x.is_finite()) {
             return Err(InputError(format!("{}: `position` must be finite", at())));
         }
-        if !(v.clearance.is_finite() && v.clearance > 0.0) {
+        if !(clearance.is_finite() && clearance > 0.0) {
             return Err(InputError(format!(
                 "{}: `clearance` must be finite and > 0 (got {})",
                 at(),
-                v.clearance
+                clearance
             )));
         }
         obstacles.push((
             v.name.clone(),
             Obstacle {
-                position: v.position,
-                clearance: v.clearance,
+                position,
+                clearance,
             },
         ));
     }
@@ -180,6 +228,83 @@ pub fn parse_scene(path: &Path, text: &str) -> Result<Scene, InputError> {
         initial_q: q.clone(),
         objects,
         obstacles,
+        shapes,
+    })
+}
+
+/// An `[[obstacle]]` with a `shape`: the keys its shape needs, and no others.
+fn shaped_obstacle(v: &ObstacleEntry, path: &Path) -> Result<cps_geometry::Obstacle, String> {
+    use cps_geometry::Shape;
+    let shape = v.shape.as_deref().unwrap_or_default();
+    let what = format!("obstacle `{}`", v.name);
+    if v.position.is_some() || v.clearance.is_some() {
+        return Err(format!(
+            "{what} has a `shape`: give its place as `xyz` (and `rpy`), not `position` and `clearance`"
+        ));
+    }
+    let needs: &[&str] = match shape {
+        "box" => &["size"],
+        "sphere" => &["radius"],
+        "cylinder" | "capsule" => &["radius", "length"],
+        "mesh" => &["file"],
+        other => {
+            return Err(format!(
+                "{what}: shape `{other}` is not one of box, sphere, cylinder, capsule, mesh"
+            ));
+        }
+    };
+    let given = [
+        ("size", v.size.is_some()),
+        ("radius", v.radius.is_some()),
+        ("length", v.length.is_some()),
+        ("file", v.file.is_some()),
+    ];
+    if let Some((key, _)) = given.iter().find(|(k, g)| needs.contains(k) && !g) {
+        return Err(format!("{what}: a {shape} needs `{key}`"));
+    }
+    if let Some((key, _)) = given.iter().find(|(k, g)| !needs.contains(k) && *g) {
+        return Err(format!("{what}: a {shape} has no `{key}`"));
+    }
+    let xyz = v
+        .xyz
+        .ok_or_else(|| format!("{what} needs `xyz`, where it is"))?;
+    let rpy = v.rpy.unwrap_or([0.0; 3]);
+    if !xyz.iter().chain(&rpy).all(|x| x.is_finite()) {
+        return Err(format!("{what}: `xyz` and `rpy` must be finite"));
+    }
+    let pose = nalgebra::Isometry3::from_parts(
+        nalgebra::Translation3::new(xyz[0], xyz[1], xyz[2]),
+        nalgebra::UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]),
+    );
+    let geometry = match shape {
+        "box" => Shape::cuboid(v.size.unwrap_or_default(), &what),
+        "sphere" => Shape::sphere(v.radius.unwrap_or_default(), &what),
+        "cylinder" => Shape::cylinder(
+            v.radius.unwrap_or_default(),
+            v.length.unwrap_or_default(),
+            &what,
+        ),
+        "capsule" => Shape::capsule(
+            v.radius.unwrap_or_default(),
+            v.length.unwrap_or_default(),
+            &what,
+        ),
+        _ => {
+            let file = path
+                .parent()
+                .unwrap_or(Path::new("."))
+                .join(v.file.as_deref().unwrap_or_default());
+            let name = file.display().to_string();
+            cps_geometry::Mesh::read(&file, [1.0; 3])
+                .and_then(|m| m.hull(&name))
+                .map(|h| Shape::Convex(std::sync::Arc::new(h)))
+        }
+    }
+    .map_err(|e| e.to_string())?;
+    Ok(cps_geometry::Obstacle {
+        name: v.name.clone(),
+        pose,
+        shape: geometry,
     })
 }
 
