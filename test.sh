@@ -10,9 +10,9 @@
 # franky-sim (a MuJoCo arm stepped against the clock, one simulator at a time) in one,
 # printed as they run; everything else in the other, at a lower priority so that the
 # simulator never waits for a core, printed when it ends. On two cores that takes about
-# two thirds of the time of one lane. With arguments (`bash test.sh -p cps-dmp`,
-# `bash test.sh -- --ignored`) it is one `cargo test --workspace --profile checked
-# --no-fail-fast` with them passed on.
+# two thirds of the time of one lane. With arguments it is one `cargo test --profile checked
+# --no-fail-fast` with them passed on: of the whole workspace (`bash test.sh -- --ignored`)
+# unless they name packages (`bash test.sh -p cps-dmp`).
 set -uo pipefail
 cd "$(dirname "$0")"
 work=$(mktemp -d)
@@ -23,7 +23,13 @@ export CPS_SKIP_LOG="$skips"
 run=(cargo test --profile checked --no-fail-fast)
 
 if [ $# -gt 0 ]; then
-  "${run[@]}" --workspace "$@" 2>&1 | tee "$work/out"
+  # The whole workspace unless the arguments (before a `--`) name packages.
+  scope=(--workspace)
+  for a in "$@"; do
+    [ "$a" = "--" ] && break
+    case "$a" in -p | -p?* | --package | --package=*) scope=() ;; esac
+  done
+  "${run[@]}" "${scope[@]}" "$@" 2>&1 | tee "$work/out"
   status=${PIPESTATUS[0]}
 else
   # Everything compiled first: one cargo at a time holds the build directory.
