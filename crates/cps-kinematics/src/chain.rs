@@ -768,6 +768,28 @@ impl SerialChain {
         })
     }
 
+    /// The base and every link frame as world poses, written into `out`: `out[0]` the base
+    /// (a collision model's frame 0), `out[k]` the link joint `k` moves ([`Self::fk_frames`]'s
+    /// `link_frames[k − 1]`). Nothing is allocated once `out` has room for `dof + 1`: what a
+    /// collision check takes at every sample of a plan.
+    pub fn frames_into(
+        &self,
+        q: &[f64],
+        out: &mut Vec<Isometry3<f64>>,
+    ) -> Result<(), KinematicsError> {
+        self.check(q)?;
+        out.clear();
+        out.push(self.base());
+        self.walk(q, |i, f| {
+            let m = f.mul(&self.post[i]).to_isometry();
+            out.push(Isometry3::from_parts(
+                m.translation,
+                UnitQuaternion::from_rotation_matrix(&m.rotation),
+            ));
+        });
+        Ok(())
+    }
+
     /// The chain as URDF-style joints that all turn about their own z axis, for writing
     /// it out (viewers, ROS 2): `(base, joints, tail)` with `base` the world → robot-base
     /// transform, joint i's `origin` the fixed transform from joint i−1's rotating frame

@@ -1,6 +1,7 @@
 //! A URDF's `<collision>` elements placed on the chain's frames (`UrdfChain::collisions`),
 //! the links joined by a joint (`adjacent`) and those the chain cannot place, and shapes
-//! with a bad size refused with their line.
+//! with a bad size refused with their line; and the frames themselves as a collision
+//! model takes them (`SerialChain::frames_into`).
 
 use cps_kinematics::{CollisionGeometry, chain_from_urdf};
 use nalgebra::Vector3;
@@ -93,4 +94,36 @@ fn shapes_without_a_size_or_with_a_negative_one_are_refused_with_their_line() {
         e.contains("line 7: link `camera` collision: `<mesh>` has no `filename`"),
         "{e}"
     );
+}
+
+#[test]
+fn frames_into_gives_the_base_then_every_link_frame_as_fk_frames_does() {
+    use cps_kinematics::robots::{PandaTool, fr3};
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+    let base = Isometry3::from_parts(
+        Translation3::new(0.4, 0.02, 0.74),
+        UnitQuaternion::from_euler_angles(0.0, 0.0, 0.3),
+    );
+    let chain = fr3(PandaTool::HandTcp).with_base(base);
+    let q = [0.3, -0.5, 0.7, -2.0, 0.4, 1.9, -0.6];
+    let mut out = Vec::new();
+    chain.frames_into(&q, &mut out).unwrap();
+    assert_eq!(out.len(), 8);
+    assert!((out[0].to_homogeneous() - base.to_homogeneous()).norm() < 1e-15);
+    let reference = chain.fk_frames(&q).unwrap();
+    for (k, f) in reference.link_frames.iter().enumerate() {
+        let d = (out[k + 1].to_homogeneous() - f.to_homogeneous()).norm();
+        assert!(d < 1e-12, "frame {}: {d}", k + 1);
+    }
+    // The world pose of link 1 is the base's times joint 1's: the base is in the frames.
+    assert!(
+        (out[1].translation.vector
+            - (base * Translation3::new(0.0, 0.0, 0.333))
+                .translation
+                .vector)
+            .norm()
+            < 1e-12
+    );
+    // Refused like fk: a wrong joint count.
+    assert!(chain.frames_into(&q[..6], &mut out).is_err());
 }
