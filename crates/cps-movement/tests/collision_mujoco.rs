@@ -20,15 +20,27 @@ use rand_chacha::ChaCha8Rng;
 
 const CONFIGURATIONS: usize = 400;
 
-#[test]
-fn the_fr3_collision_model_agrees_with_mujoco_within_a_millimetre() {
-    let Some((python, assets)) = cps_testkit::franky_sim::assets() else {
-        return;
-    };
+/// franky-sim's interpreter, its model folder, its fr3.urdf read by cps (to the hand's tool
+/// centre point) and that robot's collision geometry; None when franky-sim is missing.
+fn franky_fr3() -> Option<(
+    PathBuf,
+    PathBuf,
+    cps_kinematics::UrdfChain,
+    cps_movement::collision::RobotGeometry,
+)> {
+    let (python, assets) = cps_testkit::franky_sim::assets()?;
     let urdf = assets.join("fr3.urdf");
     let text = std::fs::read_to_string(&urdf).unwrap();
     let chain = chain_from_urdf(&text, Some("fr3_hand_tcp")).unwrap();
     let geometry = urdf_geometry(&chain, &urdf).unwrap();
+    Some((python, assets, chain, geometry))
+}
+
+#[test]
+fn the_fr3_collision_model_agrees_with_mujoco_within_a_millimetre() {
+    let Some((python, assets, chain, geometry)) = franky_fr3() else {
+        return;
+    };
     // link0 and link6's meshes have holes: said, and closed by their hulls.
     assert_eq!(geometry.notes.len(), 2, "{:?}", geometry.notes);
     let bodies: Vec<_> = geometry
@@ -157,16 +169,9 @@ fn the_fr3_collision_model_agrees_with_mujoco_within_a_millimetre() {
 #[test]
 #[ignore]
 fn time_a_ten_second_plan_of_the_fr3_among_ten_shapes() {
-    let Some((_, assets)) = cps_testkit::franky_sim::assets() else {
+    let Some((_, _, chain, geometry)) = franky_fr3() else {
         return;
     };
-    let urdf = assets.join("fr3.urdf");
-    let chain = chain_from_urdf(
-        &std::fs::read_to_string(&urdf).unwrap(),
-        Some("fr3_hand_tcp"),
-    )
-    .unwrap();
-    let geometry = urdf_geometry(&chain, &urdf).unwrap();
     let obstacles: Vec<Obstacle> = (0..10)
         .map(|k| {
             let a = k as f64 * std::f64::consts::TAU / 10.0;
@@ -240,16 +245,9 @@ fn the_built_in_fr3_is_its_urdf() {
     use cps_kinematics::robots::{PandaTool, fr3};
     use cps_movement::collision::{FrankaArm, franka_geometry};
     use std::collections::BTreeMap;
-    let Some((_, assets)) = cps_testkit::franky_sim::assets() else {
+    let Some((_, _, chain, from_file)) = franky_fr3() else {
         return;
     };
-    let urdf = assets.join("fr3.urdf");
-    let chain = chain_from_urdf(
-        &std::fs::read_to_string(&urdf).unwrap(),
-        Some("fr3_hand_tcp"),
-    )
-    .unwrap();
-    let from_file = urdf_geometry(&chain, &urdf).unwrap();
     let built_in = franka_geometry(FrankaArm::Fr3, true);
     assert_eq!(built_in.bodies.len(), from_file.bodies.len());
     let scene = || {
