@@ -87,13 +87,14 @@ fn s2d(p: &[V; 4], i: [usize; 3]) -> Closest {
     let n = (p1 - p0).cross(&(p2 - p0));
     let nn = n.norm_squared();
     let scale = (p1 - p0).norm_squared().max((p2 - p0).norm_squared());
-    let edges = |skip: Option<usize>| {
+    // The closest of the edges, or only the edge across vertex `only`.
+    let edges = |only: Option<usize>| {
         let mut out = None;
         for (k, e) in [[i[1], i[2]], [i[2], i[0]], [i[0], i[1]]]
             .into_iter()
             .enumerate()
         {
-            if skip.is_none_or(|s| s == k) {
+            if only.is_none_or(|o| o == k) {
                 out = best(out, s1d(p, e));
             }
         }
@@ -339,11 +340,10 @@ pub(crate) fn epa<A: FnMut(&V) -> V, B: FnMut(&V) -> V>(
         .collect();
     let mut horizon: Vec<(usize, usize)> = Vec::new();
     for _ in 0..128 {
-        let Some((fi, f)) = faces
+        let Some(f) = faces
             .iter()
             .copied()
-            .enumerate()
-            .min_by(|a, b| a.1.dist.total_cmp(&b.1.dist))
+            .min_by(|a, b| a.dist.total_cmp(&b.dist))
         else {
             break;
         };
@@ -381,7 +381,6 @@ pub(crate) fn epa<A: FnMut(&V) -> V, B: FnMut(&V) -> V>(
                 faces.push(g);
             }
         }
-        let _ = fi;
     }
     let f = faces
         .iter()

@@ -104,7 +104,7 @@ impl Hull {
         if points.len() < 4 {
             return Err(GeometryError::Flat {
                 what: what.to_string(),
-                why: format!("it has {} distinct points, a solid needs 4", points.len()),
+                why: format!("it has {} points, a solid needs 4", points.len()),
             });
         }
         if let Some(i) = points.iter().position(|p| !p.iter().all(|x| x.is_finite())) {

@@ -32,8 +32,9 @@ pub struct Mesh {
 
 impl Mesh {
     /// Reads an STL or OBJ file (by its extension, case-insensitive), each coordinate
-    /// multiplied by `scale` (URDF's `<mesh scale>`).
-    pub fn read(path: &Path, scale: [f64; 3]) -> Result<Mesh, GeometryError> {
+    /// multiplied by `scale` (URDF's `<mesh scale>`), and checks it
+    /// ([`Mesh::check_manifold`]): the mesh and how many edges of holes it has.
+    pub fn read(path: &Path, scale: [f64; 3]) -> Result<(Mesh, usize), GeometryError> {
         let name = path.display().to_string();
         let fail = |why: String| GeometryError::Mesh {
             file: name.clone(),
@@ -67,8 +68,8 @@ impl Mesh {
                 v[k] *= scale[k];
             }
         }
-        mesh.check_manifold(&name)?;
-        Ok(mesh)
+        let holes = mesh.check_manifold(&name)?;
+        Ok((mesh, holes))
     }
 
     /// An STL file's triangles (binary, or ASCII when it starts with `solid` and is not

@@ -87,7 +87,7 @@ impl CollisionModel {
         let mut pairs = Vec::new();
         for (i, a) in bodies.iter().enumerate() {
             for (j, b) in bodies.iter().enumerate().skip(i + 1) {
-                if a.frame != b.frame && a.link != b.link && !skipped(&a.link, &b.link) {
+                if a.frame != b.frame && !skipped(&a.link, &b.link) {
                     pairs.push((i, Other::Body(j)));
                 }
             }
@@ -99,19 +99,15 @@ impl CollisionModel {
                 }
             }
         }
-        let body_bounds = bodies
-            .iter()
-            .map(|b| {
-                let (c, r) = b.shape.bounds();
-                ((b.origin * Point3::from(c)).coords, r)
-            })
-            .collect();
+        // A shape's bounding sphere moved by `pose`.
+        let placed = |shape: &Shape, pose: &Isometry3<f64>| {
+            let (c, r) = shape.bounds();
+            ((pose * Point3::from(c)).coords, r)
+        };
+        let body_bounds = bodies.iter().map(|b| placed(&b.shape, &b.origin)).collect();
         let obstacle_bounds = obstacles
             .iter()
-            .map(|o| {
-                let (c, r) = o.shape.bounds();
-                ((o.pose * Point3::from(c)).coords, r)
-            })
+            .map(|o| placed(&o.shape, &o.pose))
             .collect();
         let frames = bodies.iter().map(|b| b.frame + 1).max().unwrap_or(0);
         CollisionModel {

@@ -191,14 +191,15 @@ pub fn distance_hinted(
 ) -> Separation {
     let (ra, rb) = (a.margin(), b.margin());
     let [ha, hb] = hints;
-    let mut sa = |d: &V| {
-        pa * nalgebra::Point3::from(a.core_support(&pa.rotation.inverse_transform_vector(d), ha))
+    // Each core's farthest point along a world direction, in the world.
+    let mut fa = |d: &V| {
+        (pa * nalgebra::Point3::from(a.core_support(&pa.rotation.inverse_transform_vector(d), ha)))
+            .coords
     };
-    let mut sb = |d: &V| {
-        pb * nalgebra::Point3::from(b.core_support(&pb.rotation.inverse_transform_vector(d), hb))
+    let mut fb = |d: &V| {
+        (pb * nalgebra::Point3::from(b.core_support(&pb.rotation.inverse_transform_vector(d), hb)))
+            .coords
     };
-    let mut fa = |d: &V| sa(d).coords;
-    let mut fb = |d: &V| sb(d).coords;
     let ca = pa * nalgebra::Point3::from(a.bounds().0);
     let cb = pb * nalgebra::Point3::from(b.bounds().0);
     match gjk(&mut fa, &mut fb, ca - cb, DISTANCE_TOLERANCE) {

@@ -48,7 +48,7 @@ fn distances_between_franka_link_hulls_agree_with_mujoco_within_a_millimetre() {
         let shape = |f: &PathBuf| {
             let name = f.display().to_string();
             Shape::Convex(Arc::new(
-                Mesh::read(f, [1.0; 3]).unwrap().hull(&name).unwrap(),
+                Mesh::read(f, [1.0; 3]).unwrap().0.hull(&name).unwrap(),
             ))
         };
         let (sa, sb) = (shape(&fa), shape(&fb));

@@ -5,7 +5,8 @@
 //! Mesh file names are found as ROS tools find them, without a ROS installation:
 //! `package://PKG/path` is looked for as `PKG/path` or `path` in the URDF's folder and the
 //! folders above it, `file:///abs/path` is that path, anything else is relative to the
-//! URDF's folder. A mesh read once is shared by every element that names it.
+//! URDF's folder. A mesh read once is shared by every element that names it at the same
+//! scale.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -69,7 +70,7 @@ pub fn find_mesh(filename: &str, urdf: &Path) -> Result<PathBuf, String> {
 /// The bodies of the chain read from the URDF at `urdf` (its meshes read from beside it).
 /// Errors name the URDF, the line of the element and the mesh.
 pub fn urdf_geometry(chain: &UrdfChain, urdf: &Path) -> Result<RobotGeometry, InputError> {
-    let mut meshes: HashMap<PathBuf, (Arc<cps_geometry::Hull>, usize)> = HashMap::new();
+    let mut meshes: HashMap<(PathBuf, [u64; 3]), Arc<cps_geometry::Hull>> = HashMap::new();
     let mut bodies = Vec::with_capacity(chain.collisions.len());
     let mut notes = Vec::new();
     let at = |line: usize, why: String| {
@@ -88,26 +89,22 @@ pub fn urdf_geometry(chain: &UrdfChain, urdf: &Path) -> Result<RobotGeometry, In
             }
             CollisionGeometry::Mesh { filename, scale } => {
                 let path = find_mesh(filename, urdf).map_err(|m| at(e.line, m))?;
-                let key = path.clone();
+                // One hull per file and scale.
+                let key = (path, scale.map(f64::to_bits));
                 let hull = match meshes.get(&key) {
-                    Some((h, _)) => h.clone(),
+                    Some(h) => h.clone(),
                     None => {
-                        let mesh =
-                            Mesh::read(&path, *scale).map_err(|m| at(e.line, m.to_string()))?;
-                        let holes = mesh
-                            .check_manifold(&path.display().to_string())
-                            .map_err(|m| at(e.line, m.to_string()))?;
-                        let hull = Arc::new(
-                            mesh.hull(&path.display().to_string())
-                                .map_err(|m| at(e.line, m.to_string()))?,
-                        );
+                        let name = key.0.display().to_string();
+                        let (mesh, holes) =
+                            Mesh::read(&key.0, *scale).map_err(|m| at(e.line, m.to_string()))?;
+                        let hull =
+                            Arc::new(mesh.hull(&name).map_err(|m| at(e.line, m.to_string()))?);
                         if holes > 0 {
                             notes.push(format!(
-                                "{} has {holes} edges of holes; its convex hull closes them",
-                                path.display()
+                                "{name} has {holes} edges of holes; its convex hull closes them"
                             ));
                         }
-                        meshes.insert(key, (hull.clone(), holes));
+                        meshes.insert(key, hull.clone());
                         hull
                     }
                 };
@@ -213,24 +210,20 @@ pub fn franka_geometry(arm: FrankaArm, hand: bool) -> RobotGeometry {
             shape: Shape::Convex(built_in_hull(HAND_MESH, "Franka Hand")),
         });
         adjacent.push((name("link7"), name("hand")));
-        // Each finger: four boxes (centre, roll about x, size), 0.0584 m along the hand's z,
-        // slid open along its y; the right finger turned half a turn about z.
-        let boxes = |roll: f64| {
+        // Each finger: four boxes (centre, rpy, size), 0.0584 m along the hand's z, slid open
+        // along its y; the right finger turned half a turn about z, its tilted box mirrored.
+        let boxes = |tilt: [f64; 3]| {
             [
-                ([0.0, 0.0185, 0.011], 0.0, [0.022, 0.015, 0.020]),
-                ([0.0, 0.0068, 0.0022], 0.0, [0.022, 0.0088, 0.0038]),
-                ([0.0, 0.0159, 0.02835], roll, [0.0175, 0.007, 0.0235]),
-                ([0.0, 0.00758, 0.04525], 0.0, [0.0175, 0.0152, 0.0185]),
+                ([0.0, 0.0185, 0.011], [0.0; 3], [0.022, 0.015, 0.020]),
+                ([0.0, 0.0068, 0.0022], [0.0; 3], [0.022, 0.0088, 0.0038]),
+                ([0.0, 0.0159, 0.02835], tilt, [0.0175, 0.007, 0.0235]),
+                ([0.0, 0.00758, 0.04525], [0.0; 3], [0.0175, 0.0152, 0.0185]),
             ]
         };
-        for (finger, turn, roll, yaw) in [
-            ("leftfinger", 0.0, std::f64::consts::FRAC_PI_6, 0.0),
-            (
-                "rightfinger",
-                std::f64::consts::PI,
-                -std::f64::consts::FRAC_PI_6,
-                std::f64::consts::PI,
-            ),
+        let (pi, pi_6) = (std::f64::consts::PI, std::f64::consts::FRAC_PI_6);
+        for (finger, turn, tilt) in [
+            ("leftfinger", 0.0, [pi_6, 0.0, 0.0]),
+            ("rightfinger", pi, [-pi_6, 0.0, pi]),
         ] {
             let at_finger = at_hand
                 * Isometry3::from_parts(
@@ -238,17 +231,15 @@ pub fn franka_geometry(arm: FrankaArm, hand: bool) -> RobotGeometry {
                     UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn),
                 )
                 * Isometry3::translation(0.0, FINGER_OPENING, 0.0);
-            for (k, (xyz, r, size)) in boxes(roll).into_iter().enumerate() {
-                let tilt = if k == 2 {
-                    UnitQuaternion::from_euler_angles(r, 0.0, yaw)
-                } else {
-                    UnitQuaternion::identity()
-                };
+            for (xyz, rpy, size) in boxes(tilt) {
                 bodies.push(Body {
                     link: name(finger),
                     frame: 7,
                     origin: at_finger
-                        * Isometry3::from_parts(Translation3::new(xyz[0], xyz[1], xyz[2]), tilt),
+                        * Isometry3::from_parts(
+                            Translation3::new(xyz[0], xyz[1], xyz[2]),
+                            UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]),
+                        ),
                     shape: Shape::cuboid(size, "a finger's box").expect("a built-in box"),
                 });
             }

@@ -296,7 +296,7 @@ fn shaped_obstacle(v: &ObstacleEntry, path: &Path) -> Result<cps_geometry::Obsta
                 .join(v.file.as_deref().unwrap_or_default());
             let name = file.display().to_string();
             cps_geometry::Mesh::read(&file, [1.0; 3])
-                .and_then(|m| m.hull(&name))
+                .and_then(|(m, _)| m.hull(&name))
                 .map(|h| Shape::Convex(std::sync::Arc::new(h)))
         }
     }
