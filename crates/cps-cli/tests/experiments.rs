@@ -944,17 +944,39 @@ fn a_robot_experiment_retimes_and_exports_its_movement() {
 }
 
 /// A pose experiment with a robot executes the learned pose (IK every control period) and
-/// reports the joint movement's limit usage, as the other robot kinds do.
+/// reports the joint movement's limit usage, as the other robot kinds do; with the hand,
+/// the guard stops it where the hand would hit link 5.
 #[test]
 fn a_pose_experiment_with_a_robot_executes_and_checks_its_movement() {
     let dir = tempfile::tempdir().unwrap();
+    // Learned blind to the arm's shapes, this pose folds the hand into link 5: the guard
+    // refuses the command before the two meet, and the run fails naming them.
+    let hand = POSE.replace("generations = 100 ", "generations = 30  ")
+        + "\n[robot]\nscene = \"thesis\"\n";
+    let file = write(dir.path(), "hand.toml", &hand);
+    let out = dir.path().join("hand");
+    let o = run(&file, &out);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o.stderr));
+    let s = json(&out.join("summary.json"));
+    let failure = s["failure"].as_str().unwrap();
+    assert!(
+        failure.contains("`panda_link5` and `panda_hand` at t = ")
+            && (failure.contains("within the clearance margin of 5.0 mm")
+                || failure.contains("deep in each other")),
+        "{failure}"
+    );
+    assert_eq!(s["complete"], false);
+    // The thesis's scene with the bare flange (no hand to hit link 5) executes it all.
+    let thesis = std::fs::read_to_string(repo("configs/scenes/thesis.toml")).unwrap();
+    let flange = thesis.replace("tool = \"hand\" ", "tool = \"flange\" ");
+    assert_ne!(flange, thesis);
+    std::fs::write(dir.path().join("flange.toml"), flange).unwrap();
     let body = POSE.replace("generations = 100 ", "generations = 30  ")
-        + "\n[robot]\nscene = \"thesis\"\n\n[export]\nformats = [\"csv-1khz\"]\n";
+        + "\n[robot]\nscene = \"flange.toml\"\n\n[export]\nformats = [\"csv-1khz\"]\n";
     let file = write(dir.path(), "pose.toml", &body);
     let out = dir.path().join("out");
-    // The pose kind learns in task space, blind to the joints' limits: its movement jumps
-    // in torque at its start, so the run fails as a run beyond the limits does, and
-    // keeps what it made.
+    // The pose kind learns in task space, blind to the joints' limits: its movement breaks
+    // them, so the run fails as a run beyond the limits does, and keeps what it made.
     let s = failed_beyond_limits(&run(&file, &out), &out);
     assert!(s["backend"].as_str().unwrap().starts_with("kinematic"));
     let e = &s["execution"];
@@ -1126,11 +1148,15 @@ fn a_scene_s_obstacles_are_kept_by_the_movement_learned_in_it() {
     let file = write(dir.path(), "pose.toml", &pose);
     let out = dir.path().join("pose");
     let o = run(&file, &out);
-    // Learned in task space, the pose breaks the Panda's joint limits (a failed run, see
+    // Learned in task space, the pose breaks the Panda's joint limits, or folds the hand
+    // into link 5 where the guard stops it (a failed run, see
     // a_pose_experiment_with_a_robot_executes_and_checks_its_movement); what it learned
     // around the obstacle is kept and judged here.
+    let stderr = text(&o.stderr);
     assert!(
-        o.status.success() || text(&o.stderr).contains("breaks its robot's limits"),
+        o.status.success()
+            || stderr.contains("breaks its robot's limits")
+            || stderr.contains("`panda_link5` and `panda_hand` at t = "),
         "{}",
         text(&o.stderr)
     );

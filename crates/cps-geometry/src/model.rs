@@ -14,6 +14,9 @@
 //! its distance computed again. At a robot's control rate a pair 10 cm apart is computed
 //! once in many steps.
 
+use std::borrow::Borrow;
+use std::sync::Arc;
+
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::shape::{Separation, Shape, distance_hinted};
@@ -226,8 +229,8 @@ impl CollisionModel {
 /// only when their bodies' motion could have brought them within it. Nothing is allocated
 /// after [`PathCheck::new`].
 #[derive(Debug, Clone)]
-pub struct PathCheck<'a> {
-    model: &'a CollisionModel,
+pub struct PathCheck<M: Borrow<CollisionModel> = Arc<CollisionModel>> {
+    model: M,
     watch: f64,
     lower: Vec<f64>,
     hints: Vec<[u32; 2]>,
@@ -239,22 +242,36 @@ pub struct PathCheck<'a> {
     near: Vec<Contact>,
 }
 
-impl<'a> PathCheck<'a> {
-    /// A check of `model` that computes exactly every pair closer than `watch` (m).
-    pub fn new(model: &'a CollisionModel, watch: f64) -> Self {
-        let n = model.bodies.len();
+impl<M: Borrow<CollisionModel>> PathCheck<M> {
+    /// A check of `model` (borrowed, or shared by an [`Arc`]) that computes exactly every
+    /// pair closer than `watch` (m).
+    pub fn new(model: M, watch: f64) -> Self {
+        let m: &CollisionModel = model.borrow();
+        let (n, pairs) = (m.bodies.len(), m.pairs.len());
         PathCheck {
             model,
             watch,
-            lower: vec![f64::NEG_INFINITY; model.pairs.len()],
-            hints: vec![[0, 0]; model.pairs.len()],
+            lower: vec![f64::NEG_INFINITY; pairs],
+            hints: vec![[0, 0]; pairs],
             centres: vec![V::zeros(); n],
             rotations: vec![nalgebra::UnitQuaternion::identity(); n],
             moved: vec![0.0; n],
             started: false,
             queries: 0,
-            near: Vec::with_capacity(model.pairs.len()),
+            near: Vec::with_capacity(pairs),
         }
+    }
+
+    /// The model checked.
+    pub fn model(&self) -> &CollisionModel {
+        self.model.borrow()
+    }
+
+    /// Starts over: the next configuration is checked as a path's first (every pair
+    /// computed), as after [`PathCheck::new`].
+    pub fn restart(&mut self) {
+        self.started = false;
+        self.lower.fill(f64::NEG_INFINITY);
     }
 
     /// How many exact distances were computed so far.
@@ -269,7 +286,7 @@ impl<'a> PathCheck<'a> {
 
     /// The next configuration's frames: the closest pair closer than `watch`, if any.
     pub fn step(&mut self, frames: &[Isometry3<f64>]) -> Option<Contact> {
-        let m = self.model;
+        let m: &CollisionModel = self.model.borrow();
         for i in 0..m.bodies.len() {
             let f = &frames[m.bodies[i].frame];
             let c = (f * Point3::from(m.body_bounds[i].0)).coords;

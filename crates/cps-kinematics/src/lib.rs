@@ -81,5 +81,5 @@ pub use retime::{RetimeOptions, Retimed, UniformSlowing, retime};
 pub use spline::{JointSpline, PathPoint};
 #[cfg(feature = "urdf")]
 pub use urdf::{UrdfChain, chain_from_urdf};
-pub use urdf_collision::{CollisionElement, CollisionGeometry};
+pub use urdf_collision::{CollisionElement, CollisionGeometry, disabled_collisions};
 pub use workspace::{check_path, degrees_of_freedom, sample_workspace};

@@ -442,15 +442,15 @@ fn read_robot(xml: &str) -> Result<Robot, String> {
 /// A URDF element: its name, attributes and child elements (text is not kept: URDF puts
 /// everything cps reads in attributes).
 #[derive(Debug)]
-struct Element {
-    name: String,
+pub(crate) struct Element {
+    pub(crate) name: String,
     attrs: Vec<(String, String)>,
-    children: Vec<Element>,
-    line: usize,
+    pub(crate) children: Vec<Element>,
+    pub(crate) line: usize,
 }
 
 impl Element {
-    fn attr(&self, key: &str) -> Option<&str> {
+    pub(crate) fn attr(&self, key: &str) -> Option<&str> {
         self.attrs
             .iter()
             .find(|(k, _)| k == key)
@@ -471,7 +471,7 @@ impl Element {
 /// character references, comments, processing instructions, a DOCTYPE without an internal
 /// subset, CDATA (skipped). Every error names the line. No recursion: nesting is bounded
 /// by [`MAX_URDF_DEPTH`].
-fn parse_xml(xml: &str) -> Result<Element, String> {
+pub(crate) fn parse_xml(xml: &str) -> Result<Element, String> {
     let b = xml.as_bytes();
     let mut i = if xml.starts_with('\u{feff}') { 3 } else { 0 };
     let line_at = |at: usize| 1 + b[..at.min(b.len())].iter().filter(|&&c| c == b'\n').count();

@@ -7,6 +7,9 @@
 //! fingers. A prismatic joint is taken at its upper limit (a gripper open: the most room
 //! it can take). Links behind a moving joint off the chain (a second arm, a wheel) cannot
 //! be placed by the chain's angles and are listed in [`UrdfChain::unplaced`] instead.
+//!
+//! A robot's SRDF (MoveIt's semantic description) names the pairs of links never checked
+//! against each other: [`disabled_collisions`] reads its `<disable_collisions>`.
 
 use std::collections::HashMap;
 
@@ -177,4 +180,30 @@ pub(crate) fn place(
         unplaced,
         adjacent: adjacent(links, joints),
     }
+}
+
+/// The `<disable_collisions link1="…" link2="…">` pairs of an SRDF document (MoveIt's
+/// semantic robot description): links that touch at a joint, or that can never meet.
+/// Errors name the line (a document that is not XML, an element without both links).
+pub fn disabled_collisions(srdf: &str) -> Result<Vec<(String, String)>, String> {
+    let root = crate::urdf::parse_xml(srdf)?;
+    if root.name != "robot" {
+        return Err(format!(
+            "line {}: the root element is <{}>, not an SRDF's <robot>",
+            root.line, root.name
+        ));
+    }
+    root.children
+        .iter()
+        .filter(|e| e.name == "disable_collisions")
+        .map(|e| match (e.attr("link1"), e.attr("link2")) {
+            (Some(a), Some(b)) if !a.is_empty() && !b.is_empty() => {
+                Ok((a.to_string(), b.to_string()))
+            }
+            _ => Err(format!(
+                "line {}: <disable_collisions> needs both `link1` and `link2`",
+                e.line
+            )),
+        })
+        .collect()
 }

@@ -26,9 +26,22 @@ pub struct RobotGeometry {
     pub bodies: Vec<Body>,
     /// Links a joint joins (they touch at the joint).
     pub adjacent: Vec<(String, String)>,
+    /// Further pairs the robot's description leaves out (an SRDF's disabled collisions:
+    /// links that can never meet).
+    pub disabled: Vec<(String, String)>,
     /// What the user should know: links with shapes the chain cannot place, meshes with
     /// holes (their hulls close them).
     pub notes: Vec<String>,
+}
+
+impl RobotGeometry {
+    /// The shapes the guard checks: these bodies, the adjacent and disabled pairs never
+    /// checked, at [`cps_robot::DEFAULT_MARGIN`].
+    pub fn shapes(self) -> cps_robot::Shapes {
+        let mut touching = self.adjacent;
+        touching.extend(self.disabled);
+        cps_robot::Shapes::new(self.bodies, touching)
+    }
 }
 
 /// Where a URDF's mesh `filename` is, from the URDF at `urdf`.
@@ -67,8 +80,9 @@ pub fn find_mesh(filename: &str, urdf: &Path) -> Result<PathBuf, String> {
     }
 }
 
-/// The bodies of the chain read from the URDF at `urdf` (its meshes read from beside it).
-/// Errors name the URDF, the line of the element and the mesh.
+/// The bodies of the chain read from the URDF at `urdf` (its meshes read from beside it),
+/// and the pairs `ROBOT.srdf` beside `ROBOT.urdf` disables, when there is one. Errors name
+/// the file, the line of the element and the mesh.
 pub fn urdf_geometry(chain: &UrdfChain, urdf: &Path) -> Result<RobotGeometry, InputError> {
     let mut meshes: HashMap<(PathBuf, [u64; 3]), Arc<cps_geometry::Hull>> = HashMap::new();
     let mut bodies = Vec::with_capacity(chain.collisions.len());
@@ -124,9 +138,23 @@ pub fn urdf_geometry(chain: &UrdfChain, urdf: &Path) -> Result<RobotGeometry, In
             "link `{link}` has collision shapes behind a joint off the chain: they are not checked"
         ));
     }
+    // The pairs its SRDF disables, from `ROBOT.srdf` beside `ROBOT.urdf`.
+    let srdf = urdf.with_extension("srdf");
+    let disabled = if srdf.is_file() {
+        let text = cps_outcome::source::read_text(
+            &srdf,
+            cps_outcome::source::MAX_FILE_BYTES,
+            "SRDF file",
+        )?;
+        cps_kinematics::disabled_collisions(&text)
+            .map_err(|m| InputError(format!("{}: {m}", srdf.display())))?
+    } else {
+        Vec::new()
+    };
     Ok(RobotGeometry {
         bodies,
         adjacent: chain.adjacent.clone(),
+        disabled,
         notes,
     })
 }
@@ -163,6 +191,24 @@ const PANDA_MESHES: [&[u8]; 8] = [
     include_bytes!("../../../configs/robots/franka/fer/link7.stl"),
 ];
 const HAND_MESH: &[u8] = include_bytes!("../../../configs/robots/franka/hand.stl");
+
+/// The arm's link pairs franka_description's SRDF disables beyond the adjacent ones
+/// (`reason="Never"`: the joint ranges keep them apart).
+const FRANKA_NEVER: [(usize, usize); 13] = [
+    (0, 2),
+    (0, 3),
+    (0, 4),
+    (1, 3),
+    (1, 4),
+    (2, 4),
+    (2, 6),
+    (3, 5),
+    (3, 6),
+    (3, 7),
+    (4, 6),
+    (4, 7),
+    (5, 7),
+];
 
 /// How far each finger of the hand is open in the built-in model (m): fully, the most room
 /// the hand can take.
@@ -246,9 +292,26 @@ pub fn franka_geometry(arm: FrankaArm, hand: bool) -> RobotGeometry {
             adjacent.push((name("hand"), name(finger)));
         }
     }
+    // franka_description's SRDF (franka_arm.srdf.xacro, franka_hand.srdf.xacro): the
+    // pairs beyond the adjacent ones that the arm's own joint ranges keep apart.
+    let mut disabled: Vec<(String, String)> = FRANKA_NEVER
+        .iter()
+        .map(|&(a, b)| (name(&format!("link{a}")), name(&format!("link{b}"))))
+        .collect();
+    if hand {
+        for part in ["hand", "leftfinger", "rightfinger"] {
+            for link in [3, 4, 6, 7] {
+                if !(part == "hand" && link == 7) {
+                    disabled.push((name(part), name(&format!("link{link}"))));
+                }
+            }
+        }
+        disabled.push((name("leftfinger"), name("rightfinger")));
+    }
     RobotGeometry {
         bodies,
         adjacent,
+        disabled,
         notes: Vec::new(),
     }
 }

@@ -7,6 +7,7 @@
 //! about y, then yaw about z, all about fixed axes).
 
 use std::path::Path;
+use std::sync::Arc;
 
 use cps_kinematics::robots::{
     PandaTool, fr3, fr3_inertia, fr3_limits, panda, panda_inertia, panda_limits, puma560, ur3,
@@ -345,21 +346,23 @@ impl Frame {
 fn urdf_robot(
     text: &str,
     tip: Option<&str>,
-) -> Result<RobotModel, cps_kinematics::KinematicsError> {
+) -> Result<(RobotModel, cps_kinematics::UrdfChain), cps_kinematics::KinematicsError> {
     let u = chain_from_urdf(text, tip)?;
-    Ok(RobotModel {
-        name: u.name,
+    let model = RobotModel {
+        name: u.name.clone(),
         ready: mid_range(&u.chain),
         tool: format!("link `{}`", u.tip_link),
-        joint_names: u.joint_names,
-        chain: u.chain,
+        joint_names: u.joint_names.clone(),
+        chain: u.chain.clone(),
         limits: JointLimits {
-            torque: u.effort,
+            torque: u.effort.clone(),
             ..JointLimits::default()
         },
-        inertia: u.inertia,
+        inertia: u.inertia.clone(),
         cartesian: None,
-    })
+        shapes: None,
+    };
+    Ok((model, u))
 }
 
 /// The FANUC CRX-10iA (`crx10ia`): configs/robots/crx10ia.urdf, built in.
@@ -461,8 +464,13 @@ pub fn load_robot(
                     "--tool: a URDF robot ends at its tip link; choose it with --tip".into(),
                 ));
             }
-            let mut model = urdf_robot(&text, tip)
+            let (mut model, urdf) = urdf_robot(&text, tip)
                 .map_err(|e| InputError(format!("{}: {e}", path.display())))?;
+            // Its links' shapes, from its `<collision>` elements (none: unchecked, said).
+            if !urdf.collisions.is_empty() {
+                let geometry = crate::collision::urdf_geometry(&urdf, path)?;
+                model.shapes = Some(Arc::new(geometry.shapes()));
+            }
             // The limits a URDF has no tag for, from `ROBOT.limits.toml` beside it.
             let side = path.with_extension("limits.toml");
             if side.is_file() {
@@ -507,6 +515,13 @@ pub fn load_robot(
                 let (joint, cartesian) = panda_limits();
                 (panda(t), joint, Some(panda_inertia()), Some(cartesian))
             };
+            // franka_description's collision meshes, the hand's with the hand.
+            let arm = if fr3_arm {
+                crate::collision::FrankaArm::Fr3
+            } else {
+                crate::collision::FrankaArm::Panda
+            };
+            let geometry = crate::collision::franka_geometry(arm, t == PandaTool::HandTcp);
             Ok(RobotModel {
                 name: spec.into(),
                 chain,
@@ -516,6 +531,7 @@ pub fn load_robot(
                 limits,
                 inertia,
                 cartesian,
+                shapes: Some(Arc::new(geometry.shapes())),
             })
         }
         "ur3" | "puma560" => {
@@ -539,6 +555,7 @@ pub fn load_robot(
                 },
                 inertia: ur.then(ur3_inertia),
                 cartesian: None,
+                shapes: None,
             })
         }
         "crx10ia" => {
@@ -547,7 +564,7 @@ pub fn load_robot(
                     "--tool: the built-in crx10ia has only its flange, not `{t}`"
                 )));
             }
-            let mut model = urdf_robot(CRX10IA_URDF, None)
+            let (mut model, _) = urdf_robot(CRX10IA_URDF, None)
                 .map_err(|e| InputError(format!("the built-in crx10ia: {e}")))?;
             apply_side_file(
                 &mut model,
@@ -765,5 +782,6 @@ pub fn parse_robot_toml(
         limits,
         inertia,
         cartesian,
+        shapes: None,
     })
 }

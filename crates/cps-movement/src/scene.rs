@@ -7,7 +7,12 @@
 //! in the world frame: metres, and radians as URDF's roll, pitch, yaw), `size = [sx, sy,
 //! sz]` (a box's full edge lengths), `radius`, `length` (a cylinder's or a capsule's, about
 //! its z axis), `file` (a mesh, STL or OBJ, relative to the scene file; collided as its
-//! convex hull).
+//! convex hull), `touch` (the links that may touch it: the link a robot stands on, the
+//! fingers that press a table).
+//!
+//! The robot's own shapes and the shaped obstacles are what the guard checks every plan
+//! against; `[robot] margin` (m) sets the clearance every other pair keeps. A scene whose
+//! robot already touches an obstacle at its start (beyond what `touch` allows) is refused.
 
 use std::path::Path;
 
@@ -43,6 +48,8 @@ struct ObstacleEntry {
     radius: Option<f64>,
     length: Option<f64>,
     file: Option<String>,
+    #[serde(default)]
+    touch: Vec<String>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -53,6 +60,7 @@ struct RobotSection {
     tip: Option<String>,
     initial_q: Spanned<Vec<f64>>,
     base: Option<Frame>,
+    margin: Option<Spanned<f64>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -223,6 +231,49 @@ pub fn parse_scene(path: &Path, text: &str) -> Result<Scene, InputError> {
             },
         ));
     }
+    // The robot among the shaped obstacles, each with the links that may touch it.
+    let mut allowed = Vec::new();
+    for o in &file.obstacle {
+        let v = o.get_ref();
+        if !v.touch.is_empty() && v.shape.is_none() {
+            return Err(InputError(format!(
+                "{}: obstacle `{}` is a point: only an obstacle with a `shape` can be touched",
+                location(path, &text, &o.span()),
+                v.name
+            )));
+        }
+        allowed.extend(v.touch.iter().map(|l| (l.clone(), v.name.clone())));
+    }
+    let margin = r.margin.as_ref().map(|m| *m.get_ref());
+    let at_margin = || {
+        r.margin.as_ref().map_or_else(
+            || path.display().to_string(),
+            |m| location(path, &text, &m.span()),
+        )
+    };
+    if robot.shapes.is_none() && (!shapes.is_empty() || margin.is_some()) {
+        return Err(InputError(format!(
+            "{}: the robot `{}` has no collision geometry, so the scene's shaped obstacles and margin could not be checked (give a robot whose URDF has <collision> elements, or a built-in Franka)",
+            at_margin(),
+            robot.name
+        )));
+    }
+    robot = robot
+        .in_scene(shapes.clone(), allowed, margin)
+        .map_err(|m| InputError(format!("{}: {m}", at_margin())))?;
+    if let Some(s) = &robot.shapes {
+        let mut watch = cps_robot::ShapeWatch::new(s.clone(), robot.chain.dof());
+        let hit = watch
+            .judge(&robot.chain, q, 0.0, 0)
+            .map_err(|e| InputError(format!("{}: {e}", path.display())))?;
+        if let Some(c) = hit {
+            return Err(InputError(format!(
+                "{}: at the robot's `initial_q`, {}",
+                location(path, &text, &r.initial_q.span()),
+                start_words(&c)
+            )));
+        }
+    }
     Ok(Scene {
         robot,
         initial_q: q.clone(),
@@ -230,6 +281,26 @@ pub fn parse_scene(path: &Path, text: &str) -> Result<Scene, InputError> {
         obstacles,
         shapes,
     })
+}
+
+/// A collision at a scene's start, in words (no time: it is where the robot stands).
+fn start_words(c: &cps_robot::Collision) -> String {
+    if c.distance < 0.0 {
+        format!(
+            "`{}` and `{}` are {:.1} mm deep in each other: move the obstacle, or name the link in its `touch` if it stands on it",
+            c.first,
+            c.second,
+            -1e3 * c.distance
+        )
+    } else {
+        format!(
+            "`{}` and `{}` are {:.1} mm apart, within the clearance margin of {:.1} mm",
+            c.first,
+            c.second,
+            1e3 * c.distance,
+            1e3 * c.margin
+        )
+    }
 }
 
 /// An `[[obstacle]]` with a `shape`: the keys its shape needs, and no others.

@@ -39,6 +39,7 @@ name = "table"
 shape = "box"
 xyz = [0.5, 0.0, -0.025]
 size = [1.0, 0.8, 0.05]
+touch = ["panda_link0"]
 
 [[obstacle]]
 name = "post"
@@ -91,6 +92,73 @@ xyz = [2.0, 0.0, 0.0]
     )
     .distance;
     assert!((d - 0.49).abs() < 1e-7, "{d}");
+}
+
+#[test]
+fn the_robots_shapes_meet_the_scene_and_a_start_inside_an_obstacle_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    // The table the robot stands on, allowed to touch its base: the robot is checked
+    // against it with every other link, at the margin the scene sets.
+    let table = "\n[[obstacle]]\nname = \"table\"\nshape = \"box\"\nxyz = [0.0, 0.0, -0.1]\nsize = [1.0, 1.0, 0.2]\n";
+    let s = scene(&format!("{table}touch = [\"panda_link0\"]\n"), dir.path()).unwrap();
+    let shapes = s.robot.shapes.as_ref().expect("the Panda has shapes");
+    assert_eq!(shapes.obstacles().len(), 1);
+    assert_eq!(shapes.margin(), cps_robot::DEFAULT_MARGIN);
+    let model = shapes.model();
+    let pairs: Vec<(&str, &str)> = (0..model.pair_count())
+        .map(|p| model.pair_names(p))
+        .collect();
+    assert!(pairs.contains(&("panda_link7", "table")), "{pairs:?}");
+    assert!(!pairs.contains(&("panda_link0", "table")), "{pairs:?}");
+    // Without `touch`, the base stands in the table at the start: refused, with its place.
+    let e = scene(table, dir.path()).unwrap_err().to_string();
+    assert!(
+        e.contains("s.toml:4:13: at the robot's `initial_q`, `panda_link0` and `table` are")
+            && e.contains("mm deep in each other"),
+        "{e}"
+    );
+    // A box 3 cm from the hand's fingers at the start, with a 5 cm margin: refused.
+    let q = [0.0, 0.0, 0.0, -1.5, 0.0, 1.5, 0.0];
+    let tcp = s.robot.chain.fk(&q).unwrap().translation.vector;
+    let near = format!(
+        "\n[[obstacle]]\nname = \"cup\"\nshape = \"sphere\"\nxyz = [{}, {}, {}]\nradius = 0.02\n",
+        tcp.x,
+        tcp.y,
+        tcp.z - 0.05
+    );
+    let text = format!("{HEAD}margin = 0.05\n{near}");
+    let e = parse_scene(&dir.path().join("s.toml"), &text)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("within the clearance margin of 50.0 mm"), "{e}");
+    // `touch` names a link the robot has, and only a shaped obstacle can be touched.
+    let e = scene(&format!("{table}touch = [\"panda_link9\"]\n"), dir.path()).unwrap_err();
+    assert!(
+        e.contains("`panda_link9`, which is neither one of the robot's links (panda_link0, "),
+        "{e}"
+    );
+    let e = scene(
+        "\n[[obstacle]]\nname = \"p\"\nposition = [0, 0, 0]\nclearance = 0.1\ntouch = [\"panda_link0\"]\n",
+        dir.path(),
+    )
+    .unwrap_err();
+    assert!(
+        e.contains(
+            "s.toml:6:1: obstacle `p` is a point: only an obstacle with a `shape` can be touched"
+        ),
+        "{e}"
+    );
+    // A negative margin is named at its place.
+    let e = parse_scene(
+        &dir.path().join("s.toml"),
+        &format!("{HEAD}margin = -0.01\n"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("s.toml:5:10: the clearance margin must be a finite distance ≥ 0 m, not -0.01"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -5,6 +5,7 @@
 //! on the in-process stand-in, a simulator, a Franka and a ROS 2 controller.
 
 use crate::check::{Breach, Verdict, check};
+use crate::collision::{Collision, ShapeWatch, check_shapes};
 use crate::plan::{Plan, Run};
 use crate::robot::{Generator, Robot, Stepped, Streaming};
 use crate::watch::CommandWatch;
@@ -84,6 +85,10 @@ pub enum Refusal {
         /// That slowing.
         max: f64,
     },
+    /// Two bodies come closer than the clearance margin, or collide: no slowing helps (the
+    /// path is the same at any speed). Times count from the start of what would be sent
+    /// (an approach to the plan's start first, where it needs one).
+    Collision(Collision),
     /// It starts too far from where the robot stands (and the policy refuses).
     Start {
         /// 1-based joint of the largest distance.
@@ -99,6 +104,7 @@ impl std::fmt::Display for Refusal {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Refusal::Limit(b) => write!(f, "{b}"),
+            Refusal::Collision(c) => write!(f, "{c}"),
             Refusal::EvenSlowed { breach, max } => {
                 write!(f, "even slowed {max}x the plan breaks a limit: {breach}")
             }
@@ -204,6 +210,9 @@ pub struct Guarded<R> {
     commanded: bool,
     /// How the stepped robot is driven, read when its stepped view was last asked for.
     stepping: crate::Stepping,
+    /// The stepped commands' collision check (made at the first, when the robot has
+    /// shapes; started over with `watch`).
+    shapes: Option<ShapeWatch>,
 }
 
 /// A plan made ready by the guard: what will be sent, and how it came to be.
@@ -230,6 +239,7 @@ impl<R: Robot> Guarded<R> {
             watch: None,
             commanded: false,
             stepping: crate::Stepping::Joints,
+            shapes: None,
         }
     }
 
@@ -303,6 +313,18 @@ impl<R: Robot> Guarded<R> {
             OnBreach::Refuse => 1.0,
             OnBreach::Slow { max } => max.clamp(1.0, MAX_SLOWING),
         };
+        if let Some(shapes) = &self.robot.model().shapes {
+            // The path is the same at any slowing: checked once, as it would first be sent.
+            let whole = match &approach {
+                Some(a) => a.resampled(plan.dt())?.then(plan)?,
+                None => plan.clone(),
+            };
+            let model = self.robot.model();
+            let period = self.robot.command_period();
+            if let Some(c) = check_shapes(shapes, &model.chain, &whole, period)? {
+                return Err(self.refused(Refusal::Collision(c)));
+            }
+        }
         let mut slowing: f64 = 1.0;
         loop {
             let main = if slowing == 1.0 {
@@ -393,13 +415,55 @@ impl<R: Robot> Guarded<R> {
         self.policy = policy;
         let prepared = prepared?;
         let name = self.robot.name();
+        let model = self.robot.model();
+        let model_shapes = model.shapes.clone();
+        let chain_period = (model.chain.clone(), self.robot.command_period());
         let Some(streaming) = self.robot.streaming() else {
             return Err(RobotError::Robot {
                 robot: name,
                 message: "it runs whole plans only; it takes no command computed online".into(),
             });
         };
-        let run = streaming.stream(next, max_commands, stop)?;
+        let Some(shapes) = model_shapes else {
+            let run = streaming.stream(next, max_commands, stop)?;
+            self.last = Some(prepared.verdict);
+            return Ok(run);
+        };
+        // Each command is judged for collisions as it is made; at the first within the
+        // margin the robot is stopped (it brakes within its limits) through a token of the
+        // guard's own, which also passes the caller's stop on.
+        let (chain, period) = chain_period;
+        let mut watch = ShapeWatch::new(shapes, chain.dof());
+        let (inner, mut hit, mut count) = (StopToken::new(), None, 0usize);
+        let _moving = stop.moving();
+        let mut judged = |measured: &[f64], t: f64, out: &mut [f64]| -> bool {
+            if stop.is_stopped() {
+                inner.stop();
+            }
+            let last = next(measured, t, out);
+            count += 1;
+            if hit.is_none() {
+                let judged = watch.contact(&chain, out).transpose();
+                if let Some(h) = judged {
+                    hit = Some((h, count));
+                    inner.stop();
+                }
+            }
+            last
+        };
+        let mut run = streaming.stream(&mut judged, max_commands, &inner)?;
+        if let Some((hit, count)) = hit {
+            let why = match hit {
+                Ok(c) => watch
+                    .shapes()
+                    .collision(&c, count as f64 * period, count)
+                    .to_string(),
+                Err(e) => e.to_string(),
+            };
+            run.ending = crate::Ending::Failed(format!(
+                "a command came within the clearance margin, so the robot braked: {why}"
+            ));
+        }
         self.last = Some(prepared.verdict);
         Ok(run)
     }
@@ -471,8 +535,17 @@ impl<R: Robot> Robot for Guarded<R> {
         let prepared = self.prepare(plan)?;
         self.run_prepared(prepared, stop)
     }
+    /// Puts a simulator at `q` unless two of the robot's bodies are closer there than its
+    /// margin (refused, nothing moved).
     fn teleport(&mut self, q: &[f64]) -> Result<bool, RobotError> {
         self.watch = None;
+        let model = self.robot.model();
+        if let Some(shapes) = &model.shapes {
+            let mut watch = ShapeWatch::new(shapes.clone(), model.chain.dof());
+            if let Some(c) = watch.judge(&model.chain, q, 0.0, 0)? {
+                return Err(self.refused(Refusal::Collision(c)));
+            }
+        }
         self.robot.teleport(q)
     }
     /// Nothing is commanded: the robot's own recording.
@@ -515,12 +588,27 @@ impl<R: Robot> Robot for Guarded<R> {
 
 impl<R: Robot> Guarded<R> {
     /// A stepped command refused: what was sent before stands, this one is not sent.
-    fn command_refused(&self, breach: &Breach) -> RobotError {
+    fn command_refused(&self, breach: &dyn std::fmt::Display) -> RobotError {
         RobotError::Robot {
             robot: self.robot.name(),
             message: format!(
                 "a command breaks a limit, so it was not sent (the robot holds the one before): {breach}"
             ),
+        }
+    }
+
+    /// The stepped command `q` judged for collisions (number `command`, at `time`).
+    fn judge_shapes(&mut self, q: &[f64], time: f64, command: usize) -> Result<(), RobotError> {
+        let model = self.robot.model();
+        let Some(shapes) = &model.shapes else {
+            return Ok(());
+        };
+        let watch = self
+            .shapes
+            .get_or_insert_with(|| ShapeWatch::new(shapes.clone(), model.chain.dof()));
+        match watch.judge(&model.chain, q, time, command)? {
+            Some(c) => Err(self.command_refused(&c)),
+            None => Ok(()),
         }
     }
 
@@ -551,7 +639,12 @@ impl<R: Robot> Stepped for Guarded<R> {
             let here = self.robot.joint_positions()?;
             let dt = self.robot.dt();
             self.watch = Some(CommandWatch::new(&here, dt));
+            if let Some(w) = self.shapes.as_mut() {
+                w.restart();
+            }
         }
+        let command = self.watch.as_ref().expect("just made").commands() + 1;
+        self.judge_shapes(q, command as f64 * self.robot.dt(), command)?;
         let watch = self.watch.as_mut().expect("just made");
         if let Err(breach) = watch.judge(self.robot.model(), q) {
             return Err(self.command_refused(&breach));

@@ -57,6 +57,7 @@
 #![deny(missing_docs)]
 
 mod check;
+mod collision;
 mod execute;
 mod guard;
 mod kinematic;
@@ -67,6 +68,7 @@ mod stop;
 mod watch;
 
 pub use check::{Breach, Limit, OUTSIDE_SLACK, Verdict, check};
+pub use collision::{Collision, DEFAULT_MARGIN, ShapeWatch, Shapes, check_shapes};
 pub use execute::{ExecutionConfig, Recording, execute};
 pub use guard::{
     APPROACH_SHARE, BLEND_SHARE, Guarded, MAX_SLOWING, OnBreach, OnStart, Policy, Prepared,

@@ -1,6 +1,10 @@
 //! What cps knows of a robot it drives: its kinematics, joint names and every limit.
 
+use std::sync::Arc;
+
 use cps_kinematics::{CartesianLimits, JointLimits, LinkInertia, RobotLimits, SerialChain};
+
+use crate::collision::Shapes;
 
 /// A robot's model: the chain (base placed, tool point set), its joint names, its limits
 /// beyond the chain's range and speed, and its inertias where known. Robot files
@@ -24,6 +28,10 @@ pub struct RobotModel {
     /// Limits of the tool's (and the elbow's) Cartesian motion, when the robot's data give
     /// them (the Panda's; TOML `[cartesian]`).
     pub cartesian: Option<CartesianLimits>,
+    /// Its collision geometry among its scene's obstacles, which the guard checks every
+    /// plan against; None where the robot's data have no shapes (then nothing is checked
+    /// for collisions, and [`RobotModel::shapes_note`] says so).
+    pub shapes: Option<Arc<Shapes>>,
 }
 
 impl RobotModel {
@@ -39,8 +47,42 @@ impl RobotModel {
             limits: JointLimits::default(),
             inertia: None,
             cartesian: None,
+            shapes: None,
             chain,
         }
+    }
+
+    /// What a user must know when the robot has no collision geometry: that its plans are
+    /// checked against its limits only. None when it has shapes.
+    pub fn shapes_note(&self) -> Option<String> {
+        self.shapes.is_none().then(|| {
+            format!(
+                "the robot `{}` has no collision geometry: plans are checked against its limits, not for collisions",
+                self.name
+            )
+        })
+    }
+
+    /// The same robot among `obstacles`, where the pairs in `allowed` may touch, keeping
+    /// `margin` when given. A robot without shapes gains none: it stays unchecked (and
+    /// says so). Errors: as [`Shapes::with_obstacles`] and [`Shapes::with_margin`].
+    pub fn in_scene(
+        &self,
+        obstacles: Vec<cps_geometry::Obstacle>,
+        allowed: Vec<(String, String)>,
+        margin: Option<f64>,
+    ) -> Result<Self, String> {
+        let Some(shapes) = &self.shapes else {
+            return Ok(self.clone());
+        };
+        let mut shapes = shapes.with_obstacles(obstacles, allowed)?;
+        if let Some(m) = margin {
+            shapes = shapes.with_margin(m)?;
+        }
+        Ok(RobotModel {
+            shapes: Some(Arc::new(shapes)),
+            ..self.clone()
+        })
     }
 
     /// The robot's limits and dynamics as checks and retiming take them (gravity along the

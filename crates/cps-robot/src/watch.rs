@@ -51,6 +51,11 @@ impl CommandWatch {
         }
     }
 
+    /// How many commands were accepted so far.
+    pub(crate) fn commands(&self) -> usize {
+        self.commands
+    }
+
     /// The last command accepted (where the robot stood, before any).
     pub(crate) fn last(&self) -> &[f64] {
         &self.q

@@ -85,6 +85,9 @@ pub struct RobotSection {
     /// run, exit 1) or `report` (a result whose `limit_usage` says so, for reproducing a
     /// study whose robot was not the real one — it is not a movement to send).
     limits: Option<Spanned<String>>,
+    /// The clearance (m) every pair of the robot's bodies, and each body and an obstacle,
+    /// keeps in this run (default: the scene's, else the robot's).
+    margin: Option<Spanned<f64>>,
 }
 
 /// Who moves the joints on a CoppeliaSim backend.
@@ -265,6 +268,25 @@ impl Sections<'_> {
             }
             None => built_in()?,
         };
+        let mut scene = scene;
+        if let Some(m) = section.and_then(|r| r.margin.as_ref()) {
+            let margin = self.within(m, "[robot] `margin`", 0.0, 0.5, " m")?;
+            if scene.robot.shapes.is_none() {
+                return Err(self.err(
+                    &m.span(),
+                    format!(
+                        "[robot] `margin`: the robot `{}` has no collision geometry to keep a margin with",
+                        scene.robot.name
+                    ),
+                ));
+            }
+            let shapes = scene.robot.shapes.as_ref().expect("checked");
+            let (obstacles, allowed) = (shapes.obstacles().to_vec(), shapes.allowed().to_vec());
+            scene.robot = scene
+                .robot
+                .in_scene(obstacles, allowed, Some(margin))
+                .map_err(|e| self.err(&m.span(), format!("[robot] `margin`: {e}")))?;
+        }
         let mut execution = ExecutionConfig::default();
         if let Some(t) = section.and_then(|r| r.tolerance.as_ref()) {
             execution.tolerance = self.within(t, "[robot] `tolerance`", 1e-9, 0.1, " m")?;
