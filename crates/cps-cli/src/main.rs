@@ -147,6 +147,10 @@ enum Command {
         #[command(subcommand)]
         command: robot::LimitsCommand,
     },
+    /// Check a joint trajectory (CSV) for collisions of the robot with itself and its
+    /// scene, as the guard will before sending it: the closest pair and the worst row, exit
+    /// 1 on a collision. `--json` lists each row's pairs within 10 cm, in metres.
+    Collide(robot::CollideArgs),
     /// Retime a joint trajectory (CSV) within the robot's limits: the fastest timing of
     /// its path, or the smallest uniform slowing.
     Retime(trajectory::RetimeArgs),
@@ -273,6 +277,7 @@ fn run(cli: Cli, stop: &StopToken) -> Result<ExitCode> {
         Command::Robot { command } => robot::robot(&command),
         Command::Scene { command } => scene::scene(&command),
         Command::Limits { command } => robot::limits(&command),
+        Command::Collide(args) => robot::collide(&args),
         Command::Retime(args) => trajectory::retime(&args),
         Command::Export(args) => trajectory::export(&args),
         Command::Imitate(args) => movement::run_imitate(&args),

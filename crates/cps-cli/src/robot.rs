@@ -149,6 +149,45 @@ pub fn limits(cmd: &LimitsCommand) -> Result<ExitCode> {
     Ok(ExitCode::from(u8::from(!report.ok())))
 }
 
+/// Arguments of `cps-cli collide`.
+#[derive(Args, Debug)]
+pub struct CollideArgs {
+    /// The joint trajectory (CSV: time in s, then one position per joint in rad).
+    file: std::path::PathBuf,
+    #[command(flatten)]
+    arm: RobotArgs,
+    /// A scene file: its robot, placed at its base, among its obstacles (instead of
+    /// `--robot`).
+    #[arg(long, conflicts_with_all = ["robot", "tool", "tip"])]
+    scene: Option<std::path::PathBuf>,
+    /// The clearance every pair keeps, in metres (default: the scene's, else 0.005).
+    #[arg(long, allow_hyphen_values = true)]
+    margin: Option<f64>,
+    /// The controller's rate in Hz, at which the guard checks (as `limits check`).
+    #[arg(long, default_value_t = 1000.0)]
+    rate: f64,
+}
+
+/// `cps-cli collide`: exit 0 when every pair keeps the margin, 1 on a collision.
+pub fn collide(args: &CollideArgs) -> Result<ExitCode> {
+    let (mut model, what) = match &args.scene {
+        Some(s) => (
+            cps_movement::scene::load_scene(s)?.robot,
+            s.display().to_string(),
+        ),
+        None => (args.arm.load()?, args.arm.robot.clone()),
+    };
+    if let Some(m) = args.margin {
+        model = model
+            .with_margin(m)
+            .map_err(|e| InputError(format!("--margin: {e}")))?;
+    }
+    let report = cps_movement::collide::check_file(&args.file, &model, args.rate)?;
+    let title = format!("{} on {what}:", args.file.display());
+    print(&report.answer(title), args.arm.json)?;
+    Ok(ExitCode::from(u8::from(!report.ok())))
+}
+
 /// `cps-cli robot show`.
 pub fn robot(cmd: &RobotCommand) -> Result<ExitCode> {
     let RobotCommand::Show { robot, tool, tip } = cmd;

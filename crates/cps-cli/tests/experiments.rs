@@ -1148,15 +1148,16 @@ fn a_scene_s_obstacles_are_kept_by_the_movement_learned_in_it() {
     let file = write(dir.path(), "pose.toml", &pose);
     let out = dir.path().join("pose");
     let o = run(&file, &out);
-    // Learned in task space, the pose breaks the Panda's joint limits, or folds the hand
-    // into link 5 where the guard stops it (a failed run, see
+    // Learned in task space, the pose breaks the Panda's joint limits, or brings the hand
+    // within the margin of link 5 or the table, where the guard stops it (a failed run, see
     // a_pose_experiment_with_a_robot_executes_and_checks_its_movement); what it learned
     // around the obstacle is kept and judged here.
     let stderr = text(&o.stderr);
     assert!(
         o.status.success()
             || stderr.contains("breaks its robot's limits")
-            || stderr.contains("`panda_link5` and `panda_hand` at t = "),
+            || stderr.contains("within the clearance margin")
+            || stderr.contains("deep in each other"),
         "{}",
         text(&o.stderr)
     );

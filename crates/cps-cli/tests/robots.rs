@@ -550,3 +550,123 @@ fn hostile_arguments_exit_2_stating_the_rule() {
         "the calibration would be written over the recording",
     );
 }
+
+/// `collide`: a swing of joint 1 through a shelf placed on the tool's way is a collision
+/// (exit 1), named with the two bodies and its time, each row's near pairs listed in JSON
+/// with signed distances; the same swing without the shelf, or stopped before it, passes;
+/// a robot without shapes and a negative margin are refused (exit 2).
+#[test]
+fn collide_finds_the_shelf_on_the_way_and_lists_each_rows_near_pairs() {
+    let dir = tempfile::tempdir().unwrap();
+    let fr3 = std::fs::read_to_string(repo("configs/scenes/fr3.toml")).unwrap();
+    let scene = cps_movement::scene::parse_scene(std::path::Path::new("fr3.toml"), &fr3).unwrap();
+    let q0 = scene.initial_q.clone();
+    // The tool's place with joint 1 turned 0.8 rad: a 10 cm cube centred there.
+    let mut at = q0.clone();
+    at[0] += 0.8;
+    let p = scene.robot.chain.fk(&at).unwrap().translation.vector;
+    let shelf = format!(
+        "\n[[obstacle]]\nname = \"shelf\"\nshape = \"box\"\nxyz = [{}, {}, {}]\nsize = [0.1, 0.1, 0.1]\n",
+        p.x, p.y, p.z
+    );
+    let with_shelf = write(dir.path(), "shelf.toml", &(fr3.clone() + &shelf));
+    let plain = write(dir.path(), "plain.toml", &fr3);
+    // Joint 1 from the start by `to` rad in 3 s, a row every 10 ms.
+    let swing = |name: &str, to: f64| {
+        let mut csv = String::from("t,q1,q2,q3,q4,q5,q6,q7\n");
+        for k in 0..=300 {
+            let s = 0.5 - 0.5 * (std::f64::consts::PI * k as f64 / 300.0).cos();
+            let mut q = q0.clone();
+            q[0] += to * s;
+            let cells: Vec<String> = q.iter().map(|v| v.to_string()).collect();
+            csv += &format!("{},{}\n", k as f64 * 0.01, cells.join(","));
+        }
+        write(dir.path(), name, &csv)
+    };
+    let through = swing("through.csv", 1.2);
+    let short = swing("short.csv", 0.3);
+    let args = |csv: &std::path::Path, scene: &std::path::Path| {
+        vec![
+            "collide".to_string(),
+            csv.display().to_string(),
+            "--scene".into(),
+            scene.display().to_string(),
+        ]
+    };
+    let run = |a: Vec<String>| cli(&a.iter().map(String::as_str).collect::<Vec<_>>());
+
+    let o = run(args(&through, &with_shelf));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(out.contains("COLLISION: `fr3_"), "{out}");
+    assert!(out.contains("and `shelf` at t = "), "{out}");
+    let mut a = args(&through, &with_shelf);
+    a.push("--json".into());
+    let j = stdout_json(&run(a));
+    assert_eq!(j["ok"], false);
+    assert_eq!(j["obstacles"], 2, "the table and the shelf");
+    assert_eq!(j["collision"]["second"], "shelf");
+    let rows = j["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 301);
+    // The row at the tool's place: the hand or a finger inside the shelf (negative), and
+    // every pair listed within 10 cm.
+    let shelf_pairs = |row: &serde_json::Value| -> Vec<f64> {
+        row["pairs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|p| p["second"] == "shelf")
+            .map(|p| p["distance"].as_f64().unwrap())
+            .collect()
+    };
+    let deepest = rows
+        .iter()
+        .flat_map(shelf_pairs)
+        .fold(f64::INFINITY, f64::min);
+    assert!(deepest < -0.02, "{deepest}");
+    assert!(
+        rows.iter()
+            .flat_map(|r| r["pairs"].as_array().unwrap().clone())
+            .all(|p| p["distance"].as_f64().unwrap() < 0.1)
+    );
+    assert!(
+        shelf_pairs(&rows[0]).iter().all(|d| *d > 0.005),
+        "the start keeps clear of the shelf"
+    );
+    assert!(j["closest"]["distance"].as_f64().unwrap() <= deepest + 1e-12);
+    // The collision comes before the rows reach the tool's place (joint 1 at 0.8 rad: row
+    // 177 of the cosine swing), at or after the first row the shelf is within the margin.
+    let t = j["collision"]["time"].as_f64().unwrap();
+    let first_near = rows
+        .iter()
+        .position(|r| shelf_pairs(r).iter().any(|d| *d < 0.005))
+        .unwrap();
+    assert!(
+        t <= 1.77 && t > (first_near as f64 - 1.0) * 0.01,
+        "{t} {first_near}"
+    );
+
+    // Without the shelf, or stopped before it: ok.
+    for (csv, scene) in [(&through, &plain), (&short, &with_shelf)] {
+        let o = run(args(csv, scene));
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stdout));
+        assert!(String::from_utf8_lossy(&o.stdout).contains("ok: every pair keeps 5.0 mm"));
+    }
+    // A robot without shapes, a negative margin, --robot beside --scene: exit 2.
+    let toml_robot = repo("configs/robots/panda.toml");
+    let o = cli(&["collide", through.to_str().unwrap(), "--robot", &toml_robot]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("has no collision geometry: there is nothing to check"),
+        "{}",
+        stderr(&o)
+    );
+    let mut a = args(&through, &with_shelf);
+    a.extend(["--margin".into(), "-0.01".into()]);
+    let o = run(a);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--margin: the clearance margin must be a finite distance ≥ 0 m"));
+    let mut a = args(&through, &with_shelf);
+    a.extend(["--robot".into(), "ur3".into()]);
+    assert_eq!(run(a).status.code(), Some(2));
+}

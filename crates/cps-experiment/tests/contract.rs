@@ -22,15 +22,27 @@ use cps_franka::{FrankaRobot, FrankaSettings, Realtime};
 use cps_kinematics::ArmModel;
 use cps_kinematics::contact::JointFriction;
 use cps_kinematics::robots::{PandaTool, fr3, fr3_inertia, fr3_limits};
+use cps_movement::collision::FrankaArm;
 use cps_robot::{
     Guarded, KinematicRobot, Plan, Policy, Refusal, Robot, RobotError, RobotModel, StopToken,
 };
 use cps_ros2::robot::{Ros2Robot, Ros2Settings};
 
-/// The FR3 with its hand, in its base frame, with the arm's own limits.
+/// The FR3 with its hand, in its base frame, with the arm's own limits and shapes, and a
+/// post standing beside it: 0.3 m from the base's axis, 0.9 rad clockwise of the arm at
+/// rest (every case below but the collision's stays clear of it).
 fn model() -> RobotModel {
     let mut m = RobotModel::of_chain("fr3", fr3(PandaTool::HandTcp));
     m.limits = fr3_limits();
+    let shapes = cps_movement::collision::franka_geometry(FrankaArm::Fr3, true).shapes();
+    let (angle, radius) = (-0.9f64, 0.3);
+    let post = cps_geometry::Obstacle {
+        name: "post".into(),
+        pose: nalgebra::Isometry3::translation(radius * angle.cos(), radius * angle.sin(), 0.5),
+        shape: cps_geometry::Shape::cylinder(0.04, 0.6, "the post").unwrap(),
+    };
+    let shapes = shapes.with_obstacles(vec![post], vec![]).unwrap();
+    m.shapes = Some(std::sync::Arc::new(shapes));
     m
 }
 
@@ -243,6 +255,35 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
                 .fold(0.0, f64::max);
             assert!(moved < 1e-3, "{name} moved {moved} rad");
         }
+    }
+    // Into the post: joint 1 swung 1.2 rad clockwise sweeps the arm through it. Every
+    // robot refuses it with the same sentence, naming a link and the post, before moving;
+    // slowing cannot help, so the experiments' policy refuses it too.
+    let into_post = swing_every(&q0, 0, -1.2, 4.0, 0.001);
+    let said: Vec<String> = robots
+        .iter_mut()
+        .map(|(_, r)| {
+            let mut guarded = Guarded::new(&mut **r, Policy::EXPERIMENT);
+            match reason(guarded.run(&into_post, &stop).unwrap_err()) {
+                Refusal::Collision(c) => {
+                    assert_eq!(c.second, "post");
+                    assert!(c.first.starts_with("fr3_") && c.distance < 0.005, "{c}");
+                    c.to_string()
+                }
+                other => panic!("not a collision: {other}"),
+            }
+        })
+        .collect();
+    println!("refused: {}", said[0]);
+    assert!(said.iter().all(|s| *s == said[0]), "{said:#?}");
+    for (name, r) in &mut robots {
+        let q = r.joint_positions().unwrap();
+        let moved = q
+            .iter()
+            .zip(&q0)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(moved < 1e-3, "{name} moved {moved} rad");
     }
     // Stopped before moving: every robot reports it one way (it was an error on the
     // Franka): a run that ends Stopped with where the robot stands, nothing sent.

@@ -7,6 +7,9 @@
 //! - [`scene`]: scene files (a placed robot, its start, named way points and obstacles);
 //! - [`movement`]: demonstration CSVs, imitation into DMP models, a model's rollout;
 //! - [`limits`]: a joint trajectory file at a control rate against a robot's limits;
+//! - [`collision`]: a robot's collision shapes (a URDF's `<collision>` elements, the
+//!   built-in Franka meshes); [`collide`]: a joint trajectory file against them and a
+//!   scene's obstacles;
 //! - [`retiming`]: a trajectory retimed for a robot (the fastest timing of its path, or the
 //!   smallest uniform slowing);
 //! - [`export`]: joint trajectories for ROS 2 and viewers (YAML, MCAP, 1 kHz CSV, URDF);
@@ -27,6 +30,7 @@
 #![deny(missing_docs)]
 
 pub mod calibration;
+pub mod collide;
 pub mod collision;
 pub mod export;
 pub mod limits;

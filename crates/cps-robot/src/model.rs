@@ -63,6 +63,21 @@ impl RobotModel {
         })
     }
 
+    /// The same robot keeping clearance `margin` (m) among the same obstacles. Errors: the
+    /// robot has no shapes, or the margin is not a finite distance ≥ 0.
+    pub fn with_margin(&self, margin: f64) -> Result<Self, String> {
+        let Some(shapes) = &self.shapes else {
+            return Err(format!(
+                "the robot `{}` has no collision geometry to keep a margin with",
+                self.name
+            ));
+        };
+        Ok(RobotModel {
+            shapes: Some(Arc::new(shapes.with_margin(margin)?)),
+            ..self.clone()
+        })
+    }
+
     /// The same robot among `obstacles`, where the pairs in `allowed` may touch, keeping
     /// `margin` when given. A robot without shapes gains none: it stays unchecked (and
     /// says so). Errors: as [`Shapes::with_obstacles`] and [`Shapes::with_margin`].

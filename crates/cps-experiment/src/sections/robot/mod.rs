@@ -271,20 +271,9 @@ impl Sections<'_> {
         let mut scene = scene;
         if let Some(m) = section.and_then(|r| r.margin.as_ref()) {
             let margin = self.within(m, "[robot] `margin`", 0.0, 0.5, " m")?;
-            if scene.robot.shapes.is_none() {
-                return Err(self.err(
-                    &m.span(),
-                    format!(
-                        "[robot] `margin`: the robot `{}` has no collision geometry to keep a margin with",
-                        scene.robot.name
-                    ),
-                ));
-            }
-            let shapes = scene.robot.shapes.as_ref().expect("checked");
-            let (obstacles, allowed) = (shapes.obstacles().to_vec(), shapes.allowed().to_vec());
             scene.robot = scene
                 .robot
-                .in_scene(obstacles, allowed, Some(margin))
+                .with_margin(margin)
                 .map_err(|e| self.err(&m.span(), format!("[robot] `margin`: {e}")))?;
         }
         let mut execution = ExecutionConfig::default();
