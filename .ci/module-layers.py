@@ -38,7 +38,7 @@ LAYERS = {
         ["functions"],
     ],
     "cps-kinematics": [
-        ["error", "fastmath", "transforms"],
+        ["error", "fastmath", "transforms", "xml"],
         ["chain", "spline", "urdf_collision"],
         ["controllers", "dynamics"],
         ["ik", "limits", "urdf"],
@@ -54,7 +54,9 @@ LAYERS = {
         ["options"],
     ],
     "cps-robot": [
-        ["model", "plan", "stop"],
+        ["plan", "stop"],
+        ["collision"],
+        ["model"],
         ["check"],
         ["robot", "watch"],
         ["execute", "guard", "kinematic"],
@@ -112,10 +114,11 @@ LAYERS = {
         ["write"],
     ],
     "cps-movement": [
-        ["calibration", "collision", "robot_file"],
+        ["calibration", "collision"],
+        ["robot_file"],
         ["movement", "scene"],
         ["limits", "mocap", "promp"],
-        ["retiming"],
+        ["collide", "retiming"],
         ["export"],
     ],
     "cps-drive": [

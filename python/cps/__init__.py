@@ -46,6 +46,7 @@ from ._cps import (
 
 __all__ = [
     "CMAES",
+    "collide",
     "CMAEvolutionStrategy",
     "CMAEvolutionStrategyResult",
     "CpsError",
@@ -161,3 +162,31 @@ def fmin(
         parallel_objective,
     )
     return FminResult(*res)
+
+
+def collide(
+    t: Any,
+    q: Any,
+    *,
+    robot: Optional[str] = None,
+    tool: Optional[str] = None,
+    tip: Optional[str] = None,
+    scene: Any = None,
+    margin: Optional[float] = None,
+    rate: float = 1000.0,
+) -> dict:
+    """Checks a joint trajectory (``t`` (samples,), ``q`` (samples, dof)) for collisions of
+    the robot with itself and its scene's obstacles, as the guard will before sending it at
+    ``rate`` Hz: what ``cps-cli collide --json`` prints (``ok``, ``collision``, ``closest``,
+    and each row's pairs within 10 cm with their signed distances in metres). The robot is
+    ``robot`` (a built-in name or a file; default the Panda) or ``scene``'s, keeping
+    ``margin`` metres (default: the scene's, else 5 mm).
+
+    >>> import numpy as np, cps
+    >>> fr3 = cps.Robot("fr3")
+    >>> report = cps.collide([0.0, 1.0], np.tile(fr3.ready, (2, 1)), robot="fr3")
+    >>> report["ok"], report["bodies"]
+    (True, 17)
+    """
+    r = Robot(robot, tool=tool, tip=tip, scene=scene, margin=margin)
+    return r.collide(t, q, rate=rate)

@@ -186,7 +186,7 @@ pub(crate) fn place(
 /// semantic robot description): links that touch at a joint, or that can never meet.
 /// Errors name the line (a document that is not XML, an element without both links).
 pub fn disabled_collisions(srdf: &str) -> Result<Vec<(String, String)>, String> {
-    let root = crate::urdf::parse_xml(srdf)?;
+    let root = crate::xml::parse_xml(srdf)?;
     if root.name != "robot" {
         return Err(format!(
             "line {}: the root element is <{}>, not an SRDF's <robot>",
@@ -206,4 +206,34 @@ pub fn disabled_collisions(srdf: &str) -> Result<Vec<(String, String)>, String> 
             )),
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_srdfs_disabled_pairs_are_read_and_a_broken_one_named_by_its_line() {
+        let srdf = "<?xml version=\"1.0\"?>\n<robot name=\"fr3\">\n  <group name=\"arm\"><chain base_link=\"a\" tip_link=\"b\"/></group>\n  <disable_collisions link1=\"fr3_link0\" link2=\"fr3_link2\" reason=\"Never\"/>\n  <disable_collisions link1=\"fr3_hand\" link2=\"fr3_link6\" reason=\"Never\"/>\n</robot>\n";
+        assert_eq!(
+            disabled_collisions(srdf).unwrap(),
+            [
+                ("fr3_link0".to_string(), "fr3_link2".to_string()),
+                ("fr3_hand".to_string(), "fr3_link6".to_string())
+            ]
+        );
+        let e = disabled_collisions("<robot>\n<disable_collisions link1=\"a\"/>\n</robot>")
+            .unwrap_err();
+        assert_eq!(
+            e,
+            "line 2: <disable_collisions> needs both `link1` and `link2`"
+        );
+        let e = disabled_collisions("<srdf/>").unwrap_err();
+        assert!(e.contains("not an SRDF's <robot>"), "{e}");
+        assert!(
+            disabled_collisions("<robot>")
+                .unwrap_err()
+                .contains("not closed")
+        );
+    }
 }

@@ -172,16 +172,85 @@ fn matrix_target(m: &[f64], name: &str) -> PyResult<IkTarget> {
 #[pymethods]
 impl Robot {
     #[new]
-    #[pyo3(signature = (robot="panda", *, tool=None, tip=None))]
-    fn new(robot: &str, tool: Option<&str>, tip: Option<&str>) -> PyResult<Self> {
-        let model = load_robot(robot, tool, tip).map_err(|e| {
-            value_error(
-                e.0.replace("--tool", "tool")
-                    .replace("--tip", "tip")
-                    .replace("--robot", "robot"),
-            )
-        })?;
+    #[pyo3(signature = (robot=None, *, tool=None, tip=None, scene=None, margin=None))]
+    fn new(
+        robot: Option<&str>,
+        tool: Option<&str>,
+        tip: Option<&str>,
+        scene: Option<std::path::PathBuf>,
+        margin: Option<f64>,
+    ) -> PyResult<Self> {
+        let mut model = match scene {
+            Some(path) => {
+                if robot.is_some() || tool.is_some() || tip.is_some() {
+                    return Err(value_error(
+                        "scene: the scene names its robot and tool; give either scene or robot/tool/tip",
+                    ));
+                }
+                cps_movement::scene::load_scene(&path)
+                    .map_err(file_error)?
+                    .robot
+            }
+            None => load_robot(robot.unwrap_or("panda"), tool, tip).map_err(|e| {
+                value_error(
+                    e.0.replace("--tool", "tool")
+                        .replace("--tip", "tip")
+                        .replace("--robot", "robot"),
+                )
+            })?,
+        };
+        if let Some(m) = margin {
+            model = model
+                .with_margin(m)
+                .map_err(|e| value_error(format!("margin: {e}")))?;
+        }
         Ok(Self { model })
+    }
+
+    /// The clearance (m) the guard keeps between the robot's shapes and its scene's, or
+    /// None when the robot has no collision geometry (then nothing is checked for
+    /// collisions).
+    #[getter]
+    fn margin(&self) -> Option<f64> {
+        self.model.shapes.as_ref().map(|s| s.margin())
+    }
+
+    /// Every pair of the robot's links (and a link and an obstacle of its scene) closer
+    /// than `within` metres at `q` (dof,), closest first: `(first, second, distance)` with
+    /// links by their URDF names, obstacles by their scene names, the signed distance in
+    /// metres (negative: overlapping, the depth).
+    #[pyo3(signature = (q, *, within=0.1))]
+    fn distances(&self, q: &Bound<'_, PyAny>, within: f64) -> PyResult<Vec<(String, String, f64)>> {
+        let q = vector(q, "q", Some(self.dof()))?;
+        if !(within.is_finite() && within > 0.0) {
+            return Err(value_error(format!(
+                "within: a distance > 0 in metres (got {within})"
+            )));
+        }
+        let pairs = cps_movement::collide::distances(&self.model, &q, within)
+            .map_err(|e| value_error(e.0))?;
+        Ok(pairs
+            .into_iter()
+            .map(|p| (p.first, p.second, p.distance))
+            .collect())
+    }
+
+    /// Checks a joint trajectory (`t` (samples,), `q` (samples, dof)) for collisions as the
+    /// guard will before sending it at `rate` Hz — what `cps-cli collide --json` prints:
+    /// `{"ok", "margin_m", "collision", "closest", "rows": [{"row", "time", "pairs"}], …}`.
+    #[pyo3(signature = (t, q, *, rate=1000.0))]
+    fn collide<'py>(
+        &self,
+        py: Python<'py>,
+        t: &Bound<'py, PyAny>,
+        q: &Bound<'py, PyAny>,
+        rate: f64,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let traj = self.trajectory(t, q, rate)?;
+        let report = py
+            .detach(|| cps_movement::collide::check_samples(&self.model, &traj, rate))
+            .map_err(|e| value_error(e.0))?;
+        json_to_py(py, &report.json())
     }
 
     /// The robot's name.

@@ -1,0 +1,94 @@
+"""Collision checking from Python: the robot's distances to itself and its scene, a
+trajectory checked as the guard checks it (equal to ``cps-cli collide --json``), and the
+invariant a sphere gives: growing a ball by δ brings every shape exactly δ closer."""
+
+import json
+
+import numpy as np
+import pytest
+
+import cps
+
+from conftest import ROOT
+
+FR3_SCENE = (ROOT / "configs" / "scenes" / "fr3.toml").read_text()
+
+
+def scene_with_ball(tmp_path, name, radius, at):
+    path = tmp_path / name
+    path.write_text(
+        FR3_SCENE
+        + f'\n[[obstacle]]\nname = "ball"\nshape = "sphere"\nxyz = [{at[0]}, {at[1]}, {at[2]}]\nradius = {radius}\n'
+    )
+    return path
+
+
+def test_distances_name_franka_links_and_a_grown_ball_comes_exactly_closer(tmp_path):
+    fr3 = cps.Robot("fr3")
+    assert fr3.margin == 0.005
+    pairs = fr3.distances(fr3.ready, within=0.5)
+    assert pairs, "the arm's links are within 0.5 m of each other at rest"
+    assert all(a.startswith("fr3_") and b.startswith("fr3_") for a, b, _ in pairs)
+    d = [p[2] for p in pairs]
+    assert d == sorted(d) and d[0] > 0.005, "at rest every pair keeps the margin"
+    assert len({(a, b) for a, b, _ in pairs}) == len(pairs), "each pair once"
+    # A ball 12 cm beside the tool at the scene's start, then grown by 3 cm.
+    plain = tmp_path / "plain.toml"
+    plain.write_text(FR3_SCENE)
+    start = np.array(
+        [0.0, 0.0, 0.0, -0.3, 0.0, 1.8707963267948966, 0.7853981633974483]
+    )
+    tool = cps.Robot(scene=plain).fk(start)[:3, 3]
+    at = tool + np.array([0.0, 0.25, 0.0])
+    small = cps.Robot(scene=scene_with_ball(tmp_path, "small.toml", 0.05, at))
+    large = cps.Robot(scene=scene_with_ball(tmp_path, "large.toml", 0.08, at))
+    near_small = {(a, b): x for a, b, x in small.distances(start, within=1.0) if b == "ball"}
+    near_large = {(a, b): x for a, b, x in large.distances(start, within=1.0) if b == "ball"}
+    # Every pair within 1 m of the small ball is within 1 m of the large one.
+    assert len(near_small) >= 5 and near_small.keys() <= near_large.keys()
+    for k, x in near_small.items():
+        assert x > 0.03
+        assert abs((x - near_large[k]) - 0.03) < 1e-7, (k, x, near_large[k])
+
+
+def test_a_trajectory_is_checked_as_the_command_line_checks_it(tmp_path, cli):
+    plain = tmp_path / "plain.toml"
+    plain.write_text(FR3_SCENE)
+    start = np.array([0.0, 0.0, 0.0, -0.3, 0.0, 1.8707963267948966, 0.7853981633974483])
+    robot = cps.Robot(scene=plain)
+    # Joint 1 swings 1.2 rad; a ball sits where the tool is at 0.8 rad.
+    turned = start.copy()
+    turned[0] += 0.8
+    ball = scene_with_ball(tmp_path, "ball.toml", 0.05, robot.fk(turned)[:3, 3])
+    t = np.linspace(0.0, 3.0, 301)
+    q = np.tile(start, (301, 1))
+    q[:, 0] += 1.2 * (0.5 - 0.5 * np.cos(np.pi * t / 3.0))
+    mine = cps.Robot(scene=ball).collide(t, q)
+    path = tmp_path / "swing.csv"
+    np.savetxt(path, np.column_stack([t, q]), delimiter=",", comments="", fmt="%.17g",
+               header="t,q1,q2,q3,q4,q5,q6,q7")
+    out = cli("collide", path, "--scene", ball, "--json", check=False)
+    assert out.returncode == 1
+    assert mine == json.loads(out.stdout)
+    assert mine["ok"] is False and mine["collision"]["second"] == "ball"
+    assert mine["collision"]["time"] < 1.77
+    assert cps.collide(t, q, scene=ball) == mine
+    # A margin the user sets: none at all still finds the ball, the swing stopped short
+    # does not.
+    assert cps.collide(t, q, scene=ball, margin=0.0)["ok"] is False
+    assert cps.collide(t[:60], q[:60], scene=ball)["ok"] is True
+
+
+def test_robots_without_shapes_and_bad_arguments_say_so(tmp_path):
+    ur3 = cps.Robot("ur3")
+    assert ur3.margin is None
+    with pytest.raises(ValueError, match="has no collision geometry"):
+        ur3.distances(np.zeros(6))
+    with pytest.raises(ValueError, match="margin: the clearance margin must be a finite distance"):
+        cps.Robot("fr3", margin=-0.01)
+    plain = tmp_path / "plain.toml"
+    plain.write_text(FR3_SCENE)
+    with pytest.raises(ValueError, match="give either scene or robot"):
+        cps.Robot("fr3", scene=plain)
+    with pytest.raises(ValueError, match="q: expected"):
+        cps.Robot("fr3").distances(np.zeros(6))
