@@ -1197,3 +1197,53 @@ fn a_scene_s_obstacles_are_kept_by_the_movement_learned_in_it() {
         "obstacle `on_goal`",
     );
 }
+
+/// `[[obstacle]]` in an experiment file, in the scene files' form: a shelf on the joint
+/// movement's way makes its execution a collision the guard refuses (a failed run naming
+/// the shelf); one around the robot's start, one without a robot and one with a name the
+/// scene already has are refused before anything runs, with their place.
+#[test]
+fn an_experiments_obstacles_join_its_scenes_world() {
+    let dir = tempfile::tempdir().unwrap();
+    let fast = JOINT.replace("generations = 15 ", "generations = 3  ");
+    let ball = |name: &str, at: [f64; 3], radius: f64| {
+        format!(
+            "\n[[obstacle]]\nname = \"{name}\"\nshape = \"sphere\"\nxyz = [{}, {}, {}]\nradius = {radius}\n",
+            at[0], at[1], at[2]
+        )
+    };
+    // A ball on via point p2, which the tool passes.
+    let file = write(
+        dir.path(),
+        "shelf.toml",
+        &(fast.clone() + &ball("shelf", [1.12, 0.37, 1.45], 0.05)),
+    );
+    let out = dir.path().join("shelf");
+    let o = run(&file, &out);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o.stderr));
+    let s = json(&out.join("summary.json"));
+    let failure = s["failure"].as_str().unwrap();
+    assert!(failure.contains("and `shelf` at t = "), "{failure}");
+    // Around the start (the tool at p0): refused where it stands in the file.
+    refused(
+        dir.path(),
+        "start.toml",
+        &(fast.clone() + &ball("cup", [0.75, 0.02, 1.87], 0.06)),
+        "[[obstacle]]: at the scene's start, `panda_",
+    );
+    // The scene's table is taken.
+    refused(
+        dir.path(),
+        "taken.toml",
+        &(fast.clone() + &ball("table", [2.0, 0.0, 1.0], 0.1)),
+        "not an object's or another obstacle's (got `table`)",
+    );
+    // Without a robot there is no world to put it in.
+    let plain = std::fs::read_to_string(repo("experiments/viapoint.toml")).unwrap();
+    refused(
+        dir.path(),
+        "no_robot.toml",
+        &(plain + &ball("shelf", [1.12, 0.37, 1.45], 0.05)),
+        "[[obstacle]] places things in the robot's world, and this experiment has no [robot]",
+    );
+}

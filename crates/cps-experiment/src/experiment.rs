@@ -41,6 +41,9 @@ struct File {
     promp: Option<Spanned<crate::plan::ProMpSection>>,
     contact: Option<Spanned<crate::sections::contact::ContactSection>>,
     executed: Option<Spanned<crate::plan::ExecutedSection>>,
+    /// The robot's world beyond its scene's: points and shapes, as in scene files.
+    #[serde(default)]
+    obstacle: Vec<Spanned<cps_movement::scene::ObstacleEntry>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -435,8 +438,10 @@ pub fn parse(
         promp: file.promp.as_ref(),
         contact: file.contact.as_ref(),
         executed: file.executed.as_ref(),
+        obstacle: &file.obstacle,
     };
     let mut plans = crate::plan::parse(&sections, &config)?;
+    no_world_without_robot(&file.obstacle, plans.robot.is_none(), path, text)?;
     add_scene_obstacles(&file, path, kind, &mut plans, &mut config)?;
     let mut exp = Experiment {
         plan: plans.plan,
@@ -467,6 +472,8 @@ struct ContactFile {
     contact: Option<Spanned<crate::sections::contact::ContactSection>>,
     #[serde(default)]
     output: Output,
+    #[serde(default)]
+    obstacle: Vec<Spanned<cps_movement::scene::ObstacleEntry>>,
 }
 
 fn parse_contact(
@@ -480,7 +487,7 @@ fn parse_contact(
             .map(|s| location(path, text, &s))
             .unwrap_or_else(|| path.display().to_string());
         InputError(format!(
-            "{at}: {} (kind = \"contact\" reads [experiment], [robot], [contact] and [output])",
+            "{at}: {} (kind = \"contact\" reads [experiment], [robot], [contact], [output] and [[obstacle]])",
             e.message()
         ))
     })?;
@@ -502,8 +509,10 @@ fn parse_contact(
         promp: None,
         contact: file.contact.as_ref(),
         executed: None,
+        obstacle: &file.obstacle,
     };
     let plans = crate::plan::parse(&sections, &config)?;
+    no_world_without_robot(&file.obstacle, plans.robot.is_none(), path, text)?;
     let name = file.experiment.name.clone().unwrap_or_else(|| {
         path.file_stem()
             .map_or("contact".into(), |s| s.to_string_lossy().into_owned())
@@ -535,6 +544,22 @@ fn parse_contact(
             population: 0,
         }),
     })
+}
+
+/// `[[obstacle]]` is the robot's world: without a `[robot]` it is refused, not ignored.
+fn no_world_without_robot(
+    obstacles: &[Spanned<cps_movement::scene::ObstacleEntry>],
+    no_robot: bool,
+    path: &Path,
+    text: &str,
+) -> Result<(), InputError> {
+    match obstacles.first() {
+        Some(o) if no_robot => Err(InputError(format!(
+            "{}: [[obstacle]] places things in the robot's world, and this experiment has no [robot] (a point a learned path keeps clear of without a robot is a [[task.obstacles]])",
+            location(path, text, &o.span())
+        ))),
+        _ => Ok(()),
+    }
 }
 
 /// The scene's obstacles join the task's (for the kinds that keep obstacles), each

@@ -35,9 +35,11 @@ struct File {
     obstacle: Vec<Spanned<ObstacleEntry>>,
 }
 
+/// One `[[obstacle]]` as a file gives it (see the module's text), read by
+/// [`parse_obstacles`].
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct ObstacleEntry {
+pub struct ObstacleEntry {
     name: String,
     position: Option<[f64; 3]>,
     clearance: Option<f64>,
@@ -166,14 +168,72 @@ pub fn parse_scene(path: &Path, text: &str) -> Result<Scene, InputError> {
         }
         objects.push((v.name.clone(), Vector3::from(v.position)));
     }
+    let taken: Vec<String> = objects.iter().map(|(n, _)| n.clone()).collect();
+    let Obstacles {
+        points: obstacles,
+        shapes,
+        allowed,
+    } = parse_obstacles(path, &text, &file.obstacle, &taken)?;
+    let margin = r.margin.as_ref().map(|m| *m.get_ref());
+    let at_margin = || {
+        r.margin.as_ref().map_or_else(
+            || path.display().to_string(),
+            |m| location(path, &text, &m.span()),
+        )
+    };
+    if robot.shapes.is_none() && (!shapes.is_empty() || margin.is_some()) {
+        return Err(InputError(format!(
+            "{}: the robot `{}` has no collision geometry, so the scene's shaped obstacles and margin could not be checked (give a robot whose URDF has <collision> elements, or a built-in Franka)",
+            at_margin(),
+            robot.name
+        )));
+    }
+    robot = robot
+        .in_scene(shapes.clone(), allowed, margin)
+        .map_err(|m| InputError(format!("{}: {m}", at_margin())))?;
+    start_clear(&robot, q).map_err(|m| {
+        InputError(format!(
+            "{}: at the robot's `initial_q`, {m}",
+            location(path, &text, &r.initial_q.span())
+        ))
+    })?;
+    Ok(Scene {
+        robot,
+        initial_q: q.clone(),
+        objects,
+        obstacles,
+        shapes,
+    })
+}
+
+/// A file's `[[obstacle]]`s read: points, shapes, and the contacts their `touch` allows.
+#[derive(Debug, Clone, Default)]
+pub struct Obstacles {
+    /// Point obstacles (`position`, `clearance`), in file order.
+    pub points: Vec<(String, Obstacle)>,
+    /// Shaped obstacles, in file order, world frame.
+    pub shapes: Vec<cps_geometry::Obstacle>,
+    /// (link, obstacle) pairs that may touch.
+    pub allowed: Vec<(String, String)>,
+}
+
+/// Reads the `[[obstacle]]` entries of the file at `path` (its `text`, for places), whose
+/// names must differ from each other and from `taken` (its objects'). Mesh files are
+/// relative to `path`'s folder. Scene files and experiment files read them alike.
+pub fn parse_obstacles(
+    path: &Path,
+    text: &str,
+    entries: &[Spanned<ObstacleEntry>],
+    taken: &[String],
+) -> Result<Obstacles, InputError> {
     let mut obstacles: Vec<(String, Obstacle)> = Vec::new();
     let mut shapes: Vec<cps_geometry::Obstacle> = Vec::new();
-    for o in &file.obstacle {
+    for o in entries {
         let v = o.get_ref();
-        let at = || location(path, &text, &o.span());
+        let at = || location(path, text, &o.span());
         if v.name.is_empty()
             || v.name.contains('/')
-            || objects.iter().any(|(n, _)| n == &v.name)
+            || taken.contains(&v.name)
             || obstacles.iter().any(|(n, _)| n == &v.name)
             || shapes.iter().any(|s| s.name == v.name)
         {
@@ -233,54 +293,36 @@ pub fn parse_scene(path: &Path, text: &str) -> Result<Scene, InputError> {
     }
     // The robot among the shaped obstacles, each with the links that may touch it.
     let mut allowed = Vec::new();
-    for o in &file.obstacle {
+    for o in entries {
         let v = o.get_ref();
         if !v.touch.is_empty() && v.shape.is_none() {
             return Err(InputError(format!(
                 "{}: obstacle `{}` is a point: only an obstacle with a `shape` can be touched",
-                location(path, &text, &o.span()),
+                location(path, text, &o.span()),
                 v.name
             )));
         }
         allowed.extend(v.touch.iter().map(|l| (l.clone(), v.name.clone())));
     }
-    let margin = r.margin.as_ref().map(|m| *m.get_ref());
-    let at_margin = || {
-        r.margin.as_ref().map_or_else(
-            || path.display().to_string(),
-            |m| location(path, &text, &m.span()),
-        )
-    };
-    if robot.shapes.is_none() && (!shapes.is_empty() || margin.is_some()) {
-        return Err(InputError(format!(
-            "{}: the robot `{}` has no collision geometry, so the scene's shaped obstacles and margin could not be checked (give a robot whose URDF has <collision> elements, or a built-in Franka)",
-            at_margin(),
-            robot.name
-        )));
-    }
-    robot = robot
-        .in_scene(shapes.clone(), allowed, margin)
-        .map_err(|m| InputError(format!("{}: {m}", at_margin())))?;
-    if let Some(s) = &robot.shapes {
-        let mut watch = cps_robot::ShapeWatch::new(s.clone(), robot.chain.dof());
-        let hit = watch
-            .judge(&robot.chain, q, 0.0, 0)
-            .map_err(|e| InputError(format!("{}: {e}", path.display())))?;
-        if let Some(c) = hit {
-            return Err(InputError(format!(
-                "{}: at the robot's `initial_q`, {}",
-                location(path, &text, &r.initial_q.span()),
-                start_words(&c)
-            )));
-        }
-    }
-    Ok(Scene {
-        robot,
-        initial_q: q.clone(),
-        objects,
-        obstacles,
+    Ok(Obstacles {
+        points: obstacles,
         shapes,
+        allowed,
     })
+}
+
+/// Whether `robot` at `q` keeps every pair of its shapes its margin apart: the pair that
+/// does not, in words, otherwise (a robot without shapes is clear).
+pub fn start_clear(robot: &RobotModel, q: &[f64]) -> Result<(), String> {
+    let Some(s) = &robot.shapes else {
+        return Ok(());
+    };
+    let mut watch = cps_robot::ShapeWatch::new(s.clone(), robot.chain.dof());
+    match watch.judge(&robot.chain, q, 0.0, 0) {
+        Ok(None) => Ok(()),
+        Ok(Some(c)) => Err(start_words(&c)),
+        Err(e) => Err(e.to_string()),
+    }
 }
 
 /// A collision at a scene's start, in words (no time: it is where the robot stands).

@@ -98,6 +98,8 @@ pub(crate) struct Sections<'a> {
     pub promp: Option<&'a Spanned<promp::ProMpSection>>,
     pub executed: Option<&'a Spanned<executed::ExecutedSection>>,
     pub contact: Option<&'a Spanned<contact::ContactSection>>,
+    /// `[[obstacle]]`: the robot's world beyond its scene's.
+    pub obstacle: &'a [Spanned<cps_movement::scene::ObstacleEntry>],
 }
 
 impl Sections<'_> {

@@ -276,6 +276,9 @@ impl Sections<'_> {
                 .with_margin(margin)
                 .map_err(|e| self.err(&m.span(), format!("[robot] `margin`: {e}")))?;
         }
+        if !self.obstacle.is_empty() {
+            scene = self.with_obstacles(scene)?;
+        }
         let mut execution = ExecutionConfig::default();
         if let Some(t) = section.and_then(|r| r.tolerance.as_ref()) {
             execution.tolerance = self.within(t, "[robot] `tolerance`", 1e-9, 0.1, " m")?;
@@ -341,6 +344,38 @@ impl Sections<'_> {
                 .collect(),
             model: scene.robot,
         })
+    }
+
+    /// The experiment's `[[obstacle]]`s added to its scene's: points join the scene's
+    /// points, shapes the robot's world (the start checked clear of them).
+    fn with_obstacles(
+        &self,
+        mut scene: crate::scene::Scene,
+    ) -> Result<crate::scene::Scene, InputError> {
+        let mut taken: Vec<String> = scene.objects.iter().map(|(n, _)| n.clone()).collect();
+        taken.extend(scene.obstacles.iter().map(|(n, _)| n.clone()));
+        taken.extend(scene.shapes.iter().map(|o| o.name.clone()));
+        let more = crate::scene::parse_obstacles(self.path, self.text, self.obstacle, &taken)?;
+        let first = &self.obstacle[0];
+        let at = |m: String| self.err(&first.span(), format!("[[obstacle]]: {m}"));
+        if !more.shapes.is_empty() {
+            let Some(shapes) = scene.robot.shapes.clone() else {
+                return Err(at(format!(
+                    "the robot `{}` has no collision geometry to keep shaped obstacles with",
+                    scene.robot.name
+                )));
+            };
+            let mut obstacles = shapes.obstacles().to_vec();
+            obstacles.extend(more.shapes.iter().cloned());
+            let mut allowed = shapes.allowed().to_vec();
+            allowed.extend(more.allowed);
+            scene.robot = scene.robot.in_scene(obstacles, allowed, None).map_err(at)?;
+            crate::scene::start_clear(&scene.robot, &scene.initial_q)
+                .map_err(|m| at(format!("at the scene's start, {m}")))?;
+            scene.shapes.extend(more.shapes);
+        }
+        scene.obstacles.extend(more.points);
+        Ok(scene)
     }
 
     /// Keys of `[robot]` that belong to another backend than `kind` are named.
