@@ -62,7 +62,7 @@ LAYERS = {
         ["execute", "guard", "kinematic"],
     ],
     "cps-learn": [
-        ["error", "search", "space"],
+        ["clearance", "error", "search", "space"],
         ["task"],
         ["exact", "robot"],
         ["executed", "lsq"],

@@ -24,6 +24,7 @@ fn the_shipped_contact_experiment_presses_the_simulated_table() {
             table: Some(0.40),
             friction: Some(0.5),
             truth: true,
+            ..Default::default()
         },
     ) else {
         return;

@@ -1247,3 +1247,39 @@ fn an_experiments_obstacles_join_its_scenes_world() {
         "[[obstacle]] places things in the robot's world, and this experiment has no [robot]",
     );
 }
+
+/// `[joint] clearance` needs shapes to keep apart: without a robot, with a robot that has
+/// none, or a weight without a clearance, the file is refused with its place.
+#[test]
+fn a_clearance_is_refused_where_nothing_can_keep_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let with = |extra: &str| JOINT.replace("[joint]\n", &format!("[joint]\n{extra}"));
+    assert_ne!(with("x"), JOINT);
+    refused(
+        dir.path(),
+        "weight.toml",
+        &with("clearance_weight = 10.0\n"),
+        "[joint] `clearance_weight` weighs a `clearance`: give one",
+    );
+    refused(
+        dir.path(),
+        "negative.toml",
+        &with("clearance = -0.01\n"),
+        "[joint] `clearance` must be finite, ≥ 0",
+    );
+    // A robot without collision geometry (a TOML robot file) cannot keep one.
+    let scene = std::fs::read_to_string(repo("configs/scenes/thesis.toml"))
+        .unwrap()
+        .replace(
+            "model = \"panda\"",
+            &format!("model = \"{}\"", repo("configs/robots/panda.toml")),
+        );
+    let scene = scene[..scene.find("# The table the robot stands on").unwrap()].to_string();
+    std::fs::write(dir.path().join("toml_robot.toml"), scene).unwrap();
+    refused(
+        dir.path(),
+        "shapeless.toml",
+        &with("clearance = 0.02\n").replace("scene = \"thesis\"", "scene = \"toml_robot.toml\""),
+        "[joint] `clearance` keeps the robot's collision shapes apart, and this experiment's robot has none",
+    );
+}

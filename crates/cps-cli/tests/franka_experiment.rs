@@ -206,3 +206,79 @@ fn bad_franka_sections_are_named() {
     assert!(err.contains("127.0.0.65"), "{err}");
     assert!(started.elapsed().as_secs() < 30, "{:?}", started.elapsed());
 }
+
+const SHELF: &str = include_str!("../../../experiments/franka/shelf.toml");
+
+/// The shipped shelf experiment: learned to keep 2.5 cm from the shelf (the warm start,
+/// blind to it, goes through it), executed on franky-sim with the same shelf in its MuJoCo
+/// world: no contact between the arm and the shelf in MuJoCo's contact list at any step,
+/// and the measured tool's path through every via point within 3 mm.
+#[test]
+fn the_shelf_experiment_keeps_clear_of_the_shelf_on_the_simulated_fr3() {
+    // The scene's world frame is the base's moved by the scene's placement.
+    let base = [0.42244, 0.02, 0.74177];
+    let shelf = [
+        1.26 - base[0],
+        0.07 - base[1],
+        1.30 - base[2],
+        0.16,
+        0.12,
+        0.12,
+    ];
+    assert!(SHELF.contains("xyz = [1.26, 0.07, 1.30]\nsize = [0.16, 0.12, 0.12]"));
+    let Some(sim) = FrankySim::start_with(
+        "127.0.0.65",
+        sim::SimOptions {
+            shelf: Some(shelf),
+            truth: true,
+            ..Default::default()
+        },
+    ) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let text = SHELF.replace(
+        "host = \"172.16.0.2\"",
+        &format!("host = \"{}\"\nrealtime = \"ignore\"", sim.host),
+    );
+    assert!(text.contains(&sim.host));
+    let file = write(dir.path(), "shelf.toml", &text);
+    let out = dir.path().join("out");
+    let (o, err) = run(&file, &out);
+    assert!(o.status.success(), "{err}");
+    let s = json(&out.join("summary.json"));
+    let c = &s["clearance"];
+    assert_eq!(c["kept_m"], 0.025, "{c}");
+    // Blind to the shelf, the warm start goes into it; learned, the arm keeps 2 cm.
+    assert_eq!(c["warm_start_closest"]["second"], "shelf", "{c}");
+    assert!(
+        c["warm_start_closest"]["distance_m"].as_f64().unwrap() < 0.0,
+        "{c}"
+    );
+    assert!(c["closest"]["distance_m"].as_f64().unwrap() >= 0.02, "{c}");
+    let via = s["via_errors_m"].as_array().unwrap();
+    assert!(via.iter().all(|e| e.as_f64().unwrap() < 1e-3), "{via:?}");
+    // MuJoCo: no step with a contact between the shelf and the robot.
+    let (steps, geoms) = sim.box_contacts();
+    assert_eq!(steps, 0, "the arm touched the shelf: {geoms:?}");
+    // MuJoCo's tool passes every via point within 3 mm.
+    let truth = sim.truth();
+    assert!(truth.len() > 10_000, "{} steps", truth.len());
+    let world = |t: &sim::Truth| [t.tcp[0] + base[0], t.tcp[1] + base[1], t.tcp[2] + base[2]];
+    for p in [
+        [0.78, 0.60, 1.70],
+        [1.12, 0.37, 1.45],
+        [1.15, -0.15, 1.20],
+        [0.90, -0.53, 1.20],
+    ] {
+        let closest = truth
+            .iter()
+            .map(|t| {
+                let w = world(t);
+                ((w[0] - p[0]).powi(2) + (w[1] - p[1]).powi(2) + (w[2] - p[2]).powi(2)).sqrt()
+            })
+            .fold(f64::INFINITY, f64::min);
+        println!("MuJoCo's tool passes {p:?} at {:.2} mm", closest * 1e3);
+        assert!(closest < 0.003, "MuJoCo's tool passes {p:?} at {closest} m");
+    }
+}

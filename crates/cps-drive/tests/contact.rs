@@ -65,6 +65,7 @@ fn run(
             table,
             friction: Some(0.5),
             truth: true,
+            ..Default::default()
         },
     )?;
     let mut conn = Connection::connect(&sim.host, Default::default()).unwrap();

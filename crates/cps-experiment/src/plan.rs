@@ -306,7 +306,8 @@ pub(crate) fn parse(file: &Sections<'_>, learner: &ViaPointConfig) -> Result<Pla
                 robot.as_ref().map(|r| &r.backend),
                 Some(BackendChoice::Dynamics(_))
             );
-            KindPlan::ViapointJoint(file.joint_plan(dynamics)?)
+            let shapes = robot.as_ref().is_some_and(|r| r.model.shapes.is_some());
+            KindPlan::ViapointJoint(file.joint_plan(dynamics, shapes)?)
         }
         Kind::ViapointEnergy => KindPlan::ViapointEnergy(file.energy_plan(learner)?),
         Kind::ViapointPose => match file.orientation {

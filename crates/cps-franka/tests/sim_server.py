@@ -2,7 +2,8 @@
 for cps's tests. Prints `ready <host>` once it serves, and exits when its standard input
 closes (the test process that started it ended, however it ended).
 
-usage: python sim_server.py --host 127.0.0.11 [--table 0.40 [--friction 0.3]] [--truth truth.csv] [--stay]
+usage: python sim_server.py --host 127.0.0.11 [--table 0.40 [--friction 0.3]] [--box X Y Z SX SY SZ]
+                            [--truth truth.csv] [--stay]
 
 By hand, in the background: `python sim_server.py --host 127.0.0.1 --table 0.40 --stay &`
 (without --stay it would stop at once: a background job's input is closed).
@@ -10,6 +11,8 @@ By hand, in the background: `python sim_server.py --host 127.0.0.1 --table 0.40 
 --table TOP   a table under the hand: a box over x in [0.35, 0.75], y in [-0.3, 0.3] (the
               robot's base frame is MuJoCo's world frame) with its top at z = TOP.
 --friction MU the table's sliding friction coefficient (1 unless given).
+--box X Y Z SX SY SZ  a box (a shelf) centred at (X, Y, Z) in the robot's base frame, SX × SY × SZ
+              metres; every step's contacts between it and the robot are counted.
 --truth FILE  MuJoCo's ground truth, one row per simulation step:
               `id,fx,fy,fz,normal,x,y,z,q1..q7`: the message id of the robot state sent after the
               step; the total force the table exerts on the robot (world axes, N); the sum
@@ -24,6 +27,8 @@ Lines on standard input act on the hand while it runs (a hand pushing the robot)
                            point is now to (X, Y, Z) over SECONDS, then stays there
   release                  no more force
   flush                    write the truth out, then print `flushed`
+  contacts                 print `contacts STEPS GEOMS`: how many steps had a contact between
+                           the box and the robot, and the robot's geoms it touched (`-`: none)
 """
 import argparse
 import logging
@@ -38,6 +43,8 @@ parser.add_argument("--fast", action="store_true", help="step as fast as it can 
 parser.add_argument("--table", type=float, default=None, help="height of the table's top (m)")
 parser.add_argument("--friction", type=float, default=1.0,
                     help="the table's sliding friction coefficient (MuJoCo's default: 1)")
+parser.add_argument("--box", type=float, nargs=6, default=None,
+                    help="a box centred at X Y Z in the base frame, SX SY SZ metres")
 parser.add_argument("--truth", default=None, help="file for MuJoCo's ground truth per step")
 parser.add_argument("--stay", action="store_true",
                     help="keep serving when standard input closes (run it by hand in the background; stop it with kill)")
@@ -74,6 +81,8 @@ def read_commands():
                     action.update(kind=None)
                 elif words[0] == "flush":
                     action["flush"] = True
+                elif words[0] == "contacts":
+                    action["contacts"] = True
                 else:
                     print(f"unknown command: {line.strip()}", file=sys.stderr, flush=True)
         except ValueError:
@@ -90,6 +99,11 @@ with MujocoSimulator(enable_visualization=False) as sim:
         ET.SubElement(table, "geom", name="table_top", type="box",
                       size=f"0.2 0.3 {top / 2}", rgba="0.6 0.5 0.4 1", priority="1",
                       friction=f"{args.friction} 0.005 0.0001")
+    if args.box is not None:
+        x, y, z, sx, sy, sz = args.box
+        shelf = ET.SubElement(sim.worldbody, "body", name="box", pos=f"{x} {y} {z}")
+        ET.SubElement(shelf, "geom", name="box", type="box",
+                      size=f"{sx / 2} {sy / 2} {sz / 2}", rgba="0.5 0.5 0.6 1")
     with franky_sim.SimulationServer(sim, hostname_candidates=[args.host]) as server:
         robot_server = server.robot_servers[0]
         state = {"model": None}
@@ -100,6 +114,8 @@ with MujocoSimulator(enable_visualization=False) as sim:
                 state["model"] = model
                 state["hand"] = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "robot0_hand")
                 state["table"] = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "table_top")
+                state["box"] = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "box")
+                state["box_steps"], state["box_geoms"] = 0, set()
                 state["file"] = open(args.truth, "w", buffering=1 << 20) if args.truth else None
                 if state["file"]:
                     state["file"].write("id,fx,fy,fz,normal,x,y,z," + ",".join(f"q{i}" for i in range(1, 8)) + "\n")
@@ -120,6 +136,16 @@ with MujocoSimulator(enable_visualization=False) as sim:
                     # from geom1 on geom2 along the normal.
                     world = c.frame.reshape(3, 3).T @ f6[:3]
                     force += world if c.geom1 == table else -world
+            box = state["box"]
+            if box >= 0:
+                g1, g2 = data.contact.geom1[:data.ncon], data.contact.geom2[:data.ncon]
+                mask = (g1 == box) | (g2 == box)
+                touched = np.where(g1[mask] == box, g2[mask], g1[mask]).tolist()
+                if touched:
+                    state["box_steps"] += 1
+                    state["box_geoms"].update(
+                        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom{g}"
+                        for g in touched)
             with lock:
                 kind = action["kind"]
                 applied = np.zeros(3)
@@ -135,6 +161,7 @@ with MujocoSimulator(enable_visualization=False) as sim:
                                              velocity, 0)
                     applied = action["k"] * (anchor - tcp) - action["d"] * velocity[3:]
                 flush = action.pop("flush", False)
+                contacts = action.pop("contacts", False)
             # The force acts at the tool centre point: a force and the moment it makes
             # about the hand body's origin.
             data.xfrc_applied[hand, :3] = applied
@@ -149,6 +176,9 @@ with MujocoSimulator(enable_visualization=False) as sim:
                 if state["file"]:
                     state["file"].flush()
                 print("flushed", flush=True)
+            if contacts:
+                geoms = ",".join(sorted(state["box_geoms"])) or "-"
+                print(f"contacts {state['box_steps']} {geoms}", flush=True)
 
         sim.register_post_step_callback(after_step)
         if not args.stay:

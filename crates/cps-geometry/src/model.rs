@@ -198,10 +198,29 @@ impl CollisionModel {
     /// Every pair closer than `limit` (m) at `frames`, closest first. Pairs whose bounding
     /// spheres are `limit` apart are not computed.
     pub fn within(&self, frames: &[Isometry3<f64>], limit: f64) -> Vec<Contact> {
-        let centres: Vec<V> = (0..self.bodies.len())
-            .map(|i| (frames[self.bodies[i].frame] * Point3::from(self.body_bounds[i].0)).coords)
-            .collect();
         let mut out = Vec::new();
+        self.within_into(frames, limit, &mut Vec::new(), &mut out);
+        out.sort_by(|x, y| x.separation.distance.total_cmp(&y.separation.distance));
+        out
+    }
+
+    /// [`CollisionModel::within`] into `out` (cleared first), in pair order, without
+    /// allocating once `centres` and `out` have grown: what a cost evaluated at every
+    /// sample of a movement takes.
+    pub fn within_into(
+        &self,
+        frames: &[Isometry3<f64>],
+        limit: f64,
+        centres: &mut Vec<Vector3<f64>>,
+        out: &mut Vec<Contact>,
+    ) {
+        centres.clear();
+        centres.extend(
+            (0..self.bodies.len()).map(|i| {
+                (frames[self.bodies[i].frame] * Point3::from(self.body_bounds[i].0)).coords
+            }),
+        );
+        out.clear();
         for p in 0..self.pairs.len() {
             let (a, b) = self.pairs[p];
             let (cb, rb) = match b {
@@ -219,8 +238,66 @@ impl CollisionModel {
                 });
             }
         }
-        out.sort_by(|x, y| x.separation.distance.total_cmp(&y.separation.distance));
-        out
+    }
+}
+
+impl CollisionModel {
+    /// How far each body may have moved from its pose at `reference` to its pose at
+    /// `frames` (m, into `out`, one per body): its bounding sphere's centre's displacement
+    /// plus the chord its radius sweeps as its frame turns. A pair `d` apart at `reference`
+    /// is at least `d` minus its bodies' motions apart at `frames`.
+    pub fn motions(
+        &self,
+        reference: &[Isometry3<f64>],
+        frames: &[Isometry3<f64>],
+        out: &mut Vec<f64>,
+    ) {
+        out.clear();
+        out.extend(
+            self.bodies
+                .iter()
+                .zip(&self.body_bounds)
+                .map(|(b, (c, r))| {
+                    let (f0, f1) = (&reference[b.frame], &frames[b.frame]);
+                    let c = Point3::from(*c);
+                    let d = f0.rotation.coords.dot(&f1.rotation.coords).abs().min(1.0);
+                    (f1 * c - f0 * c).norm() + 2.0 * r * (1.0 - d * d).sqrt()
+                }),
+        );
+    }
+
+    /// Every pair closer than `watch` at `frames` (into `out`, in pair order), given a lower
+    /// bound of each pair's distance at a reference configuration (`lower`, as
+    /// [`PathCheck::lower`] leaves them) and each body's motion since
+    /// ([`CollisionModel::motions`]): a pair is computed only when that motion could have
+    /// brought it within `watch`, and then without a warm start, so the same frames give
+    /// the same distances whatever was computed before.
+    pub fn within_from(
+        &self,
+        lower: &[f64],
+        moved: &[f64],
+        frames: &[Isometry3<f64>],
+        watch: f64,
+        out: &mut Vec<Contact>,
+    ) {
+        out.clear();
+        for (p, &(a, b)) in self.pairs.iter().enumerate() {
+            let motion = moved[a]
+                + match b {
+                    Other::Body(j) => moved[j],
+                    Other::Obstacle(_) => 0.0,
+                };
+            if lower[p] - motion >= watch {
+                continue;
+            }
+            let s = self.distance(p, frames);
+            if s.distance < watch {
+                out.push(Contact {
+                    pair: p,
+                    separation: s,
+                });
+            }
+        }
     }
 }
 
@@ -282,6 +359,12 @@ impl<M: Borrow<CollisionModel>> PathCheck<M> {
     /// Every pair closer than `watch` at the last configuration, in pair order.
     pub fn near(&self) -> &[Contact] {
         &self.near
+    }
+
+    /// A lower bound of each pair's distance at the last configuration (exact where it
+    /// was computed there), in pair order.
+    pub fn lower(&self) -> &[f64] {
+        &self.lower
     }
 
     /// The next configuration's frames: the closest pair closer than `watch`, if any.

@@ -59,6 +59,9 @@ pub struct JointSpaceConfig {
     pub limit_weight: f64,
     /// Weight of the squared joint-speed-limit excess ((rad/s)²), summed over samples.
     pub speed_limit_weight: f64,
+    /// The clearance the movement keeps from the robot's own shapes and its scene's
+    /// (None: not part of the cost).
+    pub clearance: Option<crate::Clearance>,
 }
 
 impl JointSpaceConfig {
@@ -69,6 +72,7 @@ impl JointSpaceConfig {
             robot,
             limit_weight: 1e6,
             speed_limit_weight: 1e3,
+            clearance: None,
         }
     }
 }
@@ -93,6 +97,10 @@ pub struct JointCostBreakdown {
     /// Position-limit penalty on the executed joints (0 when judged on the model).
     #[serde(default)]
     pub executed_joint_limits: f64,
+    /// Clearance penalty: the squared shortfall of every pair closer than the clearance
+    /// (0 without one).
+    #[serde(default)]
+    pub clearance: f64,
 }
 
 impl JointCostBreakdown {
@@ -106,6 +114,7 @@ impl JointCostBreakdown {
             + self.joint_limits
             + self.speed_limits
             + self.executed_joint_limits
+            + self.clearance
     }
 }
 
@@ -135,6 +144,7 @@ pub struct JointSpaceCost<'a> {
     robot: &'a RobotSetup,
     limit_weight: f64,
     speed_limit_weight: f64,
+    clearance: Option<&'a crate::Clearance>,
 }
 
 impl<'a> JointSpaceCost<'a> {
@@ -145,6 +155,7 @@ impl<'a> JointSpaceCost<'a> {
             robot: &config.robot,
             limit_weight: config.limit_weight,
             speed_limit_weight: config.speed_limit_weight,
+            clearance: config.clearance.as_ref(),
         }
     }
 
@@ -216,6 +227,15 @@ impl<'a> JointSpaceCost<'a> {
                     .sum();
                 b.speed_limits += self.speed_limit_weight * excess;
             }
+        }
+        if let Some(c) = self.clearance {
+            let mut buffers = crate::clearance::ClearanceBuffers::default();
+            b.clearance = c.cost(
+                chain,
+                traj.times().len(),
+                |j| traj.position(j),
+                &mut buffers,
+            )?;
         }
         Ok(b)
     }
@@ -289,6 +309,16 @@ impl<'a> JointSpaceCost<'a> {
             for j in 0..dof {
                 out.extend(e.q.iter().map(|q| sl * limit_excess(q[j], lo[j], hi[j])));
             }
+        }
+        if let Some(c) = self.clearance {
+            let mut buffers = crate::clearance::ClearanceBuffers::default();
+            c.residuals(
+                chain,
+                traj.times().len(),
+                |j| traj.position(j),
+                &mut buffers,
+                out,
+            )?;
         }
         Ok(())
     }
@@ -488,6 +518,8 @@ pub struct JointSpaceOutcome {
     pub breakdown: JointCostBreakdown,
     /// The cost of the warm start (the surrogate's exact optimum), term by term.
     pub warm_start: JointCostBreakdown,
+    /// The warm start's movement (blind to everything but the way points' configurations).
+    pub warm_start_trajectory: Trajectory,
     /// Task-space errors through forward kinematics.
     pub errors: TaskErrors,
     /// How close the trajectory comes to the limits.
@@ -549,7 +581,8 @@ pub fn learn_joint_space(
         dmp: &dmp,
         space: &space,
     };
-    let warm = cost.breakdown(&dmp.rollout(&space.weights(&optimum.params)))?;
+    let warm_trajectory = dmp.rollout(&space.weights(&optimum.params));
+    let warm = cost.breakdown(&warm_trajectory)?;
     let x0 = if config.learner.warm_start || config.learner.solver == Solver::Exact {
         optimum.params.clone()
     } else {
@@ -574,6 +607,7 @@ pub fn learn_joint_space(
         way_configurations: configs,
         breakdown: cost.breakdown(&trajectory)?,
         warm_start: warm,
+        warm_start_trajectory: warm_trajectory,
         errors: cost.task_errors(&trajectory)?,
         limits: cost.limits(&trajectory),
         dmp,

@@ -28,6 +28,7 @@
 //! ```
 #![deny(missing_docs)]
 
+mod clearance;
 mod energy;
 mod error;
 mod exact;
@@ -43,6 +44,7 @@ mod space;
 mod task;
 mod viapoint;
 
+pub use clearance::{CLEARANCE_STRIDE, Clearance, ClearanceBuffers, Closest, closest};
 pub use energy::{
     EffortConfig, EffortCostBreakdown, EffortOutcome, PlantTrajectory, PointMassPlant, effort_cost,
     learn_with_effort,

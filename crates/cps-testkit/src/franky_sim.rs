@@ -77,6 +77,9 @@ pub struct SimOptions {
     pub friction: Option<f64>,
     /// Log MuJoCo's ground truth per step (contact force, tool centre point).
     pub truth: bool,
+    /// A box (a shelf) centred at x, y, z in the base frame, sx × sy × sz metres, whose
+    /// contacts with the robot are counted ([`FrankySim::box_contacts`]).
+    pub shelf: Option<[f64; 6]>,
 }
 
 /// One simulation step's ground truth (see sim_server.py).
@@ -113,6 +116,9 @@ impl FrankySim {
         }
         if let Some(mu) = options.friction {
             command.args(["--friction", &mu.to_string()]);
+        }
+        if let Some(b) = options.shelf {
+            command.arg("--box").args(b.iter().map(|v| v.to_string()));
         }
         let truth = options.truth.then(|| {
             std::env::temp_dir().join(format!("cps-truth-{}-{host}.csv", std::process::id()))
@@ -184,6 +190,29 @@ impl FrankySim {
                 })
             })
             .collect()
+    }
+
+    /// The box's contacts with the robot so far (MuJoCo's contact list, every step): how
+    /// many steps had one, and the robot's geoms it touched.
+    pub fn box_contacts(&self) -> (u64, Vec<String>) {
+        self.send("contacts");
+        let rx = self.lines.lock().unwrap_or_else(|e| e.into_inner());
+        let line = rx.recv_timeout(Duration::from_secs(10)).unwrap_or_default();
+        let mut words = line.split_whitespace();
+        assert_eq!(
+            words.next(),
+            Some("contacts"),
+            "the simulator said {line:?}"
+        );
+        let steps = words
+            .next()
+            .and_then(|w| w.parse().ok())
+            .expect("a step count");
+        let geoms = match words.next() {
+            Some("-") | None => Vec::new(),
+            Some(g) => g.split(',').map(str::to_string).collect(),
+        };
+        (steps, geoms)
     }
 
     /// Kills the simulator (a robot that vanishes mid-motion).

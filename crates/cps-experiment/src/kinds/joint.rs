@@ -42,6 +42,79 @@ struct Summary<'a> {
     /// On a robot with dynamics: the command learned on what the robot does.
     executed_learning: Option<ExecutedLearning>,
     execution: Option<ExecutionSummary>,
+    /// Where the movement comes closest to the robot's own shapes and its world's (a robot
+    /// with collision geometry).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    clearance: Option<ClearanceSummary>,
+}
+
+/// How close the learned movement (and the warm start, blind to shapes) comes to the
+/// robot's own shapes and its world's, at the movement's samples.
+#[derive(Serialize)]
+struct ClearanceSummary {
+    /// The clearance the cost kept (`[joint] clearance`, m), if any.
+    kept_m: Option<f64>,
+    /// The learned movement's closest pair (None: none within 10 cm).
+    closest: Option<ClosestPair>,
+    /// The warm start's.
+    warm_start_closest: Option<ClosestPair>,
+}
+
+#[derive(Serialize)]
+struct ClosestPair {
+    first: String,
+    second: String,
+    time_s: f64,
+    distance_m: f64,
+}
+
+impl ClearanceSummary {
+    /// Looks at both movements against `shapes` (pairs within 10 cm).
+    fn new(
+        shapes: &cps_robot::Shapes,
+        chain: &cps_kinematics::SerialChain,
+        kept: Option<f64>,
+        learned: &cps_dmp::Trajectory,
+        warm: &cps_dmp::Trajectory,
+    ) -> Result<Self, cps_kinematics::KinematicsError> {
+        let look = |t: &cps_dmp::Trajectory| {
+            cps_learn::closest(shapes, chain, t.times(), |j| t.position(j), 0.1).map(|c| {
+                c.map(|c| ClosestPair {
+                    first: c.first,
+                    second: c.second,
+                    time_s: c.time,
+                    distance_m: c.distance,
+                })
+            })
+        };
+        Ok(ClearanceSummary {
+            kept_m: kept,
+            closest: look(learned)?,
+            warm_start_closest: look(warm)?,
+        })
+    }
+
+    /// In words, for the run's printout.
+    fn line(&self) -> String {
+        let words = |c: &Option<ClosestPair>| match c {
+            Some(c) => format!(
+                "`{}` and `{}` {:.1} mm {} at {:.2} s",
+                c.first,
+                c.second,
+                1e3 * c.distance_m.abs(),
+                if c.distance_m < 0.0 { "deep" } else { "apart" },
+                c.time_s
+            ),
+            None => "no pair within 100 mm".into(),
+        };
+        format!(
+            "  shapes: closest {}{}; the warm start's {}",
+            words(&self.closest),
+            self.kept_m
+                .map_or(String::new(), |k| format!(" (kept ≥ {:.1} mm)", 1e3 * k)),
+            words(&self.warm_start_closest)
+        )
+    }
 }
 
 /// The second stage on a robot with dynamics: from the model-learned command, the
@@ -190,6 +263,20 @@ pub(crate) fn run(ctx: &Ctx<'_>, plan: crate::plan::JointPlan) -> Result<Outcome
     let mut config = JointSpaceConfig::new(exp.config.clone(), robot.setup.clone());
     config.limit_weight = plan.limit_weight;
     config.speed_limit_weight = plan.speed_limit_weight;
+    if let Some((distance, weight)) = plan.clearance {
+        let Some(shapes) = robot.model.shapes.clone() else {
+            return Err(ExperimentError::Message(format!(
+                "[joint] `clearance`: the robot `{}` has no collision geometry to keep clear with",
+                robot.model.name
+            )));
+        };
+        config.clearance = Some(cps_learn::Clearance {
+            shapes,
+            distance,
+            weight,
+            stride: cps_learn::CLEARANCE_STRIDE,
+        });
+    }
     let mut backend = robot.open()?;
     let outcome = ctx
         .pool
@@ -279,6 +366,19 @@ pub(crate) fn run(ctx: &Ctx<'_>, plan: crate::plan::JointPlan) -> Result<Outcome
         learning_seconds: outcome.seconds,
         executed_learning: refined.as_ref().map(ExecutedLearning::new),
         execution,
+        clearance: match &robot.model.shapes {
+            Some(shapes) => Some(
+                ClearanceSummary::new(
+                    shapes,
+                    &config.robot.chain,
+                    plan.clearance.map(|c| c.0),
+                    trajectory,
+                    &outcome.warm_start_trajectory,
+                )
+                .context_with(|| "the learned movement's distances".into())?,
+            ),
+            None => None,
+        },
     };
     // The tool in task space, through forward kinematics.
     let dof = traj.dims();
@@ -393,6 +493,9 @@ pub(crate) fn run(ctx: &Ctx<'_>, plan: crate::plan::JointPlan) -> Result<Outcome
         limits.min_position_margin,
         limits.max_speed_ratio * 100.0
     ));
+    if let Some(c) = &summary.clearance {
+        lines.push(c.line());
+    }
     if let Some(e) = &summary.execution {
         lines.push(format!(
             "  executed: {} samples, goal {:.3} mm, worst via point {:.3} mm as the robot reported its tool, tool within {:.3e} m of the model, {}",

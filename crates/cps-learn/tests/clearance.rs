@@ -1,0 +1,123 @@
+//! The clearance cost against an analytic distance: a ball on the Panda's first link at
+//! 0.5 m from its axis swings past a ball standing at the same height and reach, so their
+//! distance at joint 1's angle `φ` is `2 R sin(|φ − φ₀| / 2) − 2 r`, and each judged
+//! sample's residual is `√w · max(0, c − d)`. A movement evaluated just after a nearby one
+//! (its remembered walk) gives the same bits as on a fresh thread.
+
+use std::sync::Arc;
+
+use cps_geometry::{Body, Obstacle, Shape};
+use cps_kinematics::robots::{PandaTool, panda};
+use cps_learn::Clearance;
+use cps_robot::Shapes;
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+
+const REACH: f64 = 0.5;
+const AT: f64 = 1.0;
+const BALL: f64 = 0.05;
+const CLEAR: f64 = 0.03;
+const WEIGHT: f64 = 4.0;
+
+fn clearance(stride: usize) -> (Clearance, cps_kinematics::SerialChain) {
+    let chain = panda(PandaTool::HandTcp);
+    let mut frames = Vec::new();
+    chain.frames_into(&[0.0; 7], &mut frames).unwrap();
+    let at = |a: f64| Vector3::new(REACH * a.cos(), REACH * a.sin(), 0.333);
+    let body = Body {
+        link: "panda_link1".into(),
+        frame: 1,
+        origin: Isometry3::from_parts(
+            (frames[1].inverse() * Point3::from(at(0.0))).into(),
+            UnitQuaternion::identity(),
+        ),
+        shape: Shape::sphere(BALL, "a ball").unwrap(),
+    };
+    let ball = Obstacle {
+        name: "ball".into(),
+        pose: Isometry3::translation(at(AT).x, at(AT).y, at(AT).z),
+        shape: Shape::sphere(BALL, "the ball").unwrap(),
+    };
+    let shapes = Shapes::new(vec![body], vec![])
+        .with_obstacles(vec![ball], vec![])
+        .unwrap();
+    (
+        Clearance {
+            shapes: Arc::new(shapes),
+            distance: CLEAR,
+            weight: WEIGHT,
+            stride,
+        },
+        chain,
+    )
+}
+
+/// Joint 1 from 0 to `to` over `n` samples (cosine), the other joints at 0.
+fn sweep(to: f64, n: usize) -> Vec<Vec<f64>> {
+    let q1: Vec<f64> = (0..n)
+        .map(|k| to * (0.5 - 0.5 * (std::f64::consts::PI * k as f64 / (n - 1) as f64).cos()))
+        .collect();
+    let mut joints = vec![vec![0.0; n]; 7];
+    joints[0] = q1;
+    joints
+}
+
+fn residuals(c: &Clearance, chain: &cps_kinematics::SerialChain, joints: &[Vec<f64>]) -> Vec<f64> {
+    let mut out = Vec::new();
+    let mut b = cps_learn::ClearanceBuffers::default();
+    c.residuals(chain, joints[0].len(), |j| &joints[j], &mut b, &mut out)
+        .unwrap();
+    out
+}
+
+fn analytic(phi: f64) -> f64 {
+    2.0 * REACH * ((phi - AT).abs() / 2.0).sin() - 2.0 * BALL
+}
+
+#[test]
+fn each_judged_sample_costs_its_shortfall_squared() {
+    for stride in [1, 4] {
+        let (c, chain) = clearance(stride);
+        let joints = sweep(1.6, 1001);
+        let r = residuals(&c, &chain, &joints);
+        let judged: Vec<usize> = (0..1001).step_by(stride).collect();
+        assert_eq!(r.len(), judged.len(), "the last sample is one of every 4th");
+        let mut near = 0;
+        for (i, &k) in judged.iter().enumerate() {
+            let want = WEIGHT.sqrt() * (CLEAR - analytic(joints[0][k])).max(0.0);
+            assert!((r[i] - want).abs() < 1e-9, "sample {k}: {} vs {want}", r[i]);
+            near += usize::from(want > 0.0);
+        }
+        assert!(near > 10, "the sweep passes through the ball");
+    }
+}
+
+#[test]
+fn a_nearby_movement_remembered_gives_the_same_bits_as_a_fresh_walk() {
+    let (c, chain) = clearance(4);
+    let joints = sweep(1.6, 1001);
+    let first = residuals(&c, &chain, &joints);
+    // A Jacobian column's movement: one joint a hair off.
+    let mut column = joints.clone();
+    for (k, q) in column[0].iter_mut().enumerate() {
+        *q += 1e-7 * (k as f64 / 1000.0);
+    }
+    let remembered = residuals(&c, &chain, &column);
+    let fresh = std::thread::spawn({
+        let (c, chain, column) = (c.clone(), chain.clone(), column.clone());
+        move || residuals(&c, &chain, &column)
+    })
+    .join()
+    .unwrap();
+    assert_eq!(remembered, fresh);
+    assert_ne!(remembered, first);
+    // A movement far from the remembered one is walked afresh, and still exact.
+    let far = sweep(1.2, 1001);
+    let r = residuals(&c, &chain, &far);
+    let mut near = 0;
+    for (i, k) in (0..1001).step_by(4).enumerate() {
+        let want = WEIGHT.sqrt() * (CLEAR - analytic(far[0][k])).max(0.0);
+        assert!((r[i] - want).abs() < 1e-9);
+        near += usize::from(want > 0.0);
+    }
+    assert!(near > 10);
+}
