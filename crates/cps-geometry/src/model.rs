@@ -14,7 +14,6 @@
 //! its distance computed again. At a robot's control rate a pair 10 cm apart is computed
 //! once in many steps.
 
-use std::borrow::Borrow;
 use std::sync::Arc;
 
 use nalgebra::{Isometry3, Point3, Vector3};
@@ -306,8 +305,8 @@ impl CollisionModel {
 /// only when their bodies' motion could have brought them within it. Nothing is allocated
 /// after [`PathCheck::new`].
 #[derive(Debug, Clone)]
-pub struct PathCheck<M: Borrow<CollisionModel> = Arc<CollisionModel>> {
-    model: M,
+pub struct PathCheck {
+    model: Arc<CollisionModel>,
     watch: f64,
     lower: Vec<f64>,
     hints: Vec<[u32; 2]>,
@@ -319,12 +318,12 @@ pub struct PathCheck<M: Borrow<CollisionModel> = Arc<CollisionModel>> {
     near: Vec<Contact>,
 }
 
-impl<M: Borrow<CollisionModel>> PathCheck<M> {
-    /// A check of `model` (borrowed, or shared by an [`Arc`]) that computes exactly every
-    /// pair closer than `watch` (m).
-    pub fn new(model: M, watch: f64) -> Self {
-        let m: &CollisionModel = model.borrow();
-        let (n, pairs) = (m.bodies.len(), m.pairs.len());
+impl PathCheck {
+    /// A check of `model` (shared) that computes exactly every pair closer than `watch`
+    /// (m). Not generic on purpose: its loop is compiled, optimised, in this crate, whatever
+    /// the caller's optimisation level.
+    pub fn new(model: Arc<CollisionModel>, watch: f64) -> Self {
+        let (n, pairs) = (model.bodies.len(), model.pairs.len());
         PathCheck {
             model,
             watch,
@@ -341,7 +340,7 @@ impl<M: Borrow<CollisionModel>> PathCheck<M> {
 
     /// The model checked.
     pub fn model(&self) -> &CollisionModel {
-        self.model.borrow()
+        &self.model
     }
 
     /// Starts over: the next configuration is checked as a path's first (every pair
@@ -369,7 +368,7 @@ impl<M: Borrow<CollisionModel>> PathCheck<M> {
 
     /// The next configuration's frames: the closest pair closer than `watch`, if any.
     pub fn step(&mut self, frames: &[Isometry3<f64>]) -> Option<Contact> {
-        let m: &CollisionModel = self.model.borrow();
+        let m: &CollisionModel = &self.model;
         for i in 0..m.bodies.len() {
             let f = &frames[m.bodies[i].frame];
             let c = (f * Point3::from(m.body_bounds[i].0)).coords;

@@ -76,7 +76,7 @@ fn model() -> CollisionModel {
 
 #[test]
 fn the_lazy_check_finds_what_checking_every_pair_finds() {
-    let m = model();
+    let m = std::sync::Arc::new(model());
     // base–upper, base–fore, base–hand, turret–fore, turret–hand, upper–hand; five
     // bodies × three obstacles, less the base on the table.
     assert_eq!(m.pair_count(), 6 + 14);
@@ -84,7 +84,7 @@ fn the_lazy_check_finds_what_checking_every_pair_finds() {
     let (mut steps, mut queries, mut hits, mut collisions) = (0, 0, 0, 0);
     for _ in 0..20 {
         let watch = 0.05;
-        let mut check = PathCheck::new(&m, watch);
+        let mut check = PathCheck::new(m.clone(), watch);
         // A smooth random path: sums of sines, 2 000 configurations 1 ms apart.
         let amp: Vec<[f64; 3]> = (0..3)
             .map(|_| {

@@ -153,7 +153,7 @@ impl Clearance {
             return Ok(());
         }
         // Walked afresh, and remembered.
-        let mut walk = cps_geometry::PathCheck::new(model, self.distance);
+        let mut walk = cps_geometry::PathCheck::new(self.shapes.model().clone(), self.distance);
         let mut frames = Vec::with_capacity(checked.len() * nf);
         let mut lower = Vec::with_capacity(checked.len() * pairs);
         for &k in &checked {

@@ -36,11 +36,27 @@ fn franky_fr3() -> Option<(
     Some((python, assets, chain, geometry))
 }
 
-#[test]
-fn the_fr3_collision_model_agrees_with_mujoco_within_a_millimetre() {
-    let Some((python, assets, chain, geometry)) = franky_fr3() else {
-        return;
-    };
+/// What a comparison found: errors of self and box pairs, how many configurations
+/// collide, and (when timed) MuJoCo's and coal's replies.
+struct Compared {
+    self_errors: Vec<f64>,
+    box_errors: Vec<f64>,
+    /// Of either kind, where one of the two says the shapes overlap (EPA's depth).
+    deep_errors: Vec<f64>,
+    /// cps's distances, per configuration and pair.
+    ours: Vec<Vec<f64>>,
+    self_hits: usize,
+    box_hits: usize,
+    reply: serde_json::Value,
+    /// Per configuration: every pair's exact distance by cps (s).
+    ours_s: f64,
+    configurations: usize,
+}
+
+/// cps's distances for every pair against MuJoCo's at `configurations` random
+/// configurations (seeded), each within 1 mm; `time` asks the script for timings too.
+fn compare(configurations: usize, time: bool) -> Option<Compared> {
+    let (python, assets, chain, geometry) = franky_fr3()?;
     // link0 and link6's meshes have holes: said, and closed by their hulls.
     assert_eq!(geometry.notes.len(), 2, "{:?}", geometry.notes);
     let bodies: Vec<_> = geometry
@@ -65,13 +81,14 @@ fn the_fr3_collision_model_agrees_with_mujoco_within_a_millimetre() {
         .collect();
 
     let mut rng = ChaCha8Rng::seed_from_u64(51);
-    let configurations: Vec<Vec<f64>> = (0..CONFIGURATIONS)
+    let configurations: Vec<Vec<f64>> = (0..configurations)
         .map(|_| chain.chain.random_configuration(&mut rng))
         .collect();
     let job = serde_json::json!({
         "box": [box_centre[0], box_centre[1], box_centre[2], box_half[0], box_half[1], box_half[2]],
         "pairs": pairs.iter().map(|(a, b)| [a, b]).collect::<Vec<_>>(),
         "q": configurations,
+        "time": time,
     });
     let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/mujoco_robot.py");
     let mut child = Command::new(&python)
@@ -116,50 +133,186 @@ fn the_fr3_collision_model_agrees_with_mujoco_within_a_millimetre() {
         .collect();
     assert_eq!(ours, theirs);
 
-    let mut errors = Vec::new();
-    let (mut self_hits, mut box_hits) = (0, 0);
+    let mut c = Compared {
+        self_errors: Vec::new(),
+        box_errors: Vec::new(),
+        deep_errors: Vec::new(),
+        ours: Vec::new(),
+        self_hits: 0,
+        box_hits: 0,
+        reply: serde_json::Value::Null,
+        ours_s: 0.0,
+        configurations: configurations.len(),
+    };
+    let mut frames = Vec::with_capacity(8);
     for (q, reference) in configurations
         .iter()
         .zip(reply["distances"].as_array().unwrap())
     {
-        let poses = chain.chain.fk_frames(q).unwrap();
-        let mut frames = vec![Isometry3::identity()];
-        frames.extend(poses.link_frames.iter().map(|f| {
-            Isometry3::from_parts(
-                f.translation,
-                UnitQuaternion::from_rotation_matrix(&f.rotation),
-            )
-        }));
+        chain.chain.frames_into(q, &mut frames).unwrap();
         let (mut self_hit, mut box_hit) = (false, false);
+        let mut row = Vec::with_capacity(model.pair_count());
         for p in 0..model.pair_count() {
             let r = reference[p].as_f64().unwrap();
             let d = model.distance(p, &frames).distance;
+            row.push(d);
             assert!(
                 (d - r).abs() < 1e-3,
                 "{:?} at {q:?}: cps {d}, MuJoCo {r}",
                 model.pair_names(p)
             );
-            errors.push((d - r).abs());
+            let scene = matches!(model.pair(p).1, Other::Obstacle(_));
+            if scene {
+                c.box_errors.push((d - r).abs());
+            } else {
+                c.self_errors.push((d - r).abs());
+            }
+            if d.min(r) < 0.0 {
+                c.deep_errors.push((d - r).abs());
+            }
             if d < 0.0 {
-                match model.pair(p).1 {
-                    Other::Body(_) => self_hit = true,
-                    Other::Obstacle(_) => box_hit = true,
+                if scene {
+                    box_hit = true;
+                } else {
+                    self_hit = true;
                 }
             }
         }
-        self_hits += self_hit as usize;
-        box_hits += box_hit as usize;
+        c.self_hits += self_hit as usize;
+        c.box_hits += box_hit as usize;
+        c.ours.push(row);
     }
-    errors.sort_by(f64::total_cmp);
+    if time {
+        let started = std::time::Instant::now();
+        for q in &configurations {
+            chain.chain.frames_into(q, &mut frames).unwrap();
+            for p in 0..model.pair_count() {
+                std::hint::black_box(model.distance(p, &frames));
+            }
+        }
+        c.ours_s = started.elapsed().as_secs_f64() / configurations.len() as f64;
+    }
+    for e in [&mut c.self_errors, &mut c.box_errors, &mut c.deep_errors] {
+        e.sort_by(f64::total_cmp);
+    }
+    c.reply = reply;
+    Some(c)
+}
+
+#[test]
+fn the_fr3_collision_model_agrees_with_mujoco_within_a_millimetre() {
+    let Some(c) = compare(CONFIGURATIONS, false) else {
+        return;
+    };
+    let (n, s, b) = (c.configurations, &c.self_errors, &c.box_errors);
     eprintln!(
-        "{} distances at {CONFIGURATIONS} configurations: median error {:.1e} m, worst {:.1e} m; {self_hits} configurations collide with the arm itself, {box_hits} with the box",
-        errors.len(),
-        errors[errors.len() / 2],
-        errors[errors.len() - 1]
+        "{n} configurations: self pairs median error {:.1e} m, worst {:.1e} m; box pairs median {:.1e} m, worst {:.1e} m; {} collide with the arm itself, {} with the box",
+        s[s.len() / 2],
+        s[s.len() - 1],
+        b[b.len() / 2],
+        b[b.len() - 1],
+        c.self_hits,
+        c.box_hits
     );
     // About 4 % and 10 % (8 and 19 of 200 in MuJoCo on this model).
-    assert!((4..=40).contains(&self_hits), "{self_hits} self collisions");
-    assert!((15..=80).contains(&box_hits), "{box_hits} box collisions");
+    assert!(
+        (4..=40).contains(&c.self_hits),
+        "{} self collisions",
+        c.self_hits
+    );
+    assert!(
+        (15..=80).contains(&c.box_hits),
+        "{} box collisions",
+        c.box_hits
+    );
+}
+
+/// Measurement (`bash test.sh -- --ignored`): the comparison at 10 000 configurations, and
+/// the time per configuration of every pair's exact distance by cps, by MuJoCo
+/// (`mj_geomDistance` over the pairs; `mj_collision`, contacts only) and by coal (FCL's
+/// successor, when installed beside franky-sim: `pip install coal`), with coal's
+/// distances as a second opinion.
+#[test]
+#[ignore]
+fn measure_ten_thousand_configurations_against_mujoco_and_coal() {
+    let Some(c) = compare(10_000, true) else {
+        return;
+    };
+    let (n, s, b) = (c.configurations, &c.self_errors, &c.box_errors);
+    let r = &c.reply;
+    let us = |key: &str| {
+        r[key]
+            .as_f64()
+            .map_or("—".into(), |v| format!("{:.1} µs", v * 1e6))
+    };
+    eprintln!(
+        "{n} configurations, {} self and {} box distances: self median error {:.1e} m, worst {:.1e} m; box median {:.1e} m, worst {:.1e} m; {} collide with the arm itself, {} with the box",
+        s.len(),
+        b.len(),
+        s[s.len() / 2],
+        s[s.len() - 1],
+        b[b.len() / 2],
+        b[b.len() - 1],
+        c.self_hits,
+        c.box_hits
+    );
+    eprintln!(
+        "per configuration, every pair: cps {:.1} µs; MuJoCo mj_geomDistance {} (kinematics {} of it; a Python call {}), mj_collision {} (contacts only, with kinematics); coal {}",
+        c.ours_s * 1e6,
+        us("distance_s"),
+        us("kinematics_s"),
+        us("call_s"),
+        us("collision_s"),
+        us("coal_s")
+    );
+    let d = &c.deep_errors;
+    eprintln!(
+        "of them {} overlapping (a depth by EPA): median error {:.1e} m, worst {:.1e} m",
+        d.len(),
+        d[d.len() / 2],
+        d[d.len() - 1]
+    );
+    if let Some(coal) = r["coal"].as_array() {
+        let mut worst: f64 = 0.0;
+        let mut diffs = Vec::new();
+        for (row, mj) in coal.iter().zip(r["distances"].as_array().unwrap()) {
+            for (a, b) in row.as_array().unwrap().iter().zip(mj.as_array().unwrap()) {
+                let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+                if a > 0.0 && b > 0.0 {
+                    diffs.push((a - b).abs());
+                    worst = worst.max((a - b).abs());
+                }
+            }
+        }
+        diffs.sort_by(f64::total_cmp);
+        eprintln!(
+            "coal against MuJoCo on separated pairs: median {:.1e} m, worst {worst:.1e} m",
+            diffs[diffs.len() / 2]
+        );
+        // cps against coal, separated and overlapping.
+        let (mut apart, mut deep) = (Vec::new(), Vec::new());
+        for (row, ours) in coal.iter().zip(&c.ours) {
+            for (a, d) in row.as_array().unwrap().iter().zip(ours) {
+                let a = a.as_f64().unwrap();
+                if a.min(*d) < 0.0 {
+                    deep.push((a - d).abs());
+                } else {
+                    apart.push((a - d).abs());
+                }
+            }
+        }
+        for v in [&mut apart, &mut deep] {
+            v.sort_by(f64::total_cmp);
+        }
+        eprintln!(
+            "cps against coal: separated median {:.1e} m, worst {:.1e} m; overlapping ({}) median {:.1e} m, worst {:.1e} m",
+            apart[apart.len() / 2],
+            apart[apart.len() - 1],
+            deep.len(),
+            deep[deep.len() / 2],
+            deep[deep.len() - 1]
+        );
+    }
 }
 
 /// Measurement (`bash test.sh -- --ignored`): a 10 s plan at 1 kHz (10 001 configurations,
@@ -209,7 +362,8 @@ fn time_a_ten_second_plan_of_the_fr3_among_ten_shapes() {
     }
     let fk = t.elapsed();
     let t = std::time::Instant::now();
-    let mut check = cps_geometry::PathCheck::new(&model, 0.005);
+    let model = std::sync::Arc::new(model);
+    let mut check = cps_geometry::PathCheck::new(model.clone(), 0.005);
     let mut closest = f64::INFINITY;
     for f in &all_frames {
         if let Some(c) = check.step(f) {
