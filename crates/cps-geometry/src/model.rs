@@ -265,6 +265,23 @@ impl CollisionModel {
         );
     }
 
+    /// The largest distance (m) from the base frame's origin (`frames[0]`) to any point of
+    /// a body or any frame's origin at `frames`. Every joint turns the points beyond it
+    /// about an axis through a frame's origin, so joints turned by `δ₁ … δₙ` radians move
+    /// no point further than `2 · reach · Σ|δⱼ|` (while the points stay within `reach`).
+    pub fn reach(&self, frames: &[Isometry3<f64>]) -> f64 {
+        let o = frames[0].translation.vector;
+        let origins = frames
+            .iter()
+            .map(|f| (f.translation.vector - o).norm())
+            .fold(0.0, f64::max);
+        self.bodies
+            .iter()
+            .zip(&self.body_bounds)
+            .map(|(b, (c, r))| ((frames[b.frame] * Point3::from(*c)).coords - o).norm() + r)
+            .fold(origins, f64::max)
+    }
+
     /// Every pair closer than `watch` at `frames` (into `out`, in pair order), given a lower
     /// bound of each pair's distance at a reference configuration (`lower`, as
     /// [`PathCheck::lower`] leaves them) and each body's motion since

@@ -77,6 +77,12 @@ struct Reference {
     key: (usize, usize, usize, u64),
     frames: Vec<Isometry3<f64>>,
     lower: Vec<f64>,
+    /// The joints at each judged sample.
+    q: Vec<f64>,
+    /// [`cps_geometry::CollisionModel::reach`] at each.
+    reach: Vec<f64>,
+    /// How much closer the closest pair could come before it is within the clearance.
+    slack: Vec<f64>,
 }
 
 thread_local! {
@@ -99,9 +105,12 @@ impl Clearance {
     /// The samples are walked as the guard walks a plan ([`cps_geometry::PathCheck`]: a
     /// pair is computed again only when the motion since could have brought it within
     /// `c`), and the walk is remembered on this thread: a movement close to the last one
-    /// walked (a Jacobian column's, a step's) computes only the pairs its bodies' motion
-    /// from that one could have brought within `c`. Every distance that counts is computed
-    /// afresh, without a warm start, so the residuals are the same bits whichever way.
+    /// walked (a Jacobian column's, a step's) skips the samples whose joints turned too
+    /// little to bring any pair within `c` (no point moves further than twice the robot's
+    /// reach times the turn, [`cps_geometry::CollisionModel::reach`]) and computes only the
+    /// pairs its bodies' motion could have brought within `c` at the others. Every distance
+    /// that counts is computed afresh, without a warm start, so the residuals are the same
+    /// bits whichever way.
     pub fn residuals<'a>(
         &self,
         chain: &SerialChain,
@@ -134,9 +143,25 @@ impl Clearance {
             if r.key != key {
                 return Ok(false);
             }
+            let dof = chain.dof();
             for (i, &k) in checked.iter().enumerate() {
+                // How far any point can have moved from the remembered sample: joint
+                // turns times twice the reach (see `CollisionModel::reach`).
+                let turned: f64 = (0..dof)
+                    .map(|j| (positions(j)[k] - r.q[i * dof + j]).abs())
+                    .sum();
+                let moved = 2.0 * (r.reach[i] + REWALK) * turned;
+                if moved > REWALK {
+                    out.truncate(start);
+                    return Ok(false);
+                }
+                if 2.0 * moved <= r.slack[i] {
+                    // No pair can have come within the clearance: nothing falls short.
+                    out.push(0.0);
+                    continue;
+                }
                 b.q.clear();
-                b.q.extend((0..chain.dof()).map(|j| positions(j)[k]));
+                b.q.extend((0..dof).map(|j| positions(j)[k]));
                 chain.frames_into(&b.q, &mut b.frames)?;
                 model.motions(&r.frames[i * nf..(i + 1) * nf], &b.frames, &mut b.moved);
                 if b.moved.iter().any(|&m| m > REWALK) {
@@ -154,8 +179,14 @@ impl Clearance {
         }
         // Walked afresh, and remembered.
         let mut walk = cps_geometry::PathCheck::new(self.shapes.model().clone(), self.distance);
-        let mut frames = Vec::with_capacity(checked.len() * nf);
-        let mut lower = Vec::with_capacity(checked.len() * pairs);
+        let n = checked.len();
+        let mut frames = Vec::with_capacity(n * nf);
+        let mut lower = Vec::with_capacity(n * pairs);
+        let (mut q, mut reach, mut slack) = (
+            Vec::with_capacity(n * chain.dof()),
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+        );
         for &k in &checked {
             b.q.clear();
             b.q.extend((0..chain.dof()).map(|j| positions(j)[k]));
@@ -163,6 +194,10 @@ impl Clearance {
             walk.step(&b.frames);
             frames.extend_from_slice(&b.frames);
             lower.extend(walk.lower().iter().map(|l| l - LOWER_SLACK));
+            q.extend_from_slice(&b.q);
+            reach.push(model.reach(&b.frames));
+            let closest = walk.lower().iter().fold(f64::INFINITY, |a, &l| a.min(l));
+            slack.push(closest - LOWER_SLACK - self.distance);
             // The pairs that count, computed afresh (the walk's are warm-started).
             b.near.clear();
             b.near
@@ -172,7 +207,16 @@ impl Clearance {
                 }));
             out.push(shortfall(&b.near));
         }
-        REFERENCE.with(|r| *r.borrow_mut() = Reference { key, frames, lower });
+        REFERENCE.with(|r| {
+            *r.borrow_mut() = Reference {
+                key,
+                frames,
+                lower,
+                q,
+                reach,
+                slack,
+            }
+        });
         Ok(())
     }
 

@@ -121,3 +121,48 @@ fn a_nearby_movement_remembered_gives_the_same_bits_as_a_fresh_walk() {
     }
     assert!(near > 10);
 }
+
+/// The bound the remembered walk skips samples by: joints turned by `δ` move no point of
+/// any body further than `2 · reach · Σ|δ|` (each body's motion as the guard measures it:
+/// its bounding sphere's centre plus the chord its radius sweeps).
+#[test]
+fn no_body_moves_further_than_twice_the_reach_times_the_joints_turn() {
+    use rand::{Rng, SeedableRng};
+    let chain = panda(PandaTool::HandTcp);
+    let bodies: Vec<Body> = (0..=7)
+        .map(|k| Body {
+            link: format!("link{k}"),
+            frame: k,
+            origin: Isometry3::translation(0.05 * k as f64, -0.03, 0.08),
+            shape: Shape::capsule(0.04, 0.1, "a link").unwrap(),
+        })
+        .collect();
+    let model = cps_geometry::CollisionModel::new(bodies, vec![], &[]);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let (mut f0, mut f1, mut moved) = (Vec::new(), Vec::new(), Vec::new());
+    let mut tightest: f64 = 0.0;
+    for _ in 0..2000 {
+        let q: Vec<f64> = (0..7).map(|_| rng.random_range(-2.5..2.5)).collect();
+        let scale = 10f64.powf(rng.random_range(-7.0..-2.0));
+        let turned: Vec<f64> = q
+            .iter()
+            .map(|x| x + scale * rng.random_range(-1.0..1.0))
+            .collect();
+        chain.frames_into(&q, &mut f0).unwrap();
+        chain.frames_into(&turned, &mut f1).unwrap();
+        let sum: f64 = q.iter().zip(&turned).map(|(a, b)| (a - b).abs()).sum();
+        let bound = 2.0 * model.reach(&f0) * sum;
+        model.motions(&f0, &f1, &mut moved);
+        for &m in &moved {
+            assert!(
+                m <= bound * (1.0 + 1e-6) + 1e-15,
+                "moved {m}, bound {bound}"
+            );
+            tightest = tightest.max(m / bound);
+        }
+    }
+    assert!(
+        tightest > 0.1,
+        "the bound is not absurdly loose: {tightest}"
+    );
+}
