@@ -114,7 +114,8 @@ LAYERS = {
         ["write"],
     ],
     "cps-movement": [
-        ["calibration", "collision"],
+        ["calibration", "dae"],
+        ["collision"],
         ["robot_file"],
         ["movement", "scene"],
         ["limits", "mocap", "promp"],

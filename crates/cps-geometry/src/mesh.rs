@@ -54,22 +54,16 @@ impl Mesh {
             .and_then(|e| e.to_str())
             .unwrap_or("")
             .to_ascii_lowercase();
-        let mut mesh = match ext.as_str() {
+        let mesh = match ext.as_str() {
             "stl" => Mesh::from_stl(&bytes, &name)?,
             "obj" => Mesh::from_obj(&bytes, &name)?,
             other => {
                 return Err(fail(format!(
-                    "a mesh of type `{other}`: cps reads STL and OBJ"
+                    "a mesh of type `{other}`: cps reads STL and OBJ here (COLLADA's DAE where robot files are read)"
                 )));
             }
         };
-        for v in &mut mesh.vertices {
-            for k in 0..3 {
-                v[k] *= scale[k];
-            }
-        }
-        let holes = mesh.check_manifold(&name)?;
-        Ok((mesh, holes))
+        mesh.scaled(scale, &name)
     }
 
     /// An STL file's triangles (binary, or ASCII when it starts with `solid` and is not
@@ -146,6 +140,33 @@ impl Mesh {
             }
         }
         builder.finish(name)
+    }
+
+    /// A mesh of `triangles` (three corners each, and where each came from in its file,
+    /// for messages) as another format's reader gives them: corners with identical
+    /// coordinates merged, triangles without area left out. Errors: no triangles, a corner
+    /// that is not finite.
+    pub fn from_triangles(
+        triangles: impl IntoIterator<Item = ([V; 3], String)>,
+        name: &str,
+    ) -> Result<Mesh, GeometryError> {
+        let mut builder = Builder::default();
+        for (corners, place) in triangles {
+            builder.triangle(corners, place);
+        }
+        builder.finish(name)
+    }
+
+    /// Scales every corner by `scale` (URDF's `<mesh scale>`), then checks the mesh
+    /// ([`Mesh::check_manifold`]): the mesh and how many edges of holes it has.
+    pub fn scaled(mut self, scale: [f64; 3], name: &str) -> Result<(Mesh, usize), GeometryError> {
+        for v in &mut self.vertices {
+            for k in 0..3 {
+                v[k] *= scale[k];
+            }
+        }
+        let holes = self.check_manifold(name)?;
+        Ok((self, holes))
     }
 
     /// A Wavefront OBJ file's faces (`v x y z` and `f a b c …`, polygons fanned into

@@ -65,7 +65,7 @@ pub mod transforms;
 mod urdf;
 mod urdf_collision;
 mod workspace;
-mod xml;
+pub mod xml;
 
 pub use arm_model::{ArmFrames, ArmModel};
 pub use chain::{ChainGeometry, ChainPose, DhConvention, DhLink, RevoluteJoint, SerialChain};

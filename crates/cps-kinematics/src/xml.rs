@@ -1,42 +1,75 @@
 //! The part of XML robot descriptions use, read into a tree of elements with their
-//! attributes and lines: URDF (`urdf`) and SRDF (`urdf_collision`) both read through it.
+//! attributes, text and lines: URDF, SRDF and the COLLADA meshes robot descriptions name
+//! all read through it.
+//!
+//! ```
+//! let root = cps_kinematics::xml::parse_xml("<robot name='r'>\n  <a>1 2 3</a>\n</robot>")?;
+//! assert_eq!(root.attr("name"), Some("r"));
+//! let a = root.child("a").unwrap();
+//! assert_eq!((a.text().trim(), a.line()), ("1 2 3", 2));
+//! # Ok::<(), String>(())
+//! ```
 
-/// How deeply elements may nest (`MAX_URDF_DEPTH`).
-pub(crate) const MAX_DEPTH: usize = 64;
+/// How deeply elements may nest (`MAX_URDF_DEPTH` for URDF).
+pub const MAX_DEPTH: usize = 64;
 
-/// An XML element: its name, attributes and child elements (text is not kept: URDF puts
-/// everything cps reads in attributes).
+/// An XML element: its name, attributes, child elements, its own text (the character data
+/// directly inside it, as written) and the line it starts on.
 #[derive(Debug)]
-pub(crate) struct Element {
+pub struct Element {
     pub(crate) name: String,
     attrs: Vec<(String, String)>,
     pub(crate) children: Vec<Element>,
     pub(crate) line: usize,
+    text: String,
 }
 
 impl Element {
-    pub(crate) fn attr(&self, key: &str) -> Option<&str> {
+    /// Its name (with any namespace prefix, as written).
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The line its start tag is on.
+    pub fn line(&self) -> usize {
+        self.line
+    }
+
+    /// Its text: the character data directly inside it, entities not expanded.
+    pub fn text(&self) -> &str {
+        &self.text
+    }
+
+    /// Its attribute `key`, entities expanded.
+    pub fn attr(&self, key: &str) -> Option<&str> {
         self.attrs
             .iter()
             .find(|(k, _)| k == key)
             .map(|(_, v)| v.as_str())
     }
 
-    pub(crate) fn child(&self, name: &str) -> Option<&Element> {
+    /// Its first child named `name`.
+    pub fn child(&self, name: &str) -> Option<&Element> {
         self.children.iter().find(|c| c.name == name)
     }
 
-    pub(crate) fn children<'a>(&'a self, name: &'a str) -> impl Iterator<Item = &'a Element> + 'a {
+    /// Its children named `name`, in order.
+    pub fn children<'a>(&'a self, name: &'a str) -> impl Iterator<Item = &'a Element> + 'a {
         self.children.iter().filter(move |c| c.name == name)
+    }
+
+    /// Every child, in order.
+    pub fn elements(&self) -> &[Element] {
+        &self.children
     }
 }
 
 /// Reads the element tree of an XML document — the part of XML robot descriptions use:
 /// elements, attributes in single or double quotes with the five named entities and
 /// character references, comments, processing instructions, a DOCTYPE without an internal
-/// subset, CDATA (skipped). Every error names the line. No recursion: nesting is bounded
-/// by `MAX_URDF_DEPTH`.
-pub(crate) fn parse_xml(xml: &str) -> Result<Element, String> {
+/// subset, CDATA (skipped), text kept with the element it is in. Every error names the
+/// line. No recursion: nesting is bounded by `MAX_URDF_DEPTH`.
+pub fn parse_xml(xml: &str) -> Result<Element, String> {
     let b = xml.as_bytes();
     let mut i = if xml.starts_with('\u{feff}') { 3 } else { 0 };
     let line_at = |at: usize| 1 + b[..at.min(b.len())].iter().filter(|&&c| c == b'\n').count();
@@ -50,10 +83,17 @@ pub(crate) fn parse_xml(xml: &str) -> Result<Element, String> {
     let mut root: Option<Element> = None;
     while i < b.len() {
         if b[i] != b'<' {
-            if root.is_some() && !b[i].is_ascii_whitespace() {
-                return Err(format!("line {}: text after the root element", line_at(i)));
+            let end = xml[i..].find('<').map_or(b.len(), |p| i + p);
+            let text = &xml[i..end];
+            match stack.last_mut() {
+                Some(open) => open.text.push_str(text),
+                None if root.is_some() && !text.trim().is_empty() => {
+                    let at = i + text.len() - text.trim_start().len();
+                    return Err(format!("line {}: text after the root element", line_at(at)));
+                }
+                None => {}
             }
-            i += 1;
+            i = end;
             continue;
         }
         let rest = &xml[i..];
@@ -152,6 +192,7 @@ fn start_tag(xml: &str, at: usize, line: usize) -> Result<(Element, bool, usize)
         attrs: Vec::new(),
         children: Vec::new(),
         line,
+        text: String::new(),
     };
     loop {
         while i < b.len() && b[i].is_ascii_whitespace() {

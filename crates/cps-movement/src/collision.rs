@@ -1,6 +1,7 @@
 //! A robot's collision geometry from its URDF: each `<collision>` element made a shape
-//! of cps-geometry — boxes, cylinders, spheres and capsules as they are, meshes read from
-//! their files as convex hulls — carried by the chain frame the element rides on.
+//! of cps-geometry — boxes, cylinders, spheres and capsules as they are, meshes (STL, OBJ,
+//! COLLADA) read from their files as convex hulls — carried by the chain frame the element
+//! rides on.
 //!
 //! Mesh file names are found as ROS tools find them, without a ROS installation:
 //! `package://PKG/path` is looked for as `PKG/path` or `path` in the URDF's folder and the
@@ -41,6 +42,21 @@ impl RobotGeometry {
         let mut touching = self.adjacent;
         touching.extend(self.disabled);
         cps_robot::Shapes::new(self.bodies, touching)
+    }
+}
+
+/// Reads a mesh file — STL, OBJ ([`Mesh::read`]) or COLLADA ([`crate::dae::read_dae`]),
+/// by its extension — each coordinate multiplied by `scale`: the mesh and how many edges
+/// of holes it has.
+pub fn read_mesh(path: &Path, scale: [f64; 3]) -> Result<(Mesh, usize), String> {
+    let dae = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("dae"));
+    if dae {
+        crate::dae::read_dae(path, scale)
+    } else {
+        Mesh::read(path, scale).map_err(|e| e.to_string())
     }
 }
 
@@ -109,8 +125,7 @@ pub fn urdf_geometry(chain: &UrdfChain, urdf: &Path) -> Result<RobotGeometry, In
                     Some(h) => h.clone(),
                     None => {
                         let name = key.0.display().to_string();
-                        let (mesh, holes) =
-                            Mesh::read(&key.0, *scale).map_err(|m| at(e.line, m.to_string()))?;
+                        let (mesh, holes) = read_mesh(&key.0, *scale).map_err(|m| at(e.line, m))?;
                         let hull =
                             Arc::new(mesh.hull(&name).map_err(|m| at(e.line, m.to_string()))?);
                         if holes > 0 {

@@ -32,6 +32,7 @@
 pub mod calibration;
 pub mod collide;
 pub mod collision;
+pub mod dae;
 pub mod export;
 pub mod limits;
 pub mod mocap;

@@ -6,8 +6,8 @@
 //! `shape = "box" | "sphere" | "cylinder" | "capsule" | "mesh"`, `xyz` and `rpy` (its pose
 //! in the world frame: metres, and radians as URDF's roll, pitch, yaw), `size = [sx, sy,
 //! sz]` (a box's full edge lengths), `radius`, `length` (a cylinder's or a capsule's, about
-//! its z axis), `file` (a mesh, STL or OBJ, relative to the scene file; collided as its
-//! convex hull), `touch` (the links that may touch it: the link a robot stands on, the
+//! its z axis), `file` (a mesh, STL, OBJ or COLLADA, relative to the scene file; collided
+//! as its convex hull), `touch` (the links that may touch it: the link a robot stands on, the
 //! fingers that press a table).
 //!
 //! The robot's own shapes and the shaped obstacles are what the guard checks every plan
@@ -408,9 +408,9 @@ fn shaped_obstacle(v: &ObstacleEntry, path: &Path) -> Result<cps_geometry::Obsta
                 .unwrap_or(Path::new("."))
                 .join(v.file.as_deref().unwrap_or_default());
             let name = file.display().to_string();
-            cps_geometry::Mesh::read(&file, [1.0; 3])
-                .and_then(|(m, _)| m.hull(&name))
-                .map(|h| Shape::Convex(std::sync::Arc::new(h)))
+            let hull = crate::collision::read_mesh(&file, [1.0; 3])
+                .and_then(|(m, _)| m.hull(&name).map_err(|e| e.to_string()))?;
+            Ok(Shape::Convex(std::sync::Arc::new(hull)))
         }
     }
     .map_err(|e| e.to_string())?;
