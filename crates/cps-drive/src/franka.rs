@@ -239,10 +239,14 @@ pub struct Executed {
     pub how: &'static str,
 }
 
-/// The arm's own model (its flange, its base frame as the world) with its limits: what a
-/// trajectory file for it is checked against.
+/// The arm's own model (its flange, its base frame as the world) with its limits, and its
+/// shapes with the Franka Hand's (the hand franky-sim and most arms carry; an arm without
+/// one is only checked more carefully): what a trajectory file for it is checked against.
 fn arm_model(arm: Arm) -> Result<cps_robot::RobotModel, ExperimentError> {
-    Ok(load_robot(arm.name(), Some("flange"), None)?)
+    let mut model = load_robot(arm.name(), Some("flange"), None)?;
+    let with_hand = load_robot(arm.name(), Some("hand"), None)?;
+    model.shapes = with_hand.shapes;
+    Ok(model)
 }
 
 /// Connects to the Franka of `settings`, behind the guard with `policy`.
