@@ -110,6 +110,19 @@ fn run_and_then(
 /// What ends a robot's far end (its server, its simulator).
 type Kill = Box<dyn FnOnce() + Send>;
 
+/// Every robot still stands within 1 mrad of `q0`.
+fn all_still(robots: &mut [(&str, &mut dyn Robot)], q0: &[f64]) {
+    for (name, r) in robots {
+        let q = r.joint_positions().unwrap();
+        let moved = q
+            .iter()
+            .zip(q0)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(moved < 1e-3, "{name} moved {moved} rad");
+    }
+}
+
 fn reason(e: RobotError) -> Refusal {
     match e {
         RobotError::Refused { reason, .. } => reason,
@@ -246,15 +259,7 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
             .collect();
         println!("refused: {}", said[0]);
         assert!(said.iter().all(|s| *s == said[0]), "{said:#?}");
-        for (name, r) in &mut robots {
-            let q = r.joint_positions().unwrap();
-            let moved = q
-                .iter()
-                .zip(&q0)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
-            assert!(moved < 1e-3, "{name} moved {moved} rad");
-        }
+        all_still(&mut robots, &q0);
     }
     // Into the post: joint 1 swung 1.2 rad clockwise sweeps the arm through it. Every
     // robot refuses it with the same sentence, naming a link and the post, before moving;
@@ -276,15 +281,7 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
         .collect();
     println!("refused: {}", said[0]);
     assert!(said.iter().all(|s| *s == said[0]), "{said:#?}");
-    for (name, r) in &mut robots {
-        let q = r.joint_positions().unwrap();
-        let moved = q
-            .iter()
-            .zip(&q0)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
-        assert!(moved < 1e-3, "{name} moved {moved} rad");
-    }
+    all_still(&mut robots, &q0);
     // Stopped before moving: every robot reports it one way (it was an error on the
     // Franka): a run that ends Stopped with where the robot stands, nothing sent.
     let stopped = StopToken::new();

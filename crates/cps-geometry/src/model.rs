@@ -265,6 +265,17 @@ impl CollisionModel {
         );
     }
 
+    /// How far pair `p`'s two members may have come closer, given each body's motion.
+    #[inline]
+    fn pair_motion(&self, p: usize, moved: &[f64]) -> f64 {
+        let (a, b) = self.pairs[p];
+        moved[a]
+            + match b {
+                Other::Body(j) => moved[j],
+                Other::Obstacle(_) => 0.0,
+            }
+    }
+
     /// The largest distance (m) from the base frame's origin (`frames[0]`) to any point of
     /// a body or any frame's origin at `frames`. Every joint turns the points beyond it
     /// about an axis through a frame's origin, so joints turned by `δ₁ … δₙ` radians move
@@ -297,13 +308,8 @@ impl CollisionModel {
         out: &mut Vec<Contact>,
     ) {
         out.clear();
-        for (p, &(a, b)) in self.pairs.iter().enumerate() {
-            let motion = moved[a]
-                + match b {
-                    Other::Body(j) => moved[j],
-                    Other::Obstacle(_) => 0.0,
-                };
-            if lower[p] - motion >= watch {
+        for (p, low) in lower.iter().enumerate().take(self.pairs.len()) {
+            if low - self.pair_motion(p, moved) >= watch {
                 continue;
             }
             let s = self.distance(p, frames);
@@ -405,13 +411,7 @@ impl PathCheck {
         self.near.clear();
         let mut closest: Option<Contact> = None;
         for p in 0..m.pairs.len() {
-            let (a, b) = m.pairs[p];
-            let motion = self.moved[a]
-                + match b {
-                    Other::Body(j) => self.moved[j],
-                    Other::Obstacle(_) => 0.0,
-                };
-            self.lower[p] -= motion;
+            self.lower[p] -= m.pair_motion(p, &self.moved);
             if self.lower[p] >= self.watch {
                 continue;
             }

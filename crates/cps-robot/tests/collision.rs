@@ -73,6 +73,14 @@ fn swing(to: f64, seconds: f64) -> Plan {
     Plan::new(1e-3, points).unwrap()
 }
 
+/// The plan's first point within the margin, analytically.
+fn first_within(plan: &Plan) -> usize {
+    plan.points()
+        .iter()
+        .position(|q| analytic(q[0]) < MARGIN)
+        .unwrap()
+}
+
 fn robot() -> Guarded<KinematicRobot> {
     let r = KinematicRobot::of_model(model(), &[0.0; 7], 1e-3).unwrap();
     Guarded::new(r, Policy::EXPERIMENT)
@@ -81,12 +89,7 @@ fn robot() -> Guarded<KinematicRobot> {
 #[test]
 fn a_plan_into_an_obstacle_is_refused_at_the_first_millisecond_within_the_margin() {
     let plan = swing(1.5, 3.0);
-    // The first point within the margin, analytically.
-    let first = plan
-        .points()
-        .iter()
-        .position(|q| analytic(q[0]) < MARGIN)
-        .unwrap();
+    let first = first_within(&plan);
     let mut r = robot();
     let e = r.run(&plan, &StopToken::new()).unwrap_err();
     let RobotError::Refused {
@@ -134,11 +137,7 @@ fn a_plan_into_an_obstacle_is_refused_at_the_first_millisecond_within_the_margin
 #[test]
 fn commands_sent_one_at_a_time_are_refused_where_the_plan_would_be() {
     let plan = swing(1.5, 3.0);
-    let first = plan
-        .points()
-        .iter()
-        .position(|q| analytic(q[0]) < MARGIN)
-        .unwrap();
+    let first = first_within(&plan);
     let mut r = robot();
     let stepped = r.stepped().unwrap();
     for (k, q) in plan.points().iter().enumerate().skip(1) {
