@@ -170,19 +170,14 @@ pub struct CollideArgs {
 
 /// `cps-cli collide`: exit 0 when every pair keeps the margin, 1 on a collision.
 pub fn collide(args: &CollideArgs) -> Result<ExitCode> {
-    let (mut model, what) = match &args.scene {
+    let (model, what) = match &args.scene {
         Some(s) => (
             cps_movement::scene::load_scene(s)?.robot,
             s.display().to_string(),
         ),
         None => (args.arm.load()?, args.arm.robot.clone()),
     };
-    if let Some(m) = args.margin {
-        model = model
-            .with_margin(m)
-            .map_err(|e| InputError(format!("--margin: {e}")))?;
-    }
-    let report = cps_movement::collide::check_file(&args.file, &model, args.rate)?;
+    let report = cps_movement::collide::check_file(&args.file, &model, args.rate, args.margin)?;
     let title = format!("{} on {what}:", args.file.display());
     print(&report.answer(title), args.arm.json)?;
     Ok(ExitCode::from(u8::from(!report.ok())))

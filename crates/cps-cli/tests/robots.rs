@@ -1,6 +1,6 @@
 //! End-to-end tests of `cps-cli`'s robot commands without a robot: forward and inverse
-//! kinematics, robot files against the built-in models, the thesis scene, `limits check`
-//! and `retime`.
+//! kinematics, robot files against the built-in models, the thesis scene, `limits check`,
+//! `retime` and `collide`; an experiment's obstacles and clearance.
 
 mod common;
 
@@ -669,4 +669,92 @@ fn collide_finds_the_shelf_on_the_way_and_lists_each_rows_near_pairs() {
     let mut a = args(&through, &with_shelf);
     a.extend(["--robot".into(), "ur3".into()]);
     assert_eq!(run(a).status.code(), Some(2));
+}
+
+const JOINT: &str = include_str!("../../../experiments/viapoint_joint.toml");
+
+/// `[[obstacle]]` in an experiment file, in the scene files' form: a shelf on the joint
+/// movement's way makes its execution a collision the guard refuses (a failed run naming
+/// the shelf); one around the robot's start, one without a robot and one with a name the
+/// scene already has are refused before anything runs, with their place.
+#[test]
+fn an_experiments_obstacles_join_its_scenes_world() {
+    let dir = tempfile::tempdir().unwrap();
+    let fast = JOINT.replace("generations = 15 ", "generations = 3  ");
+    let ball = |name: &str, at: [f64; 3], radius: f64| {
+        format!(
+            "\n[[obstacle]]\nname = \"{name}\"\nshape = \"sphere\"\nxyz = [{}, {}, {}]\nradius = {radius}\n",
+            at[0], at[1], at[2]
+        )
+    };
+    // A ball on via point p2, which the tool passes.
+    let file = write(
+        dir.path(),
+        "shelf.toml",
+        &(fast.clone() + &ball("shelf", [1.12, 0.37, 1.45], 0.05)),
+    );
+    let out = dir.path().join("shelf");
+    let (o, err) = common::run_quiet(&file, &out);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    let s = common::json(&out.join("summary.json"));
+    let failure = s["failure"].as_str().unwrap();
+    assert!(failure.contains("and `shelf` at t = "), "{failure}");
+    // Around the start (the tool at p0): refused where it stands in the file.
+    common::refused(
+        dir.path(),
+        "start",
+        &(fast.clone() + &ball("cup", [0.75, 0.02, 1.87], 0.06)),
+        "[[obstacle]]: at the scene's start, `panda_",
+    );
+    // The scene's table is taken.
+    common::refused(
+        dir.path(),
+        "taken",
+        &(fast.clone() + &ball("table", [2.0, 0.0, 1.0], 0.1)),
+        "not an object's or another obstacle's (got `table`)",
+    );
+    // Without a robot there is no world to put it in.
+    let plain = std::fs::read_to_string(repo("experiments/viapoint.toml")).unwrap();
+    common::refused(
+        dir.path(),
+        "no_robot",
+        &(plain + &ball("shelf", [1.12, 0.37, 1.45], 0.05)),
+        "[[obstacle]] places things in the robot's world, and this experiment has no [robot]",
+    );
+}
+
+/// `[joint] clearance` needs shapes to keep apart: without a robot, with a robot that has
+/// none, or a weight without a clearance, the file is refused with its place.
+#[test]
+fn a_clearance_is_refused_where_nothing_can_keep_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let with = |extra: &str| JOINT.replace("[joint]\n", &format!("[joint]\n{extra}"));
+    assert_ne!(with("x"), JOINT);
+    common::refused(
+        dir.path(),
+        "weight",
+        &with("clearance_weight = 10.0\n"),
+        "[joint] `clearance_weight` weighs a `clearance`: give one",
+    );
+    common::refused(
+        dir.path(),
+        "negative",
+        &with("clearance = -0.01\n"),
+        "[joint] `clearance` must be finite, ≥ 0",
+    );
+    // A robot without collision geometry (a TOML robot file) cannot keep one.
+    let scene = std::fs::read_to_string(repo("configs/scenes/thesis.toml"))
+        .unwrap()
+        .replace(
+            "model = \"panda\"",
+            &format!("model = \"{}\"", repo("configs/robots/panda.toml")),
+        );
+    let scene = scene[..scene.find("# The table the robot stands on").unwrap()].to_string();
+    std::fs::write(dir.path().join("toml_robot.toml"), scene).unwrap();
+    common::refused(
+        dir.path(),
+        "shapeless",
+        &with("clearance = 0.02\n").replace("scene = \"thesis\"", "scene = \"toml_robot.toml\""),
+        "[joint] `clearance` keeps the robot's collision shapes apart, and this experiment's robot has none",
+    );
 }

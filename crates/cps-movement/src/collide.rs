@@ -119,9 +119,25 @@ pub fn check_samples(
     })
 }
 
-/// Checks a joint trajectory file against `robot`'s shapes at `rate` Hz.
-pub fn check_file(path: &Path, robot: &RobotModel, rate: f64) -> Result<CollideReport, InputError> {
+/// Checks a joint trajectory file against `robot`'s shapes at `rate` Hz, keeping `margin`
+/// (m) when given (`--margin`) instead of the robot's.
+pub fn check_file(
+    path: &Path,
+    robot: &RobotModel,
+    rate: f64,
+    margin: Option<f64>,
+) -> Result<CollideReport, InputError> {
     check_rate(rate)?;
+    let kept;
+    let robot = match margin {
+        Some(m) => {
+            kept = robot
+                .with_margin(m)
+                .map_err(|e| InputError(format!("--margin: {e}")))?;
+            &kept
+        }
+        None => robot,
+    };
     let traj = read_joint_trajectory(path, robot.chain.dof())?;
     check_samples(robot, &traj, rate).map_err(|e| InputError(format!("{}: {e}", path.display())))
 }
