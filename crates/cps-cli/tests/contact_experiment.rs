@@ -90,6 +90,17 @@ fn the_shipped_contact_experiment_presses_the_simulated_table() {
         "mean estimate at 10 N: {mean_est:.2} N; MuJoCo's mean force in contact {mean_truth:.2} N"
     );
     assert!((mean_est - 10.0).abs() < 1.0 && (mean_truth - 10.0).abs() < 1.5);
+    // A lamp hanging where the approach starts (`above`, in the world: the scene's base at
+    // (0.42244, 0.02, 0.74177) plus (0.45, 0, 0.47)): the free motion there is refused by
+    // the guard, naming it, and the arm does not move.
+    let lamp = "\n[[obstacle]]\nname = \"lamp\"\nshape = \"sphere\"\nxyz = [0.87244, 0.02, 1.21177]\nradius = 0.06\n";
+    let file = write(dir.path(), "lamp.toml", &(on(&sim.host) + lamp));
+    let (o, err) = run(&file, &dir.path().join("lamp"));
+    assert_ne!(o.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("the free motion above the surface") && err.contains("and `lamp` at t = "),
+        "{err}"
+    );
 }
 
 #[test]

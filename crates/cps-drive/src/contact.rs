@@ -599,6 +599,10 @@ pub struct RobotAt {
     /// Where its joint torques are measured: [`Drive::Rigid`] after the gears (a Franka's
     /// sensors), [`Drive::FrankySim`] before franky-sim's rotor inertia and friction.
     pub drive: Drive,
+    /// The world its free motions are checked in, in the robot's base frame: the arm with
+    /// its hand among obstacles, the table it presses among the contacts allowed (None:
+    /// the arm and hand alone).
+    pub world: Option<std::sync::Arc<cps_robot::Shapes>>,
 }
 
 fn robot_error(e: cps_franka::FrankaError) -> ExperimentError {
@@ -651,7 +655,10 @@ pub fn contact_on_robot(
 ) -> Result<ContactOutcome, ExperimentError> {
     plan.check()?;
     let mut plan = plan.clone();
-    let model = cps_movement::robot_file::load_robot(robot.arm.name(), Some("hand"), None)?;
+    let mut model = cps_movement::robot_file::load_robot(robot.arm.name(), Some("hand"), None)?;
+    if let Some(world) = &robot.world {
+        model.shapes = Some(world.clone());
+    }
     let settings = FrankaSettings {
         host: robot.host.clone(),
         arm: robot.arm,

@@ -89,6 +89,7 @@ impl Franka {
                 ))
                 .py_err()
             })?,
+            world: None,
         })
     }
 }

@@ -56,11 +56,37 @@ pub(crate) fn run(
             InputError("kind = \"contact\" needs [robot] backend = \"franka\"".into()).into(),
         );
     };
+    // The scene's world (its table, the experiment's obstacles with the contacts they
+    // allow) in the robot's base frame, where the task moves.
+    let world = match exp.robot.as_ref().and_then(|r| {
+        r.model
+            .shapes
+            .as_ref()
+            .map(|s| (s, r.setup.chain.base().inverse()))
+    }) {
+        Some((shapes, to_base)) => {
+            let obstacles = shapes
+                .obstacles()
+                .iter()
+                .map(|o| {
+                    let mut o = o.clone();
+                    o.pose = to_base * o.pose;
+                    o
+                })
+                .collect();
+            let placed = shapes
+                .with_obstacles(obstacles, shapes.allowed().to_vec())
+                .map_err(ExperimentError::Message)?;
+            Some(std::sync::Arc::new(placed))
+        }
+        None => None,
+    };
     let robot = RobotAt {
         host: host.clone(),
         arm: *arm,
         realtime: *realtime,
         drive: spec.drive,
+        world,
     };
     let plan = &spec.plan;
     let out = contact_on_robot(&robot, plan, ctx.stop)?;
