@@ -550,7 +550,10 @@ pub fn learn_joint_space(
             ));
         }
     }
-    let configs = check_way_points(task, &config.robot)?;
+    let mut configs = check_way_points(task, &config.robot)?;
+    if let Some(c) = &config.clearance {
+        configs = crate::robot::clear_way_points(task, &config.robot, c, configs)?;
+    }
     let n = configs.len();
     let dof = config.robot.chain.dof();
     let mut dmp_config = task.dmp;

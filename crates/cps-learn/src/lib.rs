@@ -66,7 +66,8 @@ pub use pose::{
     learn_pose,
 };
 pub use robot::{
-    RobotSetup, check_way_points, execute_trajectory, execute_trajectory_from, targets_at,
+    CLEAR_TRIES, RobotSetup, check_way_points, clear_way_points, execute_trajectory,
+    execute_trajectory_from, targets_at,
 };
 pub use space::{Parametrisation, SearchSpace};
 pub use task::{

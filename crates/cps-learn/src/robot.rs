@@ -72,6 +72,79 @@ pub fn check_way_points(
     Ok(out)
 }
 
+/// How many other inverse-kinematics solutions [`clear_way_points`] tries for a way
+/// configuration that does not keep the clearance.
+pub const CLEAR_TRIES: usize = 64;
+
+/// Way configurations ([`check_way_points`]'s) that keep `clearance`: one whose shapes
+/// come closer than `clearance.distance` (the arm into itself or its scene) is replaced by
+/// the inverse-kinematics solution for the same point, from seeded random starts, that
+/// keeps it and lies closest to the configuration before it (so the way stays on one
+/// branch); where none of [`CLEAR_TRIES`] does, the first solution stays (learning's
+/// clearance cost and the guard then judge the movement). Deterministic.
+pub fn clear_way_points(
+    task: &ViaPointTask,
+    robot: &RobotSetup,
+    clearance: &crate::Clearance,
+    configs: Vec<Vec<f64>>,
+) -> Result<Vec<Vec<f64>>, LearnError> {
+    use rand::SeedableRng;
+    let shapes = &clearance.shapes;
+    let keeps = |q: &[f64]| -> Result<bool, LearnError> {
+        Ok(crate::clearance::closest(
+            shapes,
+            &robot.chain,
+            &[0.0],
+            |j| &q[j..=j],
+            clearance.distance,
+        )?
+        .is_none())
+    };
+    let mut points: Vec<&[f64]> = vec![&task.start];
+    points.extend(task.via.iter().map(|v| v.position.as_slice()));
+    points.push(&task.goal);
+    let ik = IkConfig {
+        position_tolerance: 1e-7,
+        restarts: 0,
+        ..IkConfig::default()
+    };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(51);
+    let mut out: Vec<Vec<f64>> = Vec::with_capacity(configs.len());
+    for (k, (q, p)) in configs.into_iter().zip(points).enumerate() {
+        // The start is where the robot stands: it is what it is.
+        if k == 0 || keeps(&q)? {
+            out.push(q);
+            continue;
+        }
+        let before = out
+            .last()
+            .cloned()
+            .unwrap_or_else(|| robot.initial_q.clone());
+        let target = IkTarget::Position(Vector3::new(p[0], p[1], p[2]));
+        let mut best: Option<(f64, Vec<f64>)> = None;
+        for _ in 0..CLEAR_TRIES {
+            let seed = robot.chain.random_configuration(&mut rng);
+            let Ok(sol) = solve_ik(&robot.chain, &target, &seed, &ik) else {
+                continue;
+            };
+            if !keeps(&sol.q)? {
+                continue;
+            }
+            let gap: f64 = sol
+                .q
+                .iter()
+                .zip(&before)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum();
+            if best.as_ref().is_none_or(|(g, _)| gap < *g) {
+                best = Some((gap, sol.q));
+            }
+        }
+        out.push(best.map_or(q, |(_, q)| q));
+    }
+    Ok(out)
+}
+
 /// The positions of a 3-D trajectory at the control period `dt`: samples at `t = k·dt`
 /// for `k = 0 ..= ⌊T/dt⌋` (linear interpolation between grid samples), as position targets,
 /// with their times.

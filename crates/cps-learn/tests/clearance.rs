@@ -166,3 +166,81 @@ fn no_body_moves_further_than_twice_the_reach_times_the_joints_turn() {
         "the bound is not absurdly loose: {tightest}"
     );
 }
+
+/// Inverse kinematics that prefers clear configurations: a ball where the thesis task's
+/// second via configuration puts the elbow makes [`cps_learn::clear_way_points`] choose
+/// another solution for that point — the tool still on it, every body keeping the
+/// clearance — and leaves the configurations that were clear as they were.
+#[test]
+fn a_way_configuration_inside_an_obstacle_is_replaced_by_a_clear_one() {
+    use cps_learn::{RobotSetup, ViaPointTask, check_way_points, clear_way_points};
+    let chain = panda(PandaTool::HandTcp).with_base(Isometry3::translation(0.5396, 0.02, 0.749));
+    let robot = RobotSetup {
+        chain: chain.clone(),
+        initial_q: vec![
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            std::f64::consts::FRAC_PI_2,
+            std::f64::consts::FRAC_PI_4,
+        ],
+        execution: Default::default(),
+    };
+    let task = ViaPointTask::thesis();
+    let configs = check_way_points(&task, &robot).unwrap();
+    // A crude arm: a ball at every link frame's origin (several share one: the links are
+    // checked against the ball only).
+    let bodies: Vec<Body> = (1..=7)
+        .map(|k| Body {
+            link: format!("link{k}"),
+            frame: k,
+            origin: Isometry3::identity(),
+            shape: Shape::sphere(0.06, "a link").unwrap(),
+        })
+        .collect();
+    let touching: Vec<(String, String)> = (1..=7)
+        .flat_map(|a| ((a + 1)..=7).map(move |b| (format!("link{a}"), format!("link{b}"))))
+        .collect();
+    let mut frames = Vec::new();
+    chain.frames_into(&configs[2], &mut frames).unwrap();
+    let elbow = frames[4].translation.vector;
+    let obstacle = Obstacle {
+        name: "ball".into(),
+        pose: Isometry3::translation(elbow.x, elbow.y, elbow.z),
+        shape: Shape::sphere(0.05, "the ball").unwrap(),
+    };
+    let shapes = Shapes::new(bodies, touching)
+        .with_obstacles(vec![obstacle], vec![])
+        .unwrap();
+    let clearance = Clearance {
+        shapes: Arc::new(shapes),
+        distance: 0.02,
+        weight: 1.0,
+        stride: 1,
+    };
+    let keeps = |q: &[f64]| {
+        cps_learn::closest(&clearance.shapes, &chain, &[0.0], |j| &q[j..=j], 0.02)
+            .unwrap()
+            .is_none()
+    };
+    assert!(!keeps(&configs[2]), "the ball is where the elbow is");
+    let clear = clear_way_points(&task, &robot, &clearance, configs.clone()).unwrap();
+    assert_eq!(clear.len(), configs.len());
+    let target = &task.via[1].position;
+    let tool = chain.fk(&clear[2]).unwrap().translation.vector;
+    assert!((tool - Vector3::new(target[0], target[1], target[2])).norm() < 1e-6);
+    assert!(keeps(&clear[2]), "{:?}", clear[2]);
+    assert!(chain.check_within_limits(&clear[2]).is_ok());
+    for k in [0, 1, 3, 4, 5] {
+        if keeps(&configs[k]) {
+            assert_eq!(clear[k], configs[k], "way point {k} was clear and stays");
+        }
+    }
+    // The same twice: deterministic.
+    assert_eq!(
+        clear,
+        clear_way_points(&task, &robot, &clearance, configs).unwrap()
+    );
+}
