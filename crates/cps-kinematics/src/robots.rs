@@ -29,6 +29,19 @@ pub const PANDA_DQ_MAX: [f64; 7] = [2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61
 /// `ready` state and the thesis give it. The one copy cps's code and tests use.
 pub const PANDA_READY: [f64; 7] = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
 
+/// The thesis's initial configuration of its Panda (configs/scenes/thesis.toml): the arm
+/// straight up, the hand turned (q6 = π/2, q7 = π/4). Joint 4 at 0 is just above the
+/// Panda's range; a start state, never commanded further out.
+pub const PANDA_THESIS_START: [f64; 7] = [
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    std::f64::consts::FRAC_PI_2,
+    std::f64::consts::FRAC_PI_4,
+];
+
 /// The Franka Emika Panda in its published modified-DH table (Franka documentation),
 /// base at the world origin, ending at `tool`, with position and speed limits.
 pub fn panda(tool: PandaTool) -> SerialChain {

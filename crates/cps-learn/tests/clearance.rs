@@ -177,15 +177,7 @@ fn a_way_configuration_inside_an_obstacle_is_replaced_by_a_clear_one() {
     let chain = panda(PandaTool::HandTcp).with_base(Isometry3::translation(0.5396, 0.02, 0.749));
     let robot = RobotSetup {
         chain: chain.clone(),
-        initial_q: vec![
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            std::f64::consts::FRAC_PI_2,
-            std::f64::consts::FRAC_PI_4,
-        ],
+        initial_q: cps_kinematics::robots::PANDA_THESIS_START.to_vec(),
         execution: Default::default(),
     };
     let task = ViaPointTask::thesis();

@@ -11,15 +11,7 @@ use cps_learn::{
 use cps_robot::{ExecutionConfig, KinematicRobot, StopToken};
 use nalgebra::Isometry3;
 
-const THESIS_Q0: [f64; 7] = [
-    0.0,
-    0.0,
-    0.0,
-    0.0,
-    0.0,
-    std::f64::consts::FRAC_PI_2,
-    std::f64::consts::FRAC_PI_4,
-];
+const THESIS_Q0: [f64; 7] = cps_kinematics::robots::PANDA_THESIS_START;
 
 fn thesis_robot() -> RobotSetup {
     RobotSetup {
