@@ -92,14 +92,7 @@ pub fn check_samples(
     rate: f64,
 ) -> Result<CollideReport, InputError> {
     let shapes = shapes_of(robot)?;
-    let (t0, dt, commands, _) = at_rate(traj, rate);
-    let plan = cps_robot::Plan::new(dt, commands).map_err(|e| InputError(e.to_string()))?;
-    let collision = cps_robot::check_shapes(shapes, &robot.chain, &plan, dt)
-        .map_err(|e| InputError(e.to_string()))?
-        .map(|mut c| {
-            c.time += t0;
-            c
-        });
+    let collision = first_collision(robot, traj, rate)?;
     let rows = traj
         .times
         .iter()
@@ -117,6 +110,25 @@ pub fn check_samples(
         collision,
         rows,
     })
+}
+
+/// The guard's verdict on a trajectory in memory: its first collision with `robot`'s
+/// shapes at `rate` Hz (None: every pair keeps the margin; an error for a robot without
+/// shapes).
+pub fn first_collision(
+    robot: &RobotModel,
+    traj: &JointTrajectory,
+    rate: f64,
+) -> Result<Option<cps_robot::Collision>, InputError> {
+    let shapes = shapes_of(robot)?;
+    let (t0, dt, commands, _) = at_rate(traj, rate);
+    let plan = cps_robot::Plan::new(dt, commands).map_err(|e| InputError(e.to_string()))?;
+    Ok(cps_robot::check_shapes(shapes, &robot.chain, &plan, dt)
+        .map_err(|e| InputError(e.to_string()))?
+        .map(|mut c| {
+            c.time += t0;
+            c
+        }))
 }
 
 /// Checks a joint trajectory file against `robot`'s shapes at `rate` Hz, keeping `margin`

@@ -24,6 +24,9 @@ const state = {
 const view = { yaw: -0.6, pitch: 0.45, zoom: 0.7, center: [0.8, 0.0, 1.3] };
 const canvas = document.getElementById("canvas");
 const ctx = canvas.getContext("2d");
+// The robot's and the scene's shapes, under the overlay (scene.js); set once /api/robot
+// answers with shapes and the browser has WebGL.
+const glCanvas = document.getElementById("gl");
 
 // ---------------------------------------------------------------- projection
 function rotate(p) {
@@ -56,6 +59,8 @@ function resize() {
   const r = canvas.getBoundingClientRect();
   canvas.width = Math.max(100, Math.round(r.width * devicePixelRatio));
   canvas.height = Math.max(100, Math.round(r.height * devicePixelRatio));
+  glCanvas.width = canvas.width;
+  glCanvas.height = canvas.height;
   draw();
 }
 function line(points, color, width) {
@@ -78,15 +83,35 @@ function marker(p, color, label, square) {
   ctx.font = `${12 * devicePixelRatio}px system-ui`;
   ctx.fillText(label, s[0] + 1.5 * r, s[1] - r);
 }
+// The floor: at the robot's base (or below the lowest way point).
+function floorHeight() {
+  const zs = [state.start[2], state.goal[2], ...state.via.map(v => v.position[2])];
+  return state.robot ? state.robot.points[0][2] : Math.min(...zs) - 0.1;
+}
+// The drawn pose's index into the executed frames, or null before a movement is executed.
+function shownFrame() {
+  const r = state.path && state.path.robot;
+  if (!(r && r.frames.length)) return null;
+  return state.frame < 0 ? r.frames.length - 1 : Math.min(state.frame, r.frames.length - 1);
+}
 function draw() {
   ctx.clearRect(0, 0, canvas.width, canvas.height);
-  // A floor grid, 10 cm squares, at the robot's base (or below the lowest way point).
-  const zs = [state.start[2], state.goal[2], ...state.via.map(v => v.position[2])];
-  const floor = state.robot ? state.robot.points[0][2] : Math.min(...zs) - 0.1;
-  for (let i = -10; i <= 10; i++) {
-    const a = view.center[0] + i * 0.1, b = view.center[1] + i * 0.1;
-    line([[a, view.center[1] - 1, floor], [a, view.center[1] + 1, floor]], "#eee", 1);
-    line([[view.center[0] - 1, b, floor], [view.center[0] + 1, b, floor]], "#eee", 1);
+  const floor = floorHeight();
+  const solid = Scene3D.active;
+  if (solid) {
+    // The shapes at the shown pose, its near pairs coloured (WebGL, under this overlay).
+    const r = state.path && state.path.robot, k = shownFrame();
+    const posed = k !== null && r.poses && r.poses.length;
+    const coloured = Scene3D.draw(view, scale(), posed ? r.poses[k] : state.robot.pose,
+      posed ? r.near[k] : [], state.robot.shapes.margin);
+    document.body.dataset.coloured = coloured.join(",");
+  } else {
+    // A floor grid, 10 cm squares.
+    for (let i = -10; i <= 10; i++) {
+      const a = view.center[0] + i * 0.1, b = view.center[1] + i * 0.1;
+      line([[a, view.center[1] - 1, floor], [a, view.center[1] + 1, floor]], "#eee", 1);
+      line([[view.center[0] - 1, b, floor], [view.center[0] + 1, b, floor]], "#eee", 1);
+    }
   }
   const o = [view.center[0] - 1, view.center[1] - 1, floor];
   line([o, [o[0] + 0.2, o[1], o[2]]], "#d33", 2);
@@ -102,9 +127,8 @@ function draw() {
   const executed = state.path && state.path.robot;
   if (executed && executed.tool.length) line(executed.tool, "#2a9d4b", 1.2);
   const frames = executed && executed.frames.length ? executed.frames : null;
-  const pose = frames ? frames[state.frame < 0 ? frames.length - 1 : Math.min(state.frame, frames.length - 1)]
-    : state.robot && state.robot.points;
-  if (pose) {
+  const pose = frames ? frames[shownFrame()] : state.robot && state.robot.points;
+  if (pose && !solid) {
     line(pose, "#777", 7);
     for (const p of pose) {
       const s = project(p);
@@ -196,6 +220,13 @@ function showNumbers(answer, millis) {
   if (!(robot && robot.limit_usage === null)) { // null while dragging: checked on release
     limits.textContent = robot && robot.limit_lines ? robot.limit_lines.join("\n") : "";
     limits.classList.toggle("violated", Boolean(robot && robot.limit_usage && robot.limit_usage.ok === false));
+    const hit = document.getElementById("collision");
+    const shapes = state.robot && state.robot.shapes;
+    hit.textContent = !robot || robot.unreachable ? ""
+      : !shapes ? (state.robot && state.robot.shapes_note) || ""
+      : robot.collision ? `refused: ${robot.collision}`
+      : `clear: every pair keeps the ${fmt(shapes.margin * 1e3, 1)} mm margin`;
+    hit.classList.toggle("hit", Boolean(robot && robot.collision));
   }
   const body = document.querySelector("#numbers tbody");
   body.innerHTML = "";
@@ -258,7 +289,13 @@ async function learn(solver) {
       document.body.dataset.samples = String(body.t.length);
       document.body.dataset.end = body.position[body.position.length - 1].map(v => v.toFixed(4)).join(",");
       document.body.dataset.robotFrames = String(body.robot ? body.robot.frames.length : 0);
+      // A movement the guard refuses opens at its first pose within the margin.
+      const hits = collisionFrames(body.robot);
+      document.body.dataset.collisionFrames = String(hits.length);
+      if (body.robot && body.robot.collision && hits.length) state.frame = hits[0];
       player();
+      draw();
+      census();
     }
   } catch (e) {
     showError(`the studio did not answer: ${e}`);
@@ -335,6 +372,9 @@ window.studio = {
     draw();
     return learn(solver);
   },
+  // What the 3-D view shows now (Scene3D.census), null without WebGL.
+  census() { draw(); return Scene3D.census(); },
+  view,
   // Where via point i is on the page, CSS pixels.
   screenOf(i) {
     const r = canvas.getBoundingClientRect(), s = project(state.via[i].position);
@@ -517,8 +557,41 @@ let playing = null;
 function player() {
   const frames = state.path && state.path.robot ? state.path.robot.frames.length : 0;
   slider.max = String(Math.max(0, frames - 1));
-  if (state.frame < 0) slider.value = slider.max;
+  slider.value = state.frame < 0 ? slider.max : String(state.frame);
+  strip();
   clock();
+}
+// The poses where a pair comes within the margin (the guard's collisions).
+function collisionFrames(r) {
+  if (!(r && r.near && state.robot && state.robot.shapes)) return [];
+  const margin = state.robot.shapes.margin, out = [];
+  r.near.forEach((n, k) => { if (n.some(p => p.distance < margin)) out.push(k); });
+  return out;
+}
+// Under the slider, each pose's worst pair: red within the margin, orange a near miss.
+function strip() {
+  const c = document.getElementById("strip"), g = c.getContext("2d");
+  g.clearRect(0, 0, c.width, c.height);
+  const r = state.path && state.path.robot;
+  if (!(r && r.near && r.near.length > 1 && state.robot.shapes)) return;
+  const margin = state.robot.shapes.margin, w = c.width / r.near.length;
+  r.near.forEach((n, k) => {
+    if (!n.length) return;
+    const d = Math.min(...n.map(p => p.distance));
+    g.fillStyle = d < margin ? "#db1a1f" : "#ff9419";
+    g.fillRect(k * w, 0, Math.max(w, 1), c.height);
+  });
+}
+// What the 3-D view shows, for tests and scripts: shades among its drawn pixels and how
+// many are the collision's red.
+function census() {
+  const c = Scene3D.census();
+  document.body.dataset.drawnPixels = c ? String(c.drawn) : "0";
+  document.body.dataset.gl = String(Scene3D.active);
+  if (c) {
+    document.body.dataset.shades = String(c.shades);
+    document.body.dataset.redPixels = String(c.red);
+  }
 }
 function clock() {
   const r = state.path && state.path.robot;
@@ -556,6 +629,11 @@ Promise.all([
   fetch("/api/initial").then(r => (r.ok ? r.json() : null)).catch(() => null),
 ]).then(([view, task]) => {
   state.robot = view;
+  if (view && view.shapes && Scene3D.init(glCanvas)) {
+    Scene3D.setShapes(view.shapes);
+    // A floor grid where nothing stands for one (a table would hide it).
+    if (!view.shapes.obstacles.length) Scene3D.setGrid(view.points[0], view.points[0][2]);
+  }
   if (task) adopt(task);
   draw();
   return learn("exact");

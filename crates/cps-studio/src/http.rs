@@ -186,6 +186,7 @@ fn router(shared: Shared) -> Router {
     Router::new()
         .route("/", get(|| async { asset("index.html") }))
         .route("/app.js", get(|| async { asset("app.js") }))
+        .route("/scene.js", get(|| async { asset("scene.js") }))
         .route("/api/viapoint", post(viapoint))
         .route("/api/robot", get(robot))
         .route("/api/initial", get(initial))

@@ -1,6 +1,8 @@
 //! The robot the studio shows: a scene's robot (the thesis's Panda by default), its pose
-//! as points to draw (base, every joint's frame, the tool), and a learned movement
-//! executed on it — the same reachability check and inverse controller the pipelines use.
+//! as points to draw (base, every joint's frame, the tool) and as the shapes the guard
+//! checks (its links' collision hulls and the scene's obstacles, as triangles), and a
+//! learned movement executed on it — the same reachability check, inverse controller and
+//! collision check the pipelines use, with every near miss at its time.
 
 use cps_dmp::Trajectory;
 use cps_kinematics::SerialChain;
@@ -10,6 +12,51 @@ use serde::Serialize;
 
 /// Drawn poses per second of movement (the execution runs at the movement's dt).
 const FRAMES_PER_SECOND: f64 = 25.0;
+
+/// Pairs closer than this (m) are near misses the page colours (those within the robot's
+/// clearance margin, which the guard would refuse, in another colour).
+pub const NEAR_M: f64 = 0.02;
+
+/// A shape to draw: its surface as triangles, in the frame that carries it.
+#[derive(Debug, Clone, Serialize)]
+pub struct ShapeView {
+    /// The link's URDF name, or the obstacle's scene name.
+    pub name: String,
+    /// The robot frame that carries it (0 the base, `k` the link joint `k` moves; an index
+    /// into a pose's frames); None for an obstacle, whose corners are in the world frame.
+    pub frame: Option<usize>,
+    /// Corners, `x y z` after one another (m, in the frame).
+    pub vertices: Vec<f32>,
+    /// Triangles, three corner indices after one another, counter-clockwise from outside.
+    pub triangles: Vec<u32>,
+}
+
+/// The robot's and the scene's shapes, as the guard checks them.
+#[derive(Debug, Clone, Serialize)]
+pub struct ShapesView {
+    /// The robot's bodies (links; a link may have several).
+    pub bodies: Vec<ShapeView>,
+    /// The scene's obstacles.
+    pub obstacles: Vec<ShapeView>,
+    /// The clearance margin the guard keeps (m).
+    pub margin: f64,
+    /// The distance within which a pair is reported as a near miss (m).
+    pub near: f64,
+}
+
+/// Two shapes closer than [`NEAR_M`] around one drawn pose.
+#[derive(Debug, Clone, Serialize)]
+pub struct NearView {
+    /// A body (index into [`ShapesView::bodies`]).
+    pub body: usize,
+    /// The other body, if it is one.
+    pub other_body: Option<usize>,
+    /// The obstacle, if it is one (index into [`ShapesView::obstacles`]).
+    pub obstacle: Option<usize>,
+    /// Their smallest signed distance (m; negative: overlapping) over the executed samples
+    /// the pose stands for.
+    pub distance: f64,
+}
 
 /// The robot of a studio.
 #[derive(Debug, Clone)]
@@ -32,6 +79,13 @@ pub struct RobotView {
     /// The points to draw at the initial configuration: base, each joint's frame origin,
     /// tool (world frame, metres).
     pub points: Vec<[f64; 3]>,
+    /// Its shapes and the scene's (None: the robot has no collision geometry).
+    pub shapes: Option<ShapesView>,
+    /// Why nothing but the skeleton is drawn, when the robot has no shapes.
+    pub shapes_note: Option<String>,
+    /// The frames at the initial configuration: base and each link, each a world pose as
+    /// 3 × 4 numbers (rotation rows, translation last in each row).
+    pub pose: Vec<[f32; 12]>,
 }
 
 /// A learned movement executed on the robot.
@@ -55,6 +109,14 @@ pub struct RobotAnswer {
     pub limit_usage: serde_json::Value,
     /// The same in words, one line per finding.
     pub limit_lines: Vec<String>,
+    /// Per drawn pose: its frames, as [`RobotView::pose`] (empty without shapes).
+    pub poses: Vec<Vec<[f32; 12]>>,
+    /// Per drawn pose: the pairs closer than [`NEAR_M`] over the executed samples since the
+    /// previous pose (empty without shapes).
+    pub near: Vec<Vec<NearView>>,
+    /// With `limits`: the guard's verdict on the executed movement at 1 kHz, the first
+    /// pair closer than the margin in words (None: clear, or not checked).
+    pub collision: Option<String>,
 }
 
 impl StudioRobot {
@@ -74,10 +136,48 @@ impl StudioRobot {
 
     /// The robot at rest.
     pub fn view(&self) -> RobotView {
+        let shapes = self.model.shapes.as_ref().map(|s| {
+            let view = |name: &str,
+                        frame,
+                        pose: &nalgebra::Isometry3<f64>,
+                        shape: &cps_geometry::Shape| {
+                let surface = shape.surface();
+                ShapeView {
+                    name: name.to_string(),
+                    frame,
+                    vertices: surface
+                        .vertices
+                        .iter()
+                        .flat_map(|v| {
+                            let p = pose * nalgebra::Point3::from(*v);
+                            [p.x as f32, p.y as f32, p.z as f32]
+                        })
+                        .collect(),
+                    triangles: surface.triangles.concat(),
+                }
+            };
+            ShapesView {
+                bodies: s
+                    .bodies()
+                    .iter()
+                    .map(|b| view(&b.link, Some(b.frame), &b.origin, &b.shape))
+                    .collect(),
+                obstacles: s
+                    .obstacles()
+                    .iter()
+                    .map(|o| view(&o.name, None, &o.pose, &o.shape))
+                    .collect(),
+                margin: s.margin(),
+                near: NEAR_M,
+            }
+        });
         RobotView {
             name: self.name.clone(),
             dof: self.setup.chain.dof(),
             points: points(&self.setup.chain, &self.setup.initial_q),
+            shapes_note: self.model.shapes_note(),
+            shapes,
+            pose: frames(&self.setup.chain, &self.setup.initial_q),
         }
     }
 
@@ -99,6 +199,9 @@ impl StudioRobot {
             unconverged: 0,
             limit_usage: serde_json::Value::Null,
             limit_lines: Vec::new(),
+            poses: Vec::new(),
+            near: Vec::new(),
+            collision: None,
         };
         match check_way_points(task, &self.setup) {
             Ok(_) => {}
@@ -116,12 +219,24 @@ impl StudioRobot {
                     .map_err(|e| e.to_string())?;
             answer.limit_usage = usage.json();
             answer.limit_lines = usage.lines();
+            if self.model.shapes.is_some() {
+                answer.collision =
+                    cps_movement::collide::first_collision(&self.model, &self.joints(&rec), 1000.0)
+                        .map_err(|e| e.to_string())?
+                        .map(|c| c.to_string());
+            }
         }
         let every = ((1.0 / FRAMES_PER_SECOND) / dt).round().max(1.0) as usize;
+        let mut near = Near::new(self.model.shapes.as_deref(), self.setup.chain.dof());
         for (k, q) in rec.q.iter().enumerate() {
+            near.add(&self.setup.chain, q);
             if k % every == 0 || k + 1 == rec.q.len() {
                 answer.t.push(k as f64 * dt);
                 answer.frames.push(points(&self.setup.chain, q));
+                if near.shapes.is_some() {
+                    answer.poses.push(frames(&self.setup.chain, q));
+                    answer.near.push(near.take());
+                }
             }
         }
         answer.tool = rec.position.clone();
@@ -169,6 +284,85 @@ impl StudioRobot {
         .map_err(|e| e.0)?;
         Ok((format.file_name().to_string(), e.bytes))
     }
+}
+
+/// The closest approach of every near pair over the samples since it was last taken.
+struct Near<'a> {
+    shapes: Option<&'a cps_robot::Shapes>,
+    frames: Vec<nalgebra::Isometry3<f64>>,
+    centres: Vec<nalgebra::Vector3<f64>>,
+    contacts: Vec<cps_geometry::Contact>,
+    /// Per pair: its smallest distance so far (infinite when not near).
+    closest: Vec<f64>,
+}
+
+impl<'a> Near<'a> {
+    fn new(shapes: Option<&'a cps_robot::Shapes>, dof: usize) -> Self {
+        Near {
+            shapes,
+            frames: Vec::with_capacity(dof + 1),
+            centres: Vec::new(),
+            contacts: Vec::new(),
+            closest: vec![f64::INFINITY; shapes.map_or(0, |s| s.model().pair_count())],
+        }
+    }
+
+    fn add(&mut self, chain: &SerialChain, q: &[f64]) {
+        let Some(shapes) = self.shapes else { return };
+        if chain.frames_into(q, &mut self.frames).is_err() {
+            return;
+        }
+        let model = shapes.model();
+        model.within_into(&self.frames, NEAR_M, &mut self.centres, &mut self.contacts);
+        for c in &self.contacts {
+            let d = &mut self.closest[c.pair];
+            *d = d.min(c.separation.distance);
+        }
+    }
+
+    fn take(&mut self) -> Vec<NearView> {
+        let Some(shapes) = self.shapes else {
+            return Vec::new();
+        };
+        let mut out = Vec::new();
+        for (p, d) in self.closest.iter_mut().enumerate() {
+            if d.is_finite() {
+                let (body, other) = shapes.model().pair(p);
+                let (other_body, obstacle) = match other {
+                    cps_geometry::Other::Body(j) => (Some(j), None),
+                    cps_geometry::Other::Obstacle(k) => (None, Some(k)),
+                };
+                out.push(NearView {
+                    body,
+                    other_body,
+                    obstacle,
+                    distance: *d,
+                });
+                *d = f64::INFINITY;
+            }
+        }
+        out
+    }
+}
+
+/// The base's and every link's world pose at `q`, each as 3 × 4 numbers, row by row.
+fn frames(chain: &SerialChain, q: &[f64]) -> Vec<[f32; 12]> {
+    let mut out = Vec::new();
+    if chain.frames_into(q, &mut out).is_err() {
+        return Vec::new();
+    }
+    out.iter()
+        .map(|f| {
+            let m = f.to_homogeneous();
+            let mut a = [0f32; 12];
+            for r in 0..3 {
+                for c in 0..4 {
+                    a[4 * r + c] = m[(r, c)] as f32;
+                }
+            }
+            a
+        })
+        .collect()
 }
 
 /// Base, joint frame origins, tool: the robot's skeleton at `q`.

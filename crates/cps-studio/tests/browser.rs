@@ -2,6 +2,8 @@
 //! Debian, or `$CPS_CHROMIUM`): it loads, learns the thesis task, moves via point p1 by
 //! its address hook (`#move=…`, the page's own code path for a move) and shows the new
 //! path's numbers; a move the API refuses shows the sentence next to the way points.
+//! The robot is drawn with its collision hulls in WebGL, lit and shaded; a movement the
+//! guard refuses opens at its collision, the bodies involved coloured.
 //! Skipped without a browser, except under CI (`CI` set), where `.ci/run` installs it.
 //! Screenshots stay in the test's target directory (`studio-screenshots/`).
 
@@ -81,11 +83,46 @@ fn moving_a_via_point_in_the_browser_redraws_the_path_and_its_numbers() {
     let sentence = after(&refused, "id=\"points-error\">");
     assert!(sentence.starts_with("via[0].position"), "{sentence}");
 
+    // The robot in its world: WebGL draws the hulls and the table, lit and shaded (many
+    // shades of the bodies' one colour), nothing coloured, the guard's verdict "clear".
+    assert_eq!(after(&first, "data-gl=\""), "true");
+    let shades: usize = after(&first, "data-shades=\"").parse().unwrap();
+    assert!(shades > 100, "{shades} shades: lit and shaded");
+    assert_eq!(after(&first, "data-coloured=\""), "");
+    assert_eq!(after(&first, "data-collision-frames=\""), "0");
+    assert!(
+        after(&first, "id=\"collision\">").starts_with("clear: every pair keeps the 5.0 mm margin")
+    );
+    // p2 a centimetre above the table: refused by the guard in a sentence; the slider
+    // opens at the first pose within the margin, where the left finger and the table are
+    // red, and red is on the screen.
+    let into = format!("{}/#move=1,1.0,0.2,0.76,exact", server.url());
+    let hit = dom(&browser, &into);
+    let sentence = after(&hit, "id=\"collision\" class=\"hit\">");
+    assert!(
+        sentence.starts_with("refused: `panda_leftfinger` and `table` at t = 3.9"),
+        "{sentence}"
+    );
+    let frames: usize = after(&hit, "data-collision-frames=\"").parse().unwrap();
+    assert!(frames > 5, "{frames} poses within the margin");
+    let coloured = after(&hit, "data-coloured=\"");
+    for body in ["panda_leftfinger:red", "table:red"] {
+        assert!(coloured.split(',').any(|c| c == body), "{coloured}");
+    }
+    let red: usize = after(&hit, "data-red-pixels=\"").parse().unwrap();
+    assert!(red > 1000, "{red} red pixels");
+    let clock: f64 = after(&hit, "id=\"clock\">")
+        .trim_end_matches(" s")
+        .parse()
+        .unwrap();
+    assert!((3.9..4.0).contains(&clock), "the slider at {clock} s");
+
     // Screenshots to look at.
     let shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("studio-screenshots");
     std::fs::create_dir_all(&shots).unwrap();
     for (name, url) in [
         ("moved.png", url.clone()),
+        ("collision.png", into.clone()),
         (
             "refused.png",
             format!("{}/#move=0,0.9,0.4,1e9", server.url()),

@@ -186,6 +186,26 @@ fn dragging_p1_with_the_mouse_relearns_and_redraws() {
     let server = StudioServer::start(StudioConfig::new("127.0.0.1:0")).unwrap();
     let mut page = Page::open(&browser, &format!("{}/", server.url()));
     page.until("document.body.dataset.learned === '1'");
+    // Turning the view with the mouse (pressed away from every way point) turns the
+    // drawn robot: the view's angles and the 3-D view's pixels change.
+    let shown = page.eval("studio.census()");
+    assert!(shown["drawn"].as_u64() > Some(10_000), "{shown}");
+    let yaw = page.eval("studio.view.yaw");
+    let (ox, oy) = (1200.0, 700.0);
+    page.mouse("mousePressed", ox, oy);
+    for k in 1..=20 {
+        page.mouse("mouseMoved", ox - 4.0 * k as f64, oy);
+    }
+    page.mouse("mouseReleased", ox - 80.0, oy);
+    let turned = page.eval("studio.census()");
+    assert_ne!(page.eval("studio.view.yaw"), yaw, "the view turned");
+    assert_ne!(turned["sum"], shown["sum"], "the drawn robot turned");
+    assert_eq!(
+        page.eval("document.body.dataset.learned"),
+        "1",
+        "nothing re-learned"
+    );
+
     let before = page.eval("studio.state.via[0].position");
     let p1_error_before = page.eval("studio.state.path.via_errors_m[0]");
     let start = page.eval("studio.screenOf(0)");
@@ -278,7 +298,7 @@ fn dragging_p1_with_the_mouse_relearns_and_redraws() {
         base64_decode(png["data"].as_str().unwrap()),
     )
     .unwrap();
-    let weight: usize = ["/", "/app.js"]
+    let weight: usize = ["/", "/app.js", "/scene.js"]
         .iter()
         .map(|p| http_get(server.url().trim_start_matches("http://"), p).len())
         .sum();
