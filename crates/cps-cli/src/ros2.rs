@@ -47,8 +47,8 @@ pub enum Ros2Command {
     /// Record sensor_msgs/JointState as a cps joint CSV (t, then the robot's joints in its
     /// order, matched by name), with a report beside it.
     Record(RecordArgs),
-    /// Show an experiment's learned path, via points, start and goal in RViz or Foxglove
-    /// (visualization_msgs/MarkerArray, latched).
+    /// Show an experiment's learned path, via points, start and goal, its robot and scene
+    /// shapes in RViz or Foxglove (visualization_msgs/MarkerArray, latched).
     Show(ShowArgs),
     /// List what is on the graph: the nodes and their middleware, topics with types and
     /// QoS, services and actions with the nodes at each end.

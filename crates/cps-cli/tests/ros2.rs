@@ -294,23 +294,17 @@ fn bad_ros2_robot_sections_are_named() {
     }
 }
 
-/// `ros2 show`: the thesis's learned path, its four via points, start and goal reach a
-/// viewer (CycloneDDS) that subscribes after cps has published them.
-#[test]
-fn show_puts_the_learned_path_and_its_points_in_a_viewer() {
-    if !graph::inside("show_puts_the_learned_path_and_its_points_in_a_viewer") {
-        return;
-    }
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("vp");
-    let file = common::repo("experiments/viapoint.toml");
-    let (o, err) = common::run_quiet(std::path::Path::new(&file), &out);
+/// `ros2 show FILE` after `run FILE`, and a viewer (CycloneDDS) that subscribes a second
+/// after cps has published: cps's answer and the markers the viewer got.
+fn show_to_a_viewer(file: &str, dir: &std::path::Path) -> (serde_json::Value, serde_json::Value) {
+    let out = dir.join("results");
+    let (o, err) = common::run_quiet(std::path::Path::new(file), &out);
     assert!(o.status.success(), "{err}");
     let shower = Command::new(env!("CARGO_BIN_EXE_cps-cli"))
         .args([
             "ros2",
             "show",
-            &file,
+            file,
             "--seconds",
             "4",
             "--json",
@@ -323,7 +317,7 @@ fn show_puts_the_learned_path_and_its_points_in_a_viewer() {
         .unwrap();
     // The viewer joins a second later: the markers are latched.
     std::thread::sleep(std::time::Duration::from_secs(1));
-    let got = dir.path().join("markers.json");
+    let got = dir.join("markers.json");
     let viewer = graph::Peer::start(&["markers", "/cps/markers", got.to_str().unwrap()]);
     viewer.finish(std::time::Duration::from_secs(30));
     let shown = shower.wait_with_output().unwrap();
@@ -334,13 +328,27 @@ fn show_puts_the_learned_path_and_its_points_in_a_viewer() {
     );
     let answer: serde_json::Value = serde_json::from_slice(&shown.stdout).unwrap();
     assert_eq!(answer["subscribers"], 1, "{answer}");
-    let markers = common::json(&got);
+    (answer, common::json(&got))
+}
+
+/// `ros2 show`: the thesis's learned path, its four via points, start and goal reach a
+/// viewer (CycloneDDS) that subscribes after cps has published them.
+#[test]
+fn show_puts_the_learned_path_and_its_points_in_a_viewer() {
+    if !graph::inside("show_puts_the_learned_path_and_its_points_in_a_viewer") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let file = common::repo("experiments/viapoint.toml");
+    let (answer, markers) = show_to_a_viewer(&file, dir.path());
+    assert_eq!(answer["robot_shapes"], 0, "no [robot]: {answer}");
     let markers = markers.as_array().unwrap();
-    let rows = std::fs::read_to_string(out.join("trajectory.csv"))
+    let rows = std::fs::read_to_string(dir.path().join("results/trajectory.csv"))
         .unwrap()
         .lines()
         .count()
         - 1;
+    assert_eq!(markers.len(), 6);
     assert_eq!(markers[0]["points"].as_array().unwrap().len(), rows);
     assert_eq!(markers[0]["frame_id"], "world");
     let via = markers[1]["points"].as_array().unwrap();
@@ -351,6 +359,111 @@ fn show_puts_the_learned_path_and_its_points_in_a_viewer() {
         serde_json::json!([0.55, -0.57, 1.45])
     );
     assert_eq!(markers[5]["text"], "goal");
+}
+
+/// `ros2 show` of a joint-space experiment on the thesis's Panda: the executed tool's path,
+/// and the robot's collision shapes at its start and the table as triangle lists. Judged
+/// in the world, from what the viewer got: the table's corners span the scene's box, the
+/// robot stands on it, and the fingers are at the task's start (the tool point between
+/// them, thesis Table 3).
+#[test]
+fn show_puts_the_robot_and_its_table_in_a_viewer() {
+    if !graph::inside("show_puts_the_robot_and_its_table_in_a_viewer") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let file = common::repo("experiments/viapoint_joint.toml");
+    let (answer, markers) = show_to_a_viewer(&file, dir.path());
+    let markers = markers.as_array().unwrap();
+    assert_eq!(answer["obstacles"], 1, "{answer}");
+    let robot: Vec<&serde_json::Value> = markers
+        .iter()
+        .filter(|m| m["ns"].as_str().unwrap().starts_with("cps_robot/"))
+        .collect();
+    assert_eq!(robot.len() as u64, answer["robot_shapes"].as_u64().unwrap());
+    assert!(
+        robot.len() >= 10,
+        "links, hand and fingers: {}",
+        robot.len()
+    );
+    // A marker's corners in the world: its pose applied (quaternion x, y, z, w).
+    let world = |m: &serde_json::Value| -> Vec<[f64; 3]> {
+        assert_eq!(m["type"], 11, "a triangle list");
+        let p: Vec<f64> = serde_json::from_value(m["position"].clone()).unwrap();
+        let q: Vec<f64> = serde_json::from_value(m["orientation"].clone()).unwrap();
+        let (x, y, z, w) = (q[0], q[1], q[2], q[3]);
+        let r = [
+            [
+                1.0 - 2.0 * (y * y + z * z),
+                2.0 * (x * y - z * w),
+                2.0 * (x * z + y * w),
+            ],
+            [
+                2.0 * (x * y + z * w),
+                1.0 - 2.0 * (x * x + z * z),
+                2.0 * (y * z - x * w),
+            ],
+            [
+                2.0 * (x * z - y * w),
+                2.0 * (y * z + x * w),
+                1.0 - 2.0 * (x * x + y * y),
+            ],
+        ];
+        let points: Vec<[f64; 3]> = serde_json::from_value(m["points"].clone()).unwrap();
+        assert!(!points.is_empty() && points.len().is_multiple_of(3));
+        points
+            .iter()
+            .map(|v| std::array::from_fn(|i| p[i] + (0..3).map(|j| r[i][j] * v[j]).sum::<f64>()))
+            .collect()
+    };
+    let table = markers
+        .iter()
+        .find(|m| m["ns"] == "cps_scene/table")
+        .unwrap();
+    let corners = world(table);
+    let span = |i: usize| {
+        let v = corners.iter().map(|c| c[i]);
+        (
+            v.clone().fold(f64::INFINITY, f64::min),
+            v.fold(f64::NEG_INFINITY, f64::max),
+        )
+    };
+    // configs/scenes/thesis.toml: centre (0.75, 0, 0.3745), size 1.3 × 1.6 × 0.749.
+    for (i, (lo, hi)) in [(0.1, 1.4), (-0.8, 0.8), (0.0, 0.749)]
+        .into_iter()
+        .enumerate()
+    {
+        let (a, b) = span(i);
+        assert!(
+            (a - lo).abs() < 1e-9 && (b - hi).abs() < 1e-9,
+            "axis {i}: {a}..{b}"
+        );
+    }
+    let lowest = robot
+        .iter()
+        .flat_map(|m| world(m))
+        .map(|c| c[2])
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        (lowest - 0.749).abs() < 0.01,
+        "the robot stands on the table: {lowest}"
+    );
+    // The fingers' corners about the tool point (0.75, 0.02, 1.87).
+    let fingers: Vec<[f64; 3]> = robot
+        .iter()
+        .filter(|m| m["ns"].as_str().unwrap().ends_with("finger"))
+        .flat_map(|m| world(m))
+        .collect();
+    let centre: Vec<f64> = (0..3)
+        .map(|i| fingers.iter().map(|c| c[i]).sum::<f64>() / fingers.len() as f64)
+        .collect();
+    let off =
+        ((centre[0] - 0.75).powi(2) + (centre[1] - 0.02).powi(2) + (centre[2] - 1.87).powi(2))
+            .sqrt();
+    assert!(
+        off < 0.05,
+        "fingers at {centre:?}, {off} m from the tool point"
+    );
 }
 
 /// Ctrl-C during a goal: the goal is cancelled on the server, cps waits for its end and

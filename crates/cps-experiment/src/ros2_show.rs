@@ -1,11 +1,15 @@
 //! `ros2 show`: an experiment's learned path, its via points, start and goal as a latched
-//! `visualization_msgs/MarkerArray` for RViz or Foxglove. (Apart from `ros2.rs`, which
-//! the robot backend uses, because it reads experiment files.)
+//! `visualization_msgs/MarkerArray` for RViz or Foxglove, with the robot of its `[robot]`
+//! at its start (each collision shape the guard checks, namespace `cps_robot/<link>`) and
+//! its scene's obstacles (`cps_scene/<name>`). (Apart from `ros2.rs`, which the robot backend uses,
+//! because it reads experiment files.)
 
 use std::path::Path;
 use std::time::Duration;
 
 use cps_ros2::node::Qos;
+use cps_ros2_msg::msg::Marker;
+use nalgebra::Isometry3;
 use serde_json::json;
 
 use crate::robot_file::Answer;
@@ -65,7 +69,21 @@ pub fn show(
         ))
         .into());
     }
-    let names = ["x", "y", "z"].map(String::from);
+    // A Cartesian kind writes x, y, z; a joint-space kind the executed tool's.
+    let header =
+        std::fs::read_to_string(&csv).map_err(|e| InputError(format!("{}: {e}", csv.display())))?;
+    let columns = if header
+        .lines()
+        .next()
+        .unwrap_or("")
+        .split(',')
+        .any(|c| c == "tool_x")
+    {
+        ["tool_x", "tool_y", "tool_z"]
+    } else {
+        ["x", "y", "z"]
+    };
+    let names = columns.map(String::from);
     let (_, demo) = crate::movement::read_demo(&csv, Some(&names))?;
     let path: Vec<[f64; 3]> = (0..demo.len())
         .map(|k| {
@@ -83,6 +101,9 @@ pub fn show(
     if let Some(m) = markers.markers.iter_mut().find(|m| m.id == 4) {
         m.position = point(&task.goal);
     }
+    let (shapes, robot_line) = robot_markers(exp.robot.as_ref(), &settings.frame)?;
+    let shown = [shapes.0.len(), shapes.1.len()];
+    markers.markers.extend(shapes.0.into_iter().chain(shapes.1));
     let node = node(settings.domain)?;
     let mut writer = node
         .publisher::<cps_ros2_msg::msg::MarkerArray>(&settings.topic, Qos::Latched { depth: 1 })
@@ -100,17 +121,113 @@ pub fn show(
         "markers": markers.markers.len(),
         "path_points": path.len(),
         "via_points": via.len(),
+        "robot_shapes": shown[0],
+        "obstacles": shown[1],
         "subscribers": most,
     });
-    let lines = vec![format!(
-        "showed {} markers ({} path points, {} via points, start and goal) on {} in frame {} for {:.0} s: {} viewer(s) subscribed",
-        markers.markers.len(),
-        path.len(),
-        via.len(),
-        settings.topic,
-        settings.frame,
-        settings.seconds,
-        most
-    )];
+    let lines = vec![
+        format!(
+            "showed {} markers ({} path points, {} via points, start and goal) on {} in frame {} for {:.0} s: {} viewer(s) subscribed",
+            markers.markers.len(),
+            path.len(),
+            via.len(),
+            settings.topic,
+            settings.frame,
+            settings.seconds,
+            most
+        ),
+        robot_line,
+    ];
     Ok(Answer { json, lines })
 }
+
+/// The markers of the robot's shapes at its initial configuration and of its scene's
+/// obstacles, and a line saying what was drawn (or why no robot is).
+#[allow(clippy::type_complexity)]
+fn robot_markers(
+    robot: Option<&crate::robots::RobotChoice>,
+    frame: &str,
+) -> Result<((Vec<Marker>, Vec<Marker>), String), ExperimentError> {
+    let Some(robot) = robot else {
+        return Ok((
+            Default::default(),
+            "no [robot] in the experiment: the path alone".into(),
+        ));
+    };
+    let Some(shapes) = &robot.model.shapes else {
+        return Ok((
+            Default::default(),
+            robot.model.shapes_note().unwrap_or_default(),
+        ));
+    };
+    let mut frames = Vec::new();
+    robot
+        .setup
+        .chain
+        .frames_into(&robot.setup.initial_q, &mut frames)
+        .map_err(|e| InputError(format!("[robot] initial_q: {e}")))?;
+    let marker =
+        |ns: String, id: usize, pose: Isometry3<f64>, shape: &cps_geometry::Shape, color| {
+            let surface = shape.surface();
+            let corners = surface
+                .triangles
+                .iter()
+                .flat_map(|t| t.map(|i| surface.vertices[i as usize]))
+                .collect();
+            let q = pose.rotation.coords;
+            let t = pose.translation.vector;
+            cps_ros2::markers::mesh_marker(
+                frame,
+                &ns,
+                id as i32,
+                ([t.x, t.y, t.z], [q.x, q.y, q.z, q.w]),
+                corners,
+                color,
+            )
+        };
+    let links = shapes
+        .bodies()
+        .iter()
+        .enumerate()
+        .map(|(k, b)| {
+            marker(
+                format!("cps_robot/{}", b.link),
+                k,
+                frames[b.frame] * b.origin,
+                &b.shape,
+                LINK,
+            )
+        })
+        .collect::<Vec<_>>();
+    let obstacles = shapes
+        .obstacles()
+        .iter()
+        .enumerate()
+        .map(|(k, o)| {
+            marker(
+                format!("cps_scene/{}", o.name),
+                k,
+                o.pose,
+                &o.shape,
+                OBSTACLE,
+            )
+        })
+        .collect::<Vec<_>>();
+    let line = format!(
+        "the robot `{}` at its initial configuration ({} shapes, namespaces cps_robot/<link>) and {} obstacle(s) ({}; cps_scene/<name>), as triangle lists",
+        robot.model.name,
+        links.len(),
+        obstacles.len(),
+        shapes
+            .obstacles()
+            .iter()
+            .map(|o| o.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    Ok(((links, obstacles), line))
+}
+
+/// The links' colour (light grey) and the obstacles' (wood, a little transparent).
+const LINK: [f32; 4] = [0.80, 0.82, 0.86, 1.0];
+const OBSTACLE: [f32; 4] = [0.78, 0.68, 0.52, 0.8];

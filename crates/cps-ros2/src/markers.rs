@@ -1,6 +1,7 @@
 //! A learned movement as `visualization_msgs/MarkerArray`: the path as a line strip, the
 //! via points as spheres, the start and goal as larger spheres with their names, all in
-//! one frame, for RViz or Foxglove.
+//! one frame, for RViz or Foxglove; and shapes (a robot's links, a scene's obstacles) as
+//! triangle lists, which both viewers draw without a mesh file.
 
 use cps_ros2_msg::msg::{Header, Marker, MarkerArray};
 
@@ -9,6 +10,34 @@ const SPHERE: i32 = 2;
 const LINE_STRIP: i32 = 4;
 const SPHERE_LIST: i32 = 7;
 const TEXT: i32 = 9;
+const TRIANGLE_LIST: i32 = 11;
+
+/// A shape as a triangle-list marker: `triangles`' corners (in the shape's own frame) at
+/// `pose` (position, quaternion `[x, y, z, w]`) in `frame`, one colour.
+pub fn mesh_marker(
+    frame: &str,
+    ns: &str,
+    id: i32,
+    pose: ([f64; 3], [f64; 4]),
+    triangles: Vec<[f64; 3]>,
+    color: [f32; 4],
+) -> Marker {
+    Marker {
+        header: Header {
+            frame_id: frame.to_string(),
+            ..Header::default()
+        },
+        ns: ns.into(),
+        id,
+        kind: TRIANGLE_LIST,
+        position: pose.0,
+        orientation: pose.1,
+        scale: [1.0; 3],
+        color,
+        points: triangles,
+        ..Marker::default()
+    }
+}
 
 /// The markers of a path (m, in `frame`), its via points and its goal; namespace `cps`.
 pub fn path_markers(frame: &str, path: &[[f64; 3]], via: &[[f64; 3]]) -> MarkerArray {

@@ -460,7 +460,8 @@ def markers(dp, topic, out):
     while time.time() < end:
         for m in take_valid(r):
             json.dump([{"ns": k.ns, "id": k.id, "type": k.type, "frame_id": k.header.frame_id,
-                        "position": list(k.position), "text": k.text,
+                        "position": list(k.position), "orientation": list(k.orientation),
+                        "color": list(k.color), "text": k.text,
                         "points": [[p.x, p.y, p.z] for p in k.points]} for k in m.markers], open(out, "w"))
             return
         time.sleep(0.005)
