@@ -36,6 +36,7 @@ mod executed;
 mod imitation;
 mod joint;
 mod joint_executed;
+mod keep_clear;
 mod lsq;
 mod pose;
 mod robot;
@@ -61,6 +62,7 @@ pub use joint::{
     LIMIT_MARGIN, LimitReport, execute_joint_trajectory, learn_joint_space,
 };
 pub use joint_executed::{ExecutedJointOutcome, ExecutedSearch, OpenRobot, learn_joint_executed};
+pub use keep_clear::{KeepClear, KeptClear, execute_on_model, keep_clear};
 pub use pose::{
     OrientationCostBreakdown, OrientationErrors, OrientationResult, PoseConfig, PoseOutcome,
     learn_pose,

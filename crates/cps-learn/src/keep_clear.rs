@@ -1,0 +1,219 @@
+//! Keeping a task-space movement clear, on the robot's model: the kinds that learn where
+//! the tool goes (a pose, an imitation, a conditioned ProMP) and leave the joints to the
+//! inverse controller judge the joints only once the robot follows the movement. This
+//! stage takes such a movement's parameters θ₀ and finds the θ nearest it, by the kind's
+//! own measure, whose execution keeps the clearance:
+//!
+//! ```text
+//! C(θ) = ‖a(θ)‖² + Σ_k w Σ_p (c − d_p(q_k(θ)))²
+//! ```
+//!
+//! `a(θ)` the kind's anchor residuals (its own cost, or how far the movement strays from
+//! the one learned: zero at θ₀), `q_k(θ)` the joints of the in-process robot — the
+//! model — following the movement's targets one control period after another from the
+//! setup's start, the same controller every backend runs, and the second sum
+//! [`Clearance::residuals`] on them. Levenberg–Marquardt searches θ from θ₀, its Jacobian
+//! by forward differences (one model execution a column, columns in parallel) and kept
+//! while its steps gain (each execution is a thousand inverse-kinematics steps). A
+//! movement whose execution already keeps the clearance is left as it is.
+
+use std::ops::ControlFlow;
+
+use cps_cmaes::GenerationReport;
+use cps_kinematics::IkTarget;
+use cps_robot::{KinematicRobot, Recording, StopToken};
+
+use crate::clearance::{Clearance, ClearanceBuffers, Closest, closest};
+use crate::lsq::{LmSettings, Residuals, levenberg_marquardt};
+use crate::{LearnError, RobotSetup, SearchStats};
+
+/// What [`keep_clear`] keeps, on which model.
+#[derive(Debug, Clone, Copy)]
+pub struct KeepClear<'a> {
+    /// The clearance and its weight.
+    pub clearance: &'a Clearance,
+    /// The robot's model, its start and its controller's settings.
+    pub robot: &'a RobotSetup,
+    /// The control period of the model's execution (s): the movement's targets are one
+    /// per period.
+    pub dt: f64,
+    /// Levenberg–Marquardt's iteration budget.
+    pub iterations: u64,
+}
+
+/// The result of [`keep_clear`].
+#[derive(Debug, Clone)]
+pub struct KeptClear {
+    /// The parameters found (θ₀ when the movement was already clear).
+    pub theta: Vec<f64>,
+    /// The search (none when the movement was already clear: termination `clear`).
+    pub search: SearchStats,
+    /// The anchor's cost `‖a‖²` at θ₀ and at the result.
+    pub anchor: [f64; 2],
+    /// The clearance term's cost at θ₀ and at the result.
+    pub clearance: [f64; 2],
+    /// Where the model's execution of θ₀ and of the result comes closest (within a look
+    /// of 10 cm; None farther).
+    pub closest: [Option<Closest>; 2],
+    /// The model's execution of the result.
+    pub executed: Recording,
+}
+
+/// The movement of `targets(θ)` executed on `keep.robot`'s model from its start.
+pub fn execute_on_model(
+    robot: &RobotSetup,
+    dt: f64,
+    targets: &[IkTarget],
+) -> Result<Recording, LearnError> {
+    let mut model = KinematicRobot::new(robot.chain.clone(), &robot.initial_q, dt)?;
+    Ok(cps_robot::execute(
+        &mut model,
+        &robot.chain,
+        targets,
+        &robot.execution,
+        &StopToken::new(),
+    )?)
+}
+
+/// How far (m) a movement's closest approach is looked for in the report.
+const LOOK: f64 = 0.10;
+
+struct Problem<'a> {
+    keep: &'a KeepClear<'a>,
+    anchor: &'a (dyn Fn(&[f64], &mut Vec<f64>) + Sync),
+    targets: &'a (dyn Fn(&[f64]) -> Vec<IkTarget> + Sync),
+}
+
+impl Problem<'_> {
+    /// The anchor's residuals and the clearance term's on the model's execution of θ.
+    fn split(
+        &self,
+        theta: &[f64],
+        b: &mut ClearanceBuffers,
+    ) -> Option<(Vec<f64>, Vec<f64>, Recording)> {
+        let mut anchor = Vec::new();
+        (self.anchor)(theta, &mut anchor);
+        let rec = execute_on_model(self.keep.robot, self.keep.dt, &(self.targets)(theta)).ok()?;
+        let joints = by_joint(&rec);
+        let mut clear = Vec::with_capacity(rec.q.len());
+        self.keep
+            .clearance
+            .residuals(
+                &self.keep.robot.chain,
+                rec.q.len(),
+                |j| &joints[j],
+                b,
+                &mut clear,
+            )
+            .ok()?;
+        Some((anchor, clear, rec))
+    }
+
+    fn closest(&self, rec: &Recording) -> Option<Closest> {
+        let joints = by_joint(rec);
+        closest(
+            &self.keep.clearance.shapes,
+            &self.keep.robot.chain,
+            &rec.time,
+            |j| &joints[j],
+            LOOK,
+        )
+        .ok()
+        .flatten()
+    }
+}
+
+impl Residuals for Problem<'_> {
+    type Buffers = ClearanceBuffers;
+
+    fn buffers(&self) -> Self::Buffers {
+        ClearanceBuffers::default()
+    }
+
+    fn residuals(&self, theta: &[f64], b: &mut Self::Buffers, out: &mut Vec<f64>) -> bool {
+        out.clear();
+        match self.split(theta, b) {
+            Some((anchor, clear, _)) => {
+                out.extend(anchor);
+                out.extend(clear);
+                true
+            }
+            None => false,
+        }
+    }
+}
+
+/// A recording's joints, joint by joint.
+fn by_joint(rec: &Recording) -> Vec<Vec<f64>> {
+    let dof = rec.q.first().map_or(0, Vec::len);
+    (0..dof)
+        .map(|j| rec.q.iter().map(|q| q[j]).collect())
+        .collect()
+}
+
+fn sum_sq(r: &[f64]) -> f64 {
+    r.iter().map(|x| x * x).sum()
+}
+
+/// Finds the parameters nearest `theta0` (by `anchor`, the kind's residuals) whose
+/// movement (`targets`, one per control period) the robot's model executes keeping the
+/// clearance (see the module documentation). `progress` is called after every iteration
+/// and may stop the search (the best so far is kept).
+pub fn keep_clear(
+    keep: &KeepClear<'_>,
+    theta0: Vec<f64>,
+    anchor: &(dyn Fn(&[f64], &mut Vec<f64>) + Sync),
+    targets: &(dyn Fn(&[f64]) -> Vec<IkTarget> + Sync),
+    progress: &(dyn Fn(&GenerationReport<'_>) -> ControlFlow<()> + Sync),
+) -> Result<KeptClear, LearnError> {
+    if !(keep.dt.is_finite() && keep.dt > 0.0) {
+        return Err(LearnError::task(
+            "clearance",
+            format!("the model's control period must be > 0 (got {})", keep.dt),
+        ));
+    }
+    let problem = Problem {
+        keep,
+        anchor,
+        targets,
+    };
+    let mut b = ClearanceBuffers::default();
+    let (a0, c0, rec0) = problem.split(&theta0, &mut b).ok_or_else(|| {
+        LearnError::Exact("the model cannot execute the learned movement (a configuration inverse kinematics refuses)".into())
+    })?;
+    let closest0 = problem.closest(&rec0);
+    let before = [sum_sq(&a0), sum_sq(&c0)];
+    if before[1] == 0.0 {
+        return Ok(KeptClear {
+            theta: theta0,
+            search: SearchStats {
+                generations: 0,
+                evaluations: 1,
+                non_finite_evaluations: 0,
+                termination: "clear".into(),
+                history: Vec::new(),
+            },
+            anchor: [before[0]; 2],
+            clearance: [0.0; 2],
+            closest: [closest0.clone(), closest0],
+            executed: rec0,
+        });
+    }
+    let settings = LmSettings {
+        max_iterations: keep.iterations,
+        tol: 1e-10,
+        reuse_jacobian: true,
+    };
+    let (theta, search) = levenberg_marquardt(&problem, theta0, settings, progress)?;
+    let (a1, c1, rec1) = problem.split(&theta, &mut b).ok_or_else(|| {
+        LearnError::Exact("the model cannot execute the movement kept clear".into())
+    })?;
+    Ok(KeptClear {
+        theta,
+        search,
+        anchor: [before[0], sum_sq(&a1)],
+        clearance: [before[1], sum_sq(&c1)],
+        closest: [closest0, problem.closest(&rec1)],
+        executed: rec1,
+    })
+}
