@@ -723,24 +723,45 @@ fn an_experiments_obstacles_join_its_scenes_world() {
     );
 }
 
-/// `[joint] clearance` needs shapes to keep apart: without a robot, with a robot that has
-/// none, or a weight without a clearance, the file is refused with its place.
+/// `[clearance]` needs shapes to keep apart and a kind that learns a robot's movement:
+/// without a robot, with a robot that has none, or with a bad distance, weight or budget,
+/// the file is refused with its place; `[joint] clearance` (where it was) names where it
+/// went.
 #[test]
 fn a_clearance_is_refused_where_nothing_can_keep_it() {
     let dir = tempfile::tempdir().unwrap();
-    let with = |extra: &str| JOINT.replace("[joint]\n", &format!("[joint]\n{extra}"));
-    assert_ne!(with("x"), JOINT);
-    common::refused(
-        dir.path(),
-        "weight",
-        &with("clearance_weight = 10.0\n"),
-        "[joint] `clearance_weight` weighs a `clearance`: give one",
-    );
+    let with = |extra: &str| format!("{JOINT}\n[clearance]\n{extra}");
     common::refused(
         dir.path(),
         "negative",
-        &with("clearance = -0.01\n"),
-        "[joint] `clearance` must be finite, ≥ 0",
+        &with("distance = -0.01\n"),
+        "[clearance] `distance` must be finite, ≥ 0",
+    );
+    common::refused(
+        dir.path(),
+        "weight",
+        &with("distance = 0.02\nweight = -1.0\n"),
+        "[clearance] `weight` must be finite, ≥ 0",
+    );
+    common::refused(
+        dir.path(),
+        "iterations",
+        &with("distance = 0.02\niterations = 0\n"),
+        "[clearance] `iterations` must be in [1, 10000] (got 0)",
+    );
+    common::refused(
+        dir.path(),
+        "moved",
+        &JOINT.replace("[joint]\n", "[joint]\nclearance = 0.02\n"),
+        "[joint] `clearance` is `[clearance] distance` (every kind that learns a robot's movement keeps it): move it there",
+    );
+    // A kind without a robot has nothing to keep clear.
+    let plain = std::fs::read_to_string(repo("experiments/viapoint.toml")).unwrap();
+    common::refused(
+        dir.path(),
+        "no_robot",
+        &format!("{plain}\n[clearance]\ndistance = 0.02\n"),
+        "[clearance] keeps a robot's collision shapes apart while it learns, and kind = \"viapoint\" learns no robot's movement here",
     );
     // A robot without collision geometry (a TOML robot file) cannot keep one.
     let scene = std::fs::read_to_string(repo("configs/scenes/thesis.toml"))
@@ -754,7 +775,7 @@ fn a_clearance_is_refused_where_nothing_can_keep_it() {
     common::refused(
         dir.path(),
         "shapeless",
-        &with("clearance = 0.02\n").replace("scene = \"thesis\"", "scene = \"toml_robot.toml\""),
-        "[joint] `clearance` keeps the robot's collision shapes apart, and this experiment's robot has none",
+        &with("distance = 0.02\n").replace("scene = \"thesis\"", "scene = \"toml_robot.toml\""),
+        "[clearance]: the robot `panda` has no collision geometry to keep clear with",
     );
 }

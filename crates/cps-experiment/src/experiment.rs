@@ -41,6 +41,7 @@ struct File {
     promp: Option<Spanned<crate::plan::ProMpSection>>,
     contact: Option<Spanned<crate::sections::contact::ContactSection>>,
     executed: Option<Spanned<crate::plan::ExecutedSection>>,
+    clearance: Option<Spanned<crate::sections::clearance::ClearanceSection>>,
     /// The robot's world beyond its scene's: points and shapes, as in scene files.
     #[serde(default)]
     obstacle: Vec<Spanned<cps_movement::scene::ObstacleEntry>>,
@@ -438,6 +439,7 @@ pub fn parse(
         promp: file.promp.as_ref(),
         contact: file.contact.as_ref(),
         executed: file.executed.as_ref(),
+        clearance: file.clearance.as_ref(),
         obstacle: &file.obstacle,
     };
     let mut plans = crate::plan::parse(&sections, &config)?;
@@ -451,6 +453,7 @@ pub fn parse(
         plots: file.output.plots,
         robot: plans.robot,
         export: plans.export,
+        clearance: plans.clearance,
         estimate: None,
     };
     // What the file asks of the machine, refused beyond the ceilings.
@@ -509,6 +512,7 @@ fn parse_contact(
         promp: None,
         contact: file.contact.as_ref(),
         executed: None,
+        clearance: None,
         obstacle: &file.obstacle,
     };
     let plans = crate::plan::parse(&sections, &config)?;
@@ -534,6 +538,7 @@ fn parse_contact(
         plots: file.output.plots,
         robot: plans.robot,
         export: None,
+        clearance: None,
         estimate: Some(crate::plan::Estimate {
             memory_bytes: samples * 600.0,
             work: samples * 5e4,

@@ -39,6 +39,8 @@ pub struct Experiment {
     pub robot: Option<RobotChoice>,
     /// Retiming and export of the robot's movement (`[export]`, kinds with a robot).
     pub export: Option<crate::export::ExportPlan>,
+    /// The clearance learning keeps (`[clearance]`, kinds that learn a robot's movement).
+    pub clearance: Option<crate::sections::clearance::ClearancePlan>,
     /// What the run needs (memory, work), estimated when the file was read.
     pub estimate: Option<Estimate>,
 }
@@ -173,6 +175,7 @@ pub(crate) struct Plans {
     pub robot: Option<RobotChoice>,
     pub plan: KindPlan,
     pub export: Option<crate::export::ExportPlan>,
+    pub clearance: Option<crate::sections::clearance::ClearancePlan>,
 }
 
 /// Checks that each section belongs to the kind and parses them.
@@ -306,8 +309,7 @@ pub(crate) fn parse(file: &Sections<'_>, learner: &ViaPointConfig) -> Result<Pla
                 robot.as_ref().map(|r| &r.backend),
                 Some(BackendChoice::Dynamics(_))
             );
-            let shapes = robot.as_ref().is_some_and(|r| r.model.shapes.is_some());
-            KindPlan::ViapointJoint(file.joint_plan(dynamics, shapes)?)
+            KindPlan::ViapointJoint(file.joint_plan(dynamics)?)
         }
         Kind::ViapointEnergy => KindPlan::ViapointEnergy(file.energy_plan(learner)?),
         Kind::ViapointPose => match file.orientation {
@@ -324,10 +326,12 @@ pub(crate) fn parse(file: &Sections<'_>, learner: &ViaPointConfig) -> Result<Pla
             contact.expect("a contact file has its plan (above)"),
         )),
     };
+    let clearance = file.clearance_plan(robot.as_ref())?;
     Ok(Plans {
         robot,
         plan,
         export,
+        clearance,
     })
 }
 
@@ -469,6 +473,24 @@ impl Experiment {
                 r.setup.chain.dof(),
                 r.scene,
                 r.describe()
+            ));
+        }
+        if let Some(k) = &self.clearance {
+            let c = &k.clearance;
+            let how = match self.kind() {
+                Kind::ViapointJoint => "in the cost".to_string(),
+                Kind::ViapointExecuted => "in every execution's cost".to_string(),
+                _ => format!(
+                    "after learning, on the model (Levenberg–Marquardt, up to {} iterations)",
+                    k.iterations
+                ),
+            };
+            lines.push(format!(
+                "clearance: {:.1} mm between every pair of the robot's {} collision shapes and its world's {} obstacle(s), weight {:e} per m², {how}",
+                c.distance * 1e3,
+                c.shapes.bodies().len(),
+                c.shapes.obstacles().len(),
+                c.weight
             ));
         }
         if let Some(e) = &self.export {

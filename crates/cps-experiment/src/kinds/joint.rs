@@ -263,20 +263,7 @@ pub(crate) fn run(ctx: &Ctx<'_>, plan: crate::plan::JointPlan) -> Result<Outcome
     let mut config = JointSpaceConfig::new(exp.config.clone(), robot.setup.clone());
     config.limit_weight = plan.limit_weight;
     config.speed_limit_weight = plan.speed_limit_weight;
-    if let Some((distance, weight)) = plan.clearance {
-        let Some(shapes) = robot.model.shapes.clone() else {
-            return Err(ExperimentError::Message(format!(
-                "[joint] `clearance`: the robot `{}` has no collision geometry to keep clear with",
-                robot.model.name
-            )));
-        };
-        config.clearance = Some(cps_learn::Clearance {
-            shapes,
-            distance,
-            weight,
-            stride: cps_learn::CLEARANCE_STRIDE,
-        });
-    }
+    config.clearance = exp.clearance.as_ref().map(|c| c.clearance.clone());
     let mut backend = robot.open()?;
     let outcome = ctx
         .pool
@@ -371,7 +358,7 @@ pub(crate) fn run(ctx: &Ctx<'_>, plan: crate::plan::JointPlan) -> Result<Outcome
                 ClearanceSummary::new(
                     shapes,
                     &config.robot.chain,
-                    plan.clearance.map(|c| c.0),
+                    exp.clearance.as_ref().map(|c| c.clearance.distance),
                     trajectory,
                     &outcome.warm_start_trajectory,
                 )

@@ -38,16 +38,13 @@ pub struct JointPlan {
     /// What the cost judges: by default the execution on a robot with dynamics, the
     /// model on any other.
     pub learn_on: LearnOn,
-    /// The clearance (m) the movement keeps from the robot's own shapes and its world's,
-    /// and its weight per m² (None: not part of the cost).
-    pub clearance: Option<(f64, f64)>,
 }
 
 impl Sections<'_> {
     /// `[joint]`'s weights, by default 1e6 for the position limits and 1e3 for the speeds,
-    /// `learn_on` (`"execution"` needs a robot with dynamics, which `dynamics` says) and
-    /// `clearance` (a robot with collision shapes, which `shapes` says).
-    pub(crate) fn joint_plan(&self, dynamics: bool, shapes: bool) -> Result<JointPlan, InputError> {
+    /// and `learn_on` (`"execution"` needs a robot with dynamics, which `dynamics` says).
+    /// `clearance` and `clearance_weight` moved to `[clearance]`: refused with where.
+    pub(crate) fn joint_plan(&self, dynamics: bool) -> Result<JointPlan, InputError> {
         let section = self.joint.map(Spanned::get_ref);
         let weight = |v: Option<&Spanned<f64>>, name: &str, default: f64| match v {
             Some(v) => self.within(
@@ -81,34 +78,25 @@ impl Sections<'_> {
                 }
             }
         };
-        let clearance = match section.and_then(|s| s.clearance.as_ref()) {
-            Some(c) => {
-                let d = self.within(c, "[joint] `clearance`", 0.0, 0.5, " m")?;
-                if !shapes {
-                    return Err(self.err(
-                        &c.span(),
-                        "[joint] `clearance` keeps the robot's collision shapes apart, and this experiment's robot has none (a built-in Franka, or a URDF with <collision> elements)".into(),
-                    ));
-                }
-                let w = weight(
-                    section.and_then(|s| s.clearance_weight.as_ref()),
-                    "clearance_weight",
-                    1e6,
-                )?;
-                Some((d, w))
+        // Kept by every kind that learns a robot's movement now: named where it went.
+        for (v, name) in [
+            (
+                section.and_then(|s| s.clearance.as_ref()),
+                "clearance` is `[clearance] distance",
+            ),
+            (
+                section.and_then(|s| s.clearance_weight.as_ref()),
+                "clearance_weight` is `[clearance] weight",
+            ),
+        ] {
+            if let Some(v) = v {
+                return Err(self.err(
+                    &v.span(),
+                    format!("[joint] `{name}` (every kind that learns a robot's movement keeps it): move it there"),
+                ));
             }
-            None => {
-                if let Some(w) = section.and_then(|s| s.clearance_weight.as_ref()) {
-                    return Err(self.err(
-                        &w.span(),
-                        "[joint] `clearance_weight` weighs a `clearance`: give one".into(),
-                    ));
-                }
-                None
-            }
-        };
+        }
         Ok(JointPlan {
-            clearance,
             learn_on,
             limit_weight: weight(
                 section.and_then(|s| s.limit_weight.as_ref()),

@@ -4,8 +4,10 @@
 //! [`energy`], `[orientation]` in [`pose`], `[executed]`, `[contact]`). `Sections` holds
 //! a file's optional sections with what names their places in errors; which section
 //! belongs to which kind is decided in [`crate::plan`], the robot (`[robot]`) is chosen in
-//! [`crate::robots`].
+//! [`crate::robots`]. `[clearance]` ([`clearance`]) is read by every kind that learns a
+//! robot's movement.
 
+pub mod clearance;
 pub mod contact;
 pub mod energy;
 pub mod executed;
@@ -98,6 +100,7 @@ pub(crate) struct Sections<'a> {
     pub promp: Option<&'a Spanned<promp::ProMpSection>>,
     pub executed: Option<&'a Spanned<executed::ExecutedSection>>,
     pub contact: Option<&'a Spanned<contact::ContactSection>>,
+    pub clearance: Option<&'a Spanned<clearance::ClearanceSection>>,
     /// `[[obstacle]]`: the robot's world beyond its scene's.
     pub obstacle: &'a [Spanned<cps_movement::scene::ObstacleEntry>],
 }
