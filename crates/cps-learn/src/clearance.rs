@@ -220,6 +220,18 @@ impl Clearance {
         Ok(())
     }
 
+    /// The term's residuals on a robot's recording (its joints at every recorded sample).
+    pub fn residuals_of_recording(
+        &self,
+        chain: &SerialChain,
+        recording: &cps_robot::Recording,
+        b: &mut ClearanceBuffers,
+        out: &mut Vec<f64>,
+    ) -> Result<(), KinematicsError> {
+        let joints = by_joint(&recording.q);
+        self.residuals(chain, recording.q.len(), |j| &joints[j], b, out)
+    }
+
     /// The term's cost on the joint movement (see [`Clearance::residuals`]).
     pub fn cost<'a>(
         &self,
@@ -232,6 +244,12 @@ impl Clearance {
         self.residuals(chain, samples, positions, b, &mut out)?;
         Ok(out.iter().map(|r| r * r).sum())
     }
+}
+
+/// Samples (each a configuration) joint by joint.
+pub(crate) fn by_joint(q: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let dof = q.first().map_or(0, Vec::len);
+    (0..dof).map(|j| q.iter().map(|s| s[j]).collect()).collect()
 }
 
 /// Where the joint movement `positions(j)` at `times` comes closest among `shapes`' pairs

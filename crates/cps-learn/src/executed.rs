@@ -22,12 +22,36 @@ pub struct ExecutedCost {
     /// limit: keeps a margin to the speed limits.
     #[serde(default)]
     pub speed_usage: f64,
+    /// `w Σ_k Σ_p (c − d_p)²` over the executed joints' pairs closer than the clearance
+    /// `c` ([`crate::Clearance`]; zero without one): added by the caller that keeps one
+    /// ([`ExecutedCost::add_clearance`]).
+    #[serde(default)]
+    pub clearance: f64,
 }
 
 impl ExecutedCost {
     /// The sum of every term.
     pub fn total(&self) -> f64 {
-        self.terms.total() + self.tracking + self.speed_usage
+        self.terms.total() + self.tracking + self.speed_usage + self.clearance
+    }
+
+    /// Adds the clearance term of `recording`'s joints on `chain` (an error if forward
+    /// kinematics refuses a recorded configuration).
+    pub fn add_clearance(
+        &mut self,
+        clearance: &crate::Clearance,
+        chain: &cps_kinematics::SerialChain,
+        recording: &Recording,
+    ) -> Result<(), cps_kinematics::KinematicsError> {
+        let mut r = Vec::with_capacity(recording.q.len());
+        clearance.residuals_of_recording(
+            chain,
+            recording,
+            &mut crate::ClearanceBuffers::default(),
+            &mut r,
+        )?;
+        self.clearance = r.iter().map(|x| x * x).sum();
+        Ok(())
     }
 }
 
@@ -126,6 +150,7 @@ pub fn executed_cost(
             },
             tracking: f64::INFINITY,
             speed_usage: 0.0,
+            clearance: 0.0,
         };
         return (inf, ExecutedErrors::default());
     }
@@ -156,6 +181,7 @@ pub fn executed_cost(
         },
         tracking: weights.tracking * tracked.iter().map(|e| e * e).sum::<f64>(),
         speed_usage: weights.speed_usage * usage.iter().map(|u| u * u).sum::<f64>(),
+        clearance: 0.0,
     };
     let errors = ExecutedErrors {
         goal: goal.sqrt(),

@@ -23,7 +23,7 @@ use cps_cmaes::GenerationReport;
 use cps_kinematics::IkTarget;
 use cps_robot::{KinematicRobot, Recording, StopToken};
 
-use crate::clearance::{Clearance, ClearanceBuffers, Closest, closest};
+use crate::clearance::{Clearance, ClearanceBuffers, Closest, by_joint, closest};
 use crate::lsq::{LmSettings, Residuals, levenberg_marquardt};
 use crate::{LearnError, RobotSetup, SearchStats};
 
@@ -75,6 +75,21 @@ pub fn execute_on_model(
     )?)
 }
 
+/// A via-point task's own residuals over a search space's θ (goal, via points, final
+/// velocity, accelerations, obstacles): the anchor that keeps a task's movement on its
+/// task while [`keep_clear`] bends it.
+pub fn task_anchor<'a>(
+    task: &'a crate::ViaPointTask,
+    dmp: &'a cps_dmp::DiscreteDmp,
+    space: &'a crate::SearchSpace,
+) -> impl Fn(&[f64], &mut Vec<f64>) + Sync + 'a {
+    move |theta, out| {
+        let r = crate::lsq::TaskResiduals { task, dmp, space };
+        let mut b = r.buffers();
+        r.residuals(theta, &mut b, out);
+    }
+}
+
 /// How far (m) a movement's closest approach is looked for in the report.
 const LOOK: f64 = 0.10;
 
@@ -94,7 +109,7 @@ impl Problem<'_> {
         let mut anchor = Vec::new();
         (self.anchor)(theta, &mut anchor);
         let rec = execute_on_model(self.keep.robot, self.keep.dt, &(self.targets)(theta)).ok()?;
-        let joints = by_joint(&rec);
+        let joints = by_joint(&rec.q);
         let mut clear = Vec::with_capacity(rec.q.len());
         self.keep
             .clearance
@@ -110,7 +125,7 @@ impl Problem<'_> {
     }
 
     fn closest(&self, rec: &Recording) -> Option<Closest> {
-        let joints = by_joint(rec);
+        let joints = by_joint(&rec.q);
         closest(
             &self.keep.clearance.shapes,
             &self.keep.robot.chain,
@@ -141,14 +156,6 @@ impl Residuals for Problem<'_> {
             None => false,
         }
     }
-}
-
-/// A recording's joints, joint by joint.
-fn by_joint(rec: &Recording) -> Vec<Vec<f64>> {
-    let dof = rec.q.first().map_or(0, Vec::len);
-    (0..dof)
-        .map(|j| rec.q.iter().map(|q| q[j]).collect())
-        .collect()
 }
 
 fn sum_sq(r: &[f64]) -> f64 {

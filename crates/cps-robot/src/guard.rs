@@ -589,11 +589,9 @@ impl<R: Robot> Robot for Guarded<R> {
 impl<R: Robot> Guarded<R> {
     /// A stepped command refused: what was sent before stands, this one is not sent.
     fn command_refused(&self, breach: &dyn std::fmt::Display) -> RobotError {
-        RobotError::Robot {
+        RobotError::CommandRefused {
             robot: self.robot.name(),
-            message: format!(
-                "a command breaks a limit, so it was not sent (the robot holds the one before): {breach}"
-            ),
+            reason: breach.to_string(),
         }
     }
 

@@ -94,6 +94,17 @@ pub enum RobotError {
         /// Why.
         reason: Refusal,
     },
+    /// The guard refused one command of a stepped run: it was not sent, the robot holds
+    /// the one before and is fine (a caller may put it back and try another movement).
+    #[error(
+        "{robot}: a command breaks a limit, so it was not sent (the robot holds the one before): {reason}"
+    )]
+    CommandRefused {
+        /// The robot (its [`Robot::name`]).
+        robot: String,
+        /// The limit or the collision, in words.
+        reason: String,
+    },
     /// The robot, its connection or its controller failed.
     #[error("{robot}: {message}")]
     Robot {

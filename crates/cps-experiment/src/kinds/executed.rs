@@ -2,7 +2,9 @@
 //! CMA-ES candidate is executed on the robot backend — reset, run, record — by a free
 //! simulator of the pool (`[robot] endpoints`), and judged by what the robot did
 //! ([`cps_learn::executed_cost`]): via-point, goal and final-velocity errors as executed,
-//! the tracking error, the commanded movement's effort. The analytic cost's exact
+//! the tracking error, the commanded movement's effort, and with `[clearance]` how far the
+//! executed joints bring the robot's shapes within the clearance of each other and of its
+//! world's ([`cps_learn::ExecutedCost::add_clearance`]). The analytic cost's exact
 //! optimum is the warm start.
 //!
 //! Each candidate's cost depends on the candidate alone (the backend is reset before
@@ -22,6 +24,7 @@ use cps_learn::{
 use cps_robot::{Recording, Robot, RobotError, StopToken};
 use serde::Serialize;
 
+use super::clearance::{ClearanceSummary, Joints, KeptClearSummary};
 use super::movement_files::movement_files;
 use super::{Ctx, history_table, learn_error, position_figures, search_figure, way_points, worst};
 use crate::ExperimentError;
@@ -32,6 +35,9 @@ use crate::sim_pool::{Dropped, JobError, PoolError, SimulatorPool};
 
 /// One candidate executed and judged.
 struct Judged {
+    /// Why the guard refused a command of it (then it was not executed to the end, and
+    /// costs +∞).
+    refused: Option<String>,
     cost: ExecutedCost,
     errors: ExecutedErrors,
     recording: Recording,
@@ -46,6 +52,7 @@ struct Judge<'a> {
     task: &'a cps_learn::ViaPointTask,
     robot: &'a RobotChoice,
     weights: cps_learn::ExecutedWeights,
+    clearance: Option<&'a cps_learn::Clearance>,
     stop: &'a StopToken,
 }
 
@@ -63,10 +70,31 @@ impl Judge<'_> {
             Err(LearnError::Robot(e @ RobotError::Robot { .. })) => {
                 return Err(JobError::Simulator(e.to_string()));
             }
+            // The guard refused a command (a limit, a collision): the robot holds the one
+            // before and the next candidate puts it back at the start.
+            Err(LearnError::Robot(RobotError::CommandRefused { reason, .. })) => {
+                let (times, _) = targets_at(&trajectory, backend.dt());
+                let (cost, errors) = executed_cost(
+                    self.task,
+                    &trajectory,
+                    &times,
+                    &Recording::default(),
+                    &self.weights,
+                    None,
+                );
+                return Ok(Judged {
+                    refused: Some(reason),
+                    cost,
+                    errors,
+                    recording: Recording::default(),
+                    times,
+                    trajectory,
+                });
+            }
             Err(e) => return Err(JobError::Fatal(e.to_string())),
         };
         let (times, _) = targets_at(&trajectory, backend.dt());
-        let (cost, errors) = executed_cost(
+        let (mut cost, errors) = executed_cost(
             self.task,
             &trajectory,
             &times,
@@ -74,7 +102,12 @@ impl Judge<'_> {
             &self.weights,
             self.robot.setup.chain.velocity_limits(),
         );
+        if let Some(c) = self.clearance {
+            cost.add_clearance(c, &self.robot.setup.chain, &recording)
+                .map_err(|e| JobError::Fatal(format!("the executed joints' shapes: {e}")))?;
+        }
         Ok(Judged {
+            refused: None,
             cost,
             errors,
             recording,
@@ -96,6 +129,11 @@ struct Summary<'a> {
     generations: u64,
     /// Candidates executed and judged: the warm start and every generation's population.
     evaluations: u64,
+    /// Candidates the guard refused a command of (a limit, a collision): not executed to
+    /// the end, costing +∞.
+    refused_candidates: u64,
+    /// With `[clearance]`: the stage that kept the warm start clear on the model.
+    warm_start_kept_clear: Option<KeptClearSummary>,
     termination: String,
     tracking_weight: f64,
     speed_usage_weight: f64,
@@ -105,6 +143,10 @@ struct Summary<'a> {
     cost_terms: cps_learn::CostBreakdown,
     tracking_cost: f64,
     speed_usage_cost: f64,
+    /// The clearance term of the best execution (`[clearance]`; 0 without).
+    clearance_cost: f64,
+    /// How close the best execution and the warm start's come to the robot's shapes.
+    clearance: Option<ClearanceSummary>,
     analytic_cost: f64,
     goal_error_m: f64,
     via_errors_m: &'a [f64],
@@ -147,6 +189,7 @@ pub(crate) fn run(
         task,
         robot,
         weights,
+        clearance: exp.clearance.as_ref().map(|c| &c.clearance),
         stop: ctx.stop,
     };
     // The in-process robot runs one copy per worker thread: the results are the same
@@ -164,8 +207,36 @@ pub(crate) fn run(
             "{endpoint}: the scene has no /{robot_name}/cpsExecutor script, and learning on the executed cost steps thousands of executions: add configs/coppeliasim/cpsExecutor.lua to the scene as a child of /{robot_name} (the stand-in server has it unless started with --without-script)"
         )));
     }
+    let dt = opened
+        .first()
+        .map_or(exp.config.task.dmp.dt, |(_, b)| b.dt());
     let mut pool = SimulatorPool::new(opened);
-    let x0 = optimum.params.clone();
+    let mut x0 = optimum.params.clone();
+    // With [clearance], the warm start is first kept clear on the model: the guard would
+    // refuse every candidate near one that is not.
+    let kept = match &exp.clearance {
+        Some(k) => {
+            let anchor = cps_learn::task_anchor(task, &dmp, &space);
+            let targets = |theta: &[f64]| targets_at(&dmp.rollout(&space.weights(theta)), dt).1;
+            let keep = cps_learn::KeepClear {
+                clearance: &k.clearance,
+                robot: &robot.setup,
+                dt,
+                iterations: k.iterations,
+            };
+            let kept = ctx
+                .pool
+                .install(|| {
+                    cps_learn::keep_clear(&keep, x0.clone(), &anchor, &targets, &|r| {
+                        ctx.generation(r)
+                    })
+                })
+                .map_err(|e| learn_error(e, "keeping the warm start clear on the model"))?;
+            x0.clone_from(&kept.theta);
+            Some(KeptClearSummary::new(&kept))
+        }
+        None => None,
+    };
     let n = x0.len();
     let mut failure = None;
     // The warm start is executed whole on a simulator even once a stop is asked (seconds of
@@ -190,6 +261,21 @@ pub(crate) fn run(
             )));
         }
     };
+    if let Some(reason) = &warm.refused {
+        return Err(ExperimentError::Message(format!(
+            "executing the warm start (the analytic cost's exact optimum{}): the guard refused it: {reason}{}",
+            if kept.is_some() {
+                ", kept clear on the model"
+            } else {
+                ""
+            },
+            if kept.is_some() || robot.model.shapes.is_none() {
+                ""
+            } else {
+                "; [clearance] (a distance) learns a movement that keeps clear of the robot's shapes and its world"
+            }
+        )));
+    }
     let cmaes = CmaesConfig {
         population: config.population,
         ..CmaesConfig::new(config.sigma0, config.seed)
@@ -205,10 +291,12 @@ pub(crate) fn run(
     rules.extend(StopRule::safety_defaults());
     let mut history: Vec<GenerationRecord> = Vec::new();
     let warm_cost = warm.cost.total();
+    let warm_recording = robot.model.shapes.as_ref().map(|_| warm.recording.clone());
     // The best execution so far, kept whole (its recording goes into the results).
     let mut best = warm;
     let mut best_cost = warm_cost;
     let mut evaluations = 1;
+    let mut refused = 0;
     let mut interrupted = false;
     let termination = loop {
         if let Some(t) = es.termination(&rules) {
@@ -236,6 +324,7 @@ pub(crate) fn run(
             }
         };
         evaluations += lambda as u64;
+        refused += judged.iter().filter(|j| j.refused.is_some()).count() as u64;
         let costs: Vec<f64> = judged.iter().map(|j| j.cost.total()).collect();
         // The first of equal costs wins: the same choice for any pool.
         if let Some((i, c)) = costs
@@ -299,6 +388,8 @@ pub(crate) fn run(
         population: es.parameters().lambda,
         generations: history.len() as u64,
         evaluations,
+        refused_candidates: refused,
+        warm_start_kept_clear: kept,
         termination,
         tracking_weight: weights.tracking,
         speed_usage_weight: weights.speed_usage,
@@ -308,6 +399,22 @@ pub(crate) fn run(
         cost_terms: best.cost.terms,
         tracking_cost: best.cost.tracking,
         speed_usage_cost: best.cost.speed_usage,
+        clearance_cost: best.cost.clearance,
+        clearance: match (&robot.model.shapes, &warm_recording) {
+            (Some(shapes), Some(warm)) => Some(
+                ClearanceSummary::new(
+                    shapes,
+                    &robot.setup.chain,
+                    exp.clearance.as_ref().map(|c| c.clearance.distance),
+                    &Joints::of_recording(&best.recording),
+                    &Joints::of_recording(warm),
+                )
+                .map_err(|e| {
+                    ExperimentError::Message(format!("the executed joints' shapes: {e}"))
+                })?,
+            ),
+            _ => None,
+        },
         analytic_cost: task.cost(&best.trajectory),
         goal_error_m: best.errors.goal,
         via_errors_m: &best.errors.via,
@@ -430,6 +537,18 @@ fn lines(ctx: &Ctx<'_>, s: &Summary<'_>, failure: Option<&str>) -> Vec<String> {
             s.max_tracking_error_m * 1e3
         ),
     ];
+    if let Some(k) = &s.warm_start_kept_clear {
+        lines.push(k.line("the warm start"));
+    }
+    if let Some(c) = &s.clearance {
+        lines.push(c.line());
+    }
+    if s.refused_candidates > 0 {
+        lines.push(format!(
+            "  {} candidate(s) refused by the guard (a limit or a collision): not executed to the end, costing +∞",
+            s.refused_candidates
+        ));
+    }
     for d in s.simulators.dropped {
         lines.push(format!(
             "  dropped {} after {} executions: {}",

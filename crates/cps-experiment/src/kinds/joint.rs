@@ -10,6 +10,7 @@ use cps_learn::{
 use cps_robot::Recording;
 use serde::Serialize;
 
+use super::clearance::{ClearanceSummary, Joints};
 use super::movement_files::movement_files;
 use super::{Ctx, learn_error};
 use super::{
@@ -46,75 +47,6 @@ struct Summary<'a> {
     /// with collision geometry).
     #[serde(skip_serializing_if = "Option::is_none")]
     clearance: Option<ClearanceSummary>,
-}
-
-/// How close the learned movement (and the warm start, blind to shapes) comes to the
-/// robot's own shapes and its world's, at the movement's samples.
-#[derive(Serialize)]
-struct ClearanceSummary {
-    /// The clearance the cost kept (`[joint] clearance`, m), if any.
-    kept_m: Option<f64>,
-    /// The learned movement's closest pair (None: none within 10 cm).
-    closest: Option<ClosestPair>,
-    /// The warm start's.
-    warm_start_closest: Option<ClosestPair>,
-}
-
-#[derive(Serialize)]
-struct ClosestPair {
-    first: String,
-    second: String,
-    time_s: f64,
-    distance_m: f64,
-}
-
-impl ClearanceSummary {
-    /// Looks at both movements against `shapes` (pairs within 10 cm).
-    fn new(
-        shapes: &cps_robot::Shapes,
-        chain: &cps_kinematics::SerialChain,
-        kept: Option<f64>,
-        learned: &cps_dmp::Trajectory,
-        warm: &cps_dmp::Trajectory,
-    ) -> Result<Self, cps_kinematics::KinematicsError> {
-        let look = |t: &cps_dmp::Trajectory| {
-            cps_learn::closest(shapes, chain, t.times(), |j| t.position(j), 0.1).map(|c| {
-                c.map(|c| ClosestPair {
-                    first: c.first,
-                    second: c.second,
-                    time_s: c.time,
-                    distance_m: c.distance,
-                })
-            })
-        };
-        Ok(ClearanceSummary {
-            kept_m: kept,
-            closest: look(learned)?,
-            warm_start_closest: look(warm)?,
-        })
-    }
-
-    /// In words, for the run's printout.
-    fn line(&self) -> String {
-        let words = |c: &Option<ClosestPair>| match c {
-            Some(c) => format!(
-                "`{}` and `{}` {:.1} mm {} at {:.2} s",
-                c.first,
-                c.second,
-                1e3 * c.distance_m.abs(),
-                if c.distance_m < 0.0 { "deep" } else { "apart" },
-                c.time_s
-            ),
-            None => "no pair within 100 mm".into(),
-        };
-        format!(
-            "  shapes: closest {}{}; the warm start's {}",
-            words(&self.closest),
-            self.kept_m
-                .map_or(String::new(), |k| format!(" (kept ≥ {:.1} mm)", 1e3 * k)),
-            words(&self.warm_start_closest)
-        )
-    }
 }
 
 /// The second stage on a robot with dynamics: from the model-learned command, the
@@ -359,8 +291,8 @@ pub(crate) fn run(ctx: &Ctx<'_>, plan: crate::plan::JointPlan) -> Result<Outcome
                     shapes,
                     &config.robot.chain,
                     exp.clearance.as_ref().map(|c| c.clearance.distance),
-                    trajectory,
-                    &outcome.warm_start_trajectory,
+                    &Joints::of_trajectory(trajectory),
+                    &Joints::of_trajectory(&outcome.warm_start_trajectory),
                 )
                 .context_with(|| "the learned movement's distances".into())?,
             ),

@@ -19,6 +19,7 @@ use crate::outcome::{
 use crate::plan::Experiment;
 use crate::{ExperimentError, InputError};
 
+pub(crate) mod clearance;
 pub(crate) mod contact;
 pub(crate) mod energy;
 pub(crate) mod executed;
