@@ -14,6 +14,18 @@ pub use crate::sections::robot::{BackendChoice, RobotChoice, RobotSection};
 use crate::{Context, ExperimentError};
 
 impl RobotChoice {
+    /// The period the backend is planned at (s): what a movement's targets are spaced
+    /// by when it runs there, and what learning on the robot's model steps by. A
+    /// CoppeliaSim scene's is its time step, `fallback` until it is open.
+    pub fn planned_every(&self, fallback: f64) -> f64 {
+        match &self.backend {
+            BackendChoice::Kinematic { dt } | BackendChoice::Franka { dt, .. } => *dt,
+            BackendChoice::Ros2(s) => s.dt,
+            BackendChoice::Dynamics(o) => o.dt,
+            BackendChoice::Coppelia { expected_dt, .. } => expected_dt.unwrap_or(fallback),
+        }
+    }
+
     /// A short description for summaries: `kinematic (dt 0.01 s)` or the endpoint.
     pub fn describe(&self) -> String {
         match &self.backend {

@@ -65,7 +65,7 @@ pub use joint_executed::{ExecutedJointOutcome, ExecutedSearch, OpenRobot, learn_
 pub use keep_clear::{KeepClear, KeptClear, execute_on_model, keep_clear, task_anchor};
 pub use pose::{
     OrientationCostBreakdown, OrientationErrors, OrientationResult, PoseConfig, PoseOutcome,
-    learn_pose,
+    keep_pose_clear, learn_pose, pose_targets,
 };
 pub use robot::{
     CLEAR_TRIES, RobotSetup, check_way_points, clear_way_points, execute_trajectory,

@@ -199,6 +199,124 @@ impl Objective for OrientationObjective<'_> {
     }
 }
 
+/// The orientation part's search space: `w_i = θ_i α_z β_z / c_i` (θ in radians).
+fn orientation_scale(task: &crate::ViaPointTask) -> Result<Vec<f64>, LearnError> {
+    let template = task.build_dmp()?;
+    let cfg = template.config();
+    Ok((0..3)
+        .flat_map(|_| {
+            template
+                .basis()
+                .centers()
+                .iter()
+                .map(|c| cfg.alpha_z * cfg.beta_z / c)
+        })
+        .collect())
+}
+
+/// A pose (position `p` and orientation `o` on one time grid) as one tool target per
+/// control period `dt`, orientations interpolated by slerp: what a robot follows.
+pub fn pose_targets(
+    p: &cps_dmp::Trajectory,
+    o: &OrientationTrajectory,
+    dt: f64,
+) -> Vec<cps_kinematics::IkTarget> {
+    let end = p.times().last().copied().unwrap_or(0.0);
+    let n = (end / dt + 1e-9).floor() as usize + 1;
+    (0..n)
+        .map(|k| {
+            let t = k as f64 * dt;
+            let i = o
+                .times
+                .partition_point(|&x| x <= t)
+                .clamp(1, o.times.len().max(2) - 1);
+            let rot = if o.times.len() < 2 {
+                o.orientation[0]
+            } else {
+                let (t0, t1) = (o.times[i - 1], o.times[i]);
+                let f = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+                o.orientation[i - 1].slerp(&o.orientation[i], f)
+            };
+            let pos = nalgebra::Translation3::new(
+                p.position_at(0, t),
+                p.position_at(1, t),
+                p.position_at(2, t),
+            );
+            cps_kinematics::IkTarget::Pose(nalgebra::IsometryMatrix3::from_parts(
+                pos,
+                rot.to_rotation_matrix(),
+            ))
+        })
+        .collect()
+}
+
+/// Bends a learned pose — position and orientation together, since either may fold the
+/// arm into itself or its world — until the robot's model, following it, keeps the
+/// clearance ([`crate::keep_clear`]), anchored by the pose's own costs: the position
+/// task's residuals and the orientation cost's. `outcome` becomes the result: the best
+/// position run's parameters, cost and errors, and the orientation's weights, trajectory,
+/// cost and errors, are those of the bent pose.
+pub fn keep_pose_clear(
+    config: &PoseConfig,
+    outcome: &mut PoseOutcome,
+    keep: &crate::KeepClear<'_>,
+    progress: &(dyn Fn(&GenerationReport<'_>) -> ControlFlow<()> + Sync),
+) -> Result<crate::KeptClear, LearnError> {
+    let task = &config.learner.task;
+    let dmp = outcome.position.dmp.clone();
+    let space = crate::SearchSpace::new(config.learner.parametrisation, &dmp);
+    let scale = orientation_scale(task)?;
+    let quaternion = outcome.orientation.dmp.clone();
+    let rotation = OrientationObjective {
+        config,
+        dmp: &quaternion,
+        scale: &scale,
+    };
+    let np = outcome.position.best().params.len();
+    let position = crate::task_anchor(task, &dmp, &space);
+    let anchor = |theta: &[f64], out: &mut Vec<f64>| {
+        position(&theta[..np], out);
+        let mut r = Vec::new();
+        crate::lsq::Residuals::residuals(&rotation, &theta[np..], &mut (), &mut r);
+        out.extend(r);
+    };
+    let targets = |theta: &[f64]| {
+        pose_targets(
+            &dmp.rollout(&space.weights(&theta[..np])),
+            &quaternion.rollout(&rotation.weights(&theta[np..])),
+            keep.dt,
+        )
+    };
+    let mut theta0 = outcome.position.best().params.clone();
+    theta0.extend(
+        outcome
+            .orientation
+            .weights
+            .iter()
+            .zip(&scale)
+            .map(|(w, s)| w / s),
+    );
+    let kept = crate::keep_clear(keep, theta0, &anchor, &targets, progress)?;
+    // The bent pose becomes the outcome.
+    let optimum = outcome.position.optimum.cost;
+    let best = outcome.position.best_run;
+    let run = &mut outcome.position.runs[best];
+    run.weights = space.weights(&kept.theta[..np]);
+    run.params = kept.theta[..np].to_vec();
+    let traj = dmp.rollout(&run.weights);
+    run.cost = task.cost(&traj);
+    run.breakdown = task.breakdown(&traj);
+    run.errors = task.errors(&traj);
+    run.gap_to_optimum = (run.cost - optimum) / optimum;
+    run.evaluations += kept.search.evaluations;
+    let o = &mut outcome.orientation;
+    o.weights = rotation.weights(&kept.theta[np..]);
+    o.trajectory = o.dmp.rollout(&o.weights);
+    o.breakdown = config.breakdown(&o.trajectory);
+    o.errors = config.errors(&o.trajectory);
+    Ok(kept)
+}
+
 /// The learned orientation part.
 #[derive(Debug, Clone)]
 pub struct OrientationResult {
@@ -256,17 +374,7 @@ pub fn learn_pose(
     let position = learn_via_points(&config.learner, &|_, r| progress(0, r))?;
     let started = Instant::now();
     let dmp = QuaternionDmp::new(task.dmp, config.start_orientation, config.goal_orientation)?;
-    let template = task.build_dmp()?;
-    let cfg = template.config();
-    let scale: Vec<f64> = (0..3)
-        .flat_map(|_| {
-            template
-                .basis()
-                .centers()
-                .iter()
-                .map(|c| cfg.alpha_z * cfg.beta_z / c)
-        })
-        .collect();
+    let scale = orientation_scale(task)?;
     let objective = OrientationObjective {
         config,
         dmp: &dmp,

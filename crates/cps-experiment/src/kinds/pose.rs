@@ -1,8 +1,13 @@
 //! `kind = "viapoint_pose"`: via-point learning of the tool's position and orientation.
+//! With `[robot]` and `[clearance]`, the learned pose is then bent, position and
+//! orientation together, on the robot's model following it, until every pair of shapes
+//! keeps the clearance ([`cps_learn::keep_pose_clear`], the pose's own costs as its
+//! anchor).
 
 use cps_learn::{OrientationCostBreakdown, PoseConfig, PoseOutcome, learn_pose};
 use serde::Serialize;
 
+use super::clearance::KeptClearSummary;
 use super::movement_files::movement_files;
 use super::{Ctx, learn_error};
 use super::{
@@ -33,6 +38,10 @@ struct Summary<'a> {
     final_angular_speed_rad_s: f64,
     orientation_search: &'a cps_learn::SearchStats,
     orientation_seconds: f64,
+    /// With `[clearance]`: the stage that bent the learned position until the robot's
+    /// model, following the pose, kept the clearance.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    kept_clear: Option<KeptClearSummary>,
     /// With `[robot]`: the backend the pose was executed on.
     #[serde(skip_serializing_if = "Option::is_none")]
     backend: Option<String>,
@@ -53,38 +62,26 @@ struct PoseExecution {
     max_rotation_error_deg: f64,
 }
 
-/// The learned pose (position and orientation on one time grid) as one tool target per
-/// control period `dt`, orientations interpolated by slerp.
-fn pose_targets(outcome: &PoseOutcome, dt: f64) -> Vec<cps_kinematics::IkTarget> {
-    let p = outcome.position.best_trajectory();
-    let o = &outcome.orientation.trajectory;
-    let end = p.times().last().copied().unwrap_or(0.0);
-    let n = (end / dt + 1e-9).floor() as usize + 1;
-    (0..n)
-        .map(|k| {
-            let t = k as f64 * dt;
-            let i = o
-                .times
-                .partition_point(|&x| x <= t)
-                .clamp(1, o.times.len().max(2) - 1);
-            let rot = if o.times.len() < 2 {
-                o.orientation[0]
-            } else {
-                let (t0, t1) = (o.times[i - 1], o.times[i]);
-                let f = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
-                o.orientation[i - 1].slerp(&o.orientation[i], f)
-            };
-            let pos = nalgebra::Translation3::new(
-                p.position_at(0, t),
-                p.position_at(1, t),
-                p.position_at(2, t),
-            );
-            cps_kinematics::IkTarget::Pose(nalgebra::IsometryMatrix3::from_parts(
-                pos,
-                rot.to_rotation_matrix(),
-            ))
-        })
-        .collect()
+/// Bends the learned pose until the robot's model, following it, keeps the clearance;
+/// the outcome becomes the bent pose.
+fn keep_pose_clear(
+    ctx: &Ctx<'_>,
+    config: &PoseConfig,
+    k: &crate::sections::clearance::ClearancePlan,
+    robot: &crate::robots::RobotChoice,
+    outcome: &mut PoseOutcome,
+) -> Result<KeptClearSummary, ExperimentError> {
+    let keep = cps_learn::KeepClear {
+        clearance: &k.clearance,
+        robot: &robot.setup,
+        dt: robot.planned_every(ctx.exp.config.task.dmp.dt),
+        iterations: k.iterations,
+    };
+    let kept = ctx
+        .pool
+        .install(|| cps_learn::keep_pose_clear(config, outcome, &keep, &|r| ctx.generation(r)))
+        .map_err(|e| learn_error(e, "keeping the pose clear on the model"))?;
+    Ok(KeptClearSummary::new(&kept))
 }
 
 /// Executes the learned pose on the experiment's robot: the recording, or why not.
@@ -96,7 +93,11 @@ fn execute_pose(
     let mut backend = robot.open().map_err(|e| e.to_string())?;
     cps_robot::move_to(backend.as_mut(), &robot.setup.initial_q, stop)
         .map_err(|e| e.to_string())?;
-    let targets = pose_targets(outcome, backend.dt());
+    let targets = cps_learn::pose_targets(
+        &outcome.position.best_trajectory(),
+        &outcome.orientation.trajectory,
+        backend.dt(),
+    );
     cps_robot::execute(
         backend.as_mut(),
         &robot.setup.chain,
@@ -119,14 +120,20 @@ pub(crate) fn run(ctx: &Ctx<'_>, plan: &crate::plan::PosePlan) -> Result<Outcome
         orientation_solver: plan.method,
     };
     let progress = |_: usize, r: &cps_cmaes::GenerationReport<'_>| ctx.generation(r);
-    let outcome = ctx
+    let mut outcome = ctx
         .pool
         .install(|| learn_pose(&config, &progress))
         .map_err(|e| learn_error(e, "pose run"))?;
+    let complete = !outcome.position.interrupted() && !outcome.orientation.search.interrupted();
+    let kept_clear = match (&exp.clearance, &exp.robot) {
+        (Some(k), Some(robot)) if complete => {
+            Some(keep_pose_clear(ctx, &config, k, robot, &mut outcome)?)
+        }
+        _ => None,
+    };
     ctx.observer.finished();
     let o = &outcome.orientation;
     let best = outcome.position.best();
-    let complete = !outcome.position.interrupted() && !o.search.interrupted();
     let summary = Summary {
         position_cost: best.cost,
         position_gap_to_optimum: best.gap_to_optimum,
@@ -149,6 +156,7 @@ pub(crate) fn run(ctx: &Ctx<'_>, plan: &crate::plan::PosePlan) -> Result<Outcome
         final_angular_speed_rad_s: o.errors.final_angular_speed,
         orientation_search: &o.search,
         orientation_seconds: o.seconds,
+        kept_clear,
         backend: None,
         execution: None,
         limit_usage: None,
@@ -209,6 +217,9 @@ pub(crate) fn run(ctx: &Ctx<'_>, plan: &crate::plan::PosePlan) -> Result<Outcome
         lines.push(format!("  {f}"));
         header.complete = false;
         header.failure = Some(f);
+    }
+    if let Some(k) = &summary.kept_clear {
+        lines.push(k.line("the pose"));
     }
     if let Some(e) = &summary.execution {
         lines.push(format!(
