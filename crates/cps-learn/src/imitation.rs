@@ -56,6 +56,10 @@ pub struct ImitationConfig {
     /// when there are any, they are the demonstrations, and `demonstrations`, `via_std`
     /// and the learner are not used.
     pub given: Vec<GivenDemonstration>,
+    /// A clearance the imitations keep (None: none): each is bent on the robot's model,
+    /// as near the mean demonstration as it can stay, before it is executed
+    /// ([`crate::keep_clear`]).
+    pub clearance: Option<crate::ClearanceStage>,
 }
 
 /// A demonstration given as a path rather than learned.
@@ -81,6 +85,7 @@ impl ImitationConfig {
             ridge_lambda: Lambda::Fixed(1e-12),
             jerk_lambda: Lambda::Auto,
             given: Vec::new(),
+            clearance: None,
         }
     }
 
@@ -191,6 +196,9 @@ pub struct ImitationFit {
     pub trajectory: Trajectory,
     /// The robot's recording of the rollout (if execution was reached).
     pub recording: Option<Recording>,
+    /// With a clearance: how the imitation was kept clear on the model (its weights and
+    /// rollout above are the result).
+    pub kept_clear: Option<crate::KeptClear>,
 }
 
 impl ImitationFit {
@@ -242,6 +250,69 @@ impl ImitationOutcome {
     pub fn mean(&self) -> Option<&[Vec<f64>]> {
         self.fits.first().map(|f| f.imitation.reference.as_slice())
     }
+}
+
+/// Bends an imitation on the robot's model until it keeps `stage`'s clearance, as near
+/// the mean demonstration it was fitted to as it can stay: the anchor is the distance
+/// between its rollout and that mean on the imitation grid, weighted as the task weighs
+/// a via point's (`w_via` per m² of mean squared distance). `fit` becomes the result.
+fn keep_imitation_clear(
+    config: &ImitationConfig,
+    stage: &crate::ClearanceStage,
+    fit: &mut ImitationFit,
+    from: &[f64],
+    dt: f64,
+    progress: &(dyn Fn(&cps_cmaes::GenerationReport<'_>) -> ControlFlow<()> + Sync),
+) -> Result<(), LearnError> {
+    let dmp = fit.imitation.dmp.clone();
+    let reference = &fit.imitation.reference;
+    let n = reference.first().map_or(0, Vec::len);
+    let scale = (config.learner.task.weights.via / n.max(1) as f64).sqrt();
+    let anchor = |w: &[f64], out: &mut Vec<f64>| {
+        let y = dmp.rollout(w);
+        for (d, r) in reference.iter().enumerate() {
+            let p = y.position(d);
+            out.extend((0..n).map(|k| scale * (p[k.min(p.len() - 1)] - r[k])));
+        }
+    };
+    let targets = |w: &[f64]| targets_at(&dmp.rollout(w), dt).1;
+    let robot = RobotSetup {
+        initial_q: from.to_vec(),
+        ..config.robot.clone()
+    };
+    let keep = crate::KeepClear {
+        clearance: &stage.clearance,
+        robot: &robot,
+        dt,
+        iterations: stage.iterations,
+    };
+    let kept = crate::keep_clear(
+        &keep,
+        fit.imitation.weights.clone(),
+        &anchor,
+        &targets,
+        progress,
+    )?;
+    fit.imitation.weights.clone_from(&kept.theta);
+    fit.trajectory = dmp.rollout(&kept.theta);
+    // The fit's errors are the bent rollout's now.
+    let report = &mut fit.imitation.report;
+    for (d, r) in reference.iter().enumerate() {
+        let p = fit.trajectory.position(d);
+        let e: Vec<f64> = (0..n).map(|k| p[k.min(p.len() - 1)] - r[k]).collect();
+        report.rmse[d] = (e.iter().map(|x| x * x).sum::<f64>() / n.max(1) as f64).sqrt();
+        report.max_error[d] = e.iter().fold(0.0, |a: f64, x| a.max(x.abs()));
+        let t = fit.trajectory.times();
+        let h = if t.len() > 1 { t[1] - t[0] } else { 1.0 };
+        report.integrated_squared_jerk[d] = fit
+            .trajectory
+            .acceleration(d)
+            .windows(2)
+            .map(|w| ((w[1] - w[0]) / h).powi(2) * h)
+            .sum();
+    }
+    fit.kept_clear = Some(kept);
+    Ok(())
 }
 
 /// Runs the imitation experiment (see the module documentation) on `backend`.
@@ -422,6 +493,12 @@ pub fn run_imitation(
         let from = d.start_q.as_deref().unwrap_or(&config.robot.initial_q);
         match execute_trajectory_from(backend, &config.robot, &d.trajectory, from, stop) {
             Ok(r) => d.recording = Some(r),
+            // The guard refused it (a limit, a collision): dropped, as an unreachable one
+            // is; the robot is fine.
+            Err(LearnError::Robot(
+                e @ (cps_robot::RobotError::CommandRefused { .. }
+                | cps_robot::RobotError::Refused { .. }),
+            )) => d.dropped = Some(format!("the guard refused it: {e}")),
             Err(e) => {
                 // The backend failed: keep what was executed, say what was not.
                 out.failure = Some(format!("executing demonstration {}: {e}", d.index));
@@ -481,6 +558,7 @@ pub fn run_imitation(
             imitation,
             trajectory,
             recording: None,
+            kept_clear: None,
         });
     }
     out.stage_seconds
@@ -506,6 +584,21 @@ pub fn run_imitation(
         } else {
             config.robot.initial_q.clone()
         };
+        if let Some(stage) = &config.clearance {
+            match keep_imitation_clear(config, stage, fit, &from, dt, &|_| {
+                if stopped() {
+                    ControlFlow::Break(())
+                } else {
+                    ControlFlow::Continue(())
+                }
+            }) {
+                Ok(()) => {}
+                Err(e) => {
+                    out.failure = Some(format!("keeping the {} imitation clear: {e}", fit.method));
+                    return Ok(out);
+                }
+            }
+        }
         match execute_trajectory_from(backend, &config.robot, &fit.trajectory, &from, stop) {
             Ok(r) => fit.recording = Some(r),
             Err(e) => {

@@ -27,6 +27,16 @@ use crate::clearance::{Clearance, ClearanceBuffers, Closest, by_joint, closest};
 use crate::lsq::{LmSettings, Residuals, levenberg_marquardt};
 use crate::{LearnError, RobotSetup, SearchStats};
 
+/// A clearance to keep and the iteration budget of the stage that keeps a task-space
+/// movement clear ([`keep_clear`]): what a kind that learns a robot's movement is given.
+#[derive(Debug, Clone)]
+pub struct ClearanceStage {
+    /// The robot's shapes, the distance and the weight.
+    pub clearance: Clearance,
+    /// Levenberg–Marquardt's iteration budget when a movement is bent on the model.
+    pub iterations: u64,
+}
+
 /// What [`keep_clear`] keeps, on which model.
 #[derive(Debug, Clone, Copy)]
 pub struct KeepClear<'a> {
@@ -88,6 +98,49 @@ pub fn task_anchor<'a>(
         let mut b = r.buffers();
         r.residuals(theta, &mut b, out);
     }
+}
+
+/// The most likely movement of a Gaussian over its parameters (a ProMP's, conditioned
+/// or not: weights with `mean` and covariance `cov`) whose execution on the model keeps
+/// the clearance: [`keep_clear`] from the mean with the whitened distance `L⁻¹(θ − μ)` as
+/// the anchor (`LLᵀ = Σ + εI`, ε a billionth of Σ's largest variance), so its cost is the
+/// Mahalanobis distance `(θ − μ)ᵀ Σ⁻¹ (θ − μ)`, the negative log-likelihood up to a
+/// constant. Directions the distribution pins (a conditioned ProMP's via point) stay all
+/// but fixed; those the demonstrations varied in are where the movement bends.
+pub fn keep_likely_clear(
+    keep: &KeepClear<'_>,
+    mean: &[f64],
+    cov: &nalgebra::DMatrix<f64>,
+    targets: &(dyn Fn(&[f64]) -> Vec<IkTarget> + Sync),
+    progress: &(dyn Fn(&GenerationReport<'_>) -> ControlFlow<()> + Sync),
+) -> Result<KeptClear, LearnError> {
+    let n = mean.len();
+    if cov.nrows() != n || cov.ncols() != n {
+        return Err(LearnError::task(
+            "clearance",
+            format!(
+                "a {}×{} covariance for {n} parameters",
+                cov.nrows(),
+                cov.ncols()
+            ),
+        ));
+    }
+    let largest = (0..n).map(|i| cov[(i, i)]).fold(0.0, f64::max);
+    let jitter = 1e-9 * largest.max(f64::MIN_POSITIVE);
+    let l = (cov + nalgebra::DMatrix::identity(n, n) * jitter)
+        .cholesky()
+        .ok_or_else(|| {
+            LearnError::Exact("the distribution's covariance is not positive definite".into())
+        })?
+        .l();
+    let anchor = |theta: &[f64], out: &mut Vec<f64>| {
+        let d = nalgebra::DVector::from_iterator(n, theta.iter().zip(mean).map(|(a, b)| a - b));
+        match l.solve_lower_triangular(&d) {
+            Some(r) => out.extend(r.iter()),
+            None => out.extend(std::iter::repeat_n(f64::NAN, n)),
+        }
+    };
+    keep_clear(keep, mean.to_vec(), &anchor, targets, progress)
 }
 
 /// How far (m) a movement's closest approach is looked for in the report.

@@ -62,7 +62,10 @@ pub use joint::{
     LIMIT_MARGIN, LimitReport, execute_joint_trajectory, learn_joint_space,
 };
 pub use joint_executed::{ExecutedJointOutcome, ExecutedSearch, OpenRobot, learn_joint_executed};
-pub use keep_clear::{KeepClear, KeptClear, execute_on_model, keep_clear, task_anchor};
+pub use keep_clear::{
+    ClearanceStage, KeepClear, KeptClear, execute_on_model, keep_clear, keep_likely_clear,
+    task_anchor,
+};
 pub use pose::{
     OrientationCostBreakdown, OrientationErrors, OrientationResult, PoseConfig, PoseOutcome,
     keep_pose_clear, learn_pose, pose_targets,

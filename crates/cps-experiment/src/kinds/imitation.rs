@@ -6,6 +6,7 @@ use cps_learn::{ImitationConfig, ImitationOutcome, ImitationStage, ViaPoint};
 use cps_robot::Recording;
 use serde::Serialize;
 
+use super::clearance::KeptClearSummary;
 use super::movement_files::movement_files;
 use super::{Ctx, learn_error};
 use super::{marks, position_figures, solver_name, usage_line};
@@ -98,6 +99,10 @@ struct FitSummary {
     max_error_per_dimension_m: Vec<f64>,
     integrated_squared_jerk_m2_s5: f64,
     condition_number: f64,
+    /// With `[clearance]`: how the imitation was bent on the model to keep it (its
+    /// errors above are the bent imitation's).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    kept_clear: Option<KeptClearSummary>,
     tracking: Option<Tracking>,
     /// Every limit of the robot on the executed movement (its recorded joint positions)
     /// at the controller's 1 kHz: `cps-cli limits check`'s JSON.
@@ -142,6 +147,7 @@ pub(crate) fn pipeline(ctx: &Ctx<'_>) -> Result<Pipeline, ExperimentError> {
     config.ridge_lambda = plan.ridge_lambda;
     config.jerk_lambda = plan.jerk_lambda;
     config.given = plan.takes.clone();
+    config.clearance.clone_from(&exp.clearance);
 
     let mut backend = robot.open()?;
     let progress = |s: ImitationStage, done: usize, total: usize| {
@@ -223,6 +229,7 @@ pub(crate) fn declare(ctx: &Ctx<'_>, run: &Pipeline) -> Result<Outcome, Experime
             max_error_per_dimension_m: r.max_error.clone(),
             integrated_squared_jerk_m2_s5: f.integrated_squared_jerk(),
             condition_number: r.condition_number,
+            kept_clear: f.kept_clear.as_ref().map(KeptClearSummary::new),
             tracking: f.recording.as_ref().map(Tracking::of),
             limit_usage: usage.as_ref().map(crate::limits::LimitsReport::json),
             retiming,
@@ -318,6 +325,12 @@ fn lines(ctx: &Ctx<'_>, o: &ImitationOutcome, backend: &str) -> Vec<String> {
                 .map_or(f64::NAN, |r| r.max_position_error())
                 * 1e3
         ));
+        if let Some(k) = &f.kept_clear {
+            lines.push(
+                KeptClearSummary::new(k)
+                    .line(&format!("the {} imitation", f.method.replace('_', " "))),
+            );
+        }
     }
     lines
 }

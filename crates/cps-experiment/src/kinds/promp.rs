@@ -7,7 +7,9 @@ use cps_robot::Recording;
 use serde::Serialize;
 
 use super::Ctx;
+use super::clearance::KeptClearSummary;
 use super::imitation::{declare, pipeline};
+use super::learn_error;
 use crate::ExperimentError;
 use crate::outcome::{Column, Document, Format, Outcome, ReportTable, Table};
 use crate::promp::{Conditioned, NamedProMp, ViaPoints, condition, fit_demos};
@@ -23,8 +25,13 @@ struct Summary {
     max_std_m: Vec<f64>,
     notes: Vec<String>,
     via: Via,
-    /// The conditioned mean as the robot executed it.
+    /// The conditioned mean (with `[clearance]`, the movement kept clear) as the robot
+    /// executed it.
     executed: Option<Executed>,
+    /// With `[clearance]`: the movement executed instead of the mean, the most likely of
+    /// the conditioned ProMP that keeps the clearance on the model.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    kept_clear: Option<KeptClearSummary>,
     model: &'static str,
     conditioned_model: &'static str,
 }
@@ -98,9 +105,40 @@ pub(crate) fn run(
     let cond = condition(fitted.promp.clone(), &via)?;
     let dt = exp.config.task.dmp.dt;
     let times = cond.posterior.grid(dt, 12)?;
-    let traj = mean_trajectory(&cond.posterior, &times);
+    let mut traj = mean_trajectory(&cond.posterior, &times);
+    let going = outcome.header.complete && outcome.header.failure.is_none();
+    // With [clearance]: the most likely movement of the conditioned ProMP that keeps it,
+    // on the model, instead of its mean.
+    let kept = match &exp.clearance {
+        Some(k) if going => {
+            let p = &cond.posterior.promp;
+            let dt = run.backend.dt();
+            let targets = |w: &[f64]| cps_learn::targets_at(&trajectory_of(p, w, &times), dt).1;
+            let keep = cps_learn::KeepClear {
+                clearance: &k.clearance,
+                robot: &run.config.robot,
+                dt,
+                iterations: k.iterations,
+            };
+            let kept = ctx
+                .pool
+                .install(|| {
+                    cps_learn::keep_likely_clear(
+                        &keep,
+                        p.weight_mean(),
+                        p.weight_cov(),
+                        &targets,
+                        &|r| ctx.generation(r),
+                    )
+                })
+                .map_err(|e| learn_error(e, "keeping the conditioned ProMP clear"))?;
+            traj = trajectory_of(p, &kept.theta, &times);
+            Some(KeptClearSummary::new(&kept))
+        }
+        _ => None,
+    };
     // Execute the conditioned mean unless the pipeline stopped early.
-    let executed = if outcome.header.complete && outcome.header.failure.is_none() {
+    let executed = if going {
         let robot = &run.config.robot;
         match cps_learn::execute_trajectory(run.backend.as_mut(), robot, &traj, ctx.stop) {
             Ok(r) => Some(r),
@@ -113,7 +151,8 @@ pub(crate) fn run(
     } else {
         None
     };
-    let summary = summarise(&fitted.promp, &cond, &fitted.notes, executed.as_ref(), plan);
+    let mut summary = summarise(&fitted.promp, &cond, &fitted.notes, executed.as_ref(), plan);
+    summary.kept_clear = kept;
     outcome.lines.extend(lines(&summary));
     outcome.report.tables.push(report_table(&summary));
     outcome.summary.insert(
@@ -146,10 +185,18 @@ pub(crate) fn run(
 /// The ProMP's mean over `times` as a trajectory: positions and velocities from the
 /// basis, accelerations by central differences of the velocities.
 fn mean_trajectory(p: &NamedProMp, times: &[f64]) -> Trajectory {
+    trajectory_of(&p.promp, p.promp.weight_mean(), times)
+}
+
+/// The ProMP's movement of weights `w` at `times`: positions `Φ w`, velocities `Φ̇ w`,
+/// accelerations by differences of the velocities.
+fn trajectory_of(p: &cps_promp::ProMp, w: &[f64], times: &[f64]) -> Trajectory {
     let n = times.len();
+    let w = nalgebra::DVector::from_column_slice(w);
     let (mut pos, mut vel) = (vec![vec![0.0; n]; 3], vec![vec![0.0; n]; 3]);
     for (k, &t) in times.iter().enumerate() {
-        let (m, v) = p.promp.mean_at(t);
+        let (fp, fv) = p.features(t);
+        let (m, v) = (&fp * &w, &fv * &w);
         for d in 0..3 {
             pos[d][k] = m[d];
             vel[d][k] = v[d];
@@ -228,6 +275,7 @@ fn summarise(
             conditioned_std_m: s1,
         },
         executed,
+        kept_clear: None,
         model: "promp.json",
         conditioned_model: "promp_conditioned.json",
     }
@@ -256,9 +304,17 @@ fn lines(s: &Summary) -> Vec<String> {
             s.via.mean_error_m * 1e3
         ),
     ];
+    if let Some(k) = &s.kept_clear {
+        out.push(k.line("the conditioned ProMP's most likely movement"));
+    }
     if let Some(e) = &s.executed {
         out.push(format!(
-            "  conditioned mean executed within {:.3} mm, passing {:.3} mm from the via point",
+            "  {} executed within {:.3} mm, passing {:.3} mm from the via point",
+            if s.kept_clear.is_some() {
+                "the movement kept clear"
+            } else {
+                "conditioned mean"
+            },
             e.max_position_error_m * 1e3,
             e.via_error_m * 1e3
         ));

@@ -22,15 +22,8 @@ pub struct ClearanceSection {
     iterations: Option<Spanned<u64>>,
 }
 
-/// The clearance a kind's learning keeps.
-#[derive(Debug, Clone)]
-pub struct ClearancePlan {
-    /// The robot's shapes, the distance and the weight.
-    pub clearance: cps_learn::Clearance,
-    /// The iteration budget of the stage that keeps a task-space movement clear on the
-    /// model (pose, imitation and ProMP kinds).
-    pub iterations: u64,
-}
+/// The clearance a kind's learning keeps, and the budget of its keep-clear stage.
+pub type ClearancePlan = cps_learn::ClearanceStage;
 
 /// The default weight of the squared shortfall (per m²).
 pub const DEFAULT_WEIGHT: f64 = 1e6;
