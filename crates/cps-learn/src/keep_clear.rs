@@ -5,17 +5,20 @@
 //! own measure, whose execution keeps the clearance:
 //!
 //! ```text
-//! C(θ) = ‖a(θ)‖² + Σ_k w Σ_p (c − d_p(q_k(θ)))²
+//! C(θ) = ‖a(θ)‖² + w Σ_q Σ_p (c − d_p(q))²
 //! ```
 //!
 //! `a(θ)` the kind's anchor residuals (its own cost, or how far the movement strays from
-//! the one learned: zero at θ₀), `q_k(θ)` the joints of the in-process robot — the
-//! model — following the movement's targets one control period after another from the
-//! setup's start, the same controller every backend runs, and the second sum
-//! [`Clearance::residuals`] on them. Levenberg–Marquardt searches θ from θ₀, its Jacobian
-//! by forward differences (one model execution a column, columns in parallel) and kept
-//! while its steps gain (each execution is a thousand inverse-kinematics steps). A
-//! movement whose execution already keeps the clearance is left as it is.
+//! the one learned: zero at θ₀); `q` runs over every command the inverse controller
+//! sends for the movement's targets on the robot's model — the same controller every
+//! backend runs; a target it approaches over several control periods has each of them
+//! judged, as the guard judges each command — and `p` over the pairs closer than the
+//! clearance `c`, walked as the guard walks a plan. Levenberg–Marquardt searches θ from
+//! θ₀, its Jacobian by forward differences (one model execution a column, columns in
+//! parallel) kept for a few steps at a time. A movement whose execution already keeps
+//! the clearance is left as it is. The result is executed through the guard and checked
+//! against every limit like any other: a movement bent clear that the controller cannot
+//! follow within the limits is refused there.
 
 use std::ops::ControlFlow;
 
@@ -23,7 +26,7 @@ use cps_cmaes::GenerationReport;
 use cps_kinematics::IkTarget;
 use cps_robot::{KinematicRobot, Recording, StopToken};
 
-use crate::clearance::{Clearance, ClearanceBuffers, Closest, by_joint, closest};
+use crate::clearance::{Clearance, Closest, by_joint, closest};
 use crate::lsq::{LmSettings, Residuals, levenberg_marquardt};
 use crate::{LearnError, RobotSetup, SearchStats};
 
@@ -143,6 +146,10 @@ pub fn keep_likely_clear(
     keep_clear(keep, mean.to_vec(), &anchor, targets, progress)
 }
 
+/// How many iterations a Jacobian is kept at the most: each costs one model execution per
+/// parameter, and a step on a kept one costs one; kept longer, the steps crawl.
+const REFRESH_EVERY: u64 = 4;
+
 /// How far (m) a movement's closest approach is looked for in the report.
 const LOOK: f64 = 0.10;
 
@@ -153,28 +160,54 @@ struct Problem<'a> {
 }
 
 impl Problem<'_> {
-    /// The anchor's residuals and the clearance term's on the model's execution of θ.
-    fn split(
-        &self,
-        theta: &[f64],
-        b: &mut ClearanceBuffers,
-    ) -> Option<(Vec<f64>, Vec<f64>, Recording)> {
+    /// The anchor's residuals and the clearance term's on every command the controller
+    /// sends for θ's movement on the model.
+    fn split(&self, theta: &[f64]) -> Option<(Vec<f64>, Vec<f64>)> {
         let mut anchor = Vec::new();
         (self.anchor)(theta, &mut anchor);
-        let rec = execute_on_model(self.keep.robot, self.keep.dt, &(self.targets)(theta)).ok()?;
-        let joints = by_joint(&rec.q);
-        let mut clear = Vec::with_capacity(rec.q.len());
-        self.keep
-            .clearance
-            .residuals(
-                &self.keep.robot.chain,
-                rec.q.len(),
-                |j| &joints[j],
-                b,
-                &mut clear,
-            )
-            .ok()?;
-        Some((anchor, clear, rec))
+        let robot = self.keep.robot;
+        let targets = (self.targets)(theta);
+        let path = cps_robot::command_path(
+            &robot.chain,
+            robot.initial_q.clone(),
+            &targets,
+            &robot.execution,
+            self.keep.dt,
+        )
+        .ok()?;
+        Some((anchor, self.clearance_residuals(&path)?))
+    }
+
+    /// One residual per target: `√(w Σ_q Σ_p (c − d_p(q))²)` over every command `q` the
+    /// controller sends for it (a target it approaches over several steps has each of
+    /// them judged, as the guard judges each command; position targets take one) and the
+    /// pairs `p` closer than the clearance. The commands are walked as the guard walks a
+    /// plan ([`cps_geometry::PathCheck`]), from a fresh walk: the same θ, the same bits.
+    fn clearance_residuals(&self, path: &cps_robot::CommandPath) -> Option<Vec<f64>> {
+        let c = self.keep.clearance;
+        let mut walk = cps_geometry::PathCheck::new(c.shapes.model().clone(), c.distance);
+        let mut frames = Vec::with_capacity(self.keep.robot.chain.dof() + 1);
+        let mut out = Vec::with_capacity(path.last_step.len());
+        let mut step = 0;
+        for &last in &path.last_step {
+            let mut sum = 0.0;
+            while step <= last {
+                self.keep
+                    .robot
+                    .chain
+                    .frames_into(&path.points[step], &mut frames)
+                    .ok()?;
+                walk.step(&frames);
+                sum += walk
+                    .near()
+                    .iter()
+                    .map(|n| (c.distance - n.separation.distance).powi(2))
+                    .sum::<f64>();
+                step += 1;
+            }
+            out.push((c.weight * sum).sqrt());
+        }
+        Some(out)
     }
 
     fn closest(&self, rec: &Recording) -> Option<Closest> {
@@ -192,16 +225,14 @@ impl Problem<'_> {
 }
 
 impl Residuals for Problem<'_> {
-    type Buffers = ClearanceBuffers;
+    type Buffers = ();
 
-    fn buffers(&self) -> Self::Buffers {
-        ClearanceBuffers::default()
-    }
+    fn buffers(&self) -> Self::Buffers {}
 
-    fn residuals(&self, theta: &[f64], b: &mut Self::Buffers, out: &mut Vec<f64>) -> bool {
+    fn residuals(&self, theta: &[f64], _: &mut (), out: &mut Vec<f64>) -> bool {
         out.clear();
-        match self.split(theta, b) {
-            Some((anchor, clear, _)) => {
+        match self.split(theta) {
+            Some((anchor, clear)) => {
                 out.extend(anchor);
                 out.extend(clear);
                 true
@@ -237,10 +268,10 @@ pub fn keep_clear(
         anchor,
         targets,
     };
-    let mut b = ClearanceBuffers::default();
-    let (a0, c0, rec0) = problem.split(&theta0, &mut b).ok_or_else(|| {
+    let (a0, c0) = problem.split(&theta0).ok_or_else(|| {
         LearnError::Exact("the model cannot execute the learned movement (a configuration inverse kinematics refuses)".into())
     })?;
+    let rec0 = execute_on_model(keep.robot, keep.dt, &targets(&theta0))?;
     let closest0 = problem.closest(&rec0);
     let before = [sum_sq(&a0), sum_sq(&c0)];
     if before[1] == 0.0 {
@@ -263,11 +294,14 @@ pub fn keep_clear(
         max_iterations: keep.iterations,
         tol: 1e-10,
         reuse_jacobian: true,
+        refresh_every: REFRESH_EVERY,
+        patient: true,
     };
     let (theta, search) = levenberg_marquardt(&problem, theta0, settings, progress)?;
-    let (a1, c1, rec1) = problem.split(&theta, &mut b).ok_or_else(|| {
+    let (a1, c1) = problem.split(&theta).ok_or_else(|| {
         LearnError::Exact("the model cannot execute the movement kept clear".into())
     })?;
+    let rec1 = execute_on_model(keep.robot, keep.dt, &targets(&theta))?;
     Ok(KeptClear {
         theta,
         search,

@@ -41,6 +41,8 @@ pub(crate) fn settings(generations: u64) -> LmSettings {
         max_iterations: generations,
         tol: 1e-10,
         reuse_jacobian: false,
+        refresh_every: 0,
+        patient: false,
     }
 }
 
@@ -57,6 +59,8 @@ pub(crate) fn polish<R: Residuals>(
         max_iterations: 1000,
         tol: 1e-10,
         reuse_jacobian: false,
+        refresh_every: 0,
+        patient: false,
     };
     let (x, lm) = levenberg_marquardt(problem, x, settings, progress)?;
     let offset = stats.generations;
@@ -121,6 +125,13 @@ pub(crate) struct LmSettings {
     /// expensive (an execution each) and nearly linear in θ, an iteration then costs
     /// one evaluation instead of one per parameter.
     pub(crate) reuse_jacobian: bool,
+    /// With `reuse_jacobian`: a kept Jacobian is computed afresh after this many
+    /// iterations at the most (0: only when its steps stop gaining).
+    pub(crate) refresh_every: u64,
+    /// Grow λ until a step gains or λ passes 1e12, instead of for 12 tries, before calling
+    /// the search converged: for costs with hinges (a clearance), where a Jacobian by
+    /// forward differences can lead a short step only.
+    pub(crate) patient: bool,
 }
 
 /// Minimises `‖r(θ)‖²` from `x0` (see the module documentation). `progress` is called
@@ -158,6 +169,7 @@ pub(crate) fn levenberg_marquardt<R: Residuals>(
     // Whether `jac` is the Jacobian at `x` (else at an earlier point, kept), and whether
     // there is one yet.
     let (mut at_x, mut have) = (false, false);
+    let mut since_exact = 0u64;
     let mut iteration = 0;
     while iteration < settings.max_iterations {
         // 1. Forward differences, columns in parallel.
@@ -189,7 +201,11 @@ pub(crate) fn levenberg_marquardt<R: Residuals>(
         let (h, g) = normal_equations(&jac, &r, m, n);
         // 3. Damped steps until one lowers the cost.
         let mut accepted = None;
-        for _ in 0..12 {
+        let tries = if settings.patient { 60 } else { 12 };
+        for _ in 0..tries {
+            if settings.patient && lambda > 1e12 {
+                break;
+            }
             let Some(delta) = damped_step(&h, &g, lambda) else {
                 lambda *= 10.0;
                 continue;
@@ -252,8 +268,12 @@ pub(crate) fn levenberg_marquardt<R: Residuals>(
             break;
         }
         // A kept Jacobian whose step gained less than half what it predicted (or next to
-        // nothing) is computed afresh for the next one.
-        if !exact_jacobian && (gain < settings.tol || cost_before - cost < 0.5 * predicted) {
+        // nothing), or that is `refresh_every` iterations old, is computed afresh for the
+        // next one.
+        since_exact = if exact_jacobian { 1 } else { since_exact + 1 };
+        if !exact_jacobian && (gain < settings.tol || cost_before - cost < 0.5 * predicted)
+            || (settings.refresh_every > 0 && since_exact >= settings.refresh_every)
+        {
             have = false;
         }
     }
@@ -374,6 +394,8 @@ mod tests {
             max_iterations: 200,
             tol: 1e-14,
             reuse_jacobian: false,
+            refresh_every: 0,
+            patient: false,
         };
         let (x, stats) =
             levenberg_marquardt(&Rosenbrock, vec![-1.2, 1.0], settings, &quiet()).unwrap();
@@ -392,6 +414,8 @@ mod tests {
             max_iterations: 500,
             tol: 1e-14,
             reuse_jacobian: false,
+            refresh_every: 0,
+            patient: false,
         };
         let kept = LmSettings {
             reuse_jacobian: true,
@@ -441,6 +465,8 @@ mod tests {
             max_iterations: 200,
             tol: 1e-14,
             reuse_jacobian: false,
+            refresh_every: 0,
+            patient: false,
         };
         let stop = |r: &GenerationReport<'_>| {
             if r.generation >= 3 {

@@ -23,6 +23,9 @@ use nalgebra::{Isometry3, Vector3};
 const R: f64 = 0.05;
 const CLEAR: f64 = 0.02;
 const DT: f64 = 0.01;
+/// The RMS distance of each bent demonstration below from their mean (the exact path):
+/// 13 cm · √(1.2 s · √(π/2) / 10 s), the bump's.
+const DEMO_RMSE: f64 = 0.0504;
 
 /// The thesis's Panda, its task's exact movement, and where its tool is.
 struct World {
@@ -222,8 +225,8 @@ fn a_movement_into_a_ball_is_bent_around_it_on_the_model() {
 }
 
 /// The mean of two demonstrations that pass a ball on either side goes through it; the
-/// imitation of them, kept clear, passes it (on one side) at the clearance, as near the
-/// mean as it can: the rest of the movement within a few millimetres of it, the goal met.
+/// imitation of them, kept clear, passes it (on one side) at the clearance, nearer the
+/// mean than either demonstration, the goal met.
 #[test]
 fn the_imitation_of_demonstrations_around_a_ball_is_kept_clear() {
     let world = World::thesis();
@@ -281,7 +284,7 @@ fn the_imitation_of_demonstrations_around_a_ball_is_kept_clear() {
 
     config.clearance = Some(ClearanceStage {
         clearance: world.clearance(centre, radius),
-        iterations: 50,
+        iterations: 60,
     });
     let kept = run(&config);
     for fit in &kept.fits {
@@ -294,10 +297,14 @@ fn the_imitation_of_demonstrations_around_a_ball_is_kept_clear() {
             fit.method,
             k.search.termination
         );
-        // Near the mean: the fit's RMSE to it (recomputed for the bent imitation) is the
-        // detour's, and the end is the mean's end.
+        // Nearer the mean than either demonstration (each strays 5 cm RMS from it, round
+        // the ball): the fit's RMSE to the mean, recomputed for the bent imitation.
         let rmse = fit.rmse();
-        assert!(rmse > 0.005 && rmse < 0.06, "{}: RMSE {rmse}", fit.method);
+        assert!(
+            rmse > 0.005 && rmse < 0.8 * DEMO_RMSE,
+            "{}: RMSE {rmse}",
+            fit.method
+        );
         let end = fit.trajectory.n_samples() - 1;
         for d in 0..3 {
             let goal = fit.imitation.reference[d].last().unwrap();

@@ -162,17 +162,29 @@ pub fn execute(
     Ok(rec)
 }
 
-/// [`execute`] as one plan: the controller's commands are planned on the model, run at
-/// once, and the recording of each sample's last step is kept.
-fn execute_planned(
-    robot: &mut dyn Robot,
+/// The commands [`execute`]'s controller sends for `targets` when the robot follows each
+/// one (the model's prediction): every configuration from the start on, each sample's
+/// last, and how many samples were not reached within their iterations.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CommandPath {
+    /// The start, then every command (one per control period).
+    pub points: Vec<Vec<f64>>,
+    /// Per target: the index into `points` of its last command.
+    pub last_step: Vec<usize>,
+    /// Targets not reached within `max_iterations_per_sample`.
+    pub unconverged: usize,
+}
+
+/// The controller's commands for `targets` from `q0` on `model`, stepped every `dt`, as
+/// [`execute`] sends them to a robot that reaches each command at the next step (see
+/// [`CommandPath`]).
+pub fn command_path(
     model: &SerialChain,
+    q0: Vec<f64>,
     targets: &[IkTarget],
     config: &ExecutionConfig,
-    stop: &StopToken,
-) -> Result<Recording, RobotError> {
-    let dt = robot.dt();
-    let q0 = robot.joint_positions()?;
+    dt: f64,
+) -> Result<CommandPath, RobotError> {
     let mut q = q0.clone();
     let mut points: Vec<Vec<f64>> = vec![q0];
     let mut last_step = Vec::with_capacity(targets.len());
@@ -194,6 +206,28 @@ fn execute_planned(
         unconverged += usize::from(!reached);
         last_step.push(points.len() - 1);
     }
+    Ok(CommandPath {
+        points,
+        last_step,
+        unconverged,
+    })
+}
+
+/// [`execute`] as one plan: the controller's commands are planned on the model, run at
+/// once, and the recording of each sample's last step is kept.
+fn execute_planned(
+    robot: &mut dyn Robot,
+    model: &SerialChain,
+    targets: &[IkTarget],
+    config: &ExecutionConfig,
+    stop: &StopToken,
+) -> Result<Recording, RobotError> {
+    let dt = robot.dt();
+    let CommandPath {
+        points,
+        last_step,
+        unconverged,
+    } = command_path(model, robot.joint_positions()?, targets, config, dt)?;
     let n = points.len();
     let plan = Plan::new(dt, points)?;
     let run = robot.run(&plan, stop)?;

@@ -69,7 +69,7 @@ mod watch;
 
 pub use check::{Breach, Limit, OUTSIDE_SLACK, Verdict, check};
 pub use collision::{Collision, DEFAULT_MARGIN, ShapeWatch, Shapes, check_shapes};
-pub use execute::{ExecutionConfig, Recording, execute};
+pub use execute::{CommandPath, ExecutionConfig, Recording, command_path, execute};
 pub use guard::{
     APPROACH_SHARE, BLEND_SHARE, Guarded, MAX_SLOWING, OnBreach, OnStart, Policy, Prepared,
     Refusal, SEPTIC_PEAKS, START_TOLERANCE, approach, move_to, rest_to_rest, septic,
