@@ -66,7 +66,7 @@ LAYERS = {
         ["task"],
         ["exact", "robot"],
         ["executed", "lsq"],
-        ["viapoint"],
+        ["keep_clear", "viapoint"],
         ["energy", "imitation", "joint", "pose"],
         ["joint_executed"],
     ],
@@ -74,7 +74,7 @@ LAYERS = {
         ["error", "gjk"],
         ["hull"],
         ["mesh", "shape"],
-        ["model"],
+        ["model", "surface"],
     ],
     "cps-mocap": [
         ["error", "fit"],

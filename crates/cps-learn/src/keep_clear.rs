@@ -28,7 +28,8 @@ use cps_robot::{KinematicRobot, Recording, StopToken};
 
 use crate::clearance::{Clearance, Closest, by_joint, closest};
 use crate::lsq::{LmSettings, Residuals, levenberg_marquardt};
-use crate::{LearnError, RobotSetup, SearchStats};
+use crate::search::SearchStats;
+use crate::{LearnError, RobotSetup};
 
 /// A clearance to keep and the iteration budget of the stage that keeps a task-space
 /// movement clear ([`keep_clear`]): what a kind that learns a robot's movement is given.

@@ -11,7 +11,7 @@ use toml::Spanned;
 
 use super::{Kind, Sections};
 use crate::InputError;
-use crate::robots::RobotChoice;
+use super::robot::RobotChoice;
 
 /// `[clearance]`.
 #[derive(Debug, Deserialize)]
