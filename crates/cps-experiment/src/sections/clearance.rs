@@ -9,9 +9,9 @@
 use serde::Deserialize;
 use toml::Spanned;
 
+use super::robot::RobotChoice;
 use super::{Kind, Sections};
 use crate::InputError;
-use super::robot::RobotChoice;
 
 /// `[clearance]`.
 #[derive(Debug, Deserialize)]
