@@ -391,24 +391,7 @@ fn show_puts_the_robot_and_its_table_in_a_viewer() {
         assert_eq!(m["type"], 11, "a triangle list");
         let p: Vec<f64> = serde_json::from_value(m["position"].clone()).unwrap();
         let q: Vec<f64> = serde_json::from_value(m["orientation"].clone()).unwrap();
-        let (x, y, z, w) = (q[0], q[1], q[2], q[3]);
-        let r = [
-            [
-                1.0 - 2.0 * (y * y + z * z),
-                2.0 * (x * y - z * w),
-                2.0 * (x * z + y * w),
-            ],
-            [
-                2.0 * (x * y + z * w),
-                1.0 - 2.0 * (x * x + z * z),
-                2.0 * (y * z - x * w),
-            ],
-            [
-                2.0 * (x * z - y * w),
-                2.0 * (y * z + x * w),
-                1.0 - 2.0 * (x * x + y * y),
-            ],
-        ];
+        let r = cps_mocap::fit::rotation_of([q[0], q[1], q[2], q[3]]);
         let points: Vec<[f64; 3]> = serde_json::from_value(m["points"].clone()).unwrap();
         assert!(!points.is_empty() && points.len().is_multiple_of(3));
         points
