@@ -94,6 +94,13 @@ function shownFrame() {
   if (!(r && r.frames.length)) return null;
   return state.frame < 0 ? r.frames.length - 1 : Math.min(state.frame, r.frames.length - 1);
 }
+// A redraw at the next frame, however many moves ask for one before it.
+let drawQueued = false;
+function drawSoon() {
+  if (drawQueued) return;
+  drawQueued = true;
+  requestAnimationFrame(() => { drawQueued = false; draw(); });
+}
 function draw() {
   ctx.clearRect(0, 0, canvas.width, canvas.height);
   const floor = floorHeight();
@@ -281,6 +288,10 @@ async function learn(solver) {
       state.path = body;
       state.learned += 1;
       state.tau = asked.tau;
+      // A movement the guard refuses opens at its first pose within the margin.
+      const hits = collisionFrames(body.robot);
+      if (body.robot && body.robot.collision && hits.length) state.frame = hits[0];
+      player();
       draw();
       showError(null);
       showNumbers(body, performance.now() - started);
@@ -289,12 +300,7 @@ async function learn(solver) {
       document.body.dataset.samples = String(body.t.length);
       document.body.dataset.end = body.position[body.position.length - 1].map(v => v.toFixed(4)).join(",");
       document.body.dataset.robotFrames = String(body.robot ? body.robot.frames.length : 0);
-      // A movement the guard refuses opens at its first pose within the margin.
-      const hits = collisionFrames(body.robot);
       document.body.dataset.collisionFrames = String(hits.length);
-      if (body.robot && body.robot.collision && hits.length) state.frame = hits[0];
-      player();
-      draw();
       census();
     }
   } catch (e) {
@@ -332,13 +338,13 @@ window.addEventListener("mousemove", e => {
     const w = unproject(dx, dy), p = state.via[dragging].position;
     for (let d = 0; d < 3; d++) p[d] = Math.round((p[d] + w[d]) * 1e4) / 1e4;
     pointRows();
-    draw();
+    drawSoon();
     gesture();
     learn("exact");
   } else if (orbit) {
     view.yaw += dx * 0.005;
     view.pitch = Math.max(-1.5, Math.min(1.5, view.pitch + dy * 0.005));
-    draw();
+    drawSoon();
   }
 });
 window.addEventListener("mouseup", () => {
@@ -374,6 +380,8 @@ window.studio = {
   },
   // What the 3-D view shows now (Scene3D.census), null without WebGL.
   census() { draw(); return Scene3D.census(); },
+  // One redraw of the view, finished (the 3-D view's pixels read back), in ms.
+  redraw() { const t0 = performance.now(); draw(); Scene3D.finish(); return performance.now() - t0; },
   view,
   // Where via point i is on the page, CSS pixels.
   screenOf(i) {
@@ -583,11 +591,14 @@ function strip() {
   });
 }
 // What the 3-D view shows, for tests and scripts: shades among its drawn pixels and how
-// many are the collision's red.
+// many are the collision's red, after every answer when the address asks (`?census`:
+// reading the pixels back costs more than drawing them).
+const counting = new URLSearchParams(location.search).has("census");
 function census() {
+  document.body.dataset.gl = String(Scene3D.active);
+  if (!counting) return;
   const c = Scene3D.census();
   document.body.dataset.drawnPixels = c ? String(c.drawn) : "0";
-  document.body.dataset.gl = String(Scene3D.active);
   if (c) {
     document.body.dataset.shades = String(c.shades);
     document.body.dataset.redPixels = String(c.red);
@@ -598,7 +609,7 @@ function clock() {
   const k = Number(slider.value);
   document.getElementById("clock").textContent = r && r.t.length ? `${fmt(r.t[Math.min(k, r.t.length - 1)], 2)} s` : "";
 }
-slider.addEventListener("input", () => { state.frame = Number(slider.value); clock(); draw(); });
+slider.addEventListener("input", () => { state.frame = Number(slider.value); clock(); drawSoon(); });
 document.getElementById("play").addEventListener("click", () => {
   const r = state.path && state.path.robot;
   if (!r || !r.frames.length) return;

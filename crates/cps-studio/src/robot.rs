@@ -290,8 +290,9 @@ impl StudioRobot {
 struct Near<'a> {
     shapes: Option<&'a cps_robot::Shapes>,
     frames: Vec<nalgebra::Isometry3<f64>>,
-    centres: Vec<nalgebra::Vector3<f64>>,
-    contacts: Vec<cps_geometry::Contact>,
+    /// The samples walked as the guard walks a plan: pairs within [`NEAR_M`] exactly,
+    /// the others only when their motion could have closed the gap.
+    walk: Option<cps_geometry::PathCheck>,
     /// Per pair: its smallest distance so far (infinite when not near).
     closest: Vec<f64>,
 }
@@ -301,20 +302,20 @@ impl<'a> Near<'a> {
         Near {
             shapes,
             frames: Vec::with_capacity(dof + 1),
-            centres: Vec::new(),
-            contacts: Vec::new(),
+            walk: shapes.map(|s| cps_geometry::PathCheck::new(s.model().clone(), NEAR_M)),
             closest: vec![f64::INFINITY; shapes.map_or(0, |s| s.model().pair_count())],
         }
     }
 
     fn add(&mut self, chain: &SerialChain, q: &[f64]) {
-        let Some(shapes) = self.shapes else { return };
+        let Some(walk) = self.walk.as_mut() else {
+            return;
+        };
         if chain.frames_into(q, &mut self.frames).is_err() {
             return;
         }
-        let model = shapes.model();
-        model.within_into(&self.frames, NEAR_M, &mut self.centres, &mut self.contacts);
-        for c in &self.contacts {
+        walk.step(&self.frames);
+        for c in walk.near() {
             let d = &mut self.closest[c.pair];
             *d = d.min(c.separation.distance);
         }
@@ -357,7 +358,9 @@ fn frames(chain: &SerialChain, q: &[f64]) -> Vec<[f32; 12]> {
             let mut a = [0f32; 12];
             for r in 0..3 {
                 for c in 0..4 {
-                    a[4 * r + c] = m[(r, c)] as f32;
+                    // A tenth of a millimetre (or of a milliradian): what a view shows, in
+                    // a few characters of JSON.
+                    a[4 * r + c] = ((m[(r, c)] * 1e4).round() / 1e4) as f32;
                 }
             }
             a

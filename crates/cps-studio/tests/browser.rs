@@ -46,7 +46,7 @@ fn moving_a_via_point_in_the_browser_redraws_the_path_and_its_numbers() {
     };
     let server = StudioServer::start(StudioConfig::new("127.0.0.1:0")).unwrap();
     // Loaded: one answer, the thesis task's numbers.
-    let first = dom(&browser, &format!("{}/", server.url()));
+    let first = dom(&browser, &format!("{}/?census", server.url()));
     assert_eq!(after(&first, "data-learned=\""), "1");
     assert_eq!(after(&first, "data-samples=\""), "1001");
     assert_eq!(after(&first, "data-end=\""), "0.5500,-0.5700,1.4500");
@@ -96,7 +96,7 @@ fn moving_a_via_point_in_the_browser_redraws_the_path_and_its_numbers() {
     // p2 a centimetre above the table: refused by the guard in a sentence; the slider
     // opens at the first pose within the margin, where the left finger and the table are
     // red, and red is on the screen.
-    let into = format!("{}/#move=1,1.0,0.2,0.76,exact", server.url());
+    let into = format!("{}/?census#move=1,1.0,0.2,0.76,exact", server.url());
     let hit = dom(&browser, &into);
     let sentence = after(&hit, "id=\"collision\" class=\"hit\">");
     assert!(
