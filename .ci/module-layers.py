@@ -54,7 +54,7 @@ LAYERS = {
         ["options"],
     ],
     "cps-robot": [
-        ["plan", "stop"],
+        ["chunk", "plan", "stop"],
         ["collision"],
         ["model"],
         ["check"],
@@ -114,7 +114,7 @@ LAYERS = {
         ["write"],
     ],
     "cps-movement": [
-        ["calibration", "dae"],
+        ["calibration", "chunks", "dae"],
         ["collision"],
         ["robot_file"],
         ["movement", "scene"],

@@ -30,6 +30,7 @@
 #![deny(missing_docs)]
 
 pub mod calibration;
+pub mod chunks;
 pub mod collide;
 pub mod collision;
 pub mod dae;

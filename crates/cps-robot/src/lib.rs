@@ -57,6 +57,7 @@
 #![deny(missing_docs)]
 
 mod check;
+mod chunk;
 mod collision;
 mod execute;
 mod guard;
@@ -68,6 +69,7 @@ mod stop;
 mod watch;
 
 pub use check::{Breach, Limit, OUTSIDE_SLACK, Verdict, check};
+pub use chunk::{Chunk, ChunkError};
 pub use collision::{Collision, DEFAULT_MARGIN, ShapeWatch, Shapes, check_shapes};
 pub use execute::{CommandPath, ExecutionConfig, Recording, command_path, execute};
 pub use guard::{
