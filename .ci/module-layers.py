@@ -54,7 +54,7 @@ LAYERS = {
         ["options"],
     ],
     "cps-robot": [
-        ["chunk", "plan", "stop"],
+        ["chunk", "follow", "plan", "stop"],
         ["collision"],
         ["model"],
         ["check"],

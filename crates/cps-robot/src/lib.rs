@@ -60,6 +60,7 @@ mod check;
 mod chunk;
 mod collision;
 mod execute;
+mod follow;
 mod guard;
 mod kinematic;
 mod model;
@@ -72,6 +73,7 @@ pub use check::{Breach, Limit, OUTSIDE_SLACK, Verdict, check};
 pub use chunk::{Chunk, ChunkError};
 pub use collision::{Collision, DEFAULT_MARGIN, ShapeWatch, Shapes, check_shapes};
 pub use execute::{CommandPath, ExecutionConfig, Recording, command_path, execute};
+pub use follow::{FollowLimits, Follower, GAINS};
 pub use guard::{
     APPROACH_SHARE, BLEND_SHARE, Guarded, MAX_SLOWING, OnBreach, OnStart, Policy, Prepared,
     Refusal, SEPTIC_PEAKS, START_TOLERANCE, approach, move_to, rest_to_rest, septic,
