@@ -170,6 +170,24 @@ mod tests {
     };
     const DT: f64 = 0.001;
 
+    /// Checks the backward differences of the commands `q` (from rest) against the
+    /// limits.
+    fn within_limits(q: &[f64]) {
+        let d = |x: &[f64]| {
+            x.windows(2)
+                .map(|w| (w[1] - w[0]) / DT)
+                .collect::<Vec<f64>>()
+        };
+        let v = d(q);
+        let a = d(&[vec![0.0], v.clone()].concat());
+        let j = d(&[vec![0.0], a.clone()].concat());
+        let peak = |x: &[f64]| x.iter().fold(0.0_f64, |m, y| m.max(y.abs()));
+        let (pv, pa, pj) = (peak(&v), peak(&a), peak(&j));
+        assert!(pv <= FR3.velocity * (1.0 + 1e-9), "velocity {pv}");
+        assert!(pa <= FR3.acceleration * (1.0 + 1e-9), "acceleration {pa}");
+        assert!(pj <= FR3.jerk * (1.0 + 1e-9), "jerk {pj}");
+    }
+
     /// Runs `n` steps toward `reference(t)` and checks every command's backward
     /// differences against the limits; returns the commands.
     fn run(reference: impl Fn(f64) -> f64, n: usize, f: &mut Follower) -> Vec<f64> {
@@ -181,19 +199,7 @@ mod tests {
             let ra = (r1 - 2.0 * r + r0) / (DT * DT);
             out.push(f.step(&[r], &[rv], &[ra])[0]);
         }
-        let d = |x: &[f64]| {
-            x.windows(2)
-                .map(|w| (w[1] - w[0]) / DT)
-                .collect::<Vec<f64>>()
-        };
-        let v = d(&out);
-        let a = d(&[vec![0.0], v.clone()].concat());
-        let j = d(&[vec![0.0], a.clone()].concat());
-        let peak = |x: &[f64]| x.iter().fold(0.0_f64, |m, y| m.max(y.abs()));
-        let (pv, pa, pj) = (peak(&v), peak(&a), peak(&j));
-        assert!(pv <= FR3.velocity * (1.0 + 1e-9), "velocity {pv}");
-        assert!(pa <= FR3.acceleration * (1.0 + 1e-9), "acceleration {pa}");
-        assert!(pj <= FR3.jerk * (1.0 + 1e-9), "jerk {pj}");
+        within_limits(&out);
         out
     }
 
@@ -285,26 +291,7 @@ mod tests {
                 let r = targets[((t * rate) as usize).min(199)];
                 out.push(f.step(&[r], &[lie], &[0.0])[0]);
             }
-            let d = |x: &[f64]| {
-                x.windows(2)
-                    .map(|w| (w[1] - w[0]) / DT)
-                    .collect::<Vec<f64>>()
-            };
-            let v = d(&out);
-            let a = d(&[vec![0.0], v.clone()].concat());
-            let j = d(&[vec![0.0], a.clone()].concat());
-            let peak = |x: &[f64]| x.iter().fold(0.0_f64, |m, y| m.max(y.abs()));
-            assert!(
-                peak(&v) <= FR3.velocity * (1.0 + 1e-9),
-                "velocity {}",
-                peak(&v)
-            );
-            assert!(
-                peak(&a) <= FR3.acceleration * (1.0 + 1e-9),
-                "acceleration {}",
-                peak(&a)
-            );
-            assert!(peak(&j) <= FR3.jerk * (1.0 + 1e-9), "jerk {}", peak(&j));
+            within_limits(&out);
         }
     }
 
