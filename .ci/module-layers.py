@@ -55,6 +55,7 @@ LAYERS = {
     ],
     "cps-robot": [
         ["chunk", "follow", "plan", "stop"],
+        ["chunks"],
         ["collision"],
         ["model"],
         ["check"],

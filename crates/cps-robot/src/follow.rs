@@ -159,20 +159,24 @@ impl Follower {
     }
 }
 
+/// What the follower's and the executor's tests share: the FR3's limits, its period, and
+/// the check of commands against them.
 #[cfg(test)]
-mod tests {
-    use super::*;
+pub(crate) mod testing {
+    use super::FollowLimits;
 
-    const FR3: FollowLimits = FollowLimits {
+    /// The FR3's limits (its datasheet's, joint 1).
+    pub(crate) const FR3: FollowLimits = FollowLimits {
         velocity: 2.62,
         acceleration: 10.0,
         jerk: 5000.0,
     };
-    const DT: f64 = 0.001;
+    /// A Franka's period.
+    pub(crate) const DT: f64 = 0.001;
 
     /// Checks the backward differences of the commands `q` (from rest) against the
     /// limits.
-    fn within_limits(q: &[f64]) {
+    pub(crate) fn within_limits(q: &[f64]) {
         let d = |x: &[f64]| {
             x.windows(2)
                 .map(|w| (w[1] - w[0]) / DT)
@@ -187,6 +191,12 @@ mod tests {
         assert!(pa <= FR3.acceleration * (1.0 + 1e-9), "acceleration {pa}");
         assert!(pj <= FR3.jerk * (1.0 + 1e-9), "jerk {pj}");
     }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::testing::{DT, FR3, within_limits};
+    use super::*;
 
     /// Runs `n` steps toward `reference(t)` and checks every command's backward
     /// differences against the limits; returns the commands.

@@ -58,6 +58,7 @@
 
 mod check;
 mod chunk;
+mod chunks;
 mod collision;
 mod execute;
 mod follow;
@@ -71,6 +72,7 @@ mod watch;
 
 pub use check::{Breach, Limit, OUTSIDE_SLACK, Verdict, check};
 pub use chunk::{Chunk, ChunkError};
+pub use chunks::{ChunkCounts, ChunkExecutor, ChunkSettings, Refused};
 pub use collision::{Collision, DEFAULT_MARGIN, ShapeWatch, Shapes, check_shapes};
 pub use execute::{CommandPath, ExecutionConfig, Recording, command_path, execute};
 pub use follow::{FollowLimits, Follower, GAINS};
