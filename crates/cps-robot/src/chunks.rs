@@ -154,11 +154,12 @@ impl ChunkExecutor {
         if last_s < now {
             return refuse(self, Refused::Late { last_s, now });
         }
-        let n = self.r.len();
-        let (mut r, mut rv, mut ra) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        reference(&chunk, now, &mut r, &mut rv, &mut ra);
+        // Where it wants the robot now, in the reference's buffers (the next tick fills
+        // them afresh): nothing allocated on a loop that takes chunks.
+        reference(&chunk, now, &mut self.r, &mut self.rv, &mut self.ra);
         let q = self.follower.position();
-        if let Some((joint, gap)) = r
+        if let Some((joint, gap)) = self
+            .r
             .iter()
             .zip(q)
             .map(|(a, b)| (a - b).abs())

@@ -233,7 +233,7 @@ impl StudioRobot {
             if k % every == 0 || k + 1 == rec.q.len() {
                 answer.t.push(k as f64 * dt);
                 answer.frames.push(points(&self.setup.chain, q));
-                if near.shapes.is_some() {
+                if near.walk.is_some() {
                     answer.poses.push(frames(&self.setup.chain, q));
                     answer.near.push(near.take());
                 }
@@ -287,8 +287,7 @@ impl StudioRobot {
 }
 
 /// The closest approach of every near pair over the samples since it was last taken.
-struct Near<'a> {
-    shapes: Option<&'a cps_robot::Shapes>,
+struct Near {
     frames: Vec<nalgebra::Isometry3<f64>>,
     /// The samples walked as the guard walks a plan: pairs within [`NEAR_M`] exactly,
     /// the others only when their motion could have closed the gap.
@@ -297,10 +296,9 @@ struct Near<'a> {
     closest: Vec<f64>,
 }
 
-impl<'a> Near<'a> {
-    fn new(shapes: Option<&'a cps_robot::Shapes>, dof: usize) -> Self {
+impl Near {
+    fn new(shapes: Option<&cps_robot::Shapes>, dof: usize) -> Self {
         Near {
-            shapes,
             frames: Vec::with_capacity(dof + 1),
             walk: shapes.map(|s| cps_geometry::PathCheck::new(s.model().clone(), NEAR_M)),
             closest: vec![f64::INFINITY; shapes.map_or(0, |s| s.model().pair_count())],
@@ -322,13 +320,13 @@ impl<'a> Near<'a> {
     }
 
     fn take(&mut self) -> Vec<NearView> {
-        let Some(shapes) = self.shapes else {
+        let Some(walk) = &self.walk else {
             return Vec::new();
         };
         let mut out = Vec::new();
         for (p, d) in self.closest.iter_mut().enumerate() {
             if d.is_finite() {
-                let (body, other) = shapes.model().pair(p);
+                let (body, other) = walk.model().pair(p);
                 let (other_body, obstacle) = match other {
                     cps_geometry::Other::Body(j) => (Some(j), None),
                     cps_geometry::Other::Obstacle(k) => (None, Some(k)),

@@ -83,8 +83,7 @@ impl KeptClearSummary {
 /// A joint movement: its sample times and each joint's samples.
 pub(crate) struct Joints<'a> {
     times: &'a [f64],
-    joints: Vec<&'a [f64]>,
-    owned: Vec<Vec<f64>>,
+    joints: Vec<Vec<f64>>,
 }
 
 impl<'a> Joints<'a> {
@@ -92,8 +91,7 @@ impl<'a> Joints<'a> {
     pub(crate) fn of_trajectory(t: &'a cps_dmp::Trajectory) -> Self {
         Joints {
             times: t.times(),
-            joints: (0..t.dims()).map(|j| t.position(j)).collect(),
-            owned: Vec::new(),
+            joints: (0..t.dims()).map(|j| t.position(j).to_vec()).collect(),
         }
     }
 
@@ -102,18 +100,9 @@ impl<'a> Joints<'a> {
         let dof = r.q.first().map_or(0, Vec::len);
         Joints {
             times: &r.time,
-            joints: Vec::new(),
-            owned: (0..dof)
+            joints: (0..dof)
                 .map(|j| r.q.iter().map(|q| q[j]).collect())
                 .collect(),
-        }
-    }
-
-    fn joint(&self, j: usize) -> &[f64] {
-        if self.owned.is_empty() {
-            self.joints[j]
-        } else {
-            &self.owned[j]
         }
     }
 }
@@ -128,7 +117,7 @@ impl ClearanceSummary {
         warm: &Joints<'_>,
     ) -> Result<Self, cps_kinematics::KinematicsError> {
         let look = |m: &Joints<'_>| {
-            cps_learn::closest(shapes, chain, m.times, |j| m.joint(j), 0.1)
+            cps_learn::closest(shapes, chain, m.times, |j| &m.joints[j], 0.1)
                 .map(|c| c.map(ClosestPair::from))
         };
         Ok(ClearanceSummary {
