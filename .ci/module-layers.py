@@ -56,11 +56,14 @@ LAYERS = {
     "cps-robot": [
         ["chunk", "follow", "plan", "stop"],
         ["chunks"],
+        ["chunk_feed"],
         ["collision"],
         ["model"],
         ["check"],
         ["robot", "watch"],
         ["execute", "guard", "kinematic"],
+        ["chunk_run"],
+        ["chunk_report"],
     ],
     "cps-learn": [
         ["clearance", "error", "search", "space"],

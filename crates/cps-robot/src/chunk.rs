@@ -243,6 +243,73 @@ impl Chunk {
     }
 }
 
+/// A policy stand-in, for tests, benchmarks and tuning an execution before a policy
+/// exists: a demonstration replayed as chunks of `horizon` targets at `target_hz`, one
+/// every 1/`chunk_hz` s, each predicted from an observation `delay_s` old (drawn anew for
+/// each chunk within the range, never letting observations go back) with every target
+/// off by up to ±`noise_rad`. Seeded: the same seed, the same chunks.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StandIn {
+    /// Targets per chunk (H).
+    pub horizon: usize,
+    /// The targets' rate (Hz).
+    pub target_hz: f64,
+    /// Chunks per second.
+    pub chunk_hz: f64,
+    /// The inference delay's range (s).
+    pub delay_s: (f64, f64),
+    /// The largest error of a target (rad).
+    pub noise_rad: f64,
+    /// The seed.
+    pub seed: u64,
+}
+
+impl StandIn {
+    /// The chunks of `demo` (joint positions at a time, s) from `start_s` (the first
+    /// chunk's arrival) for `duration_s`.
+    pub fn chunks(
+        &self,
+        demo: &dyn Fn(f64) -> Vec<f64>,
+        start_s: f64,
+        duration_s: f64,
+    ) -> Vec<Chunk> {
+        let mut state = self.seed ^ 0x9e37_79b9_7f4a_7c15;
+        let mut uniform = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let period = 1.0 / self.chunk_hz;
+        let count = (duration_s * self.chunk_hz).floor() as usize + 1;
+        let (lo, hi) = self.delay_s;
+        let mut delay = lo + (hi - lo) * uniform();
+        let mut out = Vec::with_capacity(count);
+        for k in 0..count {
+            if k > 0 {
+                // At most one period later than the last: observations never go back.
+                let top = hi.min(delay + period);
+                delay = lo + (top - lo).max(0.0) * uniform();
+            }
+            let arrived = start_s + k as f64 * period;
+            let observed = arrived - delay;
+            let targets = (0..self.horizon)
+                .map(|i| {
+                    demo(observed + i as f64 / self.target_hz)
+                        .into_iter()
+                        .map(|q| q + self.noise_rad * (2.0 * uniform() - 1.0))
+                        .collect()
+                })
+                .collect::<Vec<Vec<f64>>>();
+            let dof = targets[0].len();
+            if let Ok(c) = Chunk::new(observed, arrived, self.target_hz, targets, None, dof) {
+                out.push(c);
+            }
+        }
+        out
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,7 +1,7 @@
 //! The chunk executor's logic, robot-free: chunks pushed as they arrive, one command out
 //! per control period. The newest chunk is the reference — its targets joined by a cubic
-//! through them (Catmull–Rom: continuous in position and velocity), evaluated at the
-//! current time, so the targets already in the past are skipped by construction — and a
+//! through them (Hermite: the policy's velocities where it gives them, else Catmull–Rom's;
+//! continuous in position and velocity), evaluated at the current time, so the targets already in the past are skipped by construction — and a
 //! [`Follower`] moves the command toward it within the velocity, acceleration and jerk
 //! limits: a new chunk that starts elsewhere than the old one ended is blended into, never
 //! jumped to. After the last target the reference holds it. When no chunk has arrived
@@ -9,8 +9,8 @@
 //! brakes to rest.
 //!
 //! A chunk is refused — the motion going on as before — when its times go back, when it is
-//! wholly in the past on arrival, or when where it wants the robot now is farther from the
-//! command than the settings allow.
+//! wholly in the past on arrival, when a target leaves the joint's range, or when where it
+//! wants the robot now is farther from the command than the settings allow.
 
 use crate::chunk::{Chunk, ChunkError};
 use crate::follow::{FollowLimits, Follower};
@@ -48,6 +48,19 @@ pub enum Refused {
         /// When it arrived (s).
         now: f64,
     },
+    /// A target outside the joint's range.
+    Range {
+        /// Which target (0-based).
+        target: usize,
+        /// Which joint (0-based).
+        joint: usize,
+        /// The target (rad).
+        value: f64,
+        /// The range (rad).
+        lower: f64,
+        /// See `lower`.
+        upper: f64,
+    },
     /// Where it wants the robot is too far from the command.
     Far {
         /// The joint (0-based).
@@ -66,6 +79,17 @@ impl std::fmt::Display for Refused {
             Refused::Late { last_s, now } => write!(
                 f,
                 "the chunk arrived at {now} s, after its last target was due ({last_s} s): nothing of it is left to follow"
+            ),
+            Refused::Range {
+                target,
+                joint,
+                value,
+                lower,
+                upper,
+            } => write!(
+                f,
+                "target {target} puts joint {} at {value} rad, outside its range [{lower}, {upper}] rad",
+                joint + 1
             ),
             Refused::Far { joint, gap, max } => write!(
                 f,
@@ -89,11 +113,35 @@ pub struct ChunkCounts {
     pub stalls: usize,
 }
 
+/// What became of a chunk offered to the executor: either way the caller gets a chunk
+/// back to dispose of (the one replaced, or the one refused), so that nothing is freed on
+/// a loop that must not allocate.
+#[derive(Debug)]
+pub enum Offer {
+    /// Taken.
+    Taken {
+        /// How many of its targets were already past.
+        skipped: usize,
+        /// The chunk it replaced.
+        replaced: Option<Chunk>,
+    },
+    /// Refused, the motion going on as before.
+    Refused {
+        /// Why.
+        why: Refused,
+        /// The chunk.
+        chunk: Chunk,
+    },
+}
+
 /// The executor (see the module's text). Nothing is allocated per period.
 #[derive(Debug, Clone)]
 pub struct ChunkExecutor {
     follower: Follower,
     settings: ChunkSettings,
+    range: Option<(Vec<f64>, Vec<f64>)>,
+    /// No chunk will come after this one: it is followed to its end, no stall timeout.
+    last: bool,
     chunk: Option<Chunk>,
     stalled: bool,
     counts: ChunkCounts,
@@ -114,6 +162,8 @@ impl ChunkExecutor {
         Ok(ChunkExecutor {
             follower: Follower::new(q0, limits, dt)?,
             settings,
+            range: None,
+            last: false,
             chunk: None,
             stalled: false,
             counts: ChunkCounts::default(),
@@ -133,30 +183,113 @@ impl ChunkExecutor {
         self.stalled
     }
 
+    /// Whether it follows no fresh chunk: none came yet, or the last is older than the
+    /// stall timeout.
+    pub fn stalled_or_idle(&self) -> bool {
+        self.stalled || self.chunk.is_none()
+    }
+
+    /// Marks the chunk it follows as the last (the stream is over): it is followed to its
+    /// end, whatever the stall timeout.
+    pub fn last_chunk(&mut self) {
+        self.last = true;
+    }
+
+    /// Whether the chunk it follows (if any) has no target left after `now`.
+    pub fn chunk_done(&self, now: f64) -> bool {
+        self.chunk
+            .as_ref()
+            .is_none_or(|c| now >= c.time_of(c.targets.len() - 1))
+    }
+
+    /// Whether the command is at rest (velocity and acceleration zero).
+    pub fn at_rest(&self) -> bool {
+        self.follower.at_rest()
+    }
+
+    /// The chunk it follows, handed back (it then holds and brakes as after a stall).
+    pub fn take_chunk(&mut self) -> Option<Chunk> {
+        self.chunk.take()
+    }
+
     /// The last command.
     pub fn position(&self) -> &[f64] {
         self.follower.position()
     }
 
+    /// The same executor refusing chunks with a target outside `[lower, upper]` (rad per
+    /// joint: the robot's range).
+    pub fn with_range(mut self, lower: &[f64], upper: &[f64]) -> ChunkExecutor {
+        self.range = Some((lower.to_vec(), upper.to_vec()));
+        self
+    }
+
     /// Takes `chunk`, arrived at `now` (see the module's text for the refusals): how many
-    /// of its targets were already past.
+    /// of its targets were already past. The chunk replaced is dropped here; a loop that
+    /// must not free memory uses [`ChunkExecutor::offer`].
     pub fn push(&mut self, chunk: Chunk, now: f64) -> Result<usize, Refused> {
-        let refuse = |s: &mut Self, r: Refused| {
-            s.counts.refused += 1;
-            Err(r)
-        };
-        if let Some(before) = &self.chunk
-            && let Err(e) = chunk.follows(before)
-        {
-            return refuse(self, Refused::Chunk(e));
+        match self.offer(chunk, now) {
+            Offer::Taken { skipped, .. } => Ok(skipped),
+            Offer::Refused { why, .. } => Err(why),
+        }
+    }
+
+    /// [`ChunkExecutor::push`], handing back the chunk replaced or refused.
+    pub fn offer(&mut self, chunk: Chunk, now: f64) -> Offer {
+        match self.judge(&chunk, now) {
+            Err(why) => {
+                self.counts.refused += 1;
+                Offer::Refused { why, chunk }
+            }
+            Ok(()) => {
+                let skipped = chunk.past_at(now);
+                self.counts.taken += 1;
+                self.counts.skipped += skipped;
+                self.stalled = false;
+                self.last = false;
+                Offer::Taken {
+                    skipped,
+                    replaced: self.chunk.replace(chunk),
+                }
+            }
+        }
+    }
+
+    fn judge(&mut self, chunk: &Chunk, now: f64) -> Result<(), Refused> {
+        if let Some(before) = &self.chunk {
+            chunk.follows(before).map_err(Refused::Chunk)?;
+        }
+        if chunk.targets.first().map(Vec::len) != Some(self.r.len()) {
+            // Made for another robot: its own check names the target.
+            return Err(Refused::Chunk(ChunkError::Joints {
+                target: 0,
+                expected: self.r.len(),
+                got: chunk.targets.first().map_or(0, Vec::len),
+                what: "target",
+            }));
         }
         let last_s = chunk.time_of(chunk.targets.len() - 1);
         if last_s < now {
-            return refuse(self, Refused::Late { last_s, now });
+            return Err(Refused::Late { last_s, now });
+        }
+        if let Some((lower, upper)) = &self.range {
+            for (target, q) in chunk.targets.iter().enumerate() {
+                for (joint, &value) in q.iter().enumerate() {
+                    if !(lower[joint]..=upper[joint]).contains(&value) {
+                        return Err(Refused::Range {
+                            target,
+                            joint,
+                            value,
+                            lower: lower[joint],
+                            upper: upper[joint],
+                        });
+                    }
+                }
+            }
         }
         // Where it wants the robot now, in the reference's buffers (the next tick fills
         // them afresh): nothing allocated on a loop that takes chunks.
-        reference(&chunk, now, &mut self.r, &mut self.rv, &mut self.ra);
+        reference(chunk, now, &mut self.r, &mut self.rv, &mut self.ra);
         let q = self.follower.position();
         if let Some((joint, gap)) = self
             .r
@@ -166,21 +299,13 @@ impl ChunkExecutor {
             .enumerate()
             .find(|(_, g)| *g > self.settings.max_gap_rad)
         {
-            return refuse(
-                self,
-                Refused::Far {
-                    joint,
-                    gap,
-                    max: self.settings.max_gap_rad,
-                },
-            );
+            return Err(Refused::Far {
+                joint,
+                gap,
+                max: self.settings.max_gap_rad,
+            });
         }
-        let skipped = chunk.past_at(now);
-        self.counts.taken += 1;
-        self.counts.skipped += skipped;
-        self.chunk = Some(chunk);
-        self.stalled = false;
-        Ok(skipped)
+        Ok(())
     }
 
     /// The command for the period ending at `now`.
@@ -188,7 +313,7 @@ impl ChunkExecutor {
         let fresh = self
             .chunk
             .as_ref()
-            .is_some_and(|c| now - c.arrived_s <= self.settings.stall_timeout_s);
+            .is_some_and(|c| self.last || now - c.arrived_s <= self.settings.stall_timeout_s);
         match (&self.chunk, fresh) {
             (Some(c), true) => reference(c, now, &mut self.r, &mut self.rv, &mut self.ra),
             _ => {
@@ -234,8 +359,12 @@ fn reference(c: &Chunk, t: f64, r: &mut [f64], rv: &mut [f64], ra: &mut [f64]) {
         p(k as isize + 2),
     );
     for j in 0..r.len() {
-        // Hermite with Catmull–Rom tangents m1 = (p2 − p0)/2, m2 = (p3 − p1)/2 (per target).
-        let (m1, m2) = ((p2[j] - p0[j]) / 2.0, (p3[j] - p1[j]) / 2.0);
+        // Hermite with the policy's velocities as tangents where it gives them, else
+        // Catmull–Rom's m1 = (p2 − p0)/2, m2 = (p3 − p1)/2 (per target).
+        let (m1, m2) = match &c.velocities {
+            Some(v) => (v[k][j] * h, v[(k + 1).min(n - 1)][j] * h),
+            None => ((p2[j] - p0[j]) / 2.0, (p3[j] - p1[j]) / 2.0),
+        };
         let (a, b) = (p1[j], p2[j]);
         let (u2, u3) = (u * u, u * u * u);
         r[j] = (2.0 * u3 - 3.0 * u2 + 1.0) * a

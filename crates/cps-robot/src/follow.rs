@@ -121,10 +121,20 @@ impl Follower {
                 }
                 _ => (q, 0.0, 0.0),
             };
+            // Where the motion goes while its acceleration is brought to zero at full
+            // jerk (τ = |a|/J): what the loops below compare with the reference, so that a
+            // low jerk limit does not make them overshoot.
+            let tau = a.abs() / l.jerk;
+            let v_ahead = v + a * tau / 2.0;
+            let q_ahead = q + v * tau + a * tau * tau / 3.0;
             // Toward the reference at most as fast as half the acceleration limit can stop
-            // at it (a far target is approached on a braking curve, not overshot).
-            let e = r - q;
-            let toward = (GAINS[0] * e.abs()).min((l.acceleration * e.abs()).sqrt());
+            // at it, jerk-limited (a far target is approached on a braking curve, not
+            // overshot): the speed from which braking at A/2, ramped at J, takes |e|.
+            let e = r - q_ahead;
+            let half = 0.5 * l.acceleration;
+            let ramp = half * half / (2.0 * l.jerk);
+            let braking = -ramp + (ramp * ramp + 2.0 * half * e.abs()).sqrt();
+            let toward = (GAINS[0] * e.abs()).min(braking);
             let vt = (rv + toward.copysign(e)).clamp(-l.velocity, l.velocity);
             // The largest acceleration after this step from which the velocity can still be
             // braked (jerk-limited) within its limit, on either side.
@@ -133,7 +143,7 @@ impl Follower {
                 let rest = (l.velocity - side * v).max(0.0);
                 (-j2 * dt + ((j2 * dt).powi(2) + j2 * rest).sqrt()).max(0.0)
             };
-            let at = (ra + GAINS[1] * (vt - v))
+            let at = (ra + GAINS[1] * (vt - v_ahead))
                 .clamp(-l.acceleration, l.acceleration)
                 .clamp(-room(-1.0), room(1.0));
             let rj = if self.ra[i].is_finite() {
@@ -145,8 +155,16 @@ impl Follower {
             let j = (rj + GAINS[2] * (at - a)).clamp(-l.jerk, l.jerk);
             let a = (a + j * dt).clamp(-l.acceleration, l.acceleration);
             let v = v + a * dt;
-            // A value that rounding left a hair from zero is zero: rest is exact.
-            let (a, v) = if a.abs() < 1e-15 && v.abs() < 1e-15 {
+            // Holding a point, a motion too small to matter is rest: the approach is
+            // exponential, and rounding would otherwise leave it a hair from zero for
+            // ever. Zeroing it changes the commands' acceleration by |v|/dt and their
+            // jerk by |v|/dt² + |a|/dt, far within the limits at these sizes.
+            let holding = rv == 0.0 && ra == 0.0;
+            let tiny_v = (0.5 * l.jerk * dt * dt).min(1e-9);
+            let tiny_a = (0.5 * l.jerk * dt).min(1e-6);
+            let (a, v) = if (a.abs() < 1e-15 && v.abs() < 1e-15)
+                || (holding && v.abs() <= tiny_v && a.abs() <= tiny_a)
+            {
                 (0.0, 0.0)
             } else {
                 (a, v)

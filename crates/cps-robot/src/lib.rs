@@ -8,7 +8,8 @@
 //!   Franka at 1 kHz) and `cps-ros2` (a ros2_control controller) implement it in their
 //!   crates. Robots that step (simulators) also offer [`Stepped`], on which cps's
 //!   closed-loop controller runs ([`execute`]); robots that take a command computed each
-//!   period from what they measured offer [`Streaming`] (a DMP stepped online).
+//!   period from what they measured offer [`Streaming`] (a DMP stepped online, a learned
+//!   policy's action chunks followed: [`follow`]).
 //! - [`Guarded`]: limits as a wrapper around any robot. Every plan is checked
 //!   ([`check()`]: its motion sampled every millisecond against the robot's joint, torque
 //!   and Cartesian limits) and refused, or slowed down (at most [`MAX_SLOWING`]×), and a
@@ -58,6 +59,9 @@
 
 mod check;
 mod chunk;
+mod chunk_feed;
+mod chunk_report;
+mod chunk_run;
 mod chunks;
 mod collision;
 mod execute;
@@ -71,8 +75,15 @@ mod stop;
 mod watch;
 
 pub use check::{Breach, Limit, OUTSIDE_SLACK, Verdict, check};
-pub use chunk::{Chunk, ChunkError};
-pub use chunks::{ChunkCounts, ChunkExecutor, ChunkSettings, Refused};
+pub use chunk::{Chunk, ChunkError, StandIn};
+pub use chunk_feed::{
+    ChunkFeed, ChunkLog, ChunkSource, ChunkVerdict, LiveSource, Replay, StateCell, live,
+};
+pub use chunk_report::{BOUNDARY_MS, FollowReport, Peaks, Spread};
+pub use chunk_run::{
+    FollowSettings, Followed, TORQUE_RATE_SHARE, executor_for, follow, follow_limits, replay_plan,
+};
+pub use chunks::{ChunkCounts, ChunkExecutor, ChunkSettings, Offer, Refused};
 pub use collision::{Collision, DEFAULT_MARGIN, ShapeWatch, Shapes, check_shapes};
 pub use execute::{CommandPath, ExecutionConfig, Recording, command_path, execute};
 pub use follow::{FollowLimits, Follower, GAINS};

@@ -1,0 +1,444 @@
+//! Where chunks come from on a robot's command loop: a source polled every period, which
+//! also takes back every chunk once the executor is done with it, so that nothing is
+//! allocated or freed on the loop. Two sources: [`Replay`] (a recorded stream, each chunk
+//! handed over at its arrival time) and the live pair [`live`] — a [`ChunkFeed`] a policy
+//! pushes into from its own thread (Python, a socket's listener) and a [`LiveSource`] on
+//! the loop, joined by bounded channels that neither side blocks on; the loop publishes
+//! the measured state into a [`StateCell`] the feed reads without a lock.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, TrySendError, sync_channel};
+use std::sync::{Arc, atomic::AtomicBool};
+
+use crate::chunk::Chunk;
+use crate::chunks::Refused;
+
+/// What the executor made of a chunk.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ChunkVerdict {
+    /// Taken, with how many of its targets were already past.
+    Taken {
+        /// Targets skipped.
+        skipped: usize,
+    },
+    /// Refused, the motion going on as before.
+    Refused(Refused),
+}
+
+/// Where the executor's chunks come from (see the module's text). Every method runs on the
+/// robot's loop: none may block, lock or allocate.
+pub trait ChunkSource: Send {
+    /// The next chunk handed over by `now` (s since the run's start), if any; called until
+    /// it answers None, each period. The source numbers the chunks it hands over from 0.
+    fn poll(&mut self, now: f64) -> Option<Chunk>;
+    /// What became of chunk `index`.
+    fn judged(&mut self, index: usize, verdict: ChunkVerdict);
+    /// Chunk `index` back, once the executor no longer follows it.
+    fn retire(&mut self, index: usize, chunk: Chunk);
+    /// Whether no chunk will come any more (the stream is over, the feed closed).
+    fn ended(&self) -> bool;
+    /// The measured joints at `t`, each period (a live source publishes them to the
+    /// policy). Default: nothing.
+    fn publish(&mut self, t: f64, q: &[f64]) {
+        let _ = (t, q);
+    }
+    /// The run is over (called once, after the loop). Default: nothing.
+    fn over(&mut self) {}
+}
+
+/// Every chunk of a run with what became of it, in the order they came: what a recording
+/// keeps (the replay file) and the report counts.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ChunkLog {
+    /// The chunks, in order, each with its verdict (None: the run ended before it was
+    /// judged).
+    pub entries: Vec<(Chunk, Option<ChunkVerdict>)>,
+    /// Entries the loop could not hand back because the feed's side did not take them in
+    /// time (counted, not kept).
+    pub lost: usize,
+}
+
+/// A recorded chunk stream replayed: each chunk handed over at the first period at or
+/// after its `arrived_s` (a chunk whose arrival goes back is handed over right after the
+/// one before, and the executor refuses it as it would live).
+#[derive(Debug, Clone)]
+pub struct Replay {
+    slots: Vec<Option<Chunk>>,
+    verdicts: Vec<Option<ChunkVerdict>>,
+    next: usize,
+}
+
+impl Replay {
+    /// A replay of `chunks`, in their order.
+    pub fn new(chunks: Vec<Chunk>) -> Replay {
+        let n = chunks.len();
+        Replay {
+            slots: chunks.into_iter().map(Some).collect(),
+            verdicts: vec![None; n],
+            next: 0,
+        }
+    }
+
+    /// The chunks with their verdicts (chunks still held by an executor that was not asked
+    /// for them back are missing).
+    pub fn into_log(self) -> ChunkLog {
+        ChunkLog {
+            entries: self
+                .slots
+                .into_iter()
+                .zip(self.verdicts)
+                .filter_map(|(c, v)| c.map(|c| (c, v)))
+                .collect(),
+            lost: 0,
+        }
+    }
+}
+
+impl ChunkSource for Replay {
+    fn poll(&mut self, now: f64) -> Option<Chunk> {
+        let chunk = self.slots.get_mut(self.next)?;
+        if chunk.as_ref().is_some_and(|c| c.arrived_s <= now) {
+            self.next += 1;
+            chunk.take()
+        } else {
+            None
+        }
+    }
+    fn judged(&mut self, index: usize, verdict: ChunkVerdict) {
+        if let Some(v) = self.verdicts.get_mut(index) {
+            *v = Some(verdict);
+        }
+    }
+    fn retire(&mut self, index: usize, chunk: Chunk) {
+        if let Some(slot) = self.slots.get_mut(index) {
+            *slot = Some(chunk);
+        }
+    }
+    fn ended(&self) -> bool {
+        self.next == self.slots.len()
+    }
+}
+
+/// The measured state shared between the loop (one writer) and a policy's thread: a
+/// sequence lock over atomics — the writer never waits, a reader retries while a write is
+/// under way.
+#[derive(Debug)]
+pub struct StateCell {
+    seq: AtomicU64,
+    t: AtomicU64,
+    q: Vec<AtomicU64>,
+}
+
+impl StateCell {
+    /// A cell for `dof` joints, empty (no state yet: time NaN).
+    pub fn new(dof: usize) -> StateCell {
+        StateCell {
+            seq: AtomicU64::new(0),
+            t: AtomicU64::new(f64::NAN.to_bits()),
+            q: (0..dof).map(|_| AtomicU64::new(0)).collect(),
+        }
+    }
+
+    /// Writes the state (one writer only).
+    pub fn write(&self, t: f64, q: &[f64]) {
+        self.seq.fetch_add(1, Ordering::AcqRel);
+        self.t.store(t.to_bits(), Ordering::Release);
+        for (cell, x) in self.q.iter().zip(q) {
+            cell.store(x.to_bits(), Ordering::Release);
+        }
+        self.seq.fetch_add(1, Ordering::AcqRel);
+    }
+
+    /// The last state written into `q` with its time, or None before the first.
+    pub fn read(&self, q: &mut [f64]) -> Option<f64> {
+        loop {
+            let before = self.seq.load(Ordering::Acquire);
+            if before % 2 == 1 {
+                std::hint::spin_loop();
+                continue;
+            }
+            let t = f64::from_bits(self.t.load(Ordering::Acquire));
+            for (x, cell) in q.iter_mut().zip(&self.q) {
+                *x = f64::from_bits(cell.load(Ordering::Acquire));
+            }
+            if self.seq.load(Ordering::Acquire) == before {
+                return (!t.is_nan()).then_some(t);
+            }
+        }
+    }
+}
+
+/// What the loop hands back to the feed's side.
+enum Back {
+    ChunkVerdict(usize, ChunkVerdict),
+    Chunk(usize, Chunk),
+}
+
+/// Chunks waiting for the loop: a policy is never more than a few ahead.
+const WAITING: usize = 16;
+/// Verdicts and chunks on their way back before the feed's side takes them.
+const RETURNING: usize = 4096;
+
+/// A policy's end of a live chunk stream (see [`live`]): pushes chunks, reads the robot's
+/// state, keeps the log. Dropping it (or [`ChunkFeed::close`]) ends the stream: the arm
+/// brakes to rest and the run ends.
+pub struct ChunkFeed {
+    to_loop: Option<SyncSender<Chunk>>,
+    back: Receiver<Back>,
+    state: Arc<StateCell>,
+    running: Arc<AtomicBool>,
+    dof: usize,
+    log: Vec<(Option<Chunk>, Option<ChunkVerdict>)>,
+    pushed: usize,
+}
+
+/// The loop's end of a live chunk stream (see [`live`]).
+pub struct LiveSource {
+    from_feed: Receiver<Chunk>,
+    back: SyncSender<Back>,
+    state: Arc<StateCell>,
+    running: Arc<AtomicBool>,
+    closed: bool,
+    next: usize,
+    lost: usize,
+    /// For a simulated robot: the wall clock its time is held to (set at the first
+    /// period).
+    pace: Option<Option<std::time::Instant>>,
+}
+
+/// A live chunk stream for a robot of `dof` joints: the feed for the policy's thread, the
+/// source for the robot's loop.
+pub fn live(dof: usize) -> (ChunkFeed, LiveSource) {
+    let (to_loop, from_feed) = sync_channel(WAITING);
+    let (back_tx, back) = sync_channel(RETURNING);
+    let state = Arc::new(StateCell::new(dof));
+    let running = Arc::new(AtomicBool::new(true));
+    (
+        ChunkFeed {
+            to_loop: Some(to_loop),
+            back,
+            state: state.clone(),
+            running: running.clone(),
+            dof,
+            log: Vec::new(),
+            pushed: 0,
+        },
+        LiveSource {
+            from_feed,
+            back: back_tx,
+            state,
+            running,
+            closed: false,
+            next: 0,
+            lost: 0,
+            pace: None,
+        },
+    )
+}
+
+impl ChunkFeed {
+    /// The robot's joint count.
+    pub fn dof(&self) -> usize {
+        self.dof
+    }
+
+    /// The robot's last measured joints and their time on the executor's clock (s since
+    /// the run started), or None before the loop's first period.
+    pub fn state(&mut self) -> Option<(f64, Vec<f64>)> {
+        self.collect();
+        let mut q = vec![0.0; self.dof];
+        self.state.read(&mut q).map(|t| (t, q))
+    }
+
+    /// Whether the run is still going (false once it ended: finished, stopped, failed).
+    pub fn running(&self) -> bool {
+        self.running.load(Ordering::Acquire)
+    }
+
+    /// Hands `chunk` to the loop, which stamps its arrival when it takes it (within a
+    /// period). Errors, in a sentence: the run is over or the feed closed, or the loop has
+    /// chunks waiting it has not taken (a policy far ahead of the robot).
+    pub fn push(&mut self, chunk: Chunk) -> Result<(), String> {
+        self.collect();
+        let Some(tx) = &self.to_loop else {
+            return Err("the chunk stream was closed".into());
+        };
+        match tx.try_send(chunk) {
+            Ok(()) => {
+                self.pushed += 1;
+                Ok(())
+            }
+            Err(TrySendError::Full(_)) => Err(format!(
+                "{WAITING} chunks are waiting for the robot's loop, which has not taken them: the robot is not running the stream"
+            )),
+            Err(TrySendError::Disconnected(_)) => {
+                Err("the run is over: the robot no longer takes chunks".into())
+            }
+        }
+    }
+
+    /// Ends the stream: the loop brakes the arm to rest and ends the run.
+    pub fn close(&mut self) {
+        self.to_loop = None;
+    }
+
+    /// Takes in what the loop handed back.
+    fn collect(&mut self) {
+        while let Ok(b) = self.back.try_recv() {
+            let i = match &b {
+                Back::ChunkVerdict(i, _) | Back::Chunk(i, _) => *i,
+            };
+            if self.log.len() <= i {
+                self.log.resize_with(i + 1, || (None, None));
+            }
+            match b {
+                Back::ChunkVerdict(_, v) => self.log[i].1 = Some(v),
+                Back::Chunk(_, c) => self.log[i].0 = Some(c),
+            }
+        }
+    }
+
+    /// The log, once the run is over and its source handed back.
+    pub fn into_log(mut self, source: LiveSource) -> ChunkLog {
+        let lost = source.lost;
+        drop(source);
+        self.collect();
+        ChunkLog {
+            entries: self
+                .log
+                .into_iter()
+                .filter_map(|(c, v)| c.map(|c| (c, v)))
+                .collect(),
+            lost,
+        }
+    }
+}
+
+impl LiveSource {
+    fn send(&mut self, b: Back) {
+        if self.back.try_send(b).is_err() {
+            // The feed's side has not taken the log in for a long while: the entry is
+            // counted, not kept (nothing may grow on the loop).
+            self.lost += 1;
+        }
+    }
+
+    /// The same source holding a simulated robot to the wall clock: each period waits
+    /// until its time has come, so a policy in another thread meets the robot as it would
+    /// a real one. Not for a real robot's loop (its own clock paces it).
+    pub fn paced(mut self) -> LiveSource {
+        self.pace = Some(None);
+        self
+    }
+}
+
+impl ChunkSource for LiveSource {
+    fn poll(&mut self, now: f64) -> Option<Chunk> {
+        match self.from_feed.try_recv() {
+            Ok(mut c) => {
+                self.next += 1;
+                c.arrived_s = now;
+                Some(c)
+            }
+            Err(TryRecvError::Empty) => None,
+            Err(TryRecvError::Disconnected) => {
+                self.closed = true;
+                None
+            }
+        }
+    }
+    fn judged(&mut self, index: usize, verdict: ChunkVerdict) {
+        self.send(Back::ChunkVerdict(index, verdict));
+    }
+    fn retire(&mut self, index: usize, chunk: Chunk) {
+        self.send(Back::Chunk(index, chunk));
+    }
+    fn ended(&self) -> bool {
+        self.closed
+    }
+    fn over(&mut self) {
+        self.running.store(false, Ordering::Release);
+    }
+    fn publish(&mut self, t: f64, q: &[f64]) {
+        if let Some(origin) = &mut self.pace {
+            let origin = *origin.get_or_insert_with(std::time::Instant::now);
+            let due = origin + std::time::Duration::from_secs_f64(t.max(0.0));
+            let now = std::time::Instant::now();
+            if due > now {
+                std::thread::sleep(due - now);
+            }
+        }
+        self.state.write(t, q);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn chunk(obs: f64) -> Chunk {
+        Chunk::new(obs, obs, 10.0, vec![vec![0.0, 0.0]; 3], None, 2).unwrap()
+    }
+
+    #[test]
+    fn a_replay_hands_each_chunk_over_at_its_arrival_and_keeps_it() {
+        let mut r = Replay::new(vec![chunk(0.0), chunk(0.1)]);
+        assert!(r.poll(0.0).is_some() && r.poll(0.05).is_none() && !r.ended());
+        let c = r.poll(0.1).unwrap();
+        assert!(r.ended() && r.poll(1.0).is_none());
+        r.judged(1, ChunkVerdict::Taken { skipped: 0 });
+        r.retire(1, c);
+        let log = r.into_log();
+        assert_eq!(log.entries.len(), 1, "chunk 0 was never handed back");
+        assert_eq!(log.entries[0].1, Some(ChunkVerdict::Taken { skipped: 0 }));
+    }
+
+    #[test]
+    fn a_live_feed_reaches_the_loop_and_gets_its_log_back() {
+        let (mut feed, mut source) = live(2);
+        assert!(feed.state().is_none());
+        source.publish(0.5, &[0.1, 0.2]);
+        assert_eq!(feed.state(), Some((0.5, vec![0.1, 0.2])));
+        feed.push(chunk(0.4)).unwrap();
+        let c = source.poll(0.6).unwrap();
+        assert_eq!(c.arrived_s, 0.6, "stamped on arrival");
+        source.judged(0, ChunkVerdict::Taken { skipped: 2 });
+        source.retire(0, c);
+        for _ in 0..WAITING {
+            feed.push(chunk(0.5)).unwrap();
+        }
+        let full = feed.push(chunk(0.5)).unwrap_err();
+        assert!(full.contains("waiting for the robot's loop"), "{full}");
+        feed.close();
+        while source.poll(0.7).is_some() {}
+        assert!(source.ended());
+        source.over();
+        assert!(!feed.running());
+        let log = feed.into_log(source);
+        assert_eq!(log.entries.len(), 1);
+        assert_eq!(log.entries[0].0.arrived_s, 0.6);
+    }
+
+    #[test]
+    fn the_state_cell_never_tears_under_a_concurrent_writer() {
+        let cell = Arc::new(StateCell::new(7));
+        let writer = {
+            let cell = cell.clone();
+            std::thread::spawn(move || {
+                for k in 0..200_000 {
+                    let x = k as f64;
+                    cell.write(x, &[x; 7]);
+                }
+            })
+        };
+        let mut q = [0.0; 7];
+        let mut reads = 0;
+        while !writer.is_finished() || reads == 0 {
+            if let Some(t) = cell.read(&mut q) {
+                assert!(q.iter().all(|x| *x == t), "torn: {t} {q:?}");
+                reads += 1;
+            }
+        }
+        writer.join().unwrap();
+    }
+}

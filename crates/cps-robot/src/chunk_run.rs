@@ -1,0 +1,351 @@
+//! Action chunks on a robot: the [`ChunkExecutor`] stepped on a [`Streaming`] robot's
+//! command loop behind the guard ([`follow`]), chunks taken from a [`ChunkSource`] each
+//! period, and what a run did ([`Followed`]) judged in numbers ([`FollowReport`]).
+//!
+//! The executor's commands depend on the chunks and their arrival times alone, not on what
+//! the robot measures, so a recorded stream's commands are known before anything moves:
+//! a replay is checked whole by the guard as a plan is ([`replay_plan`]); a live stream's
+//! commands are within the limits by the executor's construction and judged one by one by
+//! the guard's collision watch and the robot's own loop.
+
+use crate::chunk::Chunk;
+use crate::chunk_feed::{ChunkSource, ChunkVerdict};
+use crate::chunks::{ChunkCounts, ChunkExecutor, ChunkSettings, Offer};
+use crate::follow::FollowLimits;
+use crate::guard::Guarded;
+use crate::model::RobotModel;
+use crate::plan::{Plan, Run};
+use crate::robot::Robot;
+use crate::{RobotError, StopToken};
+
+/// How a run follows chunks: the executor's settings, the share of the robot's limits it
+/// moves within, and when the run ends.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FollowSettings {
+    /// The executor's (stall timeout, largest gap).
+    pub chunks: ChunkSettings,
+    /// The share of each velocity, acceleration and jerk limit the commands keep within
+    /// (default 0.95: the robot's own check at 100 % always has room).
+    pub limit_share: f64,
+    /// Seconds the arm may stand at rest with no chunk before the run ends (default 5; a
+    /// replay ends as soon as its last chunk is followed and the arm is at rest).
+    pub idle_end_s: f64,
+    /// The longest run (s; default 300): the commands' recording is made this long before
+    /// the loop starts, so that nothing grows on it.
+    pub max_duration_s: f64,
+}
+
+impl Default for FollowSettings {
+    fn default() -> Self {
+        FollowSettings {
+            chunks: ChunkSettings::default(),
+            limit_share: 0.95,
+            idle_end_s: 5.0,
+            max_duration_s: 300.0,
+        }
+    }
+}
+
+impl FollowSettings {
+    /// Checks every setting, in a sentence naming it.
+    pub fn check(&self) -> Result<(), String> {
+        let positive = |name: &str, x: f64| {
+            if x.is_finite() && x > 0.0 {
+                Ok(())
+            } else {
+                Err(format!("{name}: {x} is not a positive number of seconds"))
+            }
+        };
+        positive("stall timeout", self.chunks.stall_timeout_s)?;
+        positive("idle end", self.idle_end_s)?;
+        positive("max duration", self.max_duration_s)?;
+        if !(self.chunks.max_gap_rad.is_finite() && self.chunks.max_gap_rad > 0.0) {
+            return Err(format!(
+                "max gap: {} is not a positive distance (rad)",
+                self.chunks.max_gap_rad
+            ));
+        }
+        if !(self.limit_share > 0.0 && self.limit_share <= 1.0) {
+            return Err(format!(
+                "limit share: {} is not in (0, 1]",
+                self.limit_share
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The share of a torque-rate limit the follower's jerk may use up through the mass
+/// matrix at the start: the rest is room for the configuration's change, the velocity
+/// products and gravity's gradient, which the jerk does not drive.
+pub const TORQUE_RATE_SHARE: f64 = 0.5;
+
+/// The follower's limits for `model` starting at `q0`: its joints' velocity, acceleration
+/// and jerk limits at `share`; where the model has torque-rate limits and inertias, each
+/// jerk lowered by its joint's inertia, then all together by their coupling, so that the
+/// mass matrix at `q0` turns them into at most [`TORQUE_RATE_SHARE`] of each torque-rate
+/// limit. Errors, in a sentence: the robot's
+/// data lack a limit.
+pub fn follow_limits(
+    model: &RobotModel,
+    share: f64,
+    q0: &[f64],
+) -> Result<Vec<FollowLimits>, String> {
+    let n = model.chain.dof();
+    let missing = |what: &str| {
+        format!(
+            "the robot `{}` has no {what} limits, and following chunks within the limits needs velocity, acceleration and jerk limits (a robot file's [limits])",
+            model.name
+        )
+    };
+    let v = model
+        .chain
+        .velocity_limits()
+        .ok_or_else(|| missing("velocity"))?;
+    let a = model
+        .limits
+        .acceleration
+        .as_deref()
+        .ok_or_else(|| missing("acceleration"))?;
+    let j = model
+        .limits
+        .jerk
+        .as_deref()
+        .ok_or_else(|| missing("jerk"))?;
+    let mut jerk: Vec<f64> = j.iter().map(|x| x * share).collect();
+    if let (Some(rate), Some(links)) = (&model.limits.torque_rate, &model.inertia) {
+        let g = nalgebra::Vector3::zeros();
+        let zero = vec![0.0; n];
+        // The mass matrix at q0, column k the torques of a unit acceleration of joint k.
+        let mut mass = vec![vec![0.0; n]; n];
+        for k in 0..n {
+            let mut e = zero.clone();
+            e[k] = 1.0;
+            let col = model
+                .chain
+                .inverse_dynamics(links, g, q0, &zero, &e)
+                .map_err(|e| format!("the robot `{}`'s mass matrix: {e}", model.name))?;
+            for (i, m) in col.iter().enumerate() {
+                mass[i][k] = m.abs();
+            }
+        }
+        let room = |i: usize| TORQUE_RATE_SHARE * share * rate[i];
+        // Each joint's jerk by its own inertia, then all together by the coupling.
+        for k in 0..n {
+            if mass[k][k] > 0.0 {
+                jerk[k] = jerk[k].min(room(k) / mass[k][k]);
+            }
+        }
+        let scale = (0..n)
+            .map(|i| room(i) / (0..n).map(|k| mass[i][k] * jerk[k]).sum::<f64>())
+            .fold(1.0, f64::min);
+        for x in &mut jerk {
+            *x *= scale;
+        }
+    }
+    Ok((0..n)
+        .map(|i| FollowLimits {
+            velocity: v[i] * share,
+            acceleration: a[i] * share,
+            jerk: jerk[i],
+        })
+        .collect())
+}
+
+/// An executor for `model` at rest at `q0`, stepped every `dt`: its limits at the
+/// settings' share, chunks outside its joint range refused.
+pub fn executor_for(
+    model: &RobotModel,
+    q0: &[f64],
+    dt: f64,
+    settings: &FollowSettings,
+) -> Result<ChunkExecutor, String> {
+    settings.check()?;
+    let limits = follow_limits(model, settings.limit_share, q0)?;
+    let ex = ChunkExecutor::new(q0, &limits, dt, settings.chunks)?;
+    Ok(match model.chain.limits() {
+        Some((lower, upper)) => ex.with_range(lower, upper),
+        None => ex,
+    })
+}
+
+/// One period of a run: the chunks handed over by `t` offered, then the command for the
+/// period ending at `t + dt` written into `out`. True when the run is over: the stream
+/// ended and its last chunk was followed to its end (or the arm stood idle, with no fresh
+/// chunk, for `idle_end_s`), and the arm is at rest.
+struct Stepper {
+    ex: ChunkExecutor,
+    dt: f64,
+    idle_end_s: f64,
+    /// The chunk index the executor follows, and the next index.
+    current: Option<usize>,
+    next: usize,
+    /// When the last chunk came (or the start).
+    last_activity: f64,
+    /// When each stall began (capacity made before the loop; later stalls only counted).
+    stalls: Vec<f64>,
+}
+
+impl Stepper {
+    fn step(&mut self, source: &mut dyn ChunkSource, t: f64, out: &mut [f64]) -> bool {
+        while let Some(chunk) = source.poll(t) {
+            let i = self.next;
+            self.next += 1;
+            self.last_activity = t;
+            match self.ex.offer(chunk, t) {
+                Offer::Taken { skipped, replaced } => {
+                    source.judged(i, ChunkVerdict::Taken { skipped });
+                    if let (Some(old), Some(j)) = (replaced, self.current) {
+                        source.retire(j, old);
+                    }
+                    self.current = Some(i);
+                }
+                Offer::Refused { why, chunk } => {
+                    source.judged(i, ChunkVerdict::Refused(why));
+                    source.retire(i, chunk);
+                }
+            }
+        }
+        let ended = source.ended();
+        if ended {
+            // The stream is over: its last chunk is followed to its end.
+            self.ex.last_chunk();
+        }
+        let stalls = self.ex.counts().stalls;
+        out.copy_from_slice(self.ex.tick(t + self.dt));
+        if self.ex.counts().stalls > stalls && self.stalls.len() < self.stalls.capacity() {
+            self.stalls.push(t + self.dt);
+        }
+        let idle = self.ex.stalled_or_idle() && t - self.last_activity >= self.idle_end_s;
+        ((ended && self.ex.chunk_done(t)) || idle) && self.ex.at_rest()
+    }
+
+    /// Hands the chunk the executor still follows back to the source.
+    fn finish(&mut self, source: &mut dyn ChunkSource) {
+        if let (Some(c), Some(i)) = (self.ex.take_chunk(), self.current.take()) {
+            source.retire(i, c);
+        }
+    }
+}
+
+/// What a run of chunks did.
+#[derive(Debug, Clone)]
+pub struct Followed {
+    /// What the robot measured, one entry per command period (entry 0 at the start).
+    pub run: Run,
+    /// The command of each period, in order (the first for the period after entry 0).
+    pub commands: Vec<Vec<f64>>,
+    /// The command period (s).
+    pub dt: f64,
+    /// The limits the commands kept within.
+    pub limits: Vec<FollowLimits>,
+    /// Chunks taken, refused, targets skipped, stalls.
+    pub counts: ChunkCounts,
+    /// When each stall began (s).
+    pub stalls: Vec<f64>,
+}
+
+/// The commands a recorded stream makes from rest at `q0` (what [`follow`] will send for
+/// it, whatever the robot measures), as a plan every `dt` from `q0`: the guard checks it
+/// whole before anything moves.
+pub fn replay_plan(
+    model: &RobotModel,
+    q0: &[f64],
+    dt: f64,
+    chunks: &[Chunk],
+    settings: &FollowSettings,
+) -> Result<Plan, String> {
+    let mut source = crate::chunk_feed::Replay::new(chunks.to_vec());
+    let mut stepper = stepper(model, q0, dt, settings)?;
+    let mut points = vec![q0.to_vec()];
+    let mut out = q0.to_vec();
+    let max = (settings.max_duration_s / dt).ceil() as usize;
+    for k in 0..max {
+        let over = stepper.step(&mut source, k as f64 * dt, &mut out);
+        points.push(out.clone());
+        if over {
+            return Plan::new(dt, points).map_err(|e| e.to_string());
+        }
+    }
+    Err(format!(
+        "the chunks run longer than the longest run ({} s)",
+        settings.max_duration_s
+    ))
+}
+
+fn stepper(
+    model: &RobotModel,
+    q0: &[f64],
+    dt: f64,
+    settings: &FollowSettings,
+) -> Result<Stepper, String> {
+    Ok(Stepper {
+        ex: executor_for(model, q0, dt, settings)?,
+        dt,
+        idle_end_s: settings.idle_end_s,
+        current: None,
+        next: 0,
+        last_activity: 0.0,
+        stalls: Vec::with_capacity(256),
+    })
+}
+
+/// Follows the chunks of `source` on a streaming robot behind its guard, from where it
+/// stands, until the stream ends (or stands idle) and the arm is at rest, `stop` is
+/// asked (the robot brakes), or the longest run passes. `nominal`: the commands' plan
+/// when they are known before (a replay's [`replay_plan`]), checked whole by the guard;
+/// without it the guard checks the arm holding where it stands. Every command keeps the
+/// robot's velocity, acceleration and jerk limits at the settings' share.
+///
+/// Errors: the settings or the robot's limits (a sentence), the robot does not stream, the
+/// guard refused the nominal plan (nothing sent).
+pub fn follow<R: Robot>(
+    robot: &mut Guarded<R>,
+    source: &mut dyn ChunkSource,
+    nominal: Option<&Plan>,
+    settings: &FollowSettings,
+    stop: &StopToken,
+) -> Result<Followed, RobotError> {
+    let name = robot.name();
+    let input = |message: String| RobotError::Robot {
+        robot: name.clone(),
+        message,
+    };
+    let q0 = robot.joint_positions()?;
+    let dt = robot.command_period();
+    let model = robot.model().clone();
+    let mut stepper = stepper(&model, &q0, dt, settings).map_err(&input)?;
+    let limits = follow_limits(&model, settings.limit_share, &q0).map_err(&input)?;
+    let hold;
+    let nominal = match nominal {
+        Some(p) => p,
+        None => {
+            hold = Plan::new(dt, vec![q0.clone(), q0.clone()])?;
+            &hold
+        }
+    };
+    let max_commands = (settings.max_duration_s / dt).ceil() as usize;
+    let dof = q0.len();
+    // The commands' recording, made before the loop starts.
+    let mut flat: Vec<f64> = Vec::with_capacity((max_commands + 1) * dof);
+    let mut next = |measured: &[f64], t: f64, out: &mut [f64]| -> bool {
+        source.publish(t, measured);
+        let over = stepper.step(source, t, out);
+        if flat.len() + dof <= flat.capacity() {
+            flat.extend_from_slice(out);
+        }
+        over
+    };
+    let run = robot.stream(nominal, &mut next, max_commands, stop);
+    stepper.finish(source);
+    source.over();
+    let run = run?;
+    Ok(Followed {
+        run,
+        commands: flat.chunks(dof).map(<[f64]>::to_vec).collect(),
+        dt,
+        limits,
+        counts: stepper.ex.counts().clone(),
+        stalls: stepper.stalls,
+    })
+}

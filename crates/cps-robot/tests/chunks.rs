@@ -1,0 +1,249 @@
+//! Action chunks followed on the in-process FR3 at 1 kHz behind the guard: a recorded
+//! stand-in stream replayed (checked whole first), a live feed with bad chunks among good
+//! ones, a stall, a stop — every command within the limits the executor keeps, the log
+//! and the report true to what happened.
+
+use cps_kinematics::robots::{PANDA_READY, PandaTool, fr3, fr3_limits};
+use cps_robot::{
+    Chunk, ChunkVerdict, FollowReport, FollowSettings, Followed, Guarded, KinematicRobot, Policy,
+    Replay, Robot, RobotModel, StandIn, StopToken, follow, live, replay_plan,
+};
+
+const DT: f64 = 1e-3;
+
+fn model() -> RobotModel {
+    let mut m = RobotModel::of_chain("fr3", fr3(PandaTool::HandTcp));
+    m.limits = fr3_limits();
+    m
+}
+
+fn robot() -> Guarded<KinematicRobot> {
+    Guarded::new(
+        KinematicRobot::of_model(model(), &PANDA_READY, DT).unwrap(),
+        Policy::STRICT,
+    )
+}
+
+/// The demonstration: every joint swings about the ready pose, 0.25 Hz, from rest.
+fn demo(t: f64) -> Vec<f64> {
+    let s = 0.5 - 0.5 * (std::f64::consts::FRAC_PI_2 * t.max(0.0)).cos();
+    PANDA_READY
+        .iter()
+        .enumerate()
+        .map(|(j, q)| q + 0.3 * s * if j % 2 == 0 { 1.0 } else { -0.5 })
+        .collect()
+}
+
+/// Backward differences of the commands (from the start at rest) within the limits the
+/// run kept, at every millisecond.
+fn within_limits(run: &Followed) {
+    let q0 = &run.run.q[0];
+    for (j, l) in run.limits.iter().enumerate() {
+        let (mut prev, mut v0, mut a0) = (q0[j], 0.0, 0.0);
+        for (k, c) in run.commands.iter().enumerate() {
+            let v = (c[j] - prev) / DT;
+            let a = (v - v0) / DT;
+            let jk = (a - a0) / DT;
+            let tol = 1.0 + 1e-6;
+            assert!(
+                v.abs() <= l.velocity * tol
+                    && a.abs() <= l.acceleration * tol
+                    && jk.abs() <= l.jerk * tol,
+                "joint {} command {k}: v {v} a {a} j {jk}",
+                j + 1
+            );
+            (prev, v0, a0) = (c[j], v, a);
+        }
+    }
+}
+
+#[test]
+fn a_delayed_noisy_stream_is_followed_on_the_robot_within_every_limit() {
+    for hz in [10.0, 30.0] {
+        let stand_in = StandIn {
+            horizon: 50,
+            target_hz: 50.0,
+            chunk_hz: hz,
+            delay_s: (0.05, 0.15),
+            noise_rad: 0.002,
+            seed: 11,
+        };
+        let chunks = stand_in.chunks(&demo, 0.0, 6.0);
+        let settings = FollowSettings::default();
+        let mut r = robot();
+        let plan = replay_plan(r.model(), &PANDA_READY, DT, &chunks, &settings).unwrap();
+        let mut source = Replay::new(chunks.clone());
+        let run = follow(
+            &mut r,
+            &mut source,
+            Some(&plan),
+            &settings,
+            &StopToken::new(),
+        )
+        .unwrap();
+        assert!(run.run.ending.complete(), "{:?}", run.run.ending);
+        // The robot was sent exactly the plan the guard checked.
+        assert_eq!(run.commands.len() + 1, plan.points().len());
+        for (c, p) in run.commands.iter().zip(&plan.points()[1..]) {
+            assert_eq!(c, p);
+        }
+        within_limits(&run);
+        let log = source.into_log();
+        assert_eq!(
+            log.entries.len(),
+            chunks.len(),
+            "every chunk back in the log"
+        );
+        assert!(
+            log.entries
+                .iter()
+                .all(|(_, v)| matches!(v, Some(ChunkVerdict::Taken { .. })))
+        );
+        let report = FollowReport::new(&run, &log);
+        eprintln!("{hz} Hz:\n  {}", report.lines().join("\n  "));
+        assert_eq!((report.taken, report.refused), (chunks.len(), 0));
+        assert!(report.skipped > 0, "delayed chunks start in the past");
+        assert!(
+            report.usage.iter().all(|u| *u <= 1.0 + 1e-6),
+            "{:?}",
+            report.usage
+        );
+        assert!(
+            (0.05..=0.15).contains(&report.delay.min) && report.delay.max <= 0.15,
+            "{:?}",
+            report.delay
+        );
+        // After the first second the commands are within 10 mrad of the demonstration.
+        let worst = (1000..6000)
+            .map(|k| {
+                let d = demo((k + 1) as f64 * DT);
+                (0..7)
+                    .map(|j| (run.commands[k][j] - d[j]).abs())
+                    .fold(0.0, f64::max)
+            })
+            .fold(0.0, f64::max);
+        assert!(worst < 0.01, "{hz} Hz: {worst} rad from the demonstration");
+        // The stream is over: its last chunk is followed to its end, the arm comes to
+        // rest, the run ends (no stall: the stream ended, it did not stop coming).
+        assert!(report.stalls.is_empty(), "{:?}", report.stalls);
+        let end = demo(chunks.last().unwrap().time_of(49));
+        let last = run.commands.last().unwrap();
+        assert!(
+            (0..7).all(|j| (last[j] - end[j]).abs() < 0.005),
+            "{last:?} vs {end:?}"
+        );
+        assert_eq!(&run.commands[run.commands.len() - 2], last, "at rest");
+    }
+}
+
+#[test]
+fn a_live_feed_refuses_bad_chunks_and_brakes_to_rest_when_it_closes() {
+    let (mut feed, source) = live(7);
+    let here = PANDA_READY.to_vec();
+    let moved = |dq: f64| {
+        let mut q = here.clone();
+        q[0] += dq;
+        q
+    };
+    // A chunk far from the arm, one outside the range, then a good one moving joint 1
+    // by 0.1 rad; then the policy closes the stream.
+    let far = Chunk::new(0.0, 0.0, 50.0, vec![moved(0.5); 10], None, 7).unwrap();
+    let mut out_of_range = vec![here.clone(); 10];
+    out_of_range[9][3] = 0.5;
+    let range = Chunk::new(0.0, 0.0, 50.0, out_of_range, None, 7).unwrap();
+    let good = Chunk::new(
+        0.0,
+        0.0,
+        50.0,
+        (0..25).map(|k| moved(0.1 * k as f64 / 24.0)).collect(),
+        None,
+        7,
+    )
+    .unwrap();
+    for c in [far, range, good] {
+        feed.push(c).unwrap();
+    }
+    feed.close();
+    let mut r = robot();
+    let mut source = source;
+    let run = follow(
+        &mut r,
+        &mut source,
+        None,
+        &FollowSettings::default(),
+        &StopToken::new(),
+    )
+    .unwrap();
+    assert!(run.run.ending.complete(), "{:?}", run.run.ending);
+    within_limits(&run);
+    assert!(!feed.running());
+    let log = feed.into_log(source);
+    let report = FollowReport::new(&run, &log);
+    eprintln!("{}", report.lines().join("\n"));
+    assert_eq!((report.chunks, report.taken, report.refused), (3, 1, 2));
+    assert!(
+        report.refusals[0]
+            .1
+            .starts_with("the chunk wants joint 1 0.500 rad from where the arm is commanded"),
+        "{:?}",
+        report.refusals
+    );
+    assert!(
+        report.refusals[1]
+            .1
+            .starts_with("target 9 puts joint 4 at 0.5 rad, outside its range"),
+        "{:?}",
+        report.refusals
+    );
+    // The arm moved to the good chunk's end and stands there at rest.
+    let end = run.commands.last().unwrap();
+    assert!((end[0] - (here[0] + 0.1)).abs() < 1e-3, "{end:?}");
+    assert_eq!(&run.commands[run.commands.len() - 2], end);
+}
+
+#[test]
+fn a_stop_brakes_a_live_run_and_keeps_what_was_recorded() {
+    let (mut feed, source) = live(7);
+    // A long chunk joint 1 follows at speed; the stop comes while it moves.
+    let chunk = Chunk::new(
+        0.0,
+        0.0,
+        50.0,
+        (0..200)
+            .map(|k| {
+                let mut q = PANDA_READY.to_vec();
+                q[0] += 0.01 * k as f64;
+                q
+            })
+            .collect(),
+        None,
+        7,
+    )
+    .unwrap();
+    feed.push(chunk).unwrap();
+    let stop = StopToken::new();
+    let mut r = robot();
+    let mut source = source.paced();
+    let mut seen = 0;
+    // Stop from inside: after 500 periods the state the feed reads says t ≥ 0.5 s.
+    let stopper = stop.clone();
+    let watcher = std::thread::spawn(move || {
+        loop {
+            if let Some((t, _)) = feed.state()
+                && t >= 0.5
+            {
+                stopper.stop();
+                return (feed, t);
+            }
+            std::thread::yield_now();
+        }
+    });
+    let run = follow(&mut r, &mut source, None, &FollowSettings::default(), &stop);
+    let (feed, t) = watcher.join().unwrap();
+    let run = run.unwrap();
+    seen += run.commands.len();
+    assert!(t >= 0.5 && seen >= 500, "{t} {seen}");
+    assert_eq!(run.run.ending, cps_robot::Ending::Stopped);
+    within_limits(&run);
+    drop(feed);
+}
