@@ -129,7 +129,7 @@ LAYERS = {
     "cps-drive": [
         ["recording", "ros2_graph", "stand_in"],
         ["contact", "franka", "ros2"],
-        ["identify"],
+        ["follow", "identify"],
     ],
     "cps-experiment": [
         # what the others use: progress events, a pool of robots, the optimiser's bench

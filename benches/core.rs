@@ -555,7 +555,53 @@ fn obstacles(c: &mut Criterion) {
     });
 }
 
-criterion_group!(dmp_benches, dmp_extras, coppelia);
+/// The chunk executor's work per 1 ms period on the FR3: a 30 Hz stand-in's chunks of
+/// 50 targets pushed as they arrive, one command out per period (1000 periods per
+/// iteration: the time per period is the reported time / 1000).
+fn chunk_executor(c: &mut Criterion) {
+    use cps::kinematics::robots::{PANDA_READY, PandaTool, fr3, fr3_limits};
+    let mut model = cps::robot::RobotModel::of_chain("fr3", fr3(PandaTool::HandTcp));
+    model.limits = fr3_limits();
+    let demo = |t: f64| -> Vec<f64> {
+        PANDA_READY
+            .iter()
+            .map(|q| q + 0.3 * (0.5 - 0.5 * (std::f64::consts::FRAC_PI_2 * t).cos()))
+            .collect()
+    };
+    let chunks = cps::robot::StandIn {
+        horizon: 50,
+        target_hz: 50.0,
+        chunk_hz: 30.0,
+        delay_s: (0.05, 0.15),
+        noise_rad: 0.002,
+        seed: 1,
+    }
+    .chunks(&demo, 0.0, 1.0);
+    let settings = cps::robot::FollowSettings::default();
+    c.bench_function("chunks/executor_1000_periods_fr3_30hz", |b| {
+        b.iter_batched(
+            || {
+                (
+                    cps::robot::executor_for(&model, &PANDA_READY, 1e-3, &settings).unwrap(),
+                    chunks.clone(),
+                )
+            },
+            |(mut ex, chunks)| {
+                let mut it = chunks.into_iter().peekable();
+                for k in 0..1000 {
+                    let t = k as f64 * 1e-3;
+                    while let Some(c) = it.next_if(|c| c.arrived_s <= t) {
+                        black_box(ex.offer(c, t));
+                    }
+                    black_box(ex.tick(t + 1e-3));
+                }
+            },
+            criterion::BatchSize::SmallInput,
+        )
+    });
+}
+
+criterion_group!(dmp_benches, dmp_extras, coppelia, chunk_executor);
 criterion_group!(beyond, promp, obstacles);
 criterion_group!(
     benches,

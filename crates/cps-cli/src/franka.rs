@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::{Args, Subcommand};
 use cps_drive::franka::{self, DmpSettings, ExecuteSettings};
-use cps_drive::identify;
+use cps_drive::{follow, identify};
 use cps_experiment::ExperimentError;
 use cps_movement::robot_file::Answer;
 use cps_robot::StopToken;
@@ -81,6 +81,34 @@ pub enum FrankaCommand {
         /// A DMP model: the phase slows by 1/(1 + gain · lag in rad) (phase stopping).
         #[arg(long, default_value_t = franka::DEFAULT_ERROR_GAIN)]
         error_gain: f64,
+    },
+    /// Follow a learned policy's action chunks recorded in a file (CSV: chunk, arrived_s,
+    /// observed_s, k, q1..q7; the targets at --rate), each handed to the chunk executor at
+    /// its arrival: continuous to the jerk and within every limit at 1 kHz, chunks aligned
+    /// to now, bad ones refused, braking to rest when chunks stop. Checked whole first.
+    Follow {
+        /// The chunk file.
+        file: PathBuf,
+        #[command(flatten)]
+        on: On,
+        /// The chunks' targets per second.
+        #[arg(long)]
+        rate: f64,
+        /// The recording (CSV at the robot's rate), its chunks (`<stem>.chunks.csv`) and
+        /// report (`<stem>.report.json`) to write.
+        #[arg(long)]
+        record: Option<PathBuf>,
+        #[command(flatten)]
+        arm: Arm,
+        /// Seconds without a new chunk before the arm brakes to rest.
+        #[arg(long, default_value_t = 0.25)]
+        stall_timeout: f64,
+        /// The largest distance (rad) between the command and where a chunk wants the arm.
+        #[arg(long, default_value_t = 0.2)]
+        max_gap: f64,
+        /// Replace an existing recording.
+        #[arg(long)]
+        force: bool,
     },
     /// The Franka Hand: `home`, `move W`, `grasp W [--force N]`, `stop`, `state`; each
     /// waits until the fingers settle and prints the hand's state.
@@ -192,6 +220,29 @@ pub fn franka(cmd: &FrankaCommand, stop: &StopToken) -> Result<ExitCode> {
                 goal: goal.clone(),
             };
             let done = franka::execute_file(file, &settings, &online, record, *force, stop);
+            finish(done, on.json)
+        }
+        FrankaCommand::Follow {
+            file,
+            on,
+            rate,
+            record,
+            arm,
+            stall_timeout,
+            max_gap,
+            force,
+        } => {
+            let exec = ExecuteSettings {
+                host: on.host.clone(),
+                arm: franka::parse_arm(&arm.arm)?,
+                retime: false,
+                approach: false,
+                realtime: franka::parse_realtime(&arm.realtime)?,
+            };
+            let mut s = cps_robot::FollowSettings::default();
+            (s.chunks.stall_timeout_s, s.chunks.max_gap_rad) = (*stall_timeout, *max_gap);
+            let rec = record.as_deref();
+            let done = follow::franka_follow(file, *rate, &exec, &s, rec, *force, stop);
             finish(done, on.json)
         }
         FrankaCommand::Identify {

@@ -242,7 +242,7 @@ pub struct Executed {
 /// The arm's own model (its flange, its base frame as the world) with its limits, and its
 /// shapes with the Franka Hand's (the hand franky-sim and most arms carry; an arm without
 /// one is only checked more carefully): what a trajectory file for it is checked against.
-fn arm_model(arm: Arm) -> Result<cps_robot::RobotModel, ExperimentError> {
+pub(crate) fn arm_model(arm: Arm) -> Result<cps_robot::RobotModel, ExperimentError> {
     let mut model = load_robot(arm.name(), Some("flange"), None)?;
     let with_hand = load_robot(arm.name(), Some("hand"), None)?;
     model.shapes = with_hand.shapes;
@@ -250,7 +250,7 @@ fn arm_model(arm: Arm) -> Result<cps_robot::RobotModel, ExperimentError> {
 }
 
 /// Connects to the Franka of `settings`, behind the guard with `policy`.
-fn guarded_arm(
+pub(crate) fn guarded_arm(
     settings: &ExecuteSettings,
     policy: Policy,
 ) -> Result<Guarded<FrankaRobot>, ExperimentError> {

@@ -5,6 +5,8 @@
 //!   made 1 kHz commands (retimed, resampled or taken as it is) and executed with its
 //!   recording and report; a DMP model stepped online with phase stopping; the robot's
 //!   state recorded; teaching by hand; the gripper.
+//! - [`follow`]: `cps-cli franka follow`: a learned policy's recorded action chunks
+//!   replayed through the chunk executor at 1 kHz, recorded with the chunks beside.
 //! - [`ros2`]: `cps-cli ros2 send|record` and `cps.ros2`: a joint trajectory checked and
 //!   sent to a ros2_control controller (its topic or its FollowJointTrajectory action),
 //!   joint states recorded with a report.
@@ -19,7 +21,7 @@
 //! - [`stand_in`]: `cps-cli sim serve` and `sim pool`: stand-in CoppeliaSim servers for a
 //!   scene file, their options checked, served until a stop.
 //!
-//! Its realtime closures (the online DMP's, the contact task's) run inside cps-franka's
+//! Its realtime closures (the online DMP's, the contact task's, the chunk executor's) run inside cps-franka's
 //! 1 kHz loop: nothing in them allocates, locks or logs.
 //!
 //! # Example
@@ -31,6 +33,7 @@
 #![deny(missing_docs)]
 
 pub mod contact;
+pub mod follow;
 pub mod franka;
 pub mod identify;
 pub mod recording;
