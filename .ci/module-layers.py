@@ -127,7 +127,7 @@ LAYERS = {
         ["export"],
     ],
     "cps-drive": [
-        ["recording", "ros2_graph", "stand_in"],
+        ["chunk_socket", "recording", "ros2_graph", "stand_in"],
         ["contact", "franka", "ros2"],
         ["follow", "identify"],
     ],

@@ -84,16 +84,24 @@ pub enum FrankaCommand {
     },
     /// Follow a learned policy's action chunks recorded in a file (CSV: chunk, arrived_s,
     /// observed_s, k, q1..q7; the targets at --rate), each handed to the chunk executor at
-    /// its arrival: continuous to the jerk and within every limit at 1 kHz, chunks aligned
+    /// its arrival, or live over UDP (--listen): continuous to the jerk and within every limit at 1 kHz, chunks aligned
     /// to now, bad ones refused, braking to rest when chunks stop. Checked whole first.
     Follow {
-        /// The chunk file.
-        file: PathBuf,
+        /// The chunk file (or --listen).
+        #[arg(required_unless_present = "listen")]
+        file: Option<PathBuf>,
         #[command(flatten)]
         on: On,
-        /// The chunks' targets per second.
-        #[arg(long)]
-        rate: f64,
+        /// Take chunks live from a policy in another process over UDP at this address
+        /// (docs/policies.md has the messages; python/examples/chunk_client.py sends them).
+        #[arg(long, conflicts_with = "file")]
+        listen: Option<std::net::SocketAddr>,
+        /// With --listen: the senders' addresses taken (default: loopback only).
+        #[arg(long, value_delimiter = ',')]
+        allow: Vec<std::net::IpAddr>,
+        /// The chunk file's targets per second (a datagram carries its own).
+        #[arg(long, required_unless_present = "listen")]
+        rate: Option<f64>,
         /// The recording (CSV at the robot's rate), its chunks (`<stem>.chunks.csv`) and
         /// report (`<stem>.report.json`) to write.
         #[arg(long)]
@@ -225,6 +233,8 @@ pub fn franka(cmd: &FrankaCommand, stop: &StopToken) -> Result<ExitCode> {
         FrankaCommand::Follow {
             file,
             on,
+            listen,
+            allow,
             rate,
             record,
             arm,
@@ -242,7 +252,20 @@ pub fn franka(cmd: &FrankaCommand, stop: &StopToken) -> Result<ExitCode> {
             let mut s = cps_robot::FollowSettings::default();
             (s.chunks.stall_timeout_s, s.chunks.max_gap_rad) = (*stall_timeout, *max_gap);
             let rec = record.as_deref();
-            let done = follow::franka_follow(file, *rate, &exec, &s, rec, *force, stop);
+            let done = match (file, listen) {
+                (Some(file), _) => {
+                    let hz = rate.expect("clap: --rate with a file");
+                    follow::franka_follow(file, hz, &exec, &s, rec, *force, stop)
+                }
+                (None, addr) => {
+                    let at = follow::Listen {
+                        addr: addr.expect("clap: a file or --listen"),
+                        allow: allow.clone(),
+                    };
+                    let ready = |a| eprintln!("listening for chunks on {a} (udp)");
+                    follow::franka_follow_live(&at, &exec, &s, rec, *force, &ready, stop)
+                }
+            };
             finish(done, on.json)
         }
         FrankaCommand::Identify {

@@ -159,3 +159,95 @@ fn bad_chunk_files_are_refused_with_their_place_before_anything_connects() {
     assert!(bad("rate.csv", &fine, "0").contains("rate"));
     assert!(!Path::new(&dir.path().join("rec.csv")).exists());
 }
+
+#[test]
+fn a_policy_in_another_process_drives_franky_sim_over_udp_and_strangers_are_refused() {
+    // The client runs in franky-sim's interpreter, which has numpy.
+    let Some(python) = sim::python() else {
+        return;
+    };
+    let Some(sim) = FrankySim::start("127.0.0.49") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("live.csv");
+    // The executor listens on 127.0.0.50 and takes chunks from 127.0.0.51 only.
+    let exe = env!("CARGO_BIN_EXE_cps-cli");
+    let cli = std::process::Command::new(exe)
+        .args([
+            "franka",
+            "follow",
+            "--listen",
+            "127.0.0.50:7771",
+            "--allow",
+            "127.0.0.51",
+            "--host",
+            &sim.host,
+            "--record",
+            rec.to_str().unwrap(),
+            "--realtime",
+            "ignore",
+            "--json",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // A stranger (another loopback address) and garbage from the allowed sender.
+    let stranger = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let allowed = std::net::UdpSocket::bind("127.0.0.51:0").unwrap();
+    let client = std::process::Command::new(&python)
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../python/examples/chunk_client.py"))
+        .args([
+            "--to",
+            "127.0.0.50:7771",
+            "--bind",
+            "127.0.0.51",
+            "--hz",
+            "10",
+            "--seconds",
+            "3",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    stranger.send_to(b"CPSE", "127.0.0.50:7771").unwrap();
+    allowed.send_to(b"hello", "127.0.0.50:7771").unwrap();
+    let client = client.wait_with_output().unwrap();
+    assert!(client.status.success(), "client: {}", stderr(&client));
+    let out = cli.wait_with_output().unwrap();
+    assert!(out.status.success(), "cps-cli: {}", stderr(&out));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["complete"], true, "{report}");
+    let s = &report["socket"];
+    assert_eq!(s["foreign"], 1, "{s}");
+    assert_eq!(s["refused"], 1, "{s}");
+    assert!(
+        s["reasons"][0]
+            .as_str()
+            .unwrap()
+            .contains("not a cps chunk message"),
+        "{s}"
+    );
+    let c = &report["chunks"];
+    let taken = c["taken"].as_u64().unwrap();
+    assert!(taken >= 20 && c["refused"] == 0, "{c}");
+    // The client's inference (80 ms) and the socket's hop: the delay it measured.
+    let delay = c["inference_delay_s"]["mean"].as_f64().unwrap();
+    assert!((0.075..0.5).contains(&delay), "{delay}");
+    for k in ["velocity", "acceleration", "jerk"] {
+        for u in report["limit_usage_percent"][k].as_array().unwrap() {
+            assert!(u.as_f64().unwrap() <= 100.0, "{k}: {u}");
+        }
+    }
+    // Joint 1 swung toward the client's 0.2 rad and the run kept its chunks.
+    let text = std::fs::read_to_string(&rec).unwrap();
+    let q1 = column(&text, "q_d1");
+    let swing = q1.iter().copied().fold(f64::MIN, f64::max) - q1[0];
+    assert!(swing > 0.1, "joint 1 swung {swing} rad");
+    let chunks =
+        cps_movement::chunks::read_chunks(&dir.path().join("live.chunks.csv"), 7, 50.0).unwrap();
+    assert_eq!(chunks.len() as u64, taken);
+}

@@ -87,20 +87,33 @@ pub fn franka_follow(
         })?;
     let log: ChunkLog = source.into_log();
     let report = FollowReport::new(&run, &log);
+    let franka = robot.inner().reports().last().cloned();
+    answer(exec, franka, &report, &log, record, Vec::new())
+}
+
+/// The answer of a run on a Franka: the recording, its chunks and report written when
+/// `record` is given; `extra` lines (a socket's counts) after the report's.
+fn answer(
+    exec: &ExecuteSettings,
+    franka: Option<cps_franka::MotionReport>,
+    report: &FollowReport,
+    log: &ChunkLog,
+    record: Option<&Path>,
+    extra: Vec<(String, Value)>,
+) -> Result<(Answer, u8), ExperimentError> {
     let executed = Executed {
         host: exec.host.clone(),
         arm: exec.arm,
-        report: robot
-            .inner()
-            .reports()
-            .last()
-            .cloned()
+        report: franka
             .ok_or_else(|| ExperimentError::Message("the robot sent no report".into()))?,
         approach: 0,
         how: "action chunks followed",
     };
     let mut json = executed.json();
-    json["chunks"] = report_json(&report);
+    json["chunks"] = report_json(report);
+    for (k, v) in &extra {
+        json[k] = v.clone();
+    }
     let mut lines = match record {
         Some(r) => {
             write_recording(r, &executed.report.samples, &json)?;
@@ -118,4 +131,235 @@ pub fn franka_follow(
     };
     lines.extend(report.lines().into_iter().map(|l| format!("  {l}")));
     Ok((Answer { json, lines }, exit_code(&executed.report.ending)))
+}
+
+/// Where a policy in another process reaches the executor (see [`crate::chunk_socket`]).
+#[derive(Debug, Clone)]
+pub struct Listen {
+    /// The address to listen on (loopback unless `allow` names senders).
+    pub addr: std::net::SocketAddr,
+    /// The senders taken (empty: loopback only).
+    pub allow: Vec<std::net::IpAddr>,
+}
+
+/// `franka follow --listen`: chunks from a policy in another process, over UDP, followed
+/// live on the Franka of `exec` until the policy ends the stream (or stands idle, or
+/// `stop`); written as [`franka_follow`] writes. `ready` is told the bound address before
+/// the loop starts.
+pub fn franka_follow_live(
+    listen: &Listen,
+    exec: &ExecuteSettings,
+    settings: &FollowSettings,
+    record: Option<&Path>,
+    force: bool,
+    ready: &dyn Fn(std::net::SocketAddr),
+    stop: &StopToken,
+) -> Result<(Answer, u8), ExperimentError> {
+    if let Some(r) = record {
+        check_record_target(r, force)?;
+        check_file_target(&chunks_path(r), FileKind::TrajectoryCsv, force)?;
+    }
+    crate::chunk_socket::check_listen(&listen.addr, &listen.allow).map_err(InputError)?;
+    let socket = std::net::UdpSocket::bind(listen.addr)
+        .map_err(|e| InputError(format!("--listen {}: {e}", listen.addr)))?;
+    let bound = socket
+        .local_addr()
+        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    let mut live = LiveRun::start(&ChunkRobot::Franka(exec.clone()), *settings, stop.clone())?;
+    ready(bound);
+    let counts = crate::chunk_socket::serve(&socket, &listen.allow, live.feed(), stop)
+        .map_err(|e| ExperimentError::Message(format!("--listen {bound}: {e}")));
+    let done = live.finish()?;
+    let counts = counts?;
+    let socket_json = json!({
+        "address": bound.to_string(), "chunks": counts.chunks, "states": counts.states,
+        "foreign": counts.foreign, "refused": counts.refused, "reasons": counts.reasons,
+    });
+    let (mut a, code) = answer(
+        exec,
+        done.franka,
+        &done.report,
+        &done.log,
+        record,
+        vec![("socket".into(), socket_json)],
+    )?;
+    a.lines.push(format!(
+        "  socket {bound}: {} chunks, {} state requests; {} datagrams from senders not allowed, {} refused",
+        counts.chunks, counts.states, counts.foreign, counts.refused
+    ));
+    for r in &counts.reasons {
+        a.lines.push(format!("    refused: {r}"));
+    }
+    Ok((a, code))
+}
+
+/// Which robot a live chunk stream drives.
+#[derive(Debug, Clone)]
+pub enum ChunkRobot {
+    /// A Franka over the Franka Control Interface (its own clock paces the loop).
+    Franka(ExecuteSettings),
+    /// The arm simulated with its dynamics (franky-sim's PD and drives), with the Franka
+    /// Hand, from `start` (default its ready pose), held to the wall clock.
+    Dynamics {
+        /// Which arm.
+        arm: cps_franka::limits::Arm,
+        /// Where it starts (rad).
+        start: Option<Vec<f64>>,
+    },
+    /// The in-process robot (it does what it is told), held to the wall clock.
+    Kinematic {
+        /// Which arm.
+        arm: cps_franka::limits::Arm,
+        /// Where it starts (rad).
+        start: Option<Vec<f64>>,
+    },
+}
+
+/// The robot of a live run, behind its guard.
+enum Opened {
+    Franka(Box<cps_robot::Guarded<cps_franka::FrankaRobot>>),
+    Simulated(Box<cps_robot::Guarded<Box<dyn Robot>>>),
+}
+
+impl ChunkRobot {
+    fn open(&self) -> Result<Opened, ExperimentError> {
+        let simulated = |arm: cps_franka::limits::Arm, start: &Option<Vec<f64>>, dynamics: bool| {
+            let model = cps_movement::robot_file::load_robot(arm.name(), Some("hand"), None)?;
+            let start = start.clone().unwrap_or_else(|| model.ready.clone());
+            if start.len() != 7 || start.iter().any(|x| !x.is_finite()) {
+                return Err(ExperimentError::from(InputError(
+                    "start: seven finite joint positions (rad)".into(),
+                )));
+            }
+            let robot: Box<dyn Robot> = if dynamics {
+                cps_dynamics::open(model, &start, &cps_dynamics::DynamicsOptions::default())
+                    .map_err(|e| ExperimentError::Message(e.to_string()))?
+            } else {
+                Box::new(
+                    cps_robot::KinematicRobot::of_model(model, &start, DT)
+                        .map_err(|e| InputError(format!("start: {e}")))?,
+                )
+            };
+            let guarded = cps_robot::Guarded::new(robot, Policy::STRICT);
+            Ok(Opened::Simulated(Box::new(guarded)))
+        };
+        match self {
+            ChunkRobot::Franka(s) => Ok(Opened::Franka(Box::new(guarded_arm(s, Policy::STRICT)?))),
+            ChunkRobot::Dynamics { arm, start } => simulated(*arm, start, true),
+            ChunkRobot::Kinematic { arm, start } => simulated(*arm, start, false),
+        }
+    }
+}
+
+/// What a live run did.
+#[derive(Debug, Clone)]
+pub struct LiveOutcome {
+    /// The run: measured joints each period, the commands, the counts.
+    pub followed: Followed,
+    /// Every chunk with its verdict.
+    pub log: ChunkLog,
+    /// The report.
+    pub report: FollowReport,
+    /// A Franka's own report (its samples: q, dq, tau, q_d at 1 kHz; timing).
+    pub franka: Option<cps_franka::MotionReport>,
+}
+
+type Finished = Result<
+    (
+        Followed,
+        cps_robot::LiveSource,
+        Option<cps_franka::MotionReport>,
+    ),
+    ExperimentError,
+>;
+
+/// A live chunk stream on a robot: the robot's loop runs on a thread of its own from
+/// [`LiveRun::start`]; the caller pushes chunks into [`LiveRun::feed`] and reads the
+/// robot's state from it; [`LiveRun::finish`] closes the stream (the last chunk is
+/// followed, the arm comes to rest) and returns what happened. Dropping it stops the
+/// robot (it brakes to rest).
+pub struct LiveRun {
+    feed: Option<cps_robot::ChunkFeed>,
+    stop: StopToken,
+    handle: Option<std::thread::JoinHandle<Finished>>,
+}
+
+impl LiveRun {
+    /// Opens `robot` (connects a Franka) and starts its loop, following what the feed
+    /// gets. Errors, before anything moves: the settings, the robot's address or start.
+    pub fn start(
+        robot: &ChunkRobot,
+        settings: FollowSettings,
+        stop: StopToken,
+    ) -> Result<LiveRun, ExperimentError> {
+        settings.check().map_err(InputError)?;
+        let opened = robot.open()?;
+        let (feed, source) = cps_robot::live(7);
+        let inner = stop.clone();
+        let handle = std::thread::Builder::new()
+            .name("cps-chunks".into())
+            .spawn(move || -> Finished {
+                let message = |e: RobotError| ExperimentError::Message(e.to_string());
+                match opened {
+                    Opened::Franka(mut r) => {
+                        let mut source = source;
+                        let run = follow(r.as_mut(), &mut source, None, &settings, &inner)
+                            .map_err(message)?;
+                        let report = r.inner().reports().last().cloned();
+                        Ok((run, source, report))
+                    }
+                    Opened::Simulated(mut r) => {
+                        let mut source = source.paced();
+                        let run = follow(&mut r, &mut source, None, &settings, &inner)
+                            .map_err(message)?;
+                        Ok((run, source, None))
+                    }
+                }
+            })
+            .map_err(|e| ExperimentError::Message(format!("the robot's loop: {e}")))?;
+        Ok(LiveRun {
+            feed: Some(feed),
+            stop,
+            handle: Some(handle),
+        })
+    }
+
+    /// The policy's end: push chunks, read the robot's state.
+    pub fn feed(&mut self) -> &mut cps_robot::ChunkFeed {
+        self.feed.as_mut().expect("the feed lives until finish")
+    }
+
+    /// Stops the robot (it brakes to rest within its limits); [`LiveRun::finish`] then
+    /// returns what was recorded.
+    pub fn stop(&self) {
+        self.stop.stop();
+    }
+
+    /// Closes the stream, waits for the run to end and returns it with its log and
+    /// report.
+    pub fn finish(mut self) -> Result<LiveOutcome, ExperimentError> {
+        let mut feed = self.feed.take().expect("finished once");
+        feed.close();
+        let handle = self.handle.take().expect("finished once");
+        let (followed, source, franka) = handle
+            .join()
+            .map_err(|_| ExperimentError::Message("the robot's loop panicked".into()))??;
+        let log = feed.into_log(source);
+        let report = FollowReport::new(&followed, &log);
+        Ok(LiveOutcome {
+            followed,
+            log,
+            report,
+            franka,
+        })
+    }
+}
+
+impl Drop for LiveRun {
+    fn drop(&mut self) {
+        if let Some(h) = self.handle.take() {
+            self.stop.stop();
+            let _ = h.join();
+        }
+    }
 }

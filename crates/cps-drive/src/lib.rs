@@ -6,7 +6,9 @@
 //!   recording and report; a DMP model stepped online with phase stopping; the robot's
 //!   state recorded; teaching by hand; the gripper.
 //! - [`follow`]: `cps-cli franka follow`: a learned policy's recorded action chunks
-//!   replayed through the chunk executor at 1 kHz, recorded with the chunks beside.
+//!   replayed through the chunk executor at 1 kHz, recorded with the chunks beside; a live
+//!   stream ([`follow::LiveRun`]) on a Franka, the dynamics or the in-process robot.
+//! - [`chunk_socket`]: chunks from another process over UDP (`franka follow --listen`).
 //! - [`ros2`]: `cps-cli ros2 send|record` and `cps.ros2`: a joint trajectory checked and
 //!   sent to a ros2_control controller (its topic or its FollowJointTrajectory action),
 //!   joint states recorded with a report.
@@ -32,6 +34,7 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod chunk_socket;
 pub mod contact;
 pub mod follow;
 pub mod franka;
