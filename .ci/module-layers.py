@@ -159,7 +159,7 @@ LAYERS = {
         ["errors"],
         ["arrays", "interrupt"],
         ["cmaes", "dmp", "experiment", "promp"],
-        ["franka", "kinematics", "learn", "mocap", "ros2"],
+        ["chunks", "franka", "kinematics", "learn", "mocap", "ros2"],
     ],
     "cps-cli": [
         ["progress", "robot", "scene", "simserve", "studio"],

@@ -25,6 +25,7 @@ from typing import Any, Callable, NamedTuple, Optional
 from . import _cps, mocap, ros2
 from ._cps import (
     DMP,
+    ChunkExecutor,
     CpsError,
     Franka,
     Outcome,
@@ -37,6 +38,7 @@ from ._cps import (
     Trajectory,
     ViaPointResult,
     __version__,
+    chunk_commands,
     identify,
     imitate,
     learn_via_points,
@@ -46,6 +48,8 @@ from ._cps import (
 
 __all__ = [
     "CMAES",
+    "ChunkExecutor",
+    "chunk_commands",
     "collide",
     "CMAEvolutionStrategy",
     "CMAEvolutionStrategyResult",

@@ -329,6 +329,42 @@ def run_experiment(
     progress: Optional[Callable[[dict[str, Any]], Any]] = None,
 ) -> Outcome: ...
 
+class ChunkExecutor:
+    """Follows a learned policy's action chunks on a robot (``"franka"`` at ``host``,
+    ``"dynamics"``, ``"kinematic"``) within every limit; the robot's loop runs from
+    construction until ``close()``."""
+    def __init__(
+        self,
+        robot: str = "dynamics",
+        arm: str = "fr3",
+        host: Optional[str] = None,
+        rate: float = 50.0,
+        start: Optional[ArrayLike] = None,
+        stall_timeout: float = 0.25,
+        max_gap: float = 0.2,
+        idle_end: float = 5.0,
+        max_duration: float = 300.0,
+        realtime: str = "enforce",
+    ) -> None: ...
+    def state(self) -> tuple[float, np.ndarray]: ...
+    def push(self, targets: ArrayLike, observed_at: float, rate: Optional[float] = None, velocities: Optional[ArrayLike] = None) -> None: ...
+    @property
+    def running(self) -> bool: ...
+    def stop(self) -> None: ...
+    def close(self) -> dict[str, Any]: ...
+    def __enter__(self) -> ChunkExecutor: ...
+    def __exit__(self, kind: Any, value: Any, traceback: Any) -> bool: ...
+
+def chunk_commands(
+    start: ArrayLike,
+    chunks: list[tuple[float, float, ArrayLike]],
+    rate: float = 50.0,
+    arm: str = "fr3",
+    stall_timeout: float = 0.25,
+    max_gap: float = 0.2,
+    max_duration: float = 300.0,
+) -> dict[str, np.ndarray]: ...
+
 class Franka:
     """A Franka robot (FR3, or a Panda on a protocol-10 system) over the Franka Control
     Interface. Each call connects, works and disconnects."""

@@ -22,6 +22,7 @@
 #![deny(missing_docs)]
 
 mod arrays;
+mod chunks;
 mod cmaes;
 mod dmp;
 mod errors;
@@ -58,6 +59,8 @@ fn _cps(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(experiment::run_experiment, m)?)?;
     m.add_class::<kinematics::Robot>()?;
     m.add_class::<franka::Franka>()?;
+    m.add_class::<chunks::ChunkExecutor>()?;
+    m.add_function(wrap_pyfunction!(chunks::chunk_commands, m)?)?;
     m.add_function(wrap_pyfunction!(franka::identify, m)?)?;
     m.add_function(wrap_pyfunction!(mocap::_mocap_take, m)?)?;
     m.add_function(wrap_pyfunction!(mocap::_mocap_read, m)?)?;

@@ -313,7 +313,9 @@ impl ChunkExecutor {
         let fresh = self
             .chunk
             .as_ref()
-            .is_some_and(|c| self.last || now - c.arrived_s <= self.settings.stall_timeout_s);
+            .is_some_and(|c| self.last || now - c.arrived_s <= self.settings.stall_timeout_s)
+            // Once stalled, only a new chunk moves the arm again.
+            && !self.stalled;
         match (&self.chunk, fresh) {
             (Some(c), true) => reference(c, now, &mut self.r, &mut self.rv, &mut self.ra),
             _ => {
