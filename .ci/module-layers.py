@@ -129,7 +129,7 @@ LAYERS = {
     "cps-drive": [
         ["chunk_socket", "recording", "ros2_graph", "stand_in"],
         ["contact", "franka", "ros2"],
-        ["follow", "identify"],
+        ["follow", "identify", "ros2_follow"],
     ],
     "cps-experiment": [
         # what the others use: progress events, a pool of robots, the optimiser's bench

@@ -44,6 +44,11 @@ pub enum Ros2Command {
     /// Send a joint trajectory (CSV: t, then one column per joint in rad) to a ros2_control
     /// joint_trajectory_controller, checked against the robot's limits first.
     Send(SendArgs),
+    /// Follow a learned policy's recorded action chunks (CSV: chunk, arrived_s,
+    /// observed_s, k, then one column per joint; the targets at --rate) on a
+    /// joint_trajectory_controller: one replacement trajectory per chunk at its arrival,
+    /// continuous for the controller, within every limit, braking to rest if chunks stop.
+    Follow(FollowArgs),
     /// Record sensor_msgs/JointState as a cps joint CSV (t, then the robot's joints in its
     /// order, matched by name), with a report beside it.
     Record(RecordArgs),
@@ -63,6 +68,33 @@ pub enum Ros2Command {
         #[arg(long)]
         json: bool,
     },
+}
+
+/// `cps-cli ros2 follow`'s arguments.
+#[derive(Args, Debug)]
+pub struct FollowArgs {
+    /// The chunk file.
+    file: PathBuf,
+    /// The controller (`/panda_arm_controller`): its `joint_trajectory` topic.
+    #[arg(long)]
+    controller: String,
+    /// The chunks' targets per second.
+    #[arg(long)]
+    rate: f64,
+    #[command(flatten)]
+    on: On,
+    /// Seconds between the points of each trajectory.
+    #[arg(long, default_value_t = 0.01)]
+    period: f64,
+    /// Seconds to wait for the controller.
+    #[arg(long, default_value_t = 10.0)]
+    wait: f64,
+    /// Seconds without a new chunk before the arm brakes to rest.
+    #[arg(long, default_value_t = 0.25)]
+    stall_timeout: f64,
+    /// Print JSON.
+    #[arg(long)]
+    json: bool,
 }
 
 /// `cps-cli ros2 send`'s arguments.
@@ -208,6 +240,19 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
             bar.set_message("following (‰)");
             let send = |f: f64| bar.set_position((f * 1000.0) as u64);
             let (answer, c) = ros2::send(&a.file, &s, stop, send).map_err(cli_error)?;
+            (answer, c, a.json)
+        }
+        Ros2Command::Follow(a) => {
+            let s = cps_drive::ros2_follow::FollowTopic {
+                controller: a.controller.clone(),
+                graph: a.on.graph(),
+                period: a.period,
+                wait: a.wait,
+            };
+            let mut f = cps_robot::FollowSettings::default();
+            f.chunks.stall_timeout_s = a.stall_timeout;
+            let done = cps_drive::ros2_follow::ros2_follow(&a.file, a.rate, &s, &f, stop);
+            let (answer, c) = done.map_err(cli_error)?;
             (answer, c, a.json)
         }
         Ros2Command::Record(a) => {

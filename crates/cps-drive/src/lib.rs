@@ -12,6 +12,8 @@
 //! - [`ros2`]: `cps-cli ros2 send|record` and `cps.ros2`: a joint trajectory checked and
 //!   sent to a ros2_control controller (its topic or its FollowJointTrajectory action),
 //!   joint states recorded with a report.
+//! - [`ros2_follow`]: `cps-cli ros2 follow`: recorded chunks to a joint_trajectory_controller,
+//!   one replacement trajectory per chunk, continuous for the controller.
 //! - [`ros2_graph`]: `cps-cli ros2 graph`: the nodes, topics, services and actions cps
 //!   sees, with their middleware and QoS; what a command says when its controller is
 //!   missing.
@@ -41,5 +43,6 @@ pub mod franka;
 pub mod identify;
 pub mod recording;
 pub mod ros2;
+pub mod ros2_follow;
 pub mod ros2_graph;
 pub mod stand_in;

@@ -77,7 +77,7 @@ pub struct SendRecord {
 
 /// The robot model and the joint names for it (the robot's, or `names` checked against
 /// its joint count).
-fn robot_and_names(
+pub(crate) fn robot_and_names(
     robot: &str,
     names: Option<&[String]>,
 ) -> Result<(RobotModel, Vec<String>), ExperimentError> {

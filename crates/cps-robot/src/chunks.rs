@@ -212,6 +212,16 @@ impl ChunkExecutor {
         self.chunk.take()
     }
 
+    /// The last command's velocity (its backward difference, rad/s).
+    pub fn velocity(&self) -> &[f64] {
+        self.follower.velocity()
+    }
+
+    /// The last command's acceleration (rad/s²).
+    pub fn acceleration(&self) -> &[f64] {
+        self.follower.acceleration()
+    }
+
     /// The last command.
     pub fn position(&self) -> &[f64] {
         self.follower.position()
