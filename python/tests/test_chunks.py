@@ -161,6 +161,10 @@ def test_a_live_executor_on_the_dynamics_robot_takes_chunks_from_python():
     r = rec["report"]
     assert r["refused"] == 1 and "from where the arm is commanded" in r["refusals"][0]["why"]
     assert r["taken"] == 8
+    # Every chunk kept with its verdict, in order: the run can be replayed.
+    assert len(rec["chunks"]) == 9 and rec["chunks"][0]["verdict"].startswith("refused: the chunk wants")
+    assert all(c["verdict"].startswith("taken") for c in rec["chunks"][1:])
+    assert rec["chunks"][1]["targets"].shape == (50, 7)
     assert len(r["stalls_s"]) >= 1
     v, a, j = rates(rec["q_d"])
     assert np.max(np.abs(v) / FR3_V) <= 1 and np.max(np.abs(a)) <= FR3_A and np.max(np.abs(j)) <= FR3_J

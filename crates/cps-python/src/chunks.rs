@@ -57,6 +57,25 @@ fn outcome<'py>(py: Python<'py>, done: &LiveOutcome) -> PyResult<Bound<'py, PyDi
     d.set_item("report", json_to_py(py, &report_json(&done.report))?)?;
     d.set_item("lines", done.report.lines())?;
     d.set_item("ending", run.run.ending.sentence())?;
+    // Every chunk as it came, with what became of it: the run's replay.
+    let chunks = pyo3::types::PyList::empty(py);
+    for (c, verdict) in &done.log.entries {
+        let e = PyDict::new(py);
+        e.set_item("observed_s", c.observed_s)?;
+        e.set_item("arrived_s", c.arrived_s)?;
+        e.set_item("rate", c.rate_hz)?;
+        let h = c.targets.len();
+        let flat: Vec<f64> = c.targets.iter().flatten().copied().collect();
+        e.set_item("targets", array2(py, flat, h, 7)?)?;
+        let v = match verdict {
+            Some(cps_robot::ChunkVerdict::Taken { skipped }) => format!("taken, {skipped} past"),
+            Some(cps_robot::ChunkVerdict::Refused(why)) => format!("refused: {why}"),
+            None => "not judged (the run ended)".into(),
+        };
+        e.set_item("verdict", v)?;
+        chunks.append(e)?;
+    }
+    d.set_item("chunks", chunks)?;
     Ok(d)
 }
 
@@ -194,7 +213,9 @@ impl ChunkExecutor {
     /// run ends. Returns the recording: `t` (n,), `q` measured and `q_d` commanded
     /// (n, 7) at the robot's rate, `report` (chunks taken, refused and why, skipped,
     /// inference delay and jitter, acceleration and jerk peaks at boundaries and
-    /// overall, stalls), `lines` (the report in words), `ending`.
+    /// overall, stalls), `lines` (the report in words), `ending`, and `chunks`: every chunk
+    /// as it came (`observed_s`, `arrived_s`, `rate`, `targets`, `verdict`), the run's
+    /// replay.
     fn close<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let live = self
             .live
