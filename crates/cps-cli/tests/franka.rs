@@ -10,7 +10,7 @@ use std::path::Path;
 use std::process::{Command, Output};
 use std::time::Duration;
 
-use common::{cli, json};
+use common::{cli, json, state_q};
 use sim::FrankySim;
 
 fn stderr(o: &Output) -> String {
@@ -33,20 +33,6 @@ fn trajectory(dir: &Path, from: &[f64], swing: f64) -> String {
     let p = dir.join("traj.csv");
     std::fs::write(&p, text).unwrap();
     p.to_str().unwrap().to_string()
-}
-
-fn state_q(host: &str) -> Vec<f64> {
-    let o = cli(&["franka", "state", "--host", host, "--json"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    assert_eq!(v["robot_mode"], "idle");
-    assert_eq!(v["errors"].as_array().unwrap().len(), 0);
-    v["q"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect()
 }
 
 #[test]

@@ -8,27 +8,10 @@ mod common;
 use cps_testkit::franky_sim as sim;
 
 use std::path::Path;
-use std::process::Output;
 
-use common::cli;
+use common::{cli, state_q, stderr};
 use cps_robot::StandIn;
 use sim::FrankySim;
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn state_q(host: &str) -> Vec<f64> {
-    let o = cli(&["franka", "state", "--host", host, "--json"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    v["q"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect()
-}
 
 /// The demonstration: joints 1, 2 and 4 swing about `from` at 0.25 Hz, from rest.
 fn demo(from: &[f64]) -> impl Fn(f64) -> Vec<f64> + '_ {

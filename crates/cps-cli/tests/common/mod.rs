@@ -148,3 +148,19 @@ pub fn refused(dir: &Path, name: &str, toml: &str, expected: &str) -> String {
     assert!(!out.join("summary.json").exists(), "{name}");
     err
 }
+
+/// A Franka's joint positions from `cps-cli franka state`, checked idle and without
+/// errors.
+pub fn state_q(host: &str) -> Vec<f64> {
+    let o = cli(&["franka", "state", "--host", host, "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["robot_mode"], "idle");
+    assert_eq!(v["errors"].as_array().unwrap().len(), 0);
+    v["q"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
