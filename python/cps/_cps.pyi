@@ -131,7 +131,7 @@ def imitate(
     lambda_: Union[None, float, Literal["auto"]] = None,
     tau: Optional[float] = None,
     dt: Optional[float] = None,
-    formulation: Formulation = "ijspeert",
+    formulation: Formulation = "robust",
     combine: Literal["mean", "stack"] = "mean",
     names: Optional[Sequence[str]] = None,
 ) -> DMP: ...

@@ -105,6 +105,21 @@ def test_the_robust_formulation_learns_a_loop_back_to_its_start():
         cps.imitate(t, y, formulation="ijspeert", bases=30)
 
 
+def test_imitate_keeps_a_shape_by_default_and_the_thesiss_form_warns_of_a_mirrored_start():
+    t = np.linspace(0.0, 2.0, 201)
+    s = 10 * (t / 2) ** 3 - 15 * (t / 2) ** 4 + 6 * (t / 2) ** 5
+    y = np.column_stack([0.2 + 0.3 * s, -0.1 + 0.05 * s + 0.05 * np.sin(np.pi * t / 2)])
+    robust = cps.imitate(t, y, bases=20)
+    assert robust.formulation == "robust"
+    thesis = cps.imitate(t, y, bases=20, formulation="ijspeert")
+    with pytest.warns(UserWarning, match=r"y0: goal − start is -0.2000 .* mirrors it .* formulation=\"robust\""):
+        thesis.rollout(start=[0.7, -0.1])
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        robust.rollout(start=[0.7, -0.1])  # no warning: the shape is kept
+
+
 def test_models_and_rollouts_equal_the_command_line_bit_for_bit(tmp_path, cli):
     t = np.linspace(0.0, 1.2, 121)
     y = np.column_stack([0.3 + 0.2 * np.sin(3 * t), np.cos(2 * t), t ** 2])

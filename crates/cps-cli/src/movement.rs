@@ -74,8 +74,8 @@ pub struct ImitateArgs {
     /// sampling interval).
     #[arg(long, allow_hyphen_values = true)]
     dt: Option<f64>,
-    /// Forcing-term formulation.
-    #[arg(long, value_enum, default_value = "ijspeert")]
+    /// Forcing-term formulation (robust keeps the shape from a new start or goal).
+    #[arg(long, value_enum, default_value = "robust")]
     formulation: FormulationArg,
     /// How several demonstrations are combined.
     #[arg(long, value_enum, default_value = "mean")]
@@ -196,6 +196,9 @@ pub fn run_rollout(args: &RolloutArgs) -> Result<ExitCode> {
     write_file(&args.out, &csv).map_err(cli_error)?;
     if let Some(plot) = &args.plot {
         draw_file(&rolled.figure(), plot).map_err(cli_error)?;
+    }
+    for w in &rolled.warnings {
+        eprintln!("warning: {w}");
     }
     let traj = &rolled.trajectory;
     say!(

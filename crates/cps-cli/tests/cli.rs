@@ -427,6 +427,54 @@ fn imitate_and_rollout_round_trip() {
     assert!(std::fs::metadata(&plot).unwrap().len() > 1000);
 }
 
+/// The default formulation keeps a shape from a new start; the thesis's, one word away,
+/// says in a sentence when a new start mirrors or stretches its shape.
+#[test]
+fn imitate_keeps_a_shape_by_default_and_the_thesiss_form_warns_when_a_start_distorts_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let demo = write(dir.path(), "demo.csv", &demo_csv(201));
+    let learn = |name: &str, extra: &[&str]| {
+        let model = dir.path().join(name);
+        let mut args = vec![
+            "imitate",
+            demo.to_str().unwrap(),
+            "--out",
+            model.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let o = cli(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        model
+    };
+    let robust = learn("robust.json", &[]);
+    assert_eq!(json(&robust)["formulation"], "goal_robust");
+    let thesis = learn("thesis.json", &["--formulation", "ijspeert"]);
+    assert_eq!(json(&thesis)["formulation"], "ijspeert2013");
+    // x learned 0.2 → 0.5; from 0.7 to 0.5 it runs the other way.
+    let roll = |model: &std::path::Path| {
+        let out = dir.path().join("r.csv");
+        let o = cli(&[
+            "rollout",
+            model.to_str().unwrap(),
+            "--start",
+            "0.7,-0.1",
+            "--out",
+            out.to_str().unwrap(),
+            "--force",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    };
+    let warned = roll(&thesis);
+    assert!(
+        warned.contains("warning: x: goal − start is -0.2000 where the model learned 0.3000, which mirrors it (×-0.67)")
+            && warned.contains("--formulation robust"),
+        "{warned}"
+    );
+    assert!(!warned.contains("warning: y"), "{warned}");
+    assert!(!roll(&robust).contains("warning"));
+}
+
 #[test]
 fn bad_demonstrations_and_models_exit_2_and_write_nothing() {
     let dir = tempfile::tempdir().unwrap();
@@ -551,7 +599,7 @@ fn bad_demonstrations_and_models_exit_2_and_write_nothing() {
         ),
         (
             "f.json",
-            text.replace("ijspeert2013", "schaal"),
+            text.replace("goal_robust", "schaal"),
             "unknown formulation \"schaal\"",
         ),
     ] {
@@ -1005,7 +1053,8 @@ fn sim_pool_starts_every_second_port_and_stops_them_all() {
 }
 
 /// A demonstration that returns to its start along one axis cannot be learned in the
-/// Ijspeert form; `imitate` says so and names the flag that learns it, which does.
+/// Ijspeert form; `imitate --formulation ijspeert` says so and names the flag that learns
+/// it, which does (the default).
 #[test]
 fn imitate_names_the_formulation_that_learns_a_return_to_the_start() {
     let dir = tempfile::tempdir().unwrap();
@@ -1023,6 +1072,8 @@ fn imitate_names_the_formulation_that_learns_a_return_to_the_start() {
         demo.to_str().unwrap(),
         "--out",
         model.to_str().unwrap(),
+        "--formulation",
+        "ijspeert",
     ];
     let o = cli(&args);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
@@ -1032,9 +1083,7 @@ fn imitate_names_the_formulation_that_learns_a_return_to_the_start() {
         stderr(&o)
     );
     assert!(!model.exists());
-    let mut robust = args.to_vec();
-    robust.extend(["--formulation", "robust"]);
-    let o = cli(&robust);
+    let o = cli(&args[..4]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(model.is_file());
 }

@@ -58,7 +58,47 @@ pub struct Retargeted {
     pub scale: f64,
 }
 
+/// How far a new start or goal may scale an Ijspeert model's forcing term before cps
+/// says the shape will be distorted: by more than this factor up or down.
+pub const SHAPE_SCALING_WARNED: f64 = 2.0;
+
 impl DiscreteDmp {
+    /// Sentences on how rolling this model (its start and goal the ones it was learned
+    /// with) out from `start` to `goal` distorts its shape: in the Ijspeert formulation the
+    /// forcing term of each dimension scales by `(goal − start) / (g − y0)`, so a factor
+    /// below zero mirrors the shape and one beyond [`SHAPE_SCALING_WARNED`] (either way)
+    /// stretches or squashes it; a dimension whose learned amplitude is zero cannot be
+    /// scaled at all. None for the goal-robust formulation, whose shape a new start or
+    /// goal only corrects smoothly.
+    pub fn shape_warnings(&self, names: &[String], start: &[f64], goal: &[f64]) -> Vec<String> {
+        if self.config().formulation != Formulation::Ijspeert2013 {
+            return Vec::new();
+        }
+        let mut out = Vec::new();
+        for d in 0..self.dims() {
+            let name = names.get(d).cloned().unwrap_or_else(|| format!("y{d}"));
+            let learned = self.goal()[d] - self.start()[d];
+            let now = goal.get(d).copied().unwrap_or(0.0) - start.get(d).copied().unwrap_or(0.0);
+            if learned == 0.0 {
+                continue;
+            }
+            let k = now / learned;
+            let how = if k < 0.0 {
+                format!("mirrors it (×{k:.2})")
+            } else if k > SHAPE_SCALING_WARNED {
+                format!("stretches it ×{k:.2}")
+            } else if k < 1.0 / SHAPE_SCALING_WARNED {
+                format!("squashes it ×{k:.2}")
+            } else {
+                continue;
+            };
+            out.push(format!(
+                "{name}: goal − start is {now:.4} where the model learned {learned:.4}, which {how} in the thesis's (Ijspeert) formulation; imitate with --formulation robust to keep the shape"
+            ));
+        }
+        out
+    }
+
     /// The same DMP in another formulation and with other endpoints (the grid does not
     /// depend on the formulation).
     pub(crate) fn reformulated(

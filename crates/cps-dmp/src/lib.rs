@@ -80,7 +80,7 @@ pub use config::{
 pub use coupling::{Coupling, Couplings, DynamicPotential, SteeringAngle, check_endpoints};
 pub use dmp::DiscreteDmp;
 pub use error::DmpError;
-pub use generalize::{Retarget, Retargeted, rotation_between};
+pub use generalize::{Retarget, Retargeted, SHAPE_SCALING_WARNED, rotation_between};
 pub use imitation::{
     Combine, Demonstration, FitReport, Imitation, Imitator, Lambda, Regression, imitate,
 };

@@ -406,6 +406,9 @@ pub struct RolledOut {
     pub tau: f64,
     /// The trajectory.
     pub trajectory: Trajectory,
+    /// Sentences on how the new start or goal distorts the model's shape (see
+    /// [`DiscreteDmp::shape_warnings`]).
+    pub warnings: Vec<String>,
 }
 
 impl RolledOut {
@@ -483,6 +486,7 @@ pub fn rollout_file(model: &Path, spec: &RolloutSpec) -> Result<RolledOut, Input
     };
     let start = check("start", &spec.start, dmp.start())?;
     let goal = check("goal", &spec.goal, dmp.goal())?;
+    let warnings = dmp.shape_warnings(&names, &start, &goal);
     let mut config = *dmp.config();
     if let Some(t) = spec.tau {
         config.tau = t;
@@ -502,6 +506,7 @@ pub fn rollout_file(model: &Path, spec: &RolloutSpec) -> Result<RolledOut, Input
         goal,
         tau: config.tau,
         trajectory: dmp.rollout(&weights),
+        warnings,
     })
 }
 

@@ -369,6 +369,15 @@ impl Dmp {
             config.dt = dt.unwrap_or(config.dt);
             let start = start.as_deref().unwrap_or(self.dmp.start());
             let goal = goal.as_deref().unwrap_or(self.dmp.goal());
+            for w in self.dmp.shape_warnings(&self.names, start, goal) {
+                let message = w.replace("--formulation robust", "formulation=\"robust\"");
+                pyo3::PyErr::warn(
+                    py,
+                    &py.get_type::<pyo3::exceptions::PyUserWarning>(),
+                    &std::ffi::CString::new(message).unwrap_or_default(),
+                    1,
+                )?;
+            }
             let dmp = if config == *self.dmp.config() {
                 self.dmp.with_endpoints(start, goal).py()?
             } else {
@@ -748,7 +757,7 @@ fn imitator(config: DmpConfig) -> Result<Arc<Imitator>, cps_dmp::DmpError> {
 /// Learns a DMP from one demonstration (`t` (n,), `y` (n, dims)) or several (lists of
 /// them); the same method, defaults and fit report as `cps-cli imitate`.
 #[pyfunction]
-#[pyo3(signature = (t, y, *, bases=25, method="ridge", lambda_=None, tau=None, dt=None, formulation="ijspeert", combine="mean", names=None))]
+#[pyo3(signature = (t, y, *, bases=25, method="ridge", lambda_=None, tau=None, dt=None, formulation="robust", combine="mean", names=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn imitate(
     py: Python<'_>,

@@ -43,6 +43,9 @@ pub struct ImitationSection {
     dt: Option<Spanned<f64>>,
     ridge_lambda: Option<Spanned<f64>>,
     jerk_lambda: Option<Spanned<toml::Value>>,
+    /// `robust` (default: a shape kept from a new start or goal) or `ijspeert` (the
+    /// thesis's: the forcing term scales with goal − start).
+    formulation: Option<Spanned<String>>,
 }
 
 /// The imitation pipeline's settings beyond the learner and the robot.
@@ -195,6 +198,21 @@ impl Sections<'_> {
         if let Some(t) = i.and_then(|i| i.dt.as_ref()) {
             dmp.dt = self.within(t, "[imitation] `dt`", 1e-5, 10.0, " s")?;
         }
+        dmp.formulation = match i.and_then(|i| i.formulation.as_ref()) {
+            None => cps_dmp::Formulation::GoalRobust,
+            Some(f) => match f.get_ref().as_str() {
+                "robust" => cps_dmp::Formulation::GoalRobust,
+                "ijspeert" => cps_dmp::Formulation::Ijspeert2013,
+                other => {
+                    return Err(self.err(
+                        &f.span(),
+                        format!(
+                            "[imitation] `formulation` must be \"robust\" or \"ijspeert\" (got \"{other}\")"
+                        ),
+                    ));
+                }
+            },
+        };
         if let Err(e) = dmp.validate() {
             let span = self.imitation.map_or(0..0, Spanned::span);
             return Err(self.err(&span, format!("[imitation] {e}")));
