@@ -568,28 +568,24 @@ fn chunk_executor(c: &mut Criterion) {
             .map(|q| q + 0.3 * (0.5 - 0.5 * (std::f64::consts::FRAC_PI_2 * t).cos()))
             .collect()
     };
-    let chunks = cps::robot::StandIn {
-        horizon: 50,
-        target_hz: 50.0,
-        chunk_hz: 30.0,
-        delay_s: (0.05, 0.15),
-        noise_rad: 0.002,
-        seed: 1,
-    }
-    .chunks(&demo, 0.0, 1.0);
-    let settings = cps::robot::FollowSettings::default();
-    // Each period timed on its own over 20 s of chunks, for its median and p99 (what a
-    // 1 kHz loop must fit): printed beside criterion's mean.
-    {
-        let long = cps::robot::StandIn {
+    // The stand-in's chunks at 30 Hz for `seconds`.
+    let stand_in = |seed: u64, seconds: f64| {
+        cps::robot::StandIn {
             horizon: 50,
             target_hz: 50.0,
             chunk_hz: 30.0,
             delay_s: (0.05, 0.15),
             noise_rad: 0.002,
-            seed: 2,
+            seed,
         }
-        .chunks(&demo, 0.0, 20.0);
+        .chunks(&demo, 0.0, seconds)
+    };
+    let chunks = stand_in(1, 1.0);
+    let settings = cps::robot::FollowSettings::default();
+    // Each period timed on its own over 20 s of chunks, for its median and p99 (what a
+    // 1 kHz loop must fit): printed beside criterion's mean.
+    {
+        let long = stand_in(2, 20.0);
         let mut ex = cps::robot::executor_for(&model, &PANDA_READY, 1e-3, &settings).unwrap();
         let mut it = long.into_iter().peekable();
         let mut ns = Vec::with_capacity(20_000);

@@ -216,11 +216,9 @@ pub fn franka(cmd: &FrankaCommand, stop: &StopToken) -> Result<ExitCode> {
             error_gain,
         } => {
             let settings = ExecuteSettings {
-                host: on.host.clone(),
-                arm: franka::parse_arm(&arm.arm)?,
                 retime: *retime,
                 approach: *approach,
-                realtime: franka::parse_realtime(&arm.realtime)?,
+                ..ExecuteSettings::parse(&on.host, &arm.arm, &arm.realtime)?
             };
             let online = DmpSettings {
                 error_gain: *error_gain,
@@ -242,30 +240,12 @@ pub fn franka(cmd: &FrankaCommand, stop: &StopToken) -> Result<ExitCode> {
             max_gap,
             force,
         } => {
-            let exec = ExecuteSettings {
-                host: on.host.clone(),
-                arm: franka::parse_arm(&arm.arm)?,
-                retime: false,
-                approach: false,
-                realtime: franka::parse_realtime(&arm.realtime)?,
-            };
-            let mut s = cps_robot::FollowSettings::default();
-            (s.chunks.stall_timeout_s, s.chunks.max_gap_rad) = (*stall_timeout, *max_gap);
+            let exec = ExecuteSettings::parse(&on.host, &arm.arm, &arm.realtime)?;
+            let chunks = follow::Chunks::of(file.as_deref(), *rate, *listen, allow)?;
+            let s = cps_robot::FollowSettings::with_chunks(*stall_timeout, *max_gap);
+            let ready = |a| eprintln!("listening for chunks on {a} (udp)");
             let rec = record.as_deref();
-            let done = match (file, listen) {
-                (Some(file), _) => {
-                    let hz = rate.expect("clap: --rate with a file");
-                    follow::franka_follow(file, hz, &exec, &s, rec, *force, stop)
-                }
-                (None, addr) => {
-                    let at = follow::Listen {
-                        addr: addr.expect("clap: a file or --listen"),
-                        allow: allow.clone(),
-                    };
-                    let ready = |a| eprintln!("listening for chunks on {a} (udp)");
-                    follow::franka_follow_live(&at, &exec, &s, rec, *force, &ready, stop)
-                }
-            };
+            let done = follow::franka_follow_from(&chunks, &exec, &s, rec, *force, &ready, stop);
             finish(done, on.json)
         }
         FrankaCommand::Identify {

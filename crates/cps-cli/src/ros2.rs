@@ -249,8 +249,8 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
                 period: a.period,
                 wait: a.wait,
             };
-            let mut f = cps_robot::FollowSettings::default();
-            f.chunks.stall_timeout_s = a.stall_timeout;
+            let gap = cps_robot::ChunkSettings::default().max_gap_rad;
+            let f = cps_robot::FollowSettings::with_chunks(a.stall_timeout, gap);
             let done = cps_drive::ros2_follow::ros2_follow(&a.file, a.rate, &s, &f, stop);
             let (answer, c) = done.map_err(cli_error)?;
             (answer, c, a.json)

@@ -51,6 +51,66 @@ pub fn report_json(r: &FollowReport) -> Value {
     })
 }
 
+/// Where `franka follow` takes its chunks from.
+#[derive(Debug, Clone)]
+pub enum Chunks {
+    /// A recorded stream: the file and its targets' rate (Hz).
+    File {
+        /// The chunk file.
+        path: std::path::PathBuf,
+        /// Targets per second.
+        rate_hz: f64,
+    },
+    /// A policy in another process, over UDP.
+    Listen(Listen),
+}
+
+impl Chunks {
+    /// The command line's choice: a file (with its rate) or an address to listen on
+    /// (with the senders taken). Errors: neither, or a file without its rate.
+    pub fn of(
+        file: Option<&Path>,
+        rate_hz: Option<f64>,
+        listen: Option<std::net::SocketAddr>,
+        allow: &[std::net::IpAddr],
+    ) -> Result<Chunks, InputError> {
+        match (file, listen) {
+            (Some(path), None) => Ok(Chunks::File {
+                path: path.to_path_buf(),
+                rate_hz: rate_hz.ok_or_else(|| {
+                    InputError("--rate: give the chunk file's targets per second".into())
+                })?,
+            }),
+            (None, Some(addr)) => Ok(Chunks::Listen(Listen {
+                addr,
+                allow: allow.to_vec(),
+            })),
+            _ => Err(InputError(
+                "give a chunk file or --listen ADDR, one of them".into(),
+            )),
+        }
+    }
+}
+
+/// `franka follow` from `chunks` ([`franka_follow`] or [`franka_follow_live`]; `ready`
+/// hears the bound address of a socket).
+pub fn franka_follow_from(
+    chunks: &Chunks,
+    exec: &ExecuteSettings,
+    settings: &FollowSettings,
+    record: Option<&Path>,
+    force: bool,
+    ready: &dyn Fn(std::net::SocketAddr),
+    stop: &StopToken,
+) -> Result<(Answer, u8), ExperimentError> {
+    match chunks {
+        Chunks::File { path, rate_hz } => {
+            franka_follow(path, *rate_hz, exec, settings, record, force, stop)
+        }
+        Chunks::Listen(at) => franka_follow_live(at, exec, settings, record, force, ready, stop),
+    }
+}
+
 /// Follows the chunks of `file` (targets at `rate_hz`) on the Franka of `exec` under
 /// `settings`; writes the recording, its chunks and its report when `record` is given
 /// (checked before anything moves). Returns the answer and the exit code: 0 the stream

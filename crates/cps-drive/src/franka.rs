@@ -120,6 +120,21 @@ pub struct ExecuteSettings {
     pub realtime: Realtime,
 }
 
+impl ExecuteSettings {
+    /// The Franka at `host` with the arm and the loop's scheduling named in words (`fr3`
+    /// or `panda`; `enforce` or `ignore`), nothing retimed or approached. Errors: a word
+    /// that is not one of them, in a sentence.
+    pub fn parse(host: &str, arm: &str, realtime: &str) -> Result<Self, InputError> {
+        Ok(ExecuteSettings {
+            host: host.to_string(),
+            arm: parse_arm(arm)?,
+            retime: false,
+            approach: false,
+            realtime: parse_realtime(realtime)?,
+        })
+    }
+}
+
 /// A joint trajectory file made ready for a Franka: 1 kHz commands from t = 0 (what
 /// [`execute`] streams through the guard, which makes its own [`cps_robot::Prepared`] plan).
 #[derive(Debug, Clone)]

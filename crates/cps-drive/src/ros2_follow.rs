@@ -19,8 +19,8 @@ use std::path::Path;
 use std::time::{Duration, Instant, SystemTime};
 
 use cps_robot::{
-    Chunk, ChunkExecutor, FollowSettings, Guarded, Offer, Plan, Policy, Robot, RobotError,
-    RobotModel, StopToken, executor_for,
+    Chunk, ChunkExecutor, ChunkVerdict, FollowSettings, Guarded, Plan, Policy, Robot, RobotError,
+    RobotModel, StopToken, replay_with,
 };
 use cps_ros2::names::NodeName;
 use cps_ros2::node::{Node, Qos};
@@ -76,108 +76,74 @@ pub fn replacements(
     settings: &FollowSettings,
     period: f64,
 ) -> Result<Replacements, String> {
-    let mut ex = executor_for(model, start, DT, settings)?;
-    let mut commands = vec![start.to_vec()];
-    let (mut out, mut refused) = (Vec::new(), Vec::new());
-    let max = (settings.max_duration_s / DT).ceil() as usize;
-    let mut next = 0;
-    for k in 0..max {
-        let t = k as f64 * DT;
-        while next < chunks.len() && chunks[next].arrived_s <= t {
-            let i = next;
-            next += 1;
-            let taken = match ex.offer(chunks[i].clone(), t) {
-                Offer::Taken { .. } => true,
-                Offer::Refused { why, .. } => {
-                    refused.push((i, why.to_string()));
-                    false
-                }
-            };
-            let last = next == chunks.len();
-            if taken {
-                out.push(Replacement {
-                    chunk: i,
-                    at_s: t,
-                    points: predicted(&ex, last, t, commands.last().expect("a start"), period),
-                });
-            }
-        }
-        if next == chunks.len() {
-            ex.last_chunk();
-        }
-        commands.push(ex.tick(t + DT).to_vec());
-        let ended = next == chunks.len() && ex.chunk_done(t);
-        if ended && ex.at_rest() {
-            let plan = Plan::new(DT, commands).map_err(|e| e.to_string())?;
-            return Ok((plan, out, refused));
-        }
-    }
-    Err(format!(
-        "the chunks run longer than the longest run ({} s)",
-        settings.max_duration_s
-    ))
+    let mut out = Vec::new();
+    let (plan, log) = replay_with(model, start, DT, chunks, settings, &mut |taken| {
+        out.push(Replacement {
+            chunk: taken.chunk,
+            at_s: taken.t,
+            points: predicted(taken.executor, taken.last, taken.t, period),
+        });
+    })?;
+    let refused = log
+        .entries
+        .iter()
+        .enumerate()
+        .filter_map(|(i, (_, v))| match v {
+            Some(ChunkVerdict::Refused(why)) => Some((i, why.to_string())),
+            _ => None,
+        })
+        .collect();
+    Ok((plan, out, refused))
 }
 
 /// The motion of `ex` from `t` on if no other chunk came (the last chunk: followed to its
-/// end), from the command `now`, sampled every `period` with its velocities and
-/// accelerations (central differences of the millisecond commands).
-fn predicted(ex: &ChunkExecutor, last: bool, t: f64, now: &[f64], period: f64) -> Vec<Point> {
+/// end), from its last command, sampled every `period` with its velocities and
+/// accelerations: central differences of the millisecond commands, the one before the
+/// last command rebuilt from its backward difference, so every point — the first
+/// included — is differenced as the message before has it.
+fn predicted(ex: &ChunkExecutor, last: bool, t: f64, period: f64) -> Vec<Point> {
     let mut c = ex.clone();
     if last {
         c.last_chunk();
     }
-    // Two commands before (the motion's state at t) and every one after until rest.
-    let mut q = vec![now.to_vec()];
-    let mut k = 0;
-    loop {
-        k += 1;
+    let now = ex.position();
+    let before: Vec<f64> = now
+        .iter()
+        .zip(ex.velocity())
+        .map(|(q, v)| q - v * DT)
+        .collect();
+    let mut q = vec![before, now.to_vec()];
+    for k in 1..=600_000 {
         q.push(c.tick(t + k as f64 * DT).to_vec());
         let done = if last {
             c.chunk_done(t + k as f64 * DT)
         } else {
             c.stalled_or_idle()
         };
-        if (done && c.at_rest()) || k > 600_000 {
+        if done && c.at_rest() {
             break;
         }
     }
-    let (v0, a0) = (ex.velocity().to_vec(), ex.acceleration().to_vec());
-    let n = q.len();
     let every = ((period / DT).round() as usize).max(1);
-    let mut out = Vec::new();
-    let mut i = 0;
-    loop {
-        let (v, a) = if i == 0 && n > 1 {
-            // The command before `now`, from its backward difference: central differences
-            // at every point, the first included, as the message before has them.
-            let before: Vec<f64> = (0..now.len()).map(|j| now[j] - v0[j] * DT).collect();
-            let v = (0..now.len())
-                .map(|j| (q[1][j] - before[j]) / (2.0 * DT))
-                .collect();
-            let a = (0..now.len())
-                .map(|j| (q[1][j] - 2.0 * now[j] + before[j]) / (DT * DT))
-                .collect();
-            (v, a)
-        } else if i == 0 {
-            (v0.clone(), a0.clone())
-        } else if i + 1 < n {
-            let v: Vec<f64> = (0..now.len())
-                .map(|j| (q[i + 1][j] - q[i - 1][j]) / (2.0 * DT))
-                .collect();
-            let a = (0..now.len())
-                .map(|j| (q[i + 1][j] - 2.0 * q[i][j] + q[i - 1][j]) / (DT * DT))
-                .collect();
-            (v, a)
+    let end = q.len() - 1;
+    let at = |i: usize| {
+        let (v, a) = if i < end {
+            (0..now.len())
+                .map(|j| {
+                    (
+                        (q[i + 1][j] - q[i - 1][j]) / (2.0 * DT),
+                        (q[i + 1][j] - 2.0 * q[i][j] + q[i - 1][j]) / (DT * DT),
+                    )
+                })
+                .unzip()
         } else {
             (vec![0.0; now.len()], vec![0.0; now.len()])
         };
-        out.push((i as f64 * DT, q[i].clone(), v, a));
-        if i == n - 1 {
-            break;
-        }
-        i = (i + every).min(n - 1);
-    }
-    out
+        ((i - 1) as f64 * DT, q[i].clone(), v, a)
+    };
+    let mut points: Vec<Point> = (1..end).step_by(every).map(at).collect();
+    points.push(at(end));
+    points
 }
 
 fn time_of(t: SystemTime) -> Time {

@@ -47,10 +47,8 @@ fn outcome<'py>(py: Python<'py>, done: &LiveOutcome) -> PyResult<Bound<'py, PyDi
         .copied()
         .collect();
     let rows = measured.len() / 7;
-    d.set_item(
-        "t",
-        array1(py, (1..=rows).map(|k| k as f64 * run.dt).collect()),
-    )?;
+    // The robot's own times of those entries.
+    d.set_item("t", array1(py, run.run.time[1..=rows].to_vec()))?;
     d.set_item("q", array2(py, measured, rows, 7)?)?;
     let commands: Vec<f64> = run.commands.iter().take(rows).flatten().copied().collect();
     d.set_item("q_d", array2(py, commands, rows, 7)?)?;

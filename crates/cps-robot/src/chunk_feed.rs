@@ -5,6 +5,10 @@
 //! pushes into from its own thread (Python, a socket's listener) and a [`LiveSource`] on
 //! the loop, joined by bounded channels that neither side blocks on; the loop publishes
 //! the measured state into a [`StateCell`] the feed reads without a lock.
+//!
+//! The channels are std's bounded ones (`sync_channel`): `try_send` and `try_recv` are
+//! atomic operations on a ring; they take the channel's lock only to wake a side blocked
+//! in `recv` or `send`, and neither side here ever blocks, so the loop never locks.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, TrySendError, sync_channel};

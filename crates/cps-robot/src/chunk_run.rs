@@ -47,6 +47,17 @@ impl Default for FollowSettings {
 }
 
 impl FollowSettings {
+    /// The defaults with the executor's stall timeout (s) and largest gap (rad).
+    pub fn with_chunks(stall_timeout_s: f64, max_gap_rad: f64) -> FollowSettings {
+        FollowSettings {
+            chunks: ChunkSettings {
+                stall_timeout_s,
+                max_gap_rad,
+            },
+            ..FollowSettings::default()
+        }
+    }
+
     /// Checks every setting, in a sentence naming it.
     pub fn check(&self) -> Result<(), String> {
         let positive = |name: &str, x: f64| {
@@ -186,8 +197,28 @@ struct Stepper {
     stalls: Vec<f64>,
 }
 
+/// A chunk the executor took, as [`replay_with`] tells of it.
+#[derive(Debug)]
+pub struct TakenAt<'a> {
+    /// Its index in the stream.
+    pub chunk: usize,
+    /// When it was taken (s).
+    pub t: f64,
+    /// The executor, having just taken it (its last command the one for `t`).
+    pub executor: &'a ChunkExecutor,
+    /// Whether the stream is over with it (it will be followed to its end).
+    pub last: bool,
+}
+
 impl Stepper {
-    fn step(&mut self, source: &mut dyn ChunkSource, t: f64, out: &mut [f64]) -> bool {
+    /// `on_taken` hears of every chunk taken, as it is taken.
+    fn step(
+        &mut self,
+        source: &mut dyn ChunkSource,
+        t: f64,
+        out: &mut [f64],
+        on_taken: &mut dyn FnMut(&TakenAt<'_>),
+    ) -> bool {
         while let Some(chunk) = source.poll(t) {
             let i = self.next;
             self.next += 1;
@@ -199,6 +230,12 @@ impl Stepper {
                         source.retire(j, old);
                     }
                     self.current = Some(i);
+                    on_taken(&TakenAt {
+                        chunk: i,
+                        t,
+                        executor: &self.ex,
+                        last: source.ended(),
+                    });
                 }
                 Offer::Refused { why, chunk } => {
                     source.judged(i, ChunkVerdict::Refused(why));
@@ -255,16 +292,32 @@ pub fn replay_plan(
     chunks: &[Chunk],
     settings: &FollowSettings,
 ) -> Result<Plan, String> {
+    replay_with(model, q0, dt, chunks, settings, &mut |_| {}).map(|(plan, _)| plan)
+}
+
+/// [`replay_plan`], telling `on_taken` of each chunk as the executor takes it (a ROS 2
+/// controller's replacement trajectories start there), and returning the chunks with
+/// their verdicts too.
+pub fn replay_with(
+    model: &RobotModel,
+    q0: &[f64],
+    dt: f64,
+    chunks: &[Chunk],
+    settings: &FollowSettings,
+    on_taken: &mut dyn FnMut(&TakenAt<'_>),
+) -> Result<(Plan, crate::chunk_feed::ChunkLog), String> {
     let mut source = crate::chunk_feed::Replay::new(chunks.to_vec());
     let mut stepper = stepper(model, q0, dt, settings)?;
     let mut points = vec![q0.to_vec()];
     let mut out = q0.to_vec();
     let max = (settings.max_duration_s / dt).ceil() as usize;
     for k in 0..max {
-        let over = stepper.step(&mut source, k as f64 * dt, &mut out);
+        let over = stepper.step(&mut source, k as f64 * dt, &mut out, on_taken);
         points.push(out.clone());
         if over {
-            return Plan::new(dt, points).map_err(|e| e.to_string());
+            stepper.finish(&mut source);
+            let plan = Plan::new(dt, points).map_err(|e| e.to_string())?;
+            return Ok((plan, source.into_log()));
         }
     }
     Err(format!(
@@ -315,7 +368,6 @@ pub fn follow<R: Robot>(
     let dt = robot.command_period();
     let model = robot.model().clone();
     let mut stepper = stepper(&model, &q0, dt, settings).map_err(&input)?;
-    let limits = follow_limits(&model, settings.limit_share, &q0).map_err(&input)?;
     let hold;
     let nominal = match nominal {
         Some(p) => p,
@@ -330,7 +382,7 @@ pub fn follow<R: Robot>(
     let mut flat: Vec<f64> = Vec::with_capacity((max_commands + 1) * dof);
     let mut next = |measured: &[f64], t: f64, out: &mut [f64]| -> bool {
         source.publish(t, measured);
-        let over = stepper.step(source, t, out);
+        let over = stepper.step(source, t, out, &mut |_| {});
         if flat.len() + dof <= flat.capacity() {
             flat.extend_from_slice(out);
         }
@@ -344,7 +396,7 @@ pub fn follow<R: Robot>(
         run,
         commands: flat.chunks(dof).map(<[f64]>::to_vec).collect(),
         dt,
-        limits,
+        limits: stepper.ex.limits().to_vec(),
         counts: stepper.ex.counts().clone(),
         stalls: stepper.stalls,
     })

@@ -212,6 +212,11 @@ impl ChunkExecutor {
         self.chunk.take()
     }
 
+    /// The limits its commands keep.
+    pub fn limits(&self) -> &[FollowLimits] {
+        self.follower.limits()
+    }
+
     /// The last command's velocity (its backward difference, rad/s).
     pub fn velocity(&self) -> &[f64] {
         self.follower.velocity()

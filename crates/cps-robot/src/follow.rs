@@ -85,6 +85,11 @@ impl Follower {
         })
     }
 
+    /// The limits it keeps, per joint.
+    pub fn limits(&self) -> &[FollowLimits] {
+        &self.limits
+    }
+
     /// The last command (rad).
     pub fn position(&self) -> &[f64] {
         &self.q

@@ -81,7 +81,8 @@ pub use chunk_feed::{
 };
 pub use chunk_report::{BOUNDARY_MS, FollowReport, Peaks, Spread};
 pub use chunk_run::{
-    FollowSettings, Followed, TORQUE_RATE_SHARE, executor_for, follow, follow_limits, replay_plan,
+    FollowSettings, Followed, TORQUE_RATE_SHARE, TakenAt, executor_for, follow, follow_limits,
+    replay_plan, replay_with,
 };
 pub use chunks::{ChunkCounts, ChunkExecutor, ChunkSettings, Offer, Refused};
 pub use collision::{Collision, DEFAULT_MARGIN, ShapeWatch, Shapes, check_shapes};

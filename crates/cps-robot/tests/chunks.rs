@@ -224,7 +224,6 @@ fn a_stop_brakes_a_live_run_and_keeps_what_was_recorded() {
     let stop = StopToken::new();
     let mut r = robot();
     let mut source = source.paced();
-    let mut seen = 0;
     // Stop from inside: after 500 periods the state the feed reads says t ≥ 0.5 s.
     let stopper = stop.clone();
     let watcher = std::thread::spawn(move || {
@@ -241,7 +240,7 @@ fn a_stop_brakes_a_live_run_and_keeps_what_was_recorded() {
     let run = follow(&mut r, &mut source, None, &FollowSettings::default(), &stop);
     let (feed, t) = watcher.join().unwrap();
     let run = run.unwrap();
-    seen += run.commands.len();
+    let seen = run.commands.len();
     assert!(t >= 0.5 && seen >= 500, "{t} {seen}");
     assert_eq!(run.run.ending, cps_robot::Ending::Stopped);
     within_limits(&run);
