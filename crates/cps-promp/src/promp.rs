@@ -157,11 +157,19 @@ impl ProMp {
     /// per phase instead of one per bump, walking out from the nearest centre (whose bump
     /// is ≥ e^-1/8) so the far ones underflow harmlessly to zero.
     fn basis(&self, z: f64) -> (DVector<f64>, DVector<f64>) {
+        let mut psi = DVector::zeros(self.bases);
+        let mut dpsi = DVector::zeros(self.bases);
+        self.basis_into(z, psi.as_mut_slice(), dpsi.as_mut_slice());
+        (psi, dpsi)
+    }
+
+    /// [`Self::basis`] into `psi` and `dpsi` (`bases` long each), allocating nothing.
+    fn basis_into(&self, z: f64, psi: &mut [f64], dpsi: &mut [f64]) {
         let n = self.bases;
         let h = self.width;
         let centre = |i: usize| i as f64 / (n - 1) as f64;
         let k = ((z / h).round().max(0.0) as usize).min(n - 1);
-        let mut g = DVector::zeros(n);
+        let g = psi;
         let u = (z - centre(k)) / h;
         g[k] = (-0.5 * u * u).exp();
         let shrink = (-1.0f64).exp();
@@ -175,12 +183,16 @@ impl ProMp {
             g[i] = g[i + 1] * ratio;
             ratio *= shrink;
         }
-        let dg = DVector::from_fn(n, |i, _| -g[i] * (z - centre(i)) / (h * h));
-        let s = g.sum();
-        let ds = dg.sum();
-        let psi = &g / s;
-        let dpsi = (&dg * s - &g * ds) / (s * s);
-        (psi, dpsi)
+        let (mut s, mut ds) = (0.0, 0.0);
+        for i in 0..n {
+            dpsi[i] = -g[i] * (z - centre(i)) / (h * h);
+            s += g[i];
+            ds += dpsi[i];
+        }
+        for i in 0..n {
+            dpsi[i] = (dpsi[i] * s - g[i] * ds) / (s * s);
+            g[i] /= s;
+        }
     }
 
     /// The same basis by one exponential per bump (the definition; tests compare).
@@ -214,11 +226,25 @@ impl ProMp {
 
     /// Mean position and velocity at time `t` (s).
     pub fn mean_at(&self, t: f64) -> (Vec<f64>, Vec<f64>) {
-        let (p, v) = self.features(t);
-        (
-            (&p * &self.mean).as_slice().to_vec(),
-            (&v * &self.mean).as_slice().to_vec(),
-        )
+        self.mean_path(&[t])
+    }
+
+    /// Mean positions and velocities at the times `times` (s): two `times.len() × dims`
+    /// row-major arrays, the basis computed once per time and summed against each
+    /// dimension's weights (no feature matrix built).
+    pub fn mean_path(&self, times: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let (d, n) = (self.dims, self.bases);
+        let mut p = Vec::with_capacity(times.len() * d);
+        let mut v = Vec::with_capacity(times.len() * d);
+        let (mut psi, mut dpsi) = (vec![0.0; n], vec![0.0; n]);
+        for &t in times {
+            self.basis_into(t / self.duration, &mut psi, &mut dpsi);
+            for w in self.mean.as_slice().chunks_exact(n) {
+                p.push(psi.iter().zip(w).map(|(a, b)| a * b).sum::<f64>());
+                v.push(dpsi.iter().zip(w).map(|(a, b)| a * b).sum::<f64>() / self.duration);
+            }
+        }
+        (p, v)
     }
 
     /// Covariance of position and of velocity at time `t` (dims × dims each).
@@ -678,6 +704,23 @@ mod tests {
                 let (a, b) = (p.basis(z).0, p.basis_direct(z));
                 let gap = (&a - &b).amax();
                 assert!(gap < 1e-13, "{bases} bases, z = {z}: {gap}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_mean_path_is_the_feature_matrix_times_the_mean() {
+        let (d, n) = (3, 7);
+        let mean: Vec<f64> = (0..d * n).map(|i| (i as f64 * 0.7).sin()).collect();
+        let p = ProMp::new(d, n, 2.5, mean, vec![0.0; d * n * d * n]).unwrap();
+        let times: Vec<f64> = (0..=50).map(|k| -0.1 + 2.7 * k as f64 / 50.0).collect();
+        let (pos, vel) = p.mean_path(&times);
+        for (r, &t) in times.iter().enumerate() {
+            let (phi, dphi) = p.features(t);
+            let (a, b) = (&phi * &p.mean, &dphi * &p.mean);
+            for k in 0..d {
+                assert!((pos[r * d + k] - a[k]).abs() < 1e-13, "t = {t}, dim {k}");
+                assert!((vel[r * d + k] - b[k]).abs() < 1e-12, "t = {t}, dim {k}");
             }
         }
     }

@@ -126,9 +126,11 @@ impl PyProMp {
     /// Mean position and velocity at the times `t`: two (len(t), dims) arrays.
     fn mean<'py>(&self, py: Python<'py>, t: &Bound<'py, PyAny>) -> PyResult<Pair<'py>> {
         let times = self.times(t)?;
+        let (p, v) = self.inner.mean_path(&times);
+        let d = self.inner.dims();
         Ok((
-            self.per_time(py, &times, |x| self.inner.mean_at(x).0)?,
-            self.per_time(py, &times, |x| self.inner.mean_at(x).1)?,
+            array2(py, p, times.len(), d)?,
+            array2(py, v, times.len(), d)?,
         ))
     }
 
