@@ -117,10 +117,16 @@ LAYERS = {
         ["figures", "report"],
         ["write"],
     ],
+    "cps-lerobot": [
+        ["error"],
+        ["info", "table"],
+        ["dataset"],
+    ],
     "cps-movement": [
         ["calibration", "chunks", "dae"],
         ["collision"],
         ["robot_file"],
+        ["lerobot"],
         ["movement", "scene"],
         ["limits", "mocap", "promp"],
         ["collide", "retiming"],

@@ -177,10 +177,30 @@ enum Command {
         #[command(subcommand)]
         command: mocap::MocapCommand,
     },
+    /// LeRobot datasets (format v3.0, a local folder): episodes, tasks and features shown.
+    /// `imitate` and `promp fit` take a dataset's folder as demonstrations.
+    Lerobot {
+        #[command(subcommand)]
+        command: LeRobotCommand,
+    },
     /// Scenes: a placed robot and named way points.
     Scene {
         #[command(subcommand)]
         command: scene::SceneCommand,
+    },
+}
+
+/// `cps-cli lerobot ...`. Exit codes: 0 done; 2 a dataset that cannot be read.
+#[derive(Subcommand, Debug)]
+enum LeRobotCommand {
+    /// A dataset's rate, robot, features (type, shape, entry names) and episodes (frames,
+    /// duration, tasks).
+    Show {
+        /// The dataset's folder (it holds meta/info.json).
+        dataset: PathBuf,
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
     },
 }
 
@@ -302,6 +322,9 @@ fn run(cli: Cli, stop: &StopToken) -> Result<ExitCode> {
         },
         Command::Ros2 { command } => ros2::ros2(&command, stop),
         Command::Mocap { command } => mocap::mocap(&command),
+        Command::Lerobot {
+            command: LeRobotCommand::Show { dataset, json },
+        } => robot::print(&cps_movement::lerobot::describe(&dataset)?, json),
         Command::Check {
             file,
             ceilings,

@@ -9,6 +9,7 @@ use anyhow::Result;
 use clap::{Args, ValueEnum};
 use cps_dmp::{Combine, Formulation, Lambda, Regression};
 use cps_experiment::InputError;
+use cps_movement::lerobot::Pick;
 use cps_movement::movement::{ImitationSpec, RolloutSpec, imitate_files, rollout_file};
 use cps_outcome::files::{table_csv, write_file};
 use cps_outcome::results_dir::{FileKind, check_file_targets};
@@ -45,13 +46,42 @@ pub enum CombineArg {
     Stack,
 }
 
+/// Which episodes of a LeRobot dataset given as a demonstration become demonstrations.
+#[derive(Args, Debug)]
+pub struct LeRobotArgs {
+    /// A LeRobot dataset's episodes (from 0, comma-separated; default: all).
+    #[arg(long, value_delimiter = ',')]
+    episodes: Option<Vec<usize>>,
+    /// A LeRobot dataset's feature: `observation.state` or `action` (or another vector).
+    #[arg(long, default_value = "observation.state")]
+    feature: String,
+    /// The robot whose joints the feature's entries are matched to by name (default: the
+    /// dataset's robot_type when cps knows it, else every entry).
+    #[arg(long)]
+    robot: Option<String>,
+}
+
+impl LeRobotArgs {
+    /// The pick these arguments make.
+    pub fn pick(&self) -> Pick {
+        Pick {
+            episodes: self.episodes.clone(),
+            feature: self.feature.clone(),
+            robot: self.robot.clone(),
+        }
+    }
+}
+
 /// Arguments of `cps-cli imitate`.
 #[derive(Args, Debug)]
 pub struct ImitateArgs {
     /// Demonstration CSV files: a header row, the time in seconds first, then one column
-    /// per dimension — or any trajectory cps writes (its positions are read).
+    /// per dimension — or any trajectory cps writes (its positions are read), or a LeRobot
+    /// dataset's folder (its episodes, see --episodes).
     #[arg(required = true)]
     demos: Vec<PathBuf>,
+    #[command(flatten)]
+    lerobot: LeRobotArgs,
     /// The position columns to imitate, by name, comma-separated (default: every column
     /// of a plain demonstration; the columns with a `_vel` column beside them in a
     /// trajectory cps wrote).
@@ -169,7 +199,8 @@ pub fn run_imitate(args: &ImitateArgs) -> Result<ExitCode> {
         },
     };
     let paths: Vec<&Path> = args.demos.iter().map(PathBuf::as_path).collect();
-    let imitated = imitate_files(&paths, args.columns.as_deref(), &spec)?;
+    let pick = args.lerobot.pick();
+    let imitated = imitate_files(&paths, args.columns.as_deref(), &pick, &spec)?;
     write_file(&o.out, imitated.model().to_json().as_bytes()).map_err(cli_error)?;
     if let Some(plot) = &o.plot {
         draw_file(&imitated.figure(), plot).map_err(cli_error)?;

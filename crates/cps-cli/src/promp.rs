@@ -61,9 +61,11 @@ pub enum ProMpCommand {
 /// Arguments of `promp fit`.
 #[derive(Args, Debug)]
 pub struct FitArgs {
-    /// Demonstration files.
+    /// Demonstration files, or LeRobot datasets' folders (as `imitate`).
     #[arg(required = true)]
     demos: Vec<PathBuf>,
+    #[command(flatten)]
+    lerobot: crate::movement::LeRobotArgs,
     /// The position columns, by name, comma-separated (default as `imitate`).
     #[arg(long, value_delimiter = ',')]
     columns: Option<Vec<String>>,
@@ -123,7 +125,8 @@ pub fn promp(command: &ProMpCommand) -> Result<ExitCode> {
         ProMpCommand::Fit(a) => {
             a.output.check()?;
             let paths: Vec<&Path> = a.demos.iter().map(PathBuf::as_path).collect();
-            let fit = fit_files(&paths, a.columns.as_deref(), a.bases, a.duration)?;
+            let pick = a.lerobot.pick();
+            let fit = fit_files(&paths, a.columns.as_deref(), &pick, a.bases, a.duration)?;
             let answer = fit.answer(&a.output.out);
             a.output.finish(&fit.promp, fit.figure(), answer)
         }

@@ -35,6 +35,7 @@ pub mod collide;
 pub mod collision;
 pub mod dae;
 pub mod export;
+pub mod lerobot;
 pub mod limits;
 pub mod mocap;
 pub mod movement;

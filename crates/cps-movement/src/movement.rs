@@ -303,16 +303,38 @@ fn option_name(field: &str) -> &str {
     }
 }
 
-/// Reads demonstration files that must all have the same dimensions: their names (the
-/// first file's) and the demonstrations.
+/// Reads demonstrations that must all have the same dimensions: their names (the first
+/// source's) and the demonstrations. A path is a demonstration file, or a LeRobot
+/// dataset's folder whose episodes `lerobot` picks (one demonstration each).
 pub fn read_demos(
     paths: &[&Path],
     columns: Columns<'_>,
+    lerobot: &crate::lerobot::Pick,
 ) -> Result<(Vec<String>, Vec<Demonstration>), InputError> {
+    let (names, labelled) = read_labelled(paths, columns, lerobot)?;
+    Ok((names, labelled.into_iter().map(|(_, d)| d).collect()))
+}
+
+/// Demonstrations, each with the words that name it in messages.
+pub type Labelled = Vec<(String, Demonstration)>;
+
+/// [`read_demos`], each demonstration with the words that name it in messages (its
+/// file, or `<dataset> episode <k>`).
+pub fn read_labelled(
+    paths: &[&Path],
+    columns: Columns<'_>,
+    lerobot: &crate::lerobot::Pick,
+) -> Result<(Vec<String>, Labelled), InputError> {
     let mut demos = Vec::new();
     let mut names: Option<Vec<String>> = None;
     for path in paths {
-        let (header, demo) = read_demo(path, columns)?;
+        // A folder is a LeRobot dataset (or refused as one, saying what it lacks).
+        let (header, read) = if path.is_dir() {
+            crate::lerobot::demonstrations(path, lerobot, columns)?
+        } else {
+            let (header, demo) = read_demo(path, columns)?;
+            (header, vec![(path.display().to_string(), demo)])
+        };
         if let Some(n) = &names
             && n.len() != header.len()
         {
@@ -327,18 +349,19 @@ pub fn read_demos(
             )));
         }
         names.get_or_insert(header);
-        demos.push(demo);
+        demos.extend(read);
     }
     Ok((names.unwrap_or_default(), demos))
 }
 
-/// Reads demonstration files and imitates them with one DMP per dimension.
+/// Reads demonstrations ([`read_demos`]) and imitates them with one DMP per dimension.
 pub fn imitate_files(
     paths: &[&Path],
     columns: Columns<'_>,
+    lerobot: &crate::lerobot::Pick,
     spec: &ImitationSpec,
 ) -> Result<Imitated, InputError> {
-    let (names, demos) = read_demos(paths, columns)?;
+    let (names, demos) = read_demos(paths, columns, lerobot)?;
     imitate_demos(names, &demos, spec)
 }
 

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use cps_promp::{Observation, ProMp, ProMpError, ProMpModel};
 
-use crate::movement::{Columns, read_demos, with_units};
+use crate::movement::{Columns, read_labelled, with_units};
 use crate::robot_file::Answer;
 use cps_outcome::InputError;
 use cps_outcome::outcome::{
@@ -291,29 +291,30 @@ pub struct Fitted {
 pub fn fit_files(
     paths: &[&Path],
     columns: Columns<'_>,
+    lerobot: &crate::lerobot::Pick,
     bases: usize,
     duration: Option<f64>,
 ) -> Result<Fitted, InputError> {
-    if paths.len() < 2 {
-        return Err(InputError(format!(
-            "a ProMP learns the spread of several demonstrations: give at least 2 files (got {})",
-            paths.len()
-        )));
-    }
     if !(2..=10_000).contains(&bases) {
         return Err(InputError(format!(
             "--bases {bases}: between 2 and 10000 basis functions per dimension"
         )));
     }
-    let (names, read) = read_demos(paths, columns)?;
+    let (names, read) = read_labelled(paths, columns, lerobot)?;
+    if read.len() < 2 {
+        return Err(InputError(format!(
+            "a ProMP learns the spread of several demonstrations: give at least 2 (got {})",
+            read.len()
+        )));
+    }
     let raw = read
         .iter()
-        .map(|demo| {
+        .map(|(_, demo)| {
             let rows = (0..demo.len()).map(|k| demo.sample(k).to_vec()).collect();
             (demo.times().to_vec(), rows)
         })
         .collect();
-    let labels: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
+    let labels: Vec<String> = read.iter().map(|(l, _)| l.clone()).collect();
     fit_demos(raw, names, &labels, bases, duration)
 }
 

@@ -1,0 +1,23 @@
+//! The one error: a file and what is wrong with it, in a sentence.
+
+use std::path::{Path, PathBuf};
+
+/// What went wrong with which file of a dataset: `"<file>: <fault>"`.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{}: {what}", path.display())]
+pub struct LeRobotError {
+    /// The file (or the dataset's folder) at fault.
+    pub path: PathBuf,
+    /// What is wrong, in a sentence.
+    pub what: String,
+}
+
+impl LeRobotError {
+    /// An error of `path`.
+    pub fn new(path: &Path, what: impl Into<String>) -> Self {
+        LeRobotError {
+            path: path.to_path_buf(),
+            what: what.into(),
+        }
+    }
+}

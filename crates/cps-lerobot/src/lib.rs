@@ -1,0 +1,31 @@
+//! LeRobot datasets (format v3.0) in and out: a folder of `meta/info.json`, an episode
+//! index and frames in parquet files, as LeRobot's `LeRobotDataset` writes and reads
+//! them.
+//!
+//! Layers: [`error`] (one error type: the file and the fault), [`info`] (the description:
+//! rate, robot, features), [`table`] (parquet columns read by name), [`dataset`] (a
+//! dataset's episodes, tasks and one episode's frames of a feature). Matching a feature's
+//! entries to a robot's joints, and demonstrations for imitation, are `cps-movement`'s.
+//!
+//! # Example
+//!
+//! ```no_run
+//! use std::path::Path;
+//! use cps_lerobot::Dataset;
+//!
+//! let ds = Dataset::open(Path::new("datasets/fr3_reach"))?;
+//! println!("{} episodes at {} frames/s", ds.episodes().len(), ds.info().fps);
+//! let frames = ds.frames(0, "observation.state")?;
+//! println!("{} frames of {}", frames.t.len(), frames.names.join(", "));
+//! # Ok::<(), cps_lerobot::LeRobotError>(())
+//! ```
+#![deny(missing_docs)]
+
+pub mod dataset;
+pub mod error;
+pub mod info;
+pub mod table;
+
+pub use dataset::{Dataset, EpisodeMeta, Frames};
+pub use error::LeRobotError;
+pub use info::{Feature, Info};
