@@ -121,6 +121,7 @@ LAYERS = {
         ["error"],
         ["info", "table"],
         ["dataset"],
+        ["write"],
     ],
     "cps-movement": [
         ["calibration", "chunks", "dae"],
@@ -128,7 +129,7 @@ LAYERS = {
         ["robot_file"],
         ["lerobot"],
         ["movement", "scene"],
-        ["limits", "mocap", "promp"],
+        ["lerobot_write", "limits", "mocap", "promp"],
         ["collide", "retiming"],
         ["export"],
     ],
@@ -165,7 +166,7 @@ LAYERS = {
         ["errors"],
         ["arrays", "interrupt"],
         ["cmaes", "dmp", "experiment", "promp"],
-        ["chunks", "franka", "kinematics", "learn", "mocap", "ros2"],
+        ["chunks", "franka", "kinematics", "learn", "lerobot", "mocap", "ros2"],
     ],
     "cps-cli": [
         ["progress", "robot", "scene", "simserve", "studio"],

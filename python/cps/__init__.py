@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from typing import Any, Callable, NamedTuple, Optional
 
-from . import _cps, mocap, ros2
+from . import _cps, lerobot, mocap, ros2
 from ._cps import (
     DMP,
     ChunkExecutor,
@@ -72,6 +72,7 @@ __all__ = [
     "imitate",
     "learn_via_points",
     "run_experiment",
+    "lerobot",
     "mocap",
     "ros2",
     "sequence",

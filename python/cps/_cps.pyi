@@ -537,6 +537,25 @@ def _ros2_send(
     wait: float = 10.0,
     service_mapping: str = "auto",
 ) -> dict[str, Any]: ...
+def _lerobot_show(path: str) -> dict[str, Any]: ...
+def _lerobot_demos(
+    path: str,
+    episodes: Optional[list[int]] = None,
+    feature: str = "observation.state",
+    robot: Optional[str] = None,
+    columns: Optional[list[str]] = None,
+) -> tuple[list[str], list[tuple[F64, F64]]]: ...
+def _lerobot_write(
+    out: str, recordings: list[str], robot: str, task: str, fps: Optional[int] = None, force: bool = False
+) -> dict[str, Any]: ...
+def _lerobot_write_arrays(
+    out: str,
+    episodes: list[dict[str, F64]],
+    names: dict[str, list[str]],
+    fps: int,
+    tasks: list[str],
+    robot_type: Optional[str] = None,
+) -> None: ...
 def _ros2_graph(*, domain: Optional[int] = None, seconds: float = 2.0) -> dict[str, Any]: ...
 def _ros2_record(
     duration: float,

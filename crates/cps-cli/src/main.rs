@@ -177,7 +177,7 @@ enum Command {
         #[command(subcommand)]
         command: mocap::MocapCommand,
     },
-    /// LeRobot datasets (format v3.0, a local folder): episodes, tasks and features shown.
+    /// LeRobot datasets (format v3.0, a local folder): shown, or written from recordings.
     /// `imitate` and `promp fit` take a dataset's folder as demonstrations.
     Lerobot {
         #[command(subcommand)]
@@ -198,6 +198,33 @@ enum LeRobotCommand {
     Show {
         /// The dataset's folder (it holds meta/info.json).
         dataset: PathBuf,
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Recordings (`franka execute --record`, `franka record`, `franka guide`, `ros2
+    /// record`, a joint CSV) written as a new dataset LeRobot's loader opens, one episode
+    /// each: joint states (velocities, torques where recorded) and actions (the commands,
+    /// or the next state), resampled to --fps, without video.
+    Write {
+        /// The recordings (CSV).
+        #[arg(required = true)]
+        recordings: Vec<PathBuf>,
+        /// The dataset's folder to create.
+        #[arg(long)]
+        out: PathBuf,
+        /// The robot recorded: its joints name the entries.
+        #[arg(long, default_value = "fr3")]
+        robot: String,
+        /// What the episodes did (LeRobot's task).
+        #[arg(long)]
+        task: String,
+        /// Frames per second (default: the first recording's rate).
+        #[arg(long)]
+        fps: Option<u32>,
+        /// Replace a LeRobot dataset already at --out (nothing else).
+        #[arg(long)]
+        force: bool,
         /// Print JSON.
         #[arg(long)]
         json: bool,
@@ -322,9 +349,31 @@ fn run(cli: Cli, stop: &StopToken) -> Result<ExitCode> {
         },
         Command::Ros2 { command } => ros2::ros2(&command, stop),
         Command::Mocap { command } => mocap::mocap(&command),
-        Command::Lerobot {
-            command: LeRobotCommand::Show { dataset, json },
-        } => robot::print(&cps_movement::lerobot::describe(&dataset)?, json),
+        Command::Lerobot { command } => match command {
+            LeRobotCommand::Show { dataset, json } => {
+                robot::print(&cps_movement::lerobot::describe(&dataset)?, json)
+            }
+            LeRobotCommand::Write {
+                recordings,
+                out,
+                robot: arm,
+                task,
+                fps,
+                force,
+                json,
+            } => {
+                let paths: Vec<&std::path::Path> =
+                    recordings.iter().map(PathBuf::as_path).collect();
+                let export = cps_movement::lerobot_write::Export {
+                    robot: arm,
+                    task,
+                    fps,
+                };
+                let answer =
+                    cps_movement::lerobot_write::write_recordings(&out, &paths, &export, force)?;
+                robot::print(&answer, json)
+            }
+        },
         Command::Check {
             file,
             ceilings,

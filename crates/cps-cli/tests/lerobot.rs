@@ -180,3 +180,282 @@ fn what_is_not_a_robots_joint_space_is_refused_by_name() {
     assert_eq!(r.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&r.stderr).contains("no such folder"));
 }
+
+/// A joint CSV as `ros2 record` writes it: `t`, the joints by name, their `_vel`, at
+/// irregular arrival times.
+fn joint_csv(path: &std::path::Path, seconds: f64) {
+    let mut text = String::from("t");
+    for j in 1..=7 {
+        text += &format!(",panda_joint{j}");
+    }
+    for j in 1..=7 {
+        text += &format!(",panda_joint{j}_vel");
+    }
+    text.push('\n');
+    let mut times = Vec::new();
+    let mut t = 0.0;
+    while t < seconds {
+        times.push(t);
+        // 9–11 ms apart, as messages arrive.
+        t += 0.009 + 0.002 * ((t * 1000.0) as usize % 3) as f64 / 2.0;
+    }
+    times.push(seconds);
+    for t in times {
+        text += &format!("{t}");
+        for j in 0..7 {
+            text += &format!(",{}", 0.1 * j as f64 + t);
+        }
+        for _ in 0..7 {
+            text += ",1.0";
+        }
+        text.push('\n');
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+#[test]
+fn recordings_written_as_a_dataset_learn_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a.csv"), dir.path().join("b.csv"));
+    joint_csv(&a, 1.0);
+    joint_csv(&b, 0.6);
+    let out = dir.path().join("ds");
+    let o = out.to_str().unwrap();
+    let j = json(&cli(&[
+        "lerobot",
+        "write",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--out",
+        o,
+        "--robot",
+        "panda",
+        "--task",
+        "reach",
+        "--fps",
+        "50",
+        "--json",
+    ]));
+    assert_eq!(j["episodes"], serde_json::json!([51, 31]));
+    assert_eq!(j["action"], "next state");
+    assert_eq!(
+        j["features"],
+        serde_json::json!(["observation.state", "observation.velocity", "action"])
+    );
+    let shown = json(&cli(&["lerobot", "show", o, "--json"]));
+    assert_eq!(shown["robot_type"], "panda");
+    assert_eq!(shown["tasks"], serde_json::json!(["reach"]));
+    // The written episodes learn again: joint j rises 1 rad/s from 0.1 j.
+    let m = dir.path().join("m.json");
+    let r = cli(&[
+        "imitate",
+        o,
+        "--episodes",
+        "0",
+        "--out",
+        m.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let model = model(&m);
+    assert_eq!(model["config"]["tau"], serde_json::json!(1.0));
+    let goal: Vec<f64> = serde_json::from_value(model["goal"].clone()).unwrap();
+    for (j, g) in goal.iter().enumerate() {
+        assert!((g - (0.1 * j as f64 + 1.0)).abs() < 1e-6, "joint {j}: {g}");
+    }
+    // Written again: refused, then replaced with --force.
+    let again = cli(&[
+        "lerobot",
+        "write",
+        a.to_str().unwrap(),
+        "--out",
+        o,
+        "--robot",
+        "panda",
+        "--task",
+        "reach",
+    ]);
+    assert_eq!(again.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&again.stderr).contains("--force replaces it"));
+    let forced = cli(&[
+        "lerobot",
+        "write",
+        a.to_str().unwrap(),
+        "--out",
+        o,
+        "--robot",
+        "panda",
+        "--task",
+        "reach",
+        "--fps",
+        "10",
+        "--force",
+    ]);
+    assert!(
+        forced.status.success(),
+        "{}",
+        String::from_utf8_lossy(&forced.stderr)
+    );
+    assert_eq!(json(&cli(&["lerobot", "show", o, "--json"]))["frames"], 11);
+}
+
+#[test]
+fn recordings_that_do_not_fit_are_refused_and_nothing_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a.csv");
+    joint_csv(&a, 0.5);
+    let out = dir.path().join("ds");
+    let o = out.to_str().unwrap();
+    for (args, words) in [
+        (vec!["--robot", "fr3"], "no column names joint `fr3_joint1`"),
+        (vec!["--robot", "panda", "--fps", "0"], "--fps"),
+    ] {
+        let mut all = vec![
+            "lerobot",
+            "write",
+            a.to_str().unwrap(),
+            "--out",
+            o,
+            "--task",
+            "x",
+        ];
+        all.extend(args);
+        let r = cli(&all);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{err}");
+        assert!(err.contains(words), "{err}");
+        assert!(!out.exists());
+    }
+    let mine = dir.path().join("mine");
+    std::fs::create_dir(&mine).unwrap();
+    let r = cli(&[
+        "lerobot",
+        "write",
+        a.to_str().unwrap(),
+        "--out",
+        mine.to_str().unwrap(),
+        "--robot",
+        "panda",
+        "--task",
+        "x",
+        "--force",
+    ]);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("not a LeRobot dataset cps would replace"));
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(left.len(), 2, "{left:?}");
+}
+
+/// The tool position `cps-cli fk --robot panda` gives at `q` (the robot's base frame).
+fn tool(q: &[f64]) -> [f64; 3] {
+    let q: Vec<String> = q.iter().map(f64::to_string).collect();
+    let j = json(&cli(&[
+        "fk",
+        "--robot",
+        "panda",
+        "--q",
+        &q.join(","),
+        "--json",
+    ]));
+    let p: Vec<f64> = serde_json::from_value(j["position"].clone()).unwrap();
+    [p[0], p[1], p[2]]
+}
+
+#[test]
+fn an_imitation_experiment_learns_from_a_datasets_episodes() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = common::write(
+        dir.path(),
+        "lerobot.toml",
+        &format!(
+            r#"[experiment]
+kind = "imitation"
+name = "lerobot"
+seed = 1
+
+[robot]
+scene = "thesis"
+backend = "kinematic"
+dt = 0.01
+
+[demonstrations]
+lerobot = {:?}
+episodes = [0, 2]
+
+[imitation]
+basis_functions = 25
+ridge_lambda = 1e-12
+jerk_lambda = "auto"
+
+[dmp]
+basis_functions = 25
+tau = 10.0
+dt = 0.01
+
+[task]
+start = [0.75, 0.02, 1.87]
+goal = [0.55, -0.57, 1.45]
+
+[output]
+plots = false
+
+[optimizer]
+method = "exact"
+generations = 1
+"#,
+            fixture()
+        ),
+    );
+    let out = dir.path().join("out");
+    let r = cli(&[
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["demonstrations"]["kept"], 2);
+    assert_eq!(summary["demonstrations"]["executed"], 2);
+    let runs = summary["runs"].as_array().unwrap();
+    assert!(
+        runs[1]["take"]
+            .as_str()
+            .unwrap()
+            .ends_with("fr3_reach episode 2")
+    );
+    // Each episode's tool path, in the world frame, spans what the robot's kinematics
+    // says its joint path does: start to end as far apart as cps-cli fk's two poses.
+    let rows = std::fs::read_to_string(out.join("recordings.csv")).unwrap();
+    let start = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    let dir7 = [1.0, 0.5, -0.5, 0.8, 0.3, -0.4, 0.6];
+    for (index, e) in [(0, 0usize), (1, 2)] {
+        let path: Vec<[f64; 3]> = rows
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').collect::<Vec<_>>())
+            .filter(|c| c[0] == "learned" && c[1] == index.to_string())
+            .map(|c| {
+                [
+                    c[3].parse().unwrap(),
+                    c[4].parse().unwrap(),
+                    c[5].parse().unwrap(),
+                ]
+            })
+            .collect();
+        let end: Vec<f64> = (0..7)
+            .map(|j| start[j] + 0.1 * (e + 1) as f64 * dir7[j])
+            .collect();
+        let (a, b) = (tool(&start), tool(&end));
+        let want = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+        let (p, q) = (path[0], path[path.len() - 1]);
+        let got = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
+        assert!(
+            (got - want).abs() < 1e-5,
+            "episode {e}: {got} m, fk says {want} m"
+        );
+    }
+}

@@ -297,9 +297,9 @@ pub(crate) fn parse(file: &Sections<'_>, learner: &ViaPointConfig) -> Result<Pla
     }
     let plan = match file.kind {
         Kind::Viapoint => KindPlan::Viapoint,
-        Kind::Imitation => KindPlan::Imitation(file.imitation_plan(learner)?),
+        Kind::Imitation => KindPlan::Imitation(file.imitation_plan(learner, robot.as_ref())?),
         Kind::Promp => {
-            let imitation = file.imitation_plan(learner)?;
+            let imitation = file.imitation_plan(learner, robot.as_ref())?;
             let promp = file.promp_plan(learner.task.dmp.tau, Some(&imitation))?;
             KindPlan::Promp(imitation, promp)
         }
@@ -387,7 +387,7 @@ impl Experiment {
                     p.takes.iter().map(|t| t.name.clone()).collect::<Vec<_>>()
                 });
                 format!(
-                    "{} motion-capture takes ({}) as the demonstrations, each checked and executed from its own start; their mean imitated by ridge and jerk-regularised ridge with {} basis functions over {:.2} s",
+                    "{} given demonstrations ({}), each checked and executed from its own start; their mean imitated by ridge and jerk-regularised ridge with {} basis functions over {:.2} s",
                     takes.len(),
                     takes.join(", "),
                     p.map_or(0, |p| p.dmp.n_basis),

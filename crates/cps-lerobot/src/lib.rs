@@ -4,7 +4,8 @@
 //!
 //! Layers: [`error`] (one error type: the file and the fault), [`info`] (the description:
 //! rate, robot, features), [`table`] (parquet columns read by name), [`dataset`] (a
-//! dataset's episodes, tasks and one episode's frames of a feature). Matching a feature's
+//! dataset's episodes, tasks and one episode's frames of a feature), [`write`] (a new
+//! dataset laid out as LeRobot's writer lays it out, without video). Matching a feature's
 //! entries to a robot's joints, and demonstrations for imitation, are `cps-movement`'s.
 //!
 //! # Example
@@ -25,7 +26,9 @@ pub mod dataset;
 pub mod error;
 pub mod info;
 pub mod table;
+pub mod write;
 
 pub use dataset::{Dataset, EpisodeMeta, Frames};
 pub use error::LeRobotError;
 pub use info::{Feature, Info};
+pub use write::{NewDataset, NewEpisode, NewFeature, write};

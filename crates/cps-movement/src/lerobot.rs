@@ -1,6 +1,7 @@
 //! LeRobot datasets as demonstrations: which episodes, which feature, and its entries
 //! matched to a robot's joints by name; and a dataset described for `cps-cli lerobot
-//! show`. Reading the format is `cps-lerobot`'s.
+//! show`. Reading the format is `cps-lerobot`'s; recordings written as a dataset are
+//! `lerobot_write`'s.
 
 use std::path::Path;
 
@@ -10,6 +11,9 @@ use cps_outcome::InputError;
 use serde_json::{Value, json};
 
 use crate::robot_file::{Answer, load_robot};
+
+/// Demonstrations, each with the words that name it in messages.
+pub type Labelled = Vec<(String, Demonstration)>;
 
 /// How far from `frame / fps` LeRobot lets a frame's timestamp be (its `tolerance_s`).
 pub const TOLERANCE_S: f64 = 1e-4;
@@ -41,7 +45,7 @@ pub fn is_dataset(path: &Path) -> bool {
     path.is_dir() && path.join(cps_lerobot::info::INFO_PATH).is_file()
 }
 
-fn input(e: LeRobotError) -> InputError {
+pub(crate) fn input(e: LeRobotError) -> InputError {
     InputError(e.to_string())
 }
 
@@ -52,7 +56,7 @@ pub fn demonstrations(
     root: &Path,
     pick: &Pick,
     columns: Option<&[String]>,
-) -> Result<(Vec<String>, crate::movement::Labelled), InputError> {
+) -> Result<(Vec<String>, Labelled), InputError> {
     let ds = Dataset::open(root).map_err(input)?;
     let feature = ds.numeric_feature(&pick.feature).map_err(input)?;
     let wanted: Option<Vec<String>> = match (columns, &pick.robot) {
@@ -65,6 +69,28 @@ pub fn demonstrations(
             .and_then(|r| joint_names(r).ok())
             .filter(|joints| matches_all(feature, joints)),
     };
+    episodes_of(&ds, root, pick, wanted.as_deref())
+}
+
+/// The picked episodes of the dataset at `root`, the feature's entries matched by name to
+/// `joints` (a robot's joint names, in its order): an experiment's `[demonstrations]
+/// lerobot`, whose robot is the experiment's.
+pub fn joint_demonstrations(
+    root: &Path,
+    pick: &Pick,
+    joints: &[String],
+) -> Result<(Vec<String>, Labelled), InputError> {
+    let ds = Dataset::open(root).map_err(input)?;
+    ds.numeric_feature(&pick.feature).map_err(input)?;
+    episodes_of(&ds, root, pick, Some(joints))
+}
+
+fn episodes_of(
+    ds: &Dataset,
+    root: &Path,
+    pick: &Pick,
+    wanted: Option<&[String]>,
+) -> Result<(Vec<String>, Labelled), InputError> {
     let episodes: Vec<usize> = match &pick.episodes {
         Some(e) if e.is_empty() => {
             return Err(InputError("--episodes: name at least one episode".into()));
@@ -76,7 +102,7 @@ pub fn demonstrations(
     let mut names = Vec::new();
     for &e in &episodes {
         let frames = ds.frames(e, &pick.feature).map_err(input)?;
-        let take = match &wanted {
+        let take = match wanted {
             Some(w) => select(root, &pick.feature, &frames.names, w)?,
             None => (0..frames.names.len()).collect(),
         };
@@ -113,12 +139,12 @@ pub fn demonstrations(
 }
 
 /// The robot's joint names (its published ones).
-fn joint_names(robot: &str) -> Result<Vec<String>, InputError> {
+pub(crate) fn joint_names(robot: &str) -> Result<Vec<String>, InputError> {
     Ok(load_robot(robot, None, None)?.published_joint_names())
 }
 
 /// An entry named as the joint: its published name, or the generic `joint<i>`.
-fn names_joint(entry: &str, joint: &str, i: usize) -> bool {
+pub(crate) fn names_joint(entry: &str, joint: &str, i: usize) -> bool {
     entry == joint || entry == format!("joint{}", i + 1)
 }
 
@@ -234,10 +260,10 @@ mod tests {
         assert!(names_joint("panda_joint3", "panda_joint3", 2));
         assert!(names_joint("joint3", "panda_joint3", 2));
         assert!(!names_joint("joint2", "panda_joint3", 2));
-        let names = vec!["a".to_string(), "joint1".into()];
+        let names = vec!["a".to_string(), "joint3".into()];
         let e = select(Path::new("d"), "obs", &names, &["panda_joint2".into()]).unwrap_err();
         assert!(
-            e.0.contains("`panda_joint2`") && e.0.contains("a, joint1"),
+            e.0.contains("`panda_joint2`") && e.0.contains("a, joint3"),
             "{}",
             e.0
         );

@@ -36,6 +36,7 @@ pub mod collision;
 pub mod dae;
 pub mod export;
 pub mod lerobot;
+pub mod lerobot_write;
 pub mod limits;
 pub mod mocap;
 pub mod movement;

@@ -315,8 +315,7 @@ pub fn read_demos(
     Ok((names, labelled.into_iter().map(|(_, d)| d).collect()))
 }
 
-/// Demonstrations, each with the words that name it in messages.
-pub type Labelled = Vec<(String, Demonstration)>;
+pub use crate::lerobot::Labelled;
 
 /// [`read_demos`], each demonstration with the words that name it in messages (its
 /// file, or `<dataset> episode <k>`).

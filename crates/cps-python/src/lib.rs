@@ -31,6 +31,7 @@ mod franka;
 mod interrupt;
 mod kinematics;
 mod learn;
+mod lerobot;
 mod mocap;
 mod promp;
 mod ros2;
@@ -63,6 +64,10 @@ fn _cps(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(chunks::chunk_commands, m)?)?;
     m.add_function(wrap_pyfunction!(franka::identify, m)?)?;
     m.add_function(wrap_pyfunction!(mocap::_mocap_take, m)?)?;
+    m.add_function(wrap_pyfunction!(lerobot::_lerobot_show, m)?)?;
+    m.add_function(wrap_pyfunction!(lerobot::_lerobot_demos, m)?)?;
+    m.add_function(wrap_pyfunction!(lerobot::_lerobot_write, m)?)?;
+    m.add_function(wrap_pyfunction!(lerobot::_lerobot_write_arrays, m)?)?;
     m.add_function(wrap_pyfunction!(mocap::_mocap_read, m)?)?;
     m.add_function(wrap_pyfunction!(ros2::_ros2_send, m)?)?;
     m.add_function(wrap_pyfunction!(ros2::_ros2_record, m)?)?;

@@ -32,6 +32,13 @@ pub struct DemonstrationsSection {
     max_gap: Option<Spanned<usize>>,
     cutoff: Option<Spanned<f64>>,
     outlier_mm: Option<Spanned<f64>>,
+    /// A LeRobot dataset's folder, relative to the experiment file: its episodes' joint
+    /// states, through the robot's kinematics, are the demonstrations.
+    lerobot: Option<Spanned<String>>,
+    /// Which of the dataset's episodes (default: all).
+    episodes: Option<Spanned<Vec<usize>>>,
+    /// Which feature of the dataset (default `observation.state`).
+    feature: Option<Spanned<String>>,
 }
 
 /// `[imitation]` of `kind = "imitation"`.
@@ -53,8 +60,9 @@ pub struct ImitationSection {
 pub struct ImitationPlan {
     /// Number of demonstrations.
     pub demonstrations: usize,
-    /// Demonstrations read from motion-capture takes (`[demonstrations] takes`), in the
-    /// task's frame; when there are any they replace the learned ones.
+    /// Demonstrations given: motion-capture takes (`[demonstrations] takes`) or a LeRobot
+    /// dataset's episodes through the robot's kinematics (`[demonstrations] lerobot`), in
+    /// the task's frame; when there are any they replace the learned ones.
     pub takes: Vec<cps_learn::GivenDemonstration>,
     /// Via-point perturbation per axis, metres.
     pub via_std: f64,
@@ -69,10 +77,16 @@ pub struct ImitationPlan {
 impl Sections<'_> {
     /// `[demonstrations] takes`: each take read and made a demonstration (its errors name
     /// the take, and the key's place in the experiment file).
-    pub(crate) fn takes(&self) -> Result<Vec<cps_learn::GivenDemonstration>, InputError> {
+    pub(crate) fn takes(
+        &self,
+        robot: Option<&crate::sections::robot::RobotChoice>,
+    ) -> Result<Vec<cps_learn::GivenDemonstration>, InputError> {
         let Some(d) = self.demonstrations.map(Spanned::get_ref) else {
             return Ok(Vec::new());
         };
+        if d.lerobot.is_some() || d.episodes.is_some() || d.feature.is_some() {
+            return self.lerobot(d, robot);
+        }
         let Some(takes) = &d.takes else {
             for (v, key) in [
                 (d.markers.as_ref().map(Spanned::span), "markers"),
@@ -143,11 +157,101 @@ impl Sections<'_> {
             .collect())
     }
 
+    /// `[demonstrations] lerobot`: the dataset's picked episodes, their entries matched
+    /// to the experiment robot's joints by name, each frame's tool position by the
+    /// robot's kinematics (base placed in the world, tool point set).
+    fn lerobot(
+        &self,
+        d: &DemonstrationsSection,
+        robot: Option<&crate::sections::robot::RobotChoice>,
+    ) -> Result<Vec<cps_learn::GivenDemonstration>, InputError> {
+        let Some(folder) = &d.lerobot else {
+            let span = d
+                .episodes
+                .as_ref()
+                .map(Spanned::span)
+                .or(d.feature.as_ref().map(Spanned::span))
+                .unwrap_or(0..0);
+            return Err(self.err(
+                &span,
+                "[demonstrations] `episodes` and `feature` pick from a LeRobot dataset: add `lerobot = \"folder\"`".into(),
+            ));
+        };
+        for (v, key) in [
+            (d.takes.as_ref().map(Spanned::span), "takes"),
+            (d.count.as_ref().map(Spanned::span), "count"),
+            (d.via_std.as_ref().map(Spanned::span), "via_std"),
+        ] {
+            if let Some(span) = v {
+                return Err(self.err(
+                    &span,
+                    format!("[demonstrations] `{key}` cannot go with `lerobot`: the dataset's episodes are the demonstrations"),
+                ));
+            }
+        }
+        let Some(robot) = robot else {
+            return Err(self.err(
+                &folder.span(),
+                "[demonstrations] `lerobot` needs the experiment's robot".into(),
+            ));
+        };
+        let dir = self.path.parent().unwrap_or(Path::new("."));
+        let pick = cps_movement::lerobot::Pick {
+            episodes: d.episodes.as_ref().map(|e| e.get_ref().clone()),
+            feature: d
+                .feature
+                .as_ref()
+                .map_or("observation.state".into(), |f| f.get_ref().clone()),
+            robot: None,
+        };
+        let at = |e: InputError| {
+            self.err(
+                &folder.span(),
+                format!("[demonstrations] `lerobot`: {}", e.0),
+            )
+        };
+        let joints = robot.model.published_joint_names();
+        let (_, demos) = cps_movement::lerobot::joint_demonstrations(
+            &dir.join(folder.get_ref()),
+            &pick,
+            &joints,
+        )
+        .map_err(at)?;
+        demos
+            .into_iter()
+            .map(|(name, demo)| {
+                let mut position: Vec<Vec<f64>> =
+                    (0..3).map(|_| Vec::with_capacity(demo.len())).collect();
+                for k in 0..demo.len() {
+                    let tool = robot
+                        .setup
+                        .chain
+                        .fk(demo.sample(k))
+                        .map_err(|e| at(InputError(format!("{name}, frame {k}: {e}"))))?;
+                    for (axis, p) in position.iter_mut().enumerate() {
+                        p.push(tool.translation.vector[axis]);
+                    }
+                }
+                let zeros = vec![vec![0.0; demo.len()]; 3];
+                Ok(cps_learn::GivenDemonstration {
+                    name,
+                    trajectory: cps_dmp::Trajectory::from_parts(
+                        demo.times().to_vec(),
+                        &position,
+                        &zeros,
+                        &zeros,
+                    ),
+                })
+            })
+            .collect()
+    }
+
     pub(crate) fn imitation_plan(
         &self,
         learner: &ViaPointConfig,
+        robot: Option<&crate::sections::robot::RobotChoice>,
     ) -> Result<ImitationPlan, InputError> {
-        let takes = self.takes()?;
+        let takes = self.takes(robot)?;
         let d = self.demonstrations.map(Spanned::get_ref);
         let demonstrations = match d.and_then(|d| d.count.as_ref()) {
             Some(c) if *c.get_ref() == 0 || *c.get_ref() > 10_000 => {
