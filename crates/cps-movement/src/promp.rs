@@ -303,7 +303,7 @@ pub fn fit_files(
     let (names, read) = read_labelled(paths, columns, lerobot)?;
     if read.len() < 2 {
         return Err(InputError(format!(
-            "a ProMP learns the spread of several demonstrations: give at least 2 (got {})",
+            "a ProMP learns the spread of several demonstrations: give at least 2 files or dataset episodes (got {})",
             read.len()
         )));
     }
