@@ -20,6 +20,17 @@ fn json(out: &std::process::Output) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
+/// `cps-cli args`, which must succeed.
+fn ok(args: &[&str]) -> std::process::Output {
+    let o = cli(args);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
+}
+
 fn model(path: &std::path::Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
@@ -71,7 +82,7 @@ fn show_lists_episodes_tasks_and_features() {
 fn episodes_of_a_dataset_are_imitated_as_demonstrations() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("m.json");
-    let o = cli(&[
+    ok(&[
         "imitate",
         &fixture(),
         "--episodes",
@@ -79,7 +90,6 @@ fn episodes_of_a_dataset_are_imitated_as_demonstrations() {
         "--out",
         out.to_str().unwrap(),
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let m = model(&out);
     let names: Vec<String> = serde_json::from_value(m["names"].clone()).unwrap();
     assert_eq!(
@@ -102,7 +112,7 @@ fn episodes_of_a_dataset_are_imitated_as_demonstrations() {
     // The action has a gripper after the joints: matched to the dataset's robot (panda),
     // the seven joints are imitated; --columns takes entries by name.
     let a = dir.path().join("a.json");
-    let o = cli(&[
+    ok(&[
         "imitate",
         &fixture(),
         "--feature",
@@ -110,10 +120,9 @@ fn episodes_of_a_dataset_are_imitated_as_demonstrations() {
         "--out",
         a.to_str().unwrap(),
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(model(&a)["names"].as_array().unwrap().len(), 7);
     let c = dir.path().join("c.json");
-    let o = cli(&[
+    ok(&[
         "imitate",
         &fixture(),
         "--feature",
@@ -123,15 +132,13 @@ fn episodes_of_a_dataset_are_imitated_as_demonstrations() {
         "--out",
         c.to_str().unwrap(),
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(
         model(&c)["names"],
         serde_json::json!(["panda_joint4", "gripper"])
     );
 
     let p = dir.path().join("p.json");
-    let o = cli(&["promp", "fit", &fixture(), "--out", p.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = ok(&["promp", "fit", &fixture(), "--out", p.to_str().unwrap()]);
     assert!(String::from_utf8_lossy(&o.stdout).starts_with("3 demonstrations, 7 dimension(s)"));
 }
 
@@ -247,7 +254,7 @@ fn recordings_written_as_a_dataset_learn_again() {
     assert_eq!(shown["tasks"], serde_json::json!(["reach"]));
     // The written episodes learn again: joint j rises 1 rad/s from 0.1 j.
     let m = dir.path().join("m.json");
-    let r = cli(&[
+    ok(&[
         "imitate",
         o,
         "--episodes",
@@ -255,7 +262,6 @@ fn recordings_written_as_a_dataset_learn_again() {
         "--out",
         m.to_str().unwrap(),
     ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let model = model(&m);
     assert_eq!(model["config"]["tau"], serde_json::json!(1.0));
     let goal: Vec<f64> = serde_json::from_value(model["goal"].clone()).unwrap();
@@ -276,7 +282,7 @@ fn recordings_written_as_a_dataset_learn_again() {
     ]);
     assert_eq!(again.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&again.stderr).contains("--force replaces it"));
-    let forced = cli(&[
+    ok(&[
         "lerobot",
         "write",
         a.to_str().unwrap(),
@@ -290,11 +296,6 @@ fn recordings_written_as_a_dataset_learn_again() {
         "10",
         "--force",
     ]);
-    assert!(
-        forced.status.success(),
-        "{}",
-        String::from_utf8_lossy(&forced.stderr)
-    );
     assert_eq!(json(&cli(&["lerobot", "show", o, "--json"]))["frames"], 11);
 }
 
@@ -409,13 +410,12 @@ generations = 1
         ),
     );
     let out = dir.path().join("out");
-    let r = cli(&[
+    ok(&[
         "run",
         file.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
     ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["demonstrations"]["kept"], 2);

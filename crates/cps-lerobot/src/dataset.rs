@@ -336,14 +336,7 @@ fn episode_meta(row: &[Cell]) -> Option<EpisodeMeta> {
 fn parquet_files(dir: &Path) -> Result<Vec<PathBuf>, LeRobotError> {
     let mut out = Vec::new();
     let chunks = std::fs::read_dir(dir).map_err(|e| {
-        LeRobotError::new(
-            dir,
-            if e.kind() == std::io::ErrorKind::NotFound {
-                "missing: a v3.0 dataset lists its episodes there".to_string()
-            } else {
-                format!("cannot be read: {e}")
-            },
-        )
+        LeRobotError::unread(dir, &e, "missing: a v3.0 dataset lists its episodes there")
     })?;
     for chunk in chunks.flatten() {
         let path = chunk.path();

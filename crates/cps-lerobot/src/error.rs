@@ -20,4 +20,17 @@ impl LeRobotError {
             what: what.into(),
         }
     }
+
+    /// `path` could not be read: `missing` (what its absence means) when it is not
+    /// there, else the system's words.
+    pub fn unread(path: &Path, e: &std::io::Error, missing: &str) -> Self {
+        LeRobotError::new(
+            path,
+            if e.kind() == std::io::ErrorKind::NotFound {
+                missing.to_string()
+            } else {
+                format!("cannot be read: {e}")
+            },
+        )
+    }
 }

@@ -67,13 +67,10 @@ impl Info {
             ));
         }
         let text = std::fs::read_to_string(&path).map_err(|e| {
-            LeRobotError::new(
+            LeRobotError::unread(
                 &path,
-                if e.kind() == std::io::ErrorKind::NotFound {
-                    "missing: this folder is not a LeRobot dataset (v3.0 keeps its description in meta/info.json)".to_string()
-                } else {
-                    format!("cannot be read: {e}")
-                },
+                &e,
+                "missing: this folder is not a LeRobot dataset (v3.0 keeps its description in meta/info.json)",
             )
         })?;
         let json: Value = serde_json::from_str(&text)

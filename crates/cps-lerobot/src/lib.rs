@@ -4,7 +4,7 @@
 //!
 //! Layers: [`error`] (one error type: the file and the fault), [`info`] (the description:
 //! rate, robot, features), [`table`] (parquet columns read by name), [`dataset`] (a
-//! dataset's episodes, tasks and one episode's frames of a feature), [`write`] (a new
+//! dataset's episodes, tasks and one episode's frames of a feature), [`mod@write`] (a new
 //! dataset laid out as LeRobot's writer lays it out, without video). Matching a feature's
 //! entries to a robot's joints, and demonstrations for imitation, are `cps-movement`'s.
 //!

@@ -69,16 +69,7 @@ fn cell(f: &Field) -> Cell {
 
 /// The parquet file at `path`, opened.
 pub fn open(path: &Path) -> Result<SerializedFileReader<File>, LeRobotError> {
-    let file = File::open(path).map_err(|e| {
-        LeRobotError::new(
-            path,
-            if e.kind() == std::io::ErrorKind::NotFound {
-                "missing".to_string()
-            } else {
-                format!("cannot be read: {e}")
-            },
-        )
-    })?;
+    let file = File::open(path).map_err(|e| LeRobotError::unread(path, &e, "missing"))?;
     SerializedFileReader::new(file).map_err(|e| {
         LeRobotError::new(
             path,

@@ -595,7 +595,7 @@ fn quantile(values: &[f64], q: f64) -> f64 {
     v[lo] + (v[hi] - v[lo]) * (x - lo as f64)
 }
 
-/// Where [`write`] stages a dataset before renaming it into place.
+/// Where [`write()`] stages a dataset before renaming it into place.
 pub fn staging_path(root: &Path) -> PathBuf {
     let name = root
         .file_name()
