@@ -171,7 +171,8 @@ pub fn imitate(request: &ImitateRequest) -> Result<ImitateAnswer, ApiError> {
         regression,
         tau: None,
         dt: None,
-        formulation: Formulation::Ijspeert2013,
+        // The goal-robust default of `imitate` everywhere: the shape kept from any start.
+        formulation: Formulation::GoalRobust,
         combine: Combine::Mean,
     };
     let fitted = imitate_demos(names.clone(), &demos, &spec).map_err(|e| ApiError(e.0))?;
