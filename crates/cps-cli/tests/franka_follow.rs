@@ -88,20 +88,37 @@ fn a_policy_stand_ins_chunks_are_followed_on_franky_sim_within_every_limit() {
         );
         let delay = c["inference_delay_s"]["mean"].as_f64().unwrap();
         assert!((0.05..=0.15).contains(&delay), "{delay}");
-        // The arm after the first second within 30 mrad of the demonstration (franky-sim's
-        // PD lags ~15-25 mrad on such a swing).
+        // After the first second: the commands within 10 mrad of the demonstration (a
+        // replay's commands are computed from the chunks' arrival stamps, so this holds on
+        // any machine: 3.7 and 6.5 mrad here, where a stream followed 0.1 s late would be
+        // 24 mrad off), and the arm within 50 mrad of them and of the demonstration:
+        // franky-sim's PD lags 25-26 mrad behind such a swing, more when a loaded machine
+        // makes its ticks bunch (31.8 mrad seen in CI), while the swing itself is 300 mrad.
         let text = std::fs::read_to_string(&rec).unwrap();
         let (t, q1, q4) = (column(&text, "t"), column(&text, "q1"), column(&text, "q4"));
+        let (c1, c4) = (column(&text, "q_d1"), column(&text, "q_d4"));
         let d = demo(&q0);
-        let worst = (0..t.len())
-            .filter(|&k| t[k] > 1.0 && t[k] < 4.0)
-            .map(|k| (q1[k] - d(t[k])[0]).abs().max((q4[k] - d(t[k])[3]).abs()))
-            .fold(0.0, f64::max);
+        let after = |k: &usize| t[*k] > 1.0 && t[*k] < 4.0;
+        let worst = |a: &[f64], b: &dyn Fn(usize) -> (f64, f64), m: &[f64]| {
+            (0..t.len())
+                .filter(after)
+                .map(|k| (a[k] - b(k).0).abs().max((m[k] - b(k).1).abs()))
+                .fold(0.0, f64::max)
+        };
+        let demo_at = |k: usize| (d(t[k])[0], d(t[k])[3]);
+        let (commands, arm) = (worst(&c1, &demo_at, &c4), worst(&q1, &demo_at, &q4));
+        let lag = worst(&q1, &|k| (c1[k], c4[k]), &q4);
         eprintln!(
-            "{hz} Hz: the arm within {:.1} mrad of the demonstration",
-            1e3 * worst
+            "{hz} Hz: commands within {:.1} mrad of the demonstration, the arm within {:.1} (of its commands: {:.1})",
+            1e3 * commands,
+            1e3 * arm,
+            1e3 * lag
         );
-        assert!(worst < 0.03, "{hz} Hz: {worst} rad");
+        assert!(commands < 0.01, "{hz} Hz: commands {commands} rad off");
+        assert!(
+            arm < 0.05 && lag < 0.05,
+            "{hz} Hz: the arm {arm} rad off, {lag} rad behind"
+        );
         // The chunks beside the recording are the file's: a replay of the run.
         let replay = cps_movement::chunks::read_chunks(
             &dir.path().join(format!("rec{hz}.chunks.csv")),
