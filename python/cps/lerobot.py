@@ -80,7 +80,8 @@ def write(
     recorded) and ``action`` (the commanded joints; the next frame's state where none were
     recorded), resampled to ``fps`` (default: the first recording's rate).
 
-    ``force`` replaces a LeRobot dataset at ``out``, nothing else. Returns what was
+    ``force`` replaces a dataset at ``out`` that holds nothing but the files cps writes;
+    a folder with any other file is never touched. Returns what was
     written: ``fps``, ``episodes`` (frames each), ``features``, ``action``.
     """
     return _cps._lerobot_write(

@@ -61,6 +61,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 use cps_experiment::{Experiment, ExperimentError, InputError, RunOptions, budget, experiment};
+use cps_movement::lerobot_write;
 use cps_report::write::{Results, WriteOptions};
 use cps_robot::StopToken;
 
@@ -222,7 +223,7 @@ enum LeRobotCommand {
         /// Frames per second (default: the first recording's rate).
         #[arg(long)]
         fps: Option<u32>,
-        /// Replace a LeRobot dataset already at --out (nothing else).
+        /// Replace a dataset at --out that holds nothing but the files cps writes.
         #[arg(long)]
         force: bool,
         /// Print JSON.
@@ -362,15 +363,12 @@ fn run(cli: Cli, stop: &StopToken) -> Result<ExitCode> {
                 force,
                 json,
             } => {
-                let paths: Vec<&std::path::Path> =
-                    recordings.iter().map(PathBuf::as_path).collect();
-                let export = cps_movement::lerobot_write::Export {
+                let export = lerobot_write::Export {
                     robot: arm,
                     task,
                     fps,
                 };
-                let answer =
-                    cps_movement::lerobot_write::write_recordings(&out, &paths, &export, force)?;
+                let answer = lerobot_write::write_recordings(&out, &recordings, &export, force)?;
                 robot::print(&answer, json)
             }
         },

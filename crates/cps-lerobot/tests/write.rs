@@ -65,7 +65,7 @@ fn written_then_read_back_frame_by_frame() {
         episode("stir", 12, 1.0),
         episode("pour", 20, 2.0),
     ];
-    write(&root, &spec(), &eps).unwrap();
+    write(&root, &spec(), &eps, false).unwrap();
     let ds = Dataset::open(&root).unwrap();
     assert_eq!(ds.info().fps, 50.0);
     assert_eq!(ds.info().robot_type.as_deref(), Some("fr3"));
@@ -105,7 +105,7 @@ fn written_then_read_back_frame_by_frame() {
 fn the_files_are_laid_out_as_lerobots_own() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path().join("out");
-    write(&root, &spec(), &[episode("pour", 10, 0.0)]).unwrap();
+    write(&root, &spec(), &[episode("pour", 10, 0.0)], false).unwrap();
     let lerobot = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/fr3_reach");
     for file in [
         "meta/info.json",
@@ -166,24 +166,70 @@ fn bad_episodes_and_an_existing_folder_are_refused_and_nothing_is_left() {
     let root = dir.path().join("out");
     let mut bad = episode("pour", 5, 0.0);
     bad.values[1][3] = vec![0.0; 6];
-    let e = write(&root, &spec(), &[bad]).unwrap_err().to_string();
+    let e = write(&root, &spec(), &[bad], false)
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("episode 0, frame 3") && e.contains("`action` needs 7"),
         "{e}"
     );
     let mut nan = episode("pour", 5, 0.0);
     nan.values[0][2][4] = f64::NAN;
-    assert!(write(&root, &spec(), &[nan]).is_err());
+    assert!(write(&root, &spec(), &[nan], false).is_err());
     assert!(
-        write(&root, &spec(), &[])
+        write(&root, &spec(), &[], false)
             .unwrap_err()
             .to_string()
             .contains("needs an episode")
     );
     assert!(!root.exists());
     std::fs::create_dir(&root).unwrap();
-    let e = write(&root, &spec(), &[episode("pour", 5, 0.0)])
+    let e = write(&root, &spec(), &[episode("pour", 5, 0.0)], false)
         .unwrap_err()
         .to_string();
     assert!(e.contains("exists already"), "{e}");
+}
+
+#[test]
+fn only_a_dataset_of_cps_files_is_replaced_and_nothing_else_is_ever_removed() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("out");
+    write(&root, &spec(), &[episode("pour", 10, 0.0)], false).unwrap();
+    // Without replace: refused, saying how.
+    let e = write(&root, &spec(), &[episode("stir", 4, 0.0)], false)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("--force replaces it"), "{e}");
+    // With it: the new dataset in place of the old.
+    write(&root, &spec(), &[episode("stir", 4, 0.0)], true).unwrap();
+    let ds = Dataset::open(&root).unwrap();
+    assert_eq!(
+        (ds.tasks(), ds.info().total_frames),
+        (&["stir".to_string()][..], 4)
+    );
+    // A file cps did not write (a video, a note) makes the folder the user's: refused even
+    // with replace, and every file stays.
+    let video = root.join("videos/observation.images.wrist/chunk-000/file-000.mp4");
+    std::fs::create_dir_all(video.parent().unwrap()).unwrap();
+    std::fs::write(&video, b"not cps's").unwrap();
+    let e = write(&root, &spec(), &[episode("pour", 3, 0.0)], true)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("not a LeRobot dataset cps would replace") && e.contains("file-000.mp4"),
+        "{e}"
+    );
+    assert_eq!(std::fs::read(&video).unwrap(), b"not cps's");
+    assert_eq!(Dataset::open(&root).unwrap().info().total_frames, 4);
+    // A folder where cps would stage is never removed: refused.
+    let other = dir.path().join("other");
+    let staging = dir.path().join(".other.cps-staging");
+    std::fs::create_dir(&staging).unwrap();
+    std::fs::write(staging.join("mine.txt"), b"mine").unwrap();
+    let e = write(&other, &spec(), &[episode("pour", 3, 0.0)], false)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("is in the way"), "{e}");
+    assert_eq!(std::fs::read(staging.join("mine.txt")).unwrap(), b"mine");
+    assert!(!other.exists());
 }

@@ -7,7 +7,7 @@ use std::path::Path;
 use cps_outcome::InputError;
 use serde_json::json;
 
-use crate::lerobot::{input, is_dataset, names_joint};
+use crate::lerobot::{input, names_joint};
 use crate::robot_file::{Answer, load_robot};
 
 /// How recordings become a dataset ([`write_recordings`]).
@@ -123,25 +123,14 @@ fn on_grid(times: &[f64], rows: &[Vec<f64>], fps: f64) -> Vec<Vec<f64>> {
 /// joints' positions as `observation.state`, their velocities and torques where
 /// recorded, and the commands as `action` — or, where a recording has none, the next
 /// frame's state. Every recording is resampled onto the dataset's frame grid. `force`
-/// replaces a LeRobot dataset already at `out` (nothing else), once the new one is
-/// written.
-pub fn write_recordings(
+/// replaces a dataset cps wrote at `out` (nothing else: see `cps_lerobot::write`), once
+/// the new one is written.
+pub fn write_recordings<P: AsRef<Path>>(
     out: &Path,
-    recordings: &[&Path],
+    recordings: &[P],
     export: &Export,
     force: bool,
 ) -> Result<Answer, InputError> {
-    if out.exists() && !(force && is_dataset(out)) {
-        return Err(InputError(format!(
-            "{}: exists already{}",
-            out.display(),
-            if is_dataset(out) {
-                " (a LeRobot dataset: --force replaces it)"
-            } else {
-                ", and is not a LeRobot dataset cps would replace"
-            }
-        )));
-    }
     if recordings.is_empty() {
         return Err(InputError("give at least one recording".into()));
     }
@@ -149,7 +138,7 @@ pub fn write_recordings(
     let joints = model.published_joint_names();
     let read: Vec<Recorded> = recordings
         .iter()
-        .map(|p| read_recording(p, &joints))
+        .map(|p| read_recording(p.as_ref(), &joints))
         .collect::<Result<_, _>>()?;
     let first: Vec<&str> = read[0].groups.iter().map(|(p, _)| *p).collect();
     for (r, path) in read.iter().zip(recordings) {
@@ -157,16 +146,16 @@ pub fn write_recordings(
         if these != first {
             return Err(InputError(format!(
                 "{}: has {} where {} has {}: every episode of a dataset has the same features",
-                path.display(),
+                path.as_ref().display(),
                 these.join(", "),
-                recordings[0].display(),
+                recordings[0].as_ref().display(),
                 first.join(", ")
             )));
         }
         if r.times.len() < 2 {
             return Err(InputError(format!(
                 "{}: a recording needs two samples or more",
-                path.display()
+                path.as_ref().display()
             )));
         }
     }
@@ -181,7 +170,7 @@ pub fn write_recordings(
             if !(rate.is_finite() && rate >= 0.5) {
                 return Err(InputError(format!(
                     "{}: its samples are {} s apart: give --fps",
-                    recordings[0].display(),
+                    recordings[0].as_ref().display(),
                     steps[steps.len() / 2]
                 )));
             }
@@ -236,25 +225,7 @@ pub fn write_recordings(
         robot_type: Some(model.name.clone()),
         features,
     };
-    let target = if out.exists() {
-        out.with_file_name(format!(
-            ".{}.cps-new",
-            out.file_name()
-                .map_or("dataset".into(), |n| n.to_string_lossy())
-        ))
-    } else {
-        out.to_path_buf()
-    };
-    if target != out && target.exists() {
-        std::fs::remove_dir_all(&target)
-            .map_err(|e| InputError(format!("{}: {e}", target.display())))?;
-    }
-    cps_lerobot::write(&target, &spec, &episodes).map_err(input)?;
-    if target != out {
-        std::fs::remove_dir_all(out)
-            .and_then(|()| std::fs::rename(&target, out))
-            .map_err(|e| InputError(format!("{}: cannot be replaced: {e}", out.display())))?;
-    }
+    cps_lerobot::write(out, &spec, &episodes, force).map_err(input)?;
     let frames: Vec<usize> = episodes.iter().map(cps_lerobot::NewEpisode::len).collect();
     let names: Vec<&str> = spec.features.iter().map(|f| f.name.as_str()).collect();
     Ok(Answer {

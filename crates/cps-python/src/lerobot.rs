@@ -2,7 +2,7 @@
 //! demonstrations, written from recordings or arrays — through `cps_movement::lerobot`
 //! and `cps_lerobot`, as `cps-cli lerobot` and `imitate DIR` do.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
@@ -65,10 +65,7 @@ pub fn _lerobot_write(
 ) -> PyResult<Bound<'_, PyAny>> {
     let export = cps_movement::lerobot_write::Export { robot, task, fps };
     let answer = py
-        .detach(|| {
-            let paths: Vec<&Path> = recordings.iter().map(PathBuf::as_path).collect();
-            cps_movement::lerobot_write::write_recordings(&out, &paths, &export, force)
-        })
+        .detach(|| cps_movement::lerobot_write::write_recordings(&out, &recordings, &export, force))
         .map_err(|e| e.py_err())?;
     json_to_py(py, &answer.json)
 }
@@ -128,6 +125,6 @@ pub fn _lerobot_write_arrays(
         robot_type,
         features,
     };
-    py.detach(|| cps_lerobot::write(&out, &spec, &eps))
+    py.detach(|| cps_lerobot::write(&out, &spec, &eps, false))
         .map_err(|e| value_error(e.to_string()))
 }
