@@ -32,7 +32,7 @@ pub struct Arm {
     #[arg(long, default_value = "fr3")]
     arm: String,
     /// `enforce`: the loop needs SCHED_FIFO (as libfranka's default); `ignore`: use it
-    /// where permitted, else run at normal priority.
+    /// where permitted, else run at normal priority; `off`: run at normal priority.
     #[arg(long, default_value = "enforce")]
     realtime: String,
 }

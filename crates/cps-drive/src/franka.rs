@@ -42,15 +42,13 @@ pub fn parse_arm(name: &str) -> Result<Arm, InputError> {
     })
 }
 
-/// `enforce` or `ignore`.
+/// `enforce`, `ignore` or `off` ([`Realtime::WORDS`]).
 pub fn parse_realtime(name: &str) -> Result<Realtime, InputError> {
-    match name {
-        "enforce" => Ok(Realtime::Enforce),
-        "ignore" => Ok(Realtime::Ignore),
-        other => Err(InputError(format!(
-            "--realtime: `{other}` is neither enforce nor ignore"
-        ))),
-    }
+    Realtime::from_word(name).ok_or_else(|| {
+        InputError(format!(
+            "--realtime: `{name}` is not enforce, ignore or off"
+        ))
+    })
 }
 
 fn robot_error(e: FrankaError) -> ExperimentError {
@@ -562,7 +560,6 @@ impl Executed {
     /// The report: `{"complete", "ending", "host", "arm", "samples", "duration_s",
     /// "approach_s", "timing", "tracking", "limit_usage_percent"}`.
     pub fn json(&self) -> Value {
-        let t = &self.report.timing;
         let (rms, max) = self.tracking();
         let usage = |k: usize| self.report.peak_usage[k].map(|u| (u * 1e4).round() / 100.0);
         json!({
@@ -575,10 +572,7 @@ impl Executed {
             "duration_s": self.report.samples.last().map_or(0.0, |s| s.t),
             "approach_s": self.approach as f64 * 1e-3,
             "brake_ticks": self.report.brake_ticks,
-            "timing": {
-                "ticks": t.ticks, "median_us": t.median_us, "p99_us": t.p99_us, "max_us": t.max_us,
-                "missed_ticks": t.missed, "stale_states": t.stale, "realtime": t.realtime,
-            },
+            "timing": timing_json(&self.report),
             "tracking": { "rms_rad": rms, "max_rad": max },
             "limit_usage_percent": { "velocity": usage(0), "acceleration": usage(1), "jerk": usage(2) },
         })
@@ -586,7 +580,6 @@ impl Executed {
 
     /// The report in lines.
     pub fn lines(&self, record: &Path) -> Vec<String> {
-        let t = &self.report.timing;
         let (rms, max) = self.tracking();
         let peak = |k: usize| {
             self.report.peak_usage[k]
@@ -595,7 +588,7 @@ impl Executed {
                 .fold(0.0, f64::max)
                 * 100.0
         };
-        vec![
+        let mut lines = vec![
             format!("{}: {}", self.host, self.report.ending.sentence()),
             format!(
                 "  {} samples over {:.3} s ({}; approach {:.3} s), recorded in {}",
@@ -605,19 +598,9 @@ impl Executed {
                 self.approach as f64 * 1e-3,
                 record.display()
             ),
-            format!(
-                "  loop: state in -> command out median {:.1} us, p99 {:.1} us, max {:.1} us; {} ticks missed, {} stale states{}",
-                t.median_us,
-                t.p99_us,
-                t.max_us,
-                t.missed,
-                t.stale,
-                if t.realtime {
-                    "; SCHED_FIFO"
-                } else {
-                    "; normal priority"
-                }
-            ),
+        ];
+        lines.extend(timing_lines(&self.report));
+        lines.extend([
             format!("  tracking (measured - commanded) RMS [{}] rad", fmt7(&rms)),
             format!("                                  max [{}] rad", fmt7(&max)),
             format!(
@@ -626,8 +609,43 @@ impl Executed {
                 peak(1),
                 peak(2)
             ),
-        ]
+        ]);
+        lines
     }
+}
+
+/// A motion's loop in a report: its timing, and what it saw of the robot's cycles
+/// (missed, stale, extrapolated by the robot, dropped; commands limited).
+pub fn timing_json(report: &MotionReport) -> Value {
+    let (t, c) = (&report.timing, report.cycles());
+    json!({
+        "ticks": t.ticks, "median_us": t.median_us, "p99_us": t.p99_us, "max_us": t.max_us,
+        "missed_ticks": t.missed, "stale_states": t.stale, "realtime": t.realtime,
+        "extrapolated_cycles": c.extrapolated, "dropped_commands": c.dropped,
+        "applied_late": report.reference.applied_late,
+        "reference_unconfirmed": report.reference.unconfirmed,
+        "limited_commands": c.limited, "largest_limit_change": c.largest_change,
+        "success_rate_min": c.success_rate_min,
+    })
+}
+
+/// A motion's loop in two report lines (see [`timing_json`]).
+pub fn timing_lines(report: &MotionReport) -> [String; 2] {
+    let t = &report.timing;
+    [
+        format!(
+            "  loop: state in -> command out median {:.1} us, p99 {:.1} us, max {:.1} us; {}",
+            t.median_us,
+            t.p99_us,
+            t.max_us,
+            if t.realtime {
+                "SCHED_FIFO"
+            } else {
+                "normal priority"
+            },
+        ),
+        format!("  cycles: {}", report.cycles().sentence()),
+    ]
 }
 
 /// Writes a recording and its report (complete or not), each atomically.
@@ -758,7 +776,6 @@ pub fn guide_samples(
         cps_franka::guide::run_guiding(&mut robot, limits, &options, stop.flag(), &guiding)
     }
     .map_err(robot_error)?;
-    let t = &report.timing;
     let json = json!({
         "complete": report.ending.complete(),
         "ending": report.ending.sentence(),
@@ -767,10 +784,7 @@ pub fn guide_samples(
         "samples": report.samples.len(),
         "duration_s": report.samples.last().map_or(0.0, |s| s.t),
         "damping": guiding.damping,
-        "timing": {
-            "ticks": t.ticks, "median_us": t.median_us, "p99_us": t.p99_us, "max_us": t.max_us,
-            "missed_ticks": t.missed, "stale_states": t.stale, "realtime": t.realtime,
-        },
+        "timing": timing_json(&report),
     });
     Ok((report.samples, json))
 }

@@ -62,8 +62,11 @@ pub mod control;
 mod error;
 pub mod gripper;
 pub mod guide;
+mod laws;
+pub mod limiter;
 pub mod limits;
 mod motion;
+pub mod reference;
 mod robot;
 pub mod rt;
 mod session;
@@ -77,7 +80,7 @@ pub use motion::{
 };
 pub use robot::{FrankaRobot, FrankaSettings, MODEL_AGREEMENT, TOOL_AGREEMENT};
 pub use rt::{
-    JointPositions, JointVelocities, LoopOptions, MotionEnd, MotionReport, Realtime, Sample,
+    Cycles, JointPositions, JointVelocities, LoopOptions, MotionEnd, MotionReport, Realtime, Sample,
     Timing, Torques, run_joint_positions, run_joint_velocities, run_torques,
 };
 pub use session::{Connection, Timeouts};

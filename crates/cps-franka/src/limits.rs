@@ -192,6 +192,15 @@ impl StreamCheck {
         }
     }
 
+    /// Judges the next command against this position, velocity and acceleration instead
+    /// of the last admitted command's: the reference the robot holds, which after a lost
+    /// cycle is the robot's own extrapolation.
+    pub fn rebase(&mut self, q: [f64; JOINTS], v: [f64; JOINTS], a: [f64; JOINTS]) {
+        self.q = q;
+        self.v = v;
+        self.a = a;
+    }
+
     /// The limits checked.
     pub fn limits(&self) -> &RateLimits {
         &self.limits

@@ -531,20 +531,27 @@ impl Robot for FrankaRobot {
             return None;
         }
         let mut peak = [0.0f64; 3];
-        let (mut p99, mut missed) = (0.0f64, 0u64);
+        let mut p99 = 0.0f64;
+        let mut cycles = crate::Cycles::default();
         for r in &self.reports {
             for (p, row) in peak.iter_mut().zip(&r.peak_usage) {
                 *p = row.iter().fold(*p, |a, &b| a.max(b));
             }
             p99 = p99.max(r.timing.p99_us);
-            missed += r.timing.missed;
+            cycles.add(&r.cycles());
         }
         Some(format!(
-            "{} motions sent at 1 kHz, at most {:.0} % of the velocity, {:.0} % of the acceleration and {:.0} % of the jerk limits; loop p99 {p99:.1} us, {missed} ticks missed",
+            "{} motions sent at 1 kHz, at most {:.0} % of the velocity, {:.0} % of the acceleration and {:.0} % of the jerk limits; loop p99 {p99:.1} us, {} ticks missed, {} states stale; {} cycles extrapolated by the robot, {} commands dropped, {} commands limited (largest change {:.6} rad)",
             self.reports.len(),
             peak[0] * 100.0,
             peak[1] * 100.0,
             peak[2] * 100.0,
+            cycles.missed,
+            cycles.stale,
+            cycles.extrapolated,
+            cycles.dropped,
+            cycles.limited,
+            cycles.largest_change,
         ))
     }
 }

@@ -1,24 +1,27 @@
 //! The realtime loop: one dedicated thread, one state in and one command out per robot
-//! tick, every command admitted by the limit check or replaced by a controlled stop.
+//! tick, every command judged against the reference the robot holds and admitted,
+//! limited, or replaced by a controlled stop ([`crate::laws`]).
 //!
 //! Inside the loop nothing allocates, locks or logs: the recording, the latency samples
 //! and the command buffer are allocated before the motion starts, and the loop stops the
 //! robot (within the limits) when its recording is full. Time follows the robot's clock:
 //! the state's message id counts milliseconds, so a generator sees `t = (id − id₀) · 1 ms`
-//! however fast the robot ticks (franky-sim steps at ≈ 850 Hz on two cores). A tick the
-//! robot made without a state reaching cps is counted as missed; a state superseded by a
-//! newer one before cps read it is counted as stale and skipped (the newest is answered).
+//! however fast the robot ticks (franky-sim steps at ≈ 850 Hz on two cores), and a state
+//! that comes two ids after the last one answered is a 2 ms period, as libfranka's
+//! `period` is. A tick the robot made without a state reaching cps is counted as missed; a
+//! state superseded by a newer one before cps read it is counted as stale and skipped
+//! (the newest is answered); the robot extrapolated both ([`crate::reference`]).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::error::FrankaError;
-use crate::limits::{Brake, DT, RateLimits, StreamCheck, joint_breach};
+use crate::laws::{Law, PositionLaw, TorqueLaw};
+use crate::limiter::Limited;
+use crate::limits::{DT, RateLimits};
+use crate::reference::ReferenceCounts;
 use crate::session::Connection;
-use crate::wire::{
-    Command, ControllerMode, JOINTS, MotionGeneratorMode, MoveStatus, RobotMode, RobotState,
-};
-use cps_kinematics::Quantity;
+use crate::wire::{Command, JOINTS, MoveStatus, RobotMode, RobotState};
 use cps_robot::Breach;
 
 /// Whether the loop thread asks for realtime scheduling (libfranka's `RealtimeConfig`).
@@ -28,6 +31,33 @@ pub enum Realtime {
     Enforce,
     /// Try SCHED_FIFO, run at normal priority when it is not permitted.
     Ignore,
+    /// Run at normal priority (as on a machine where SCHED_FIFO is not permitted, how
+    /// most learning researchers run their arm): the robot then loses cycles whenever the
+    /// loop waits for a core, which the loop must survive.
+    Off,
+}
+
+impl Realtime {
+    /// The settings by their words, as the command line, experiment files and Python
+    /// spell them.
+    pub const WORDS: [(&'static str, Realtime); 3] = [
+        ("enforce", Realtime::Enforce),
+        ("ignore", Realtime::Ignore),
+        ("off", Realtime::Off),
+    ];
+
+    /// The setting named `word` (`enforce`, `ignore` or `off`).
+    pub fn from_word(word: &str) -> Option<Realtime> {
+        Self::WORDS.iter().find(|(w, _)| *w == word).map(|&(_, r)| r)
+    }
+
+    /// Its word.
+    pub fn word(self) -> &'static str {
+        Self::WORDS
+            .iter()
+            .find(|(_, r)| *r == self)
+            .map_or("enforce", |(w, _)| w)
+    }
 }
 
 /// Ticks kept free in the recording for a stop (2 s: a brake from full speed takes
@@ -97,6 +127,9 @@ pub struct Timing {
     pub stale: u64,
     /// Whether the loop thread ran with SCHED_FIFO.
     pub realtime: bool,
+    /// The lowest `control_command_success_rate` the robot reported during the motion
+    /// (the share of the last 100 commands that reached it in time; 1.0 = all).
+    pub success_rate_min: f64,
 }
 
 /// How a motion of the 1 kHz loop ended, in the loop's own terms; [`crate::FrankaRobot`]
@@ -161,9 +194,98 @@ pub struct MotionReport {
     pub peak_usage: [[f64; JOINTS]; 3],
     /// Ticks spent braking.
     pub brake_ticks: usize,
-    /// Torque control: commands limited to the torque or torque-rate limit before they
-    /// were sent (0 for joint positions and velocities, which are checked, never limited).
-    pub clipped: usize,
+    /// Commands changed before they were sent to keep a limit: joint commands the robot
+    /// would not have accepted from its reference after a lost cycle, brought back onto
+    /// the stream ([`crate::limiter`]); torques limited to the torque or its rate. With
+    /// the largest change (rad; N m for torques).
+    pub limited: Limited,
+    /// What the robot's states said of the commands sent: cycles it extrapolated (or held
+    /// its torques through), commands it dropped.
+    pub reference: ReferenceCounts,
+}
+
+/// What a motion's loop saw of the robot's cycles: the ones cps did not answer, the ones
+/// the robot extrapolated, the commands it limited. Summed over motions with
+/// [`Cycles::add`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cycles {
+    /// States answered.
+    pub answered: usize,
+    /// Robot ticks whose state never reached cps.
+    pub missed: u64,
+    /// States superseded before cps read them (the newest was answered).
+    pub stale: u64,
+    /// Cycles the robot extrapolated (or held its torques through): the missed and stale
+    /// ones, and those whose command it dropped.
+    pub extrapolated: u64,
+    /// Commands the robot dropped (its next state showed its own extrapolation).
+    pub dropped: u64,
+    /// Commands changed before they were sent to keep a limit.
+    pub limited: usize,
+    /// The largest such change (rad; N m for torques).
+    pub largest_change: f64,
+    /// The lowest share of commands the robot reported received in time (1.0 = all).
+    pub success_rate_min: f64,
+}
+
+impl Cycles {
+    /// Adds another motion's.
+    pub fn add(&mut self, other: &Cycles) {
+        self.answered += other.answered;
+        self.missed += other.missed;
+        self.stale += other.stale;
+        self.extrapolated += other.extrapolated;
+        self.dropped += other.dropped;
+        self.limited += other.limited;
+        self.largest_change = self.largest_change.max(other.largest_change);
+        self.success_rate_min = self.success_rate_min.min(other.success_rate_min);
+    }
+
+    /// As a sentence: "3 cycles extrapolated by the robot (1 state missed, 2 stale, 0
+    /// commands dropped); 12 commands limited (largest change 0.000041 rad)".
+    pub fn sentence(&self) -> String {
+        format!(
+            "{} cycles extrapolated by the robot ({} states missed, {} stale, {} commands dropped); {} commands limited (largest change {:.6}); lowest success rate {:.2}",
+            self.extrapolated,
+            self.missed,
+            self.stale,
+            self.dropped,
+            self.limited,
+            self.largest_change,
+            self.success_rate_min
+        )
+    }
+}
+
+impl Default for Cycles {
+    fn default() -> Self {
+        Cycles {
+            answered: 0,
+            missed: 0,
+            stale: 0,
+            extrapolated: 0,
+            dropped: 0,
+            limited: 0,
+            largest_change: 0.0,
+            success_rate_min: 1.0,
+        }
+    }
+}
+
+impl MotionReport {
+    /// What the loop saw of the robot's cycles.
+    pub fn cycles(&self) -> Cycles {
+        Cycles {
+            answered: self.timing.ticks,
+            missed: self.timing.missed,
+            stale: self.timing.stale,
+            extrapolated: self.reference.extrapolated,
+            dropped: self.reference.dropped,
+            limited: self.limited.commands,
+            largest_change: self.limited.deviation,
+            success_rate_min: self.timing.success_rate_min,
+        }
+    }
 }
 
 /// A joint position generator's answer for one tick.
@@ -177,6 +299,9 @@ pub struct JointPositions {
 
 /// Makes the calling thread realtime (SCHED_FIFO) when permitted.
 fn make_realtime(mode: Realtime) -> Result<bool, FrankaError> {
+    if mode == Realtime::Off {
+        return Ok(false);
+    }
     use thread_priority::{
         RealtimeThreadSchedulePolicy, ThreadPriority, ThreadSchedulePolicy,
         set_thread_priority_and_policy, thread_native_id,
@@ -187,7 +312,7 @@ fn make_realtime(mode: Realtime) -> Result<bool, FrankaError> {
         Ok(()) => Ok(true),
         Err(e) => match mode {
             Realtime::Enforce => Err(FrankaError::Realtime(format!("{e:?}"))),
-            Realtime::Ignore => Ok(false),
+            Realtime::Ignore | Realtime::Off => Ok(false),
         },
     }
 }
@@ -268,10 +393,12 @@ where
 
 /// Runs torques computed by cps (the robot's external controller mode; the robot adds
 /// gravity): `control(state, t)` gives the joint torques for each tick. Each command is
-/// limited to the arm's torque and torque rate (1000 N m/s) before it is sent — as
-/// libfranka's rate limiter does — and the limited commands are counted
-/// ([`MotionReport::clipped`]); a torque that is not a number, or a joint measured faster
-/// than [`TORQUE_SPEED_GUARD`] of its speed limit, switches to a damped stop. `stop`
+/// limited to the arm's torque and, from the torques the robot applied last (the state's
+/// `tau_J_d`), to 95 % of its torque rate (1000 N m/s) before it is sent — as libfranka's
+/// rate limiter does — and the limited commands are counted ([`MotionReport::limited`]);
+/// a torque that is not a number, or a joint measured faster than
+/// [`TORQUE_SPEED_GUARD`](crate::laws::TORQUE_SPEED_GUARD) of its speed limit, switches
+/// to a damped stop. `stop`
 /// brakes the same way: `τ = −D·dq` within the rate limit until the arm is at rest, then
 /// the motion ends. [`Sample::tau_c`] records what was sent.
 pub fn run_torques<F>(
@@ -286,12 +413,6 @@ where
 {
     on_own_thread(conn, options, stop, TorqueLaw::new(limits, control))
 }
-
-/// The share of a joint's speed limit above which a torque-controlled motion is braked.
-pub const TORQUE_SPEED_GUARD: f64 = 0.9;
-
-/// Damping of the torque-mode stop (N m s/rad), per joint.
-const STOP_DAMPING: [f64; JOINTS] = [40.0, 40.0, 40.0, 40.0, 10.0, 10.0, 5.0];
 
 /// A joint velocity generator's answer for one tick.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -329,285 +450,6 @@ fn on_own_thread<L: Law + Send>(
     })
 }
 
-/// What the loop runs: one command per state, and a controlled stop when asked.
-trait Law {
-    /// The Move's controller and motion generator.
-    fn modes(&self) -> (ControllerMode, MotionGeneratorMode);
-    /// The robot's state before the Move: where the motion starts.
-    fn start(&mut self, state: &RobotState);
-    /// Whether the law still follows its generator (not holding, not stopping).
-    fn following(&self) -> bool;
-    /// Fills `command` for `state` at robot time `t` (the tick's index `tick`); `brake`
-    /// asks for a controlled stop for that reason. True when the command is the last.
-    fn answer(
-        &mut self,
-        state: &RobotState,
-        t: f64,
-        tick: usize,
-        brake: Option<MotionEnd>,
-        command: &mut Command,
-    ) -> bool;
-    /// Why the law stopped on its own or was stopped (if it was); the peak usage; the
-    /// ticks spent stopping; the commands limited before sending.
-    fn outcome(self) -> (Option<MotionEnd>, [[f64; JOINTS]; 3], usize, usize);
-}
-
-// The brake lives in place: boxing it would allocate inside the loop.
-#[allow(clippy::large_enum_variant)]
-enum Mode {
-    Follow,
-    /// The generator finished in motion: its last command is held until at rest (as the
-    /// check of a whole stream assumes), braking instead if holding breaks a limit.
-    Hold([f64; JOINTS]),
-    Brake(Brake),
-}
-
-/// Joint positions (or velocities, as the positions they integrate to) through the
-/// [`StreamCheck`], with a [`Brake`] for anything it refuses.
-struct PositionLaw<F> {
-    check: StreamCheck,
-    mode: Mode,
-    control: F,
-    velocity: bool,
-    reason: Option<MotionEnd>,
-    brake_ticks: usize,
-}
-
-impl<F> PositionLaw<F>
-where
-    F: FnMut(&RobotState, f64, [f64; JOINTS]) -> JointPositions,
-{
-    fn new(limits: RateLimits, velocity: bool, control: F) -> Self {
-        PositionLaw {
-            check: StreamCheck::at_rest(limits, [0.0; JOINTS]),
-            mode: Mode::Follow,
-            control,
-            velocity,
-            reason: None,
-            brake_ticks: 0,
-        }
-    }
-}
-
-impl<F> Law for PositionLaw<F>
-where
-    F: FnMut(&RobotState, f64, [f64; JOINTS]) -> JointPositions,
-{
-    fn modes(&self) -> (ControllerMode, MotionGeneratorMode) {
-        let generator = if self.velocity {
-            MotionGeneratorMode::JointVelocity
-        } else {
-            MotionGeneratorMode::JointPosition
-        };
-        (ControllerMode::JointImpedance, generator)
-    }
-
-    fn start(&mut self, state: &RobotState) {
-        self.check = StreamCheck::at_rest(*self.check.limits(), start_position(state));
-    }
-
-    fn following(&self) -> bool {
-        matches!(self.mode, Mode::Follow)
-    }
-
-    fn answer(
-        &mut self,
-        state: &RobotState,
-        t: f64,
-        _tick: usize,
-        brake: Option<MotionEnd>,
-        command: &mut Command,
-    ) -> bool {
-        if let Some(reason) = brake
-            && self.following()
-        {
-            self.reason.get_or_insert(reason);
-            self.mode = Mode::Brake(Brake::from_check(&self.check));
-        }
-        let (desired, finished) = match &mut self.mode {
-            Mode::Follow => {
-                let step = (self.control)(state, t, self.check.last().0);
-                (step.q, step.finished)
-            }
-            Mode::Hold(q) => (*q, true),
-            Mode::Brake(b) => {
-                self.brake_ticks += 1;
-                let q = b.step();
-                (q, b.stopped())
-            }
-        };
-        let (q_c, mut done) = match self.check.admit(&desired) {
-            Ok(()) => (desired, finished),
-            Err(breach) => {
-                // Never sent: brake from the last admitted command instead.
-                let mut b = Brake::from_check(&self.check);
-                let q = b.step();
-                let stopped = b.stopped();
-                self.reason.get_or_insert(MotionEnd::LimitBrake(breach));
-                self.mode = Mode::Brake(b);
-                if self.check.admit(&q).is_err() {
-                    // Cannot happen for a brake from an admitted state (tested); hold.
-                    (self.check.last().0, false)
-                } else {
-                    (q, stopped)
-                }
-            }
-        };
-        if done && !self.check.at_rest_now() {
-            // Not at rest yet: hold the last command (or keep braking) until it is.
-            if self.following() {
-                self.mode = Mode::Hold(q_c);
-            }
-            done = false;
-        }
-        command.q_c = q_c;
-        if self.velocity {
-            // The velocity the admitted position stands for (zero once at rest).
-            command.dq_c = self.check.last().1;
-        }
-        command.motion_generation_finished = done;
-        done
-    }
-
-    fn outcome(self) -> (Option<MotionEnd>, [[f64; JOINTS]; 3], usize, usize) {
-        (self.reason, self.check.peak_usage(), self.brake_ticks, 0)
-    }
-}
-
-/// Torques from cps, limited to the arm's torque and torque rate, with a damped stop.
-struct TorqueLaw<F> {
-    limits: RateLimits,
-    control: F,
-    last: [f64; JOINTS],
-    stopping: bool,
-    at_rest_ticks: usize,
-    reason: Option<MotionEnd>,
-    brake_ticks: usize,
-    clipped: usize,
-    /// Peak share of the torque, the torque rate and the speed limit.
-    peak: [[f64; JOINTS]; 3],
-}
-
-impl<F> TorqueLaw<F> {
-    fn new(limits: RateLimits, control: F) -> Self {
-        TorqueLaw {
-            limits,
-            control,
-            last: [0.0; JOINTS],
-            stopping: false,
-            at_rest_ticks: 0,
-            reason: None,
-            brake_ticks: 0,
-            clipped: 0,
-            peak: [[0.0; JOINTS]; 3],
-        }
-    }
-
-    fn stop_for(&mut self, reason: MotionEnd) {
-        if !self.stopping {
-            self.reason.get_or_insert(reason);
-            self.stopping = true;
-        }
-    }
-}
-
-impl<F> Law for TorqueLaw<F>
-where
-    F: FnMut(&RobotState, f64) -> Torques,
-{
-    fn modes(&self) -> (ControllerMode, MotionGeneratorMode) {
-        (
-            ControllerMode::ExternalController,
-            MotionGeneratorMode::None,
-        )
-    }
-
-    fn start(&mut self, _state: &RobotState) {
-        // The robot holds the arm against gravity itself; cps's torques start from zero.
-        self.last = [0.0; JOINTS];
-    }
-
-    fn following(&self) -> bool {
-        !self.stopping
-    }
-
-    fn answer(
-        &mut self,
-        state: &RobotState,
-        t: f64,
-        tick: usize,
-        brake: Option<MotionEnd>,
-        command: &mut Command,
-    ) -> bool {
-        if let Some(reason) = brake {
-            self.stop_for(reason);
-        }
-        let l = self.limits;
-        if let Some(i) = (0..JOINTS).find(|&i| state.dq[i].abs() > TORQUE_SPEED_GUARD * l.dq_max[i])
-        {
-            self.stop_for(MotionEnd::LimitBrake(joint_breach(
-                i + 1,
-                Quantity::Velocity,
-                tick,
-                state.dq[i],
-                TORQUE_SPEED_GUARD * l.dq_max[i],
-            )));
-        }
-        let mut finished = false;
-        let mut tau = [0.0; JOINTS];
-        if !self.stopping {
-            let c = (self.control)(state, t);
-            if let Some(i) = (0..JOINTS).find(|&i| !c.tau[i].is_finite()) {
-                self.stop_for(MotionEnd::LimitBrake(joint_breach(
-                    i + 1,
-                    Quantity::Torque,
-                    tick,
-                    c.tau[i],
-                    l.tau_max[i],
-                )));
-            } else {
-                tau = c.tau;
-                finished = c.finished;
-            }
-        }
-        if self.stopping {
-            self.brake_ticks += 1;
-            for ((x, d), v) in tau.iter_mut().zip(STOP_DAMPING).zip(state.dq) {
-                *x = -d * v;
-            }
-            let still = state.dq.iter().all(|v| v.abs() < 0.02);
-            self.at_rest_ticks = if still { self.at_rest_ticks + 1 } else { 0 };
-            // At rest for 50 ms, or after 3 s whatever happens (the robot holds itself).
-            finished = self.at_rest_ticks >= 50 || self.brake_ticks >= 3000;
-        }
-        // Within the torque rate, then the torque, of the last command sent.
-        let mut limited = false;
-        for (i, t) in tau.iter_mut().enumerate() {
-            let step = l.dtau_max[i] * DT;
-            let x = t
-                .clamp(self.last[i] - step, self.last[i] + step)
-                .clamp(-l.tau_max[i], l.tau_max[i]);
-            limited |= x != *t;
-            self.peak[0][i] = self.peak[0][i].max(x.abs() / l.tau_max[i]);
-            self.peak[1][i] = self.peak[1][i].max((x - self.last[i]).abs() / step);
-            self.peak[2][i] = self.peak[2][i].max(state.dq[i].abs() / l.dq_max[i]);
-            *t = x;
-        }
-        if limited && !self.stopping {
-            self.clipped += 1;
-        }
-        self.last = tau;
-        command.tau_j_d = tau;
-        command.torque_command_finished = finished;
-        command.motion_generation_finished = finished;
-        finished
-    }
-
-    fn outcome(self) -> (Option<MotionEnd>, [[f64; JOINTS]; 3], usize, usize) {
-        (self.reason, self.peak, self.brake_ticks, self.clipped)
-    }
-}
-
 fn run_law<L: Law>(
     conn: &mut Connection,
     options: &LoopOptions,
@@ -628,6 +470,7 @@ fn run_law<L: Law>(
     let mut ending: Option<MotionEnd> = None;
     let (mut first_id, mut last_id) = (None::<u64>, None::<u64>);
     let (mut missed, mut stale) = (0u64, 0u64);
+    let mut success_rate_min: f64 = 1.0;
     let mut last_errors = String::new();
     let mut finished_sent = false;
     loop {
@@ -641,14 +484,20 @@ fn run_law<L: Law>(
         let t_in = Instant::now();
         stale += u64::from(skipped);
         let id0 = *first_id.get_or_insert(state.message_id);
+        let mut periods = 1;
         if let Some(last) = last_id {
             if state.message_id <= last {
                 continue; // a duplicate or reordered datagram: already answered
             }
             // Ticks between the last answered state and this one that never reached cps.
             missed += (state.message_id - last - 1).saturating_sub(u64::from(skipped));
+            periods = state.message_id - last;
         }
         last_id = Some(state.message_id);
+        if state.control_command_success_rate > 0.0 {
+            // Zero while the robot has not started the motion's loop yet.
+            success_rate_min = success_rate_min.min(state.control_command_success_rate);
+        }
         if state.robot_mode == RobotMode::Reflex || state.errors.any() {
             // The robot ended the motion; it takes no more commands. Its final status
             // follows on TCP.
@@ -665,7 +514,7 @@ fn run_law<L: Law>(
         } else {
             None
         };
-        let done = law.answer(&state, t, samples.len(), brake, &mut command);
+        let done = law.answer(&state, t, periods, samples.len(), brake, &mut command);
         command.message_id = state.message_id;
         if let Err(e) = conn.send_command(&command) {
             ending = Some(MotionEnd::Lost(e.to_string()));
@@ -708,7 +557,8 @@ fn run_law<L: Law>(
             }
         }
     }
-    let (reason, peak_usage, brake_ticks, clipped) = law.outcome();
+    let outcome = law.outcome();
+    let reason = outcome.reason;
     // After the loop: the robot's word on how the motion ended (bounded).
     let ending = match ending {
         Some(e) => e,
@@ -734,13 +584,15 @@ fn run_law<L: Law>(
         missed,
         stale,
         realtime,
+        success_rate_min,
     };
     Ok(MotionReport {
         samples,
         timing,
         ending,
-        peak_usage,
-        brake_ticks,
-        clipped,
+        peak_usage: outcome.peak,
+        brake_ticks: outcome.brake_ticks,
+        limited: outcome.limited,
+        reference: outcome.reference,
     })
 }

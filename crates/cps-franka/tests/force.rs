@@ -136,7 +136,7 @@ fn joint_impedance_settles_on_its_target() {
             goal[i]
         );
     }
-    assert_eq!(report.clipped, 0);
+    assert_eq!(report.limited.commands, 0);
 }
 
 #[test]
@@ -238,5 +238,5 @@ fn a_hand_guides_the_floating_arm_and_the_recording_follows_it() {
         gap * 1e3
     );
     assert!(off_line < 0.012, "{:.1} mm off the line", off_line * 1e3);
-    assert_eq!(report.clipped, 0);
+    assert_eq!(report.limited.commands, 0);
 }

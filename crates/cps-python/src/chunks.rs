@@ -131,7 +131,7 @@ impl ChunkExecutor {
                     realtime: choose(
                         "realtime",
                         realtime,
-                        &[("enforce", Realtime::Enforce), ("ignore", Realtime::Ignore)],
+                        &Realtime::WORDS,
                     )?,
                 })
             }

@@ -108,7 +108,7 @@ impl Franka {
             realtime: choose(
                 "realtime",
                 realtime,
-                &[("enforce", Realtime::Enforce), ("ignore", Realtime::Ignore)],
+                &Realtime::WORDS,
             )?,
             last: None,
         })

@@ -36,6 +36,9 @@ struct Summary {
     loop_median_us: f64,
     loop_p99_us: f64,
     missed_ticks: u64,
+    /// Cycles the robot went without a command from cps (missed, stale or dropped: it
+    /// reused the torques before).
+    extrapolated_cycles: u64,
     torque_commands_limited: usize,
 }
 
@@ -113,7 +116,8 @@ pub(crate) fn run(
         loop_median_us: t.median_us,
         loop_p99_us: t.p99_us,
         missed_ticks: t.missed,
-        torque_commands_limited: out.report.clipped,
+        extrapolated_cycles: out.report.reference.extrapolated,
+        torque_commands_limited: out.report.limited.commands,
     };
     let mut header = ctx.header(out.report.ending.complete() && !stopped);
     if !matches!(out.ending, ContactEnding::Done) {
@@ -154,8 +158,11 @@ pub(crate) fn run(
                 (
                     "loop",
                     format!(
-                        "median {:.1} us, p99 {:.1} us, {} ticks missed",
-                        t.median_us, t.p99_us, t.missed
+                        "median {:.1} us, p99 {:.1} us, {} ticks missed; {}",
+                        t.median_us,
+                        t.p99_us,
+                        t.missed,
+                        out.report.cycles().sentence()
                     ),
                 ),
             ],
@@ -190,8 +197,14 @@ fn lines(s: &Summary) -> Vec<String> {
         s.force_rms_error_n, s.path_rms_error_mm, s.peak_force_n
     ));
     l.push(format!(
-        "  {} samples over {:.3} s; loop median {:.1} us, p99 {:.1} us, {} ticks missed",
-        s.samples, s.duration_s, s.loop_median_us, s.loop_p99_us, s.missed_ticks
+        "  {} samples over {:.3} s; loop median {:.1} us, p99 {:.1} us, {} ticks missed, {} cycles without a command, {} torque commands limited",
+        s.samples,
+        s.duration_s,
+        s.loop_median_us,
+        s.loop_p99_us,
+        s.missed_ticks,
+        s.extrapolated_cycles,
+        s.torque_commands_limited
     ));
     l
 }

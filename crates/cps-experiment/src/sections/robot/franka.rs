@@ -115,7 +115,7 @@ impl Sections<'_> {
                 self.err(
                     &m.span(),
                     format!(
-                        "[robot] `realtime` must be enforce or ignore (got `{}`)",
+                        "[robot] `realtime` must be enforce, ignore or off (got `{}`)",
                         m.get_ref()
                     ),
                 )

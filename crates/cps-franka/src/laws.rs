@@ -1,0 +1,396 @@
+//! What the realtime loop runs each tick: a law turns the robot's state into one command,
+//! judged against the reference the robot holds ([`crate::reference`]) and limited or
+//! replaced by a controlled stop where the robot would not accept it.
+//!
+//! - [`PositionLaw`]: joint positions (or velocities, as the positions they integrate to).
+//!   The generator is asked once per robot period — a state that comes 2 ms after the
+//!   last one answered (a cycle lost or skipped) asks it twice, so a generator stepped
+//!   per period (the chunk executor, an online DMP) keeps the robot's time, and a
+//!   replayed stream its index — and its last answer goes through the [`Limiter`]
+//!   against the robot's reference. A stop, or a command that cannot be limited, switches
+//!   to a [`Brake`] from that reference.
+//! - [`TorqueLaw`]: torques, limited to the torque and its rate from the last torques the
+//!   robot applied (the state's `tau_J_d`), with a damped stop.
+//!
+//! Nothing here allocates, locks or logs.
+
+use cps_kinematics::Quantity;
+
+use crate::limiter::{Limited, Limiter};
+use crate::limits::{Brake, DT, RateLimits, StreamCheck, joint_breach};
+use crate::reference::{Reference, ReferenceCounts, ReferenceTracker, TorqueTracker};
+use crate::rt::{JointPositions, MotionEnd, Torques};
+use crate::wire::{Command, ControllerMode, JOINTS, MotionGeneratorMode, RobotState};
+
+/// The share of a joint's speed limit above which a torque-controlled motion is braked.
+pub const TORQUE_SPEED_GUARD: f64 = 0.9;
+
+/// The share of the torque-rate limit torques are limited to (the robot's reference
+/// arrives rounded to single precision).
+pub const TORQUE_RATE_SHARE: f64 = 0.95;
+
+/// Damping of the torque-mode stop (N m s/rad), per joint.
+const STOP_DAMPING: [f64; JOINTS] = [40.0, 40.0, 40.0, 40.0, 10.0, 10.0, 5.0];
+
+/// How a law's motion went, for the report.
+#[derive(Debug, Clone)]
+pub(crate) struct Outcome {
+    /// Why the law stopped on its own or was stopped, if it was.
+    pub reason: Option<MotionEnd>,
+    /// Peak usage of velocity, acceleration and jerk (torque: torque, torque rate, speed)
+    /// per joint, of every command sent.
+    pub peak: [[f64; JOINTS]; 3],
+    /// Ticks spent stopping.
+    pub brake_ticks: usize,
+    /// Commands limited before they were sent.
+    pub limited: Limited,
+    /// What the states said of the commands sent.
+    pub reference: ReferenceCounts,
+}
+
+/// What the loop runs: one command per state, and a controlled stop when asked.
+pub(crate) trait Law {
+    /// The Move's controller and motion generator.
+    fn modes(&self) -> (ControllerMode, MotionGeneratorMode);
+    /// The robot's state before the Move: where the motion starts.
+    fn start(&mut self, state: &RobotState);
+    /// Whether the law still follows its generator (not holding, not stopping).
+    fn following(&self) -> bool;
+    /// Fills `command` for `state` at robot time `t`, `periods` robot periods after the
+    /// state answered before (1 for the first); `tick` counts the states answered;
+    /// `brake` asks for a controlled stop for that reason. True when the command is the
+    /// last.
+    fn answer(
+        &mut self,
+        state: &RobotState,
+        t: f64,
+        periods: u64,
+        tick: usize,
+        brake: Option<MotionEnd>,
+        command: &mut Command,
+    ) -> bool;
+    /// How the motion went.
+    fn outcome(self) -> Outcome;
+}
+
+// The modes live in place: boxing would allocate inside the loop.
+#[derive(Debug, Clone, Copy)]
+enum Mode {
+    Follow,
+    /// The generator finished: its last command is held until the robot's reference is at
+    /// rest there (as the check of a whole stream assumes).
+    Hold([f64; JOINTS]),
+    /// A controlled stop from the robot's reference.
+    Brake,
+}
+
+/// Joint positions (or velocities, as the positions they integrate to), judged against the
+/// robot's reference, limited where a lost cycle made them unacceptable, with a [`Brake`]
+/// for anything else.
+pub(crate) struct PositionLaw<F> {
+    check: StreamCheck,
+    tracker: ReferenceTracker,
+    limiter: Limiter,
+    mode: Mode,
+    control: F,
+    velocity: bool,
+    /// The generator's last command (a velocity motion integrates from it).
+    desired: [f64; JOINTS],
+    reason: Option<MotionEnd>,
+    brake_ticks: usize,
+}
+
+impl<F> PositionLaw<F>
+where
+    F: FnMut(&RobotState, f64, [f64; JOINTS]) -> JointPositions,
+{
+    /// `control(state, t, last)`: the command at robot time `t`, `last` the one before.
+    pub(crate) fn new(limits: RateLimits, velocity: bool, control: F) -> Self {
+        let q0 = [0.0; JOINTS];
+        PositionLaw {
+            check: StreamCheck::at_rest(limits, q0),
+            tracker: ReferenceTracker::new(q0, velocity),
+            limiter: Limiter::new(q0),
+            mode: Mode::Follow,
+            control,
+            velocity,
+            desired: q0,
+            reason: None,
+            brake_ticks: 0,
+        }
+    }
+
+    /// Asks the generator for every robot period since the last state answered (the
+    /// limiter sees each); true when it finished.
+    fn generate(&mut self, state: &RobotState, t: f64, periods: u64) -> bool {
+        for p in (0..periods).rev() {
+            let step = (self.control)(state, t - p as f64 * DT, self.desired);
+            self.desired = step.q;
+            self.limiter.desire(&step.q);
+            if step.finished {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// One step of a controlled stop from the robot's reference `r`, admitted (the robot's
+    /// own extrapolation if the step is not, which cannot happen for a brake from an
+    /// admitted reference; tested); whether it is at rest.
+    fn brake_step(&mut self, r: &Reference) -> ([f64; JOINTS], bool) {
+        self.brake_ticks += 1;
+        let mut brake = Brake::new(*self.check.limits(), r.q, r.v, r.a);
+        let q = brake.step();
+        if self.check.admit(&q).is_ok() {
+            (q, brake.stopped())
+        } else {
+            let held = r.extrapolated().q;
+            let _ = self.check.admit(&held);
+            (held, false)
+        }
+    }
+}
+
+impl<F> Law for PositionLaw<F>
+where
+    F: FnMut(&RobotState, f64, [f64; JOINTS]) -> JointPositions,
+{
+    fn modes(&self) -> (ControllerMode, MotionGeneratorMode) {
+        let generator = if self.velocity {
+            MotionGeneratorMode::JointVelocity
+        } else {
+            MotionGeneratorMode::JointPosition
+        };
+        (ControllerMode::JointImpedance, generator)
+    }
+
+    fn start(&mut self, state: &RobotState) {
+        let q0 = crate::rt::start_position(state);
+        let limits = *self.check.limits();
+        self.check = StreamCheck::at_rest(limits, q0);
+        self.tracker = ReferenceTracker::new(q0, self.velocity);
+        self.limiter = Limiter::new(q0);
+        self.desired = q0;
+    }
+
+    fn following(&self) -> bool {
+        matches!(self.mode, Mode::Follow)
+    }
+
+    fn answer(
+        &mut self,
+        state: &RobotState,
+        t: f64,
+        periods: u64,
+        _tick: usize,
+        brake: Option<MotionEnd>,
+        command: &mut Command,
+    ) -> bool {
+        let r = self.tracker.reference(state);
+        self.check.rebase(r.q, r.v, r.a);
+        if let Some(reason) = brake
+            && self.following()
+        {
+            self.reason.get_or_insert(reason);
+            self.mode = Mode::Brake;
+        }
+        let finished = match self.mode {
+            Mode::Follow => {
+                let finished = self.generate(state, t, periods);
+                if finished {
+                    self.mode = Mode::Hold(self.desired);
+                }
+                finished
+            }
+            Mode::Hold(q) => {
+                for _ in 0..periods {
+                    self.limiter.desire(&q);
+                }
+                true
+            }
+            Mode::Brake => false,
+        };
+        let (q_c, mut done) = if matches!(self.mode, Mode::Brake) {
+            self.brake_step(&r)
+        } else {
+            match self.limiter.admit(&mut self.check, &r) {
+                Ok(q) => (q, finished),
+                Err(breach) => {
+                    // Never sent: a controlled stop from the robot's reference instead.
+                    self.reason.get_or_insert(MotionEnd::LimitBrake(breach));
+                    self.mode = Mode::Brake;
+                    self.brake_step(&r)
+                }
+            }
+        };
+        if done && !self.check.at_rest_now() {
+            // Not at rest yet: hold the last command (or keep braking) until it is.
+            done = false;
+        }
+        command.q_c = q_c;
+        if self.velocity {
+            // The velocity the admitted position stands for (zero once at rest).
+            command.dq_c = self.check.last().1;
+        }
+        command.motion_generation_finished = done;
+        self.tracker.sent(state.message_id, q_c);
+        done
+    }
+
+    fn outcome(self) -> Outcome {
+        Outcome {
+            reason: self.reason,
+            peak: self.check.peak_usage(),
+            brake_ticks: self.brake_ticks,
+            limited: self.limiter.limited(),
+            reference: self.tracker.counts(),
+        }
+    }
+}
+
+/// Torques from cps, limited to the arm's torque and, from the last torques the robot
+/// applied, its torque rate; with a damped stop.
+pub(crate) struct TorqueLaw<F> {
+    limits: RateLimits,
+    control: F,
+    tracker: TorqueTracker,
+    stopping: bool,
+    at_rest_ticks: usize,
+    reason: Option<MotionEnd>,
+    brake_ticks: usize,
+    limited: Limited,
+    /// Peak share of the torque, the torque rate and the speed limit.
+    peak: [[f64; JOINTS]; 3],
+}
+
+impl<F> TorqueLaw<F> {
+    pub(crate) fn new(limits: RateLimits, control: F) -> Self {
+        TorqueLaw {
+            limits,
+            control,
+            tracker: TorqueTracker::default(),
+            stopping: false,
+            at_rest_ticks: 0,
+            reason: None,
+            brake_ticks: 0,
+            limited: Limited::default(),
+            peak: [[0.0; JOINTS]; 3],
+        }
+    }
+
+    fn stop_for(&mut self, reason: MotionEnd) {
+        if !self.stopping {
+            self.reason.get_or_insert(reason);
+            self.stopping = true;
+        }
+    }
+}
+
+impl<F> Law for TorqueLaw<F>
+where
+    F: FnMut(&RobotState, f64) -> Torques,
+{
+    fn modes(&self) -> (ControllerMode, MotionGeneratorMode) {
+        (
+            ControllerMode::ExternalController,
+            MotionGeneratorMode::None,
+        )
+    }
+
+    fn start(&mut self, _state: &RobotState) {
+        // The robot holds the arm against gravity itself; the torques start from the ones
+        // it reports (tau_J_d) and are limited from them every tick.
+        self.tracker = TorqueTracker::default();
+    }
+
+    fn following(&self) -> bool {
+        !self.stopping
+    }
+
+    fn answer(
+        &mut self,
+        state: &RobotState,
+        t: f64,
+        _periods: u64,
+        tick: usize,
+        brake: Option<MotionEnd>,
+        command: &mut Command,
+    ) -> bool {
+        if let Some(reason) = brake {
+            self.stop_for(reason);
+        }
+        let l = self.limits;
+        if let Some(i) = (0..JOINTS).find(|&i| state.dq[i].abs() > TORQUE_SPEED_GUARD * l.dq_max[i])
+        {
+            self.stop_for(MotionEnd::LimitBrake(joint_breach(
+                i + 1,
+                Quantity::Velocity,
+                tick,
+                state.dq[i],
+                TORQUE_SPEED_GUARD * l.dq_max[i],
+            )));
+        }
+        let last = self.tracker.reference(state);
+        let mut finished = false;
+        let mut tau = [0.0; JOINTS];
+        if !self.stopping {
+            let c = (self.control)(state, t);
+            if let Some(i) = (0..JOINTS).find(|&i| !c.tau[i].is_finite()) {
+                self.stop_for(MotionEnd::LimitBrake(joint_breach(
+                    i + 1,
+                    Quantity::Torque,
+                    tick,
+                    c.tau[i],
+                    l.tau_max[i],
+                )));
+            } else {
+                tau = c.tau;
+                finished = c.finished;
+            }
+        }
+        if self.stopping {
+            self.brake_ticks += 1;
+            for ((x, d), v) in tau.iter_mut().zip(STOP_DAMPING).zip(state.dq) {
+                *x = -d * v;
+            }
+            let still = state.dq.iter().all(|v| v.abs() < 0.02);
+            self.at_rest_ticks = if still { self.at_rest_ticks + 1 } else { 0 };
+            // At rest for 50 ms, or after 3 s whatever happens (the robot holds itself).
+            finished = self.at_rest_ticks >= 50 || self.brake_ticks >= 3000;
+        }
+        // Within the torque rate from what the robot applied last, then the torque.
+        let mut limited = false;
+        for (i, t) in tau.iter_mut().enumerate() {
+            let step = TORQUE_RATE_SHARE * l.dtau_max[i] * DT;
+            let x = t
+                .clamp(last[i] - step, last[i] + step)
+                .clamp(-l.tau_max[i], l.tau_max[i]);
+            if x != *t {
+                limited = true;
+                self.limited.deviation = self.limited.deviation.max((x - *t).abs());
+            }
+            self.peak[0][i] = self.peak[0][i].max(x.abs() / l.tau_max[i]);
+            self.peak[1][i] = self.peak[1][i].max((x - last[i]).abs() / (l.dtau_max[i] * DT));
+            self.peak[2][i] = self.peak[2][i].max(state.dq[i].abs() / l.dq_max[i]);
+            *t = x;
+        }
+        if limited && !self.stopping {
+            self.limited.commands += 1;
+        }
+        command.tau_j_d = tau;
+        command.torque_command_finished = finished;
+        command.motion_generation_finished = finished;
+        self.tracker.sent(state.message_id, tau);
+        finished
+    }
+
+    fn outcome(self) -> Outcome {
+        Outcome {
+            reason: self.reason,
+            peak: self.peak,
+            brake_ticks: self.brake_ticks,
+            limited: self.limited,
+            reference: self.tracker.counts(),
+        }
+    }
+}

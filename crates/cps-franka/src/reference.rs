@@ -1,0 +1,372 @@
+//! The reference the robot holds: what the FCI differentiates each command against.
+//!
+//! The robot judges a joint command by its backward differences from the reference it
+//! holds — the last command it applied, with that command's velocity and acceleration
+//! (sent back in every state as `q_d`, `dq_d`, `ddq_d`, so that a client can compute "in
+//! advance, even in case of packet losses" what the robot will compute). A cycle whose
+//! command is lost or late is not skipped: the robot "takes the previous waypoints and
+//! performs a linear extrapolation (keep acceleration constant and integrate) for the
+//! missed time step" (FCI documentation, minimum system and network requirements), and
+//! judges the next command against that extrapolation. A client that judges its commands
+//! against its own last one at a fixed 1 ms breaks the robot's rules on the first lost
+//! cycle; one that times its motion by the robot's clock and judges against the robot's
+//! reference, as libfranka does, goes on.
+//!
+//! [`ReferenceTracker`] keeps the robot's reference exactly, in doubles: every command cps
+//! sent, and the extrapolation of every cycle cps did not answer. Whether a command cps
+//! sent reached the robot in time is read back from the next state, whose `q_d`, `dq_d`,
+//! `ddq_d` are that reference rounded to single precision: of the candidates — the
+//! command applied; the command dropped and its cycle extrapolated; every command as sent
+//! (a simulator that applies late commands too) — the robot's is the one the state rounds
+//! to. A robot whose state carries no usable reference (franky-sim low-pass filters its
+//! `dq_d`) leaves the commands as sent, counted as unconfirmed.
+//!
+//! Nothing here allocates: the tracker lives in the realtime loop.
+
+use crate::limits::DT;
+use crate::wire::{JOINTS, RobotState};
+
+/// Consecutive lost cycles after which the robot stops extrapolating (and stops the
+/// motion with `communication_constraints_violation`): 20, from the FCI documentation.
+pub const MAX_LOST_CYCLES: u64 = 20;
+
+/// A joint reference: a commanded position and its backward differences per period.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reference {
+    /// Position (rad).
+    pub q: [f64; JOINTS],
+    /// Velocity (rad/s): the last position difference over one period.
+    pub v: [f64; JOINTS],
+    /// Acceleration (rad/s²): the last velocity difference over one period.
+    pub a: [f64; JOINTS],
+}
+
+impl Reference {
+    /// At rest at `q`.
+    pub fn at_rest(q: [f64; JOINTS]) -> Self {
+        Reference {
+            q,
+            v: [0.0; JOINTS],
+            a: [0.0; JOINTS],
+        }
+    }
+
+    /// The robot's reference one cycle later without a command: acceleration kept, the
+    /// velocity then the position integrated (`v += a·Δt`, then `q += v·Δt`), so the
+    /// backward differences of the result are exactly that velocity and acceleration.
+    pub fn extrapolated(&self) -> Self {
+        let mut next = *self;
+        for i in 0..JOINTS {
+            next.v[i] += next.a[i] * DT;
+            next.q[i] += next.v[i] * DT;
+        }
+        next
+    }
+
+    /// The reference after `q` is applied one period later: `q` with its differences.
+    pub fn after(&self, q: &[f64; JOINTS]) -> Self {
+        let mut next = Reference::at_rest(*q);
+        for i in 0..JOINTS {
+            next.v[i] = (q[i] - self.q[i]) / DT;
+            next.a[i] = (next.v[i] - self.v[i]) / DT;
+        }
+        next
+    }
+
+    /// `cycles` extrapolations (at most [`MAX_LOST_CYCLES`]: the robot holds after those).
+    fn extrapolated_by(&self, cycles: u64) -> Self {
+        let mut r = *self;
+        for _ in 0..cycles.min(MAX_LOST_CYCLES) {
+            r = r.extrapolated();
+        }
+        r
+    }
+
+    /// Whether it is at rest (velocity and acceleration zero).
+    pub fn at_rest_now(&self) -> bool {
+        self.v.iter().chain(&self.a).all(|x| x.abs() < 1e-12)
+    }
+}
+
+/// Whether `ours` is what the robot reported as `reported` (a single-precision float):
+/// within two of its units in the last place, or `floor` where it is near zero.
+#[inline]
+fn rounds_to(ours: f64, reported: f64, floor: f64) -> bool {
+    (ours - reported).abs() <= reported.abs() * 2.0 * f64::from(f32::EPSILON) + floor
+}
+
+/// How well a candidate reference agrees with what a state reported.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Agreement {
+    /// Position, velocity and acceleration (a velocity motion: the last two).
+    Whole,
+    /// The position only.
+    Position,
+    /// Neither.
+    None,
+}
+
+fn agreement(r: &Reference, s: &RobotState, velocity_motion: bool) -> Agreement {
+    let position = (0..JOINTS).all(|i| rounds_to(r.q[i], s.q_d[i], 1e-9));
+    let derivatives = (0..JOINTS)
+        .all(|i| rounds_to(r.v[i], s.dq_d[i], 1e-6) && rounds_to(r.a[i], s.ddq_d[i], 1e-3));
+    match (position || velocity_motion, derivatives) {
+        (true, true) => Agreement::Whole,
+        (true, false) if !velocity_motion => Agreement::Position,
+        _ => Agreement::None,
+    }
+}
+
+/// What the robot's states said of the commands cps sent, over a motion.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ReferenceCounts {
+    /// Cycles the robot extrapolated: those cps did not answer, and those whose command
+    /// the robot dropped.
+    pub extrapolated: u64,
+    /// Commands cps sent that the robot dropped (its next state shows the extrapolation).
+    pub dropped: u64,
+    /// Commands cps sent that a simulator applied late (its next state showed them
+    /// dropped; a later one, applied after all).
+    pub applied_late: u64,
+    /// States whose reported reference agreed with none of the candidates (a robot that
+    /// reports no usable reference): the commands are taken as sent.
+    pub unconfirmed: u64,
+}
+
+/// The robot's joint reference through a motion, kept exactly (see the module's text).
+#[derive(Debug, Clone, Copy)]
+pub struct ReferenceTracker {
+    /// The reference the robot held before the last command cps sent.
+    base: Reference,
+    /// The same, if every command cps sent was applied.
+    as_sent: Reference,
+    /// The last command sent and the robot cycle (state id) it answered.
+    pending: Option<(u64, [f64; JOINTS])>,
+    /// Whether that command was the motion's first (the robot takes it as a standstill).
+    first: bool,
+    /// A velocity motion: its `q_d` is the robot's integral, so only `dq_d` and `ddq_d`
+    /// are compared.
+    velocity_motion: bool,
+    counts: ReferenceCounts,
+}
+
+impl ReferenceTracker {
+    /// A motion starting at rest at `q0` (the robot's `q_d` before the Move).
+    pub fn new(q0: [f64; JOINTS], velocity_motion: bool) -> Self {
+        ReferenceTracker {
+            base: Reference::at_rest(q0),
+            as_sent: Reference::at_rest(q0),
+            pending: None,
+            first: true,
+            velocity_motion,
+            counts: ReferenceCounts::default(),
+        }
+    }
+
+    /// What the states said so far.
+    pub fn counts(&self) -> ReferenceCounts {
+        self.counts
+    }
+
+    /// The reference the robot holds when it judges the answer to `state`: the last
+    /// command it applied (or the motion's start), extrapolated over every cycle since
+    /// that went without one.
+    pub fn reference(&mut self, state: &RobotState) -> Reference {
+        let Some((sent_id, q_c)) = self.pending else {
+            return self.base;
+        };
+        let after = |r: &Reference| {
+            if self.first {
+                Reference::at_rest(q_c)
+            } else {
+                r.after(&q_c)
+            }
+        };
+        // Cycles after the one cps answered that went unanswered.
+        let gap = state.message_id.saturating_sub(sent_id + 1);
+        let applied = after(&self.base).extrapolated_by(gap);
+        let dropped = self.base.extrapolated_by(gap + 1);
+        let as_sent = after(&self.as_sent).extrapolated_by(gap);
+        let candidates = [
+            (applied, Kind::Applied),
+            (as_sent, Kind::AppliedLate),
+            (dropped, Kind::Dropped),
+        ];
+        let whole = candidates
+            .iter()
+            .find(|(r, _)| agreement(r, state, self.velocity_motion) == Agreement::Whole);
+        let (chosen, kind) = match whole {
+            Some(&c) => c,
+            None => {
+                self.counts.unconfirmed += 1;
+                // The position alone, where it tells one candidate from the others.
+                let mut by_position = candidates
+                    .iter()
+                    .filter(|(r, _)| agreement(r, state, self.velocity_motion) != Agreement::None);
+                match (by_position.next(), by_position.next()) {
+                    (Some(&c), None) => c,
+                    _ => (applied, Kind::Applied),
+                }
+            }
+        };
+        self.counts.extrapolated += gap;
+        match kind {
+            Kind::Applied => {}
+            Kind::AppliedLate => self.counts.applied_late += 1,
+            Kind::Dropped => {
+                self.counts.dropped += 1;
+                self.counts.extrapolated += 1;
+            }
+        }
+        self.base = chosen;
+        self.as_sent = as_sent;
+        self.pending = None;
+        self.first = self.first && kind == Kind::Dropped;
+        chosen
+    }
+
+    /// Notes the command sent in answer to the state `message_id` (after
+    /// [`ReferenceTracker::reference`] for that state).
+    pub fn sent(&mut self, message_id: u64, q_c: [f64; JOINTS]) {
+        self.pending = Some((message_id, q_c));
+    }
+}
+
+/// The torques the robot applies through a torque-controlled motion: the state's
+/// `tau_J_d`, which a dropped torque command leaves at the torques before it ("FCI will
+/// reuse the torques of the last successful received packet"); the next command's rate is
+/// judged from those.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct TorqueTracker {
+    pending: Option<(u64, [f64; JOINTS])>,
+    counts: ReferenceCounts,
+}
+
+impl TorqueTracker {
+    /// What the states said so far (`extrapolated`: cycles the robot held its torques).
+    pub fn counts(&self) -> ReferenceCounts {
+        self.counts
+    }
+
+    /// The torques the robot applied last, as `state` reports them.
+    pub fn reference(&mut self, state: &RobotState) -> [f64; JOINTS] {
+        let reported = state.tau_j_d;
+        if let Some((sent_id, tau)) = self.pending.take() {
+            let gap = state.message_id.saturating_sub(sent_id + 1);
+            self.counts.extrapolated += gap;
+            if gap == 0 && !(0..JOINTS).all(|i| rounds_to(tau[i], reported[i], 1e-6)) {
+                self.counts.dropped += 1;
+                self.counts.extrapolated += 1;
+            }
+            if !reported.iter().all(|x| x.is_finite()) {
+                self.counts.unconfirmed += 1;
+                return tau;
+            }
+        }
+        if reported.iter().all(|x| x.is_finite()) {
+            reported
+        } else {
+            [0.0; JOINTS]
+        }
+    }
+
+    /// Notes the torques sent in answer to the state `message_id`.
+    pub fn sent(&mut self, message_id: u64, tau: [f64; JOINTS]) {
+        self.pending = Some((message_id, tau));
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Applied,
+    AppliedLate,
+    Dropped,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn state(id: u64, r: &Reference) -> RobotState {
+        let mut s = RobotState::decode(&[0u8; crate::wire::STATE_SIZE]).unwrap();
+        s.message_id = id;
+        // What the robot sends: its doubles rounded to single precision.
+        let f = |x: f64| f64::from(x as f32);
+        s.q_d = r.q.map(f);
+        s.dq_d = r.v.map(f);
+        s.ddq_d = r.a.map(f);
+        s
+    }
+
+    /// A smooth motion's command at time `t` (a cubic: jerk 6 rad/s³ on every joint).
+    fn command(t: f64) -> [f64; JOINTS] {
+        std::array::from_fn(|i| 0.1 * i as f64 + 0.3 * t + 2.0 * t * t + t * t * t)
+    }
+
+    #[test]
+    fn the_extrapolation_keeps_acceleration_and_its_differences_are_exact() {
+        let r = Reference::at_rest([0.0; JOINTS])
+            .after(&[1e-6; JOINTS])
+            .after(&[3e-6; JOINTS]);
+        let e = r.extrapolated();
+        let d = r.after(&e.q);
+        for i in 0..JOINTS {
+            assert!((e.a[i] - r.a[i]).abs() < 1e-9, "{e:?}");
+            assert!((d.v[i] - e.v[i]).abs() < 1e-9 && (d.a[i] - r.a[i]).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn a_state_tells_applied_dropped_and_unanswered_cycles_apart() {
+        // The robot's side, exactly: command k answers state k; state k carries the
+        // reference after cycle k - 1.
+        let q0 = command(0.0);
+        let mut tracker = ReferenceTracker::new(q0, false);
+        let mut robot = Reference::at_rest(q0);
+        let mut first = true;
+        // Cycle 10's command is dropped; cycles 20 and 21 go unanswered.
+        for k in 0u64..40 {
+            if k == 21 {
+                robot = robot.extrapolated();
+                continue;
+            }
+            let ours = tracker.reference(&state(k, &robot));
+            assert_eq!(ours, robot, "cycle {k}");
+            let c = command(k as f64 * DT);
+            tracker.sent(k, c);
+            robot = if k == 10 || k == 20 {
+                robot.extrapolated()
+            } else if first {
+                Reference::at_rest(c)
+            } else {
+                robot.after(&c)
+            };
+            first = false;
+        }
+        let n = tracker.counts();
+        assert_eq!((n.dropped, n.extrapolated, n.unconfirmed), (2, 3, 0), "{n:?}");
+    }
+
+    #[test]
+    fn a_robot_without_a_reference_leaves_the_commands_as_sent() {
+        let mut tracker = ReferenceTracker::new([0.0; JOINTS], false);
+        let mut ours = Reference::at_rest([0.0; JOINTS]);
+        for k in 0u64..10 {
+            // The state's derivatives say nothing (zeros), its position is the last
+            // command: the command stands, unconfirmed.
+            let mut s = state(k, &ours);
+            s.dq_d = [0.0; JOINTS];
+            s.ddq_d = [0.0; JOINTS];
+            let r = tracker.reference(&s);
+            assert_eq!(r, ours);
+            let c = command(k as f64 * DT);
+            tracker.sent(k, c);
+            ours = if k == 0 {
+                Reference::at_rest(c)
+            } else {
+                ours.after(&c)
+            };
+        }
+        assert!(tracker.counts().unconfirmed >= 8, "{:?}", tracker.counts());
+    }
+}
