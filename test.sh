@@ -7,7 +7,8 @@
 # fails its test instead.
 #
 # Without arguments the same tests run in two lanes at once: the test programs that start
-# franky-sim (a MuJoCo arm stepped against the clock, one simulator at a time) in one,
+# franky-sim or franka-sim (a MuJoCo arm stepped against the clock, one simulator at a
+# time; franka-sim's with CPU hogs beside it, on purpose) in one,
 # printed as they run; everything else in the other, at a lower priority so that the
 # simulator never waits for a core, printed when it ends. On two cores that takes about
 # two thirds of the time of one lane. With arguments it is one `cargo test --profile checked
@@ -36,11 +37,11 @@ else
   "${run[@]}" --workspace --no-run 2>&1 | tee "$work/build"
   status=${PIPESTATUS[0]}
   if [ "$status" = 0 ]; then
-    # The lane of the clock: every test program that starts franky-sim; the other lane
+    # The lane of the clock: every test program that starts franky-sim or franka-sim; the other lane
     # runs the rest of the packages whole, and these packages' other targets.
     live=() pkgs=() excluded=() others=()
     declare -A seen=()
-    for f in $(grep -l 'FrankySim::start' crates/*/tests/*.rs); do
+    for f in $(grep -lE 'Frank[ya]Sim::start' crates/*/tests/*.rs); do
       pkg=$(basename "$(dirname "$(dirname "$f")")")
       live+=(--test "$(basename "$f" .rs)")
       if [ -z "${seen[$pkg]:-}" ]; then
@@ -48,7 +49,7 @@ else
         pkgs+=(-p "$pkg")
         excluded+=(--exclude "$pkg")
         for g in crates/"$pkg"/tests/*.rs; do
-          grep -q 'FrankySim::start' "$g" || others+=(--test "$(basename "$g" .rs)")
+          grep -qE 'Frank[ya]Sim::start' "$g" || others+=(--test "$(basename "$g" .rs)")
         done
       fi
     done

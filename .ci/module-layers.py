@@ -92,9 +92,15 @@ LAYERS = {
         ["server", "sim"],
         ["franka"],
     ],
+    "cps-testkit": [
+        ["franky_sim", "ros2_graph"],
+        ["franka_sim"],
+    ],
     "cps-franka": [
         ["wire"],
         ["limits"],
+        ["reference"],
+        ["limiter"],
         ["error"],
         ["session"],
         ["control", "gripper", "rt"],

@@ -621,7 +621,7 @@ pub fn timing_json(report: &MotionReport) -> Value {
     json!({
         "ticks": t.ticks, "median_us": t.median_us, "p99_us": t.p99_us, "max_us": t.max_us,
         "missed_ticks": t.missed, "stale_states": t.stale, "realtime": t.realtime,
-        "extrapolated_cycles": c.extrapolated, "dropped_commands": c.dropped,
+        "withheld_answers": t.withheld, "extrapolated_cycles": c.extrapolated, "dropped_commands": c.dropped,
         "applied_late": report.reference.applied_late,
         "reference_unconfirmed": report.reference.unconfirmed,
         "limited_commands": c.limited, "largest_limit_change": c.largest_change,

@@ -321,6 +321,7 @@ pub fn franka_identify(
             "host": settings.host,
             "samples": samples.len(),
             "what": "cps-cli franka identify's excitation",
+            "timing": crate::franka::timing_json(&executed.report),
         });
         write_recording(r, samples, &report)?;
     }
@@ -332,7 +333,7 @@ pub fn franka_identify(
     }
     let whole = recorded(samples);
     let seconds = samples.len() as f64 * PERIOD;
-    conclude(
+    let mut answer = conclude(
         (&model, &dynamics),
         &whole,
         split.min(samples.len()),
@@ -350,7 +351,14 @@ pub fn franka_identify(
             settings.arm.name(),
             out.display()
         ),
-    )
+    )?;
+    // The excitation's loop: what it saw of the robot's cycles.
+    answer.json["complete"] = json!(true);
+    answer.json["timing"] = crate::franka::timing_json(&executed.report);
+    answer
+        .lines
+        .extend(crate::franka::timing_lines(&executed.report));
+    Ok(answer)
 }
 
 /// Splits `whole` at `split`, fits the arm (its model and dynamics) on the first part, judges on the rest, writes the

@@ -62,7 +62,6 @@ pub mod control;
 mod error;
 pub mod gripper;
 pub mod guide;
-mod laws;
 pub mod limiter;
 pub mod limits;
 mod motion;
@@ -80,8 +79,8 @@ pub use motion::{
 };
 pub use robot::{FrankaRobot, FrankaSettings, MODEL_AGREEMENT, TOOL_AGREEMENT};
 pub use rt::{
-    Cycles, JointPositions, JointVelocities, LoopOptions, MotionEnd, MotionReport, Realtime, Sample,
-    Timing, Torques, run_joint_positions, run_joint_velocities, run_torques,
+    Cycles, JointPositions, JointVelocities, LoopOptions, MotionEnd, MotionReport, Realtime,
+    Sample, Timing, Torques, run_joint_positions, run_joint_velocities, run_torques,
 };
-pub use session::{Connection, Timeouts};
+pub use session::{Connection, MAX_LOSS, Timeouts};
 pub use wire::{Command, RobotMode, RobotState};

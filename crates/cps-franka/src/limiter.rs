@@ -238,7 +238,11 @@ impl Limiter {
         let [g_q, g_v, g_a] = CASCADE_GAINS;
         std::array::from_fn(|i| {
             let (jl, al) = (CASCADE_SHARE * l.dddq_max[i], CASCADE_SHARE * l.ddq_max[i]);
-            let (eq, ev, ea) = (r.q[i] - before.q[i], r.v[i] - before.v[i], r.a[i] - before.a[i]);
+            let (eq, ev, ea) = (
+                r.q[i] - before.q[i],
+                r.v[i] - before.v[i],
+                r.a[i] - before.a[i],
+            );
             // The stream's jerk now, and what it leaves of each limit to correct with.
             let sigma = (d.a[i] - before.a[i]) / DT;
             let jc = (jl - sigma.abs()).max(0.05 * jl);
@@ -260,6 +264,8 @@ impl Limiter {
 }
 
 #[cfg(test)]
+// Joint-indexed arrays are read side by side.
+#[allow(clippy::needless_range_loop)]
 mod tests {
     use super::*;
     use crate::limits::{Arm, RateLimits, check_stream};
@@ -293,7 +299,10 @@ mod tests {
 
     /// Runs `stream` to a robot that loses the cycles `lost`, through a limiter; the
     /// commands sent.
-    fn run(stream: &[[f64; JOINTS]], lost: &dyn Fn(usize) -> bool) -> (Vec<[f64; JOINTS]>, Limited) {
+    fn run(
+        stream: &[[f64; JOINTS]],
+        lost: &dyn Fn(usize) -> bool,
+    ) -> (Vec<[f64; JOINTS]>, Limited) {
         let limits = RateLimits::of(Arm::Fr3);
         let mut robot = Reference::at_rest(stream[0]);
         let mut limiter = Limiter::new(stream[0]);
@@ -348,7 +357,13 @@ mod tests {
         check.rebase(robot.q, robot.v, robot.a);
         let b = check.admit(&s[44]).unwrap_err();
         assert!(
-            matches!(b.limit, Limit::Joint { quantity: Quantity::Jerk | Quantity::Acceleration, .. }),
+            matches!(
+                b.limit,
+                Limit::Joint {
+                    quantity: Quantity::Jerk | Quantity::Acceleration,
+                    ..
+                }
+            ),
             "{b}"
         );
     }
@@ -366,9 +381,18 @@ mod tests {
             for i in 0..JOINTS {
                 let mut jerks = vec![0.0; rng.random_range(0..30)];
                 let j = 0.95 * limits.dddq_max[i] * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-                let w = (0.95 * limits.ddq_max[i] / (0.95 * limits.dddq_max[i]) / DT).round() as usize;
+                let w =
+                    (0.95 * limits.ddq_max[i] / (0.95 * limits.dddq_max[i]) / DT).round() as usize;
                 let (plateau, cruise) = (rng.random_range(1..60), rng.random_range(0..80));
-                for (sign, len) in [(1.0, w), (0.0, plateau), (-1.0, w), (0.0, cruise), (-1.0, w), (0.0, plateau), (1.0, w)] {
+                for (sign, len) in [
+                    (1.0, w),
+                    (0.0, plateau),
+                    (-1.0, w),
+                    (0.0, cruise),
+                    (-1.0, w),
+                    (0.0, plateau),
+                    (1.0, w),
+                ] {
                     jerks.extend(std::iter::repeat_n(sign * j, len));
                 }
                 plans.push(jerks);
@@ -411,7 +435,11 @@ mod tests {
             // 0.99 mrad at most over these 200 (measured).
             assert!(limited.deviation < 1.5e-3, "case {case}: {limited:?}");
             let n = s.len();
-            assert_eq!(sent[n - 50..], s[n - 50..], "case {case}: the stream's end rejoined");
+            assert_eq!(
+                sent[n - 50..],
+                s[n - 50..],
+                "case {case}: the stream's end rejoined"
+            );
         }
     }
 

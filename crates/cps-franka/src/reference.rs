@@ -65,12 +65,12 @@ impl Reference {
 
     /// The reference after `q` is applied one period later: `q` with its differences.
     pub fn after(&self, q: &[f64; JOINTS]) -> Self {
-        let mut next = Reference::at_rest(*q);
-        for i in 0..JOINTS {
-            next.v[i] = (q[i] - self.q[i]) / DT;
-            next.a[i] = (next.v[i] - self.v[i]) / DT;
+        let v: [f64; JOINTS] = std::array::from_fn(|i| (q[i] - self.q[i]) / DT);
+        Reference {
+            q: *q,
+            v,
+            a: std::array::from_fn(|i| (v[i] - self.v[i]) / DT),
         }
-        next
     }
 
     /// `cycles` extrapolations (at most [`MAX_LOST_CYCLES`]: the robot holds after those).
@@ -117,6 +117,28 @@ fn agreement(r: &Reference, s: &RobotState, velocity_motion: bool) -> Agreement 
     }
 }
 
+/// The commands of a recording as a robot that got each of them held them, one per
+/// millisecond of its clock: every sample's command at its state's id, and for the ids
+/// between two samples that got no command from cps (states missed, stale or withheld),
+/// the robot's extrapolation of the commands before. What the robot judged each command
+/// against: a stream the checks of [`crate::limits`] admit is one such a robot accepted.
+pub fn as_held(samples: &[crate::Sample]) -> Vec<[f64; JOINTS]> {
+    let Some(first) = samples.first() else {
+        return Vec::new();
+    };
+    let mut r = Reference::at_rest(first.q_c);
+    let mut held = vec![first.q_c];
+    for w in samples.windows(2) {
+        for _ in w[0].id + 1..w[1].id {
+            r = r.extrapolated();
+            held.push(r.q);
+        }
+        r = r.after(&w[1].q_c);
+        held.push(w[1].q_c);
+    }
+    held
+}
+
 /// What the robot's states said of the commands cps sent, over a motion.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct ReferenceCounts {
@@ -136,14 +158,20 @@ pub struct ReferenceCounts {
 /// The robot's joint reference through a motion, kept exactly (see the module's text).
 #[derive(Debug, Clone, Copy)]
 pub struct ReferenceTracker {
-    /// The reference the robot held before the last command cps sent.
+    /// The reference the robot holds after cycle `base_id` (before the motion's first
+    /// command: at rest where it starts).
     base: Reference,
+    base_id: Option<u64>,
     /// The same, if every command cps sent was applied.
     as_sent: Reference,
     /// The last command sent and the robot cycle (state id) it answered.
     pending: Option<(u64, [f64; JOINTS])>,
-    /// Whether that command was the motion's first (the robot takes it as a standstill).
+    /// Whether no command has been applied yet (the robot takes the first as a
+    /// standstill).
     first: bool,
+    /// Where a state showed a command dropped that a simulator may still apply late: the
+    /// reference with it applied after all, until a state tells the two apart.
+    alternative: Option<Reference>,
     /// A velocity motion: its `q_d` is the robot's integral, so only `dq_d` and `ddq_d`
     /// are compared.
     velocity_motion: bool,
@@ -155,12 +183,25 @@ impl ReferenceTracker {
     pub fn new(q0: [f64; JOINTS], velocity_motion: bool) -> Self {
         ReferenceTracker {
             base: Reference::at_rest(q0),
+            base_id: None,
             as_sent: Reference::at_rest(q0),
             pending: None,
             first: true,
+            alternative: None,
             velocity_motion,
             counts: ReferenceCounts::default(),
         }
+    }
+
+    /// Whether the robot's reference is not known for the next command: the last state
+    /// showed a command dropped — what a real robot does with one that comes late — and a
+    /// simulator (franka-sim) applies a late command after all, after publishing that
+    /// state. The two references differ by what the command changed, which a command
+    /// judged against the wrong one carries into the robot as a discontinuity; so none is
+    /// sent for this cycle, and the next state, the robot's extrapolation of one or the
+    /// other, tells them apart.
+    pub fn unresolved(&self) -> bool {
+        self.alternative.is_some()
     }
 
     /// What the states said so far.
@@ -168,13 +209,42 @@ impl ReferenceTracker {
         self.counts
     }
 
+    /// Cycles after the base's and before `id` that went without a command.
+    fn unanswered_before(&self, id: u64) -> u64 {
+        self.base_id.map_or(0, |b| id.saturating_sub(b + 1))
+    }
+
     /// The reference the robot holds when it judges the answer to `state`: the last
     /// command it applied (or the motion's start), extrapolated over every cycle since
     /// that went without one.
     pub fn reference(&mut self, state: &RobotState) -> Reference {
-        let Some((sent_id, q_c)) = self.pending else {
+        let Some((sent_id, q_c)) = self.pending.take() else {
+            let gap = self.unanswered_before(state.message_id);
+            self.counts.extrapolated += gap;
+            self.base = self.base.extrapolated_by(gap);
+            self.as_sent = self.as_sent.extrapolated_by(gap);
+            if let Some(alt) = self.alternative.take() {
+                let alt = alt.extrapolated_by(gap);
+                let agrees = |r: &Reference| agreement(r, state, self.velocity_motion);
+                if agrees(&self.base) != Agreement::Whole && agrees(&alt) == Agreement::Whole {
+                    self.base = alt;
+                    self.counts.dropped -= 1;
+                    self.counts.extrapolated -= 1;
+                    self.counts.applied_late += 1;
+                }
+            }
+            if self.base_id.is_some() {
+                self.base_id = Some(state.message_id - 1);
+            }
             return self.base;
         };
+        // Cycles before the one cps answered, and after it, that went unanswered.
+        let before = self.unanswered_before(sent_id);
+        let gap = state.message_id.saturating_sub(sent_id + 1);
+        let (base, as_sent) = (
+            self.base.extrapolated_by(before),
+            self.as_sent.extrapolated_by(before),
+        );
         let after = |r: &Reference| {
             if self.first {
                 Reference::at_rest(q_c)
@@ -182,11 +252,9 @@ impl ReferenceTracker {
                 r.after(&q_c)
             }
         };
-        // Cycles after the one cps answered that went unanswered.
-        let gap = state.message_id.saturating_sub(sent_id + 1);
-        let applied = after(&self.base).extrapolated_by(gap);
-        let dropped = self.base.extrapolated_by(gap + 1);
-        let as_sent = after(&self.as_sent).extrapolated_by(gap);
+        let applied = after(&base).extrapolated_by(gap);
+        let dropped = base.extrapolated_by(gap + 1);
+        let as_sent = after(&as_sent).extrapolated_by(gap);
         let candidates = [
             (applied, Kind::Applied),
             (as_sent, Kind::AppliedLate),
@@ -209,7 +277,7 @@ impl ReferenceTracker {
                 }
             }
         };
-        self.counts.extrapolated += gap;
+        self.counts.extrapolated += before + gap;
         match kind {
             Kind::Applied => {}
             Kind::AppliedLate => self.counts.applied_late += 1,
@@ -218,9 +286,12 @@ impl ReferenceTracker {
                 self.counts.extrapolated += 1;
             }
         }
+        // A drop where the command could still be applied late: unresolved until the next
+        // state (where the two differ at all).
+        self.alternative = (kind == Kind::Dropped && applied != dropped).then_some(applied);
         self.base = chosen;
+        self.base_id = Some(state.message_id - 1);
         self.as_sent = as_sent;
-        self.pending = None;
         self.first = self.first && kind == Kind::Dropped;
         chosen
     }
@@ -229,6 +300,15 @@ impl ReferenceTracker {
     /// [`ReferenceTracker::reference`] for that state).
     pub fn sent(&mut self, message_id: u64, q_c: [f64; JOINTS]) {
         self.pending = Some((message_id, q_c));
+        if self.base_id.is_none() {
+            // The motion's first command: the robot held its start until then.
+            self.base_id = Some(message_id.saturating_sub(1));
+        }
+    }
+
+    /// Takes back the last command noted: it was not sent after all.
+    pub fn withdraw(&mut self) {
+        self.pending = None;
     }
 }
 
@@ -238,7 +318,10 @@ impl ReferenceTracker {
 /// judged from those.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct TorqueTracker {
-    pending: Option<(u64, [f64; JOINTS])>,
+    /// The last state asked about.
+    last: Option<u64>,
+    /// The torques sent in answer to it, unless they were withdrawn.
+    pending: Option<[f64; JOINTS]>,
     counts: ReferenceCounts,
 }
 
@@ -251,28 +334,40 @@ impl TorqueTracker {
     /// The torques the robot applied last, as `state` reports them.
     pub fn reference(&mut self, state: &RobotState) -> [f64; JOINTS] {
         let reported = state.tau_j_d;
-        if let Some((sent_id, tau)) = self.pending.take() {
-            let gap = state.message_id.saturating_sub(sent_id + 1);
+        let usable = reported.iter().all(|x| x.is_finite());
+        if let Some(last) = self.last {
+            let gap = state.message_id.saturating_sub(last + 1);
             self.counts.extrapolated += gap;
-            if gap == 0 && !(0..JOINTS).all(|i| rounds_to(tau[i], reported[i], 1e-6)) {
-                self.counts.dropped += 1;
-                self.counts.extrapolated += 1;
-            }
-            if !reported.iter().all(|x| x.is_finite()) {
-                self.counts.unconfirmed += 1;
-                return tau;
+            match self.pending.take() {
+                Some(tau) if gap == 0 && usable => {
+                    if !(0..JOINTS).all(|i| rounds_to(tau[i], reported[i], 1e-6)) {
+                        self.counts.dropped += 1;
+                        self.counts.extrapolated += 1;
+                    }
+                }
+                Some(_) => {}
+                // Withdrawn: the robot held its torques through that cycle too.
+                None => self.counts.extrapolated += 1,
             }
         }
-        if reported.iter().all(|x| x.is_finite()) {
+        self.last = Some(state.message_id);
+        if usable {
             reported
         } else {
+            self.counts.unconfirmed += 1;
             [0.0; JOINTS]
         }
     }
 
-    /// Notes the torques sent in answer to the state `message_id`.
-    pub fn sent(&mut self, message_id: u64, tau: [f64; JOINTS]) {
-        self.pending = Some((message_id, tau));
+    /// Notes the torques sent in answer to the last state asked about.
+    pub fn sent(&mut self, tau: [f64; JOINTS]) {
+        self.pending = Some(tau);
+    }
+
+    /// Takes back the last torques noted: they were not sent after all (the robot reused
+    /// the ones before).
+    pub fn withdraw(&mut self) {
+        self.pending = None;
     }
 }
 
@@ -344,7 +439,11 @@ mod tests {
             first = false;
         }
         let n = tracker.counts();
-        assert_eq!((n.dropped, n.extrapolated, n.unconfirmed), (2, 3, 0), "{n:?}");
+        assert_eq!(
+            (n.dropped, n.extrapolated, n.unconfirmed),
+            (2, 3, 0),
+            "{n:?}"
+        );
     }
 
     #[test]

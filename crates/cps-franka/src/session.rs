@@ -50,7 +50,34 @@ pub struct Connection {
     parked: Vec<(Header, Vec<u8>)>,
     state_buf: Box<[u8; STATE_SIZE + 1]>,
     command_buf: [u8; COMMAND_SIZE],
+    /// A lossy link, on purpose ([`Connection::lose_commands`]).
+    loss: Option<Loss>,
 }
+
+/// Commands a [`Connection`] drops on purpose: a share of them, chosen by a seeded
+/// generator (xorshift64*), so the same seed drops the same commands.
+#[derive(Debug, Clone, Copy)]
+struct Loss {
+    share: f64,
+    state: u64,
+    dropped: u64,
+}
+
+impl Loss {
+    fn drops(&mut self) -> bool {
+        let mut x = self.state;
+        x ^= x >> 12;
+        x ^= x << 25;
+        x ^= x >> 27;
+        self.state = x;
+        let u = (x.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64;
+        u < self.share
+    }
+}
+
+/// The largest share of commands [`Connection::lose_commands`] drops: the robot stops a
+/// motion after 20 lost in a row, which a fifth makes rare enough (one in 10¹⁴).
+pub const MAX_LOSS: f64 = 0.2;
 
 fn io_reason(e: &std::io::Error) -> String {
     match e.kind() {
@@ -187,6 +214,7 @@ impl Connection {
             parked: Vec::new(),
             state_buf: Box::new([0; STATE_SIZE + 1]),
             command_buf: [0; COMMAND_SIZE],
+            loss: None,
         };
         let id = c.send(&Request::Connect {
             version: PROTOCOL_VERSION,
@@ -558,14 +586,58 @@ impl Connection {
         Ok((state, skipped))
     }
 
+    /// Whether a state is already waiting to be read: a newer one than the state being
+    /// answered, so that the robot has closed that state's cycle, and an answer sent now
+    /// would come late (a real robot drops it; a simulator may apply it late).
+    pub fn state_waiting(&mut self) -> bool {
+        self.udp.set_nonblocking(true).ok();
+        let mut probe = [0u8; 1];
+        let waiting = self.udp.peek_from(&mut probe).is_ok();
+        self.udp.set_nonblocking(false).ok();
+        waiting
+    }
+
     /// One state, outside a motion (bounded by the state timeout).
     pub fn read_state(&mut self) -> Result<RobotState, FrankaError> {
         let t = self.timeouts.state;
         self.newest_state(t).map(|(s, _)| s)
     }
 
+    /// Makes the link lossy on purpose: from now on `share` (0 to [`MAX_LOSS`]) of the
+    /// commands are not sent, chosen by a generator seeded with `seed` — as a congested
+    /// network drops them — except a motion's last, so that it still ends. For trying a
+    /// loop's handling of lost cycles against a simulator with the robot's rules (franka-
+    /// sim): the robot extrapolates every cycle it gets no command for, and the next state
+    /// shows it.
+    pub fn lose_commands(&mut self, share: f64, seed: u64) -> Result<(), FrankaError> {
+        if !(0.0..=MAX_LOSS).contains(&share) {
+            return Err(FrankaError::Input(format!(
+                "a share of lost commands of {share} is outside [0, {MAX_LOSS}]"
+            )));
+        }
+        self.loss = (share > 0.0).then_some(Loss {
+            share,
+            // A zero state would stay zero.
+            state: seed | 1,
+            dropped: 0,
+        });
+        Ok(())
+    }
+
+    /// Commands dropped on purpose so far ([`Connection::lose_commands`]).
+    pub fn commands_lost(&self) -> u64 {
+        self.loss.map_or(0, |l| l.dropped)
+    }
+
     /// Sends one command datagram (no allocation).
     pub fn send_command(&mut self, command: &Command) -> Result<(), FrankaError> {
+        if let Some(loss) = &mut self.loss
+            && !(command.motion_generation_finished || command.torque_command_finished)
+            && loss.drops()
+        {
+            loss.dropped += 1;
+            return Ok(());
+        }
         let Some(to) = self.robot_udp else {
             return Err(
                 self.lost("no state has been received, so the robot's UDP address is unknown")

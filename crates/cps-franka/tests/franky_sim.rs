@@ -118,20 +118,28 @@ fn a_trajectory_is_executed_within_the_limits_and_tracked() {
         "{}",
         report.ending.sentence()
     );
-    // One command per answered tick, all of the stream, in order, then its last one held
-    // until the commanded motion is at rest (at most the three periods a jerk needs).
+    // The stream's command of each tick of the robot's clock (a state cps did not answer
+    // advances it too), all of the stream, then its last one held until the commanded
+    // motion is at rest (at most the three periods a jerk needs).
     let n = stream.commands.len();
+    let id0 = report.samples[0].id;
+    let ticks = report.samples.last().unwrap().id - id0 + 1;
     assert!(
-        (n..=n + 3).contains(&report.samples.len()),
-        "{} samples for {n} commands",
-        report.samples.len()
+        (n as u64..=n as u64 + 3).contains(&ticks),
+        "{ticks} ticks for {n} commands"
     );
-    for (k, s) in report.samples.iter().enumerate() {
-        assert_eq!(s.q_c, stream.commands[k.min(n - 1)], "command {k}");
+    assert_eq!(report.limited.commands, 0, "{}", report.cycles().sentence());
+    for s in &report.samples {
+        let k = ((s.id - id0) as usize).min(n - 1);
+        assert_eq!(s.q_c, stream.commands[k], "command {k}");
     }
-    // What was sent keeps every limit (the robot's own differences).
-    let sent: Vec<[f64; 7]> = report.samples.iter().map(|s| s.q_c).collect();
-    check_stream(limits, from, &sent).unwrap();
+    // What was sent keeps every limit (the robot's own differences, on its clock).
+    check_stream(
+        limits,
+        from,
+        &cps_franka::reference::as_held(&report.samples),
+    )
+    .unwrap();
     assert!(report.peak_usage.iter().flatten().all(|&u| u <= 1.0));
     // Robot time runs forward in whole milliseconds.
     assert!(report.samples.windows(2).all(|w| w[1].t > w[0].t));
@@ -210,7 +218,7 @@ fn a_stop_request_brakes_within_the_limits_and_keeps_the_recording() {
     });
     assert_eq!(report.ending, MotionEnd::Stopped);
     assert!(report.brake_ticks > 0 && report.samples.len() < stream.commands.len());
-    let sent: Vec<[f64; 7]> = report.samples.iter().map(|s| s.q_c).collect();
+    let sent = cps_franka::reference::as_held(&report.samples);
     let check = check_stream(limits, from, &sent).unwrap();
     assert!(check.at_rest_now(), "the last command is at rest");
     // Stopped short of the goal, and the robot is idle again (states already queued when
@@ -501,7 +509,7 @@ print(json.dumps(rec))
     );
     // What was sent (as the positions it integrates to) keeps every limit, and ends
     // 0.3 rad and -0.2 rad out on joints 1 and 4.
-    let sent: Vec<[f64; 7]> = report.samples.iter().map(|s| s.q_c).collect();
+    let sent = cps_franka::reference::as_held(&report.samples);
     check_stream(limits, from, &sent).unwrap();
     let last = sent.last().unwrap();
     assert!((last[0] - from[0] - 0.3).abs() < 1e-3, "{last:?}");

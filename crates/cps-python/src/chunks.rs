@@ -128,11 +128,7 @@ impl ChunkExecutor {
                     arm,
                     retime: false,
                     approach: false,
-                    realtime: choose(
-                        "realtime",
-                        realtime,
-                        &Realtime::WORDS,
-                    )?,
+                    realtime: choose("realtime", realtime, &Realtime::WORDS)?,
                 })
             }
             "dynamics" => ChunkRobot::Dynamics { arm, start },

@@ -105,11 +105,7 @@ impl Franka {
         Ok(Franka {
             host: host.to_string(),
             arm: choose("arm", arm, &[("fr3", Arm::Fr3), ("panda", Arm::Panda)])?,
-            realtime: choose(
-                "realtime",
-                realtime,
-                &Realtime::WORDS,
-            )?,
+            realtime: choose("realtime", realtime, &Realtime::WORDS)?,
             last: None,
         })
     }

@@ -1,6 +1,8 @@
 //! Support for cps's own tests (a dev-dependency, never shipped): [`skip`], how a test
-//! whose peer is missing says so; [`franky_sim`], franky-sim started for a test; and
-//! [`ros2_graph`], a test in a network namespace of its own with a DDS or ROS 2 peer.
+//! whose peer is missing says so; [`franky_sim`], franky-sim started for a test;
+//! [`franka_sim`], franka-sim (the robot's reflexes and packet-loss behaviour) in a
+//! network namespace of the test's own, on a loaded machine; and [`ros2_graph`], a test in
+//! a network namespace of its own with a DDS or ROS 2 peer.
 //!
 //! Many of cps's tests meet a real peer: franky-sim behind the Franka protocol, CycloneDDS
 //! and rclpy in a network namespace, MuJoCo, a headless Chromium, the official CoppeliaSim
@@ -27,9 +29,14 @@
 //! ```
 
 use std::io::Write;
+use std::process::Command;
 
+pub mod franka_sim;
 pub mod franky_sim;
 pub mod ros2_graph;
+
+/// Set in a test's run inside its network namespace ([`rerun_in_namespace`]).
+pub const IN_NETNS: &str = "CPS_IN_NETNS";
 
 /// The environment variable naming the file skips are recorded in.
 pub const SKIP_LOG: &str = "CPS_SKIP_LOG";
@@ -62,4 +69,50 @@ pub fn skip(why: &str) {
             let _ = writeln!(f, "{test}: {why}");
         }
     }
+}
+
+/// Runs `test` (this test binary's test of that name) again in a network namespace of its
+/// own (`unshare -n`, then `setup`, a shell command bringing its interfaces up), with
+/// [`IN_NETNS`] set, and checks that it passed there. Without the right to make a
+/// namespace (root is needed) the test is skipped (a failure under CI), `what` naming the
+/// tests that need it.
+pub fn rerun_in_namespace(test: &str, setup: &str, what: &str) {
+    let exe = std::env::current_exe().expect("the test binary's path");
+    let out = Command::new("unshare")
+        .args(["-n", "sh", "-c", &format!("{setup} && exec \"$0\" \"$@\"")])
+        .arg(&exe)
+        .args([
+            test,
+            "--exact",
+            "--nocapture",
+            "--test-threads=1",
+            "--include-ignored",
+        ])
+        .env(IN_NETNS, "1")
+        .output();
+    let out = match out {
+        Ok(o) => o,
+        Err(e) => {
+            skip(&format!("cannot run unshare for a network namespace: {e}"));
+            return;
+        }
+    };
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    if !out.status.success() && stderr.contains("unshare failed") {
+        skip(&format!(
+            "no network namespace for {what} (root is needed): {stderr}"
+        ));
+        return;
+    }
+    print!("{stdout}");
+    eprint!("{stderr}");
+    assert!(
+        out.status.success(),
+        "{test} failed inside its network namespace"
+    );
+    assert!(
+        stdout.contains("1 passed"),
+        "{test} did not run inside its namespace:\n{stdout}"
+    );
 }

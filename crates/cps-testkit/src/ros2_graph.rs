@@ -91,50 +91,16 @@ pub fn inside_rclpy(test: &str) -> bool {
 }
 
 fn inside_with(test: &str, peer_python: fn() -> Option<PathBuf>) -> bool {
-    if std::env::var_os("CPS_IN_NETNS").is_some() {
+    if std::env::var_os(crate::IN_NETNS).is_some() {
         return true;
     }
     if peer_python().is_none() {
         return false;
     }
-    let exe = std::env::current_exe().expect("the test binary's path");
-    let setup = "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$0\" \"$@\"";
-    let out = Command::new("unshare")
-        .args(["-n", "sh", "-c", setup])
-        .arg(&exe)
-        .args([
-            test,
-            "--exact",
-            "--nocapture",
-            "--test-threads=1",
-            "--include-ignored",
-        ])
-        .env("CPS_IN_NETNS", "1")
-        .output();
-    let out = match out {
-        Ok(o) => o,
-        Err(e) => {
-            skip_or_fail(format!("cannot run unshare for a network namespace: {e}"));
-            return false;
-        }
-    };
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    if !out.status.success() && stderr.contains("unshare failed") {
-        skip_or_fail(format!(
-            "no network namespace for the DDS tests (root is needed): {stderr}"
-        ));
-        return false;
-    }
-    print!("{stdout}");
-    eprint!("{stderr}");
-    assert!(
-        out.status.success(),
-        "{test} failed inside its network namespace"
-    );
-    assert!(
-        stdout.contains("1 passed"),
-        "{test} did not run inside its namespace:\n{stdout}"
+    crate::rerun_in_namespace(
+        test,
+        "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo",
+        "the DDS tests",
     );
     false
 }

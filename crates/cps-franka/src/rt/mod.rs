@@ -1,6 +1,6 @@
 //! The realtime loop: one dedicated thread, one state in and one command out per robot
 //! tick, every command judged against the reference the robot holds and admitted,
-//! limited, or replaced by a controlled stop ([`crate::laws`]).
+//! limited, or replaced by a controlled stop (the laws, in `rt/laws.rs`).
 //!
 //! Inside the loop nothing allocates, locks or logs: the recording, the latency samples
 //! and the command buffer are allocated before the motion starts, and the loop stops the
@@ -16,13 +16,16 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::error::FrankaError;
-use crate::laws::{Law, PositionLaw, TorqueLaw};
+mod laws;
+
 use crate::limiter::Limited;
 use crate::limits::{DT, RateLimits};
 use crate::reference::ReferenceCounts;
 use crate::session::Connection;
 use crate::wire::{Command, JOINTS, MoveStatus, RobotMode, RobotState};
 use cps_robot::Breach;
+use laws::{Law, PositionLaw, TorqueLaw};
+pub use laws::{TORQUE_RATE_SHARE, TORQUE_SPEED_GUARD};
 
 /// Whether the loop thread asks for realtime scheduling (libfranka's `RealtimeConfig`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -48,7 +51,10 @@ impl Realtime {
 
     /// The setting named `word` (`enforce`, `ignore` or `off`).
     pub fn from_word(word: &str) -> Option<Realtime> {
-        Self::WORDS.iter().find(|(w, _)| *w == word).map(|&(_, r)| r)
+        Self::WORDS
+            .iter()
+            .find(|(w, _)| *w == word)
+            .map(|&(_, r)| r)
     }
 
     /// Its word.
@@ -130,6 +136,11 @@ pub struct Timing {
     /// The lowest `control_command_success_rate` the robot reported during the motion
     /// (the share of the last 100 commands that reached it in time; 1.0 = all).
     pub success_rate_min: f64,
+    /// Answers withheld: ones a newer state overtook (the robot had closed their cycle:
+    /// they would have come late), and each cycle after a command the robot's state showed
+    /// dropped, until the next state told whether the robot dropped it or (a simulator)
+    /// applied it late.
+    pub withheld: u64,
 }
 
 /// How a motion of the 1 kHz loop ended, in the loop's own terms; [`crate::FrankaRobot`]
@@ -215,6 +226,8 @@ pub struct Cycles {
     pub missed: u64,
     /// States superseded before cps read them (the newest was answered).
     pub stale: u64,
+    /// Answers withheld (see [`Timing::withheld`]).
+    pub withheld: u64,
     /// Cycles the robot extrapolated (or held its torques through): the missed and stale
     /// ones, and those whose command it dropped.
     pub extrapolated: u64,
@@ -234,6 +247,7 @@ impl Cycles {
         self.answered += other.answered;
         self.missed += other.missed;
         self.stale += other.stale;
+        self.withheld += other.withheld;
         self.extrapolated += other.extrapolated;
         self.dropped += other.dropped;
         self.limited += other.limited;
@@ -241,14 +255,16 @@ impl Cycles {
         self.success_rate_min = self.success_rate_min.min(other.success_rate_min);
     }
 
-    /// As a sentence: "3 cycles extrapolated by the robot (1 state missed, 2 stale, 0
-    /// commands dropped); 12 commands limited (largest change 0.000041 rad)".
+    /// As a sentence: "3 cycles extrapolated by the robot (0 states missed, 2 stale, 1
+    /// answer withheld as late, 0 commands dropped); 12 commands limited (largest change
+    /// 0.000041); lowest success rate 0.97".
     pub fn sentence(&self) -> String {
         format!(
-            "{} cycles extrapolated by the robot ({} states missed, {} stale, {} commands dropped); {} commands limited (largest change {:.6}); lowest success rate {:.2}",
+            "{} cycles extrapolated by the robot ({} states missed, {} stale, {} answers withheld as late, {} commands dropped); {} commands limited (largest change {:.6}); lowest success rate {:.2}",
             self.extrapolated,
             self.missed,
             self.stale,
+            self.withheld,
             self.dropped,
             self.limited,
             self.largest_change,
@@ -263,6 +279,7 @@ impl Default for Cycles {
             answered: 0,
             missed: 0,
             stale: 0,
+            withheld: 0,
             extrapolated: 0,
             dropped: 0,
             limited: 0,
@@ -279,6 +296,7 @@ impl MotionReport {
             answered: self.timing.ticks,
             missed: self.timing.missed,
             stale: self.timing.stale,
+            withheld: self.timing.withheld,
             extrapolated: self.reference.extrapolated,
             dropped: self.reference.dropped,
             limited: self.limited.commands,
@@ -397,7 +415,7 @@ where
 /// `tau_J_d`), to 95 % of its torque rate (1000 N m/s) before it is sent — as libfranka's
 /// rate limiter does — and the limited commands are counted ([`MotionReport::limited`]);
 /// a torque that is not a number, or a joint measured faster than
-/// [`TORQUE_SPEED_GUARD`](crate::laws::TORQUE_SPEED_GUARD) of its speed limit, switches
+/// [`TORQUE_SPEED_GUARD`] of its speed limit, switches
 /// to a damped stop. `stop`
 /// brakes the same way: `τ = −D·dq` within the rate limit until the arm is at rest, then
 /// the motion ends. [`Sample::tau_c`] records what was sent.
@@ -471,6 +489,7 @@ fn run_law<L: Law>(
     let (mut first_id, mut last_id) = (None::<u64>, None::<u64>);
     let (mut missed, mut stale) = (0u64, 0u64);
     let mut success_rate_min: f64 = 1.0;
+    let mut withheld = 0u64;
     let mut last_errors = String::new();
     let mut finished_sent = false;
     loop {
@@ -514,8 +533,19 @@ fn run_law<L: Law>(
         } else {
             None
         };
-        let done = law.answer(&state, t, periods, samples.len(), brake, &mut command);
+        let Some(done) = law.answer(&state, t, periods, samples.len(), brake, &mut command) else {
+            withheld += 1;
+            continue;
+        };
         command.message_id = state.message_id;
+        if conn.state_waiting() {
+            // The robot has closed this state's cycle already: the answer would come late
+            // (dropped by a robot, applied late by a simulator). Not sent; the newer state
+            // is answered instead.
+            law.withdraw();
+            withheld += 1;
+            continue;
+        }
         if let Err(e) = conn.send_command(&command) {
             ending = Some(MotionEnd::Lost(e.to_string()));
             break;
@@ -585,6 +615,7 @@ fn run_law<L: Law>(
         stale,
         realtime,
         success_rate_min,
+        withheld,
     };
     Ok(MotionReport {
         samples,

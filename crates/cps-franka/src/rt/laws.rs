@@ -16,10 +16,10 @@
 
 use cps_kinematics::Quantity;
 
+use super::{JointPositions, MotionEnd, Torques};
 use crate::limiter::{Limited, Limiter};
 use crate::limits::{Brake, DT, RateLimits, StreamCheck, joint_breach};
 use crate::reference::{Reference, ReferenceCounts, ReferenceTracker, TorqueTracker};
-use crate::rt::{JointPositions, MotionEnd, Torques};
 use crate::wire::{Command, ControllerMode, JOINTS, MotionGeneratorMode, RobotState};
 
 /// The share of a joint's speed limit above which a torque-controlled motion is braked.
@@ -58,8 +58,9 @@ pub(crate) trait Law {
     fn following(&self) -> bool;
     /// Fills `command` for `state` at robot time `t`, `periods` robot periods after the
     /// state answered before (1 for the first); `tick` counts the states answered;
-    /// `brake` asks for a controlled stop for that reason. True when the command is the
-    /// last.
+    /// `brake` asks for a controlled stop for that reason. Whether the command is the
+    /// last; None when nothing is to be sent for this state (see
+    /// [`ReferenceTracker::unresolved`]).
     fn answer(
         &mut self,
         state: &RobotState,
@@ -68,7 +69,10 @@ pub(crate) trait Law {
         tick: usize,
         brake: Option<MotionEnd>,
         command: &mut Command,
-    ) -> bool;
+    ) -> Option<bool>;
+    /// Takes back the command of the last [`Law::answer`]: it was not sent (a newer state
+    /// had come, so it would have reached the robot late).
+    fn withdraw(&mut self);
     /// How the motion went.
     fn outcome(self) -> Outcome;
 }
@@ -165,7 +169,7 @@ where
     }
 
     fn start(&mut self, state: &RobotState) {
-        let q0 = crate::rt::start_position(state);
+        let q0 = super::start_position(state);
         let limits = *self.check.limits();
         self.check = StreamCheck::at_rest(limits, q0);
         self.tracker = ReferenceTracker::new(q0, self.velocity);
@@ -185,7 +189,7 @@ where
         _tick: usize,
         brake: Option<MotionEnd>,
         command: &mut Command,
-    ) -> bool {
+    ) -> Option<bool> {
         let r = self.tracker.reference(state);
         self.check.rebase(r.q, r.v, r.a);
         if let Some(reason) = brake
@@ -193,6 +197,20 @@ where
         {
             self.reason.get_or_insert(reason);
             self.mode = Mode::Brake;
+        }
+        if self.tracker.unresolved() {
+            // No command this cycle: the next state tells which reference the robot holds.
+            // The generator keeps the robot's time all the same.
+            match self.mode {
+                Mode::Follow => {
+                    if self.generate(state, t, periods) {
+                        self.mode = Mode::Hold(self.desired);
+                    }
+                }
+                Mode::Hold(q) => (0..periods).for_each(|_| self.limiter.desire(&q)),
+                Mode::Brake => {}
+            }
+            return None;
         }
         let finished = match self.mode {
             Mode::Follow => {
@@ -234,7 +252,11 @@ where
         }
         command.motion_generation_finished = done;
         self.tracker.sent(state.message_id, q_c);
-        done
+        Some(done)
+    }
+
+    fn withdraw(&mut self) {
+        self.tracker.withdraw();
     }
 
     fn outcome(self) -> Outcome {
@@ -315,7 +337,7 @@ where
         tick: usize,
         brake: Option<MotionEnd>,
         command: &mut Command,
-    ) -> bool {
+    ) -> Option<bool> {
         if let Some(reason) = brake {
             self.stop_for(reason);
         }
@@ -380,8 +402,12 @@ where
         command.tau_j_d = tau;
         command.torque_command_finished = finished;
         command.motion_generation_finished = finished;
-        self.tracker.sent(state.message_id, tau);
-        finished
+        self.tracker.sent(tau);
+        Some(finished)
+    }
+
+    fn withdraw(&mut self) {
+        self.tracker.withdraw();
     }
 
     fn outcome(self) -> Outcome {
