@@ -65,11 +65,18 @@ impl Reference {
 
     /// The reference after `q` is applied one period later: `q` with its differences.
     pub fn after(&self, q: &[f64; JOINTS]) -> Self {
-        let v: [f64; JOINTS] = std::array::from_fn(|i| (q[i] - self.q[i]) / DT);
+        self.after_over(q, 1)
+    }
+
+    /// The reference after `q` is applied `cycles` periods later, differenced over that
+    /// interval (what a simulator does with a command that ends a run of lost cycles).
+    pub fn after_over(&self, q: &[f64; JOINTS], cycles: u64) -> Self {
+        let step = cycles as f64 * DT;
+        let v: [f64; JOINTS] = std::array::from_fn(|i| (q[i] - self.q[i]) / step);
         Reference {
             q: *q,
             v,
-            a: std::array::from_fn(|i| (v[i] - self.v[i]) / DT),
+            a: std::array::from_fn(|i| (v[i] - self.v[i]) / step),
         }
     }
 
@@ -170,8 +177,12 @@ pub struct ReferenceTracker {
     /// standstill).
     first: bool,
     /// Where a state showed a command dropped that a simulator may still apply late: the
-    /// reference with it applied after all, until a state tells the two apart.
-    alternative: Option<Reference>,
+    /// references with it applied after all (on time, or over the run of lost cycles it
+    /// ended), as they stood right after it, and its cycle; until a state tells them apart.
+    alternatives: [Option<(Reference, u64)>; 2],
+    /// The reference right after the last command the robot applied, and its cycle (None
+    /// before the first).
+    real: Option<(Reference, u64)>,
     /// A velocity motion: its `q_d` is the robot's integral, so only `dq_d` and `ddq_d`
     /// are compared.
     velocity_motion: bool,
@@ -187,7 +198,8 @@ impl ReferenceTracker {
             as_sent: Reference::at_rest(q0),
             pending: None,
             first: true,
-            alternative: None,
+            alternatives: [None; 2],
+            real: None,
             velocity_motion,
             counts: ReferenceCounts::default(),
         }
@@ -201,7 +213,7 @@ impl ReferenceTracker {
     /// sent for this cycle, and the next state, the robot's extrapolation of one or the
     /// other, tells them apart.
     pub fn unresolved(&self) -> bool {
-        self.alternative.is_some()
+        self.alternatives.iter().any(Option::is_some)
     }
 
     /// What the states said so far.
@@ -218,21 +230,30 @@ impl ReferenceTracker {
     /// command it applied (or the motion's start), extrapolated over every cycle since
     /// that went without one.
     pub fn reference(&mut self, state: &RobotState) -> Reference {
+        let agrees = |r: &Reference| agreement(r, state, self.velocity_motion);
+        let since = |id: u64| state.message_id.saturating_sub(id + 1);
         let Some((sent_id, q_c)) = self.pending.take() else {
             let gap = self.unanswered_before(state.message_id);
             self.counts.extrapolated += gap;
             self.base = self.base.extrapolated_by(gap);
             self.as_sent = self.as_sent.extrapolated_by(gap);
-            if let Some(alt) = self.alternative.take() {
-                let alt = alt.extrapolated_by(gap);
-                let agrees = |r: &Reference| agreement(r, state, self.velocity_motion);
-                if agrees(&self.base) != Agreement::Whole && agrees(&alt) == Agreement::Whole {
-                    self.base = alt;
-                    self.counts.dropped -= 1;
-                    self.counts.extrapolated -= 1;
-                    self.counts.applied_late += 1;
-                }
+            // Dropped (as the last state said), or applied late after all: this state says
+            // which, where they differ.
+            let late = self
+                .alternatives
+                .iter()
+                .flatten()
+                .find(|(alt, id)| agrees(&alt.extrapolated_by(since(*id))) == Agreement::Whole);
+            if let Some(&(alt, id)) = late
+                && agrees(&self.base) != Agreement::Whole
+            {
+                self.base = alt.extrapolated_by(since(id));
+                self.real = Some((alt, id));
+                self.counts.dropped -= 1;
+                self.counts.extrapolated -= 1;
+                self.counts.applied_late += 1;
             }
+            self.alternatives = [None; 2];
             if self.base_id.is_some() {
                 self.base_id = Some(state.message_id - 1);
             }
@@ -240,29 +261,35 @@ impl ReferenceTracker {
         };
         // Cycles before the one cps answered, and after it, that went unanswered.
         let before = self.unanswered_before(sent_id);
-        let gap = state.message_id.saturating_sub(sent_id + 1);
-        let (base, as_sent) = (
-            self.base.extrapolated_by(before),
-            self.as_sent.extrapolated_by(before),
-        );
-        let after = |r: &Reference| {
+        let gap = since(sent_id);
+        let after = |r: &Reference, cycles: u64| {
             if self.first {
                 Reference::at_rest(q_c)
             } else {
-                r.after(&q_c)
+                r.after_over(&q_c, cycles)
             }
         };
-        let applied = after(&base).extrapolated_by(gap);
-        let dropped = base.extrapolated_by(gap + 1);
-        let as_sent = after(&as_sent).extrapolated_by(gap);
+        // The robot's: the command applied on time, or dropped; a simulator's that applies
+        // late commands (franka-sim): the run of cycles it extrapolated since the last
+        // command it applied taken back, and this one differenced over the whole run; or
+        // every command applied as sent. Each as it stands right after the command.
+        let applied = after(&self.base.extrapolated_by(before), 1);
+        let over_run = match self.real {
+            Some((real, id)) => after(&real, sent_id.saturating_sub(id).max(1)),
+            None => applied,
+        };
+        let as_sent = after(&self.as_sent.extrapolated_by(before), 1);
+        let dropped = self.base.extrapolated_by(before + 1);
         let candidates = [
             (applied, Kind::Applied),
+            (over_run, Kind::AppliedLate),
             (as_sent, Kind::AppliedLate),
             (dropped, Kind::Dropped),
         ];
+        let now = |r: &Reference| r.extrapolated_by(gap);
         let whole = candidates
             .iter()
-            .find(|(r, _)| agreement(r, state, self.velocity_motion) == Agreement::Whole);
+            .find(|(r, _)| agrees(&now(r)) == Agreement::Whole);
         let (chosen, kind) = match whole {
             Some(&c) => c,
             None => {
@@ -270,7 +297,7 @@ impl ReferenceTracker {
                 // The position alone, where it tells one candidate from the others.
                 let mut by_position = candidates
                     .iter()
-                    .filter(|(r, _)| agreement(r, state, self.velocity_motion) != Agreement::None);
+                    .filter(|(r, _)| agrees(&now(r)) != Agreement::None);
                 match (by_position.next(), by_position.next()) {
                     (Some(&c), None) => c,
                     _ => (applied, Kind::Applied),
@@ -279,21 +306,29 @@ impl ReferenceTracker {
         };
         self.counts.extrapolated += before + gap;
         match kind {
-            Kind::Applied => {}
-            Kind::AppliedLate => self.counts.applied_late += 1,
+            Kind::Applied | Kind::AppliedLate => {
+                self.real = Some((chosen, sent_id));
+                if kind == Kind::AppliedLate {
+                    self.counts.applied_late += 1;
+                }
+            }
             Kind::Dropped => {
                 self.counts.dropped += 1;
                 self.counts.extrapolated += 1;
             }
         }
         // A drop where the command could still be applied late: unresolved until the next
-        // state (where the two differ at all).
-        self.alternative = (kind == Kind::Dropped && applied != dropped).then_some(applied);
-        self.base = chosen;
+        // state (where they differ at all).
+        self.alternatives = if kind == Kind::Dropped {
+            [applied, over_run].map(|r| (r != dropped).then_some((r, sent_id)))
+        } else {
+            [None; 2]
+        };
+        self.base = now(&chosen);
         self.base_id = Some(state.message_id - 1);
-        self.as_sent = as_sent;
+        self.as_sent = now(&as_sent);
         self.first = self.first && kind == Kind::Dropped;
-        chosen
+        self.base
     }
 
     /// Notes the command sent in answer to the state `message_id` (after

@@ -201,6 +201,15 @@ impl FrankaSim {
 
 impl Drop for FrankaSim {
     fn drop(&mut self) {
+        if std::thread::panicking() {
+            // A failing test shows what the simulator said last.
+            let log = self.log_text();
+            let tail: Vec<&str> = log.lines().rev().take(40).collect();
+            eprintln!("franka-sim's log, its end:");
+            for line in tail.iter().rev() {
+                eprintln!("  {line}");
+            }
+        }
         for hog in &mut self.hogs {
             let _ = hog.kill();
             let _ = hog.wait();
