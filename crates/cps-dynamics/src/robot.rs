@@ -6,8 +6,8 @@
 //! each step) and streams ([`Streaming`]).
 
 use cps_robot::{
-    Ending, Generator, Plan, Robot, RobotError, RobotModel, Run, Stepped, Stepping, StopToken,
-    Streaming,
+    CycleLoss, Ending, Generator, LinkBreak, LossyLink, Plan, RateCheck, Robot, RobotError,
+    RobotModel, Run, Stepped, Stepping, StopToken, Streaming,
 };
 use nalgebra::{Isometry3, IsometryMatrix3};
 use rand::SeedableRng;
@@ -77,6 +77,11 @@ pub struct DynamicsRobot<const N: usize> {
     head: usize,
     /// The torques the drives applied in the last control period (gravity included).
     applied: [f64; N],
+    /// Control periods it loses on purpose while streaming ([`DynamicsRobot::lose_cycles`]).
+    loss: Option<CycleLoss>,
+    /// Periods lost so far, and streamed commands limited after one.
+    lost: u64,
+    limited: usize,
 }
 
 fn pose(p: &Isometry3<f64>) -> IsometryMatrix3<f64> {
@@ -156,7 +161,25 @@ impl<const N: usize> DynamicsRobot<N> {
             targets: [[q, [0.0; N], [0.0; N]]; MAX_LAG + 1],
             head: 0,
             applied: [0.0; N],
+            loss: None,
+            lost: 0,
+            limited: 0,
         })
+    }
+
+    /// Makes it lose `share` (0 to [`cps_robot::MAX_LOSS`]) of its control periods while
+    /// streaming, chosen by `seed` — a test option: its commanded reference is then
+    /// extrapolated at constant acceleration through each, as a Franka's is, and every
+    /// command it gets is judged against that reference by its model's limits (a breach
+    /// would be a Franka's discontinuity reflex: the run fails); the stream reaches it
+    /// through cps's limiter ([`cps_robot::LossyLink`]), as the Franka's loop sends it.
+    pub fn lose_cycles(&mut self, share: f64, seed: u64) -> Result<(), RobotError> {
+        let loss = CycleLoss::new(share, seed).map_err(|message| RobotError::Robot {
+            robot: self.name(),
+            message,
+        })?;
+        self.loss = (share > 0.0).then_some(loss);
+        Ok(())
     }
 
     /// The simulated arm (its true state).
@@ -394,12 +417,19 @@ impl<const N: usize> Robot for DynamicsRobot<N> {
 
     fn report(&self) -> Option<String> {
         (self.ticks > 0).then(|| {
-            format!(
+            let mut text = format!(
                 "{} control periods simulated ({}), a drive's torque clipped in {}",
                 self.ticks,
                 self.settings.controller.name(),
                 self.clipped
-            )
+            );
+            if self.loss.is_some() {
+                text.push_str(&format!(
+                    "; {} periods lost on purpose while streaming, {} commands limited after one",
+                    self.lost, self.limited
+                ));
+            }
+            text
         })
     }
 
@@ -475,6 +505,9 @@ impl<const N: usize> Streaming for DynamicsRobot<N> {
         let mut command = self.arm.q.to_vec();
         let mut previous = self.arm.q;
         let zero = [0.0; N];
+        let mut link = self
+            .loss
+            .map(|loss| LossyLink::new(loss, RateCheck::of_model(&self.model, period, self.arm.q)));
         for k in 0.. {
             if stop.is_stopped() {
                 self.brake_into(&mut run, k as f64 * period);
@@ -500,12 +533,39 @@ impl<const N: usize> Streaming for DynamicsRobot<N> {
                             command.len()
                         ),
                     })?;
-            let velocity: [f64; N] = std::array::from_fn(|i| (target[i] - previous[i]) / period);
-            self.tick(Desired {
-                q: &target,
-                dq: &velocity,
-                ddq: &zero,
-            });
+            if let Some(link) = &mut link {
+                // Through a link that loses periods: the arm follows what the robot holds.
+                match link.step(&target, last) {
+                    Ok(r) => {
+                        let r = *r;
+                        self.tick(Desired {
+                            q: &r.q,
+                            dq: &r.v,
+                            ddq: &r.a,
+                        });
+                    }
+                    Err(b) => {
+                        self.brake_into(&mut run, k as f64 * period);
+                        run.ending = Ending::Failed(match b {
+                            LinkBreak::Refused(b) => format!(
+                                "a command beyond a limit was not sent ({b}); the arm braked to rest"
+                            ),
+                            LinkBreak::Reflex(b) => format!(
+                                "reflex: a command broke a limit against the reference the robot held after a lost period ({b}); the arm braked to rest"
+                            ),
+                        });
+                        break;
+                    }
+                }
+            } else {
+                let velocity: [f64; N] =
+                    std::array::from_fn(|i| (target[i] - previous[i]) / period);
+                self.tick(Desired {
+                    q: &target,
+                    dq: &velocity,
+                    ddq: &zero,
+                });
+            }
             previous = target;
             let (q, tool) = self.entry();
             run.push((k + 1) as f64 * period, q, tool);
@@ -517,6 +577,10 @@ impl<const N: usize> Streaming for DynamicsRobot<N> {
             if last {
                 break;
             }
+        }
+        if let Some(link) = link {
+            self.lost += link.lost();
+            self.limited += link.limited().commands;
         }
         self.command = self.arm.q;
         self.previous = self.arm.q;

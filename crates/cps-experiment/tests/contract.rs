@@ -8,7 +8,9 @@
 //! stop or a failure mid-plan ending the run with its recording kept.
 //!
 //! The whole test runs in a network namespace of its own (DDS discovery never leaves it);
-//! franky-sim listens on 127.0.0.91 inside it.
+//! franky-sim listens on 127.0.0.91 inside it. A second test streams one motion to every
+//! robot that streams while it loses control periods (the in-process robots told to, the
+//! Franka's link dropping commands): each survives them as a Franka must.
 
 use cps_testkit::franky_sim as sim;
 use cps_testkit::ros2_graph as graph;
@@ -515,4 +517,133 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
         failures.push((name, run.len(), why));
     }
     println!("failed mid-plan (robot, entries, why): {failures:#?}");
+}
+
+/// Time-optimal S-curves at 95 % of the FR3's acceleration and jerk limits on joints 1 and
+/// 4 from `q0`, out and back, every millisecond: where a lost period leaves the least room.
+fn s_curves(q0: &[f64]) -> Vec<Vec<f64>> {
+    let (a, j): (f64, f64) = (0.95 * 10.0, 0.95 * 5000.0);
+    let w = (a / j / 0.001).round() as usize;
+    let mut jerks = Vec::new();
+    for sign in [1.0, -1.0] {
+        for (s, len) in [
+            (1.0, w),
+            (0.0, 60),
+            (-1.0, w),
+            (0.0, 80),
+            (-1.0, w),
+            (0.0, 60),
+            (1.0, w),
+        ] {
+            jerks.extend(std::iter::repeat_n(sign * s * j, len));
+        }
+    }
+    jerks.extend([0.0; 50]);
+    let (mut q, mut v, mut acc) = (q0.to_vec(), [0.0; 7], [0.0; 7]);
+    let mut out = vec![q.clone()];
+    for jerk in jerks {
+        for i in [0, 3] {
+            acc[i] += jerk * 0.001;
+            v[i] += acc[i] * 0.001;
+            q[i] += v[i] * 0.001;
+        }
+        out.push(q.clone());
+    }
+    out
+}
+
+/// Every robot that streams survives lost periods as a Franka must: the in-process robot
+/// and the robot with dynamics told to lose 15 % of their periods (each then extrapolates
+/// its reference through a lost period and judges the next command against it, as a
+/// Franka does), and the Franka (franky-sim) behind a link that drops 15 % of the commands;
+/// a stream at 95 % of the acceleration and jerk limits ends where it should on each, with
+/// no reflex, the lost periods counted. (Without cps's limiter the in-process robots' own
+/// judgement of the stream's next command after a lost period fails the run.)
+#[test]
+fn every_streaming_robot_survives_lost_periods_as_a_franka_must() {
+    let Some(franky) = sim::FrankySim::start("127.0.0.93") else {
+        return;
+    };
+    let stop = StopToken::new();
+    let settings = FrankaSettings {
+        host: franky.host.clone(),
+        arm: Arm::Fr3,
+        realtime: Realtime::Ignore,
+        dt: 0.001,
+    };
+    let mut franka = FrankaRobot::connect(&settings, model()).unwrap();
+    franka.connection().lose_commands(0.15, 61).unwrap();
+    let q0 = franka.joint_positions().unwrap();
+    let mut kinematic = KinematicRobot::of_model(model(), &q0, 0.001).unwrap();
+    kinematic.lose_cycles(0.15, 61).unwrap();
+    let at: [f64; 7] = q0.as_slice().try_into().unwrap();
+    let mut dynamics = DynamicsRobot::new(
+        model(),
+        DynamicArm::at_rest(
+            ArmModel::<7>::new(&model().chain, &fr3_inertia()).unwrap(),
+            JointFriction::none(),
+            [87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0],
+            at,
+        ),
+        DynamicsSettings {
+            controller: Controller::ComputedTorque {
+                kp: [900.0; 7],
+                kv: [60.0; 7],
+            },
+            control_period: 0.001,
+            dt: 0.001,
+            noise: 0.0,
+            seed: 0,
+            reflexes: true,
+            lag: 0,
+        },
+    )
+    .unwrap();
+    dynamics.lose_cycles(0.15, 61).unwrap();
+    let stream = s_curves(&q0);
+    let n = stream.len();
+    let robots: Vec<(&str, &mut dyn Robot, f64)> = vec![
+        ("in-process", &mut kinematic, 1e-12),
+        ("dynamics", &mut dynamics, 2e-3),
+        ("franka", &mut franka, 0.05),
+    ];
+    for (name, robot, tolerance) in robots {
+        let mut k = 0;
+        let mut next = |_: &[f64], _: f64, out: &mut [f64]| -> bool {
+            out.copy_from_slice(&stream[k.min(n - 1)]);
+            k += 1;
+            k >= n
+        };
+        let run = robot
+            .streaming()
+            .expect("it streams")
+            .stream(&mut next, n + 100, &stop)
+            .unwrap();
+        assert_eq!(run.ending, cps_robot::Ending::Finished, "{name}");
+        let end = run.q.last().unwrap();
+        for (i, (a, b)) in end.iter().zip(stream.last().unwrap()).enumerate() {
+            assert!(
+                (a - b).abs() <= tolerance,
+                "{name}: joint {} ends at {a}, the stream at {b}",
+                i + 1
+            );
+        }
+        let report = robot.report().unwrap_or_default();
+        println!("{name}: {report}");
+        if name != "franka" {
+            // Periods lost, and commands limited after one (the stream's own would have
+            // broken the jerk limit against the robot's extrapolation).
+            let count = |what: &str| -> u64 {
+                report
+                    .split(what)
+                    .next()
+                    .and_then(|s| s.rsplit(' ').next())
+                    .and_then(|s| s.parse().ok())
+                    .unwrap_or(0)
+            };
+            assert!(count(" periods lost on purpose") > 30, "{name}: {report}");
+            assert!(count(" commands limited after one") > 0, "{name}: {report}");
+        }
+    }
+    assert!(franka.connection().commands_lost() > 30);
 }

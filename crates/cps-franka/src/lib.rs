@@ -62,7 +62,6 @@ pub mod control;
 mod error;
 pub mod gripper;
 pub mod guide;
-pub mod limiter;
 pub mod limits;
 mod motion;
 pub mod reference;
@@ -82,5 +81,5 @@ pub use rt::{
     Cycles, JointPositions, JointVelocities, LoopOptions, MotionEnd, MotionReport, Realtime,
     Sample, Timing, Torques, run_joint_positions, run_joint_velocities, run_torques,
 };
-pub use session::{Connection, MAX_LOSS, Timeouts};
+pub use session::{Connection, Timeouts};
 pub use wire::{Command, RobotMode, RobotState};

@@ -26,74 +26,9 @@
 use crate::limits::DT;
 use crate::wire::{JOINTS, RobotState};
 
-/// Consecutive lost cycles after which the robot stops extrapolating (and stops the
-/// motion with `communication_constraints_violation`): 20, from the FCI documentation.
-pub const MAX_LOST_CYCLES: u64 = 20;
-
-/// A joint reference: a commanded position and its backward differences per period.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Reference {
-    /// Position (rad).
-    pub q: [f64; JOINTS],
-    /// Velocity (rad/s): the last position difference over one period.
-    pub v: [f64; JOINTS],
-    /// Acceleration (rad/s²): the last velocity difference over one period.
-    pub a: [f64; JOINTS],
-}
-
-impl Reference {
-    /// At rest at `q`.
-    pub fn at_rest(q: [f64; JOINTS]) -> Self {
-        Reference {
-            q,
-            v: [0.0; JOINTS],
-            a: [0.0; JOINTS],
-        }
-    }
-
-    /// The robot's reference one cycle later without a command: acceleration kept, the
-    /// velocity then the position integrated (`v += a·Δt`, then `q += v·Δt`), so the
-    /// backward differences of the result are exactly that velocity and acceleration.
-    pub fn extrapolated(&self) -> Self {
-        let mut next = *self;
-        for i in 0..JOINTS {
-            next.v[i] += next.a[i] * DT;
-            next.q[i] += next.v[i] * DT;
-        }
-        next
-    }
-
-    /// The reference after `q` is applied one period later: `q` with its differences.
-    pub fn after(&self, q: &[f64; JOINTS]) -> Self {
-        self.after_over(q, 1)
-    }
-
-    /// The reference after `q` is applied `cycles` periods later, differenced over that
-    /// interval (what a simulator does with a command that ends a run of lost cycles).
-    pub fn after_over(&self, q: &[f64; JOINTS], cycles: u64) -> Self {
-        let step = cycles as f64 * DT;
-        let v: [f64; JOINTS] = std::array::from_fn(|i| (q[i] - self.q[i]) / step);
-        Reference {
-            q: *q,
-            v,
-            a: std::array::from_fn(|i| (v[i] - self.v[i]) / step),
-        }
-    }
-
-    /// `cycles` extrapolations (at most [`MAX_LOST_CYCLES`]: the robot holds after those).
-    fn extrapolated_by(&self, cycles: u64) -> Self {
-        let mut r = *self;
-        for _ in 0..cycles.min(MAX_LOST_CYCLES) {
-            r = r.extrapolated();
-        }
-        r
-    }
-
-    /// Whether it is at rest (velocity and acceleration zero).
-    pub fn at_rest_now(&self) -> bool {
-        self.v.iter().chain(&self.a).all(|x| x.abs() < 1e-12)
-    }
-}
+/// The joint reference a Franka holds: cps-robot's [`cps_robot::Reference`] of its seven
+/// joints, its period the FCI's millisecond ([`DT`]).
+pub type Reference = cps_robot::Reference<JOINTS>;
 
 /// Whether `ours` is what the robot reported as `reported` (a single-precision float):
 /// within two of its units in the last place, or `floor` where it is near zero.
@@ -122,28 +57,6 @@ fn agreement(r: &Reference, s: &RobotState, velocity_motion: bool) -> Agreement 
         (true, false) if !velocity_motion => Agreement::Position,
         _ => Agreement::None,
     }
-}
-
-/// The commands of a recording as a robot that got each of them held them, one per
-/// millisecond of its clock: every sample's command at its state's id, and for the ids
-/// between two samples that got no command from cps (states missed, stale or withheld),
-/// the robot's extrapolation of the commands before. What the robot judged each command
-/// against: a stream the checks of [`crate::limits`] admit is one such a robot accepted.
-pub fn as_held(samples: &[crate::Sample]) -> Vec<[f64; JOINTS]> {
-    let Some(first) = samples.first() else {
-        return Vec::new();
-    };
-    let mut r = Reference::at_rest(first.q_c);
-    let mut held = vec![first.q_c];
-    for w in samples.windows(2) {
-        for _ in w[0].id + 1..w[1].id {
-            r = r.extrapolated();
-            held.push(r.q);
-        }
-        r = r.after(&w[1].q_c);
-        held.push(w[1].q_c);
-    }
-    held
 }
 
 /// What the robot's states said of the commands cps sent, over a motion.
@@ -235,19 +148,18 @@ impl ReferenceTracker {
         let Some((sent_id, q_c)) = self.pending.take() else {
             let gap = self.unanswered_before(state.message_id);
             self.counts.extrapolated += gap;
-            self.base = self.base.extrapolated_by(gap);
-            self.as_sent = self.as_sent.extrapolated_by(gap);
+            self.base = self.base.extrapolated_by(gap, DT);
+            self.as_sent = self.as_sent.extrapolated_by(gap, DT);
             // Dropped (as the last state said), or applied late after all: this state says
             // which, where they differ.
-            let late = self
-                .alternatives
-                .iter()
-                .flatten()
-                .find(|(alt, id)| agrees(&alt.extrapolated_by(since(*id))) == Agreement::Whole);
+            let late =
+                self.alternatives.iter().flatten().find(|(alt, id)| {
+                    agrees(&alt.extrapolated_by(since(*id), DT)) == Agreement::Whole
+                });
             if let Some(&(alt, id)) = late
                 && agrees(&self.base) != Agreement::Whole
             {
-                self.base = alt.extrapolated_by(since(id));
+                self.base = alt.extrapolated_by(since(id), DT);
                 self.real = Some((alt, id));
                 self.counts.dropped -= 1;
                 self.counts.extrapolated -= 1;
@@ -266,27 +178,27 @@ impl ReferenceTracker {
             if self.first {
                 Reference::at_rest(q_c)
             } else {
-                r.after_over(&q_c, cycles)
+                r.after_over(&q_c, cycles, DT)
             }
         };
         // The robot's: the command applied on time, or dropped; a simulator's that applies
         // late commands (franka-sim): the run of cycles it extrapolated since the last
         // command it applied taken back, and this one differenced over the whole run; or
         // every command applied as sent. Each as it stands right after the command.
-        let applied = after(&self.base.extrapolated_by(before), 1);
+        let applied = after(&self.base.extrapolated_by(before, DT), 1);
         let over_run = match self.real {
             Some((real, id)) => after(&real, sent_id.saturating_sub(id).max(1)),
             None => applied,
         };
-        let as_sent = after(&self.as_sent.extrapolated_by(before), 1);
-        let dropped = self.base.extrapolated_by(before + 1);
+        let as_sent = after(&self.as_sent.extrapolated_by(before, DT), 1);
+        let dropped = self.base.extrapolated_by(before + 1, DT);
         let candidates = [
             (applied, Kind::Applied),
             (over_run, Kind::AppliedLate),
             (as_sent, Kind::AppliedLate),
             (dropped, Kind::Dropped),
         ];
-        let now = |r: &Reference| r.extrapolated_by(gap);
+        let now = |r: &Reference| r.extrapolated_by(gap, DT);
         let whole = candidates
             .iter()
             .find(|(r, _)| agrees(&now(r)) == Agreement::Whole);
@@ -434,19 +346,6 @@ mod tests {
     }
 
     #[test]
-    fn the_extrapolation_keeps_acceleration_and_its_differences_are_exact() {
-        let r = Reference::at_rest([0.0; JOINTS])
-            .after(&[1e-6; JOINTS])
-            .after(&[3e-6; JOINTS]);
-        let e = r.extrapolated();
-        let d = r.after(&e.q);
-        for i in 0..JOINTS {
-            assert!((e.a[i] - r.a[i]).abs() < 1e-9, "{e:?}");
-            assert!((d.v[i] - e.v[i]).abs() < 1e-9 && (d.a[i] - r.a[i]).abs() < 1e-6);
-        }
-    }
-
-    #[test]
     fn a_state_tells_applied_dropped_and_unanswered_cycles_apart() {
         // The robot's side, exactly: command k answers state k; state k carries the
         // reference after cycle k - 1.
@@ -457,7 +356,7 @@ mod tests {
         // Cycle 10's command is dropped; cycles 20 and 21 go unanswered.
         for k in 0u64..40 {
             if k == 21 {
-                robot = robot.extrapolated();
+                robot = robot.extrapolated(DT);
                 continue;
             }
             let ours = tracker.reference(&state(k, &robot));
@@ -465,11 +364,11 @@ mod tests {
             let c = command(k as f64 * DT);
             tracker.sent(k, c);
             robot = if k == 10 || k == 20 {
-                robot.extrapolated()
+                robot.extrapolated(DT)
             } else if first {
                 Reference::at_rest(c)
             } else {
-                robot.after(&c)
+                robot.after(&c, DT)
             };
             first = false;
         }
@@ -498,7 +397,7 @@ mod tests {
             ours = if k == 0 {
                 Reference::at_rest(c)
             } else {
-                ours.after(&c)
+                ours.after(&c, DT)
             };
         }
         assert!(tracker.counts().unconfirmed >= 8, "{:?}", tracker.counts());

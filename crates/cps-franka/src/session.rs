@@ -51,33 +51,8 @@ pub struct Connection {
     state_buf: Box<[u8; STATE_SIZE + 1]>,
     command_buf: [u8; COMMAND_SIZE],
     /// A lossy link, on purpose ([`Connection::lose_commands`]).
-    loss: Option<Loss>,
+    loss: Option<cps_robot::CycleLoss>,
 }
-
-/// Commands a [`Connection`] drops on purpose: a share of them, chosen by a seeded
-/// generator (xorshift64*), so the same seed drops the same commands.
-#[derive(Debug, Clone, Copy)]
-struct Loss {
-    share: f64,
-    state: u64,
-    dropped: u64,
-}
-
-impl Loss {
-    fn drops(&mut self) -> bool {
-        let mut x = self.state;
-        x ^= x >> 12;
-        x ^= x << 25;
-        x ^= x >> 27;
-        self.state = x;
-        let u = (x.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64;
-        u < self.share
-    }
-}
-
-/// The largest share of commands [`Connection::lose_commands`] drops: the robot stops a
-/// motion after 20 lost in a row, which a fifth makes rare enough (one in 10¹⁴).
-pub const MAX_LOSS: f64 = 0.2;
 
 fn io_reason(e: &std::io::Error) -> String {
     match e.kind() {
@@ -603,39 +578,29 @@ impl Connection {
         self.newest_state(t).map(|(s, _)| s)
     }
 
-    /// Makes the link lossy on purpose: from now on `share` (0 to [`MAX_LOSS`]) of the
-    /// commands are not sent, chosen by a generator seeded with `seed` — as a congested
-    /// network drops them — except a motion's last, so that it still ends. For trying a
-    /// loop's handling of lost cycles against a simulator with the robot's rules (franka-
-    /// sim): the robot extrapolates every cycle it gets no command for, and the next state
-    /// shows it.
+    /// Makes the link lossy on purpose: from now on `share` (0 to
+    /// [`cps_robot::MAX_LOSS`]) of the commands are not sent, chosen by a generator seeded
+    /// with `seed` ([`cps_robot::CycleLoss`]) — as a congested network drops them — except
+    /// a motion's last, so that it still ends. For trying a loop's handling of lost cycles
+    /// against a simulator with the robot's rules (franka-sim): the robot extrapolates
+    /// every cycle it gets no command for, and the next state shows it.
     pub fn lose_commands(&mut self, share: f64, seed: u64) -> Result<(), FrankaError> {
-        if !(0.0..=MAX_LOSS).contains(&share) {
-            return Err(FrankaError::Input(format!(
-                "a share of lost commands of {share} is outside [0, {MAX_LOSS}]"
-            )));
-        }
-        self.loss = (share > 0.0).then_some(Loss {
-            share,
-            // A zero state would stay zero.
-            state: seed | 1,
-            dropped: 0,
-        });
+        let loss = cps_robot::CycleLoss::new(share, seed).map_err(FrankaError::Input)?;
+        self.loss = (share > 0.0).then_some(loss);
         Ok(())
     }
 
     /// Commands dropped on purpose so far ([`Connection::lose_commands`]).
     pub fn commands_lost(&self) -> u64 {
-        self.loss.map_or(0, |l| l.dropped)
+        self.loss.map_or(0, |l| l.lost())
     }
 
     /// Sends one command datagram (no allocation).
     pub fn send_command(&mut self, command: &Command) -> Result<(), FrankaError> {
         if let Some(loss) = &mut self.loss
             && !(command.motion_generation_finished || command.torque_command_finished)
-            && loss.drops()
+            && loss.loses()
         {
-            loss.dropped += 1;
             return Ok(());
         }
         let Some(to) = self.robot_udp else {

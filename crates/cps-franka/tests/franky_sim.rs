@@ -137,7 +137,7 @@ fn a_trajectory_is_executed_within_the_limits_and_tracked() {
     check_stream(
         limits,
         from,
-        &cps_franka::reference::as_held(&report.samples),
+        &cps_franka::rt::as_held(&report.samples),
     )
     .unwrap();
     assert!(report.peak_usage.iter().flatten().all(|&u| u <= 1.0));
@@ -218,7 +218,7 @@ fn a_stop_request_brakes_within_the_limits_and_keeps_the_recording() {
     });
     assert_eq!(report.ending, MotionEnd::Stopped);
     assert!(report.brake_ticks > 0 && report.samples.len() < stream.commands.len());
-    let sent = cps_franka::reference::as_held(&report.samples);
+    let sent = cps_franka::rt::as_held(&report.samples);
     let check = check_stream(limits, from, &sent).unwrap();
     assert!(check.at_rest_now(), "the last command is at rest");
     // Stopped short of the goal, and the robot is idle again (states already queued when
@@ -509,7 +509,7 @@ print(json.dumps(rec))
     );
     // What was sent (as the positions it integrates to) keeps every limit, and ends
     // 0.3 rad and -0.2 rad out on joints 1 and 4.
-    let sent = cps_franka::reference::as_held(&report.samples);
+    let sent = cps_franka::rt::as_held(&report.samples);
     check_stream(limits, from, &sent).unwrap();
     let last = sent.last().unwrap();
     assert!((last[0] - from[0] - 0.3).abs() < 1e-3, "{last:?}");

@@ -4,6 +4,7 @@
 use cps_kinematics::{KinematicsError, SerialChain};
 use nalgebra::IsometryMatrix3;
 
+use crate::cycles::{CycleLoss, LinkBreak, LossyLink, RateCheck};
 use crate::plan::{Plan, Run};
 use crate::robot::{Generator, Robot, Stepped, Streaming, run_stepped};
 use crate::{RobotError, RobotModel, StopToken};
@@ -30,6 +31,11 @@ pub struct KinematicRobot {
     dt: f64,
     time: f64,
     steps: u64,
+    /// Periods it loses on purpose while streaming ([`KinematicRobot::lose_cycles`]).
+    loss: Option<CycleLoss>,
+    /// Periods lost so far, and streamed commands limited after one.
+    lost: u64,
+    limited: usize,
 }
 
 impl KinematicRobot {
@@ -54,7 +60,96 @@ impl KinematicRobot {
             dt,
             time: 0.0,
             steps: 0,
+            loss: None,
+            lost: 0,
+            limited: 0,
         })
+    }
+
+    /// Makes it lose `share` (0 to [`crate::MAX_LOSS`]) of its periods while streaming,
+    /// chosen by `seed` — a test option: its commanded reference is then extrapolated at
+    /// constant acceleration through each, as a Franka's is, and every command it gets is
+    /// judged against that reference by its model's limits (a breach would be a Franka's
+    /// discontinuity reflex: the run fails); the stream reaches it through cps's limiter
+    /// ([`LossyLink`]), as the Franka's loop sends it. Arms of 1 to 8 joints.
+    pub fn lose_cycles(&mut self, share: f64, seed: u64) -> Result<(), RobotError> {
+        let bad = |message: String| RobotError::Robot {
+            robot: "the in-process robot".into(),
+            message,
+        };
+        if !(1..=8).contains(&self.q.len()) {
+            return Err(bad(format!(
+                "loses periods for arms of 1 to 8 joints; this one has {}",
+                self.q.len()
+            )));
+        }
+        let loss = CycleLoss::new(share, seed).map_err(bad)?;
+        self.loss = (share > 0.0).then_some(loss);
+        Ok(())
+    }
+
+    /// [`Streaming::stream`] through a [`LossyLink`] of `N` joints.
+    fn stream_lossy<const N: usize>(
+        &mut self,
+        next: &mut Generator<'_>,
+        max_commands: usize,
+        stop: &StopToken,
+        loss: CycleLoss,
+    ) -> Result<Run, RobotError> {
+        let q0: [f64; N] = std::array::from_fn(|i| self.q[i]);
+        let mut link = LossyLink::new(loss, RateCheck::of_model(&self.model, self.dt, q0));
+        let mut run = Run::new(crate::Ending::Finished);
+        let t0 = self.time;
+        run.push(0.0, self.q.clone(), self.model.chain.fk(&self.q)?);
+        let mut command = self.q.clone();
+        for k in 0.. {
+            if stop.is_stopped() {
+                run.ending = crate::Ending::Stopped;
+                break;
+            }
+            if k == max_commands {
+                run.ending = crate::Ending::Failed(format!(
+                    "{max_commands} commands were not enough to finish"
+                ));
+                break;
+            }
+            let last = next(&self.q, self.time - t0, &mut command);
+            let target: [f64; N] =
+                command
+                    .as_slice()
+                    .try_into()
+                    .map_err(|_| KinematicsError::JointCount {
+                        expected: N,
+                        got: command.len(),
+                    })?;
+            match link.step(&target, last) {
+                Ok(r) => KinematicRobot::command_joint_positions(self, &r.q)?,
+                Err(LinkBreak::Refused(b)) => {
+                    run.ending = crate::Ending::Failed(format!(
+                        "a command beyond a limit was not sent ({b})"
+                    ));
+                    break;
+                }
+                Err(LinkBreak::Reflex(b)) => {
+                    run.ending = crate::Ending::Failed(format!(
+                        "reflex: a command broke a limit against the reference the robot held after a lost period ({b})"
+                    ));
+                    break;
+                }
+            }
+            KinematicRobot::step(self)?;
+            run.push(
+                self.time - t0,
+                self.q.clone(),
+                self.model.chain.fk(&self.q)?,
+            );
+            if last {
+                break;
+            }
+        }
+        self.lost += link.lost();
+        self.limited += link.limited().commands;
+        Ok(run)
     }
 
     /// The robot's model.
@@ -185,6 +280,14 @@ impl Robot for KinematicRobot {
         self.reset(q)?;
         Ok(true)
     }
+    fn report(&self) -> Option<String> {
+        self.loss.map(|_| {
+            format!(
+                "{} periods lost on purpose while streaming, {} commands limited after one",
+                self.lost, self.limited
+            )
+        })
+    }
     fn stepped(&mut self) -> Option<&mut dyn Stepped> {
         Some(self)
     }
@@ -200,6 +303,18 @@ impl Streaming for KinematicRobot {
         max_commands: usize,
         stop: &StopToken,
     ) -> Result<Run, RobotError> {
+        if let Some(loss) = self.loss {
+            return match self.q.len() {
+                1 => self.stream_lossy::<1>(next, max_commands, stop, loss),
+                2 => self.stream_lossy::<2>(next, max_commands, stop, loss),
+                3 => self.stream_lossy::<3>(next, max_commands, stop, loss),
+                4 => self.stream_lossy::<4>(next, max_commands, stop, loss),
+                5 => self.stream_lossy::<5>(next, max_commands, stop, loss),
+                6 => self.stream_lossy::<6>(next, max_commands, stop, loss),
+                7 => self.stream_lossy::<7>(next, max_commands, stop, loss),
+                _ => self.stream_lossy::<8>(next, max_commands, stop, loss),
+            };
+        }
         let mut run = Run::new(crate::Ending::Finished);
         let t0 = self.time;
         run.push(0.0, self.q.clone(), self.model.chain.fk(&self.q)?);

@@ -64,6 +64,7 @@ mod chunk_report;
 mod chunk_run;
 mod chunks;
 mod collision;
+mod cycles;
 mod execute;
 mod follow;
 mod guard;
@@ -86,6 +87,10 @@ pub use chunk_run::{
 };
 pub use chunks::{ChunkCounts, ChunkExecutor, ChunkSettings, Offer, Refused};
 pub use collision::{Collision, DEFAULT_MARGIN, ShapeWatch, Shapes, check_shapes};
+pub use cycles::{
+    CASCADE_GAINS, CycleLoss, Judge, LIMITABLE_GAP, Limited, Limiter, LinkBreak, LossyLink,
+    MAX_LOSS, MAX_LOST_PERIODS, RateCheck, Reference,
+};
 pub use execute::{CommandPath, ExecutionConfig, Recording, command_path, execute};
 pub use follow::{FollowLimits, Follower, GAINS};
 pub use guard::{

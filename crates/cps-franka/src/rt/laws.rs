@@ -2,7 +2,7 @@
 //! judged against the reference the robot holds ([`crate::reference`]) and limited or
 //! replaced by a controlled stop where the robot would not accept it.
 //!
-//! - [`PositionLaw`]: joint positions (or velocities, as the positions they integrate to).
+//! - `PositionLaw`: joint positions (or velocities, as the positions they integrate to).
 //!   The generator is asked once per robot period — a state that comes 2 ms after the
 //!   last one answered (a cycle lost or skipped) asks it twice, so a generator stepped
 //!   per period (the chunk executor, an online DMP) keeps the robot's time, and a
@@ -17,10 +17,10 @@
 use cps_kinematics::Quantity;
 
 use super::{JointPositions, MotionEnd, Torques};
-use crate::limiter::{Limited, Limiter};
 use crate::limits::{Brake, DT, RateLimits, StreamCheck, joint_breach};
 use crate::reference::{Reference, ReferenceCounts, ReferenceTracker, TorqueTracker};
 use crate::wire::{Command, ControllerMode, JOINTS, MotionGeneratorMode, RobotState};
+use cps_robot::{Limited, Limiter};
 
 /// The share of a joint's speed limit above which a torque-controlled motion is braked.
 pub const TORQUE_SPEED_GUARD: f64 = 0.9;
@@ -94,7 +94,7 @@ enum Mode {
 pub(crate) struct PositionLaw<F> {
     check: StreamCheck,
     tracker: ReferenceTracker,
-    limiter: Limiter,
+    limiter: Limiter<JOINTS>,
     mode: Mode,
     control: F,
     velocity: bool,
@@ -130,7 +130,7 @@ where
         for p in (0..periods).rev() {
             let step = (self.control)(state, t - p as f64 * DT, self.desired);
             self.desired = step.q;
-            self.limiter.desire(&step.q);
+            self.limiter.desire(&step.q, DT);
             if step.finished {
                 return true;
             }
@@ -148,7 +148,7 @@ where
         if self.check.admit(&q).is_ok() {
             (q, brake.stopped())
         } else {
-            let held = r.extrapolated().q;
+            let held = r.extrapolated(DT).q;
             let _ = self.check.admit(&held);
             (held, false)
         }
@@ -207,7 +207,7 @@ where
                         self.mode = Mode::Hold(self.desired);
                     }
                 }
-                Mode::Hold(q) => (0..periods).for_each(|_| self.limiter.desire(&q)),
+                Mode::Hold(q) => (0..periods).for_each(|_| self.limiter.desire(&q, DT)),
                 Mode::Brake => {}
             }
             return None;
@@ -222,7 +222,7 @@ where
             }
             Mode::Hold(q) => {
                 for _ in 0..periods {
-                    self.limiter.desire(&q);
+                    self.limiter.desire(&q, DT);
                 }
                 true
             }

@@ -18,12 +18,12 @@ use std::time::{Duration, Instant};
 use crate::error::FrankaError;
 mod laws;
 
-use crate::limiter::Limited;
 use crate::limits::{DT, RateLimits};
 use crate::reference::ReferenceCounts;
 use crate::session::Connection;
 use crate::wire::{Command, JOINTS, MoveStatus, RobotMode, RobotState};
 use cps_robot::Breach;
+use cps_robot::Limited;
 use laws::{Law, PositionLaw, TorqueLaw};
 pub use laws::{TORQUE_RATE_SHARE, TORQUE_SPEED_GUARD};
 
@@ -341,6 +341,28 @@ fn percentile(sorted: &[u32], p: f64) -> f64 {
     }
     let k = ((sorted.len() - 1) as f64 * p).round() as usize;
     f64::from(sorted[k]) / 1e3
+}
+
+/// The commands of a recording as a robot that got each of them held them, one per
+/// millisecond of its clock: every sample's command at its state's id, and for the ids
+/// between two samples that got no command from cps (states missed, stale or withheld),
+/// the robot's extrapolation of the commands before. What the robot judged each command
+/// against: a stream the checks of [`crate::limits`] admit is one such a robot accepted.
+pub fn as_held(samples: &[Sample]) -> Vec<[f64; JOINTS]> {
+    let Some(first) = samples.first() else {
+        return Vec::new();
+    };
+    let mut r = crate::reference::Reference::at_rest(first.q_c);
+    let mut held = vec![first.q_c];
+    for w in samples.windows(2) {
+        for _ in w[0].id + 1..w[1].id {
+            r = r.extrapolated(DT);
+            held.push(r.q);
+        }
+        r = r.after(&w[1].q_c, DT);
+        held.push(w[1].q_c);
+    }
+    held
 }
 
 /// Where a joint position motion starts: the robot's last desired position (`q_d`, as
