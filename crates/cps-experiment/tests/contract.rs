@@ -48,6 +48,43 @@ fn model() -> RobotModel {
     m
 }
 
+/// The Franka at `host` (franky-sim), its loop at whatever priority it may have.
+fn franka_at(host: &str) -> FrankaRobot {
+    let settings = FrankaSettings {
+        host: host.to_string(),
+        arm: Arm::Fr3,
+        realtime: Realtime::Ignore,
+        dt: 0.001,
+    };
+    FrankaRobot::connect(&settings, model()).unwrap()
+}
+
+/// The FR3 with its inertias under computed torque, at rest at `at` (the model is the
+/// robot: it tracks).
+fn dynamics_at(at: [f64; 7]) -> Result<DynamicsRobot<7>, RobotError> {
+    DynamicsRobot::new(
+        model(),
+        DynamicArm::at_rest(
+            ArmModel::<7>::new(&model().chain, &fr3_inertia()).unwrap(),
+            JointFriction::none(),
+            [87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0],
+            at,
+        ),
+        DynamicsSettings {
+            controller: Controller::ComputedTorque {
+                kp: [900.0; 7],
+                kv: [60.0; 7],
+            },
+            control_period: 0.001,
+            dt: 0.001,
+            noise: 0.0,
+            seed: 0,
+            reflexes: true,
+            lag: 0,
+        },
+    )
+}
+
 /// Joint `j` swings by `amplitude` and back to rest in `seconds` from `q0`, every 10 ms.
 fn swing(q0: &[f64], j: usize, amplitude: f64, seconds: f64) -> Plan {
     swing_every(q0, j, amplitude, seconds, 0.01)
@@ -141,13 +178,7 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
         return;
     };
     let stop = StopToken::new();
-    let settings = FrankaSettings {
-        host: franky.host.clone(),
-        arm: Arm::Fr3,
-        realtime: Realtime::Ignore,
-        dt: 0.001,
-    };
-    let mut franka = FrankaRobot::connect(&settings, model()).unwrap();
+    let mut franka = franka_at(&franky.host);
     // Every robot starts where the simulated arm holds.
     let q0 = franka.joint_positions().unwrap();
     let start = q0
@@ -211,30 +242,8 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
     let mut scene = FrankaScene::open(client, "FR3", model(), 0.001).unwrap();
     scene.reset(&q0).unwrap();
     let mut kinematic = KinematicRobot::of_model(model(), &q0, 0.001).unwrap();
-    // The FR3 with its inertias under computed torque (the model is the robot: it tracks).
     let at: [f64; 7] = q0.as_slice().try_into().unwrap();
-    let mut dynamics = DynamicsRobot::new(
-        model(),
-        DynamicArm::at_rest(
-            ArmModel::<7>::new(&model().chain, &fr3_inertia()).unwrap(),
-            JointFriction::none(),
-            [87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0],
-            at,
-        ),
-        DynamicsSettings {
-            controller: Controller::ComputedTorque {
-                kp: [900.0; 7],
-                kv: [60.0; 7],
-            },
-            control_period: 0.001,
-            dt: 0.001,
-            noise: 0.0,
-            seed: 0,
-            reflexes: true,
-            lag: 0,
-        },
-    )
-    .unwrap();
+    let mut dynamics = dynamics_at(at).unwrap();
     let mut ros = ros;
     let mut robots: Vec<(&str, &mut dyn Robot)> = vec![
         ("in-process", &mut kinematic),
@@ -565,40 +574,13 @@ fn every_streaming_robot_survives_lost_periods_as_a_franka_must() {
         return;
     };
     let stop = StopToken::new();
-    let settings = FrankaSettings {
-        host: franky.host.clone(),
-        arm: Arm::Fr3,
-        realtime: Realtime::Ignore,
-        dt: 0.001,
-    };
-    let mut franka = FrankaRobot::connect(&settings, model()).unwrap();
+    let mut franka = franka_at(&franky.host);
     franka.connection().lose_commands(0.15, 61).unwrap();
     let q0 = franka.joint_positions().unwrap();
     let mut kinematic = KinematicRobot::of_model(model(), &q0, 0.001).unwrap();
     kinematic.lose_cycles(0.15, 61).unwrap();
     let at: [f64; 7] = q0.as_slice().try_into().unwrap();
-    let mut dynamics = DynamicsRobot::new(
-        model(),
-        DynamicArm::at_rest(
-            ArmModel::<7>::new(&model().chain, &fr3_inertia()).unwrap(),
-            JointFriction::none(),
-            [87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0],
-            at,
-        ),
-        DynamicsSettings {
-            controller: Controller::ComputedTorque {
-                kp: [900.0; 7],
-                kv: [60.0; 7],
-            },
-            control_period: 0.001,
-            dt: 0.001,
-            noise: 0.0,
-            seed: 0,
-            reflexes: true,
-            lag: 0,
-        },
-    )
-    .unwrap();
+    let mut dynamics = dynamics_at(at).unwrap();
     dynamics.lose_cycles(0.15, 61).unwrap();
     let stream = s_curves(&q0);
     let n = stream.len();

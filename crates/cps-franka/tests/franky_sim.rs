@@ -134,12 +134,7 @@ fn a_trajectory_is_executed_within_the_limits_and_tracked() {
         assert_eq!(s.q_c, stream.commands[k], "command {k}");
     }
     // What was sent keeps every limit (the robot's own differences, on its clock).
-    check_stream(
-        limits,
-        from,
-        &cps_franka::rt::as_held(&report.samples),
-    )
-    .unwrap();
+    check_stream(limits, from, &cps_franka::rt::as_held(&report.samples)).unwrap();
     assert!(report.peak_usage.iter().flatten().all(|&u| u <= 1.0));
     // Robot time runs forward in whole milliseconds.
     assert!(report.samples.windows(2).all(|w| w[1].t > w[0].t));

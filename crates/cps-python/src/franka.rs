@@ -18,7 +18,7 @@ use crate::interrupt::detached_keep;
 /// A Franka robot (FR3, or a Panda on a protocol-10 system) at `host`.
 ///
 /// `Franka(host, arm="fr3", realtime="enforce")`: `realtime="ignore"` runs the 1 kHz
-/// loop without SCHED_FIFO where it is not permitted. Nothing connects until a method is
+/// loop without SCHED_FIFO where it is not permitted, `"off"` never asks for it. Nothing connects until a method is
 /// called; each call connects, does its work and disconnects.
 #[pyclass(module = "cps._cps", name = "Franka")]
 pub struct Franka {

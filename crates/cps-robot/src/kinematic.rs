@@ -103,14 +103,8 @@ impl KinematicRobot {
         run.push(0.0, self.q.clone(), self.model.chain.fk(&self.q)?);
         let mut command = self.q.clone();
         for k in 0.. {
-            if stop.is_stopped() {
-                run.ending = crate::Ending::Stopped;
-                break;
-            }
-            if k == max_commands {
-                run.ending = crate::Ending::Failed(format!(
-                    "{max_commands} commands were not enough to finish"
-                ));
+            if let Some(ending) = over(stop, k, max_commands) {
+                run.ending = ending;
                 break;
             }
             let last = next(&self.q, self.time - t0, &mut command);
@@ -296,6 +290,19 @@ impl Robot for KinematicRobot {
     }
 }
 
+/// Why a stream ends before its next command: stopped, or out of commands.
+fn over(stop: &StopToken, k: usize, max_commands: usize) -> Option<crate::Ending> {
+    if stop.is_stopped() {
+        Some(crate::Ending::Stopped)
+    } else if k == max_commands {
+        Some(crate::Ending::Failed(format!(
+            "{max_commands} commands were not enough to finish"
+        )))
+    } else {
+        None
+    }
+}
+
 impl Streaming for KinematicRobot {
     fn stream(
         &mut self,
@@ -320,14 +327,8 @@ impl Streaming for KinematicRobot {
         run.push(0.0, self.q.clone(), self.model.chain.fk(&self.q)?);
         let mut command = self.q.clone();
         for k in 0.. {
-            if stop.is_stopped() {
-                run.ending = crate::Ending::Stopped;
-                break;
-            }
-            if k == max_commands {
-                run.ending = crate::Ending::Failed(format!(
-                    "{max_commands} commands were not enough to finish"
-                ));
+            if let Some(ending) = over(stop, k, max_commands) {
+                run.ending = ending;
                 break;
             }
             let last = next(&self.q, self.time - t0, &mut command);

@@ -24,23 +24,14 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-fn workspace() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
 /// franka-sim's interpreter, or None (recorded as a skip; a failure under CI).
 pub fn python() -> Option<PathBuf> {
-    let p = std::env::var_os("CPS_FRANKA_SIM_PYTHON")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| workspace().join("target/franka-sim-venv/bin/python"));
-    if p.exists() {
-        return Some(p);
-    }
-    crate::skip(&format!(
-        "no franka-sim ({} missing; python3 -m venv target/franka-sim-venv && target/franka-sim-venv/bin/pip install -r crates/cps-franka/tests/franka-sim-requirements.txt)",
-        p.display()
-    ));
-    None
+    crate::interpreter(
+        "CPS_FRANKA_SIM_PYTHON",
+        "target/franka-sim-venv/bin/python",
+        "franka-sim",
+        "python3 -m venv target/franka-sim-venv && target/franka-sim-venv/bin/pip install -r crates/cps-franka/tests/franka-sim-requirements.txt",
+    )
 }
 
 /// Whether this process is the test's run inside its network namespace. Outside, runs
@@ -184,18 +175,7 @@ impl FrankaSim {
     /// Runs a Python snippet with franky-sim's interpreter (pylibfranka, the official
     /// client), with `HOST` set; returns its standard output.
     pub fn pylibfranka(&self, code: &str) -> String {
-        let python = crate::franky_sim::python().expect("franky-sim's interpreter");
-        let out = Command::new(python)
-            .args(["-c", code])
-            .env("HOST", &self.host)
-            .output()
-            .expect("run python");
-        assert!(
-            out.status.success(),
-            "python failed: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8(out.stdout).expect("UTF-8")
+        crate::franky_sim::run_python(code, &self.host)
     }
 }
 

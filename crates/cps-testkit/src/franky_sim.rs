@@ -20,17 +20,12 @@ fn workspace() -> PathBuf {
 
 /// franky-sim's interpreter, or None (recorded as a skip; a failure under CI).
 pub fn python() -> Option<PathBuf> {
-    let p = std::env::var_os("CPS_FRANKA_PYTHON")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| workspace().join("target/franka-venv/bin/python"));
-    if p.exists() {
-        return Some(p);
-    }
-    crate::skip(&format!(
-        "no franky-sim and pylibfranka ({} missing)",
-        p.display()
-    ));
-    None
+    crate::interpreter(
+        "CPS_FRANKA_PYTHON",
+        "target/franka-venv/bin/python",
+        "franky-sim and pylibfranka",
+        "bash .ci/peers",
+    )
 }
 
 /// franky-sim's interpreter and the folder of its robot model (`fr3.urdf`, `fr3.xml`,
@@ -235,18 +230,24 @@ impl FrankySim {
     /// Runs a Python snippet with this simulator's interpreter (pylibfranka), with `HOST`
     /// set; returns its standard output.
     pub fn python(&self, code: &str) -> String {
-        let out = Command::new(python().unwrap())
-            .args(["-c", code])
-            .env("HOST", &self.host)
-            .output()
-            .expect("run python");
-        assert!(
-            out.status.success(),
-            "python failed: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8(out.stdout).unwrap()
+        run_python(code, &self.host)
     }
+}
+
+/// Runs a Python snippet with franky-sim's interpreter (pylibfranka), `HOST` set to
+/// `host`; returns its standard output (panics naming Python's error when it fails).
+pub fn run_python(code: &str, host: &str) -> String {
+    let out = Command::new(python().expect("franky-sim's interpreter"))
+        .args(["-c", code])
+        .env("HOST", host)
+        .output()
+        .expect("run python");
+    assert!(
+        out.status.success(),
+        "python failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).expect("UTF-8")
 }
 
 impl Drop for FrankySim {

@@ -29,6 +29,7 @@
 //! ```
 
 use std::io::Write;
+use std::path::PathBuf;
 use std::process::Command;
 
 pub mod franka_sim;
@@ -69,6 +70,21 @@ pub fn skip(why: &str) {
             let _ = writeln!(f, "{test}: {why}");
         }
     }
+}
+
+/// A peer's interpreter: `$var`, else `default` under this workspace, if it exists; None
+/// otherwise (a skip naming `what` and how to install it, `install`; a failure under CI).
+pub fn interpreter(var: &str, default: &str, what: &str, install: &str) -> Option<PathBuf> {
+    let p = std::env::var_os(var).map(PathBuf::from).unwrap_or_else(|| {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("../..")
+            .join(default)
+    });
+    if p.exists() {
+        return Some(p);
+    }
+    skip(&format!("no {what} ({} missing; {install})", p.display()));
+    None
 }
 
 /// Runs `test` (this test binary's test of that name) again in a network namespace of its

@@ -31,32 +31,22 @@ fn skip_or_fail(why: String) {
 
 /// The interpreter with cyclonedds.
 pub fn python() -> Option<PathBuf> {
-    let p = std::env::var_os("CPS_ROS2_PYTHON")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| workspace().join("target/ros2-venv/bin/python"));
-    if p.exists() {
-        return Some(p);
-    }
-    skip_or_fail(format!(
-        "no CycloneDDS peer ({} missing; python3 -m venv target/ros2-venv && target/ros2-venv/bin/pip install -r crates/cps-ros2/tests/requirements.txt)",
-        p.display()
-    ));
-    None
+    crate::interpreter(
+        "CPS_ROS2_PYTHON",
+        "target/ros2-venv/bin/python",
+        "CycloneDDS peer",
+        "python3 -m venv target/ros2-venv && target/ros2-venv/bin/pip install -r crates/cps-ros2/tests/requirements.txt",
+    )
 }
 
 /// The interpreter with rclpy (ROS 2 Jazzy from PyPI, Fast DDS).
 pub fn rclpy_python() -> Option<PathBuf> {
-    let p = std::env::var_os("CPS_RCLPY_PYTHON")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| workspace().join("target/rclpy-venv/bin/python"));
-    if p.exists() {
-        return Some(p);
-    }
-    skip_or_fail(format!(
-        "no rclpy peer ({} missing; python3 -m venv target/rclpy-venv && target/rclpy-venv/bin/pip install -r crates/cps-ros2/tests/rclpy-requirements.txt)",
-        p.display()
-    ));
-    None
+    crate::interpreter(
+        "CPS_RCLPY_PYTHON",
+        "target/rclpy-venv/bin/python",
+        "rclpy peer",
+        "python3 -m venv target/rclpy-venv && target/rclpy-venv/bin/pip install -r crates/cps-ros2/tests/rclpy-requirements.txt",
+    )
 }
 
 fn built_control_msgs() -> Option<PathBuf> {

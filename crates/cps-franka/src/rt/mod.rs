@@ -207,7 +207,7 @@ pub struct MotionReport {
     pub brake_ticks: usize,
     /// Commands changed before they were sent to keep a limit: joint commands the robot
     /// would not have accepted from its reference after a lost cycle, brought back onto
-    /// the stream ([`crate::limiter`]); torques limited to the torque or its rate. With
+    /// the stream ([`cps_robot::Limiter`]); torques limited to the torque or its rate. With
     /// the largest change (rad; N m for torques).
     pub limited: Limited,
     /// What the robot's states said of the commands sent: cycles it extrapolated (or held
@@ -376,9 +376,12 @@ pub fn start_position(state: &RobotState) -> [f64; JOINTS] {
 }
 
 /// Runs a joint position motion: `control(state, t)` is asked for the command at robot
-/// time `t` each tick, on a dedicated thread; every command passes [`StreamCheck`] or is
-/// replaced by a [`Brake`] from the last admitted one. `stop` set by another thread (a
-/// signal handler) brakes the robot to rest and ends the motion.
+/// time `t` once per robot period (a state that comes two periods after the last one
+/// answered asks twice), on a dedicated thread; every command is judged by [`StreamCheck`](crate::limits::StreamCheck)
+/// against the reference the robot holds ([`crate::reference`]): sent as it is, limited
+/// back onto the stream where a lost cycle made it unacceptable ([`cps_robot::Limiter`]),
+/// or replaced by a [`Brake`](crate::limits::Brake) from that reference. `stop` set by another thread (a signal
+/// handler) brakes the robot to rest and ends the motion.
 ///
 /// Errors before the motion starts (the robot not ready, the Move refused, realtime not
 /// permitted) are returned as errors and nothing moved; everything after the start ends in
@@ -399,8 +402,8 @@ where
 
 /// Runs a joint velocity motion (the robot's joint velocity generator): `control(state,
 /// t)` gives the velocities for each tick. They are admitted as the positions they
-/// integrate to, so the same [`StreamCheck`] holds them — velocity, acceleration, jerk, the
-/// joint range and the distance a stop needs — and a [`Brake`] replaces any that would
+/// integrate to, so the same [`StreamCheck`](crate::limits::StreamCheck) holds them — velocity, acceleration, jerk, the
+/// joint range and the distance a stop needs — and a [`Brake`](crate::limits::Brake) replaces any that would
 /// break one. The motion finishes once `finished` is answered and the commanded velocity
 /// is zero. [`Sample::q_c`] records the integrated positions.
 pub fn run_joint_velocities<F>(
