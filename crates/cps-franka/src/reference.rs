@@ -84,8 +84,9 @@ pub struct ReferenceTracker {
     base_id: Option<u64>,
     /// The same, if every command cps sent was applied.
     as_sent: Reference,
-    /// The last command sent and the robot cycle (state id) it answered.
-    pending: Option<(u64, [f64; JOINTS])>,
+    /// The last command sent, the robot cycle (state id) it answered, and whether cps was
+    /// behind when it answered (it skipped stale states for it: the answer may come late).
+    pending: Option<(u64, [f64; JOINTS], bool)>,
     /// Whether no command has been applied yet (the robot takes the first as a
     /// standstill).
     first: bool,
@@ -93,6 +94,8 @@ pub struct ReferenceTracker {
     /// references with it applied after all (on time, or over the run of lost cycles it
     /// ended), as they stood right after it, and its cycle; until a state tells them apart.
     alternatives: [Option<(Reference, u64)>; 2],
+    /// Whether those came from a state that showed the command dropped.
+    after_drop: bool,
     /// The reference right after the last command the robot applied, and its cycle (None
     /// before the first).
     real: Option<(Reference, u64)>,
@@ -112,19 +115,21 @@ impl ReferenceTracker {
             pending: None,
             first: true,
             alternatives: [None; 2],
+            after_drop: false,
             real: None,
             velocity_motion,
             counts: ReferenceCounts::default(),
         }
     }
 
-    /// Whether the robot's reference is not known for the next command: the last state
-    /// showed a command dropped — what a real robot does with one that comes late — and a
-    /// simulator (franka-sim) applies a late command after all, after publishing that
-    /// state. The two references differ by what the command changed, which a command
-    /// judged against the wrong one carries into the robot as a discontinuity; so none is
-    /// sent for this cycle, and the next state, the robot's extrapolation of one or the
-    /// other, tells them apart.
+    /// Whether the robot's reference is not known for the next command: the last command
+    /// may have come late — the state showed it dropped (what a real robot does with one
+    /// that comes late), or it ended a run of cycles cps did not answer (it was answered
+    /// late in the cycle) — and a simulator (franka-sim) applies a late command after all,
+    /// after publishing that state, differenced over the run it ends. The references differ
+    /// by what the command changed, which a command judged against the wrong one carries
+    /// into the robot as a discontinuity; so none is sent for this cycle, and the next
+    /// state, the robot's extrapolation of one or the other, tells them apart.
     pub fn unresolved(&self) -> bool {
         self.alternatives.iter().any(Option::is_some)
     }
@@ -145,7 +150,7 @@ impl ReferenceTracker {
     pub fn reference(&mut self, state: &RobotState) -> Reference {
         let agrees = |r: &Reference| agreement(r, state, self.velocity_motion);
         let since = |id: u64| state.message_id.saturating_sub(id + 1);
-        let Some((sent_id, q_c)) = self.pending.take() else {
+        let Some((sent_id, q_c, behind)) = self.pending.take() else {
             let gap = self.unanswered_before(state.message_id);
             self.counts.extrapolated += gap;
             self.base = self.base.extrapolated_by(gap, DT);
@@ -161,8 +166,10 @@ impl ReferenceTracker {
             {
                 self.base = alt.extrapolated_by(since(id), DT);
                 self.real = Some((alt, id));
-                self.counts.dropped -= 1;
-                self.counts.extrapolated -= 1;
+                if self.after_drop {
+                    self.counts.dropped -= 1;
+                    self.counts.extrapolated -= 1;
+                }
                 self.counts.applied_late += 1;
             }
             self.alternatives = [None; 2];
@@ -229,13 +236,16 @@ impl ReferenceTracker {
                 self.counts.extrapolated += 1;
             }
         }
-        // A drop where the command could still be applied late: unresolved until the next
-        // state (where they differ at all).
-        self.alternatives = if kind == Kind::Dropped {
-            [applied, over_run].map(|r| (r != dropped).then_some((r, sent_id)))
+        // A command that may still be applied late (shown dropped, or ending a run of
+        // unanswered cycles): unresolved until the next state, where they differ at all.
+        let maybe_late =
+            kind == Kind::Dropped || (behind && kind == Kind::Applied && over_run != applied);
+        self.alternatives = if maybe_late {
+            [applied, over_run].map(|r| (r != chosen).then_some((r, sent_id)))
         } else {
             [None; 2]
         };
+        self.after_drop = kind == Kind::Dropped;
         self.base = now(&chosen);
         self.base_id = Some(state.message_id - 1);
         self.as_sent = now(&as_sent);
@@ -244,9 +254,10 @@ impl ReferenceTracker {
     }
 
     /// Notes the command sent in answer to the state `message_id` (after
-    /// [`ReferenceTracker::reference`] for that state).
-    pub fn sent(&mut self, message_id: u64, q_c: [f64; JOINTS]) {
-        self.pending = Some((message_id, q_c));
+    /// [`ReferenceTracker::reference`] for that state); `behind`: cps skipped stale states
+    /// to answer it, so the answer may come late.
+    pub fn sent(&mut self, message_id: u64, q_c: [f64; JOINTS], behind: bool) {
+        self.pending = Some((message_id, q_c, behind));
         if self.base_id.is_none() {
             // The motion's first command: the robot held its start until then.
             self.base_id = Some(message_id.saturating_sub(1));
@@ -362,7 +373,7 @@ mod tests {
             let ours = tracker.reference(&state(k, &robot));
             assert_eq!(ours, robot, "cycle {k}");
             let c = command(k as f64 * DT);
-            tracker.sent(k, c);
+            tracker.sent(k, c, false);
             robot = if k == 10 || k == 20 {
                 robot.extrapolated(DT)
             } else if first {
@@ -393,7 +404,7 @@ mod tests {
             let r = tracker.reference(&s);
             assert_eq!(r, ours);
             let c = command(k as f64 * DT);
-            tracker.sent(k, c);
+            tracker.sent(k, c, false);
             ours = if k == 0 {
                 Reference::at_rest(c)
             } else {

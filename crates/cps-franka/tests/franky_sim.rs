@@ -619,10 +619,17 @@ fn torques_from_cps_move_the_arm_and_stay_within_the_torque_limits() {
         "{} limited, ramp {ramp:?}",
         report.limited.commands
     );
+    // Each step at most 0.95 N m from the torques the robot reported applied, which
+    // franky-sim, on a loaded machine, sometimes reports a tick late (the ramp then waits
+    // that tick).
+    assert!((ramp[0] - 0.95).abs() < 0.05, "{ramp:?}");
     assert!(
-        (ramp[0] - 0.95).abs() < 0.05 && (ramp[3] - 3.8).abs() < 0.1,
+        ramp[..4]
+            .windows(2)
+            .all(|w| (-1e-6..=0.95 + 1e-4).contains(&(w[1] - w[0]))),
         "{ramp:?}"
     );
+    assert!(ramp[3] > 2.8, "{ramp:?}");
 
     // A controller that answers NaN: never sent; the arm is damped to rest and the motion
     // ends naming the joint.

@@ -57,7 +57,8 @@ pub(crate) trait Law {
     /// Whether the law still follows its generator (not holding, not stopping).
     fn following(&self) -> bool;
     /// Fills `command` for `state` at robot time `t`, `periods` robot periods after the
-    /// state answered before (1 for the first); `tick` counts the states answered;
+    /// state answered before (1 for the first; `behind`: states came meanwhile that cps
+    /// skipped as stale, so its answer may come late); `tick` counts the states answered;
     /// `brake` asks for a controlled stop for that reason. Whether the command is the
     /// last; None when nothing is to be sent for this state (see
     /// [`ReferenceTracker::unresolved`]).
@@ -65,7 +66,7 @@ pub(crate) trait Law {
         &mut self,
         state: &RobotState,
         t: f64,
-        periods: u64,
+        periods: (u64, bool),
         tick: usize,
         brake: Option<MotionEnd>,
         command: &mut Command,
@@ -185,7 +186,7 @@ where
         &mut self,
         state: &RobotState,
         t: f64,
-        periods: u64,
+        (periods, behind): (u64, bool),
         _tick: usize,
         brake: Option<MotionEnd>,
         command: &mut Command,
@@ -251,7 +252,7 @@ where
             command.dq_c = self.check.last().1;
         }
         command.motion_generation_finished = done;
-        self.tracker.sent(state.message_id, q_c);
+        self.tracker.sent(state.message_id, q_c, behind);
         Some(done)
     }
 
@@ -333,7 +334,7 @@ where
         &mut self,
         state: &RobotState,
         t: f64,
-        _periods: u64,
+        _periods: (u64, bool),
         tick: usize,
         brake: Option<MotionEnd>,
         command: &mut Command,

@@ -558,7 +558,14 @@ fn run_law<L: Law>(
         } else {
             None
         };
-        let Some(done) = law.answer(&state, t, periods, samples.len(), brake, &mut command) else {
+        let Some(done) = law.answer(
+            &state,
+            t,
+            (periods, skipped > 0),
+            samples.len(),
+            brake,
+            &mut command,
+        ) else {
             withheld += 1;
             continue;
         };
