@@ -287,11 +287,16 @@ fn transfers_to_franky_sim(command: &std::path::Path, dir: &std::path::Path) {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let report = json(&dir.join("franky.report.json"));
     assert_eq!(report["complete"], true, "{report}");
-    // One row per 1 kHz tick: the plan's point at time t is sent at tick approach + t.
-    let approach = (report["approach_s"].as_f64().unwrap() * 1e3).round() as usize;
+    // The plan's point at time t is due at robot time approach_s + t (the recording's `t`;
+    // a state lost, it went with the next row).
+    let start = report["approach_s"].as_f64().unwrap();
     let joints: Vec<String> = (1..=7).map(|i| format!("q{i}")).collect();
-    let names: Vec<&str> = joints.iter().map(String::as_str).collect();
-    let q = csv_columns(&record, &names);
+    let names: Vec<&str> = ["t"]
+        .into_iter()
+        .chain(joints.iter().map(String::as_str))
+        .collect();
+    let columns = csv_columns(&record, &names);
+    let (time, q) = (&columns[0], &columns[1..]);
     // MuJoCo's tool at the step whose joints the robot reported (its world is the robot's
     // base frame; the fr3 scene puts the base at (0.42244, 0.02, 0.74177)).
     let truth = sim.truth();
@@ -304,7 +309,7 @@ fn transfers_to_franky_sim(command: &std::path::Path, dir: &std::path::Path) {
     ];
     let mut errors = Vec::new();
     for (t, p) in vias {
-        let k = approach + (t * 1e3) as usize;
+        let k = time.iter().position(|&r| r >= start + t - 1e-9).unwrap();
         let reported: Vec<f64> = (0..7).map(|j| q[j][k]).collect();
         let (gap, step) = truth
             .iter()

@@ -72,7 +72,12 @@ fn a_policy_stand_ins_chunks_are_followed_on_franky_sim_within_every_limit() {
             "ignore",
             "--json",
         ]);
-        assert!(o.status.success(), "{hz} Hz: {}", stderr(&o));
+        assert!(
+            o.status.success(),
+            "{hz} Hz: {}{}",
+            stderr(&o),
+            String::from_utf8_lossy(&o.stdout)
+        );
         let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
         assert_eq!(report["complete"], true, "{report}");
         for k in ["velocity", "acceleration", "jerk"] {

@@ -246,7 +246,9 @@ pub struct Executed {
     pub arm: Arm,
     /// The loop's report (every tick, the approach's included).
     pub report: MotionReport,
-    /// Ticks of the report before the trajectory's start (an approach, a blend into it).
+    /// Robot periods before the trajectory's start (an approach, a blend into it), on the
+    /// stream's clock: the trajectory's first sample is
+    /// `report.sample_at_clock(approach as f64 * 1e-3)`.
     pub approach: usize,
     /// How the file was made commands.
     pub how: &'static str,
@@ -543,6 +545,13 @@ impl Executed {
         self.report.ending.complete()
     }
 
+    /// The robot time (s, the recording's `t`) at which the trajectory's first command was
+    /// due: after the approach, and after the motion's opening at rest
+    /// ([`cps_franka::MotionReport::clock_start`]).
+    pub fn start_s(&self) -> f64 {
+        self.report.clock_start.unwrap_or(0.0) + self.approach as f64 * 1e-3
+    }
+
     /// Per joint, RMS and largest |measured − commanded| over the recording (rad).
     pub fn tracking(&self) -> ([f64; 7], [f64; 7]) {
         let (mut rms, mut max) = ([0.0; 7], [0.0f64; 7]);
@@ -570,7 +579,7 @@ impl Executed {
             "trajectory": self.how,
             "samples": self.report.samples.len(),
             "duration_s": self.report.samples.last().map_or(0.0, |s| s.t),
-            "approach_s": self.approach as f64 * 1e-3,
+            "approach_s": self.start_s(),
             "brake_ticks": self.report.brake_ticks,
             "timing": timing_json(&self.report),
             "tracking": { "rms_rad": rms, "max_rad": max },
@@ -595,7 +604,7 @@ impl Executed {
                 self.report.samples.len(),
                 self.report.samples.last().map_or(0.0, |s| s.t),
                 self.how,
-                self.approach as f64 * 1e-3,
+                self.start_s(),
                 record.display()
             ),
         ];

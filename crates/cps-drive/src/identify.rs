@@ -313,7 +313,13 @@ pub fn franka_identify(
         },
         stop,
     )?;
-    let samples = &executed.report.samples[executed.approach..];
+    // The excitation's samples (those of the approach, and of the motion's opening at rest,
+    // left out), and the first held back.
+    let report = &executed.report;
+    let clock = |k: usize| report.sample_at_clock(k as f64 * PERIOD);
+    let first = clock(executed.approach).unwrap_or(report.samples.len());
+    let samples = &report.samples[first..];
+    let split = clock(executed.approach + split).map_or(samples.len(), |i| i - first);
     if let Some(r) = record {
         let report = json!({
             "complete": executed.complete(),
@@ -336,7 +342,7 @@ pub fn franka_identify(
     let mut answer = conclude(
         (&model, &dynamics),
         &whole,
-        split.min(samples.len()),
+        split,
         &target,
         stop,
         &|held| {

@@ -270,5 +270,21 @@ fn the_simulator_killed_while_pressing_ends_lost_with_every_tick_kept() {
     );
     assert_eq!(out.ending, ContactEnding::Interrupted);
     assert!(out.ticks.iter().any(|k| k.stage == Stage::Press));
-    assert_eq!(out.ticks.len(), out.report.samples.len());
+    // Every command sent is in the recording, with the controller's tick for the same
+    // state; the controller's ticks without one are answers withheld as late and the one
+    // the dead simulator did not take.
+    let mut computed = out.ticks.iter().map(|k| k.id);
+    assert!(
+        out.report
+            .samples
+            .iter()
+            .all(|s| computed.any(|id| id == s.id)),
+        "a command sent without its tick"
+    );
+    let unsent = out.ticks.len() - out.report.samples.len();
+    let withheld = out.report.timing.withheld as usize;
+    assert!(
+        unsent <= withheld + 1,
+        "{unsent} ticks unsent, {withheld} withheld"
+    );
 }

@@ -476,8 +476,11 @@ impl Robot for FrankaRobot {
         .map_err(|e| franka_error(&host, e))?;
         let mut run = Run::new(ending(&report.ending));
         for k in 0..plan.points().len() {
-            let index = stream.approach + (plan.time(k) / DT).round() as usize;
-            let Some(s) = report.samples.get(index) else {
+            // The sample that answered the point's time on the stream's clock.
+            let Some(s) = report
+                .sample_at_clock(stream.approach as f64 * DT + plan.time(k))
+                .map(|i| &report.samples[i])
+            else {
                 break;
             };
             let q = s.q.to_vec();

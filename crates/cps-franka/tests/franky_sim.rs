@@ -621,12 +621,13 @@ fn torques_from_cps_move_the_arm_and_stay_within_the_torque_limits() {
     );
     // Each step at most 0.95 N m from the torques the robot reported applied, which
     // franky-sim, on a loaded machine, sometimes reports a tick late (the ramp then waits
-    // that tick).
+    // that tick, from the torques it reported before: within a millinewton metre of those
+    // sent, its torques at rest before the ramp included).
     assert!((ramp[0] - 0.95).abs() < 0.05, "{ramp:?}");
     assert!(
         ramp[..4]
             .windows(2)
-            .all(|w| (-1e-6..=0.95 + 1e-4).contains(&(w[1] - w[0]))),
+            .all(|w| (-1e-3..=0.95 + 1e-4).contains(&(w[1] - w[0]))),
         "{ramp:?}"
     );
     assert!(ramp[3] > 2.8, "{ramp:?}");

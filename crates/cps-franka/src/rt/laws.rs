@@ -8,7 +8,12 @@
 //!   per period (the chunk executor, an online DMP) keeps the robot's time, and a
 //!   replayed stream its index — and its last answer goes through the [`Limiter`]
 //!   against the robot's reference. A stop, or a command that cannot be limited, switches
-//!   to a [`Brake`] from that reference.
+//!   to a [`Brake`] from that reference. The motion opens at rest where the robot stands
+//!   until a state shows that the robot took a command of it in time
+//!   (`control_command_success_rate` above zero): a robot takes its first command as the
+//!   motion's standstill, and a simulator that applies a late first one without taking it
+//!   (franka-sim) would take the next, already moving, instead. The generator's clock
+//!   starts there.
 //! - [`TorqueLaw`]: torques, limited to the torque and its rate from the last torques the
 //!   robot applied (the state's `tau_J_d`), with a damped stop.
 //!
@@ -29,6 +34,11 @@ pub const TORQUE_SPEED_GUARD: f64 = 0.9;
 /// arrives rounded to single precision).
 pub const TORQUE_RATE_SHARE: f64 = 0.95;
 
+/// The most periods a motion opens at rest waiting for the robot to show a command taken
+/// (a robot that has taken none by then has stopped the motion; one still going reports no
+/// success rate at all).
+const OPENING_PERIODS_MAX: u64 = cps_robot::MAX_LOST_PERIODS;
+
 /// Damping of the torque-mode stop (N m s/rad), per joint.
 const STOP_DAMPING: [f64; JOINTS] = [40.0, 40.0, 40.0, 40.0, 10.0, 10.0, 5.0];
 
@@ -46,6 +56,8 @@ pub(crate) struct Outcome {
     pub limited: Limited,
     /// What the states said of the commands sent.
     pub reference: ReferenceCounts,
+    /// The robot time the generator's clock started at (None: it never did).
+    pub clock_start: Option<f64>,
 }
 
 /// What the loop runs: one command per state, and a controlled stop when asked.
@@ -101,6 +113,10 @@ pub(crate) struct PositionLaw<F> {
     velocity: bool,
     /// The generator's last command (a velocity motion integrates from it).
     desired: [f64; JOINTS],
+    /// The robot time the generator's clock started at; None while the motion opens at
+    /// rest, and the periods it has so far.
+    origin: Option<f64>,
+    opening: u64,
     reason: Option<MotionEnd>,
     brake_ticks: usize,
 }
@@ -120,16 +136,37 @@ where
             control,
             velocity,
             desired: q0,
+            origin: None,
+            opening: 0,
             reason: None,
             brake_ticks: 0,
         }
     }
 
     /// Asks the generator for every robot period since the last state answered (the
-    /// limiter sees each); true when it finished.
+    /// limiter sees each), on its own clock (see the module's text); true when it finished.
     fn generate(&mut self, state: &RobotState, t: f64, periods: u64) -> bool {
+        let origin = match self.origin {
+            Some(origin) => origin,
+            None if state.control_command_success_rate > 0.0
+                || self.opening >= OPENING_PERIODS_MAX =>
+            {
+                *self.origin.insert(t)
+            }
+            None => {
+                self.opening += periods;
+                (0..periods).for_each(|_| self.limiter.desire(&self.desired, DT));
+                return false;
+            }
+        };
         for p in (0..periods).rev() {
-            let step = (self.control)(state, t - p as f64 * DT, self.desired);
+            let at = t - origin - p as f64 * DT;
+            if at < 0.0 {
+                // Periods before the clock started: at rest where the motion opened.
+                self.limiter.desire(&self.desired, DT);
+                continue;
+            }
+            let step = (self.control)(state, at, self.desired);
             self.desired = step.q;
             self.limiter.desire(&step.q, DT);
             if step.finished {
@@ -176,6 +213,8 @@ where
         self.tracker = ReferenceTracker::new(q0, self.velocity);
         self.limiter = Limiter::new(q0);
         self.desired = q0;
+        self.origin = None;
+        self.opening = 0;
     }
 
     fn following(&self) -> bool {
@@ -267,6 +306,7 @@ where
             brake_ticks: self.brake_ticks,
             limited: self.limiter.limited(),
             reference: self.tracker.counts(),
+            clock_start: self.origin,
         }
     }
 }
@@ -418,6 +458,96 @@ where
             brake_ticks: self.brake_ticks,
             limited: self.limited,
             reference: self.tracker.counts(),
+            clock_start: Some(0.0),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::limits::Arm;
+
+    /// A state at rest at `q`, `rate` the share of commands the robot took in time.
+    fn state(id: u64, q: [f64; JOINTS], rate: f64) -> RobotState {
+        let mut s = RobotState::decode(&[0u8; crate::wire::STATE_SIZE]).unwrap();
+        s.message_id = id;
+        s.q = q;
+        s.q_d = q;
+        s.control_command_success_rate = rate;
+        s
+    }
+
+    /// Answers states `first..=last` (one period apart, robot time `id` ms) with `rate`;
+    /// the commands sent.
+    fn answer_states<F>(
+        law: &mut PositionLaw<F>,
+        q0: [f64; JOINTS],
+        ids: std::ops::RangeInclusive<u64>,
+        rate: f64,
+    ) -> Vec<[f64; JOINTS]>
+    where
+        F: FnMut(&RobotState, f64, [f64; JOINTS]) -> JointPositions,
+    {
+        ids.map(|id| {
+            let mut command = Command::default();
+            let sent = law.answer(
+                &state(id, q0, rate),
+                id as f64 * DT,
+                (1, false),
+                id as usize,
+                None,
+                &mut command,
+            );
+            assert_eq!(sent, Some(false), "state {id} is answered");
+            command.q_c
+        })
+        .collect()
+    }
+
+    #[test]
+    fn the_motion_opens_at_rest_until_the_robot_shows_a_command_taken() {
+        let q0 = [0.1, -0.4, 0.2, -2.0, 0.0, 1.6, 0.8];
+        let asked = std::cell::RefCell::new(Vec::new());
+        let mut law = PositionLaw::new(RateLimits::of(Arm::Fr3), false, |_: &RobotState, t, _| {
+            asked.borrow_mut().push(t);
+            JointPositions {
+                q: q0.map(|q| q + 1e-3 * t * t * t),
+                finished: false,
+            }
+        });
+        law.start(&state(10, q0, 0.0));
+        // No command taken yet: the start, at rest, and the generator not asked.
+        let opening = answer_states(&mut law, q0, 11..=13, 0.0);
+        assert!(opening.iter().all(|q| *q == q0), "{opening:?}");
+        assert!(asked.borrow().is_empty(), "{:?}", asked.borrow());
+        // The robot shows one taken: the generator's clock starts at that state.
+        answer_states(&mut law, q0, 14..=16, 1.0);
+        let asked = asked.borrow();
+        assert_eq!(asked.len(), 3);
+        for (k, t) in asked.iter().enumerate() {
+            assert!((t - k as f64 * DT).abs() < 1e-12, "{asked:?}");
+        }
+    }
+
+    #[test]
+    fn a_robot_that_never_shows_a_command_taken_opens_the_motion_at_the_bound() {
+        let q0 = [0.0, -0.5, 0.0, -2.2, 0.0, 1.7, 0.7];
+        let mut asked = 0;
+        let mut law = PositionLaw::new(RateLimits::of(Arm::Fr3), false, |_: &RobotState, _, _| {
+            asked += 1;
+            JointPositions {
+                q: q0,
+                finished: false,
+            }
+        });
+        law.start(&state(0, q0, 0.0));
+        let last = OPENING_PERIODS_MAX + 5;
+        answer_states(&mut law, q0, 1..=last, 0.0);
+        drop(law);
+        assert_eq!(
+            asked, 5,
+            "the generator starts after {OPENING_PERIODS_MAX} periods"
+        );
     }
 }

@@ -213,6 +213,11 @@ pub struct MotionReport {
     /// What the robot's states said of the commands sent: cycles it extrapolated (or held
     /// its torques through), commands it dropped.
     pub reference: ReferenceCounts,
+    /// The robot time (s, on the samples' clock) at which the generator's clock started:
+    /// a joint motion holds its start until the robot shows it took a command of it
+    /// ([`run_joint_positions`]); None if it never did. See
+    /// [`MotionReport::sample_at_clock`].
+    pub clock_start: Option<f64>,
 }
 
 /// What a motion's loop saw of the robot's cycles: the ones cps did not answer, the ones
@@ -290,6 +295,15 @@ impl Default for Cycles {
 }
 
 impl MotionReport {
+    /// The index of the sample that answered the generator's time `t` (s on its clock): the
+    /// first at or after it (a state lost, the command for `t` went with the next one the
+    /// loop answered); None past the recording's end or if the clock never started.
+    pub fn sample_at_clock(&self, t: f64) -> Option<usize> {
+        let at = self.clock_start? + t - 1e-9;
+        let i = self.samples.partition_point(|s| s.t < at);
+        (i < self.samples.len()).then_some(i)
+    }
+
     /// What the loop saw of the robot's cycles.
     pub fn cycles(&self) -> Cycles {
         Cycles {
@@ -377,7 +391,10 @@ pub fn start_position(state: &RobotState) -> [f64; JOINTS] {
 
 /// Runs a joint position motion: `control(state, t)` is asked for the command at robot
 /// time `t` once per robot period (a state that comes two periods after the last one
-/// answered asks twice), on a dedicated thread; every command is judged by [`StreamCheck`](crate::limits::StreamCheck)
+/// answered asks twice), on a dedicated thread; `t` counts from the first state that shows
+/// the robot took a command of the motion in time (until then the motion holds where it
+/// starts: a simulator may take a late first command for nothing and the next as the
+/// motion's standstill); every command is judged by [`StreamCheck`](crate::limits::StreamCheck)
 /// against the reference the robot holds ([`crate::reference`]): sent as it is, limited
 /// back onto the stream where a lost cycle made it unacceptable ([`cps_robot::Limiter`]),
 /// or replaced by a [`Brake`](crate::limits::Brake) from that reference. `stop` set by another thread (a signal
@@ -657,5 +674,58 @@ fn run_law<L: Law>(
         brake_ticks: outcome.brake_ticks,
         limited: outcome.limited,
         reference: outcome.reference,
+        clock_start: outcome.clock_start,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report(times_ms: &[u64], clock_start: Option<f64>) -> MotionReport {
+        let sample = |&ms: &u64| Sample {
+            t: ms as f64 * DT,
+            id: 100 + ms,
+            q: [0.0; JOINTS],
+            dq: [0.0; JOINTS],
+            tau: [0.0; JOINTS],
+            q_c: [0.0; JOINTS],
+            tau_c: [0.0; JOINTS],
+            tool: [0.0; 3],
+        };
+        MotionReport {
+            samples: times_ms.iter().map(sample).collect(),
+            timing: Timing {
+                ticks: times_ms.len(),
+                median_us: 0.0,
+                p99_us: 0.0,
+                max_us: 0.0,
+                missed: 0,
+                stale: 0,
+                realtime: false,
+                success_rate_min: 1.0,
+                withheld: 0,
+            },
+            ending: MotionEnd::Finished,
+            peak_usage: [[0.0; JOINTS]; 3],
+            brake_ticks: 0,
+            limited: Limited::default(),
+            reference: ReferenceCounts::default(),
+            clock_start,
+        }
+    }
+
+    #[test]
+    fn the_generators_time_finds_the_sample_that_answered_it() {
+        // Opened at rest for 2 ms; the state of 4 ms was lost: its command went with 5 ms's.
+        let r = report(&[0, 1, 2, 3, 5, 6], Some(2.0 * DT));
+        let at = |ms: u64| r.sample_at_clock(ms as f64 * DT);
+        assert_eq!(at(0), Some(2));
+        assert_eq!(at(1), Some(3));
+        assert_eq!(at(2), Some(4));
+        assert_eq!(at(3), Some(4));
+        assert_eq!(at(4), Some(5));
+        assert_eq!(at(5), None);
+        assert_eq!(report(&[0, 1], None).sample_at_clock(0.0), None);
+    }
 }
