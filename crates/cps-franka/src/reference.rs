@@ -253,31 +253,13 @@ impl ReferenceTracker {
         };
         let late = [Some((applied, sent_id)), Some((over_run, sent_id))];
         let mut stories: [Option<Story>; 11] = [None; 11];
+        // Applied, one way or another: this command is the newest real reference.
+        let taken = |r, kind| story(r, kind, push(self.reals, r, sent_id), [None; 2]);
         stories[..5].copy_from_slice(&[
-            story(
-                applied,
-                Kind::Applied,
-                push(self.reals, applied, sent_id),
-                [None; 2],
-            ),
-            story(
-                over_run,
-                Kind::AppliedLate,
-                push(self.reals, over_run, sent_id),
-                [None; 2],
-            ),
-            story(
-                as_sent,
-                Kind::AppliedLate,
-                push(self.reals, as_sent, sent_id),
-                [None; 2],
-            ),
-            story(
-                own,
-                Kind::Applied,
-                push(self.reals, own, sent_id),
-                [None; 2],
-            ),
+            taken(applied, Kind::Applied),
+            taken(over_run, Kind::AppliedLate),
+            taken(as_sent, Kind::AppliedLate),
+            taken(own, Kind::Applied),
             story(dropped, Kind::Dropped, self.reals, late),
         ]);
         // A stalled simulator takes only the newest of the commands waiting for it: the

@@ -88,16 +88,18 @@ impl KinematicRobot {
         Ok(())
     }
 
-    /// [`Streaming::stream`] through a [`LossyLink`] of `N` joints.
-    fn stream_lossy<const N: usize>(
+    /// The streaming loop: `send(robot, command, last)` puts each command of `next` to the
+    /// arm, or ends the run (a command it would not send); then a period passes.
+    fn stream_with<S>(
         &mut self,
         next: &mut Generator<'_>,
         max_commands: usize,
         stop: &StopToken,
-        loss: CycleLoss,
-    ) -> Result<Run, RobotError> {
-        let q0: [f64; N] = std::array::from_fn(|i| self.q[i]);
-        let mut link = LossyLink::new(loss, RateCheck::of_model(&self.model, self.dt, q0));
+        mut send: S,
+    ) -> Result<Run, RobotError>
+    where
+        S: FnMut(&mut Self, &[f64], bool) -> Result<Option<crate::Ending>, RobotError>,
+    {
         let mut run = Run::new(crate::Ending::Finished);
         let t0 = self.time;
         run.push(0.0, self.q.clone(), self.model.chain.fk(&self.q)?);
@@ -108,28 +110,9 @@ impl KinematicRobot {
                 break;
             }
             let last = next(&self.q, self.time - t0, &mut command);
-            let target: [f64; N] =
-                command
-                    .as_slice()
-                    .try_into()
-                    .map_err(|_| KinematicsError::JointCount {
-                        expected: N,
-                        got: command.len(),
-                    })?;
-            match link.step(&target, last) {
-                Ok(r) => KinematicRobot::command_joint_positions(self, &r.q)?,
-                Err(LinkBreak::Refused(b)) => {
-                    run.ending = crate::Ending::Failed(format!(
-                        "a command beyond a limit was not sent ({b})"
-                    ));
-                    break;
-                }
-                Err(LinkBreak::Reflex(b)) => {
-                    run.ending = crate::Ending::Failed(format!(
-                        "reflex: a command broke a limit against the reference the robot held after a lost period ({b})"
-                    ));
-                    break;
-                }
+            if let Some(ending) = send(self, &command, last)? {
+                run.ending = ending;
+                break;
             }
             KinematicRobot::step(self)?;
             run.push(
@@ -141,6 +124,40 @@ impl KinematicRobot {
                 break;
             }
         }
+        Ok(run)
+    }
+
+    /// [`Streaming::stream`] through a [`LossyLink`] of `N` joints.
+    fn stream_lossy<const N: usize>(
+        &mut self,
+        next: &mut Generator<'_>,
+        max_commands: usize,
+        stop: &StopToken,
+        loss: CycleLoss,
+    ) -> Result<Run, RobotError> {
+        let q0: [f64; N] = std::array::from_fn(|i| self.q[i]);
+        let mut link = LossyLink::new(loss, RateCheck::of_model(&self.model, self.dt, q0));
+        let run = self.stream_with(next, max_commands, stop, |robot, command, last| {
+            let target: [f64; N] =
+                command
+                    .try_into()
+                    .map_err(|_| KinematicsError::JointCount {
+                        expected: N,
+                        got: command.len(),
+                    })?;
+            Ok(match link.step(&target, last) {
+                Ok(r) => {
+                    KinematicRobot::command_joint_positions(robot, &r.q)?;
+                    None
+                }
+                Err(LinkBreak::Refused(b)) => Some(crate::Ending::Failed(format!(
+                    "a command beyond a limit was not sent ({b})"
+                ))),
+                Err(LinkBreak::Reflex(b)) => Some(crate::Ending::Failed(format!(
+                    "reflex: a command broke a limit against the reference the robot held after a lost period ({b})"
+                ))),
+            })
+        })?;
         self.lost += link.lost();
         self.limited += link.limited().commands;
         Ok(run)
@@ -322,27 +339,9 @@ impl Streaming for KinematicRobot {
                 _ => self.stream_lossy::<8>(next, max_commands, stop, loss),
             };
         }
-        let mut run = Run::new(crate::Ending::Finished);
-        let t0 = self.time;
-        run.push(0.0, self.q.clone(), self.model.chain.fk(&self.q)?);
-        let mut command = self.q.clone();
-        for k in 0.. {
-            if let Some(ending) = over(stop, k, max_commands) {
-                run.ending = ending;
-                break;
-            }
-            let last = next(&self.q, self.time - t0, &mut command);
-            KinematicRobot::command_joint_positions(self, &command)?;
-            KinematicRobot::step(self)?;
-            run.push(
-                self.time - t0,
-                self.q.clone(),
-                self.model.chain.fk(&self.q)?,
-            );
-            if last {
-                break;
-            }
-        }
-        Ok(run)
+        self.stream_with(next, max_commands, stop, |robot, command, _| {
+            KinematicRobot::command_joint_positions(robot, command)?;
+            Ok(None)
+        })
     }
 }

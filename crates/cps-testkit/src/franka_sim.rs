@@ -70,8 +70,18 @@ impl FrankaSim {
         );
         let python = python()?;
         let (_, assets) = crate::franky_sim::assets()?;
-        let dir = std::env::temp_dir().join(format!("cps-franka-sim-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("a temporary folder");
+        // A folder this harness creates (never one that was there: it is removed whole on
+        // drop).
+        let dir = (0u32..)
+            .map(|k| {
+                std::env::temp_dir().join(format!("cps-franka-sim-{}-{k}", std::process::id()))
+            })
+            .find(|d| match std::fs::create_dir(d) {
+                Ok(()) => true,
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => false,
+                Err(e) => panic!("a temporary folder {}: {e}", d.display()),
+            })
+            .expect("a free temporary folder name");
         // franky-sim's FR3 with its meshes where the model can find them.
         let xml = std::fs::read_to_string(assets.join("fr3.xml")).expect("franky-sim's fr3.xml");
         let meshes = assets.join("meshes");
