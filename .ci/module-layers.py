@@ -115,6 +115,10 @@ LAYERS = {
         ["action"],
         ["robot"],
     ],
+    "cps-files": [
+        ["error"],
+        ["count", "read", "replace"],
+    ],
     "cps-outcome": [
         ["error", "outcome"],
         ["files", "results_dir", "source"],

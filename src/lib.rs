@@ -25,6 +25,8 @@
 //! - [`ros2_msg`] (`cps-ros2-msg`): the ROS 2 messages and their CDR bytes, no transport.
 //! - [`mocap`] (`cps-mocap`): motion-capture takes (C3D, Motive CSV) made demonstrations.
 //! - [`geometry`] (`cps-geometry`): shapes, meshes as convex hulls, signed distances.
+//! - [`files`] (`cps-files`): the one reader (regular files, size ceilings, counts
+//!   estimated before allocating) and the one writer (outputs replaced safely).
 //! - [`outcome`] (`cps-outcome`), [`report`] (`cps-report`), [`movement`]
 //!   (`cps-movement`), [`drive`] (`cps-drive`): a run's outcome as data and as files; robot,
 //!   scene, trajectory and demonstration files; robots driven from files.
@@ -63,6 +65,7 @@ pub use cps_dmp as dmp;
 pub use cps_drive as drive;
 pub use cps_dynamics as dynamics;
 pub use cps_experiment as experiment;
+pub use cps_files as files;
 pub use cps_franka as franka;
 pub use cps_geometry as geometry;
 pub use cps_kinematics as kinematics;

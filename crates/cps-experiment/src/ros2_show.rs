@@ -71,7 +71,7 @@ pub fn show(
     }
     // A Cartesian kind writes x, y, z; a joint-space kind the executed tool's.
     let header =
-        std::fs::read_to_string(&csv).map_err(|e| InputError(format!("{}: {e}", csv.display())))?;
+        crate::source::read_text(&csv, cps_outcome::source::MAX_FILE_BYTES << 4, "trajectory")?;
     let columns = if header
         .lines()
         .next()

@@ -40,15 +40,8 @@ impl Mesh {
             file: name.clone(),
             why,
         };
-        let size = std::fs::metadata(path)
-            .map_err(|e| fail(format!("cannot be read ({e})")))?
-            .len();
-        if size > MAX_MESH_BYTES {
-            return Err(fail(format!(
-                "{size} bytes, more than the {MAX_MESH_BYTES} a collision mesh may have"
-            )));
-        }
-        let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot be read ({e})")))?;
+        let bytes = cps_files::read::read_bytes(path, MAX_MESH_BYTES, "collision mesh")
+            .map_err(|e| fail(e.reason()))?;
         let ext = path
             .extension()
             .and_then(|e| e.to_str())

@@ -218,7 +218,12 @@ impl Dataset {
                 format!("data_path: {e}"),
             )
         })?;
-        let path = self.root.join(rel);
+        let path = inside(&self.root, &rel).map_err(|why| {
+            LeRobotError::new(
+                &self.root.join(crate::info::INFO_PATH),
+                format!("data_path gives `{rel}` for episode {episode}: {why}"),
+            )
+        })?;
         let e = episode as i64;
         let rows = table::read(
             &path,
@@ -231,7 +236,10 @@ impl Dataset {
             let fault = |what: &str| {
                 LeRobotError::new(
                     &path,
-                    format!("episode {episode}, frame {:?}: {what}", row[1].index()),
+                    match row[1].index() {
+                        Some(k) => format!("episode {episode}, frame {k}: {what}"),
+                        None => format!("episode {episode}, a frame without a frame_index: {what}"),
+                    },
                 )
             };
             let k = row[1]
@@ -350,4 +358,16 @@ fn parquet_files(dir: &Path) -> Result<Vec<PathBuf>, LeRobotError> {
         }
     }
     Ok(out)
+}
+
+/// `rel` joined to the dataset's folder, when it stays inside it: a relative path of
+/// plain names (no `..`, no root), as LeRobot's templates make. A dataset's description
+/// never sends cps to read a file outside the dataset.
+pub fn inside(root: &Path, rel: &str) -> Result<PathBuf, &'static str> {
+    use std::path::Component;
+    let p = Path::new(rel);
+    if rel.is_empty() || !p.components().all(|c| matches!(c, Component::Normal(_))) {
+        return Err("a dataset's files lie inside its folder (a relative path without `..`)");
+    }
+    Ok(root.join(p))
 }

@@ -34,3 +34,13 @@ impl LeRobotError {
         )
     }
 }
+
+impl From<cps_files::FileError> for LeRobotError {
+    fn from(e: cps_files::FileError) -> Self {
+        let path = e.path().map(Path::to_path_buf).unwrap_or_default();
+        LeRobotError {
+            path,
+            what: e.reason(),
+        }
+    }
+}

@@ -66,13 +66,14 @@ impl Info {
                 "no such folder (a LeRobot dataset is a folder with meta/info.json)",
             ));
         }
-        let text = std::fs::read_to_string(&path).map_err(|e| {
-            LeRobotError::unread(
+        if !path.exists() {
+            return Err(LeRobotError::new(
                 &path,
-                &e,
                 "missing: this folder is not a LeRobot dataset (v3.0 keeps its description in meta/info.json)",
-            )
-        })?;
+            ));
+        }
+        let text =
+            cps_files::read::read_text(&path, cps_files::read::MAX_FILE_BYTES, "description")?;
         let json: Value = serde_json::from_str(&text)
             .map_err(|e| LeRobotError::new(&path, format!("not JSON: {e}")))?;
         Info::from_json(&json).map_err(|what| LeRobotError::new(&path, what))
@@ -172,6 +173,9 @@ fn feature(name: &str, f: &Value) -> Result<Feature, String> {
     })
 }
 
+/// The widest zero padding a path template may ask for (LeRobot's use 3).
+const MAX_WIDTH: usize = 20;
+
 /// `template` with `{key}` and `{key:03d}` filled from `values`.
 pub fn fill(template: &str, values: &[(&str, usize)]) -> Result<String, String> {
     let mut out = String::new();
@@ -194,6 +198,11 @@ pub fn fill(template: &str, values: &[(&str, usize)]) -> Result<String, String> 
             .and_then(|w| w.strip_suffix('d'))
             .and_then(|w| w.parse::<usize>().ok())
             .unwrap_or(0);
+        if width > MAX_WIDTH {
+            return Err(format!(
+                "`{template}` pads `{key}` to {width} digits; a path's numbers have at most {MAX_WIDTH}"
+            ));
+        }
         out.push_str(&format!("{value:0width$}"));
         rest = &rest[close + 1..];
     }

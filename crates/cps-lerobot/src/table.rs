@@ -67,9 +67,15 @@ fn cell(f: &Field) -> Cell {
     }
 }
 
-/// The parquet file at `path`, opened.
+/// The largest parquet file read: 16 GiB (LeRobot writes files of about 100 MB).
+pub const MAX_PARQUET_BYTES: u64 = 16 << 30;
+
+/// The parquet file at `path`, opened (a regular file within [`MAX_PARQUET_BYTES`]).
 pub fn open(path: &Path) -> Result<SerializedFileReader<File>, LeRobotError> {
-    let file = File::open(path).map_err(|e| LeRobotError::unread(path, &e, "missing"))?;
+    if !path.exists() {
+        return Err(LeRobotError::new(path, "missing"));
+    }
+    let (file, _) = cps_files::read::open(path, MAX_PARQUET_BYTES, "parquet file")?;
     SerializedFileReader::new(file).map_err(|e| {
         LeRobotError::new(
             path,
@@ -82,6 +88,16 @@ pub fn open(path: &Path) -> Result<SerializedFileReader<File>, LeRobotError> {
 /// `keep`, each row in `columns`' order. Row groups whose statistics exclude every kept
 /// value are skipped unread.
 pub fn read(
+    path: &Path,
+    columns: &[&str],
+    filter: Option<(&str, std::ops::RangeInclusive<i64>)>,
+) -> Result<Vec<Vec<Cell>>, LeRobotError> {
+    cps_files::read::guard(path, "parquet file", || {
+        read_unguarded(path, columns, filter)
+    })?
+}
+
+fn read_unguarded(
     path: &Path,
     columns: &[&str],
     filter: Option<(&str, std::ops::RangeInclusive<i64>)>,

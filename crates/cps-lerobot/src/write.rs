@@ -4,8 +4,10 @@
 //! into place, so a failure leaves no half-written dataset.
 
 use std::fs::File;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
+
+use cps_files::replace::{Output, Shape};
 
 use parquet::basic::{Compression, ConvertedType, LogicalType, Repetition, Type as Physical};
 use parquet::data_type::{ByteArray, ByteArrayType, FloatType, Int64Type};
@@ -72,34 +74,12 @@ pub const FILES: [&str; 5] = [
     DATA_FILE,
 ];
 
-/// The first file under `root` that is not one of [`FILES`], if any (`None` also for a
-/// folder that cannot be read).
-fn foreign_file(root: &Path) -> Option<PathBuf> {
-    let mut stack = vec![root.to_path_buf()];
-    while let Some(dir) = stack.pop() {
-        for entry in std::fs::read_dir(&dir).ok()?.flatten() {
-            let path = entry.path();
-            if entry.file_type().is_ok_and(|t| t.is_dir()) {
-                stack.push(path);
-            } else if !FILES.iter().any(|f| root.join(f) == path) {
-                return Some(path);
-            }
-        }
-    }
-    None
-}
-
-/// Whether `root` holds a dataset's description and nothing but the files cps writes (a
-/// dataset cps wrote, or one of the same files alone): what `replace` may replace.
-pub fn only_files_cps_writes(root: &Path) -> bool {
-    root.join(crate::info::INFO_PATH).is_file() && foreign_file(root).is_none()
-}
-
-/// Writes the dataset at `root` (its parent must exist). `root` must not exist, or, with
-/// `replace`, hold only files cps writes ([`only_files_cps_writes`]): a folder holding anything else
-/// is never touched. Every episode needs a frame and every feature a row of its width per
-/// frame. The dataset is staged beside `root` and renamed into place, so a failure leaves
-/// the old one, or nothing.
+/// Writes the dataset at `root` (its parent must exist) through cps's one writer
+/// ([`cps_files::replace`]). `root` must not exist, or, with `replace`, hold only files cps
+/// writes ([`FILES`]): a folder holding anything else, or a symbolic link, is never
+/// touched. Every episode needs a frame and every feature a row of its width per frame.
+/// The dataset is written beside `root`, the old one moved aside, the new one moved in,
+/// and only then the old one's files removed, so a failure leaves the old one whole.
 pub fn write(
     root: &Path,
     spec: &NewDataset,
@@ -107,69 +87,10 @@ pub fn write(
     replace: bool,
 ) -> Result<(), LeRobotError> {
     check(root, spec, episodes)?;
-    if root.exists() {
-        let ours = only_files_cps_writes(root);
-        if !(replace && ours) {
-            let why = match (ours, foreign_file(root)) {
-                (true, _) => " (a dataset cps wrote: --force replaces it)".to_string(),
-                (false, Some(f)) => format!(
-                    ", and is not a LeRobot dataset cps would replace (it holds {})",
-                    f.display()
-                ),
-                (false, None) => ", and is not a LeRobot dataset cps would replace".to_string(),
-            };
-            return Err(LeRobotError::new(root, format!("exists already{why}")));
-        }
-    }
-    let staging = staging_path(root);
-    if staging.exists() {
-        return Err(LeRobotError::new(
-            &staging,
-            "is in the way: cps stages a dataset there (an earlier run's, left by a crash?); remove it",
-        ));
-    }
-    let written = write_into(&staging, spec, episodes).and_then(|()| {
-        if root.exists() {
-            remove_ours(root)?;
-        }
-        std::fs::rename(&staging, root)
-            .map_err(|e| LeRobotError::new(root, format!("cannot be put in place: {e}")))
-    });
-    if written.is_err() {
-        // The staging folder did not exist before this call: all in it is cps's.
-        let _ = std::fs::remove_dir_all(&staging);
-    }
-    written
-}
-
-/// Removes a dataset cps wrote: its files one by one, then its folders, each only once
-/// empty (so anything that appeared meanwhile stays, and the removal fails).
-fn remove_ours(root: &Path) -> Result<(), LeRobotError> {
-    for f in FILES {
-        let path = root.join(f);
-        if path.exists() {
-            std::fs::remove_file(&path)
-                .map_err(|e| LeRobotError::new(&path, format!("cannot be replaced: {e}")))?;
-        }
-    }
-    for dir in [
-        "meta/episodes/chunk-000",
-        "meta/episodes",
-        "meta",
-        "data/chunk-000",
-        "data",
-        "",
-    ] {
-        let path = root.join(dir);
-        if path.exists() {
-            std::fs::remove_dir(&path).map_err(|e| {
-                LeRobotError::new(
-                    &path,
-                    format!("cannot be replaced (it holds more than cps wrote?): {e}"),
-                )
-            })?;
-        }
-    }
+    let output = Output::new(root, "LeRobot dataset", Shape::folder(&FILES), replace);
+    let staged = output.stage()?;
+    write_into(staged.path(), spec, episodes)?;
+    staged.commit()?;
     Ok(())
 }
 
@@ -674,13 +595,4 @@ fn quantile(values: &[f64], q: f64) -> f64 {
     let x = q * (v.len() - 1) as f64;
     let (lo, hi) = (x.floor() as usize, x.ceil() as usize);
     v[lo] + (v[hi] - v[lo]) * (x - lo as f64)
-}
-
-/// Where [`write()`] stages a dataset before renaming it into place.
-pub fn staging_path(root: &Path) -> PathBuf {
-    let name = root
-        .file_name()
-        .map(|n| n.to_string_lossy().to_string())
-        .unwrap_or_else(|| "dataset".into());
-    root.with_file_name(format!(".{name}.cps-staging"))
 }

@@ -221,15 +221,48 @@ fn only_a_dataset_of_cps_files_is_replaced_and_nothing_else_is_ever_removed() {
     );
     assert_eq!(std::fs::read(&video).unwrap(), b"not cps's");
     assert_eq!(Dataset::open(&root).unwrap().info().total_frames, 4);
-    // A folder where cps would stage is never removed: refused.
+    // A folder beside it that looks like an old staging folder is never touched: cps
+    // stages under a fresh name.
     let other = dir.path().join("other");
     let staging = dir.path().join(".other.cps-staging");
     std::fs::create_dir(&staging).unwrap();
     std::fs::write(staging.join("mine.txt"), b"mine").unwrap();
-    let e = write(&other, &spec(), &[episode("pour", 3, 0.0)], false)
+    write(&other, &spec(), &[episode("pour", 3, 0.0)], false).unwrap();
+    assert_eq!(std::fs::read(staging.join("mine.txt")).unwrap(), b"mine");
+    assert_eq!(Dataset::open(&other).unwrap().info().total_frames, 3);
+}
+
+/// The sweep's two data losses: `--force` onto a link to another dataset removed that
+/// dataset's files through the link; onto a dataset holding an empty `videos/` it removed
+/// the five files, failed, and left no dataset at all.
+#[test]
+fn force_through_a_link_or_onto_a_folder_with_more_loses_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let theirs = dir.path().join("theirs");
+    write(&theirs, &spec(), &[episode("pour", 10, 0.0)], false).unwrap();
+    let before: Vec<Vec<u8>> = cps_lerobot::write::FILES
+        .iter()
+        .map(|f| std::fs::read(theirs.join(f)).unwrap())
+        .collect();
+    let link = dir.path().join("mine");
+    std::os::unix::fs::symlink(&theirs, &link).unwrap();
+    let e = write(&link, &spec(), &[episode("stir", 4, 0.0)], true)
         .unwrap_err()
         .to_string();
-    assert!(e.contains("is in the way"), "{e}");
-    assert_eq!(std::fs::read(staging.join("mine.txt")).unwrap(), b"mine");
-    assert!(!other.exists());
+    assert!(e.contains("symbolic link"), "{e}");
+    for (f, b) in cps_lerobot::write::FILES.iter().zip(&before) {
+        assert_eq!(&std::fs::read(theirs.join(f)).unwrap(), b, "{f}");
+    }
+    std::fs::create_dir(theirs.join("videos")).unwrap();
+    let e = write(&theirs, &spec(), &[episode("stir", 4, 0.0)], true)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("videos"), "{e}");
+    assert_eq!(Dataset::open(&theirs).unwrap().info().total_frames, 10);
+    let mut names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["mine", "theirs"]);
 }

@@ -78,10 +78,11 @@ impl Calibration {
     /// Reads a calibration file.
     pub fn read(path: &Path) -> Result<Self, MocapError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| MocapError::Io {
-            file: file.clone(),
-            message: format!("cannot be read: {e}"),
-        })?;
+        let text = cps_files::read::read_text(path, cps_files::read::MAX_FILE_BYTES, "calibration")
+            .map_err(|e| MocapError::Io {
+                file: file.clone(),
+                message: e.reason(),
+            })?;
         Self::parse(&text, &file)
     }
 

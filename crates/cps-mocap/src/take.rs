@@ -182,17 +182,11 @@ pub const MAX_FILE_BYTES: u64 = 4 << 30;
 /// A take's bytes, refused above [`MAX_FILE_BYTES`]; the file's name for messages.
 pub(crate) fn read_file(path: &std::path::Path) -> Result<(Vec<u8>, String), crate::MocapError> {
     let name = path.display().to_string();
-    let io = |e: std::io::Error| crate::MocapError::Io {
-        file: name.clone(),
-        message: format!("cannot be read: {e}"),
-    };
-    let len = std::fs::metadata(path).map_err(io)?.len();
-    if len > MAX_FILE_BYTES {
-        return Err(crate::MocapError::format(
-            &name,
-            format!("{len} bytes is more than the {MAX_FILE_BYTES} a take may have; cut it first"),
-        ));
-    }
-    let bytes = std::fs::read(path).map_err(io)?;
+    let bytes = cps_files::read::read_bytes(path, MAX_FILE_BYTES, "take").map_err(|e| {
+        crate::MocapError::Io {
+            file: name.clone(),
+            message: e.reason(),
+        }
+    })?;
     Ok((bytes, name))
 }

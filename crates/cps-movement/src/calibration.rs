@@ -97,7 +97,7 @@ pub fn read_calibration(path: &Path) -> Result<CalibrationFile, InputError> {
 /// `path:line:col` of `key` in the `[calibration]` table of the calibration file at
 /// `path` (just the path when the key is not found), for errors about its value.
 pub fn place_of(path: &Path, key: &str) -> String {
-    let text = std::fs::read_to_string(path).unwrap_or_default();
+    let text = cps_outcome::source::read_text(path, 1 << 20, "calibration").unwrap_or_default();
     let mut in_table = false;
     for (i, line) in text.lines().enumerate() {
         let t = line.trim_start();

@@ -20,17 +20,8 @@ use nalgebra::{Matrix4, Point3, Rotation3, Unit, Vector3};
 /// mesh as every mesh is checked: the mesh and how many edges of holes it has.
 pub fn read_dae(path: &Path, scale: [f64; 3]) -> Result<(Mesh, usize), String> {
     let name = path.display().to_string();
-    let size = std::fs::metadata(path)
-        .map_err(|e| format!("{name}: cannot be read ({e})"))?
-        .len();
-    if size > cps_geometry::MAX_MESH_BYTES {
-        return Err(format!(
-            "{name}: {size} bytes, more than the {} a collision mesh may have",
-            cps_geometry::MAX_MESH_BYTES
-        ));
-    }
-    let text =
-        std::fs::read_to_string(path).map_err(|e| format!("{name}: cannot be read ({e})"))?;
+    let text = cps_outcome::source::read_text(path, cps_geometry::MAX_MESH_BYTES, "collision mesh")
+        .map_err(|e| e.0)?;
     let triangles = dae_triangles(&text).map_err(|m| format!("{name}: {m}"))?;
     Mesh::from_triangles(triangles, &name)
         .and_then(|m| m.scaled(scale, &name))

@@ -195,7 +195,24 @@ fn wrong_obstacles_are_refused_with_their_place() {
     );
     refused(
         "\n[[obstacle]]\nname = \"m\"\nshape = \"mesh\"\nxyz = [0, 0, 0]\nfile = \"missing.stl\"\n",
-        "missing.stl: cannot be read",
+        "missing.stl: cannot read the collision mesh",
+    );
+    // The sweep's: /dev/zero read 4 GB and ran out of memory; a FIFO hung for ever.
+    refused(
+        "\n[[obstacle]]\nname = \"z\"\nshape = \"mesh\"\nxyz = [0, 0, 0]\nfile = \"/dev/zero\"\n",
+        "/dev/zero: the collision mesh must be a regular file, and this is a device",
+    );
+    let fifo = dir.path().join("pipe.stl");
+    assert!(
+        std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    refused(
+        "\n[[obstacle]]\nname = \"f\"\nshape = \"mesh\"\nxyz = [0, 0, 0]\nfile = \"pipe.stl\"\n",
+        "pipe.stl: the collision mesh must be a regular file, and this is a FIFO",
     );
     refused(
         "\n[[obstacle]]\nname = \"p\"\n",

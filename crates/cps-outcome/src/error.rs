@@ -14,6 +14,12 @@ impl std::fmt::Display for InputError {
 
 impl std::error::Error for InputError {}
 
+impl From<cps_files::FileError> for InputError {
+    fn from(e: cps_files::FileError) -> Self {
+        Self(e.to_string())
+    }
+}
+
 /// A failure while running or writing: what was being done, and why (its `source`).
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]

@@ -3,8 +3,10 @@
 
 use std::path::Path;
 
+use cps_files::replace::{self, Output, Shape};
+
+use crate::ExperimentError;
 use crate::outcome::Table;
-use crate::{Context, ExperimentError};
 
 /// Writes a table as CSV text (header, then one line per row).
 pub fn table_csv(table: &Table) -> Result<Vec<u8>, ExperimentError> {
@@ -37,65 +39,18 @@ pub fn write_file_unless_new_there(
     bytes: &[u8],
     existed: bool,
 ) -> Result<(), ExperimentError> {
-    if existed {
-        return write_file(path, bytes);
-    }
-    let name = path
-        .file_name()
-        .map_or("file".into(), |n| n.to_string_lossy().into_owned());
-    let kept = path.with_file_name(format!("{name}.cps-new-{}", std::process::id()));
-    write_file(&kept, bytes)?;
-    // A hard link is made only where no file is: the no-replace rename of every Unix.
-    match std::fs::hard_link(&kept, path) {
-        Ok(()) => {
-            std::fs::remove_file(&kept).ok();
-            Ok(())
-        }
-        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-            Err(ExperimentError::Message(format!(
-                "{}: a file appeared there while cps worked, and cps did not write it, so it is left alone; the result is in {}",
-                path.display(),
-                kept.display()
-            )))
-        }
-        Err(_) => {
-            // A file system without hard links: rename, after a last look.
-            if std::fs::symlink_metadata(path).is_ok() {
-                return Err(ExperimentError::Message(format!(
-                    "{}: a file appeared there while cps worked, and cps did not write it, so it is left alone; the result is in {}",
-                    path.display(),
-                    kept.display()
-                )));
-            }
-            std::fs::rename(&kept, path).context_with(|| format!("cannot write {}", path.display()))
-        }
-    }
+    let output = Output::new(path, "file", Shape::file(|_| true), existed);
+    replace::write_file(output, bytes)
+        .map(drop)
+        .map_err(|e| ExperimentError::Message(e.to_string()))
 }
 
-/// Writes one file through a temporary file beside it and a rename, so a failure never
-/// leaves half a file and a reader never sees one. The temporary name is fresh (an
-/// existing file there is never overwritten).
+/// Writes one file through cps's one writer ([`cps_files::replace`]): beside it, then
+/// renamed into place, so a failure never leaves half a file and a reader never sees one.
+/// The caller has checked the target (`check_file_target`); a symbolic link in its place
+/// is refused, never written through.
 pub fn write_file(path: &Path, bytes: &[u8]) -> Result<(), ExperimentError> {
-    use std::io::Write;
-    let name = path
-        .file_name()
-        .map_or("file".into(), |n| n.to_string_lossy().into_owned());
-    let tmp = path.with_file_name(format!(".{name}.cps-tmp-{}", std::process::id()));
-    let mut f = std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&tmp)
-        .context_with(|| format!("cannot write {}", path.display()))?;
-    let written = f.write_all(bytes).and_then(|()| f.sync_all());
-    drop(f);
-    if let Err(e) = written.and_then(|()| std::fs::rename(&tmp, path)) {
-        std::fs::remove_file(&tmp).ok();
-        return Err(ExperimentError::Failed {
-            context: format!("cannot write {}", path.display()),
-            source: Box::new(e),
-        });
-    }
-    Ok(())
+    write_file_unless_new_there(path, bytes, true)
 }
 
 #[cfg(test)]
@@ -116,9 +71,7 @@ mod tests {
             .to_string();
         assert!(e.contains("appeared there while cps worked"), "{e}");
         assert_eq!(std::fs::read(&out).unwrap(), b"first");
-        let kept = d
-            .path()
-            .join(format!("robot.toml.cps-new-{}", std::process::id()));
+        let kept = e.rsplit("kept in ").next().unwrap();
         assert_eq!(std::fs::read(kept).unwrap(), b"second");
         // A file that was there (and checked) is replaced.
         write_file_unless_new_there(&out, b"third", true).unwrap();

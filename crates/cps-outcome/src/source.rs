@@ -1,59 +1,19 @@
-//! The text of input files: bounded reading (size ceilings, regular files only, UTF-8)
-//! and `file:line:column` places for messages. Every file format of the crate reads
-//! through here.
+//! The text of input files, through cps's one reader (`cps-files`: size ceilings, regular
+//! files only, UTF-8), and `file:line:column` places for messages.
 
 use std::ops::Range;
 use std::path::Path;
 
 use crate::InputError;
 
-const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
+pub use cps_files::bytes;
+pub use cps_files::read::MAX_FILE_BYTES;
 
-/// The largest configuration file read (experiments, scenes, robots, models): 16 MiB.
-pub const MAX_FILE_BYTES: u64 = 16 << 20;
-
-/// Reads a text file of at most `limit` bytes, refusing a larger one before reading it
-/// (and anything that is not a regular file: a FIFO or a device would never end).
+/// Reads a text file of at most `limit` bytes through cps's one reader
+/// ([`cps_files::read`]): anything that is not a regular file (a FIFO would never end) and
+/// a file over the limit are refused before a byte is read.
 pub fn read_text(path: &Path, limit: u64, what: &str) -> Result<String, InputError> {
-    use std::io::Read;
-    let fail = |m: String| InputError(format!("{}: {m}", path.display()));
-    let meta = std::fs::metadata(path).map_err(|e| fail(format!("cannot read the {what}: {e}")))?;
-    if !meta.is_file() {
-        return Err(fail(format!("the {what} must be a regular file")));
-    }
-    if meta.len() > limit {
-        return Err(fail(format!(
-            "the {what} has {} bytes, more than the {} cps reads; is it the right file?",
-            meta.len(),
-            bytes(limit as f64)
-        )));
-    }
-    let mut bytes = Vec::with_capacity(meta.len() as usize);
-    std::fs::File::open(path)
-        .and_then(|f| f.take(limit + 1).read_to_end(&mut bytes))
-        .map_err(|e| fail(format!("cannot read the {what}: {e}")))?;
-    if bytes.len() as u64 > limit {
-        return Err(fail(format!(
-            "the {what} grew beyond {limit} bytes while being read"
-        )));
-    }
-    String::from_utf8(bytes).map_err(|e| {
-        fail(format!(
-            "the {what} is not UTF-8 text (invalid byte at offset {})",
-            e.utf8_error().valid_up_to()
-        ))
-    })
-}
-
-/// Bytes in words.
-pub fn bytes(b: f64) -> String {
-    if b >= GIB {
-        format!("{:.1} GiB", b / GIB)
-    } else if b >= 1024.0 * 1024.0 {
-        format!("{:.0} MiB", b / (1024.0 * 1024.0))
-    } else {
-        format!("{:.0} KiB", (b / 1024.0).max(1.0))
-    }
+    cps_files::read::read_text(path, limit, what).map_err(InputError::from)
 }
 
 /// `file:line:column` of a byte offset.
