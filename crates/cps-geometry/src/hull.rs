@@ -65,8 +65,16 @@ impl Hull {
     /// The vertices that are the one farthest point of the hull in some direction: each
     /// vertex is tried in the sum of its faces' normals, which lies inside its cone of
     /// normals when it is a corner, and along a face or edge it merely lies on otherwise.
+    /// On a convex hull a vertex ahead of every neighbour along a direction is ahead of
+    /// every vertex (the simplex method's argument), so only neighbours are compared.
     fn corners(&self) -> Vec<V> {
         let mut around = vec![V::zeros(); self.vertices.len()];
+        let mut next: Vec<Vec<u32>> = vec![Vec::new(); self.vertices.len()];
+        for t in &self.faces {
+            for k in 0..3 {
+                next[t[k] as usize].push(t[(k + 1) % 3]);
+            }
+        }
         for t in &self.faces {
             let (a, b, c) = (
                 self.vertices[t[0] as usize],
@@ -91,10 +99,9 @@ impl Hull {
                 }
                 let d = d / len;
                 let own = self.vertices[i].dot(&d);
-                self.vertices
+                next[i]
                     .iter()
-                    .enumerate()
-                    .all(|(j, u)| j == i || u.dot(&d) < own - 1e-9 * scale)
+                    .all(|&j| self.vertices[j as usize].dot(&d) < own - 1e-9 * scale)
             })
             .map(|i| self.vertices[i])
             .collect()
@@ -205,10 +212,23 @@ impl Hull {
         let mut stack: Vec<usize> = Vec::new();
         let mut horizon: Vec<(usize, usize)> = Vec::new();
         let mut orphans: Vec<usize> = Vec::new();
-        let mut seen: Vec<bool> = Vec::new();
+        // Faces that may have outside points, latest on top (dead or emptied ones are
+        // skipped when popped): finding the next face is not a scan of every face made.
+        let mut pending: Vec<usize> = (0..faces.len())
+            .filter(|&f| !faces[f].outside.is_empty())
+            .collect();
+        // A face is seen this round when its stamp is the round's (no clearing per round).
+        let mut seen: Vec<usize> = Vec::new();
         // Each round adds one point, so the rounds are bounded by the points.
-        for _ in 0..points.len() {
-            let Some(start) = faces.iter().position(|f| f.alive && !f.outside.is_empty()) else {
+        for round in 1..=points.len() {
+            let start = loop {
+                match pending.pop() {
+                    Some(f) if faces[f].alive && !faces[f].outside.is_empty() => break Some(f),
+                    Some(_) => continue,
+                    None => break None,
+                }
+            };
+            let Some(start) = start else {
                 break;
             };
             let f0 = &faces[start];
@@ -222,22 +242,21 @@ impl Hull {
                 .unwrap_or(&f0.outside[0]);
             let p = points[apex];
             // The faces the apex sees, as one connected patch grown from the start face.
-            seen.clear();
-            seen.resize(faces.len(), false);
+            seen.resize(faces.len(), 0);
             visible.clear();
             stack.clear();
             stack.push(start);
-            seen[start] = true;
+            seen[start] = round;
             while let Some(f) = stack.pop() {
                 visible.push(f);
                 let v = faces[f].v;
                 for k in 0..3 {
                     if let Some(&g) = edges.get(&(v[(k + 1) % 3], v[k]))
-                        && !seen[g]
+                        && seen[g] != round
                         && faces[g].alive
                         && faces[g].normal.dot(&p) - faces[g].offset > eps
                     {
-                        seen[g] = true;
+                        seen[g] = round;
                         stack.push(g);
                     }
                 }
@@ -248,7 +267,7 @@ impl Hull {
                 for k in 0..3 {
                     let (a, b) = (v[k], v[(k + 1) % 3]);
                     match edges.get(&(b, a)) {
-                        Some(&g) if seen[g] => {}
+                        Some(&g) if seen[g] == round => {}
                         _ => horizon.push((a, b)),
                     }
                 }
@@ -288,6 +307,7 @@ impl Hull {
                     faces[f].outside.push(i);
                 }
             }
+            pending.extend((first_new..faces.len()).filter(|&f| !faces[f].outside.is_empty()));
         }
         // Keep the live faces, with the vertices they use renumbered from 0.
         let mut index: HashMap<usize, u32> = HashMap::new();

@@ -30,6 +30,13 @@ pub fn read_dae(path: &Path, scale: [f64; 3]) -> Result<(Mesh, usize), String> {
 
 type Corner = Vector3<f64>;
 
+/// The most indices a corner may have (one per `<input>` offset; files use 1 to 4).
+const MAX_INPUTS: usize = 64;
+
+/// The most triangles a COLLADA file may place, instances counted (a robot's link mesh
+/// has thousands; 2 million placed triangles with their sources are about 200 MB).
+const MAX_TRIANGLES: u64 = 2_000_000;
+
 /// The triangles of a COLLADA document, each with where it came from.
 pub fn dae_triangles(text: &str) -> Result<Vec<([Corner; 3], String)>, String> {
     let root = parse_xml(text)?;
@@ -188,11 +195,20 @@ fn mesh_triangles(
             continue;
         }
         let inputs: Vec<&Element> = prim.children("input").collect();
-        let stride = 1 + inputs
-            .iter()
-            .filter_map(|i| i.attr("offset").and_then(|o| o.parse::<usize>().ok()))
-            .max()
-            .unwrap_or(0);
+        let mut stride = 1;
+        for i in &inputs {
+            match i.attr("offset").map(str::parse::<usize>) {
+                None => {}
+                Some(Ok(o)) if o < MAX_INPUTS => stride = stride.max(o + 1),
+                Some(_) => {
+                    return Err(format!(
+                        "line {}: an <input> offset of {}: a corner has at most {MAX_INPUTS} indices",
+                        i.line(),
+                        i.attr("offset").unwrap_or("")
+                    ));
+                }
+            }
+        }
         let Some(vertex) = inputs.iter().find(|i| i.attr("semantic") == Some("VERTEX")) else {
             return Err(format!(
                 "line {}: <{kind}> has no VERTEX input",
@@ -240,6 +256,16 @@ fn mesh_triangles(
                     .map(numbers)
                     .transpose()?
                     .unwrap_or_default();
+                // Each count a whole number of corners the <p> could hold.
+                if let Some(c) = counts
+                    .iter()
+                    .find(|c| !(c.fract() == 0.0 && (3.0..=1e6).contains(*c)))
+                {
+                    return Err(format!(
+                        "line {}: <vcount> gives a polygon {c} corners; a polygon has 3 to a million",
+                        prim.line()
+                    ));
+                }
                 prim.child("p")
                     .map(|p| (p, counts.iter().map(|c| *c as usize).collect()))
                     .into_iter()
@@ -255,8 +281,8 @@ fn mesh_triangles(
         };
         for (p, counts) in polygons {
             let idx = numbers(p)?;
-            let corners: usize = counts.iter().sum();
-            if idx.len() < corners * stride {
+            let corners = counts.iter().fold(0usize, |a, c| a.saturating_add(*c));
+            if idx.len() < corners.saturating_mul(stride) {
                 return Err(format!(
                     "line {}: <{kind}> names {corners} corners of {stride} indices each, and <p> has {} indices",
                     p.line(),
@@ -269,6 +295,14 @@ fn mesh_triangles(
                     return Err(format!("line {}: a polygon of {n} corners", p.line()));
                 }
                 let c = |k: usize| corner(p, at + k, idx[(at + k) * stride + offset]);
+                // Instancing multiplies triangles: counted before they are held.
+                cps_files::count::within(
+                    (out.len() + n - 2) as f64,
+                    MAX_TRIANGLES,
+                    &format!("line {}: triangles after instancing", p.line()),
+                    "a collision mesh is simplified before it is checked (a hull needs its outline, not its detail)",
+                )
+                .map_err(|e| e.to_string())?;
                 let first = c(0)?;
                 for k in 1..n - 1 {
                     out.push(([first, c(k)?, c(k + 1)?], format!("line {}", p.line())));

@@ -139,4 +139,38 @@ fn broken_collada_is_named_with_its_line() {
         &CUBE.replace("<instance_geometry url=\"#cube-mesh\"/>", ""),
         "no triangles: the mesh is empty",
     );
+    // The sweep's two panics: an offset past every index (1 + usize::MAX wrapped to a
+    // stride of 0, a division by zero) and a corner count past the indices (a sum that
+    // wrapped, then an index out of bounds).
+    bad(
+        "offset.dae",
+        &CUBE.replace("offset=\"1\"", "offset=\"18446744073709551615\""),
+        "line 13: an <input> offset of 18446744073709551615",
+    );
+    bad(
+        "vcount.dae",
+        &CUBE.replace(
+            "<vcount>4 4 4 4 4 4</vcount>",
+            "<vcount>4 4 4 4 4 18446744073709551615</vcount>",
+        ),
+        "<vcount> gives a polygon 18446744073709552000 corners",
+    );
+    // One geometry placed 1 000 times in an 800 kB file held 3.2 GB: the triangles are
+    // counted as they are placed, and refused past the ceiling.
+    let node = "<node><instance_geometry url=\"#cube-mesh\"/></node>";
+    let big = CUBE
+        .replace(
+            "<vcount>4 4 4 4 4 4</vcount>",
+            &format!("<vcount>{}</vcount>", "4 ".repeat(6 * 400)),
+        )
+        .replace(
+            "0 0 3 0 2 0 1 0  4 0 5 0 6 0 7 0  0 0 1 0 5 0 4 0  1 0 2 0 6 0 5 0  2 0 3 0 7 0 6 0  3 0 0 0 4 0 7 0",
+            &"0 0 3 0 2 0 1 0  4 0 5 0 6 0 7 0  0 0 1 0 5 0 4 0  1 0 2 0 6 0 5 0  2 0 3 0 7 0 6 0  3 0 0 0 4 0 7 0 ".repeat(400),
+        )
+        .replace("<visual_scene id=\"s\">", &format!("<visual_scene id=\"s\">{}", node.repeat(1000)));
+    bad(
+        "instanced.dae",
+        &big,
+        "triangles after instancing: 2000002 would be held in memory, more than the ceiling of 2000000",
+    );
 }
