@@ -216,7 +216,7 @@ pub fn prepare_samples(
         })?;
         (r.trajectory.q, "retimed")
     } else {
-        let (_, _, rows, resampled) = at_rate(traj, 1000.0);
+        let (_, _, rows, resampled) = at_rate(traj, 1000.0)?;
         (
             rows,
             if resampled {

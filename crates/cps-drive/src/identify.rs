@@ -449,6 +449,9 @@ pub fn identify_recording(
         tau: (0..n).map(|k| row(k, 2)).collect(),
         q_c: (0..n).map(|k| row(k, 3)).collect(),
     };
+    whole
+        .check_times()
+        .map_err(|e| InputError(format!("{}: {e}", recording.display())))?;
     let seconds = n as f64 * PERIOD;
     stopped(stop)?;
     conclude(

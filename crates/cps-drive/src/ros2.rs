@@ -141,7 +141,7 @@ pub fn plan_of(
     let plan = if even {
         Plan::new(first, traj.q.clone())
     } else {
-        let (_, dt, rows, _) = cps_movement::limits::at_rate(traj, 1.0 / cps_robot::CHECK_PERIOD);
+        let (_, dt, rows, _) = cps_movement::limits::at_rate(traj, 1.0 / cps_robot::CHECK_PERIOD)?;
         Plan::new(dt, rows)
     };
     plan.map_err(|e| InputError(format!("{name}: {e}")).into())

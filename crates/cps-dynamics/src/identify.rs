@@ -99,8 +99,10 @@ impl<const N: usize> Recorded<N> {
     }
 
     /// Checks the period (finite, > 0) and the clock: one time a sample, each a whole
-    /// number of periods after the one before.
-    fn check_times(&self) -> Result<(), String> {
+    /// number of periods after the one before, no gap of more than
+    /// [`MAX_MISSED_PERIODS`] — a recording's own fault, for a reader to report as input.
+    pub fn check_times(&self) -> Result<(), String> {
+        let num = |x: f64| cps_files::number(x, 4);
         if !(self.period.is_finite() && self.period > 0.0) {
             return Err(format!(
                 "the control period must be finite and > 0 (got {})",
@@ -123,16 +125,18 @@ impl<const N: usize> Recorded<N> {
             let steps = gap / self.period;
             if !(steps.is_finite() && steps > 0.5 && (steps - steps.round()).abs() < 0.25) {
                 return Err(format!(
-                    "samples {k} and {} are {gap:.4} s apart: not a whole number of control periods ({} s, {:.0} Hz)",
+                    "samples {k} and {} are {} s apart: not a whole number of control periods ({} s, {:.0} Hz)",
                     k + 1,
+                    num(gap),
                     self.period,
                     1.0 / self.period
                 ));
             }
             if steps.round() > (MAX_MISSED_PERIODS + 1) as f64 {
                 return Err(format!(
-                    "samples {k} and {} are {gap:.4} s apart: the robot reported nothing for more than {MAX_MISSED_PERIODS} control periods ({:.3} s), so the recording does not say what it did; identify from a recording without such a gap (or from each part of it)",
+                    "samples {k} and {} are {} s apart: the robot reported nothing for more than {MAX_MISSED_PERIODS} control periods ({:.3} s), so the recording does not say what it did; identify from a recording without such a gap (or from each part of it)",
                     k + 1,
+                    num(gap),
                     MAX_MISSED_PERIODS as f64 * self.period
                 ));
             }
@@ -147,9 +151,9 @@ impl<const N: usize> Recorded<N> {
             gaps.sort_by(f64::total_cmp);
             let typical = gaps[gaps.len() / 2];
             return Err(format!(
-                "its samples are typically {:.4} s apart ({:.0} Hz): identification needs a recording at the control rate, one sample every {} s ({:.0} Hz)",
-                typical,
-                1.0 / typical,
+                "its samples are typically {} s apart ({} Hz): identification needs a recording at the control rate, one sample every {} s ({:.0} Hz)",
+                num(typical),
+                num(1.0 / typical),
                 self.period,
                 1.0 / self.period
             ));

@@ -121,7 +121,7 @@ pub fn first_collision(
     rate: f64,
 ) -> Result<Option<cps_robot::Collision>, InputError> {
     let shapes = shapes_of(robot)?;
-    let (t0, dt, commands, _) = at_rate(traj, rate);
+    let (t0, dt, commands, _) = at_rate(traj, rate)?;
     let plan = cps_robot::Plan::new(dt, commands).map_err(|e| InputError(e.to_string()))?;
     Ok(cps_robot::check_shapes(shapes, &robot.chain, &plan, dt)
         .map_err(|e| InputError(e.to_string()))?

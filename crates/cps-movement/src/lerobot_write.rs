@@ -171,12 +171,23 @@ pub fn write_recordings<P: AsRef<Path>>(
                 return Err(InputError(format!(
                     "{}: its samples are {} s apart: give --fps",
                     recordings[0].as_ref().display(),
-                    steps[steps.len() / 2]
+                    cps_files::number(steps[steps.len() / 2], 6)
                 )));
             }
             rate.round().max(1.0) as u32
         }
     };
+    // Frames are counted before they are made: every recording's span at the rate.
+    let frames: f64 = read
+        .iter()
+        .map(|r| (r.times[r.times.len() - 1] - r.times[0]) * f64::from(fps) + 1.0)
+        .sum();
+    cps_files::count::within(
+        frames,
+        cps_files::count::MAX_ROWS,
+        &format!("--fps {fps}: the episodes' frames"),
+        "LeRobot's datasets run at tens of frames per second: give a lower --fps",
+    )?;
     let commanded = first.contains(&"q_d");
     let mut features: Vec<cps_lerobot::NewFeature> = read[0]
         .groups

@@ -62,6 +62,9 @@ pub fn read_joint_trajectory(path: &Path, dof: usize) -> Result<JointTrajectory,
         ))
     })?;
     let (names, demo) = crate::movement::parse_demo_columns(path, &text, Some(&names))?;
+    let times = demo.times();
+    commands_over(times[times.len() - 1] - times[0], 1000.0)
+        .map_err(|e| InputError(format!("{}: {e}", path.display())))?;
     let q = (0..demo.len()).map(|k| demo.sample(k).to_vec()).collect();
     Ok(JointTrajectory {
         names,
@@ -108,25 +111,47 @@ fn joint_columns(found: &[String], dof: usize) -> Result<Vec<String>, String> {
     Ok(ordered.into_iter().map(|(_, n)| n.clone()).collect())
 }
 
-/// The commands the controller receives at `rate` Hz: `(t0, dt, rows, resampled)`.
-pub fn at_rate(traj: &JointTrajectory, rate: f64) -> (f64, f64, Vec<Vec<f64>>, bool) {
+/// The commands the controller receives at `rate` Hz: `(t0, dt, rows, resampled)`. The
+/// rows are counted before they are made: a span of more than [`cps_files::count::MAX_ROWS`]
+/// commands is refused.
+pub fn at_rate(
+    traj: &JointTrajectory,
+    rate: f64,
+) -> Result<(f64, f64, Vec<Vec<f64>>, bool), InputError> {
     let dt = 1.0 / rate;
     let t0 = traj.times[0];
+    let span = traj.times[traj.times.len() - 1] - t0;
+    commands_over(span, rate)?;
     let on_rate = traj
         .times
         .windows(2)
         .all(|w| ((w[1] - w[0]) - dt).abs() <= 1e-9 * dt);
     if on_rate {
-        return (t0, dt, traj.q.clone(), false);
+        return Ok((t0, dt, traj.q.clone(), false));
     }
     let spline = cps_kinematics::JointSpline::new(&traj.times, &traj.q)
-        .expect("a read trajectory has increasing, finite times");
-    let span = traj.times[traj.times.len() - 1] - t0;
+        .map_err(|e| InputError(format!("the trajectory cannot be interpolated: {e}")))?;
     let steps = (span / dt - 1e-9).ceil().max(0.0) as usize;
     let rows = (0..=steps)
         .map(|k| spline.positions(t0 + k as f64 * dt))
         .collect();
-    (t0, dt, rows, true)
+    Ok((t0, dt, rows, true))
+}
+
+/// The commands a span of `span` s makes at `rate` Hz, refused past
+/// [`cps_files::count::MAX_ROWS`] (2 h 46 min at 1 kHz).
+pub fn commands_over(span: f64, rate: f64) -> Result<usize, InputError> {
+    cps_files::count::rows(
+        span,
+        1.0 / rate,
+        &format!(
+            "the trajectory lasts {} s: its commands at {} Hz",
+            cps_files::number(span, 6),
+            cps_files::number(rate, 6)
+        ),
+        "a trajectory cps checks or sends is at most 10 million commands; split it, or check its times",
+    )
+    .map_err(InputError::from)
 }
 
 /// A checked trajectory file.
@@ -152,9 +177,10 @@ pub fn check_samples(
     robot: &RobotModel,
     traj: &JointTrajectory,
     rate: f64,
-) -> Result<LimitsReport, cps_kinematics::KinematicsError> {
-    let (t0, dt, rows, resampled) = at_rate(traj, rate);
-    let check = check_commands(&robot.robot_limits(), t0, dt, &rows)?;
+) -> Result<LimitsReport, InputError> {
+    let (t0, dt, rows, resampled) = at_rate(traj, rate)?;
+    let check = check_commands(&robot.robot_limits(), t0, dt, &rows)
+        .map_err(|e| InputError(e.to_string()))?;
     Ok(LimitsReport {
         check,
         rate,

@@ -80,7 +80,8 @@ pub fn retime_samples(
     traj: &JointTrajectory,
     rate: f64,
     mode: RetimeMode,
-) -> Result<RetimeReport, cps_kinematics::KinematicsError> {
+) -> Result<RetimeReport, InputError> {
+    let kin = |e: cps_kinematics::KinematicsError| InputError(e.to_string());
     let limits = robot.robot_limits();
     let before = check_samples(robot, traj, rate)?;
     let original_duration = traj.times[traj.times.len() - 1] - traj.times[0];
@@ -91,7 +92,8 @@ pub fn retime_samples(
                 &traj.times,
                 &traj.q,
                 &RetimeOptions { rate, grid: 0 },
-            )?;
+            )
+            .map_err(kin)?;
             let (mut qd, mut qdd) = (Vec::new(), Vec::new());
             for t in r.times() {
                 let [_, v, a, _] = r.at(t);
@@ -102,8 +104,8 @@ pub fn retime_samples(
             (r.q, qd, qdd, r.dt, r.check, None, fastest, r.duration)
         }
         RetimeMode::Uniform => {
-            let r = uniform(&limits, &traj.times, &traj.q, rate)?;
-            let spline = JointSpline::new(&traj.times, &traj.q)?;
+            let r = uniform(&limits, &traj.times, &traj.q, rate).map_err(kin)?;
+            let spline = JointSpline::new(&traj.times, &traj.q).map_err(kin)?;
             let k = r.factor;
             let (mut qd, mut qdd) = (Vec::new(), Vec::new());
             for i in 0..r.q.len() {
