@@ -139,3 +139,46 @@ fn a_recording_with_a_time_of_1e300_is_bad_input_said_briefly() {
     );
     assert!(!d.join("c.toml").exists());
 }
+
+/// A scene of the FR3 at the origin with one box `size` at `xyz`.
+fn scene_with_box(dir: &Path, name: &str, size: &str, xyz: &str) -> String {
+    let text = format!(
+        "[robot]\nmodel = \"fr3\"\ninitial_q = [0, -0.785, 0, -2.356, 0, 1.571, 0.785]\n\n[[obstacle]]\nname = \"plate\"\nshape = \"box\"\nsize = {size}\nxyz = {xyz}\n"
+    );
+    std::fs::write(dir.join(name), text).unwrap();
+    name.to_string()
+}
+
+#[test]
+fn shapes_of_absurd_size_are_refused_and_the_largest_accepted_is_exact() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let f = trajectory(d, "still.csv", "2");
+    // A 1e15 m plate through the arm, a 1e154 m box: "ok: every pair keeps 5.0 mm", exit 0.
+    for (size, shown) in [("[1e15, 1e15, 0.01]", "1e15"), ("[1e154, 1, 1]", "1e154")] {
+        let s = scene_with_box(d, "big.toml", size, "[0, 0, 0.5]");
+        refused(
+            d,
+            &["collide", &f, "--scene", &s],
+            &format!("the size {shown} m is larger than the 100 m of a robot's cell"),
+        );
+    }
+    let s = scene_with_box(d, "far.toml", "[1, 1, 1]", "[1e160, 0, 0]");
+    refused(
+        d,
+        &["collide", &f, "--scene", &s],
+        "`xyz` places it 1e160 m away",
+    );
+    // The largest plate accepted, through the arm at 0.5 m, is found as deep in it as a
+    // plate of 1 m: the distances hold at every size accepted.
+    let depth = |size: &str| {
+        let s = scene_with_box(d, "floor.toml", size, "[0, 0, 0.5]");
+        let (code, err) = run_in(d, &["collide", &f, "--scene", &s]);
+        assert_eq!(code, Some(2), "{err}");
+        let at = err.find("`plate` are ").expect("the plate named") + 12;
+        err[at..].split(" mm").next().unwrap().to_string()
+    };
+    let small = depth("[1, 1, 0.01]");
+    assert_eq!(depth("[100, 100, 0.01]"), small);
+    assert!(small.parse::<f64>().unwrap() > 10.0, "{small}");
+}

@@ -11,17 +11,28 @@ pub enum GeometryError {
         /// Why (one line, all in one plane, too few points).
         why: String,
     },
-    /// A point with a coordinate that is not a number.
-    #[error("{what}: point {} is not a number", index + 1)]
+    /// A point with a coordinate that is not a number, or farther than
+    /// [`crate::shape::MAX_EXTENT`] from its frame's origin.
+    #[error("{what}: point {} is not a number of metres within {} of the origin", index + 1, crate::shape::MAX_EXTENT)]
     NotFinite {
         /// The shape's or file's name.
         what: String,
         /// 0-based index of the point.
         index: usize,
     },
-    /// A size that is not a positive number.
-    #[error("{what}: the {quantity} {value} is not a positive number of metres")]
+    /// A size that is not a positive number of metres.
+    #[error("{what}: the {quantity} {} is not a positive number of metres", cps_files::number(*value, 6))]
     Size {
+        /// The shape's name.
+        what: String,
+        /// `radius`, `size`, `length`.
+        quantity: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// A size larger than [`crate::shape::MAX_EXTENT`].
+    #[error("{what}: the {quantity} {} m is larger than the {} m of a robot's cell (metres, not millimetres?)", cps_files::number(*value, 6), crate::shape::MAX_EXTENT)]
+    Extent {
         /// The shape's name.
         what: String,
         /// `radius`, `size`, `length`.

@@ -114,7 +114,10 @@ impl Hull {
                 why: format!("it has {} points, a solid needs 4", points.len()),
             });
         }
-        if let Some(i) = points.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
+        if let Some(i) = points
+            .iter()
+            .position(|p| !p.iter().all(|x| x.abs() <= crate::shape::MAX_EXTENT))
+        {
             return Err(GeometryError::NotFinite {
                 what: what.to_string(),
                 index: i,
@@ -512,7 +515,16 @@ mod tests {
         nan[3].y = f64::NAN;
         assert_eq!(
             Hull::new(&nan, "bad.obj").unwrap_err().to_string(),
-            "bad.obj: point 4 is not a number"
+            "bad.obj: point 4 is not a number of metres within 100 of the origin"
+        );
+        // A point of a mesh in millimetres read as metres, or worse: refused, as sizes are.
+        let mut far = cube_points();
+        far[5].x = 1e15;
+        assert!(
+            Hull::new(&far, "far.obj")
+                .unwrap_err()
+                .to_string()
+                .contains("point 6")
         );
         assert!(Hull::new(&[V::zeros(); 3], "tiny").is_err());
     }

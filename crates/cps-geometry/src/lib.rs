@@ -31,5 +31,5 @@ pub use error::GeometryError;
 pub use hull::Hull;
 pub use mesh::{MAX_MESH_BYTES, Mesh};
 pub use model::{Body, CollisionModel, Contact, Obstacle, Other, PathCheck};
-pub use shape::{DISTANCE_TOLERANCE, Separation, Shape, distance, distance_hinted};
+pub use shape::{DISTANCE_TOLERANCE, MAX_EXTENT, Separation, Shape, distance, distance_hinted};
 pub use surface::{ROUND_SEGMENTS, Surface};

@@ -96,6 +96,13 @@ impl Shape {
     /// A capsule of `radius` whose cylindrical part is `length` long, about z.
     pub fn capsule(radius: f64, length: f64, what: &str) -> Result<Shape, GeometryError> {
         positive(radius, "radius", what)?;
+        if length > MAX_EXTENT {
+            return Err(GeometryError::Extent {
+                what: what.to_string(),
+                quantity: "length",
+                value: length,
+            });
+        }
         if !(length >= 0.0 && length.is_finite()) {
             return Err(GeometryError::Size {
                 what: what.to_string(),
@@ -162,9 +169,19 @@ impl Shape {
     }
 }
 
+/// The largest size and distance from the origin a shape may have (m): a robot's cell,
+/// its floor included, is well inside; sizes of 1e15 m made GJK's sums lose the arm.
+pub const MAX_EXTENT: f64 = 100.0;
+
 fn positive(x: f64, quantity: &'static str, what: &str) -> Result<(), GeometryError> {
-    if x > 0.0 && x.is_finite() {
+    if x > 0.0 && x <= MAX_EXTENT {
         Ok(())
+    } else if x > MAX_EXTENT {
+        Err(GeometryError::Extent {
+            what: what.to_string(),
+            quantity,
+            value: x,
+        })
     } else {
         Err(GeometryError::Size {
             what: what.to_string(),

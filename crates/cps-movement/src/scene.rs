@@ -385,6 +385,13 @@ fn shaped_obstacle(v: &ObstacleEntry, path: &Path) -> Result<cps_geometry::Obsta
     if !xyz.iter().chain(&rpy).all(|x| x.is_finite()) {
         return Err(format!("{what}: `xyz` and `rpy` must be finite"));
     }
+    if !xyz.iter().all(|x| x.abs() <= cps_geometry::MAX_EXTENT) {
+        return Err(format!(
+            "{what}: `xyz` places it {} m away; a scene lies within {} m of the robot's base",
+            cps_files::number(xyz.iter().fold(0.0, |a: f64, x| a.max(x.abs())), 6),
+            cps_geometry::MAX_EXTENT
+        ));
+    }
     let pose = nalgebra::Isometry3::from_parts(
         nalgebra::Translation3::new(xyz[0], xyz[1], xyz[2]),
         nalgebra::UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]),
