@@ -259,3 +259,76 @@ fn a_policy_in_another_process_drives_franky_sim_over_udp_and_strangers_are_refu
         cps_movement::chunks::read_chunks(&dir.path().join("live.chunks.csv"), 7, 50.0).unwrap();
     assert_eq!(chunks.len() as u64, taken);
 }
+
+/// The sweep: Ctrl-C or SIGTERM while `--listen` waited for its first chunk exited 1 with
+/// "Interrupted system call" and wrote nothing; `--force` never replaced the run's own
+/// chunk file. Now both signals stop the arm, keep the recording, its chunks and its report
+/// (exit 130), and a second run with `--force` replaces all three.
+#[test]
+fn a_stop_while_listening_keeps_the_recording_and_force_replaces_it() {
+    use std::io::BufRead;
+    let Some(sim) = FrankySim::start("127.0.0.56") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("wait.csv");
+    let exe = env!("CARGO_BIN_EXE_cps-cli");
+    for (signal, force) in [("INT", false), ("TERM", true)] {
+        let mut args = vec![
+            "franka",
+            "follow",
+            "--listen",
+            "127.0.0.57:7773",
+            "--host",
+            &sim.host,
+            "--record",
+            rec.to_str().unwrap(),
+            "--realtime",
+            "ignore",
+        ];
+        if force {
+            args.push("--force");
+        }
+        let mut child = std::process::Command::new(exe)
+            .args(&args)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut err = std::io::BufReader::new(child.stderr.take().unwrap());
+        let mut line = String::new();
+        while !line.contains("listening for chunks") {
+            line.clear();
+            assert!(
+                err.read_line(&mut line).unwrap() > 0,
+                "it ended before listening"
+            );
+        }
+        std::thread::sleep(std::time::Duration::from_millis(500));
+        let sent = std::process::Command::new("kill")
+            .args([&format!("-{signal}"), &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(sent.success());
+        let mut rest = String::new();
+        std::io::Read::read_to_string(&mut err, &mut rest).unwrap();
+        let code = child.wait().unwrap().code();
+        assert_eq!(code, Some(130), "{signal}: {rest}");
+        for f in ["wait.csv", "wait.chunks.csv", "wait.report.json"] {
+            assert!(
+                dir.path().join(f).is_file(),
+                "{signal}: {f} missing: {rest}"
+            );
+        }
+        // No chunk came: the chunk file is its header alone, and it replays as nothing.
+        let chunks = std::fs::read_to_string(dir.path().join("wait.chunks.csv")).unwrap();
+        assert_eq!(chunks.lines().count(), 1, "{chunks}");
+    }
+    // Nothing left beside them: no staging file.
+    let mut names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["wait.chunks.csv", "wait.csv", "wait.report.json"]);
+}

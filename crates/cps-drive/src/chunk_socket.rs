@@ -48,10 +48,19 @@ pub struct SocketCounts {
 /// Whether the socket takes datagrams from `peer`: an address in `allowed`, or any
 /// loopback address when `allowed` is empty.
 pub fn allowed(peer: &SocketAddr, allow: &[IpAddr]) -> bool {
+    // A dual-stack socket hears an IPv4 sender as `::ffff:a.b.c.d`: the same sender.
+    let ip = match peer.ip() {
+        IpAddr::V6(v6) => v6.to_ipv4_mapped().map_or(IpAddr::V6(v6), IpAddr::V4),
+        v4 => v4,
+    };
+    let same = |a: &IpAddr| match a {
+        IpAddr::V6(v6) => v6.to_ipv4_mapped().map_or(*a, IpAddr::V4) == ip,
+        _ => *a == ip,
+    };
     if allow.is_empty() {
-        peer.ip().is_loopback()
+        ip.is_loopback()
     } else {
-        allow.contains(&peer.ip())
+        allow.iter().any(same)
     }
 }
 
@@ -103,6 +112,15 @@ pub fn parse_chunk(b: &[u8], dof: usize, now: f64) -> Result<Chunk, String> {
                 .collect()
         })
         .collect();
+    // A stamp ahead of the robot's clock is refused here, before it reaches the stream
+    // (one such chunk taken would make every honest chunk after it "go back").
+    if observed > now + cps_robot::CLOCK_TOLERANCE_S {
+        return Err(cps_robot::Refused::Ahead {
+            observed_s: observed,
+            now,
+        }
+        .to_string());
+    }
     // The loop stamps the arrival; until then it is at least now.
     Chunk::new(observed, now.max(observed), rate, targets, None, dof).map_err(|e| e.to_string())
 }
@@ -142,6 +160,8 @@ pub fn serve(
             }
             // A previous answer's peer went away (ICMP): nothing to do with this stream.
             Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => continue,
+            // A signal (Ctrl-C, SIGTERM) woke the wait: the loop's condition asks the stop.
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
             Err(e) => return Err(e),
         };
         if !allowed(&peer, allow) {
@@ -219,6 +239,14 @@ mod tests {
         assert!(e.contains("joint 2"), "{e}");
         let e = parse_chunk(b"CPSC\x02\0\0", 2, 0.0).unwrap_err();
         assert!(e.contains("shorter than its header"), "{e}");
+        // A chunk stamped 1 000 s ahead of the robot's clock: taken, it locked out every
+        // honest chunk after it ("times must not go back"); now refused alone.
+        let e = parse_chunk(&datagram(2, 1, 50.0, 1000.2, &[1.0, 2.0]), 2, 0.2).unwrap_err();
+        assert!(
+            e.contains("later than the robot's clock now (0.2 s)"),
+            "{e}"
+        );
+        assert!(parse_chunk(&datagram(2, 1, 50.0, 0.201, &[1.0, 2.0]), 2, 0.2).is_ok());
         // A count that would overflow is a length mismatch, not a panic.
         let e = parse_chunk(&datagram(2, u32::MAX, 50.0, 0.1, &[]), 2, 0.2).unwrap_err();
         assert!(e.contains("the datagram has 28"), "{e}");
@@ -232,6 +260,15 @@ mod tests {
         let ip: IpAddr = "10.0.0.5".parse().unwrap();
         assert!(allowed(&other, &[ip]) && !allowed(&lo, &[ip]));
         assert!(check_listen(&other, &[]).unwrap_err().contains("--allow"));
+        // An IPv4 sender heard on a dual-stack socket, and an allowed address written
+        // IPv4-mapped: the same senders (the sweep: `--allow` did not match them).
+        let mapped: SocketAddr = "[::ffff:10.0.0.5]:9".parse().unwrap();
+        assert!(allowed(&mapped, &[ip]));
+        let mapped_ip: IpAddr = "::ffff:10.0.0.5".parse().unwrap();
+        assert!(allowed(&other, &[mapped_ip]));
+        let mapped_lo: SocketAddr = "[::ffff:127.0.0.1]:9".parse().unwrap();
+        assert!(allowed(&mapped_lo, &[]));
+        assert!(!allowed(&"[::ffff:10.0.0.6]:9".parse().unwrap(), &[ip]));
         assert!(check_listen(&lo, &[]).is_ok());
     }
 }

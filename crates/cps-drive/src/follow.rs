@@ -126,7 +126,7 @@ pub fn franka_follow(
 ) -> Result<(Answer, u8), ExperimentError> {
     if let Some(r) = record {
         check_record_target(r, force)?;
-        check_file_target(&chunks_path(r), FileKind::TrajectoryCsv, force)?;
+        check_file_target(&chunks_path(r), FileKind::ChunkCsv, force)?;
     }
     settings.check().map_err(InputError)?;
     let chunks = cps_movement::chunks::read_chunks(file, 7, rate_hz)?;
@@ -148,7 +148,7 @@ pub fn franka_follow(
     let log: ChunkLog = source.into_log();
     let report = FollowReport::new(&run, &log);
     let franka = robot.inner().reports().last().cloned();
-    answer(exec, franka, &report, &log, record, Vec::new())
+    answer(exec, franka, &report, &log, record, None, Vec::new())
 }
 
 /// The answer of a run on a Franka: the recording, its chunks and report written when
@@ -159,6 +159,7 @@ fn answer(
     report: &FollowReport,
     log: &ChunkLog,
     record: Option<&Path>,
+    streamed: Option<cps_files::replace::Staged>,
     extra: Vec<(String, Value)>,
 ) -> Result<(Answer, u8), ExperimentError> {
     let executed = Executed {
@@ -177,9 +178,25 @@ fn answer(
     let mut lines = match record {
         Some(r) => {
             write_recording(r, &executed.report.samples, &json)?;
-            let chunks: Vec<_> = log.entries.iter().map(|(c, _)| c.clone()).collect();
-            let text = cps_movement::chunks::write_chunks(&chunks, 7);
-            cps_outcome::files::write_file(&chunks_path(r), text.as_bytes())?;
+            match streamed {
+                // Written as the chunks came back: put in place.
+                Some(staged) => {
+                    if let Some(e) = &log.unwritten {
+                        return Err(ExperimentError::Message(format!(
+                            "{}: the chunks could not be written ({e}); the recording and its report are written",
+                            chunks_path(r).display()
+                        )));
+                    }
+                    staged
+                        .commit()
+                        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+                }
+                None => {
+                    let chunks: Vec<_> = log.entries.iter().map(|(c, _)| c.clone()).collect();
+                    let text = cps_movement::chunks::write_chunks(&chunks, 7);
+                    cps_outcome::files::write_file(&chunks_path(r), text.as_bytes())?;
+                }
+            }
             let mut l = executed.lines(r);
             l.push(format!(
                 "  chunks as replayed: {}",
@@ -217,7 +234,7 @@ pub fn franka_follow_live(
 ) -> Result<(Answer, u8), ExperimentError> {
     if let Some(r) = record {
         check_record_target(r, force)?;
-        check_file_target(&chunks_path(r), FileKind::TrajectoryCsv, force)?;
+        check_file_target(&chunks_path(r), FileKind::ChunkCsv, force)?;
     }
     crate::chunk_socket::check_listen(&listen.addr, &listen.allow).map_err(InputError)?;
     let socket = std::net::UdpSocket::bind(listen.addr)
@@ -225,24 +242,42 @@ pub fn franka_follow_live(
     let bound = socket
         .local_addr()
         .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    let streamed = record.map(|r| stream_chunks(r, force)).transpose()?;
     let mut live = LiveRun::start(&ChunkRobot::Franka(exec.clone()), *settings, stop.clone())?;
+    let staged = streamed.map(|(staged, sink)| {
+        live.feed().stream_to(sink);
+        staged
+    });
     ready(bound);
-    let counts = crate::chunk_socket::serve(&socket, &listen.allow, live.feed(), stop)
-        .map_err(|e| ExperimentError::Message(format!("--listen {bound}: {e}")));
+    let served = crate::chunk_socket::serve(&socket, &listen.allow, live.feed(), stop);
+    if served.is_err() {
+        live.stop(); // the socket failed: the arm brakes to rest, the recording is kept
+    }
     let done = live.finish()?;
-    let counts = counts?;
+    let (counts, failure) = match served {
+        Ok(c) => (c, None),
+        Err(e) => (Default::default(), Some(format!("--listen {bound}: {e}"))),
+    };
     let socket_json = json!({
         "address": bound.to_string(), "chunks": counts.chunks, "states": counts.states,
         "foreign": counts.foreign, "refused": counts.refused, "reasons": counts.reasons,
+        "failure": failure,
     });
-    let (mut a, code) = answer(
+    let (mut a, mut code) = answer(
         exec,
         done.franka,
         &done.report,
         &done.log,
         record,
+        staged,
         vec![("socket".into(), socket_json)],
     )?;
+    if let Some(f) = &failure {
+        a.lines.push(format!(
+            "  the socket failed: {f}; the arm was braked to rest"
+        ));
+        code = code.max(1);
+    }
     a.lines.push(format!(
         "  socket {bound}: {} chunks, {} state requests; {} datagrams from senders not allowed, {} refused",
         counts.chunks, counts.states, counts.foreign, counts.refused
@@ -251,6 +286,34 @@ pub fn franka_follow_live(
         a.lines.push(format!("    refused: {r}"));
     }
     Ok((a, code))
+}
+
+/// The chunk file of a recording, staged beside its place and written as the chunks come
+/// back ([`cps_robot::ChunkFeed::stream_to`]): its header now, then each chunk's rows.
+fn stream_chunks(
+    record: &Path,
+    force: bool,
+) -> Result<(cps_files::replace::Staged, cps_robot::Sink), ExperimentError> {
+    use cps_files::replace::{Output, Shape};
+    use std::io::Write;
+    let shape = Shape::file(|p| {
+        cps_outcome::results_dir::looks_like(p, cps_outcome::results_dir::FileKind::ChunkCsv)
+    });
+    let staged = Output::new(&chunks_path(record), "chunk file", shape, force)
+        .stage()
+        .map_err(InputError::from)?;
+    let file = std::fs::OpenOptions::new()
+        .write(true)
+        .open(staged.path())
+        .map_err(|e| ExperimentError::Message(format!("{}: {e}", staged.path().display())))?;
+    let mut out = std::io::BufWriter::new(file);
+    writeln!(out, "{}", cps_movement::chunks::header(7))
+        .map_err(|e| ExperimentError::Message(format!("{}: {e}", staged.path().display())))?;
+    let sink: cps_robot::Sink = Box::new(move |i, c| {
+        cps_movement::chunks::write_chunk(&mut out, i, c)?;
+        out.flush()
+    });
+    Ok((staged, sink))
 }
 
 /// Which robot a live chunk stream drives.

@@ -91,6 +91,21 @@ pub fn read_bytes(path: &Path, ceiling: u64, what: &str) -> Result<Vec<u8>, File
     Ok(bytes)
 }
 
+/// The first `n` bytes of a regular file (fewer when it is shorter), whatever its size:
+/// for recognising a file by its head.
+pub fn head(path: &Path, n: u64, what: &str) -> Result<Vec<u8>, FileError> {
+    let (file, _) = open(path, u64::MAX, what)?;
+    let mut bytes = Vec::new();
+    file.take(n)
+        .read_to_end(&mut bytes)
+        .map_err(|source| FileError::Unreadable {
+            path: path.to_path_buf(),
+            what: what.to_string(),
+            source,
+        })?;
+    Ok(bytes)
+}
+
 /// Reads a whole regular file of at most `ceiling` bytes as UTF-8 text.
 pub fn read_text(path: &Path, ceiling: u64, what: &str) -> Result<String, FileError> {
     let bytes = read_bytes(path, ceiling, what)?;

@@ -26,18 +26,26 @@ pub fn header(dof: usize) -> String {
 
 /// Chunks as a chunk file's text (numbered from 0 in their order).
 pub fn write_chunks(chunks: &[Chunk], dof: usize) -> String {
-    let mut out = header(dof);
-    out.push('\n');
+    let mut out = Vec::new();
+    out.extend_from_slice(header(dof).as_bytes());
+    out.push(b'\n');
     for (i, c) in chunks.iter().enumerate() {
-        for (k, q) in c.targets.iter().enumerate() {
-            out.push_str(&format!("{i},{},{},{k}", c.arrived_s, c.observed_s));
-            for v in q {
-                out.push_str(&format!(",{v}"));
-            }
-            out.push('\n');
-        }
+        write_chunk(&mut out, i, c).expect("writing to memory");
     }
-    out
+    String::from_utf8(out).expect("the rows are ASCII")
+}
+
+/// One chunk's rows of a chunk file (`id, arrived_s, observed_s, k, q…` per target): what
+/// a stream writes as its chunks come back, so a long run never holds them all.
+pub fn write_chunk(out: &mut impl std::io::Write, id: usize, c: &Chunk) -> std::io::Result<()> {
+    for (k, q) in c.targets.iter().enumerate() {
+        write!(out, "{id},{},{},{k}", c.arrived_s, c.observed_s)?;
+        for v in q {
+            write!(out, ",{v}")?;
+        }
+        writeln!(out)?;
+    }
+    Ok(())
 }
 
 /// The chunk being read: its number, arrival, observation, first line and targets.
@@ -74,11 +82,10 @@ pub fn parse_chunks(
     let mut open: Option<Open> = None;
     let close = |open: Option<Open>, chunks: &mut Vec<Chunk>| -> Result<(), InputError> {
         if let Some((_, arrived, observed, line, targets)) = open {
+            // A chunk whose times go back against the one before is the executor's to
+            // refuse, live as in a replay, while the arm keeps its motion.
             let c = Chunk::new(observed, arrived, rate_hz, targets, None, dof)
                 .map_err(|e| at(line, e.to_string()))?;
-            if let Some(before) = chunks.last() {
-                c.follows(before).map_err(|e| at(line, e.to_string()))?;
-            }
             chunks.push(c);
         }
         Ok(())
@@ -240,10 +247,6 @@ mod tests {
                 "0,0.05,0.1,0,0,0\n",
                 "c.csv:2: the chunk arrived at 0.05 s, before the observation it was predicted from (0.1 s)",
             ),
-            (
-                "0,0.2,0.1,0,0,0\n1,0.3,0.05,0,0,0\n",
-                "c.csv:3: the chunk's observation time 0.05 s is before the previous chunk's (0.1 s)",
-            ),
         ];
         for (rows, says) in cases {
             let text = if rows.starts_with("t,") || rows.is_empty() || rows.starts_with("chunk,") {
@@ -254,6 +257,11 @@ mod tests {
             let e = parse(&text).unwrap_err().0;
             assert!(e.starts_with(says), "{rows:?}: {e}");
         }
+        // Observation times that go back once (parallel inference servers' delays of 70–130
+        // ms at 30 Hz) are read: the executor refuses that chunk alone, the arm moving on.
+        let stale =
+            parse("chunk,arrived_s,observed_s,k,q1,q2\n0,0.2,0.1,0,0,0\n1,0.3,0.05,0,0,0\n");
+        assert_eq!(stale.unwrap().len(), 2);
         let e = parse_chunks(Path::new("c.csv"), FILE, 2, -1.0)
             .unwrap_err()
             .0;

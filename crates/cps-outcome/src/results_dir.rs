@@ -565,6 +565,8 @@ pub enum FileKind {
     ProMp,
     /// A CSV file whose header starts with `time` or `t`.
     TrajectoryCsv,
+    /// A chunk file (`chunk,arrived_s,observed_s,k,q1,…`), as `franka follow` records.
+    ChunkCsv,
     /// A figure: PNG or SVG.
     Figure,
     /// An MCAP file (its magic bytes).
@@ -578,16 +580,18 @@ pub enum FileKind {
 /// The first line of every calibration file cps writes.
 pub const CALIBRATION_HEADER: &str = "# A robot's calibration, identified by cps";
 
-fn looks_like(path: &Path, kind: FileKind) -> bool {
-    let Ok(bytes) = fs::read(path) else {
+/// Whether the file at `path` is of `kind`, by its first 4 kB (never more is read).
+pub fn looks_like(path: &Path, kind: FileKind) -> bool {
+    let Ok(bytes) = cps_files::read::head(path, 4096, "file") else {
         return false;
     };
-    let head = &bytes[..bytes.len().min(4096)];
+    let head = &bytes[..];
     let text = String::from_utf8_lossy(head);
     match kind {
         FileKind::Model => text.contains("\"cps-dmp-model\""),
         FileKind::ProMp => text.contains("\"cps-promp-model\""),
         FileKind::TrajectoryCsv => text.starts_with("time,") || text.starts_with("t,"),
+        FileKind::ChunkCsv => text.starts_with("chunk,arrived_s,observed_s,k,"),
         FileKind::Mcap => head.starts_with(b"\x89MCAP0\r\n"),
         FileKind::TrajectoryYaml => text.starts_with("{header: "),
         FileKind::Calibration => text.starts_with(CALIBRATION_HEADER),

@@ -60,6 +60,8 @@ pub struct ChunkLog {
     /// Entries the loop could not hand back because the feed's side did not take them in
     /// time (counted, not kept).
     pub lost: usize,
+    /// A feed's sink that failed ([`ChunkFeed::stream_to`]): the first failure.
+    pub unwritten: Option<String>,
 }
 
 /// A recorded chunk stream replayed: each chunk handed over at the first period at or
@@ -94,6 +96,7 @@ impl Replay {
                 .filter_map(|(c, v)| c.map(|c| (c, v)))
                 .collect(),
             lost: 0,
+            unwritten: None,
         }
     }
 }
@@ -194,7 +197,20 @@ pub struct ChunkFeed {
     dof: usize,
     log: Vec<(Option<Chunk>, Option<ChunkVerdict>)>,
     pushed: usize,
+    sink: Option<Sink>,
+    /// Chunks handed to the sink, in order: entries before this keep their times only.
+    flushed: usize,
+    /// The sink's first failure.
+    unwritten: Option<String>,
 }
+
+/// Where a feed hands each chunk, in order, once the loop is done with it (a file).
+pub type Sink = Box<dyn FnMut(usize, &Chunk) -> std::io::Result<()> + Send>;
+
+/// With a sink: the most chunks the feed holds whole, waiting for an earlier one the arm
+/// still follows to come back (refused chunks come back at once; a taken one when the
+/// next is taken). A policy sending faster is refused until the arm catches up.
+pub const MAX_HELD: usize = 64;
 
 /// The loop's end of a live chunk stream (see [`live`]).
 pub struct LiveSource {
@@ -226,6 +242,9 @@ pub fn live(dof: usize) -> (ChunkFeed, LiveSource) {
             dof,
             log: Vec::new(),
             pushed: 0,
+            sink: None,
+            flushed: 0,
+            unwritten: None,
         },
         LiveSource {
             from_feed,
@@ -267,6 +286,11 @@ impl ChunkFeed {
         let Some(tx) = &self.to_loop else {
             return Err("the chunk stream was closed".into());
         };
+        if self.sink.is_some() && self.pushed - self.flushed >= MAX_HELD {
+            return Err(format!(
+                "{MAX_HELD} chunks are held for the one the arm follows: chunks come faster than the arm takes them"
+            ));
+        }
         match tx.try_send(chunk) {
             Ok(()) => {
                 self.pushed += 1;
@@ -279,6 +303,13 @@ impl ChunkFeed {
                 Err("the run is over: the robot no longer takes chunks".into())
             }
         }
+    }
+
+    /// From now on, hands each chunk to `sink` in order once the loop is done with it, and
+    /// keeps only its times and verdict: the memory a stream takes is bounded (at most
+    /// [`MAX_HELD`] chunks whole) however long it runs.
+    pub fn stream_to(&mut self, sink: Sink) {
+        self.sink = Some(sink);
     }
 
     /// Ends the stream: the loop brakes the arm to rest and ends the run.
@@ -300,6 +331,18 @@ impl ChunkFeed {
                 Back::Chunk(_, c) => self.log[i].0 = Some(c),
             }
         }
+        let Some(sink) = &mut self.sink else {
+            return;
+        };
+        while let Some((Some(c), _)) = self.log.get_mut(self.flushed) {
+            if let Err(e) = sink(self.flushed, c)
+                && self.unwritten.is_none()
+            {
+                self.unwritten = Some(format!("chunk {}: {e}", self.flushed));
+            }
+            c.targets = Vec::new();
+            self.flushed += 1;
+        }
     }
 
     /// The log, once the run is over and its source handed back.
@@ -307,6 +350,19 @@ impl ChunkFeed {
         let lost = source.lost;
         drop(source);
         self.collect();
+        // The end: chunks the loop never handed back leave holes; the rest are written.
+        if let Some(sink) = &mut self.sink {
+            for (i, (c, _)) in self.log.iter_mut().enumerate().skip(self.flushed) {
+                if let Some(c) = c {
+                    if let Err(e) = sink(i, c)
+                        && self.unwritten.is_none()
+                    {
+                        self.unwritten = Some(format!("chunk {i}: {e}"));
+                    }
+                    c.targets = Vec::new();
+                }
+            }
+        }
         ChunkLog {
             entries: self
                 .log
@@ -314,6 +370,7 @@ impl ChunkFeed {
                 .filter_map(|(c, v)| c.map(|c| (c, v)))
                 .collect(),
             lost,
+            unwritten: self.unwritten,
         }
     }
 }

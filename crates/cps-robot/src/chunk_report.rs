@@ -89,6 +89,9 @@ pub struct FollowReport {
     pub stalls: Vec<f64>,
     /// Log entries lost on their way back from the loop.
     pub lost: usize,
+    /// Chunks that never reached the executor: the run had ended before they came (a
+    /// pause in the stream longer than the idle end), with the pause (s) before the first.
+    pub unplayed: Option<(usize, f64)>,
 }
 
 /// Backward differences of `x` (from rest before its first value) divided by `dt`.
@@ -175,6 +178,13 @@ impl FollowReport {
         let intervals: Vec<f64> = came.windows(2).map(|w| w[1] - w[0]).collect();
         let mut refusals = Vec::new();
         let (mut taken, mut refused, mut skipped) = (0, 0, 0);
+        let first_unplayed = log.entries.iter().position(|(_, v)| v.is_none());
+        let unplayed = first_unplayed.map(|i| {
+            let pause = i.checked_sub(1).map_or(0.0, |p| {
+                log.entries[i].0.arrived_s - log.entries[p].0.arrived_s
+            });
+            (log.entries.len() - i, pause)
+        });
         for (i, (_, v)) in log.entries.iter().enumerate() {
             match v {
                 Some(ChunkVerdict::Taken { skipped: s }) => {
@@ -205,6 +215,7 @@ impl FollowReport {
             skipped,
             stalls: run.stalls.clone(),
             lost: log.lost,
+            unplayed,
         }
     }
 
@@ -256,6 +267,12 @@ impl FollowReport {
             out.push(format!(
                 "{} log entries were lost on their way back from the loop",
                 self.lost
+            ));
+        }
+        if let Some((n, pause)) = self.unplayed {
+            out.push(format!(
+                "{n} chunk(s) never reached the arm: the stream paused {} s before them, longer than the idle end (the run ends once the arm has stood that long without a fresh chunk), and the run had ended",
+                cps_files::number(pause, 4)
             ));
         }
         out

@@ -15,6 +15,11 @@
 use crate::chunk::{Chunk, ChunkError};
 use crate::follow::{FollowLimits, Follower};
 
+/// How far ahead of the robot's clock a chunk's observation may be (s): two control
+/// periods of rounding between the state a policy read and the period that takes its
+/// chunk; later is refused ([`Refused::Ahead`]).
+pub const CLOCK_TOLERANCE_S: f64 = 0.002;
+
 /// How the executor treats chunks.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ChunkSettings {
@@ -61,6 +66,14 @@ pub enum Refused {
         /// See `lower`.
         upper: f64,
     },
+    /// Observed later than the robot's clock now: a sender's clock ahead of the robot's,
+    /// or a forged stamp, which would lock out every honest chunk after it.
+    Ahead {
+        /// Its observation time (s).
+        observed_s: f64,
+        /// The robot's clock at its arrival (s).
+        now: f64,
+    },
     /// Where it wants the robot is too far from the command.
     Far {
         /// The joint (0-based).
@@ -74,11 +87,20 @@ pub enum Refused {
 
 impl std::fmt::Display for Refused {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let num = |x: &f64| cps_files::number(*x, 6);
         match self {
             Refused::Chunk(e) => write!(f, "{e}"),
             Refused::Late { last_s, now } => write!(
                 f,
-                "the chunk arrived at {now} s, after its last target was due ({last_s} s): nothing of it is left to follow"
+                "the chunk arrived at {} s, after its last target was due ({} s): nothing of it is left to follow",
+                num(now),
+                num(last_s)
+            ),
+            Refused::Ahead { observed_s, now } => write!(
+                f,
+                "the chunk says it was observed at {} s, later than the robot's clock now ({} s): observation times come from the robot's state answers (CPS?), never ahead of them",
+                num(observed_s),
+                num(now)
             ),
             Refused::Range {
                 target,
@@ -88,8 +110,9 @@ impl std::fmt::Display for Refused {
                 upper,
             } => write!(
                 f,
-                "target {target} puts joint {} at {value} rad, outside its range [{lower}, {upper}] rad",
-                joint + 1
+                "target {target} puts joint {} at {} rad, outside its range [{lower}, {upper}] rad",
+                joint + 1,
+                num(value)
             ),
             Refused::Far { joint, gap, max } => write!(
                 f,
@@ -271,6 +294,14 @@ impl ChunkExecutor {
     }
 
     fn judge(&mut self, chunk: &Chunk, now: f64) -> Result<(), Refused> {
+        // Before it is compared with the chunk followed: a chunk from the future taken
+        // would make every honest one after it "go back".
+        if chunk.observed_s > now + CLOCK_TOLERANCE_S {
+            return Err(Refused::Ahead {
+                observed_s: chunk.observed_s,
+                now,
+            });
+        }
         if let Some(before) = &self.chunk {
             chunk.follows(before).map_err(Refused::Chunk)?;
         }

@@ -78,14 +78,15 @@ mod watch;
 pub use check::{Breach, Limit, OUTSIDE_SLACK, Verdict, check};
 pub use chunk::{Chunk, ChunkError, StandIn};
 pub use chunk_feed::{
-    ChunkFeed, ChunkLog, ChunkSource, ChunkVerdict, LiveSource, Replay, StateCell, live,
+    ChunkFeed, ChunkLog, ChunkSource, ChunkVerdict, LiveSource, MAX_HELD, Replay, Sink, StateCell,
+    live,
 };
 pub use chunk_report::{BOUNDARY_MS, FollowReport, Peaks, Spread};
 pub use chunk_run::{
     FollowSettings, Followed, TORQUE_RATE_SHARE, TakenAt, executor_for, follow, follow_limits,
     replay_plan, replay_with,
 };
-pub use chunks::{ChunkCounts, ChunkExecutor, ChunkSettings, Offer, Refused};
+pub use chunks::{CLOCK_TOLERANCE_S, ChunkCounts, ChunkExecutor, ChunkSettings, Offer, Refused};
 pub use collision::{Collision, DEFAULT_MARGIN, ShapeWatch, Shapes, check_shapes};
 pub use cycles::{
     CASCADE_GAINS, CycleLoss, Judge, LIMITABLE_GAP, Limited, Limiter, LinkBreak, LossyLink,

@@ -201,6 +201,127 @@ fn a_live_feed_refuses_bad_chunks_and_brakes_to_rest_when_it_closes() {
     assert_eq!(&run.commands[run.commands.len() - 2], end);
 }
 
+/// The sweep's poisoned streams, replayed: a chunk observed before the one followed
+/// (inference servers in parallel), replayed, and a chunk stamped 1 000 s ahead of the
+/// robot's clock, live, are each refused while the arm goes on, and every honest chunk
+/// after them is taken;
+/// chunks after a pause longer than the idle end are said to have never reached the arm.
+#[test]
+fn stale_and_future_chunks_are_refused_alone_and_a_long_pause_is_said() {
+    let stand_in = StandIn {
+        horizon: 50,
+        target_hz: 50.0,
+        chunk_hz: 30.0,
+        delay_s: (0.07, 0.13),
+        noise_rad: 0.0,
+        seed: 5,
+    };
+    let mut chunks = stand_in.chunks(&demo, 0.0, 3.0);
+    let n = chunks.len();
+    // Chunk 20 observed before chunk 19 (its server was slower), arriving after it.
+    let (o19, a19) = (chunks[19].observed_s, chunks[19].arrived_s);
+    chunks[20] = Chunk::new(
+        o19 - 0.03,
+        a19 + 0.001,
+        50.0,
+        chunks[20].targets.clone(),
+        None,
+        7,
+    )
+    .unwrap();
+    let settings = FollowSettings::default();
+    let mut r = robot();
+    let mut source = Replay::new(chunks.clone());
+    let plan = replay_plan(r.model(), &PANDA_READY, DT, &chunks, &settings).unwrap();
+    let run = follow(
+        &mut r,
+        &mut source,
+        Some(&plan),
+        &settings,
+        &StopToken::new(),
+    )
+    .unwrap();
+    assert!(run.run.ending.complete(), "{:?}", run.run.ending);
+    within_limits(&run);
+    let log = source.into_log();
+    let report = FollowReport::new(&run, &log);
+    assert_eq!(
+        (report.taken, report.refused),
+        (n - 1, 1),
+        "{:?}",
+        report.refusals
+    );
+    assert_eq!(report.refusals[0].0, 20);
+    assert!(
+        report.refusals[0].1.contains("observation time"),
+        "{:?}",
+        report.refusals
+    );
+    // The future chunk, live: refused, and the honest chunks after it are taken.
+    let (mut feed, source) = live(7);
+    let here = PANDA_READY.to_vec();
+    let hold = |observed: f64| {
+        Chunk::new(observed, observed, 50.0, vec![here.clone(); 25], None, 7).unwrap()
+    };
+    feed.push(hold(1000.0)).unwrap();
+    for k in 0..3 {
+        feed.push(hold(0.0 + k as f64 * 1e-3)).unwrap();
+    }
+    feed.close();
+    let mut r = robot();
+    let mut source = source;
+    let run = follow(&mut r, &mut source, None, &settings, &StopToken::new()).unwrap();
+    let log = feed.into_log(source);
+    let report = FollowReport::new(&run, &log);
+    assert_eq!(
+        (report.chunks, report.taken, report.refused),
+        (4, 3, 1),
+        "{:?}",
+        report.refusals
+    );
+    assert!(
+        report.refusals[0]
+            .1
+            .contains("later than the robot's clock now"),
+        "{:?}",
+        report.refusals
+    );
+    // A pause longer than the idle end: the chunks after it never reach the arm, and the
+    // report says so.
+    let short = FollowSettings {
+        idle_end_s: 0.5,
+        ..FollowSettings::default()
+    };
+    let mut late = stand_in.chunks(&demo, 0.0, 1.0);
+    let k = late.len();
+    let mut after = stand_in.chunks(&demo, 0.0, 1.0);
+    for c in &mut after {
+        *c = Chunk::new(
+            c.observed_s + 3.0,
+            c.arrived_s + 3.0,
+            50.0,
+            c.targets.clone(),
+            None,
+            7,
+        )
+        .unwrap();
+    }
+    late.extend(after);
+    let mut r = robot();
+    let mut source = Replay::new(late.clone());
+    let run = follow(&mut r, &mut source, None, &short, &StopToken::new()).unwrap();
+    let report = FollowReport::new(&run, &source.into_log());
+    let (unplayed, pause) = report.unplayed.expect("the later chunks are counted");
+    assert_eq!(unplayed, late.len() - k);
+    assert!(pause > 1.5, "{pause}");
+    assert!(
+        report
+            .lines()
+            .iter()
+            .any(|l| l.contains("never reached the arm"))
+    );
+}
+
 #[test]
 fn a_stop_brakes_a_live_run_and_keeps_what_was_recorded() {
     let (mut feed, source) = live(7);
