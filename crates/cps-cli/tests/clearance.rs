@@ -103,3 +103,42 @@ fn the_promp_kind_executes_its_most_likely_clear_movement() {
     let via = s["promp"]["executed"]["via_error_m"].as_f64().unwrap();
     assert!(via < 1e-3, "through the via point: {via}");
 }
+
+/// The sweep: an imitation with `[clearance] distance = 0.05` bent its movement into a
+/// jump at the start (velocity 111 %, acceleration 2 118 %, torque rate 8 911 % of the
+/// limits), `"ok": false` in the summary, and the run exited 0. The bend is judged at the
+/// control rate: a run whose bend breaks a limit fails (exit 1), `limits = "report"` or not
+/// (it keeps reporting the thesis's start beyond joint 4's range, a fact of the scene).
+#[test]
+fn an_imitation_bent_into_a_jump_fails_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let ball = [0.82, 0.10, 1.86];
+    let bent = write(
+        dir.path(),
+        "bent.toml",
+        &with_ball(
+            "experiments/imitation.toml",
+            ball,
+            0.03,
+            "\n[clearance]\ndistance = 0.05\n",
+        ),
+    );
+    let out = dir.path().join("bent");
+    let (o, err) = run_quiet(&bent, &out);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("[clearance] bent the imitation by ridge into a movement that breaks joint")
+            && err.contains("lower `[clearance] distance`"),
+        "{err}"
+    );
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["imitations"][0]["limit_usage"]["ok"], false);
+    // The shipped imitation itself, unbent, reports and completes.
+    let plain = write(
+        dir.path(),
+        "plain.toml",
+        &std::fs::read_to_string(repo("experiments/imitation.toml")).unwrap(),
+    );
+    let (o, err) = run_quiet(&plain, &dir.path().join("plain"));
+    assert!(o.status.success(), "{err}");
+}

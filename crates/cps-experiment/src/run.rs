@@ -129,14 +129,16 @@ pub fn run(
 /// A learned movement that breaks a limit of its robot is a failed run, not a result: its
 /// trajectory would be refused by `cps-cli limits check`, `ros2 send` and `franka
 /// execute`. The outcome keeps everything, and says why it failed.
+/// Every executed movement of a kind counts: the summary's `limit_usage`, and each one
+/// nested in it (an imitation per method, a movement per run).
 fn fail_on_broken_limits(outcome: &mut Outcome) {
-    let Some(usage) = outcome.summary.get("limit_usage") else {
-        return;
-    };
-    if outcome.header.failure.is_some() || usage.get("ok") != Some(&serde_json::Value::Bool(false))
-    {
+    if outcome.header.failure.is_some() {
         return;
     }
+    let summary = serde_json::Value::Object(outcome.summary.clone());
+    let Some((place, usage)) = broken_limits(&summary, String::new()) else {
+        return;
+    };
     let violations = usage
         .get("violations")
         .and_then(|v| v.as_array())
@@ -154,6 +156,28 @@ fn fail_on_broken_limits(outcome: &mut Outcome) {
         })
         .unwrap_or_default();
     outcome.header.failure = Some(format!(
-        "the learned movement breaks its robot's limits at 1 kHz: {count} violation(s){first}, listed in summary.json `limit_usage`; `limits check`, `ros2 send` and `franka execute` would refuse its trajectory"
+        "the learned movement breaks its robot's limits at 1 kHz: {count} violation(s){first}, listed in summary.json `{place}limit_usage`; `limits check`, `ros2 send` and `franka execute` would refuse its trajectory"
     ));
+}
+
+/// The first `limit_usage` in `value` that says `"ok": false`, with its place
+/// (`imitations[1].`).
+fn broken_limits(value: &serde_json::Value, at: String) -> Option<(String, &serde_json::Value)> {
+    match value {
+        serde_json::Value::Object(map) => {
+            if let Some(u) = map.get("limit_usage")
+                && u.get("ok") == Some(&serde_json::Value::Bool(false))
+            {
+                return Some((at, u));
+            }
+            map.iter()
+                .filter(|(k, _)| *k != "limit_usage")
+                .find_map(|(k, v)| broken_limits(v, format!("{at}{k}.")))
+        }
+        serde_json::Value::Array(items) => items
+            .iter()
+            .enumerate()
+            .find_map(|(i, v)| broken_limits(v, format!("{}[{i}].", at.trim_end_matches('.')))),
+        _ => None,
+    }
 }

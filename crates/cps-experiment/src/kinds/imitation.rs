@@ -219,6 +219,18 @@ pub(crate) fn declare(ctx: &Ctx<'_>, run: &Pipeline) -> Result<Outcome, Experime
             documents.extend(m.documents);
             usage = Some(m.usage);
         }
+        // [clearance] bends the movement; the bend is judged at the control rate like any
+        // plan, whatever `[robot] limits` says: a bend that breaks a limit made a jump.
+        if f.kept_clear.is_some()
+            && header.failure.is_none()
+            && let Some(u) = &usage
+            && let Some(why) = bent_beyond_limits(u, &robot.setup.initial_q, &robot.model)
+        {
+            header.failure = Some(format!(
+                "[clearance] bent the imitation by {} into a movement that {why}: the clearance asks more than a smooth bend can give; lower `[clearance] distance` or move the obstacle",
+                f.method.replace('_', " ")
+            ));
+        }
         fits.push(FitSummary {
             method: f.method,
             basis_functions: f.imitation.dmp.n_basis(),
@@ -529,4 +541,35 @@ fn report(ctx: &Ctx<'_>, s: &Summary<'_>) -> Report {
         context: "Demonstrations learned by the via-point learner from perturbed via points, executed on the robot with the inverse controller, time-normalised, averaged and imitated (thesis §5.2).".into(),
         tables,
     }
+}
+
+/// What limit a bent movement breaks, in words: any violation but of a joint's position
+/// range when the joint starts beyond it (the thesis's Panda starts with joint 4 at 0 rad,
+/// beyond its range, a fact of the scene and not of the bend).
+fn bent_beyond_limits(
+    usage: &crate::limits::LimitsReport,
+    start: &[f64],
+    model: &crate::robot_file::RobotModel,
+) -> Option<String> {
+    use cps_kinematics::Quantity;
+    let starts_beyond = |j: usize| {
+        model
+            .chain
+            .limits()
+            .is_some_and(|(lo, hi)| start.get(j).is_some_and(|q| *q < lo[j] || *q > hi[j]))
+    };
+    let v = usage
+        .check
+        .joints
+        .violations
+        .iter()
+        .find(|v| !(v.quantity == Quantity::Position && starts_beyond(v.joint)))?;
+    Some(format!(
+        "breaks joint {}'s {} limit at {} s ({} against {})",
+        v.joint + 1,
+        v.quantity.name().replace('_', " "),
+        cps_files::number(v.time, 4),
+        cps_files::number(v.value, 4),
+        cps_files::number(v.limit, 4)
+    ))
 }
