@@ -154,7 +154,7 @@ impl Output {
                 let Ok(t) = entry.file_type() else {
                     return Some(rel);
                 };
-                let is_file = files.iter().any(|f| *f == rel);
+                let is_file = files.contains(&rel);
                 let is_dir = files.iter().any(|f| f.starts_with(&format!("{rel}/")));
                 if t.is_dir() && is_dir {
                     stack.push(path);

@@ -366,6 +366,11 @@ fn ending(e: &MotionEnd) -> RunEnding {
 }
 
 impl Streaming for FrankaRobot {
+    /// The 1 kHz loop limits every command against the reference the robot holds.
+    fn limits_each_command(&self) -> bool {
+        true
+    }
+
     /// The generator runs inside the realtime loop, once per tick, with the measured joints;
     /// every command passes the arm's per-millisecond check or the robot brakes. One entry
     /// per tick.

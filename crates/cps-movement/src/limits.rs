@@ -111,13 +111,13 @@ fn joint_columns(found: &[String], dof: usize) -> Result<Vec<String>, String> {
     Ok(ordered.into_iter().map(|(_, n)| n.clone()).collect())
 }
 
+/// A trajectory at a controller's rate: `(t0, dt, rows, resampled)`.
+pub type AtRate = (f64, f64, Vec<Vec<f64>>, bool);
+
 /// The commands the controller receives at `rate` Hz: `(t0, dt, rows, resampled)`. The
 /// rows are counted before they are made: a span of more than [`cps_files::count::MAX_ROWS`]
 /// commands is refused.
-pub fn at_rate(
-    traj: &JointTrajectory,
-    rate: f64,
-) -> Result<(f64, f64, Vec<Vec<f64>>, bool), InputError> {
+pub fn at_rate(traj: &JointTrajectory, rate: f64) -> Result<AtRate, InputError> {
     let dt = 1.0 / rate;
     let t0 = traj.times[0];
     let span = traj.times[traj.times.len() - 1] - t0;

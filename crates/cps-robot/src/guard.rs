@@ -415,26 +415,27 @@ impl<R: Robot> Guarded<R> {
         self.policy = policy;
         let prepared = prepared?;
         let name = self.robot.name();
-        let model = self.robot.model();
-        let model_shapes = model.shapes.clone();
-        let chain_period = (model.chain.clone(), self.robot.command_period());
+        let model = self.robot.model().clone();
+        let period = self.robot.command_period();
+        let here = self.robot.joint_positions()?;
         let Some(streaming) = self.robot.streaming() else {
             return Err(RobotError::Robot {
                 robot: name,
                 message: "it runs whole plans only; it takes no command computed online".into(),
             });
         };
-        let Some(shapes) = model_shapes else {
-            let run = streaming.stream(next, max_commands, stop)?;
-            self.last = Some(prepared.verdict);
-            return Ok(run);
-        };
-        // Each command is judged for collisions as it is made; at the first within the
-        // margin the robot is stopped (it brakes within its limits) through a token of the
+        // Each command is judged as it is made — every limit (unless the robot's own loop
+        // limits each command) and the shapes; at the first it breaks, it is not sent (the
+        // last one accepted is held) and the robot is stopped through a token of the
         // guard's own, which also passes the caller's stop on.
-        let (chain, period) = chain_period;
-        let mut watch = ShapeWatch::new(shapes, chain.dof());
-        let (inner, mut hit, mut count) = (StopToken::new(), None, 0usize);
+        let mut limits =
+            (!streaming.limits_each_command()).then(|| CommandWatch::new(&here, period));
+        let mut shapes = model
+            .shapes
+            .clone()
+            .map(|s| ShapeWatch::new(s, model.chain.dof()));
+        let chain = &model.chain;
+        let (inner, mut hit, mut breach, mut count) = (StopToken::new(), None, None, 0usize);
         let _moving = stop.moving();
         let mut judged = |measured: &[f64], t: f64, out: &mut [f64]| -> bool {
             if stop.is_stopped() {
@@ -442,17 +443,30 @@ impl<R: Robot> Guarded<R> {
             }
             let last = next(measured, t, out);
             count += 1;
-            if hit.is_none() {
-                let judged = watch.contact(&chain, out).transpose();
-                if let Some(h) = judged {
-                    hit = Some((h, count));
-                    inner.stop();
-                }
+            if breach.is_none()
+                && let Some(w) = limits.as_mut()
+                && let Err(b) = w.judge(&model, out)
+            {
+                out.copy_from_slice(w.last());
+                breach = Some(b);
+                inner.stop();
+            }
+            if hit.is_none()
+                && let Some(w) = shapes.as_mut()
+                && let Some(h) = w.contact(chain, out).transpose()
+            {
+                hit = Some((h, count));
+                inner.stop();
             }
             last
         };
         let mut run = streaming.stream(&mut judged, max_commands, &inner)?;
-        if let Some((hit, count)) = hit {
+        if let Some(b) = breach {
+            run.ending = crate::Ending::Failed(format!(
+                "a command computed online broke a limit, so it was not sent and the robot stopped: {b}"
+            ));
+        } else if let Some((hit, count)) = hit {
+            let watch = shapes.as_ref().expect("a hit comes from the shapes");
             let why = match hit {
                 Ok(c) => watch
                     .shapes()

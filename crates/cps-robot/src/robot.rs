@@ -135,11 +135,19 @@ pub type Generator<'a> = dyn FnMut(&[f64], f64, &mut [f64]) -> bool + Send + 'a;
 /// A robot that takes one command per control period, computed from what it measured: a
 /// movement generated online (a DMP stepped with phase stopping, which slows when the
 /// robot lags). What cannot be checked before (the commands depend on the robot) is
-/// checked command by command by the robot's own loop: a command that would break a limit
-/// is not sent, and the robot brakes instead. [`crate::Guarded::stream`] checks the
-/// movement's nominal plan first. The command period is the robot's
-/// [`Robot::command_period`].
+/// checked command by command: [`crate::Guarded::stream`] checks the movement's nominal
+/// plan first, then judges every command as it is made against every limit (unless the
+/// robot's own loop does, [`Streaming::limits_each_command`]) and the shapes; a command
+/// that would break one is not sent, and the robot stops. The command period is the
+/// robot's [`Robot::command_period`].
 pub trait Streaming: Robot {
+    /// Whether the robot's own loop limits every command against the reference it holds
+    /// (the Franka's, with the FCI's rules): the guard then leaves the limits to it, and
+    /// judges the shapes only. Default: false, the guard judges every limit.
+    fn limits_each_command(&self) -> bool {
+        false
+    }
+
     /// Runs `next` every [command period](Robot::command_period) from where the robot
     /// holds its position, at most `max_commands` times (then the robot brakes: the run is
     /// [`crate::Ending::Failed`]). `stop` brakes it. One entry per command period.

@@ -191,24 +191,53 @@ fn a_joint_outside_its_range_may_move_back_but_not_further_out() {
 
 #[test]
 fn a_movement_generated_online_is_checked_on_its_nominal_plan_then_streamed() {
-    // Joint 7 towards +0.3 rad by a first-order lag, one command per step.
+    // Joint 7 swung online along its nominal plan, one command per step, slowed (phase
+    // stopping's way) to 0.9 of the plan's pace: within every limit, streamed whole.
     let mut r = robot(Policy::STRICT, 0.01);
     let nominal = swing(6, 0.15, 2.0, 0.01);
-    let mut target = HOME[6];
+    let points = nominal.points().to_vec();
     let mut k = 0;
     let mut next = |_measured: &[f64], _t: f64, out: &mut [f64]| {
         k += 1;
-        target += (HOME[6] + 0.3 - target) * 0.05;
-        out.copy_from_slice(&HOME);
-        out[6] = target;
-        k >= 200
+        let s = (k as f64 * 0.9).min(200.0);
+        let (i, f) = (s.floor() as usize, s.fract());
+        let b = &points[(i + 1).min(200)];
+        for j in 0..7 {
+            out[j] = points[i][j] + f * (b[j] - points[i][j]);
+        }
+        s >= 200.0
     };
     let run = r
         .stream(&nominal, &mut next, 1000, &StopToken::new())
         .unwrap();
-    assert!(run.ending.complete());
-    assert_eq!(run.len(), 201);
-    assert!((run.q[200][6] - (HOME[6] + 0.3)).abs() < 1e-4);
+    assert!(run.ending.complete(), "{:?}", run.ending);
+    assert_eq!(run.len(), 224);
+    assert!((run.q[223][6] - HOME[6]).abs() < 1e-9);
+    // The sweep: an online movement that leaves its nominal plan was held to the
+    // collisions only. Joint 7 towards +0.3 rad by a first-order lag jumps to 1.5 rad/s
+    // from rest: the first command breaks the acceleration limit, is not sent, and the
+    // robot stops where it stood.
+    let mut target = HOME[6];
+    let mut lag = |_measured: &[f64], _t: f64, out: &mut [f64]| {
+        target += (HOME[6] + 0.3 - target) * 0.05;
+        out.copy_from_slice(&HOME);
+        out[6] = target;
+        false
+    };
+    let run = r
+        .stream(&nominal, &mut lag, 1000, &StopToken::new())
+        .unwrap();
+    let cps_robot::Ending::Failed(why) = &run.ending else {
+        panic!("{:?}", run.ending);
+    };
+    assert!(
+        why.contains("broke a limit, so it was not sent") && why.contains("joint 7"),
+        "{why}"
+    );
+    assert!(
+        run.q.iter().all(|q| q[6] == HOME[6]),
+        "nothing of it was sent"
+    );
     // A nominal movement that breaks a limit is refused before anything is sent.
     let mut never = |_: &[f64], _: f64, _: &mut [f64]| -> bool { panic!("nothing is sent") };
     let e = r
