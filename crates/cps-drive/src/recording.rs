@@ -18,12 +18,5 @@ pub fn report_path(record: &Path) -> PathBuf {
 /// Checks before anything moves that the recording and its report may be written.
 pub fn check_record_target(record: &Path, force: bool) -> Result<(), InputError> {
     check_file_target(record, FileKind::TrajectoryCsv, force)?;
-    let report = report_path(record);
-    if report.exists() && !force {
-        return Err(InputError(format!(
-            "{}: exists (the report of an earlier recording); pass --force to replace it",
-            report.display()
-        )));
-    }
-    Ok(())
+    check_file_target(&report_path(record), FileKind::RecordingReport, force)
 }

@@ -575,6 +575,8 @@ pub enum FileKind {
     TrajectoryYaml,
     /// A robot's calibration as `cps-cli identify` writes it (its first line says so).
     Calibration,
+    /// A recording's report (`rec.report.json`: JSON saying whether the run was `complete`).
+    RecordingReport,
 }
 
 /// The first line of every calibration file cps writes.
@@ -595,6 +597,9 @@ pub fn looks_like(path: &Path, kind: FileKind) -> bool {
         FileKind::Mcap => head.starts_with(b"\x89MCAP0\r\n"),
         FileKind::TrajectoryYaml => text.starts_with("{header: "),
         FileKind::Calibration => text.starts_with(CALIBRATION_HEADER),
+        FileKind::RecordingReport => {
+            text.trim_start().starts_with('{') && text.contains("\"complete\"")
+        }
         FileKind::Figure => {
             head.starts_with(b"\x89PNG\r\n\x1a\n")
                 || text.trim_start().starts_with("<svg")

@@ -82,21 +82,30 @@ pub enum ChunkError {
     },
 }
 
+/// The fastest rate of a chunk's targets (Hz): ten per control period of a 1 kHz robot.
+pub const MAX_RATE_HZ: f64 = 10_000.0;
+
 impl fmt::Display for ChunkError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let num = |x: f64| cps_files::number(x, 6);
         match self {
             ChunkError::Empty => write!(f, "the chunk has no target"),
             ChunkError::Rate(r) => write!(
                 f,
-                "the chunk's rate {r} Hz is not a rate: give a positive number of targets per second"
+                "the chunk's rate {} Hz is not a rate: give a positive number of targets per second, at most {MAX_RATE_HZ}",
+                num(*r)
             ),
-            ChunkError::Time(which, t) => write!(f, "the chunk's {which} time {t} is not a time"),
+            ChunkError::Time(which, t) => {
+                write!(f, "the chunk's {which} time {} is not a time", num(*t))
+            }
             ChunkError::ArrivedBeforeObserved {
                 observed_s,
                 arrived_s,
             } => write!(
                 f,
-                "the chunk arrived at {arrived_s} s, before the observation it was predicted from ({observed_s} s)"
+                "the chunk arrived at {} s, before the observation it was predicted from ({} s)",
+                num(*arrived_s),
+                num(*observed_s)
             ),
             ChunkError::Joints {
                 target,
@@ -126,7 +135,9 @@ impl fmt::Display for ChunkError {
             ),
             ChunkError::Backwards { what, now, before } => write!(
                 f,
-                "the chunk's {what} time {now} s is before the previous chunk's ({before} s): times must not go back"
+                "the chunk's {what} time {} s is before the previous chunk's ({} s): times must not go back",
+                num(*now),
+                num(*before)
             ),
         }
     }
@@ -169,7 +180,7 @@ impl Chunk {
         if targets.is_empty() {
             return Err(ChunkError::Empty);
         }
-        if !(rate_hz.is_finite() && rate_hz > 0.0) {
+        if !(rate_hz > 0.0 && rate_hz <= MAX_RATE_HZ) {
             return Err(ChunkError::Rate(rate_hz));
         }
         for (which, t) in [("observation", observed_s), ("arrival", arrived_s)] {
