@@ -244,10 +244,18 @@ pub fn franka_follow_live(
         .map_err(|e| ExperimentError::Message(e.to_string()))?;
     let streamed = record.map(|r| stream_chunks(r, force)).transpose()?;
     let mut live = LiveRun::start(&ChunkRobot::Franka(exec.clone()), *settings, stop.clone())?;
-    let staged = streamed.map(|(staged, sink)| {
-        live.feed().stream_to(sink);
-        staged
-    });
+    // Each chunk goes to the chunk file as it comes back (or nowhere, unrecorded), and
+    // only its times stay: the memory a stream takes is bounded however long it runs.
+    let staged = match streamed {
+        Some((staged, sink)) => {
+            live.feed().stream_to(sink);
+            Some(staged)
+        }
+        None => {
+            live.feed().stream_to(Box::new(|_, _| Ok(())));
+            None
+        }
+    };
     ready(bound);
     let served = crate::chunk_socket::serve(&socket, &listen.allow, live.feed(), stop);
     if served.is_err() {

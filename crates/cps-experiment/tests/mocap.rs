@@ -111,7 +111,7 @@ fn a_bad_demonstrations_section_is_named_with_its_place() {
     assert!(e.contains("`markers") || e.contains("markers ="), "{e}");
     let e = load(&text.replace("lab.toml", "missing.toml"));
     assert!(
-        e.contains("missing.toml") && e.contains("cannot be read"),
+        e.contains("missing.toml") && e.contains("cannot read the calibration"),
         "{e}"
     );
 }

@@ -35,7 +35,7 @@ pub enum Shape {
     /// contents: a CSV with cps's header, JSON of cps's format).
     File(Arc<dyn Fn(&Path) -> bool + Send + Sync>),
     /// A folder holding these files (relative, `/`-separated) and their folders, and
-    /// nothing else.
+    /// nothing else; the first (its description) at least.
     Folder(Vec<String>),
 }
 
@@ -214,6 +214,12 @@ impl Output {
             Shape::Folder(files) => {
                 if !meta.is_dir() {
                     Some(format!("exists and is not a folder, and the {what} is one"))
+                } else if let Some(first) = files.first()
+                    && !fs::symlink_metadata(self.path.join(first)).is_ok_and(|m| m.is_file())
+                {
+                    Some(format!(
+                        "exists, and is not a {what} cps would replace (it has no {first}), so cps leaves it alone; choose another place"
+                    ))
                 } else {
                     self.foreign_in(&self.path, files).map(|f| {
                         format!(

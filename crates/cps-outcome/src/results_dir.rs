@@ -139,16 +139,15 @@ fn standing(root: &Path, rel: &str, manifest: &Manifest) -> Standing {
 /// The files listed in a directory's manifest with their stamps, or `None` when it has none.
 fn read_manifest(dir: &Path) -> Result<Option<Manifest>, InputError> {
     let path = dir.join(MANIFEST);
-    let text = match fs::read_to_string(&path) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(e) => {
-            return Err(InputError(format!(
-                "{}: cannot read it ({e}); cps cannot tell which files there are its own",
-                path.display()
-            )));
-        }
-    };
+    if fs::symlink_metadata(&path).is_err() {
+        return Ok(None);
+    }
+    let text = cps_files::read::read_text(&path, cps_files::read::MAX_FILE_BYTES, "manifest")
+        .map_err(|e| {
+            InputError(format!(
+                "{e}; cps cannot tell which files there are its own"
+            ))
+        })?;
     let bad = || {
         InputError(format!(
             "{}: not a manifest cps can read; cps cannot tell which files there are its own, so it leaves the directory alone (choose another --out)",

@@ -563,10 +563,10 @@ fn bent_beyond_limits(
         .joints
         .violations
         .iter()
-        .find(|v| !(v.quantity == Quantity::Position && starts_beyond(v.joint)))?;
+        .find(|v| !(v.quantity == Quantity::Position && starts_beyond(v.joint - 1)))?;
     Some(format!(
         "breaks joint {}'s {} limit at {} s ({} against {})",
-        v.joint + 1,
+        v.joint,
         v.quantity.name().replace('_', " "),
         cps_files::number(v.time, 4),
         cps_files::number(v.value, 4),
