@@ -285,6 +285,10 @@ pub fn franka_follow_live(
             "  the socket failed: {f}; the arm was braked to rest"
         ));
         code = code.max(1);
+    } else if stop.is_stopped() {
+        // Stopped (Ctrl-C, SIGTERM), also before any chunk came: the loop may have seen
+        // the stream closed before the stop, and ended as if it had ended.
+        code = 130;
     }
     a.lines.push(format!(
         "  socket {bound}: {} chunks, {} state requests; {} datagrams from senders not allowed, {} refused",

@@ -205,7 +205,7 @@ impl Output {
                     Some(format!("is not a file, and the {what} is one"))
                 } else if !ours(&self.path) {
                     Some(format!(
-                        "exists, and is not a {what} cps wrote, so cps leaves it alone; choose another place"
+                        "exists already, and is not a {what} cps wrote, so cps leaves it alone; choose another place"
                     ))
                 } else {
                     None
@@ -218,12 +218,12 @@ impl Output {
                     && !fs::symlink_metadata(self.path.join(first)).is_ok_and(|m| m.is_file())
                 {
                     Some(format!(
-                        "exists, and is not a {what} cps would replace (it has no {first}), so cps leaves it alone; choose another place"
+                        "exists already, and is not a {what} cps would replace (it has no {first}), so cps leaves it alone; choose another place"
                     ))
                 } else {
                     self.foreign_in(&self.path, files).map(|f| {
                         format!(
-                            "exists, and is not a {what} cps would replace (it holds {f}), so cps leaves it alone; choose another place"
+                            "exists already, and is not a {what} cps would replace (it holds {f}), so cps leaves it alone; choose another place"
                         )
                     })
                 }
