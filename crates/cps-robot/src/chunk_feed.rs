@@ -454,6 +454,47 @@ mod tests {
         assert_eq!(log.entries[0].1, Some(ChunkVerdict::Taken { skipped: 0 }));
     }
 
+    /// The sweep: `follow --listen` kept every chunk ever sent (1.15 GB after 1.4 s of
+    /// maximum-size chunks). With a sink, each chunk goes to it in order once the loop hands
+    /// it back, and only its times stay; one the arm still follows holds at most
+    /// `MAX_HELD` after it, and a policy sending faster is refused until it comes back.
+    #[test]
+    fn a_streamed_feed_writes_chunks_in_order_and_holds_a_bounded_window() {
+        let (mut feed, mut source) = live(2);
+        let written = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let w = written.clone();
+        feed.stream_to(Box::new(move |i, c| {
+            w.lock().unwrap().push((i, c.targets.len()));
+            Ok(())
+        }));
+        // Chunk 0 is followed; the later ones are refused and come back at once, but wait
+        // for chunk 0 to be written first.
+        feed.push(chunk(0.0)).unwrap();
+        let followed = source.poll(0.0).unwrap();
+        source.judged(0, ChunkVerdict::Taken { skipped: 0 });
+        let mut pushed = 1;
+        let refused = loop {
+            match feed.push(chunk(0.0)) {
+                Ok(()) => pushed += 1,
+                Err(e) => break e,
+            }
+            let c = source.poll(0.0).unwrap();
+            source.judged(pushed - 1, ChunkVerdict::Refused(Refused::Late { last_s: 0.0, now: 1.0 }));
+            source.retire(pushed - 1, c);
+        };
+        assert_eq!(pushed, MAX_HELD, "{refused}");
+        assert!(refused.contains("faster than the arm takes them"), "{refused}");
+        assert!(written.lock().unwrap().is_empty(), "nothing written out of order");
+        // Chunk 0 comes back: it and every one held behind it are written, in order.
+        source.retire(0, followed);
+        feed.push(chunk(0.0)).unwrap();
+        let w = written.lock().unwrap().clone();
+        assert_eq!(w.len(), MAX_HELD);
+        assert!(w.iter().enumerate().all(|(k, (i, n))| k == *i && *n == 3), "{w:?}");
+        // What the feed keeps of them is their times.
+        assert!(feed.log[..MAX_HELD].iter().all(|(c, _)| c.as_ref().is_some_and(|c| c.targets.is_empty())));
+    }
+
     #[test]
     fn a_live_feed_reaches_the_loop_and_gets_its_log_back() {
         let (mut feed, mut source) = live(2);
