@@ -12,8 +12,8 @@ pub enum GeometryError {
         why: String,
     },
     /// A point with a coordinate that is not a number, or farther than
-    /// [`crate::shape::MAX_EXTENT`] from its frame's origin.
-    #[error("{what}: point {} is not a number of metres within {} of the origin", index + 1, crate::shape::MAX_EXTENT)]
+    /// [`crate::MAX_EXTENT`] from its frame's origin.
+    #[error("{what}: point {} is not a number of metres within {} of the origin", index + 1, crate::MAX_EXTENT)]
     NotFinite {
         /// The shape's or file's name.
         what: String,
@@ -30,8 +30,8 @@ pub enum GeometryError {
         /// The value given.
         value: f64,
     },
-    /// A size larger than [`crate::shape::MAX_EXTENT`].
-    #[error("{what}: the {quantity} {} m is larger than the {} m of a robot's cell (metres, not millimetres?)", cps_files::number(*value, 6), crate::shape::MAX_EXTENT)]
+    /// A size larger than [`crate::MAX_EXTENT`].
+    #[error("{what}: the {quantity} {} m is larger than the {} m of a robot's cell (metres, not millimetres?)", cps_files::number(*value, 6), crate::MAX_EXTENT)]
     Extent {
         /// The shape's name.
         what: String,

@@ -116,7 +116,7 @@ impl Hull {
         }
         if let Some(i) = points
             .iter()
-            .position(|p| !p.iter().all(|x| x.abs() <= crate::shape::MAX_EXTENT))
+            .position(|p| !p.iter().all(|x| x.abs() <= crate::MAX_EXTENT))
         {
             return Err(GeometryError::NotFinite {
                 what: what.to_string(),

@@ -28,8 +28,12 @@ mod shape;
 mod surface;
 
 pub use error::GeometryError;
+
+/// The largest size and distance from the origin a shape may have (m): a robot's cell,
+/// its floor included, is well inside; sizes of 1e15 m made GJK's sums lose the arm.
+pub const MAX_EXTENT: f64 = 100.0;
 pub use hull::Hull;
 pub use mesh::{MAX_MESH_BYTES, Mesh};
 pub use model::{Body, CollisionModel, Contact, Obstacle, Other, PathCheck};
-pub use shape::{DISTANCE_TOLERANCE, MAX_EXTENT, Separation, Shape, distance, distance_hinted};
+pub use shape::{DISTANCE_TOLERANCE, Separation, Shape, distance, distance_hinted};
 pub use surface::{ROUND_SEGMENTS, Surface};

@@ -10,6 +10,7 @@ use std::sync::Arc;
 use nalgebra::{Isometry3, Vector3};
 
 use crate::GeometryError;
+use crate::MAX_EXTENT;
 use crate::gjk::{Gjk, epa, gjk};
 use crate::hull::Hull;
 
@@ -168,10 +169,6 @@ impl Shape {
         }
     }
 }
-
-/// The largest size and distance from the origin a shape may have (m): a robot's cell,
-/// its floor included, is well inside; sizes of 1e15 m made GJK's sums lose the arm.
-pub const MAX_EXTENT: f64 = 100.0;
 
 fn positive(x: f64, quantity: &'static str, what: &str) -> Result<(), GeometryError> {
     if x > 0.0 && x <= MAX_EXTENT {

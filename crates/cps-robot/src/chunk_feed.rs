@@ -479,20 +479,39 @@ mod tests {
                 Err(e) => break e,
             }
             let c = source.poll(0.0).unwrap();
-            source.judged(pushed - 1, ChunkVerdict::Refused(Refused::Late { last_s: 0.0, now: 1.0 }));
+            source.judged(
+                pushed - 1,
+                ChunkVerdict::Refused(Refused::Late {
+                    last_s: 0.0,
+                    now: 1.0,
+                }),
+            );
             source.retire(pushed - 1, c);
         };
         assert_eq!(pushed, MAX_HELD, "{refused}");
-        assert!(refused.contains("faster than the arm takes them"), "{refused}");
-        assert!(written.lock().unwrap().is_empty(), "nothing written out of order");
+        assert!(
+            refused.contains("faster than the arm takes them"),
+            "{refused}"
+        );
+        assert!(
+            written.lock().unwrap().is_empty(),
+            "nothing written out of order"
+        );
         // Chunk 0 comes back: it and every one held behind it are written, in order.
         source.retire(0, followed);
         feed.push(chunk(0.0)).unwrap();
         let w = written.lock().unwrap().clone();
         assert_eq!(w.len(), MAX_HELD);
-        assert!(w.iter().enumerate().all(|(k, (i, n))| k == *i && *n == 3), "{w:?}");
+        assert!(
+            w.iter().enumerate().all(|(k, (i, n))| k == *i && *n == 3),
+            "{w:?}"
+        );
         // What the feed keeps of them is their times.
-        assert!(feed.log[..MAX_HELD].iter().all(|(c, _)| c.as_ref().is_some_and(|c| c.targets.is_empty())));
+        assert!(
+            feed.log[..MAX_HELD]
+                .iter()
+                .all(|(c, _)| c.as_ref().is_some_and(|c| c.targets.is_empty()))
+        );
     }
 
     #[test]
