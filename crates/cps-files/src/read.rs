@@ -68,17 +68,23 @@ fn regular(path: &Path, meta: &Metadata, ceiling: u64, what: &str) -> Result<(),
     Ok(())
 }
 
-/// Reads a whole regular file of at most `ceiling` bytes.
-pub fn read_bytes(path: &Path, ceiling: u64, what: &str) -> Result<Vec<u8>, FileError> {
-    let (file, size) = open(path, ceiling, what)?;
-    let mut bytes = Vec::with_capacity(size as usize);
-    file.take(ceiling + 1)
+/// At most `n` bytes of an opened file, into a buffer of `capacity`.
+fn up_to(file: File, n: u64, capacity: u64, path: &Path, what: &str) -> Result<Vec<u8>, FileError> {
+    let mut bytes = Vec::with_capacity(capacity.min(n) as usize);
+    file.take(n)
         .read_to_end(&mut bytes)
         .map_err(|source| FileError::Unreadable {
             path: path.to_path_buf(),
             what: what.to_string(),
             source,
         })?;
+    Ok(bytes)
+}
+
+/// Reads a whole regular file of at most `ceiling` bytes.
+pub fn read_bytes(path: &Path, ceiling: u64, what: &str) -> Result<Vec<u8>, FileError> {
+    let (file, size) = open(path, ceiling, what)?;
+    let bytes = up_to(file, ceiling + 1, size, path, what)?;
     if bytes.len() as u64 > ceiling {
         return Err(FileError::TooLarge {
             path: path.to_path_buf(),
@@ -94,16 +100,8 @@ pub fn read_bytes(path: &Path, ceiling: u64, what: &str) -> Result<Vec<u8>, File
 /// The first `n` bytes of a regular file (fewer when it is shorter), whatever its size:
 /// for recognising a file by its head.
 pub fn head(path: &Path, n: u64, what: &str) -> Result<Vec<u8>, FileError> {
-    let (file, _) = open(path, u64::MAX, what)?;
-    let mut bytes = Vec::new();
-    file.take(n)
-        .read_to_end(&mut bytes)
-        .map_err(|source| FileError::Unreadable {
-            path: path.to_path_buf(),
-            what: what.to_string(),
-            source,
-        })?;
-    Ok(bytes)
+    let (file, size) = open(path, u64::MAX, what)?;
+    up_to(file, n, size, path, what)
 }
 
 /// Reads a whole regular file of at most `ceiling` bytes as UTF-8 text.
