@@ -332,3 +332,103 @@ fn a_stop_while_listening_keeps_the_recording_and_force_replaces_it() {
     names.sort();
     assert_eq!(names, ["wait.chunks.csv", "wait.csv", "wait.report.json"]);
 }
+
+/// The sweep: `follow --listen` kept every chunk ever sent — 1.15 GB after 1.4 s of
+/// maximum-size chunks from any loopback process. Now each chunk is dropped once judged
+/// (only its times stay): the same flood leaves the process's peak memory a small part
+/// of that.
+#[test]
+fn a_flood_of_maximum_size_chunks_keeps_memory_bounded() {
+    use std::io::BufRead;
+    let Some(sim) = FrankySim::start("127.0.0.58") else {
+        return;
+    };
+    let exe = env!("CARGO_BIN_EXE_cps-cli");
+    let mut child = std::process::Command::new(exe)
+        .args([
+            "franka",
+            "follow",
+            "--listen",
+            "127.0.0.57:7774",
+            "--host",
+            &sim.host,
+            "--realtime",
+            "ignore",
+            "--json",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    while !line.contains("listening for chunks") {
+        line.clear();
+        assert!(
+            err.read_line(&mut line).unwrap() > 0,
+            "it ended before listening"
+        );
+    }
+    // Ask the robot's time, then flood chunks of 1 169 targets (65 500 bytes, the largest
+    // datagram) observed then, holding the arm where it stands.
+    let me = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    me.set_read_timeout(Some(std::time::Duration::from_secs(5)))
+        .unwrap();
+    let (t, q) = loop {
+        me.send_to(b"CPS?", "127.0.0.57:7774").unwrap();
+        let mut buf = [0u8; 128];
+        let (n, _) = me.recv_from(&mut buf).unwrap();
+        let t = f64::from_le_bytes(buf[8..16].try_into().unwrap());
+        if n == 72 && t.is_finite() {
+            let q: Vec<f64> = (0..7)
+                .map(|j| f64::from_le_bytes(buf[16 + 8 * j..24 + 8 * j].try_into().unwrap()))
+                .collect();
+            break (t, q);
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let h = 1169u32;
+    let mut datagram = b"CPSC".to_vec();
+    datagram.extend_from_slice(&7u32.to_le_bytes());
+    datagram.extend_from_slice(&h.to_le_bytes());
+    datagram.extend_from_slice(&1000.0f64.to_le_bytes());
+    datagram.extend_from_slice(&t.to_le_bytes());
+    for _ in 0..h {
+        for x in &q {
+            datagram.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    assert_eq!(datagram.len(), 28 + 1169 * 56);
+    me.set_nonblocking(true).unwrap();
+    let start = std::time::Instant::now();
+    let mut sent = 0usize;
+    while start.elapsed() < std::time::Duration::from_millis(1400) {
+        if me.send_to(&datagram, "127.0.0.57:7774").is_ok() {
+            sent += 1;
+        }
+        let mut sink = [0u8; 64];
+        while me.recv_from(&mut sink).is_ok() {}
+    }
+    let status = std::fs::read_to_string(format!("/proc/{}/status", child.id())).unwrap();
+    let peak_kb: u64 = status
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|v| v.parse().ok())
+        .unwrap();
+    me.set_nonblocking(false).unwrap();
+    me.send_to(b"CPSE", "127.0.0.57:7774").unwrap();
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut err, &mut rest).unwrap();
+    let out = child.wait_with_output().unwrap();
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let came = report["chunks"]["came"].as_u64().unwrap();
+    eprintln!(
+        "{sent} datagrams of 65 KB sent, {came} reached the executor; peak memory {} MB",
+        peak_kb / 1024
+    );
+    assert_eq!(out.status.code(), Some(0), "{rest}");
+    assert!(came > 100, "{came} chunks reached the executor");
+    assert!(sent > 1000, "the flood: {sent} datagrams");
+    assert!(peak_kb < 400 * 1024, "peak memory {} MB", peak_kb / 1024);
+}

@@ -300,6 +300,10 @@ pub fn franka_follow_live(
     Ok((a, code))
 }
 
+/// The most targets a recorded live stream's chunk file takes: an hour of 30 Hz chunks of
+/// 50 targets is 5.4 million (about 0.8 GB of text).
+const MAX_CHUNK_ROWS: usize = 10_000_000;
+
 /// The chunk file of a recording, staged beside its place and written as the chunks come
 /// back ([`cps_robot::ChunkFeed::stream_to`]): its header now, then each chunk's rows.
 fn stream_chunks(
@@ -321,7 +325,16 @@ fn stream_chunks(
     let mut out = std::io::BufWriter::new(file);
     writeln!(out, "{}", cps_movement::chunks::header(7))
         .map_err(|e| ExperimentError::Message(format!("{}: {e}", staged.path().display())))?;
+    // A sender flooding the socket must not fill the disk either: the file stops at its
+    // ceiling, and the run says so (the recording and its report are still written).
+    let mut rows = 0usize;
     let sink: cps_robot::Sink = Box::new(move |i, c| {
+        rows += c.targets.len();
+        if rows > MAX_CHUNK_ROWS {
+            return Err(std::io::Error::other(format!(
+                "the chunk file reached {MAX_CHUNK_ROWS} targets: a sender floods the stream"
+            )));
+        }
         cps_movement::chunks::write_chunk(&mut out, i, c)?;
         out.flush()
     });
