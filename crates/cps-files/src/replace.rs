@@ -200,17 +200,18 @@ impl Output {
             )));
         }
         let foreign = match &self.shape {
-            Shape::File(ours) => {
-                if !meta.is_file() {
-                    Some(format!("is not a file, and the {what} is one"))
-                } else if !ours(&self.path) {
-                    Some(format!(
-                        "exists already, and is not a {what} cps wrote, so cps leaves it alone; choose another place"
-                    ))
-                } else {
-                    None
-                }
+            Shape::File(_) if meta.is_dir() => Some("is a directory; give a file name".into()),
+            Shape::File(_) if !meta.is_file() => {
+                Some(format!("is not a file, and the {what} is one"))
             }
+            Shape::File(_) if !self.force => {
+                return Err(self.fail(
+                    "already exists; pass --force to replace it or choose another name".into(),
+                ));
+            }
+            Shape::File(ours) => (!ours(&self.path)).then(|| {
+                "exists and does not look like a file cps writes there, so --force leaves it alone (choose another name)".to_string()
+            }),
             Shape::Folder(files) => {
                 if !meta.is_dir() {
                     Some(format!("exists and is not a folder, and the {what} is one"))

@@ -38,6 +38,8 @@ use std::sync::Mutex;
 
 use sha2::{Digest, Sha256};
 
+use cps_files::replace::{Output, Shape};
+
 use crate::InputError;
 use crate::{Context, ExperimentError};
 
@@ -647,22 +649,11 @@ pub fn check_file_target(path: &Path, kind: FileKind, force: bool) -> Result<(),
             parent.display()
         )));
     }
-    match fs::symlink_metadata(path) {
-        Err(_) => Ok(()),
-        Ok(m) if m.file_type().is_symlink() => Err(InputError(format!(
-            "{shown}: is a symbolic link; cps does not write through links"
-        ))),
-        Ok(m) if m.is_dir() => Err(InputError(format!(
-            "{shown}: is a directory; give a file name"
-        ))),
-        Ok(_) if !force => Err(InputError(format!(
-            "{shown}: already exists; pass --force to replace it or choose another name"
-        ))),
-        Ok(_) if !looks_like(path, kind) => Err(InputError(format!(
-            "{shown}: exists and does not look like a file cps writes there, so --force leaves it alone (choose another name)"
-        ))),
-        Ok(_) => Ok(()),
-    }
+    // What may be replaced is the one writer's rule (cps-files), the same for every output.
+    let shape = Shape::file(move |p| looks_like(p, kind));
+    Output::new(path, "file", shape, force)
+        .check()
+        .map_err(InputError::from)
 }
 
 #[cfg(test)]
