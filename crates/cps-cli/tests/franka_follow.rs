@@ -13,6 +13,14 @@ use common::{cli, state_q, stderr};
 use cps_robot::StandIn;
 use sim::FrankySim;
 
+/// The tests that speak UDP over loopback (to franky-sim, and to cps's socket) take turns:
+/// beside the flood of maximum-size chunks, an honest client lost its answers once.
+static UDP: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn udp_turn() -> std::sync::MutexGuard<'static, ()> {
+    UDP.lock().unwrap_or_else(|p| p.into_inner())
+}
+
 /// The demonstration: joints 1, 2 and 4 swing about `from` at 0.25 Hz, from rest.
 fn demo(from: &[f64]) -> impl Fn(f64) -> Vec<f64> + '_ {
     move |t: f64| {
@@ -40,6 +48,7 @@ fn column(text: &str, name: &str) -> Vec<f64> {
 
 #[test]
 fn a_policy_stand_ins_chunks_are_followed_on_franky_sim_within_every_limit() {
+    let _turn = udp_turn();
     let Some(sim) = FrankySim::start("127.0.0.47") else {
         return;
     };
@@ -167,6 +176,7 @@ fn bad_chunk_files_are_refused_with_their_place_before_anything_connects() {
 
 #[test]
 fn a_policy_in_another_process_drives_franky_sim_over_udp_and_strangers_are_refused() {
+    let _turn = udp_turn();
     // The client runs in franky-sim's interpreter, which has numpy.
     let Some(python) = sim::python() else {
         return;
@@ -266,6 +276,7 @@ fn a_policy_in_another_process_drives_franky_sim_over_udp_and_strangers_are_refu
 /// (exit 130), and a second run with `--force` replaces all three.
 #[test]
 fn a_stop_while_listening_keeps_the_recording_and_force_replaces_it() {
+    let _turn = udp_turn();
     use std::io::BufRead;
     let Some(sim) = FrankySim::start("127.0.0.56") else {
         return;
@@ -339,6 +350,7 @@ fn a_stop_while_listening_keeps_the_recording_and_force_replaces_it() {
 /// of that.
 #[test]
 fn a_flood_of_maximum_size_chunks_keeps_memory_bounded() {
+    let _turn = udp_turn();
     use std::io::BufRead;
     let Some(sim) = FrankySim::start("127.0.0.58") else {
         return;
