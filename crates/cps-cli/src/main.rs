@@ -285,14 +285,8 @@ impl CeilingArgs {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    // A dependency's panic on a malformed file becomes a sentence naming the file
-    // (`cps_files::read::guard`): it is said once, not also as a panic.
-    let printed = std::panic::take_hook();
-    std::panic::set_hook(Box::new(move |p| {
-        if !cps_files::read::guarded() {
-            printed(p)
-        }
-    }));
+    // A dependency's panic on a malformed file is said once, as a sentence naming the file.
+    cps_files::read::quiet_guarded_panics();
     // Ctrl-C and SIGTERM (`timeout`, schedulers) stop the command through its one stop
     // token: a robot that moves brakes within its limits, a run ends after its generation.
     // A second one exits at once (a run's staging directory is then left behind, hidden) —

@@ -145,6 +145,17 @@ pub fn guard<T, E>(
     })
 }
 
+/// Keeps the process's panic hook quiet for the panics [`guard`] turns into a sentence (a
+/// front end calls it once at its start; every other panic prints as before).
+pub fn quiet_guarded_panics() {
+    let printed = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |p| {
+        if !guarded() {
+            printed(p)
+        }
+    }));
+}
+
 /// Whether this thread is inside [`guard`] (for a panic hook: the panic becomes a
 /// sentence, so printing it would say it twice).
 pub fn guarded() -> bool {

@@ -374,8 +374,10 @@ fn remove_old(aside: &Path, shape: &Shape) -> Option<PathBuf> {
 }
 
 impl Drop for Staged {
-    /// An output not committed: what was staged is removed (its place was made fresh by
-    /// this writer, so all in it is cps's).
+    /// An output not committed: what was staged is removed. The staging place was made
+    /// fresh by this writer (`create_new`/`create_dir` under a hidden name of this process)
+    /// and only the writer writes into it, so all in it is cps's, half-written files
+    /// included; `remove_dir_all` removes links in it, never what they point to.
     fn drop(&mut self) {
         if !self.done {
             match self.output.shape {

@@ -335,12 +335,7 @@ impl ChunkFeed {
             return;
         };
         while let Some((Some(c), _)) = self.log.get_mut(self.flushed) {
-            if let Err(e) = sink(self.flushed, c)
-                && self.unwritten.is_none()
-            {
-                self.unwritten = Some(format!("chunk {}: {e}", self.flushed));
-            }
-            c.targets = Vec::new();
+            hand_over(sink, &mut self.unwritten, self.flushed, c);
             self.flushed += 1;
         }
     }
@@ -354,12 +349,7 @@ impl ChunkFeed {
         if let Some(sink) = &mut self.sink {
             for (i, (c, _)) in self.log.iter_mut().enumerate().skip(self.flushed) {
                 if let Some(c) = c {
-                    if let Err(e) = sink(i, c)
-                        && self.unwritten.is_none()
-                    {
-                        self.unwritten = Some(format!("chunk {i}: {e}"));
-                    }
-                    c.targets = Vec::new();
+                    hand_over(sink, &mut self.unwritten, i, c);
                 }
             }
         }
@@ -373,6 +363,16 @@ impl ChunkFeed {
             unwritten: self.unwritten,
         }
     }
+}
+
+/// Chunk `i` to the sink (its first failure kept), then only its times kept.
+fn hand_over(sink: &mut Sink, unwritten: &mut Option<String>, i: usize, c: &mut Chunk) {
+    if let Err(e) = sink(i, c)
+        && unwritten.is_none()
+    {
+        *unwritten = Some(format!("chunk {i}: {e}"));
+    }
+    c.targets = Vec::new();
 }
 
 impl LiveSource {

@@ -417,7 +417,17 @@ impl<R: Robot> Guarded<R> {
         let name = self.robot.name();
         let model = self.robot.model().clone();
         let period = self.robot.command_period();
-        let here = self.robot.joint_positions()?;
+        // Where the commands start from, for the guard's own limit judge; a robot whose loop
+        // limits each command is not asked.
+        let judge_limits = self
+            .robot
+            .streaming()
+            .is_some_and(|s| !s.limits_each_command());
+        let here = if judge_limits {
+            Some(self.robot.joint_positions()?)
+        } else {
+            None
+        };
         let Some(streaming) = self.robot.streaming() else {
             return Err(RobotError::Robot {
                 robot: name,
@@ -428,8 +438,7 @@ impl<R: Robot> Guarded<R> {
         // limits each command) and the shapes; at the first it breaks, it is not sent (the
         // last one accepted is held) and the robot is stopped through a token of the
         // guard's own, which also passes the caller's stop on.
-        let mut limits =
-            (!streaming.limits_each_command()).then(|| CommandWatch::new(&here, period));
+        let mut limits = here.map(|q| CommandWatch::new(&q, period));
         let mut shapes = model
             .shapes
             .clone()
