@@ -631,8 +631,45 @@ fn chunk_executor(c: &mut Criterion) {
     });
 }
 
+/// A 10 s movement of every joint at 1 kHz (10 000 commands), judged against every limit:
+/// a plan's check on the Panda with its inertias (torques by inverse dynamics at every
+/// command, and the tool's Cartesian limits), and the Franka's per-millisecond check of
+/// the same commands (BENCHMARKS.md › Limits).
+fn limits(c: &mut Criterion) {
+    use cps::kinematics::robots::{PandaTool, panda, panda_inertia, panda_limits};
+    use cps::kinematics::{GRAVITY, RobotLimits, check_commands};
+    let chain = panda(PandaTool::HandTcp);
+    let (joint_limits, cartesian) = panda_limits();
+    let inertia = panda_inertia();
+    let start = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    let commands: Vec<Vec<f64>> = (0..10_000)
+        .map(|k| {
+            let s = (std::f64::consts::PI * k as f64 / 10_000.0).sin().powi(2);
+            start.iter().map(|q| q + 0.3 * s).collect()
+        })
+        .collect();
+    let robot = RobotLimits {
+        chain: &chain,
+        limits: &joint_limits,
+        inertia: Some(&inertia),
+        gravity: nalgebra::Vector3::from(GRAVITY),
+        cartesian: Some(&cartesian),
+    };
+    c.bench_function("limits/plan_10k_commands", |b| {
+        b.iter(|| check_commands(black_box(&robot), 0.0, 1e-3, &commands).unwrap())
+    });
+    let stream: Vec<[f64; 7]> = commands
+        .iter()
+        .map(|q| std::array::from_fn(|i| q[i]))
+        .collect();
+    let fr3 = cps::franka::limits::RateLimits::of(cps::franka::limits::Arm::Panda);
+    c.bench_function("limits/franka_stream_10k_commands", |b| {
+        b.iter(|| cps::franka::limits::check_stream(fr3, start, black_box(&stream)).unwrap())
+    });
+}
+
 criterion_group!(dmp_benches, dmp_extras, coppelia, chunk_executor);
-criterion_group!(beyond, promp, obstacles);
+criterion_group!(beyond, promp, obstacles, limits);
 criterion_group!(
     benches,
     kinematics,

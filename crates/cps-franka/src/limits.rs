@@ -15,7 +15,7 @@
 //! curve at the published range itself rather than the slightly wider constants libfranka
 //! uses, so it is a little stricter than the robot.
 
-use cps_kinematics::Quantity;
+use cps_kinematics::{Quantity, StreamBounds};
 use cps_robot::{Breach, Limit};
 
 use crate::wire::JOINTS;
@@ -165,158 +165,52 @@ pub fn joint_limit(joint: usize, quantity: Quantity) -> Limit {
     Limit::Joint { joint, quantity }
 }
 
+/// The Franka's rules on its commanded joint signal, for the one limit checker
+/// ([`cps_kinematics::StreamCheck`]): its range, its speeds (the FR3's shrinking near the
+/// ends of the range), accelerations and jerks, refused at any excess, and its extension:
+/// where a stop begun at a command would end ([`STOPPING_RULE`]), which must be inside the
+/// range. Torques are the robot's own in joint-position control.
+impl StreamBounds for RateLimits {
+    fn range(&self, joint: usize) -> Option<(f64, f64)> {
+        Some((self.q_min[joint], self.q_max[joint]))
+    }
+
+    fn velocity(&self, joint: usize, q: f64) -> Option<(f64, f64)> {
+        Some(self.velocity_bounds(joint, q))
+    }
+
+    fn acceleration(&self, joint: usize) -> Option<f64> {
+        Some(self.ddq_max[joint])
+    }
+
+    fn jerk(&self, joint: usize) -> Option<f64> {
+        Some(self.dddq_max[joint])
+    }
+
+    fn rule(&self, i: usize, q: f64, v: f64) -> Option<(&'static str, f64, f64)> {
+        // Where a full stop from here would end: the acceleration ramps to its limit at
+        // full jerk (ddq/dddq seconds), then brakes at the limit.
+        let ramp = self.ddq_max[i] / self.dddq_max[i];
+        let stop = q + v * ramp + v * v.abs() / (2.0 * self.ddq_max[i]);
+        if stop > self.q_max[i] + 1e-9 {
+            Some((STOPPING_RULE, stop, self.q_max[i]))
+        } else if stop < self.q_min[i] - 1e-9 {
+            Some((STOPPING_RULE, stop, self.q_min[i]))
+        } else {
+            None
+        }
+    }
+}
+
 /// The derivatives of a commanded joint stream, checked command by command as the robot
-/// takes them. No allocation: it lives in the realtime loop.
-#[derive(Debug, Clone, Copy)]
-pub struct StreamCheck {
-    limits: RateLimits,
-    /// Last admitted position, velocity, acceleration.
-    q: [f64; JOINTS],
-    v: [f64; JOINTS],
-    a: [f64; JOINTS],
-    sample: usize,
-    /// Peak usage (fraction of the limit) of velocity, acceleration, jerk per joint.
-    peak: [[f64; JOINTS]; 3],
-}
+/// takes them: the one limit checker with the Franka's rules. No allocation: it lives in
+/// the realtime loop.
+pub type StreamCheck = cps_kinematics::StreamCheck<[f64; JOINTS], RateLimits>;
 
-impl StreamCheck {
-    /// A check of a stream that starts with the robot at rest at `q0`.
-    pub fn at_rest(limits: RateLimits, q0: [f64; JOINTS]) -> Self {
-        StreamCheck {
-            limits,
-            q: q0,
-            v: [0.0; JOINTS],
-            a: [0.0; JOINTS],
-            sample: 0,
-            peak: [[0.0; JOINTS]; 3],
-        }
-    }
-
-    /// Judges the next command against this position, velocity and acceleration instead
-    /// of the last admitted command's: the reference the robot holds, which after a lost
-    /// cycle is the robot's own extrapolation.
-    pub fn rebase(&mut self, q: [f64; JOINTS], v: [f64; JOINTS], a: [f64; JOINTS]) {
-        self.q = q;
-        self.v = v;
-        self.a = a;
-    }
-
-    /// The limits checked.
-    pub fn limits(&self) -> &RateLimits {
-        &self.limits
-    }
-
-    /// The last admitted command's position, velocity and acceleration.
-    pub fn last(&self) -> ([f64; JOINTS], [f64; JOINTS], [f64; JOINTS]) {
-        (self.q, self.v, self.a)
-    }
-
-    /// Peak usage of velocity, acceleration and jerk (1.0 = at the limit) per joint.
-    pub fn peak_usage(&self) -> [[f64; JOINTS]; 3] {
-        self.peak
-    }
-
-    /// Commands admitted so far.
-    pub fn admitted(&self) -> usize {
-        self.sample
-    }
-
-    /// Admits the next command `q` (one period after the last) if every joint keeps every
-    /// limit, and returns the first breach otherwise (the state is then unchanged).
-    pub fn admit(&mut self, q: &[f64; JOINTS]) -> Result<(), Breach> {
-        let l = &self.limits;
-        let mut v = [0.0; JOINTS];
-        let mut a = [0.0; JOINTS];
-        let mut usage = [[0.0; JOINTS]; 3];
-        let sample = self.sample;
-        let breach =
-            |i: usize, quantity, value, bound| joint_breach(i + 1, quantity, sample, value, bound);
-        let stopping = |i: usize, value, bound| Breach {
-            limit: Limit::Robot {
-                joint: i + 1,
-                rule: STOPPING_RULE,
-            },
-            time: sample as f64 * DT,
-            command: sample,
-            value,
-            bound,
-        };
-        for i in 0..JOINTS {
-            let qi = q[i];
-            if !qi.is_finite() {
-                return Err(breach(i, Quantity::Position, qi, 0.0));
-            }
-            if qi < l.q_min[i] {
-                return Err(breach(i, Quantity::Position, qi, l.q_min[i]));
-            }
-            if qi > l.q_max[i] {
-                return Err(breach(i, Quantity::Position, qi, l.q_max[i]));
-            }
-            v[i] = (qi - self.q[i]) / DT;
-            let (lo, hi) = l.velocity_bounds(i, qi);
-            if v[i] > hi || v[i] < lo {
-                let limit = if v[i] > hi { hi } else { lo };
-                return Err(breach(i, Quantity::Velocity, v[i], limit));
-            }
-            a[i] = (v[i] - self.v[i]) / DT;
-            if a[i].abs() > l.ddq_max[i] {
-                return Err(breach(i, Quantity::Acceleration, a[i], l.ddq_max[i]));
-            }
-            let j = (a[i] - self.a[i]) / DT;
-            if j.abs() > l.dddq_max[i] {
-                return Err(breach(i, Quantity::Jerk, j, l.dddq_max[i]));
-            }
-            // Where a full stop from here would end: the acceleration ramps to its limit
-            // at full jerk (ddq/dddq seconds), then brakes at the limit.
-            let ramp = l.ddq_max[i] / l.dddq_max[i];
-            let stop = qi + v[i] * ramp + v[i] * v[i].abs() / (2.0 * l.ddq_max[i]);
-            if stop > l.q_max[i] + 1e-9 {
-                return Err(stopping(i, stop, l.q_max[i]));
-            }
-            if stop < l.q_min[i] - 1e-9 {
-                return Err(stopping(i, stop, l.q_min[i]));
-            }
-            let vmax = if v[i] >= 0.0 { hi } else { -lo };
-            usage[0][i] = if vmax > 0.0 { v[i].abs() / vmax } else { 0.0 };
-            usage[1][i] = a[i].abs() / l.ddq_max[i];
-            usage[2][i] = j.abs() / l.dddq_max[i];
-        }
-        for (p, u) in self.peak.iter_mut().zip(usage) {
-            for i in 0..JOINTS {
-                p[i] = p[i].max(u[i]);
-            }
-        }
-        self.q = *q;
-        self.v = v;
-        self.a = a;
-        self.sample += 1;
-        Ok(())
-    }
-
-    /// Whether the last admitted command is at rest (velocity and acceleration zero).
-    pub fn at_rest_now(&self) -> bool {
-        self.v.iter().chain(&self.a).all(|x| x.abs() < 1e-12)
-    }
-}
-
-/// The Franka's per-millisecond check judges commands for cps-robot's [`cps_robot::Limiter`]
-/// (a command the robot would not accept after a lost cycle, blended back onto the stream).
-impl cps_robot::Judge<JOINTS> for StreamCheck {
-    fn rebase(&mut self, r: &cps_robot::Reference<JOINTS>) {
-        StreamCheck::rebase(self, r.q, r.v, r.a);
-    }
-
-    fn admit(&mut self, q: &[f64; JOINTS]) -> Result<(), Breach> {
-        StreamCheck::admit(self, q)
-    }
-
-    fn rates(&self, i: usize) -> (f64, f64) {
-        (self.limits.ddq_max[i], self.limits.dddq_max[i])
-    }
-
-    fn period(&self) -> f64 {
-        DT
-    }
+/// A check of a stream that starts with the robot at rest at `q0`, one command per
+/// millisecond.
+pub fn stream_check(limits: RateLimits, q0: [f64; JOINTS]) -> StreamCheck {
+    StreamCheck::at_rest(limits, q0, DT)
 }
 
 /// Checks a whole stream of commands (one per millisecond) starting at rest at `q0`, then
@@ -327,14 +221,10 @@ pub fn check_stream(
     q0: [f64; JOINTS],
     stream: &[[f64; JOINTS]],
 ) -> Result<StreamCheck, Breach> {
-    let mut c = StreamCheck::at_rest(limits, q0);
-    for q in stream {
-        c.admit(q)?;
-    }
-    if let Some(last) = stream.last() {
-        for _ in 0..3 {
-            c.admit(last)?;
-        }
+    let mut c = stream_check(limits, q0);
+    let held = stream.last().into_iter().flat_map(|last| [last; 3]);
+    for q in stream.iter().chain(held) {
+        c.admit(q).map_err(Breach::from)?;
     }
     Ok(c)
 }
@@ -363,7 +253,7 @@ impl Brake {
     /// A brake from where a [`StreamCheck`] last admitted a command.
     pub fn from_check(check: &StreamCheck) -> Self {
         let (q, v, a) = check.last();
-        Brake::new(check.limits, q, v, a)
+        Brake::new(*check.bounds(), *q, *v, *a)
     }
 
     /// Whether every joint is at rest.
@@ -486,7 +376,7 @@ mod tests {
             for case in 0..300 {
                 // Accelerate with random bounded jerk for a while, as a stream the check admits.
                 let mut q = [0.0, 0.0, 0.0, -1.6, 0.0, 2.0, 0.0];
-                let mut check = StreamCheck::at_rest(l, q);
+                let mut check = stream_check(l, q);
                 let (mut v, mut a) = ([0.0; JOINTS], [0.0; JOINTS]);
                 let steps = rng.random_range(1..400);
                 for _ in 0..steps {
@@ -500,20 +390,21 @@ mod tests {
                     if check.admit(&next).is_err() {
                         break;
                     }
-                    (q, v, a) = check.last();
+                    let (lq, lv, la) = check.last();
+                    (q, v, a) = (*lq, *lv, *la);
                 }
                 let mut brake = Brake::from_check(&check);
                 let mut n = 0;
                 while !brake.stopped() {
                     let cmd = brake.step();
-                    check
-                        .admit(&cmd)
-                        .unwrap_or_else(|b| panic!("{arm:?} case {case}, brake step {n}: {b}"));
+                    check.admit(&cmd).unwrap_or_else(|b| {
+                        panic!("{arm:?} case {case}, brake step {n}: {}", Breach::from(b))
+                    });
                     n += 1;
                     assert!(n < 2000, "{arm:?} case {case}: no rest after 2 s");
                 }
                 // At rest: holding the last command is admissible forever.
-                let (last, _, _) = check.last();
+                let last = *check.last().0;
                 check.admit(&last).unwrap();
                 assert!(check.at_rest_now(), "{arm:?} case {case}");
             }

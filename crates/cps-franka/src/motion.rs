@@ -158,7 +158,7 @@ pub fn check_trajectory(
         commands,
         approach: approach_len,
         from,
-        peak_usage: check.peak_usage(),
+        peak_usage: *check.peak_usage(),
     })
 }
 

@@ -75,8 +75,9 @@ pub use error::KinematicsError;
 pub use ik::{IkConfig, IkSolution, solve_ik};
 pub use limits::{
     CARTESIAN_QUANTITIES, CartesianCheck, CartesianLimits, CartesianViolation, CommandCheck,
-    JointLimits, LimitCheck, POSITION_TOLERANCE, Quantity, RobotLimits, Violation, check_cartesian,
-    check_commands, check_joint_trajectory,
+    Excess, Held, JointBounds, JointLimits, Joints, Judged, LimitCheck, OUTSIDE_SLACK,
+    POSITION_TOLERANCE, Quantity, RobotLimits, StreamBounds, StreamCheck, TorqueCheck, Violation,
+    beyond_allowed, check_cartesian, check_commands, check_joint_trajectory,
 };
 pub use retime::{RetimeOptions, Retimed, UniformSlowing, retime};
 pub use spline::{JointSpline, PathPoint};

@@ -15,6 +15,13 @@ use nalgebra::Vector3;
 
 use crate::{KinematicsError, LinkInertia, SerialChain};
 
+mod stream;
+
+pub use stream::{
+    Excess, Held, JointBounds, Joints, Judged, OUTSIDE_SLACK, StreamBounds, StreamCheck,
+    TorqueCheck, beyond_allowed,
+};
+
 /// How far (rad) a position may pass its bound before it counts as a violation: rounding
 /// in the interpolation of a path that runs along a bound, far below any encoder's
 /// resolution.
@@ -164,26 +171,69 @@ impl LimitCheck {
     }
 }
 
-/// A quantity's samples (one row per command) and its symmetric limit per joint (`None`
-/// for positions, bounded by the chain's range).
-type Series = (Quantity, Vec<Vec<f64>>, Option<Vec<f64>>);
+/// The worst sample of a run beyond a limit: excess, command index, value, bound.
+type Run = (f64, usize, f64, f64);
 
-/// Backward differences of `x` (one row per sample) with step `dt`, starting from `first`.
-fn differences(x: &[Vec<f64>], dt: f64, first: &[f64]) -> Vec<Vec<f64>> {
-    let mut prev = first.to_vec();
-    x.iter()
-        .map(|row| {
-            let d: Vec<f64> = row.iter().zip(&prev).map(|(a, b)| (a - b) / dt).collect();
-            prev.clone_from(row);
-            d
-        })
-        .collect()
+/// Per quantity and joint: the peak usage (fraction) and the run beyond the limit under
+/// way, closed into violations as the commands go.
+struct Runs {
+    n: usize,
+    t0: f64,
+    dt: f64,
+    usage: Vec<f64>,
+    open: Vec<Option<Run>>,
+    violations: Vec<Violation>,
+}
+
+impl Runs {
+    fn new(n: usize, t0: f64, dt: f64) -> Self {
+        Runs {
+            n,
+            t0,
+            dt,
+            usage: vec![0.0; Quantity::ALL.len() * n],
+            open: vec![None; Quantity::ALL.len() * n],
+            violations: Vec::new(),
+        }
+    }
+
+    /// Notes command `k`'s value `judged`.
+    fn note(&mut self, k: usize, judged: Judged) {
+        let Held::Quantity(quantity) = judged.held else {
+            return;
+        };
+        let joint = judged.joint - 1;
+        let slot = quantity as usize * self.n + joint;
+        self.usage[slot] = self.usage[slot].max(100.0 * judged.usage());
+        let excess = judged.excess;
+        if excess > 0.0 && self.open[slot].is_none_or(|r| excess > r.0) {
+            self.open[slot] = Some((excess, k, judged.value, judged.bound));
+        }
+        // A run ends at the first sample back within the limit.
+        if excess <= 0.0 {
+            self.close(slot);
+        }
+    }
+
+    fn close(&mut self, slot: usize) {
+        if let Some((_, k0, value, limit)) = self.open[slot].take() {
+            self.violations.push(Violation {
+                joint: slot % self.n + 1,
+                quantity: Quantity::ALL[slot / self.n],
+                time: self.t0 + k0 as f64 * self.dt,
+                value,
+                limit,
+            });
+        }
+    }
 }
 
 /// Checks joint positions `q` (one row of `chain.dof()` values per command, the first at
 /// time `t0`, then every `dt` seconds) against the chain's position and speed limits,
 /// `limits`, and — with `inertia` — the torque limits through inverse dynamics with
-/// `gravity`. See the module documentation for how the derivatives are taken.
+/// `gravity`. See the module documentation for how the derivatives are taken: the
+/// commands go through [`StreamCheck::measure`] and [`TorqueCheck`], the checks every
+/// command stream gets.
 pub fn check_joint_trajectory(
     chain: &SerialChain,
     limits: &JointLimits,
@@ -208,110 +258,61 @@ pub fn check_joint_trajectory(
     for row in q {
         chain.check(row)?;
     }
-    // At rest before the first command, the last one held for three periods after it.
-    let mut held = q.to_vec();
-    held.extend(std::iter::repeat_n(last.clone(), 3));
-    let zero = vec![0.0; n];
-    let v = differences(&held, dt, &held[0]);
-    let a = differences(&v, dt, &zero);
-    let j = differences(&a, dt, &zero);
-    // Torques (and their rates) at every command, when the robot has inertias and a
-    // torque limit to hold them to.
-    let wants_torque = limits.torque.is_some() || limits.torque_rate.is_some();
-    let (tau, rate) = match inertia.filter(|_| wants_torque) {
-        Some(links) => {
-            let tau = held
-                .iter()
-                .zip(&v)
-                .zip(&a)
-                .map(|((q, v), a)| chain.inverse_dynamics(links, gravity, q, v, a))
-                .collect::<Result<Vec<_>, _>>()?;
-            let rate = differences(&tau, dt, &tau[0]);
-            (Some(tau), Some(rate))
-        }
-        None => (None, None),
+    let robot = RobotLimits {
+        chain,
+        limits,
+        inertia,
+        gravity,
+        cartesian: None,
     };
-    let mut series: Vec<Series> = Vec::new();
-    let mut not_checked = Vec::new();
-    match chain.limits() {
-        Some(_) => series.push((Quantity::Position, held, None)),
-        None => not_checked.push((
-            Quantity::Position,
-            "the robot has no joint position limits".to_string(),
-        )),
+    // At rest at the first command, the last one held for three periods after it.
+    let bounds = JointBounds::of(chain, limits, &q[0]);
+    let mut stream = StreamCheck::at_rest(bounds, q[0].clone(), dt);
+    let mut torques = TorqueCheck::default();
+    let mut runs = Runs::new(n, t0, dt);
+    let held = q.iter().chain(std::iter::repeat_n(last, 3));
+    for (k, row) in held.enumerate() {
+        stream.measure(row, |j| runs.note(k, j));
+        let (_, v, a) = stream.last();
+        let tau = torques.judge(&robot, dt, (row, v, a), |j| {
+            runs.note(k, j);
+            true
+        })?;
+        torques.take(tau);
     }
-    for (quantity, values, max) in [
-        (
-            Quantity::Velocity,
-            Some(v),
-            chain.velocity_limits().map(<[f64]>::to_vec),
-        ),
-        (Quantity::Acceleration, Some(a), limits.acceleration.clone()),
-        (Quantity::Jerk, Some(j), limits.jerk.clone()),
-        (Quantity::Torque, tau, limits.torque.clone()),
-        (Quantity::TorqueRate, rate, limits.torque_rate.clone()),
-    ] {
-        match (values, max) {
-            (Some(values), Some(m)) => series.push((quantity, values, Some(m))),
-            (None, Some(_)) => not_checked.push((
+    for slot in 0..runs.open.len() {
+        runs.close(slot);
+    }
+    let mut peak_usage = Vec::new();
+    let mut not_checked = Vec::new();
+    let velocity = chain.velocity_limits().is_some();
+    for quantity in Quantity::ALL {
+        let given = match quantity {
+            Quantity::Position => chain.limits().is_some(),
+            Quantity::Velocity => velocity,
+            Quantity::Acceleration => limits.acceleration.is_some(),
+            Quantity::Jerk => limits.jerk.is_some(),
+            Quantity::Torque => limits.torque.is_some(),
+            Quantity::TorqueRate => limits.torque_rate.is_some(),
+        };
+        let torque = matches!(quantity, Quantity::Torque | Quantity::TorqueRate);
+        if !given {
+            let reason = match quantity {
+                Quantity::Position => "the robot has no joint position limits".to_string(),
+                _ => format!("the robot has no {} limits", quantity.name()),
+            };
+            not_checked.push((quantity, reason));
+        } else if torque && inertia.is_none() {
+            not_checked.push((
                 quantity,
                 "the robot's link inertias are not known, so torques cannot be computed".into(),
-            )),
-            (_, None) => not_checked.push((
-                quantity,
-                format!("the robot has no {} limits", quantity.name()),
-            )),
+            ));
+        } else {
+            let slot = quantity as usize * n;
+            peak_usage.push((quantity, runs.usage[slot..slot + n].to_vec()));
         }
     }
-    let range = chain.limits();
-    let mut peak_usage = Vec::new();
-    let mut violations = Vec::new();
-    for (quantity, values, max) in &series {
-        let mut usage = vec![0.0_f64; n];
-        for joint in 0..n {
-            // The worst sample of the current run beyond the limit: (excess, k, value, limit).
-            let mut run: Option<(f64, usize, f64, f64)> = None;
-            for (k, row) in values.iter().enumerate() {
-                let x = row[joint];
-                let (use_pct, excess, bound) = match max {
-                    Some(m) => {
-                        let m = m[joint];
-                        (100.0 * x.abs() / m, x.abs() - m, m.copysign(x))
-                    }
-                    None => {
-                        let (lo, hi) = range.expect("positions are checked with a range");
-                        let (lo, hi) = (lo[joint], hi[joint]);
-                        let mid = 0.5 * (lo + hi);
-                        let half = 0.5 * (hi - lo);
-                        let bound = if x < mid { lo } else { hi };
-                        (
-                            100.0 * (x - mid).abs() / half,
-                            (x - mid).abs() - half - POSITION_TOLERANCE,
-                            bound,
-                        )
-                    }
-                };
-                usage[joint] = usage[joint].max(use_pct);
-                let ends = k + 1 == values.len();
-                if excess > 0.0 && run.is_none_or(|r| excess > r.0) {
-                    run = Some((excess, k, x, bound));
-                }
-                // A run ends at the first sample back within the limit, or with the samples.
-                if (excess <= 0.0 || ends)
-                    && let Some((_, k0, value, limit)) = run.take()
-                {
-                    violations.push(Violation {
-                        joint: joint + 1,
-                        quantity: *quantity,
-                        time: t0 + k0 as f64 * dt,
-                        value,
-                        limit,
-                    });
-                }
-            }
-        }
-        peak_usage.push((*quantity, usage));
-    }
+    let mut violations = runs.violations;
     violations.sort_by(|a, b| {
         a.time
             .total_cmp(&b.time)

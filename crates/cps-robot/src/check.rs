@@ -7,7 +7,8 @@
 //! ([`cps_kinematics::check_commands`]). One check for every robot: the same plan gets
 //! the same verdict, in the same words, whichever robot it is for.
 
-use cps_kinematics::{CommandCheck, POSITION_TOLERANCE, Quantity, check_commands};
+pub use cps_kinematics::OUTSIDE_SLACK;
+use cps_kinematics::{CommandCheck, Excess, Held, Quantity, beyond_allowed, check_commands};
 
 use crate::plan::Plan;
 use crate::{RobotError, RobotModel};
@@ -128,6 +129,24 @@ impl std::fmt::Display for Breach {
     }
 }
 
+/// A command the one limit checker ([`cps_kinematics::StreamCheck`]) refused, as the
+/// contract words it.
+impl From<Excess> for Breach {
+    fn from(e: Excess) -> Self {
+        let joint = e.judged.joint;
+        Breach {
+            limit: match e.judged.held {
+                Held::Quantity(quantity) => Limit::Joint { joint, quantity },
+                Held::Rule(rule) => Limit::Robot { joint, rule },
+            },
+            time: e.time,
+            command: e.command,
+            value: e.judged.value,
+            bound: e.judged.bound,
+        }
+    }
+}
+
 impl Breach {
     /// How many times slower the plan must run for this breach to go, at least (velocities
     /// shrink with the slowing, accelerations with its square, jerks with its cube; the
@@ -161,20 +180,6 @@ pub struct Verdict {
     pub usage: CommandCheck,
     /// The earliest breach (None: every limit holds).
     pub breach: Option<Breach>,
-}
-
-/// How far (rad) a joint that starts outside its range may swing beyond where it started
-/// while it moves back (the motion between the points of a plan that holds it there a
-/// while, then brings it in).
-pub const OUTSIDE_SLACK: f64 = 1e-4;
-
-/// Whether a joint at `value`, beyond its `bound`, is allowed there because it started
-/// beyond that bound (at `start`) and has not gone further out (by more than
-/// [`OUTSIDE_SLACK`]): moving back from outside a bound is allowed, never further out.
-pub(crate) fn beyond_allowed(start: f64, value: f64, bound: f64) -> bool {
-    let started_outside =
-        (value > bound) == (start > bound) && (start - bound).abs() > POSITION_TOLERANCE;
-    started_outside && (value - bound).abs() <= (start - bound).abs() + OUTSIDE_SLACK
 }
 
 /// Checks `plan`'s motion, sampled every `period` (the robot's

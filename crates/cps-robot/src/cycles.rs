@@ -41,7 +41,7 @@
 //!
 //! Nothing here allocates: it lives in realtime loops.
 
-use cps_kinematics::Quantity;
+use cps_kinematics::{JointBounds, Quantity, StreamBounds, StreamCheck};
 
 use crate::check::{Breach, Limit};
 
@@ -128,29 +128,52 @@ pub trait Judge<const N: usize> {
     fn period(&self) -> f64;
 }
 
-/// A model's limits on a command stream, per joint and period: the position range, and
-/// velocity, acceleration and jerk as backward differences (the checks a Franka makes,
-/// without its position-dependent speeds). No allocation.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RateCheck<const N: usize> {
-    /// Lower and upper joint bounds (rad; infinite where none).
-    pub range: ([f64; N], [f64; N]),
-    /// Velocity, acceleration and jerk limits per joint (rad/s, rad/s², rad/s³).
-    pub rates: [[f64; 3]; N],
-    /// The period (s).
-    pub dt: f64,
-    last: Reference<N>,
+/// The one limit checker judges commands for the [`Limiter`] and the [`LossyLink`]'s
+/// robot: against the reference it is rebased on, by its bounds (a model's, or a Franka's
+/// with its position-dependent speeds and its distance to stop).
+impl<const N: usize, B: StreamBounds> Judge<N> for StreamCheck<[f64; N], B> {
+    fn rebase(&mut self, r: &Reference<N>) {
+        StreamCheck::rebase(self, &r.q, &r.v, &r.a);
+    }
+
+    fn admit(&mut self, q: &[f64; N]) -> Result<(), Breach> {
+        StreamCheck::admit(self, q).map_err(Breach::from)
+    }
+
+    fn rates(&self, i: usize) -> (f64, f64) {
+        let b = self.bounds();
+        (
+            b.acceleration(i).unwrap_or(f64::INFINITY),
+            b.jerk(i).unwrap_or(f64::INFINITY),
+        )
+    }
+
+    fn period(&self) -> f64 {
+        StreamCheck::period(self)
+    }
 }
 
+/// A model's limits on a command stream, per joint and period: the position range, and
+/// velocity, acceleration and jerk as backward differences (the checks a Franka makes,
+/// without its position-dependent speeds) — the one limit checker
+/// ([`cps_kinematics::StreamCheck`]) on a robot of `N` joints. No allocation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RateCheck<const N: usize>(StreamCheck<[f64; N], JointBounds<[f64; N]>>);
+
 impl<const N: usize> RateCheck<N> {
-    /// A check of commands every `dt` seconds from rest at `q0`.
+    /// A check of commands every `dt` seconds from rest at `q0`: the joint range
+    /// `(lower, upper)` and per joint the velocity, acceleration and jerk limits (rad/s,
+    /// rad/s², rad/s³; infinite where none).
     pub fn new(range: ([f64; N], [f64; N]), rates: [[f64; 3]; N], dt: f64, q0: [f64; N]) -> Self {
-        RateCheck {
-            range,
-            rates,
-            dt,
-            last: Reference::at_rest(q0),
-        }
+        let bounds = JointBounds {
+            lower: range.0,
+            upper: range.1,
+            velocity: rates.map(|r| r[0]),
+            acceleration: rates.map(|r| r[1]),
+            jerk: rates.map(|r| r[2]),
+            rounding: 0.0,
+        };
+        RateCheck(StreamCheck::at_rest(bounds, q0, dt))
     }
 
     /// A check of `model`'s limits (its joint range, speeds, accelerations and jerks;
@@ -160,76 +183,36 @@ impl<const N: usize> RateCheck<N> {
     /// When the model's joint count is not `N`.
     pub fn of_model(model: &crate::RobotModel, dt: f64, q0: [f64; N]) -> Self {
         assert_eq!(model.chain.dof(), N, "the model's joints");
-        let inf = [f64::INFINITY; N];
-        let per_joint =
-            |v: Option<&[f64]>| -> [f64; N] { v.map_or(inf, |v| std::array::from_fn(|i| v[i])) };
-        let range = model
-            .chain
-            .limits()
-            .map_or((inf.map(|x| -x), inf), |(lo, hi)| {
-                (per_joint(Some(lo)), per_joint(Some(hi)))
-            });
-        let (v, a, j) = (
-            per_joint(model.chain.velocity_limits()),
-            per_joint(model.limits.acceleration.as_deref()),
-            per_joint(model.limits.jerk.as_deref()),
-        );
-        RateCheck::new(range, std::array::from_fn(|i| [v[i], a[i], j[i]]), dt, q0)
+        let bounds = JointBounds::of(&model.chain, &model.limits, &q0);
+        RateCheck(StreamCheck::at_rest(bounds, q0, dt))
     }
 
     /// The last admitted command with its differences.
-    pub fn last(&self) -> &Reference<N> {
-        &self.last
+    pub fn last(&self) -> Reference<N> {
+        let (q, v, a) = self.0.last();
+        Reference {
+            q: *q,
+            v: *v,
+            a: *a,
+        }
     }
 }
 
 impl<const N: usize> Judge<N> for RateCheck<N> {
     fn rebase(&mut self, reference: &Reference<N>) {
-        self.last = *reference;
+        Judge::rebase(&mut self.0, reference);
     }
 
-    // Joint-indexed arrays read side by side.
-    #[allow(clippy::needless_range_loop)]
     fn admit(&mut self, q: &[f64; N]) -> Result<(), Breach> {
-        let next = self.last.after(q, self.dt);
-        for i in 0..N {
-            let jerk = (next.a[i] - self.last.a[i]) / self.dt;
-            let [v, a, j] = self.rates[i];
-            let (lo, hi) = (self.range.0[i], self.range.1[i]);
-            let broken = if !q[i].is_finite() || q[i] < lo || q[i] > hi {
-                Some((Quantity::Position, q[i], if q[i] < lo { lo } else { hi }))
-            } else if next.v[i].abs() > v {
-                Some((Quantity::Velocity, next.v[i], v))
-            } else if next.a[i].abs() > a {
-                Some((Quantity::Acceleration, next.a[i], a))
-            } else if jerk.abs() > j {
-                Some((Quantity::Jerk, jerk, j))
-            } else {
-                None
-            };
-            if let Some((quantity, value, bound)) = broken {
-                return Err(Breach {
-                    limit: Limit::Joint {
-                        joint: i + 1,
-                        quantity,
-                    },
-                    time: 0.0,
-                    command: 0,
-                    value,
-                    bound,
-                });
-            }
-        }
-        self.last = next;
-        Ok(())
+        Judge::admit(&mut self.0, q)
     }
 
     fn rates(&self, i: usize) -> (f64, f64) {
-        (self.rates[i][1], self.rates[i][2])
+        Judge::rates(&self.0, i)
     }
 
     fn period(&self) -> f64 {
-        self.dt
+        self.0.period()
     }
 }
 
@@ -514,7 +497,7 @@ impl<const N: usize> LossyLink<N> {
     /// never lost, so the motion ends where it should); what the robot holds after that
     /// period.
     pub fn step(&mut self, desired: &[f64; N], last: bool) -> Result<&Reference<N>, LinkBreak> {
-        let dt = self.client.dt;
+        let dt = self.client.period();
         self.limiter.desire(desired, dt);
         if !last && self.loss.loses() {
             self.reference = self.reference.extrapolated(dt);

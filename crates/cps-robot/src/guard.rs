@@ -438,7 +438,7 @@ impl<R: Robot> Guarded<R> {
         // limits each command) and the shapes; at the first it breaks, it is not sent (the
         // last one accepted is held) and the robot is stopped through a token of the
         // guard's own, which also passes the caller's stop on.
-        let mut limits = here.map(|q| CommandWatch::new(&q, period));
+        let mut limits = here.map(|q| CommandWatch::new(&model, &q, period));
         let mut shapes = model
             .shapes
             .clone()
@@ -659,7 +659,7 @@ impl<R: Robot> Stepped for Guarded<R> {
         if self.watch.is_none() {
             let here = self.robot.joint_positions()?;
             let dt = self.robot.dt();
-            self.watch = Some(CommandWatch::new(&here, dt));
+            self.watch = Some(CommandWatch::new(self.robot.model(), &here, dt));
             if let Some(w) = self.shapes.as_mut() {
                 w.restart();
             }

@@ -313,4 +313,20 @@ fn stepping_a_guarded_robot_judges_every_command() {
     assert!(moving);
     let e = stepped.step().unwrap_err().to_string();
     assert!(e.contains("not sent") && e.contains("acceleration"), "{e}");
+    // A command that is not a number is refused in words (the guard's own differences
+    // of it compared as false with every limit, and passed).
+    let mut r = robot(Policy::STRICT, 0.01);
+    let stepped = Robot::stepped(&mut r).unwrap();
+    let mut nan = HOME.to_vec();
+    nan[2] = f64::NAN;
+    let e = stepped
+        .command_joint_positions(&nan)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("not sent") && e.contains("joint 3") && e.contains("is not a number"),
+        "{e}"
+    );
+    stepped.step().unwrap();
+    assert_eq!(stepped.joint_positions().unwrap(), HOME.to_vec());
 }

@@ -22,7 +22,7 @@
 use cps_kinematics::Quantity;
 
 use super::{JointPositions, MotionEnd, Torques};
-use crate::limits::{Brake, DT, RateLimits, StreamCheck, joint_breach};
+use crate::limits::{Brake, DT, RateLimits, StreamCheck, joint_breach, stream_check};
 use crate::reference::{Reference, ReferenceCounts, ReferenceTracker, TorqueTracker};
 use crate::wire::{Command, ControllerMode, JOINTS, MotionGeneratorMode, RobotState};
 use cps_robot::{Limited, Limiter};
@@ -129,7 +129,7 @@ where
     pub(crate) fn new(limits: RateLimits, velocity: bool, control: F) -> Self {
         let q0 = [0.0; JOINTS];
         PositionLaw {
-            check: StreamCheck::at_rest(limits, q0),
+            check: stream_check(limits, q0),
             tracker: ReferenceTracker::new(q0, velocity),
             limiter: Limiter::new(q0),
             mode: Mode::Follow,
@@ -181,7 +181,7 @@ where
     /// admitted reference; tested); whether it is at rest.
     fn brake_step(&mut self, r: &Reference) -> ([f64; JOINTS], bool) {
         self.brake_ticks += 1;
-        let mut brake = Brake::new(*self.check.limits(), r.q, r.v, r.a);
+        let mut brake = Brake::new(*self.check.bounds(), r.q, r.v, r.a);
         let q = brake.step();
         if self.check.admit(&q).is_ok() {
             (q, brake.stopped())
@@ -208,8 +208,8 @@ where
 
     fn start(&mut self, state: &RobotState) {
         let q0 = super::start_position(state);
-        let limits = *self.check.limits();
-        self.check = StreamCheck::at_rest(limits, q0);
+        let limits = *self.check.bounds();
+        self.check = stream_check(limits, q0);
         self.tracker = ReferenceTracker::new(q0, self.velocity);
         self.limiter = Limiter::new(q0);
         self.desired = q0;
@@ -231,7 +231,7 @@ where
         command: &mut Command,
     ) -> Option<bool> {
         let r = self.tracker.reference(state);
-        self.check.rebase(r.q, r.v, r.a);
+        self.check.rebase(&r.q, &r.v, &r.a);
         if let Some(reason) = brake
             && self.following()
         {
@@ -288,7 +288,7 @@ where
         command.q_c = q_c;
         if self.velocity {
             // The velocity the admitted position stands for (zero once at rest).
-            command.dq_c = self.check.last().1;
+            command.dq_c = *self.check.last().1;
         }
         command.motion_generation_finished = done;
         self.tracker.sent(state.message_id, q_c, behind);
@@ -302,7 +302,7 @@ where
     fn outcome(self) -> Outcome {
         Outcome {
             reason: self.reason,
-            peak: self.check.peak_usage(),
+            peak: *self.check.peak_usage(),
             brake_ticks: self.brake_ticks,
             limited: self.limiter.limited(),
             reference: self.tracker.counts(),
