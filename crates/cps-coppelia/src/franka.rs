@@ -261,21 +261,6 @@ impl FrankaScene {
         }
         Ok(out)
     }
-
-    /// Creates a way-point dummy (size 0.04 m, as the thesis) named `name` at `position`,
-    /// coloured `rgb`; returns its handle.
-    pub fn create_way_point(
-        &mut self,
-        name: &str,
-        position: [f64; 3],
-        rgb: [f64; 3],
-    ) -> Result<i64, CoppeliaError> {
-        let h = self.client.create_dummy(0.04)?;
-        self.client.set_object_alias(h, name)?;
-        self.client.set_object_position(h, position, HANDLE_WORLD)?;
-        self.client.set_object_color(h, rgb)?;
-        Ok(h)
-    }
 }
 
 impl FrankaScene {

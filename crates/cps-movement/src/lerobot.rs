@@ -40,11 +40,6 @@ impl Default for Pick {
     }
 }
 
-/// Whether `path` is a LeRobot dataset's folder (it holds `meta/info.json`).
-pub fn is_dataset(path: &Path) -> bool {
-    path.is_dir() && path.join(cps_lerobot::info::INFO_PATH).is_file()
-}
-
 pub(crate) fn input(e: LeRobotError) -> InputError {
     InputError(e.to_string())
 }

@@ -145,17 +145,6 @@ impl Shapes {
         out
     }
 
-    /// Errors where a body rides on a frame a chain of `dof` joints does not have.
-    pub fn check_frames(&self, dof: usize) -> Result<(), String> {
-        match self.bodies.iter().find(|b| b.frame > dof) {
-            Some(b) => Err(format!(
-                "the shape of link `{}` rides on frame {}, but the chain has {dof} joints",
-                b.link, b.frame
-            )),
-            None => Ok(()),
-        }
-    }
-
     /// The pair of `contact`, closer than the margin at `time` (`command`), in words.
     pub fn collision(&self, contact: &Contact, time: f64, command: usize) -> Collision {
         let (a, b) = self.model.pair_names(contact.pair);

@@ -611,10 +611,10 @@ impl<R: Robot> Robot for Guarded<R> {
 
 impl<R: Robot> Guarded<R> {
     /// A stepped command refused: what was sent before stands, this one is not sent.
-    fn command_refused(&self, breach: &dyn std::fmt::Display) -> RobotError {
+    fn command_refused(&self, reason: Refusal) -> RobotError {
         RobotError::CommandRefused {
             robot: self.robot.name(),
-            reason: breach.to_string(),
+            reason,
         }
     }
 
@@ -628,7 +628,7 @@ impl<R: Robot> Guarded<R> {
             .shapes
             .get_or_insert_with(|| ShapeWatch::new(shapes.clone(), model.chain.dof()));
         match watch.judge(&model.chain, q, time, command)? {
-            Some(c) => Err(self.command_refused(&c)),
+            Some(c) => Err(self.command_refused(Refusal::Collision(c))),
             None => Ok(()),
         }
     }
@@ -645,8 +645,8 @@ impl<R: Robot> Guarded<R> {
 /// simulator): each joint command is judged with the checks a plan gets — the position
 /// range, velocity, acceleration and jerk by backward differences from where the robot
 /// stood at rest, torque and torque rate where the robot has inertias — and one that
-/// breaks a limit is refused ([`RobotError::Robot`] naming it, the robot holding its last
-/// command) instead of sent. A step without a new command holds the last one, and is judged as
+/// breaks a limit is refused ([`RobotError::CommandRefused`] with the [`Breach`], the robot
+/// holding its last command) instead of sent. A step without a new command holds the last one, and is judged as
 /// that. A robot that follows tool
 /// targets itself (CoppeliaSim's IK) moves its joints on its own: those are the
 /// simulator's, not commands cps sends. The commands count from where the robot stands
@@ -668,7 +668,7 @@ impl<R: Robot> Stepped for Guarded<R> {
         self.judge_shapes(q, command as f64 * self.robot.dt(), command)?;
         let watch = self.watch.as_mut().expect("just made");
         if let Err(breach) = watch.judge(self.robot.model(), q) {
-            return Err(self.command_refused(&breach));
+            return Err(self.command_refused(Refusal::Limit(breach)));
         }
         self.commanded = true;
         self.inner_stepped().command_joint_positions(q)
@@ -680,7 +680,7 @@ impl<R: Robot> Stepped for Guarded<R> {
         {
             let hold = watch.last().to_vec();
             if let Err(breach) = watch.judge(self.robot.model(), &hold) {
-                return Err(self.command_refused(&breach));
+                return Err(self.command_refused(Refusal::Limit(breach)));
             }
         }
         self.commanded = false;

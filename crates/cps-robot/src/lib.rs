@@ -126,8 +126,9 @@ pub enum RobotError {
     CommandRefused {
         /// The robot (its [`Robot::name`]).
         robot: String,
-        /// The limit or the collision, in words.
-        reason: String,
+        /// The limit it breaks ([`Refusal::Limit`]) or the collision it would make
+        /// ([`Refusal::Collision`]).
+        reason: Refusal,
     },
     /// The robot, its connection or its controller failed.
     #[error("{robot}: {message}")]

@@ -83,7 +83,7 @@ impl Judge<'_> {
                     None,
                 );
                 return Ok(Judged {
-                    refused: Some(reason),
+                    refused: Some(reason.to_string()),
                     cost,
                     errors,
                     recording: Recording::default(),
