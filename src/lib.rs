@@ -25,6 +25,8 @@
 //! - [`ros2_msg`] (`cps-ros2-msg`): the ROS 2 messages and their CDR bytes, no transport.
 //! - [`mocap`] (`cps-mocap`): motion-capture takes (C3D, Motive CSV) made demonstrations.
 //! - [`geometry`] (`cps-geometry`): shapes, meshes as convex hulls, signed distances.
+//! - [`lerobot`] (`cps-lerobot`): LeRobot datasets (v3.0): read with placed errors,
+//!   written from recordings.
 //! - [`files`] (`cps-files`): the one reader (regular files, size ceilings, counts
 //!   estimated before allocating) and the one writer (outputs replaced safely).
 //! - [`outcome`] (`cps-outcome`), [`report`] (`cps-report`), [`movement`]
@@ -70,6 +72,7 @@ pub use cps_franka as franka;
 pub use cps_geometry as geometry;
 pub use cps_kinematics as kinematics;
 pub use cps_learn as learn;
+pub use cps_lerobot as lerobot;
 pub use cps_mocap as mocap;
 pub use cps_movement as movement;
 pub use cps_outcome as outcome;

@@ -23,7 +23,7 @@ use std::ops::Range;
 use crate::InputError;
 pub use crate::plan::Estimate;
 use crate::plan::{Experiment, Kind};
-use crate::source::bytes;
+use cps_outcome::source::bytes;
 
 /// The ceilings a run may not exceed.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -7,8 +7,8 @@ use std::time::Instant;
 use cps_cmaes::functions::{Restarts, TestFunction, reference_run};
 use serde_json::json;
 
-use crate::robot_file::Answer;
 use crate::{ExperimentError, InputError};
+use cps_movement::robot_file::Answer;
 
 /// A benchmark's settings.
 #[derive(Debug, Clone)]

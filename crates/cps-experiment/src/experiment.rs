@@ -15,8 +15,8 @@ use toml::Spanned;
 use crate::InputError;
 use crate::budget::Ceilings;
 pub use crate::plan::{Experiment, Kind};
-use crate::source::location;
-use crate::source::{MAX_FILE_BYTES, read_text};
+use cps_outcome::source::location;
+use cps_outcome::source::{MAX_FILE_BYTES, read_text};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -37,7 +37,7 @@ struct File {
     plant: Option<Spanned<crate::plan::PlantSection>>,
     speedup: Option<Spanned<toml::Value>>,
     orientation: Option<Spanned<crate::plan::OrientationSection>>,
-    export: Option<Spanned<crate::export::ExportSection>>,
+    export: Option<Spanned<cps_movement::export::ExportSection>>,
     promp: Option<Spanned<crate::plan::ProMpSection>>,
     contact: Option<Spanned<crate::sections::contact::ContactSection>>,
     executed: Option<Spanned<crate::plan::ExecutedSection>>,
@@ -194,7 +194,7 @@ pub fn parse(
             "{}: the experiment file has {} bytes, more than the {} cps reads",
             path.display(),
             text.len(),
-            crate::source::bytes(MAX_FILE_BYTES as f64)
+            cps_outcome::source::bytes(MAX_FILE_BYTES as f64)
         )));
     }
     let at = |e: &toml::de::Error| {

@@ -59,17 +59,10 @@ mod run;
 pub mod sections;
 pub mod sim_pool;
 
-// The file and driving layers, by their own names inside this crate (`crate::limits`, …);
-// not re-exported: a user of them depends on cps-movement or cps-drive, visibly.
-use cps_drive::{contact, franka, ros2};
-use cps_movement::{
-    calibration, export, limits, mocap, movement, promp, retiming, robot_file, scene,
-};
-// The outcome layer's modules by their own names inside this crate; a user writing files
-// or drawing depends on cps-outcome or cps-report, visibly. Only the types `run` takes and
-// returns are re-exported.
+// Other crates' modules are named by their crate (`cps_movement::limits`, …): a user of
+// them depends on cps-movement, cps-drive or cps-outcome, visibly. Only the types `run`
+// takes and returns are re-exported.
 pub use cps_outcome::{Context, ExperimentError, InputError, Outcome};
-use cps_outcome::{outcome, source};
 pub use observer::{Event, Observer};
 pub use plan::{Experiment, Kind};
 pub use run::{RunOptions, planned_generations, run, run_into};

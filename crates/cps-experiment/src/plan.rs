@@ -38,7 +38,7 @@ pub struct Experiment {
     /// The robot and backend (`[robot]`), for kinds that execute.
     pub robot: Option<RobotChoice>,
     /// Retiming and export of the robot's movement (`[export]`, kinds with a robot).
-    pub export: Option<crate::export::ExportPlan>,
+    pub export: Option<cps_movement::export::ExportPlan>,
     /// The clearance learning keeps (`[clearance]`, kinds that learn a robot's movement).
     pub clearance: Option<crate::sections::clearance::ClearancePlan>,
     /// What the run needs (memory, work), estimated when the file was read.
@@ -174,7 +174,7 @@ pub struct Estimate {
 pub(crate) struct Plans {
     pub robot: Option<RobotChoice>,
     pub plan: KindPlan,
-    pub export: Option<crate::export::ExportPlan>,
+    pub export: Option<cps_movement::export::ExportPlan>,
     pub clearance: Option<crate::sections::clearance::ClearancePlan>,
 }
 
@@ -536,7 +536,7 @@ impl Experiment {
             lines.push(format!(
                 "  runs ≈ {:.0} s on the robot (longer while the force lags its profile), recording ≈ {}",
                 c.nominal_seconds(),
-                crate::source::bytes(e.memory_bytes)
+                cps_outcome::source::bytes(e.memory_bytes)
             ));
         } else if let Some(e) = &self.estimate {
             lines.push(format!("  {}", e.describe(threads)));

@@ -12,9 +12,9 @@ use cps_ros2_msg::msg::Marker;
 use nalgebra::Isometry3;
 use serde_json::json;
 
-use crate::robot_file::Answer;
-use crate::ros2::{node, ros2_error};
 use crate::{ExperimentError, InputError};
+use cps_drive::ros2::{node, ros2_error};
+use cps_movement::robot_file::Answer;
 
 /// What and where to show.
 #[derive(Debug, Clone)]
@@ -70,8 +70,11 @@ pub fn show(
         .into());
     }
     // A Cartesian kind writes x, y, z; a joint-space kind the executed tool's.
-    let header =
-        crate::source::read_text(&csv, cps_outcome::source::MAX_FILE_BYTES << 4, "trajectory")?;
+    let header = cps_outcome::source::read_text(
+        &csv,
+        cps_outcome::source::MAX_FILE_BYTES << 4,
+        "trajectory",
+    )?;
     let columns = if header
         .lines()
         .next()
@@ -84,7 +87,7 @@ pub fn show(
         ["x", "y", "z"]
     };
     let names = columns.map(String::from);
-    let (_, demo) = crate::movement::read_demo(&csv, Some(&names))?;
+    let (_, demo) = cps_movement::movement::read_demo(&csv, Some(&names))?;
     let path: Vec<[f64; 3]> = (0..demo.len())
         .map(|k| {
             let s = demo.sample(k);

@@ -7,9 +7,9 @@ use std::time::Instant;
 
 use crate::kinds::{self, Ctx};
 use crate::observer::Observer;
-use crate::outcome::Outcome;
 use crate::plan::{Experiment, Kind, KindPlan};
 use crate::{ExperimentError, InputError};
+use cps_outcome::outcome::Outcome;
 
 /// How to run (what does not change the results).
 #[derive(Debug, Clone, Default)]

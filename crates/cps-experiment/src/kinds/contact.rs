@@ -1,5 +1,5 @@
 //! `kind = "contact"`: a movement that touches, on a Franka in torque mode
-//! ([`crate::contact::run_contact`]): approach a surface until contact, press along the
+//! ([`cps_drive::contact::run_contact`]): approach a surface until contact, press along the
 //! force profile of `[contact]` while following its path on the surface, release, lift
 //! off. Declares the summary (force error while pressing, peak force, path error, how it
 //! ended, the loop's timing), the `contact` table (every tick), the force figure (desired
@@ -8,12 +8,12 @@
 use serde::Serialize;
 
 use super::Ctx;
-use crate::contact::{ContactEnding, ContactOutcome, RobotAt, Stage, contact_on_robot};
-use crate::outcome::{
-    Column, Figure, Format, Outcome, Panels, Plot, Report, ReportTable, Series, Table,
-};
 use crate::robots::BackendChoice;
 use crate::{ExperimentError, InputError};
+use cps_drive::contact::{ContactEnding, ContactOutcome, RobotAt, Stage, contact_on_robot};
+use cps_outcome::outcome::{
+    Column, Figure, Format, Outcome, Panels, Plot, Report, ReportTable, Series, Table,
+};
 
 #[derive(Serialize)]
 struct Summary {
@@ -213,7 +213,7 @@ fn lines(s: &Summary) -> Vec<String> {
 /// force_x..z` (cps's estimate), `robot_force_x..z` (the robot's), `pressing, desired, phase`.
 fn table(out: &ContactOutcome) -> Table {
     let k = &out.ticks;
-    let num = |name: &str, f: &dyn Fn(&crate::contact::ContactTick) -> f64| {
+    let num = |name: &str, f: &dyn Fn(&cps_drive::contact::ContactTick) -> f64| {
         Column::numbers(name, k.iter().map(f).collect(), Format::Plain)
     };
     let mut t = Table::new("contact")
@@ -245,7 +245,7 @@ fn figures(out: &ContactOutcome) -> Vec<Figure> {
     // Every fifth tick: 200 points a second are plenty for a figure.
     let picked: Vec<_> = out.ticks.iter().step_by(5).collect();
     let times: Vec<f64> = picked.iter().map(|k| k.t).collect();
-    let series = |label: &str, f: &dyn Fn(&crate::contact::ContactTick) -> f64| {
+    let series = |label: &str, f: &dyn Fn(&cps_drive::contact::ContactTick) -> f64| {
         Series::new(
             label,
             times.clone(),
@@ -267,7 +267,7 @@ fn figures(out: &ContactOutcome) -> Vec<Figure> {
         .step_by(5)
         .collect();
     let ptimes: Vec<f64> = pressing.iter().map(|k| k.t).collect();
-    let xyz = |f: &dyn Fn(&crate::contact::ContactTick) -> [f64; 3]| -> Vec<Vec<f64>> {
+    let xyz = |f: &dyn Fn(&cps_drive::contact::ContactTick) -> [f64; 3]| -> Vec<Vec<f64>> {
         (0..3)
             .map(|d| pressing.iter().map(|k| f(k)[d]).collect())
             .collect()

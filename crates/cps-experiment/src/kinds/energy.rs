@@ -11,7 +11,7 @@ use super::{
     way_points, worst,
 };
 use crate::ExperimentError;
-use crate::outcome::{
+use cps_outcome::outcome::{
     Column, Figure, Format, Outcome, Panels, Plot, Report, ReportTable, Series, Table, fields,
 };
 

@@ -29,9 +29,9 @@ use super::movement_files::movement_files;
 use super::{Ctx, history_table, learn_error, position_figures, search_figure, way_points, worst};
 use crate::ExperimentError;
 use crate::observer::Event;
-use crate::outcome::{Column, Format, Outcome, Report, ReportTable, Series, Table, fields};
 use crate::robots::RobotChoice;
 use crate::sim_pool::{Dropped, JobError, PoolError, SimulatorPool};
+use cps_outcome::outcome::{Column, Format, Outcome, Report, ReportTable, Series, Table, fields};
 
 /// One candidate executed and judged.
 struct Judged {
@@ -428,7 +428,7 @@ pub(crate) fn run(
     let lines = lines(ctx, &summary, failure.as_deref());
     let figures = position_figures(
         vec![
-            crate::movement::trajectory_series("commanded", &best.trajectory),
+            cps_movement::movement::trajectory_series("commanded", &best.trajectory),
             Series::new(
                 "executed",
                 best.times.clone(),

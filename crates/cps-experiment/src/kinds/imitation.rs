@@ -12,7 +12,7 @@ use super::{Ctx, learn_error};
 use super::{marks, position_figures, solver_name, usage_line};
 use crate::ExperimentError;
 use crate::observer::Event;
-use crate::outcome::{
+use cps_outcome::outcome::{
     Column, Document, Figure, Format, Outcome, Report, ReportTable, Series, Table, fields,
 };
 
@@ -243,7 +243,7 @@ pub(crate) fn declare(ctx: &Ctx<'_>, run: &Pipeline) -> Result<Outcome, Experime
             condition_number: r.condition_number,
             kept_clear: f.kept_clear.as_ref().map(KeptClearSummary::new),
             tracking: f.recording.as_ref().map(Tracking::of),
-            limit_usage: usage.as_ref().map(crate::limits::LimitsReport::json),
+            limit_usage: usage.as_ref().map(cps_movement::limits::LimitsReport::json),
             retiming,
             export,
             model: name,
@@ -443,7 +443,7 @@ fn figures(outcome: &ImitationOutcome, task: &cps_learn::ViaPointTask) -> Vec<Fi
         first.imitation.reference.clone(),
     ));
     for f in &outcome.fits {
-        series.push(crate::movement::trajectory_series(
+        series.push(cps_movement::movement::trajectory_series(
             format!("imitation ({})", f.method.replace('_', " ")),
             &f.trajectory,
         ));
@@ -547,9 +547,9 @@ fn report(ctx: &Ctx<'_>, s: &Summary<'_>) -> Report {
 /// range when the joint starts beyond it (the thesis's Panda starts with joint 4 at 0 rad,
 /// beyond its range, a fact of the scene and not of the bend).
 fn bent_beyond_limits(
-    usage: &crate::limits::LimitsReport,
+    usage: &cps_movement::limits::LimitsReport,
     start: &[f64],
-    model: &crate::robot_file::RobotModel,
+    model: &cps_movement::robot_file::RobotModel,
 ) -> Option<String> {
     use cps_kinematics::Quantity;
     let starts_beyond = |j: usize| {

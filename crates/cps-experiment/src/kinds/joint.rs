@@ -17,10 +17,10 @@ use super::{
     cost_figure, history_table, marks, position_figures, search_figure, search_row, way_points,
     worst,
 };
-use crate::outcome::{
+use crate::{Context, ExperimentError};
+use cps_outcome::outcome::{
     Column, Figure, Format, Outcome, Panels, Plot, Report, ReportTable, Series, Table, fields,
 };
-use crate::{Context, ExperimentError};
 
 #[derive(Serialize)]
 struct Summary<'a> {

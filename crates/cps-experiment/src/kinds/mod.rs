@@ -12,12 +12,12 @@ use std::time::Instant;
 use cps_learn::{GenerationRecord, LearnError, ViaPointTask};
 
 use crate::observer::{Event, Observer};
-use crate::outcome::{
+use crate::plan::Experiment;
+use crate::{ExperimentError, InputError};
+use cps_outcome::outcome::{
     Band, Column, CostArm, Figure, Format, Mark, MarkKind, Panels, Plot, ReportTable, RunHeader,
     Series, Table, Versions,
 };
-use crate::plan::Experiment;
-use crate::{ExperimentError, InputError};
 
 pub(crate) mod clearance;
 pub(crate) mod contact;
@@ -506,15 +506,15 @@ pub(crate) fn limit_usage(
     robot: &crate::robots::RobotChoice,
     times: &[f64],
     q: Vec<Vec<f64>>,
-) -> Result<crate::limits::LimitsReport, ExperimentError> {
-    let traj = crate::limits::JointTrajectory {
+) -> Result<cps_movement::limits::LimitsReport, ExperimentError> {
+    let traj = cps_movement::limits::JointTrajectory {
         names: (1..=robot.setup.chain.dof())
             .map(|j| format!("q{j}"))
             .collect(),
         times: times.to_vec(),
         q,
     };
-    crate::limits::check_samples(&robot.model, &traj, CONTROL_RATE).map_err(|e| {
+    cps_movement::limits::check_samples(&robot.model, &traj, CONTROL_RATE).map_err(|e| {
         ExperimentError::Failed {
             context: "checking the movement against the robot's limits".into(),
             source: Box::new(e),
@@ -523,7 +523,7 @@ pub(crate) fn limit_usage(
 }
 
 /// A report's peak usages in one line: `position 100 %, velocity 25 %, …`, and the verdict.
-pub(crate) fn usage_line(report: &crate::limits::LimitsReport) -> String {
+pub(crate) fn usage_line(report: &cps_movement::limits::LimitsReport) -> String {
     let peaks: Vec<String> = report
         .check
         .joints

@@ -5,12 +5,12 @@ use serde_json::{Map, Value, json};
 
 use super::{CONTROL_RATE, limit_usage, usage_line};
 use crate::ExperimentError;
-use crate::export::export_samples;
-use crate::limits::{JointTrajectory, LimitsReport};
-use crate::outcome::{Document, Table};
 use crate::plan::Experiment;
-use crate::retiming::retime_samples;
 use crate::robots::RobotChoice;
+use cps_movement::export::export_samples;
+use cps_movement::limits::{JointTrajectory, LimitsReport};
+use cps_movement::retiming::retime_samples;
+use cps_outcome::outcome::{Document, Table};
 
 /// A robot movement's report and files.
 pub(crate) struct MovementFiles {
@@ -45,16 +45,16 @@ impl MovementFiles {
     /// A kind's outcome from its parts, with this movement's added.
     pub fn outcome(
         self,
-        header: crate::outcome::RunHeader,
-        report: crate::outcome::Report,
+        header: cps_outcome::outcome::RunHeader,
+        report: cps_outcome::outcome::Report,
         mut summary: Map<String, Value>,
         mut tables: Vec<Table>,
-        figures: Vec<crate::outcome::Figure>,
+        figures: Vec<cps_outcome::outcome::Figure>,
         mut lines: Vec<String>,
-    ) -> crate::outcome::Outcome {
+    ) -> cps_outcome::outcome::Outcome {
         let mut documents = Vec::new();
         self.into_parts(&mut summary, &mut tables, &mut documents, &mut lines);
-        crate::outcome::Outcome {
+        cps_outcome::outcome::Outcome {
             header,
             report,
             summary,

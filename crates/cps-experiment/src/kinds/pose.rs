@@ -15,7 +15,7 @@ use super::{
     way_points, worst,
 };
 use crate::ExperimentError;
-use crate::outcome::{
+use cps_outcome::outcome::{
     Column, Figure, Format, Mark, MarkKind, Outcome, Panels, Plot, Report, ReportTable, Series,
     Table, fields,
 };
@@ -305,7 +305,10 @@ fn figures(ctx: &Ctx<'_>, outcome: &PoseOutcome, config: &PoseConfig) -> Vec<Fig
     let task = &ctx.exp.config.task;
     let p = outcome.position.best_trajectory();
     let mut figures = position_figures(
-        vec![crate::movement::trajectory_series("learned path", &p)],
+        vec![cps_movement::movement::trajectory_series(
+            "learned path",
+            &p,
+        )],
         way_points(task),
         "Position per coordinate, with the start, the via points p1… and the goal.",
         "The path in 3-D.",

@@ -11,8 +11,8 @@ use super::clearance::KeptClearSummary;
 use super::imitation::{declare, pipeline};
 use super::learn_error;
 use crate::ExperimentError;
-use crate::outcome::{Column, Document, Format, Outcome, ReportTable, Table};
-use crate::promp::{Conditioned, NamedProMp, ViaPoints, condition, fit_demos};
+use cps_movement::promp::{Conditioned, NamedProMp, ViaPoints, condition, fit_demos};
+use cps_outcome::outcome::{Column, Document, Format, Outcome, ReportTable, Table};
 
 #[derive(Serialize)]
 struct Summary {

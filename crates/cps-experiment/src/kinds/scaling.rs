@@ -8,7 +8,7 @@ use super::Ctx;
 use super::{cost_figure, learn_error, position_figures_with, way_points, worst};
 use crate::ExperimentError;
 use crate::observer::Event;
-use crate::outcome::{
+use cps_outcome::outcome::{
     Band, Column, Figure, Format, Outcome, Report, ReportTable, Series, Table, fields,
 };
 

@@ -9,10 +9,10 @@ use super::{
     cost_figure, derivative_figure, evaluation_name, position_figures, search_figure, solver_name,
     way_points, worst,
 };
-use crate::outcome::{
+use crate::{ExperimentError, InputError};
+use cps_outcome::outcome::{
     Column, Format, Mark, MarkKind, Outcome, Plot, Report, ReportTable, Table, fields,
 };
-use crate::{ExperimentError, InputError};
 
 #[derive(Serialize)]
 struct Summary<'a> {
@@ -119,7 +119,7 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     let histories: Vec<&[cps_learn::GenerationRecord]> =
         outcome.runs.iter().map(|r| r.history.as_slice()).collect();
     let mut figures = position_figures(
-        vec![crate::movement::trajectory_series(
+        vec![cps_movement::movement::trajectory_series(
             "learned trajectory",
             &traj,
         )],

@@ -28,7 +28,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use crate::InputError;
-use crate::contact::{ContactPlan, ContactWaypoint, ForcePrimitive};
+use cps_drive::contact::{ContactPlan, ContactWaypoint, ForcePrimitive};
 use cps_dynamics::Drive;
 
 /// `[contact]` as written.
@@ -308,7 +308,7 @@ impl ContactSpec {
 /// A force profile file: a header naming `t, dx, dy, dz, force` (in any order, other
 /// columns ignored), then numbers; at most 10⁶ rows.
 fn read_profile(path: &Path) -> Result<(Vec<f64>, Vec<Vec<f64>>), String> {
-    let text = crate::source::read_text(path, 64 << 20, "force profile").map_err(|e| e.0)?;
+    let text = cps_outcome::source::read_text(path, 64 << 20, "force profile").map_err(|e| e.0)?;
     let mut lines = text
         .lines()
         .enumerate()

@@ -148,9 +148,13 @@ impl Sections<'_> {
             at(d.axes.as_ref().map_or(takes.span(), Spanned::span), "axes")(e.to_string())
         })?;
         let calibration = d.to_robot.as_ref().map(|c| dir.join(c.get_ref()));
-        let demos =
-            crate::mocap::demonstrations(dir, takes.get_ref(), &settings, calibration.as_deref())
-                .map_err(|e| at(takes.span(), "takes")(e.0))?;
+        let demos = cps_movement::mocap::demonstrations(
+            dir,
+            takes.get_ref(),
+            &settings,
+            calibration.as_deref(),
+        )
+        .map_err(|e| at(takes.span(), "takes")(e.0))?;
         Ok(demos
             .into_iter()
             .map(|(name, trajectory)| cps_learn::GivenDemonstration { name, trajectory })

@@ -25,7 +25,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use crate::InputError;
-use crate::source::location;
+use cps_outcome::source::location;
 use robot::RobotSection;
 
 /// What an experiment file runs (`[experiment] kind`).
@@ -96,7 +96,7 @@ pub(crate) struct Sections<'a> {
     /// `[speedup]`, no longer part of an experiment: refused with where it went.
     pub speedup: Option<&'a Spanned<toml::Value>>,
     pub orientation: Option<&'a Spanned<pose::OrientationSection>>,
-    pub export: Option<&'a Spanned<crate::export::ExportSection>>,
+    pub export: Option<&'a Spanned<cps_movement::export::ExportSection>>,
     pub promp: Option<&'a Spanned<promp::ProMpSection>>,
     pub executed: Option<&'a Spanned<executed::ExecutedSection>>,
     pub contact: Option<&'a Spanned<contact::ContactSection>>,

@@ -29,7 +29,7 @@ impl Sections<'_> {
         &self,
         c: &Spanned<String>,
         r: &RobotSection,
-        robot: &crate::robot_file::RobotModel,
+        robot: &cps_movement::robot_file::RobotModel,
     ) -> Result<cps_dynamics::options::CalibrationValues, InputError> {
         for (key, span) in [
             ("kp", r.kp.as_ref().map(Spanned::span)),
@@ -63,7 +63,7 @@ impl Sections<'_> {
             .parent()
             .unwrap_or(Path::new("."))
             .join(c.get_ref());
-        let file = crate::calibration::read_calibration(&path)
+        let file = cps_movement::calibration::read_calibration(&path)
             .map_err(|e| self.err(&c.span(), format!("[robot] `calibration`: {}", e.0)))?;
         let k = file.calibration;
         let values = cps_dynamics::options::CalibrationValues {
@@ -96,7 +96,7 @@ impl Sections<'_> {
                 &c.span(),
                 format!(
                     "[robot] `calibration`: {}: {e}",
-                    crate::calibration::place_of(&path, key)
+                    cps_movement::calibration::place_of(&path, key)
                 ),
             )
         })?;
@@ -109,7 +109,7 @@ impl Sections<'_> {
     pub(super) fn dynamics_choice(
         &self,
         section: Option<&RobotSection>,
-        robot: &crate::robot_file::RobotModel,
+        robot: &cps_movement::robot_file::RobotModel,
         default_dt: f64,
     ) -> Result<BackendChoice, InputError> {
         let Some(r) = section else {

@@ -111,7 +111,7 @@ impl Sections<'_> {
             })?,
         };
         let realtime = match &r.realtime {
-            Some(m) => crate::franka::parse_realtime(m.get_ref()).map_err(|_| {
+            Some(m) => cps_drive::franka::parse_realtime(m.get_ref()).map_err(|_| {
                 self.err(
                     &m.span(),
                     format!(

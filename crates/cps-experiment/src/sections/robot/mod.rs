@@ -24,7 +24,7 @@ mod ros2;
 
 use super::Sections;
 use crate::InputError;
-use crate::scene::{THESIS_SCENE, load_scene, parse_scene};
+use cps_movement::scene::{THESIS_SCENE, load_scene, parse_scene};
 
 /// `[robot]`: the robot, where it stands and which backend executes on it.
 #[derive(Debug, Deserialize)]
@@ -224,7 +224,7 @@ pub struct RobotChoice {
     pub scene: String,
     /// The scene's robot: name, joint names, limits beyond range and speed, inertias
     /// (its chain is `setup.chain`).
-    pub model: crate::robot_file::RobotModel,
+    pub model: cps_movement::robot_file::RobotModel,
     /// The scene's named obstacles (added to the task's by the kinds that keep them).
     pub obstacles: Vec<(String, cps_learn::PointObstacle)>,
     /// Whether a learned movement beyond the robot's limits fails the run (`[robot] limits
@@ -245,7 +245,7 @@ impl Sections<'_> {
             Some(s) if s.get_ref() == "fr3" => (
                 parse_scene(
                     Path::new("configs/scenes/fr3.toml"),
-                    crate::scene::FR3_SCENE,
+                    cps_movement::scene::FR3_SCENE,
                 )?,
                 "fr3 (built in)".to_string(),
             ),
@@ -350,12 +350,13 @@ impl Sections<'_> {
     /// points, shapes the robot's world (the start checked clear of them).
     fn with_obstacles(
         &self,
-        mut scene: crate::scene::Scene,
-    ) -> Result<crate::scene::Scene, InputError> {
+        mut scene: cps_movement::scene::Scene,
+    ) -> Result<cps_movement::scene::Scene, InputError> {
         let mut taken: Vec<String> = scene.objects.iter().map(|(n, _)| n.clone()).collect();
         taken.extend(scene.obstacles.iter().map(|(n, _)| n.clone()));
         taken.extend(scene.shapes.iter().map(|o| o.name.clone()));
-        let more = crate::scene::parse_obstacles(self.path, self.text, self.obstacle, &taken)?;
+        let more =
+            cps_movement::scene::parse_obstacles(self.path, self.text, self.obstacle, &taken)?;
         let first = &self.obstacle[0];
         let at = |m: String| self.err(&first.span(), format!("[[obstacle]]: {m}"));
         if !more.shapes.is_empty() {
@@ -370,7 +371,7 @@ impl Sections<'_> {
             let mut allowed = shapes.allowed().to_vec();
             allowed.extend(more.allowed);
             scene.robot = scene.robot.in_scene(obstacles, allowed, None).map_err(at)?;
-            crate::scene::start_clear(&scene.robot, &scene.initial_q)
+            cps_movement::scene::start_clear(&scene.robot, &scene.initial_q)
                 .map_err(|m| at(format!("at the scene's start, {m}")))?;
             scene.shapes.extend(more.shapes);
         }
