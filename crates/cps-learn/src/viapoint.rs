@@ -50,6 +50,64 @@ pub enum Evaluation {
     Quadratic,
 }
 
+/// A name that is none of a setting's names: `"magic" is not one of "cmaes", "exact",
+/// "least_squares"`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("\"{value}\" is not one of {}", known.iter().map(|k| format!("\"{k}\"")).collect::<Vec<_>>().join(", "))]
+pub struct UnknownName {
+    /// What was given.
+    pub value: String,
+    /// The names known.
+    pub known: Vec<&'static str>,
+}
+
+/// A setting with one name per value, the same in experiment files, summaries, Python and
+/// the studio: the one place its names are written.
+macro_rules! names {
+    ($ty:ident { $($variant:ident => $name:literal),+ $(,)? }) => {
+        impl $ty {
+            /// Every value, in the order of its names.
+            pub const ALL: &'static [$ty] = &[$($ty::$variant),+];
+
+            /// Its name (as experiment files spell it).
+            pub fn name(self) -> &'static str {
+                match self {
+                    $($ty::$variant => $name),+
+                }
+            }
+        }
+
+        impl std::fmt::Display for $ty {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(self.name())
+            }
+        }
+
+        impl std::str::FromStr for $ty {
+            type Err = UnknownName;
+
+            fn from_str(s: &str) -> Result<Self, UnknownName> {
+                $ty::ALL.iter().copied().find(|v| v.name() == s).ok_or_else(|| UnknownName {
+                    value: s.to_string(),
+                    known: $ty::ALL.iter().map(|v| v.name()).collect(),
+                })
+            }
+        }
+    };
+}
+
+names!(Solver {
+    Cmaes => "cmaes",
+    Exact => "exact",
+    LeastSquares => "least_squares",
+});
+
+names!(Evaluation {
+    Auto => "auto",
+    Rollout => "rollout",
+    Quadratic => "quadratic",
+});
+
 /// Everything a via-point learning run needs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ViaPointConfig {
@@ -512,4 +570,31 @@ pub fn history_band(histories: &[&[GenerationRecord]]) -> Vec<(f64, f64, f64)> {
             (mean, mean - half, mean + half)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde::de::IntoDeserializer;
+    use serde::de::value::{Error, StrDeserializer};
+
+    /// One vocabulary: experiment files (serde) read exactly the names the settings print
+    /// and parse, and an unknown name lists them all.
+    #[test]
+    fn names_are_the_files_names() {
+        for &s in Solver::ALL {
+            let d: StrDeserializer<'_, Error> = s.name().into_deserializer();
+            assert_eq!(Solver::deserialize(d), Ok(s));
+            assert_eq!(s.to_string().parse::<Solver>(), Ok(s));
+        }
+        for &e in Evaluation::ALL {
+            let d: StrDeserializer<'_, Error> = e.name().into_deserializer();
+            assert_eq!(Evaluation::deserialize(d), Ok(e));
+            assert_eq!(e.name().parse::<Evaluation>(), Ok(e));
+        }
+        assert_eq!(
+            "magic".parse::<Solver>().unwrap_err().to_string(),
+            "\"magic\" is not one of \"cmaes\", \"exact\", \"least_squares\""
+        );
+    }
 }

@@ -286,24 +286,12 @@ pub fn learn_via_points(
         weights,
         obstacles: points,
     };
-    let solver = choose(
-        "method",
-        method,
-        &[
-            ("cmaes", Solver::Cmaes),
-            ("exact", Solver::Exact),
-            ("least_squares", Solver::LeastSquares),
-        ],
-    )?;
-    let evaluation = choose(
-        "evaluation",
-        evaluation,
-        &[
-            ("auto", cps_learn::Evaluation::Auto),
-            ("rollout", cps_learn::Evaluation::Rollout),
-            ("quadratic", cps_learn::Evaluation::Quadratic),
-        ],
-    )?;
+    let solver: Solver = method
+        .parse()
+        .map_err(|e| value_error(format!("method: {e}")))?;
+    let evaluation: cps_learn::Evaluation = evaluation
+        .parse()
+        .map_err(|e| value_error(format!("evaluation: {e}")))?;
     let parametrisation = choose(
         "parametrisation",
         parametrisation,

@@ -33,7 +33,8 @@ pub struct ViaPointRequest {
     /// Via points, in time order.
     #[serde(default)]
     pub via: Vec<ViaRequest>,
-    /// `"exact"` (the least-squares optimum, ≈ ms) or `"cmaes"`.
+    /// A [`Solver`] by its name: `"exact"` (the least-squares optimum, ≈ ms), `"cmaes"` or
+    /// `"least_squares"` (Levenberg–Marquardt from the warm start).
     #[serde(default = "exact")]
     pub solver: String,
     /// Basis functions per dimension (default 25, as the thesis).
@@ -116,7 +117,7 @@ pub struct ViaPointAnswer {
     pub cost_terms: cps_learn::CostBreakdown,
     /// The exact optimum's cost (the lower bound CMA-ES approaches).
     pub optimum_cost: f64,
-    /// `"exact"` or `"cmaes"`.
+    /// The solver's name ([`Solver::name`]).
     pub solver: &'static str,
     /// CMA-ES generations run (0 for the exact solver).
     pub generations: u64,
@@ -169,14 +170,9 @@ impl ViaPointRequest {
                 ));
             }
         }
-        let solver = match self.solver.as_str() {
-            "exact" => Solver::Exact,
-            "cmaes" => Solver::Cmaes,
-            other => {
-                return refuse(format!(
-                    "solver: must be \"exact\" or \"cmaes\" (got \"{other}\")"
-                ));
-            }
+        let solver: Solver = match self.solver.parse() {
+            Ok(s) => s,
+            Err(e) => return refuse(format!("solver: {e}")),
         };
         let dt = self.dt.unwrap_or(0.01);
         if !(dt.is_finite() && (1e-4..=1.0).contains(&dt)) {
@@ -353,11 +349,7 @@ pub fn viapoint(
         cost: best.cost,
         cost_terms: best.breakdown,
         optimum_cost: outcome.optimum.cost,
-        solver: match config.solver {
-            Solver::Exact => "exact",
-            Solver::Cmaes => "cmaes",
-            Solver::LeastSquares => "least_squares",
-        },
+        solver: config.solver.name(),
         generations: best.generations,
         robot,
     })

@@ -128,11 +128,7 @@ pub fn save(request: &ViaPointRequest, name: &str) -> Result<String, ApiError> {
         "[cost]\ngoal = {:?}\nvia = {:?}\nfinal_velocity = {:?}\nacceleration = {:?}\njerk = {:?}\n",
         w.goal, w.via, w.final_velocity, w.acceleration, w.jerk
     );
-    let method = match config.solver {
-        cps_learn::Solver::Exact => "exact",
-        cps_learn::Solver::Cmaes => "cmaes",
-        cps_learn::Solver::LeastSquares => "least_squares",
-    };
+    let method = config.solver.name();
     let _ = writeln!(
         s,
         "[optimizer]\nmethod = \"{method}\"\nparametrisation = \"anchor_offset\"\nsigma0 = {:?}\npopulation = {}\ngenerations = {}\ntol_fun = {:?}",

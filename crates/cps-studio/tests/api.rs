@@ -169,7 +169,7 @@ fn bad_requests_get_a_sentence_and_the_server_keeps_serving() {
     v["solver"] = json!("magic");
     bad(
         v.to_string().as_bytes(),
-        "solver: must be \"exact\" or \"cmaes\"",
+        "solver: \"magic\" is not one of \"cmaes\", \"exact\", \"least_squares\"",
     );
     let mut v = thesis("exact");
     v["weights"] = json!({"via": -1.0});

@@ -75,9 +75,9 @@ pub(crate) fn run(
         max_position_error_m: o.errors.max_position_error(),
         final_speed_m_s: o.errors.final_speed,
         peak_force_n: peak,
-        solver: super::solver_name(config.learner.solver),
+        solver: config.learner.solver.name(),
         evaluation: (config.learner.solver == cps_learn::Solver::Cmaes)
-            .then(|| super::evaluation_name(o.evaluation)),
+            .then(|| o.evaluation.name()),
         optimum_cost: o.optimum.total(),
         optimum_cost_terms: o.optimum,
         gap_to_optimum: (o.breakdown.total() - o.optimum.total()) / o.optimum.total(),

@@ -9,7 +9,7 @@ use serde::Serialize;
 use super::clearance::KeptClearSummary;
 use super::movement_files::movement_files;
 use super::{Ctx, learn_error};
-use super::{marks, position_figures, solver_name, usage_line};
+use super::{marks, position_figures, usage_line};
 use crate::ExperimentError;
 use crate::observer::Event;
 use cps_outcome::outcome::{
@@ -253,7 +253,7 @@ pub(crate) fn declare(ctx: &Ctx<'_>, run: &Pipeline) -> Result<Outcome, Experime
     let summary = Summary {
         backend: robot.describe_opened(run.backend.as_ref()),
         scene: &robot.scene,
-        learner: solver_name(exp.config.solver),
+        learner: exp.config.solver.name(),
         demonstrations: DemoCounts {
             requested: config.demonstrations,
             kept: demos.iter().filter(|d| d.dropped.is_none()).count(),

@@ -554,21 +554,3 @@ pub(crate) fn usage_line(report: &cps_movement::limits::LimitsReport) -> String 
 pub(crate) fn worst(v: &[f64]) -> f64 {
     v.iter().fold(0.0f64, |a, &b| a.max(b))
 }
-
-/// Solver name as summaries write it.
-pub(crate) fn solver_name(s: cps_learn::Solver) -> &'static str {
-    match s {
-        cps_learn::Solver::Cmaes => "cmaes",
-        cps_learn::Solver::Exact => "exact",
-        cps_learn::Solver::LeastSquares => "least_squares",
-    }
-}
-
-/// The name of how candidates were evaluated, as in the experiment file.
-pub(crate) fn evaluation_name(e: cps_learn::Evaluation) -> &'static str {
-    match e {
-        cps_learn::Evaluation::Auto => "auto",
-        cps_learn::Evaluation::Rollout => "rollout",
-        cps_learn::Evaluation::Quadratic => "quadratic",
-    }
-}

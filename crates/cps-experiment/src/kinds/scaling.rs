@@ -96,7 +96,7 @@ pub(crate) fn run(
         generations: exp.config.generations,
         evaluation: arms
             .first()
-            .map_or("rollout", |a| super::evaluation_name(a.outcome.evaluation)),
+            .map_or("rollout", |a| a.outcome.evaluation.name()),
         optimum_cost: arms.first().map_or(f64::NAN, |a| a.outcome.optimum.cost),
         verdict: &verdict,
         arms: arms.iter().map(arm_summary).collect(),

@@ -5,10 +5,7 @@ use cps_learn::{CostBreakdown, ViaPointOutcome};
 use serde::Serialize;
 
 use super::Ctx;
-use super::{
-    cost_figure, derivative_figure, evaluation_name, position_figures, search_figure, solver_name,
-    way_points, worst,
-};
+use super::{cost_figure, derivative_figure, position_figures, search_figure, way_points, worst};
 use crate::{ExperimentError, InputError};
 use cps_outcome::outcome::{
     Column, Format, Mark, MarkKind, Outcome, Plot, Report, ReportTable, Table, fields,
@@ -78,10 +75,10 @@ pub(crate) fn run(ctx: &Ctx<'_>) -> Result<Outcome, ExperimentError> {
     let task = &config.task;
     let distances = task.obstacle_distances(&traj);
     let summary = Summary {
-        solver: solver_name(config.solver),
+        solver: config.solver.name(),
         parametrisation: config.parametrisation.name(),
         warm_start: config.warm_start,
-        evaluation: evaluation_name(outcome.evaluation),
+        evaluation: outcome.evaluation.name(),
         repetitions: outcome.runs.len(),
         best_repetition: outcome.best_run,
         generations: best.generations,
