@@ -166,6 +166,7 @@ mod tests {
         let exp = Experiment::from_text(Path::new("x.toml"), &text, &Ceilings::default()).unwrap();
         assert_eq!(exp.config.solver, cps_learn::Solver::Cmaes);
         assert_eq!(exp.config.task, want);
+        assert_eq!(exp.config, request.config().unwrap());
 
         let shipped = include_str!("../../../experiments/viapoint.toml");
         let opened = open_text("viapoint.toml", shipped).unwrap();
