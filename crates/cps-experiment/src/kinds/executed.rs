@@ -243,12 +243,12 @@ pub(crate) fn run(
     // simulated motion), so an interrupted run keeps one judged execution; a real robot
     // (a Franka, a ROS 2 arm) stops at once as always.
     let never = StopToken::new();
-    let simulated = !matches!(
-        robot.backend,
-        crate::robots::BackendChoice::Franka { .. } | crate::robots::BackendChoice::Ros2 { .. }
-    );
     let warm_judge = Judge {
-        stop: if simulated { &never } else { ctx.stop },
+        stop: if robot.backend.is_simulator() {
+            &never
+        } else {
+            ctx.stop
+        },
         ..judge
     };
     let warm = match pool.run(1, &|_, b| warm_judge.judge(&x0, b)) {

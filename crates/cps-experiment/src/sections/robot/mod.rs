@@ -195,6 +195,19 @@ pub enum BackendChoice {
 }
 
 impl BackendChoice {
+    /// Whether the backend is a simulator cps drives (the in-process robots, the dynamics
+    /// robot, CoppeliaSim), where letting a motion finish after a stop costs seconds of
+    /// simulated time and nothing else; a Franka or a ROS 2 arm is taken as a real robot,
+    /// which stops at once. A new backend says which it is here (the match is exhaustive).
+    pub fn is_simulator(&self) -> bool {
+        match self {
+            BackendChoice::Kinematic { .. }
+            | BackendChoice::Dynamics(_)
+            | BackendChoice::Coppelia { .. } => true,
+            BackendChoice::Franka { .. } | BackendChoice::Ros2(_) => false,
+        }
+    }
+
     /// The names of the backends an experiment opens: the pool's endpoints or hosts, or
     /// `in_process` in-process robots (one per worker thread; at least one).
     pub fn pool_names(&self, in_process: usize) -> Vec<String> {
