@@ -412,8 +412,8 @@ fn the_same_plan_is_judged_and_sent_the_same_on_every_robot() {
         // 10 ms); the dynamics robot, which integrates its arm every millisecond, and the
         // stand-in's script, paced by its step cost, for seconds of wall time at least
         // (both stopped after 0.3 s: the dynamics robot's generic code is instantiated in
-        // this test, tens of times faster than time optimised, as here, a quarter of real
-        // time without); a stop a loaded machine delays by tens of milliseconds still lands
+        // this test, unoptimised in the checked build, about a quarter of real time, tens of
+        // times faster than time optimised); a stop a loaded machine delays by tens of milliseconds still lands
         // mid-plan, and a loaded machine moves them slower.
         let after = match *name {
             "franka" | "ros2" => Duration::from_secs(1),
