@@ -170,13 +170,7 @@ fn judge_between(
 }
 
 /// A value judged against a symmetric limit `max`.
-pub(crate) fn judge_symmetric(
-    joint: usize,
-    quantity: Quantity,
-    x: f64,
-    max: f64,
-    rounding: f64,
-) -> Judged {
+fn judge_symmetric(joint: usize, quantity: Quantity, x: f64, max: f64, rounding: f64) -> Judged {
     judge_between(joint, quantity, x, (-max, max), rounding)
 }
 
