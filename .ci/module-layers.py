@@ -88,8 +88,9 @@ LAYERS = {
         ["demo"],
     ],
     "cps-coppelia": [
-        ["codec", "error", "zmtp"],
-        ["client", "executor"],
+        ["codec", "error"],
+        ["config", "zmtp"],
+        ["client", "client_absent", "executor"],
         ["server", "sim"],
         ["franka"],
     ],
@@ -170,7 +171,8 @@ LAYERS = {
         ["assets", "robot"],
         ["api"],
         ["files", "imitation"],
-        ["http"],
+        ["config"],
+        ["http", "http_absent"],
     ],
     "cps-python": [
         ["errors"],

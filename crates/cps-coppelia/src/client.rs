@@ -13,41 +13,7 @@ use crate::zmtp::{Connection, SocketType, ZmtpError};
 use crate::CoppeliaError;
 use crate::codec::{self, Value};
 
-/// Where the simulator is and how long to wait for it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ClientConfig {
-    /// ZMQ endpoint, default `tcp://127.0.0.1:23000`.
-    pub endpoint: String,
-    /// Time allowed to connect and get the first reply. Default 5 s.
-    pub connect_timeout: Duration,
-    /// Time allowed for each call (a `sim.step` may take several round trips). Default
-    /// 10 s.
-    pub call_timeout: Duration,
-    /// The largest reply accepted; a server declaring more is disconnected before anything
-    /// is allocated for it. Default 16 MiB.
-    pub max_message_bytes: usize,
-}
-
-impl Default for ClientConfig {
-    fn default() -> Self {
-        Self {
-            endpoint: "tcp://127.0.0.1:23000".into(),
-            connect_timeout: Duration::from_secs(5),
-            call_timeout: Duration::from_secs(10),
-            max_message_bytes: crate::zmtp::DEFAULT_MAX_MESSAGE_BYTES,
-        }
-    }
-}
-
-/// Which dialect the server speaks.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Protocol {
-    /// CoppeliaSim 4.6 and later.
-    V2,
-    /// CoppeliaSim 4.3 – 4.5: `{func, args}` requests, `success`/`error` replies,
-    /// setters as `(handle, relativeTo, value)`, stepping through a PUB/SUB step counter.
-    V1,
-}
+use crate::config::{ClientConfig, Protocol};
 
 /// A connection to CoppeliaSim's ZMQ remote API (or the stand-in server). Calls are
 /// blocking; every call is bounded by the configured timeout, and a socket that timed out

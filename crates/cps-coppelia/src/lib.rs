@@ -38,17 +38,27 @@
 //! ```
 #![deny(missing_docs)]
 
+#[cfg(not(feature = "zmq"))]
+#[path = "client_absent.rs"]
+mod client;
+#[cfg(feature = "zmq")]
 mod client;
 pub mod codec;
+mod config;
 mod error;
 pub mod executor;
 mod franka;
 mod server;
 pub mod sim;
+#[cfg(feature = "zmq")]
 pub mod zmtp;
 
-pub use client::{Client, ClientConfig, Protocol};
+pub use client::Client;
+pub use config::{ClientConfig, Protocol};
 pub use error::CoppeliaError;
 pub use franka::{FrankaScene, STOP_POLL};
 pub use server::{LogLine, RequestHandler, SceneSetup, ServerConfig, ServerLimits, StandInServer};
-pub use zmtp::DEFAULT_MAX_MESSAGE_BYTES;
+
+/// The largest ZMQ message either side accepts by default (16 MiB): a peer declaring more
+/// is disconnected before anything is allocated for it.
+pub const DEFAULT_MAX_MESSAGE_BYTES: usize = 16 << 20;

@@ -14,9 +14,7 @@ use std::io;
 
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, BufStream};
 
-/// The default ceiling on one message (all its frames together): 16 MiB. The remote API's
-/// messages are small (a 7-joint call is < 200 bytes; a table of 10⁵ floats ≈ 0.9 MiB).
-pub const DEFAULT_MAX_MESSAGE_BYTES: usize = 16 << 20;
+pub use crate::DEFAULT_MAX_MESSAGE_BYTES;
 
 /// Frames allowed in one message (the remote API uses two: an empty delimiter and a body).
 const MAX_FRAMES: usize = 64;

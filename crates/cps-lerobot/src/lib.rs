@@ -32,3 +32,7 @@ pub use dataset::{Dataset, EpisodeMeta, Frames};
 pub use error::LeRobotError;
 pub use info::{Feature, Info};
 pub use write::{NewDataset, NewEpisode, NewFeature, write};
+
+/// What a build without the crate's `parquet` feature says of a dataset's files.
+#[cfg_attr(feature = "parquet", allow(dead_code))]
+const NOT_BUILT: &str = "this build of cps reads and writes no parquet (crate cps-lerobot without its `parquet` feature, as the README's first command builds it); `cargo install --path crates/cps-cli` and the tests build it";

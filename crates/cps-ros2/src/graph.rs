@@ -201,44 +201,20 @@ pub fn observe(node: &Node, watch: Duration) -> Result<Graph, Ros2Error> {
         .into_iter()
         .filter(|(p, _)| *p != own)
         .collect();
-    let dp = node.participant();
-    let ends = dp
-        .discovered_writers()
-        .into_iter()
-        .map(|w| {
-            let d = &w.publication_topic_data;
-            let q = w.publication_topic_data.qos();
-            (
-                d.key.to_bytes(),
-                d.topic_name.clone(),
-                d.type_name.clone(),
-                q,
-                true,
-            )
-        })
-        .chain(dp.discovered_readers().into_iter().map(|r| {
-            let d = &r.subscription_topic_data;
-            (
-                d.key().to_bytes(),
-                d.topic_name().clone(),
-                d.type_name().clone(),
-                d.qos(),
-                false,
-            )
-        }));
-    for (gid, dds_topic, dds_type, qos, writer) in ends {
-        let p = prefix(&gid);
+    for found in node.discovered_ends() {
+        let p = prefix(&found.gid);
         if p == own {
             continue;
         }
-        let vendor = *seen.entry(p).or_insert_with(|| vendors.of(&gid));
+        let vendor = *seen.entry(p).or_insert_with(|| vendors.of(&found.gid));
         let end = End {
-            node: nodes_of.get(&gid).cloned(),
+            node: nodes_of.get(&found.gid).cloned(),
             vendor,
-            reliable: qos.is_reliable(),
-            transient_local: !qos.is_volatile(),
-            dds_type: dds_type.clone(),
+            reliable: found.reliable,
+            transient_local: found.transient_local,
+            dds_type: found.dds_type.clone(),
         };
+        let (dds_topic, dds_type, writer) = (found.topic, found.dds_type, found.writer);
         let ty = ros_type(&dds_type);
         // (types, the writers' list, the readers' list). A server reads requests and
         // writes replies, a client the reverse: each end is counted once, by its request

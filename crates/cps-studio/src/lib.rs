@@ -27,10 +27,17 @@
 #![deny(missing_docs)]
 
 pub mod api;
+#[cfg(feature = "web")]
 mod assets;
+mod config;
 pub mod files;
+#[cfg(feature = "web")]
+mod http;
+#[cfg(not(feature = "web"))]
+#[path = "http_absent.rs"]
 mod http;
 pub mod imitation;
 pub mod robot;
 
-pub use http::{StudioConfig, StudioError, StudioServer};
+pub use config::{StudioConfig, StudioError};
+pub use http::StudioServer;

@@ -62,6 +62,7 @@ impl LogBuffer {
         });
     }
 
+    #[cfg_attr(not(feature = "zmq"), allow(dead_code))]
     pub(super) fn take(&self) -> Vec<LogLine> {
         let mut lines = self.lines.lock().unwrap_or_else(|p| p.into_inner());
         lines.drain(..).collect()

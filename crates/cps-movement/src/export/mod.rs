@@ -22,10 +22,12 @@ pub mod ros2;
 mod section;
 mod urdf;
 
+#[cfg(feature = "mcap")]
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use cps_kinematics::JointSpline;
+#[cfg(feature = "mcap")]
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use serde_json::{Value, json};
 
@@ -252,8 +254,29 @@ fn csv_table(names: &[String], s: &Samples) -> Table {
 /// Messages per topic of an MCAP export.
 type TopicCounts = Vec<(&'static str, usize)>;
 
-/// The MCAP file's bytes and its messages per topic.
+/// The MCAP file's bytes and its messages per topic; in a build without the crate's
+/// `mcap` feature (the README's first command), a refusal in words.
+#[cfg(not(feature = "mcap"))]
 fn mcap_bytes(
+    _robot: &RobotModel,
+    _names: &[String],
+    _s: &Samples,
+) -> Result<(Vec<u8>, TopicCounts), String> {
+    Err("this build of cps writes no MCAP (crate cps-movement without its `mcap` feature, as the README's first command builds it); `cargo install --path crates/cps-cli` and the tests build it".into())
+}
+
+/// The MCAP file's bytes and its messages per topic.
+#[cfg(feature = "mcap")]
+fn mcap_bytes(
+    robot: &RobotModel,
+    names: &[String],
+    s: &Samples,
+) -> Result<(Vec<u8>, TopicCounts), String> {
+    mcap_file(robot, names, s).map_err(|e| e.to_string())
+}
+
+#[cfg(feature = "mcap")]
+fn mcap_file(
     robot: &RobotModel,
     names: &[String],
     s: &Samples,
@@ -382,7 +405,7 @@ pub fn export_samples(
         ExportFormat::Csv1khz => cps_outcome::files::table_csv(&csv_table(&names, &s))
             .map_err(|e| fail(e.to_string()))?,
         ExportFormat::Mcap => {
-            let (bytes, counts) = mcap_bytes(robot, &names, &s).map_err(|e| fail(e.to_string()))?;
+            let (bytes, counts) = mcap_bytes(robot, &names, &s).map_err(fail)?;
             topics = Some(counts);
             bytes
         }
