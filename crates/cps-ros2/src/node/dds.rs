@@ -462,30 +462,22 @@ impl Node {
 
     /// The readers and writers discovery has seen on the graph.
     pub(crate) fn discovered_ends(&self) -> Vec<DiscoveredEnd> {
+        let end = |gid: GUID, topic: &str, dds_type: &str, q: QosPolicies, writer| DiscoveredEnd {
+            gid: gid.to_bytes(),
+            topic: topic.to_string(),
+            dds_type: dds_type.to_string(),
+            reliable: q.is_reliable(),
+            transient_local: !q.is_volatile(),
+            writer,
+        };
         let dp = &self.participant;
         let writers = dp.discovered_writers().into_iter().map(|w| {
             let d = &w.publication_topic_data;
-            let q = d.qos();
-            DiscoveredEnd {
-                gid: d.key.to_bytes(),
-                topic: d.topic_name.clone(),
-                dds_type: d.type_name.clone(),
-                reliable: q.is_reliable(),
-                transient_local: !q.is_volatile(),
-                writer: true,
-            }
+            end(d.key, &d.topic_name, &d.type_name, d.qos(), true)
         });
         let readers = dp.discovered_readers().into_iter().map(|r| {
             let d = &r.subscription_topic_data;
-            let q = d.qos();
-            DiscoveredEnd {
-                gid: d.key().to_bytes(),
-                topic: d.topic_name().clone(),
-                dds_type: d.type_name().clone(),
-                reliable: q.is_reliable(),
-                transient_local: !q.is_volatile(),
-                writer: false,
-            }
+            end(d.key(), d.topic_name(), d.type_name(), d.qos(), false)
         });
         writers.chain(readers).collect()
     }
