@@ -200,13 +200,16 @@ fn search<O: Objective + ?Sized>(
         }
         let generation = es.generation();
         es.ask();
-        objective
-            .evaluate_batch(es.population(), n, &mut costs)
-            .map_err(|e| CmaesError::Objective {
+        if let Err(e) = objective.evaluate_batch(es.population(), n, &mut costs) {
+            if e.source.is::<crate::EndSearch>() {
+                break Termination::Ended;
+            }
+            return Err(CmaesError::Objective {
                 generation,
                 index: e.index,
                 source: e.source,
-            })?;
+            });
+        }
         es.tell(&costs)?;
         let sorted = es.last_costs();
         let report = GenerationReport {
@@ -291,6 +294,7 @@ fn restarts<O: Objective + ?Sized>(
         let done = matches!(
             run.termination,
             Termination::Interrupted
+                | Termination::Ended
                 | Termination::Rule(StopRule::TargetCost(_))
                 | Termination::Rule(StopRule::MaxEvaluations(_))
         );

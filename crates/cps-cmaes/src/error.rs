@@ -3,6 +3,13 @@
 /// An error from an objective function (a failed simulation, a bad input, ...).
 pub type ObjectiveError = Box<dyn std::error::Error + Send + Sync + 'static>;
 
+/// What an objective returns (as a batch's [`ObjectiveError`]) to end the search instead
+/// of failing it: the run stops with [`crate::Termination::Ended`] and keeps what the
+/// generations before found. The objective keeps the reason.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("the objective ended the search")]
+pub struct EndSearch;
+
 /// What can go wrong when configuring or running CMA-ES.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]

@@ -48,6 +48,6 @@ pub use driver::{
     CandidateError, FnObjective, GenerationReport, NoObserver, Objective, Observer,
     RestartSolution, Solution, minimize, minimize_bipop, minimize_ipop, resume,
 };
-pub use error::{CmaesError, ObjectiveError};
+pub use error::{CmaesError, EndSearch, ObjectiveError};
 pub use params::Parameters;
 pub use stop::{StopRule, Termination};

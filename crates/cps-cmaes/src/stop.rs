@@ -78,6 +78,10 @@ pub enum Termination {
     Rule(StopRule),
     /// An observer asked to stop (e.g. the user pressed Ctrl-C).
     Interrupted,
+    /// The objective ended the search ([`crate::EndSearch`]): it can evaluate no more (a
+    /// pool of robots gone, a stop asked mid-generation). The generation it could not
+    /// finish is not counted.
+    Ended,
 }
 
 impl Termination {
@@ -85,6 +89,7 @@ impl Termination {
     pub fn name(&self) -> &'static str {
         match self {
             Termination::Interrupted => "interrupted",
+            Termination::Ended => "ended",
             Termination::Rule(r) => match r {
                 StopRule::MaxGenerations(_) => "max_generations",
                 StopRule::MaxEvaluations(_) => "max_evaluations",

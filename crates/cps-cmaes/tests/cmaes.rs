@@ -285,6 +285,69 @@ fn objective_errors_name_the_candidate() {
     assert!(msg.contains("generation 0"), "{msg}");
 }
 
+/// An objective that can evaluate no more ends the search: the run keeps the generations
+/// before, exactly as an uninterrupted run had them, and does not count the one it could
+/// not finish.
+#[test]
+fn an_objective_may_end_the_search_keeping_what_came_before() {
+    struct EndsAt {
+        batches: std::sync::atomic::AtomicUsize,
+        at: usize,
+    }
+    impl Objective for EndsAt {
+        fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
+            Ok(functions::sphere(x))
+        }
+        fn evaluate_batch(
+            &self,
+            xs: &[f64],
+            dim: usize,
+            out: &mut [f64],
+        ) -> Result<(), cps_cmaes::CandidateError> {
+            let b = self
+                .batches
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            if b == self.at {
+                return Err(cps_cmaes::CandidateError {
+                    index: 0,
+                    source: Box::new(cps_cmaes::EndSearch),
+                });
+            }
+            for (x, o) in xs.chunks_exact(dim).zip(out.iter_mut()) {
+                *o = functions::sphere(x);
+            }
+            Ok(())
+        }
+    }
+    let config = CmaesConfig::new(0.5, 7);
+    let rules = [StopRule::MaxGenerations(3)];
+    let ended = minimize(
+        &EndsAt {
+            batches: 0.into(),
+            at: 3,
+        },
+        &[1.0; 5],
+        &config,
+        &[StopRule::MaxGenerations(100)],
+        &mut NoObserver,
+    )
+    .unwrap();
+    let whole = minimize(
+        &FnObjective(functions::sphere),
+        &[1.0; 5],
+        &config,
+        &rules,
+        &mut NoObserver,
+    )
+    .unwrap();
+    assert_eq!(ended.termination, cps_cmaes::Termination::Ended);
+    assert_eq!(ended.termination.name(), "ended");
+    assert_eq!(ended.generations, 3);
+    assert_eq!(ended.evaluations, whole.evaluations);
+    assert_eq!(ended.best_x, whole.best_x);
+    assert_eq!(ended.mean, whole.mean);
+}
+
 #[test]
 fn invalid_settings_are_typed_errors() {
     let bad = |cfg: CmaesConfig, x0: &[f64]| Cmaes::new(&cfg, x0).unwrap_err().to_string();

@@ -391,7 +391,7 @@ pub fn learn_with_effort(
                 (&rollouts, Evaluation::Rollout)
             }
         };
-        let (params, search) = run_cmaes(objective, x0, learner, learner.seed, progress)?;
+        let (params, search) = run_cmaes(objective, x0, None, learner, learner.seed, progress)?;
         (start, params, search, evaluation)
     };
     let weights = space.weights(&params);

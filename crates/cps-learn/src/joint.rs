@@ -599,6 +599,7 @@ pub fn learn_joint_space(
         _ => run_cmaes(
             &Buffered::new(joint_objective),
             x0,
+            None,
             &config.learner,
             config.learner.seed,
             progress,

@@ -81,5 +81,5 @@ pub use task::{
 };
 pub use viapoint::{
     Evaluation, GenerationRecord, RunResult, SearchStats, Solver, UnknownName, ViaPointConfig,
-    ViaPointObjective, ViaPointOutcome, history_band, learn_via_points,
+    ViaPointObjective, ViaPointOutcome, history_band, learn_via_points, run_cmaes,
 };

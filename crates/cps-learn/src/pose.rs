@@ -396,6 +396,7 @@ pub fn learn_pose(
             run_cmaes(
                 &objective,
                 zero,
+                None,
                 &learner,
                 learner.seed ^ 0x6f72_6965_6e74,
                 &|r| progress(1, r),

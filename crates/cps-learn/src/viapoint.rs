@@ -418,7 +418,8 @@ pub fn learn_via_points(
                 let settings = lsq::settings(config.generations);
                 lsq::levenberg_marquardt(&residuals, x0, settings, &|r| progress(rep, r))?
             } else {
-                let (x, stats) = run_cmaes(objective, x0, config, seed, &|r| progress(rep, r))?;
+                let (x, stats) =
+                    run_cmaes(objective, x0, None, config, seed, &|r| progress(rep, r))?;
                 if config.polish && !stats.interrupted() {
                     let residuals = lsq::TaskResiduals {
                         task,
@@ -495,13 +496,22 @@ impl<C: BufferedCost> Objective for Buffered<C> {
 }
 
 /// One CMA-ES run with a via-point learner's settings (σ₀, population, budget, tolfun,
-/// the safety stopping rules), recording the history. The result is the best of the best
-/// sample, the final mean and the start: the final mean is often better than every
-/// sample, and a warm start must never end worse than where it began. With
-/// [`Solver::Exact`] there is no search: `x0` is returned.
-pub(crate) fn run_cmaes(
+/// the safety stopping rules), recording the history: the one CMA-ES loop every learner
+/// uses, on a model or on a pool of robots. The result is the best of the best sample, the
+/// final mean and the start: the final mean is often better than every sample, and a warm
+/// start must never end worse than where it began. With [`Solver::Exact`] there is no
+/// search: `x0` is returned.
+///
+/// `start_cost` is the start's cost when the caller has judged it already (an execution
+/// on a robot): the best so far begins there, and the final mean is not judged again
+/// (each judgement costs an execution) — the result is the best sample if it beats the
+/// start, else the start. An objective that returns [`cps_cmaes::EndSearch`] ends the
+/// search with what the generations before found (`termination = "ended"`; the objective
+/// knows why).
+pub fn run_cmaes(
     objective: &dyn Objective,
     x0: Vec<f64>,
+    start_cost: Option<f64>,
     config: &ViaPointConfig,
     seed: u64,
     progress: &(dyn Fn(&GenerationReport<'_>) -> ControlFlow<()> + Sync),
@@ -520,6 +530,10 @@ pub(crate) fn run_cmaes(
     rules.extend(StopRule::safety_defaults());
     let mut history = Vec::new();
     let mut observer = |r: &GenerationReport<'_>| {
+        let r = GenerationReport {
+            best_so_far: start_cost.map_or(r.best_so_far, |c| c.min(r.best_so_far)),
+            ..*r
+        };
         history.push(GenerationRecord {
             generation: r.generation,
             best: r.best_cost,
@@ -527,15 +541,19 @@ pub(crate) fn run_cmaes(
             best_so_far: r.best_so_far,
             sigma: r.sigma,
         });
-        progress(r)
+        progress(&r)
     };
     let sol = minimize(objective, &x0, &cmaes, &rules, &mut observer)?;
-    let best_x = [sol.best_x, sol.mean, x0]
-        .into_iter()
-        .map(|x| (objective.evaluate(&x).unwrap_or(f64::INFINITY), x))
-        .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, x)| x)
-        .unwrap_or_default();
+    let best_x = match start_cost {
+        Some(c) if sol.best_cost < c => sol.best_x,
+        Some(_) => x0,
+        None => [sol.best_x, sol.mean, x0]
+            .into_iter()
+            .map(|x| (objective.evaluate(&x).unwrap_or(f64::INFINITY), x))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(_, x)| x)
+            .unwrap_or_default(),
+    };
     Ok((
         best_x,
         SearchStats {

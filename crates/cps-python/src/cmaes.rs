@@ -279,6 +279,7 @@ fn stop_entry(py: Python<'_>, t: &Termination) -> PyResult<(&'static str, Py<PyA
     };
     Ok(match t {
         Termination::Interrupted => ("interrupted", yes()?),
+        Termination::Ended => ("ended", yes()?),
         Termination::Rule(r) => match r {
             StopRule::MaxGenerations(v) => ("maxiter", u(*v)?),
             StopRule::MaxEvaluations(v) => ("maxfevals", u(*v)?),

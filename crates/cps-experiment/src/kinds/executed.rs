@@ -13,13 +13,13 @@
 //! candidate run by another; when none is left the run stops, keeping the best so far
 //! (`"complete": false`).
 
-use std::ops::ControlFlow;
+use std::sync::{Mutex, PoisonError};
 
-use cps_cmaes::{Cmaes, CmaesConfig, StopRule};
+use cps_cmaes::{CandidateError, EndSearch, Objective, ObjectiveError, Parameters};
 use cps_dmp::{DiscreteDmp, Trajectory};
 use cps_learn::{
-    ExecutedCost, ExecutedErrors, GenerationRecord, LearnError, SearchSpace, exact_optimum,
-    execute_trajectory, executed_cost, targets_at,
+    ExecutedCost, ExecutedErrors, LearnError, SearchSpace, exact_optimum, execute_trajectory,
+    executed_cost, targets_at,
 };
 use cps_robot::{Recording, Robot, RobotError, StopToken};
 use serde::Serialize;
@@ -238,7 +238,6 @@ pub(crate) fn run(
         None => None,
     };
     let n = x0.len();
-    let mut failure = None;
     // The warm start is executed whole on a simulator even once a stop is asked (seconds of
     // simulated motion), so an interrupted run keeps one judged execution; a real robot
     // (a Franka, a ROS 2 arm) stops at once as always.
@@ -276,89 +275,50 @@ pub(crate) fn run(
             }
         )));
     }
-    let cmaes = CmaesConfig {
-        population: config.population,
-        ..CmaesConfig::new(config.sigma0, config.seed)
-    };
-    let mut es = Cmaes::new(&cmaes, &x0).map_err(|e| ExperimentError::Failed {
-        context: "starting CMA-ES".into(),
-        source: Box::new(e),
-    })?;
-    let mut rules = vec![StopRule::MaxGenerations(config.generations)];
-    if let Some(tol) = config.tol_fun {
-        rules.push(StopRule::TolFun(tol));
-    }
-    rules.extend(StopRule::safety_defaults());
-    let mut history: Vec<GenerationRecord> = Vec::new();
     let warm_cost = warm.cost.total();
     let warm_recording = robot.model.shapes.as_ref().map(|_| warm.recording.clone());
-    // The best execution so far, kept whole (its recording goes into the results).
-    let mut best = warm;
-    let mut best_cost = warm_cost;
-    let mut evaluations = 1;
-    let mut refused = 0;
-    let mut interrupted = false;
-    let termination = loop {
-        if let Some(t) = es.termination(&rules) {
-            break t.to_string();
-        }
-        es.ask();
-        let population = es.population().to_vec();
-        let lambda = population.len() / n;
-        // Ctrl-C stops handing out candidates at once (a generation on slow simulators
-        // takes a while); the generation is then not counted.
-        let judged = match pool.run(lambda, &|i, b| {
-            if ctx.observer.event(Event::Working).is_break() {
-                return Err(JobError::Stopped);
-            }
-            judge.judge(&population[i * n..(i + 1) * n], b)
-        }) {
-            Ok(j) => j,
-            Err(PoolError::Stopped) => {
-                interrupted = true;
-                break "interrupted".to_string();
-            }
-            Err(e) => {
-                failure = Some(pool_failure(e, &pool, "evaluating candidates"));
-                break "the simulators failed".to_string();
-            }
-        };
-        evaluations += lambda as u64;
-        refused += judged.iter().filter(|j| j.refused.is_some()).count() as u64;
-        let costs: Vec<f64> = judged.iter().map(|j| j.cost.total()).collect();
-        // The first of equal costs wins: the same choice for any pool.
-        if let Some((i, c)) = costs
-            .iter()
-            .enumerate()
-            .min_by(|a, b| a.1.total_cmp(b.1))
-            .filter(|(_, c)| **c < best_cost)
-        {
-            best_cost = *c;
-            best = judged.into_iter().nth(i).expect("a judged candidate");
-        }
-        es.tell(&costs).map_err(|e| ExperimentError::Failed {
-            context: "CMA-ES".into(),
-            source: Box::new(e),
-        })?;
-        let mut sorted = costs.clone();
-        sorted.sort_by(f64::total_cmp);
-        history.push(GenerationRecord {
-            generation: es.generation(),
-            best: sorted[0],
-            median: sorted[sorted.len() / 2],
-            best_so_far: best_cost,
-            sigma: es.sigma(),
-        });
-        let flow = ctx.observer.event(Event::Generation {
-            generation: es.generation(),
-            best_so_far: best_cost,
-            sigma: es.sigma(),
-        });
-        if flow == ControlFlow::Break(()) {
-            interrupted = true;
-            break "interrupted".to_string();
-        }
+    let executions = Executions {
+        judge: &judge,
+        observer: ctx.observer,
+        pool: Mutex::new(pool),
+        kept: Mutex::new(Kept {
+            best: warm,
+            best_cost: warm_cost,
+            refused: 0,
+            ended: None,
+        }),
     };
+    // cps-learn's one CMA-ES loop, the warm start judged already (its execution is the
+    // best so far until a candidate beats it).
+    let (_, stats) = cps_learn::run_cmaes(
+        &executions,
+        x0,
+        Some(warm_cost),
+        config,
+        config.seed,
+        &|r| ctx.generation(r),
+    )
+    .map_err(|e| learn_error(e, "CMA-ES on the executed cost"))?;
+    let Kept {
+        best,
+        best_cost,
+        refused,
+        ended,
+    } = executions
+        .kept
+        .into_inner()
+        .unwrap_or_else(PoisonError::into_inner);
+    let pool = executions
+        .pool
+        .into_inner()
+        .unwrap_or_else(PoisonError::into_inner);
+    let (termination, failure) = match ended {
+        Some(Ended::Stopped) => ("interrupted".to_string(), None),
+        Some(Ended::Failed(f)) => ("the simulators failed".to_string(), Some(f)),
+        None => (stats.termination.clone(), None),
+    };
+    let interrupted = termination == "interrupted";
+    let history = stats.history;
     ctx.observer.finished();
     // The executed movement against every limit; retimed and exported as `[export]` asks.
     let movement = movement_files(
@@ -385,9 +345,11 @@ pub(crate) fn run(
         },
         parametrisation: config.parametrisation.name(),
         sigma0: config.sigma0,
-        population: es.parameters().lambda,
+        population: config
+            .population
+            .unwrap_or_else(|| Parameters::default_lambda(n)),
         generations: history.len() as u64,
-        evaluations,
+        evaluations: 1 + stats.evaluations,
         refused_candidates: refused,
         warm_start_kept_clear: kept,
         termination,
@@ -450,6 +412,86 @@ pub(crate) fn run(
         executed_table(&best),
     ];
     Ok(movement.outcome(header, report, fields(&summary), tables, figures, lines))
+}
+
+/// Why the search ended before its rules said: a stop asked, or no simulator left.
+enum Ended {
+    Stopped,
+    Failed(String),
+}
+
+/// What the search keeps as it goes: the best execution whole, the refusals, and why it
+/// ended early.
+struct Kept {
+    best: Judged,
+    best_cost: f64,
+    refused: u64,
+    ended: Option<Ended>,
+}
+
+/// The executed cost as CMA-ES's objective: each generation's candidates executed on a
+/// free simulator of the pool, in candidate order (the same costs for any pool).
+struct Executions<'a> {
+    judge: &'a Judge<'a>,
+    observer: &'a dyn crate::observer::Observer,
+    pool: Mutex<SimulatorPool>,
+    kept: Mutex<Kept>,
+}
+
+impl Objective for Executions<'_> {
+    fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
+        let mut out = [0.0];
+        self.evaluate_batch(x, x.len(), &mut out)
+            .map_err(|e| e.source)?;
+        Ok(out[0])
+    }
+
+    /// Ctrl-C stops handing out candidates at once (a generation on slow simulators takes
+    /// a while), and a pool with no simulator left ends the search: either way the
+    /// generation is not counted ([`EndSearch`]).
+    fn evaluate_batch(
+        &self,
+        xs: &[f64],
+        dim: usize,
+        out: &mut [f64],
+    ) -> Result<(), CandidateError> {
+        let mut pool = self.pool.lock().unwrap_or_else(PoisonError::into_inner);
+        let run = pool.run(out.len(), &|i, b| {
+            if self.observer.event(Event::Working).is_break() {
+                return Err(JobError::Stopped);
+            }
+            self.judge.judge(&xs[i * dim..(i + 1) * dim], b)
+        });
+        let mut kept = self.kept.lock().unwrap_or_else(PoisonError::into_inner);
+        let judged = match run {
+            Ok(j) => j,
+            Err(e) => {
+                kept.ended = Some(match e {
+                    PoolError::Stopped => Ended::Stopped,
+                    e => Ended::Failed(pool_failure(e, &pool, "evaluating candidates")),
+                });
+                return Err(CandidateError {
+                    index: 0,
+                    source: Box::new(EndSearch),
+                });
+            }
+        };
+        kept.refused += judged.iter().filter(|j| j.refused.is_some()).count() as u64;
+        for (o, j) in out.iter_mut().zip(&judged) {
+            *o = j.cost.total();
+        }
+        // The first of equal costs wins: the same choice for any pool.
+        if let Some((i, c)) = out
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(b.1))
+            .filter(|(_, c)| **c < kept.best_cost)
+        {
+            kept.best_cost = *c;
+            kept.best = judged.into_iter().nth(i).expect("a judged candidate");
+        }
+        Ok(())
+    }
 }
 
 /// A pool that could not finish, in words: every simulator gone (with each one's reason)
