@@ -348,69 +348,35 @@ pub fn parse(
     }
     let o = &file.optimizer;
     let reps = &file.experiment.repetitions;
-    if *reps.get_ref() == 0 {
-        return Err(err(
-            &reps.span(),
-            "[experiment] `repetitions` must be at least 1".into(),
-        ));
-    }
-    if *reps.get_ref() > 10_000 {
-        return Err(err(
-            &reps.span(),
-            "[experiment] `repetitions` must be at most 10000".into(),
-        ));
-    }
+    // Each setting is checked by its owner (cps-learn); the file adds the place.
+    let bad = |section: &'static str, span: std::ops::Range<usize>| {
+        move |e: cps_learn::BadSetting| err(&span, format!("[{section}] {e}"))
+    };
+    let repetitions = ViaPointConfig::check_repetitions(*reps.get_ref())
+        .map_err(bad("experiment", reps.span()))?;
     let mut config = ViaPointConfig::new(task);
     config.solver = o.method;
     config.parametrisation = o.parametrisation;
     config.warm_start = o.warm_start;
     config.evaluation = o.evaluation;
     config.polish = o.polish;
-    config.repetitions = *reps.get_ref();
+    config.repetitions = repetitions;
     config.seed = seed_override.unwrap_or(file.experiment.seed);
     if let Some(s) = &o.sigma0 {
-        let v = *s.get_ref();
-        if !(v.is_finite() && v > 0.0 && v <= 1e6) {
-            return Err(err(
-                &s.span(),
-                format!("[optimizer] `sigma0` must be finite, > 0 and at most 1e6 (got {v:?})"),
-            ));
-        }
-        config.sigma0 = v;
+        config.sigma0 =
+            ViaPointConfig::check_sigma0(*s.get_ref()).map_err(bad("optimizer", s.span()))?;
     }
     if let Some(p) = &o.population {
-        if !(2..=100_000).contains(p.get_ref()) {
-            return Err(err(
-                &p.span(),
-                format!(
-                    "[optimizer] `population` must be between 2 and 100000 (got {})",
-                    p.get_ref()
-                ),
-            ));
-        }
-        config.population = Some(*p.get_ref());
+        config.population = Some(
+            ViaPointConfig::check_population(*p.get_ref()).map_err(bad("optimizer", p.span()))?,
+        );
     }
     let g = &o.generations;
-    if *g.get_ref() == 0 || *g.get_ref() > 100_000_000 {
-        return Err(err(
-            &g.span(),
-            format!(
-                "[optimizer] `generations` must be between 1 and 1e8 (got {})",
-                g.get_ref()
-            ),
-        ));
-    }
-    config.generations = *g.get_ref();
+    config.generations =
+        ViaPointConfig::check_generations(*g.get_ref()).map_err(bad("optimizer", g.span()))?;
     config.tol_fun = match &o.tol_fun {
         Some(t) => {
-            let v = *t.get_ref();
-            if !(v.is_finite() && (0.0..=1e300).contains(&v)) {
-                return Err(err(
-                    &t.span(),
-                    format!("[optimizer] `tol_fun` must be finite and ≥ 0 (got {v:?})"),
-                ));
-            }
-            (v > 0.0).then_some(v)
+            ViaPointConfig::check_tol_fun(*t.get_ref()).map_err(bad("optimizer", t.span()))?
         }
         None => None,
     };

@@ -80,6 +80,6 @@ pub use task::{
     ViaPointTask,
 };
 pub use viapoint::{
-    Evaluation, GenerationRecord, RunResult, SearchStats, Solver, UnknownName, ViaPointConfig,
-    ViaPointObjective, ViaPointOutcome, history_band, learn_via_points, run_cmaes,
+    BadSetting, Evaluation, GenerationRecord, RunResult, SearchStats, Solver, UnknownName,
+    ViaPointConfig, ViaPointObjective, ViaPointOutcome, history_band, learn_via_points, run_cmaes,
 };

@@ -140,6 +140,30 @@ pub struct ViaPointConfig {
     pub seed: u64,
 }
 
+/// A via-point learner's setting outside its range: which, the rule, and the value given.
+/// Every front end (experiment files, Python, the studio) checks through
+/// [`ViaPointConfig`]'s `check_*` functions and adds its own place to the sentence.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("`{field}` must be {rule} (got {got})")]
+pub struct BadSetting {
+    /// The setting's name, as files and keyword arguments spell it.
+    pub field: &'static str,
+    /// Its range, in words.
+    pub rule: &'static str,
+    /// The value given.
+    pub got: String,
+}
+
+impl BadSetting {
+    fn new(field: &'static str, rule: &'static str, got: impl std::fmt::Debug) -> Self {
+        Self {
+            field,
+            rule,
+            got: format!("{got:?}"),
+        }
+    }
+}
+
 impl ViaPointConfig {
     /// Defaults for a task: anchor-offset space, CMA-ES from zero weights, σ₀ = 0.5 (task
     /// units), default population, 1000 generations, tolfun 1e-9, one repetition, seed 1.
@@ -158,6 +182,65 @@ impl ViaPointConfig {
             repetitions: 1,
             seed: 1,
         }
+    }
+
+    /// σ₀: finite, > 0 and at most 1e6.
+    pub fn check_sigma0(v: f64) -> Result<f64, BadSetting> {
+        if v.is_finite() && v > 0.0 && v <= 1e6 {
+            Ok(v)
+        } else {
+            Err(BadSetting::new("sigma0", "finite, > 0 and at most 1e6", v))
+        }
+    }
+
+    /// The population: 2 to 100 000.
+    pub fn check_population(p: usize) -> Result<usize, BadSetting> {
+        if (2..=100_000).contains(&p) {
+            Ok(p)
+        } else {
+            Err(BadSetting::new("population", "between 2 and 100000", p))
+        }
+    }
+
+    /// The generation budget: 1 to 10⁸.
+    pub fn check_generations(g: u64) -> Result<u64, BadSetting> {
+        if (1..=100_000_000).contains(&g) {
+            Ok(g)
+        } else {
+            Err(BadSetting::new("generations", "between 1 and 1e8", g))
+        }
+    }
+
+    /// tolfun: finite and ≥ 0; 0 turns it off.
+    pub fn check_tol_fun(t: f64) -> Result<Option<f64>, BadSetting> {
+        if t.is_finite() && (0.0..=1e300).contains(&t) {
+            Ok((t > 0.0).then_some(t))
+        } else {
+            Err(BadSetting::new("tol_fun", "finite and ≥ 0", t))
+        }
+    }
+
+    /// Repetitions: 1 to 10 000.
+    pub fn check_repetitions(r: usize) -> Result<usize, BadSetting> {
+        if (1..=10_000).contains(&r) {
+            Ok(r)
+        } else {
+            Err(BadSetting::new("repetitions", "between 1 and 10000", r))
+        }
+    }
+
+    /// Every setting within its range (the task is [`ViaPointTask::validate`]'s).
+    pub fn validate(&self) -> Result<(), BadSetting> {
+        Self::check_sigma0(self.sigma0)?;
+        if let Some(p) = self.population {
+            Self::check_population(p)?;
+        }
+        Self::check_generations(self.generations)?;
+        if let Some(t) = self.tol_fun {
+            Self::check_tol_fun(t)?;
+        }
+        Self::check_repetitions(self.repetitions)?;
+        Ok(())
     }
 
     /// The seed of repetition `r`: a SplitMix64 hash of (seed, r), so repetitions are
@@ -614,5 +697,44 @@ mod tests {
             "magic".parse::<Solver>().unwrap_err().to_string(),
             "\"magic\" is not one of \"cmaes\", \"exact\", \"least_squares\""
         );
+    }
+
+    /// One check per setting, in the words every front end shows (it adds its place).
+    #[test]
+    fn settings_are_checked_once_in_words() {
+        let bad = |r: Result<(), BadSetting>| r.unwrap_err().to_string();
+        let task = || ViaPointConfig::new(crate::ViaPointTask::thesis());
+        assert_eq!(task().validate(), Ok(()));
+        let mut c = task();
+        c.sigma0 = 0.0;
+        assert_eq!(
+            bad(c.validate()),
+            "`sigma0` must be finite, > 0 and at most 1e6 (got 0.0)"
+        );
+        let mut c = task();
+        c.population = Some(1);
+        assert_eq!(
+            bad(c.validate()),
+            "`population` must be between 2 and 100000 (got 1)"
+        );
+        let mut c = task();
+        c.generations = 0;
+        assert_eq!(
+            bad(c.validate()),
+            "`generations` must be between 1 and 1e8 (got 0)"
+        );
+        let mut c = task();
+        c.tol_fun = Some(f64::NAN);
+        assert_eq!(
+            bad(c.validate()),
+            "`tol_fun` must be finite and ≥ 0 (got NaN)"
+        );
+        let mut c = task();
+        c.repetitions = 10_001;
+        assert_eq!(
+            bad(c.validate()),
+            "`repetitions` must be between 1 and 10000 (got 10001)"
+        );
+        assert_eq!(ViaPointConfig::check_tol_fun(0.0), Ok(None));
     }
 }

@@ -301,35 +301,19 @@ pub fn learn_via_points(
             ("thesis_scaling", Parametrisation::ThesisScaling),
         ],
     )?;
-    if !(sigma0.is_finite() && sigma0 > 0.0 && sigma0 <= 1e6) {
-        return Err(value_error(format!(
-            "sigma0: must be finite, > 0 and at most 1e6 (got {sigma0})"
-        )));
-    }
-    if let Some(p) = population
-        && !(2..=100_000).contains(&p)
-    {
-        return Err(value_error(format!(
-            "population: must be between 2 and 100000 (got {p})"
-        )));
-    }
-    if !(1..=100_000_000).contains(&generations) {
-        return Err(value_error(format!(
-            "generations: must be between 1 and 1e8 (got {generations})"
-        )));
-    }
-    if let Some(t) = tol_fun
-        && !(t.is_finite() && t >= 0.0)
-    {
-        return Err(value_error(format!(
-            "tol_fun: must be finite and ≥ 0, or None (got {t})"
-        )));
-    }
-    if !(1..=10_000).contains(&repetitions) {
-        return Err(value_error(format!(
-            "repetitions: must be between 1 and 10000 (got {repetitions})"
-        )));
-    }
+    // Each setting is checked by its owner (cps-learn), in the words files get too.
+    let bad = |e: cps_learn::BadSetting| value_error(e.to_string());
+    let sigma0 = ViaPointConfig::check_sigma0(sigma0).map_err(bad)?;
+    let population = population
+        .map(ViaPointConfig::check_population)
+        .transpose()
+        .map_err(bad)?;
+    let generations = ViaPointConfig::check_generations(generations).map_err(bad)?;
+    let tol_fun = match tol_fun {
+        Some(t) => ViaPointConfig::check_tol_fun(t).map_err(bad)?,
+        None => None,
+    };
+    let repetitions = ViaPointConfig::check_repetitions(repetitions).map_err(bad)?;
     if let Some(t) = threads
         && !(1..=1024).contains(&t)
     {
