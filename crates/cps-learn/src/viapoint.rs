@@ -155,11 +155,21 @@ pub struct BadSetting {
 }
 
 impl BadSetting {
-    fn new(field: &'static str, rule: &'static str, got: impl std::fmt::Debug) -> Self {
-        Self {
-            field,
-            rule,
-            got: format!("{got:?}"),
+    /// `value` when `ok`, else the sentence for `field` and its `rule`.
+    fn unless<T: std::fmt::Debug>(
+        ok: bool,
+        field: &'static str,
+        rule: &'static str,
+        value: T,
+    ) -> Result<T, Self> {
+        if ok {
+            Ok(value)
+        } else {
+            Err(Self {
+                field,
+                rule,
+                got: format!("{value:?}"),
+            })
         }
     }
 }
@@ -186,47 +196,44 @@ impl ViaPointConfig {
 
     /// σ₀: finite, > 0 and at most 1e6.
     pub fn check_sigma0(v: f64) -> Result<f64, BadSetting> {
-        if v.is_finite() && v > 0.0 && v <= 1e6 {
-            Ok(v)
-        } else {
-            Err(BadSetting::new("sigma0", "finite, > 0 and at most 1e6", v))
-        }
+        let ok = v.is_finite() && v > 0.0 && v <= 1e6;
+        BadSetting::unless(ok, "sigma0", "finite, > 0 and at most 1e6", v)
     }
 
     /// The population: 2 to 100 000.
     pub fn check_population(p: usize) -> Result<usize, BadSetting> {
-        if (2..=100_000).contains(&p) {
-            Ok(p)
-        } else {
-            Err(BadSetting::new("population", "between 2 and 100000", p))
-        }
+        BadSetting::unless(
+            (2..=100_000).contains(&p),
+            "population",
+            "between 2 and 100000",
+            p,
+        )
     }
 
     /// The generation budget: 1 to 10⁸.
     pub fn check_generations(g: u64) -> Result<u64, BadSetting> {
-        if (1..=100_000_000).contains(&g) {
-            Ok(g)
-        } else {
-            Err(BadSetting::new("generations", "between 1 and 1e8", g))
-        }
+        BadSetting::unless(
+            (1..=100_000_000).contains(&g),
+            "generations",
+            "between 1 and 1e8",
+            g,
+        )
     }
 
     /// tolfun: finite and ≥ 0; 0 turns it off.
     pub fn check_tol_fun(t: f64) -> Result<Option<f64>, BadSetting> {
-        if t.is_finite() && (0.0..=1e300).contains(&t) {
-            Ok((t > 0.0).then_some(t))
-        } else {
-            Err(BadSetting::new("tol_fun", "finite and ≥ 0", t))
-        }
+        let ok = t.is_finite() && (0.0..=1e300).contains(&t);
+        BadSetting::unless(ok, "tol_fun", "finite and ≥ 0", t).map(|t| (t > 0.0).then_some(t))
     }
 
     /// Repetitions: 1 to 10 000.
     pub fn check_repetitions(r: usize) -> Result<usize, BadSetting> {
-        if (1..=10_000).contains(&r) {
-            Ok(r)
-        } else {
-            Err(BadSetting::new("repetitions", "between 1 and 10000", r))
-        }
+        BadSetting::unless(
+            (1..=10_000).contains(&r),
+            "repetitions",
+            "between 1 and 10000",
+            r,
+        )
     }
 
     /// Every setting within its range (the task is [`ViaPointTask::validate`]'s).
