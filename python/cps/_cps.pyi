@@ -11,7 +11,7 @@ import numpy.typing as npt
 ArrayLike = npt.ArrayLike
 F64 = npt.NDArray[np.float64]
 PathLike = Union[str, os.PathLike[str]]
-Formulation = Literal["ijspeert", "robust", "ijspeert2013", "goal_robust"]
+Formulation = Literal["ijspeert", "robust"]
 
 __version__: str
 

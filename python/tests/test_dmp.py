@@ -103,6 +103,11 @@ def test_the_robust_formulation_learns_a_loop_back_to_its_start():
     with pytest.raises(ValueError, match="goal"):
         # Ijspeert's form cannot represent start == goal: the forcing term vanishes.
         cps.imitate(t, y, formulation="ijspeert", bases=30)
+    # One vocabulary: the model files' former names are refused with the present one.
+    with pytest.raises(ValueError, match='formulation "goal_robust" is now called "robust"'):
+        cps.imitate(t, y, formulation="goal_robust", bases=30)
+    with pytest.raises(ValueError, match='unknown method "lasso" \\(known: "lwr", "ridge", "jerk"\\)'):
+        cps.imitate(t, y, method="lasso")
 
 
 def test_imitate_keeps_a_shape_by_default_and_the_thesiss_form_warns_of_a_mirrored_start():
@@ -154,11 +159,17 @@ def test_save_refuses_to_overwrite_and_loading_checks_the_version(tmp_path):
     with pytest.raises(ValueError, match="does not look like a file cps writes"):
         dmp.save(other, force=True)
     assert other.read_text() == "my notes"
-    text = path.read_text().replace('"version": 1', '"version": 2')
-    bad = tmp_path / "v2.json"
+    assert '"version": 2' in path.read_text()
+    text = path.read_text().replace('"version": 2', '"version": 3')
+    bad = tmp_path / "v3.json"
     bad.write_text(text)
-    with pytest.raises(ValueError, match="version 2 is not supported"):
+    with pytest.raises(ValueError, match="version 3 is not supported"):
         cps.DMP.load(bad)
+    # A version 1 file, the formulation by its former name, still loads.
+    old = tmp_path / "v1.json"
+    old.write_text(path.read_text().replace('"version": 2', '"version": 1')
+                   .replace('"formulation": "ijspeert"', '"formulation": "ijspeert2013"'))
+    assert cps.DMP.load(old).to_json() == dmp.to_json()
     back = pickle.loads(pickle.dumps(dmp))
     assert back.to_json() == dmp.to_json()
 

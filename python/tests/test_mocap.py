@@ -304,7 +304,7 @@ def test_a_take_feeds_the_pose_dmp(tmp_path):
     assert len(tq) == frames
     err = max(angle_between(quat_to_matrix(a), b) for a, b in zip(q, r))
     # The loop returns near its start: the goal-robust forcing term.
-    position = cps.imitate(demo["t"], demo["position"], bases=40, formulation="goal_robust")
+    position = cps.imitate(demo["t"], demo["position"], bases=40, formulation="robust")
     _, y, _, _ = position.rollout()
     print(f"pose DMP of the take: orientation within {np.degrees(err):.3f}°, position within "
           f"{np.abs(y - p).max() * 1e3:.3f} mm")

@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Result;
-use clap::{Args, ValueEnum};
-use cps_dmp::{Combine, Formulation, Lambda, Regression};
+use clap::Args;
+use cps_dmp::{Combine, Formulation, Lambda, Method};
 use cps_experiment::InputError;
 use cps_movement::lerobot::Pick;
 use cps_movement::movement::{ImitationSpec, RolloutSpec, imitate_files, rollout_file};
@@ -16,35 +16,6 @@ use cps_outcome::results_dir::{FileKind, check_file_targets};
 use cps_report::figures::draw_file;
 
 use crate::cli_error;
-
-/// Regression method of `imitate`.
-#[derive(Debug, Clone, Copy, ValueEnum)]
-pub enum Method {
-    /// Schaal's locally weighted regression.
-    Lwr,
-    /// Ridge regression (thesis eq. 51).
-    Ridge,
-    /// Jerk-regularised ridge regression (thesis eq. 52).
-    Jerk,
-}
-
-/// Forcing-term formulation.
-#[derive(Debug, Clone, Copy, ValueEnum)]
-pub enum FormulationArg {
-    /// Ijspeert et al. 2013 (the thesis's): the forcing term scales with goal − start.
-    Ijspeert,
-    /// Hoffmann/Pastor 2009: independent of goal − start (start ≈ goal works).
-    Robust,
-}
-
-/// How several demonstrations are combined.
-#[derive(Debug, Clone, Copy, ValueEnum)]
-pub enum CombineArg {
-    /// Average the time-normalised demonstrations, then fit.
-    Mean,
-    /// One regression over all samples.
-    Stack,
-}
 
 /// Which episodes of a LeRobot dataset given as a demonstration become demonstrations.
 #[derive(Args, Debug)]
@@ -90,8 +61,9 @@ pub struct ImitateArgs {
     /// Gaussian basis functions per dimension.
     #[arg(long, default_value_t = 25)]
     bases: usize,
-    /// Regression method.
-    #[arg(long, value_enum, default_value = "ridge")]
+    /// Regression method: `ridge` (thesis eq. 51), `jerk` (ridge penalising jerk, thesis
+    /// eq. 52) or `lwr` (Schaal's locally weighted regression).
+    #[arg(long, default_value = "ridge", value_parser = |s: &str| s.parse::<Method>())]
     method: Method,
     /// Regularisation λ, or `auto` for generalised cross-validation (default: 1e-12 for
     /// ridge as in the thesis, auto for jerk).
@@ -104,12 +76,15 @@ pub struct ImitateArgs {
     /// sampling interval).
     #[arg(long, allow_hyphen_values = true)]
     dt: Option<f64>,
-    /// Forcing-term formulation (robust keeps the shape from a new start or goal).
-    #[arg(long, value_enum, default_value = "robust")]
-    formulation: FormulationArg,
-    /// How several demonstrations are combined.
-    #[arg(long, value_enum, default_value = "mean")]
-    combine: CombineArg,
+    /// Forcing-term formulation: `robust` (Hoffmann/Pastor 2009: independent of goal −
+    /// start, keeps the shape from a new start or goal) or `ijspeert` (Ijspeert et al.
+    /// 2013, the thesis's: the forcing term scales with goal − start).
+    #[arg(long, default_value = "robust", value_parser = |s: &str| s.parse::<Formulation>())]
+    formulation: Formulation,
+    /// How several demonstrations are combined: `mean` (average the time-normalised
+    /// demonstrations, then fit) or `stack` (one regression over all samples).
+    #[arg(long, default_value = "mean", value_parser = |s: &str| s.parse::<Combine>())]
+    combine: Combine,
     #[command(flatten)]
     output: Output,
 }
@@ -159,44 +134,30 @@ pub struct RolloutArgs {
     force: bool,
 }
 
-fn parse_lambda(arg: Option<&str>, method: Method) -> Result<Lambda, InputError> {
-    match arg {
-        None => Ok(match method {
-            Method::Jerk => Lambda::Auto,
-            _ => Lambda::Fixed(1e-12),
-        }),
-        Some("auto") => Ok(Lambda::Auto),
-        Some(v) => match v.parse::<f64>() {
-            Ok(x) if x.is_finite() && x >= 0.0 => Ok(Lambda::Fixed(x)),
-            _ => Err(InputError(format!(
+/// `--lambda`, when given.
+fn parse_lambda(arg: Option<&str>) -> Result<Option<Lambda>, InputError> {
+    arg.map(|v| {
+        Lambda::parse(v).ok_or_else(|| {
+            InputError(format!(
                 "--lambda: `{v}` is neither `auto` nor a finite number ≥ 0"
-            ))),
-        },
-    }
+            ))
+        })
+    })
+    .transpose()
 }
 
 /// `cps-cli imitate`.
 pub fn run_imitate(args: &ImitateArgs) -> Result<ExitCode> {
     let o = &args.output;
     check_file_targets(&o.out, FileKind::Model, o.plot.as_deref(), o.force)?;
-    let lambda = parse_lambda(args.lambda.as_deref(), args.method)?;
+    let lambda = parse_lambda(args.lambda.as_deref())?;
     let spec = ImitationSpec {
         bases: args.bases,
-        regression: match args.method {
-            Method::Lwr => Regression::Lwr,
-            Method::Ridge => Regression::Ridge { lambda },
-            Method::Jerk => Regression::JerkRidge { lambda },
-        },
+        regression: args.method.regression(lambda),
         tau: args.tau,
         dt: args.dt,
-        formulation: match args.formulation {
-            FormulationArg::Ijspeert => Formulation::Ijspeert2013,
-            FormulationArg::Robust => Formulation::GoalRobust,
-        },
-        combine: match args.combine {
-            CombineArg::Mean => Combine::Mean,
-            CombineArg::Stack => Combine::Stack,
-        },
+        formulation: args.formulation,
+        combine: args.combine,
     };
     let paths: Vec<&Path> = args.demos.iter().map(PathBuf::as_path).collect();
     let pick = args.lerobot.pick();

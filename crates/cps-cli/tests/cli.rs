@@ -391,7 +391,7 @@ fn imitate_and_rollout_round_trip() {
     }
     let m = json(&model);
     assert_eq!(m["format"], "cps-dmp-model");
-    assert_eq!(m["version"], 1);
+    assert_eq!(m["version"], 2); // version 2: the formulation named as everywhere
     assert_eq!(m["names"], serde_json::json!(["x", "y"]));
     assert_eq!(m["weights"].as_array().unwrap().len(), 2);
     let traj = dir.path().join("traj.csv");
@@ -447,9 +447,10 @@ fn imitate_keeps_a_shape_by_default_and_the_thesiss_form_warns_when_a_start_dist
         model
     };
     let robust = learn("robust.json", &[]);
-    assert_eq!(json(&robust)["formulation"], "goal_robust");
+    // One vocabulary: the model file names the formulation as the option does.
+    assert_eq!(json(&robust)["formulation"], "robust");
     let thesis = learn("thesis.json", &["--formulation", "ijspeert"]);
-    assert_eq!(json(&thesis)["formulation"], "ijspeert2013");
+    assert_eq!(json(&thesis)["formulation"], "ijspeert");
     // x learned 0.2 → 0.5; from 0.7 to 0.5 it runs the other way.
     let roll = |model: &std::path::Path| {
         let out = dir.path().join("r.csv");
@@ -594,13 +595,18 @@ fn bad_demonstrations_and_models_exit_2_and_write_nothing() {
     for (name, body, expect) in [
         (
             "v2.json",
-            text.replace("\"version\": 1", "\"version\": 2"),
-            "version 2 is not supported",
+            text.replace("\"version\": 2", "\"version\": 3"),
+            "version 3 is not supported",
         ),
         (
             "f.json",
-            text.replace("goal_robust", "schaal"),
+            text.replace("\"robust\"", "\"schaal\""),
             "unknown formulation \"schaal\"",
+        ),
+        (
+            "former.json",
+            text.replace("\"robust\"", "\"goal_robust\""),
+            "formulation \"goal_robust\" is now called \"robust\"",
         ),
     ] {
         let p = write(dir.path(), name, &body);

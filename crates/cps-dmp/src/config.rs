@@ -8,18 +8,44 @@ use crate::DmpError;
 /// x Σ ψ_i(x) w_i / Σ ψ_i(x)` the weighted basis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum Formulation {
     /// Ijspeert et al. (2013), the thesis's form: `f = (g − y0) · Φ(x) w`. A new goal
     /// scales the whole movement by `(g' − y0)/(g − y0)` per dimension (mirrored when the
     /// sign changes); with `g = y0` the forcing term vanishes.
     #[default]
+    #[cfg_attr(feature = "serde", serde(rename = "ijspeert"))]
     Ijspeert2013,
     /// Hoffmann et al. (2009) / Pastor et al. (2009): `f = α_z β_z (Φ(x) w − (g − y0) x)`,
     /// independent of `g − y0`: start ≈ goal is fine (e.g. a loop returning to its start),
     /// and a new goal adds a smooth correction instead of rescaling the path.
+    #[cfg_attr(feature = "serde", serde(rename = "robust"))]
     GoalRobust,
 }
+
+impl Formulation {
+    /// Every formulation, in the order of its names.
+    pub const ALL: [Formulation; 2] = [Formulation::Ijspeert2013, Formulation::GoalRobust];
+
+    /// Its name, the same in experiment files, on the command line, in Python and in model
+    /// files: `"ijspeert"` or `"robust"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Formulation::Ijspeert2013 => "ijspeert",
+            Formulation::GoalRobust => "robust",
+        }
+    }
+
+    /// The name version 1 model files gave it (`"ijspeert2013"`, `"goal_robust"`): read
+    /// in those files, refused everywhere else with its present name.
+    pub fn former_name(self) -> &'static str {
+        match self {
+            Formulation::Ijspeert2013 => "ijspeert2013",
+            Formulation::GoalRobust => "goal_robust",
+        }
+    }
+}
+
+crate::names::names!(Formulation, "formulation", former);
 
 /// Parameters of a discrete DMP, shared by all its dimensions.
 ///

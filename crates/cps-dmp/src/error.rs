@@ -69,6 +69,23 @@ pub enum DmpError {
     /// An obstacle where the movement must be: at its start or its goal.
     #[error("{0}")]
     BlockedEndpoint(String),
+    /// A name that is none of a setting's ([`crate::Formulation`], [`crate::Method`],
+    /// [`crate::Combine`]); `now`: the present name of a former one.
+    #[error("{}", match now {
+        Some(n) => format!("{setting} \"{given}\" is now called \"{n}\""),
+        None => format!("unknown {setting} \"{given}\" (known: {})",
+            known.iter().map(|k| format!("\"{k}\"")).collect::<Vec<_>>().join(", ")),
+    })]
+    UnknownName {
+        /// The setting (`formulation`, `method`, `combine`).
+        setting: &'static str,
+        /// The name given.
+        given: String,
+        /// The names known.
+        known: Vec<&'static str>,
+        /// The present name, when `given` was a former one.
+        now: Option<&'static str>,
+    },
     /// A DMP needs at least one dimension.
     #[error("a DMP needs at least one dimension")]
     NoDimensions,

@@ -199,6 +199,64 @@ impl Default for Regression {
     }
 }
 
+impl Lambda {
+    /// `"auto"` or a number ≥ 0, as a file or the command line gives it; None when it is
+    /// neither.
+    pub fn parse(text: &str) -> Option<Lambda> {
+        match text {
+            "auto" => Some(Lambda::Auto),
+            v => v.parse::<f64>().ok().and_then(Lambda::fixed),
+        }
+    }
+
+    /// A given λ when it is finite and ≥ 0.
+    pub fn fixed(x: f64) -> Option<Lambda> {
+        (x.is_finite() && x >= 0.0).then_some(Lambda::Fixed(x))
+    }
+}
+
+/// A [`Regression`] by name, without its λ: `lwr`, `ridge`, `jerk`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Method {
+    /// [`Regression::Lwr`].
+    Lwr,
+    /// [`Regression::Ridge`]. Default.
+    #[default]
+    Ridge,
+    /// [`Regression::JerkRidge`].
+    Jerk,
+}
+
+impl Method {
+    /// Every method, in the order of its names.
+    pub const ALL: [Method; 3] = [Method::Lwr, Method::Ridge, Method::Jerk];
+
+    /// Its name, the same on the command line, in Python and in the studio.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Lwr => "lwr",
+            Method::Ridge => "ridge",
+            Method::Jerk => "jerk",
+        }
+    }
+
+    /// The regression with λ given, or the method's default: the thesis's 1e-12 for
+    /// ridge, generalised cross-validation for jerk (LWR has none).
+    pub fn regression(self, lambda: Option<Lambda>) -> Regression {
+        match self {
+            Method::Lwr => Regression::Lwr,
+            Method::Ridge => Regression::Ridge {
+                lambda: lambda.unwrap_or(Lambda::Fixed(1e-12)),
+            },
+            Method::Jerk => Regression::JerkRidge {
+                lambda: lambda.unwrap_or(Lambda::Auto),
+            },
+        }
+    }
+}
+
+crate::names::names!(Method, "method");
+
 /// How several demonstrations are combined.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Combine {
@@ -208,6 +266,21 @@ pub enum Combine {
     /// One regression over the samples of all demonstrations.
     Stack,
 }
+
+impl Combine {
+    /// Every way, in the order of its names.
+    pub const ALL: [Combine; 2] = [Combine::Mean, Combine::Stack];
+
+    /// Its name: `mean` or `stack`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Combine::Mean => "mean",
+            Combine::Stack => "stack",
+        }
+    }
+}
+
+crate::names::names!(Combine, "combine");
 
 /// How well a learned DMP reproduces what it was taught.
 #[derive(Debug, Clone, PartialEq)]

@@ -64,6 +64,7 @@ mod imitation;
 mod jet;
 #[cfg(feature = "serde")]
 mod model;
+mod names;
 mod online;
 mod pose;
 mod quaternion;
@@ -82,7 +83,7 @@ pub use dmp::DiscreteDmp;
 pub use error::DmpError;
 pub use generalize::{Retarget, Retargeted, SHAPE_SCALING_WARNED, rotation_between};
 pub use imitation::{
-    Combine, Demonstration, FitReport, Imitation, Imitator, Lambda, Regression, imitate,
+    Combine, Demonstration, FitReport, Imitation, Imitator, Lambda, Method, Regression, imitate,
 };
 #[cfg(feature = "serde")]
 pub use model::{BasisRecord, ConfigRecord, DmpModel, MODEL_FORMAT, MODEL_VERSION};

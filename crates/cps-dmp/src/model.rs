@@ -2,8 +2,8 @@
 //!
 //! ```json
 //! {
-//!   "format": "cps-dmp-model", "version": 1, "kind": "discrete",
-//!   "formulation": "ijspeert2013",
+//!   "format": "cps-dmp-model", "version": 2, "kind": "discrete",
+//!   "formulation": "ijspeert",
 //!   "config": { "alpha_z": 25.0, "beta_z": 6.25, "alpha_x": 8.33, "n_basis": 25,
 //!               "tau": 10.0, "dt": 0.01 },
 //!   "basis": { "centers": [...], "widths": [...] },
@@ -15,6 +15,10 @@
 //! `weights` holds one row of `n_basis` values per dimension. `basis` is written for
 //! readers and checked on loading against the basis the configuration defines, so a file
 //! edited inconsistently is refused rather than silently reinterpreted.
+//!
+//! Version 1 differed only in the formulation's names (`"ijspeert2013"`, `"goal_robust"`,
+//! [`Formulation::former_name`]); its files are read as written, and written back as
+//! version 2.
 
 use serde::{Deserialize, Serialize};
 
@@ -22,8 +26,8 @@ use crate::{DiscreteDmp, DmpConfig, DmpError, Formulation};
 
 /// The `format` tag of a model file.
 pub const MODEL_FORMAT: &str = "cps-dmp-model";
-/// The version this crate writes and reads.
-pub const MODEL_VERSION: u32 = 1;
+/// The version this crate writes (it reads this one and version 1).
+pub const MODEL_VERSION: u32 = 2;
 
 /// The basis as written in a model file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -120,7 +124,7 @@ impl DmpModel {
     /// Parses and checks a model file's text.
     pub fn from_json(text: &str) -> Result<Self, DmpError> {
         let bad = |reason: String| DmpError::InvalidModel { reason };
-        let value: serde_json::Value =
+        let mut value: serde_json::Value =
             serde_json::from_str(text).map_err(|e| bad(format!("not JSON: {e}")))?;
         match value.get("format").and_then(|v| v.as_str()) {
             Some(MODEL_FORMAT) => {}
@@ -131,27 +135,43 @@ impl DmpModel {
             }
             None => return Err(bad(format!("no \"format\": not a {MODEL_FORMAT} file"))),
         }
-        match value.get("version").and_then(|v| v.as_u64()) {
-            Some(v) if v == u64::from(MODEL_VERSION) => {}
+        let version = match value.get("version").and_then(|v| v.as_u64()) {
+            Some(v) if v == 1 || v == u64::from(MODEL_VERSION) => v,
             Some(v) => {
                 return Err(bad(format!(
-                    "version {v} is not supported (this build reads version {MODEL_VERSION})"
+                    "version {v} is not supported (this build reads versions 1 and {MODEL_VERSION})"
                 )));
             }
             None => return Err(bad("no \"version\"".into())),
-        }
+        };
         if let Some(kind) = value.get("kind").and_then(|v| v.as_str())
             && kind != "discrete"
         {
             return Err(bad(format!("kind \"{kind}\" is not a discrete DMP")));
         }
-        if let Some(f) = value.get("formulation").and_then(|v| v.as_str())
-            && !matches!(f, "ijspeert2013" | "goal_robust")
-        {
-            return Err(bad(format!(
-                "unknown formulation \"{f}\" (known: \"ijspeert2013\", \"goal_robust\")"
-            )));
+        if let Some(f) = value.get("formulation").and_then(|v| v.as_str()) {
+            // A version 1 file names its formulation by its former name.
+            let known = Formulation::ALL.iter().find(|k| match version {
+                1 => k.former_name() == f,
+                _ => k.name() == f,
+            });
+            let formulation = match known {
+                Some(k) => *k,
+                None if version == 1 => {
+                    return Err(bad(format!(
+                        "unknown formulation \"{f}\" (a version 1 file knows \"ijspeert2013\", \"goal_robust\")"
+                    )));
+                }
+                None => match f.parse::<Formulation>() {
+                    Ok(k) => k,
+                    Err(e) => return Err(bad(e.to_string())),
+                },
+            };
+            value["formulation"] = serde_json::Value::from(formulation.name());
         }
+        // Read, a version 1 file is the version 2 file it stands for (an object: its
+        // format was read above).
+        value["version"] = serde_json::Value::from(MODEL_VERSION);
         serde_json::from_value(value).map_err(|e| bad(e.to_string()))
     }
 
@@ -239,12 +259,30 @@ mod tests {
                 .unwrap_err()
                 .to_string()
         };
+        assert!(text.contains("\"formulation\": \"robust\""), "{text}");
         assert!(
-            err(text.replace("\"version\": 1", "\"version\": 2"))
-                .contains("version 2 is not supported")
+            err(text.replace("\"version\": 2", "\"version\": 3"))
+                .contains("version 3 is not supported")
         );
         assert!(
-            err(text.replace("goal_robust", "pastor")).contains("unknown formulation \"pastor\"")
+            err(text.replace("\"robust\"", "\"pastor\""))
+                .contains("unknown formulation \"pastor\"")
+        );
+        // The former names: refused in a version 2 file with the present one, read in a
+        // version 1 file (and only there).
+        assert!(
+            err(text.replace("\"robust\"", "\"goal_robust\""))
+                .contains("formulation \"goal_robust\" is now called \"robust\"")
+        );
+        let v1 = text
+            .replace("\"version\": 2", "\"version\": 1")
+            .replace("\"robust\"", "\"goal_robust\"");
+        let old = DmpModel::from_json(&v1).unwrap();
+        assert_eq!(old.formulation, Formulation::GoalRobust);
+        assert_eq!(old.version, MODEL_VERSION);
+        assert_eq!(old.to_dmp().unwrap().0.config(), dmp.config());
+        assert!(
+            err(v1.replace("\"goal_robust\"", "\"robust\"")).contains("a version 1 file knows")
         );
         assert!(err(text.replace("cps-dmp-model", "other")).contains("format is \"other\""));
         assert!(err("[1, 2]".into()).contains("no \"format\""));

@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex};
 
 use cps_dmp::{
     Combine, Coupling, Demonstration, DiscreteDmp, DmpConfig, DmpModel, DynamicPotential,
-    FitReport, Formulation, Imitator, Lambda, OnlineDmp, QuaternionDmp, Regression, Retarget,
+    FitReport, Imitator, Lambda, Method, OnlineDmp, QuaternionDmp, Regression, Retarget,
     RhythmicDmp, SteeringAngle, StepInput,
 };
 use cps_outcome::results_dir::{FileKind, check_file_targets};
@@ -20,39 +20,16 @@ use pyo3::types::{PyDict, PyTuple};
 use crate::arrays::{
     array1, array2, is_sequence_of_arrays, matrix, opt_vector, samples_by_dims, vector,
 };
-use crate::errors::{IntoPyErr, PyResultExt, choose, file_error, value_error};
+use crate::errors::{IntoPyErr, PyResultExt, file_error, value_error};
 use crate::interrupt::run;
 
-/// The formulation named as on the command line (`ijspeert`, `robust`) or in a model file
-/// (`ijspeert2013`, `goal_robust`).
-fn formulation(name: &str) -> PyResult<Formulation> {
-    choose(
-        "formulation",
-        name,
-        &[
-            ("ijspeert", Formulation::Ijspeert2013),
-            ("robust", Formulation::GoalRobust),
-            ("ijspeert2013", Formulation::Ijspeert2013),
-            ("goal_robust", Formulation::GoalRobust),
-        ],
-    )
-}
-
-fn formulation_name(f: Formulation) -> &'static str {
-    match f {
-        Formulation::Ijspeert2013 => "ijspeert",
-        Formulation::GoalRobust => "robust",
-    }
-}
-
-/// λ from `None` (the method's default), `"auto"` or a number ≥ 0.
-fn lambda(arg: Option<&Bound<'_, PyAny>>, default: Lambda) -> PyResult<Lambda> {
+fn lambda(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Lambda>> {
     let Some(arg) = arg.filter(|a| !a.is_none()) else {
-        return Ok(default);
+        return Ok(None);
     };
     if let Ok(s) = arg.extract::<String>() {
         return if s == "auto" {
-            Ok(Lambda::Auto)
+            Ok(Some(Lambda::Auto))
         } else {
             Err(value_error(format!(
                 "lambda_: \"{s}\" is neither \"auto\" nor a number ≥ 0"
@@ -60,12 +37,20 @@ fn lambda(arg: Option<&Bound<'_, PyAny>>, default: Lambda) -> PyResult<Lambda> {
         };
     }
     match arg.extract::<f64>() {
-        Ok(v) if v.is_finite() && v >= 0.0 => Ok(Lambda::Fixed(v)),
-        Ok(v) => Err(value_error(format!(
-            "lambda_: {v} is neither \"auto\" nor a finite number ≥ 0"
-        ))),
+        Ok(v) => Lambda::fixed(v).map(Some).ok_or_else(|| {
+            value_error(format!(
+                "lambda_: {v} is neither \"auto\" nor a finite number ≥ 0"
+            ))
+        }),
         Err(_) => Err(value_error("lambda_: expected \"auto\" or a number ≥ 0")),
     }
+}
+
+/// A setting by its name, as cps-dmp spells it everywhere (its refusal names the setting,
+/// which is the keyword).
+fn named<T: std::str::FromStr<Err = cps_dmp::DmpError>>(name: &str) -> PyResult<T> {
+    name.parse()
+        .map_err(|e: cps_dmp::DmpError| value_error(e.to_string()))
 }
 
 /// One sampled movement: `t` (samples,), `y`, `yd`, `ydd` (samples, dims). Unpacks as
@@ -234,7 +219,7 @@ impl Dmp {
             alpha_z,
             beta_z: beta_z.unwrap_or(alpha_z / 4.0),
             alpha_x: alpha_x.unwrap_or(alpha_z / 3.0),
-            formulation: self::formulation(formulation)?,
+            formulation: named(formulation)?,
             ..DmpConfig::new(bases, tau, dt)
         };
         let dmp = DiscreteDmp::new(config, &start, &goal).py()?;
@@ -281,7 +266,7 @@ impl Dmp {
     /// `"ijspeert"` or `"robust"`.
     #[getter]
     fn formulation(&self) -> &'static str {
-        formulation_name(self.dmp.config().formulation)
+        self.dmp.config().formulation.name()
     }
 
     /// Start per dimension.
@@ -582,7 +567,7 @@ impl Dmp {
             c.n_basis,
             c.tau,
             c.step(),
-            formulation_name(c.formulation),
+            c.formulation.name(),
             self.names.join(", ")
         )
     }
@@ -773,27 +758,15 @@ pub fn imitate(
     names: Option<Vec<String>>,
 ) -> PyResult<Dmp> {
     let demos = demonstrations(t, y)?;
-    let regression = match choose("method", method, &[("lwr", 0), ("ridge", 1), ("jerk", 2)])? {
-        0 => Regression::Lwr,
-        1 => Regression::Ridge {
-            lambda: lambda(lambda_, Lambda::Fixed(1e-12))?,
-        },
-        _ => Regression::JerkRidge {
-            lambda: lambda(lambda_, Lambda::Auto)?,
-        },
-    };
-    let combine = choose(
-        "combine",
-        combine,
-        &[("mean", Combine::Mean), ("stack", Combine::Stack)],
-    )?;
+    let regression = named::<Method>(method)?.regression(lambda(lambda_)?);
+    let combine: Combine = named(combine)?;
     let tau = tau.unwrap_or_else(|| {
         demos.iter().map(Demonstration::duration).sum::<f64>() / demos.len() as f64
     });
     let first = &demos[0];
     let dt = dt.unwrap_or_else(|| first.duration() / (first.len() - 1) as f64);
     let config = DmpConfig {
-        formulation: self::formulation(formulation)?,
+        formulation: named(formulation)?,
         ..DmpConfig::new(bases, tau, dt)
     };
     config.validate().py()?;

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use cps_dmp::{Combine, Formulation, Lambda, Regression};
+use cps_dmp::{Combine, Formulation, Lambda, Method};
 use cps_movement::movement::{ImitationSpec, imitate_demos, parse_demo};
 use serde::{Deserialize, Serialize};
 
@@ -124,27 +124,20 @@ pub fn imitate(request: &ImitateRequest) -> Result<ImitateAnswer, ApiError> {
             "bases: must be between 2 and 200 (got {bases})"
         )));
     }
-    if let Some(l) = request.lambda
-        && !(l.is_finite() && l >= 0.0)
-    {
-        return Err(ApiError(format!(
-            "lambda: must be finite and ≥ 0 (got {l})"
-        )));
-    }
-    let regression = match request.method.as_deref().unwrap_or("ridge") {
-        "ridge" => Regression::Ridge {
-            lambda: Lambda::Fixed(request.lambda.unwrap_or(1e-12)),
-        },
-        "jerk" => Regression::JerkRidge {
-            lambda: request.lambda.map_or(Lambda::Auto, Lambda::Fixed),
-        },
-        "lwr" => Regression::Lwr,
-        other => {
-            return Err(ApiError(format!(
-                "method: must be \"ridge\", \"jerk\" or \"lwr\" (got \"{other}\")"
-            )));
-        }
+    let lambda = match request.lambda {
+        None => None,
+        Some(l) => Some(
+            Lambda::fixed(l)
+                .ok_or_else(|| ApiError(format!("lambda: must be finite and ≥ 0 (got {l})")))?,
+        ),
     };
+    let method: Method = request
+        .method
+        .as_deref()
+        .unwrap_or("ridge")
+        .parse()
+        .map_err(|e| ApiError(format!("method: {e}")))?;
+    let regression = method.regression(lambda);
     let mut names = Vec::new();
     let mut demos = Vec::new();
     for (i, d) in request.demos.iter().enumerate() {

@@ -163,7 +163,7 @@ pub(crate) fn shared_report_tables(
         (
             "DMPs",
             format!(
-                "{} basis functions per dimension, τ = {} s, dt = {} s, α_z = {}, β_z = {}, {:?} formulation",
+                "{} basis functions per dimension, τ = {} s, dt = {} s, α_z = {}, β_z = {}, {} formulation",
                 task.dmp.n_basis,
                 task.dmp.tau,
                 task.dmp.dt,

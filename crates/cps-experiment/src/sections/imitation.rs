@@ -308,18 +308,10 @@ impl Sections<'_> {
         }
         dmp.formulation = match i.and_then(|i| i.formulation.as_ref()) {
             None => cps_dmp::Formulation::GoalRobust,
-            Some(f) => match f.get_ref().as_str() {
-                "robust" => cps_dmp::Formulation::GoalRobust,
-                "ijspeert" => cps_dmp::Formulation::Ijspeert2013,
-                other => {
-                    return Err(self.err(
-                        &f.span(),
-                        format!(
-                            "[imitation] `formulation` must be \"robust\" or \"ijspeert\" (got \"{other}\")"
-                        ),
-                    ));
-                }
-            },
+            Some(f) => f
+                .get_ref()
+                .parse()
+                .map_err(|e| self.err(&f.span(), format!("[imitation] `formulation`: {e}")))?,
         };
         if let Err(e) = dmp.validate() {
             let span = self.imitation.map_or(0..0, Spanned::span);
