@@ -171,6 +171,108 @@ impl Experiment {
     }
 }
 
+/// `config` as the text of a `kind = "viapoint"` experiment file named `name`, every key
+/// the file reads for it written out (defaults too), so that [`parse`] gives back the same
+/// configuration; `header` goes first, as comment lines. Numbers are written in Rust's
+/// shortest round-trip form. Refused: what such a file cannot say (a formulation other
+/// than the thesis's, a seed beyond TOML's integers), and a configuration the library
+/// refuses.
+pub fn viapoint_toml(
+    name: &str,
+    config: &ViaPointConfig,
+    header: &str,
+) -> Result<String, InputError> {
+    use std::fmt::Write as _;
+    let why = |m: String| InputError(format!("the experiment cannot be written: {m}"));
+    let refuse = |m: String| -> Result<String, InputError> { Err(why(m)) };
+    config.validate().map_err(|e| why(e.to_string()))?;
+    config.check_together().map_err(|e| why(e.to_string()))?;
+    config.task.validate().map_err(|e| why(e.to_string()))?;
+    let task = &config.task;
+    let d = &task.dmp;
+    if d.formulation != cps_dmp::Formulation::default() {
+        return refuse(format!(
+            "a via-point file learns with the \"{}\" formulation, not \"{}\"",
+            cps_dmp::Formulation::default(),
+            d.formulation
+        ));
+    }
+    let Ok(seed) = i64::try_from(config.seed) else {
+        return refuse(format!(
+            "seed {} is beyond TOML's integers (at most 2^63 − 1)",
+            config.seed
+        ));
+    };
+    let list = |v: &[f64]| {
+        let items: Vec<String> = v.iter().map(|x| format!("{x:?}")).collect();
+        format!("[{}]", items.join(", "))
+    };
+    let quoted = toml::Value::String(name.to_string());
+    let mut s = String::new();
+    for line in header.lines() {
+        let _ = writeln!(s, "# {line}");
+    }
+    let _ = writeln!(
+        s,
+        "\n[experiment]\nkind = \"viapoint\"\nname = {quoted}\nseed = {seed}\nrepetitions = {}\n",
+        config.repetitions
+    );
+    let _ = writeln!(
+        s,
+        "[dmp]\nbasis_functions = {}\ntau = {:?}\ndt = {:?}\nalpha_z = {:?}\nbeta_z = {:?}\nalpha_x = {:?}\n",
+        d.n_basis, d.tau, d.dt, d.alpha_z, d.beta_z, d.alpha_x
+    );
+    let _ = writeln!(
+        s,
+        "[task]\nstart = {}\ngoal = {}\ngoal_velocity = {}\n",
+        list(&task.start),
+        list(&task.goal),
+        list(&task.goal_velocity)
+    );
+    for v in &task.via {
+        let _ = writeln!(
+            s,
+            "[[task.via]]\ntime = {:?}\nposition = {}\n",
+            v.time,
+            list(&v.position)
+        );
+    }
+    for o in &task.obstacles {
+        let _ = writeln!(
+            s,
+            "[[task.obstacles]]\nposition = {}\nclearance = {:?}\n",
+            list(&o.position),
+            o.clearance
+        );
+    }
+    let w = &task.weights;
+    let _ = writeln!(
+        s,
+        "[cost]\ngoal = {:?}\nvia = {:?}\nfinal_velocity = {:?}\nacceleration = {:?}\njerk = {:?}\nobstacle = {:?}\n",
+        w.goal, w.via, w.final_velocity, w.acceleration, w.jerk, w.obstacle
+    );
+    let _ = writeln!(
+        s,
+        "[optimizer]\nmethod = \"{}\"\nparametrisation = \"{}\"\nwarm_start = {}\nevaluation = \"{}\"\npolish = {}\nsigma0 = {:?}",
+        config.solver,
+        config.parametrisation,
+        config.warm_start,
+        config.evaluation,
+        config.polish,
+        config.sigma0
+    );
+    if let Some(p) = config.population {
+        let _ = writeln!(s, "population = {p}");
+    }
+    let _ = writeln!(
+        s,
+        "generations = {}\ntol_fun = {:?}",
+        config.generations,
+        config.tol_fun.unwrap_or(0.0)
+    );
+    Ok(s)
+}
+
 /// Reads, parses and validates an experiment file. Every error names the file, the line
 /// and column where it can, and the rule broken.
 pub fn load(
@@ -374,12 +476,12 @@ pub fn parse(
     let g = &o.generations;
     config.generations =
         ViaPointConfig::check_generations(*g.get_ref()).map_err(bad("optimizer", g.span()))?;
-    config.tol_fun = match &o.tol_fun {
-        Some(t) => {
-            ViaPointConfig::check_tol_fun(*t.get_ref()).map_err(bad("optimizer", t.span()))?
-        }
-        None => None,
-    };
+    // A setting the file leaves out keeps the library's default (as in Python and the
+    // studio): tol_fun 1e-9; 0 turns it off.
+    if let Some(t) = &o.tol_fun {
+        config.tol_fun =
+            ViaPointConfig::check_tol_fun(*t.get_ref()).map_err(bad("optimizer", t.span()))?;
+    }
     let name = file.experiment.name.clone().unwrap_or_else(|| {
         path.file_stem()
             .map_or("experiment".into(), |s| s.to_string_lossy().into_owned())
@@ -579,24 +681,9 @@ fn add_scene_obstacles(
             None => task.weights.obstacle = task.weights.obstacle.max(1e5),
         }
     }
-    if config.polish && config.solver != Solver::Cmaes {
-        return Err(InputError(format!(
-            "{}: [optimizer] `polish` = true polishes a CMA-ES result, and `method` is not \"cmaes\": remove `polish` (least squares is already the polish)",
-            path.display()
-        )));
-    }
-    if !config.task.obstacles.is_empty() && config.evaluation == Evaluation::Quadratic {
-        return Err(InputError(format!(
-            "{}: [optimizer] `evaluation` = \"quadratic\" needs a quadratic cost, and the obstacle term is not one: use evaluation = \"rollout\" (or leave it out: \"auto\" picks the rollout here)",
-            path.display()
-        )));
-    }
-    if !config.task.obstacles.is_empty() && config.solver == Solver::Exact {
-        return Err(InputError(format!(
-            "{}: [optimizer] `method` = \"exact\" leaves the obstacle term out (it is not quadratic in the weights): use method = \"cmaes\" (warm_start = true starts it at the exact, obstacle-free optimum)",
-            path.display()
-        )));
-    }
+    config
+        .check_together()
+        .map_err(|e| InputError(format!("{}: [optimizer] {e}", path.display())))?;
     Ok(())
 }
 
@@ -727,6 +814,60 @@ mod tests {
         assert_eq!(e.config.task.via, thesis.via);
         assert_eq!(e.config.task.weights, thesis.weights);
         assert_eq!(e.config.task.dmp, thesis.dmp);
+    }
+
+    /// The writer says every key: a configuration unlike the defaults in each of them
+    /// reads back whole, and so does the shipped one; what a file cannot say is refused.
+    #[test]
+    fn a_written_viapoint_file_reads_back_to_the_same_experiment() {
+        let mut c = check(SHIPPED).unwrap().config;
+        let round = |c: &ViaPointConfig| {
+            let text = viapoint_toml("my \"task\"", c, "saved\nby a test").unwrap();
+            let back = check(&text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+            assert_eq!(back.name, "my \"task\"");
+            assert!(text.starts_with("# saved\n# by a test\n"), "{text}");
+            back.config
+        };
+        assert_eq!(round(&c), c);
+        let t = &mut c.task;
+        t.goal_velocity = vec![0.1, -0.2, 0.3];
+        t.dmp.alpha_z = 30.0;
+        t.dmp.beta_z = 7.0;
+        t.dmp.alpha_x = 9.0;
+        t.dmp.dt = 0.004;
+        t.weights.obstacle = 123.456;
+        t.weights.jerk = 1e-7;
+        t.obstacles = vec![PointObstacle {
+            position: vec![1.0, 0.1, 1.5],
+            clearance: 0.05,
+        }];
+        c.parametrisation = Parametrisation::ThesisScaling;
+        c.solver = Solver::LeastSquares;
+        c.warm_start = true;
+        c.evaluation = Evaluation::Rollout;
+        c.sigma0 = 0.123;
+        c.population = None;
+        c.generations = 77;
+        c.tol_fun = None;
+        c.repetitions = 3;
+        c.seed = 42;
+        assert_eq!(round(&c), c);
+        c.population = Some(10);
+        c.tol_fun = Some(1e-4);
+        c.solver = Solver::Cmaes;
+        c.polish = true;
+        assert_eq!(round(&c), c);
+        let mut robust = c.clone();
+        robust.task.dmp.formulation = cps_dmp::Formulation::GoalRobust;
+        let e = viapoint_toml("x", &robust, "").unwrap_err().0;
+        assert!(e.contains("not \"robust\""), "{e}");
+        c.seed = u64::MAX;
+        let e = viapoint_toml("x", &c, "").unwrap_err().0;
+        assert!(e.contains("beyond TOML's integers"), "{e}");
+        c.seed = 1;
+        c.sigma0 = -1.0;
+        let e = viapoint_toml("x", &c, "").unwrap_err().0;
+        assert!(e.contains("`sigma0` must be"), "{e}");
     }
 
     #[test]

@@ -80,6 +80,7 @@ pub use task::{
     ViaPointTask,
 };
 pub use viapoint::{
-    BadSetting, Evaluation, GenerationRecord, RunResult, SearchStats, Solver, UnknownName,
-    ViaPointConfig, ViaPointObjective, ViaPointOutcome, history_band, learn_via_points, run_cmaes,
+    BadSetting, Evaluation, GenerationRecord, RunResult, SearchStats, SettingConflict, Solver,
+    UnknownName, ViaPointConfig, ViaPointObjective, ViaPointOutcome, history_band,
+    learn_via_points, run_cmaes,
 };

@@ -26,17 +26,6 @@ pub enum Parametrisation {
     AnchorOffset,
 }
 
-impl Parametrisation {
-    /// A stable lower-case name, as in experiment files.
-    pub fn name(&self) -> &'static str {
-        match self {
-            Parametrisation::Raw => "raw",
-            Parametrisation::ThesisScaling => "thesis_scaling",
-            Parametrisation::AnchorOffset => "anchor_offset",
-        }
-    }
-}
-
 /// The per-weight scale `s` (w = s ∘ θ) of a parametrisation for a DMP.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SearchSpace {

@@ -102,6 +102,12 @@ names!(Solver {
     LeastSquares => "least_squares",
 });
 
+names!(Parametrisation {
+    Raw => "raw",
+    ThesisScaling => "thesis_scaling",
+    AnchorOffset => "anchor_offset",
+});
+
 names!(Evaluation {
     Auto => "auto",
     Rollout => "rollout",
@@ -172,6 +178,27 @@ impl BadSetting {
             })
         }
     }
+}
+
+/// Settings each within its range that do not go together (in the words of an experiment
+/// file's `[optimizer]` and of Python's keywords alike).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum SettingConflict {
+    /// `polish` with a solver other than CMA-ES.
+    #[error(
+        "`polish` = true polishes a CMA-ES result, and `method` is not \"cmaes\": remove `polish` (least squares is already the polish)"
+    )]
+    PolishWithoutCmaes,
+    /// The quadratic evaluation of a cost with obstacles.
+    #[error(
+        "`evaluation` = \"quadratic\" needs a quadratic cost, and the obstacle term is not one: use evaluation = \"rollout\" (or leave it out: \"auto\" picks the rollout here)"
+    )]
+    QuadraticWithObstacles,
+    /// The exact solver for a cost with obstacles.
+    #[error(
+        "`method` = \"exact\" leaves the obstacle term out (it is not quadratic in the weights): use method = \"cmaes\" (warm_start = true starts it at the exact, obstacle-free optimum)"
+    )]
+    ExactWithObstacles,
 }
 
 impl ViaPointConfig {
@@ -248,6 +275,20 @@ impl ViaPointConfig {
         }
         Self::check_repetitions(self.repetitions)?;
         Ok(())
+    }
+
+    /// Whether the settings go together (each is [`ViaPointConfig::validate`]'s).
+    pub fn check_together(&self) -> Result<(), SettingConflict> {
+        let obstacles = !self.task.obstacles.is_empty();
+        if self.polish && self.solver != Solver::Cmaes {
+            Err(SettingConflict::PolishWithoutCmaes)
+        } else if obstacles && self.evaluation == Evaluation::Quadratic {
+            Err(SettingConflict::QuadraticWithObstacles)
+        } else if obstacles && self.solver == Solver::Exact {
+            Err(SettingConflict::ExactWithObstacles)
+        } else {
+            Ok(())
+        }
     }
 
     /// The seed of repetition `r`: a SplitMix64 hash of (seed, r), so repetitions are

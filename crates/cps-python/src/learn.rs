@@ -14,7 +14,7 @@ use pyo3::types::PyDict;
 
 use crate::arrays::{array1, opt_vector, vector};
 use crate::dmp::{Dmp, Trajectory, names_or_default};
-use crate::errors::{PyResultExt, choose, value_error};
+use crate::errors::{PyResultExt, value_error};
 use crate::interrupt::{cancelled, detached};
 
 /// Via points from `[(time, position), …]` or `[{"time": t, "position": p}, …]`.
@@ -292,15 +292,9 @@ pub fn learn_via_points(
     let evaluation: cps_learn::Evaluation = evaluation
         .parse()
         .map_err(|e| value_error(format!("evaluation: {e}")))?;
-    let parametrisation = choose(
-        "parametrisation",
-        parametrisation,
-        &[
-            ("anchor_offset", Parametrisation::AnchorOffset),
-            ("raw", Parametrisation::Raw),
-            ("thesis_scaling", Parametrisation::ThesisScaling),
-        ],
-    )?;
+    let parametrisation: Parametrisation = parametrisation
+        .parse()
+        .map_err(|e| value_error(format!("parametrisation: {e}")))?;
     // Each setting is checked by its owner (cps-learn), in the words files get too.
     let bad = |e: cps_learn::BadSetting| value_error(e.to_string());
     let sigma0 = ViaPointConfig::check_sigma0(sigma0).map_err(bad)?;
@@ -341,6 +335,9 @@ pub fn learn_via_points(
         repetitions,
         seed,
     };
+    config
+        .check_together()
+        .map_err(|e| value_error(e.to_string()))?;
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(t) = threads {
         builder = builder.num_threads(t);

@@ -4,8 +4,7 @@
 
 use cps_dmp::DmpConfig;
 use cps_learn::{
-    CostWeights, LearnError, Parametrisation, Solver, ViaPoint, ViaPointConfig, ViaPointTask,
-    learn_via_points,
+    CostWeights, LearnError, Solver, ViaPoint, ViaPointConfig, ViaPointTask, learn_via_points,
 };
 use serde::{Deserialize, Serialize};
 
@@ -17,7 +16,7 @@ pub const MAX_SAMPLES: f64 = 20_000.0;
 pub const MAX_GENERATIONS: u64 = 2_000;
 /// The most rollout samples a CMA-ES request may compute (population × generations ×
 /// samples): ≈ 2 s of this machine's time (release build). The default request
-/// (96 × 1500 × 1001) may use half of it; it usually converges sooner.
+/// (16 × 1000 × 1001 for a 3-D task of 25 basis functions) uses a twentieth of it.
 pub const MAX_SAMPLE_EVALUATIONS: f64 = 3e8;
 
 /// `POST /api/viapoint`'s body.
@@ -46,13 +45,14 @@ pub struct ViaPointRequest {
     /// Cost weights (default: the thesis's).
     #[serde(default)]
     pub weights: Option<WeightsRequest>,
-    /// CMA-ES generations (default 1500; it stops earlier once converged).
+    /// CMA-ES generations (default: the library's, as an experiment file's and Python's,
+    /// [`ViaPointConfig::new`]; it stops earlier once converged).
     #[serde(default)]
     pub generations: Option<u64>,
-    /// CMA-ES seed (default 1).
+    /// CMA-ES seed (default: the library's).
     #[serde(default)]
     pub seed: Option<u64>,
-    /// CMA-ES population (default 96, as `experiments/viapoint.toml`).
+    /// CMA-ES population (default: the library's, CMA-ES's `4 + ⌊3 ln n⌋`).
     #[serde(default)]
     pub population: Option<usize>,
     /// Also execute the movement on the studio's robot (3-D tasks): reachability, the
@@ -190,29 +190,6 @@ impl ViaPointRequest {
                 "basis_functions: must be between 2 and 200 (got {basis})"
             ));
         }
-        let generations = self.generations.unwrap_or(1500);
-        if !(1..=MAX_GENERATIONS).contains(&generations) {
-            return refuse(format!(
-                "generations: must be between 1 and {MAX_GENERATIONS} (got {generations})"
-            ));
-        }
-        if let Some(p) = self.population
-            && !(2..=1000).contains(&p)
-        {
-            return refuse(format!("population: must be between 2 and 1000 (got {p})"));
-        }
-        // Bounded work: CMA-ES's rollouts times their samples.
-        if solver == Solver::Cmaes {
-            let work =
-                self.population.unwrap_or(96) as f64 * generations as f64 * (self.tau / dt + 1.0);
-            if work > MAX_SAMPLE_EVALUATIONS {
-                return refuse(format!(
-                    "generations: {generations} generations of {} rollouts of {:.0} samples are {work:.1e} sample evaluations, more than the {MAX_SAMPLE_EVALUATIONS:.0e} a studio request may take: fewer generations, a smaller population or a coarser dt",
-                    self.population.unwrap_or(96),
-                    self.tau / dt + 1.0
-                ));
-            }
-        }
         let thesis = CostWeights::thesis();
         let w = self.weights.clone().unwrap_or_default();
         let weights = CostWeights {
@@ -240,17 +217,39 @@ impl ViaPointRequest {
             obstacles: Vec::new(),
         };
         task.validate().map_err(|e| ApiError(sentence(e)))?;
+        // The library's defaults, as an experiment file's and Python's; each setting given
+        // is checked by the library, then against the API's own ceilings.
         let mut config = ViaPointConfig::new(task);
         config.solver = solver;
-        config.parametrisation = Parametrisation::AnchorOffset;
-        // CMA-ES learns from zero weights, as the thesis's learner does (started at the
-        // exact optimum it would only confirm it); the exact optimum is its yardstick.
-        config.warm_start = false;
-        config.sigma0 = 0.5;
-        config.population = Some(self.population.unwrap_or(96));
-        config.tol_fun = Some(1e-3);
-        config.generations = generations;
-        config.seed = self.seed.unwrap_or(1);
+        let setting = |e: cps_learn::BadSetting| ApiError(e.to_string());
+        if let Some(g) = self.generations {
+            config.generations = ViaPointConfig::check_generations(g).map_err(setting)?;
+            if g > MAX_GENERATIONS {
+                return refuse(format!(
+                    "generations: a studio request may ask at most {MAX_GENERATIONS} (got {g})"
+                ));
+            }
+        }
+        if let Some(p) = self.population {
+            config.population = Some(ViaPointConfig::check_population(p).map_err(setting)?);
+        }
+        if let Some(seed) = self.seed {
+            config.seed = seed;
+        }
+        // Bounded work: CMA-ES's rollouts times their samples.
+        if solver == Solver::Cmaes {
+            let rollouts = config.population.unwrap_or_else(|| {
+                cps_cmaes::Parameters::default_lambda(dims * config.task.dmp.n_basis)
+            });
+            let samples = self.tau / dt + 1.0;
+            let work = rollouts as f64 * config.generations as f64 * samples;
+            if work > MAX_SAMPLE_EVALUATIONS {
+                return refuse(format!(
+                    "generations: {} generations of {rollouts} rollouts of {samples:.0} samples are {work:.1e} sample evaluations, more than the {MAX_SAMPLE_EVALUATIONS:.0e} a studio request may take: fewer generations, a smaller population or a coarser dt",
+                    config.generations
+                ));
+            }
+        }
         Ok(config)
     }
 }

@@ -3,7 +3,6 @@
 //! with file, line and column), and the page's state as an experiment file that
 //! `cps-cli run` runs.
 
-use std::fmt::Write as _;
 use std::path::Path;
 
 use cps_experiment::Experiment;
@@ -74,11 +73,10 @@ pub fn open_path(path: &Path) -> Result<OpenedTask, ApiError> {
 }
 
 /// `request` as a commented `kind = "viapoint"` experiment file named `name`, checked
-/// first as the API checks it. Numbers are written in Rust's shortest round-trip form,
-/// so the file gives back exactly the request's task.
+/// first as the API checks it, written by the experiment file's own writer
+/// ([`cps_experiment::experiment::viapoint_toml`]): it reads back to the same experiment.
 pub fn save(request: &ViaPointRequest, name: &str) -> Result<String, ApiError> {
     let config = request.config()?;
-    let task = &config.task;
     let name: String = name
         .chars()
         .filter(|c| c.is_alphanumeric() || matches!(c, '_' | '-'))
@@ -89,55 +87,10 @@ pub fn save(request: &ViaPointRequest, name: &str) -> Result<String, ApiError> {
     } else {
         name
     };
-    let list = |v: &[f64]| {
-        let items: Vec<String> = v.iter().map(|x| format!("{x:?}")).collect();
-        format!("[{}]", items.join(", "))
-    };
-    let w = &task.weights;
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "# A via-point task saved by cps studio. Run it: cps-cli run {name}.toml\n# Units: metres, seconds.\n"
+    let header = format!(
+        "A via-point task saved by cps studio. Run it: cps-cli run {name}.toml\nUnits: metres, seconds."
     );
-    let _ = writeln!(
-        s,
-        "[experiment]\nkind = \"viapoint\"\nname = \"{name}\"\nseed = {}\n",
-        config.seed
-    );
-    let _ = writeln!(
-        s,
-        "[dmp]\nbasis_functions = {}\ntau = {:?}\ndt = {:?}\n",
-        task.dmp.n_basis, task.dmp.tau, task.dmp.dt
-    );
-    let _ = writeln!(
-        s,
-        "[task]\nstart = {}\ngoal = {}\n",
-        list(&task.start),
-        list(&task.goal)
-    );
-    for v in &task.via {
-        let _ = writeln!(
-            s,
-            "[[task.via]]\ntime = {:?}\nposition = {}\n",
-            v.time,
-            list(&v.position)
-        );
-    }
-    let _ = writeln!(
-        s,
-        "[cost]\ngoal = {:?}\nvia = {:?}\nfinal_velocity = {:?}\nacceleration = {:?}\njerk = {:?}\n",
-        w.goal, w.via, w.final_velocity, w.acceleration, w.jerk
-    );
-    let method = config.solver.name();
-    let _ = writeln!(
-        s,
-        "[optimizer]\nmethod = \"{method}\"\nparametrisation = \"anchor_offset\"\nsigma0 = {:?}\npopulation = {}\ngenerations = {}\ntol_fun = {:?}",
-        config.sigma0,
-        config.population.unwrap_or(96),
-        config.generations,
-        config.tol_fun.unwrap_or(1e-3)
-    );
-    Ok(s)
+    cps_experiment::experiment::viapoint_toml(&name, &config, &header).map_err(|e| ApiError(e.0))
 }
 
 #[cfg(test)]

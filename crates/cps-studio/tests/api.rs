@@ -178,12 +178,19 @@ fn bad_requests_get_a_sentence_and_the_server_keeps_serving() {
     v["generations"] = json!(1_000_000);
     bad(
         v.to_string().as_bytes(),
-        "generations: must be between 1 and 2000",
+        "generations: a studio request may ask at most 2000 (got 1000000)",
     );
     let mut v = thesis("cmaes");
     v["population"] = json!(1000);
     v["generations"] = json!(2000);
     bad(v.to_string().as_bytes(), "sample evaluations, more than");
+    // The library's own check, in the words of a file's and of Python's.
+    let mut v = thesis("cmaes");
+    v["population"] = json!(1);
+    bad(
+        v.to_string().as_bytes(),
+        "`population` must be between 2 and 100000 (got 1)",
+    );
     let huge = format!("{{\"start\": [{}]}}", vec!["0.0"; 40_000].join(","));
     bad(huge.as_bytes(), "larger than 65536 bytes");
     // Still serving.
