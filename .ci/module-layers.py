@@ -23,6 +23,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 LAYERS = {
     "cps-dmp": [
         ["basis", "canonical", "discretize", "error", "jet", "trajectory"],
+        ["names"],
         ["config"],
         ["dmp"],
         ["generalize", "imitation", "model", "online"],

@@ -7,6 +7,7 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Args;
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use cps_dmp::{Combine, Formulation, Lambda, Method};
 use cps_experiment::InputError;
 use cps_movement::lerobot::Pick;
@@ -63,7 +64,7 @@ pub struct ImitateArgs {
     bases: usize,
     /// Regression method: `ridge` (thesis eq. 51), `jerk` (ridge penalising jerk, thesis
     /// eq. 52) or `lwr` (Schaal's locally weighted regression).
-    #[arg(long, default_value = "ridge", value_parser = |s: &str| s.parse::<Method>())]
+    #[arg(long, default_value = "ridge", value_parser = named::<Method, 3>(Method::ALL.map(Method::name)))]
     method: Method,
     /// Regularisation λ, or `auto` for generalised cross-validation (default: 1e-12 for
     /// ridge as in the thesis, auto for jerk).
@@ -79,11 +80,11 @@ pub struct ImitateArgs {
     /// Forcing-term formulation: `robust` (Hoffmann/Pastor 2009: independent of goal −
     /// start, keeps the shape from a new start or goal) or `ijspeert` (Ijspeert et al.
     /// 2013, the thesis's: the forcing term scales with goal − start).
-    #[arg(long, default_value = "robust", value_parser = |s: &str| s.parse::<Formulation>())]
+    #[arg(long, default_value = "robust", value_parser = named::<Formulation, 2>(Formulation::ALL.map(Formulation::name)))]
     formulation: Formulation,
     /// How several demonstrations are combined: `mean` (average the time-normalised
     /// demonstrations, then fit) or `stack` (one regression over all samples).
-    #[arg(long, default_value = "mean", value_parser = |s: &str| s.parse::<Combine>())]
+    #[arg(long, default_value = "mean", value_parser = named::<Combine, 2>(Combine::ALL.map(Combine::name)))]
     combine: Combine,
     #[command(flatten)]
     output: Output,
@@ -132,6 +133,14 @@ pub struct RolloutArgs {
     /// Replace existing output files (only files of the kind cps writes there).
     #[arg(long)]
     force: bool,
+}
+
+/// A setting that names itself (cps-dmp's `FromStr`): its names offered in the help.
+fn named<T, const N: usize>(names: [&'static str; N]) -> impl TypedValueParser<Value = T>
+where
+    T: std::str::FromStr<Err = cps_dmp::DmpError> + Clone + Send + Sync + 'static,
+{
+    PossibleValuesParser::new(names).try_map(|s| s.parse::<T>())
 }
 
 /// `--lambda`, when given.
