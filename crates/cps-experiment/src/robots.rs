@@ -6,6 +6,7 @@
 //! change.
 
 use cps_coppelia::{Client, ClientConfig, FrankaScene};
+use cps_drive::contact::RobotAt;
 use cps_franka::{FrankaRobot, FrankaSettings};
 use cps_robot::{Guarded, KinematicRobot, Policy, Robot, RobotModel};
 use cps_ros2::robot::Ros2Robot;
@@ -119,6 +120,51 @@ impl RobotChoice {
         }
     }
 
+    /// The robot a torque-controlled task (`kind = "contact"`) drives, with the world its
+    /// free motions are checked in — the scene's table and the experiment's obstacles, with
+    /// the contacts they allow — in the robot's base frame. Only a Franka takes torques.
+    pub fn torque_robot(&self, drive: cps_dynamics::Drive) -> Result<RobotAt, ExperimentError> {
+        let BackendChoice::Franka {
+            host,
+            arm,
+            realtime,
+            ..
+        } = &self.backend
+        else {
+            return Err(crate::InputError(format!(
+                "kind = \"contact\" needs a robot that takes torques, [robot] backend = \"franka\" (this file's is \"{}\")",
+                self.backend.name()
+            ))
+            .into());
+        };
+        let world = match &self.model.shapes {
+            Some(shapes) => {
+                let to_base = self.setup.chain.base().inverse();
+                let obstacles = shapes
+                    .obstacles()
+                    .iter()
+                    .map(|o| {
+                        let mut o = o.clone();
+                        o.pose = to_base * o.pose;
+                        o
+                    })
+                    .collect();
+                let placed = shapes
+                    .with_obstacles(obstacles, shapes.allowed().to_vec())
+                    .map_err(ExperimentError::Message)?;
+                Some(std::sync::Arc::new(placed))
+            }
+            None => None,
+        };
+        Ok(RobotAt {
+            host: host.clone(),
+            arm: *arm,
+            realtime: *realtime,
+            drive,
+            world,
+        })
+    }
+
     /// For learning on what the robot does: a way to open, once per worker, the robot
     /// with dynamics this backend describes, unguarded and without reflexes (a candidate
     /// is judged by what the simulated arm does, the limits are in its cost; the learned
@@ -177,6 +223,28 @@ impl RobotChoice {
                 })
                 .collect()
         })
+    }
+
+    /// Whether every robot of an opened pool runs a whole plan itself, as learning on the
+    /// executed cost needs (thousands of executions): a CoppeliaSim scene without cps's
+    /// executor script steps each move over the network instead, and is refused naming
+    /// the script to add.
+    pub fn check_runs_plans(
+        &self,
+        opened: &mut [crate::sim_pool::NamedBackend],
+    ) -> Result<(), ExperimentError> {
+        let slow = opened
+            .iter_mut()
+            .position(|(_, b)| b.stepped().is_some_and(|s| !s.stepping().runs_plans()));
+        match (slow, &self.backend) {
+            (Some(i), BackendChoice::Coppelia { robot_name, .. }) => {
+                let endpoint = &opened[i].0;
+                Err(ExperimentError::Message(format!(
+                    "{endpoint}: the scene has no /{robot_name}/cpsExecutor script, and learning on the executed cost steps thousands of executions: add configs/coppeliasim/cpsExecutor.lua to the scene as a child of /{robot_name} (the stand-in server has it unless started with --without-script)"
+                )))
+            }
+            _ => Ok(()),
+        }
     }
 
     /// Opens the robot at `endpoint` (a simulator's, a Franka's host) with it at its

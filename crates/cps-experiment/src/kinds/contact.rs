@@ -8,9 +8,8 @@
 use serde::Serialize;
 
 use super::Ctx;
-use crate::robots::BackendChoice;
 use crate::{ExperimentError, InputError};
-use cps_drive::contact::{ContactEnding, ContactOutcome, RobotAt, Stage, contact_on_robot};
+use cps_drive::contact::{ContactEnding, ContactOutcome, Stage, contact_on_robot};
 use cps_outcome::outcome::{
     Column, Figure, Format, Outcome, Panels, Plot, Report, ReportTable, Series, Table,
 };
@@ -48,49 +47,13 @@ pub(crate) fn run(
     spec: &crate::sections::contact::ContactSpec,
 ) -> Result<Outcome, ExperimentError> {
     let exp = ctx.exp;
-    let Some(BackendChoice::Franka {
-        host,
-        arm,
-        realtime,
-        ..
-    }) = exp.robot.as_ref().map(|r| &r.backend)
-    else {
+    let Some(choice) = exp.robot.as_ref() else {
         return Err(
-            InputError("kind = \"contact\" needs [robot] backend = \"franka\"".into()).into(),
+            InputError("kind = \"contact\" needs a [robot] that takes torques".into()).into(),
         );
     };
-    // The scene's world (its table, the experiment's obstacles with the contacts they
-    // allow) in the robot's base frame, where the task moves.
-    let world = match exp.robot.as_ref().and_then(|r| {
-        r.model
-            .shapes
-            .as_ref()
-            .map(|s| (s, r.setup.chain.base().inverse()))
-    }) {
-        Some((shapes, to_base)) => {
-            let obstacles = shapes
-                .obstacles()
-                .iter()
-                .map(|o| {
-                    let mut o = o.clone();
-                    o.pose = to_base * o.pose;
-                    o
-                })
-                .collect();
-            let placed = shapes
-                .with_obstacles(obstacles, shapes.allowed().to_vec())
-                .map_err(ExperimentError::Message)?;
-            Some(std::sync::Arc::new(placed))
-        }
-        None => None,
-    };
-    let robot = RobotAt {
-        host: host.clone(),
-        arm: *arm,
-        realtime: *realtime,
-        drive: spec.drive,
-        world,
-    };
+    let robot = choice.torque_robot(spec.drive)?;
+    let host = &robot.host;
     let plan = &spec.plan;
     let out = contact_on_robot(&robot, plan, ctx.stop)?;
     let stopped = ctx.stop.is_stopped();

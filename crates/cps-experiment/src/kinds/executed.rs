@@ -197,16 +197,7 @@ pub(crate) fn run(
     let copies = ctx.pool.current_num_threads();
     let endpoints = robot.backend.pool_names(copies);
     let mut opened = robot.open_pool(copies)?;
-    if let crate::robots::BackendChoice::Coppelia { robot_name, .. } = &robot.backend
-        && let Some(i) = opened
-            .iter_mut()
-            .position(|(_, b)| b.stepped().is_some_and(|s| !s.stepping().runs_plans()))
-    {
-        let endpoint = &opened[i].0;
-        return Err(ExperimentError::Message(format!(
-            "{endpoint}: the scene has no /{robot_name}/cpsExecutor script, and learning on the executed cost steps thousands of executions: add configs/coppeliasim/cpsExecutor.lua to the scene as a child of /{robot_name} (the stand-in server has it unless started with --without-script)"
-        )));
-    }
+    robot.check_runs_plans(&mut opened)?;
     let dt = opened
         .first()
         .map_or(exp.config.task.dmp.dt, |(_, b)| b.dt());
@@ -329,15 +320,10 @@ pub(crate) fn run(
         best.recording.q.clone(),
     )?;
     let summary = Summary {
-        backend: match &robot.backend {
-            crate::robots::BackendChoice::Coppelia { .. } => {
-                "coppelia (a pool of simulators)".into()
-            }
-            crate::robots::BackendChoice::Franka { pool, .. } if pool.len() > 1 => {
-                format!("franka (a pool of {} robots)", pool.len())
-            }
-            _ => robot.describe(),
-        },
+        backend: robot
+            .backend
+            .pool_description()
+            .unwrap_or_else(|| robot.describe()),
         simulators: Simulators {
             endpoints,
             evaluations: pool.evaluations(),
@@ -561,12 +547,10 @@ fn lines(ctx: &Ctx<'_>, s: &Summary<'_>, failure: Option<&str>) -> Vec<String> {
             s.generations,
             s.evaluations,
             s.simulators.endpoints.len(),
-            match ctx.exp.robot.as_ref().map(|r| &r.backend) {
-                Some(crate::robots::BackendChoice::Kinematic { .. }) => "in-process robot(s)",
-                Some(crate::robots::BackendChoice::Franka { .. }) => "robot(s)",
-                Some(crate::robots::BackendChoice::Dynamics(_)) => "dynamics robot(s)",
-                _ => "simulator(s)",
-            }
+            ctx.exp
+                .robot
+                .as_ref()
+                .map_or("simulator(s)", |r| r.backend.executed_on())
         ),
         format!(
             "  executed cost {:.6e} (warm start {:.6e}; its analytic cost {:.6e}); tracking {:.3e}",

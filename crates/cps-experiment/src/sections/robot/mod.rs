@@ -208,6 +208,41 @@ impl BackendChoice {
         }
     }
 
+    /// Its name in `[robot] backend = "…"`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            BackendChoice::Kinematic { .. } => "kinematic",
+            BackendChoice::Coppelia { .. } => "coppelia",
+            BackendChoice::Franka { .. } => "franka",
+            BackendChoice::Ros2(_) => "ros2",
+            BackendChoice::Dynamics(_) => "dynamics",
+        }
+    }
+
+    /// What the robots a run executes on are, in a sentence's words (`in-process
+    /// robot(s)`, `dynamics robot(s)`, `robot(s)` for real ones, `simulator(s)`).
+    pub fn executed_on(&self) -> &'static str {
+        match self {
+            BackendChoice::Kinematic { .. } => "in-process robot(s)",
+            BackendChoice::Dynamics(_) => "dynamics robot(s)",
+            BackendChoice::Franka { .. } | BackendChoice::Ros2(_) => "robot(s)",
+            BackendChoice::Coppelia { .. } => "simulator(s)",
+        }
+    }
+
+    /// A pool of several endpoints in a summary's words (`coppelia (a pool of
+    /// simulators)`, `franka (a pool of 3 robots)`); None for one robot, described by
+    /// [`RobotChoice::describe`].
+    pub fn pool_description(&self) -> Option<String> {
+        match self {
+            BackendChoice::Coppelia { .. } => Some("coppelia (a pool of simulators)".into()),
+            BackendChoice::Franka { pool, .. } if pool.len() > 1 => {
+                Some(format!("franka (a pool of {} robots)", pool.len()))
+            }
+            _ => None,
+        }
+    }
+
     /// The names of the backends an experiment opens: the pool's endpoints or hosts, or
     /// `in_process` in-process robots (one per worker thread; at least one).
     pub fn pool_names(&self, in_process: usize) -> Vec<String> {
