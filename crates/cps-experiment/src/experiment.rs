@@ -22,11 +22,12 @@ use cps_outcome::source::{MAX_FILE_BYTES, read_text};
 #[serde(deny_unknown_fields)]
 struct File {
     experiment: ExperimentSection,
-    dmp: Dmp,
-    task: Task,
+    /// The via-point learner's sections: every kind but contact reads them.
+    dmp: Option<Spanned<Dmp>>,
+    task: Option<Spanned<Task>>,
     #[serde(default)]
     cost: Option<Spanned<Cost>>,
-    optimizer: Optimizer,
+    optimizer: Option<Spanned<Optimizer>>,
     #[serde(default)]
     output: Output,
     robot: Option<Spanned<crate::robots::RobotSection>>,
@@ -70,9 +71,11 @@ fn one_spanned() -> Spanned<usize> {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Dmp {
-    basis_functions: Spanned<usize>,
-    tau: Spanned<f64>,
-    dt: Spanned<f64>,
+    // Required by the kinds that learn ([`Learner::of`]); a contact file refuses the
+    // section whole.
+    basis_functions: Option<Spanned<usize>>,
+    tau: Option<Spanned<f64>>,
+    dt: Option<Spanned<f64>>,
     alpha_z: Option<Spanned<f64>>,
     beta_z: Option<Spanned<f64>>,
     alpha_x: Option<Spanned<f64>>,
@@ -81,8 +84,8 @@ struct Dmp {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Task {
-    start: Spanned<Vec<f64>>,
-    goal: Spanned<Vec<f64>>,
+    start: Option<Spanned<Vec<f64>>>,
+    goal: Option<Spanned<Vec<f64>>>,
     goal_velocity: Option<Spanned<Vec<f64>>>,
     #[serde(default)]
     via: Vec<Spanned<Via>>,
@@ -136,7 +139,7 @@ struct Optimizer {
     polish: bool,
     sigma0: Option<Spanned<f64>>,
     population: Option<Spanned<usize>>,
-    generations: Spanned<u64>,
+    generations: Option<Spanned<u64>>,
     tol_fun: Option<Spanned<f64>>,
 }
 
@@ -284,7 +287,8 @@ pub fn load(
     parse(path, &text, seed_override, ceilings)
 }
 
-/// Parses and validates experiment text (`path` is only used in messages).
+/// Parses and validates experiment text (`path` is only used in messages): one pass of
+/// the TOML into one schema, each kind's sections read by its own module.
 pub fn parse(
     path: &Path,
     text: &str,
@@ -299,219 +303,26 @@ pub fn parse(
             cps_outcome::source::bytes(MAX_FILE_BYTES as f64)
         )));
     }
-    let at = |e: &toml::de::Error| {
-        e.span()
-            .map(|s| location(path, text, &s))
-            .unwrap_or_else(|| path.display().to_string())
-    };
-    if let Err(e) = text.parse::<toml::Table>() {
-        return Err(InputError(format!(
-            "{}: not valid TOML: {}",
-            at(&e),
-            e.message()
-        )));
-    }
-    if let Ok(table) = text.parse::<toml::Table>()
-        && table
-            .get("experiment")
-            .and_then(|e| e.get("kind"))
-            .and_then(|k| k.as_str())
-            == Some("contact")
-    {
-        return parse_contact(path, text, seed_override);
-    }
-    let file: File =
-        toml::from_str(text).map_err(|e| InputError(format!("{}: {}", at(&e), e.message())))?;
-    let err = |span: &Range<usize>, msg: String| {
-        InputError(format!("{}: {msg}", location(path, text, span)))
-    };
-
-    let d = &file.dmp;
-    let mut dmp = DmpConfig::new(
-        *d.basis_functions.get_ref(),
-        *d.tau.get_ref(),
-        *d.dt.get_ref(),
-    );
-    if let Some(v) = &d.alpha_z {
-        dmp.alpha_z = *v.get_ref();
-        dmp.beta_z = dmp.alpha_z / 4.0;
-        dmp.alpha_x = dmp.alpha_z / 3.0;
-    }
-    if let Some(v) = &d.beta_z {
-        dmp.beta_z = *v.get_ref();
-    }
-    if let Some(v) = &d.alpha_x {
-        dmp.alpha_x = *v.get_ref();
-    }
-    let t = &file.task;
-    let dims = t.start.get_ref().len();
-    let task = ViaPointTask {
-        start: t.start.get_ref().clone(),
-        goal: t.goal.get_ref().clone(),
-        goal_velocity: t
-            .goal_velocity
-            .as_ref()
-            .map_or_else(|| vec![0.0; dims], |v| v.get_ref().clone()),
-        via: t
-            .via
-            .iter()
-            .map(|v| ViaPoint {
-                time: *v.get_ref().time.get_ref(),
-                position: v.get_ref().position.get_ref().clone(),
-            })
-            .collect(),
-        dmp,
-        weights: match &file.cost {
-            Some(c) => {
-                let c = c.get_ref();
-                CostWeights {
-                    goal: c.goal,
-                    via: c.via,
-                    final_velocity: c.final_velocity,
-                    acceleration: c.acceleration,
-                    jerk: c.jerk,
-                    obstacle: c
-                        .obstacle
-                        .unwrap_or(if t.obstacles.is_empty() { 0.0 } else { 1e5 }),
-                }
-            }
-            None => CostWeights {
-                obstacle: if t.obstacles.is_empty() { 0.0 } else { 1e5 },
-                ..CostWeights::thesis()
-            },
-        },
-        obstacles: t
-            .obstacles
-            .iter()
-            .map(|o| PointObstacle {
-                position: o.get_ref().position.get_ref().clone(),
-                clearance: *o.get_ref().clearance.get_ref(),
-            })
-            .collect(),
-    };
-    if let Some(o) = file.task.obstacles.first()
-        && !matches!(
-            file.experiment
-                .kind
-                .as_ref()
-                .map_or(Kind::default(), |k| *k.get_ref()),
-            Kind::Viapoint
-                | Kind::Scaling
-                | Kind::Imitation
-                | Kind::Promp
-                | Kind::ViapointPose
-                | Kind::ViapointExecuted
-        )
-    {
-        return Err(err(
-            &o.span(),
-            format!(
-                "[[task.obstacles]] are read only by the kinds that learn tool positions (viapoint, scaling, imitation, promp, viapoint_pose, viapoint_executed); this file has kind = \"{}\"",
-                file.experiment
-                    .kind
-                    .as_ref()
-                    .map_or(Kind::default(), |k| *k.get_ref())
-                    .name()
-            ),
-        ));
-    }
-    // Library validation, mapped back to the place in the file.
-    if let Err(e) = task.validate() {
-        let span = match &e {
-            LearnError::InvalidTask { field, .. } => locate_task_field(&file, field),
-            LearnError::Dmp(cps_dmp::DmpError::InvalidConfig { field, .. }) => Some(match *field {
-                "tau" => d.tau.span(),
-                "dt" => d.dt.span(),
-                "n_basis" => d.basis_functions.span(),
-                "alpha_z" => d.alpha_z.as_ref().map_or(d.tau.span(), |v| v.span()),
-                "beta_z" => d
-                    .beta_z
-                    .as_ref()
-                    .or(d.alpha_z.as_ref())
-                    .map_or(d.tau.span(), |v| v.span()),
-                _ => d
-                    .alpha_x
-                    .as_ref()
-                    .or(d.alpha_z.as_ref())
-                    .map_or(d.tau.span(), |v| v.span()),
-            }),
-            _ => None,
-        };
-        let msg = match &e {
-            LearnError::Dmp(cps_dmp::DmpError::InvalidConfig { field, rule, value }) => {
-                format!("[dmp] `{}` {rule} (got {value:?})", toml_name(field))
-            }
-            other => other.to_string(),
-        };
-        return Err(match span {
-            Some(s) => err(&s, msg),
-            None => InputError(format!("{}: {msg}", path.display())),
-        });
-    }
-    let o = &file.optimizer;
-    let reps = &file.experiment.repetitions;
-    // Each setting is checked by its owner (cps-learn); the file adds the place.
-    let bad = |section: &'static str, span: std::ops::Range<usize>| {
-        move |e: cps_learn::BadSetting| err(&span, format!("[{section}] {e}"))
-    };
-    let repetitions = ViaPointConfig::check_repetitions(*reps.get_ref())
-        .map_err(bad("experiment", reps.span()))?;
-    let mut config = ViaPointConfig::new(task);
-    config.solver = o.method;
-    config.parametrisation = o.parametrisation;
-    config.warm_start = o.warm_start;
-    config.evaluation = o.evaluation;
-    config.polish = o.polish;
-    config.repetitions = repetitions;
-    config.seed = seed_override.unwrap_or(file.experiment.seed);
-    if let Some(s) = &o.sigma0 {
-        config.sigma0 =
-            ViaPointConfig::check_sigma0(*s.get_ref()).map_err(bad("optimizer", s.span()))?;
-    }
-    if let Some(p) = &o.population {
-        config.population = Some(
-            ViaPointConfig::check_population(*p.get_ref()).map_err(bad("optimizer", p.span()))?,
-        );
-    }
-    let g = &o.generations;
-    config.generations =
-        ViaPointConfig::check_generations(*g.get_ref()).map_err(bad("optimizer", g.span()))?;
-    // A setting the file leaves out keeps the library's default (as in Python and the
-    // studio): tol_fun 1e-9; 0 turns it off.
-    if let Some(t) = &o.tol_fun {
-        config.tol_fun =
-            ViaPointConfig::check_tol_fun(*t.get_ref()).map_err(bad("optimizer", t.span()))?;
-    }
-    let name = file.experiment.name.clone().unwrap_or_else(|| {
-        path.file_stem()
-            .map_or("experiment".into(), |s| s.to_string_lossy().into_owned())
-    });
+    let file = read_schema(path, text)?;
     let kind = file
         .experiment
         .kind
         .as_ref()
         .map_or(Kind::default(), |k| *k.get_ref());
-    let sections = crate::sections::Sections {
-        path,
-        text,
-        kind,
-        robot: file.robot.as_ref(),
-        demonstrations: file.demonstrations.as_ref(),
-        imitation: file.imitation.as_ref(),
-        scaling: file.scaling.as_ref(),
-        joint: file.joint.as_ref(),
-        plant: file.plant.as_ref(),
-        speedup: file.speedup.as_ref(),
-        orientation: file.orientation.as_ref(),
-        export: file.export.as_ref(),
-        promp: file.promp.as_ref(),
-        contact: file.contact.as_ref(),
-        executed: file.executed.as_ref(),
-        clearance: file.clearance.as_ref(),
-        obstacle: &file.obstacle,
+    let at = |span: &Range<usize>, msg: String| {
+        InputError(format!("{}: {msg}", location(path, text, span)))
     };
-    let mut plans = crate::plan::parse(&sections, &config)?;
-    no_world_without_robot(&file.obstacle, plans.robot.is_none(), path, text)?;
+    if kind == Kind::Contact {
+        return parse_contact(path, text, &file, seed_override, &at);
+    }
+    let learner = Learner::of(&file, path, kind, &at)?;
+    let mut config = learner.config(path, kind, seed_override, &at)?;
+    let name = file.experiment.name.clone().unwrap_or_else(|| {
+        path.file_stem()
+            .map_or("experiment".into(), |s| s.to_string_lossy().into_owned())
+    });
+    let mut plans = crate::plan::parse(&file.sections(path, text, kind), &config)?;
+    no_world_without_robot(&file.obstacle, plans.robot.is_none(), &at)?;
     add_scene_obstacles(&file, path, kind, &mut plans, &mut config)?;
     let mut exp = Experiment {
         plan: plans.plan,
@@ -525,66 +336,322 @@ pub fn parse(
         estimate: None,
     };
     // What the file asks of the machine, refused beyond the ceilings.
-    let factors = budget_factors(&file, &exp);
+    let factors = budget_factors(&file, &learner, &exp);
     let estimate =
         crate::budget::check(&exp, &factors, ceilings, &|span| location(path, text, span))?;
     exp.estimate = Some(estimate);
     Ok(exp)
 }
 
-/// A `kind = "contact"` file: `[experiment]`, `[robot]`, `[contact]` and `[output]` only
-/// (it learns no via points: `[dmp]`, `[task]`, `[optimizer]` are refused by name). The
-/// learner's configuration is the thesis's, unused.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct ContactFile {
-    experiment: ExperimentSection,
-    robot: Option<Spanned<crate::robots::RobotSection>>,
-    contact: Option<Spanned<crate::sections::contact::ContactSection>>,
-    #[serde(default)]
-    output: Output,
-    #[serde(default)]
-    obstacle: Vec<Spanned<cps_movement::scene::ObstacleEntry>>,
+/// The text read once into the schema: a syntax error is "not valid TOML", a schema
+/// error names the key; both at their line and column.
+fn read_schema(path: &Path, text: &str) -> Result<File, InputError> {
+    let at = |e: &toml::de::Error| {
+        e.span()
+            .map(|s| location(path, text, &s))
+            .unwrap_or_else(|| path.display().to_string())
+    };
+    let document = toml::de::Deserializer::parse(text)
+        .map_err(|e| InputError(format!("{}: not valid TOML: {}", at(&e), e.message())))?;
+    File::deserialize(document).map_err(|e| InputError(format!("{}: {}", at(&e), e.message())))
 }
+
+/// Where a message is placed: a span of the file and the sentence.
+type At<'a> = dyn Fn(&Range<usize>, String) -> InputError + 'a;
+
+impl File {
+    /// Each kind's own sections, for [`crate::plan::parse`].
+    fn sections<'a>(
+        &'a self,
+        path: &'a Path,
+        text: &'a str,
+        kind: Kind,
+    ) -> crate::sections::Sections<'a> {
+        crate::sections::Sections {
+            path,
+            text,
+            kind,
+            robot: self.robot.as_ref(),
+            demonstrations: self.demonstrations.as_ref(),
+            imitation: self.imitation.as_ref(),
+            scaling: self.scaling.as_ref(),
+            joint: self.joint.as_ref(),
+            plant: self.plant.as_ref(),
+            speedup: self.speedup.as_ref(),
+            orientation: self.orientation.as_ref(),
+            export: self.export.as_ref(),
+            promp: self.promp.as_ref(),
+            contact: self.contact.as_ref(),
+            executed: self.executed.as_ref(),
+            clearance: self.clearance.as_ref(),
+            obstacle: &self.obstacle,
+        }
+    }
+}
+
+/// The via-point learner's sections of a file whose kind reads them.
+struct Learner<'a> {
+    experiment: &'a ExperimentSection,
+    dmp: &'a Dmp,
+    basis_functions: &'a Spanned<usize>,
+    tau: &'a Spanned<f64>,
+    dt: &'a Spanned<f64>,
+    task: &'a Task,
+    start: &'a Spanned<Vec<f64>>,
+    goal: &'a Spanned<Vec<f64>>,
+    cost: Option<&'a Spanned<Cost>>,
+    optimizer: &'a Optimizer,
+    generations: &'a Spanned<u64>,
+}
+
+impl<'a> Learner<'a> {
+    /// The sections and their keys that have no default, each required.
+    fn of(file: &'a File, path: &Path, kind: Kind, at: &At<'_>) -> Result<Self, InputError> {
+        let missing = |section: &str| {
+            InputError(format!(
+                "{}: missing section [{section}] (kind = \"{}\" learns a movement: it reads [dmp], [task] and [optimizer])",
+                path.display(),
+                kind.name()
+            ))
+        };
+        let dmp = file.dmp.as_ref().ok_or_else(|| missing("dmp"))?;
+        let task = file.task.as_ref().ok_or_else(|| missing("task"))?;
+        let optimizer = file
+            .optimizer
+            .as_ref()
+            .ok_or_else(|| missing("optimizer"))?;
+        fn need<'v, T, U>(
+            section: &Spanned<U>,
+            value: &'v Option<T>,
+            name: &str,
+            key: &str,
+            at: &At<'_>,
+        ) -> Result<&'v T, InputError> {
+            value.as_ref().ok_or_else(|| {
+                at(
+                    &section.span(),
+                    format!("missing field `{key}` in [{name}]"),
+                )
+            })
+        }
+        let (d, t, o) = (dmp.get_ref(), task.get_ref(), optimizer.get_ref());
+        Ok(Learner {
+            experiment: &file.experiment,
+            dmp: d,
+            basis_functions: need(dmp, &d.basis_functions, "dmp", "basis_functions", at)?,
+            tau: need(dmp, &d.tau, "dmp", "tau", at)?,
+            dt: need(dmp, &d.dt, "dmp", "dt", at)?,
+            task: t,
+            start: need(task, &t.start, "task", "start", at)?,
+            goal: need(task, &t.goal, "task", "goal", at)?,
+            cost: file.cost.as_ref(),
+            optimizer: o,
+            generations: need(optimizer, &o.generations, "optimizer", "generations", at)?,
+        })
+    }
+
+    /// `[dmp]`: the literature's gains unless given.
+    fn dmp_config(&self) -> DmpConfig {
+        let d = self.dmp;
+        let mut dmp = DmpConfig::new(
+            *self.basis_functions.get_ref(),
+            *self.tau.get_ref(),
+            *self.dt.get_ref(),
+        );
+        if let Some(v) = &d.alpha_z {
+            dmp.alpha_z = *v.get_ref();
+            dmp.beta_z = dmp.alpha_z / 4.0;
+            dmp.alpha_x = dmp.alpha_z / 3.0;
+        }
+        if let Some(v) = &d.beta_z {
+            dmp.beta_z = *v.get_ref();
+        }
+        if let Some(v) = &d.alpha_x {
+            dmp.alpha_x = *v.get_ref();
+        }
+        dmp
+    }
+
+    /// `[task]` and `[cost]` as the library's task, unchecked.
+    fn task(&self) -> ViaPointTask {
+        let t = self.task;
+        let dims = self.start.get_ref().len();
+        let obstacle = if t.obstacles.is_empty() { 0.0 } else { 1e5 };
+        ViaPointTask {
+            start: self.start.get_ref().clone(),
+            goal: self.goal.get_ref().clone(),
+            goal_velocity: t
+                .goal_velocity
+                .as_ref()
+                .map_or_else(|| vec![0.0; dims], |v| v.get_ref().clone()),
+            via: t
+                .via
+                .iter()
+                .map(|v| ViaPoint {
+                    time: *v.get_ref().time.get_ref(),
+                    position: v.get_ref().position.get_ref().clone(),
+                })
+                .collect(),
+            dmp: self.dmp_config(),
+            weights: match self.cost.map(Spanned::get_ref) {
+                Some(c) => CostWeights {
+                    goal: c.goal,
+                    via: c.via,
+                    final_velocity: c.final_velocity,
+                    acceleration: c.acceleration,
+                    jerk: c.jerk,
+                    obstacle: c.obstacle.unwrap_or(obstacle),
+                },
+                None => CostWeights {
+                    obstacle,
+                    ..CostWeights::thesis()
+                },
+            },
+            obstacles: t
+                .obstacles
+                .iter()
+                .map(|o| PointObstacle {
+                    position: o.get_ref().position.get_ref().clone(),
+                    clearance: *o.get_ref().clearance.get_ref(),
+                })
+                .collect(),
+        }
+    }
+
+    /// The task, checked by the library; its refusal placed at the key it names.
+    fn checked_task(
+        &self,
+        path: &Path,
+        kind: Kind,
+        at: &At<'_>,
+    ) -> Result<ViaPointTask, InputError> {
+        let d: &'a Dmp = self.dmp;
+        let task = self.task();
+        if let Some(o) = self.task.obstacles.first()
+            && !matches!(
+                kind,
+                Kind::Viapoint
+                    | Kind::Scaling
+                    | Kind::Imitation
+                    | Kind::Promp
+                    | Kind::ViapointPose
+                    | Kind::ViapointExecuted
+            )
+        {
+            return Err(at(
+                &o.span(),
+                format!(
+                    "[[task.obstacles]] are read only by the kinds that learn tool positions (viapoint, scaling, imitation, promp, viapoint_pose, viapoint_executed); this file has kind = \"{}\"",
+                    kind.name()
+                ),
+            ));
+        }
+        let Err(e) = task.validate() else {
+            return Ok(task);
+        };
+        let span = match &e {
+            LearnError::InvalidTask { field, .. } => self.locate_task_field(field),
+            LearnError::Dmp(cps_dmp::DmpError::InvalidConfig { field, .. }) => {
+                let gain = |v: &'a Option<Spanned<f64>>| v.as_ref().or(d.alpha_z.as_ref());
+                Some(match *field {
+                    "tau" => self.tau.span(),
+                    "dt" => self.dt.span(),
+                    "n_basis" => self.basis_functions.span(),
+                    "alpha_z" => d.alpha_z.as_ref().map_or(self.tau.span(), |v| v.span()),
+                    "beta_z" => gain(&d.beta_z).map_or(self.tau.span(), |v| v.span()),
+                    _ => gain(&d.alpha_x).map_or(self.tau.span(), |v| v.span()),
+                })
+            }
+            _ => None,
+        };
+        let msg = match &e {
+            LearnError::Dmp(cps_dmp::DmpError::InvalidConfig { field, rule, value }) => {
+                format!("[dmp] `{}` {rule} (got {value:?})", toml_name(field))
+            }
+            other => other.to_string(),
+        };
+        Err(match span {
+            Some(s) => at(&s, msg),
+            None => InputError(format!("{}: {msg}", path.display())),
+        })
+    }
+
+    /// The learner's configuration: the checked task and `[optimizer]`'s settings, each
+    /// checked by its owner (cps-learn), the file adding the place.
+    fn config(
+        &self,
+        path: &Path,
+        kind: Kind,
+        seed_override: Option<u64>,
+        at: &At<'_>,
+    ) -> Result<ViaPointConfig, InputError> {
+        let o = self.optimizer;
+        let bad = |section: &'static str, span: Range<usize>| {
+            move |e: cps_learn::BadSetting| at(&span, format!("[{section}] {e}"))
+        };
+        let reps = &self.experiment.repetitions;
+        let repetitions = ViaPointConfig::check_repetitions(*reps.get_ref())
+            .map_err(bad("experiment", reps.span()))?;
+        let mut config = ViaPointConfig::new(self.checked_task(path, kind, at)?);
+        config.solver = o.method;
+        config.parametrisation = o.parametrisation;
+        config.warm_start = o.warm_start;
+        config.evaluation = o.evaluation;
+        config.polish = o.polish;
+        config.repetitions = repetitions;
+        config.seed = seed_override.unwrap_or(self.experiment.seed);
+        if let Some(s) = &o.sigma0 {
+            config.sigma0 =
+                ViaPointConfig::check_sigma0(*s.get_ref()).map_err(bad("optimizer", s.span()))?;
+        }
+        if let Some(p) = &o.population {
+            let p = ViaPointConfig::check_population(*p.get_ref())
+                .map_err(bad("optimizer", p.span()))?;
+            config.population = Some(p);
+        }
+        let g = self.generations;
+        config.generations =
+            ViaPointConfig::check_generations(*g.get_ref()).map_err(bad("optimizer", g.span()))?;
+        // A setting the file leaves out keeps the library's default (as in Python and the
+        // studio): tol_fun 1e-9; 0 turns it off.
+        if let Some(t) = &o.tol_fun {
+            config.tol_fun =
+                ViaPointConfig::check_tol_fun(*t.get_ref()).map_err(bad("optimizer", t.span()))?;
+        }
+        Ok(config)
+    }
+}
+
+/// The sections a `kind = "contact"` file reads: it learns no via points, so `[dmp]`,
+/// `[task]`, `[cost]` and `[optimizer]` are refused by name (and the other kinds'
+/// sections by [`crate::plan::parse`]). The learner's configuration is the thesis's,
+/// unused.
+const CONTACT_READS: &str =
+    "kind = \"contact\" reads [experiment], [robot], [contact], [output] and [[obstacle]]";
 
 fn parse_contact(
     path: &Path,
     text: &str,
+    file: &File,
     seed_override: Option<u64>,
+    at: &At<'_>,
 ) -> Result<Experiment, InputError> {
-    let file: ContactFile = toml::from_str(text).map_err(|e| {
-        let at = e
-            .span()
-            .map(|s| location(path, text, &s))
-            .unwrap_or_else(|| path.display().to_string());
-        InputError(format!(
-            "{at}: {} (kind = \"contact\" reads [experiment], [robot], [contact], [output] and [[obstacle]])",
-            e.message()
-        ))
-    })?;
+    let learner = [
+        ("dmp", file.dmp.as_ref().map(Spanned::span)),
+        ("task", file.task.as_ref().map(Spanned::span)),
+        ("cost", file.cost.as_ref().map(Spanned::span)),
+        ("optimizer", file.optimizer.as_ref().map(Spanned::span)),
+    ];
+    if let Some((name, Some(span))) = learner.into_iter().find(|(_, s)| s.is_some()) {
+        return Err(at(
+            &span,
+            format!("unknown field `{name}`: {CONTACT_READS}"),
+        ));
+    }
     let mut config = ViaPointConfig::new(ViaPointTask::thesis());
     config.seed = seed_override.unwrap_or(file.experiment.seed);
-    let sections = crate::sections::Sections {
-        path,
-        text,
-        kind: Kind::Contact,
-        robot: file.robot.as_ref(),
-        demonstrations: None,
-        imitation: None,
-        scaling: None,
-        joint: None,
-        plant: None,
-        speedup: None,
-        orientation: None,
-        export: None,
-        promp: None,
-        contact: file.contact.as_ref(),
-        executed: None,
-        clearance: None,
-        obstacle: &file.obstacle,
-    };
-    let plans = crate::plan::parse(&sections, &config)?;
-    no_world_without_robot(&file.obstacle, plans.robot.is_none(), path, text)?;
+    let plans = crate::plan::parse(&file.sections(path, text, Kind::Contact), &config)?;
+    no_world_without_robot(&file.obstacle, plans.robot.is_none(), at)?;
     let name = file.experiment.name.clone().unwrap_or_else(|| {
         path.file_stem()
             .map_or("contact".into(), |s| s.to_string_lossy().into_owned())
@@ -623,14 +690,13 @@ fn parse_contact(
 fn no_world_without_robot(
     obstacles: &[Spanned<cps_movement::scene::ObstacleEntry>],
     no_robot: bool,
-    path: &Path,
-    text: &str,
+    at: &At<'_>,
 ) -> Result<(), InputError> {
     match obstacles.first() {
-        Some(o) if no_robot => Err(InputError(format!(
-            "{}: [[obstacle]] places things in the robot's world, and this experiment has no [robot] (a point a learned path keeps clear of without a robot is a [[task.obstacles]])",
-            location(path, text, &o.span())
-        ))),
+        Some(o) if no_robot => Err(at(
+            &o.span(),
+            "[[obstacle]] places things in the robot's world, and this experiment has no [robot] (a point a learned path keeps clear of without a robot is a [[task.obstacles]])".into(),
+        )),
         _ => Ok(()),
     }
 }
@@ -688,29 +754,32 @@ fn add_scene_obstacles(
 }
 
 /// The keys that scale an experiment's cost, with how far each is from an ordinary value.
-fn budget_factors(file: &File, exp: &Experiment) -> crate::budget::Factors {
+fn budget_factors(file: &File, learner: &Learner<'_>, exp: &Experiment) -> crate::budget::Factors {
     let c = &exp.config;
-    let d = &file.dmp;
-    let o = &file.optimizer;
+    let o = learner.optimizer;
     let samples = (c.task.dmp.tau / c.task.dmp.dt).round() + 1.0;
     let mut keys = vec![
         (
             "[dmp] `dt`",
-            format!("{} (with tau = {} s)", d.dt.get_ref(), d.tau.get_ref()),
+            format!(
+                "{} (with tau = {} s)",
+                learner.dt.get_ref(),
+                learner.tau.get_ref()
+            ),
             samples / 1001.0,
-            d.dt.span(),
+            learner.dt.span(),
         ),
         (
             "[dmp] `basis_functions`",
-            d.basis_functions.get_ref().to_string(),
-            *d.basis_functions.get_ref() as f64 / 25.0,
-            d.basis_functions.span(),
+            learner.basis_functions.get_ref().to_string(),
+            *learner.basis_functions.get_ref() as f64 / 25.0,
+            learner.basis_functions.span(),
         ),
         (
             "[optimizer] `generations`",
-            o.generations.get_ref().to_string(),
-            *o.generations.get_ref() as f64 / 3000.0,
-            o.generations.span(),
+            learner.generations.get_ref().to_string(),
+            *learner.generations.get_ref() as f64 / 3000.0,
+            learner.generations.span(),
         ),
         (
             "[experiment] `repetitions`",
@@ -722,7 +791,7 @@ fn budget_factors(file: &File, exp: &Experiment) -> crate::budget::Factors {
             "[task] `start`",
             format!("{} dimensions", c.task.start.len()),
             c.task.start.len() as f64 / 7.0,
-            file.task.start.span(),
+            learner.start.span(),
         ),
     ];
     if let Some(p) = &o.population {
@@ -756,43 +825,45 @@ fn toml_name(field: &str) -> &str {
     }
 }
 
-/// The span of a task field named like `via[2].time`, `start[1]` or `cost.via`.
-fn locate_task_field(file: &File, field: &str) -> Option<Range<usize>> {
-    let t = &file.task;
-    let (head, index) = match field.split_once('[') {
-        Some((h, rest)) => (
-            h,
-            rest.split(']').next().and_then(|i| i.parse::<usize>().ok()),
-        ),
-        None => (field, None),
-    };
-    Some(match head {
-        "start" => t.start.span(),
-        "goal" => t.goal.span(),
-        "goal_velocity" => t.goal_velocity.as_ref()?.span(),
-        "obstacles" => {
-            let o = t.obstacles.get(index?)?;
-            if field.ends_with(".clearance") {
-                o.get_ref().clearance.span()
-            } else if field.contains(".position") {
-                o.get_ref().position.span()
-            } else {
-                o.span()
+impl Learner<'_> {
+    /// The span of a task field named like `via[2].time`, `start[1]` or `cost.via`.
+    fn locate_task_field(&self, field: &str) -> Option<Range<usize>> {
+        let t = self.task;
+        let (head, index) = match field.split_once('[') {
+            Some((h, rest)) => (
+                h,
+                rest.split(']').next().and_then(|i| i.parse::<usize>().ok()),
+            ),
+            None => (field, None),
+        };
+        Some(match head {
+            "start" => self.start.span(),
+            "goal" => self.goal.span(),
+            "goal_velocity" => t.goal_velocity.as_ref()?.span(),
+            "obstacles" => {
+                let o = t.obstacles.get(index?)?;
+                if field.ends_with(".clearance") {
+                    o.get_ref().clearance.span()
+                } else if field.contains(".position") {
+                    o.get_ref().position.span()
+                } else {
+                    o.span()
+                }
             }
-        }
-        "via" => {
-            let v = t.via.get(index?)?;
-            if field.ends_with(".time") {
-                v.get_ref().time.span()
-            } else if field.contains(".position") {
-                v.get_ref().position.span()
-            } else {
-                v.span()
+            "via" => {
+                let v = t.via.get(index?)?;
+                if field.ends_with(".time") {
+                    v.get_ref().time.span()
+                } else if field.contains(".position") {
+                    v.get_ref().position.span()
+                } else {
+                    v.span()
+                }
             }
-        }
-        _ if head.starts_with("cost") => file.cost.as_ref()?.span(),
-        _ => return None,
-    })
+            _ if head.starts_with("cost") => self.cost?.span(),
+            _ => return None,
+        })
+    }
 }
 
 #[cfg(test)]
@@ -868,6 +939,23 @@ mod tests {
         c.sigma0 = -1.0;
         let e = viapoint_toml("x", &c, "").unwrap_err().0;
         assert!(e.contains("`sigma0` must be"), "{e}");
+    }
+
+    /// One pass, one schema: a syntax error is not valid TOML; the keys a learning kind
+    /// needs are required by it, named with their section.
+    #[test]
+    fn the_file_is_read_once_and_each_kind_requires_its_own() {
+        let e = check("[experiment\nkind = 1").unwrap_err().0;
+        assert!(e.starts_with("x.toml:1:") && e.contains("not valid TOML"), "{e}");
+        let e = check(&SHIPPED.replace("tau = 10.0", "")).unwrap_err().0;
+        let line = SHIPPED.lines().position(|l| l == "[dmp]").unwrap() + 1;
+        assert!(e.starts_with(&format!("x.toml:{line}:1: missing field `tau` in [dmp]")), "{e}");
+        let without = SHIPPED.replace("[optimizer]", "[optimizer_]");
+        let e = check(&without).unwrap_err().0;
+        assert!(e.contains("unknown field `optimizer_`"), "{e}");
+        let cut = SHIPPED.find("[optimizer]").unwrap();
+        let e = check(&SHIPPED[..cut]).unwrap_err().0;
+        assert!(e.contains("missing section [optimizer] (kind = \"viapoint\""), "{e}");
     }
 
     #[test]
