@@ -104,9 +104,9 @@ def test_the_robust_formulation_learns_a_loop_back_to_its_start():
         # Ijspeert's form cannot represent start == goal: the forcing term vanishes.
         cps.imitate(t, y, formulation="ijspeert", bases=30)
     # One vocabulary: the model files' former names are refused with the present one.
-    with pytest.raises(ValueError, match='formulation "goal_robust" is now called "robust"'):
+    with pytest.raises(ValueError, match='formulation: "goal_robust" is now called "robust"'):
         cps.imitate(t, y, formulation="goal_robust", bases=30)
-    with pytest.raises(ValueError, match='unknown method "lasso" \\(known: "lwr", "ridge", "jerk"\\)'):
+    with pytest.raises(ValueError, match='method: "lasso" is not one of "lwr", "ridge", "jerk"'):
         cps.imitate(t, y, method="lasso")
 
 

@@ -601,12 +601,12 @@ fn bad_demonstrations_and_models_exit_2_and_write_nothing() {
         (
             "f.json",
             text.replace("\"robust\"", "\"schaal\""),
-            "unknown formulation \"schaal\"",
+            "formulation \"schaal\" is not one of \"ijspeert\", \"robust\"",
         ),
         (
             "former.json",
             text.replace("\"robust\"", "\"goal_robust\""),
-            "formulation \"goal_robust\" is now called \"robust\"",
+            "\"goal_robust\" is now called \"robust\"",
         ),
     ] {
         let p = write(dir.path(), name, &body);

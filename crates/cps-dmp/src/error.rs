@@ -72,8 +72,8 @@ pub enum DmpError {
     /// A name that is none of a setting's ([`crate::Formulation`], [`crate::Method`],
     /// [`crate::Combine`]); `now`: the present name of a former one.
     #[error("{}", match now {
-        Some(n) => format!("{setting} \"{given}\" is now called \"{n}\""),
-        None => format!("unknown {setting} \"{given}\" (known: {})",
+        Some(n) => format!("\"{given}\" is now called \"{n}\""),
+        None => format!("\"{given}\" is not one of {}",
             known.iter().map(|k| format!("\"{k}\"")).collect::<Vec<_>>().join(", ")),
     })]
     UnknownName {

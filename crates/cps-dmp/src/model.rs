@@ -164,7 +164,7 @@ impl DmpModel {
                 }
                 None => match f.parse::<Formulation>() {
                     Ok(k) => k,
-                    Err(e) => return Err(bad(e.to_string())),
+                    Err(e) => return Err(bad(format!("formulation {e}"))),
                 },
             };
             value["formulation"] = serde_json::Value::from(formulation.name());
@@ -266,7 +266,7 @@ mod tests {
         );
         assert!(
             err(text.replace("\"robust\"", "\"pastor\""))
-                .contains("unknown formulation \"pastor\"")
+                .contains("formulation \"pastor\" is not one of \"ijspeert\", \"robust\"")
         );
         // The former names: refused in a version 2 file with the present one, read in a
         // version 1 file (and only there).

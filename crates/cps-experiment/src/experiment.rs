@@ -946,16 +946,25 @@ mod tests {
     #[test]
     fn the_file_is_read_once_and_each_kind_requires_its_own() {
         let e = check("[experiment\nkind = 1").unwrap_err().0;
-        assert!(e.starts_with("x.toml:1:") && e.contains("not valid TOML"), "{e}");
+        assert!(
+            e.starts_with("x.toml:1:") && e.contains("not valid TOML"),
+            "{e}"
+        );
         let e = check(&SHIPPED.replace("tau = 10.0", "")).unwrap_err().0;
         let line = SHIPPED.lines().position(|l| l == "[dmp]").unwrap() + 1;
-        assert!(e.starts_with(&format!("x.toml:{line}:1: missing field `tau` in [dmp]")), "{e}");
+        assert!(
+            e.starts_with(&format!("x.toml:{line}:1: missing field `tau` in [dmp]")),
+            "{e}"
+        );
         let without = SHIPPED.replace("[optimizer]", "[optimizer_]");
         let e = check(&without).unwrap_err().0;
         assert!(e.contains("unknown field `optimizer_`"), "{e}");
         let cut = SHIPPED.find("[optimizer]").unwrap();
         let e = check(&SHIPPED[..cut]).unwrap_err().0;
-        assert!(e.contains("missing section [optimizer] (kind = \"viapoint\""), "{e}");
+        assert!(
+            e.contains("missing section [optimizer] (kind = \"viapoint\""),
+            "{e}"
+        );
     }
 
     #[test]

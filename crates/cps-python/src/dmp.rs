@@ -46,11 +46,10 @@ fn lambda(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Lambda>> {
     }
 }
 
-/// A setting by its name, as cps-dmp spells it everywhere (its refusal names the setting,
-/// which is the keyword).
-fn named<T: std::str::FromStr<Err = cps_dmp::DmpError>>(name: &str) -> PyResult<T> {
+/// A setting by its name, as cps-dmp spells it everywhere; refused after its keyword.
+fn named<T: std::str::FromStr<Err = cps_dmp::DmpError>>(keyword: &str, name: &str) -> PyResult<T> {
     name.parse()
-        .map_err(|e: cps_dmp::DmpError| value_error(e.to_string()))
+        .map_err(|e: cps_dmp::DmpError| value_error(format!("{keyword}: {e}")))
 }
 
 /// One sampled movement: `t` (samples,), `y`, `yd`, `ydd` (samples, dims). Unpacks as
@@ -219,7 +218,7 @@ impl Dmp {
             alpha_z,
             beta_z: beta_z.unwrap_or(alpha_z / 4.0),
             alpha_x: alpha_x.unwrap_or(alpha_z / 3.0),
-            formulation: named(formulation)?,
+            formulation: named("formulation", formulation)?,
             ..DmpConfig::new(bases, tau, dt)
         };
         let dmp = DiscreteDmp::new(config, &start, &goal).py()?;
@@ -758,15 +757,15 @@ pub fn imitate(
     names: Option<Vec<String>>,
 ) -> PyResult<Dmp> {
     let demos = demonstrations(t, y)?;
-    let regression = named::<Method>(method)?.regression(lambda(lambda_)?);
-    let combine: Combine = named(combine)?;
+    let regression = named::<Method>("method", method)?.regression(lambda(lambda_)?);
+    let combine: Combine = named("combine", combine)?;
     let tau = tau.unwrap_or_else(|| {
         demos.iter().map(Demonstration::duration).sum::<f64>() / demos.len() as f64
     });
     let first = &demos[0];
     let dt = dt.unwrap_or_else(|| first.duration() / (first.len() - 1) as f64);
     let config = DmpConfig {
-        formulation: named(formulation)?,
+        formulation: named("formulation", formulation)?,
         ..DmpConfig::new(bases, tau, dt)
     };
     config.validate().py()?;
