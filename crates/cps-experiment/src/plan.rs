@@ -180,16 +180,8 @@ pub(crate) struct Plans {
 
 /// Checks that each section belongs to the kind and parses them.
 pub(crate) fn parse(file: &Sections<'_>, learner: &ViaPointConfig) -> Result<Plans, InputError> {
-    let only = |span: Range<usize>, section: &str, kinds: &str| {
-        file.err(
-            &span,
-            format!(
-                "[{section}] is read only by {kinds}; this file has kind = \"{}\" (remove the section or change [experiment] kind)",
-                file.kind.name()
-            ),
-        )
-    };
-    // A pose experiment executes when it names a robot; the other two always do.
+    // A pose experiment executes when it names a robot; the other kinds that execute
+    // always do.
     let executes = matches!(
         file.kind,
         Kind::Imitation
@@ -198,15 +190,7 @@ pub(crate) fn parse(file: &Sections<'_>, learner: &ViaPointConfig) -> Result<Pla
             | Kind::ViapointExecuted
             | Kind::Contact
     ) || (file.kind == Kind::ViapointPose && file.robot.is_some());
-    if let Some(r) = file.robot
-        && !executes
-    {
-        return Err(only(
-            r.span(),
-            "robot",
-            "kind = \"imitation\", \"promp\", \"viapoint_joint\", \"viapoint_pose\", \"viapoint_executed\" and \"contact\"",
-        ));
-    }
+    file.refuse_other_kinds_sections(executes)?;
     let contact = match (file.kind, file.contact) {
         (Kind::Contact, Some(c)) => {
             let dir = file.path.parent().unwrap_or(Path::new("."));
@@ -218,61 +202,12 @@ pub(crate) fn parse(file: &Sections<'_>, learner: &ViaPointConfig) -> Result<Pla
                 file.path.display()
             )));
         }
-        (_, Some(c)) => return Err(only(c.span(), "contact", "kind = \"contact\"")),
         _ => None,
     };
-    if let Some(e) = file.executed
-        && file.kind != Kind::ViapointExecuted
-    {
-        return Err(only(e.span(), "executed", "kind = \"viapoint_executed\""));
-    }
     let export = match file.export {
-        Some(e) if !executes => {
-            return Err(only(
-                e.span(),
-                "export",
-                "experiments with a robot (kind = \"imitation\", \"viapoint_joint\", or \"viapoint_pose\" with [robot])",
-            ));
-        }
         Some(e) => Some(e.get_ref().plan(&|span, m| file.err(span, m))?),
         None => None,
     };
-    if let Some(j) = file.joint
-        && file.kind != Kind::ViapointJoint
-    {
-        return Err(only(j.span(), "joint", "kind = \"viapoint_joint\""));
-    }
-    if let Some(p) = file.plant
-        && file.kind != Kind::ViapointEnergy
-    {
-        return Err(only(p.span(), "plant", "kind = \"viapoint_energy\""));
-    }
-    if let Some(s) = file.speedup {
-        return Err(file.err(
-            &s.span(),
-            "[speedup] is no longer part of an experiment (a timing is a benchmark, and it made the run many times longer): remove the section; `cargo bench --bench core -- energy_population` measures the parallel speed-up".into(),
-        ));
-    }
-    for (span, name) in [
-        (file.demonstrations.map(Spanned::span), "demonstrations"),
-        (file.imitation.map(Spanned::span), "imitation"),
-    ] {
-        if let Some(s) = span
-            && !matches!(file.kind, Kind::Imitation | Kind::Promp)
-        {
-            return Err(only(s, name, "kind = \"imitation\" and \"promp\""));
-        }
-    }
-    if let Some(s) = file.promp
-        && file.kind != Kind::Promp
-    {
-        return Err(only(s.span(), "promp", "kind = \"promp\""));
-    }
-    if let Some(s) = file.scaling
-        && file.kind != Kind::Scaling
-    {
-        return Err(only(s.span(), "scaling", "kind = \"scaling\""));
-    }
     let robot = if executes {
         Some(file.robot_choice(learner.task.dmp.dt)?)
     } else {
@@ -290,42 +225,7 @@ pub(crate) fn parse(file: &Sections<'_>, learner: &ViaPointConfig) -> Result<Pla
             "kind = \"contact\" drives a Franka in torque mode: give [robot] backend = \"franka\" with its host".into(),
         ));
     }
-    if let Some(o) = file.orientation
-        && file.kind != Kind::ViapointPose
-    {
-        return Err(only(o.span(), "orientation", "kind = \"viapoint_pose\""));
-    }
-    let plan = match file.kind {
-        Kind::Viapoint => KindPlan::Viapoint,
-        Kind::Imitation => KindPlan::Imitation(file.imitation_plan(learner, robot.as_ref())?),
-        Kind::Promp => {
-            let imitation = file.imitation_plan(learner, robot.as_ref())?;
-            let promp = file.promp_plan(learner.task.dmp.tau, Some(&imitation))?;
-            KindPlan::Promp(imitation, promp)
-        }
-        Kind::Scaling => KindPlan::Scaling(file.scaling_plan()?),
-        Kind::ViapointJoint => {
-            let dynamics = matches!(
-                robot.as_ref().map(|r| &r.backend),
-                Some(BackendChoice::Dynamics(_))
-            );
-            KindPlan::ViapointJoint(file.joint_plan(dynamics)?)
-        }
-        Kind::ViapointEnergy => KindPlan::ViapointEnergy(file.energy_plan(learner)?),
-        Kind::ViapointPose => match file.orientation {
-            Some(o) => KindPlan::ViapointPose(file.pose_plan(o, learner)?),
-            None => {
-                return Err(InputError(format!(
-                    "{}: kind = \"viapoint_pose\" needs an [orientation] section (start, goal, one orientation per via point)",
-                    file.path.display()
-                )));
-            }
-        },
-        Kind::ViapointExecuted => KindPlan::ViapointExecuted(file.executed_plan(learner)?),
-        Kind::Contact => KindPlan::Contact(Box::new(
-            contact.expect("a contact file has its plan (above)"),
-        )),
-    };
+    let plan = file.kind_plan(learner, robot.as_ref(), contact)?;
     let clearance = file.clearance_plan(robot.as_ref())?;
     Ok(Plans {
         robot,
@@ -335,6 +235,145 @@ pub(crate) fn parse(file: &Sections<'_>, learner: &ViaPointConfig) -> Result<Pla
     })
 }
 
+/// A section's place, its name, the kinds that read it and those kinds in words.
+type Owners<'a> = (Option<Range<usize>>, &'static str, &'a [Kind], &'static str);
+
+impl Sections<'_> {
+    /// Refuses, by name, a section that another kind reads (`executes`: whether this
+    /// experiment has a robot, which `[robot]` and `[export]` need).
+    fn refuse_other_kinds_sections(&self, executes: bool) -> Result<(), InputError> {
+        use Kind::*;
+        if let Some(s) = self.speedup {
+            return Err(self.err(
+                &s.span(),
+                "[speedup] is no longer part of an experiment (a timing is a benchmark, and it made the run many times longer): remove the section; `cargo bench --bench core -- energy_population` measures the parallel speed-up".into(),
+            ));
+        }
+        let with_robot: &[Kind] = if executes { &[self.kind] } else { &[] };
+        // Each section, the kinds that read it, and those kinds in words.
+        let owners: [Owners<'_>; 11] = [
+            (
+                self.robot.map(Spanned::span),
+                "robot",
+                with_robot,
+                "kind = \"imitation\", \"promp\", \"viapoint_joint\", \"viapoint_pose\", \"viapoint_executed\" and \"contact\"",
+            ),
+            (
+                self.contact.map(Spanned::span),
+                "contact",
+                &[Contact],
+                "kind = \"contact\"",
+            ),
+            (
+                self.executed.map(Spanned::span),
+                "executed",
+                &[ViapointExecuted],
+                "kind = \"viapoint_executed\"",
+            ),
+            (
+                self.export.map(Spanned::span),
+                "export",
+                with_robot,
+                "experiments with a robot (kind = \"imitation\", \"viapoint_joint\", or \"viapoint_pose\" with [robot])",
+            ),
+            (
+                self.joint.map(Spanned::span),
+                "joint",
+                &[ViapointJoint],
+                "kind = \"viapoint_joint\"",
+            ),
+            (
+                self.plant.map(Spanned::span),
+                "plant",
+                &[ViapointEnergy],
+                "kind = \"viapoint_energy\"",
+            ),
+            (
+                self.demonstrations.map(Spanned::span),
+                "demonstrations",
+                &[Imitation, Promp],
+                "kind = \"imitation\" and \"promp\"",
+            ),
+            (
+                self.imitation.map(Spanned::span),
+                "imitation",
+                &[Imitation, Promp],
+                "kind = \"imitation\" and \"promp\"",
+            ),
+            (
+                self.promp.map(Spanned::span),
+                "promp",
+                &[Promp],
+                "kind = \"promp\"",
+            ),
+            (
+                self.scaling.map(Spanned::span),
+                "scaling",
+                &[Scaling],
+                "kind = \"scaling\"",
+            ),
+            (
+                self.orientation.map(Spanned::span),
+                "orientation",
+                &[ViapointPose],
+                "kind = \"viapoint_pose\"",
+            ),
+        ];
+        for (span, section, kinds, words) in owners {
+            if let Some(span) = span
+                && !kinds.contains(&self.kind)
+            {
+                return Err(self.err(
+                    &span,
+                    format!(
+                        "[{section}] is read only by {words}; this file has kind = \"{}\" (remove the section or change [experiment] kind)",
+                        self.kind.name()
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The kind's own plan from its sections.
+    fn kind_plan(
+        &self,
+        learner: &ViaPointConfig,
+        robot: Option<&RobotChoice>,
+        contact: Option<crate::sections::contact::ContactSpec>,
+    ) -> Result<KindPlan, InputError> {
+        Ok(match self.kind {
+            Kind::Viapoint => KindPlan::Viapoint,
+            Kind::Imitation => KindPlan::Imitation(self.imitation_plan(learner, robot)?),
+            Kind::Promp => {
+                let imitation = self.imitation_plan(learner, robot)?;
+                let promp = self.promp_plan(learner.task.dmp.tau, Some(&imitation))?;
+                KindPlan::Promp(imitation, promp)
+            }
+            Kind::Scaling => KindPlan::Scaling(self.scaling_plan()?),
+            Kind::ViapointJoint => {
+                let dynamics =
+                    matches!(robot.map(|r| &r.backend), Some(BackendChoice::Dynamics(_)));
+                KindPlan::ViapointJoint(self.joint_plan(dynamics)?)
+            }
+            Kind::ViapointEnergy => KindPlan::ViapointEnergy(self.energy_plan(learner)?),
+            Kind::ViapointPose => match self.orientation {
+                Some(o) => KindPlan::ViapointPose(self.pose_plan(o, learner)?),
+                None => {
+                    return Err(InputError(format!(
+                        "{}: kind = \"viapoint_pose\" needs an [orientation] section (start, goal, one orientation per via point)",
+                        self.path.display()
+                    )));
+                }
+            },
+            Kind::ViapointExecuted => KindPlan::ViapointExecuted(self.executed_plan(learner)?),
+            Kind::Contact => KindPlan::Contact(Box::new(
+                contact.expect("a contact file has its plan (parse reads it first)"),
+            )),
+        })
+    }
+}
+
 impl Experiment {
     /// The plan in words, for `check`: what is learned, by which search with what budget,
     /// and where it is executed.
@@ -342,17 +381,16 @@ impl Experiment {
         if let Some(c) = self.contact() {
             return c.describe(self.robot.as_ref().map(|r| r.describe()));
         }
-        let c = &self.config;
-        let task = &c.task;
+        let task = &self.config.task;
         let bases = task.dmp.n_basis;
-        let via = task.via.len();
         let (dims, what) = match (self.kind(), &self.robot) {
             (Kind::ViapointJoint, Some(r)) => (r.setup.chain.dof(), "joint DMPs"),
             _ => (task.start.len(), "position DMPs"),
         };
         let mut learns = format!(
-            "learns: {dims} {what} × {bases} basis functions = {} weights, through {via} via point(s) in {} s",
+            "learns: {dims} {what} × {bases} basis functions = {} weights, through {} via point(s) in {} s",
             dims * bases,
+            task.via.len(),
             task.dmp.tau
         );
         if self.kind() == Kind::ViapointPose {
@@ -360,64 +398,48 @@ impl Experiment {
                 ", and 1 orientation DMP × {bases} (3 × {bases} weights)"
             ));
         }
+        let mut lines = vec![learns, format!("search: {}", self.search_words(dims))];
+        if let Some(r) = &self.robot {
+            lines.push(format!(
+                "robot: {} joints, scene {}, executed on the {} backend",
+                r.setup.chain.dof(),
+                r.scene,
+                r.describe()
+            ));
+        }
+        lines.extend(self.clearance_words());
+        lines.extend(self.export_words());
+        lines
+    }
+
+    /// CMA-ES's budget in words, for `dims` learned dimensions.
+    fn cmaes_words(&self, dims: usize, generations: u64, repetitions: usize) -> String {
+        let c = &self.config;
+        let bases = c.task.dmp.n_basis;
         let population = c
             .population
             .unwrap_or_else(|| cps_cmaes::Parameters::default_lambda((dims * bases).max(1)));
-        let cmaes = |generations: u64, repetitions: usize| {
-            format!(
-                "CMA-ES{}, population {population}, up to {generations} generations × {repetitions} repetition(s){}",
-                if self.kind() == Kind::Scaling {
-                    String::new()
-                } else {
-                    format!(" in the {} search space", c.parametrisation.name())
-                },
-                if c.warm_start {
-                    ", warm-started at the exact optimum"
-                } else {
-                    ""
-                }
-            )
-        };
-        let search = match (self.kind(), c.solver) {
-            (Kind::Imitation | Kind::Promp, _)
-                if self.imitation().is_some_and(|p| !p.takes.is_empty()) =>
-            {
-                let p = self.imitation();
-                let takes = p.map_or(Vec::new(), |p| {
-                    p.takes.iter().map(|t| t.name.clone()).collect::<Vec<_>>()
-                });
-                format!(
-                    "{} given demonstrations ({}), each checked and executed from its own start; their mean imitated by ridge and jerk-regularised ridge with {} basis functions over {:.2} s",
-                    takes.len(),
-                    takes.join(", "),
-                    p.map_or(0, |p| p.dmp.n_basis),
-                    p.map_or(0.0, |p| p.dmp.tau)
-                ) + &self.promp().map_or(String::new(), |p| {
-                    format!(
-                        "; then a ProMP of the executed demonstrations ({} basis functions per axis) conditioned on {:?} m at {} s, its mean executed",
-                        p.bases, p.position, p.time
-                    )
-                })
+        format!(
+            "CMA-ES{}, population {population}, up to {generations} generations × {repetitions} repetition(s){}",
+            if self.kind() == Kind::Scaling {
+                String::new()
+            } else {
+                format!(" in the {} search space", c.parametrisation.name())
+            },
+            if c.warm_start {
+                ", warm-started at the exact optimum"
+            } else {
+                ""
             }
-            (Kind::Imitation | Kind::Promp, solver) => {
-                let p = self.imitation();
-                format!(
-                    "{} demonstrations (via points moved by N(0, {}²) m), each learned by {}; their mean imitated by ridge and jerk-regularised ridge with {} basis functions",
-                    p.map_or(0, |p| p.demonstrations),
-                    p.map_or(0.0, |p| p.via_std),
-                    match solver {
-                        cps_learn::Solver::Exact => "the exact solver (no search)".to_string(),
-                        cps_learn::Solver::LeastSquares => "Levenberg–Marquardt".to_string(),
-                        cps_learn::Solver::Cmaes => cmaes(c.generations, 1),
-                    },
-                    p.map_or(0, |p| p.dmp.n_basis)
-                ) + &self.promp().map_or(String::new(), |p| {
-                    format!(
-                        "; then a ProMP of the executed demonstrations ({} basis functions per axis) conditioned on {:?} m at {} s, its mean executed",
-                        p.bases, p.position, p.time
-                    )
-                })
-            }
+        )
+    }
+
+    /// How the kind searches, in words.
+    fn search_words(&self, dims: usize) -> String {
+        let c = &self.config;
+        let cmaes = |generations, repetitions| self.cmaes_words(dims, generations, repetitions);
+        match (self.kind(), c.solver) {
+            (Kind::Imitation | Kind::Promp, solver) => self.imitation_words(solver, dims),
             (Kind::Viapoint, cps_learn::Solver::Exact) => {
                 "the exact least-squares optimum (no search)".to_string()
             }
@@ -458,58 +480,89 @@ impl Experiment {
                     Some(LearnOn::Execution) => format!(
                         "{model}; then on the executions: Levenberg–Marquardt, up to {} iterations, each candidate run on the robot with dynamics ({} s, a Jacobian of {} runs kept while its steps gain)",
                         c.generations,
-                        task.dmp.tau,
-                        dims * bases
+                        c.task.dmp.tau,
+                        dims * c.task.dmp.n_basis
                     ),
                     _ => model,
                 }
             }
             (_, _) => cmaes(c.generations, c.repetitions),
+        }
+    }
+
+    /// How imitation and ProMP experiments get and learn their demonstrations, in words.
+    fn imitation_words(&self, solver: cps_learn::Solver, dims: usize) -> String {
+        let c = &self.config;
+        let p = self.imitation();
+        let learned = if let Some(p) = p.filter(|p| !p.takes.is_empty()) {
+            let takes: Vec<String> = p.takes.iter().map(|t| t.name.clone()).collect();
+            format!(
+                "{} given demonstrations ({}), each checked and executed from its own start; their mean imitated by ridge and jerk-regularised ridge with {} basis functions over {:.2} s",
+                takes.len(),
+                takes.join(", "),
+                p.dmp.n_basis,
+                p.dmp.tau
+            )
+        } else {
+            format!(
+                "{} demonstrations (via points moved by N(0, {}²) m), each learned by {}; their mean imitated by ridge and jerk-regularised ridge with {} basis functions",
+                p.map_or(0, |p| p.demonstrations),
+                p.map_or(0.0, |p| p.via_std),
+                match solver {
+                    cps_learn::Solver::Exact => "the exact solver (no search)".to_string(),
+                    cps_learn::Solver::LeastSquares => "Levenberg–Marquardt".to_string(),
+                    cps_learn::Solver::Cmaes => self.cmaes_words(dims, c.generations, 1),
+                },
+                p.map_or(0, |p| p.dmp.n_basis)
+            )
         };
-        let mut lines = vec![learns, format!("search: {search}")];
-        if let Some(r) = &self.robot {
-            lines.push(format!(
-                "robot: {} joints, scene {}, executed on the {} backend",
-                r.setup.chain.dof(),
-                r.scene,
-                r.describe()
-            ));
-        }
-        if let Some(k) = &self.clearance {
-            let c = &k.clearance;
-            let how = match self.kind() {
-                Kind::ViapointJoint => "in the cost".to_string(),
-                Kind::ViapointExecuted => "in every execution's cost".to_string(),
-                _ => format!(
-                    "after learning, on the model (Levenberg–Marquardt, up to {} iterations)",
-                    k.iterations
-                ),
-            };
-            lines.push(format!(
-                "clearance: {:.1} mm between every pair of the robot's {} collision shapes and its world's {} obstacle(s), weight {:e} per m², {how}",
-                c.distance * 1e3,
-                c.shapes.bodies().len(),
-                c.shapes.obstacles().len(),
-                c.weight
-            ));
-        }
-        if let Some(e) = &self.export {
-            let formats: Vec<&str> = e.formats.iter().map(|f| f.file_name()).collect();
-            lines.push(format!(
-                "export: {}{}",
-                e.retime
-                    .map_or("the movement's own timing".to_string(), |m| format!(
-                        "the movement retimed ({}) at 1 kHz",
-                        m.name()
-                    )),
-                if formats.is_empty() {
-                    String::new()
-                } else {
-                    format!(", written as {}", formats.join(", "))
-                }
-            ));
-        }
-        lines
+        learned
+            + &self.promp().map_or(String::new(), |p| {
+                format!(
+                    "; then a ProMP of the executed demonstrations ({} basis functions per axis) conditioned on {:?} m at {} s, its mean executed",
+                    p.bases, p.position, p.time
+                )
+            })
+    }
+
+    /// The clearance kept, in words (none without a `[clearance]`).
+    fn clearance_words(&self) -> Option<String> {
+        let k = self.clearance.as_ref()?;
+        let c = &k.clearance;
+        let how = match self.kind() {
+            Kind::ViapointJoint => "in the cost".to_string(),
+            Kind::ViapointExecuted => "in every execution's cost".to_string(),
+            _ => format!(
+                "after learning, on the model (Levenberg–Marquardt, up to {} iterations)",
+                k.iterations
+            ),
+        };
+        Some(format!(
+            "clearance: {:.1} mm between every pair of the robot's {} collision shapes and its world's {} obstacle(s), weight {:e} per m², {how}",
+            c.distance * 1e3,
+            c.shapes.bodies().len(),
+            c.shapes.obstacles().len(),
+            c.weight
+        ))
+    }
+
+    /// What is exported, in words (none without an `[export]`).
+    fn export_words(&self) -> Option<String> {
+        let e = self.export.as_ref()?;
+        let formats: Vec<&str> = e.formats.iter().map(|f| f.file_name()).collect();
+        Some(format!(
+            "export: {}{}",
+            e.retime
+                .map_or("the movement's own timing".to_string(), |m| format!(
+                    "the movement retimed ({}) at 1 kHz",
+                    m.name()
+                )),
+            if formats.is_empty() {
+                String::new()
+            } else {
+                format!(", written as {}", formats.join(", "))
+            }
+        ))
     }
 
     /// What `cps-cli check` prints for this experiment run on `threads` threads: `ok` and
