@@ -203,69 +203,9 @@ pub(crate) fn run(
         .map_or(exp.config.task.dmp.dt, |(_, b)| b.dt());
     let mut pool = SimulatorPool::new(opened);
     let mut x0 = optimum.params.clone();
-    // With [clearance], the warm start is first kept clear on the model: the guard would
-    // refuse every candidate near one that is not.
-    let kept = match &exp.clearance {
-        Some(k) => {
-            let anchor = cps_learn::task_anchor(task, &dmp, &space);
-            let targets = |theta: &[f64]| targets_at(&dmp.rollout(&space.weights(theta)), dt).1;
-            let keep = cps_learn::KeepClear {
-                clearance: &k.clearance,
-                robot: &robot.setup,
-                dt,
-                iterations: k.iterations,
-            };
-            let kept = ctx
-                .pool
-                .install(|| {
-                    cps_learn::keep_clear(&keep, x0.clone(), &anchor, &targets, &|r| {
-                        ctx.generation(r)
-                    })
-                })
-                .map_err(|e| learn_error(e, "keeping the warm start clear on the model"))?;
-            x0.clone_from(&kept.theta);
-            Some(KeptClearSummary::new(&kept))
-        }
-        None => None,
-    };
+    let kept = keep_warm_start_clear(ctx, &judge, dt, &mut x0)?;
     let n = x0.len();
-    // The warm start is executed whole on a simulator even once a stop is asked (seconds of
-    // simulated motion), so an interrupted run keeps one judged execution; a real robot
-    // (a Franka, a ROS 2 arm) stops at once as always.
-    let never = StopToken::new();
-    let warm_judge = Judge {
-        stop: if robot.backend.is_simulator() {
-            &never
-        } else {
-            ctx.stop
-        },
-        ..judge
-    };
-    let warm = match pool.run(1, &|_, b| warm_judge.judge(&x0, b)) {
-        Ok(mut w) => w.remove(0),
-        Err(e) => {
-            return Err(ExperimentError::Message(pool_failure(
-                e,
-                &pool,
-                "executing the warm start",
-            )));
-        }
-    };
-    if let Some(reason) = &warm.refused {
-        return Err(ExperimentError::Message(format!(
-            "executing the warm start (the analytic cost's exact optimum{}): the guard refused it: {reason}{}",
-            if kept.is_some() {
-                ", kept clear on the model"
-            } else {
-                ""
-            },
-            if kept.is_some() || robot.model.shapes.is_none() {
-                ""
-            } else {
-                "; [clearance] (a distance) learns a movement that keeps clear of the robot's shapes and its world"
-            }
-        )));
-    }
+    let warm = execute_warm_start(ctx, &judge, &mut pool, &x0, kept.is_some())?;
     let warm_cost = warm.cost.total();
     let warm_recording = robot.model.shapes.as_ref().map(|_| warm.recording.clone());
     let executions = Executions {
@@ -348,21 +288,7 @@ pub(crate) fn run(
         tracking_cost: best.cost.tracking,
         speed_usage_cost: best.cost.speed_usage,
         clearance_cost: best.cost.clearance,
-        clearance: match (&robot.model.shapes, &warm_recording) {
-            (Some(shapes), Some(warm)) => Some(
-                ClearanceSummary::new(
-                    shapes,
-                    &robot.setup.chain,
-                    exp.clearance.as_ref().map(|c| c.clearance.distance),
-                    &Joints::of_recording(&best.recording),
-                    &Joints::of_recording(warm),
-                )
-                .map_err(|e| {
-                    ExperimentError::Message(format!("the executed joints' shapes: {e}"))
-                })?,
-            ),
-            _ => None,
-        },
+        clearance: clearance_summary(ctx, robot, &best.recording, warm_recording.as_ref())?,
         analytic_cost: task.cost(&best.trajectory),
         goal_error_m: best.errors.goal,
         via_errors_m: &best.errors.via,
@@ -374,7 +300,122 @@ pub(crate) fn run(
     let mut header = ctx.header(!interrupted && failure.is_none());
     header.failure = failure.clone();
     let lines = lines(ctx, &summary, failure.as_deref());
-    let figures = position_figures(
+    let figures = figures(task, &best, &history);
+    let report = report(ctx, &summary);
+    let tables = vec![
+        history_table(&[("CMA-ES", &history)]),
+        executed_table(&best),
+    ];
+    Ok(movement.outcome(header, report, fields(&summary), tables, figures, lines))
+}
+
+/// How close the best and the warm start's executions came to the robot's world, when
+/// the robot has collision shapes.
+fn clearance_summary(
+    ctx: &Ctx<'_>,
+    robot: &RobotChoice,
+    best: &Recording,
+    warm: Option<&Recording>,
+) -> Result<Option<ClearanceSummary>, ExperimentError> {
+    let (Some(shapes), Some(warm)) = (&robot.model.shapes, warm) else {
+        return Ok(None);
+    };
+    ClearanceSummary::new(
+        shapes,
+        &robot.setup.chain,
+        ctx.exp.clearance.as_ref().map(|c| c.clearance.distance),
+        &Joints::of_recording(best),
+        &Joints::of_recording(warm),
+    )
+    .map(Some)
+    .map_err(|e| ExperimentError::Message(format!("the executed joints' shapes: {e}")))
+}
+
+/// With [clearance], the warm start `x0` is first kept clear on the model (the guard would
+/// refuse every candidate near one that is not): what that did.
+fn keep_warm_start_clear(
+    ctx: &Ctx<'_>,
+    judge: &Judge<'_>,
+    dt: f64,
+    x0: &mut Vec<f64>,
+) -> Result<Option<KeptClearSummary>, ExperimentError> {
+    let Some(k) = &ctx.exp.clearance else {
+        return Ok(None);
+    };
+    let (dmp, space) = (judge.dmp, judge.space);
+    let anchor = cps_learn::task_anchor(judge.task, dmp, space);
+    let targets = |theta: &[f64]| targets_at(&dmp.rollout(&space.weights(theta)), dt).1;
+    let keep = cps_learn::KeepClear {
+        clearance: &k.clearance,
+        robot: &judge.robot.setup,
+        dt,
+        iterations: k.iterations,
+    };
+    let kept = ctx
+        .pool
+        .install(|| {
+            cps_learn::keep_clear(&keep, x0.clone(), &anchor, &targets, &|r| ctx.generation(r))
+        })
+        .map_err(|e| learn_error(e, "keeping the warm start clear on the model"))?;
+    x0.clone_from(&kept.theta);
+    Ok(Some(KeptClearSummary::new(&kept)))
+}
+
+/// The warm start `x0` executed and judged (`kept`: kept clear on the model first). A
+/// simulator executes it whole even once a stop is asked (seconds of simulated motion), so
+/// an interrupted run keeps one judged execution; a real robot stops at once as always.
+fn execute_warm_start(
+    ctx: &Ctx<'_>,
+    judge: &Judge<'_>,
+    pool: &mut SimulatorPool,
+    x0: &[f64],
+    kept: bool,
+) -> Result<Judged, ExperimentError> {
+    let robot = judge.robot;
+    let never = StopToken::new();
+    let warm_judge = Judge {
+        stop: if robot.backend.is_simulator() {
+            &never
+        } else {
+            ctx.stop
+        },
+        ..*judge
+    };
+    let warm = match pool.run(1, &|_, b| warm_judge.judge(x0, b)) {
+        Ok(mut w) => w.remove(0),
+        Err(e) => {
+            return Err(ExperimentError::Message(pool_failure(
+                e,
+                pool,
+                "executing the warm start",
+            )));
+        }
+    };
+    match &warm.refused {
+        None => Ok(warm),
+        Some(reason) => Err(ExperimentError::Message(format!(
+            "executing the warm start (the analytic cost's exact optimum{}): the guard refused it: {reason}{}",
+            if kept {
+                ", kept clear on the model"
+            } else {
+                ""
+            },
+            if kept || robot.model.shapes.is_none() {
+                ""
+            } else {
+                "; [clearance] (a distance) learns a movement that keeps clear of the robot's shapes and its world"
+            }
+        ))),
+    }
+}
+
+/// The best candidate commanded and executed, and the search's history.
+fn figures(
+    task: &cps_learn::ViaPointTask,
+    best: &Judged,
+    history: &[cps_learn::GenerationRecord],
+) -> Vec<cps_outcome::outcome::Figure> {
+    position_figures(
         vec![
             cps_movement::movement::trajectory_series("commanded", &best.trajectory),
             Series::new(
@@ -390,14 +431,8 @@ pub(crate) fn run(
         "The best candidate's path in 3-D, commanded and executed, world frame.",
     )
     .into_iter()
-    .chain(search_figure(&[("CMA-ES on the executed cost", &history)]))
-    .collect();
-    let report = report(ctx, &summary);
-    let tables = vec![
-        history_table(&[("CMA-ES", &history)]),
-        executed_table(&best),
-    ];
-    Ok(movement.outcome(header, report, fields(&summary), tables, figures, lines))
+    .chain(search_figure(&[("CMA-ES on the executed cost", history)]))
+    .collect()
 }
 
 /// Why the search ended before its rules said: a stop asked, or no simulator left.
