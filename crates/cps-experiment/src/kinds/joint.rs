@@ -299,7 +299,22 @@ pub(crate) fn run(ctx: &Ctx<'_>, plan: crate::plan::JointPlan) -> Result<Outcome
             None => None,
         },
     };
-    // The tool in task space, through forward kinematics.
+    let dof = traj.dims();
+    let tool = tool_path(&config, traj)?;
+    let mut tables = vec![trajectory_table(traj, &tool)];
+    tables.extend(recording.as_ref().map(|r| recording_table(r, dof)));
+    tables.push(history_table(&[("joints", &outcome.search.history)]));
+    let figures = figures(ctx, &config, &outcome, refined.as_ref(), traj, tool)?;
+    let lines = lines(ctx, &outcome, &summary, errors, limits);
+    let report = report(ctx, &summary);
+    Ok(movement.outcome(header, report, fields(&summary), tables, figures, lines))
+}
+
+/// The tool in task space along `traj`, through forward kinematics.
+fn tool_path(
+    config: &JointSpaceConfig,
+    traj: &Trajectory,
+) -> Result<[Vec<f64>; 3], ExperimentError> {
     let dof = traj.dims();
     let mut tool: [Vec<f64>; 3] = Default::default();
     for k in 0..traj.n_samples() {
@@ -315,10 +330,21 @@ pub(crate) fn run(ctx: &Ctx<'_>, plan: crate::plan::JointPlan) -> Result<Outcome
             tool[d].push(p[d]);
         }
     }
-    let mut tables = vec![trajectory_table(traj, &tool)];
-    tables.extend(recording.as_ref().map(|r| recording_table(r, dof)));
-    tables.push(history_table(&[("joints", &outcome.search.history)]));
-    let mut figures = vec![joints_figure(ctx, traj, &outcome, &config)];
+    Ok(tool)
+}
+
+/// The joints, their speeds against their limits, the tool commanded (and executed, when
+/// learned on the executions), and the search.
+fn figures(
+    ctx: &Ctx<'_>,
+    config: &JointSpaceConfig,
+    outcome: &JointSpaceOutcome,
+    refined: Option<&ExecutedJointOutcome>,
+    traj: &Trajectory,
+    tool: [Vec<f64>; 3],
+) -> Result<Vec<Figure>, ExperimentError> {
+    let dof = traj.dims();
+    let mut figures = vec![joints_figure(ctx, traj, outcome, config)];
     // Joint speeds with the speed limits (the trajectory's `q1_vel…` columns).
     let speed_limits = config
         .robot
@@ -349,21 +375,21 @@ pub(crate) fn run(ctx: &Ctx<'_>, plan: crate::plan::JointPlan) -> Result<Outcome
         traj.times().to_vec(),
         tool.to_vec(),
     )];
-    if let Some(r) = &refined {
+    if let Some(r) = refined {
         tools.push(executed_tool(
             "executed (robot with dynamics)",
             &r.executed,
-            &config,
+            config,
         )?);
         tools.push(executed_tool(
             "model-learned command, executed",
             &r.warm_start_executed,
-            &config,
+            config,
         )?);
     }
     figures.extend(position_figures(
         tools,
-        way_points(&exp.config.task),
+        way_points(&ctx.exp.config.task),
         "The tool in task space (forward kinematics), with the start, the via points p1… and the goal.",
         "The tool's path in 3-D.",
     ));
@@ -373,14 +399,31 @@ pub(crate) fn run(ctx: &Ctx<'_>, plan: crate::plan::JointPlan) -> Result<Outcome
         None,
     ));
     figures.extend(search_figure(&[("CMA-ES", &outcome.search.history)]));
+    Ok(figures)
+}
+
+/// The terminal's lines: the search, the errors, the limits, the clearance, the
+/// execution.
+fn lines(
+    ctx: &Ctx<'_>,
+    outcome: &JointSpaceOutcome,
+    summary: &Summary<'_>,
+    errors: &TaskErrors,
+    limits: LimitReport,
+) -> Vec<String> {
+    let robot = ctx
+        .exp
+        .robot
+        .as_ref()
+        .map_or(String::new(), |r| r.describe());
     let mut lines = vec![
         format!(
             "{}: {} in {:.2} s ({} generations, {})",
-            exp.name,
+            ctx.exp.name,
             outcome.search.termination,
             ctx.wall(),
             outcome.search.generations,
-            robot.describe()
+            robot
         ),
         format!(
             "  cost {:.6e} (warm start {:.6e}); goal error {:.3} mm, worst via-point error {:.3} mm (task space, through forward kinematics)",
@@ -429,8 +472,7 @@ pub(crate) fn run(ctx: &Ctx<'_>, plan: crate::plan::JointPlan) -> Result<Outcome
             }
         ));
     }
-    let report = report(ctx, &summary);
-    Ok(movement.outcome(header, report, fields(&summary), tables, figures, lines))
+    lines
 }
 
 /// The tool where the robot put it, through forward kinematics of its executed joints.
