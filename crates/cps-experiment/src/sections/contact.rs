@@ -111,6 +111,56 @@ impl ContactSection {
                 )),
             }
         };
+        let (above, direction) = self.approach(err)?;
+        let gains = self.gains(err)?;
+        let force_gains = self.force_gains(err)?;
+        let drive = match &self.drive {
+            None => Drive::Rigid,
+            Some(d) => Drive::parse(d.get_ref()).ok_or_else(|| {
+                err(
+                    &d.span(),
+                    format!(
+                        "[contact] drive: `{}` is not one of {}",
+                        d.get_ref(),
+                        Drive::NAMES
+                    ),
+                )
+            })?,
+        };
+        let (primitive, profile) = self.primitive(dir, err)?;
+        let plan = ContactPlan {
+            above,
+            direction,
+            search: number(&self.search, "search")?,
+            speed: number(&self.speed, "speed")?,
+            detect: number(&self.detect, "detect")?,
+            ceiling: number(&self.ceiling, "ceiling")?,
+            retreat: number(&self.retreat, "retreat")?,
+            error_gain: number(&self.error_gain, "error_gain")?,
+            gains,
+            force_gains,
+            sensing: Default::default(),
+            primitive,
+        };
+        plan.check().map_err(|e| {
+            let span = self
+                .ceiling
+                .as_ref()
+                .map_or(self.above.span(), |c| c.span());
+            err(&span, format!("[contact] {}", e.0))
+        })?;
+        Ok(ContactSpec {
+            plan,
+            drive,
+            profile,
+        })
+    }
+
+    /// Where the approach starts and the direction it moves in.
+    fn approach(
+        &self,
+        err: &dyn Fn(&Range<usize>, String) -> InputError,
+    ) -> Result<([f64; 3], [f64; 3]), InputError> {
         let above = *self.above.get_ref();
         if above.iter().any(|v| !v.is_finite() || v.abs() > 1.5) {
             return Err(err(
@@ -133,6 +183,14 @@ impl ContactSection {
                 "[contact] `direction` must be a non-zero, finite vector".into(),
             ));
         }
+        Ok((above, direction))
+    }
+
+    /// The Cartesian impedance's gains.
+    fn gains(
+        &self,
+        err: &dyn Fn(&Range<usize>, String) -> InputError,
+    ) -> Result<cps_franka::control::CartesianGains, InputError> {
         let gains_default = cps_franka::control::CartesianGains {
             translation: [2000.0; 3],
             rotation: [150.0; 3],
@@ -153,6 +211,14 @@ impl ContactSection {
                 g
             }
         };
+        Ok(gains)
+    }
+
+    /// The force loop's gains: kp, ki, damping.
+    fn force_gains(
+        &self,
+        err: &dyn Fn(&Range<usize>, String) -> InputError,
+    ) -> Result<(f64, f64, f64), InputError> {
         let force_gains = match &self.force_gains {
             None => (0.2, 5.0, 30.0),
             Some(f) => {
@@ -170,19 +236,16 @@ impl ContactSection {
                 (kp, ki, d)
             }
         };
-        let drive = match &self.drive {
-            None => Drive::Rigid,
-            Some(d) => Drive::parse(d.get_ref()).ok_or_else(|| {
-                err(
-                    &d.span(),
-                    format!(
-                        "[contact] drive: `{}` is not one of {}",
-                        d.get_ref(),
-                        Drive::NAMES
-                    ),
-                )
-            })?,
-        };
+        Ok(force_gains)
+    }
+
+    /// The force profile, from a demonstration file (relative to `dir`) or way points,
+    /// and where it came from.
+    fn primitive(
+        &self,
+        dir: &Path,
+        err: &dyn Fn(&Range<usize>, String) -> InputError,
+    ) -> Result<(ForcePrimitive, String), InputError> {
         let (primitive, profile) = match (&self.demonstration, self.waypoints.first()) {
             (Some(d), Some(_)) => {
                 return Err(err(
@@ -232,32 +295,7 @@ impl ContactSection {
                 (p, "waypoints".to_string())
             }
         };
-        let plan = ContactPlan {
-            above,
-            direction,
-            search: number(&self.search, "search")?,
-            speed: number(&self.speed, "speed")?,
-            detect: number(&self.detect, "detect")?,
-            ceiling: number(&self.ceiling, "ceiling")?,
-            retreat: number(&self.retreat, "retreat")?,
-            error_gain: number(&self.error_gain, "error_gain")?,
-            gains,
-            force_gains,
-            sensing: Default::default(),
-            primitive,
-        };
-        plan.check().map_err(|e| {
-            let span = self
-                .ceiling
-                .as_ref()
-                .map_or(self.above.span(), |c| c.span());
-            err(&span, format!("[contact] {}", e.0))
-        })?;
-        Ok(ContactSpec {
-            plan,
-            drive,
-            profile,
-        })
+        Ok((primitive, profile))
     }
 }
 
