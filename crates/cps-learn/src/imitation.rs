@@ -18,6 +18,7 @@
 //! 5. **Execution of the imitations**, recorded like the demonstrations.
 
 use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Instant;
 
 use cps_dmp::{Combine, DmpConfig, Imitation, Imitator, Lambda, Regression, Trajectory};
@@ -350,26 +351,109 @@ pub fn run_imitation(
         complete: false,
         failure: None,
     };
-    let n = config.demonstrations;
-    let halt = std::sync::atomic::AtomicBool::new(false);
-    let done = std::sync::atomic::AtomicUsize::new(0);
-    let report = |stage, total| {
-        let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-        if progress(stage, d, total).is_break() {
-            halt.store(true, std::sync::atomic::Ordering::Relaxed);
-        }
+    let p = Progress {
+        callback: progress,
+        halt: AtomicBool::new(false),
+        done: AtomicUsize::new(0),
     };
-    let stopped = || halt.load(std::sync::atomic::Ordering::Relaxed);
-
-    // 1. Learn the demonstrations, in parallel (or take the given ones).
+    let ik = IkConfig {
+        position_tolerance: 1e-6,
+        restarts: 20,
+        ..IkConfig::default()
+    };
+    let dt = backend.dt();
+    // Each stage records its time; one that ends the run early returns false.
     let t = Instant::now();
-    let n = if config.given.is_empty() {
-        n
-    } else {
-        config.given.len()
-    };
-    let learned: Result<Vec<_>, LearnError> = if !config.given.is_empty() {
-        Ok(config
+    out.demonstrations = learn_demonstrations(config, &p)?;
+    out.stage_seconds
+        .push(("learning", t.elapsed().as_secs_f64()));
+    let interrupted = out.demonstrations.iter().any(|d| {
+        d.learned
+            .as_ref()
+            .is_some_and(|l| l.termination == "interrupted")
+    });
+    if p.stopped() || interrupted {
+        return Ok(out);
+    }
+    let t = Instant::now();
+    check_reachability(config, &mut out.demonstrations, dt, &ik, &p);
+    out.stage_seconds
+        .push(("checking", t.elapsed().as_secs_f64()));
+    if p.stopped() {
+        return Ok(out);
+    }
+    let t = Instant::now();
+    let went_on = execute_demonstrations(config, backend, &mut out, stop, &p);
+    out.stage_seconds
+        .push(("executing", t.elapsed().as_secs_f64()));
+    if !went_on {
+        return Ok(out);
+    }
+    if out.kept().next().is_none() {
+        // Nothing to imitate: the outcome says so (no fits); not an error of the run.
+        out.complete = true;
+        return Ok(out);
+    }
+    let t = Instant::now();
+    out.fits = imitate_recordings(config, &out)?;
+    out.stage_seconds
+        .push(("imitating", t.elapsed().as_secs_f64()));
+    if progress(ImitationStage::Imitating, 1, 1).is_break() {
+        return Ok(out);
+    }
+    let t = Instant::now();
+    let went_on = execute_imitations(config, backend, &mut out, dt, &ik, stop, &p);
+    if went_on != Some(false) {
+        // (A run that could not find an imitation's start or keep it clear records no
+        // time for the stage.)
+        out.stage_seconds
+            .push(("executing imitations", t.elapsed().as_secs_f64()));
+    }
+    out.complete = went_on == Some(true);
+    Ok(out)
+}
+
+/// The caller's progress callback, whether it asked to stop, and the work the stage
+/// running has done.
+struct Progress<'a> {
+    callback: &'a (dyn Fn(ImitationStage, usize, usize) -> ControlFlow<()> + Sync),
+    halt: AtomicBool,
+    done: AtomicUsize,
+}
+
+impl Progress<'_> {
+    /// One more piece of `stage`'s `total` done, reported.
+    fn report(&self, stage: ImitationStage, total: usize) {
+        let d = self.done.fetch_add(1, Ordering::Relaxed) + 1;
+        if (self.callback)(stage, d, total).is_break() {
+            self.halt.store(true, Ordering::Relaxed);
+        }
+    }
+
+    /// Whether the caller asked to stop.
+    fn stopped(&self) -> bool {
+        self.halt.load(Ordering::Relaxed)
+    }
+
+    /// Whether to go on within `stage` (the caller asked between its pieces).
+    fn go_on(&self, stage: ImitationStage, total: usize) -> bool {
+        let finished = self.done.load(Ordering::Relaxed);
+        if self.stopped() || (self.callback)(stage, finished, total).is_break() {
+            self.halt.store(true, Ordering::Relaxed);
+            false
+        } else {
+            true
+        }
+    }
+}
+
+/// Stage 1: The demonstrations learned, in parallel (or the given ones taken).
+fn learn_demonstrations(
+    config: &ImitationConfig,
+    p: &Progress<'_>,
+) -> Result<Vec<DemonstrationResult>, LearnError> {
+    if !config.given.is_empty() {
+        return Ok(config
             .given
             .iter()
             .enumerate()
@@ -383,69 +467,57 @@ pub fn run_imitation(
                 dropped: None,
                 recording: None,
             })
-            .collect())
-    } else {
-        (0..n)
-            .into_par_iter()
-            .map(|i| {
-                let mut learner = config.learner.clone();
-                learner.task = config.perturbed_task(i);
-                learner.seed = config.demonstration_seed(i);
-                learner.repetitions = 1;
-                // Every generation asks the caller whether to go on (Ctrl-C reaches the runs).
-                let outcome = learn_via_points(&learner, &|_, _| {
-                    let finished = done.load(std::sync::atomic::Ordering::Relaxed);
-                    if stopped() || progress(ImitationStage::Learning, finished, n).is_break() {
-                        halt.store(true, std::sync::atomic::Ordering::Relaxed);
-                        ControlFlow::Break(())
-                    } else {
-                        ControlFlow::Continue(())
-                    }
-                })?;
-                report(ImitationStage::Learning, n);
-                let trajectory = outcome.best_trajectory();
-                Ok(DemonstrationResult {
-                    index: i,
-                    task: Some(learner.task),
-                    learned: Some(outcome.best().clone()),
-                    name: None,
-                    start_q: None,
-                    trajectory,
-                    dropped: None,
-                    recording: None,
-                })
-            })
-            .collect()
-    };
-    out.demonstrations = learned?;
-    out.stage_seconds
-        .push(("learning", t.elapsed().as_secs_f64()));
-    if stopped()
-        || out.demonstrations.iter().any(|d| {
-            d.learned
-                .as_ref()
-                .is_some_and(|l| l.termination == "interrupted")
-        })
-    {
-        return Ok(out);
+            .collect());
     }
+    let n = config.demonstrations;
+    (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let mut learner = config.learner.clone();
+            learner.task = config.perturbed_task(i);
+            learner.seed = config.demonstration_seed(i);
+            learner.repetitions = 1;
+            // Every generation asks the caller whether to go on (Ctrl-C reaches the runs).
+            let outcome = learn_via_points(&learner, &|_, _| {
+                if p.go_on(ImitationStage::Learning, n) {
+                    ControlFlow::Continue(())
+                } else {
+                    ControlFlow::Break(())
+                }
+            })?;
+            p.report(ImitationStage::Learning, n);
+            let trajectory = outcome.best_trajectory();
+            Ok(DemonstrationResult {
+                index: i,
+                task: Some(learner.task),
+                learned: Some(outcome.best().clone()),
+                name: None,
+                start_q: None,
+                trajectory,
+                dropped: None,
+                recording: None,
+            })
+        })
+        .collect()
+}
 
-    // 2. Reachability of every path within the joint limits, in parallel.
-    let t = Instant::now();
-    done.store(0, std::sync::atomic::Ordering::Relaxed);
-    let dt = backend.dt();
+/// Stage 2: Every path's reachability within the joint limits, in parallel: an unreachable one
+/// is dropped with the reason; a given one starts where it was recorded.
+fn check_reachability(
+    config: &ImitationConfig,
+    demonstrations: &mut [DemonstrationResult],
+    dt: f64,
+    ik: &IkConfig,
+    p: &Progress<'_>,
+) {
+    p.done.store(0, Ordering::Relaxed);
+    let n = demonstrations.len();
     let chain = &config.robot.chain;
     let max_step: Option<Vec<f64>> = chain
         .velocity_limits()
         .map(|v| v.iter().map(|v| v * dt).collect());
-    let ik = IkConfig {
-        position_tolerance: 1e-6,
-        restarts: 20,
-        ..IkConfig::default()
-    };
     let given = !config.given.is_empty();
-    let verdicts: Vec<Result<Vec<f64>, String>> = out
-        .demonstrations
+    let verdicts: Vec<Result<Vec<f64>, String>> = demonstrations
         .par_iter()
         .map(|d| {
             let (times, targets) = targets_at(&d.trajectory, dt);
@@ -454,37 +526,41 @@ pub fn run_imitation(
                 &targets,
                 &times,
                 &config.robot.initial_q,
-                &ik,
+                ik,
                 max_step.as_deref(),
             ) {
                 Ok(path) => Ok(path.into_iter().next().unwrap_or_default()),
                 Err(e) => Err(e.to_string()),
             };
-            report(ImitationStage::Checking, n);
+            p.report(ImitationStage::Checking, n);
             verdict
         })
         .collect();
-    for (d, v) in out.demonstrations.iter_mut().zip(verdicts) {
+    for (d, v) in demonstrations.iter_mut().zip(verdicts) {
         match v {
             // A given path starts wherever it was recorded: executed from there.
             Ok(q0) => d.start_q = given.then_some(q0),
             Err(e) => d.dropped = Some(e),
         }
     }
-    out.stage_seconds
-        .push(("checking", t.elapsed().as_secs_f64()));
-    if stopped() {
-        return Ok(out);
-    }
+}
 
-    // 3. Execute the kept demonstrations, one after the other on the backend.
-    let t = Instant::now();
+/// Stage 3: The kept demonstrations executed, one after the other on the backend; false when
+/// the run ends here (a stop, or a backend that failed: what was executed is kept, and
+/// the failure says what was not).
+fn execute_demonstrations(
+    config: &ImitationConfig,
+    backend: &mut dyn Robot,
+    out: &mut ImitationOutcome,
+    stop: &StopToken,
+    p: &Progress<'_>,
+) -> bool {
     let kept = out
         .demonstrations
         .iter()
         .filter(|d| d.dropped.is_none())
         .count();
-    done.store(0, std::sync::atomic::Ordering::Relaxed);
+    p.done.store(0, Ordering::Relaxed);
     for d in out
         .demonstrations
         .iter_mut()
@@ -500,30 +576,24 @@ pub fn run_imitation(
                 | cps_robot::RobotError::Refused { .. }),
             )) => d.dropped = Some(format!("the guard refused it: {e}")),
             Err(e) => {
-                // The backend failed: keep what was executed, say what was not.
                 out.failure = Some(format!("executing demonstration {}: {e}", d.index));
-                out.stage_seconds
-                    .push(("executing", t.elapsed().as_secs_f64()));
-                return Ok(out);
+                return false;
             }
         }
-        report(ImitationStage::Executing, kept);
-        if stopped() {
-            out.stage_seconds
-                .push(("executing", t.elapsed().as_secs_f64()));
-            return Ok(out);
+        p.report(ImitationStage::Executing, kept);
+        if p.stopped() {
+            return false;
         }
     }
-    out.stage_seconds
-        .push(("executing", t.elapsed().as_secs_f64()));
-    if kept == 0 {
-        // Nothing to imitate: the outcome says so (no fits); not an error of the run.
-        out.complete = true;
-        return Ok(out);
-    }
+    true
+}
 
-    // 4. Time-normalise, average and imitate the recordings.
-    let t = Instant::now();
+/// Stage 4: The recordings time-normalised, averaged and imitated (ridge, jerk-regularised
+/// ridge).
+fn imitate_recordings(
+    config: &ImitationConfig,
+    out: &ImitationOutcome,
+) -> Result<Vec<ImitationFit>, LearnError> {
     let demos = out
         .kept()
         .map(|d| {
@@ -537,6 +607,7 @@ pub fn run_imitation(
         .collect::<Result<Vec<_>, _>>()?;
     let template = cps_dmp::DiscreteDmp::new(config.imitation, &[0.0; 3], &[1.0; 3])?;
     let imitator = Imitator::new(template);
+    let mut fits = Vec::new();
     for (method, regression) in [
         (
             "ridge",
@@ -553,7 +624,7 @@ pub fn run_imitation(
     ] {
         let imitation = imitator.imitate(&demos, regression, Combine::Mean)?;
         let trajectory = imitation.dmp.rollout(&imitation.weights);
-        out.fits.push(ImitationFit {
+        fits.push(ImitationFit {
             method,
             imitation,
             trajectory,
@@ -561,63 +632,62 @@ pub fn run_imitation(
             kept_clear: None,
         });
     }
-    out.stage_seconds
-        .push(("imitating", t.elapsed().as_secs_f64()));
-    if progress(ImitationStage::Imitating, 1, 1).is_break() {
-        return Ok(out);
-    }
+    Ok(fits)
+}
 
-    // 5. Execute the imitations.
-    let t = Instant::now();
+/// Stage 5: The imitations executed (each kept clear first, with `[clearance]`): Some(true)
+/// when all were; Some(false) when a stop or the backend ended the run during an
+/// execution; None when it ended before one (its start not found, or not kept clear).
+fn execute_imitations(
+    config: &ImitationConfig,
+    backend: &mut dyn Robot,
+    out: &mut ImitationOutcome,
+    dt: f64,
+    ik: &IkConfig,
+    stop: &StopToken,
+    p: &Progress<'_>,
+) -> Option<bool> {
+    let given = !config.given.is_empty();
     let total = out.fits.len();
     for (i, fit) in out.fits.iter_mut().enumerate() {
         // Given demonstrations start away from the initial configuration: the imitation
         // is executed from the configuration that reaches its start.
         let from = if given {
-            match start_configuration(&config.robot, &fit.trajectory, &ik) {
+            match start_configuration(&config.robot, &fit.trajectory, ik) {
                 Ok(q) => q,
                 Err(e) => {
                     out.failure = Some(format!("the {} imitation's start: {e}", fit.method));
-                    return Ok(out);
+                    return None;
                 }
             }
         } else {
             config.robot.initial_q.clone()
         };
         if let Some(stage) = &config.clearance {
-            match keep_imitation_clear(config, stage, fit, &from, dt, &|_| {
-                if stopped() {
+            let kept = keep_imitation_clear(config, stage, fit, &from, dt, &|_| {
+                if p.stopped() {
                     ControlFlow::Break(())
                 } else {
                     ControlFlow::Continue(())
                 }
-            }) {
-                Ok(()) => {}
-                Err(e) => {
-                    out.failure = Some(format!("keeping the {} imitation clear: {e}", fit.method));
-                    return Ok(out);
-                }
+            });
+            if let Err(e) = kept {
+                out.failure = Some(format!("keeping the {} imitation clear: {e}", fit.method));
+                return None;
             }
         }
         match execute_trajectory_from(backend, &config.robot, &fit.trajectory, &from, stop) {
             Ok(r) => fit.recording = Some(r),
             Err(e) => {
                 out.failure = Some(format!("executing the {} imitation: {e}", fit.method));
-                out.stage_seconds
-                    .push(("executing imitations", t.elapsed().as_secs_f64()));
-                return Ok(out);
+                return Some(false);
             }
         }
-        if progress(ImitationStage::ExecutingImitations, i + 1, total).is_break() {
-            out.stage_seconds
-                .push(("executing imitations", t.elapsed().as_secs_f64()));
-            return Ok(out);
+        if (p.callback)(ImitationStage::ExecutingImitations, i + 1, total).is_break() {
+            return Some(false);
         }
     }
-    out.stage_seconds
-        .push(("executing imitations", t.elapsed().as_secs_f64()));
-    out.complete = true;
-    Ok(out)
+    Some(true)
 }
 
 /// The configuration at a path's start, found by inverse kinematics from the initial one.
