@@ -447,7 +447,7 @@ impl Progress<'_> {
     }
 }
 
-/// Stage 1: The demonstrations learned, in parallel (or the given ones taken).
+/// Stage 1: the demonstrations learned, in parallel (or the given ones taken).
 fn learn_demonstrations(
     config: &ImitationConfig,
     p: &Progress<'_>,
@@ -501,7 +501,7 @@ fn learn_demonstrations(
         .collect()
 }
 
-/// Stage 2: Every path's reachability within the joint limits, in parallel: an unreachable one
+/// Stage 2: every path's reachability within the joint limits, in parallel: an unreachable one
 /// is dropped with the reason; a given one starts where it was recorded.
 fn check_reachability(
     config: &ImitationConfig,
@@ -545,7 +545,7 @@ fn check_reachability(
     }
 }
 
-/// Stage 3: The kept demonstrations executed, one after the other on the backend; false when
+/// Stage 3: the kept demonstrations executed, one after the other on the backend; false when
 /// the run ends here (a stop, or a backend that failed: what was executed is kept, and
 /// the failure says what was not).
 fn execute_demonstrations(
@@ -588,7 +588,7 @@ fn execute_demonstrations(
     true
 }
 
-/// Stage 4: The recordings time-normalised, averaged and imitated (ridge, jerk-regularised
+/// Stage 4: the recordings time-normalised, averaged and imitated (ridge, jerk-regularised
 /// ridge).
 fn imitate_recordings(
     config: &ImitationConfig,
@@ -635,7 +635,7 @@ fn imitate_recordings(
     Ok(fits)
 }
 
-/// Stage 5: The imitations executed (each kept clear first, with `[clearance]`): Some(true)
+/// Stage 5: the imitations executed (each kept clear first, with `[clearance]`): Some(true)
 /// when all were; Some(false) when a stop or the backend ended the run during an
 /// execution; None when it ended before one (its start not found, or not kept clear).
 fn execute_imitations(
