@@ -174,24 +174,8 @@ pub(crate) fn levenberg_marquardt<R: Residuals>(
     while iteration < settings.max_iterations {
         // 1. Forward differences, columns in parallel.
         if !at_x && (!settings.reuse_jacobian || !have) {
-            let r_now = &r;
-            let x_now = &x;
-            let ok = jac.par_chunks_mut(m).enumerate().all(|(j, col)| {
-                let h = 1e-6 * x_now[j].abs().max(1.0);
-                let mut xp = x_now.clone();
-                xp[j] += h;
-                let h = xp[j] - x_now[j]; // the step actually represented
-                let mut rp = Vec::with_capacity(m);
-                if !eval(&xp, &mut rp) {
-                    return false;
-                }
-                for ((c, &a), &b) in col.iter_mut().zip(&rp).zip(r_now) {
-                    *c = (a - b) / h;
-                }
-                true
-            });
             evaluations += n as u64;
-            if !ok {
+            if !forward_differences(&mut jac, &x, &r, &eval) {
                 termination = "evaluation_failed";
                 break;
             }
@@ -287,6 +271,31 @@ pub(crate) fn levenberg_marquardt<R: Residuals>(
             history,
         },
     ))
+}
+
+/// The Jacobian of the residuals `r` at `x` by forward differences into `jac`
+/// (column-major), its columns in parallel; false when a residual cannot be evaluated.
+fn forward_differences(
+    jac: &mut [f64],
+    x: &[f64],
+    r: &[f64],
+    eval: &(dyn Fn(&[f64], &mut Vec<f64>) -> bool + Sync),
+) -> bool {
+    let m = r.len();
+    jac.par_chunks_mut(m).enumerate().all(|(j, col)| {
+        let h = 1e-6 * x[j].abs().max(1.0);
+        let mut xp = x.to_vec();
+        xp[j] += h;
+        let h = xp[j] - x[j]; // the step actually represented
+        let mut rp = Vec::with_capacity(m);
+        if !eval(&xp, &mut rp) {
+            return false;
+        }
+        for ((c, &a), &b) in col.iter_mut().zip(&rp).zip(r) {
+            *c = (a - b) / h;
+        }
+        true
+    })
 }
 
 fn sum_sq(r: &[f64]) -> f64 {
