@@ -248,28 +248,13 @@ pub fn record_joint_states(
         });
         match first {
             None if now - start >= options.wait => {
-                return Err(Ros2Error::NoPeer(format!(
-                    "no JointState published on {} within {:.1} s of the recording's start ({} publisher(s) matched{}{})",
-                    options.topic,
-                    options.wait.as_secs_f64(),
+                let unreadable = reader.counts().malformed + reader.counts().undecodable;
+                return Err(nothing_published(
+                    options,
                     reader.matched(),
-                    if rec.messages > 0 {
-                        format!(
-                            "; {} message(s) came, all published before the recording began (a publisher's history)",
-                            rec.messages
-                        )
-                    } else {
-                        String::new()
-                    },
-                    if reader.counts().malformed + reader.counts().undecodable > 0 {
-                        format!(
-                            "; {} sample(s) could not be read as sensor_msgs/JointState",
-                            reader.counts().malformed + reader.counts().undecodable
-                        )
-                    } else {
-                        String::new()
-                    }
-                )));
+                    &rec,
+                    unreadable,
+                ));
             }
             Some(f) if now - f >= options.duration => break,
             _ => {}
@@ -290,28 +275,59 @@ pub fn record_joint_states(
     rec.dropped = reader.counts();
     keep_window(&mut rec, &offsets, &whens, start_ns, options.duration);
     if rec.positions.is_empty() {
-        let missing: Vec<&String> = options
-            .joints
-            .iter()
-            .filter(|j| !order.contains(j))
-            .collect();
-        return Err(Ros2Error::Input(format!(
-            "{} message(s) on {}, none with every joint asked for: {} missing (the messages name {})",
-            rec.messages,
-            options.topic,
-            missing
-                .iter()
-                .map(|s| s.as_str())
-                .collect::<Vec<_>>()
-                .join(", "),
-            if order.is_empty() {
-                "no joints".to_string()
-            } else {
-                order.join(", ")
-            }
-        )));
+        return Err(no_joints_asked(options, &rec, &order));
     }
     Ok(rec)
+}
+
+/// No JointState published on the topic since the recording began, within its wait:
+/// what came instead (`matched` publishers, `unreadable` samples).
+fn nothing_published(
+    options: &RecordOptions,
+    matched: i32,
+    rec: &JointRecording,
+    unreadable: u64,
+) -> Ros2Error {
+    Ros2Error::NoPeer(format!(
+        "no JointState published on {} within {:.1} s of the recording's start ({matched} publisher(s) matched{}{})",
+        options.topic,
+        options.wait.as_secs_f64(),
+        if rec.messages > 0 {
+            format!(
+                "; {} message(s) came, all published before the recording began (a publisher's history)",
+                rec.messages
+            )
+        } else {
+            String::new()
+        },
+        if unreadable > 0 {
+            format!("; {unreadable} sample(s) could not be read as sensor_msgs/JointState")
+        } else {
+            String::new()
+        }
+    ))
+}
+
+/// Messages came, none naming every joint asked for: which are missing, and what the
+/// messages name (`order`).
+fn no_joints_asked(options: &RecordOptions, rec: &JointRecording, order: &[String]) -> Ros2Error {
+    let missing: Vec<&str> = options
+        .joints
+        .iter()
+        .filter(|j| !order.contains(j))
+        .map(String::as_str)
+        .collect();
+    Ros2Error::Input(format!(
+        "{} message(s) on {}, none with every joint asked for: {} missing (the messages name {})",
+        rec.messages,
+        options.topic,
+        missing.join(", "),
+        if order.is_empty() {
+            "no joints".to_string()
+        } else {
+            order.join(", ")
+        }
+    ))
 }
 
 /// Keeps the messages published from the first one since `start_ns` for `duration`;
