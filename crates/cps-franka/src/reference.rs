@@ -178,6 +178,9 @@ impl ReferenceTracker {
     /// The reference the robot holds when it judges the answer to `state`: the last
     /// command it applied (or the motion's start), extrapolated over every cycle since
     /// that went without one.
+    // Long on purpose (over 150 lines): the candidates are tried in the one order the
+    // robots' behaviour fixes (see the module's text), each step reading and setting the
+    // whole tracker; split, that order would be spread over functions sharing all of it.
     pub fn reference(&mut self, state: &RobotState) -> Reference {
         let agrees = |r: &Reference| agreement(r, state, self.velocity_motion);
         let since = |id: u64| state.message_id.saturating_sub(id + 1);

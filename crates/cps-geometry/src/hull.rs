@@ -107,6 +107,8 @@ impl Hull {
             .collect()
     }
 
+    // Long on purpose (over 150 lines): the algorithm's one loop (the first simplex, then
+    // each outside point's horizon and new faces) with its invariants beside it.
     fn quickhull(points: &[V], what: &str) -> Result<Hull, GeometryError> {
         if points.len() < 4 {
             return Err(GeometryError::Flat {

@@ -159,6 +159,8 @@ pub fn read(path: &Path) -> Result<Take, MocapError> {
 }
 
 /// Parses the bytes of a C3D file (`file` names it in messages).
+// Long on purpose (over 150 lines): it reads the file in the order of its layout (header,
+// parameter section, data), each check beside the bytes it guards.
 pub fn parse(bytes: &[u8], file: &str) -> Result<Take, MocapError> {
     let b = Bytes { b: bytes, file };
     let bad = |m: String| MocapError::format(file, m);

@@ -30,6 +30,9 @@ enum Kind {
 }
 
 /// Parses the bytes of a Motive CSV export (`file` names it in messages).
+// Long on purpose (over 150 lines): it reads the export in the order of its rows (the
+// take's settings, the header rows up to the axis row, the frames), each check beside
+// the row it guards.
 pub fn parse(bytes: &[u8], file: &str) -> Result<Take, MocapError> {
     let bad = |m: String| MocapError::format(file, m);
     let bytes = bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(bytes);

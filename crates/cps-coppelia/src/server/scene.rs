@@ -416,6 +416,8 @@ impl Sim {
         }
     }
 
+    // Long on purpose (over 150 lines): the remote API's dispatch table, one short arm per
+    // function CoppeliaSim's client calls.
     fn call(&mut self, uuid: &str, func: &str, args: &[Value]) -> Reply {
         let int = |i: usize| {
             args.get(i)

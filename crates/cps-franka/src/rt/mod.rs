@@ -510,6 +510,9 @@ fn on_own_thread<L: Law + Send>(
     })
 }
 
+// Long on purpose (over 150 lines): the realtime loop, one tick read top to bottom (the
+// state, its timing, the law, the send, the record) so that a reader sees in one place
+// that nothing in it allocates, locks or logs.
 fn run_law<L: Law>(
     conn: &mut Connection,
     options: &LoopOptions,
