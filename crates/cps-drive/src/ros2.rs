@@ -218,131 +218,182 @@ pub fn send_trajectory(
     cps_movement::export::ExportOptions { period: s.period }.check()?;
     let plan = plan_of(name, traj, model.chain.dof())?;
     let wait = Duration::from_secs_f64(s.wait);
+    let to = Destination {
+        name,
+        plan: &plan,
+        model: &model,
+        names: &names,
+        controller,
+        wait,
+    };
     match s.via {
-        Via::Topic => {
-            // Through the guard: checked as every plan is, then published by the topic's
-            // robot (one message, no answer).
-            let topic = format!("{controller}/joint_trajectory");
-            let mut robot = Guarded::new(
-                TopicRobot {
-                    node_name: me,
-                    topic: topic.clone(),
-                    names: names.clone(),
-                    model: model.clone(),
-                    period: s.period,
-                    wait,
-                    sent: None,
-                },
-                Policy::STRICT,
-            );
-            let run = robot
-                .run(&plan, stop)
-                .map_err(|e| sent_or_refused(name, &model, e))?;
-            let Some((node, message, sent)) = robot.into_inner().sent else {
-                return Err(ExperimentError::Message(
-                    "the topic's run sent nothing".into(),
-                ));
-            };
-            let base = answer_base(name, s, &node, &names, &message);
-            let duration = message
-                .points
-                .last()
-                .map_or(0.0, |p| p.time_from_start.secs());
-            let mut json = base;
-            json["via"] = json!("topic");
-            json["topic"] = json!(topic);
-            json["discovery_s"] = json!(sent.matched_after_s);
-            json["acknowledged"] = json!(sent.acknowledged);
-            json["bytes"] = json!(sent.bytes);
-            let lines = vec![
-                format!(
-                    "sent {} points ({duration:.3} s) to {topic} on domain {}: {} subscriber(s), {}",
-                    message.points.len(),
-                    node.name().domain,
-                    sent.subscribers,
-                    if sent.acknowledged { "acknowledged" } else { "not acknowledged in time" }
-                ),
-                "a topic has no answer: the controller's own log says whether it ran (use --action for its result)".into(),
-            ];
-            Ok((
-                Answer { json, lines },
-                if run.ending.complete() { 0 } else { 1 },
-            ))
-        }
-        Via::Action => {
-            let settings = Ros2Settings {
-                controller: s.controller.clone(),
-                joint_states: s.record.as_ref().map_or(String::new(), |r| r.topic.clone()),
-                domain: s.graph.domain,
-                service_mapping: s.service_mapping,
-                dt: s.period,
-                goal_period: Some(s.period),
-                wait,
-                joint_names: Some(names.clone()),
-                read_start: false,
-            };
-            let robot = Ros2Robot::open(&settings, model.clone()).map_err(robot_message)?;
-            let mut robot = Guarded::new(robot, Policy::STRICT);
-            let prepared = robot.prepare(&plan).map_err(|e| refused(name, &model, e))?;
-            let message = trajectory_message(&names, &prepared.plan, Some(s.period));
-            let action = format!("{controller}/follow_joint_trajectory");
-            let base = answer_base(name, s, robot.inner().node(), &names, &message);
-            // The goal runs through the guard (`run_prepared`); its progress is read here
-            // from the robot's share while it runs.
-            let share = robot.inner().progress();
-            let moves = message
-                .points
-                .last()
-                .is_some_and(|p| p.time_from_start.secs() > 0.0);
-            let ran = std::thread::scope(|scope| {
-                let runner = scope.spawn(|| robot.run_prepared(prepared, stop));
-                while !runner.is_finished() {
-                    if moves {
-                        progress(f64::from_bits(
-                            share.load(std::sync::atomic::Ordering::Relaxed),
-                        ));
-                    }
-                    std::thread::sleep(Duration::from_millis(20));
-                }
-                runner.join()
-            });
-            let ran =
-                ran.map_err(|_| ExperimentError::Message("the goal's runner panicked".into()))?;
-            // A goal the controller answered (done, aborted, refused) is worded from its
-            // outcome; anything else could not reach the controller.
-            let last = match (ran, robot.inner().last_goal()) {
-                (_, Some(last)) => last.clone(),
-                (Err(e), None) => {
-                    let text = robot_message(e).to_string();
-                    // No server: say what the graph offers instead.
-                    let hint = if text.contains("no action server answered") {
-                        crate::ros2_graph::action_hint(robot.inner().node(), &action)
-                    } else {
-                        String::new()
-                    };
-                    return Err(ExperimentError::Message(format!("{text}{hint}")));
-                }
-                (Ok(_), None) => {
-                    return Err(ExperimentError::Message(
-                        "the goal ran but left no outcome".into(),
-                    ));
-                }
-            };
-            let o = &last.outcome;
-            let (mut answer, code) = action_answer(base, &action, o);
-            if let (Some(r), Some(rec)) = (&s.record, &last.recording) {
-                write_tracked(r, rec, o, &message, &model, &mut answer)?;
-            }
-            Ok((
-                answer,
-                if stop.is_stopped() && !o.succeeded() {
-                    130
-                } else {
-                    code
-                },
-            ))
-        }
+        Via::Topic => send_by_topic(&to, me, s, stop),
+        Via::Action => send_by_action(&to, s, stop, &mut progress),
     }
+}
+
+/// Where [`send_trajectory`] sends a checked plan, and what it knows of the robot.
+struct Destination<'a> {
+    name: &'a str,
+    plan: &'a Plan,
+    model: &'a RobotModel,
+    names: &'a [String],
+    controller: &'a str,
+    wait: Duration,
+}
+
+/// The plan published on the controller's topic, through the guard (one message, no
+/// answer).
+fn send_by_topic(
+    to: &Destination<'_>,
+    me: NodeName,
+    s: &SendSettings,
+    stop: &StopToken,
+) -> Result<(Answer, u8), ExperimentError> {
+    let Destination {
+        name,
+        plan,
+        model,
+        names,
+        controller,
+        wait,
+    } = *to;
+    // Through the guard: checked as every plan is, then published by the topic's
+    // robot (one message, no answer).
+    let topic = format!("{controller}/joint_trajectory");
+    let mut robot = Guarded::new(
+        TopicRobot {
+            node_name: me,
+            topic: topic.clone(),
+            names: names.to_vec(),
+            model: model.clone(),
+            period: s.period,
+            wait,
+            sent: None,
+        },
+        Policy::STRICT,
+    );
+    let run = robot
+        .run(plan, stop)
+        .map_err(|e| sent_or_refused(name, model, e))?;
+    let Some((node, message, sent)) = robot.into_inner().sent else {
+        return Err(ExperimentError::Message(
+            "the topic's run sent nothing".into(),
+        ));
+    };
+    let base = answer_base(name, s, &node, names, &message);
+    let duration = message
+        .points
+        .last()
+        .map_or(0.0, |p| p.time_from_start.secs());
+    let mut json = base;
+    json["via"] = json!("topic");
+    json["topic"] = json!(topic);
+    json["discovery_s"] = json!(sent.matched_after_s);
+    json["acknowledged"] = json!(sent.acknowledged);
+    json["bytes"] = json!(sent.bytes);
+    let lines = vec![
+        format!(
+            "sent {} points ({duration:.3} s) to {topic} on domain {}: {} subscriber(s), {}",
+            message.points.len(),
+            node.name().domain,
+            sent.subscribers,
+            if sent.acknowledged { "acknowledged" } else { "not acknowledged in time" }
+        ),
+        "a topic has no answer: the controller's own log says whether it ran (use --action for its result)".into(),
+    ];
+    Ok((
+        Answer { json, lines },
+        if run.ending.complete() { 0 } else { 1 },
+    ))
+}
+
+/// The plan followed as a FollowJointTrajectory goal through the guard, its progress
+/// reported, its outcome (and the recording, with `--record`) the answer.
+fn send_by_action(
+    to: &Destination<'_>,
+    s: &SendSettings,
+    stop: &StopToken,
+    progress: &mut impl FnMut(f64),
+) -> Result<(Answer, u8), ExperimentError> {
+    let Destination {
+        name,
+        plan,
+        model,
+        names,
+        controller,
+        wait,
+    } = *to;
+    let settings = Ros2Settings {
+        controller: s.controller.clone(),
+        joint_states: s.record.as_ref().map_or(String::new(), |r| r.topic.clone()),
+        domain: s.graph.domain,
+        service_mapping: s.service_mapping,
+        dt: s.period,
+        goal_period: Some(s.period),
+        wait,
+        joint_names: Some(names.to_vec()),
+        read_start: false,
+    };
+    let robot = Ros2Robot::open(&settings, model.clone()).map_err(robot_message)?;
+    let mut robot = Guarded::new(robot, Policy::STRICT);
+    let prepared = robot.prepare(plan).map_err(|e| refused(name, model, e))?;
+    let message = trajectory_message(names, &prepared.plan, Some(s.period));
+    let action = format!("{controller}/follow_joint_trajectory");
+    let base = answer_base(name, s, robot.inner().node(), names, &message);
+    // The goal runs through the guard (`run_prepared`); its progress is read here
+    // from the robot's share while it runs.
+    let share = robot.inner().progress();
+    let moves = message
+        .points
+        .last()
+        .is_some_and(|p| p.time_from_start.secs() > 0.0);
+    let ran = std::thread::scope(|scope| {
+        let runner = scope.spawn(|| robot.run_prepared(prepared, stop));
+        while !runner.is_finished() {
+            if moves {
+                progress(f64::from_bits(
+                    share.load(std::sync::atomic::Ordering::Relaxed),
+                ));
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        runner.join()
+    });
+    let ran = ran.map_err(|_| ExperimentError::Message("the goal's runner panicked".into()))?;
+    // A goal the controller answered (done, aborted, refused) is worded from its
+    // outcome; anything else could not reach the controller.
+    let last = match (ran, robot.inner().last_goal()) {
+        (_, Some(last)) => last.clone(),
+        (Err(e), None) => {
+            let text = robot_message(e).to_string();
+            // No server: say what the graph offers instead.
+            let hint = if text.contains("no action server answered") {
+                crate::ros2_graph::action_hint(robot.inner().node(), &action)
+            } else {
+                String::new()
+            };
+            return Err(ExperimentError::Message(format!("{text}{hint}")));
+        }
+        (Ok(_), None) => {
+            return Err(ExperimentError::Message(
+                "the goal ran but left no outcome".into(),
+            ));
+        }
+    };
+    let o = &last.outcome;
+    let (mut answer, code) = action_answer(base, &action, o);
+    if let (Some(r), Some(rec)) = (&s.record, &last.recording) {
+        write_tracked(r, rec, o, &message, model, &mut answer)?;
+    }
+    Ok((
+        answer,
+        if stop.is_stopped() && !o.succeeded() {
+            130
+        } else {
+            code
+        },
+    ))
 }
 
 /// A joint_trajectory_controller's topic as a robot: blind (it is trusted to start from a
