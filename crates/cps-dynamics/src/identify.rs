@@ -232,43 +232,8 @@ pub fn identify<const N: usize>(
     rec: &Recorded<N>,
     torque_limit: &[f64; N],
 ) -> Result<Identified<N>, String> {
+    check_recording(rec)?;
     let n = rec.q.len();
-    if [rec.dq.len(), rec.tau.len(), rec.q_c.len()]
-        .iter()
-        .any(|&l| l != n)
-    {
-        return Err(format!(
-            "the recording's columns differ in length: {} positions, {} velocities, {} torques, {} commands",
-            n,
-            rec.dq.len(),
-            rec.tau.len(),
-            rec.q_c.len()
-        ));
-    }
-    rec.check_times()?;
-    let skip = MAX_LAG + 2;
-    if n < 200 + 2 * skip {
-        return Err(format!(
-            "{n} samples are too few to identify from: record at least a second of motion"
-        ));
-    }
-    for j in 0..N {
-        let (lo, hi) = rec
-            .q_c
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), c| {
-                (lo.min(c[j]), hi.max(c[j]))
-            });
-        let span = hi - lo;
-        if span.is_nan() || span < MIN_EXCITATION {
-            return Err(format!(
-                "joint {}: its command ranges over {:.2} mrad only: the recording does not excite it, so its controller cannot be identified (record a motion of every joint of at least {} mrad; `cps-cli franka identify` makes one)",
-                j + 1,
-                span * 1e3,
-                MIN_EXCITATION * 1e3
-            ));
-        }
-    }
     // The torque the controller asked for, gravity and Coriolis taken out, per sample and
     // torque-to-state delay (0: the state of the same sample, 1: the one before).
     let mut gravity = Vec::with_capacity(n);
@@ -335,8 +300,78 @@ pub fn identify<const N: usize>(
         kv[j] = v;
         controller_rms[j] = rms;
     }
-    // The drives: the applied torque beyond the rigid bodies, from the state it acted on
-    // and the acceleration it produced.
+    let (armature, friction, drive_rms) = fit_drives(model, rec, delay, &clipped, &skipped)?;
+    Ok(Identified {
+        calibration: Calibration {
+            kp,
+            kv,
+            lag: age - delay,
+            armature,
+            friction,
+        },
+        controller_rms,
+        drive_rms,
+        samples,
+        torque_delay: delay,
+    })
+}
+
+/// A recording identification can use: columns of one length, times that advance, at
+/// least a second of motion, every joint excited.
+fn check_recording<const N: usize>(rec: &Recorded<N>) -> Result<(), String> {
+    let n = rec.q.len();
+    if [rec.dq.len(), rec.tau.len(), rec.q_c.len()]
+        .iter()
+        .any(|&l| l != n)
+    {
+        return Err(format!(
+            "the recording's columns differ in length: {} positions, {} velocities, {} torques, {} commands",
+            n,
+            rec.dq.len(),
+            rec.tau.len(),
+            rec.q_c.len()
+        ));
+    }
+    rec.check_times()?;
+    let skip = MAX_LAG + 2;
+    if n < 200 + 2 * skip {
+        return Err(format!(
+            "{n} samples are too few to identify from: record at least a second of motion"
+        ));
+    }
+    for j in 0..N {
+        let (lo, hi) = rec
+            .q_c
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), c| {
+                (lo.min(c[j]), hi.max(c[j]))
+            });
+        let span = hi - lo;
+        if span.is_nan() || span < MIN_EXCITATION {
+            return Err(format!(
+                "joint {}: its command ranges over {:.2} mrad only: the recording does not excite it, so its controller cannot be identified (record a motion of every joint of at least {} mrad; `cps-cli franka identify` makes one)",
+                j + 1,
+                span * 1e3,
+                MIN_EXCITATION * 1e3
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The drives: the applied torque beyond the rigid bodies, from the state it acted on
+/// and the acceleration it produced (the torque `delay` samples after its state; clipped
+/// and skipped samples left out): armature, friction, and each fit's RMS.
+fn fit_drives<const N: usize>(
+    model: &ArmModel<N>,
+    rec: &Recorded<N>,
+    delay: usize,
+    clipped: &dyn Fn(usize, usize) -> bool,
+    skipped: &dyn Fn(usize, usize) -> bool,
+) -> Result<([f64; N], JointFriction<N>, [f64; N]), String> {
+    let n = rec.q.len();
+    let skip = MAX_LAG + 2;
+    let runs = rec.runs();
     let h = rec.period;
     let mut drive_rows: Vec<Vec<([f64; 3], f64)>> = vec![Vec::new(); N];
     for k in skip..n - 1 {
@@ -376,19 +411,7 @@ pub fn identify<const N: usize>(
         friction.coulomb[j] = c.max(0.0);
         drive_rms[j] = rms;
     }
-    Ok(Identified {
-        calibration: Calibration {
-            kp,
-            kv,
-            lag: age - delay,
-            armature,
-            friction,
-        },
-        controller_rms,
-        drive_rms,
-        samples,
-        torque_delay: delay,
-    })
+    Ok((armature, friction, drive_rms))
 }
 
 /// Joint `j`'s controller rows `([q_c − q, −q̇], τ − g − C q̇)`: torque of sample k, state
