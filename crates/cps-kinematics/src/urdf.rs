@@ -141,18 +141,8 @@ pub const MAX_URDF_BYTES: usize = 16 << 20;
 /// hostile file cannot exhaust the parser's stack).
 pub const MAX_URDF_DEPTH: usize = crate::xml::MAX_DEPTH;
 
-/// Reads three numbers of an attribute (with a default when it is absent).
-type Three<'a> = &'a dyn Fn(&Element, &str, &str, [f64; 3]) -> Result<[f64; 3], String>;
-/// Reads one number of an attribute.
-type One<'a> = &'a dyn Fn(&Element, &str, &str) -> Result<f64, String>;
-
 /// A `<collision>`'s `<geometry>`: one shape, every size a positive number.
-fn collision_geometry(
-    c: &Element,
-    what: &str,
-    three: Three<'_>,
-    one: One<'_>,
-) -> Result<CollisionGeometry, String> {
+fn collision_geometry(c: &Element, what: &str) -> Result<CollisionGeometry, String> {
     let g = c
         .child("geometry")
         .ok_or_else(|| format!("line {}: {what} has no `<geometry>`", c.line))?;
@@ -279,6 +269,67 @@ fn nesting_depth(xml: &str) -> usize {
     max
 }
 
+/// An attribute's numbers (none when it is absent).
+fn numbers(e: &Element, key: &str, what: &str) -> Result<Vec<f64>, String> {
+    match e.attr(key) {
+        None => Ok(Vec::new()),
+        Some(v) => v
+            .split_whitespace()
+            .map(|x| {
+                x.parse::<f64>().map_err(|_| {
+                    format!("line {}: {what}: `{key}` has `{x}`, not a number", e.line)
+                })
+            })
+            .collect(),
+    }
+}
+
+/// An attribute's three numbers (`default` when it is absent).
+fn three(e: &Element, key: &str, what: &str, default: [f64; 3]) -> Result<[f64; 3], String> {
+    let v = numbers(e, key, what)?;
+    if e.attr(key).is_none() {
+        return Ok(default);
+    }
+    <[f64; 3]>::try_from(v.as_slice()).map_err(|_| {
+        format!(
+            "line {}: {what}: `{key}` must be three numbers (got {})",
+            e.line,
+            v.len()
+        )
+    })
+}
+
+/// An attribute's one number (0 when it is absent).
+fn one(e: &Element, key: &str, what: &str) -> Result<f64, String> {
+    let v = numbers(e, key, what)?;
+    match v.as_slice() {
+        [] => Ok(0.0),
+        [x] => Ok(*x),
+        _ => Err(format!(
+            "line {}: {what}: `{key}` must be one number",
+            e.line
+        )),
+    }
+}
+
+/// An element's `<origin>` (none: the identity).
+fn origin(parent: &Element, what: &str) -> Result<Pose, String> {
+    Ok(match parent.child("origin") {
+        Some(o) => Pose {
+            xyz: three(o, "xyz", what, [0.0; 3])?,
+            rpy: three(o, "rpy", what, [0.0; 3])?,
+        },
+        None => Pose::default(),
+    })
+}
+
+/// An element's name, required.
+fn element_name(e: &Element) -> Result<String, String> {
+    e.attr("name")
+        .map(str::to_string)
+        .ok_or_else(|| format!("line {}: a `<{}>` without a name", e.line, e.name))
+}
+
 /// The robot of a URDF document: its links and joints with their numbers checked (`xyz`,
 /// `rpy`, limits, masses, inertias), unknown elements passed over.
 fn read_robot(xml: &str) -> Result<Robot, String> {
@@ -289,154 +340,109 @@ fn read_robot(xml: &str) -> Result<Robot, String> {
             root.line, root.name
         ));
     }
-    let numbers = |e: &Element, key: &str, what: &str| -> Result<Vec<f64>, String> {
-        match e.attr(key) {
-            None => Ok(Vec::new()),
-            Some(v) => v
-                .split_whitespace()
-                .map(|x| {
-                    x.parse::<f64>().map_err(|_| {
-                        format!("line {}: {what}: `{key}` has `{x}`, not a number", e.line)
-                    })
-                })
-                .collect(),
-        }
-    };
-    let three =
-        |e: &Element, key: &str, what: &str, default: [f64; 3]| -> Result<[f64; 3], String> {
-            let v = numbers(e, key, what)?;
-            if e.attr(key).is_none() {
-                return Ok(default);
-            }
-            <[f64; 3]>::try_from(v.as_slice()).map_err(|_| {
-                format!(
-                    "line {}: {what}: `{key}` must be three numbers (got {})",
-                    e.line,
-                    v.len()
-                )
-            })
-        };
-    let one = |e: &Element, key: &str, what: &str| -> Result<f64, String> {
-        let v = numbers(e, key, what)?;
-        match v.as_slice() {
-            [] => Ok(0.0),
-            [x] => Ok(*x),
-            _ => Err(format!(
-                "line {}: {what}: `{key}` must be one number",
-                e.line
-            )),
-        }
-    };
-    let origin = |parent: &Element, what: &str| -> Result<Pose, String> {
-        Ok(match parent.child("origin") {
-            Some(o) => Pose {
-                xyz: three(o, "xyz", what, [0.0; 3])?,
-                rpy: three(o, "rpy", what, [0.0; 3])?,
-            },
-            None => Pose::default(),
-        })
-    };
-    let name = |e: &Element| -> Result<String, String> {
-        e.attr("name")
-            .map(str::to_string)
-            .ok_or_else(|| format!("line {}: a `<{}>` without a name", e.line, e.name))
-    };
-    let mut links = Vec::new();
-    for l in root.children("link") {
-        let link = name(l)?;
-        let what = format!("link `{link}`");
-        let inertial = match l.child("inertial") {
-            None => Inertial::default(),
-            Some(i) => Inertial {
-                origin: origin(i, &what)?,
-                mass: match i.child("mass") {
-                    Some(m) => one(m, "value", &what)?,
-                    None => 0.0,
-                },
-                inertia: match i.child("inertia") {
-                    Some(m) => {
-                        let mut t = [0.0; 6];
-                        for (k, key) in ["ixx", "ixy", "ixz", "iyy", "iyz", "izz"]
-                            .iter()
-                            .enumerate()
-                        {
-                            t[k] = one(m, key, &what)?;
-                        }
-                        t
-                    }
-                    None => [0.0; 6],
-                },
-            },
-        };
-        let mut collisions = Vec::new();
-        for c in l.children("collision") {
-            let what = format!("link `{link}` collision");
-            let at =
-                pose(&origin(c, &what)?).map_err(|m| format!("line {}: {what}: {m}", c.line))?;
-            collisions.push(UrdfCollision {
-                origin: at,
-                geometry: collision_geometry(c, &what, &three, &one)?,
-                line: c.line,
-            });
-        }
-        links.push(Link {
-            name: link,
-            inertial,
-            collisions,
-        });
-    }
-    let mut joints = Vec::new();
-    for j in root.children("joint") {
-        let joint = name(j)?;
-        let what = format!("joint `{joint}`");
-        let joint_type = match j.attr("type") {
-            Some("revolute") => JointType::Revolute,
-            Some("continuous") => JointType::Continuous,
-            Some("prismatic") => JointType::Prismatic,
-            Some("fixed") => JointType::Fixed,
-            Some("floating") => JointType::Floating,
-            Some("planar") => JointType::Planar,
-            Some(other) => {
-                return Err(format!(
-                    "line {}: {what} has type `{other}`, not one of URDF's (revolute, continuous, prismatic, fixed, floating, planar)",
-                    j.line
-                ));
-            }
-            None => return Err(format!("line {}: {what} has no type", j.line)),
-        };
-        let end = |role: &str| -> Result<String, String> {
-            j.child(role)
-                .and_then(|e| e.attr("link"))
-                .map(str::to_string)
-                .ok_or_else(|| format!("line {}: {what} has no `<{role} link=…>`", j.line))
-        };
-        let limit = match j.child("limit") {
-            Some(l) => Limit {
-                lower: one(l, "lower", &what)?,
-                upper: one(l, "upper", &what)?,
-                effort: one(l, "effort", &what)?,
-                velocity: one(l, "velocity", &what)?,
-            },
-            None => Limit::default(),
-        };
-        joints.push(Joint {
-            joint_type,
-            parent: end("parent")?,
-            child: end("child")?,
-            origin: origin(j, &what)?,
-            axis: match j.child("axis") {
-                Some(a) => three(a, "xyz", &what, [1.0, 0.0, 0.0])?,
-                None => [1.0, 0.0, 0.0],
-            },
-            limit,
-            mimic: j.child("mimic").is_some(),
-            name: joint,
-        });
-    }
     Ok(Robot {
         name: root.attr("name").unwrap_or_default().to_string(),
-        links,
-        joints,
+        links: root
+            .children("link")
+            .map(read_link)
+            .collect::<Result<_, _>>()?,
+        joints: root
+            .children("joint")
+            .map(read_joint)
+            .collect::<Result<_, _>>()?,
+    })
+}
+
+/// A `<link>`: its inertial and its collision shapes.
+fn read_link(l: &Element) -> Result<Link, String> {
+    let link = element_name(l)?;
+    let what = format!("link `{link}`");
+    let inertial = match l.child("inertial") {
+        None => Inertial::default(),
+        Some(i) => Inertial {
+            origin: origin(i, &what)?,
+            mass: match i.child("mass") {
+                Some(m) => one(m, "value", &what)?,
+                None => 0.0,
+            },
+            inertia: match i.child("inertia") {
+                Some(m) => {
+                    let mut t = [0.0; 6];
+                    for (k, key) in ["ixx", "ixy", "ixz", "iyy", "iyz", "izz"]
+                        .iter()
+                        .enumerate()
+                    {
+                        t[k] = one(m, key, &what)?;
+                    }
+                    t
+                }
+                None => [0.0; 6],
+            },
+        },
+    };
+    let mut collisions = Vec::new();
+    for c in l.children("collision") {
+        let what = format!("link `{link}` collision");
+        let at = pose(&origin(c, &what)?).map_err(|m| format!("line {}: {what}: {m}", c.line))?;
+        collisions.push(UrdfCollision {
+            origin: at,
+            geometry: collision_geometry(c, &what)?,
+            line: c.line,
+        });
+    }
+    Ok(Link {
+        name: link,
+        inertial,
+        collisions,
+    })
+}
+
+/// A `<joint>`: its type, its links, origin, axis and limits.
+fn read_joint(j: &Element) -> Result<Joint, String> {
+    let joint = element_name(j)?;
+    let what = format!("joint `{joint}`");
+    let joint_type = match j.attr("type") {
+        Some("revolute") => JointType::Revolute,
+        Some("continuous") => JointType::Continuous,
+        Some("prismatic") => JointType::Prismatic,
+        Some("fixed") => JointType::Fixed,
+        Some("floating") => JointType::Floating,
+        Some("planar") => JointType::Planar,
+        Some(other) => {
+            return Err(format!(
+                "line {}: {what} has type `{other}`, not one of URDF's (revolute, continuous, prismatic, fixed, floating, planar)",
+                j.line
+            ));
+        }
+        None => return Err(format!("line {}: {what} has no type", j.line)),
+    };
+    let end = |role: &str| -> Result<String, String> {
+        j.child(role)
+            .and_then(|e| e.attr("link"))
+            .map(str::to_string)
+            .ok_or_else(|| format!("line {}: {what} has no `<{role} link=…>`", j.line))
+    };
+    let limit = match j.child("limit") {
+        Some(l) => Limit {
+            lower: one(l, "lower", &what)?,
+            upper: one(l, "upper", &what)?,
+            effort: one(l, "effort", &what)?,
+            velocity: one(l, "velocity", &what)?,
+        },
+        None => Limit::default(),
+    };
+    Ok(Joint {
+        joint_type,
+        parent: end("parent")?,
+        child: end("child")?,
+        origin: origin(j, &what)?,
+        axis: match j.child("axis") {
+            Some(a) => three(a, "xyz", &what, [1.0, 0.0, 0.0])?,
+            None => [1.0, 0.0, 0.0],
+        },
+        limit,
+        mimic: j.child("mimic").is_some(),
+        name: joint,
     })
 }
 
