@@ -634,7 +634,6 @@ pub fn retime(
         translation_acceleration: 1.0,
         rotation_acceleration: 1.0,
     };
-    let velocity = robot.chain.velocity_limits();
     let mut last = String::new();
     for round in 1..=MAX_ROUNDS {
         let constraints = grid_constraints(robot, &path, &grid, f)?;
@@ -648,36 +647,7 @@ pub fn retime(
             })
             .collect();
         let check = check_commands(robot, 0.0, dt, &q)?;
-        // The exact derivatives, ten times finer than the commands.
-        let mut fine = [
-            (Quantity::Velocity, 0.0_f64),
-            (Quantity::Acceleration, 0.0),
-            (Quantity::Jerk, 0.0),
-        ];
-        // Per quantity, the largest |value| / limit (no limit: 0, never over).
-        let mut point = path.spline.point(grid[0]);
-        let mut state = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
-        let mut worst = [[0.0_f64; 3]; 1].repeat(n);
-        let mut hints = [usize::MAX; 3];
-        for k in 0..=10 * steps {
-            let t = k as f64 * dt / 10.0;
-            joint_state_into(&path.spline, &law, w, t, &mut point, &mut state, &mut hints);
-            for (i, m) in worst.iter_mut().enumerate() {
-                for (q, x) in m.iter_mut().zip(&state) {
-                    *q = q.max(x[i].abs());
-                }
-            }
-        }
-        for (i, m) in worst.iter().enumerate() {
-            for (k, limit) in [velocity, robot.limits.acceleration.as_deref(), jerk]
-                .iter()
-                .enumerate()
-            {
-                if let Some(l) = limit {
-                    fine[k].1 = fine[k].1.max(100.0 * m[k] / l[i]);
-                }
-            }
-        }
+        let fine = fine_usage(robot, &path, &law, w, dt, steps, grid[0]);
         // Quantities over their limit, with the ratio: beyond a tolerance of 10⁻⁹ in the
         // exact derivatives, or violated in the commands' check at all.
         let over: Vec<(Quantity, f64)> = worst_usage(&check.joints, &fine)
@@ -719,38 +689,7 @@ pub fn retime(
             .map(|(q, r)| format!("{q} at {:.1} %", 100.0 * r))
             .collect::<Vec<_>>()
             .join(", ");
-        // Cartesian excess acts on the knob that governs it.
-        let mut over = over;
-        for (name, ratio) in cartesian_over {
-            match name {
-                "translation_acceleration" => f.translation_acceleration *= 0.999 / ratio,
-                "rotation_acceleration" => f.rotation_acceleration *= 0.999 / ratio,
-                n if n.ends_with("_velocity") => over.push((Quantity::Velocity, ratio)),
-                "elbow_acceleration" => over.push((Quantity::Acceleration, ratio)),
-                _ => over.push((Quantity::Jerk, ratio)),
-            }
-        }
-        for (quantity, ratio) in over {
-            // Tighten a little beyond the excess so that rounds converge.
-            let shrink = 0.999 / ratio;
-            match quantity {
-                Quantity::Velocity => f.velocity *= shrink,
-                Quantity::Acceleration => f.acceleration *= shrink,
-                Quantity::Torque => f.torque *= shrink,
-                Quantity::Jerk | Quantity::TorqueRate => {
-                    // Widen the smoothing, or start it: a robot whose jerk limits are
-                    // Cartesian only begins without one.
-                    w = (w * ratio.max(1.05)).max(2.0 * dt);
-                    // Beyond a tenth of the motion, the path's own jerk is the cause:
-                    // slow the motion itself.
-                    if w > 0.1 * duration {
-                        f.velocity *= ratio.cbrt().recip();
-                        f.acceleration *= ratio.cbrt().powi(2).recip();
-                    }
-                }
-                Quantity::Position => {}
-            }
-        }
+        tighten(&mut f, &mut w, over, cartesian_over, dt, duration);
     }
     Err(KinematicsError::Infeasible {
         time: times[0],
@@ -758,6 +697,97 @@ pub fn retime(
             "after {MAX_ROUNDS} rounds of tightening the timing still exceeds limits ({last})"
         ),
     })
+}
+
+/// Per quantity (velocity, acceleration, jerk), the largest share of its limit (%) the
+/// joints' exact derivatives reach, sampled ten times finer than the commands of period
+/// `dt` (`steps` of them); no limit: 0, never over.
+fn fine_usage(
+    robot: &RobotLimits,
+    path: &ArcPath,
+    law: &TimeLaw,
+    w: f64,
+    dt: f64,
+    steps: usize,
+    s0: f64,
+) -> [(Quantity, f64); 3] {
+    let n = robot.chain.dof();
+    let velocity = robot.chain.velocity_limits();
+    let jerk = robot.limits.jerk.as_deref();
+    let mut fine = [
+        (Quantity::Velocity, 0.0_f64),
+        (Quantity::Acceleration, 0.0),
+        (Quantity::Jerk, 0.0),
+    ];
+    let mut point = path.spline.point(s0);
+    let mut state = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+    let mut worst = [[0.0_f64; 3]; 1].repeat(n);
+    let mut hints = [usize::MAX; 3];
+    for k in 0..=10 * steps {
+        let t = k as f64 * dt / 10.0;
+        joint_state_into(&path.spline, law, w, t, &mut point, &mut state, &mut hints);
+        for (i, m) in worst.iter_mut().enumerate() {
+            for (q, x) in m.iter_mut().zip(&state) {
+                *q = q.max(x[i].abs());
+            }
+        }
+    }
+    for (i, m) in worst.iter().enumerate() {
+        for (k, limit) in [velocity, robot.limits.acceleration.as_deref(), jerk]
+            .iter()
+            .enumerate()
+        {
+            if let Some(l) = limit {
+                fine[k].1 = fine[k].1.max(100.0 * m[k] / l[i]);
+            }
+        }
+    }
+    fine
+}
+
+/// The next round's fractions `f` and smoothing `w` from the quantities `over` their
+/// limit and the Cartesian ones, each with its ratio to the limit (`duration`: this
+/// round's).
+fn tighten(
+    f: &mut Fractions,
+    w: &mut f64,
+    over: Vec<(Quantity, f64)>,
+    cartesian_over: Vec<(&str, f64)>,
+    dt: f64,
+    duration: f64,
+) {
+    // Cartesian excess acts on the knob that governs it.
+    let mut over = over;
+    for (name, ratio) in cartesian_over {
+        match name {
+            "translation_acceleration" => f.translation_acceleration *= 0.999 / ratio,
+            "rotation_acceleration" => f.rotation_acceleration *= 0.999 / ratio,
+            n if n.ends_with("_velocity") => over.push((Quantity::Velocity, ratio)),
+            "elbow_acceleration" => over.push((Quantity::Acceleration, ratio)),
+            _ => over.push((Quantity::Jerk, ratio)),
+        }
+    }
+    for (quantity, ratio) in over {
+        // Tighten a little beyond the excess so that rounds converge.
+        let shrink = 0.999 / ratio;
+        match quantity {
+            Quantity::Velocity => f.velocity *= shrink,
+            Quantity::Acceleration => f.acceleration *= shrink,
+            Quantity::Torque => f.torque *= shrink,
+            Quantity::Jerk | Quantity::TorqueRate => {
+                // Widen the smoothing, or start it: a robot whose jerk limits are
+                // Cartesian only begins without one.
+                *w = (*w * ratio.max(1.05)).max(2.0 * dt);
+                // Beyond a tenth of the motion, the path's own jerk is the cause:
+                // slow the motion itself.
+                if *w > 0.1 * duration {
+                    f.velocity *= ratio.cbrt().recip();
+                    f.acceleration *= ratio.cbrt().powi(2).recip();
+                }
+            }
+            Quantity::Position => {}
+        }
+    }
 }
 
 /// The outcome of [`uniform`].
