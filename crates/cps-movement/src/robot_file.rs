@@ -599,39 +599,19 @@ fn mid_range(chain: &SerialChain) -> Vec<f64> {
     }
 }
 
-/// Parses a TOML robot file (`path` only for messages); `tool` picks a `[tools.*]` entry.
-pub fn parse_robot_toml(
-    path: &Path,
-    text: &str,
-    tool: Option<&str>,
-) -> Result<RobotModel, InputError> {
-    let file: File = toml::from_str(text).map_err(|e| {
-        let at = e
-            .span()
-            .map(|s| location(path, text, &s))
-            .unwrap_or_else(|| path.display().to_string());
-        InputError(format!("{at}: {}", e.message()))
-    })?;
-    let err = |span: std::ops::Range<usize>, msg: String| {
-        InputError(format!("{}: {msg}", location(path, text, &span)))
-    };
-    let convention = match file.convention.get_ref().as_str() {
-        "standard" => DhConvention::Standard,
-        "modified" => DhConvention::Modified,
-        other => {
-            return Err(err(
-                file.convention.span(),
-                format!("`convention` must be \"standard\" or \"modified\", not \"{other}\""),
-            ));
-        }
-    };
-    let joints = file.joint.get_ref();
-    if joints.is_empty() {
-        return Err(err(
-            file.joint.span(),
-            "a robot needs at least one [[joint]]".into(),
-        ));
-    }
+/// The `[[joint]]`s' DH links, ranges, speed limits and inertias, each checked.
+struct DhJoints {
+    links: Vec<DhLink>,
+    lo: Vec<f64>,
+    hi: Vec<f64>,
+    dq: Vec<Option<f64>>,
+    inertias: Vec<Option<LinkInertia>>,
+}
+
+fn dh_joints(
+    joints: &[Spanned<Joint>],
+    err: &dyn Fn(std::ops::Range<usize>, String) -> InputError,
+) -> Result<DhJoints, InputError> {
     let mut links = Vec::new();
     let (mut lo, mut hi, mut dq) = (Vec::new(), Vec::new(), Vec::new());
     let mut inertias = Vec::new();
@@ -673,6 +653,91 @@ pub fn parse_robot_toml(
             }
         });
     }
+    Ok(DhJoints {
+        links,
+        lo,
+        hi,
+        dq,
+        inertias,
+    })
+}
+
+/// `chain` with the tool `tool` names, else the file's `default_tool`, else none (the
+/// last joint's frame): the chain and the tool's name.
+fn with_tool(
+    mut chain: SerialChain,
+    file: &File,
+    tool: Option<&str>,
+    path: &Path,
+) -> Result<(SerialChain, String), InputError> {
+    let wanted = tool
+        .map(str::to_string)
+        .or_else(|| file.default_tool.as_ref().map(|t| t.get_ref().clone()));
+    let tool_name = match wanted {
+        Some(name) => {
+            let Some(frame) = file.tools.get(&name) else {
+                let known: Vec<&str> = file.tools.keys().map(String::as_str).collect();
+                return Err(InputError(format!(
+                    "{}: no tool `{name}` (tools: {})",
+                    path.display(),
+                    if known.is_empty() {
+                        "none".into()
+                    } else {
+                        known.join(", ")
+                    }
+                )));
+            };
+            let iso = frame
+                .isometry()
+                .map_err(|m| InputError(format!("{}: [tools.{name}] {m}", path.display())))?;
+            chain = chain.with_tool(iso);
+            name
+        }
+        None => "last joint frame".into(),
+    };
+    Ok((chain, tool_name))
+}
+
+/// Parses a TOML robot file (`path` only for messages); `tool` picks a `[tools.*]` entry.
+pub fn parse_robot_toml(
+    path: &Path,
+    text: &str,
+    tool: Option<&str>,
+) -> Result<RobotModel, InputError> {
+    let file: File = toml::from_str(text).map_err(|e| {
+        let at = e
+            .span()
+            .map(|s| location(path, text, &s))
+            .unwrap_or_else(|| path.display().to_string());
+        InputError(format!("{at}: {}", e.message()))
+    })?;
+    let err = |span: std::ops::Range<usize>, msg: String| {
+        InputError(format!("{}: {msg}", location(path, text, &span)))
+    };
+    let convention = match file.convention.get_ref().as_str() {
+        "standard" => DhConvention::Standard,
+        "modified" => DhConvention::Modified,
+        other => {
+            return Err(err(
+                file.convention.span(),
+                format!("`convention` must be \"standard\" or \"modified\", not \"{other}\""),
+            ));
+        }
+    };
+    let joints = file.joint.get_ref();
+    if joints.is_empty() {
+        return Err(err(
+            file.joint.span(),
+            "a robot needs at least one [[joint]]".into(),
+        ));
+    }
+    let DhJoints {
+        links,
+        lo,
+        hi,
+        dq,
+        inertias,
+    } = dh_joints(joints, &err)?;
     // Every joint or none: a limit or an inertia given for some joints only is an error.
     let all_or_none = |what: &str, given: usize| -> Result<bool, InputError> {
         match given {
@@ -730,31 +795,7 @@ pub fn parse_robot_toml(
             .map_err(|m| InputError(format!("{}: [base] {m}", path.display())))?;
         chain = chain.with_base(iso);
     }
-    let wanted = tool
-        .map(str::to_string)
-        .or_else(|| file.default_tool.as_ref().map(|t| t.get_ref().clone()));
-    let tool_name = match wanted {
-        Some(name) => {
-            let Some(frame) = file.tools.get(&name) else {
-                let known: Vec<&str> = file.tools.keys().map(String::as_str).collect();
-                return Err(InputError(format!(
-                    "{}: no tool `{name}` (tools: {})",
-                    path.display(),
-                    if known.is_empty() {
-                        "none".into()
-                    } else {
-                        known.join(", ")
-                    }
-                )));
-            };
-            let iso = frame
-                .isometry()
-                .map_err(|m| InputError(format!("{}: [tools.{name}] {m}", path.display())))?;
-            chain = chain.with_tool(iso);
-            name
-        }
-        None => "last joint frame".into(),
-    };
+    let (chain, tool_name) = with_tool(chain, &file, tool, path)?;
     let n = chain.dof();
     let ready = match &file.ready {
         Some(r) => {
