@@ -403,9 +403,6 @@ pub fn run_contact(
         CartesianImpedance::new(plan.gains, state.q).map_err(|e| InputError(e.to_string()))?;
     let mut sensing = Sensing::new(plan.sensing).map_err(|e| InputError(e.to_string()))?;
     let tau = plan.primitive.duration();
-    let mut online = OnlineDmp::new(&plan.primitive.dmp, &plan.primitive.weights)
-        .with_error_gain(plan.error_gain);
-    let end_phase = (-plan.primitive.dmp.config().alpha_x).exp();
     let nominal = TARE + to_above + SETTLE + plan.search / plan.speed + tau + RELEASE + LIFT + 1.0;
     // Phase stopping may stretch the profile up to three times.
     let capacity = ((nominal + 2.0 * tau) * 1000.0) as usize + cps_franka::rt::BRAKE_RESERVE;
@@ -413,22 +410,34 @@ pub fn run_contact(
         max_ticks: capacity,
         ..*options
     };
-    let force_template = ForceAlong {
-        direction: plan.direction,
-        force: 0.0,
-        kp: plan.force_gains.0,
-        ki: plan.force_gains.1,
-        damping: plan.force_gains.2,
+    let mut stages = Stages {
+        plan,
+        n,
+        above,
+        to_above,
+        tau,
+        end_phase: (-plan.primitive.dmp.config().alpha_x).exp(),
+        force_template: ForceAlong {
+            direction: plan.direction,
+            force: 0.0,
+            kp: plan.force_gains.0,
+            ki: plan.force_gains.1,
+            damping: plan.force_gains.2,
+        },
+        online: OnlineDmp::new(&plan.primitive.dmp, &plan.primitive.weights)
+            .with_error_gain(plan.error_gain),
+        stage: Stage::Tare,
+        since_t: 0.0,
+        anchor: start.translation.vector,
+        contact: None,
+        ending: ContactEnding::Interrupted,
+        last_force: 0.0,
+        cancel: [0.0; 4],
     };
     let mut ticks: Vec<ContactTick> = Vec::with_capacity(capacity);
-    let (mut stage, mut since_t, mut anchor) = (Stage::Tare, 0.0, start.translation.vector);
-    let mut contact: Option<(f64, [f64; 3])> = None;
-    let mut ending = ContactEnding::Interrupted;
     let mut last_t = 0.0;
-    let mut last_force = 0.0;
     // The target's velocity, fed forward so the damping does not drag against the path.
     let mut last_target: Option<Vector3<f64>> = None;
-    let mut cancel = [0.0; 4];
     let report = cps_franka::run_torques(conn, limits, &options, stop, |state, t| {
         let frames = model.frames(&state.q);
         let estimate = sensing.update(model, &frames, state, t);
@@ -436,95 +445,7 @@ pub fn run_contact(
         last_t = t;
         let tool = frames.tool.translation.vector;
         let pressing = -estimate.fixed_rows::<3>(0).dot(&n);
-        let since = t - since_t;
-        let mut next: Option<(Stage, Vector3<f64>)> = None;
-        if pressing > plan.ceiling && stage < Stage::Lift {
-            ending = ContactEnding::Ceiling { force: pressing, t };
-            next = Some((Stage::Lift, tool));
-        }
-        let mut force = None;
-        let target = match stage {
-            Stage::Tare => {
-                if since > TARE {
-                    next.get_or_insert((Stage::ToAbove, anchor));
-                }
-                anchor
-            }
-            Stage::ToAbove => {
-                let p = anchor + (above - anchor) * min_jerk(since / to_above);
-                if since > to_above {
-                    next.get_or_insert((Stage::Settle, above));
-                }
-                p
-            }
-            Stage::Settle => {
-                if since > SETTLE {
-                    next.get_or_insert((Stage::Search, above));
-                }
-                anchor
-            }
-            Stage::Search => {
-                let travelled = plan.speed * since;
-                if pressing > plan.detect {
-                    contact = Some((t, tool.into()));
-                    next.get_or_insert((Stage::Press, tool));
-                } else if travelled > plan.search {
-                    ending = ContactEnding::NoContact {
-                        searched: travelled,
-                    };
-                    next.get_or_insert((Stage::Lift, tool));
-                }
-                anchor + n * travelled
-            }
-            Stage::Press => {
-                let over = online.phase() <= end_phase;
-                if over {
-                    for (c, f) in cancel.iter_mut().zip(online.forcing()) {
-                        *c = -f;
-                    }
-                }
-                let err = (last_force - pressing).abs();
-                let input = StepInput {
-                    coupling: over.then_some(&cancel[..]),
-                    tracking_error: if over { 0.0 } else { err },
-                };
-                let _ = online.step_with(dt.max(1e-4), input);
-                let y = online.position();
-                // The force builds up over the first 0.2 s whatever the profile's start.
-                last_force =
-                    y[3].max(0.0) * min_jerk(since / 0.2).max(if since > 0.2 { 1.0 } else { 0.0 });
-                force = Some(ForceAlong {
-                    force: last_force,
-                    ..force_template
-                });
-                if over && online.time() > tau {
-                    ending = ContactEnding::Done;
-                    next.get_or_insert((Stage::Release, tool));
-                }
-                anchor + Vector3::new(y[0], y[1], y[2])
-            }
-            Stage::Release => {
-                force = Some(ForceAlong {
-                    force: last_force * (1.0 - min_jerk(since / RELEASE)),
-                    ..force_template
-                });
-                if since > RELEASE {
-                    next.get_or_insert((Stage::Lift, anchor));
-                }
-                anchor
-            }
-            Stage::Lift | Stage::Done => {
-                if stage == Stage::Lift && since > LIFT + 0.3 {
-                    next.get_or_insert((Stage::Done, anchor - n * plan.retreat));
-                }
-                anchor - n * (plan.retreat * min_jerk(since / LIFT))
-            }
-        };
-        let switching = next.is_some();
-        if let Some((s, a)) = next {
-            // A jump to Lift from anywhere drops the force at once.
-            (stage, since_t, anchor) = (s, t, a);
-        }
+        let (target, force, switching) = stages.step(t, dt, tool, pressing);
         let mut velocity = Vector6::zeros();
         if let Some(last) = last_target
             && dt > 0.0
@@ -548,6 +469,7 @@ pub fn run_contact(
             &estimate,
             dt,
         );
+        let stage = stages.stage;
         if ticks.len() < ticks.capacity() {
             ticks.push(ContactTick {
                 t,
@@ -564,7 +486,7 @@ pub fn run_contact(
                 pressing,
                 desired: force.map_or(0.0, |f| f.force),
                 phase: if stage >= Stage::Press {
-                    online.phase()
+                    stages.online.phase()
                 } else {
                     1.0
                 },
@@ -576,15 +498,159 @@ pub fn run_contact(
         }
     })
     .map_err(robot)?;
-    if !report.ending.complete() {
-        ending = ContactEnding::Interrupted;
-    }
+    let ending = if report.ending.complete() {
+        stages.ending
+    } else {
+        ContactEnding::Interrupted
+    };
     Ok(ContactOutcome {
         report,
         ticks,
         ending,
-        contact,
+        contact: stages.contact,
     })
+}
+
+/// The contact task's stages as they go, tick by tick in the realtime loop (nothing here
+/// allocates): where the tool is sent and with what force, and how the task ended.
+struct Stages<'a> {
+    plan: &'a ContactPlan,
+    /// The approach's direction (unit) and the point above the surface.
+    n: Vector3<f64>,
+    above: Vector3<f64>,
+    /// The move above's and the force profile's durations (s).
+    to_above: f64,
+    tau: f64,
+    /// The profile's phase at its end.
+    end_phase: f64,
+    force_template: ForceAlong,
+    online: OnlineDmp,
+    stage: Stage,
+    /// When the stage began and where (its anchor).
+    since_t: f64,
+    anchor: Vector3<f64>,
+    contact: Option<(f64, [f64; 3])>,
+    ending: ContactEnding,
+    last_force: f64,
+    cancel: [f64; 4],
+}
+
+impl Stages<'_> {
+    /// The target at `t` (the tool at `tool`, pressing with `pressing` N along the
+    /// approach), the force to press with, and whether the stage changed this tick (a
+    /// new anchor: the target's jump is no velocity).
+    fn step(
+        &mut self,
+        t: f64,
+        dt: f64,
+        tool: Vector3<f64>,
+        pressing: f64,
+    ) -> (Vector3<f64>, Option<ForceAlong>, bool) {
+        let plan = self.plan;
+        let (n, anchor) = (self.n, self.anchor);
+        let since = t - self.since_t;
+        let mut next: Option<(Stage, Vector3<f64>)> = None;
+        if pressing > plan.ceiling && self.stage < Stage::Lift {
+            self.ending = ContactEnding::Ceiling { force: pressing, t };
+            next = Some((Stage::Lift, tool));
+        }
+        let mut force = None;
+        let target = match self.stage {
+            Stage::Tare => {
+                if since > TARE {
+                    next.get_or_insert((Stage::ToAbove, anchor));
+                }
+                anchor
+            }
+            Stage::ToAbove => {
+                let p = anchor + (self.above - anchor) * min_jerk(since / self.to_above);
+                if since > self.to_above {
+                    next.get_or_insert((Stage::Settle, self.above));
+                }
+                p
+            }
+            Stage::Settle => {
+                if since > SETTLE {
+                    next.get_or_insert((Stage::Search, self.above));
+                }
+                anchor
+            }
+            Stage::Search => {
+                let travelled = plan.speed * since;
+                if pressing > plan.detect {
+                    self.contact = Some((t, tool.into()));
+                    next.get_or_insert((Stage::Press, tool));
+                } else if travelled > plan.search {
+                    self.ending = ContactEnding::NoContact {
+                        searched: travelled,
+                    };
+                    next.get_or_insert((Stage::Lift, tool));
+                }
+                anchor + n * travelled
+            }
+            Stage::Press => {
+                let (p, f, done) = self.press(since, dt, pressing);
+                force = Some(f);
+                if done {
+                    self.ending = ContactEnding::Done;
+                    next.get_or_insert((Stage::Release, tool));
+                }
+                anchor + p
+            }
+            Stage::Release => {
+                force = Some(ForceAlong {
+                    force: self.last_force * (1.0 - min_jerk(since / RELEASE)),
+                    ..self.force_template
+                });
+                if since > RELEASE {
+                    next.get_or_insert((Stage::Lift, anchor));
+                }
+                anchor
+            }
+            Stage::Lift | Stage::Done => {
+                if self.stage == Stage::Lift && since > LIFT + 0.3 {
+                    next.get_or_insert((Stage::Done, anchor - n * plan.retreat));
+                }
+                anchor - n * (plan.retreat * min_jerk(since / LIFT))
+            }
+        };
+        let switching = next.is_some();
+        if let Some((s, a)) = next {
+            // A jump to Lift from anywhere drops the force at once.
+            (self.stage, self.since_t, self.anchor) = (s, t, a);
+        }
+        (target, force, switching)
+    }
+
+    /// One step of the force profile (`since` the press began): the offset from the
+    /// contact point, the force, and whether the profile is over.
+    fn press(&mut self, since: f64, dt: f64, pressing: f64) -> (Vector3<f64>, ForceAlong, bool) {
+        let over = self.online.phase() <= self.end_phase;
+        if over {
+            for (c, f) in self.cancel.iter_mut().zip(self.online.forcing()) {
+                *c = -f;
+            }
+        }
+        let err = (self.last_force - pressing).abs();
+        let input = StepInput {
+            coupling: over.then_some(&self.cancel[..]),
+            tracking_error: if over { 0.0 } else { err },
+        };
+        let _ = self.online.step_with(dt.max(1e-4), input);
+        let y = self.online.position();
+        // The force builds up over the first 0.2 s whatever the profile's start.
+        self.last_force =
+            y[3].max(0.0) * min_jerk(since / 0.2).max(if since > 0.2 { 1.0 } else { 0.0 });
+        let force = ForceAlong {
+            force: self.last_force,
+            ..self.force_template
+        };
+        (
+            Vector3::new(y[0], y[1], y[2]),
+            force,
+            over && self.online.time() > self.tau,
+        )
+    }
 }
 
 /// Where and how to reach the robot.
