@@ -498,122 +498,141 @@ fn validate(robot: &Robot) -> Result<(), KinematicsError> {
     Ok(())
 }
 
-/// Reads the serial chain from the root link to `tip` (a link name). Without `tip`, the
-/// tip is the one leaf link reachable through revolute, continuous and fixed joints only
-/// with the most revolute joints on its path; when several tie, the error lists them.
-pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, KinematicsError> {
-    if xml.len() > MAX_URDF_BYTES {
-        return Err(invalid(format!(
-            "the description has {} bytes, more than the {MAX_URDF_BYTES} read",
-            xml.len()
-        )));
-    }
-    let depth = nesting_depth(xml);
-    if depth > MAX_URDF_DEPTH {
-        return Err(invalid(format!(
-            "elements are nested {depth} deep, more than the {MAX_URDF_DEPTH} a robot description needs"
-        )));
-    }
-    let robot = read_robot(xml).map_err(invalid)?;
-    validate(&robot)?;
-    let mut parent_joint: HashMap<&str, usize> = HashMap::new();
-    for (i, j) in robot.joints.iter().enumerate() {
-        if parent_joint.insert(j.child.as_str(), i).is_some() {
-            return Err(invalid(format!(
-                "link `{}` is the child of two joints: not a tree",
-                j.child
-            )));
+/// The joints' tree: each link's parent joint, and the one root.
+struct Tree<'a> {
+    robot: &'a Robot,
+    parent_joint: HashMap<&'a str, usize>,
+    root: &'a str,
+}
+
+impl<'a> Tree<'a> {
+    /// The tree of `robot`'s joints, refused when its links do not form one.
+    fn of(robot: &'a Robot) -> Result<Self, KinematicsError> {
+        let mut parent_joint: HashMap<&str, usize> = HashMap::new();
+        for (i, j) in robot.joints.iter().enumerate() {
+            if parent_joint.insert(j.child.as_str(), i).is_some() {
+                return Err(invalid(format!(
+                    "link `{}` is the child of two joints: not a tree",
+                    j.child
+                )));
+            }
         }
+        let roots: Vec<&str> = robot
+            .links
+            .iter()
+            .map(|l| l.name.as_str())
+            .filter(|l| !parent_joint.contains_key(l))
+            .collect();
+        let root = match roots.as_slice() {
+            [r] => *r,
+            [] => return Err(invalid("no root link (every link has a parent)".into())),
+            many => {
+                return Err(invalid(format!(
+                    "several root links ({}): the links do not form one tree",
+                    many.join(", ")
+                )));
+            }
+        };
+        Ok(Tree {
+            robot,
+            parent_joint,
+            root,
+        })
     }
-    let roots: Vec<&str> = robot
-        .links
-        .iter()
-        .map(|l| l.name.as_str())
-        .filter(|l| !parent_joint.contains_key(l))
-        .collect();
-    let root = match roots.as_slice() {
-        [r] => *r,
-        [] => return Err(invalid("no root link (every link has a parent)".into())),
-        many => {
-            return Err(invalid(format!(
-                "several root links ({}): the links do not form one tree",
-                many.join(", ")
-            )));
-        }
-    };
-    // The path of joints from the root to a link, or None if it does not reach the root.
-    let path_to = |link: &str| -> Option<Vec<usize>> {
+
+    /// The path of joints from the root to a link, or None if it does not reach the root.
+    fn path_to(&self, link: &str) -> Option<Vec<usize>> {
         let mut path = Vec::new();
         let mut at = link;
-        while let Some(&j) = parent_joint.get(at) {
-            if path.len() > robot.joints.len() {
+        while let Some(&j) = self.parent_joint.get(at) {
+            if path.len() > self.robot.joints.len() {
                 return None; // a cycle
             }
             path.push(j);
-            at = robot.joints[j].parent.as_str();
+            at = self.robot.joints[j].parent.as_str();
         }
         path.reverse();
-        (at == root).then_some(path)
-    };
-    let revolute = |j: usize| {
+        (at == self.root).then_some(path)
+    }
+
+    fn revolute(&self, j: usize) -> bool {
         matches!(
-            robot.joints[j].joint_type,
+            self.robot.joints[j].joint_type,
             JointType::Revolute | JointType::Continuous
         )
-    };
-    let tip_link = match tip {
-        Some(t) => {
+    }
+
+    /// The chain's tip: the link named, or the one leaf reached through revolute,
+    /// continuous and fixed joints only with the most revolute joints on its path.
+    fn tip(&self, tip: Option<&str>) -> Result<String, KinematicsError> {
+        let robot = self.robot;
+        if let Some(t) = tip {
             if !robot.links.iter().any(|l| l.name == t) {
                 return Err(invalid(format!("no link named `{t}`")));
             }
-            t.to_string()
+            return Ok(t.to_string());
         }
-        None => {
-            let parents: Vec<&str> = robot.joints.iter().map(|j| j.parent.as_str()).collect();
-            let mut best: Vec<(&str, usize)> = Vec::new();
-            for l in robot.links.iter().map(|l| l.name.as_str()) {
-                if parents.contains(&l) {
-                    continue; // not a leaf
-                }
-                let Some(path) = path_to(l) else { continue };
-                if !path
-                    .iter()
-                    .all(|&j| revolute(j) || matches!(robot.joints[j].joint_type, JointType::Fixed))
-                {
-                    continue;
-                }
-                let count = path.iter().filter(|&&j| revolute(j)).count();
-                match best.first().map(|b| b.1) {
-                    Some(c) if c > count => {}
-                    Some(c) if c == count => best.push((l, count)),
-                    _ => best = vec![(l, count)],
-                }
+        let parents: Vec<&str> = robot.joints.iter().map(|j| j.parent.as_str()).collect();
+        let mut best: Vec<(&str, usize)> = Vec::new();
+        for l in robot.links.iter().map(|l| l.name.as_str()) {
+            if parents.contains(&l) {
+                continue; // not a leaf
             }
-            match best.as_slice() {
-                [(l, _)] => l.to_string(),
-                // No clean path: take the deepest leaf, so that the walk below names the
-                // joint that is in the way.
-                [] => robot
-                    .links
-                    .iter()
-                    .filter(|l| !parents.contains(&l.name.as_str()))
-                    .filter_map(|l| path_to(&l.name).map(|p| (l.name.clone(), p.len())))
-                    .max_by_key(|(_, depth)| *depth)
-                    .map(|(name, _)| name)
-                    .ok_or_else(|| invalid("no leaf link is connected to the root".into()))?,
-                many => {
-                    let names: Vec<&str> = many.iter().map(|b| b.0).collect();
-                    return Err(invalid(format!(
-                        "several tip links are possible ({}): name one",
-                        names.join(", ")
-                    )));
-                }
+            let Some(path) = self.path_to(l) else {
+                continue;
+            };
+            if !path.iter().all(|&j| {
+                self.revolute(j) || matches!(robot.joints[j].joint_type, JointType::Fixed)
+            }) {
+                continue;
+            }
+            let count = path.iter().filter(|&&j| self.revolute(j)).count();
+            match best.first().map(|b| b.1) {
+                Some(c) if c > count => {}
+                Some(c) if c == count => best.push((l, count)),
+                _ => best = vec![(l, count)],
             }
         }
-    };
-    let path = path_to(&tip_link)
-        .ok_or_else(|| invalid(format!("link `{tip_link}` is not connected to the root")))?;
+        match best.as_slice() {
+            [(l, _)] => Ok(l.to_string()),
+            // No clean path: take the deepest leaf, so that the walk names the joint that
+            // is in the way.
+            [] => robot
+                .links
+                .iter()
+                .filter(|l| !parents.contains(&l.name.as_str()))
+                .filter_map(|l| self.path_to(&l.name).map(|p| (l.name.clone(), p.len())))
+                .max_by_key(|(_, depth)| *depth)
+                .map(|(name, _)| name)
+                .ok_or_else(|| invalid("no leaf link is connected to the root".into())),
+            many => {
+                let names: Vec<&str> = many.iter().map(|b| b.0).collect();
+                Err(invalid(format!(
+                    "several tip links are possible ({}): name one",
+                    names.join(", ")
+                )))
+            }
+        }
+    }
+}
 
+/// What the walk from the root along a path of joints gathers: the revolute joints, their
+/// names and limits, the fixed transform after the last, where each link on the chain is
+/// carried, and the inertial parts rigidly attached to each moving link.
+struct Walk {
+    joints: Vec<RevoluteJoint>,
+    names: Vec<String>,
+    lower: Vec<f64>,
+    upper: Vec<f64>,
+    speed: Vec<f64>,
+    effort: Vec<f64>,
+    pending: Isometry3<f64>,
+    on_chain: HashMap<String, (usize, Isometry3<f64>)>,
+    parts: Vec<Vec<(LinkInertia, Isometry3<f64>)>>,
+}
+
+/// Walks `path` (joint indices) from `root`; refuses a joint cps chains cannot have.
+fn walk(robot: &Robot, path: &[usize], root: &str) -> Result<Walk, KinematicsError> {
     let mut joints = Vec::new();
     let mut names = Vec::new();
     let (mut lower, mut upper, mut speed, mut effort) =
@@ -625,7 +644,7 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
     // Per moving link: the inertial parts rigidly attached to it, in its frame.
     let mut parts: Vec<Vec<(LinkInertia, Isometry3<f64>)>> = Vec::new();
     let link = |name: &str| robot.links.iter().find(|l| l.name == name);
-    for &ji in &path {
+    for &ji in path {
         let j = &robot.joints[ji];
         let origin =
             pending * pose(&j.origin).map_err(|m| invalid(format!("joint `{}`: {m}", j.name)))?;
@@ -692,18 +711,21 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
             }
         }
     }
-    if joints.is_empty() {
-        return Err(invalid(format!(
-            "no revolute joint between `{root}` and `{tip_link}`"
-        )));
-    }
-    let mut chain = SerialChain::from_joints(joints)?
-        .with_tool(pending)
-        .with_limits(&lower, &upper)?;
-    if speed.iter().all(|v| v.is_finite() && *v > 0.0) {
-        chain = chain.with_velocity_limits(&speed)?;
-    }
-    let inertia: Vec<LinkInertia> = parts.iter().map(|p| LinkInertia::combine(p)).collect();
+    Ok(Walk {
+        joints,
+        names,
+        lower,
+        upper,
+        speed,
+        effort,
+        pending,
+        on_chain,
+        parts,
+    })
+}
+
+/// Every joint as it carries the collision shapes of its child link.
+fn carriers(robot: &Robot) -> Result<Vec<PlaceJoint<'_>>, KinematicsError> {
     let mut carriers = Vec::new();
     for j in &robot.joints {
         carriers.push(PlaceJoint {
@@ -721,6 +743,57 @@ pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, Kinema
             },
         });
     }
+    Ok(carriers)
+}
+
+/// Reads the serial chain from the root link to `tip` (a link name). Without `tip`, the
+/// tip is the one leaf link reachable through revolute, continuous and fixed joints only
+/// with the most revolute joints on its path; when several tie, the error lists them.
+pub fn chain_from_urdf(xml: &str, tip: Option<&str>) -> Result<UrdfChain, KinematicsError> {
+    if xml.len() > MAX_URDF_BYTES {
+        return Err(invalid(format!(
+            "the description has {} bytes, more than the {MAX_URDF_BYTES} read",
+            xml.len()
+        )));
+    }
+    let depth = nesting_depth(xml);
+    if depth > MAX_URDF_DEPTH {
+        return Err(invalid(format!(
+            "elements are nested {depth} deep, more than the {MAX_URDF_DEPTH} a robot description needs"
+        )));
+    }
+    let robot = read_robot(xml).map_err(invalid)?;
+    validate(&robot)?;
+    let tree = Tree::of(&robot)?;
+    let root = tree.root;
+    let tip_link = tree.tip(tip)?;
+    let path = tree
+        .path_to(&tip_link)
+        .ok_or_else(|| invalid(format!("link `{tip_link}` is not connected to the root")))?;
+    let Walk {
+        joints,
+        names,
+        lower,
+        upper,
+        speed,
+        effort,
+        pending,
+        on_chain,
+        parts,
+    } = walk(&robot, &path, root)?;
+    if joints.is_empty() {
+        return Err(invalid(format!(
+            "no revolute joint between `{root}` and `{tip_link}`"
+        )));
+    }
+    let mut chain = SerialChain::from_joints(joints)?
+        .with_tool(pending)
+        .with_limits(&lower, &upper)?;
+    if speed.iter().all(|v| v.is_finite() && *v > 0.0) {
+        chain = chain.with_velocity_limits(&speed)?;
+    }
+    let inertia: Vec<LinkInertia> = parts.iter().map(|p| LinkInertia::combine(p)).collect();
+    let carriers = carriers(&robot)?;
     let link_collisions: Vec<(&str, &[UrdfCollision])> = robot
         .links
         .iter()
