@@ -337,40 +337,8 @@ pub fn demonstrate(take: &Take, s: &Settings) -> Result<Demonstration, MocapErro
             list(&take.labels)
         )));
     }
-    let mut index = Vec::new();
-    for m in &s.markers {
-        let i = take.find_label(m).ok_or_else(|| {
-            MocapError::Input(format!(
-                "{file}: no marker labelled \"{m}\"; its markers are: {}",
-                list(&take.labels)
-            ))
-        })?;
-        if index.contains(&i) {
-            return Err(MocapError::Input(format!(
-                "{file}: marker \"{m}\" is named twice"
-            )));
-        }
-        index.push(i);
-    }
-    let pick = |name: &str| -> Result<usize, MocapError> {
-        s.markers.iter().position(|m| m == name).ok_or_else(|| {
-            MocapError::Input(format!(
-                "{file}: \"{name}\" is not one of the body's markers ({})",
-                s.markers.join(", ")
-            ))
-        })
-    };
-    let origin = match &s.origin {
-        Origin::Centroid => None,
-        Origin::Marker(m) => Some(pick(m)?),
-    };
-    let axes = match &s.axes {
-        None => None,
-        Some([o, x, p]) => Some([pick(o)?, pick(x)?, pick(p)?]),
-    };
+    let (index, origin, axes) = marker_indices(take, s)?;
     let k = take.metres_per_unit;
-    let n = range.len();
-    let nm = index.len();
     // Tracks in metres, cleaned.
     let mut tracks: Vec<Vec<Vec3>> = index
         .iter()
@@ -403,129 +371,14 @@ pub fn demonstrate(take: &Take, s: &Settings) -> Result<Demonstration, MocapErro
         let filled = fill_gaps(t, s.max_gap);
         reports.push((missing, outliers, filled));
     }
-    // The reference frame: the first that sees every marker.
-    let reference = (0..n)
-        .find(|&f| tracks.iter().all(|t| t[f][0].is_finite()))
-        .ok_or_else(|| {
-            MocapError::Refused(format!(
-                "{file}: no frame sees all {nm} markers ({}) even after filling gaps of up to {} frames; the body needs one complete frame to be defined",
-                s.markers.join(", "),
-                s.max_gap
-            ))
-        })?;
-    let refs: Vec<Vec3> = tracks.iter().map(|t| t[reference]).collect();
-    let spread = planarity(&refs);
-    if spread < crate::register::MIN_PLANARITY {
-        return Err(MocapError::Input(format!(
-            "{file}: markers {} are (nearly) on one line at frame {}: they fix no rotation about it; pick markers that span a triangle",
-            s.markers.join(", "),
-            take.first_frame + (range.start + reference) as u64
-        )));
-    }
-    let o = origin.map_or_else(|| centroid(&refs), |m| refs[m]);
-    let r0: Mat3 = match axes {
-        None => IDENTITY,
-        Some([a, b, c]) => {
-            let x = sub(refs[b], refs[a]);
-            let z = cross(x, sub(refs[c], refs[a]));
-            if norm(x) < 1e-9 || norm(z) < 1e-12 {
-                return Err(MocapError::Input(format!(
-                    "{file}: the axis markers {} do not span a plane",
-                    s.axes.as_ref().map_or(String::new(), |a| a.join(", "))
-                )));
-            }
-            let x = scale(x, 1.0 / norm(x));
-            let z = scale(z, 1.0 / norm(z));
-            let y = cross(z, x);
-            // Columns x, y, z: body axes in the take's frame.
-            transpose(&[x, y, z])
-        }
-    };
-    let body: Vec<Vec3> = refs
-        .iter()
-        .map(|p| crate::fit::mul(&transpose(&r0), sub(*p, o)))
-        .collect();
-
-    // Fit every frame.
-    let mut poses: Vec<Option<Rigid>> = vec![None; n];
-    let mut rms_all = Vec::with_capacity(n);
-    let mut fewer = 0usize;
-    let mut fit_outliers = vec![0usize; nm];
-    let (mut from, mut to, mut which) = (
-        Vec::with_capacity(nm),
-        Vec::with_capacity(nm),
-        Vec::with_capacity(nm),
-    );
-    for f in 0..n {
-        from.clear();
-        to.clear();
-        which.clear();
-        for (j, t) in tracks.iter().enumerate() {
-            if t[f][0].is_finite() {
-                from.push(body[j]);
-                to.push(t[f]);
-                which.push(j);
-            }
-        }
-        if from.len() < 3 || planarity(&from) < crate::register::MIN_PLANARITY {
-            continue;
-        }
-        let Some((mut pose, mut rms)) = fit(&from, &to) else {
-            continue;
-        };
-        if rms > s.outlier_m / 2.0 && from.len() >= 4 {
-            // Drop the marker farthest from the fit and fit again.
-            let worst = (0..from.len())
-                .max_by(|&a, &b| {
-                    let da = norm(sub(pose.apply(from[a]), to[a]));
-                    let db = norm(sub(pose.apply(from[b]), to[b]));
-                    da.total_cmp(&db)
-                })
-                .unwrap_or(0);
-            fit_outliers[which[worst]] += 1;
-            tracks[which[worst]][f] = [f64::NAN; 3];
-            from.remove(worst);
-            to.remove(worst);
-            if planarity(&from) < crate::register::MIN_PLANARITY {
-                continue;
-            }
-            if let Some(refit) = fit(&from, &to) {
-                (pose, rms) = refit;
-            }
-        }
-        if from.len() < nm {
-            fewer += 1;
-        }
-        rms_all.push(rms);
-        poses[f] = Some(pose);
-    }
-    let tracked = runs(poses.iter().map(Option::is_some));
-    let (first, last) = match (tracked.first(), tracked.last()) {
-        (Some(a), Some(b)) => (a.start, b.end),
-        _ => {
-            return Err(MocapError::Refused(format!(
-                "{file}: the body is never seen by three markers that span a triangle"
-            )));
-        }
-    };
-    if tracked.len() > 1 {
-        let hole = tracked[0].end..tracked[1].start;
-        let missing: Vec<String> = (0..nm)
-            .filter(|&j| hole.clone().any(|f| !tracks[j][f][0].is_finite()))
-            .map(|j| s.markers[j].clone())
-            .collect();
-        let f0 = take.first_frame + (range.start + hole.start) as u64;
-        return Err(MocapError::Refused(format!(
-            "{file}: frames {}–{} (t = {:.3}–{:.3} s, {} frames): fewer than three markers of the body are seen (missing: {}), longer than --max-gap {} frames fills; cut the take around them (--frames) or allow longer gaps",
-            f0,
-            f0 + hole.len() as u64 - 1,
-            (range.start + hole.start) as f64 / take.rate,
-            (range.start + hole.end - 1) as f64 / take.rate,
-            hole.len(),
-            missing.join(", "),
-            s.max_gap
-        )));
-    }
+    let body = body_frame(take, s, &range, &tracks, origin, axes)?;
+    let Fitted {
+        poses,
+        rms_all,
+        fewer,
+        fit_outliers,
+    } = fit_frames(&mut tracks, &body, s.outlier_m);
+    let (first, last) = tracked_span(take, s, &range, &poses, &tracks)?;
     let mut position = Vec::with_capacity(last - first);
     let mut quaternion: Vec<[f64; 4]> = Vec::with_capacity(last - first);
     for p in poses[first..last].iter().flatten() {
@@ -584,6 +437,224 @@ pub fn demonstrate(take: &Take, s: &Settings) -> Result<Demonstration, MocapErro
         seen: seen.iter().map(|v| v[first..last].to_vec()).collect(),
         report,
     })
+}
+
+/// The body's markers in its own frame: their places at the first frame that sees them
+/// all, about the origin (a marker, or their centroid) and along the axes the settings
+/// name (else the take's).
+fn body_frame(
+    take: &Take,
+    s: &Settings,
+    range: &Range<usize>,
+    tracks: &[Vec<Vec3>],
+    origin: Option<usize>,
+    axes: Option<[usize; 3]>,
+) -> Result<Vec<Vec3>, MocapError> {
+    let file = &take.file;
+    let n = range.len();
+    let nm = tracks.len();
+    // The reference frame: the first that sees every marker.
+    let reference = (0..n)
+        .find(|&f| tracks.iter().all(|t| t[f][0].is_finite()))
+        .ok_or_else(|| {
+            MocapError::Refused(format!(
+                "{file}: no frame sees all {nm} markers ({}) even after filling gaps of up to {} frames; the body needs one complete frame to be defined",
+                s.markers.join(", "),
+                s.max_gap
+            ))
+        })?;
+    let refs: Vec<Vec3> = tracks.iter().map(|t| t[reference]).collect();
+    let spread = planarity(&refs);
+    if spread < crate::register::MIN_PLANARITY {
+        return Err(MocapError::Input(format!(
+            "{file}: markers {} are (nearly) on one line at frame {}: they fix no rotation about it; pick markers that span a triangle",
+            s.markers.join(", "),
+            take.first_frame + (range.start + reference) as u64
+        )));
+    }
+    let o = origin.map_or_else(|| centroid(&refs), |m| refs[m]);
+    let r0: Mat3 = match axes {
+        None => IDENTITY,
+        Some([a, b, c]) => {
+            let x = sub(refs[b], refs[a]);
+            let z = cross(x, sub(refs[c], refs[a]));
+            if norm(x) < 1e-9 || norm(z) < 1e-12 {
+                return Err(MocapError::Input(format!(
+                    "{file}: the axis markers {} do not span a plane",
+                    s.axes.as_ref().map_or(String::new(), |a| a.join(", "))
+                )));
+            }
+            let x = scale(x, 1.0 / norm(x));
+            let z = scale(z, 1.0 / norm(z));
+            let y = cross(z, x);
+            // Columns x, y, z: body axes in the take's frame.
+            transpose(&[x, y, z])
+        }
+    };
+    let body: Vec<Vec3> = refs
+        .iter()
+        .map(|p| crate::fit::mul(&transpose(&r0), sub(*p, o)))
+        .collect();
+
+    Ok(body)
+}
+
+/// Every frame's pose of the body (`body`: its markers in its own frame), fitted to the
+/// markers seen there; a marker farther than half `outlier_m` from the fit is dropped
+/// from that frame (and from `tracks`) and the frame fitted again.
+fn fit_frames(tracks: &mut [Vec<Vec3>], body: &[Vec3], outlier_m: f64) -> Fitted {
+    let n = tracks.first().map_or(0, Vec::len);
+    let nm = tracks.len();
+    let mut poses: Vec<Option<Rigid>> = vec![None; n];
+    let mut rms_all = Vec::with_capacity(n);
+    let mut fewer = 0usize;
+    let mut fit_outliers = vec![0usize; nm];
+    let (mut from, mut to, mut which) = (
+        Vec::with_capacity(nm),
+        Vec::with_capacity(nm),
+        Vec::with_capacity(nm),
+    );
+    for f in 0..n {
+        from.clear();
+        to.clear();
+        which.clear();
+        for (j, t) in tracks.iter().enumerate() {
+            if t[f][0].is_finite() {
+                from.push(body[j]);
+                to.push(t[f]);
+                which.push(j);
+            }
+        }
+        if from.len() < 3 || planarity(&from) < crate::register::MIN_PLANARITY {
+            continue;
+        }
+        let Some((mut pose, mut rms)) = fit(&from, &to) else {
+            continue;
+        };
+        if rms > outlier_m / 2.0 && from.len() >= 4 {
+            // Drop the marker farthest from the fit and fit again.
+            let worst = (0..from.len())
+                .max_by(|&a, &b| {
+                    let da = norm(sub(pose.apply(from[a]), to[a]));
+                    let db = norm(sub(pose.apply(from[b]), to[b]));
+                    da.total_cmp(&db)
+                })
+                .unwrap_or(0);
+            fit_outliers[which[worst]] += 1;
+            tracks[which[worst]][f] = [f64::NAN; 3];
+            from.remove(worst);
+            to.remove(worst);
+            if planarity(&from) < crate::register::MIN_PLANARITY {
+                continue;
+            }
+            if let Some(refit) = fit(&from, &to) {
+                (pose, rms) = refit;
+            }
+        }
+        if from.len() < nm {
+            fewer += 1;
+        }
+        rms_all.push(rms);
+        poses[f] = Some(pose);
+    }
+    Fitted {
+        poses,
+        rms_all,
+        fewer,
+        fit_outliers,
+    }
+}
+
+/// What [`fit_frames`] found: each frame's pose (None: too few markers seen), the fits'
+/// RMS, the frames fitted with fewer than every marker, and each marker's drops.
+struct Fitted {
+    poses: Vec<Option<Rigid>>,
+    rms_all: Vec<f64>,
+    fewer: usize,
+    fit_outliers: Vec<usize>,
+}
+
+/// The frames from the first to the last the body was fitted in; refused when it never
+/// was, or when it was lost in between for longer than the gaps filled.
+fn tracked_span(
+    take: &Take,
+    s: &Settings,
+    range: &Range<usize>,
+    poses: &[Option<Rigid>],
+    tracks: &[Vec<Vec3>],
+) -> Result<(usize, usize), MocapError> {
+    let file = &take.file;
+    let nm = tracks.len();
+    let tracked = runs(poses.iter().map(Option::is_some));
+    let span = match (tracked.first(), tracked.last()) {
+        (Some(a), Some(b)) => (a.start, b.end),
+        _ => {
+            return Err(MocapError::Refused(format!(
+                "{file}: the body is never seen by three markers that span a triangle"
+            )));
+        }
+    };
+    if tracked.len() > 1 {
+        let hole = tracked[0].end..tracked[1].start;
+        let missing: Vec<String> = (0..nm)
+            .filter(|&j| hole.clone().any(|f| !tracks[j][f][0].is_finite()))
+            .map(|j| s.markers[j].clone())
+            .collect();
+        let f0 = take.first_frame + (range.start + hole.start) as u64;
+        return Err(MocapError::Refused(format!(
+            "{file}: frames {}–{} (t = {:.3}–{:.3} s, {} frames): fewer than three markers of the body are seen (missing: {}), longer than --max-gap {} frames fills; cut the take around them (--frames) or allow longer gaps",
+            f0,
+            f0 + hole.len() as u64 - 1,
+            (range.start + hole.start) as f64 / take.rate,
+            (range.start + hole.end - 1) as f64 / take.rate,
+            hole.len(),
+            missing.join(", "),
+            s.max_gap
+        )));
+    }
+    Ok(span)
+}
+
+/// Where the settings' markers are in the take, and which of them are the origin and the
+/// axes.
+#[allow(clippy::type_complexity)]
+fn marker_indices(
+    take: &Take,
+    s: &Settings,
+) -> Result<(Vec<usize>, Option<usize>, Option<[usize; 3]>), MocapError> {
+    let file = &take.file;
+    let mut index = Vec::new();
+    for m in &s.markers {
+        let i = take.find_label(m).ok_or_else(|| {
+            MocapError::Input(format!(
+                "{file}: no marker labelled \"{m}\"; its markers are: {}",
+                list(&take.labels)
+            ))
+        })?;
+        if index.contains(&i) {
+            return Err(MocapError::Input(format!(
+                "{file}: marker \"{m}\" is named twice"
+            )));
+        }
+        index.push(i);
+    }
+    let pick = |name: &str| -> Result<usize, MocapError> {
+        s.markers.iter().position(|m| m == name).ok_or_else(|| {
+            MocapError::Input(format!(
+                "{file}: \"{name}\" is not one of the body's markers ({})",
+                s.markers.join(", ")
+            ))
+        })
+    };
+    let origin = match &s.origin {
+        Origin::Centroid => None,
+        Origin::Marker(m) => Some(pick(m)?),
+    };
+    let axes = match &s.axes {
+        None => None,
+        Some([o, x, p]) => Some([pick(o)?, pick(x)?, pick(p)?]),
+    };
+    Ok((index, origin, axes))
 }
 
 /// The frames kept of a take (`first..last` within `range`): frame numbers, times and the
