@@ -38,7 +38,10 @@ impl Arm {
         }
     }
 
-    /// The arm named `fr3` or `panda`.
+    /// Every arm, in the order of its names.
+    pub const ALL: [Arm; 2] = [Arm::Fr3, Arm::Panda];
+
+    /// The arm named `fr3` or `panda` (or `fer`, the Panda's name since the FR3).
     pub fn from_name(s: &str) -> Option<Self> {
         match s {
             "fr3" => Some(Arm::Fr3),

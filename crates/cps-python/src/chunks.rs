@@ -6,7 +6,6 @@
 use std::sync::Mutex;
 
 use cps_drive::follow::{ChunkRobot, LiveOutcome, LiveRun, report_json};
-use cps_franka::limits::Arm;
 use cps_franka::rt::Realtime;
 use cps_robot::{Chunk, FollowSettings, StopToken};
 use pyo3::prelude::*;
@@ -108,7 +107,7 @@ impl ChunkExecutor {
         max_duration: f64,
         realtime: &str,
     ) -> PyResult<Self> {
-        let arm = choose("arm", arm, &[("fr3", Arm::Fr3), ("panda", Arm::Panda)])?;
+        let arm = crate::franka::arm_named(arm)?;
         if !(rate.is_finite() && rate > 0.0) {
             return Err(value_error(format!(
                 "rate: {rate} is not a number of targets per second"
@@ -266,7 +265,7 @@ pub fn chunk_commands<'py>(
     max_gap: f64,
     max_duration: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let arm = choose("arm", arm, &[("fr3", Arm::Fr3), ("panda", Arm::Panda)])?;
+    let arm = crate::franka::arm_named(arm)?;
     let q0 = crate::arrays::vector(start, "start", Some(7))?;
     let mut list = Vec::with_capacity(chunks.len());
     for (i, (observed, arrived, targets)) in chunks.iter().enumerate() {
