@@ -107,7 +107,7 @@ impl ChunkExecutor {
         max_duration: f64,
         realtime: &str,
     ) -> PyResult<Self> {
-        let arm = crate::franka::arm_named(arm)?;
+        let arm = crate::errors::arm_named(arm)?;
         if !(rate.is_finite() && rate > 0.0) {
             return Err(value_error(format!(
                 "rate: {rate} is not a number of targets per second"
@@ -265,7 +265,7 @@ pub fn chunk_commands<'py>(
     max_gap: f64,
     max_duration: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let arm = crate::franka::arm_named(arm)?;
+    let arm = crate::errors::arm_named(arm)?;
     let q0 = crate::arrays::vector(start, "start", Some(7))?;
     let mut list = Vec::with_capacity(chunks.len());
     for (i, (observed, arrived, targets)) in chunks.iter().enumerate() {

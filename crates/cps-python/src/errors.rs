@@ -165,3 +165,18 @@ impl<T, E: IntoPyErr> PyResultExt<T> for Result<T, E> {
         self.map_err(IntoPyErr::py_err)
     }
 }
+
+/// The arm by its name, as cps-franka reads it everywhere (`fr3`, `panda`, `fer`).
+pub(crate) fn arm_named(name: &str) -> PyResult<cps_franka::limits::Arm> {
+    use cps_franka::limits::Arm;
+    Arm::from_name(name).ok_or_else(|| {
+        let names: Vec<String> = Arm::ALL
+            .iter()
+            .map(|a| format!("\"{}\"", a.name()))
+            .collect();
+        value_error(format!(
+            "arm: \"{name}\" is not one of {}",
+            names.join(", ")
+        ))
+    })
+}

@@ -104,7 +104,7 @@ impl Franka {
         }
         Ok(Franka {
             host: host.to_string(),
-            arm: arm_named(arm)?,
+            arm: crate::errors::arm_named(arm)?,
             realtime: choose("realtime", realtime, &Realtime::WORDS)?,
             last: None,
         })
@@ -402,18 +402,4 @@ pub fn identify<'py>(
     })?
     .map_err(|e| e.py_err())?;
     json_to_py(py, &answer.json)
-}
-
-/// The arm by its name, as cps-franka reads it everywhere (`fr3`, `panda`, `fer`).
-pub(crate) fn arm_named(name: &str) -> PyResult<Arm> {
-    Arm::from_name(name).ok_or_else(|| {
-        let names: Vec<String> = Arm::ALL
-            .iter()
-            .map(|a| format!("\"{}\"", a.name()))
-            .collect();
-        value_error(format!(
-            "arm: \"{name}\" is not one of {}",
-            names.join(", ")
-        ))
-    })
 }
