@@ -68,7 +68,7 @@ LAYERS = {
         ["chunk_report"],
     ],
     "cps-learn": [
-        ["clearance", "error", "search", "space"],
+        ["clearance", "error", "pool", "search", "space"],
         ["task"],
         ["exact", "robot"],
         ["executed", "lsq"],
@@ -152,7 +152,7 @@ LAYERS = {
     ],
     "cps-experiment": [
         # what the others use: progress events, a pool of robots, the optimiser's bench
-        ["cmaes_bench", "observer", "sim_pool"],
+        ["cmaes_bench", "observer"],
         # each kind's sections of the file and the robot chosen, read into plans
         ["sections"],
         # the chosen robot opened

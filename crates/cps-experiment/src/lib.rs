@@ -57,7 +57,6 @@ pub mod robots;
 pub mod ros2_show;
 mod run;
 pub mod sections;
-pub mod sim_pool;
 
 // Other crates' modules are named by their crate (`cps_movement::limits`, …): a user of
 // them depends on cps-movement, cps-drive or cps-outcome, visibly. Only the types `run`

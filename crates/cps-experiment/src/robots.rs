@@ -194,7 +194,7 @@ impl RobotChoice {
     pub fn open_pool(
         &self,
         in_process: usize,
-    ) -> Result<Vec<crate::sim_pool::NamedBackend>, ExperimentError> {
+    ) -> Result<Vec<cps_learn::pool::NamedBackend>, ExperimentError> {
         let pool = match &self.backend {
             BackendChoice::Kinematic { .. } | BackendChoice::Dynamics(_) => {
                 return self
@@ -231,7 +231,7 @@ impl RobotChoice {
     /// the script to add.
     pub fn check_runs_plans(
         &self,
-        opened: &mut [crate::sim_pool::NamedBackend],
+        opened: &mut [cps_learn::pool::NamedBackend],
     ) -> Result<(), ExperimentError> {
         let slow = opened
             .iter_mut()

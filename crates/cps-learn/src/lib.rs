@@ -38,6 +38,7 @@ mod joint;
 mod joint_executed;
 mod keep_clear;
 mod lsq;
+pub mod pool;
 mod pose;
 mod robot;
 mod search;

@@ -30,7 +30,7 @@ use super::{Ctx, history_table, learn_error, position_figures, search_figure, wa
 use crate::ExperimentError;
 use crate::observer::Event;
 use crate::robots::RobotChoice;
-use crate::sim_pool::{Dropped, JobError, PoolError, SimulatorPool};
+use cps_learn::pool::{Dropped, JobError, PoolError, SimulatorPool};
 use cps_outcome::outcome::{Column, Format, Outcome, Report, ReportTable, Series, Table, fields};
 
 /// One candidate executed and judged.
