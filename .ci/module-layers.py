@@ -74,7 +74,7 @@ LAYERS = {
         ["executed", "lsq"],
         ["keep_clear", "viapoint"],
         ["energy", "imitation", "joint", "pose"],
-        ["joint_executed"],
+        ["executions", "joint_executed"],
     ],
     "cps-geometry": [
         ["error", "gjk"],

@@ -33,6 +33,7 @@ mod energy;
 mod error;
 mod exact;
 mod executed;
+mod executions;
 mod imitation;
 mod joint;
 mod joint_executed;
@@ -54,6 +55,7 @@ pub use energy::{
 pub use error::LearnError;
 pub use exact::{ExactOptimum, QuadraticCost, exact_optimum};
 pub use executed::{ExecutedCost, ExecutedErrors, ExecutedWeights, executed_cost};
+pub use executions::{Ended, Judge, Judged, Kept, learn_on_executions, pool_failure};
 pub use imitation::{
     DemonstrationResult, GivenDemonstration, ImitationConfig, ImitationFit, ImitationOutcome,
     ImitationStage, run_imitation,

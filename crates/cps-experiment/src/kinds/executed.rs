@@ -13,15 +13,10 @@
 //! candidate run by another; when none is left the run stops, keeping the best so far
 //! (`"complete": false`).
 
-use std::sync::{Mutex, PoisonError};
-
-use cps_cmaes::{CandidateError, EndSearch, Objective, ObjectiveError, Parameters};
-use cps_dmp::{DiscreteDmp, Trajectory};
-use cps_learn::{
-    ExecutedCost, ExecutedErrors, LearnError, SearchSpace, exact_optimum, execute_trajectory,
-    executed_cost, targets_at,
-};
-use cps_robot::{Recording, Robot, RobotError, StopToken};
+use cps_cmaes::Parameters;
+use cps_learn::pool::{Dropped, SimulatorPool};
+use cps_learn::{Judge, Judged, Kept, SearchSpace, exact_optimum, pool_failure, targets_at};
+use cps_robot::{Recording, StopToken};
 use serde::Serialize;
 
 use super::clearance::{ClearanceSummary, Joints, KeptClearSummary};
@@ -30,92 +25,7 @@ use super::{Ctx, history_table, learn_error, position_figures, search_figure, wa
 use crate::ExperimentError;
 use crate::observer::Event;
 use crate::robots::RobotChoice;
-use cps_learn::pool::{Dropped, JobError, PoolError, SimulatorPool};
 use cps_outcome::outcome::{Column, Format, Outcome, Report, ReportTable, Series, Table, fields};
-
-/// One candidate executed and judged.
-struct Judged {
-    /// Why the guard refused a command of it (then it was not executed to the end, and
-    /// costs +∞).
-    refused: Option<String>,
-    cost: ExecutedCost,
-    errors: ExecutedErrors,
-    recording: Recording,
-    times: Vec<f64>,
-    trajectory: Trajectory,
-}
-
-/// What the learner needs to judge a candidate.
-struct Judge<'a> {
-    dmp: &'a DiscreteDmp,
-    space: &'a SearchSpace,
-    task: &'a cps_learn::ViaPointTask,
-    robot: &'a RobotChoice,
-    weights: cps_learn::ExecutedWeights,
-    clearance: Option<&'a cps_learn::Clearance>,
-    stop: &'a StopToken,
-}
-
-impl Judge<'_> {
-    /// Rolls θ out, executes it on `backend` from the initial configuration and costs
-    /// the recording. A backend failure is the simulator's; anything else is the job's.
-    fn judge(&self, theta: &[f64], backend: &mut dyn Robot) -> Result<Judged, JobError> {
-        let trajectory = self.dmp.rollout(&self.space.weights(theta));
-        let recording = match execute_trajectory(backend, &self.robot.setup, &trajectory, self.stop)
-        {
-            Ok(r) => r,
-            // A run the stop ended (the scene script stopped where it was) is the stop's,
-            // not a dead simulator's.
-            Err(_) if self.stop.is_stopped() => return Err(JobError::Stopped),
-            Err(LearnError::Robot(e @ RobotError::Robot { .. })) => {
-                return Err(JobError::Simulator(e.to_string()));
-            }
-            // The guard refused a command (a limit, a collision): the robot holds the one
-            // before and the next candidate puts it back at the start.
-            Err(LearnError::Robot(RobotError::CommandRefused { reason, .. })) => {
-                let (times, _) = targets_at(&trajectory, backend.dt());
-                let (cost, errors) = executed_cost(
-                    self.task,
-                    &trajectory,
-                    &times,
-                    &Recording::default(),
-                    &self.weights,
-                    None,
-                );
-                return Ok(Judged {
-                    refused: Some(reason.to_string()),
-                    cost,
-                    errors,
-                    recording: Recording::default(),
-                    times,
-                    trajectory,
-                });
-            }
-            Err(e) => return Err(JobError::Fatal(e.to_string())),
-        };
-        let (times, _) = targets_at(&trajectory, backend.dt());
-        let (mut cost, errors) = executed_cost(
-            self.task,
-            &trajectory,
-            &times,
-            &recording,
-            &self.weights,
-            self.robot.setup.chain.velocity_limits(),
-        );
-        if let Some(c) = self.clearance {
-            cost.add_clearance(c, &self.robot.setup.chain, &recording)
-                .map_err(|e| JobError::Fatal(format!("the executed joints' shapes: {e}")))?;
-        }
-        Ok(Judged {
-            refused: None,
-            cost,
-            errors,
-            recording,
-            times,
-            trajectory,
-        })
-    }
-}
 
 #[derive(Serialize)]
 struct Summary<'a> {
@@ -187,7 +97,7 @@ pub(crate) fn run(
         dmp: &dmp,
         space: &space,
         task,
-        robot,
+        setup: &robot.setup,
         weights,
         clearance: exp.clearance.as_ref().map(|c| &c.clearance),
         stop: ctx.stop,
@@ -205,29 +115,20 @@ pub(crate) fn run(
     let mut x0 = optimum.params.clone();
     let kept = keep_warm_start_clear(ctx, &judge, dt, &mut x0)?;
     let n = x0.len();
-    let warm = execute_warm_start(ctx, &judge, &mut pool, &x0, kept.is_some())?;
+    let warm = execute_warm_start(ctx, robot, &judge, &mut pool, &x0, kept.is_some())?;
     let warm_cost = warm.cost.total();
     let warm_recording = robot.model.shapes.as_ref().map(|_| warm.recording.clone());
-    let executions = Executions {
-        judge: &judge,
-        observer: ctx.observer,
-        pool: Mutex::new(pool),
-        kept: Mutex::new(Kept {
-            best: warm,
-            best_cost: warm_cost,
-            refused: 0,
-            ended: None,
-        }),
-    };
-    // cps-learn's one CMA-ES loop, the warm start judged already (its execution is the
-    // best so far until a candidate beats it).
-    let (_, stats) = cps_learn::run_cmaes(
-        &executions,
+    // cps-learn's one CMA-ES loop over the pool, the warm start judged already (its
+    // execution is the best so far until a candidate beats it).
+    let working = || ctx.observer.event(Event::Working);
+    let (kept_search, stats, pool) = cps_learn::learn_on_executions(
+        &judge,
+        pool,
+        warm,
         x0,
-        Some(warm_cost),
         config,
-        config.seed,
         &|r| ctx.generation(r),
+        &working,
     )
     .map_err(|e| learn_error(e, "CMA-ES on the executed cost"))?;
     let Kept {
@@ -235,17 +136,10 @@ pub(crate) fn run(
         best_cost,
         refused,
         ended,
-    } = executions
-        .kept
-        .into_inner()
-        .unwrap_or_else(PoisonError::into_inner);
-    let pool = executions
-        .pool
-        .into_inner()
-        .unwrap_or_else(PoisonError::into_inner);
+    } = kept_search;
     let (termination, failure) = match ended {
-        Some(Ended::Stopped) => ("interrupted".to_string(), None),
-        Some(Ended::Failed(f)) => ("the simulators failed".to_string(), Some(f)),
+        Some(cps_learn::Ended::Stopped) => ("interrupted".to_string(), None),
+        Some(cps_learn::Ended::Failed(f)) => ("the simulators failed".to_string(), Some(f)),
         None => (stats.termination.clone(), None),
     };
     let interrupted = termination == "interrupted";
@@ -347,7 +241,7 @@ fn keep_warm_start_clear(
     let targets = |theta: &[f64]| targets_at(&dmp.rollout(&space.weights(theta)), dt).1;
     let keep = cps_learn::KeepClear {
         clearance: &k.clearance,
-        robot: &judge.robot.setup,
+        robot: judge.setup,
         dt,
         iterations: k.iterations,
     };
@@ -366,12 +260,12 @@ fn keep_warm_start_clear(
 /// an interrupted run keeps one judged execution; a real robot stops at once as always.
 fn execute_warm_start(
     ctx: &Ctx<'_>,
+    robot: &RobotChoice,
     judge: &Judge<'_>,
     pool: &mut SimulatorPool,
     x0: &[f64],
     kept: bool,
 ) -> Result<Judged, ExperimentError> {
-    let robot = judge.robot;
     let never = StopToken::new();
     let warm_judge = Judge {
         stop: if robot.backend.is_simulator() {
@@ -433,106 +327,6 @@ fn figures(
     .into_iter()
     .chain(search_figure(&[("CMA-ES on the executed cost", history)]))
     .collect()
-}
-
-/// Why the search ended before its rules said: a stop asked, or no simulator left.
-enum Ended {
-    Stopped,
-    Failed(String),
-}
-
-/// What the search keeps as it goes: the best execution whole, the refusals, and why it
-/// ended early.
-struct Kept {
-    best: Judged,
-    best_cost: f64,
-    refused: u64,
-    ended: Option<Ended>,
-}
-
-/// The executed cost as CMA-ES's objective: each generation's candidates executed on a
-/// free simulator of the pool, in candidate order (the same costs for any pool).
-struct Executions<'a> {
-    judge: &'a Judge<'a>,
-    observer: &'a dyn crate::observer::Observer,
-    pool: Mutex<SimulatorPool>,
-    kept: Mutex<Kept>,
-}
-
-impl Objective for Executions<'_> {
-    fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
-        let mut out = [0.0];
-        self.evaluate_batch(x, x.len(), &mut out)
-            .map_err(|e| e.source)?;
-        Ok(out[0])
-    }
-
-    /// Ctrl-C stops handing out candidates at once (a generation on slow simulators takes
-    /// a while), and a pool with no simulator left ends the search: either way the
-    /// generation is not counted ([`EndSearch`]).
-    fn evaluate_batch(
-        &self,
-        xs: &[f64],
-        dim: usize,
-        out: &mut [f64],
-    ) -> Result<(), CandidateError> {
-        let mut pool = self.pool.lock().unwrap_or_else(PoisonError::into_inner);
-        let run = pool.run(out.len(), &|i, b| {
-            if self.observer.event(Event::Working).is_break() {
-                return Err(JobError::Stopped);
-            }
-            self.judge.judge(&xs[i * dim..(i + 1) * dim], b)
-        });
-        let mut kept = self.kept.lock().unwrap_or_else(PoisonError::into_inner);
-        let judged = match run {
-            Ok(j) => j,
-            Err(e) => {
-                kept.ended = Some(match e {
-                    PoolError::Stopped => Ended::Stopped,
-                    e => Ended::Failed(pool_failure(e, &pool, "evaluating candidates")),
-                });
-                return Err(CandidateError {
-                    index: 0,
-                    source: Box::new(EndSearch),
-                });
-            }
-        };
-        kept.refused += judged.iter().filter(|j| j.refused.is_some()).count() as u64;
-        for (o, j) in out.iter_mut().zip(&judged) {
-            *o = j.cost.total();
-        }
-        // The first of equal costs wins: the same choice for any pool.
-        if let Some((i, c)) = out
-            .iter()
-            .enumerate()
-            .min_by(|a, b| a.1.total_cmp(b.1))
-            .filter(|(_, c)| **c < kept.best_cost)
-        {
-            kept.best_cost = *c;
-            kept.best = judged.into_iter().nth(i).expect("a judged candidate");
-        }
-        Ok(())
-    }
-}
-
-/// A pool that could not finish, in words: every simulator gone (with each one's reason)
-/// or a candidate no simulator can execute.
-fn pool_failure(e: PoolError, pool: &SimulatorPool, what: &str) -> String {
-    match e {
-        PoolError::Fatal(m) => format!("{what}: {m}"),
-        PoolError::Stopped => format!("{what}: interrupted"),
-        PoolError::Exhausted => {
-            let why: Vec<String> = pool
-                .dropped()
-                .iter()
-                .map(|d| format!("{} ({})", d.endpoint, d.reason))
-                .collect();
-            format!(
-                "{what}: every simulator of the pool is gone: {}",
-                why.join("; ")
-            )
-        }
-    }
 }
 
 /// `executed.csv`: the best candidate at the control period, target and executed.
