@@ -549,7 +549,7 @@ impl Robot for FrankaRobot {
             cycles.add(&r.cycles());
         }
         Some(format!(
-            "{} motions sent at 1 kHz, at most {:.0} % of the velocity, {:.0} % of the acceleration and {:.0} % of the jerk limits; loop p99 {p99:.1} us, {} ticks missed, {} states stale; {} cycles extrapolated by the robot, {} commands dropped, {} commands limited (largest change {:.6} rad)",
+            "{} motions sent at 1 kHz, at most {:.0} % of the velocity, {:.0} % of the acceleration and {:.0} % of the jerk limits; loop p99 {p99:.1} us, {} ticks missed, {} states stale; {} cycles extrapolated by the robot, {} commands dropped, {} answers withheld as late, {} states unconfirmed, {} commands limited (largest change {:.6} rad)",
             self.reports.len(),
             peak[0] * 100.0,
             peak[1] * 100.0,
@@ -558,6 +558,8 @@ impl Robot for FrankaRobot {
             cycles.stale,
             cycles.extrapolated,
             cycles.dropped,
+            cycles.withheld,
+            cycles.unconfirmed,
             cycles.limited,
             cycles.largest_change,
         ))

@@ -238,6 +238,10 @@ pub struct Cycles {
     pub extrapolated: u64,
     /// Commands the robot dropped (its next state showed its own extrapolation).
     pub dropped: u64,
+    /// States whose reported reference agreed wholly with none of the tracker's candidates
+    /// (see [`crate::reference::ReferenceTracker`]): on a robot that reports a usable
+    /// reference, where a reference was taken from the state itself.
+    pub unconfirmed: u64,
     /// Commands changed before they were sent to keep a limit.
     pub limited: usize,
     /// The largest such change (rad; N m for torques).
@@ -255,22 +259,24 @@ impl Cycles {
         self.withheld += other.withheld;
         self.extrapolated += other.extrapolated;
         self.dropped += other.dropped;
+        self.unconfirmed += other.unconfirmed;
         self.limited += other.limited;
         self.largest_change = self.largest_change.max(other.largest_change);
         self.success_rate_min = self.success_rate_min.min(other.success_rate_min);
     }
 
     /// As a sentence: "3 cycles extrapolated by the robot (0 states missed, 2 stale, 1
-    /// answer withheld as late, 0 commands dropped); 12 commands limited (largest change
-    /// 0.000041); lowest success rate 0.97".
+    /// answer withheld as late, 0 commands dropped, 0 states unconfirmed); 12 commands
+    /// limited (largest change 0.000041); lowest success rate 0.97".
     pub fn sentence(&self) -> String {
         format!(
-            "{} cycles extrapolated by the robot ({} states missed, {} stale, {} answers withheld as late, {} commands dropped); {} commands limited (largest change {:.6}); lowest success rate {:.2}",
+            "{} cycles extrapolated by the robot ({} states missed, {} stale, {} answers withheld as late, {} commands dropped, {} states unconfirmed); {} commands limited (largest change {:.6}); lowest success rate {:.2}",
             self.extrapolated,
             self.missed,
             self.stale,
             self.withheld,
             self.dropped,
+            self.unconfirmed,
             self.limited,
             self.largest_change,
             self.success_rate_min
@@ -287,6 +293,7 @@ impl Default for Cycles {
             withheld: 0,
             extrapolated: 0,
             dropped: 0,
+            unconfirmed: 0,
             limited: 0,
             largest_change: 0.0,
             success_rate_min: 1.0,
@@ -313,6 +320,7 @@ impl MotionReport {
             withheld: self.timing.withheld,
             extrapolated: self.reference.extrapolated,
             dropped: self.reference.dropped,
+            unconfirmed: self.reference.unconfirmed,
             limited: self.limited.commands,
             largest_change: self.limited.deviation,
             success_rate_min: self.timing.success_rate_min,
