@@ -314,14 +314,13 @@ impl ReferenceTracker {
                 // On a robot whose states agreed before, the derivatives alone (a
                 // simulator may publish a state between putting back its position after a
                 // late command and applying that command: franka-sim); else the position
-                // alone, where either tells one story from the others; else the state's own
-                // reference. On a robot whose reference is not usable (franky-sim, whose
-                // every state lands here), the command as applied: a position there is
-                // no evidence of the reference it holds.
+                // alone, where either tells one story from the others; else, on such a
+                // robot, the state's own reference; else the command as applied.
                 let reported = reported(state, self.velocity_motion, now(&applied).q);
                 self.usable
-                    .then(|| told(Agreement::Derivatives).or_else(|| told(Agreement::Position)))
+                    .then(|| told(Agreement::Derivatives))
                     .flatten()
+                    .or_else(|| told(Agreement::Position))
                     .or_else(|| {
                         (self.usable && !self.torn(state)).then(|| Story {
                             r: reported,
