@@ -357,10 +357,25 @@ fn with_arm_limits(mut model: RobotModel, limits: &RateLimits) -> Result<RobotMo
     Ok(model)
 }
 
-fn ending(e: &MotionEnd) -> RunEnding {
-    match e {
+fn ending(report: &MotionReport) -> RunEnding {
+    match &report.ending {
         MotionEnd::Finished => RunEnding::Finished,
         MotionEnd::Stopped => RunEnding::Stopped,
+        // A refused command with the loop's side of it: how long the robot went without
+        // an answer, and what the reference tracker could confirm.
+        e @ MotionEnd::LimitBrake(_) => {
+            let (t, r) = (&report.timing, &report.reference);
+            RunEnding::Failed(format!(
+                "{} (the loop: at most {} robot periods between answers, {} ticks missed, {} states stale, {} answers withheld as late; {} cycles extrapolated by the robot, {} states unconfirmed)",
+                e.sentence(),
+                t.longest_gap,
+                t.missed,
+                t.stale,
+                t.withheld,
+                r.extrapolated,
+                r.unconfirmed
+            ))
+        }
         other => RunEnding::Failed(other.sentence()),
     }
 }
@@ -407,7 +422,7 @@ impl Streaming for FrankaRobot {
             )
         }
         .map_err(|e| franka_error(&host, e))?;
-        let mut run = Run::new(ending(&report.ending));
+        let mut run = Run::new(ending(&report));
         for s in &report.samples {
             let q = s.q.to_vec();
             let tool = self.model.chain.fk(&q)?;
@@ -479,7 +494,7 @@ impl Robot for FrankaRobot {
             )
         }
         .map_err(|e| franka_error(&host, e))?;
-        let mut run = Run::new(ending(&report.ending));
+        let mut run = Run::new(ending(&report));
         for k in 0..plan.points().len() {
             // The sample that answered the point's time on the stream's clock.
             let Some(s) = report

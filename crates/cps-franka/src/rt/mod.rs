@@ -141,6 +141,8 @@ pub struct Timing {
     /// dropped, until the next state told whether the robot dropped it or (a simulator)
     /// applied it late.
     pub withheld: u64,
+    /// The most robot periods between two states cps answered (1: none lost or skipped).
+    pub longest_gap: u64,
 }
 
 /// How a motion of the 1 kHz loop ended, in the loop's own terms; [`crate::FrankaRobot`]
@@ -543,6 +545,7 @@ fn run_law<L: Law>(
     let (mut missed, mut stale) = (0u64, 0u64);
     let mut success_rate_min: f64 = 1.0;
     let mut withheld = 0u64;
+    let mut longest_gap = 1u64;
     let mut last_errors = String::new();
     let mut finished_sent = false;
     loop {
@@ -564,6 +567,7 @@ fn run_law<L: Law>(
             // Ticks between the last answered state and this one that never reached cps.
             missed += (state.message_id - last - 1).saturating_sub(u64::from(skipped));
             periods = state.message_id - last;
+            longest_gap = longest_gap.max(periods);
         }
         last_id = Some(state.message_id);
         if state.control_command_success_rate > 0.0 {
@@ -676,6 +680,7 @@ fn run_law<L: Law>(
         realtime,
         success_rate_min,
         withheld,
+        longest_gap,
     };
     Ok(MotionReport {
         samples,
@@ -716,6 +721,7 @@ mod tests {
                 realtime: false,
                 success_rate_min: 1.0,
                 withheld: 0,
+                longest_gap: 1,
             },
             ending: MotionEnd::Finished,
             peak_usage: [[0.0; JOINTS]; 3],
