@@ -32,6 +32,19 @@ pub trait Objective: Sync {
     }
 }
 
+/// One candidate's cost through `objective`'s batch evaluation: the `evaluate` of an
+/// objective whose work is done a batch at a time (its own `evaluate_batch`).
+pub fn evaluate_through_batch<O: Objective + ?Sized>(
+    objective: &O,
+    x: &[f64],
+) -> Result<f64, ObjectiveError> {
+    let mut out = [0.0];
+    objective
+        .evaluate_batch(x, x.len(), &mut out)
+        .map_err(|e| e.source)?;
+    Ok(out[0])
+}
+
 /// A failed evaluation inside a batch.
 #[derive(Debug)]
 pub struct CandidateError {

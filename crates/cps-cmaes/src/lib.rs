@@ -46,7 +46,8 @@ pub use cmaes::{CHECKPOINT_FORMAT, CHECKPOINT_VERSION, Checkpoint, Cmaes};
 pub use config::{CmaesConfig, MAX_DIMENSION, MAX_POPULATION};
 pub use driver::{
     CandidateError, FnObjective, GenerationReport, NoObserver, Objective, Observer,
-    RestartSolution, Solution, minimize, minimize_bipop, minimize_ipop, resume,
+    RestartSolution, Solution, evaluate_through_batch, minimize, minimize_bipop, minimize_ipop,
+    resume,
 };
 pub use error::{CmaesError, EndSearch, ObjectiveError};
 pub use params::Parameters;

@@ -150,10 +150,7 @@ struct Executions<'a> {
 
 impl Objective for Executions<'_> {
     fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
-        let mut out = [0.0];
-        self.evaluate_batch(x, x.len(), &mut out)
-            .map_err(|e| e.source)?;
-        Ok(out[0])
+        cps_cmaes::evaluate_through_batch(self, x)
     }
 
     /// Ctrl-C stops handing out candidates at once (a generation on slow simulators takes

@@ -642,10 +642,7 @@ impl std::error::Error for Raised {}
 
 impl Objective for PyObjective {
     fn evaluate(&self, x: &[f64]) -> Result<f64, ObjectiveError> {
-        let mut out = [0.0];
-        self.evaluate_batch(x, x.len(), &mut out)
-            .map_err(|e| e.source)?;
-        Ok(out[0])
+        cps_cmaes::evaluate_through_batch(self, x)
     }
 
     fn evaluate_batch(
