@@ -187,24 +187,23 @@ pub fn viapoint_toml(
 ) -> Result<String, InputError> {
     use std::fmt::Write as _;
     let why = |m: String| InputError(format!("the experiment cannot be written: {m}"));
-    let refuse = |m: String| -> Result<String, InputError> { Err(why(m)) };
     config.validate().map_err(|e| why(e.to_string()))?;
     config.check_together().map_err(|e| why(e.to_string()))?;
     config.task.validate().map_err(|e| why(e.to_string()))?;
     let task = &config.task;
     let d = &task.dmp;
     if d.formulation != cps_dmp::Formulation::default() {
-        return refuse(format!(
+        return Err(why(format!(
             "a via-point file learns with the \"{}\" formulation, not \"{}\"",
             cps_dmp::Formulation::default(),
             d.formulation
-        ));
+        )));
     }
     let Ok(seed) = i64::try_from(config.seed) else {
-        return refuse(format!(
+        return Err(why(format!(
             "seed {} is beyond TOML's integers (at most 2^63 − 1)",
             config.seed
-        ));
+        )));
     };
     let list = |v: &[f64]| {
         let items: Vec<String> = v.iter().map(|x| format!("{x:?}")).collect();

@@ -20,7 +20,7 @@ use pyo3::types::{PyDict, PyTuple};
 use crate::arrays::{
     array1, array2, is_sequence_of_arrays, matrix, opt_vector, samples_by_dims, vector,
 };
-use crate::errors::{IntoPyErr, PyResultExt, file_error, value_error};
+use crate::errors::{IntoPyErr, PyResultExt, file_error, named, value_error};
 use crate::interrupt::run;
 
 fn lambda(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Lambda>> {
@@ -44,12 +44,6 @@ fn lambda(arg: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Lambda>> {
         }),
         Err(_) => Err(value_error("lambda_: expected \"auto\" or a number ≥ 0")),
     }
-}
-
-/// A setting by its name, as cps-dmp spells it everywhere; refused after its keyword.
-fn named<T: std::str::FromStr<Err = cps_dmp::DmpError>>(keyword: &str, name: &str) -> PyResult<T> {
-    name.parse()
-        .map_err(|e: cps_dmp::DmpError| value_error(format!("{keyword}: {e}")))
 }
 
 /// One sampled movement: `t` (samples,), `y`, `yd`, `ydd` (samples, dims). Unpacks as

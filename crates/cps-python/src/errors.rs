@@ -37,6 +37,17 @@ pub fn choose<T: Copy>(arg: &str, value: &str, options: &[(&str, T)]) -> PyResul
         })
 }
 
+/// A setting by the name its type parses (`FromStr` in the setting's crate, one
+/// vocabulary everywhere); refused with its keyword first.
+pub fn named<T>(keyword: &str, name: &str) -> PyResult<T>
+where
+    T: std::str::FromStr,
+    T::Err: std::fmt::Display,
+{
+    name.parse()
+        .map_err(|e: T::Err| value_error(format!("{keyword}: {e}")))
+}
+
 /// `cps.CpsError(message)`.
 pub fn failure(message: impl Into<String>) -> PyErr {
     CpsError::new_err(message.into())

@@ -14,7 +14,7 @@ use pyo3::types::PyDict;
 
 use crate::arrays::{array1, opt_vector, vector};
 use crate::dmp::{Dmp, Trajectory, names_or_default};
-use crate::errors::{PyResultExt, value_error};
+use crate::errors::{PyResultExt, named, value_error};
 use crate::interrupt::{cancelled, detached};
 
 /// Via points from `[(time, position), …]` or `[{"time": t, "position": p}, …]`.
@@ -286,15 +286,9 @@ pub fn learn_via_points(
         weights,
         obstacles: points,
     };
-    let solver: Solver = method
-        .parse()
-        .map_err(|e| value_error(format!("method: {e}")))?;
-    let evaluation: cps_learn::Evaluation = evaluation
-        .parse()
-        .map_err(|e| value_error(format!("evaluation: {e}")))?;
-    let parametrisation: Parametrisation = parametrisation
-        .parse()
-        .map_err(|e| value_error(format!("parametrisation: {e}")))?;
+    let solver: Solver = named("method", method)?;
+    let evaluation: cps_learn::Evaluation = named("evaluation", evaluation)?;
+    let parametrisation: Parametrisation = named("parametrisation", parametrisation)?;
     // Each setting is checked by its owner (cps-learn), in the words files get too.
     let bad = |e: cps_learn::BadSetting| value_error(e.to_string());
     let sigma0 = ViaPointConfig::check_sigma0(sigma0).map_err(bad)?;
