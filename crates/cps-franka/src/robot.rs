@@ -364,16 +364,20 @@ fn ending(report: &MotionReport) -> RunEnding {
         // A refused command with the loop's side of it: how long the robot went without
         // an answer, and what the reference tracker could confirm.
         e @ MotionEnd::LimitBrake(_) => {
-            let (t, r) = (&report.timing, &report.reference);
+            let (t, r, l) = (&report.timing, &report.reference, &report.limited);
             RunEnding::Failed(format!(
-                "{} (the loop: at most {} robot periods between answers, {} ticks missed, {} states stale, {} answers withheld as late; {} cycles extrapolated by the robot, {} states unconfirmed)",
+                "{} (the loop: at most {} robot periods between answers, {} ticks missed, {} states stale, {} answers withheld as late; {} cycles extrapolated by the robot, {} states unconfirmed; the refused command {:.3} mrad from where the robot's reference was heading, {} commands limited before it, by at most {:.3} mrad; realtime scheduling {})",
                 e.sentence(),
                 t.longest_gap,
                 t.missed,
                 t.stale,
                 t.withheld,
                 r.extrapolated,
-                r.unconfirmed
+                r.unconfirmed,
+                1e3 * l.refused_gap,
+                l.commands,
+                1e3 * l.deviation,
+                if t.realtime { "on" } else { "off" }
             ))
         }
         other => RunEnding::Failed(other.sentence()),

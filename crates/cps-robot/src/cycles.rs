@@ -243,6 +243,11 @@ pub struct Limited {
     /// The largest distance between a command sent and the one asked for (rad; N m for
     /// torques).
     pub deviation: f64,
+    /// Where a command was refused: how far it was (rad, the farthest joint) from where the
+    /// robot's reference was heading (its extrapolation by one period). Up to
+    /// [`LIMITABLE_GAP`] the limiter tried to bring it back and could not; beyond, it did
+    /// not try. Zero while none was.
+    pub refused_gap: f64,
 }
 
 /// A blend under way: the errors of the last three positions when it started (oldest
@@ -268,6 +273,13 @@ fn correction(errors: &[f64; 3], n: u32, k: u32) -> f64 {
     let q = errors[0] / p(-2.0) * (k * (k + 1.0) / 2.0) - errors[1] / p(-1.0) * (k * (k + 2.0))
         + errors[2] / p(0.0) * ((k + 1.0) * (k + 2.0) / 2.0);
     p(k) * q
+}
+
+/// How far `q` is from `heading` (rad, the farthest joint).
+fn gap<const N: usize>(q: &[f64; N], heading: &Reference<N>) -> f64 {
+    q.iter()
+        .zip(&heading.q)
+        .fold(0.0_f64, |g, (a, b)| g.max((a - b).abs()))
 }
 
 /// Admits a joint command from the robot's reference, limiting it where a lost period made
@@ -318,9 +330,17 @@ impl<const N: usize> Limiter<N> {
         judge: &mut J,
         reference: &Reference<N>,
     ) -> Result<[f64; N], Breach> {
-        let q = self.choose(judge, reference)?;
-        self.sent = Some(q);
-        Ok(q)
+        match self.choose(judge, reference) {
+            Ok(q) => {
+                self.sent = Some(q);
+                Ok(q)
+            }
+            Err(breach) => {
+                let heading = reference.extrapolated(judge.period());
+                self.limited.refused_gap = gap(&self.desired.q, &heading);
+                Err(breach)
+            }
+        }
     }
 
     fn choose<J: Judge<N>>(
@@ -358,8 +378,7 @@ impl<const N: usize> Limiter<N> {
             }
         );
         let heading = reference.extrapolated(dt);
-        let near = (0..N).all(|i| (desired[i] - heading.q[i]).abs() <= LIMITABLE_GAP);
-        if !(rate && near) {
+        if !(rate && gap(&desired, &heading) <= LIMITABLE_GAP) {
             return Err(breach);
         }
         // The reference's last three positions minus the stream's.
@@ -797,6 +816,9 @@ mod tests {
             }
         );
         assert_eq!(limiter.limited().commands, 0);
+        // The refusal says how far the command was from where the reference was heading
+        // (at rest: where it stands).
+        assert!((limiter.limited().refused_gap - 0.05).abs() < 1e-12);
     }
 
     #[test]

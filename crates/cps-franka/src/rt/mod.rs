@@ -94,7 +94,7 @@ impl Default for LoopOptions {
 }
 
 /// One recorded tick: what the robot measured and what cps commanded.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Sample {
     /// Robot time since the motion started (s).
     pub t: f64,
@@ -339,6 +339,16 @@ pub struct JointPositions {
     pub finished: bool,
 }
 
+/// An empty vector with room for `n` values whose memory has been written once (so that
+/// filling it later faults no page in).
+fn prefaulted<T: Default + Clone>(n: usize) -> Vec<T> {
+    // Written element by element: `vec![0; n]` would take zeroed pages untouched.
+    let mut v = Vec::with_capacity(n);
+    v.resize(n, T::default());
+    v.clear();
+    v
+}
+
 /// Makes the calling thread realtime (SCHED_FIFO) when permitted.
 fn make_realtime(mode: Realtime) -> Result<bool, FrankaError> {
     if mode == Realtime::Off {
@@ -533,9 +543,11 @@ fn run_law<L: Law>(
     let (state, _) = conn.newest_state(options.state_timeout.max(Duration::from_millis(500)))?;
     conn.ensure_ready(&state)?;
     law.start(&state);
-    // Everything the loop needs, allocated now.
-    let mut samples: Vec<Sample> = Vec::with_capacity(options.max_ticks);
-    let mut latency_ns: Vec<u32> = Vec::with_capacity(options.max_ticks);
+    // Everything the loop needs, allocated now, and its pages touched now: a first touch
+    // inside the loop is a page fault, which waits on the process's memory map, held at
+    // times by threads of normal priority (a stall of milliseconds on a loaded machine).
+    let mut samples: Vec<Sample> = prefaulted(options.max_ticks);
+    let mut latency_ns: Vec<u32> = prefaulted(options.max_ticks);
     let mut command = Command::default();
     let (controller, generator) = law.modes();
     let motion_id = conn.start_move(controller, generator)?;
