@@ -55,6 +55,7 @@ LAYERS = {
         ["options"],
     ],
     "cps-robot": [
+        ["setting"],
         ["chunk", "follow", "plan", "stop"],
         ["chunks"],
         ["chunk_feed"],

@@ -186,7 +186,8 @@ pub fn serve(
             }
             Some(b"CPSC") => {
                 let now = feed.state().map_or(0.0, |(t, _)| t);
-                match parse_chunk(b, dof, now).and_then(|c| feed.push(c)) {
+                match parse_chunk(b, dof, now).and_then(|c| feed.push(c).map_err(|e| e.to_string()))
+                {
                     Ok(()) => {
                         let mut out = b"CPSA".to_vec();
                         out.extend_from_slice(&(counts.chunks as u32).to_le_bytes());

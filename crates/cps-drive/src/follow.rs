@@ -128,7 +128,7 @@ pub fn franka_follow(
         check_record_target(r, force)?;
         check_file_target(&chunks_path(r), FileKind::ChunkCsv, force)?;
     }
-    settings.check().map_err(InputError)?;
+    settings.check().map_err(|e| InputError(e.to_string()))?;
     let chunks = cps_movement::chunks::read_chunks(file, 7, rate_hz)?;
     let name = file.display().to_string();
     let mut robot = guarded_arm(exec, Policy::STRICT)?;
@@ -440,7 +440,7 @@ impl LiveRun {
         settings: FollowSettings,
         stop: StopToken,
     ) -> Result<LiveRun, ExperimentError> {
-        settings.check().map_err(InputError)?;
+        settings.check().map_err(|e| InputError(e.to_string()))?;
         let opened = robot.open()?;
         let (feed, source) = cps_robot::live(7);
         let inner = stop.clone();

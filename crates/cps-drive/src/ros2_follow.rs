@@ -75,7 +75,7 @@ pub fn replacements(
     chunks: &[Chunk],
     settings: &FollowSettings,
     period: f64,
-) -> Result<Replacements, String> {
+) -> Result<Replacements, cps_robot::RobotError> {
     let mut out = Vec::new();
     let (plan, log) = replay_with(model, start, DT, chunks, settings, &mut |taken| {
         out.push(Replacement {
@@ -271,7 +271,7 @@ pub fn ros2_follow(
     settings: &FollowSettings,
     stop: &StopToken,
 ) -> Result<(Answer, u8), ExperimentError> {
-    settings.check().map_err(InputError)?;
+    settings.check().map_err(|e| InputError(e.to_string()))?;
     if !(s.period >= DT && s.period <= 1.0) {
         return Err(
             InputError(format!("--period {}: give seconds in [0.001, 1]", s.period)).into(),

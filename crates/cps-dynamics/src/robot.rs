@@ -174,9 +174,9 @@ impl<const N: usize> DynamicsRobot<N> {
     /// would be a Franka's discontinuity reflex: the run fails); the stream reaches it
     /// through cps's limiter ([`cps_robot::LossyLink`]), as the Franka's loop sends it.
     pub fn lose_cycles(&mut self, share: f64, seed: u64) -> Result<(), RobotError> {
-        let loss = CycleLoss::new(share, seed).map_err(|message| RobotError::Robot {
+        let loss = CycleLoss::new(share, seed).map_err(|source| RobotError::Setting {
             robot: self.name(),
-            message,
+            source,
         })?;
         self.loss = (share > 0.0).then_some(loss);
         Ok(())

@@ -151,7 +151,7 @@ impl RobotChoice {
                     .collect();
                 let placed = shapes
                     .with_obstacles(obstacles, shapes.allowed().to_vec())
-                    .map_err(ExperimentError::Message)?;
+                    .map_err(|e| ExperimentError::Message(e.to_string()))?;
                 Some(std::sync::Arc::new(placed))
             }
             None => None,

@@ -585,7 +585,8 @@ impl Connection {
     /// against a simulator with the robot's rules (franka-sim): the robot extrapolates
     /// every cycle it gets no command for, and the next state shows it.
     pub fn lose_commands(&mut self, share: f64, seed: u64) -> Result<(), FrankaError> {
-        let loss = cps_robot::CycleLoss::new(share, seed).map_err(FrankaError::Input)?;
+        let loss = cps_robot::CycleLoss::new(share, seed)
+            .map_err(|e| FrankaError::Input(e.to_string()))?;
         self.loss = (share > 0.0).then_some(loss);
         Ok(())
     }

@@ -186,7 +186,7 @@ impl ChunkExecutor {
             let now = l.feed().state().map_or(observed_at, |(t, _)| t);
             let chunk = Chunk::new(observed_at, now.max(observed_at), rate, t, v, 7)
                 .map_err(|e| value_error(format!("the chunk: {e}")))?;
-            l.feed().push(chunk).map_err(failure)
+            l.feed().push(chunk).map_err(|e| failure(e.to_string()))
         })
     }
 
@@ -284,9 +284,9 @@ pub fn chunk_commands<'py>(
     let dt = cps_franka::limits::DT;
     let plan = py
         .detach(|| cps_robot::replay_plan(&model, &q0, dt, &list, &settings))
-        .map_err(value_error)?;
-    let limits =
-        cps_robot::follow_limits(&model, settings.limit_share, &q0).map_err(value_error)?;
+        .map_err(|e| value_error(e.to_string()))?;
+    let limits = cps_robot::follow_limits(&model, settings.limit_share, &q0)
+        .map_err(|e| value_error(e.to_string()))?;
     let n = plan.points().len();
     let d = PyDict::new(py);
     d.set_item(

@@ -16,6 +16,7 @@ use std::sync::{Arc, atomic::AtomicBool};
 
 use crate::chunk::Chunk;
 use crate::chunks::Refused;
+use crate::setting::FeedError;
 
 /// What the executor made of a chunk.
 #[derive(Debug, Clone, PartialEq)]
@@ -281,27 +282,21 @@ impl ChunkFeed {
     /// Hands `chunk` to the loop, which stamps its arrival when it takes it (within a
     /// period). Errors, in a sentence: the run is over or the feed closed, or the loop has
     /// chunks waiting it has not taken (a policy far ahead of the robot).
-    pub fn push(&mut self, chunk: Chunk) -> Result<(), String> {
+    pub fn push(&mut self, chunk: Chunk) -> Result<(), FeedError> {
         self.collect();
         let Some(tx) = &self.to_loop else {
-            return Err("the chunk stream was closed".into());
+            return Err(FeedError::Closed);
         };
         if self.sink.is_some() && self.pushed - self.flushed >= MAX_HELD {
-            return Err(format!(
-                "{MAX_HELD} chunks are held for the one the arm follows: chunks come faster than the arm takes them"
-            ));
+            return Err(FeedError::Held(MAX_HELD));
         }
         match tx.try_send(chunk) {
             Ok(()) => {
                 self.pushed += 1;
                 Ok(())
             }
-            Err(TrySendError::Full(_)) => Err(format!(
-                "{WAITING} chunks are waiting for the robot's loop, which has not taken them: the robot is not running the stream"
-            )),
-            Err(TrySendError::Disconnected(_)) => {
-                Err("the run is over: the robot no longer takes chunks".into())
-            }
+            Err(TrySendError::Full(_)) => Err(FeedError::Waiting(WAITING)),
+            Err(TrySendError::Disconnected(_)) => Err(FeedError::Over),
         }
     }
 
@@ -476,7 +471,7 @@ mod tests {
         let refused = loop {
             match feed.push(chunk(0.0)) {
                 Ok(()) => pushed += 1,
-                Err(e) => break e,
+                Err(e) => break e.to_string(),
             }
             let c = source.poll(0.0).unwrap();
             source.judged(
@@ -528,7 +523,7 @@ mod tests {
         for _ in 0..WAITING {
             feed.push(chunk(0.5)).unwrap();
         }
-        let full = feed.push(chunk(0.5)).unwrap_err();
+        let full = feed.push(chunk(0.5)).unwrap_err().to_string();
         assert!(full.contains("waiting for the robot's loop"), "{full}");
         feed.close();
         while source.poll(0.7).is_some() {}

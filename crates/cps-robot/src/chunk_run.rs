@@ -16,7 +16,7 @@ use crate::guard::Guarded;
 use crate::model::RobotModel;
 use crate::plan::{Plan, Run};
 use crate::robot::Robot;
-use crate::{RobotError, StopToken};
+use crate::{RobotError, SettingError, StopToken};
 
 /// How a run follows chunks: the executor's settings, the share of the robot's limits it
 /// moves within, and when the run ends.
@@ -59,28 +59,22 @@ impl FollowSettings {
     }
 
     /// Checks every setting, in a sentence naming it.
-    pub fn check(&self) -> Result<(), String> {
-        let positive = |name: &str, x: f64| {
-            if x.is_finite() && x > 0.0 {
+    pub fn check(&self) -> Result<(), SettingError> {
+        let positive = |setting: &'static str, value: f64| {
+            if value.is_finite() && value > 0.0 {
                 Ok(())
             } else {
-                Err(format!("{name}: {x} is not a positive number of seconds"))
+                Err(SettingError::Seconds { setting, value })
             }
         };
         positive("stall timeout", self.chunks.stall_timeout_s)?;
         positive("idle end", self.idle_end_s)?;
         positive("max duration", self.max_duration_s)?;
         if !(self.chunks.max_gap_rad.is_finite() && self.chunks.max_gap_rad > 0.0) {
-            return Err(format!(
-                "max gap: {} is not a positive distance (rad)",
-                self.chunks.max_gap_rad
-            ));
+            return Err(SettingError::MaxGap(self.chunks.max_gap_rad));
         }
         if !(self.limit_share > 0.0 && self.limit_share <= 1.0) {
-            return Err(format!(
-                "limit share: {} is not in (0, 1]",
-                self.limit_share
-            ));
+            return Err(SettingError::LimitShare(self.limit_share));
         }
         Ok(())
     }
@@ -101,13 +95,11 @@ pub fn follow_limits(
     model: &RobotModel,
     share: f64,
     q0: &[f64],
-) -> Result<Vec<FollowLimits>, String> {
+) -> Result<Vec<FollowLimits>, SettingError> {
     let n = model.chain.dof();
-    let missing = |what: &str| {
-        format!(
-            "the robot `{}` has no {what} limits, and following chunks within the limits needs velocity, acceleration and jerk limits (a robot file's [limits])",
-            model.name
-        )
+    let missing = |quantity: &'static str| SettingError::MissingLimits {
+        robot: model.name.clone(),
+        quantity,
     };
     let v = model
         .chain
@@ -135,7 +127,10 @@ pub fn follow_limits(
             let col = model
                 .chain
                 .inverse_dynamics(links, g, q0, &zero, &e)
-                .map_err(|e| format!("the robot `{}`'s mass matrix: {e}", model.name))?;
+                .map_err(|source| SettingError::MassMatrix {
+                    robot: model.name.clone(),
+                    source,
+                })?;
             for (i, m) in col.iter().enumerate() {
                 mass[i][k] = m.abs();
             }
@@ -170,7 +165,7 @@ pub fn executor_for(
     q0: &[f64],
     dt: f64,
     settings: &FollowSettings,
-) -> Result<ChunkExecutor, String> {
+) -> Result<ChunkExecutor, SettingError> {
     settings.check()?;
     let limits = follow_limits(model, settings.limit_share, q0)?;
     let ex = ChunkExecutor::new(q0, &limits, dt, settings.chunks)?;
@@ -291,7 +286,7 @@ pub fn replay_plan(
     dt: f64,
     chunks: &[Chunk],
     settings: &FollowSettings,
-) -> Result<Plan, String> {
+) -> Result<Plan, RobotError> {
     replay_with(model, q0, dt, chunks, settings, &mut |_| {}).map(|(plan, _)| plan)
 }
 
@@ -305,9 +300,12 @@ pub fn replay_with(
     chunks: &[Chunk],
     settings: &FollowSettings,
     on_taken: &mut dyn FnMut(&TakenAt<'_>),
-) -> Result<(Plan, crate::chunk_feed::ChunkLog), String> {
+) -> Result<(Plan, crate::chunk_feed::ChunkLog), RobotError> {
     let mut source = crate::chunk_feed::Replay::new(chunks.to_vec());
-    let mut stepper = stepper(model, q0, dt, settings)?;
+    let mut stepper = stepper(model, q0, dt, settings).map_err(|source| RobotError::Setting {
+        robot: model.name.clone(),
+        source,
+    })?;
     let mut points = vec![q0.to_vec()];
     let mut out = q0.to_vec();
     let max = (settings.max_duration_s / dt).ceil() as usize;
@@ -316,14 +314,14 @@ pub fn replay_with(
         points.push(out.clone());
         if over {
             stepper.finish(&mut source);
-            let plan = Plan::new(dt, points).map_err(|e| e.to_string())?;
+            let plan = Plan::new(dt, points)?;
             return Ok((plan, source.into_log()));
         }
     }
-    Err(format!(
-        "the chunks run longer than the longest run ({} s)",
-        settings.max_duration_s
-    ))
+    Err(RobotError::Setting {
+        robot: model.name.clone(),
+        source: SettingError::RunTooLong(settings.max_duration_s),
+    })
 }
 
 fn stepper(
@@ -331,7 +329,7 @@ fn stepper(
     q0: &[f64],
     dt: f64,
     settings: &FollowSettings,
-) -> Result<Stepper, String> {
+) -> Result<Stepper, SettingError> {
     Ok(Stepper {
         ex: executor_for(model, q0, dt, settings)?,
         dt,
@@ -359,15 +357,13 @@ pub fn follow<R: Robot>(
     settings: &FollowSettings,
     stop: &StopToken,
 ) -> Result<Followed, RobotError> {
-    let name = robot.name();
-    let input = |message: String| RobotError::Robot {
-        robot: name.clone(),
-        message,
-    };
     let q0 = robot.joint_positions()?;
     let dt = robot.command_period();
     let model = robot.model().clone();
-    let mut stepper = stepper(&model, &q0, dt, settings).map_err(&input)?;
+    let mut stepper = stepper(&model, &q0, dt, settings).map_err(|source| RobotError::Setting {
+        robot: robot.name(),
+        source,
+    })?;
     let hold;
     let nominal = match nominal {
         Some(p) => p,

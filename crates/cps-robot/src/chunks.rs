@@ -180,7 +180,7 @@ impl ChunkExecutor {
         limits: &[FollowLimits],
         dt: f64,
         settings: ChunkSettings,
-    ) -> Result<ChunkExecutor, String> {
+    ) -> Result<ChunkExecutor, crate::SettingError> {
         let n = q0.len();
         Ok(ChunkExecutor {
             follower: Follower::new(q0, limits, dt)?,

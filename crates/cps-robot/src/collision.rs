@@ -16,6 +16,7 @@ use nalgebra::Isometry3;
 
 use crate::RobotError;
 use crate::plan::Plan;
+use crate::setting::SettingError;
 
 /// The clearance (m) every pair keeps unless a robot or a run sets another: room for the
 /// meshes' own error (franka_description's collision meshes are a few millimetres
@@ -55,26 +56,23 @@ impl Shapes {
         &self,
         obstacles: Vec<Obstacle>,
         allowed: Vec<(String, String)>,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, SettingError> {
         for (i, o) in obstacles.iter().enumerate() {
             if obstacles[..i].iter().any(|p| p.name == o.name) {
-                return Err(format!("two obstacles are named `{}`", o.name));
+                return Err(SettingError::DuplicateObstacle(o.name.clone()));
             }
             if self.bodies.iter().any(|b| b.link == o.name) {
-                return Err(format!(
-                    "the obstacle `{}` has the name of one of the robot's links",
-                    o.name
-                ));
+                return Err(SettingError::ObstacleNamedAsLink(o.name.clone()));
             }
         }
         for name in allowed.iter().flat_map(|(a, b)| [a, b]) {
             let known = self.bodies.iter().any(|b| &b.link == name)
                 || obstacles.iter().any(|o| &o.name == name);
             if !known {
-                return Err(format!(
-                    "a contact names `{name}`, which is neither one of the robot's links ({}) nor an obstacle",
-                    self.links().join(", ")
-                ));
+                return Err(SettingError::UnknownContactName {
+                    name: name.clone(),
+                    links: self.links().join(", "),
+                });
             }
         }
         let skip: Vec<(String, String)> = self.touching.iter().chain(&allowed).cloned().collect();
@@ -92,11 +90,9 @@ impl Shapes {
     }
 
     /// The same shapes with clearance `margin` (m). Errors: not finite, or negative.
-    pub fn with_margin(&self, margin: f64) -> Result<Self, String> {
+    pub fn with_margin(&self, margin: f64) -> Result<Self, SettingError> {
         if !(margin.is_finite() && margin >= 0.0) {
-            return Err(format!(
-                "the clearance margin must be a finite distance ≥ 0 m, not {margin}"
-            ));
+            return Err(SettingError::Margin(margin));
         }
         Ok(Shapes {
             margin,

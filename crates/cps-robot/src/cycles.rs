@@ -561,11 +561,12 @@ pub const MAX_LOSS: f64 = 0.2;
 impl CycleLoss {
     /// Loses `share` (0 to [`MAX_LOSS`]) of the periods, chosen by `seed`. Errors: a share
     /// outside that range, in a sentence.
-    pub fn new(share: f64, seed: u64) -> Result<Self, String> {
+    pub fn new(share: f64, seed: u64) -> Result<Self, crate::SettingError> {
         if !(0.0..=MAX_LOSS).contains(&share) {
-            return Err(format!(
-                "a share of lost periods of {share} is outside [0, {MAX_LOSS}]"
-            ));
+            return Err(crate::SettingError::LossShare {
+                share,
+                max: MAX_LOSS,
+            });
         }
         Ok(CycleLoss {
             share,
@@ -830,7 +831,7 @@ mod tests {
         let share = a.lost() as f64 / 10_000.0;
         assert!((0.04..0.06).contains(&share), "{share}");
         assert_eq!(
-            CycleLoss::new(0.5, 1).unwrap_err(),
+            CycleLoss::new(0.5, 1).unwrap_err().to_string(),
             "a share of lost periods of 0.5 is outside [0, 0.2]"
         );
     }

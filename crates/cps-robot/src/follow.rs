@@ -23,6 +23,8 @@ pub struct FollowLimits {
     pub jerk: f64,
 }
 
+use crate::setting::SettingError;
+
 /// The cascade's gains (1/s): position → velocity, velocity → acceleration, acceleration
 /// → jerk; each stage four times faster than the one it serves, so the loop is well
 /// damped.
@@ -43,16 +45,15 @@ pub struct Follower {
 impl Follower {
     /// A follower at rest at `q0`, stepped every `dt` seconds. Errors: a joint count that
     /// differs, a limit or period that is not positive and finite.
-    pub fn new(q0: &[f64], limits: &[FollowLimits], dt: f64) -> Result<Follower, String> {
+    pub fn new(q0: &[f64], limits: &[FollowLimits], dt: f64) -> Result<Follower, SettingError> {
         if q0.len() != limits.len() {
-            return Err(format!(
-                "{} joint position(s) for {} joints' limits",
-                q0.len(),
-                limits.len()
-            ));
+            return Err(SettingError::JointCount {
+                given: q0.len(),
+                joints: limits.len(),
+            });
         }
         if !(dt.is_finite() && dt > 0.0) {
-            return Err(format!("the period {dt} s is not a period"));
+            return Err(SettingError::Period(dt));
         }
         for (j, l) in limits.iter().enumerate() {
             for (what, x) in [
@@ -61,19 +62,19 @@ impl Follower {
                 ("jerk", l.jerk),
             ] {
                 if !(x.is_finite() && x > 0.0) {
-                    return Err(format!(
-                        "joint {}: the {what} limit {x} is not positive",
-                        j + 1
-                    ));
+                    return Err(SettingError::Limit {
+                        joint: j + 1,
+                        quantity: what,
+                        value: x,
+                    });
                 }
             }
         }
         if let Some(j) = q0.iter().position(|x| !x.is_finite()) {
-            return Err(format!(
-                "joint {}: the start {} is not a position",
-                j + 1,
-                q0[j]
-            ));
+            return Err(SettingError::Start {
+                joint: j + 1,
+                value: q0[j],
+            });
         }
         Ok(Follower {
             dt,
@@ -333,22 +334,26 @@ mod tests {
         assert!(
             Follower::new(&[0.0], &[], DT)
                 .unwrap_err()
+                .to_string()
                 .contains("1 joint position(s) for 0")
         );
         assert!(
             Follower::new(&[0.0], &[FR3], 0.0)
                 .unwrap_err()
+                .to_string()
                 .contains("not a period")
         );
         let bad = FollowLimits { jerk: -1.0, ..FR3 };
         assert!(
             Follower::new(&[0.0], &[bad], DT)
                 .unwrap_err()
+                .to_string()
                 .contains("jerk limit -1")
         );
         assert!(
             Follower::new(&[f64::NAN], &[FR3], DT)
                 .unwrap_err()
+                .to_string()
                 .contains("not a position")
         );
     }

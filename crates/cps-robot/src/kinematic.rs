@@ -83,7 +83,10 @@ impl KinematicRobot {
                 self.q.len()
             )));
         }
-        let loss = CycleLoss::new(share, seed).map_err(bad)?;
+        let loss = CycleLoss::new(share, seed).map_err(|source| RobotError::Setting {
+            robot: "the in-process robot".into(),
+            source,
+        })?;
         self.loss = (share > 0.0).then_some(loss);
         Ok(())
     }

@@ -72,6 +72,7 @@ mod kinematic;
 mod model;
 mod plan;
 mod robot;
+mod setting;
 mod stop;
 mod watch;
 
@@ -102,6 +103,7 @@ pub use kinematic::KinematicRobot;
 pub use model::RobotModel;
 pub use plan::{CHECK_PERIOD, Ending, MAX_POINTS, Plan, Run, SampledMotion};
 pub use robot::{Generator, Robot, Stepped, Stepping, Streaming, run_stepped, step_of};
+pub use setting::{FeedError, SettingError};
 pub use stop::{Moving, StopToken};
 
 use cps_kinematics::KinematicsError;
@@ -144,4 +146,13 @@ pub enum RobotError {
     /// The robot's model or a kinematic computation failed.
     #[error(transparent)]
     Kinematics(#[from] KinematicsError),
+    /// A setting of the run cannot be used: nothing was sent.
+    #[error("{robot}: {source}")]
+    Setting {
+        /// The robot (its [`Robot::name`]).
+        robot: String,
+        /// Which setting, and why.
+        #[source]
+        source: SettingError,
+    },
 }

@@ -5,6 +5,7 @@ use std::sync::Arc;
 use cps_kinematics::{CartesianLimits, JointLimits, LinkInertia, RobotLimits, SerialChain};
 
 use crate::collision::Shapes;
+use crate::setting::SettingError;
 
 /// A robot's model: the chain (base placed, tool point set), its joint names, its limits
 /// beyond the chain's range and speed, and its inertias where known. Robot files
@@ -65,12 +66,9 @@ impl RobotModel {
 
     /// The same robot keeping clearance `margin` (m) among the same obstacles. Errors: the
     /// robot has no shapes, or the margin is not a finite distance ≥ 0.
-    pub fn with_margin(&self, margin: f64) -> Result<Self, String> {
+    pub fn with_margin(&self, margin: f64) -> Result<Self, SettingError> {
         let Some(shapes) = &self.shapes else {
-            return Err(format!(
-                "the robot `{}` has no collision geometry to keep a margin with",
-                self.name
-            ));
+            return Err(SettingError::NoShapes(self.name.clone()));
         };
         Ok(RobotModel {
             shapes: Some(Arc::new(shapes.with_margin(margin)?)),
@@ -86,7 +84,7 @@ impl RobotModel {
         obstacles: Vec<cps_geometry::Obstacle>,
         allowed: Vec<(String, String)>,
         margin: Option<f64>,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, SettingError> {
         let Some(shapes) = &self.shapes else {
             return Ok(self.clone());
         };

@@ -418,7 +418,10 @@ impl Sections<'_> {
             obstacles.extend(more.shapes.iter().cloned());
             let mut allowed = shapes.allowed().to_vec();
             allowed.extend(more.allowed);
-            scene.robot = scene.robot.in_scene(obstacles, allowed, None).map_err(at)?;
+            scene.robot = scene
+                .robot
+                .in_scene(obstacles, allowed, None)
+                .map_err(|e| at(e.to_string()))?;
             cps_movement::scene::start_clear(&scene.robot, &scene.initial_q)
                 .map_err(|m| at(format!("at the scene's start, {m}")))?;
             scene.shapes.extend(more.shapes);
