@@ -152,8 +152,8 @@ LAYERS = {
         ["follow", "identify", "ros2_follow"],
     ],
     "cps-experiment": [
-        # what the others use: progress events, a pool of robots, the optimiser's bench
-        ["cmaes_bench", "observer"],
+        # what the others use: progress events
+        ["observer"],
         # each kind's sections of the file and the robot chosen, read into plans
         ["sections"],
         # the chosen robot opened
@@ -167,7 +167,7 @@ LAYERS = {
         # each kind's run
         ["kinds"],
         # the entry points
-        ["ros2_show", "run"],
+        ["markers", "run"],
     ],
     "cps-studio": [
         ["assets", "robot"],

@@ -1,12 +1,14 @@
-//! `cps-cli cmaes bench`: its arguments; the run is `cps_experiment::cmaes_bench`.
+//! `cps-cli cmaes bench`: its arguments and its output; the run is `cps_cmaes::functions::bench`.
 
 use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Subcommand};
-use cps_cmaes::functions::{Restarts, TestFunction};
-use cps_experiment::cmaes_bench::{Bench, run};
+use cps_cmaes::CmaesError;
+use cps_cmaes::functions::{Bench, Restarts, Seeds, TestFunction, bench as run};
+use cps_outcome::InputError;
+use serde_json::json;
 
 fn function(name: &str) -> TestFunction {
     // Only names of `TestFunction::ALL` pass the parser.
@@ -31,7 +33,7 @@ pub struct BenchArgs {
     dim: usize,
     /// Seeds as `A..B` (inclusive), or one seed.
     #[arg(long, default_value = "1..10")]
-    seeds: String,
+    seeds: Seeds,
     /// IPOP restarts (up to 9, population doubled each time).
     #[arg(long, conflicts_with = "bipop")]
     ipop: bool,
@@ -57,15 +59,28 @@ pub fn bench(cmd: &CmaesCommand) -> Result<ExitCode> {
     let settings = Bench {
         function: args.function,
         dim: args.dim,
-        seeds: args.seeds.clone(),
+        seeds: args.seeds,
         restarts,
         separable: args.separable,
     };
-    let answer = run(&settings, |line| {
+    let summary = run(&settings, |r| {
         if !args.json {
-            say!("{line}");
+            say!("{r}");
         }
     })
-    .map_err(crate::cli_error)?;
-    crate::robot::print(&answer, args.json)
+    .map_err(|e| match e {
+        CmaesError::InvalidConfig { field: "dim", .. } => InputError(format!("--dim: {e}")).into(),
+        other => anyhow::Error::new(other),
+    })?;
+    if args.json {
+        let rows: Vec<_> = summary
+            .runs
+            .iter()
+            .map(|r| json!({"seed": r.seed, "evaluations": r.evaluations, "success": r.success, "best": r.best, "seconds": r.seconds}))
+            .collect();
+        say!("{}", serde_json::to_string_pretty(&rows)?);
+    } else {
+        say!("{summary}");
+    }
+    Ok(ExitCode::SUCCESS)
 }

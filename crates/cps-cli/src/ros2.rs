@@ -212,16 +212,41 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
             (answer, 0, *json)
         }
         Ros2Command::Show(a) => {
-            let s = cps_experiment::ros2_show::ShowSettings {
-                topic: a.topic.clone(),
-                frame: a.frame.clone(),
-                seconds: a.seconds,
-                domain: a.domain,
-            };
-            let answer =
-                cps_experiment::ros2_show::show(&a.experiment, a.results.as_deref(), &s, stop)
-                    .map_err(cli_error)?;
-            (answer, 0, a.json)
+            let shown = cps_experiment::markers::experiment_markers(
+                &a.experiment,
+                a.results.as_deref(),
+                &a.frame,
+            )
+            .map_err(cli_error)?;
+            let m = &shown.markers.markers;
+            let p = cps_drive::ros2_graph::publish_latched(
+                &shown.markers,
+                &a.topic,
+                a.seconds,
+                a.domain,
+                stop,
+            )
+            .map_err(cli_error)?;
+            let (shapes, obstacles) = shown.robot.counts();
+            let json = serde_json::json!({
+                "topic": a.topic, "frame": a.frame, "domain": p.domain, "markers": m.len(),
+                "path_points": shown.path_points, "via_points": shown.via_points,
+                "robot_shapes": shapes, "obstacles": obstacles, "subscribers": p.subscribers,
+            });
+            let lines = vec![
+                format!(
+                    "showed {} markers ({} path points, {} via points, start and goal) on {} in frame {} for {:.0} s: {} viewer(s) subscribed",
+                    m.len(),
+                    shown.path_points,
+                    shown.via_points,
+                    a.topic,
+                    a.frame,
+                    a.seconds,
+                    p.subscribers
+                ),
+                shown.robot.to_string(),
+            ];
+            (cps_movement::robot_file::Answer { json, lines }, 0, a.json)
         }
         Ros2Command::Send(a) => {
             let s = SendSettings {

@@ -153,3 +153,213 @@ pub fn reference_run(
         Restarts::Bipop => minimize_bipop(&f, &x0, &config, &rules, 9, &mut NoObserver)?.best,
     })
 }
+
+/// The most seeds one [`bench`] runs.
+pub const MAX_SEEDS: u64 = 10_000;
+
+/// The seeds of a benchmark: `A..B` (inclusive, A ≤ B) or one seed, as written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Seeds {
+    /// The first seed.
+    pub first: u64,
+    /// The last seed (inclusive).
+    pub last: u64,
+}
+
+impl std::str::FromStr for Seeds {
+    type Err = String;
+
+    /// `A..B` or one seed; at most [`MAX_SEEDS`] of them.
+    fn from_str(text: &str) -> Result<Self, String> {
+        let bad = || format!("`{text}` is not `A..B` with A ≤ B, nor one seed");
+        let number = |s: &str| s.trim().parse::<u64>().map_err(|_| bad());
+        let (first, last) = match text.split_once("..") {
+            Some((a, b)) => (number(a)?, number(b)?),
+            None => (number(text)?, number(text)?),
+        };
+        if first > last {
+            return Err(bad());
+        }
+        if last - first >= MAX_SEEDS {
+            return Err(format!(
+                "`{text}` names {} seeds; at most {MAX_SEEDS} are run at once",
+                (last - first).saturating_add(1)
+            ));
+        }
+        Ok(Seeds { first, last })
+    }
+}
+
+/// A benchmark: `function` in `dim` dimensions, in the reference set-up, for each seed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bench {
+    /// The test function.
+    pub function: TestFunction,
+    /// Dimension n: 1 to 10 000, the full form at most 5000.
+    pub dim: usize,
+    /// The seeds.
+    pub seeds: Seeds,
+    /// Restarts.
+    pub restarts: Restarts,
+    /// The separable variant (sep-CMA-ES).
+    pub separable: bool,
+}
+
+/// One seed's run of a [`bench`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchRun {
+    /// The seed.
+    pub seed: u64,
+    /// Evaluations spent.
+    pub evaluations: u64,
+    /// Whether it reached f ≤ 1e-8.
+    pub success: bool,
+    /// The best cost found.
+    pub best: f64,
+    /// Wall time (s).
+    pub seconds: f64,
+    /// Why it ended.
+    pub termination: crate::Termination,
+}
+
+impl std::fmt::Display for BenchRun {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "seed {:>4}: {:>9} evaluations, {}, best {:.3e}, {:.3} s ({})",
+            self.seed,
+            self.evaluations,
+            if self.success { "success" } else { "FAILED " },
+            self.best,
+            self.seconds,
+            self.termination
+        )
+    }
+}
+
+/// What a [`bench`] found: its runs, seed by seed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchSummary {
+    /// The benchmark run.
+    pub bench: Bench,
+    /// One run per seed, in order.
+    pub runs: Vec<BenchRun>,
+}
+
+impl BenchSummary {
+    /// The median evaluations of the successful runs (the mean of the two middle ones
+    /// for an even count; 0 without a success).
+    pub fn median_evaluations(&self) -> f64 {
+        let mut evals: Vec<u64> = self
+            .runs
+            .iter()
+            .filter(|r| r.success)
+            .map(|r| r.evaluations)
+            .collect();
+        evals.sort_unstable();
+        match evals.len() {
+            0 => 0.0,
+            k if k % 2 == 1 => evals[k / 2] as f64,
+            k => 0.5 * (evals[k / 2 - 1] + evals[k / 2]) as f64,
+        }
+    }
+
+    /// How many runs succeeded.
+    pub fn successes(&self) -> usize {
+        self.runs.iter().filter(|r| r.success).count()
+    }
+}
+
+impl std::fmt::Display for BenchSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{:?} n = {}: {}/{} successes, median evaluations of the successes {:.0}",
+            self.bench.function,
+            self.bench.dim,
+            self.successes(),
+            self.runs.len(),
+            self.median_evaluations()
+        )
+    }
+}
+
+/// Runs `bench` seed by seed ([`reference_run`]), telling `on_run` of each run as it
+/// ends. Errors: a dimension outside 1 to 10 000 (the full form: 5000, its n × n
+/// matrices), as [`CmaesError::InvalidConfig`] with the field `dim`.
+pub fn bench(bench: &Bench, mut on_run: impl FnMut(&BenchRun)) -> Result<BenchSummary, CmaesError> {
+    let n = bench.dim;
+    let bad = |rule| CmaesError::InvalidConfig {
+        field: "dim",
+        rule,
+        value: n as f64,
+    };
+    if !(1..=10_000).contains(&n) {
+        return Err(bad("must be between 1 and 10000"));
+    }
+    if !bench.separable && n > 5000 {
+        return Err(bad(
+            "must be at most 5000 in the full form, which stores n × n matrices (or use the separable one)",
+        ));
+    }
+    let mut runs = Vec::new();
+    for seed in bench.seeds.first..=bench.seeds.last {
+        let start = std::time::Instant::now();
+        let sol = reference_run(bench.function, n, seed, bench.restarts, bench.separable)?;
+        let run = BenchRun {
+            seed,
+            evaluations: sol.evaluations,
+            success: sol.best_cost <= 1e-8,
+            best: sol.best_cost,
+            seconds: start.elapsed().as_secs_f64(),
+            termination: sol.termination,
+        };
+        on_run(&run);
+        runs.push(run);
+    }
+    Ok(BenchSummary {
+        bench: *bench,
+        runs,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seeds_are_read_and_bounded() {
+        let seeds = |t: &str| t.parse::<Seeds>().map(|s| (s.first, s.last));
+        assert_eq!(seeds("3..7").unwrap(), (3, 7));
+        assert_eq!(seeds(" 5 ").unwrap(), (5, 5));
+        assert!(seeds("7..3").is_err());
+        assert!(seeds("0..20000").unwrap_err().contains("20001 seeds"));
+    }
+
+    #[test]
+    fn a_bench_runs_every_seed_and_refuses_a_dimension_out_of_range() {
+        let mut b = Bench {
+            function: TestFunction::Sphere,
+            dim: 3,
+            seeds: "4..6".parse().unwrap(),
+            restarts: Restarts::None,
+            separable: false,
+        };
+        let mut told = Vec::new();
+        let s = bench(&b, |r| told.push(r.seed)).unwrap();
+        assert_eq!(told, [4, 5, 6]);
+        assert_eq!(s.successes(), 3);
+        let mut e: Vec<u64> = s.runs.iter().map(|r| r.evaluations).collect();
+        e.sort_unstable();
+        assert_eq!(s.median_evaluations(), e[1] as f64);
+        b.dim = 5001;
+        assert!(matches!(
+            bench(&b, |_| {}),
+            Err(CmaesError::InvalidConfig { field: "dim", .. })
+        ));
+        b.separable = true;
+        b.seeds = "1".parse().unwrap();
+        b.dim = 0;
+        assert!(bench(&b, |_| {}).is_err());
+    }
+}

@@ -256,3 +256,43 @@ pub fn action_hint(node: &Node, missing: &str) -> String {
         )
     }
 }
+
+/// What [`publish_latched`] did: the domain it published in, and how many subscribers
+/// matched while it stayed on the graph.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Published {
+    /// The DDS domain.
+    pub domain: u16,
+    /// The most subscribers matched at once.
+    pub subscribers: usize,
+}
+
+/// Publishes `markers` latched on `topic` (a viewer that joins later still gets them) and
+/// stays on the graph for `seconds` (in (0, 86 400]) or until `stop`.
+pub fn publish_latched(
+    markers: &cps_ros2_msg::msg::MarkerArray,
+    topic: &str,
+    seconds: f64,
+    domain: Option<u16>,
+    stop: &StopToken,
+) -> Result<Published, ExperimentError> {
+    if !(seconds.is_finite() && seconds > 0.0 && seconds <= 86_400.0) {
+        return Err(InputError(format!("--seconds {seconds}: give seconds in (0, 86400]")).into());
+    }
+    let node = node(domain)?;
+    let mut writer = node
+        .publisher::<cps_ros2_msg::msg::MarkerArray>(
+            topic,
+            cps_ros2::node::Qos::Latched { depth: 1 },
+        )
+        .map_err(ros2_error)?;
+    writer.write(markers).map_err(ros2_error)?;
+    let end = std::time::Instant::now() + Duration::from_secs_f64(seconds);
+    while std::time::Instant::now() < end && !stop.is_stopped() {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    Ok(Published {
+        domain: node.name().domain,
+        subscribers: usize::try_from(writer.matched_ever()).unwrap_or(0),
+    })
+}

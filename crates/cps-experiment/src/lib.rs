@@ -48,13 +48,12 @@
 #![deny(missing_docs)]
 
 pub mod budget;
-pub mod cmaes_bench;
 pub mod experiment;
 mod kinds;
+pub mod markers;
 mod observer;
 pub mod plan;
 pub mod robots;
-pub mod ros2_show;
 mod run;
 pub mod sections;
 

@@ -397,3 +397,22 @@ pub fn follow<R: Robot>(
         stalls: stepper.stalls,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::{CycleLoss, FollowSettings, Follower, SettingError};
+
+    #[test]
+    fn a_caller_tells_the_cases_apart_by_their_variant_and_reads_their_sentence() {
+        let period = Follower::new(&[0.0], &[crate::follow::testing::FR3], 0.0).unwrap_err();
+        assert_eq!(period, SettingError::Period(0.0));
+        assert_eq!(period.to_string(), "the period 0 s is not a period");
+        let settings = FollowSettings {
+            limit_share: 1.5,
+            ..FollowSettings::default()
+        };
+        assert_eq!(settings.check(), Err(SettingError::LimitShare(1.5)));
+        let loss = CycleLoss::new(0.5, 1).unwrap_err();
+        assert!(matches!(loss, SettingError::LossShare { share, .. } if share == 0.5));
+    }
+}

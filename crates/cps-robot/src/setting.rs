@@ -128,23 +128,3 @@ pub enum FeedError {
     #[error("the run is over: the robot no longer takes chunks")]
     Over,
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::{CycleLoss, FollowSettings, Follower};
-
-    #[test]
-    fn a_caller_tells_the_cases_apart_by_their_variant_and_reads_their_sentence() {
-        let period = Follower::new(&[0.0], &[crate::follow::testing::FR3], 0.0).unwrap_err();
-        assert_eq!(period, SettingError::Period(0.0));
-        assert_eq!(period.to_string(), "the period 0 s is not a period");
-        let settings = FollowSettings {
-            limit_share: 1.5,
-            ..FollowSettings::default()
-        };
-        assert_eq!(settings.check(), Err(SettingError::LimitShare(1.5)));
-        let loss = CycleLoss::new(0.5, 1).unwrap_err();
-        assert!(matches!(loss, SettingError::LossShare { share, .. } if share == 0.5));
-    }
-}

@@ -1,53 +1,86 @@
-//! `ros2 show`: an experiment's learned path, its via points, start and goal as a latched
-//! `visualization_msgs/MarkerArray` for RViz or Foxglove, with the robot of its `[robot]`
-//! at its start (each collision shape the guard checks, namespace `cps_robot/<link>`) and
-//! its scene's obstacles (`cps_scene/<name>`). (Apart from `ros2.rs`, which the robot backend uses,
-//! because it reads experiment files.)
+//! An experiment as markers (`cps-cli ros2 show`): its learned path, its via points, start
+//! and goal as a `visualization_msgs/MarkerArray` for RViz or Foxglove, with the robot of
+//! its `[robot]` at its start (each collision shape the guard checks, namespace
+//! `cps_robot/<link>`) and its scene's obstacles (`cps_scene/<name>`). Publishing them is
+//! cps-drive's (`ros2_graph::publish_latched`).
 
 use std::path::Path;
-use std::time::Duration;
 
-use cps_ros2::node::Qos;
-use cps_ros2_msg::msg::Marker;
+use cps_ros2_msg::msg::{Marker, MarkerArray};
 use nalgebra::Isometry3;
-use serde_json::json;
 
 use crate::{ExperimentError, InputError};
-use cps_drive::ros2::{node, ros2_error};
-use cps_movement::robot_file::Answer;
 
-/// What and where to show.
+/// An experiment's markers, and what they show.
 #[derive(Debug, Clone)]
-pub struct ShowSettings {
-    /// The MarkerArray topic (`/cps/markers`).
-    pub topic: String,
-    /// The frame the task's coordinates are in (`world`; the scene's base frame).
-    pub frame: String,
-    /// Seconds to stay on the graph (the markers are latched: a viewer that joins in
-    /// that time still gets them).
-    pub seconds: f64,
-    /// The DDS domain (None: `ROS_DOMAIN_ID`, else 0).
-    pub domain: Option<u16>,
+pub struct Shown {
+    /// The markers.
+    pub markers: MarkerArray,
+    /// Points of the learned path.
+    pub path_points: usize,
+    /// Via points.
+    pub via_points: usize,
+    /// The robot's shapes and the scene's obstacles drawn.
+    pub robot: RobotShown,
 }
 
-/// `ros2 show`: an experiment's learned path (`<results>/trajectory.csv`, columns `x,y,z`;
-/// by default `results/<name>`, where `cps-cli run` writes it),
-/// its via points, start and goal (from the experiment file) as a latched
-/// `visualization_msgs/MarkerArray`, kept on the graph for `settings.seconds` or until
-/// `stop`; the answer says how many viewers subscribed.
-pub fn show(
+/// What was drawn of the experiment's robot.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RobotShown {
+    /// The experiment has no `[robot]`: the path alone.
+    None,
+    /// The robot has no collision geometry: why (its model's note).
+    Unchecked(String),
+    /// The robot at its initial configuration and the scene's obstacles.
+    Shapes {
+        /// The robot's name.
+        robot: String,
+        /// Its shapes drawn.
+        links: usize,
+        /// The obstacles drawn, by name.
+        obstacles: Vec<String>,
+    },
+}
+
+impl RobotShown {
+    /// How many of the robot's shapes and of the obstacles were drawn.
+    pub fn counts(&self) -> (usize, usize) {
+        match self {
+            RobotShown::Shapes {
+                links, obstacles, ..
+            } => (*links, obstacles.len()),
+            _ => (0, 0),
+        }
+    }
+}
+
+impl std::fmt::Display for RobotShown {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RobotShown::None => write!(f, "no [robot] in the experiment: the path alone"),
+            RobotShown::Unchecked(note) => write!(f, "{note}"),
+            RobotShown::Shapes {
+                robot,
+                links,
+                obstacles,
+            } => write!(
+                f,
+                "the robot `{robot}` at its initial configuration ({links} shapes, namespaces cps_robot/<link>) and {} obstacle(s) ({}; cps_scene/<name>), as triangle lists",
+                obstacles.len(),
+                obstacles.join(", ")
+            ),
+        }
+    }
+}
+
+/// The markers of `experiment` in `frame`: its learned path (`<results>/trajectory.csv`,
+/// columns `x,y,z` or the executed tool's; by default `results/<name>`, where `cps-cli
+/// run` writes it), its via points, start and goal, and its robot and obstacles.
+pub fn experiment_markers(
     experiment: &Path,
     results: Option<&Path>,
-    settings: &ShowSettings,
-    stop: &cps_robot::StopToken,
-) -> Result<Answer, ExperimentError> {
-    if !(settings.seconds.is_finite() && settings.seconds > 0.0 && settings.seconds <= 86_400.0) {
-        return Err(InputError(format!(
-            "--seconds {}: give seconds in (0, 86400]",
-            settings.seconds
-        ))
-        .into());
-    }
+    frame: &str,
+) -> Result<Shown, ExperimentError> {
     let exp = crate::experiment::load(experiment, None, &crate::budget::Ceilings::default())?;
     let task = &exp.config.task;
     if task.goal.len() != 3 {
@@ -96,7 +129,7 @@ pub fn show(
         .collect();
     let point = |p: &[f64]| [p[0], p[1], p[2]];
     let via: Vec<[f64; 3]> = task.via.iter().map(|v| point(&v.position)).collect();
-    let mut markers = cps_ros2::markers::path_markers(&settings.frame, &path, &via);
+    let mut markers = cps_ros2::markers::path_markers(frame, &path, &via);
     // The task's own start and goal, where the path's ends should be.
     if let Some(m) = markers.markers.iter_mut().find(|m| m.id == 2) {
         m.position = point(&task.start);
@@ -104,63 +137,30 @@ pub fn show(
     if let Some(m) = markers.markers.iter_mut().find(|m| m.id == 4) {
         m.position = point(&task.goal);
     }
-    let (shapes, robot_line) = robot_markers(exp.robot.as_ref(), &settings.frame)?;
-    let shown = [shapes.0.len(), shapes.1.len()];
+    let (shapes, robot) = robot_markers(exp.robot.as_ref(), frame)?;
     markers.markers.extend(shapes.0.into_iter().chain(shapes.1));
-    let node = node(settings.domain)?;
-    let mut writer = node
-        .publisher::<cps_ros2_msg::msg::MarkerArray>(&settings.topic, Qos::Latched { depth: 1 })
-        .map_err(ros2_error)?;
-    writer.write(&markers).map_err(ros2_error)?;
-    let end = std::time::Instant::now() + Duration::from_secs_f64(settings.seconds);
-    while std::time::Instant::now() < end && !stop.is_stopped() {
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    let most = writer.matched_ever();
-    let json = json!({
-        "topic": settings.topic,
-        "frame": settings.frame,
-        "domain": node.name().domain,
-        "markers": markers.markers.len(),
-        "path_points": path.len(),
-        "via_points": via.len(),
-        "robot_shapes": shown[0],
-        "obstacles": shown[1],
-        "subscribers": most,
-    });
-    let lines = vec![
-        format!(
-            "showed {} markers ({} path points, {} via points, start and goal) on {} in frame {} for {:.0} s: {} viewer(s) subscribed",
-            markers.markers.len(),
-            path.len(),
-            via.len(),
-            settings.topic,
-            settings.frame,
-            settings.seconds,
-            most
-        ),
-        robot_line,
-    ];
-    Ok(Answer { json, lines })
+    Ok(Shown {
+        markers,
+        path_points: path.len(),
+        via_points: via.len(),
+        robot,
+    })
 }
 
 /// The markers of the robot's shapes at its initial configuration and of its scene's
-/// obstacles, and a line saying what was drawn (or why no robot is).
+/// obstacles, and what was drawn (or why no robot is).
 #[allow(clippy::type_complexity)]
 fn robot_markers(
     robot: Option<&crate::robots::RobotChoice>,
     frame: &str,
-) -> Result<((Vec<Marker>, Vec<Marker>), String), ExperimentError> {
+) -> Result<((Vec<Marker>, Vec<Marker>), RobotShown), ExperimentError> {
     let Some(robot) = robot else {
-        return Ok((
-            Default::default(),
-            "no [robot] in the experiment: the path alone".into(),
-        ));
+        return Ok((Default::default(), RobotShown::None));
     };
     let Some(shapes) = &robot.model.shapes else {
         return Ok((
             Default::default(),
-            robot.model.shapes_note().unwrap_or_default(),
+            RobotShown::Unchecked(robot.model.shapes_note().unwrap_or_default()),
         ));
     };
     let mut frames = Vec::new();
@@ -216,19 +216,12 @@ fn robot_markers(
             )
         })
         .collect::<Vec<_>>();
-    let line = format!(
-        "the robot `{}` at its initial configuration ({} shapes, namespaces cps_robot/<link>) and {} obstacle(s) ({}; cps_scene/<name>), as triangle lists",
-        robot.model.name,
-        links.len(),
-        obstacles.len(),
-        shapes
-            .obstacles()
-            .iter()
-            .map(|o| o.name.as_str())
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
-    Ok(((links, obstacles), line))
+    let shown = RobotShown::Shapes {
+        robot: robot.model.name.clone(),
+        links: links.len(),
+        obstacles: shapes.obstacles().iter().map(|o| o.name.clone()).collect(),
+    };
+    Ok(((links, obstacles), shown))
 }
 
 /// The links' colour (light grey) and the obstacles' (wood, a little transparent).
