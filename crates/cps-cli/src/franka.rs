@@ -9,6 +9,7 @@ use cps_drive::franka::{self, DmpSettings, ExecuteSettings};
 use cps_drive::{follow, identify};
 use cps_experiment::ExperimentError;
 use cps_movement::robot_file::Answer;
+use cps_outcome::Ended;
 use cps_robot::StopToken;
 
 use crate::cli_error;
@@ -285,8 +286,8 @@ pub fn franka(cmd: &FrankaCommand, stop: &StopToken) -> Result<ExitCode> {
 }
 
 /// Prints a motion's answer and exits with its code.
-fn finish(done: Result<(Answer, u8), ExperimentError>, json: bool) -> Result<ExitCode> {
-    let (answer, code) = done.map_err(cli_error)?;
+fn finish(done: Result<(Answer, Ended), ExperimentError>, json: bool) -> Result<ExitCode> {
+    let (answer, ended) = done.map_err(cli_error)?;
     print(&answer, json)?;
-    Ok(ExitCode::from(code))
+    Ok(crate::status(ended))
 }

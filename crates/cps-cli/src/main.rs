@@ -346,7 +346,7 @@ fn run(cli: Cli, stop: &StopToken) -> Result<ExitCode> {
         } => match cps_drive::identify::identify_recording(&r, &arm, &out, force, stop) {
             Err(e) if stop.is_stopped() => {
                 eprintln!("interrupted: {e}");
-                Ok(ExitCode::from(130))
+                Ok(status(cps_outcome::Ended::Stopped))
             }
             done => robot::print(&done.map_err(cli_error)?, json),
         },
@@ -396,6 +396,16 @@ fn run(cli: Cli, stop: &StopToken) -> Result<ExitCode> {
 
 /// A library error as the command line reports it: input problems keep their own type
 /// (exit 2), the rest their chain of causes (exit 1).
+/// The exit status of how a command that moves a robot ended: 0, 1, or 130 (stopped, as a
+/// shell reports an interrupt).
+pub(crate) fn status(ended: cps_outcome::Ended) -> ExitCode {
+    match ended {
+        cps_outcome::Ended::Completed => ExitCode::SUCCESS,
+        cps_outcome::Ended::Failed => ExitCode::from(1),
+        cps_outcome::Ended::Stopped => ExitCode::from(130),
+    }
+}
+
 pub(crate) fn cli_error(e: ExperimentError) -> anyhow::Error {
     match e {
         ExperimentError::Input(e) => anyhow::Error::new(e),
@@ -441,14 +451,14 @@ fn run_experiment(args: &RunArgs, stop: &StopToken) -> Result<ExitCode> {
                 out.display()
             );
         }
-        return Ok(ExitCode::from(1));
+        return Ok(status(cps_outcome::Ended::Failed));
     }
     if !outcome.complete() {
         eprintln!(
             "interrupted: the finished part is in {} (complete: false)",
             out.display()
         );
-        return Ok(ExitCode::from(130));
+        return Ok(status(cps_outcome::Ended::Stopped));
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -7,6 +7,7 @@ use anyhow::Result;
 use clap::{Args, Subcommand};
 use cps_drive::ros2::MappingChoice;
 use cps_drive::ros2::{self, GraphSettings, RecordSettings, SendSettings, Via};
+use cps_outcome::Ended;
 use cps_robot::StopToken;
 
 use crate::cli_error;
@@ -209,7 +210,7 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
             };
             bar.set_message("watching the graph");
             let answer = cps_drive::ros2_graph::graph(&look, stop).map_err(cli_error)?;
-            (answer, 0, *json)
+            (answer, Ended::Completed, *json)
         }
         Ros2Command::Show(a) => {
             let shown = cps_experiment::markers::experiment_markers(
@@ -246,7 +247,11 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
                 ),
                 shown.robot.to_string(),
             ];
-            (cps_movement::robot_file::Answer { json, lines }, 0, a.json)
+            (
+                cps_movement::robot_file::Answer { json, lines },
+                Ended::Completed,
+                a.json,
+            )
         }
         Ros2Command::Send(a) => {
             let s = SendSettings {
@@ -297,5 +302,5 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
     };
     bar.finish_and_clear();
     print(&answer, json)?;
-    Ok(ExitCode::from(code))
+    Ok(crate::status(code))
 }

@@ -154,7 +154,7 @@ pub fn reference_run(
     })
 }
 
-/// The most seeds one [`bench`] runs.
+/// The most seeds one [`bench()`] runs.
 pub const MAX_SEEDS: u64 = 10_000;
 
 /// The seeds of a benchmark: `A..B` (inclusive, A ≤ B) or one seed, as written.
@@ -205,7 +205,7 @@ pub struct Bench {
     pub separable: bool,
 }
 
-/// One seed's run of a [`bench`].
+/// One seed's run of a [`bench()`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct BenchRun {
     /// The seed.
@@ -237,7 +237,7 @@ impl std::fmt::Display for BenchRun {
     }
 }
 
-/// What a [`bench`] found: its runs, seed by seed.
+/// What a [`bench()`] found: its runs, seed by seed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BenchSummary {
     /// The benchmark run.

@@ -15,14 +15,14 @@ use std::path::{Path, PathBuf};
 use cps_franka::limits::DT;
 use cps_movement::robot_file::Answer;
 use cps_outcome::results_dir::{FileKind, check_file_target};
-use cps_outcome::{ExperimentError, InputError};
+use cps_outcome::{Ended, ExperimentError, InputError};
 use cps_robot::{
     ChunkLog, FollowReport, FollowSettings, Followed, Policy, Replay, Robot, RobotError, StopToken,
     follow, replay_plan,
 };
 use serde_json::{Value, json};
 
-use crate::franka::{ExecuteSettings, Executed, exit_code, guarded_arm, write_recording};
+use crate::franka::{ExecuteSettings, Executed, ended, guarded_arm, write_recording};
 use crate::recording::check_record_target;
 
 /// The replay file of a recording: `rec.csv` → `rec.chunks.csv`.
@@ -102,7 +102,7 @@ pub fn franka_follow_from(
     force: bool,
     ready: &dyn Fn(std::net::SocketAddr),
     stop: &StopToken,
-) -> Result<(Answer, u8), ExperimentError> {
+) -> Result<(Answer, Ended), ExperimentError> {
     match chunks {
         Chunks::File { path, rate_hz } => {
             franka_follow(path, *rate_hz, exec, settings, record, force, stop)
@@ -113,8 +113,8 @@ pub fn franka_follow_from(
 
 /// Follows the chunks of `file` (targets at `rate_hz`) on the Franka of `exec` under
 /// `settings`; writes the recording, its chunks and its report when `record` is given
-/// (checked before anything moves). Returns the answer and the exit code: 0 the stream
-/// was followed to its end, 1 the robot or the connection failed, 130 stopped.
+/// (checked before anything moves). Returns the answer and how it ended: completed, the
+/// stream followed to its end; failed, the robot or the connection; or stopped.
 pub fn franka_follow(
     file: &Path,
     rate_hz: f64,
@@ -123,7 +123,7 @@ pub fn franka_follow(
     record: Option<&Path>,
     force: bool,
     stop: &StopToken,
-) -> Result<(Answer, u8), ExperimentError> {
+) -> Result<(Answer, Ended), ExperimentError> {
     if let Some(r) = record {
         check_record_target(r, force)?;
         check_file_target(&chunks_path(r), FileKind::ChunkCsv, force)?;
@@ -161,7 +161,7 @@ fn answer(
     record: Option<&Path>,
     streamed: Option<cps_files::replace::Staged>,
     extra: Vec<(String, Value)>,
-) -> Result<(Answer, u8), ExperimentError> {
+) -> Result<(Answer, Ended), ExperimentError> {
     let executed = Executed {
         host: exec.host.clone(),
         arm: exec.arm,
@@ -207,7 +207,7 @@ fn answer(
         None => executed.lines(Path::new("(not recorded: --record)")),
     };
     lines.extend(report.lines().into_iter().map(|l| format!("  {l}")));
-    Ok((Answer { json, lines }, exit_code(&executed.report.ending)))
+    Ok((Answer { json, lines }, ended(&executed.report.ending)))
 }
 
 /// Where a policy in another process reaches the executor (see [`crate::chunk_socket`]).
@@ -231,7 +231,7 @@ pub fn franka_follow_live(
     force: bool,
     ready: &dyn Fn(std::net::SocketAddr),
     stop: &StopToken,
-) -> Result<(Answer, u8), ExperimentError> {
+) -> Result<(Answer, Ended), ExperimentError> {
     if let Some(r) = record {
         check_record_target(r, force)?;
         check_file_target(&chunks_path(r), FileKind::ChunkCsv, force)?;
@@ -284,11 +284,11 @@ pub fn franka_follow_live(
         a.lines.push(format!(
             "  the socket failed: {f}; the arm was braked to rest"
         ));
-        code = code.max(1);
+        code = code.max(Ended::Failed);
     } else if stop.is_stopped() {
         // Stopped (Ctrl-C, SIGTERM), also before any chunk came: the loop may have seen
         // the stream closed before the stop, and ended as if it had ended.
-        code = 130;
+        code = Ended::Stopped;
     }
     a.lines.push(format!(
         "  socket {bound}: {} chunks, {} state requests; {} datagrams from senders not allowed, {} refused",

@@ -25,7 +25,7 @@ use cps_movement::limits::{JointTrajectory, at_rate, read_joint_trajectory};
 use cps_movement::retiming::{RetimeMode, retime_samples};
 use cps_movement::robot_file::{Answer, load_robot};
 use cps_outcome::outcome::{Column, Format, Table};
-use cps_outcome::{ExperimentError, InputError};
+use cps_outcome::{Ended, ExperimentError, InputError};
 
 use crate::recording::{check_record_target, report_path};
 
@@ -707,14 +707,14 @@ pub fn record_samples(
 
 /// `franka record`: the robot's state for `seconds` (or until `stop`), written to `out`
 /// (checked first: a new file, or `force`); returns the report (`complete` false when the
-/// connection was lost or it was stopped) and the exit code: 0, 1 lost, 130 stopped.
+/// connection was lost or it was stopped) and how it ended (failed: the connection lost).
 pub fn record(
     host: &str,
     seconds: f64,
     out: &Path,
     force: bool,
     stop: &StopToken,
-) -> Result<(Answer, u8), ExperimentError> {
+) -> Result<(Answer, Ended), ExperimentError> {
     check_record_target(out, force)?;
     let (samples, report) = record_samples(host, seconds, stop)?;
     write_recording(out, &samples, &report)?;
@@ -729,9 +729,8 @@ pub fn record(
         ),
     ];
     let code = match (stopped, complete) {
-        (true, _) => 130,
-        (false, true) => 0,
-        (false, false) => 1,
+        (true, _) => Ended::Stopped,
+        (false, done) => Ended::of(done),
     };
     Ok((
         Answer {
@@ -800,14 +799,14 @@ pub fn guide_samples(
 
 /// `franka guide`: [`guide_samples`] written to `out` (checked first: a new file, or
 /// `force`) with its report; the recording has the columns of `franka execute --record`,
-/// ready for `cps-cli imitate`. Returns the answer and the exit code: 0 complete, 130
-/// stopped, 1 otherwise.
+/// ready for `cps-cli imitate`. Returns the answer and how it ended (completed,
+/// stopped, or failed otherwise).
 pub fn guide(
     settings: &GuideSettings,
     out: &Path,
     force: bool,
     stop: &StopToken,
-) -> Result<(Answer, u8), ExperimentError> {
+) -> Result<(Answer, Ended), ExperimentError> {
     check_record_target(out, force)?;
     let (samples, json) = guide_samples(settings, stop)?;
     write_recording(out, &samples, &json)?;
@@ -826,11 +825,11 @@ pub fn guide(
         ),
     ];
     let code = if json["complete"] == true {
-        0
+        Ended::Completed
     } else if stop.is_stopped() {
-        130
+        Ended::Stopped
     } else {
-        1
+        Ended::Failed
     };
     Ok((Answer { json, lines }, code))
 }
@@ -914,7 +913,7 @@ pub fn gripper(host: &str, command: Option<GripperCommand>) -> Result<Answer, Ex
 /// `franka execute` whole: the recording's target checked first; a joint trajectory CSV
 /// prepared and executed ([`execute`]) or a DMP model (`.json`) stepped online
 /// ([`execute_model`], with `online`); the recording and its report written (complete or
-/// not). Returns the answer and the exit code ([`exit_code`]).
+/// not). Returns the answer and how it ended ([`ended`]).
 pub fn execute_file(
     file: &Path,
     settings: &ExecuteSettings,
@@ -922,7 +921,7 @@ pub fn execute_file(
     record: &Path,
     force: bool,
     stop: &StopToken,
-) -> Result<(Answer, u8), ExperimentError> {
+) -> Result<(Answer, Ended), ExperimentError> {
     check_record_target(record, force)?;
     let is_model = file
         .extension()
@@ -943,15 +942,15 @@ pub fn execute_file(
     let json = done.json();
     write_recording(record, &done.report.samples, &json)?;
     let lines = done.lines(record);
-    Ok((Answer { json, lines }, exit_code(&done.report.ending)))
+    Ok((Answer { json, lines }, ended(&done.report.ending)))
 }
 
-/// Why an execution's exit code is what it is: 0 finished, 130 stopped on request, 1
+/// How an execution ended: completed when it finished, stopped on request, failed
 /// otherwise.
-pub fn exit_code(ending: &MotionEnd) -> u8 {
+pub fn ended(ending: &MotionEnd) -> Ended {
     match ending {
-        MotionEnd::Finished => 0,
-        MotionEnd::Stopped => 130,
-        _ => 1,
+        MotionEnd::Finished => Ended::Completed,
+        MotionEnd::Stopped => Ended::Stopped,
+        _ => Ended::Failed,
     }
 }

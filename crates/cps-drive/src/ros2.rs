@@ -19,7 +19,7 @@ use serde_json::{Value, json};
 
 use cps_movement::robot_file::{Answer, RobotModel, load_robot};
 use cps_outcome::outcome::{Column, Format, Table};
-use cps_outcome::{ExperimentError, InputError};
+use cps_outcome::{Ended, ExperimentError, InputError};
 
 pub use crate::ros2_graph::{node, ros2_error};
 pub use cps_ros2::robot::NODE_NAME;
@@ -163,15 +163,15 @@ fn refused(name: &str, model: &RobotModel, e: RobotError) -> ExperimentError {
     }
 }
 
-/// `ros2 send`: the file checked, then sent; returns the answer and the exit code (0
-/// done; 1 refused, aborted or cancelled for lateness; 130 cancelled by `stop`). `progress` sees the share of
+/// `ros2 send`: the file checked, then sent; returns the answer and how it ended
+/// (failed: refused, aborted or cancelled for lateness; stopped: cancelled by `stop`). `progress` sees the share of
 /// the trajectory the controller reports done (action only).
 pub fn send(
     file: &Path,
     s: &SendSettings,
     stop: &StopToken,
     progress: impl FnMut(f64),
-) -> Result<(Answer, u8), ExperimentError> {
+) -> Result<(Answer, Ended), ExperimentError> {
     let (model, _) = robot_and_names(&s.graph.robot, s.graph.joint_names.as_deref())?;
     let traj = cps_movement::limits::read_joint_trajectory(file, model.chain.dof())?;
     send_trajectory(&file.display().to_string(), &traj, s, stop, progress)
@@ -188,7 +188,7 @@ pub fn send_trajectory(
     s: &SendSettings,
     stop: &StopToken,
     mut progress: impl FnMut(f64),
-) -> Result<(Answer, u8), ExperimentError> {
+) -> Result<(Answer, Ended), ExperimentError> {
     if !(s.wait.is_finite() && s.wait > 0.0 && s.wait <= 3600.0) {
         return Err(InputError(format!("--wait {}: give seconds in (0, 3600]", s.wait)).into());
     }
@@ -249,7 +249,7 @@ fn send_by_topic(
     me: NodeName,
     s: &SendSettings,
     stop: &StopToken,
-) -> Result<(Answer, u8), ExperimentError> {
+) -> Result<(Answer, Ended), ExperimentError> {
     let Destination {
         name,
         plan,
@@ -302,10 +302,7 @@ fn send_by_topic(
         ),
         "a topic has no answer: the controller's own log says whether it ran (use --action for its result)".into(),
     ];
-    Ok((
-        Answer { json, lines },
-        if run.ending.complete() { 0 } else { 1 },
-    ))
+    Ok((Answer { json, lines }, Ended::of(run.ending.complete())))
 }
 
 /// The plan followed as a FollowJointTrajectory goal through the guard, its progress
@@ -315,7 +312,7 @@ fn send_by_action(
     s: &SendSettings,
     stop: &StopToken,
     progress: &mut impl FnMut(f64),
-) -> Result<(Answer, u8), ExperimentError> {
+) -> Result<(Answer, Ended), ExperimentError> {
     let Destination {
         name,
         plan,
@@ -389,7 +386,7 @@ fn send_by_action(
     Ok((
         answer,
         if stop.is_stopped() && !o.succeeded() {
-            130
+            Ended::Stopped
         } else {
             code
         },
@@ -583,7 +580,7 @@ fn write_tracked(
     Ok(())
 }
 
-fn action_answer(mut json: Value, action: &str, o: &FollowOutcome) -> (Answer, u8) {
+fn action_answer(mut json: Value, action: &str, o: &FollowOutcome) -> (Answer, Ended) {
     json["via"] = json!("action");
     json["action"] = json!(action);
     json["goal_id"] = json!(o.goal_id.to_string());
@@ -622,7 +619,7 @@ fn action_answer(mut json: Value, action: &str, o: &FollowOutcome) -> (Answer, u
     if o.cancel_requested {
         lines.push("the goal was cancelled (Ctrl-C or no result in time)".into());
     }
-    (Answer { json, lines }, if o.succeeded() { 0 } else { 1 })
+    (Answer { json, lines }, Ended::of(o.succeeded()))
 }
 
 /// What and where to record.
@@ -666,15 +663,15 @@ pub fn recording_table(rec: &JointRecording) -> Table {
 
 /// `ros2 record`: `settings.topic` for `settings.duration` s from its first message (or
 /// until `stop`), written to `out` (a new file, or `force`) with its report beside it;
-/// the recording checked against the robot's limits as any trajectory. Exit code 0, or
-/// 130 stopped early (what came is kept).
+/// the recording checked against the robot's limits as any trajectory. Completed, or
+/// stopped early (what came is kept).
 pub fn record(
     s: &RecordSettings,
     out: &Path,
     force: bool,
     stop: &StopToken,
     progress: impl FnMut(f64),
-) -> Result<(Answer, u8), ExperimentError> {
+) -> Result<(Answer, Ended), ExperimentError> {
     crate::recording::check_record_target(out, force)?;
     let (rec, mut answer) = record_in_memory(s, stop, progress)?;
     let csv = cps_outcome::files::table_csv(&recording_table(&rec))?;
@@ -688,7 +685,14 @@ pub fn record(
         out.display(),
         report_file.display()
     ));
-    Ok((answer, if rec.stopped { 130 } else { 0 }))
+    Ok((
+        answer,
+        if rec.stopped {
+            Ended::Stopped
+        } else {
+            Ended::Completed
+        },
+    ))
 }
 
 /// [`record`] in memory: the recording and its report (JSON and lines).

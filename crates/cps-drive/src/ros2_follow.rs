@@ -29,7 +29,7 @@ use cps_ros2_msg::msg::{Header, JointTrajectory, JointTrajectoryPoint, Message, 
 use serde_json::json;
 
 use cps_movement::robot_file::Answer;
-use cps_outcome::{ExperimentError, InputError};
+use cps_outcome::{Ended, ExperimentError, InputError};
 
 use crate::ros2::GraphSettings;
 
@@ -262,15 +262,15 @@ impl Robot for ChunkTopic {
 
 /// `ros2 follow`: the chunks of `file` (targets at `rate_hz`) to the controller, one
 /// replacement message per chunk (see the module's text), from where the first chunk has
-/// the arm at its arrival (a topic reports no joint states). Returns the answer and the
-/// exit code (0 published, 1 refused or the controller missing, 130 stopped).
+/// the arm at its arrival (a topic reports no joint states). Returns the answer and how it
+/// ended (completed: published; failed: refused or the controller missing; stopped).
 pub fn ros2_follow(
     file: &Path,
     rate_hz: f64,
     s: &FollowTopic,
     settings: &FollowSettings,
     stop: &StopToken,
-) -> Result<(Answer, u8), ExperimentError> {
+) -> Result<(Answer, Ended), ExperimentError> {
     settings.check().map_err(|e| InputError(e.to_string()))?;
     if !(s.period >= DT && s.period <= 1.0) {
         return Err(
@@ -351,9 +351,9 @@ pub fn ros2_follow(
         lines.push(format!("  chunk {i} refused: {why}"));
     }
     let code = match run.ending {
-        cps_robot::Ending::Finished => 0,
-        cps_robot::Ending::Stopped => 130,
-        _ => 1,
+        cps_robot::Ending::Finished => Ended::Completed,
+        cps_robot::Ending::Stopped => Ended::Stopped,
+        _ => Ended::Failed,
     };
     Ok((Answer { json, lines }, code))
 }

@@ -36,4 +36,4 @@ pub mod results_dir;
 pub mod source;
 
 pub use error::{Context, ExperimentError, InputError};
-pub use outcome::Outcome;
+pub use outcome::{Ended, Outcome};

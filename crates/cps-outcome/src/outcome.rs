@@ -7,6 +7,30 @@
 use serde::Serialize;
 use serde_json::{Map, Value};
 
+/// How a command that moves a robot, or records from one, ended — for its front end to
+/// report (the command line: exit status 0, 1 or 130). Ordered from the best to the
+/// worst, so that `max` keeps the worst of two.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Ended {
+    /// Done as asked.
+    Completed,
+    /// Refused, aborted, or the robot or its connection failed (what came is kept).
+    Failed,
+    /// Stopped on request (Ctrl-C, SIGTERM; what came is kept).
+    Stopped,
+}
+
+impl Ended {
+    /// Completed when `done`, else failed.
+    pub fn of(done: bool) -> Ended {
+        if done {
+            Ended::Completed
+        } else {
+            Ended::Failed
+        }
+    }
+}
+
 /// The versions that produced a result.
 #[derive(Debug, Clone, Serialize)]
 pub struct Versions {
