@@ -570,7 +570,7 @@ fn chunk_executor(c: &mut Criterion) {
     };
     // The stand-in's chunks at 30 Hz for `seconds`.
     let stand_in = |seed: u64, seconds: f64| {
-        cps::robot::StandIn {
+        cps::chunks::StandIn {
             horizon: 50,
             target_hz: 50.0,
             chunk_hz: 30.0,
@@ -581,12 +581,12 @@ fn chunk_executor(c: &mut Criterion) {
         .chunks(&demo, 0.0, seconds)
     };
     let chunks = stand_in(1, 1.0);
-    let settings = cps::robot::FollowSettings::default();
+    let settings = cps::chunks::FollowSettings::default();
     // Each period timed on its own over 20 s of chunks, for its median and p99 (what a
     // 1 kHz loop must fit): printed beside criterion's mean.
     {
         let long = stand_in(2, 20.0);
-        let mut ex = cps::robot::executor_for(&model, &PANDA_READY, 1e-3, &settings).unwrap();
+        let mut ex = cps::chunks::executor_for(&model, &PANDA_READY, 1e-3, &settings).unwrap();
         let mut it = long.into_iter().peekable();
         let mut ns = Vec::with_capacity(20_000);
         let mut kept = Vec::with_capacity(1_000);
@@ -594,7 +594,7 @@ fn chunk_executor(c: &mut Criterion) {
             let t = k as f64 * 1e-3;
             let start = std::time::Instant::now();
             while let Some(c) = it.next_if(|c| c.arrived_s <= t) {
-                if let cps::robot::Offer::Taken { replaced, .. } = ex.offer(c, t) {
+                if let cps::chunks::Offer::Taken { replaced, .. } = ex.offer(c, t) {
                     // Kept, as the loop hands chunks back to be freed elsewhere.
                     kept.push(replaced);
                 }
@@ -612,7 +612,7 @@ fn chunk_executor(c: &mut Criterion) {
         b.iter_batched(
             || {
                 (
-                    cps::robot::executor_for(&model, &PANDA_READY, 1e-3, &settings).unwrap(),
+                    cps::chunks::executor_for(&model, &PANDA_READY, 1e-3, &settings).unwrap(),
                     chunks.clone(),
                 )
             },

@@ -13,6 +13,8 @@
 //! - [`robot`] (`cps-robot`): the execution contract every robot implements (a plan run
 //!   from where the robot stands, limits checked by one guard, a stop token) and the
 //!   in-process robot.
+//! - [`chunks`] (`cps-chunks`): the chunk executor — a learned policy's action chunks
+//!   followed on a streaming robot within its limits, from a recording or live.
 //! - [`dynamics`] (`cps-dynamics`): a robot arm with dynamics as a robot: forward dynamics
 //!   integrated at 1 kHz under a joint-level controller (franky-sim's PD, computed torque,
 //!   joint impedance).
@@ -61,6 +63,7 @@
 //! ```
 #![deny(missing_docs)]
 
+pub use cps_chunks as chunks;
 pub use cps_cmaes as cmaes;
 pub use cps_coppelia as coppelia;
 pub use cps_dmp as dmp;

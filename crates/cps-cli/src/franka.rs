@@ -243,7 +243,7 @@ pub fn franka(cmd: &FrankaCommand, stop: &StopToken) -> Result<ExitCode> {
         } => {
             let exec = ExecuteSettings::parse(&on.host, &arm.arm, &arm.realtime)?;
             let chunks = follow::Chunks::of(file.as_deref(), *rate, *listen, allow)?;
-            let s = cps_robot::FollowSettings::with_chunks(*stall_timeout, *max_gap);
+            let s = cps_chunks::FollowSettings::with_chunks(*stall_timeout, *max_gap);
             let ready = |a| eprintln!("listening for chunks on {a} (udp)");
             let rec = record.as_deref();
             let done = follow::franka_follow_from(&chunks, &exec, &s, rec, *force, &ready, stop);

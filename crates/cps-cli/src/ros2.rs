@@ -279,8 +279,8 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
                 period: a.period,
                 wait: a.wait,
             };
-            let gap = cps_robot::ChunkSettings::default().max_gap_rad;
-            let f = cps_robot::FollowSettings::with_chunks(a.stall_timeout, gap);
+            let gap = cps_chunks::ChunkSettings::default().max_gap_rad;
+            let f = cps_chunks::FollowSettings::with_chunks(a.stall_timeout, gap);
             let done = cps_drive::ros2_follow::ros2_follow(&a.file, a.rate, &s, &f, stop);
             let (answer, c) = done.map_err(cli_error)?;
             (answer, c, a.json)

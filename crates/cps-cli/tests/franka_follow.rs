@@ -10,7 +10,7 @@ use cps_testkit::franky_sim as sim;
 use std::path::Path;
 
 use common::{cli, state_q, stderr};
-use cps_robot::StandIn;
+use cps_chunks::StandIn;
 use sim::FrankySim;
 
 /// The tests that speak UDP over loopback (to franky-sim, and to cps's socket) take turns:

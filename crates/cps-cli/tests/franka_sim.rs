@@ -15,7 +15,7 @@ use std::path::Path;
 use std::process::Command;
 
 use common::{cli, state_q, stderr};
-use cps_robot::StandIn;
+use cps_chunks::StandIn;
 
 /// A command's report, after checking it ended complete (else what franka-sim said).
 fn complete(sim: &FrankaSim, what: &str, o: &std::process::Output) -> serde_json::Value {

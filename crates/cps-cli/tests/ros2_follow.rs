@@ -6,7 +6,7 @@
 mod common;
 use cps_testkit::ros2_graph as graph;
 
-use cps_robot::StandIn;
+use cps_chunks::StandIn;
 
 use common::cli;
 

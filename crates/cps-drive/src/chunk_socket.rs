@@ -24,7 +24,8 @@
 use std::net::{IpAddr, SocketAddr, UdpSocket};
 use std::time::Duration;
 
-use cps_robot::{Chunk, ChunkFeed, StopToken};
+use cps_chunks::{Chunk, ChunkFeed};
+use cps_robot::StopToken;
 
 /// Largest datagram taken (bytes): 1 000 targets of 7 joints and the header.
 pub const MAX_DATAGRAM: usize = 65_507;
@@ -114,8 +115,8 @@ pub fn parse_chunk(b: &[u8], dof: usize, now: f64) -> Result<Chunk, String> {
         .collect();
     // A stamp ahead of the robot's clock is refused here, before it reaches the stream
     // (one such chunk taken would make every honest chunk after it "go back").
-    if observed > now + cps_robot::CLOCK_TOLERANCE_S {
-        return Err(cps_robot::Refused::Ahead {
+    if observed > now + cps_chunks::CLOCK_TOLERANCE_S {
+        return Err(cps_chunks::Refused::Ahead {
             observed_s: observed,
             now,
         }

@@ -12,14 +12,14 @@
 
 use std::path::{Path, PathBuf};
 
+use cps_chunks::{
+    ChunkLog, FollowError, FollowReport, FollowSettings, Followed, Replay, follow, replay_plan,
+};
 use cps_franka::limits::DT;
 use cps_movement::robot_file::Answer;
 use cps_outcome::results_dir::{FileKind, check_file_target};
 use cps_outcome::{Ended, ExperimentError, InputError};
-use cps_robot::{
-    ChunkLog, FollowReport, FollowSettings, Followed, Policy, Replay, Robot, RobotError, StopToken,
-    follow, replay_plan,
-};
+use cps_robot::{Policy, Robot, RobotError, StopToken};
 use serde_json::{Value, json};
 
 use crate::franka::{ExecuteSettings, Executed, ended, guarded_arm, write_recording};
@@ -36,8 +36,8 @@ pub fn chunks_path(record: &Path) -> PathBuf {
 /// The chunks' part of a report as JSON.
 pub fn report_json(r: &FollowReport) -> Value {
     let spread =
-        |s: &cps_robot::Spread| json!({"mean": s.mean, "std": s.std, "min": s.min, "max": s.max});
-    let peaks = |p: &cps_robot::Peaks| json!({"velocity": p.velocity, "acceleration": p.acceleration, "jerk": p.jerk});
+        |s: &cps_chunks::Spread| json!({"mean": s.mean, "std": s.std, "min": s.min, "max": s.max});
+    let peaks = |p: &cps_chunks::Peaks| json!({"velocity": p.velocity, "acceleration": p.acceleration, "jerk": p.jerk});
     json!({
         "came": r.chunks, "taken": r.taken, "refused": r.refused, "skipped_targets": r.skipped,
         "refusals": r.refusals.iter().map(|(i, why)| json!({"chunk": i, "why": why})).collect::<Vec<_>>(),
@@ -140,7 +140,7 @@ pub fn franka_follow(
     let mut source = Replay::new(chunks);
     let run: Followed =
         follow(&mut robot, &mut source, Some(&plan), settings, stop).map_err(|e| match e {
-            RobotError::Refused { reason, .. } => ExperimentError::Message(format!(
+            FollowError::Robot(RobotError::Refused { reason, .. }) => ExperimentError::Message(format!(
                 "{name}: refused before sending anything: the executor's commands for these chunks from where the arm stands break a limit: {reason}"
             )),
             other => ExperimentError::Message(format!("{name}: {other}")),
@@ -305,11 +305,11 @@ pub fn franka_follow_live(
 const MAX_CHUNK_ROWS: usize = 10_000_000;
 
 /// The chunk file of a recording, staged beside its place and written as the chunks come
-/// back ([`cps_robot::ChunkFeed::stream_to`]): its header now, then each chunk's rows.
+/// back ([`cps_chunks::ChunkFeed::stream_to`]): its header now, then each chunk's rows.
 fn stream_chunks(
     record: &Path,
     force: bool,
-) -> Result<(cps_files::replace::Staged, cps_robot::Sink), ExperimentError> {
+) -> Result<(cps_files::replace::Staged, cps_chunks::Sink), ExperimentError> {
     use cps_files::replace::{Output, Shape};
     use std::io::Write;
     let shape = Shape::file(|p| {
@@ -328,7 +328,7 @@ fn stream_chunks(
     // A sender flooding the socket must not fill the disk either: the file stops at its
     // ceiling, and the run says so (the recording and its report are still written).
     let mut rows = 0usize;
-    let sink: cps_robot::Sink = Box::new(move |i, c| {
+    let sink: cps_chunks::Sink = Box::new(move |i, c| {
         rows += c.targets.len();
         if rows > MAX_CHUNK_ROWS {
             return Err(std::io::Error::other(format!(
@@ -415,7 +415,7 @@ pub struct LiveOutcome {
 type Finished = Result<
     (
         Followed,
-        cps_robot::LiveSource,
+        cps_chunks::LiveSource,
         Option<cps_franka::MotionReport>,
     ),
     ExperimentError,
@@ -427,7 +427,7 @@ type Finished = Result<
 /// followed, the arm comes to rest) and returns what happened. Dropping it stops the
 /// robot (it brakes to rest).
 pub struct LiveRun {
-    feed: Option<cps_robot::ChunkFeed>,
+    feed: Option<cps_chunks::ChunkFeed>,
     stop: StopToken,
     handle: Option<std::thread::JoinHandle<Finished>>,
 }
@@ -442,12 +442,12 @@ impl LiveRun {
     ) -> Result<LiveRun, ExperimentError> {
         settings.check().map_err(|e| InputError(e.to_string()))?;
         let opened = robot.open()?;
-        let (feed, source) = cps_robot::live(7);
+        let (feed, source) = cps_chunks::live(7);
         let inner = stop.clone();
         let handle = std::thread::Builder::new()
             .name("cps-chunks".into())
             .spawn(move || -> Finished {
-                let message = |e: RobotError| ExperimentError::Message(e.to_string());
+                let message = |e: FollowError| ExperimentError::Message(e.to_string());
                 match opened {
                     Opened::Franka(mut r) => {
                         let mut source = source;
@@ -473,7 +473,7 @@ impl LiveRun {
     }
 
     /// The policy's end: push chunks, read the robot's state.
-    pub fn feed(&mut self) -> &mut cps_robot::ChunkFeed {
+    pub fn feed(&mut self) -> &mut cps_chunks::ChunkFeed {
         self.feed.as_mut().expect("the feed lives until finish")
     }
 

@@ -18,10 +18,8 @@
 use std::path::Path;
 use std::time::{Duration, Instant, SystemTime};
 
-use cps_robot::{
-    Chunk, ChunkExecutor, ChunkVerdict, FollowSettings, Guarded, Plan, Policy, Robot, RobotError,
-    RobotModel, StopToken, replay_with,
-};
+use cps_chunks::{Chunk, ChunkExecutor, ChunkVerdict, FollowSettings, replay_with};
+use cps_robot::{Guarded, Plan, Policy, Robot, RobotError, RobotModel, StopToken};
 use cps_ros2::names::NodeName;
 use cps_ros2::node::{Node, Qos};
 use cps_ros2::robot::NODE_NAME;
@@ -75,7 +73,7 @@ pub fn replacements(
     chunks: &[Chunk],
     settings: &FollowSettings,
     period: f64,
-) -> Result<Replacements, cps_robot::RobotError> {
+) -> Result<Replacements, cps_chunks::FollowError> {
     let mut out = Vec::new();
     let (plan, log) = replay_with(model, start, DT, chunks, settings, &mut |taken| {
         out.push(Replacement {

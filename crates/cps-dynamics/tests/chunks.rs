@@ -4,12 +4,10 @@
 //! its first point, linearly interpolated) breaks the velocity and jerk limits many times
 //! over.
 
+use cps_chunks::{Chunk, FollowReport, FollowSettings, Replay, StandIn, follow, replay_plan};
 use cps_dynamics::DynamicsOptions;
 use cps_kinematics::robots::{PANDA_READY, PandaTool, fr3, fr3_inertia, fr3_limits};
-use cps_robot::{
-    Chunk, FollowReport, FollowSettings, Guarded, Policy, Replay, Robot, RobotModel, StandIn,
-    StopToken, follow, replay_plan,
-};
+use cps_robot::{Guarded, Policy, Robot, RobotModel, StopToken};
 
 const DT: f64 = 1e-3;
 

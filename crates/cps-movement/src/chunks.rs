@@ -9,8 +9,8 @@
 
 use std::path::Path;
 
+use cps_chunks::Chunk;
 use cps_outcome::InputError;
-use cps_robot::Chunk;
 
 /// The largest chunk file read (bytes).
 pub const MAX_CHUNK_FILE_BYTES: u64 = 256 << 20;

@@ -5,9 +5,10 @@
 
 use std::sync::Mutex;
 
+use cps_chunks::{Chunk, FollowSettings};
 use cps_drive::follow::{ChunkRobot, LiveOutcome, LiveRun, report_json};
 use cps_franka::rt::Realtime;
-use cps_robot::{Chunk, FollowSettings, StopToken};
+use cps_robot::StopToken;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -65,8 +66,8 @@ fn outcome<'py>(py: Python<'py>, done: &LiveOutcome) -> PyResult<Bound<'py, PyDi
         let flat: Vec<f64> = c.targets.iter().flatten().copied().collect();
         e.set_item("targets", array2(py, flat, h, 7)?)?;
         let v = match verdict {
-            Some(cps_robot::ChunkVerdict::Taken { skipped }) => format!("taken, {skipped} past"),
-            Some(cps_robot::ChunkVerdict::Refused(why)) => format!("refused: {why}"),
+            Some(cps_chunks::ChunkVerdict::Taken { skipped }) => format!("taken, {skipped} past"),
+            Some(cps_chunks::ChunkVerdict::Refused(why)) => format!("refused: {why}"),
             None => "not judged (the run ended)".into(),
         };
         e.set_item("verdict", v)?;
@@ -283,9 +284,9 @@ pub fn chunk_commands<'py>(
     settings.max_duration_s = max_duration;
     let dt = cps_franka::limits::DT;
     let plan = py
-        .detach(|| cps_robot::replay_plan(&model, &q0, dt, &list, &settings))
+        .detach(|| cps_chunks::replay_plan(&model, &q0, dt, &list, &settings))
         .map_err(|e| value_error(e.to_string()))?;
-    let limits = cps_robot::follow_limits(&model, settings.limit_share, &q0)
+    let limits = cps_chunks::follow_limits(&model, settings.limit_share, &q0)
         .map_err(|e| value_error(e.to_string()))?;
     let n = plan.points().len();
     let d = PyDict::new(py);

@@ -834,5 +834,12 @@ mod tests {
             CycleLoss::new(0.5, 1).unwrap_err().to_string(),
             "a share of lost periods of 0.5 is outside [0, 0.2]"
         );
+        assert_eq!(
+            CycleLoss::new(0.5, 1).unwrap_err(),
+            crate::SettingError::LossShare {
+                share: 0.5,
+                max: MAX_LOSS
+            }
+        );
     }
 }

@@ -9,7 +9,7 @@
 //!   crates. Robots that step (simulators) also offer [`Stepped`], on which cps's
 //!   closed-loop controller runs ([`execute`]); robots that take a command computed each
 //!   period from what they measured offer [`Streaming`] (a DMP stepped online, a learned
-//!   policy's action chunks followed: [`follow`]).
+//!   policy's action chunks followed: `cps-chunks`).
 //! - [`Guarded`]: limits as a wrapper around any robot. Every plan is checked
 //!   ([`check()`]: its motion sampled every millisecond against the robot's joint, torque
 //!   and Cartesian limits) and refused, or slowed down (at most [`MAX_SLOWING`]×), and a
@@ -58,15 +58,9 @@
 #![deny(missing_docs)]
 
 mod check;
-mod chunk;
-mod chunk_feed;
-mod chunk_report;
-mod chunk_run;
-mod chunks;
 mod collision;
 mod cycles;
 mod execute;
-mod follow;
 mod guard;
 mod kinematic;
 mod model;
@@ -77,24 +71,12 @@ mod stop;
 mod watch;
 
 pub use check::{Breach, Limit, OUTSIDE_SLACK, Verdict, check};
-pub use chunk::{Chunk, ChunkError, StandIn};
-pub use chunk_feed::{
-    ChunkFeed, ChunkLog, ChunkSource, ChunkVerdict, LiveSource, MAX_HELD, Replay, Sink, StateCell,
-    live,
-};
-pub use chunk_report::{BOUNDARY_MS, FollowReport, Peaks, Spread};
-pub use chunk_run::{
-    FollowSettings, Followed, TORQUE_RATE_SHARE, TakenAt, executor_for, follow, follow_limits,
-    replay_plan, replay_with,
-};
-pub use chunks::{CLOCK_TOLERANCE_S, ChunkCounts, ChunkExecutor, ChunkSettings, Offer, Refused};
 pub use collision::{Collision, DEFAULT_MARGIN, ShapeWatch, Shapes, check_shapes};
 pub use cycles::{
     CASCADE_GAINS, CycleLoss, Judge, LIMITABLE_GAP, Limited, Limiter, LinkBreak, LossyLink,
     MAX_LOSS, MAX_LOST_PERIODS, RateCheck, Reference,
 };
 pub use execute::{CommandPath, ExecutionConfig, Recording, command_path, execute};
-pub use follow::{FollowLimits, Follower, GAINS};
 pub use guard::{
     APPROACH_SHARE, BLEND_SHARE, Guarded, MAX_SLOWING, OnBreach, OnStart, Policy, Prepared,
     Refusal, SEPTIC_PEAKS, START_TOLERANCE, approach, move_to, rest_to_rest, septic,
@@ -103,7 +85,7 @@ pub use kinematic::KinematicRobot;
 pub use model::RobotModel;
 pub use plan::{CHECK_PERIOD, Ending, MAX_POINTS, Plan, Run, SampledMotion};
 pub use robot::{Generator, Robot, Stepped, Stepping, Streaming, run_stepped, step_of};
-pub use setting::{FeedError, SettingError};
+pub use setting::SettingError;
 pub use stop::{Moving, StopToken};
 
 use cps_kinematics::KinematicsError;

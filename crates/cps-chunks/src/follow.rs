@@ -23,7 +23,7 @@ pub struct FollowLimits {
     pub jerk: f64,
 }
 
-use crate::setting::SettingError;
+use crate::FollowError;
 
 /// The cascade's gains (1/s): position → velocity, velocity → acceleration, acceleration
 /// → jerk; each stage four times faster than the one it serves, so the loop is well
@@ -45,15 +45,15 @@ pub struct Follower {
 impl Follower {
     /// A follower at rest at `q0`, stepped every `dt` seconds. Errors: a joint count that
     /// differs, a limit or period that is not positive and finite.
-    pub fn new(q0: &[f64], limits: &[FollowLimits], dt: f64) -> Result<Follower, SettingError> {
+    pub fn new(q0: &[f64], limits: &[FollowLimits], dt: f64) -> Result<Follower, FollowError> {
         if q0.len() != limits.len() {
-            return Err(SettingError::JointCount {
+            return Err(FollowError::JointCount {
                 given: q0.len(),
                 joints: limits.len(),
             });
         }
         if !(dt.is_finite() && dt > 0.0) {
-            return Err(SettingError::Period(dt));
+            return Err(FollowError::Period(dt));
         }
         for (j, l) in limits.iter().enumerate() {
             for (what, x) in [
@@ -62,7 +62,7 @@ impl Follower {
                 ("jerk", l.jerk),
             ] {
                 if !(x.is_finite() && x > 0.0) {
-                    return Err(SettingError::Limit {
+                    return Err(FollowError::Limit {
                         joint: j + 1,
                         quantity: what,
                         value: x,
@@ -71,7 +71,7 @@ impl Follower {
             }
         }
         if let Some(j) = q0.iter().position(|x| !x.is_finite()) {
-            return Err(SettingError::Start {
+            return Err(FollowError::Start {
                 joint: j + 1,
                 value: q0[j],
             });

@@ -1,6 +1,6 @@
-//! Action chunks on a robot: the [`ChunkExecutor`] stepped on a [`Streaming`] robot's
+//! Action chunks on a robot: the [`ChunkExecutor`] stepped on a [`cps_robot::Streaming`] robot's
 //! command loop behind the guard ([`follow`]), chunks taken from a [`ChunkSource`] each
-//! period, and what a run did ([`Followed`]) judged in numbers ([`FollowReport`]).
+//! period, and what a run did ([`Followed`]) judged in numbers ([`crate::FollowReport`]).
 //!
 //! The executor's commands depend on the chunks and their arrival times alone, not on what
 //! the robot measures, so a recorded stream's commands are known before anything moves:
@@ -8,15 +8,16 @@
 //! commands are within the limits by the executor's construction and judged one by one by
 //! the guard's collision watch and the robot's own loop.
 
+use crate::FollowError;
 use crate::chunk::Chunk;
-use crate::chunk_feed::{ChunkSource, ChunkVerdict};
-use crate::chunks::{ChunkCounts, ChunkExecutor, ChunkSettings, Offer};
+use crate::executor::{ChunkCounts, ChunkExecutor, ChunkSettings, Offer};
+use crate::feed::{ChunkSource, ChunkVerdict};
 use crate::follow::FollowLimits;
-use crate::guard::Guarded;
-use crate::model::RobotModel;
-use crate::plan::{Plan, Run};
-use crate::robot::Robot;
-use crate::{RobotError, SettingError, StopToken};
+use cps_robot::Guarded;
+use cps_robot::Robot;
+use cps_robot::RobotModel;
+use cps_robot::StopToken;
+use cps_robot::{Plan, Run};
 
 /// How a run follows chunks: the executor's settings, the share of the robot's limits it
 /// moves within, and when the run ends.
@@ -59,22 +60,22 @@ impl FollowSettings {
     }
 
     /// Checks every setting, in a sentence naming it.
-    pub fn check(&self) -> Result<(), SettingError> {
+    pub fn check(&self) -> Result<(), FollowError> {
         let positive = |setting: &'static str, value: f64| {
             if value.is_finite() && value > 0.0 {
                 Ok(())
             } else {
-                Err(SettingError::Seconds { setting, value })
+                Err(FollowError::Seconds { setting, value })
             }
         };
         positive("stall timeout", self.chunks.stall_timeout_s)?;
         positive("idle end", self.idle_end_s)?;
         positive("max duration", self.max_duration_s)?;
         if !(self.chunks.max_gap_rad.is_finite() && self.chunks.max_gap_rad > 0.0) {
-            return Err(SettingError::MaxGap(self.chunks.max_gap_rad));
+            return Err(FollowError::MaxGap(self.chunks.max_gap_rad));
         }
         if !(self.limit_share > 0.0 && self.limit_share <= 1.0) {
-            return Err(SettingError::LimitShare(self.limit_share));
+            return Err(FollowError::LimitShare(self.limit_share));
         }
         Ok(())
     }
@@ -95,9 +96,9 @@ pub fn follow_limits(
     model: &RobotModel,
     share: f64,
     q0: &[f64],
-) -> Result<Vec<FollowLimits>, SettingError> {
+) -> Result<Vec<FollowLimits>, FollowError> {
     let n = model.chain.dof();
-    let missing = |quantity: &'static str| SettingError::MissingLimits {
+    let missing = |quantity: &'static str| FollowError::MissingLimits {
         robot: model.name.clone(),
         quantity,
     };
@@ -127,7 +128,7 @@ pub fn follow_limits(
             let col = model
                 .chain
                 .inverse_dynamics(links, g, q0, &zero, &e)
-                .map_err(|source| SettingError::MassMatrix {
+                .map_err(|source| FollowError::MassMatrix {
                     robot: model.name.clone(),
                     source,
                 })?;
@@ -165,7 +166,7 @@ pub fn executor_for(
     q0: &[f64],
     dt: f64,
     settings: &FollowSettings,
-) -> Result<ChunkExecutor, SettingError> {
+) -> Result<ChunkExecutor, FollowError> {
     settings.check()?;
     let limits = follow_limits(model, settings.limit_share, q0)?;
     let ex = ChunkExecutor::new(q0, &limits, dt, settings.chunks)?;
@@ -286,7 +287,7 @@ pub fn replay_plan(
     dt: f64,
     chunks: &[Chunk],
     settings: &FollowSettings,
-) -> Result<Plan, RobotError> {
+) -> Result<Plan, FollowError> {
     replay_with(model, q0, dt, chunks, settings, &mut |_| {}).map(|(plan, _)| plan)
 }
 
@@ -300,12 +301,9 @@ pub fn replay_with(
     chunks: &[Chunk],
     settings: &FollowSettings,
     on_taken: &mut dyn FnMut(&TakenAt<'_>),
-) -> Result<(Plan, crate::chunk_feed::ChunkLog), RobotError> {
-    let mut source = crate::chunk_feed::Replay::new(chunks.to_vec());
-    let mut stepper = stepper(model, q0, dt, settings).map_err(|source| RobotError::Setting {
-        robot: model.name.clone(),
-        source,
-    })?;
+) -> Result<(Plan, crate::feed::ChunkLog), FollowError> {
+    let mut source = crate::feed::Replay::new(chunks.to_vec());
+    let mut stepper = stepper(model, q0, dt, settings)?;
     let mut points = vec![q0.to_vec()];
     let mut out = q0.to_vec();
     let max = (settings.max_duration_s / dt).ceil() as usize;
@@ -318,10 +316,7 @@ pub fn replay_with(
             return Ok((plan, source.into_log()));
         }
     }
-    Err(RobotError::Setting {
-        robot: model.name.clone(),
-        source: SettingError::RunTooLong(settings.max_duration_s),
-    })
+    Err(FollowError::RunTooLong(settings.max_duration_s))
 }
 
 fn stepper(
@@ -329,7 +324,7 @@ fn stepper(
     q0: &[f64],
     dt: f64,
     settings: &FollowSettings,
-) -> Result<Stepper, SettingError> {
+) -> Result<Stepper, FollowError> {
     Ok(Stepper {
         ex: executor_for(model, q0, dt, settings)?,
         dt,
@@ -356,14 +351,11 @@ pub fn follow<R: Robot>(
     nominal: Option<&Plan>,
     settings: &FollowSettings,
     stop: &StopToken,
-) -> Result<Followed, RobotError> {
+) -> Result<Followed, FollowError> {
     let q0 = robot.joint_positions()?;
     let dt = robot.command_period();
     let model = robot.model().clone();
-    let mut stepper = stepper(&model, &q0, dt, settings).map_err(|source| RobotError::Setting {
-        robot: robot.name(),
-        source,
-    })?;
+    let mut stepper = stepper(&model, &q0, dt, settings)?;
     let hold;
     let nominal = match nominal {
         Some(p) => p,
@@ -400,19 +392,17 @@ pub fn follow<R: Robot>(
 
 #[cfg(test)]
 mod tests {
-    use crate::{CycleLoss, FollowSettings, Follower, SettingError};
+    use crate::{FollowError, FollowSettings, Follower};
 
     #[test]
     fn a_caller_tells_the_cases_apart_by_their_variant_and_reads_their_sentence() {
         let period = Follower::new(&[0.0], &[crate::follow::testing::FR3], 0.0).unwrap_err();
-        assert_eq!(period, SettingError::Period(0.0));
+        assert!(matches!(period, FollowError::Period(p) if p == 0.0));
         assert_eq!(period.to_string(), "the period 0 s is not a period");
         let settings = FollowSettings {
             limit_share: 1.5,
             ..FollowSettings::default()
         };
-        assert_eq!(settings.check(), Err(SettingError::LimitShare(1.5)));
-        let loss = CycleLoss::new(0.5, 1).unwrap_err();
-        assert!(matches!(loss, SettingError::LossShare { share, .. } if share == 0.5));
+        assert!(matches!(settings.check(), Err(FollowError::LimitShare(s)) if s == 1.5));
     }
 }

@@ -180,7 +180,7 @@ impl ChunkExecutor {
         limits: &[FollowLimits],
         dt: f64,
         settings: ChunkSettings,
-    ) -> Result<ChunkExecutor, crate::SettingError> {
+    ) -> Result<ChunkExecutor, crate::FollowError> {
         let n = q0.len();
         Ok(ChunkExecutor {
             follower: Follower::new(q0, limits, dt)?,

@@ -14,9 +14,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, TrySendError, sync_channel};
 use std::sync::{Arc, atomic::AtomicBool};
 
+use crate::FeedError;
 use crate::chunk::Chunk;
-use crate::chunks::Refused;
-use crate::setting::FeedError;
+use crate::executor::Refused;
 
 /// What the executor made of a chunk.
 #[derive(Debug, Clone, PartialEq)]

@@ -3,11 +3,12 @@
 //! ones, a stall, a stop — every command within the limits the executor keeps, the log
 //! and the report true to what happened.
 
-use cps_kinematics::robots::{PANDA_READY, PandaTool, fr3, fr3_limits};
-use cps_robot::{
-    Chunk, ChunkVerdict, FollowReport, FollowSettings, Followed, Guarded, KinematicRobot, Policy,
-    Replay, Robot, RobotModel, StandIn, StopToken, follow, live, replay_plan,
+use cps_chunks::{
+    Chunk, ChunkVerdict, FollowReport, FollowSettings, Followed, Replay, StandIn, follow, live,
+    replay_plan,
 };
+use cps_kinematics::robots::{PANDA_READY, PandaTool, fr3, fr3_limits};
+use cps_robot::{Guarded, KinematicRobot, Policy, Robot, RobotModel, StopToken};
 
 const DT: f64 = 1e-3;
 

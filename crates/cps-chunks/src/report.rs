@@ -3,8 +3,8 @@
 //! and its jitter, how closely the robot tracked its commands, and how often a chunk was
 //! taken, refused, or had targets skipped.
 
-use crate::chunk_feed::{ChunkLog, ChunkVerdict};
-use crate::chunk_run::Followed;
+use crate::feed::{ChunkLog, ChunkVerdict};
+use crate::run::Followed;
 
 /// Milliseconds either side of a chunk's arrival counted as its boundary.
 pub const BOUNDARY_MS: f64 = 20.0;
