@@ -8,7 +8,6 @@ use clap::{Args, Subcommand};
 use cps_cmaes::CmaesError;
 use cps_cmaes::functions::{Bench, Restarts, Seeds, TestFunction, bench as run};
 use cps_outcome::InputError;
-use serde_json::json;
 
 fn function(name: &str) -> TestFunction {
     // Only names of `TestFunction::ALL` pass the parser.
@@ -73,12 +72,7 @@ pub fn bench(cmd: &CmaesCommand) -> Result<ExitCode> {
         other => anyhow::Error::new(other),
     })?;
     if args.json {
-        let rows: Vec<_> = summary
-            .runs
-            .iter()
-            .map(|r| json!({"seed": r.seed, "evaluations": r.evaluations, "success": r.success, "best": r.best, "seconds": r.seconds}))
-            .collect();
-        say!("{}", serde_json::to_string_pretty(&rows)?);
+        say!("{}", serde_json::to_string_pretty(&summary.runs)?);
     } else {
         say!("{summary}");
     }

@@ -394,8 +394,6 @@ fn run(cli: Cli, stop: &StopToken) -> Result<ExitCode> {
     }
 }
 
-/// A library error as the command line reports it: input problems keep their own type
-/// (exit 2), the rest their chain of causes (exit 1).
 /// The exit status of how a command that moves a robot ended: 0, 1, or 130 (stopped, as a
 /// shell reports an interrupt).
 pub(crate) fn status(ended: cps_outcome::Ended) -> ExitCode {
@@ -406,6 +404,8 @@ pub(crate) fn status(ended: cps_outcome::Ended) -> ExitCode {
     }
 }
 
+/// A library error as the command line reports it: input problems keep their own type
+/// (exit 2), the rest their chain of causes (exit 1).
 pub(crate) fn cli_error(e: ExperimentError) -> anyhow::Error {
     match e {
         ExperimentError::Input(e) => anyhow::Error::new(e),

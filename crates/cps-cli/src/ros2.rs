@@ -7,6 +7,9 @@ use anyhow::Result;
 use clap::{Args, Subcommand};
 use cps_drive::ros2::MappingChoice;
 use cps_drive::ros2::{self, GraphSettings, RecordSettings, SendSettings, Via};
+use cps_drive::ros2_graph::publish_latched;
+use cps_experiment::markers;
+use cps_movement::robot_file::Answer;
 use cps_outcome::Ended;
 use cps_robot::StopToken;
 
@@ -212,47 +215,7 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
             let answer = cps_drive::ros2_graph::graph(&look, stop).map_err(cli_error)?;
             (answer, Ended::Completed, *json)
         }
-        Ros2Command::Show(a) => {
-            let shown = cps_experiment::markers::experiment_markers(
-                &a.experiment,
-                a.results.as_deref(),
-                &a.frame,
-            )
-            .map_err(cli_error)?;
-            let m = &shown.markers.markers;
-            let p = cps_drive::ros2_graph::publish_latched(
-                &shown.markers,
-                &a.topic,
-                a.seconds,
-                a.domain,
-                stop,
-            )
-            .map_err(cli_error)?;
-            let (shapes, obstacles) = shown.robot.counts();
-            let json = serde_json::json!({
-                "topic": a.topic, "frame": a.frame, "domain": p.domain, "markers": m.len(),
-                "path_points": shown.path_points, "via_points": shown.via_points,
-                "robot_shapes": shapes, "obstacles": obstacles, "subscribers": p.subscribers,
-            });
-            let lines = vec![
-                format!(
-                    "showed {} markers ({} path points, {} via points, start and goal) on {} in frame {} for {:.0} s: {} viewer(s) subscribed",
-                    m.len(),
-                    shown.path_points,
-                    shown.via_points,
-                    a.topic,
-                    a.frame,
-                    a.seconds,
-                    p.subscribers
-                ),
-                shown.robot.to_string(),
-            ];
-            (
-                cps_movement::robot_file::Answer { json, lines },
-                Ended::Completed,
-                a.json,
-            )
-        }
+        Ros2Command::Show(a) => (show(a, stop)?, Ended::Completed, a.json),
         Ros2Command::Send(a) => {
             let s = SendSettings {
                 service_mapping: a.service_mapping,
@@ -303,4 +266,27 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
     bar.finish_and_clear();
     print(&answer, json)?;
     Ok(crate::status(code))
+}
+
+/// `cps-cli ros2 show`: the experiment's markers published, and what was shown.
+fn show(a: &ShowArgs, stop: &StopToken) -> Result<Answer> {
+    let shown = markers::experiment_markers(&a.experiment, a.results.as_deref(), &a.frame);
+    let shown = shown.map_err(cli_error)?;
+    let (n, path, via) = (
+        shown.markers.markers.len(),
+        shown.path_points,
+        shown.via_points,
+    );
+    let p = publish_latched(&shown.markers, &a.topic, a.seconds, a.domain, stop);
+    let (p, (shapes, obstacles)) = (p.map_err(cli_error)?, shown.robot.counts());
+    let (topic, frame, seconds, viewers) = (&a.topic, &a.frame, a.seconds, p.subscribers);
+    let json = serde_json::json!({
+        "topic": topic, "frame": frame, "domain": p.domain, "markers": n, "path_points": path,
+        "via_points": via, "robot_shapes": shapes, "obstacles": obstacles, "subscribers": viewers,
+    });
+    let head = format!(
+        "showed {n} markers ({path} path points, {via} via points, start and goal) on {topic} in frame {frame} for {seconds:.0} s: {viewers} viewer(s) subscribed"
+    );
+    let lines = vec![head, shown.robot.to_string()];
+    Ok(Answer { json, lines })
 }

@@ -205,8 +205,10 @@ pub struct Bench {
     pub separable: bool,
 }
 
-/// One seed's run of a [`bench()`].
+/// One seed's run of a [`bench()`] (as JSON with the `serde` feature: every field but
+/// the termination).
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct BenchRun {
     /// The seed.
     pub seed: u64,
@@ -219,6 +221,7 @@ pub struct BenchRun {
     /// Wall time (s).
     pub seconds: f64,
     /// Why it ended.
+    #[cfg_attr(feature = "serde", serde(skip))]
     pub termination: crate::Termination,
 }
 
