@@ -297,6 +297,7 @@ where
 
     fn withdraw(&mut self) {
         self.tracker.withdraw();
+        self.limiter.withdraw();
     }
 
     fn outcome(self) -> Outcome {
