@@ -34,6 +34,7 @@ use cps_kinematics::{ArmModel, IkConfig, IkTarget, solve_ik};
 use cps_robot::{Guarded, Policy, Robot, StopToken};
 use nalgebra::{Isometry3, IsometryMatrix3, Translation3, Vector3, Vector6};
 
+use crate::franka::robot_error;
 use cps_outcome::{ExperimentError, InputError};
 
 /// A DMP over the tool's offset on the surface and the pressing force.
@@ -669,13 +670,6 @@ pub struct RobotAt {
     /// its hand among obstacles, the table it presses among the contacts allowed (None:
     /// the arm and hand alone).
     pub world: Option<std::sync::Arc<cps_robot::Shapes>>,
-}
-
-fn robot_error(e: cps_franka::FrankaError) -> ExperimentError {
-    match e {
-        cps_franka::FrankaError::Input(s) => InputError(s).into(),
-        other => ExperimentError::Message(other.to_string()),
-    }
 }
 
 /// Connects, checks the robot is ready, and reads its dynamic model (with `robot.drive`

@@ -51,9 +51,12 @@ pub fn parse_realtime(name: &str) -> Result<Realtime, InputError> {
     })
 }
 
-fn robot_error(e: FrankaError) -> ExperimentError {
+/// A Franka's error as cps reports it: the caller's input (exit 2 on the command line) or
+/// the robot's failure.
+pub(crate) fn robot_error(e: FrankaError) -> ExperimentError {
     match e {
         FrankaError::Input(s) => InputError(s).into(),
+        FrankaError::Setting(s) => InputError(s.to_string()).into(),
         other => ExperimentError::Message(other.to_string()),
     }
 }

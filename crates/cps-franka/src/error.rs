@@ -85,6 +85,9 @@ pub enum FrankaError {
     /// Bad input from the caller (a trajectory of the wrong shape, a bad option).
     #[error("{0}")]
     Input(String),
+    /// A setting of the robot's side that cannot be used (a share of lost commands).
+    #[error(transparent)]
+    Setting(#[from] cps_robot::SettingError),
     /// A malformed message from the robot.
     #[error("{host}: {source}")]
     Wire {

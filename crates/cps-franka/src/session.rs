@@ -585,8 +585,7 @@ impl Connection {
     /// against a simulator with the robot's rules (franka-sim): the robot extrapolates
     /// every cycle it gets no command for, and the next state shows it.
     pub fn lose_commands(&mut self, share: f64, seed: u64) -> Result<(), FrankaError> {
-        let loss = cps_robot::CycleLoss::new(share, seed)
-            .map_err(|e| FrankaError::Input(e.to_string()))?;
+        let loss = cps_robot::CycleLoss::new(share, seed)?;
         self.loss = (share > 0.0).then_some(loss);
         Ok(())
     }
