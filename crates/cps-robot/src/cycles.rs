@@ -369,9 +369,14 @@ impl<const N: usize> Limiter<N> {
         judge: &mut J,
         reference: &Reference<N>,
     ) -> Result<[f64; N], Breach> {
-        // The robot held the last command since it was admitted.
+        // The robot held the last command since it was admitted (before the first, it
+        // stood at rest: no command's hold).
+        let held = match self.sent {
+            Some(_) => self.since.clamp(1, MAX_LOST_PERIODS as u32 + 1),
+            None => 1,
+        };
         self.holds.rotate_left(1);
-        self.holds[HOLDS - 1] = self.since.clamp(1, MAX_LOST_PERIODS as u32 + 1);
+        self.holds[HOLDS - 1] = held;
         (self.since_before, self.since) = (self.since, 0);
         match self.choose(judge, reference) {
             Ok(q) => {
