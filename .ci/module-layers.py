@@ -152,8 +152,9 @@ LAYERS = {
     ],
     "cps-drive": [
         ["chunk_socket", "recording", "ros2_graph", "stand_in"],
-        ["contact", "franka", "ros2"],
-        ["follow", "identify", "ros2_follow"],
+        ["franka", "ros2"],
+        # the contact task, identification and chunks on a Franka use its connection's words
+        ["contact", "follow", "identify", "ros2_follow"],
     ],
     "cps-experiment": [
         # what the others use: progress events
