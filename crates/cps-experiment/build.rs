@@ -30,8 +30,15 @@ fn main() {
                         println!("cargo:rerun-if-changed={git_dir}/{f}");
                     }
                 }
-                let dirty = git(dir, &["status", "--porcelain", "--untracked-files=no"])
-                    .is_some_and(|s| !s.is_empty());
+                // Without optional locks: a `git status` that refreshed the index would
+                // change the file watched above, and the next cargo would build again.
+                let status = [
+                    "--no-optional-locks",
+                    "status",
+                    "--porcelain",
+                    "--untracked-files=no",
+                ];
+                let dirty = git(dir, &status).is_some_and(|s| !s.is_empty());
                 if dirty { format!("{head}-dirty") } else { head }
             }
             None => "unknown".into(),
