@@ -472,9 +472,11 @@ fn joint_states_from_rclpy_at_1_khz_are_recorded_without_loss() {
     assert_eq!(rec.lost, 0);
     assert_eq!(rec.incomplete, 0);
     // rclpy keeps 1 kHz only roughly on a loaded machine; every one it sent in the 3 s
-    // is kept, in the model's joint order (q_i = 0.1 i + sin(t + i)).
+    // is kept, in the model's joint order (q_i = 0.1 i + sin(t + i)). Its timer catches
+    // up after a late call, so a window that opens on a late message may hold a few
+    // more than 3001 (3002 seen once on a loaded machine).
     let kept = rec.positions.len();
-    assert!((2000..=3001).contains(&kept), "{kept} kept");
+    assert!((2000..=3010).contains(&kept), "{kept} kept");
     let q = &rec.positions[0];
     let t0 = (q[0] - 0.0).asin();
     for (i, v) in q.iter().enumerate() {
