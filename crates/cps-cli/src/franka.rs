@@ -6,13 +6,10 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::{Args, Subcommand};
 use cps_drive::franka::{self, DmpSettings, ExecuteSettings};
-use cps_drive::{follow, identify};
-use cps_experiment::ExperimentError;
-use cps_movement::robot_file::Answer;
+use cps_drive::{DriveError, follow, identify};
 use cps_outcome::Ended;
 use cps_robot::StopToken;
 
-use crate::cli_error;
 use crate::robot::print;
 
 /// The robot's address, and how to print the answer.
@@ -52,124 +49,144 @@ pub enum FrankaCommand {
     /// model (.json) online with phase stopping, at 1 kHz and record what the robot did.
     /// Every command is checked against the arm's limits before the motion starts
     /// (nothing is sent if one fails) and again while streaming.
-    Execute {
-        /// The trajectory file.
-        file: PathBuf,
-        #[command(flatten)]
-        on: On,
-        /// The recording (CSV at the robot's rate) to write; its report goes beside it as
-        /// `<stem>.report.json`.
-        #[arg(long)]
-        record: PathBuf,
-        #[command(flatten)]
-        arm: Arm,
-        /// Retime the trajectory to the fastest timing within 95 % of every limit.
-        #[arg(long)]
-        retime: bool,
-        /// When the robot is not at the trajectory's start, move there first (at 20 % of
-        /// the limits) instead of refusing.
-        #[arg(long)]
-        approach: bool,
-        /// Replace an existing recording.
-        #[arg(long)]
-        force: bool,
-        /// A DMP model: its duration (s; default the model's).
-        #[arg(long)]
-        tau: Option<f64>,
-        /// A DMP model: its goal, seven joint positions (rad; default the model's).
-        #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-        goal: Option<Vec<f64>>,
-        /// A DMP model: the phase slows by 1/(1 + gain · lag in rad) (phase stopping).
-        #[arg(long, default_value_t = franka::DEFAULT_ERROR_GAIN)]
-        error_gain: f64,
-    },
+    Execute(ExecuteArgs),
     /// Follow a learned policy's action chunks recorded in a file (CSV: chunk, arrived_s,
     /// observed_s, k, q1..q7; the targets at --rate), each handed to the chunk executor at
     /// its arrival, or live over UDP (--listen): continuous to the jerk and within every limit at 1 kHz, chunks aligned
     /// to now, bad ones refused, braking to rest when chunks stop. Checked whole first.
-    Follow {
-        /// The chunk file (or --listen).
-        #[arg(required_unless_present = "listen")]
-        file: Option<PathBuf>,
-        #[command(flatten)]
-        on: On,
-        /// Take chunks live from a policy in another process over UDP at this address
-        /// (docs/policies.md has the messages; python/examples/chunk_client.py sends them).
-        #[arg(long, conflicts_with = "file")]
-        listen: Option<std::net::SocketAddr>,
-        /// With --listen: the senders' addresses taken (default: loopback only).
-        #[arg(long, value_delimiter = ',')]
-        allow: Vec<std::net::IpAddr>,
-        /// The chunk file's targets per second (a datagram carries its own).
-        #[arg(long, required_unless_present = "listen")]
-        rate: Option<f64>,
-        /// The recording (CSV at the robot's rate), its chunks (`<stem>.chunks.csv`) and
-        /// report (`<stem>.report.json`) to write.
-        #[arg(long)]
-        record: Option<PathBuf>,
-        #[command(flatten)]
-        arm: Arm,
-        /// Seconds without a new chunk before the arm brakes to rest.
-        #[arg(long, default_value_t = 0.25)]
-        stall_timeout: f64,
-        /// The largest distance (rad) between the command and where a chunk wants the arm.
-        #[arg(long, default_value_t = 0.2)]
-        max_gap: f64,
-        /// Replace an existing recording.
-        #[arg(long)]
-        force: bool,
-    },
+    Follow(FollowArgs),
     /// The Franka Hand: `home`, `move W`, `grasp W [--force N]`, `stop`, `state`; each
     /// waits until the fingers settle and prints the hand's state.
-    Gripper {
-        /// home, move, grasp, stop or state.
-        action: String,
-        /// The width in metres (move, grasp).
-        width: Option<f64>,
-        #[command(flatten)]
-        on: On,
-        /// Finger speed (m/s).
-        #[arg(long, default_value_t = 0.05)]
-        speed: f64,
-        /// Grasp force (N).
-        #[arg(long, default_value_t = 20.0)]
-        force: f64,
-        /// Grasp tolerance on both sides of the width (m).
-        #[arg(long, default_value_t = 0.005)]
-        epsilon: f64,
-    },
+    Gripper(GripperArgs),
     /// Identify the robot's joint controller (gains, lag) and drives (rotor inertia,
     /// friction), so that `backend = "dynamics"` with `[robot] calibration` behaves like
     /// it: 9 s of chirps on every joint where the arm stands, within 40 % of its limits,
     /// recorded at 1 kHz, the last 3 s held back to judge the fit.
-    Identify {
-        #[command(flatten)]
-        on: On,
-        /// The calibration file to write (TOML).
-        #[arg(long)]
-        out: PathBuf,
-        /// Also keep the recording (CSV at the robot's rate).
-        #[arg(long)]
-        record: Option<PathBuf>,
-        #[command(flatten)]
-        arm: Arm,
-        /// Replace existing files.
-        #[arg(long)]
-        force: bool,
-    },
+    Identify(IdentifyArgs),
     /// Record the robot's state at its rate without moving it (guide it by hand in Desk).
     Record(Recording),
     /// Teach by guiding: the arm floats (gravity compensated, lightly damped, pushed back
     /// before its range ends) while you move it by hand; recorded at the robot's rate.
-    Guide {
-        #[command(flatten)]
-        rec: Recording,
-        /// Damping on every joint (N m s/rad, 0 to 20; default 3 on joints 1-4, 1, 1, 0.5).
-        #[arg(long)]
-        damping: Option<f64>,
-        #[command(flatten)]
-        arm: Arm,
-    },
+    Guide(GuideArgs),
+}
+
+/// Arguments of `cps-cli franka execute`.
+#[derive(Args, Debug)]
+pub struct ExecuteArgs {
+    /// The trajectory file.
+    file: PathBuf,
+    #[command(flatten)]
+    on: On,
+    /// The recording (CSV at the robot's rate) to write; its report goes beside it as
+    /// `<stem>.report.json`.
+    #[arg(long)]
+    record: PathBuf,
+    #[command(flatten)]
+    arm: Arm,
+    /// Retime the trajectory to the fastest timing within 95 % of every limit.
+    #[arg(long)]
+    retime: bool,
+    /// When the robot is not at the trajectory's start, move there first (at 20 % of
+    /// the limits) instead of refusing.
+    #[arg(long)]
+    approach: bool,
+    /// Replace an existing recording.
+    #[arg(long)]
+    force: bool,
+    /// A DMP model: its duration (s; default the model's).
+    #[arg(long)]
+    tau: Option<f64>,
+    /// A DMP model: its goal, seven joint positions (rad; default the model's).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    goal: Option<Vec<f64>>,
+    /// A DMP model: the phase slows by 1/(1 + gain · lag in rad) (phase stopping).
+    #[arg(long, default_value_t = franka::DEFAULT_ERROR_GAIN)]
+    error_gain: f64,
+}
+
+/// Arguments of `cps-cli franka follow`.
+#[derive(Args, Debug)]
+pub struct FollowArgs {
+    /// The chunk file (or --listen).
+    #[arg(required_unless_present = "listen")]
+    file: Option<PathBuf>,
+    #[command(flatten)]
+    on: On,
+    /// Take chunks live from a policy in another process over UDP at this address
+    /// (docs/policies.md has the messages; python/examples/chunk_client.py sends them).
+    #[arg(long, conflicts_with = "file")]
+    listen: Option<std::net::SocketAddr>,
+    /// With --listen: the senders' addresses taken (default: loopback only).
+    #[arg(long, value_delimiter = ',')]
+    allow: Vec<std::net::IpAddr>,
+    /// The chunk file's targets per second (a datagram carries its own).
+    #[arg(long, required_unless_present = "listen")]
+    rate: Option<f64>,
+    /// The recording (CSV at the robot's rate), its chunks (`<stem>.chunks.csv`) and
+    /// report (`<stem>.report.json`) to write.
+    #[arg(long)]
+    record: Option<PathBuf>,
+    #[command(flatten)]
+    arm: Arm,
+    /// Seconds without a new chunk before the arm brakes to rest.
+    #[arg(long, default_value_t = 0.25)]
+    stall_timeout: f64,
+    /// The largest distance (rad) between the command and where a chunk wants the arm.
+    #[arg(long, default_value_t = 0.2)]
+    max_gap: f64,
+    /// Replace an existing recording.
+    #[arg(long)]
+    force: bool,
+}
+
+/// Arguments of `cps-cli franka gripper`.
+#[derive(Args, Debug)]
+pub struct GripperArgs {
+    /// home, move, grasp, stop or state.
+    action: String,
+    /// The width in metres (move, grasp).
+    width: Option<f64>,
+    #[command(flatten)]
+    on: On,
+    /// Finger speed (m/s).
+    #[arg(long, default_value_t = 0.05)]
+    speed: f64,
+    /// Grasp force (N).
+    #[arg(long, default_value_t = 20.0)]
+    force: f64,
+    /// Grasp tolerance on both sides of the width (m).
+    #[arg(long, default_value_t = 0.005)]
+    epsilon: f64,
+}
+
+/// Arguments of `cps-cli franka identify`.
+#[derive(Args, Debug)]
+pub struct IdentifyArgs {
+    #[command(flatten)]
+    on: On,
+    /// The calibration file to write (TOML).
+    #[arg(long)]
+    out: PathBuf,
+    /// Also keep the recording (CSV at the robot's rate).
+    #[arg(long)]
+    record: Option<PathBuf>,
+    #[command(flatten)]
+    arm: Arm,
+    /// Replace existing files.
+    #[arg(long)]
+    force: bool,
+}
+
+/// Arguments of `cps-cli franka guide`.
+#[derive(Args, Debug)]
+pub struct GuideArgs {
+    #[command(flatten)]
+    rec: Recording,
+    /// Damping on every joint (N m s/rad, 0 to 20; default 3 on joints 1-4, 1, 1, 0.5).
+    #[arg(long)]
+    damping: Option<f64>,
+    #[command(flatten)]
+    arm: Arm,
 }
 
 /// A recording of `franka record` and `franka guide`.
@@ -191,103 +208,73 @@ pub struct Recording {
 /// `cps-cli franka`.
 pub fn franka(cmd: &FrankaCommand, stop: &StopToken) -> Result<ExitCode> {
     match cmd {
-        FrankaCommand::State { on } => print(&franka::state(&on.host).map_err(cli_error)?, on.json),
-        FrankaCommand::Gripper {
-            action,
-            width,
-            on,
-            speed,
-            force,
-            epsilon,
-        } => {
-            let command = franka::gripper_command(action, *width, *speed, *force, *epsilon)?;
-            let answer = franka::gripper(&on.host, command).map_err(cli_error)?;
-            print(&answer, on.json)
+        FrankaCommand::State { on } => print(&franka::state(&on.host)?, on.json),
+        FrankaCommand::Gripper(a) => {
+            let command = franka::gripper_command(&a.action, a.width, a.speed, a.force, a.epsilon)?;
+            print(&franka::gripper(&a.on.host, command)?, a.on.json)
         }
-        FrankaCommand::Execute {
-            file,
-            on,
-            record,
-            arm,
-            retime,
-            approach,
-            force,
-            tau,
-            goal,
-            error_gain,
-        } => {
-            let settings = ExecuteSettings {
-                retime: *retime,
-                approach: *approach,
-                ..ExecuteSettings::parse(&on.host, &arm.arm, &arm.realtime)?
-            };
-            let online = DmpSettings {
-                error_gain: *error_gain,
-                tau: *tau,
-                goal: goal.clone(),
-            };
-            let done = franka::execute_file(file, &settings, &online, record, *force, stop);
-            finish(done, on.json)
+        FrankaCommand::Execute(a) => execute(a, stop),
+        FrankaCommand::Follow(a) => {
+            let exec = ExecuteSettings::parse(&a.on.host, &a.arm.arm, &a.arm.realtime)?;
+            let chunks = follow::Chunks::of(a.file.as_deref(), a.rate, a.listen, &a.allow)?;
+            let s = cps_chunks::FollowSettings::with_chunks(a.stall_timeout, a.max_gap);
+            let ready = |at| eprintln!("listening for chunks on {at} (udp)");
+            let rec = a.record.as_deref();
+            let done = follow::franka_follow_from(&chunks, &exec, &s, rec, a.force, &ready, stop);
+            finish(done, a.on.json)
         }
-        FrankaCommand::Follow {
-            file,
-            on,
-            listen,
-            allow,
-            rate,
-            record,
-            arm,
-            stall_timeout,
-            max_gap,
-            force,
-        } => {
-            let exec = ExecuteSettings::parse(&on.host, &arm.arm, &arm.realtime)?;
-            let chunks = follow::Chunks::of(file.as_deref(), *rate, *listen, allow)?;
-            let s = cps_chunks::FollowSettings::with_chunks(*stall_timeout, *max_gap);
-            let ready = |a| eprintln!("listening for chunks on {a} (udp)");
-            let rec = record.as_deref();
-            let done = follow::franka_follow_from(&chunks, &exec, &s, rec, *force, &ready, stop);
-            finish(done, on.json)
-        }
-        FrankaCommand::Identify {
-            on,
-            out,
-            record,
-            arm,
-            force,
-        } => {
-            let (a, r) = (
-                franka::parse_arm(&arm.arm)?,
-                franka::parse_realtime(&arm.realtime)?,
+        FrankaCommand::Identify(a) => {
+            let (arm, rt) = (
+                franka::parse_arm(&a.arm.arm)?,
+                franka::parse_realtime(&a.arm.realtime)?,
             );
-            let settings = identify::IdentifySettings::new(&on.host, a, r);
-            let done = identify::franka_identify(&settings, out, record.as_deref(), *force, stop);
-            print(&done.map_err(cli_error)?, on.json)
+            let settings = identify::IdentifySettings::new(&a.on.host, arm, rt);
+            let done =
+                identify::franka_identify(&settings, &a.out, a.record.as_deref(), a.force, stop);
+            print(&done?, a.on.json)
         }
         FrankaCommand::Record(r) => finish(
             franka::record(&r.on.host, r.duration, &r.out, r.force, stop),
             r.on.json,
         ),
-        FrankaCommand::Guide {
-            rec: r,
-            damping,
-            arm,
-        } => {
+        FrankaCommand::Guide(a) => {
             let settings = franka::GuideSettings {
-                host: r.on.host.clone(),
-                arm: franka::parse_arm(&arm.arm)?,
-                realtime: franka::parse_realtime(&arm.realtime)?,
-                seconds: r.duration,
-                damping: *damping,
+                host: a.rec.on.host.clone(),
+                arm: franka::parse_arm(&a.arm.arm)?,
+                realtime: franka::parse_realtime(&a.arm.realtime)?,
+                seconds: a.rec.duration,
+                damping: a.damping,
             };
-            finish(franka::guide(&settings, &r.out, r.force, stop), r.on.json)
+            finish(
+                franka::guide(&settings, &a.rec.out, a.rec.force, stop),
+                a.rec.on.json,
+            )
         }
     }
 }
 
+/// `cps-cli franka execute`: a trajectory or a DMP model, at 1 kHz.
+fn execute(a: &ExecuteArgs, stop: &StopToken) -> Result<ExitCode> {
+    let settings = ExecuteSettings {
+        retime: a.retime,
+        approach: a.approach,
+        ..ExecuteSettings::parse(&a.on.host, &a.arm.arm, &a.arm.realtime)?
+    };
+    let online = DmpSettings {
+        error_gain: a.error_gain,
+        tau: a.tau,
+        goal: a.goal.clone(),
+    };
+    let done = franka::execute_file(&a.file, &settings, &online, &a.record, a.force, stop);
+    finish(done, a.on.json)
+}
+
 /// Prints a motion's answer and exits with its code.
-fn finish(done: Result<(Answer, Ended), ExperimentError>, json: bool) -> Result<ExitCode> {
-    let (answer, ended) = done.map_err(cli_error)?;
+fn finish<T>(done: Result<(T, Ended), DriveError>, json: bool) -> Result<ExitCode>
+where
+    T: serde::Serialize + std::fmt::Display,
+{
+    let (answer, ended) = done?;
     print(&answer, json)?;
     Ok(crate::status(ended))
 }

@@ -1,33 +1,8 @@
-//! `cps-cli`: run cps experiments from TOML files.
-//!
-//! ```text
-//! cps-cli run experiments/viapoint.toml [--out DIR] [--seed N] [--threads N] [--force] [--quiet]
-//! cps-cli check experiments/viapoint.toml
-//! cps-cli default > my-experiment.toml
-//! cps-cli fk --robot panda --q 0,-0.785,0,-2.356,0,1.571,0.785 [--tool hand|flange] [--json]
-//! cps-cli ik --robot panda --target 0.4,0.2,0.5[,qx,qy,qz,qw] [--seed-q ...] [--json]
-//! cps-cli robot show panda|configs/robots/ur3.toml|configs/robots/panda.urdf [--tool NAME] [--tip LINK]
-//! cps-cli scene check configs/scenes/thesis.toml [--json]
-//! cps-cli sim serve [--bind 127.0.0.1:23000] [--scene FILE] [--dt 0.05] [--ik-following]
-//! cps-cli cmaes bench sphere|ellipsoid|cigar|discus|rosenbrock|rastrigin --dim N --seeds A..B [--ipop|--bipop] [--separable] [--json]
-//! cps-cli imitate demo.csv [more.csv ...] [--bases N] [--method lwr|ridge|jerk] [--lambda X|auto] [--tau S] --out model.json [--plot fit.png]
-//! cps-cli ros2 send traj.csv --controller /panda_arm_controller [--topic|--action] [--joint-names a,b,...] [--domain N] [--json]
-//! cps-cli ros2 record --topic /joint_states --duration S --out rec.csv [--domain N]
-//! cps-cli mocap show take.c3d | mocap import take.c3d --markers A,B,C [--to-robot lab.toml] --out demo.csv
-//! cps-cli rollout model.json [--start ...] [--goal ...] [--tau S] [--dt S] --out traj.csv [--plot traj.png]
-//! cps-cli promp fit demo*.csv [--bases N] --out p.json | condition p.json --at T --position x,y [--std S] --out q.json
-//! cps-cli promp sample p.json --n K --seed S [--dt S] --out dir/ | stats p.json --out stats.csv
-//! cps-cli franka state --host H | execute traj.csv --host H --record rec.csv [--retime] [--approach] | record --host H --duration S --out rec.csv
-//! ```
-//!
-//! An experiment file's `[experiment] kind` chooses what `run` does: `viapoint` (default),
-//! `imitation`, `scaling`, `viapoint_joint`, `viapoint_energy`, `viapoint_pose`, `promp`,
-//! `viapoint_executed`; each
-//! shipped file in `experiments/` is a commented example. Every run writes `summary.json`,
-//! CSV data, figures (PNG and SVG) and `report.html`.
-//!
-//! `--robot` takes a built-in name (`panda`, `ur3`, `crx10ia`, `puma560`) or a robot file: TOML as in
-//! `configs/robots/` or URDF.
+//! `cps-cli`: cps from the command line. Every command, its arguments and its help are in
+//! docs/cli.md (written from `--help`); an experiment file's `[experiment] kind` chooses what
+//! `run` does, and each shipped file in `experiments/` is a commented example. `--robot`
+//! takes a built-in name (`panda`, `ur3`, `crx10ia`, `puma560`) or a robot file (TOML as in
+//! `configs/robots/`, or URDF).
 //!
 //! Exit codes: 0 success, 1 failure while running, 2 bad input (the message names the file,
 //! line and column), 130 interrupted by Ctrl-C or SIGTERM (the results of the finished generations are
@@ -43,6 +18,7 @@ macro_rules! say {
 
 mod cmaes_bench;
 mod franka;
+mod lerobot;
 mod mocap;
 mod movement;
 mod progress;
@@ -61,7 +37,6 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 use cps_experiment::{Experiment, ExperimentError, InputError, RunOptions, budget, experiment};
-use cps_movement::lerobot_write;
 use cps_report::write::{Results, WriteOptions};
 use cps_robot::StopToken;
 
@@ -84,15 +59,7 @@ enum Command {
     /// Run an experiment and write its results, plots and summary.
     Run(RunArgs),
     /// Validate an experiment file without running it.
-    Check {
-        /// The experiment file (TOML).
-        file: PathBuf,
-        #[command(flatten)]
-        ceilings: CeilingArgs,
-        /// Worker threads the time estimate assumes (default: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
-    },
+    Check(CheckArgs),
     /// Print a commented default experiment (the thesis's via-point task).
     Default,
     /// Forward kinematics: the tool pose at joint angles `--q`.
@@ -102,22 +69,7 @@ enum Command {
     /// Identify a robot's joint controller and drives from a recording of `cps-cli franka
     /// execute` or `franka record` (t, q, dq, tau, q_d at 1 kHz), its last quarter held
     /// back to judge the fit; writes a calibration for `[robot] calibration`.
-    Identify {
-        /// The recording (CSV).
-        recording: PathBuf,
-        /// The robot recorded (its model, with the hand's inertias).
-        #[arg(long, default_value = "fr3")]
-        robot: String,
-        /// The calibration file to write (TOML).
-        #[arg(long)]
-        out: PathBuf,
-        /// Replace an existing calibration.
-        #[arg(long)]
-        force: bool,
-        /// Print JSON.
-        #[arg(long)]
-        json: bool,
-    },
+    Identify(robot::IdentifyArgs),
     /// Robot models.
     Robot {
         #[command(subcommand)]
@@ -182,53 +134,12 @@ enum Command {
     /// `imitate` and `promp fit` take a dataset's folder as demonstrations.
     Lerobot {
         #[command(subcommand)]
-        command: LeRobotCommand,
+        command: lerobot::LeRobotCommand,
     },
     /// Scenes: a placed robot and named way points.
     Scene {
         #[command(subcommand)]
         command: scene::SceneCommand,
-    },
-}
-
-/// `cps-cli lerobot ...`. Exit codes: 0 done; 2 a dataset that cannot be read.
-#[derive(Subcommand, Debug)]
-enum LeRobotCommand {
-    /// A dataset's rate, robot, features (type, shape, entry names) and episodes (frames,
-    /// duration, tasks).
-    Show {
-        /// The dataset's folder (it holds meta/info.json).
-        dataset: PathBuf,
-        /// Print JSON.
-        #[arg(long)]
-        json: bool,
-    },
-    /// Recordings (`franka execute --record`, `franka record`, `franka guide`, `ros2
-    /// record`, a joint CSV) written as a new dataset LeRobot's loader opens, one episode
-    /// each: joint states (velocities, torques where recorded) and actions (the commands,
-    /// or the next state), resampled to --fps, without video.
-    Write {
-        /// The recordings (CSV).
-        #[arg(required = true)]
-        recordings: Vec<PathBuf>,
-        /// The dataset's folder to create.
-        #[arg(long)]
-        out: PathBuf,
-        /// The robot recorded: its joints name the entries.
-        #[arg(long, default_value = "fr3")]
-        robot: String,
-        /// What the episodes did (LeRobot's task).
-        #[arg(long)]
-        task: String,
-        /// Frames per second (default: the first recording's rate).
-        #[arg(long)]
-        fps: Option<u32>,
-        /// Replace a dataset at --out that holds nothing but the files cps writes.
-        #[arg(long)]
-        force: bool,
-        /// Print JSON.
-        #[arg(long)]
-        json: bool,
     },
 }
 
@@ -254,6 +165,18 @@ struct RunArgs {
     quiet: bool,
     #[command(flatten)]
     ceilings: CeilingArgs,
+}
+
+/// Arguments of `cps-cli check`.
+#[derive(clap::Args, Debug)]
+struct CheckArgs {
+    /// The experiment file (TOML).
+    file: PathBuf,
+    #[command(flatten)]
+    ceilings: CeilingArgs,
+    /// Worker threads the time estimate assumes (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
 }
 
 /// The ceilings on what an experiment may ask of the machine.
@@ -304,10 +227,19 @@ fn main() -> ExitCode {
         Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e}");
-            for cause in e.chain().skip(1) {
-                eprintln!("  caused by: {cause}");
+            // A cause is said once: one whose words the sentence already holds is left out.
+            let mut said = e.to_string();
+            for cause in e.chain().skip(1).map(|c| c.to_string()) {
+                if !said.contains(&cause) {
+                    eprintln!("  caused by: {cause}");
+                    said.push_str(&cause);
+                }
             }
-            if e.downcast_ref::<InputError>().is_some() {
+            // Bad input is exit 2 whether it came alone or inside a library's error.
+            let input = matches!(e.downcast_ref(), Some(ExperimentError::Input(_)))
+                || e.downcast_ref::<cps_drive::DriveError>()
+                    .is_some_and(|d| d.is_input());
+            if input || e.downcast_ref::<InputError>().is_some() {
                 ExitCode::from(2)
             } else {
                 ExitCode::from(1)
@@ -337,59 +269,11 @@ fn run(cli: Cli, stop: &StopToken) -> Result<ExitCode> {
         Command::Promp { command } => promp::promp(&command),
         Command::Studio(args) => studio::studio(&args, stop.flag()),
         Command::Franka { command } => franka::franka(&command, stop),
-        Command::Identify {
-            recording: r,
-            robot: arm,
-            out,
-            force,
-            json,
-        } => match cps_drive::identify::identify_recording(&r, &arm, &out, force, stop) {
-            Err(e) if stop.is_stopped() => {
-                eprintln!("interrupted: {e}");
-                Ok(status(cps_outcome::Ended::Stopped))
-            }
-            done => robot::print(&done.map_err(cli_error)?, json),
-        },
+        Command::Identify(args) => robot::identify(&args, stop),
         Command::Ros2 { command } => ros2::ros2(&command, stop),
         Command::Mocap { command } => mocap::mocap(&command),
-        Command::Lerobot { command } => match command {
-            LeRobotCommand::Show { dataset, json } => {
-                robot::print(&cps_movement::lerobot::describe(&dataset)?, json)
-            }
-            LeRobotCommand::Write {
-                recordings,
-                out,
-                robot: arm,
-                task,
-                fps,
-                force,
-                json,
-            } => {
-                let export = lerobot_write::Export {
-                    robot: arm,
-                    task,
-                    fps,
-                };
-                let answer = lerobot_write::write_recordings(&out, &recordings, &export, force)?;
-                robot::print(&answer, json)
-            }
-        },
-        Command::Check {
-            file,
-            ceilings,
-            threads,
-        } => {
-            let exp = experiment::load(&file, None, &ceilings.ceilings()?)?;
-            let options = RunOptions {
-                threads,
-                ..RunOptions::default()
-            };
-            options.check()?;
-            for line in exp.check_lines(options.threads())? {
-                say!("{line}");
-            }
-            Ok(ExitCode::SUCCESS)
-        }
+        Command::Lerobot { command } => lerobot::lerobot(&command),
+        Command::Check(args) => check(&args),
         Command::Run(args) => run_experiment(&args, stop),
     }
 }
@@ -404,13 +288,18 @@ pub(crate) fn status(ended: cps_outcome::Ended) -> ExitCode {
     }
 }
 
-/// A library error as the command line reports it: input problems keep their own type
-/// (exit 2), the rest their chain of causes (exit 1).
-pub(crate) fn cli_error(e: ExperimentError) -> anyhow::Error {
-    match e {
-        ExperimentError::Input(e) => anyhow::Error::new(e),
-        other => anyhow::Error::new(other),
+/// `cps-cli check`: the experiment's summary and estimate, a line each.
+fn check(args: &CheckArgs) -> Result<ExitCode> {
+    let exp = experiment::load(&args.file, None, &args.ceilings.ceilings()?)?;
+    let options = RunOptions {
+        threads: args.threads,
+        ..RunOptions::default()
+    };
+    options.check()?;
+    for line in exp.check_lines(options.threads())? {
+        say!("{line}");
     }
+    Ok(ExitCode::SUCCESS)
 }
 
 fn run_experiment(args: &RunArgs, stop: &StopToken) -> Result<ExitCode> {
@@ -428,8 +317,7 @@ fn run_experiment(args: &RunArgs, stop: &StopToken) -> Result<ExitCode> {
     // The output is checked, and its staging directory made, before any work.
     let results = Results::prepare(&out, args.force, WriteOptions { figures: exp.plots })?;
     let observer = progress::Terminal::new(!args.quiet, stop.flag());
-    let outcome =
-        cps_experiment::run_into(&exp, &options, &observer, Some(results)).map_err(cli_error)?;
+    let outcome = cps_experiment::run_into(&exp, &options, &observer, Some(results))?;
     observer.clear();
     if !args.quiet {
         for line in &outcome.lines {

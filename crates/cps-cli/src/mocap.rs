@@ -8,7 +8,6 @@ use clap::{Args, Subcommand};
 use cps_mocap::demo::Words;
 use cps_movement::mocap::{self, ImportFiles};
 
-use crate::cli_error;
 use crate::robot::print;
 
 /// `cps-cli mocap ...`. Exit codes: 0 done; 2 bad input (a file that cannot be read, an
@@ -113,7 +112,7 @@ pub fn mocap(cmd: &MocapCommand) -> Result<ExitCode> {
                 scene: a.scene.clone(),
                 force: a.force,
             };
-            let answer = mocap::import(&a.file, &settings, &files, &a.out).map_err(cli_error)?;
+            let answer = mocap::import(&a.file, &settings, &files, &a.out)?;
             print(&answer, a.json)
         }
     }

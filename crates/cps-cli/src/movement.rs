@@ -16,8 +16,6 @@ use cps_outcome::files::{table_csv, write_file};
 use cps_outcome::results_dir::{FileKind, check_file_targets};
 use cps_report::figures::draw_file;
 
-use crate::cli_error;
-
 /// Which episodes of a LeRobot dataset given as a demonstration become demonstrations.
 #[derive(Args, Debug)]
 pub struct LeRobotArgs {
@@ -171,9 +169,9 @@ pub fn run_imitate(args: &ImitateArgs) -> Result<ExitCode> {
     let paths: Vec<&Path> = args.demos.iter().map(PathBuf::as_path).collect();
     let pick = args.lerobot.pick();
     let imitated = imitate_files(&paths, args.columns.as_deref(), &pick, &spec)?;
-    write_file(&o.out, imitated.model().to_json().as_bytes()).map_err(cli_error)?;
+    write_file(&o.out, imitated.model().to_json().as_bytes())?;
     if let Some(plot) = &o.plot {
-        draw_file(&imitated.figure(), plot).map_err(cli_error)?;
+        draw_file(&imitated.figure(), plot)?;
     }
     crate::robot::print(&imitated.answer(&o.out), o.json)
 }
@@ -193,10 +191,10 @@ pub fn run_rollout(args: &RolloutArgs) -> Result<ExitCode> {
         dt: args.dt,
     };
     let rolled = rollout_file(&args.model, &spec)?;
-    let csv = table_csv(&rolled.table()).map_err(cli_error)?;
-    write_file(&args.out, &csv).map_err(cli_error)?;
+    let csv = table_csv(&rolled.table())?;
+    write_file(&args.out, &csv)?;
     if let Some(plot) = &args.plot {
-        draw_file(&rolled.figure(), plot).map_err(cli_error)?;
+        draw_file(&rolled.figure(), plot)?;
     }
     for w in &rolled.warnings {
         eprintln!("warning: {w}");

@@ -16,7 +16,6 @@ use cps_outcome::outcome::Figure;
 use cps_outcome::results_dir::{FileKind, check_file_targets};
 use cps_report::figures::draw_file;
 
-use crate::cli_error;
 use crate::movement::Output;
 use crate::robot::print;
 
@@ -111,9 +110,9 @@ impl Output {
 
     /// Writes the ProMP file and its figure, then prints the answer.
     fn finish(&self, promp: &NamedProMp, figure: Figure, answer: Answer) -> Result<ExitCode> {
-        write_file(&self.out, promp.to_json().as_bytes()).map_err(cli_error)?;
+        write_file(&self.out, promp.to_json().as_bytes())?;
         if let Some(plot) = &self.plot {
-            draw_file(&figure, plot).map_err(cli_error)?;
+            draw_file(&figure, plot)?;
         }
         print(&answer, self.json)
     }
@@ -139,14 +138,11 @@ pub fn promp(command: &ProMpCommand) -> Result<ExitCode> {
         }
         ProMpCommand::Sample { grid, n, seed } => {
             let done = write_samples(&grid.model, &grid.out, grid.force, *n, *seed, grid.dt);
-            say!("{}", done.map_err(cli_error)?);
+            say!("{}", done?);
             Ok(ExitCode::SUCCESS)
         }
         ProMpCommand::Stats(g) => {
-            say!(
-                "{}",
-                write_stats(&g.model, &g.out, g.force, g.dt).map_err(cli_error)?
-            );
+            say!("{}", write_stats(&g.model, &g.out, g.force, g.dt)?);
             Ok(ExitCode::SUCCESS)
         }
     }

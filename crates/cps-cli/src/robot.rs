@@ -4,8 +4,10 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
+use cps_drive::identify::identify_recording;
 use cps_experiment::InputError;
-use cps_movement::robot_file::{Answer, RobotModel, joint_solution, load_robot, tool_pose};
+use cps_movement::robot_file::{RobotModel, joint_solution, load_robot, tool_pose};
+use cps_robot::StopToken;
 
 /// Which robot and tool point a kinematics command works on.
 #[derive(Args, Debug)]
@@ -88,13 +90,14 @@ pub enum RobotCommand {
     },
 }
 
-/// Prints an answer as JSON or as its lines.
-pub fn print(answer: &Answer, json: bool) -> Result<ExitCode> {
+/// Prints a command's result as JSON (`--json`) or as its text.
+pub fn print<T: serde::Serialize + std::fmt::Display>(result: &T, json: bool) -> Result<ExitCode> {
     if json {
-        say!("{}", serde_json::to_string_pretty(&answer.json)?);
+        say!("{}", serde_json::to_string_pretty(result)?);
     } else {
-        for line in &answer.lines {
-            say!("{line}");
+        let text = result.to_string();
+        if !text.is_empty() {
+            say!("{text}");
         }
     }
     Ok(ExitCode::SUCCESS)
@@ -181,6 +184,36 @@ pub fn collide(args: &CollideArgs) -> Result<ExitCode> {
     let title = format!("{} on {what}:", args.file.display());
     print(&report.answer(title), args.arm.json)?;
     Ok(ExitCode::from(u8::from(!report.ok())))
+}
+
+/// Arguments of `cps-cli identify`.
+#[derive(Args, Debug)]
+pub struct IdentifyArgs {
+    /// The recording (CSV).
+    recording: std::path::PathBuf,
+    /// The robot recorded (its model, with the hand's inertias).
+    #[arg(long, default_value = "fr3")]
+    robot: String,
+    /// The calibration file to write (TOML).
+    #[arg(long)]
+    out: std::path::PathBuf,
+    /// Replace an existing calibration.
+    #[arg(long)]
+    force: bool,
+    /// Print JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `cps-cli identify`: a calibration from a recording.
+pub fn identify(a: &IdentifyArgs, stop: &StopToken) -> Result<ExitCode> {
+    match identify_recording(&a.recording, &a.robot, &a.out, a.force, stop) {
+        Err(e) if stop.is_stopped() => {
+            eprintln!("interrupted: {e}");
+            Ok(crate::status(cps_outcome::Ended::Stopped))
+        }
+        done => print(&done?, a.json),
+    }
 }
 
 /// `cps-cli robot show`.

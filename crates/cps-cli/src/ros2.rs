@@ -12,8 +12,8 @@ use cps_experiment::markers;
 use cps_movement::robot_file::Answer;
 use cps_outcome::Ended;
 use cps_robot::StopToken;
+use indicatif::ProgressBar;
 
-use crate::cli_error;
 use crate::robot::print;
 
 /// The robot, its joints' names and the domain.
@@ -61,17 +61,21 @@ pub enum Ros2Command {
     Show(ShowArgs),
     /// List what is on the graph: the nodes and their middleware, topics with types and
     /// QoS, services and actions with the nodes at each end.
-    Graph {
-        /// DDS domain (default: $ROS_DOMAIN_ID, else 0).
-        #[arg(long, allow_hyphen_values = true, value_parser = cps_ros2::names::parse_domain)]
-        domain: Option<u16>,
-        /// Seconds to watch before listing (discovery takes about a second).
-        #[arg(long, default_value_t = 2.0)]
-        seconds: f64,
-        /// Print JSON.
-        #[arg(long)]
-        json: bool,
-    },
+    Graph(GraphArgs),
+}
+
+/// `cps-cli ros2 graph`'s arguments.
+#[derive(Args, Debug)]
+pub struct GraphArgs {
+    /// DDS domain (default: $ROS_DOMAIN_ID, else 0).
+    #[arg(long, allow_hyphen_values = true, value_parser = cps_ros2::names::parse_domain)]
+    domain: Option<u16>,
+    /// Seconds to watch before listing (discovery takes about a second).
+    #[arg(long, default_value_t = 2.0)]
+    seconds: f64,
+    /// Print JSON.
+    #[arg(long)]
+    json: bool,
 }
 
 /// `cps-cli ros2 follow`'s arguments.
@@ -196,26 +200,22 @@ pub struct ShowArgs {
 
 /// `cps-cli ros2`.
 pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
-    let bar = indicatif::ProgressBar::new(1000).with_style(
+    let bar = ProgressBar::new(1000).with_style(
         indicatif::ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len}")
             .expect("a valid template")
             .progress_chars("=> "),
     );
-    let (answer, code, json) = match cmd {
-        Ros2Command::Graph {
-            domain,
-            seconds,
-            json,
-        } => {
+    match cmd {
+        Ros2Command::Graph(a) => {
             let look = cps_drive::ros2_graph::GraphLook {
-                domain: *domain,
-                seconds: *seconds,
+                domain: a.domain,
+                seconds: a.seconds,
             };
             bar.set_message("watching the graph");
-            let answer = cps_drive::ros2_graph::graph(&look, stop).map_err(cli_error)?;
-            (answer, Ended::Completed, *json)
+            let seen = cps_drive::ros2_graph::graph(&look, stop)?;
+            finish(&bar, &seen, Ended::Completed, a.json)
         }
-        Ros2Command::Show(a) => (show(a, stop)?, Ended::Completed, a.json),
+        Ros2Command::Show(a) => finish(&bar, &show(a, stop)?, Ended::Completed, a.json),
         Ros2Command::Send(a) => {
             let s = SendSettings {
                 service_mapping: a.service_mapping,
@@ -232,8 +232,8 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
             };
             bar.set_message("following (‰)");
             let send = |f: f64| bar.set_position((f * 1000.0) as u64);
-            let (answer, c) = ros2::send(&a.file, &s, stop, send).map_err(cli_error)?;
-            (answer, c, a.json)
+            let (answer, c) = ros2::send(&a.file, &s, stop, send)?;
+            finish(&bar, &answer, c, a.json)
         }
         Ros2Command::Follow(a) => {
             let s = cps_drive::ros2_follow::FollowTopic {
@@ -245,8 +245,8 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
             let gap = cps_chunks::ChunkSettings::default().max_gap_rad;
             let f = cps_chunks::FollowSettings::with_chunks(a.stall_timeout, gap);
             let done = cps_drive::ros2_follow::ros2_follow(&a.file, a.rate, &s, &f, stop);
-            let (answer, c) = done.map_err(cli_error)?;
-            (answer, c, a.json)
+            let (answer, c) = done?;
+            finish(&bar, &answer, c, a.json)
         }
         Ros2Command::Record(a) => {
             let s = RecordSettings {
@@ -259,26 +259,33 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
             bar.set_length((a.duration * 10.0).ceil() as u64);
             bar.set_message("recording (0.1 s)");
             let tick = |t: f64| bar.set_position((t * 10.0) as u64);
-            let (answer, c) = ros2::record(&s, &a.out, a.force, stop, tick).map_err(cli_error)?;
-            (answer, c, a.json)
+            let (answer, c) = ros2::record(&s, &a.out, a.force, stop, tick)?;
+            finish(&bar, &answer, c, a.json)
         }
-    };
+    }
+}
+
+/// Clears the bar, prints the result and exits with how it ended.
+fn finish<T>(bar: &ProgressBar, result: &T, ended: Ended, json: bool) -> Result<ExitCode>
+where
+    T: serde::Serialize + std::fmt::Display,
+{
     bar.finish_and_clear();
-    print(&answer, json)?;
-    Ok(crate::status(code))
+    print(result, json)?;
+    Ok(crate::status(ended))
 }
 
 /// `cps-cli ros2 show`: the experiment's markers published, and what was shown.
 fn show(a: &ShowArgs, stop: &StopToken) -> Result<Answer> {
     let shown = markers::experiment_markers(&a.experiment, a.results.as_deref(), &a.frame);
-    let shown = shown.map_err(cli_error)?;
+    let shown = shown?;
     let (n, path, via) = (
         shown.markers.markers.len(),
         shown.path_points,
         shown.via_points,
     );
     let p = publish_latched(&shown.markers, &a.topic, a.seconds, a.domain, stop);
-    let (p, (shapes, obstacles)) = (p.map_err(cli_error)?, shown.robot.counts());
+    let (p, (shapes, obstacles)) = (p?, shown.robot.counts());
     let (topic, frame, seconds, viewers) = (&a.topic, &a.frame, a.seconds, p.subscribers);
     let json = serde_json::json!({
         "topic": topic, "frame": frame, "domain": p.domain, "markers": n, "path_points": path,

@@ -12,7 +12,6 @@ use cps_movement::robot_file::Answer;
 use cps_outcome::files::{table_csv, write_file};
 use cps_outcome::results_dir::{FileKind, check_file_target};
 
-use crate::cli_error;
 use crate::robot::{RobotArgs, print};
 
 /// A joint trajectory in, a file out.
@@ -38,7 +37,7 @@ impl FileToFile {
         json: serde_json::Value,
         lines: Vec<String>,
     ) -> Result<ExitCode> {
-        write_file(&self.out, bytes).map_err(cli_error)?;
+        write_file(&self.out, bytes)?;
         let mut all = vec![format!(
             "{} ({} bytes) written",
             self.out.display(),
@@ -71,7 +70,7 @@ pub fn retime(args: &RetimeArgs) -> Result<ExitCode> {
     let mode = RetimeMode::parse(&args.mode).map_err(InputError)?;
     check_file_target(&io.out, FileKind::TrajectoryCsv, io.force)?;
     let report = retime_file(&io.file, &io.arm.load()?, args.rate, mode)?;
-    let csv = table_csv(&report.table).map_err(cli_error)?;
+    let csv = table_csv(&report.table)?;
     io.finish(&csv, report.json(), report.lines())
 }
 

@@ -34,8 +34,9 @@ use cps_kinematics::{ArmModel, IkConfig, IkTarget, solve_ik};
 use cps_robot::{Guarded, Policy, Robot, StopToken};
 use nalgebra::{Isometry3, IsometryMatrix3, Translation3, Vector3, Vector6};
 
-use crate::franka::robot_error;
-use cps_outcome::{ExperimentError, InputError};
+use cps_outcome::InputError;
+
+use crate::error::DriveError;
 
 /// A DMP over the tool's offset on the surface and the pressing force.
 #[derive(Debug, Clone)]
@@ -63,7 +64,7 @@ pub const PRIMITIVE_BASES: usize = 30;
 
 impl ForcePrimitive {
     /// Learns the primitive from a demonstration: times (s) and rows `[dx, dy, dz, force]`.
-    pub fn imitate(times: Vec<f64>, rows: &[Vec<f64>]) -> Result<Self, ExperimentError> {
+    pub fn imitate(times: Vec<f64>, rows: &[Vec<f64>]) -> Result<Self, DriveError> {
         let bad = |e: cps_dmp::DmpError| InputError(format!("force primitive: {e}"));
         if rows.iter().any(|r| r.len() != 4) {
             return Err(InputError(
@@ -87,7 +88,7 @@ impl ForcePrimitive {
     /// The primitive through `points` (at least two, times increasing from 0, forces in
     /// [0, 100] N, offsets within 1 m): minimum-jerk between consecutive way points, sampled
     /// every millisecond, then imitated.
-    pub fn from_waypoints(points: &[ContactWaypoint]) -> Result<Self, ExperimentError> {
+    pub fn from_waypoints(points: &[ContactWaypoint]) -> Result<Self, DriveError> {
         let bad = |i: usize, why: String| InputError(format!("waypoints[{i}]: {why}"));
         if points.len() < 2 {
             return Err(InputError("waypoints: give at least two".into()).into());
@@ -390,12 +391,9 @@ pub fn run_contact(
     options: &LoopOptions,
     plan: &ContactPlan,
     stop: &AtomicBool,
-) -> Result<ContactOutcome, ExperimentError> {
+) -> Result<ContactOutcome, DriveError> {
     plan.check()?;
-    let robot = |e: cps_franka::FrankaError| ExperimentError::Message(e.to_string());
-    let (state, _) = conn
-        .newest_state(std::time::Duration::from_secs(1))
-        .map_err(robot)?;
+    let (state, _) = conn.newest_state(std::time::Duration::from_secs(1))?;
     let start = model.frames(&state.q).tool;
     let n = Vector3::from(plan.direction).normalize();
     let above = Vector3::from(plan.above);
@@ -497,8 +495,7 @@ pub fn run_contact(
             tau: tau_c,
             finished: stage == Stage::Done,
         }
-    })
-    .map_err(robot)?;
+    })?;
     let ending = if report.ending.complete() {
         stages.ending
     } else {
@@ -677,8 +674,8 @@ pub struct RobotAt {
 fn connect_with_model(
     robot: &RobotAt,
     sensing: &mut SensingOptions,
-) -> Result<(Connection, ArmModel<7>), ExperimentError> {
-    let mut conn = Connection::connect(&robot.host, Default::default()).map_err(robot_error)?;
+) -> Result<(Connection, ArmModel<7>), DriveError> {
+    let mut conn = Connection::connect(&robot.host, Default::default())?;
     let model = dynamics(&mut conn, robot, sensing)?;
     Ok((conn, model))
 }
@@ -689,16 +686,14 @@ fn dynamics(
     conn: &mut Connection,
     robot: &RobotAt,
     sensing: &mut SensingOptions,
-) -> Result<ArmModel<7>, ExperimentError> {
-    let (state, _) = conn
-        .newest_state(std::time::Duration::from_secs(1))
-        .map_err(robot_error)?;
-    conn.ensure_ready(&state).map_err(robot_error)?;
-    let model = cps_franka::control::robot_dynamics(conn, &state).map_err(robot_error)?;
+) -> Result<ArmModel<7>, DriveError> {
+    let (state, _) = conn.newest_state(std::time::Duration::from_secs(1))?;
+    conn.ensure_ready(&state)?;
+    let model = cps_franka::control::robot_dynamics(conn, &state)?;
     let (model, friction) = robot
         .drive
         .apply(model)
-        .map_err(|e| ExperimentError::Message(format!("the drive's model: {e}")))?;
+        .map_err(|e| DriveError::during("the drive's model", e))?;
     sensing.friction = friction;
     Ok(model)
 }
@@ -712,7 +707,7 @@ pub fn contact_on_robot(
     robot: &RobotAt,
     plan: &ContactPlan,
     stop: &StopToken,
-) -> Result<ContactOutcome, ExperimentError> {
+) -> Result<ContactOutcome, DriveError> {
     plan.check()?;
     let mut plan = plan.clone();
     let mut model = cps_movement::robot_file::load_robot(robot.arm.name(), Some("hand"), None)?;
@@ -725,19 +720,12 @@ pub fn contact_on_robot(
         realtime: robot.realtime,
         dt: 0.01,
     };
-    let mut franka = Guarded::new(
-        FrankaRobot::connect(&settings, model)
-            .map_err(|e| ExperimentError::Message(e.to_string()))?,
-        Policy::EXPERIMENT,
-    );
-    let free = |e: cps_robot::RobotError| {
-        ExperimentError::Message(format!("the free motion above the surface: {e}"))
-    };
+    let mut franka = Guarded::new(FrankaRobot::connect(&settings, model)?, Policy::EXPERIMENT);
+    let free =
+        |e: cps_robot::RobotError| DriveError::during("the free motion above the surface", e);
     let q = franka.joint_positions().map_err(free)?;
     let chain = &franka.model().chain;
-    let tool = chain
-        .fk(&q)
-        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    let tool = chain.fk(&q)?;
     let target = IkTarget::Pose(IsometryMatrix3::from_parts(
         Translation3::from(Vector3::from(plan.above)),
         tool.rotation,
@@ -788,7 +776,7 @@ pub fn follow_with_impedance(
     positions: &[[f64; 3]],
     gains: CartesianGains,
     stop: &AtomicBool,
-) -> Result<Followed, ExperimentError> {
+) -> Result<Followed, DriveError> {
     if times.len() != positions.len() || times.len() < 2 {
         return Err(InputError(format!(
             "impedance: {} times for {} positions; give at least two of each, as many",
@@ -814,9 +802,7 @@ pub fn follow_with_impedance(
     }
     let mut sensing = SensingOptions::default();
     let (mut conn, model) = connect_with_model(robot, &mut sensing)?;
-    let (state, _) = conn
-        .newest_state(std::time::Duration::from_secs(1))
-        .map_err(robot_error)?;
+    let (state, _) = conn.newest_state(std::time::Duration::from_secs(1))?;
     let start = model.frames(&state.q).tool;
     let gap = (Vector3::from(positions[0]) - start.translation.vector).norm();
     if gap > 0.05 {
@@ -879,8 +865,7 @@ pub fn follow_with_impedance(
                 finished: t >= end + 0.5,
             }
         },
-    )
-    .map_err(robot_error)?;
+    )?;
     Ok(Followed {
         report,
         target: target_log,

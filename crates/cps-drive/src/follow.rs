@@ -16,9 +16,11 @@ use cps_chunks::{
     ChunkLog, FollowError, FollowReport, FollowSettings, Followed, Replay, follow, replay_plan,
 };
 use cps_franka::limits::DT;
-use cps_movement::robot_file::Answer;
 use cps_outcome::results_dir::{FileKind, check_file_target};
-use cps_outcome::{Ended, ExperimentError, InputError};
+use cps_outcome::{Ended, InputError};
+
+use crate::error::DriveError;
+use crate::said::ExecutedTo;
 use cps_robot::{Policy, Robot, RobotError, StopToken};
 use serde_json::{Value, json};
 
@@ -102,7 +104,7 @@ pub fn franka_follow_from(
     force: bool,
     ready: &dyn Fn(std::net::SocketAddr),
     stop: &StopToken,
-) -> Result<(Answer, Ended), ExperimentError> {
+) -> Result<(ExecutedTo, Ended), DriveError> {
     match chunks {
         Chunks::File { path, rate_hz } => {
             franka_follow(path, *rate_hz, exec, settings, record, force, stop)
@@ -123,7 +125,7 @@ pub fn franka_follow(
     record: Option<&Path>,
     force: bool,
     stop: &StopToken,
-) -> Result<(Answer, Ended), ExperimentError> {
+) -> Result<(ExecutedTo, Ended), DriveError> {
     if let Some(r) = record {
         check_record_target(r, force)?;
         check_file_target(&chunks_path(r), FileKind::ChunkCsv, force)?;
@@ -132,18 +134,19 @@ pub fn franka_follow(
     let chunks = cps_movement::chunks::read_chunks(file, 7, rate_hz)?;
     let name = file.display().to_string();
     let mut robot = guarded_arm(exec, Policy::STRICT)?;
-    let q0 = robot
-        .joint_positions()
-        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    let q0 = robot.joint_positions()?;
     let plan = replay_plan(robot.model(), &q0, DT, &chunks, settings)
         .map_err(|e| InputError(format!("{name}: {e}")))?;
     let mut source = Replay::new(chunks);
     let run: Followed =
         follow(&mut robot, &mut source, Some(&plan), settings, stop).map_err(|e| match e {
-            FollowError::Robot(RobotError::Refused { reason, .. }) => ExperimentError::Message(format!(
-                "{name}: refused before sending anything: the executor's commands for these chunks from where the arm stands break a limit: {reason}"
-            )),
-            other => ExperimentError::Message(format!("{name}: {other}")),
+            FollowError::Robot(RobotError::Refused { robot, reason }) => DriveError::Refused {
+                sentence: format!(
+                    "{name}: refused before sending anything: the executor's commands for these chunks from where the arm stands break a limit: {reason}"
+                ),
+                source: Box::new(RobotError::Refused { robot, reason }),
+            },
+            other => DriveError::during(&name, other),
         })?;
     let log: ChunkLog = source.into_log();
     let report = FollowReport::new(&run, &log);
@@ -161,12 +164,11 @@ fn answer(
     record: Option<&Path>,
     streamed: Option<cps_files::replace::Staged>,
     extra: Vec<(String, Value)>,
-) -> Result<(Answer, Ended), ExperimentError> {
+) -> Result<(ExecutedTo, Ended), DriveError> {
     let executed = Executed {
         host: exec.host.clone(),
         arm: exec.arm,
-        report: franka
-            .ok_or_else(|| ExperimentError::Message("the robot sent no report".into()))?,
+        report: franka.ok_or_else(|| DriveError::Failed("the robot sent no report".into()))?,
         approach: 0,
         how: "action chunks followed",
     };
@@ -175,21 +177,20 @@ fn answer(
     for (k, v) in &extra {
         json[k] = v.clone();
     }
-    let mut lines = match record {
+    let mut more = Vec::new();
+    let at = match record {
         Some(r) => {
             write_recording(r, &executed.report.samples, &json)?;
             match streamed {
                 // Written as the chunks came back: put in place.
                 Some(staged) => {
                     if let Some(e) = &log.unwritten {
-                        return Err(ExperimentError::Message(format!(
+                        return Err(DriveError::Failed(format!(
                             "{}: the chunks could not be written ({e}); the recording and its report are written",
                             chunks_path(r).display()
                         )));
                     }
-                    staged
-                        .commit()
-                        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+                    staged.commit()?;
                 }
                 None => {
                     let chunks: Vec<_> = log.entries.iter().map(|(c, _)| c.clone()).collect();
@@ -197,17 +198,23 @@ fn answer(
                     cps_outcome::files::write_file(&chunks_path(r), text.as_bytes())?;
                 }
             }
-            let mut l = executed.lines(r);
-            l.push(format!(
+            more.push(format!(
                 "  chunks as replayed: {}",
                 chunks_path(r).display()
             ));
-            l
+            r.to_path_buf()
         }
-        None => executed.lines(Path::new("(not recorded: --record)")),
+        None => "(not recorded: --record)".into(),
     };
-    lines.extend(report.lines().into_iter().map(|l| format!("  {l}")));
-    Ok((Answer { json, lines }, ended(&executed.report.ending)))
+    more.extend(report.lines().into_iter().map(|l| format!("  {l}")));
+    let ended = ended(&executed.report.ending);
+    let executed = ExecutedTo {
+        executed,
+        record: at,
+        report: json,
+        more,
+    };
+    Ok((executed, ended))
 }
 
 /// Where a policy in another process reaches the executor (see [`crate::chunk_socket`]).
@@ -231,7 +238,7 @@ pub fn franka_follow_live(
     force: bool,
     ready: &dyn Fn(std::net::SocketAddr),
     stop: &StopToken,
-) -> Result<(Answer, Ended), ExperimentError> {
+) -> Result<(ExecutedTo, Ended), DriveError> {
     if let Some(r) = record {
         check_record_target(r, force)?;
         check_file_target(&chunks_path(r), FileKind::ChunkCsv, force)?;
@@ -239,9 +246,7 @@ pub fn franka_follow_live(
     crate::chunk_socket::check_listen(&listen.addr, &listen.allow).map_err(InputError)?;
     let socket = std::net::UdpSocket::bind(listen.addr)
         .map_err(|e| InputError(format!("--listen {}: {e}", listen.addr)))?;
-    let bound = socket
-        .local_addr()
-        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    let bound = socket.local_addr()?;
     let streamed = record.map(|r| stream_chunks(r, force)).transpose()?;
     let mut live = LiveRun::start(&ChunkRobot::Franka(exec.clone()), *settings, stop.clone())?;
     // Each chunk goes to the chunk file as it comes back (or nowhere, unrecorded), and
@@ -281,7 +286,7 @@ pub fn franka_follow_live(
         vec![("socket".into(), socket_json)],
     )?;
     if let Some(f) = &failure {
-        a.lines.push(format!(
+        a.more.push(format!(
             "  the socket failed: {f}; the arm was braked to rest"
         ));
         code = code.max(Ended::Failed);
@@ -290,12 +295,12 @@ pub fn franka_follow_live(
         // the stream closed before the stop, and ended as if it had ended.
         code = Ended::Stopped;
     }
-    a.lines.push(format!(
+    a.more.push(format!(
         "  socket {bound}: {} chunks, {} state requests; {} datagrams from senders not allowed, {} refused",
         counts.chunks, counts.states, counts.foreign, counts.refused
     ));
     for r in &counts.reasons {
-        a.lines.push(format!("    refused: {r}"));
+        a.more.push(format!("    refused: {r}"));
     }
     Ok((a, code))
 }
@@ -309,7 +314,7 @@ const MAX_CHUNK_ROWS: usize = 10_000_000;
 fn stream_chunks(
     record: &Path,
     force: bool,
-) -> Result<(cps_files::replace::Staged, cps_chunks::Sink), ExperimentError> {
+) -> Result<(cps_files::replace::Staged, cps_chunks::Sink), DriveError> {
     use cps_files::replace::{Output, Shape};
     use std::io::Write;
     let shape = Shape::file(|p| {
@@ -321,10 +326,10 @@ fn stream_chunks(
     let file = std::fs::OpenOptions::new()
         .write(true)
         .open(staged.path())
-        .map_err(|e| ExperimentError::Message(format!("{}: {e}", staged.path().display())))?;
+        .map_err(|e| DriveError::during(staged.path().display().to_string(), e))?;
     let mut out = std::io::BufWriter::new(file);
     writeln!(out, "{}", cps_movement::chunks::header(7))
-        .map_err(|e| ExperimentError::Message(format!("{}: {e}", staged.path().display())))?;
+        .map_err(|e| DriveError::during(staged.path().display().to_string(), e))?;
     // A sender flooding the socket must not fill the disk either: the file stops at its
     // ceiling, and the run says so (the recording and its report are still written).
     let mut rows = 0usize;
@@ -370,18 +375,17 @@ enum Opened {
 }
 
 impl ChunkRobot {
-    fn open(&self) -> Result<Opened, ExperimentError> {
+    fn open(&self) -> Result<Opened, DriveError> {
         let simulated = |arm: cps_franka::limits::Arm, start: &Option<Vec<f64>>, dynamics: bool| {
             let model = cps_movement::robot_file::load_robot(arm.name(), Some("hand"), None)?;
             let start = start.clone().unwrap_or_else(|| model.ready.clone());
             if start.len() != 7 || start.iter().any(|x| !x.is_finite()) {
-                return Err(ExperimentError::from(InputError(
+                return Err(DriveError::from(InputError(
                     "start: seven finite joint positions (rad)".into(),
                 )));
             }
             let robot: Box<dyn Robot> = if dynamics {
-                cps_dynamics::open(model, &start, &cps_dynamics::DynamicsOptions::default())
-                    .map_err(|e| ExperimentError::Message(e.to_string()))?
+                cps_dynamics::open(model, &start, &cps_dynamics::DynamicsOptions::default())?
             } else {
                 Box::new(
                     cps_robot::KinematicRobot::of_model(model, &start, DT)
@@ -418,7 +422,7 @@ type Finished = Result<
         cps_chunks::LiveSource,
         Option<cps_franka::MotionReport>,
     ),
-    ExperimentError,
+    DriveError,
 >;
 
 /// A live chunk stream on a robot: the robot's loop runs on a thread of its own from
@@ -439,7 +443,7 @@ impl LiveRun {
         robot: &ChunkRobot,
         settings: FollowSettings,
         stop: StopToken,
-    ) -> Result<LiveRun, ExperimentError> {
+    ) -> Result<LiveRun, DriveError> {
         settings.check().map_err(|e| InputError(e.to_string()))?;
         let opened = robot.open()?;
         let (feed, source) = cps_chunks::live(7);
@@ -447,24 +451,21 @@ impl LiveRun {
         let handle = std::thread::Builder::new()
             .name("cps-chunks".into())
             .spawn(move || -> Finished {
-                let message = |e: FollowError| ExperimentError::Message(e.to_string());
                 match opened {
                     Opened::Franka(mut r) => {
                         let mut source = source;
-                        let run = follow(r.as_mut(), &mut source, None, &settings, &inner)
-                            .map_err(message)?;
+                        let run = follow(r.as_mut(), &mut source, None, &settings, &inner)?;
                         let report = r.inner().reports().last().cloned();
                         Ok((run, source, report))
                     }
                     Opened::Simulated(mut r) => {
                         let mut source = source.paced();
-                        let run = follow(&mut r, &mut source, None, &settings, &inner)
-                            .map_err(message)?;
+                        let run = follow(&mut r, &mut source, None, &settings, &inner)?;
                         Ok((run, source, None))
                     }
                 }
             })
-            .map_err(|e| ExperimentError::Message(format!("the robot's loop: {e}")))?;
+            .map_err(|e| DriveError::during("the robot's loop", e))?;
         Ok(LiveRun {
             feed: Some(feed),
             stop,
@@ -485,13 +486,13 @@ impl LiveRun {
 
     /// Closes the stream, waits for the run to end and returns it with its log and
     /// report.
-    pub fn finish(mut self) -> Result<LiveOutcome, ExperimentError> {
+    pub fn finish(mut self) -> Result<LiveOutcome, DriveError> {
         let mut feed = self.feed.take().expect("finished once");
         feed.close();
         let handle = self.handle.take().expect("finished once");
         let (followed, source, franka) = handle
             .join()
-            .map_err(|_| ExperimentError::Message("the robot's loop panicked".into()))??;
+            .map_err(|_| DriveError::Failed("the robot's loop panicked".into()))??;
         let log = feed.into_log(source);
         let report = FollowReport::new(&followed, &log);
         Ok(LiveOutcome {

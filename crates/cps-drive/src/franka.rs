@@ -12,8 +12,8 @@ use std::path::Path;
 
 use cps_franka::limits::{Arm, DT, RateLimits};
 use cps_franka::{
-    Connection, FrankaError, FrankaRobot, FrankaSettings, Gripper, GripperCommand, LoopOptions,
-    MotionEnd, MotionReport, Realtime, RobotState, Sample, Timeouts,
+    Connection, FrankaRobot, FrankaSettings, Gripper, GripperCommand, LoopOptions, MotionEnd,
+    MotionReport, Realtime, RobotState, Sample, Timeouts,
 };
 use cps_kinematics::Quantity;
 use cps_robot::{
@@ -23,9 +23,12 @@ use serde_json::{Value, json};
 
 use cps_movement::limits::{JointTrajectory, at_rate, read_joint_trajectory};
 use cps_movement::retiming::{RetimeMode, retime_samples};
-use cps_movement::robot_file::{Answer, load_robot};
+use cps_movement::robot_file::load_robot;
 use cps_outcome::outcome::{Column, Format, Table};
-use cps_outcome::{Ended, ExperimentError, InputError};
+use cps_outcome::{Ended, InputError};
+
+use crate::error::DriveError;
+use crate::said::{ExecutedTo, HandAt, Recorded, StateAt, fmt7};
 
 use crate::recording::{check_record_target, report_path};
 
@@ -51,59 +54,17 @@ pub fn parse_realtime(name: &str) -> Result<Realtime, InputError> {
     })
 }
 
-/// A Franka's error as cps reports it: the caller's input (exit 2 on the command line) or
-/// the robot's failure.
-pub(crate) fn robot_error(e: FrankaError) -> ExperimentError {
-    match e {
-        FrankaError::Input(s) => InputError(s).into(),
-        FrankaError::Setting(s) => InputError(s.to_string()).into(),
-        other => ExperimentError::Message(other.to_string()),
-    }
+fn connect(host: &str) -> Result<Connection, DriveError> {
+    Ok(Connection::connect(host, Timeouts::default())?)
 }
 
-fn connect(host: &str) -> Result<Connection, ExperimentError> {
-    Connection::connect(host, Timeouts::default()).map_err(robot_error)
-}
-
-fn fmt7(x: &[f64]) -> String {
-    x.iter()
-        .map(|v| format!("{v:.4}"))
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
-/// `cps-cli franka state`: one state as JSON `{"q", "dq", "tau_J", "O_T_EE", "tool_position",
-/// "robot_mode", "errors", "control_command_success_rate", "message_id"}` and as lines.
-pub fn state(host: &str) -> Result<Answer, ExperimentError> {
-    let mut robot = connect(host)?;
-    let s: RobotState = robot.read_state().map_err(robot_error)?;
-    let errors = s.errors.names();
-    let json = json!({
-        "host": host,
-        "message_id": s.message_id,
-        "q": s.q, "dq": s.dq, "tau_J": s.tau_j, "q_d": s.q_d,
-        "O_T_EE": s.o_t_ee, "tool_position": s.tool_position(),
-        "robot_mode": s.robot_mode.name(),
-        "errors": errors,
-        "control_command_success_rate": s.control_command_success_rate,
-    });
-    let p = s.tool_position();
-    let lines = vec![
-        format!(
-            "{host}: {} ({})",
-            s.robot_mode.name(),
-            s.robot_mode.sentence()
-        ),
-        format!("  q      [{}] rad", fmt7(&s.q)),
-        format!("  dq     [{}] rad/s", fmt7(&s.dq)),
-        format!("  tau_J  [{}] N m", fmt7(&s.tau_j)),
-        format!(
-            "  tool   ({:.4}, {:.4}, {:.4}) m in the base frame",
-            p[0], p[1], p[2]
-        ),
-        format!("  errors {}", s.errors.describe()),
-    ];
-    Ok(Answer { json, lines })
+/// `cps-cli franka state`: one state of the robot at `host`.
+pub fn state(host: &str) -> Result<StateAt, DriveError> {
+    let state: RobotState = connect(host)?.read_state()?;
+    Ok(StateAt {
+        host: host.to_string(),
+        state,
+    })
 }
 
 /// What `franka execute` does.
@@ -151,7 +112,7 @@ pub struct FrankaCommands {
 /// Reads a joint trajectory (`t`, then seven positions in rad) and makes it 1 kHz commands:
 /// retimed to the arm's limits (at [`RETIME_SHARE`]), or resampled by a cubic spline that
 /// starts and ends at rest, or taken as it is when it is sampled at 1 kHz.
-pub fn prepare(file: &Path, arm: Arm, retime: bool) -> Result<FrankaCommands, ExperimentError> {
+pub fn prepare(file: &Path, arm: Arm, retime: bool) -> Result<FrankaCommands, DriveError> {
     let traj: JointTrajectory = read_joint_trajectory(file, 7)?;
     prepare_samples(&file.display().to_string(), &traj, arm, retime)
 }
@@ -163,7 +124,7 @@ pub fn prepare_samples(
     traj: &JointTrajectory,
     arm: Arm,
     retime: bool,
-) -> Result<FrankaCommands, ExperimentError> {
+) -> Result<FrankaCommands, DriveError> {
     if traj.times.is_empty() || traj.q.len() != traj.times.len() {
         return Err(InputError(format!(
             "{name}: {} times for {} rows of positions",
@@ -204,11 +165,7 @@ pub fn prepare_samples(
     let (rows, how) = if retime {
         let mut model = load_robot(arm.name(), Some("flange"), None)?;
         let l = RateLimits::of(arm).scaled(RETIME_SHARE);
-        model.chain = model
-            .chain
-            .clone()
-            .with_velocity_limits(&l.dq_max)
-            .map_err(|e| ExperimentError::Message(e.to_string()))?;
+        model.chain = model.chain.clone().with_velocity_limits(&l.dq_max)?;
         model.limits.acceleration = Some(l.ddq_max.to_vec());
         model.limits.jerk = Some(l.dddq_max.to_vec());
         let r = retime_samples(&model, traj, 1000.0, RetimeMode::Fastest).map_err(|e| {
@@ -260,7 +217,7 @@ pub struct Executed {
 /// The arm's own model (its flange, its base frame as the world) with its limits, and its
 /// shapes with the Franka Hand's (the hand franky-sim and most arms carry; an arm without
 /// one is only checked more carefully): what a trajectory file for it is checked against.
-pub(crate) fn arm_model(arm: Arm) -> Result<cps_robot::RobotModel, ExperimentError> {
+pub(crate) fn arm_model(arm: Arm) -> Result<cps_robot::RobotModel, DriveError> {
     let mut model = load_robot(arm.name(), Some("flange"), None)?;
     let with_hand = load_robot(arm.name(), Some("hand"), None)?;
     model.shapes = with_hand.shapes;
@@ -271,7 +228,7 @@ pub(crate) fn arm_model(arm: Arm) -> Result<cps_robot::RobotModel, ExperimentErr
 pub(crate) fn guarded_arm(
     settings: &ExecuteSettings,
     policy: Policy,
-) -> Result<Guarded<FrankaRobot>, ExperimentError> {
+) -> Result<Guarded<FrankaRobot>, DriveError> {
     let robot = FrankaRobot::connect(
         &FrankaSettings {
             host: settings.host.clone(),
@@ -280,15 +237,14 @@ pub(crate) fn guarded_arm(
             dt: DT,
         },
         arm_model(settings.arm)?,
-    )
-    .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    )?;
     Ok(Guarded::new(robot, policy))
 }
 
 /// A refusal of the guard in the words of `franka execute` (`source` names the file):
 /// what to pass to get past it.
-fn refusal(source: &str, arm: Arm, e: RobotError) -> ExperimentError {
-    let text = match &e {
+fn refusal(source: &str, arm: Arm, e: RobotError) -> DriveError {
+    let sentence = match &e {
         RobotError::Refused { reason, .. } => match reason {
             Refusal::Start { .. } => format!(
                 "{source}: refused before sending anything: {reason}; pass --approach to move there first"
@@ -312,9 +268,12 @@ fn refusal(source: &str, arm: Arm, e: RobotError) -> ExperimentError {
                 arm.name()
             ),
         },
-        other => format!("{source}: {other}"),
+        _ => return DriveError::during(source, e),
     };
-    ExperimentError::Message(text)
+    DriveError::Refused {
+        sentence,
+        source: Box::new(e),
+    }
 }
 
 /// Connects, checks the prepared commands from where the robot is (an approach first when
@@ -325,7 +284,7 @@ pub fn execute(
     prepared: &FrankaCommands,
     settings: &ExecuteSettings,
     stop: &StopToken,
-) -> Result<Executed, ExperimentError> {
+) -> Result<Executed, DriveError> {
     let mut robot = guarded_arm(
         settings,
         Policy {
@@ -347,7 +306,7 @@ pub fn execute(
         .reports()
         .last()
         .cloned()
-        .ok_or_else(|| ExperimentError::Message("the robot sent no report".into()))?;
+        .ok_or_else(|| DriveError::Failed("the robot sent no report".into()))?;
     let blend = franka.last_stream().map_or(0, |s| s.approach);
     Ok(Executed {
         host: settings.host.clone(),
@@ -390,7 +349,7 @@ pub fn execute_model(
     settings: &ExecuteSettings,
     online: &DmpSettings,
     stop: &StopToken,
-) -> Result<Executed, ExperimentError> {
+) -> Result<Executed, DriveError> {
     use cps_dmp::{OnlineDmp, StepInput};
     let (file, dmp, weights) = cps_movement::movement::read_model(model)?;
     if dmp.dims() != 7 {
@@ -413,15 +372,13 @@ pub fn execute_model(
         return Err(InputError("--goal: seven finite joint positions (rad)".into()).into());
     }
     let mut robot = guarded_arm(settings, Policy::STRICT)?;
-    let here = robot
-        .joint_positions()
-        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    let here = robot.joint_positions()?;
     let from = <[f64; 7]>::try_from(here.as_slice()).expect("seven joints");
     let dmp = dmp
         .with_endpoints(&from, &goal)
         .map_err(|e| InputError(format!("{}: {e}", model.display())))?;
     let tau = online.tau.unwrap_or(dmp.config().tau);
-    let fresh = || -> Result<OnlineDmp, ExperimentError> {
+    let fresh = || -> Result<OnlineDmp, DriveError> {
         let mut o = OnlineDmp::new(&dmp, &weights).with_error_gain(online.error_gain);
         o.set_tau(tau)
             .map_err(|e| InputError(format!("--tau: {e}")))?;
@@ -447,9 +404,7 @@ pub fn execute_model(
             coupling: over.then_some(&cancel[..]),
             tracking_error: 0.0,
         };
-        nominal
-            .step_with(1e-3, input)
-            .map_err(|e| ExperimentError::Message(e.to_string()))?;
+        nominal.step_with(1e-3, input)?;
         let q = <[f64; 7]>::try_from(nominal.position()).expect("seven joints");
         commands.push(q.to_vec());
         if settled(&q, &prev, over) || commands.len() > (10.0 * tau * 1000.0) as usize {
@@ -458,8 +413,7 @@ pub fn execute_model(
         prev = q;
     }
     let name = model.display().to_string();
-    let nominal_plan =
-        Plan::new(DT, commands).map_err(|e| ExperimentError::Message(e.to_string()))?;
+    let nominal_plan = Plan::new(DT, commands)?;
     // Online: one step per tick, the phase slowed by the measured lag. Phase stopping may
     // stretch the movement: room for four times its nominal length (then the robot is
     // braked).
@@ -495,17 +449,20 @@ pub fn execute_model(
         finished
     };
     robot.stream(&nominal_plan, &mut next, max, stop).map_err(|e| match e {
-        RobotError::Refused { reason, .. } => ExperimentError::Message(format!(
-            "{name}: refused before sending anything: the model's movement from where the robot is breaks a limit: {reason} (a longer --tau slows it)"
-        )),
-        other => ExperimentError::Message(format!("{name}: {other}")),
+        RobotError::Refused { robot, reason } => DriveError::Refused {
+            sentence: format!(
+                "{name}: refused before sending anything: the model's movement from where the robot is breaks a limit: {reason} (a longer --tau slows it)"
+            ),
+            source: Box::new(RobotError::Refused { robot, reason }),
+        },
+        other => DriveError::during(&name, other),
     })?;
     let report = robot
         .inner()
         .reports()
         .last()
         .cloned()
-        .ok_or_else(|| ExperimentError::Message("the robot sent no report".into()))?;
+        .ok_or_else(|| DriveError::Failed("the robot sent no report".into()))?;
     Ok(Executed {
         host: settings.host.clone(),
         arm: settings.arm,
@@ -665,12 +622,14 @@ pub fn write_recording(
     record: &Path,
     samples: &[Sample],
     report: &Value,
-) -> Result<(), ExperimentError> {
+) -> Result<(), DriveError> {
     let csv = cps_outcome::files::table_csv(&recording_table(samples))?;
     cps_outcome::files::write_file(record, &csv)?;
-    let text = serde_json::to_string_pretty(report)
-        .map_err(|e| ExperimentError::Message(e.to_string()))?;
-    cps_outcome::files::write_file(&report_path(record), text.as_bytes())
+    let text = format!("{report:#}");
+    Ok(cps_outcome::files::write_file(
+        &report_path(record),
+        text.as_bytes(),
+    )?)
 }
 
 /// The robot's state for `seconds` (in (0, 3600]) or until `stop`, in memory, with its
@@ -680,7 +639,7 @@ pub fn record_samples(
     host: &str,
     seconds: f64,
     stop: &StopToken,
-) -> Result<(Vec<Sample>, Value), ExperimentError> {
+) -> Result<(Vec<Sample>, Value), DriveError> {
     if !(seconds.is_finite() && seconds > 0.0 && seconds <= 3600.0) {
         return Err(InputError(format!("--duration: {seconds} s is not in (0, 3600]")).into());
     }
@@ -692,11 +651,8 @@ pub fn record_samples(
             dt: DT,
         },
         arm_model(Arm::Fr3)?,
-    )
-    .map_err(|e| ExperimentError::Message(e.to_string()))?;
-    let run = robot
-        .record(std::time::Duration::from_secs_f64(seconds), stop)
-        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    )?;
+    let run = robot.record(std::time::Duration::from_secs_f64(seconds), stop)?;
     let samples = robot.last_recording().to_vec();
     let duration = samples.last().map_or(0.0, |s| s.t);
     let ending = match &run.ending {
@@ -717,31 +673,24 @@ pub fn record(
     out: &Path,
     force: bool,
     stop: &StopToken,
-) -> Result<(Answer, Ended), ExperimentError> {
+) -> Result<(Recorded, Ended), DriveError> {
     check_record_target(out, force)?;
     let (samples, report) = record_samples(host, seconds, stop)?;
     write_recording(out, &samples, &report)?;
     let (complete, stopped) = (report["complete"] == true, stop.is_stopped());
-    let lines = vec![
-        format!("{host}: {}", report["ending"].as_str().unwrap_or_default()),
-        format!(
-            "  {} samples over {:.3} s in {}",
-            samples.len(),
-            report["duration_s"].as_f64().unwrap_or(0.0),
-            out.display()
-        ),
-    ];
     let code = match (stopped, complete) {
         (true, _) => Ended::Stopped,
         (false, done) => Ended::of(done),
     };
-    Ok((
-        Answer {
-            json: report,
-            lines,
-        },
-        code,
-    ))
+    let recorded = Recorded {
+        host: host.to_string(),
+        out: out.to_path_buf(),
+        samples: samples.len(),
+        duration_s: report["duration_s"].as_f64().unwrap_or(0.0),
+        guided: false,
+        report,
+    };
+    Ok((recorded, code))
 }
 
 /// What `franka guide` needs beyond the recording's path.
@@ -766,7 +715,7 @@ pub struct GuideSettings {
 pub fn guide_samples(
     settings: &GuideSettings,
     stop: &StopToken,
-) -> Result<(Vec<Sample>, Value), ExperimentError> {
+) -> Result<(Vec<Sample>, Value), DriveError> {
     let mut guiding = cps_franka::guide::Guiding {
         duration: settings.seconds,
         ..Default::default()
@@ -785,8 +734,7 @@ pub fn guide_samples(
     let report = {
         let _moving = stop.moving();
         cps_franka::guide::run_guiding(&mut robot, limits, &options, stop.flag(), &guiding)
-    }
-    .map_err(robot_error)?;
+    }?;
     let json = json!({
         "complete": report.ending.complete(),
         "ending": report.ending.sentence(),
@@ -809,24 +757,10 @@ pub fn guide(
     out: &Path,
     force: bool,
     stop: &StopToken,
-) -> Result<(Answer, Ended), ExperimentError> {
+) -> Result<(Recorded, Ended), DriveError> {
     check_record_target(out, force)?;
     let (samples, json) = guide_samples(settings, stop)?;
     write_recording(out, &samples, &json)?;
-    let lines = vec![
-        format!(
-            "{}: guided by hand; {}",
-            settings.host,
-            json["ending"].as_str().unwrap_or_default()
-        ),
-        format!(
-            "  {} samples over {:.3} s in {} (imitate it: cps-cli imitate {} --columns q1,q2,q3,q4,q5,q6,q7 --out model.json)",
-            samples.len(),
-            samples.last().map_or(0.0, |s| s.t),
-            out.display(),
-            out.display()
-        ),
-    ];
     let code = if json["complete"] == true {
         Ended::Completed
     } else if stop.is_stopped() {
@@ -834,7 +768,15 @@ pub fn guide(
     } else {
         Ended::Failed
     };
-    Ok((Answer { json, lines }, code))
+    let recorded = Recorded {
+        host: settings.host.clone(),
+        out: out.to_path_buf(),
+        samples: samples.len(),
+        duration_s: samples.last().map_or(0.0, |s| s.t),
+        guided: true,
+        report: json,
+    };
+    Ok((recorded, code))
 }
 
 /// A gripper action of `franka gripper`: `home`, `move`, `grasp`, `stop`, `state`.
@@ -874,43 +816,19 @@ pub fn gripper_command(
 /// `franka gripper`: runs `command` (none: only the state) on the hand of the robot at
 /// `host` and answers with the state after it: `{"width", "max_width", "is_grasped",
 /// "temperature", "grasped"?}`. Bad arguments are refused before anything is sent.
-pub fn gripper(host: &str, command: Option<GripperCommand>) -> Result<Answer, ExperimentError> {
-    let mut hand =
-        Gripper::connect(host, std::time::Duration::from_secs(3)).map_err(robot_error)?;
+pub fn gripper(host: &str, command: Option<GripperCommand>) -> Result<HandAt, DriveError> {
+    let mut hand = Gripper::connect(host, std::time::Duration::from_secs(3))?;
     let held = match command {
-        Some(c) => Some(hand.run(c).map_err(|e| match e {
-            FrankaError::Input(s) => ExperimentError::Input(InputError(s)),
-            other => robot_error(other),
-        })?),
+        Some(c) => Some(hand.run(c)?),
         None => None,
     };
-    let s = hand
-        .state(std::time::Duration::from_secs(1))
-        .map_err(robot_error)?;
-    let mut json = json!({ "host": host, "width": s.width, "max_width": s.max_width, "is_grasped": s.is_grasped, "temperature": s.temperature });
-    let mut lines = vec![format!(
-        "{host} gripper: width {:.4} m of {:.4} m, {}, {} °C",
-        s.width,
-        s.max_width,
-        if s.is_grasped {
-            "holding"
-        } else {
-            "not holding"
-        },
-        s.temperature
-    )];
-    if let (Some(GripperCommand::Grasp { .. }), Some(g)) = (command, held) {
-        json["grasped"] = json!(g);
-        lines.insert(
-            0,
-            if g {
-                "grasped".into()
-            } else {
-                "nothing grasped within the tolerances".into()
-            },
-        );
-    }
-    Ok(Answer { json, lines })
+    let state = hand.state(std::time::Duration::from_secs(1))?;
+    let grasped = held.filter(|_| matches!(command, Some(GripperCommand::Grasp { .. })));
+    Ok(HandAt {
+        host: host.to_string(),
+        state,
+        grasped,
+    })
 }
 
 /// `franka execute` whole: the recording's target checked first; a joint trajectory CSV
@@ -924,7 +842,7 @@ pub fn execute_file(
     record: &Path,
     force: bool,
     stop: &StopToken,
-) -> Result<(Answer, Ended), ExperimentError> {
+) -> Result<(ExecutedTo, Ended), DriveError> {
     check_record_target(record, force)?;
     let is_model = file
         .extension()
@@ -942,10 +860,16 @@ pub fn execute_file(
         let prepared = prepare(file, settings.arm, settings.retime)?;
         execute(&prepared, settings, stop)?
     };
-    let json = done.json();
-    write_recording(record, &done.report.samples, &json)?;
-    let lines = done.lines(record);
-    Ok((Answer { json, lines }, ended(&done.report.ending)))
+    let report = done.json();
+    write_recording(record, &done.report.samples, &report)?;
+    let ended = ended(&done.report.ending);
+    let executed = ExecutedTo {
+        executed: done,
+        record: record.to_path_buf(),
+        report,
+        more: Vec::new(),
+    };
+    Ok((executed, ended))
 }
 
 /// How an execution ended: completed when it finished, stopped on request, failed

@@ -6,7 +6,7 @@
 //! fitted to — the calibrated robot driven by that part's commands from its first state —
 //! and written as a calibration file ([`cps_movement::calibration`]).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use cps_dynamics::{
     Calibration, Chirps, Identified, Recorded, excitation, identify, predict_until,
@@ -16,9 +16,11 @@ use cps_franka::limits::Arm;
 use cps_franka::rt::Realtime;
 use cps_kinematics::ArmModel;
 use cps_movement::calibration::{Calibrated, CalibrationFile, FitRecord, calibration_text};
-use cps_movement::robot_file::{Answer, load_robot};
+use cps_movement::robot_file::load_robot;
+use cps_outcome::InputError;
 use cps_outcome::results_dir::{FileKind, check_file_target};
-use cps_outcome::{ExperimentError, InputError};
+
+use crate::error::DriveError;
 use cps_robot::{RobotModel, StopToken};
 use serde_json::json;
 
@@ -64,24 +66,24 @@ impl IdentifySettings {
 }
 
 /// The arm as a dynamics model: its hand's inertias included (the robot carries it).
-fn dynamics_model(arm: &str) -> Result<(RobotModel, ArmModel<7>), ExperimentError> {
+fn dynamics_model(arm: &str) -> Result<(RobotModel, ArmModel<7>), DriveError> {
     let model = load_robot(arm, Some("hand"), None)?;
-    let links = model.inertia.clone().ok_or_else(|| {
-        ExperimentError::Message(format!("the {arm}'s link inertias are not known"))
-    })?;
+    let links = model
+        .inertia
+        .clone()
+        .ok_or_else(|| DriveError::Failed(format!("the {arm}'s link inertias are not known")))?;
     if model.chain.dof() != 7 {
-        return Err(ExperimentError::Message(format!(
+        return Err(DriveError::Failed(format!(
             "{arm}: identification is for seven-joint arms"
         )));
     }
-    let dynamics = ArmModel::<7>::new(&model.chain, &links)
-        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    let dynamics = ArmModel::<7>::new(&model.chain, &links)?;
     Ok((model, dynamics))
 }
 
-fn torque_limits(model: &RobotModel) -> Result<[f64; 7], ExperimentError> {
+fn torque_limits(model: &RobotModel) -> Result<[f64; 7], DriveError> {
     let t = model.limits.torque.as_ref().ok_or_else(|| {
-        ExperimentError::Message(format!("the {}'s torque limits are not known", model.name))
+        DriveError::Failed(format!("the {}'s torque limits are not known", model.name))
     })?;
     Ok(std::array::from_fn(|j| t[j]))
 }
@@ -106,12 +108,12 @@ fn fit_and_judge(
     fit: &Recorded<7>,
     held: &Recorded<7>,
     stop: &StopToken,
-) -> Result<(Identified<7>, [f64; 7]), ExperimentError> {
+) -> Result<(Identified<7>, [f64; 7]), DriveError> {
     let limits = torque_limits(model)?;
-    let found = identify(dynamics, fit, &limits).map_err(ExperimentError::Message)?;
+    let found = identify(dynamics, fit, &limits).map_err(DriveError::Failed)?;
     stopped(stop)?;
     if held.q.len() < 2 {
-        return Err(ExperimentError::Message(
+        return Err(DriveError::Failed(
             "nothing was held back to judge the calibration on".into(),
         ));
     }
@@ -123,7 +125,7 @@ fn fit_and_judge(
         held,
         stop,
     )
-    .map_err(ExperimentError::Message)?;
+    .map_err(DriveError::Failed)?;
     stopped(stop)?;
     let n = predicted.len().min(held.q.len() - 1);
     let rms = std::array::from_fn(|j| {
@@ -170,37 +172,72 @@ fn calibration_file(
     }
 }
 
-/// The answer every identification gives: JSON of the file and the lines to print.
-fn answer(file: &CalibrationFile, out: &Path) -> Answer {
-    let c = &file.calibration;
-    let fit = file.fit.as_ref().expect("a fit record");
-    let list = |v: &[f64]| {
-        v.iter()
-            .map(|x| format!("{x:.4}"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    let worst = fit.held_back_rms_mrad.iter().fold(0.0f64, |a, b| a.max(*b));
-    Answer {
-        json: json!({
-            "out": out.display().to_string(),
-            "calibration": c,
-            "fit": fit,
-        }),
-        lines: vec![
-            format!("{}: calibration written to {}", c.robot, out.display()),
-            format!("  kp [{}] N m/rad", list(&c.kp)),
-            format!("  kv [{}] N m s/rad, lag {} ms", list(&c.kv), c.lag_ms),
-            format!(
-                "  rotor inertia [{}] kg m², viscous [{}] N m s/rad, Coulomb [{}] N m",
-                list(&c.armature),
-                list(&c.viscous),
-                list(&c.coulomb)
-            ),
-            format!(
-                "  held back: the calibrated robot within {worst:.3} mrad RMS of the recording (worst joint)"
-            ),
-        ],
+/// What an identification gives: the calibration file written at `out`.
+#[derive(Debug, Clone)]
+pub struct CalibrationWritten {
+    /// The calibration and the record of its fit.
+    pub file: CalibrationFile,
+    /// Where it was written.
+    pub out: PathBuf,
+    /// `franka identify`: the robot's report of the excitation, whose loop timing is said
+    /// too.
+    pub excitation: Option<cps_franka::MotionReport>,
+}
+
+/// `{"out", "calibration", "fit"}`.
+impl serde::Serialize for CalibrationWritten {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let (c, fit) = (&self.file.calibration, &self.file.fit);
+        let mut json =
+            json!({ "out": self.out.display().to_string(), "calibration": c, "fit": fit });
+        if let Some(r) = &self.excitation {
+            json["complete"] = json!(true);
+            json["timing"] = crate::franka::timing_json(r);
+        }
+        json.serialize(s)
+    }
+}
+
+/// The gains, the lag and the drives, and how close the calibrated robot came to the
+/// held-back recording.
+impl std::fmt::Display for CalibrationWritten {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let c = &self.file.calibration;
+        let list = |v: &[f64]| {
+            v.iter()
+                .map(|x| format!("{x:.4}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let held = self
+            .file
+            .fit
+            .as_ref()
+            .map_or(&[][..], |f| &f.held_back_rms_mrad[..]);
+        let worst = held.iter().fold(0.0f64, |a, b| a.max(*b));
+        writeln!(
+            f,
+            "{}: calibration written to {}",
+            c.robot,
+            self.out.display()
+        )?;
+        writeln!(f, "  kp [{}] N m/rad", list(&c.kp))?;
+        writeln!(f, "  kv [{}] N m s/rad, lag {} ms", list(&c.kv), c.lag_ms)?;
+        writeln!(
+            f,
+            "  rotor inertia [{}] kg m², viscous [{}] N m s/rad, Coulomb [{}] N m",
+            list(&c.armature),
+            list(&c.viscous),
+            list(&c.coulomb)
+        )?;
+        write!(
+            f,
+            "  held back: the calibrated robot within {worst:.3} mrad RMS of the recording (worst joint)"
+        )?;
+        for line in self.excitation.iter().flat_map(crate::franka::timing_lines) {
+            write!(f, "\n{line}")?;
+        }
+        Ok(())
     }
 }
 
@@ -219,9 +256,9 @@ fn same_file(a: &Path, b: &Path) -> bool {
 }
 
 /// The error of an identification stopped by Ctrl-C or SIGTERM, once `stop` says so.
-fn stopped(stop: &StopToken) -> Result<(), ExperimentError> {
+fn stopped(stop: &StopToken) -> Result<(), DriveError> {
     if stop.is_stopped() {
-        return Err(ExperimentError::Message(
+        return Err(DriveError::Failed(
             "stopped before the calibration was complete; nothing was written".into(),
         ));
     }
@@ -246,12 +283,12 @@ impl<'a> Target<'a> {
     }
 
     /// Writes the calibration; a file that appeared at the path meanwhile is left alone.
-    fn write(&self, file: &CalibrationFile, comment: &[String]) -> Result<(), ExperimentError> {
-        cps_outcome::files::write_file_unless_new_there(
+    fn write(&self, file: &CalibrationFile, comment: &[String]) -> Result<(), DriveError> {
+        Ok(cps_outcome::files::write_file_unless_new_there(
             self.path,
             calibration_text(file, comment).as_bytes(),
             self.existed,
-        )
+        )?)
     }
 }
 
@@ -264,7 +301,7 @@ pub fn franka_identify(
     record: Option<&Path>,
     force: bool,
     stop: &StopToken,
-) -> Result<Answer, ExperimentError> {
+) -> Result<CalibrationWritten, DriveError> {
     let target = Target::check(out, force)?;
     if let Some(r) = record {
         check_record_target(r, force)?;
@@ -284,13 +321,11 @@ pub fn franka_identify(
         }
     }
     let (model, dynamics) = dynamics_model(settings.arm.name())?;
-    let here = state(&settings.host)?;
-    let center: Vec<f64> = serde_json::from_value(here.json["q"].clone())
-        .map_err(|e| ExperimentError::Message(format!("the robot's state: {e}")))?;
+    let center = state(&settings.host)?.state.q.to_vec();
     let fit = excitation(&model, &center, &settings.fit, PERIOD)
-        .map_err(|e| ExperimentError::Message(format!("the excitation: {e}")))?;
+        .map_err(|e| DriveError::Failed(format!("the excitation: {e}")))?;
     let check = excitation(&model, &center, &settings.check, PERIOD)
-        .map_err(|e| ExperimentError::Message(format!("the held-back excitation: {e}")))?;
+        .map_err(|e| DriveError::Failed(format!("the held-back excitation: {e}")))?;
     let split = fit.len();
     let commands: Vec<[f64; 7]> = fit
         .iter()
@@ -332,7 +367,7 @@ pub fn franka_identify(
         write_recording(r, samples, &report)?;
     }
     if !executed.complete() {
-        return Err(ExperimentError::Message(format!(
+        return Err(DriveError::Failed(format!(
             "the excitation did not finish: {}; nothing was identified",
             executed.report.ending.sentence()
         )));
@@ -359,11 +394,7 @@ pub fn franka_identify(
         ),
     )?;
     // The excitation's loop: what it saw of the robot's cycles.
-    answer.json["complete"] = json!(true);
-    answer.json["timing"] = crate::franka::timing_json(&executed.report);
-    answer
-        .lines
-        .extend(crate::franka::timing_lines(&executed.report));
+    answer.excitation = Some(executed.report);
     Ok(answer)
 }
 
@@ -378,7 +409,7 @@ fn conclude(
     stop: &StopToken,
     source: &dyn Fn(f64) -> String,
     comment: String,
-) -> Result<Answer, ExperimentError> {
+) -> Result<CalibrationWritten, DriveError> {
     let (fit_part, held) = split_at(whole, split);
     let (found, rms) = fit_and_judge(model, dynamics, &fit_part, &held, stop)?;
     let file = calibration_file(
@@ -389,7 +420,11 @@ fn conclude(
         fit_part.q.len(),
     );
     out.write(&file, &[comment])?;
-    Ok(answer(&file, out.path))
+    Ok(CalibrationWritten {
+        file,
+        out: out.path.to_path_buf(),
+        excitation: None,
+    })
 }
 
 /// The recording split at sample `at`: what is fitted on and what is held back.
@@ -416,7 +451,7 @@ pub fn identify_recording(
     out: &Path,
     force: bool,
     stop: &StopToken,
-) -> Result<Answer, ExperimentError> {
+) -> Result<CalibrationWritten, DriveError> {
     let target = Target::check(out, force)?;
     let (model, dynamics) = dynamics_model(arm)?;
     let text = cps_outcome::source::read_text(
@@ -472,9 +507,7 @@ pub fn identify_recording(
         ),
     )
     .map_err(|e| match e {
-        ExperimentError::Message(m) => {
-            ExperimentError::Message(format!("{}: {m}", recording.display()))
-        }
+        DriveError::Failed(m) => DriveError::Failed(format!("{}: {m}", recording.display())),
         other => other,
     })
 }

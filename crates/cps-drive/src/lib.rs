@@ -36,8 +36,11 @@
 //! ```
 #![deny(missing_docs)]
 
+pub use error::DriveError;
+
 pub mod chunk_socket;
 pub mod contact;
+pub mod error;
 pub mod follow;
 pub mod franka;
 pub mod identify;
@@ -45,4 +48,5 @@ pub mod recording;
 pub mod ros2;
 pub mod ros2_follow;
 pub mod ros2_graph;
+pub mod said;
 pub mod stand_in;

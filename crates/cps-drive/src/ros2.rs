@@ -19,9 +19,11 @@ use serde_json::{Value, json};
 
 use cps_movement::robot_file::{Answer, RobotModel, load_robot};
 use cps_outcome::outcome::{Column, Format, Table};
-use cps_outcome::{Ended, ExperimentError, InputError};
+use cps_outcome::{Ended, InputError};
 
-pub use crate::ros2_graph::{node, ros2_error};
+use crate::error::DriveError;
+
+pub use crate::ros2_graph::node;
 pub use cps_ros2::robot::NODE_NAME;
 pub use cps_ros2::service::{Mapping, MappingChoice};
 
@@ -80,7 +82,7 @@ pub struct SendRecord {
 pub(crate) fn robot_and_names(
     robot: &str,
     names: Option<&[String]>,
-) -> Result<(RobotModel, Vec<String>), ExperimentError> {
+) -> Result<(RobotModel, Vec<String>), DriveError> {
     let model = load_robot(robot, None, None)?;
     let dof = model.chain.dof();
     let names = match names {
@@ -118,7 +120,7 @@ pub fn plan_of(
     name: &str,
     traj: &cps_movement::limits::JointTrajectory,
     dof: usize,
-) -> Result<Plan, ExperimentError> {
+) -> Result<Plan, DriveError> {
     let bad_row = traj
         .q
         .iter()
@@ -148,18 +150,21 @@ pub fn plan_of(
 }
 
 /// A refusal of the guard in `ros2 send`'s words.
-fn refused(name: &str, model: &RobotModel, e: RobotError) -> ExperimentError {
+fn refused(name: &str, model: &RobotModel, e: RobotError) -> DriveError {
     match e {
-        RobotError::Refused { reason, .. } => ExperimentError::Message(format!(
-            "{name}: refused, nothing was sent: the trajectory breaks the {}'s limits: {reason}{}",
-            model.name,
-            if matches!(reason, Refusal::Start { .. }) {
-                "; pass --approach to move there first"
-            } else {
-                ""
-            }
-        )),
-        other => ExperimentError::Message(format!("{name}: {other}")),
+        RobotError::Refused { robot, reason } => DriveError::Refused {
+            sentence: format!(
+                "{name}: refused, nothing was sent: the trajectory breaks the {}'s limits: {reason}{}",
+                model.name,
+                if matches!(reason, Refusal::Start { .. }) {
+                    "; pass --approach to move there first"
+                } else {
+                    ""
+                }
+            ),
+            source: Box::new(RobotError::Refused { robot, reason }),
+        },
+        other => DriveError::during(name, other),
     }
 }
 
@@ -171,7 +176,7 @@ pub fn send(
     s: &SendSettings,
     stop: &StopToken,
     progress: impl FnMut(f64),
-) -> Result<(Answer, Ended), ExperimentError> {
+) -> Result<(Answer, Ended), DriveError> {
     let (model, _) = robot_and_names(&s.graph.robot, s.graph.joint_names.as_deref())?;
     let traj = cps_movement::limits::read_joint_trajectory(file, model.chain.dof())?;
     send_trajectory(&file.display().to_string(), &traj, s, stop, progress)
@@ -188,7 +193,7 @@ pub fn send_trajectory(
     s: &SendSettings,
     stop: &StopToken,
     mut progress: impl FnMut(f64),
-) -> Result<(Answer, Ended), ExperimentError> {
+) -> Result<(Answer, Ended), DriveError> {
     if !(s.wait.is_finite() && s.wait > 0.0 && s.wait <= 3600.0) {
         return Err(InputError(format!("--wait {}: give seconds in (0, 3600]", s.wait)).into());
     }
@@ -249,7 +254,7 @@ fn send_by_topic(
     me: NodeName,
     s: &SendSettings,
     stop: &StopToken,
-) -> Result<(Answer, Ended), ExperimentError> {
+) -> Result<(Answer, Ended), DriveError> {
     let Destination {
         name,
         plan,
@@ -277,9 +282,7 @@ fn send_by_topic(
         .run(plan, stop)
         .map_err(|e| sent_or_refused(name, model, e))?;
     let Some((node, message, sent)) = robot.into_inner().sent else {
-        return Err(ExperimentError::Message(
-            "the topic's run sent nothing".into(),
-        ));
+        return Err(DriveError::Failed("the topic's run sent nothing".into()));
     };
     let base = answer_base(name, s, &node, names, &message);
     let duration = message
@@ -312,7 +315,7 @@ fn send_by_action(
     s: &SendSettings,
     stop: &StopToken,
     progress: &mut impl FnMut(f64),
-) -> Result<(Answer, Ended), ExperimentError> {
+) -> Result<(Answer, Ended), DriveError> {
     let Destination {
         name,
         plan,
@@ -357,7 +360,7 @@ fn send_by_action(
         }
         runner.join()
     });
-    let ran = ran.map_err(|_| ExperimentError::Message("the goal's runner panicked".into()))?;
+    let ran = ran.map_err(|_| DriveError::Failed("the goal's runner panicked".into()))?;
     // A goal the controller answered (done, aborted, refused) is worded from its
     // outcome; anything else could not reach the controller.
     let last = match (ran, robot.inner().last_goal()) {
@@ -370,10 +373,10 @@ fn send_by_action(
             } else {
                 String::new()
             };
-            return Err(ExperimentError::Message(format!("{text}{hint}")));
+            return Err(DriveError::Failed(format!("{text}{hint}")));
         }
         (Ok(_), None) => {
-            return Err(ExperimentError::Message(
+            return Err(DriveError::Failed(
                 "the goal ran but left no outcome".into(),
             ));
         }
@@ -458,7 +461,7 @@ impl Robot for TopicRobot {
 }
 
 /// A topic robot's error: a refusal worded as every refusal, anything else as it is.
-fn sent_or_refused(name: &str, model: &RobotModel, e: RobotError) -> ExperimentError {
+fn sent_or_refused(name: &str, model: &RobotModel, e: RobotError) -> DriveError {
     match e {
         RobotError::Refused { .. } => refused(name, model, e),
         other => robot_message(other),
@@ -466,10 +469,10 @@ fn sent_or_refused(name: &str, model: &RobotModel, e: RobotError) -> ExperimentE
 }
 
 /// A robot's failure in its own words (the robot's name is in the caller's sentence).
-fn robot_message(e: RobotError) -> ExperimentError {
+fn robot_message(e: RobotError) -> DriveError {
     match e {
-        RobotError::Robot { message, .. } => ExperimentError::Message(message),
-        other => ExperimentError::Message(other.to_string()),
+        RobotError::Robot { message, .. } => DriveError::Failed(message),
+        other => DriveError::Robot(other),
     }
 }
 
@@ -500,7 +503,7 @@ fn write_tracked(
     message: &JointTrajectory,
     model: &RobotModel,
     answer: &mut Answer,
-) -> Result<(), ExperimentError> {
+) -> Result<(), DriveError> {
     let at: Vec<f64> = message
         .points
         .iter()
@@ -567,8 +570,7 @@ fn write_tracked(
         &r.out,
         &cps_outcome::files::table_csv(&recording_table(rec))?,
     )?;
-    let text = serde_json::to_string_pretty(&report)
-        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    let text = format!("{report:#}");
     let report_file = crate::recording::report_path(&r.out);
     cps_outcome::files::write_file(&report_file, text.as_bytes())?;
     answer.json["recording"] = report;
@@ -671,13 +673,12 @@ pub fn record(
     force: bool,
     stop: &StopToken,
     progress: impl FnMut(f64),
-) -> Result<(Answer, Ended), ExperimentError> {
+) -> Result<(Answer, Ended), DriveError> {
     crate::recording::check_record_target(out, force)?;
     let (rec, mut answer) = record_in_memory(s, stop, progress)?;
     let csv = cps_outcome::files::table_csv(&recording_table(&rec))?;
     cps_outcome::files::write_file(out, &csv)?;
-    let text = serde_json::to_string_pretty(&answer.json)
-        .map_err(|e| ExperimentError::Message(e.to_string()))?;
+    let text = format!("{:#}", answer.json);
     let report_file = crate::recording::report_path(out);
     cps_outcome::files::write_file(&report_file, text.as_bytes())?;
     answer.lines.push(format!(
@@ -700,7 +701,7 @@ pub fn record_in_memory(
     s: &RecordSettings,
     stop: &StopToken,
     progress: impl FnMut(f64),
-) -> Result<(JointRecording, Answer), ExperimentError> {
+) -> Result<(JointRecording, Answer), DriveError> {
     if !(s.duration.is_finite() && s.duration > 0.0 && s.duration <= 3600.0) {
         return Err(InputError(format!(
             "--duration {}: give seconds in (0, 3600]",
@@ -725,7 +726,7 @@ pub fn record_in_memory(
             Qos::Reliable { depth }
         },
     };
-    let rec = record_joint_states(&node, &options, stop.flag(), progress).map_err(ros2_error)?;
+    let rec = record_joint_states(&node, &options, stop.flag(), progress)?;
     let (times, source) = rec.times();
     let span = times.last().copied().unwrap_or(0.0);
     let mut lines = vec![format!(

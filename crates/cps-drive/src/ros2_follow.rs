@@ -27,7 +27,9 @@ use cps_ros2_msg::msg::{Header, JointTrajectory, JointTrajectoryPoint, Message, 
 use serde_json::json;
 
 use cps_movement::robot_file::Answer;
-use cps_outcome::{Ended, ExperimentError, InputError};
+use cps_outcome::{Ended, InputError};
+
+use crate::error::DriveError;
 
 use crate::ros2::GraphSettings;
 
@@ -268,7 +270,7 @@ pub fn ros2_follow(
     s: &FollowTopic,
     settings: &FollowSettings,
     stop: &StopToken,
-) -> Result<(Answer, Ended), ExperimentError> {
+) -> Result<(Answer, Ended), DriveError> {
     settings.check().map_err(|e| InputError(e.to_string()))?;
     if !(s.period >= DT && s.period <= 1.0) {
         return Err(
@@ -316,11 +318,14 @@ pub fn ros2_follow(
         Policy::STRICT,
     );
     let run = robot.run(&plan, stop).map_err(|e| match e {
-        RobotError::Refused { reason, .. } => ExperimentError::Message(format!(
-            "{name}: refused before sending anything: the executor's motion for these chunks breaks a limit: {reason}"
-        )),
-        RobotError::Robot { message, .. } => ExperimentError::Message(message),
-        other => ExperimentError::Message(other.to_string()),
+        RobotError::Refused { robot, reason } => DriveError::Refused {
+            sentence: format!(
+                "{name}: refused before sending anything: the executor's motion for these chunks breaks a limit: {reason}"
+            ),
+            source: Box::new(RobotError::Refused { robot, reason }),
+        },
+        RobotError::Robot { message, .. } => DriveError::Failed(message),
+        other => DriveError::Robot(other),
     })?;
     let t = robot.into_inner();
     let json = json!({

@@ -8,25 +8,17 @@ use cps_robot::StopToken;
 use cps_ros2::graph::{End, Graph, Service, observe};
 use serde_json::{Value, json};
 
-use cps_movement::robot_file::Answer;
-use cps_outcome::{ExperimentError, InputError};
-use cps_ros2::Ros2Error;
+use cps_outcome::InputError;
+
+use crate::error::DriveError;
 use cps_ros2::names::NodeName;
 use cps_ros2::node::Node;
 use cps_ros2::robot::NODE_NAME;
 
 /// The node, on `domain` or `ROS_DOMAIN_ID`'s.
-pub fn node(domain: Option<u16>) -> Result<Node, ExperimentError> {
+pub fn node(domain: Option<u16>) -> Result<Node, DriveError> {
     let name = NodeName::from_env(NODE_NAME, domain).map_err(|e| InputError(e.to_string()))?;
-    Node::new(name).map_err(ros2_error)
-}
-
-/// A graph failure as cps reports it (bad names and domains are input).
-pub fn ros2_error(e: Ros2Error) -> ExperimentError {
-    match e {
-        Ros2Error::Input(m) => InputError(m).into(),
-        other => ExperimentError::Message(other.to_string()),
-    }
+    Ok(Node::new(name)?)
 }
 
 /// What to look at.
@@ -193,7 +185,7 @@ pub fn graph_lines(g: &Graph) -> Vec<String> {
 }
 
 /// `ros2 graph`: watches the graph for `look.seconds` and describes it.
-pub fn graph(look: &GraphLook, stop: &StopToken) -> Result<Answer, ExperimentError> {
+pub fn graph(look: &GraphLook, stop: &StopToken) -> Result<Seen, DriveError> {
     if !(look.seconds.is_finite() && look.seconds > 0.0 && look.seconds <= 600.0) {
         return Err(InputError(format!(
             "--seconds {}: give a time above 0 and at most 600 s to watch the graph",
@@ -210,11 +202,23 @@ pub fn graph(look: &GraphLook, stop: &StopToken) -> Result<Answer, ExperimentErr
         }
         std::thread::sleep(Duration::from_secs_f64(look.seconds / slices as f64));
     }
-    let g = observe(&n, Duration::from_millis(200)).map_err(ros2_error)?;
-    Ok(Answer {
-        json: graph_json(&g),
-        lines: graph_lines(&g),
-    })
+    Ok(Seen(observe(&n, Duration::from_millis(200))?))
+}
+
+/// What `ros2 graph` saw: JSON as [`graph_json`], words as [`graph_lines`].
+#[derive(Debug, Clone)]
+pub struct Seen(pub Graph);
+
+impl serde::Serialize for Seen {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        serde::Serialize::serialize(&graph_json(&self.0), s)
+    }
+}
+
+impl std::fmt::Display for Seen {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&graph_lines(&self.0).join("\n"))
+    }
 }
 
 /// What the graph on `node`'s domain offers in place of the action `missing`: a sentence
@@ -275,18 +279,16 @@ pub fn publish_latched(
     seconds: f64,
     domain: Option<u16>,
     stop: &StopToken,
-) -> Result<Published, ExperimentError> {
+) -> Result<Published, DriveError> {
     if !(seconds.is_finite() && seconds > 0.0 && seconds <= 86_400.0) {
         return Err(InputError(format!("--seconds {seconds}: give seconds in (0, 86400]")).into());
     }
     let node = node(domain)?;
-    let mut writer = node
-        .publisher::<cps_ros2_msg::msg::MarkerArray>(
-            topic,
-            cps_ros2::node::Qos::Latched { depth: 1 },
-        )
-        .map_err(ros2_error)?;
-    writer.write(markers).map_err(ros2_error)?;
+    let mut writer = node.publisher::<cps_ros2_msg::msg::MarkerArray>(
+        topic,
+        cps_ros2::node::Qos::Latched { depth: 1 },
+    )?;
+    writer.write(markers)?;
     let end = std::time::Instant::now() + Duration::from_secs_f64(seconds);
     while std::time::Instant::now() < end && !stop.is_stopped() {
         std::thread::sleep(Duration::from_millis(50));

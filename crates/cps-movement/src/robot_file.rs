@@ -167,6 +167,20 @@ pub struct Answer {
     pub lines: Vec<String>,
 }
 
+/// Its JSON.
+impl serde::Serialize for Answer {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        self.json.serialize(s)
+    }
+}
+
+/// Its lines.
+impl std::fmt::Display for Answer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.lines.join("\n"))
+    }
+}
+
 /// The tool pose of `model` (named `robot` as the user gave it) at `q` (`cps-cli fk`): JSON
 /// `{"robot", "q", "T", "position", "quaternion_xyzw"}`. `within_limits` refuses joint values
 /// outside the limits.
@@ -175,7 +189,7 @@ pub fn tool_pose(
     robot: &str,
     q: &[f64],
     within_limits: bool,
-) -> Result<Answer, InputError> {
+) -> Result<ToolPose, InputError> {
     let arm = &model.chain;
     if let Some((j, v)) = q
         .iter()
@@ -196,31 +210,76 @@ pub fn tool_pose(
     let pose = arm.fk(q).map_err(kin)?;
     let quat = UnitQuaternion::from_rotation_matrix(&pose.rotation);
     let p = pose.translation.vector;
-    let rows: Vec<Vec<f64>> = (0..4)
-        .map(|r| (0..4).map(|c| t[(r, c)]).collect())
-        .collect();
-    let mut lines = vec![format!("tool pose of {robot} (world frame, metres):")];
-    for r in &rows {
-        lines.push(format!(
-            "  [{:>10.6} {:>10.6} {:>10.6} {:>10.6}]",
-            r[0], r[1], r[2], r[3]
-        ));
-    }
-    lines.push(format!("position   {:.6} {:.6} {:.6}", p.x, p.y, p.z));
-    lines.push(format!(
-        "quaternion {:.6} {:.6} {:.6} {:.6} (x y z w)",
-        quat.i, quat.j, quat.k, quat.w
-    ));
-    Ok(Answer {
-        json: serde_json::json!({
-            "robot": robot,
-            "q": q,
-            "T": rows,
-            "position": [p.x, p.y, p.z],
-            "quaternion_xyzw": [quat.i, quat.j, quat.k, quat.w],
-        }),
-        lines,
+    Ok(ToolPose {
+        robot: robot.to_string(),
+        q: q.to_vec(),
+        t: std::array::from_fn(|r| std::array::from_fn(|c| t[(r, c)])),
+        position: [p.x, p.y, p.z],
+        quaternion_xyzw: [quat.i, quat.j, quat.k, quat.w],
     })
+}
+
+/// `cps-cli fk`: the tool's pose at `q`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ToolPose {
+    /// The robot, as the user named it.
+    pub robot: String,
+    /// The joint values.
+    pub q: Vec<f64>,
+    /// The pose as a homogeneous matrix, row by row.
+    #[serde(rename = "T")]
+    pub t: [[f64; 4]; 4],
+    /// The tool point (world frame, m).
+    pub position: [f64; 3],
+    /// The orientation (x, y, z, w).
+    pub quaternion_xyzw: [f64; 4],
+}
+
+/// The matrix, then the position and the quaternion.
+impl std::fmt::Display for ToolPose {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "tool pose of {} (world frame, metres):", self.robot)?;
+        for r in &self.t {
+            writeln!(
+                f,
+                "  [{:>10.6} {:>10.6} {:>10.6} {:>10.6}]",
+                r[0], r[1], r[2], r[3]
+            )?;
+        }
+        let [x, y, z] = self.position;
+        writeln!(f, "position   {x:.6} {y:.6} {z:.6}")?;
+        let [qx, qy, qz, qw] = self.quaternion_xyzw;
+        write!(f, "quaternion {qx:.6} {qy:.6} {qz:.6} {qw:.6} (x y z w)")
+    }
+}
+
+/// `cps-cli ik`: joint values that reach the target, and how closely.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct JointSolution {
+    /// The robot, as the user named it.
+    pub robot: String,
+    /// The joint values (rad, or m for a prismatic joint).
+    pub q: Vec<f64>,
+    /// The distance left to the target position (m).
+    pub position_error: f64,
+    /// The angle left to the target orientation (rad).
+    pub rotation_error: f64,
+    /// Iterations of the solver.
+    pub iterations: usize,
+    /// Restarts from other seeds.
+    pub restarts: usize,
+}
+
+impl std::fmt::Display for JointSolution {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let q: Vec<String> = self.q.iter().map(|v| format!("{v:.6}")).collect();
+        writeln!(f, "q = [{}] rad", q.join(", "))?;
+        write!(
+            f,
+            "position error {:.3e} m, rotation error {:.3e} rad, {} iterations, {} restarts",
+            self.position_error, self.rotation_error, self.iterations, self.restarts
+        )
+    }
 }
 
 /// Joint angles that put `model`'s tool (named `robot` as the user gave it) at `target`
@@ -232,7 +291,7 @@ pub fn joint_solution(
     robot: &str,
     target: &[f64],
     seed_q: Option<&[f64]>,
-) -> Result<Answer, InputError> {
+) -> Result<JointSolution, InputError> {
     let arm = &model.chain;
     let target = ik_target(target)?;
     let seed = seed_q.unwrap_or(&model.ready);
@@ -240,23 +299,13 @@ pub fn joint_solution(
         .map_err(|e| InputError(format!("--seed-q: {e}")))?;
     let sol = cps_kinematics::solve_ik(arm, &target, seed, &cps_kinematics::IkConfig::default())
         .map_err(|e| InputError(e.to_string()))?;
-    let q: Vec<String> = sol.q.iter().map(|v| format!("{v:.6}")).collect();
-    Ok(Answer {
-        json: serde_json::json!({
-            "robot": robot,
-            "q": sol.q,
-            "position_error": sol.position_error,
-            "rotation_error": sol.rotation_error,
-            "iterations": sol.iterations,
-            "restarts": sol.restarts,
-        }),
-        lines: vec![
-            format!("q = [{}] rad", q.join(", ")),
-            format!(
-                "position error {:.3e} m, rotation error {:.3e} rad, {} iterations, {} restarts",
-                sol.position_error, sol.rotation_error, sol.iterations, sol.restarts
-            ),
-        ],
+    Ok(JointSolution {
+        robot: robot.to_string(),
+        q: sol.q,
+        position_error: sol.position_error,
+        rotation_error: sol.rotation_error,
+        iterations: sol.iterations,
+        restarts: sol.restarts,
     })
 }
 

@@ -432,6 +432,10 @@ fn shaped_obstacle(v: &ObstacleEntry, path: &Path) -> Result<cps_geometry::Obsta
 /// ([`Scene::reach`]).
 #[derive(Debug)]
 pub struct Reach {
+    /// The robot's name.
+    pub robot: String,
+    /// Its tool point's name.
+    pub tool_name: String,
     /// The tool position at the initial configuration, world frame.
     pub tool: Vector3<f64>,
     /// Initial joints outside their limits: (1-based joint, value, lower, upper).
@@ -445,6 +449,66 @@ impl Reach {
     /// Whether every object is reachable.
     pub fn all_reachable(&self) -> bool {
         self.objects.iter().all(|o| o.2.is_ok())
+    }
+}
+
+/// `{"robot", "tool_at_initial_q", "initial_q_outside_limits", "objects": [{"name",
+/// "position", "reachable", "q" and "position_error", or "error"}]}`.
+impl serde::Serialize for Reach {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let objects: Vec<_> = self
+            .objects
+            .iter()
+            .map(|(name, p, r)| match r {
+                Ok(q) => serde_json::json!({"name": name, "position": [p.x, p.y, p.z],
+                    "reachable": true, "q": q.q, "position_error": q.position_error}),
+                Err(e) => serde_json::json!({"name": name, "position": [p.x, p.y, p.z],
+                    "reachable": false, "error": e.to_string()}),
+            })
+            .collect();
+        let t = &self.tool;
+        serde_json::json!({
+            "robot": self.robot,
+            "tool_at_initial_q": [t.x, t.y, t.z],
+            "initial_q_outside_limits": self.outside_limits.iter().map(|o| o.0).collect::<Vec<_>>(),
+            "objects": objects,
+        })
+        .serialize(s)
+    }
+}
+
+/// The tool at the initial configuration, a note per joint outside its limits, then a line
+/// per object: reachable (with the solution) or why not.
+impl std::fmt::Display for Reach {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let t = &self.tool;
+        write!(
+            f,
+            "{} ({}): tool at the initial configuration ({:.4}, {:.4}, {:.4}) m",
+            self.robot, self.tool_name, t.x, t.y, t.z
+        )?;
+        for (j, v, lo, hi) in &self.outside_limits {
+            write!(
+                f,
+                "\nnote: initial joint {j} = {v} lies outside its limits [{lo}, {hi}]; accepted as a start state"
+            )?;
+        }
+        for (name, p, r) in &self.objects {
+            write!(f, "\n{name:<4} ({:.3}, {:.3}, {:.3}): ", p.x, p.y, p.z)?;
+            match r {
+                Ok(s) => {
+                    let q: Vec<_> = s.q.iter().map(|v| format!("{v:.3}")).collect();
+                    let e = s.position_error;
+                    write!(
+                        f,
+                        "reachable within limits (error {e:.1e} m), q = [{}]",
+                        q.join(", ")
+                    )?
+                }
+                Err(e) => write!(f, "NOT reachable: {e}")?,
+            }
+        }
+        Ok(())
     }
 }
 
@@ -496,6 +560,8 @@ impl Scene {
             })
             .collect();
         Ok(Reach {
+            robot: self.robot.name.clone(),
+            tool_name: self.robot.tool.clone(),
             tool,
             outside_limits,
             objects,

@@ -165,6 +165,16 @@ impl IntoPyErr for ExperimentError {
     }
 }
 
+impl IntoPyErr for cps_drive::DriveError {
+    fn py_err(self) -> PyErr {
+        match self {
+            cps_drive::DriveError::Input(e) => e.py_err(),
+            e if e.is_input() => value_error(e.to_string()),
+            other => failure(chain(&other)),
+        }
+    }
+}
+
 /// `.py()` on results of cps's crates.
 pub trait PyResultExt<T> {
     /// The result with its error as a Python exception.

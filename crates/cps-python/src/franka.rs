@@ -50,7 +50,7 @@ fn recording<'py>(py: Python<'py>, samples: &[Sample]) -> PyResult<Bound<'py, Py
 /// interruption (Ctrl-C) is raised after the recording was made.
 fn recorded<'py>(
     py: Python<'py>,
-    out: Result<(Vec<Sample>, serde_json::Value), cps_experiment::ExperimentError>,
+    out: Result<(Vec<Sample>, serde_json::Value), cps_drive::DriveError>,
     interrupt: Option<PyErr>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let (samples, report) = out.map_err(|e| e.py_err())?;
@@ -131,8 +131,8 @@ impl Franka {
     /// `tool_position`, `robot_mode`, `errors`, `control_command_success_rate`.
     fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let host = self.host.clone();
-        let answer = py.detach(|| franka::state(&host)).map_err(|e| e.py_err())?;
-        json_to_py(py, &answer.json)
+        let state = py.detach(|| franka::state(&host)).map_err(|e| e.py_err())?;
+        json_to_py(py, &serde_json::json!(state))
     }
 
     /// Executes the joint trajectory `q` (n, 7) at times `t` (n,) at 1 kHz: resampled (or
@@ -374,10 +374,10 @@ impl Franka {
                 value_error(e.0.replace("--force", "force").replace("--speed", "speed"))
             })?;
         let host = self.host.clone();
-        let answer = py
+        let hand = py
             .detach(|| franka::gripper(&host, command))
             .map_err(|e| e.py_err())?;
-        json_to_py(py, &answer.json)
+        json_to_py(py, &serde_json::json!(hand))
     }
 }
 
@@ -401,5 +401,5 @@ pub fn identify<'py>(
         cps_drive::identify::identify_recording(&recording, &robot, &out, force, stop)
     })?
     .map_err(|e| e.py_err())?;
-    json_to_py(py, &answer.json)
+    json_to_py(py, &serde_json::json!(answer))
 }

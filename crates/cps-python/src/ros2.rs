@@ -141,9 +141,9 @@ pub fn _ros2_graph<'py>(
     let look = cps_drive::ros2_graph::GraphLook { domain, seconds };
     let (out, interrupt) =
         detached_keep(py, None, |stop| cps_drive::ros2_graph::graph(&look, stop))?;
-    let answer = out.map_err(|e| e.py_err())?;
+    let seen = out.map_err(|e| e.py_err())?;
     match interrupt {
         Some(e) => Err(e),
-        None => json_to_py(py, &answer.json),
+        None => json_to_py(py, &cps_drive::ros2_graph::graph_json(&seen.0)),
     }
 }
