@@ -151,6 +151,8 @@ LAYERS = {
         ["export"],
     ],
     "cps-drive": [
+        # the crate's error, and the words of what its commands return
+        ["error", "said"],
         ["chunk_socket", "recording", "ros2_graph", "stand_in"],
         ["franka", "ros2"],
         # the contact task, identification and chunks on a Franka use its connection's words
@@ -188,8 +190,8 @@ LAYERS = {
         ["chunks", "franka", "kinematics", "learn", "lerobot", "mocap", "ros2"],
     ],
     "cps-cli": [
-        ["progress", "robot", "scene", "simserve", "studio"],
-        ["cmaes_bench", "franka", "mocap", "movement", "ros2", "trajectory"],
+        ["progress", "robot", "simserve", "studio"],
+        ["cmaes_bench", "franka", "lerobot", "mocap", "movement", "ros2", "scene", "trajectory"],
         ["promp"],
     ],
 }

@@ -20,7 +20,7 @@ use cps_outcome::results_dir::{FileKind, check_file_target};
 use cps_outcome::{Ended, InputError};
 
 use crate::error::DriveError;
-use crate::said::ExecutedTo;
+use crate::franka::ExecutedTo;
 use cps_robot::{Policy, Robot, RobotError, StopToken};
 use serde_json::{Value, json};
 

@@ -28,7 +28,7 @@ use cps_outcome::outcome::{Column, Format, Table};
 use cps_outcome::{Ended, InputError};
 
 use crate::error::DriveError;
-use crate::said::{ExecutedTo, HandAt, Recorded, StateAt, fmt7};
+use crate::said::{HandAt, Recorded, StateAt, fmt7};
 
 use crate::recording::{check_record_target, report_path};
 
@@ -870,6 +870,41 @@ pub fn execute_file(
         more: Vec::new(),
     };
     Ok((executed, ended))
+}
+
+/// `franka execute` and `franka follow`: what was sent and what the robot did, recorded
+/// at `record`.
+#[derive(Debug, Clone)]
+pub struct ExecutedTo {
+    /// The execution.
+    pub executed: Executed,
+    /// Where its recording is.
+    pub record: std::path::PathBuf,
+    /// Its report, as written beside the recording.
+    pub report: Value,
+    /// Lines said after the execution's own (a follow's chunks).
+    pub more: Vec<String>,
+}
+
+/// The report.
+impl serde::Serialize for ExecutedTo {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        self.report.serialize(s)
+    }
+}
+
+impl std::fmt::Display for ExecutedTo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let lines = self.executed.lines(&self.record);
+        let all: Vec<&String> = lines.iter().chain(&self.more).collect();
+        for (i, line) in all.iter().enumerate() {
+            if i > 0 {
+                writeln!(f)?;
+            }
+            write!(f, "{line}")?;
+        }
+        Ok(())
+    }
 }
 
 /// How an execution ended: completed when it finished, stopped on request, failed

@@ -1,6 +1,7 @@
 //! What the Franka commands return: typed results, each saying itself as JSON
-//! (`Serialize`, what `--json` prints and, for a motion, the report written beside its
-//! recording) and as text (`Display`, a line each). The command line chooses which.
+//! (`Serialize`, what `--json` prints and, for a recording, the report written beside it)
+//! and as text (`Display`, a line each). The command line chooses which. (An execution's,
+//! `franka::ExecutedTo`, is beside what it says, `franka::Executed`.)
 
 use std::fmt;
 use std::path::PathBuf;
@@ -8,8 +9,6 @@ use std::path::PathBuf;
 use cps_franka::{GripperState, RobotState};
 use serde::{Serialize, Serializer};
 use serde_json::{Value, json};
-
-use crate::franka::Executed;
 
 /// Seven numbers as `franka` commands print them.
 pub(crate) fn fmt7(x: &[f64]) -> String {
@@ -145,41 +144,6 @@ impl fmt::Display for Recorded {
             writeln!(f, "{}: {ending}", self.host)?;
             write!(f, "  {n} samples over {d:.3} s in {out}")
         }
-    }
-}
-
-/// `franka execute` and `franka follow`: what was sent and what the robot did, recorded
-/// at `record`.
-#[derive(Debug, Clone)]
-pub struct ExecutedTo {
-    /// The execution.
-    pub executed: Executed,
-    /// Where its recording is.
-    pub record: PathBuf,
-    /// Its report, as written beside the recording.
-    pub report: Value,
-    /// Lines said after the execution's own (a follow's chunks).
-    pub more: Vec<String>,
-}
-
-/// The report.
-impl Serialize for ExecutedTo {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        self.report.serialize(s)
-    }
-}
-
-impl fmt::Display for ExecutedTo {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let lines = self.executed.lines(&self.record);
-        let all: Vec<&String> = lines.iter().chain(&self.more).collect();
-        for (i, line) in all.iter().enumerate() {
-            if i > 0 {
-                writeln!(f)?;
-            }
-            write!(f, "{line}")?;
-        }
-        Ok(())
     }
 }
 
