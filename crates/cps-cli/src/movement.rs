@@ -12,6 +12,7 @@ use cps_dmp::{Combine, Formulation, Lambda, Method};
 use cps_experiment::InputError;
 use cps_movement::lerobot::Pick;
 use cps_movement::movement::{ImitationSpec, RolloutSpec, imitate_files, rollout_file};
+use cps_movement::robot_file::Saved;
 use cps_outcome::files::{table_csv, write_file};
 use cps_outcome::results_dir::{FileKind, check_file_targets};
 use cps_report::figures::draw_file;
@@ -173,7 +174,13 @@ pub fn run_imitate(args: &ImitateArgs) -> Result<ExitCode> {
     if let Some(plot) = &o.plot {
         draw_file(&imitated.figure(), plot)?;
     }
-    crate::robot::print(&imitated.answer(&o.out), o.json)
+    crate::robot::print(
+        &Saved {
+            what: &imitated,
+            out: &o.out,
+        },
+        o.json,
+    )
 }
 
 /// `cps-cli rollout`.

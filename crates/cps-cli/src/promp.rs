@@ -10,7 +10,7 @@ use cps_experiment::InputError;
 use cps_movement::promp::{
     NamedProMp, ViaPoints, condition, fit_files, write_samples, write_stats,
 };
-use cps_movement::robot_file::Answer;
+use cps_movement::robot_file::{Saved, SaysSaved};
 use cps_outcome::files::write_file;
 use cps_outcome::outcome::Figure;
 use cps_outcome::results_dir::{FileKind, check_file_targets};
@@ -108,13 +108,24 @@ impl Output {
         check_file_targets(&self.out, FileKind::ProMp, self.plot.as_deref(), self.force)
     }
 
-    /// Writes the ProMP file and its figure, then prints the answer.
-    fn finish(&self, promp: &NamedProMp, figure: Figure, answer: Answer) -> Result<ExitCode> {
+    /// Writes the ProMP file and its figure, then prints what was saved.
+    fn finish<T: SaysSaved>(
+        &self,
+        promp: &NamedProMp,
+        figure: Figure,
+        what: &T,
+    ) -> Result<ExitCode> {
         write_file(&self.out, promp.to_json().as_bytes())?;
         if let Some(plot) = &self.plot {
             draw_file(&figure, plot)?;
         }
-        print(&answer, self.json)
+        print(
+            &Saved {
+                what,
+                out: &self.out,
+            },
+            self.json,
+        )
     }
 }
 
@@ -126,15 +137,13 @@ pub fn promp(command: &ProMpCommand) -> Result<ExitCode> {
             let paths: Vec<&Path> = a.demos.iter().map(PathBuf::as_path).collect();
             let pick = a.lerobot.pick();
             let fit = fit_files(&paths, a.columns.as_deref(), &pick, a.bases, a.duration)?;
-            let answer = fit.answer(&a.output.out);
-            a.output.finish(&fit.promp, fit.figure(), answer)
+            a.output.finish(&fit.promp, fit.figure(), &fit)
         }
         ProMpCommand::Condition(a) => {
             a.output.check()?;
             let via = ViaPoints::parse(&a.at, &a.position, &a.std, &a.velocity, &a.velocity_std)?;
             let c = condition(NamedProMp::read(&a.model)?, &via)?;
-            a.output
-                .finish(&c.posterior, c.figure(), c.answer(&a.output.out))
+            a.output.finish(&c.posterior, c.figure(), &c)
         }
         ProMpCommand::Sample { grid, n, seed } => {
             let done = write_samples(&grid.model, &grid.out, grid.force, *n, *seed, grid.dt);

@@ -103,6 +103,17 @@ pub fn print<T: serde::Serialize + std::fmt::Display>(result: &T, json: bool) ->
     Ok(ExitCode::SUCCESS)
 }
 
+/// [`print()`] with a first line that names what the text is about (not in the JSON).
+pub fn print_titled<T>(title: &str, result: &T, json: bool) -> Result<ExitCode>
+where
+    T: serde::Serialize + std::fmt::Display,
+{
+    if !json {
+        say!("{title}");
+    }
+    print(result, json)
+}
+
 /// `cps-cli fk`.
 pub fn fk(args: &FkArgs) -> Result<ExitCode> {
     let model = args.arm.load()?;
@@ -145,10 +156,8 @@ pub enum LimitsCommand {
 pub fn limits(cmd: &LimitsCommand) -> Result<ExitCode> {
     let LimitsCommand::Check { file, arm, rate } = cmd;
     let report = cps_movement::limits::check_file(file, &arm.load()?, *rate)?;
-    print(
-        &report.answer(format!("{} on {}:", file.display(), arm.robot)),
-        arm.json,
-    )?;
+    let title = format!("{} on {}:", file.display(), arm.robot);
+    print_titled(&title, &report, arm.json)?;
     Ok(ExitCode::from(u8::from(!report.ok())))
 }
 
@@ -182,7 +191,7 @@ pub fn collide(args: &CollideArgs) -> Result<ExitCode> {
     };
     let report = cps_movement::collide::check_file(&args.file, &model, args.rate, args.margin)?;
     let title = format!("{} on {what}:", args.file.display());
-    print(&report.answer(title), args.arm.json)?;
+    print_titled(&title, &report, args.arm.json)?;
     Ok(ExitCode::from(u8::from(!report.ok())))
 }
 

@@ -9,7 +9,6 @@ use cps_drive::ros2::MappingChoice;
 use cps_drive::ros2::{self, GraphSettings, RecordSettings, SendSettings, Via};
 use cps_drive::ros2_graph::publish_latched;
 use cps_experiment::markers;
-use cps_movement::robot_file::Answer;
 use cps_outcome::Ended;
 use cps_robot::StopToken;
 use indicatif::ProgressBar;
@@ -276,24 +275,15 @@ where
 }
 
 /// `cps-cli ros2 show`: the experiment's markers published, and what was shown.
-fn show(a: &ShowArgs, stop: &StopToken) -> Result<Answer> {
-    let shown = markers::experiment_markers(&a.experiment, a.results.as_deref(), &a.frame);
-    let shown = shown?;
-    let (n, path, via) = (
-        shown.markers.markers.len(),
-        shown.path_points,
-        shown.via_points,
-    );
-    let p = publish_latched(&shown.markers, &a.topic, a.seconds, a.domain, stop);
-    let (p, (shapes, obstacles)) = (p?, shown.robot.counts());
-    let (topic, frame, seconds, viewers) = (&a.topic, &a.frame, a.seconds, p.subscribers);
-    let json = serde_json::json!({
-        "topic": topic, "frame": frame, "domain": p.domain, "markers": n, "path_points": path,
-        "via_points": via, "robot_shapes": shapes, "obstacles": obstacles, "subscribers": viewers,
-    });
-    let head = format!(
-        "showed {n} markers ({path} path points, {via} via points, start and goal) on {topic} in frame {frame} for {seconds:.0} s: {viewers} viewer(s) subscribed"
-    );
-    let lines = vec![head, shown.robot.to_string()];
-    Ok(Answer { json, lines })
+fn show(a: &ShowArgs, stop: &StopToken) -> Result<markers::Showed> {
+    let shown = markers::experiment_markers(&a.experiment, a.results.as_deref(), &a.frame)?;
+    let p = publish_latched(&shown.markers, &a.topic, a.seconds, a.domain, stop)?;
+    Ok(markers::Showed {
+        shown,
+        topic: a.topic.clone(),
+        frame: a.frame.clone(),
+        seconds: a.seconds,
+        domain: p.domain,
+        subscribers: p.subscribers,
+    })
 }

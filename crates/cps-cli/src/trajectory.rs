@@ -8,11 +8,10 @@ use clap::Args;
 use cps_experiment::InputError;
 use cps_movement::export::{ExportFormat, ExportOptions, export_file, usage};
 use cps_movement::retiming::{RetimeMode, retime_file};
-use cps_movement::robot_file::Answer;
 use cps_outcome::files::{table_csv, write_file};
 use cps_outcome::results_dir::{FileKind, check_file_target};
 
-use crate::robot::{RobotArgs, print};
+use crate::robot::{RobotArgs, print_titled};
 
 /// A joint trajectory in, a file out.
 #[derive(Args, Debug)]
@@ -30,21 +29,14 @@ pub struct FileToFile {
 }
 
 impl FileToFile {
-    /// Writes `bytes` to --out and prints the answer, the written file first.
-    fn finish(
-        &self,
-        bytes: &[u8],
-        json: serde_json::Value,
-        lines: Vec<String>,
-    ) -> Result<ExitCode> {
+    /// Writes `bytes` to --out and prints what the library said of them, the file first.
+    fn finish<T>(&self, bytes: &[u8], said: &T) -> Result<ExitCode>
+    where
+        T: serde::Serialize + std::fmt::Display,
+    {
         write_file(&self.out, bytes)?;
-        let mut all = vec![format!(
-            "{} ({} bytes) written",
-            self.out.display(),
-            bytes.len()
-        )];
-        all.extend(lines);
-        print(&Answer { json, lines: all }, self.arm.json)
+        let title = format!("{} ({} bytes) written", self.out.display(), bytes.len());
+        print_titled(&title, said, self.arm.json)
     }
 }
 
@@ -71,7 +63,7 @@ pub fn retime(args: &RetimeArgs) -> Result<ExitCode> {
     check_file_target(&io.out, FileKind::TrajectoryCsv, io.force)?;
     let report = retime_file(&io.file, &io.arm.load()?, args.rate, mode)?;
     let csv = table_csv(&report.table)?;
-    io.finish(&csv, report.json(), report.lines())
+    io.finish(&csv, &report)
 }
 
 /// Arguments of `cps-cli export`; `--json` prints `{"format", "points", "duration_s",
@@ -100,7 +92,11 @@ pub fn export(args: &ExportArgs) -> Result<ExitCode> {
         period: args.period,
     };
     let exported = export_file(&io.file, &io.arm.load()?, format, &options)?;
-    let mut lines = exported.lines;
-    lines.extend(usage(format, &io.out));
-    io.finish(&exported.bytes, exported.json, lines)
+    io.finish(&exported.bytes, &exported)?;
+    if !io.arm.json {
+        usage(format, &io.out)
+            .iter()
+            .for_each(|line| say!("{line}"));
+    }
+    Ok(ExitCode::SUCCESS)
 }

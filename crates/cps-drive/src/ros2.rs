@@ -14,14 +14,15 @@ use cps_ros2::node::{Node, Qos};
 use cps_ros2::publish;
 use cps_ros2::record::{JointRecording, RecordOptions, record_joint_states};
 use cps_ros2::robot::{Ros2Robot, Ros2Settings, rows_at, trajectory_message};
-use cps_ros2_msg::msg::{JointTrajectory, error_code_word};
+use cps_ros2_msg::msg::JointTrajectory;
 use serde_json::{Value, json};
 
-use cps_movement::robot_file::{Answer, RobotModel, load_robot};
+use cps_movement::robot_file::{RobotModel, load_robot};
 use cps_outcome::outcome::{Column, Format, Table};
 use cps_outcome::{Ended, InputError};
 
 use crate::error::DriveError;
+use crate::said::{Sent, SentVia, StatesRecorded, Tracked};
 
 pub use crate::ros2_graph::node;
 pub use cps_ros2::robot::NODE_NAME;
@@ -176,7 +177,7 @@ pub fn send(
     s: &SendSettings,
     stop: &StopToken,
     progress: impl FnMut(f64),
-) -> Result<(Answer, Ended), DriveError> {
+) -> Result<(Sent, Ended), DriveError> {
     let (model, _) = robot_and_names(&s.graph.robot, s.graph.joint_names.as_deref())?;
     let traj = cps_movement::limits::read_joint_trajectory(file, model.chain.dof())?;
     send_trajectory(&file.display().to_string(), &traj, s, stop, progress)
@@ -193,7 +194,7 @@ pub fn send_trajectory(
     s: &SendSettings,
     stop: &StopToken,
     mut progress: impl FnMut(f64),
-) -> Result<(Answer, Ended), DriveError> {
+) -> Result<(Sent, Ended), DriveError> {
     if !(s.wait.is_finite() && s.wait > 0.0 && s.wait <= 3600.0) {
         return Err(InputError(format!("--wait {}: give seconds in (0, 3600]", s.wait)).into());
     }
@@ -254,7 +255,7 @@ fn send_by_topic(
     me: NodeName,
     s: &SendSettings,
     stop: &StopToken,
-) -> Result<(Answer, Ended), DriveError> {
+) -> Result<(Sent, Ended), DriveError> {
     let Destination {
         name,
         plan,
@@ -284,28 +285,13 @@ fn send_by_topic(
     let Some((node, message, sent)) = robot.into_inner().sent else {
         return Err(DriveError::Failed("the topic's run sent nothing".into()));
     };
-    let base = answer_base(name, s, &node, names, &message);
-    let duration = message
-        .points
-        .last()
-        .map_or(0.0, |p| p.time_from_start.secs());
-    let mut json = base;
-    json["via"] = json!("topic");
-    json["topic"] = json!(topic);
-    json["discovery_s"] = json!(sent.matched_after_s);
-    json["acknowledged"] = json!(sent.acknowledged);
-    json["bytes"] = json!(sent.bytes);
-    let lines = vec![
-        format!(
-            "sent {} points ({duration:.3} s) to {topic} on domain {}: {} subscriber(s), {}",
-            message.points.len(),
-            node.name().domain,
-            sent.subscribers,
-            if sent.acknowledged { "acknowledged" } else { "not acknowledged in time" }
-        ),
-        "a topic has no answer: the controller's own log says whether it ran (use --action for its result)".into(),
-    ];
-    Ok((Answer { json, lines }, Ended::of(run.ending.complete())))
+    let domain = node.name().domain;
+    let via = SentVia::Topic {
+        topic,
+        published: sent,
+    };
+    let sent = sent_of(name, s, domain, names, &message, via);
+    Ok((sent, Ended::of(run.ending.complete())))
 }
 
 /// The plan followed as a FollowJointTrajectory goal through the guard, its progress
@@ -315,7 +301,7 @@ fn send_by_action(
     s: &SendSettings,
     stop: &StopToken,
     progress: &mut impl FnMut(f64),
-) -> Result<(Answer, Ended), DriveError> {
+) -> Result<(Sent, Ended), DriveError> {
     let Destination {
         name,
         plan,
@@ -340,7 +326,7 @@ fn send_by_action(
     let prepared = robot.prepare(plan).map_err(|e| refused(name, model, e))?;
     let message = trajectory_message(names, &prepared.plan, Some(s.period));
     let action = format!("{controller}/follow_joint_trajectory");
-    let base = answer_base(name, s, robot.inner().node(), names, &message);
+    let domain = robot.inner().node().name().domain;
     // The goal runs through the guard (`run_prepared`); its progress is read here
     // from the robot's share while it runs.
     let share = robot.inner().progress();
@@ -382,18 +368,21 @@ fn send_by_action(
         }
     };
     let o = &last.outcome;
-    let (mut answer, code) = action_answer(base, &action, o);
-    if let (Some(r), Some(rec)) = (&s.record, &last.recording) {
-        write_tracked(r, rec, o, &message, model, &mut answer)?;
-    }
-    Ok((
-        answer,
-        if stop.is_stopped() && !o.succeeded() {
-            Ended::Stopped
-        } else {
-            code
-        },
-    ))
+    let recording = match (&s.record, &last.recording) {
+        (Some(r), Some(rec)) => Some(Box::new(write_tracked(r, rec, o, &message, model)?)),
+        _ => None,
+    };
+    let code = if stop.is_stopped() && !o.succeeded() {
+        Ended::Stopped
+    } else {
+        Ended::of(o.succeeded())
+    };
+    let via = SentVia::Action {
+        action,
+        outcome: Box::new(o.clone()),
+        recording,
+    };
+    Ok((sent_of(name, s, domain, names, &message, via), code))
 }
 
 /// A joint_trajectory_controller's topic as a robot: blind (it is trusted to start from a
@@ -476,22 +465,27 @@ fn robot_message(e: RobotError) -> DriveError {
     }
 }
 
-/// What every `ros2 send` answer starts with.
-fn answer_base(
+/// What `ros2 send` says of the message sent `via` the topic or the action.
+fn sent_of(
     name: &str,
     s: &SendSettings,
-    node: &Node,
+    domain: u16,
     names: &[String],
     message: &JointTrajectory,
-) -> Value {
-    json!({
-        "file": name,
-        "controller": s.controller,
-        "domain": node.name().domain,
-        "joint_names": names,
-        "points": message.points.len(),
-        "duration_s": message.points.last().map_or(0.0, |p| p.time_from_start.secs()),
-    })
+    via: SentVia,
+) -> Sent {
+    Sent {
+        file: name.to_string(),
+        controller: s.controller.clone(),
+        domain,
+        joint_names: names.to_vec(),
+        points: message.points.len(),
+        duration_s: message
+            .points
+            .last()
+            .map_or(0.0, |p| p.time_from_start.secs()),
+        via,
+    }
 }
 
 /// Writes `ros2 send --record`'s recording and its report: the recording's limit check and
@@ -502,8 +496,7 @@ fn write_tracked(
     o: &FollowOutcome,
     message: &JointTrajectory,
     model: &RobotModel,
-    answer: &mut Answer,
-) -> Result<(), DriveError> {
+) -> Result<Tracked, DriveError> {
     let at: Vec<f64> = message
         .points
         .iter()
@@ -523,20 +516,13 @@ fn write_tracked(
             }
             let rms: Vec<f64> = sum.iter().map(|s| (s / rows.len() as f64).sqrt()).collect();
             let worst = max.iter().copied().fold(0.0, f64::max);
-            answer.lines.push(format!(
-                "tracking: the robot within {worst:.2e} rad of the points sent (worst joint), RMS {:.2e} rad",
-                rms.iter().copied().fold(0.0, f64::max)
-            ));
-            json!({ "max_error_rad": max, "rms_error_rad": rms, "worst_rad": worst })
+            Some((max, rms, worst))
         }
-        None => {
-            answer.lines.push(format!(
-                "tracking: not judged, the joint states on {} stop before the goal's end",
-                r.topic
-            ));
-            Value::Null
-        }
+        None => None,
     };
+    let tracking_json = tracking.as_ref().map_or(Value::Null, |(max, rms, worst)| {
+        json!({ "max_error_rad": max, "rms_error_rad": rms, "worst_rad": worst })
+    });
     let (times, _) = rec.times();
     let limits = cps_movement::limits::check_samples(
         model,
@@ -549,9 +535,6 @@ fn write_tracked(
     )
     .ok()
     .filter(|_| times.len() >= 2 && times.windows(2).all(|w| w[1] > w[0]));
-    if let Some(l) = &limits {
-        answer.lines.extend(l.lines());
-    }
     let report = json!({
         "complete": o.succeeded(),
         "topic": r.topic,
@@ -563,7 +546,7 @@ fn write_tracked(
         "older": rec.older,
         "incomplete": rec.incomplete,
         "malformed": rec.dropped.malformed,
-        "tracking": tracking,
+        "tracking": tracking_json,
         "limits": limits.as_ref().map_or(Value::Null, |l| l.json()),
     });
     cps_outcome::files::write_file(
@@ -573,55 +556,13 @@ fn write_tracked(
     let text = format!("{report:#}");
     let report_file = crate::recording::report_path(&r.out);
     cps_outcome::files::write_file(&report_file, text.as_bytes())?;
-    answer.json["recording"] = report;
-    answer.lines.push(format!(
-        "wrote {} and {}",
-        r.out.display(),
-        report_file.display()
-    ));
-    Ok(())
-}
-
-fn action_answer(mut json: Value, action: &str, o: &FollowOutcome) -> (Answer, Ended) {
-    json["via"] = json!("action");
-    json["action"] = json!(action);
-    json["goal_id"] = json!(o.goal_id.to_string());
-    json["discovery_s"] = json!(o.discovery_s);
-    json["accepted"] = json!(o.accepted);
-    json["status"] = json!(o.status.word());
-    json["error_code"] = json!(o.error_code);
-    json["error_string"] = json!(o.error_string);
-    json["feedback"] = json!(o.feedback);
-    json["cancel_requested"] = json!(o.cancel_requested);
-    json["dropped"] = json!(o.dropped.malformed + o.dropped.oversized + o.dropped.undecodable);
-    json["succeeded"] = json!(o.succeeded());
-    json["lost"] = json!(o.lost);
-    let mut lines = vec![if let Some(lost) = &o.lost {
-        lost.clone()
-    } else if !o.accepted {
-        format!("{action} refused the goal {}", o.goal_id)
-    } else {
-        format!(
-            "goal {} {}: error code {} ({}){}",
-            o.goal_id,
-            o.status.word(),
-            o.error_code,
-            error_code_word(o.error_code),
-            if o.error_string.is_empty() {
-                String::new()
-            } else {
-                format!(", \"{}\"", o.error_string)
-            }
-        )
-    }];
-    lines.push(format!(
-        "{} feedback message(s); server found after {:.2} s",
-        o.feedback, o.discovery_s
-    ));
-    if o.cancel_requested {
-        lines.push("the goal was cancelled (Ctrl-C or no result in time)".into());
-    }
-    (Answer { json, lines }, Ended::of(o.succeeded()))
+    Ok(Tracked {
+        topic: r.topic.clone(),
+        tracking,
+        limits,
+        report,
+        written: (r.out.clone(), report_file),
+    })
 }
 
 /// What and where to record.
@@ -673,27 +614,21 @@ pub fn record(
     force: bool,
     stop: &StopToken,
     progress: impl FnMut(f64),
-) -> Result<(Answer, Ended), DriveError> {
+) -> Result<(StatesRecorded, Ended), DriveError> {
     crate::recording::check_record_target(out, force)?;
-    let (rec, mut answer) = record_in_memory(s, stop, progress)?;
+    let (rec, mut recorded) = record_in_memory(s, stop, progress)?;
     let csv = cps_outcome::files::table_csv(&recording_table(&rec))?;
     cps_outcome::files::write_file(out, &csv)?;
-    let text = format!("{:#}", answer.json);
+    let text = format!("{:#}", json!(recorded));
     let report_file = crate::recording::report_path(out);
     cps_outcome::files::write_file(&report_file, text.as_bytes())?;
-    answer.lines.push(format!(
-        "wrote {} and {}",
-        out.display(),
-        report_file.display()
-    ));
-    Ok((
-        answer,
-        if rec.stopped {
-            Ended::Stopped
-        } else {
-            Ended::Completed
-        },
-    ))
+    recorded.written = Some((out.to_path_buf(), report_file));
+    let ended = if rec.stopped {
+        Ended::Stopped
+    } else {
+        Ended::Completed
+    };
+    Ok((recorded, ended))
 }
 
 /// [`record`] in memory: the recording and its report (JSON and lines).
@@ -701,7 +636,7 @@ pub fn record_in_memory(
     s: &RecordSettings,
     stop: &StopToken,
     progress: impl FnMut(f64),
-) -> Result<(JointRecording, Answer), DriveError> {
+) -> Result<(JointRecording, StatesRecorded), DriveError> {
     if !(s.duration.is_finite() && s.duration > 0.0 && s.duration <= 3600.0) {
         return Err(InputError(format!(
             "--duration {}: give seconds in (0, 3600]",
@@ -729,15 +664,6 @@ pub fn record_in_memory(
     let rec = record_joint_states(&node, &options, stop.flag(), progress)?;
     let (times, source) = rec.times();
     let span = times.last().copied().unwrap_or(0.0);
-    let mut lines = vec![format!(
-        "recorded {} JointState message(s) over {span:.3} s from {} ({} lost, {} published before the recording began and dropped, {} without every joint, {} unreadable), times from each message's {source}",
-        rec.positions.len(),
-        s.topic,
-        rec.lost,
-        rec.older,
-        rec.incomplete,
-        rec.dropped.malformed + rec.dropped.oversized + rec.dropped.undecodable
-    )];
     let limits = cps_movement::limits::check_samples(
         &model,
         &cps_movement::limits::JointTrajectory {
@@ -746,40 +672,25 @@ pub fn record_in_memory(
             q: rec.positions.clone(),
         },
         1000.0,
-    );
-    let limits_json = match &limits {
-        Ok(r) if times.len() >= 2 && times.windows(2).all(|w| w[1] > w[0]) => {
-            lines.extend(r.lines());
-            r.json()
-        }
-        _ => {
-            lines.push("the limit check needs two or more messages at increasing times".into());
-            Value::Null
-        }
+    )
+    .ok()
+    .filter(|_| times.len() >= 2 && times.windows(2).all(|w| w[1] > w[0]));
+    let recorded = StatesRecorded {
+        topic: s.topic.clone(),
+        domain: node.name().domain,
+        joints: names,
+        messages: rec.messages,
+        kept: rec.positions.len(),
+        lost: rec.lost,
+        older: rec.older,
+        incomplete: rec.incomplete,
+        dropped: rec.dropped,
+        time_source: source,
+        first_message_s: rec.first_message_s,
+        duration_s: span,
+        complete: !rec.stopped,
+        limits,
+        written: None,
     };
-    let report = json!({
-        "complete": !rec.stopped,
-        "topic": s.topic,
-        "domain": node.name().domain,
-        "joints": names,
-        "messages": rec.messages,
-        "kept": rec.positions.len(),
-        "lost": rec.lost,
-        "older": rec.older,
-        "incomplete": rec.incomplete,
-        "malformed": rec.dropped.malformed,
-        "oversized": rec.dropped.oversized,
-        "undecodable": rec.dropped.undecodable,
-        "time_source": source,
-        "first_message_s": rec.first_message_s,
-        "duration_s": span,
-        "limits": limits_json,
-    });
-    Ok((
-        rec,
-        Answer {
-            json: report,
-            lines,
-        },
-    ))
+    Ok((rec, recorded))
 }

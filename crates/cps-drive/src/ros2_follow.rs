@@ -24,12 +24,11 @@ use cps_ros2::names::NodeName;
 use cps_ros2::node::{Node, Qos};
 use cps_ros2::robot::NODE_NAME;
 use cps_ros2_msg::msg::{Header, JointTrajectory, JointTrajectoryPoint, Message, Time};
-use serde_json::json;
 
-use cps_movement::robot_file::Answer;
 use cps_outcome::{Ended, InputError};
 
 use crate::error::DriveError;
+use crate::said::ChunksPublished;
 
 use crate::ros2::GraphSettings;
 
@@ -270,7 +269,7 @@ pub fn ros2_follow(
     s: &FollowTopic,
     settings: &FollowSettings,
     stop: &StopToken,
-) -> Result<(Answer, Ended), DriveError> {
+) -> Result<(ChunksPublished, Ended), DriveError> {
     settings.check().map_err(|e| InputError(e.to_string()))?;
     if !(s.period >= DT && s.period <= 1.0) {
         return Err(
@@ -328,35 +327,25 @@ pub fn ros2_follow(
         other => DriveError::Robot(other),
     })?;
     let t = robot.into_inner();
-    let json = json!({
-        "file": name, "controller": s.controller, "topic": topic, "joint_names": names,
-        "chunks": chunks.len(), "replacements": count, "published": t.published,
-        "refused": refused.iter().map(|(i, why)| json!({"chunk": i, "why": why})).collect::<Vec<_>>(),
-        "subscribers": t.subscribers, "latest_s": t.late_s, "duration_s": plan.duration(),
-        "complete": run.ending.complete(),
-    });
-    let mut lines = vec![
-        format!(
-            "{} of {count} replacement trajectories published to {topic} ({} subscriber(s)), each at its chunk's arrival (at most {:.1} ms late): {:.3} s of motion",
-            t.published,
-            t.subscribers,
-            t.late_s * 1e3,
-            plan.duration()
-        ),
-        format!(
-            "  {} chunks, {} refused; the whole motion checked against the {}'s limits first",
-            chunks.len(),
-            refused.len(),
-            model.name
-        ),
-    ];
-    for (i, why) in &refused {
-        lines.push(format!("  chunk {i} refused: {why}"));
-    }
+    let published = ChunksPublished {
+        file: name,
+        controller: s.controller.clone(),
+        topic,
+        joint_names: names,
+        robot: model.name.clone(),
+        chunks: chunks.len(),
+        replacements: count,
+        published: t.published,
+        refused,
+        subscribers: t.subscribers,
+        latest_s: t.late_s,
+        duration_s: plan.duration(),
+        complete: run.ending.complete(),
+    };
     let code = match run.ending {
         cps_robot::Ending::Finished => Ended::Completed,
         cps_robot::Ending::Stopped => Ended::Stopped,
         _ => Ended::Failed,
     };
-    Ok((Answer { json, lines }, code))
+    Ok((published, code))
 }

@@ -24,6 +24,58 @@ pub struct Shown {
     pub robot: RobotShown,
 }
 
+/// `ros2 show`: an experiment's markers, published on `topic` for `seconds`, and who saw
+/// them.
+#[derive(Debug, Clone)]
+pub struct Showed {
+    /// The markers and what they show.
+    pub shown: Shown,
+    /// The MarkerArray topic.
+    pub topic: String,
+    /// The frame of the task's coordinates.
+    pub frame: String,
+    /// Seconds on the graph.
+    pub seconds: f64,
+    /// The DDS domain.
+    pub domain: u16,
+    /// The most viewers subscribed at once.
+    pub subscribers: usize,
+}
+
+/// `{"topic", "frame", "domain", "markers", "path_points", "via_points", "robot_shapes",
+/// "obstacles", "subscribers"}`.
+impl serde::Serialize for Showed {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let (shapes, obstacles) = self.shown.robot.counts();
+        serde_json::json!({
+            "topic": self.topic, "frame": self.frame, "domain": self.domain,
+            "markers": self.shown.markers.markers.len(), "path_points": self.shown.path_points,
+            "via_points": self.shown.via_points, "robot_shapes": shapes, "obstacles": obstacles,
+            "subscribers": self.subscribers,
+        })
+        .serialize(s)
+    }
+}
+
+/// What was shown, where and to how many viewers; then what of the robot.
+impl std::fmt::Display for Showed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s = &self.shown;
+        writeln!(
+            f,
+            "showed {} markers ({} path points, {} via points, start and goal) on {} in frame {} for {:.0} s: {} viewer(s) subscribed",
+            s.markers.markers.len(),
+            s.path_points,
+            s.via_points,
+            self.topic,
+            self.frame,
+            self.seconds,
+            self.subscribers
+        )?;
+        write!(f, "{}", s.robot)
+    }
+}
+
 /// What was drawn of the experiment's robot.
 #[derive(Debug, Clone, PartialEq)]
 pub enum RobotShown {

@@ -13,7 +13,7 @@ use std::sync::Arc;
 use serde_json::{Value, json};
 
 use crate::limits::{JointTrajectory, at_rate, check_rate, read_joint_trajectory};
-use crate::robot_file::{Answer, RobotModel};
+use crate::robot_file::RobotModel;
 use cps_outcome::InputError;
 
 /// The distance (m) within which a row's pairs are listed.
@@ -196,17 +196,14 @@ impl CollideReport {
         })
     }
 
-    /// The report as `cps-cli collide` prints it: its JSON, or `title` and its lines.
-    pub fn answer(&self, title: String) -> Answer {
+    /// The report in words, a line each: what was checked, the closest pair, the verdict.
+    pub fn lines(&self) -> Vec<String> {
         let [bodies, obstacles, pairs] = self.counts;
-        let mut lines = vec![
-            title,
-            format!(
-                "{bodies} bodies, {obstacles} obstacles, {pairs} pairs checked at {} Hz, margin {:.1} mm",
-                self.rate,
-                1e3 * self.margin
-            ),
-        ];
+        let mut lines = vec![format!(
+            "{bodies} bodies, {obstacles} obstacles, {pairs} pairs checked at {} Hz, margin {:.1} mm",
+            self.rate,
+            1e3 * self.margin
+        )];
         lines.push(match self.closest() {
             Some((i, t, p)) => format!(
                 "closest: `{}` and `{}`, {:.1} mm {} at row {} (t = {t:.3} s)",
@@ -225,9 +222,20 @@ impl CollideReport {
             Some(c) => format!("COLLISION: {c}"),
             None => format!("ok: every pair keeps {:.1} mm", 1e3 * self.margin),
         });
-        Answer {
-            json: self.json(),
-            lines,
-        }
+        lines
+    }
+}
+
+/// [`CollideReport::json`].
+impl serde::Serialize for CollideReport {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        self.json().serialize(s)
+    }
+}
+
+/// [`CollideReport::lines`].
+impl std::fmt::Display for CollideReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.lines().join("\n"))
     }
 }

@@ -10,7 +10,7 @@ use cps_lerobot::{Dataset, Feature, LeRobotError};
 use cps_outcome::InputError;
 use serde_json::{Value, json};
 
-use crate::robot_file::{Answer, load_robot};
+use crate::robot_file::load_robot;
 
 /// Demonstrations, each with the words that name it in messages.
 pub type Labelled = Vec<(String, Demonstration)>;
@@ -178,62 +178,52 @@ fn select(
         .collect()
 }
 
-/// A dataset described for `cps-cli lerobot show`: rate, robot, tasks, episodes (frames,
-/// duration, tasks) and features (type, shape, names) — lines, and JSON for `--json`.
-pub fn describe(root: &Path) -> Result<Answer, InputError> {
-    let ds = Dataset::open(root).map_err(input)?;
-    let info = ds.info();
-    let duration = |frames: usize| frames.saturating_sub(1) as f64 / info.fps;
-    let mut lines = vec![format!(
-        "{}: LeRobot {} dataset of {} episodes, {} frames at {} frames/s{}",
-        root.display(),
-        info.codebase_version,
-        ds.episodes().len(),
-        info.total_frames,
-        info.fps,
-        info.robot_type
-            .as_deref()
-            .map_or(String::new(), |r| format!(", robot `{r}`"))
-    )];
-    lines.push("features:".into());
-    for (name, f) in &info.features {
-        if cps_lerobot::dataset::is_bookkeeping(name) {
-            continue;
-        }
-        let names = f
-            .names
-            .as_ref()
-            .map_or(String::new(), |n| format!(" ({})", n.join(", ")));
-        lines.push(format!("  {name}: {} {:?}{names}", f.dtype, f.shape));
+/// A dataset opened for `cps-cli lerobot show`: it says its rate, robot, tasks, episodes
+/// (frames, duration, tasks) and features (type, shape, names) in words and as JSON.
+pub fn describe(root: &Path) -> Result<Described, InputError> {
+    Ok(Described {
+        root: root.to_path_buf(),
+        dataset: Dataset::open(root).map_err(input)?,
+    })
+}
+
+/// A dataset and where it is (`lerobot show`).
+#[derive(Debug, Clone)]
+pub struct Described {
+    /// Its folder.
+    pub root: std::path::PathBuf,
+    /// The dataset.
+    pub dataset: Dataset,
+}
+
+impl Described {
+    fn duration(&self, frames: usize) -> f64 {
+        frames.saturating_sub(1) as f64 / self.dataset.info().fps
     }
-    lines.push("episodes:".into());
-    for e in ds.episodes() {
-        lines.push(format!(
-            "  {}: {} frames, {:.2} s, {}",
-            e.index,
-            e.length,
-            duration(e.length),
-            e.tasks.join("; ")
-        ));
-    }
-    let features: Vec<Value> = info
-        .features
-        .iter()
-        .map(
-            |(name, f)| json!({"name": name, "dtype": f.dtype, "shape": f.shape, "names": f.names}),
-        )
-        .collect();
-    let episodes: Vec<Value> = ds
-        .episodes()
-        .iter()
-        .map(|e| {
-            json!({"episode": e.index, "frames": e.length, "duration_s": duration(e.length),
-                   "tasks": e.tasks})
-        })
-        .collect();
-    Ok(Answer {
-        json: json!({
-            "dataset": root.display().to_string(),
+}
+
+/// `{"dataset", "format", "fps", "robot_type", "frames", "tasks", "features": [{"name",
+/// "dtype", "shape", "names"}], "episodes": [{"episode", "frames", "duration_s", "tasks"}]}`.
+impl serde::Serialize for Described {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let (ds, info) = (&self.dataset, self.dataset.info());
+        let features: Vec<Value> = info
+            .features
+            .iter()
+            .map(
+                |(name, f)| json!({"name": name, "dtype": f.dtype, "shape": f.shape, "names": f.names}),
+            )
+            .collect();
+        let episodes: Vec<Value> = ds
+            .episodes()
+            .iter()
+            .map(|e| {
+                json!({"episode": e.index, "frames": e.length, "duration_s": self.duration(e.length),
+                       "tasks": e.tasks})
+            })
+            .collect();
+        json!({
+            "dataset": self.root.display().to_string(),
             "format": info.codebase_version,
             "fps": info.fps,
             "robot_type": info.robot_type,
@@ -241,9 +231,53 @@ pub fn describe(root: &Path) -> Result<Answer, InputError> {
             "tasks": ds.tasks(),
             "features": features,
             "episodes": episodes,
-        }),
-        lines,
-    })
+        })
+        .serialize(s)
+    }
+}
+
+impl std::fmt::Display for Described {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (ds, info) = (&self.dataset, self.dataset.info());
+        let robot = info.robot_type.as_deref();
+        write!(
+            f,
+            "{}: LeRobot {} dataset of {} episodes, {} frames at {} frames/s{}",
+            self.root.display(),
+            info.codebase_version,
+            ds.episodes().len(),
+            info.total_frames,
+            info.fps,
+            robot.map_or(String::new(), |r| format!(", robot `{r}`"))
+        )?;
+        write!(f, "\nfeatures:")?;
+        for (name, feature) in &info.features {
+            if cps_lerobot::dataset::is_bookkeeping(name) {
+                continue;
+            }
+            let names = feature
+                .names
+                .as_ref()
+                .map_or(String::new(), |n| format!(" ({})", n.join(", ")));
+            write!(
+                f,
+                "\n  {name}: {} {:?}{names}",
+                feature.dtype, feature.shape
+            )?;
+        }
+        write!(f, "\nepisodes:")?;
+        for e in ds.episodes() {
+            let d = self.duration(e.length);
+            write!(
+                f,
+                "\n  {}: {} frames, {d:.2} s, {}",
+                e.index,
+                e.length,
+                e.tasks.join("; ")
+            )?;
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]

@@ -8,7 +8,7 @@ use cps_outcome::InputError;
 use serde_json::json;
 
 use crate::lerobot::{input, names_joint};
-use crate::robot_file::{Answer, load_robot};
+use crate::robot_file::load_robot;
 
 /// How recordings become a dataset ([`write_recordings`]).
 #[derive(Debug, Clone, PartialEq)]
@@ -130,7 +130,7 @@ pub fn write_recordings<P: AsRef<Path>>(
     recordings: &[P],
     export: &Export,
     force: bool,
-) -> Result<Answer, InputError> {
+) -> Result<Written, InputError> {
     if recordings.is_empty() {
         return Err(InputError("give at least one recording".into()));
     }
@@ -237,28 +237,66 @@ pub fn write_recordings<P: AsRef<Path>>(
         features,
     };
     cps_lerobot::write(out, &spec, &episodes, force).map_err(input)?;
-    let frames: Vec<usize> = episodes.iter().map(cps_lerobot::NewEpisode::len).collect();
-    let names: Vec<&str> = spec.features.iter().map(|f| f.name.as_str()).collect();
-    Ok(Answer {
-        json: json!({"dataset": out.display().to_string(), "fps": fps, "robot_type": model.name,
-                     "episodes": frames, "features": names, "action": if commanded { "commands" } else { "next state" }}),
-        lines: vec![format!(
-            "{} episode(s) of {} frames at {fps} frames/s written to {} ({}; action: {})",
-            frames.len(),
-            frames
-                .iter()
-                .map(usize::to_string)
-                .collect::<Vec<_>>()
-                .join(", "),
-            out.display(),
-            names.join(", "),
-            if commanded {
-                "the commanded joints"
-            } else {
-                "the next frame's state (no commands recorded)"
-            }
-        )],
+    Ok(Written {
+        dataset: out.to_path_buf(),
+        fps,
+        robot_type: model.name,
+        episodes: episodes.iter().map(cps_lerobot::NewEpisode::len).collect(),
+        features: spec.features.into_iter().map(|f| f.name).collect(),
+        commanded,
     })
+}
+
+/// A dataset written by [`write_recordings`] (`lerobot write`).
+#[derive(Debug, Clone)]
+pub struct Written {
+    /// Its folder.
+    pub dataset: std::path::PathBuf,
+    /// Frames per second.
+    pub fps: u32,
+    /// The robot recorded.
+    pub robot_type: String,
+    /// Each episode's frames.
+    pub episodes: Vec<usize>,
+    /// Its features.
+    pub features: Vec<String>,
+    /// Whether the actions are the commands (else the next frame's state).
+    pub commanded: bool,
+}
+
+/// `{"dataset", "fps", "robot_type", "episodes", "features", "action"}`.
+impl serde::Serialize for Written {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let action = if self.commanded {
+            "commands"
+        } else {
+            "next state"
+        };
+        json!({"dataset": self.dataset.display().to_string(), "fps": self.fps,
+            "robot_type": self.robot_type, "episodes": self.episodes,
+            "features": self.features, "action": action})
+        .serialize(s)
+    }
+}
+
+impl std::fmt::Display for Written {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let frames: Vec<String> = self.episodes.iter().map(usize::to_string).collect();
+        let action = if self.commanded {
+            "the commanded joints"
+        } else {
+            "the next frame's state (no commands recorded)"
+        };
+        write!(
+            f,
+            "{} episode(s) of {} frames at {} frames/s written to {} ({}; action: {action})",
+            self.episodes.len(),
+            frames.join(", "),
+            self.fps,
+            self.dataset.display(),
+            self.features.join(", ")
+        )
+    }
 }
 
 #[cfg(test)]

@@ -208,6 +208,20 @@ pub fn check_file(path: &Path, robot: &RobotModel, rate: f64) -> Result<LimitsRe
     check_samples(robot, &traj, rate).map_err(|e| InputError(format!("{}: {e}", path.display())))
 }
 
+/// [`LimitsReport::json`].
+impl serde::Serialize for LimitsReport {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        self.json().serialize(s)
+    }
+}
+
+/// [`LimitsReport::lines`].
+impl std::fmt::Display for LimitsReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.lines().join("\n"))
+    }
+}
+
 impl LimitsReport {
     /// Whether every checked limit, joint and Cartesian, holds.
     pub fn ok(&self) -> bool {
@@ -258,14 +272,6 @@ impl LimitsReport {
             });
         }
         out
-    }
-
-    /// The report as `cps-cli limits check` prints it: its JSON, or `title` and its lines.
-    pub fn answer(&self, title: String) -> crate::robot_file::Answer {
-        crate::robot_file::Answer {
-            json: self.json(),
-            lines: std::iter::once(title).chain(self.lines()).collect(),
-        }
     }
 
     /// The report in words, a line each.

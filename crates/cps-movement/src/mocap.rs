@@ -8,9 +8,8 @@ use std::path::{Path, PathBuf};
 use cps_mocap::demo::{Demonstration, Settings, demonstrate, read_take};
 use cps_mocap::register::Calibration;
 use cps_mocap::{MocapError, Take};
-use serde_json::json;
+use serde_json::{Value, json};
 
-use crate::robot_file::Answer;
 use cps_outcome::outcome::{Figure, Mark, MarkKind, Panels, Plot, Series};
 use cps_outcome::{ExperimentError, InputError};
 
@@ -64,82 +63,72 @@ pub fn demonstrations(
     Ok(out)
 }
 
-/// `mocap show`: labels, rate, frames, units, each marker's gaps, analog channels and
-/// rigid bodies.
-pub fn show(path: &Path) -> Result<Answer, InputError> {
-    let t = read(path)?;
-    let kind = match t.source {
-        cps_mocap::take::Source::C3d { float, processor } => format!(
-            "C3D ({}, {processor:?})",
-            if float {
-                "floating point"
-            } else {
-                "16-bit integers"
-            }
-        ),
-        cps_mocap::take::Source::MotiveCsv => "Motive CSV".into(),
-    };
-    let mut lines = vec![
-        format!("{}: {kind}", path.display()),
-        format!(
-            "  {} frames at {} Hz ({:.3} s), first frame {}; lengths in {} ({} m each)",
-            t.frames,
-            t.rate,
-            t.duration(),
-            t.first_frame,
-            t.units,
-            t.metres_per_unit
-        ),
-        format!("  {} markers:", t.markers()),
-    ];
-    let mut markers = Vec::new();
-    for m in 0..t.markers() {
-        let gaps = t.gaps(m);
-        let missing: usize = gaps.iter().map(|g| g.len()).sum();
-        let longest = gaps.iter().map(|g| g.len()).max().unwrap_or(0);
-        lines.push(format!(
-            "    {:<24} seen {:>6.2} %{}",
-            t.labels[m],
-            100.0 * (t.frames - missing) as f64 / t.frames.max(1) as f64,
-            if gaps.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    ", {} gap(s), longest {longest} frames (from frame {})",
-                    gaps.len(),
-                    gaps.iter()
-                        .max_by_key(|g| g.len())
-                        .map_or(0, |g| t.first_frame + g.start as u64)
-                )
-            }
-        ));
-        markers.push(json!({
-            "label": t.labels[m],
-            "missing_frames": missing,
-            "gaps": gaps.len(),
-            "longest_gap_frames": longest,
-            "gap_frames": gaps.iter().map(|g| [t.first_frame + g.start as u64, t.first_frame + g.end as u64 - 1]).collect::<Vec<_>>(),
-        }));
+/// `mocap show`: a take read, to say its labels, rate, frames, units, each marker's gaps,
+/// analog channels and rigid bodies.
+pub fn show(path: &Path) -> Result<Shown, InputError> {
+    Ok(Shown {
+        path: path.to_path_buf(),
+        take: read(path)?,
+    })
+}
+
+/// A take and where it is (`mocap show`).
+#[derive(Debug, Clone)]
+pub struct Shown {
+    /// The file.
+    pub path: PathBuf,
+    /// The take.
+    pub take: cps_mocap::take::Take,
+}
+
+impl Shown {
+    /// Its format in words.
+    fn kind(&self) -> String {
+        match self.take.source {
+            cps_mocap::take::Source::C3d { float, processor } => format!(
+                "C3D ({}, {processor:?})",
+                if float {
+                    "floating point"
+                } else {
+                    "16-bit integers"
+                }
+            ),
+            cps_mocap::take::Source::MotiveCsv => "Motive CSV".into(),
+        }
     }
-    let bodies: Vec<&str> = t.rigid_bodies.iter().map(|b| b.name.as_str()).collect();
-    if !bodies.is_empty() {
-        lines.push(format!("  rigid bodies: {}", bodies.join(", ")));
+
+    fn bodies(&self) -> Vec<&str> {
+        self.take
+            .rigid_bodies
+            .iter()
+            .map(|b| b.name.as_str())
+            .collect()
     }
-    if let Some(a) = &t.analog {
-        lines.push(format!(
-            "  {} analog channel(s) at {} Hz: {}",
-            a.channels(),
-            a.rate,
-            a.labels.join(", ")
-        ));
-    }
-    for n in &t.notes {
-        lines.push(format!("  note: {n}"));
-    }
-    Ok(Answer {
-        json: json!({
-            "file": path.display().to_string(),
-            "format": kind,
+}
+
+/// `{"file", "format", "frames", "rate_hz", "duration_s", "first_frame", "units",
+/// "metres_per_unit", "markers": [{"label", "missing_frames", "gaps",
+/// "longest_gap_frames", "gap_frames"}], "rigid_bodies", "analog", "notes"}`.
+impl serde::Serialize for Shown {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let t = &self.take;
+        let markers: Vec<Value> = (0..t.markers())
+            .map(|m| {
+                let gaps = t.gaps(m);
+                let missing: usize = gaps.iter().map(|g| g.len()).sum();
+                let longest = gaps.iter().map(|g| g.len()).max().unwrap_or(0);
+                json!({
+                    "label": t.labels[m],
+                    "missing_frames": missing,
+                    "gaps": gaps.len(),
+                    "longest_gap_frames": longest,
+                    "gap_frames": gaps.iter().map(|g| [t.first_frame + g.start as u64, t.first_frame + g.end as u64 - 1]).collect::<Vec<_>>(),
+                })
+            })
+            .collect();
+        json!({
+            "file": self.path.display().to_string(),
+            "format": self.kind(),
             "frames": t.frames,
             "rate_hz": t.rate,
             "duration_s": t.duration(),
@@ -147,15 +136,68 @@ pub fn show(path: &Path) -> Result<Answer, InputError> {
             "units": t.units,
             "metres_per_unit": t.metres_per_unit,
             "markers": markers,
-            "rigid_bodies": bodies,
+            "rigid_bodies": self.bodies(),
             "analog": t.analog.as_ref().map(|a| json!({
                 "labels": a.labels, "units": a.units, "rate_hz": a.rate,
                 "samples_per_frame": a.samples_per_frame,
             })),
             "notes": t.notes,
-        }),
-        lines,
-    })
+        })
+        .serialize(s)
+    }
+}
+
+impl std::fmt::Display for Shown {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let t = &self.take;
+        writeln!(f, "{}: {}", self.path.display(), self.kind())?;
+        writeln!(
+            f,
+            "  {} frames at {} Hz ({:.3} s), first frame {}; lengths in {} ({} m each)",
+            t.frames,
+            t.rate,
+            t.duration(),
+            t.first_frame,
+            t.units,
+            t.metres_per_unit
+        )?;
+        write!(f, "  {} markers:", t.markers())?;
+        for m in 0..t.markers() {
+            let gaps = t.gaps(m);
+            let missing: usize = gaps.iter().map(|g| g.len()).sum();
+            let longest = gaps.iter().map(|g| g.len()).max().unwrap_or(0);
+            let seen = 100.0 * (t.frames - missing) as f64 / t.frames.max(1) as f64;
+            write!(f, "\n    {:<24} seen {seen:>6.2} %", t.labels[m])?;
+            if !gaps.is_empty() {
+                let from = gaps
+                    .iter()
+                    .max_by_key(|g| g.len())
+                    .map_or(0, |g| t.first_frame + g.start as u64);
+                write!(
+                    f,
+                    ", {} gap(s), longest {longest} frames (from frame {from})",
+                    gaps.len()
+                )?;
+            }
+        }
+        let bodies = self.bodies();
+        if !bodies.is_empty() {
+            write!(f, "\n  rigid bodies: {}", bodies.join(", "))?;
+        }
+        if let Some(a) = &t.analog {
+            let labels = a.labels.join(", ");
+            write!(
+                f,
+                "\n  {} analog channel(s) at {} Hz: {labels}",
+                a.channels(),
+                a.rate
+            )?;
+        }
+        for n in &t.notes {
+            write!(f, "\n  note: {n}")?;
+        }
+        Ok(())
+    }
 }
 
 /// What `mocap import` writes besides the demonstration.
@@ -183,7 +225,7 @@ pub fn import(
     settings: &Settings,
     files: &ImportFiles,
     out: &Path,
-) -> Result<Answer, ExperimentError> {
+) -> Result<Imported, ExperimentError> {
     if out.exists() && !files.force {
         return Err(InputError(format!(
             "{} exists; add --force to replace it",
@@ -215,17 +257,58 @@ pub fn import(
             written.push(path.display().to_string());
         }
     }
-    let r = &demo.report;
     let beyond = reach.as_ref().map(|r| {
         demo.position
             .iter()
             .filter(|p| cps_mocap::fit::norm(cps_mocap::fit::sub(**p, r.centre)) > r.radius)
             .count()
     });
-    let mut lines = vec![
-        format!(
+    Ok(Imported {
+        out: out.to_path_buf(),
+        report: demo.report,
+        beyond,
+        reach,
+        figures: written.split_off(1),
+    })
+}
+
+/// A take made a demonstration (`mocap import`): its report, what lies beyond the robot's
+/// reach, the figures drawn.
+#[derive(Debug, Clone)]
+pub struct Imported {
+    /// The demonstration written.
+    pub out: PathBuf,
+    /// How it was made from the take.
+    pub report: cps_mocap::demo::Report,
+    /// Poses beyond the robot's reach (with `--robot` or `--scene`).
+    pub beyond: Option<usize>,
+    /// That reach.
+    pub reach: Option<Reach>,
+    /// The figures drawn.
+    pub figures: Vec<String>,
+}
+
+/// `{"demonstration", "report", "beyond_reach", "reach_m", "figures"}`.
+impl serde::Serialize for Imported {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        json!({
+            "demonstration": self.out.display().to_string(),
+            "report": serde_json::to_value(&self.report).unwrap_or_default(),
+            "beyond_reach": self.beyond,
+            "reach_m": self.reach.as_ref().map(|r| r.radius),
+            "figures": self.figures,
+        })
+        .serialize(s)
+    }
+}
+
+impl std::fmt::Display for Imported {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let r = &self.report;
+        write!(
+            f,
             "{}: {} poses over {:.3} s (frames {}–{} of {}, cut {} at the start and {} at the end), from {}",
-            out.display(),
+            self.out.display(),
             r.frames,
             r.duration_s,
             r.kept_frames[0],
@@ -234,64 +317,61 @@ pub fn import(
             r.cut[0],
             r.cut[1],
             r.from
-        ),
-        format!(
-            "  markers within {:.3} mm RMS of the body on average, {:.3} mm at worst; {} frame(s) fitted with fewer than all markers",
+        )?;
+        write!(
+            f,
+            "\n  markers within {:.3} mm RMS of the body on average, {:.3} mm at worst; {} frame(s) fitted with fewer than all markers",
             r.fit_rms_mean_m * 1e3,
             r.fit_rms_max_m * 1e3,
             r.frames_with_fewer_markers
-        ),
-    ];
-    for m in &r.markers {
-        if m.missing_frames + m.outliers > 0 {
-            lines.push(format!(
-                "  {}: {} frame(s) missing, {} gap(s) filled ({} frames, longest {}), {} outlier(s) rejected{}",
+        )?;
+        for m in r
+            .markers
+            .iter()
+            .filter(|m| m.missing_frames + m.outliers > 0)
+        {
+            write!(
+                f,
+                "\n  {}: {} frame(s) missing, {} gap(s) filled ({} frames, longest {}), {} outlier(s) rejected",
                 m.label,
                 m.missing_frames,
                 m.gaps_filled,
                 m.frames_filled,
                 m.longest_filled,
                 m.outliers,
-                if m.open_gaps.is_empty() {
-                    String::new()
-                } else {
-                    format!(", {} gap(s) left open", m.open_gaps.len())
-                }
-            ));
+            )?;
+            if !m.open_gaps.is_empty() {
+                write!(f, ", {} gap(s) left open", m.open_gaps.len())?;
+            }
         }
+        match &r.registration {
+            Some(g) => write!(
+                f,
+                "\n  in the robot's frame: registration from {} points, {:.3} mm RMS ({:.3} mm at `{}`)",
+                g.points,
+                g.rms_m * 1e3,
+                g.max_m * 1e3,
+                g.worst
+            )?,
+            None => write!(
+                f,
+                "\n  frame: {} (no registration: the take's own axes)",
+                r.frame
+            )?,
+        }
+        if let (Some(n), Some(reach)) = (self.beyond, &self.reach) {
+            let c = reach.centre;
+            write!(
+                f,
+                "\n  {n} of {} poses lie beyond the reach of the {} ({:.3} m from its shoulder at ({:.3}, {:.3}, {:.3}) m)",
+                r.frames, reach.robot, reach.radius, c[0], c[1], c[2]
+            )?;
+        }
+        for w in &self.figures {
+            write!(f, "\n  figure: {w}")?;
+        }
+        Ok(())
     }
-    lines.push(match &r.registration {
-        Some(g) => format!(
-            "  in the robot's frame: registration from {} points, {:.3} mm RMS ({:.3} mm at `{}`)",
-            g.points,
-            g.rms_m * 1e3,
-            g.max_m * 1e3,
-            g.worst
-        ),
-        None => format!(
-            "  frame: {} (no registration: the take's own axes)",
-            r.frame
-        ),
-    });
-    if let (Some(n), Some(reach)) = (beyond, &reach) {
-        lines.push(format!(
-            "  {n} of {} poses lie beyond the reach of the {} ({:.3} m from its shoulder at ({:.3}, {:.3}, {:.3}) m)",
-            r.frames, reach.robot, reach.radius, reach.centre[0], reach.centre[1], reach.centre[2]
-        ));
-    }
-    for w in written.iter().skip(1) {
-        lines.push(format!("  figure: {w}"));
-    }
-    Ok(Answer {
-        json: json!({
-            "demonstration": out.display().to_string(),
-            "report": serde_json::to_value(r).unwrap_or_default(),
-            "beyond_reach": beyond,
-            "reach_m": reach.as_ref().map(|r| r.radius),
-            "figures": written[1..],
-        }),
-        lines,
-    })
 }
 
 /// A robot's reach: a sphere about the centroid of 4 000 random tool positions within its

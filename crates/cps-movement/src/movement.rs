@@ -205,48 +205,6 @@ pub struct Imitated {
 }
 
 impl Imitated {
-    /// What `cps-cli imitate` prints for the model written to `out`: JSON `{"model",
-    /// "dimensions", "tau", "dt", "rmse", "max_error", "lambda", "condition_number",
-    /// "integrated_squared_jerk", "demo_integrated_squared_jerk"}`, or the fit in words.
-    pub fn answer(&self, out: &Path) -> crate::robot_file::Answer {
-        let (fit, names) = (&self.fit, &self.names);
-        let (tau, r) = (fit.dmp.config().tau, &fit.report);
-        let json = serde_json::json!({
-            "model": out,
-            "dimensions": names,
-            "tau": tau,
-            "dt": fit.dmp.config().step(),
-            "rmse": r.rmse,
-            "max_error": r.max_error,
-            "lambda": r.lambda,
-            "condition_number": r.condition_number,
-            "integrated_squared_jerk": r.integrated_squared_jerk,
-            "demo_integrated_squared_jerk": r.demo_integrated_squared_jerk,
-        });
-        let mut lines = vec![format!(
-            "{} demonstration(s), {} dimension(s), {} bases, τ = {tau} s: model written to {}",
-            self.demonstrations,
-            names.len(),
-            fit.dmp.n_basis(),
-            out.display()
-        )];
-        for (d, name) in names.iter().enumerate() {
-            lines.push(format!(
-                "  {name}: RMSE {:.3e}, max error {:.3e}, λ {:.3e}, ∫jerk² {:.4e} (demo {:.4e})",
-                r.rmse[d],
-                r.max_error[d],
-                r.lambda[d],
-                r.integrated_squared_jerk[d],
-                r.demo_integrated_squared_jerk[d]
-            ));
-        }
-        lines.push(format!(
-            "  condition number of the regression: {:.3e}",
-            r.condition_number
-        ));
-        crate::robot_file::Answer { json, lines }
-    }
-
     /// The model as the JSON file format.
     pub fn model(&self) -> DmpModel {
         DmpModel::new(&self.fit.dmp, &self.fit.weights, self.names.clone())
@@ -561,4 +519,48 @@ pub fn trajectory_series(label: impl Into<String>, traj: &Trajectory) -> Series 
             .map(|d| traj.position(d).to_vec())
             .collect(),
     )
+}
+
+/// What `cps-cli imitate` prints for the model written to `out`: JSON `{"model",
+/// "dimensions", "tau", "dt", "rmse", "max_error", "lambda", "condition_number",
+/// "integrated_squared_jerk", "demo_integrated_squared_jerk"}`, or the fit in words.
+impl crate::robot_file::SaysSaved for Imitated {
+    fn said(&self, out: &Path) -> (serde_json::Value, Vec<String>) {
+        let (fit, names) = (&self.fit, &self.names);
+        let (tau, r) = (fit.dmp.config().tau, &fit.report);
+        let json = serde_json::json!({
+            "model": out,
+            "dimensions": names,
+            "tau": tau,
+            "dt": fit.dmp.config().step(),
+            "rmse": r.rmse,
+            "max_error": r.max_error,
+            "lambda": r.lambda,
+            "condition_number": r.condition_number,
+            "integrated_squared_jerk": r.integrated_squared_jerk,
+            "demo_integrated_squared_jerk": r.demo_integrated_squared_jerk,
+        });
+        let mut lines = vec![format!(
+            "{} demonstration(s), {} dimension(s), {} bases, τ = {tau} s: model written to {}",
+            self.demonstrations,
+            names.len(),
+            fit.dmp.n_basis(),
+            out.display()
+        )];
+        for (d, name) in names.iter().enumerate() {
+            lines.push(format!(
+                "  {name}: RMSE {:.3e}, max error {:.3e}, λ {:.3e}, ∫jerk² {:.4e} (demo {:.4e})",
+                r.rmse[d],
+                r.max_error[d],
+                r.lambda[d],
+                r.integrated_squared_jerk[d],
+                r.demo_integrated_squared_jerk[d]
+            ));
+        }
+        lines.push(format!(
+            "  condition number of the regression: {:.3e}",
+            r.condition_number
+        ));
+        (json, lines)
+    }
 }

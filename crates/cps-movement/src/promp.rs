@@ -8,7 +8,6 @@ use std::path::Path;
 use cps_promp::{Observation, ProMp, ProMpError, ProMpModel};
 
 use crate::movement::{Columns, read_labelled, with_units};
-use crate::robot_file::Answer;
 use cps_outcome::InputError;
 use cps_outcome::outcome::{
     Band, Column, Figure, Format, Mark, MarkKind, Panels, Plot, Series, Table,
@@ -392,35 +391,6 @@ fn name_demo(message: &str, labels: &[String]) -> String {
 }
 
 impl Fitted {
-    /// What `cps-cli promp fit` prints for the file written to `out`: JSON `{"model",
-    /// "dimensions", "demonstrations", "bases", "duration", "mean_std", "notes"}` or lines.
-    pub fn answer(&self, out: &Path) -> Answer {
-        let p = &self.promp;
-        let mean_std = p.mean_std();
-        let json = serde_json::json!({
-            "model": out,
-            "dimensions": p.names,
-            "demonstrations": p.demonstrations,
-            "bases": p.promp.bases(),
-            "duration": p.promp.duration(),
-            "mean_std": mean_std,
-            "notes": self.notes,
-        });
-        let mut lines = vec![format!(
-            "{} demonstrations, {} dimension(s), {} bases, {} s: ProMP written to {}",
-            p.demonstrations,
-            p.names.len(),
-            p.promp.bases(),
-            p.promp.duration(),
-            out.display()
-        )];
-        for (name, s) in p.names.iter().zip(&mean_std) {
-            lines.push(format!("  {name}: mean σ over the movement {s:.4e}"));
-        }
-        lines.extend(self.notes.iter().map(|n| format!("note: {n}")));
-        Answer { json, lines }
-    }
-
     /// The demonstrations (faint), the mean and the ±2σ band.
     pub fn figure(&self) -> Figure {
         let demos = self
@@ -599,11 +569,50 @@ pub fn condition(prior: NamedProMp, via: &ViaPoints) -> Result<Conditioned, Inpu
 }
 
 impl Conditioned {
-    /// What `cps-cli promp condition` prints: per via point, the mean and σ before and
-    /// after, and a note for a point more than 3σ outside the demonstrations; JSON
-    /// `{"model", "via_points": [{"time", "position", "prior_mean", "prior_std", "mean",
-    /// "std", "prior_sigmas"}]}`.
-    pub fn answer(&self, out: &Path) -> Answer {
+    /// The prior's and the posterior's bands with the via points marked.
+    pub fn figure(&self) -> Figure {
+        self.posterior
+            .figure("conditioned", Vec::new(), Some(&self.prior), &self.via)
+    }
+}
+
+/// What `cps-cli promp fit` prints for the file written to `out`: JSON `{"model",
+/// "dimensions", "demonstrations", "bases", "duration", "mean_std", "notes"}` or lines.
+impl crate::robot_file::SaysSaved for Fitted {
+    fn said(&self, out: &Path) -> (serde_json::Value, Vec<String>) {
+        let p = &self.promp;
+        let mean_std = p.mean_std();
+        let json = serde_json::json!({
+            "model": out,
+            "dimensions": p.names,
+            "demonstrations": p.demonstrations,
+            "bases": p.promp.bases(),
+            "duration": p.promp.duration(),
+            "mean_std": mean_std,
+            "notes": self.notes,
+        });
+        let mut lines = vec![format!(
+            "{} demonstrations, {} dimension(s), {} bases, {} s: ProMP written to {}",
+            p.demonstrations,
+            p.names.len(),
+            p.promp.bases(),
+            p.promp.duration(),
+            out.display()
+        )];
+        for (name, s) in p.names.iter().zip(&mean_std) {
+            lines.push(format!("  {name}: mean σ over the movement {s:.4e}"));
+        }
+        lines.extend(self.notes.iter().map(|n| format!("note: {n}")));
+        (json, lines)
+    }
+}
+
+/// What `cps-cli promp condition` prints: per via point, the mean and σ before and
+/// after, and a note for a point more than 3σ outside the demonstrations; JSON
+/// `{"model", "via_points": [{"time", "position", "prior_mean", "prior_std", "mean",
+/// "std", "prior_sigmas"}]}`.
+impl crate::robot_file::SaysSaved for Conditioned {
+    fn said(&self, out: &Path) -> (serde_json::Value, Vec<String>) {
         let mut lines = vec![format!(
             "conditioned on {} via point(s): ProMP written to {}",
             self.via.len(),
@@ -653,15 +662,9 @@ impl Conditioned {
                 "prior_sigmas": sigmas,
             }));
         }
-        Answer {
-            json: serde_json::json!({ "model": out, "via_points": points }),
+        (
+            serde_json::json!({ "model": out, "via_points": points }),
             lines,
-        }
-    }
-
-    /// The prior's and the posterior's bands with the via points marked.
-    pub fn figure(&self) -> Figure {
-        self.posterior
-            .figure("conditioned", Vec::new(), Some(&self.prior), &self.via)
+        )
     }
 }

@@ -74,6 +74,20 @@ pub struct RetimeReport {
     pub trajectory: JointTrajectory,
 }
 
+/// [`RetimeReport::json`].
+impl serde::Serialize for RetimeReport {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        self.json().serialize(s)
+    }
+}
+
+/// [`RetimeReport::lines`].
+impl std::fmt::Display for RetimeReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.lines().join("\n"))
+    }
+}
+
 /// Retimes a trajectory in memory for `robot`.
 pub fn retime_samples(
     robot: &RobotModel,

@@ -158,26 +158,31 @@ pub fn ik_target(values: &[f64]) -> Result<IkTarget, InputError> {
 /// The largest joint value accepted (radians or metres): beyond it the angle means nothing.
 pub const MAX_JOINT_VALUE: f64 = 1000.0;
 
-/// A result of the kinematics commands: its JSON (`--json`) and its words.
-#[derive(Debug, Clone)]
-pub struct Answer {
-    /// What `--json` prints.
-    pub json: serde_json::Value,
-    /// What the command prints otherwise, a line each.
-    pub lines: Vec<String>,
+/// A result and the file it was saved to (`imitate`, `promp fit`, `promp condition`), as
+/// the command that saved it says it: `Serialize` for `--json`, `Display` for the text.
+#[derive(Debug, Clone, Copy)]
+pub struct Saved<'a, T> {
+    /// The result.
+    pub what: &'a T,
+    /// The file it was saved to.
+    pub out: &'a Path,
 }
 
-/// Its JSON.
-impl serde::Serialize for Answer {
+/// A result that says itself once saved: its JSON and its lines, naming the file.
+pub trait SaysSaved {
+    /// The JSON and the lines of `self` saved to `out`.
+    fn said(&self, out: &Path) -> (serde_json::Value, Vec<String>);
+}
+
+impl<T: SaysSaved> serde::Serialize for Saved<'_, T> {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        self.json.serialize(s)
+        self.what.said(self.out).0.serialize(s)
     }
 }
 
-/// Its lines.
-impl std::fmt::Display for Answer {
+impl<T: SaysSaved> std::fmt::Display for Saved<'_, T> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.lines.join("\n"))
+        f.write_str(&self.what.said(self.out).1.join("\n"))
     }
 }
 

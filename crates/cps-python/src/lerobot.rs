@@ -17,7 +17,7 @@ pub fn _lerobot_show(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyAny>
     let answer = py
         .detach(|| cps_movement::lerobot::describe(&path))
         .map_err(|e| e.py_err())?;
-    json_to_py(py, &answer.json)
+    json_to_py(py, &serde_json::json!(answer))
 }
 
 /// The picked episodes as `(names, [(t, y), …])`.
@@ -67,7 +67,7 @@ pub fn _lerobot_write(
     let answer = py
         .detach(|| cps_movement::lerobot_write::write_recordings(&out, &recordings, &export, force))
         .map_err(|e| e.py_err())?;
-    json_to_py(py, &answer.json)
+    json_to_py(py, &serde_json::json!(answer))
 }
 
 /// Episodes given as arrays written as a dataset: `episodes` a list of dicts feature →

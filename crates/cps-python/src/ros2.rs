@@ -64,7 +64,7 @@ pub fn _ros2_send<'py>(
     let (answer, _) = out.map_err(|e| e.py_err())?;
     match interrupt {
         Some(e) => Err(e),
-        None => json_to_py(py, &answer.json),
+        None => json_to_py(py, &serde_json::json!(answer)),
     }
 }
 
@@ -123,7 +123,7 @@ pub fn _ros2_record<'py>(
         )?;
     }
     d.set_item("joints", rec.joints.clone())?;
-    d.set_item("report", json_to_py(py, &answer.json)?)?;
+    d.set_item("report", json_to_py(py, &serde_json::json!(answer))?)?;
     match interrupt {
         Some(e) => Err(e),
         None => Ok(d),

@@ -383,6 +383,20 @@ pub struct Exported {
     pub lines: Vec<String>,
 }
 
+/// Its `json`.
+impl serde::Serialize for Exported {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        self.json.serialize(s)
+    }
+}
+
+/// Its `lines`.
+impl std::fmt::Display for Exported {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.lines.join("\n"))
+    }
+}
+
 /// Exports a trajectory in memory for `robot`.
 pub fn export_samples(
     robot: &RobotModel,
