@@ -226,16 +226,4 @@ impl CollideReport {
     }
 }
 
-/// [`CollideReport::json`].
-impl serde::Serialize for CollideReport {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        self.json().serialize(s)
-    }
-}
-
-/// [`CollideReport::lines`].
-impl std::fmt::Display for CollideReport {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.lines().join("\n"))
-    }
-}
+says_itself_by_json_and_lines!(CollideReport);

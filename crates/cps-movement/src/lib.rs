@@ -29,6 +29,24 @@
 //! ```
 #![deny(missing_docs)]
 
+/// `Serialize` as the report's `json()` and `Display` as its `lines()`, a line each: for
+/// the reports that say themselves both ways (`limits check`, `collide`, `retime`).
+macro_rules! says_itself_by_json_and_lines {
+    ($($report:ty),+) => {$(
+        impl serde::Serialize for $report {
+            fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+                self.json().serialize(s)
+            }
+        }
+
+        impl std::fmt::Display for $report {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(&self.lines().join("\n"))
+            }
+        }
+    )+};
+}
+
 pub mod calibration;
 pub mod chunks;
 pub mod collide;

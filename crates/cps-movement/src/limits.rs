@@ -208,19 +208,7 @@ pub fn check_file(path: &Path, robot: &RobotModel, rate: f64) -> Result<LimitsRe
     check_samples(robot, &traj, rate).map_err(|e| InputError(format!("{}: {e}", path.display())))
 }
 
-/// [`LimitsReport::json`].
-impl serde::Serialize for LimitsReport {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        self.json().serialize(s)
-    }
-}
-
-/// [`LimitsReport::lines`].
-impl std::fmt::Display for LimitsReport {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.lines().join("\n"))
-    }
-}
+says_itself_by_json_and_lines!(LimitsReport);
 
 impl LimitsReport {
     /// Whether every checked limit, joint and Cartesian, holds.

@@ -74,19 +74,7 @@ pub struct RetimeReport {
     pub trajectory: JointTrajectory,
 }
 
-/// [`RetimeReport::json`].
-impl serde::Serialize for RetimeReport {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        self.json().serialize(s)
-    }
-}
-
-/// [`RetimeReport::lines`].
-impl std::fmt::Display for RetimeReport {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.lines().join("\n"))
-    }
-}
+says_itself_by_json_and_lines!(RetimeReport);
 
 /// Retimes a trajectory in memory for `robot`.
 pub fn retime_samples(
