@@ -896,12 +896,11 @@ impl serde::Serialize for ExecutedTo {
 impl std::fmt::Display for ExecutedTo {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let lines = self.executed.lines(&self.record);
-        let all: Vec<&String> = lines.iter().chain(&self.more).collect();
-        for (i, line) in all.iter().enumerate() {
+        for (i, line) in lines.iter().chain(&self.more).enumerate() {
             if i > 0 {
                 writeln!(f)?;
             }
-            write!(f, "{line}")?;
+            f.write_str(line)?;
         }
         Ok(())
     }
