@@ -593,7 +593,7 @@ fn every_streaming_robot_survives_lost_periods_as_a_franka_must() {
     ];
     for (name, robot, tolerance) in robots {
         let mut k = 0;
-        let mut next = |_: &[f64], _: f64, out: &mut [f64]| -> bool {
+        let mut next = |_: &cps_robot::Measured<'_>, _: f64, out: &mut [f64]| -> bool {
             out.copy_from_slice(&stream[k.min(n - 1)]);
             k += 1;
             k >= n

@@ -6,6 +6,7 @@ execution breaks them, and cps's commands no farther from the demonstration than
 then a live executor on the dynamics robot fed from Python, bad chunks refused in
 sentences, a stall braked to rest."""
 
+import json
 import math
 import time
 
@@ -173,3 +174,35 @@ def test_a_live_executor_on_the_dynamics_robot_takes_chunks_from_python():
     assert rec["q"].shape == rec["q_d"].shape and rec["q"].shape[1] == 7
     # At rest at the end.
     np.testing.assert_array_equal(rec["q_d"][-1], rec["q_d"][-2])
+
+
+def test_a_live_executor_observes_the_whole_state_and_writes_its_recording(tmp_path):
+    record = tmp_path / "run.csv"
+    record.write_text("t,q1\n0,0\n")
+    # An existing recording is not replaced without force, before anything moves.
+    with pytest.raises(ValueError, match="run.csv"):
+        cps.ChunkExecutor("kinematic", record=record)
+    with cps.ChunkExecutor("kinematic", rate=50.0, idle_end=1.0, record=record, force=True) as ex:
+        o = ex.observe()
+        while math.isnan(o["t"]):
+            time.sleep(0.005)
+            o = ex.observe()
+        np.testing.assert_allclose(o["q"], READY, atol=1e-12)
+        np.testing.assert_array_equal(o["q_d"], o["q"])
+        np.testing.assert_array_equal(o["tau"], np.zeros(7))  # the in-process robot has none
+        targets = np.tile(o["q"], (25, 1))
+        targets[:, 0] += np.linspace(0.0, 0.05, 25)
+        ex.push(targets, o["t"])
+        time.sleep(0.25)
+        moving = ex.observe()
+        # It does what it is told: it stands where the command in force put it, moving
+        # as the command moves (0.1 rad/s along the chunk).
+        np.testing.assert_array_equal(moving["q_d"], moving["q"])
+        assert 0.03 < moving["dq"][0] < 0.2, moving["dq"]
+    rows = record.read_text().splitlines()
+    assert rows[0].split(",")[:2] == ["t", "q1"] and rows[0].split(",")[8] == "q_d1"
+    t = np.array([float(r.split(",")[0]) for r in rows[1:]])
+    assert np.all(np.diff(t) > 0) and t[-1] > 0.25
+    report = json.loads(record.with_suffix(".report.json").read_text())
+    assert report["chunks"]["taken"] == 1, report
+    assert record.with_suffix(".chunks.csv").read_text().count("\n") == 1 + 25

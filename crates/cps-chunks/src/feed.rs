@@ -17,6 +17,7 @@ use std::sync::{Arc, atomic::AtomicBool};
 use crate::FeedError;
 use crate::chunk::Chunk;
 use crate::executor::Refused;
+use cps_robot::Measured;
 
 /// What the executor made of a chunk.
 #[derive(Debug, Clone, PartialEq)]
@@ -42,10 +43,10 @@ pub trait ChunkSource: Send {
     fn retire(&mut self, index: usize, chunk: Chunk);
     /// Whether no chunk will come any more (the stream is over, the feed closed).
     fn ended(&self) -> bool;
-    /// The measured joints at `t`, each period (a live source publishes them to the
-    /// policy). Default: nothing.
-    fn publish(&mut self, t: f64, q: &[f64]) {
-        let _ = (t, q);
+    /// What the robot measured at `t` and the command in force, each period (a live
+    /// source publishes them to the policy). Default: nothing.
+    fn publish(&mut self, t: f64, measured: &Measured<'_>, command: &[f64]) {
+        let _ = (t, measured, command);
     }
     /// The run is over (called once, after the loop). Default: nothing.
     fn over(&mut self) {}
@@ -129,12 +130,29 @@ impl ChunkSource for Replay {
 
 /// The measured state shared between the loop (one writer) and a policy's thread: a
 /// sequence lock over atomics — the writer never waits, a reader retries while a write is
-/// under way.
+/// under way. It holds, for `dof` joints, the positions, velocities, torques and the
+/// command in force, in that order.
 #[derive(Debug)]
 pub struct StateCell {
     seq: AtomicU64,
     t: AtomicU64,
-    q: Vec<AtomicU64>,
+    values: Vec<AtomicU64>,
+}
+
+/// What a live robot measured in a period, as a policy's thread reads it
+/// ([`ChunkFeed::observe`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Observed {
+    /// The period's time on the executor's clock (s since the run started).
+    pub t: f64,
+    /// Joint positions (rad).
+    pub q: Vec<f64>,
+    /// Joint velocities (rad/s).
+    pub dq: Vec<f64>,
+    /// Joint torques (N m; see [`Measured::tau`]).
+    pub tau: Vec<f64>,
+    /// The command in force in that period (rad): what the executor targets now.
+    pub command: Vec<f64>,
 }
 
 impl StateCell {
@@ -143,22 +161,28 @@ impl StateCell {
         StateCell {
             seq: AtomicU64::new(0),
             t: AtomicU64::new(f64::NAN.to_bits()),
-            q: (0..dof).map(|_| AtomicU64::new(0)).collect(),
+            values: (0..4 * dof).map(|_| AtomicU64::new(0)).collect(),
         }
     }
 
-    /// Writes the state (one writer only).
-    pub fn write(&self, t: f64, q: &[f64]) {
+    /// Writes the state (one writer only): what was measured and the command in force.
+    pub fn write(&self, t: f64, measured: &Measured<'_>, command: &[f64]) {
+        let dof = self.values.len() / 4;
         self.seq.fetch_add(1, Ordering::AcqRel);
         self.t.store(t.to_bits(), Ordering::Release);
-        for (cell, x) in self.q.iter().zip(q) {
-            cell.store(x.to_bits(), Ordering::Release);
+        let parts = [measured.q, measured.dq, measured.tau, command];
+        for (cells, part) in self.values.chunks(dof.max(1)).zip(parts) {
+            for (cell, x) in cells.iter().zip(part) {
+                cell.store(x.to_bits(), Ordering::Release);
+            }
         }
         self.seq.fetch_add(1, Ordering::AcqRel);
     }
 
-    /// The last state written into `q` with its time, or None before the first.
-    pub fn read(&self, q: &mut [f64]) -> Option<f64> {
+    /// The last state written into `out` (its first `out.len()` values: the positions,
+    /// then the velocities, the torques, the command) with its time, or None before the
+    /// first.
+    pub fn read(&self, out: &mut [f64]) -> Option<f64> {
         loop {
             let before = self.seq.load(Ordering::Acquire);
             if before % 2 == 1 {
@@ -166,7 +190,7 @@ impl StateCell {
                 continue;
             }
             let t = f64::from_bits(self.t.load(Ordering::Acquire));
-            for (x, cell) in q.iter_mut().zip(&self.q) {
+            for (x, cell) in out.iter_mut().zip(&self.values) {
                 *x = f64::from_bits(cell.load(Ordering::Acquire));
             }
             if self.seq.load(Ordering::Acquire) == before {
@@ -272,6 +296,23 @@ impl ChunkFeed {
         self.collect();
         let mut q = vec![0.0; self.dof];
         self.state.read(&mut q).map(|t| (t, q))
+    }
+
+    /// Everything the robot measured in its last period, with the command in force, or
+    /// None before the loop's first period.
+    pub fn observe(&mut self) -> Option<Observed> {
+        self.collect();
+        let dof = self.dof;
+        let mut all = vec![0.0; 4 * dof];
+        let t = self.state.read(&mut all)?;
+        let part = |k: usize| all[k * dof..(k + 1) * dof].to_vec();
+        Some(Observed {
+            t,
+            q: part(0),
+            dq: part(1),
+            tau: part(2),
+            command: part(3),
+        })
     }
 
     /// Whether the run is still going (false once it ended: finished, stopped, failed).
@@ -415,7 +456,7 @@ impl ChunkSource for LiveSource {
     fn over(&mut self) {
         self.running.store(false, Ordering::Release);
     }
-    fn publish(&mut self, t: f64, q: &[f64]) {
+    fn publish(&mut self, t: f64, measured: &Measured<'_>, command: &[f64]) {
         if let Some(origin) = &mut self.pace {
             let origin = *origin.get_or_insert_with(std::time::Instant::now);
             let due = origin + std::time::Duration::from_secs_f64(t.max(0.0));
@@ -424,7 +465,7 @@ impl ChunkSource for LiveSource {
                 std::thread::sleep(due - now);
             }
         }
-        self.state.write(t, q);
+        self.state.write(t, measured, command);
     }
 }
 
@@ -513,8 +554,24 @@ mod tests {
     fn a_live_feed_reaches_the_loop_and_gets_its_log_back() {
         let (mut feed, mut source) = live(2);
         assert!(feed.state().is_none());
-        source.publish(0.5, &[0.1, 0.2]);
+        let m = Measured {
+            q: &[0.1, 0.2],
+            dq: &[1.0, 2.0],
+            tau: &[3.0, 4.0],
+        };
+        source.publish(0.5, &m, &[0.3, 0.4]);
         assert_eq!(feed.state(), Some((0.5, vec![0.1, 0.2])));
+        let seen = feed.observe().unwrap();
+        assert_eq!(
+            (seen.t, seen.q, seen.dq, seen.tau, seen.command),
+            (
+                0.5,
+                vec![0.1, 0.2],
+                vec![1.0, 2.0],
+                vec![3.0, 4.0],
+                vec![0.3, 0.4]
+            )
+        );
         feed.push(chunk(0.4)).unwrap();
         let c = source.poll(0.6).unwrap();
         assert_eq!(c.arrived_s, 0.6, "stamped on arrival");
@@ -542,12 +599,17 @@ mod tests {
             let cell = cell.clone();
             std::thread::spawn(move || {
                 for k in 0..200_000 {
-                    let x = k as f64;
-                    cell.write(x, &[x; 7]);
+                    let x = [k as f64; 7];
+                    let m = Measured {
+                        q: &x,
+                        dq: &x,
+                        tau: &x,
+                    };
+                    cell.write(x[0], &m, &x);
                 }
             })
         };
-        let mut q = [0.0; 7];
+        let mut q = [0.0; 28];
         let mut reads = 0;
         while !writer.is_finished() || reads == 0 {
             if let Some(t) = cell.read(&mut q) {

@@ -46,8 +46,8 @@ pub use chunk::{Chunk, ChunkError, StandIn};
 pub use error::{FeedError, FollowError};
 pub use executor::{CLOCK_TOLERANCE_S, ChunkCounts, ChunkExecutor, ChunkSettings, Offer, Refused};
 pub use feed::{
-    ChunkFeed, ChunkLog, ChunkSource, ChunkVerdict, LiveSource, MAX_HELD, Replay, Sink, StateCell,
-    live,
+    ChunkFeed, ChunkLog, ChunkSource, ChunkVerdict, LiveSource, MAX_HELD, Observed, Replay, Sink,
+    StateCell, live,
 };
 pub use follow::{FollowLimits, Follower, GAINS};
 pub use report::{BOUNDARY_MS, FollowReport, Peaks, Spread};

@@ -13,10 +13,10 @@ use crate::chunk::Chunk;
 use crate::executor::{ChunkCounts, ChunkExecutor, ChunkSettings, Offer};
 use crate::feed::{ChunkSource, ChunkVerdict};
 use crate::follow::FollowLimits;
-use cps_robot::Guarded;
 use cps_robot::Robot;
 use cps_robot::RobotModel;
 use cps_robot::StopToken;
+use cps_robot::{Guarded, Measured};
 use cps_robot::{Plan, Run};
 
 /// How a run follows chunks: the executor's settings, the share of the robot's limits it
@@ -368,9 +368,12 @@ pub fn follow<R: Robot>(
     let dof = q0.len();
     // The commands' recording, made before the loop starts.
     let mut flat: Vec<f64> = Vec::with_capacity((max_commands + 1) * dof);
-    let mut next = |measured: &[f64], t: f64, out: &mut [f64]| -> bool {
-        source.publish(t, measured);
+    // The command in force, published with each period's state.
+    let mut in_force = q0.clone();
+    let mut next = |measured: &Measured<'_>, t: f64, out: &mut [f64]| -> bool {
+        source.publish(t, measured, &in_force);
         let over = stepper.step(source, t, out, &mut |_| {});
+        in_force.copy_from_slice(out);
         if flat.len() + dof <= flat.capacity() {
             flat.extend_from_slice(out);
         }

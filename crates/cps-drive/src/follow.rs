@@ -504,6 +504,69 @@ impl LiveRun {
     }
 }
 
+/// Checks, before a live run starts, that its recording may be written at `record`
+/// (the recording, its report and its chunk file: none is a directory or another kind of
+/// file, and none exists unless `force`).
+pub fn check_live_record(record: &Path, force: bool) -> Result<(), DriveError> {
+    check_record_target(record, force)?;
+    check_file_target(&chunks_path(record), FileKind::ChunkCsv, force)?;
+    Ok(())
+}
+
+/// Writes a live run at `record` (checked before with [`check_live_record`]): the run at
+/// the robot's rate — a Franka's own recording (`t, q, dq, tau, q_d, tool`, as `franka
+/// execute` writes it), a simulated arm's measured and commanded joints (`t, q1..q7,
+/// q_d1..q_d7`) — its report beside it (`<stem>.report.json`: the chunks' report and the
+/// ending) and every chunk as it came (`<stem>.chunks.csv`, a replay file).
+pub fn write_live(done: &LiveOutcome, record: &Path) -> Result<(), DriveError> {
+    let mut json = json!({
+        "ending": done.followed.run.ending.sentence(),
+        "chunks": report_json(&done.report),
+    });
+    match &done.franka {
+        Some(franka) => {
+            json["franka"] = json!({ "ending": format!("{:?}", franka.ending) });
+            write_recording(record, &franka.samples, &json)?;
+        }
+        None => {
+            use cps_outcome::outcome::{Column, Format, Table};
+            let run = &done.followed.run;
+            let rows = done
+                .followed
+                .commands
+                .len()
+                .min(run.q.len().saturating_sub(1));
+            let mut table = Table::new("recording").with(Column::numbers(
+                "t",
+                run.time[1..=rows].to_vec(),
+                Format::Plain,
+            ));
+            for j in 0..7 {
+                let q = run.q[1..=rows].iter().map(|q| q[j]).collect();
+                table.push(Column::numbers(format!("q{}", j + 1), q, Format::Plain));
+            }
+            for j in 0..7 {
+                let c = done.followed.commands[..rows]
+                    .iter()
+                    .map(|c| c[j])
+                    .collect();
+                table.push(Column::numbers(format!("q_d{}", j + 1), c, Format::Plain));
+            }
+            let csv = cps_outcome::files::table_csv(&table)?;
+            cps_outcome::files::write_file(record, &csv)?;
+            let text = format!("{json:#}");
+            cps_outcome::files::write_file(
+                &crate::recording::report_path(record),
+                text.as_bytes(),
+            )?;
+        }
+    }
+    let chunks: Vec<_> = done.log.entries.iter().map(|(c, _)| c.clone()).collect();
+    let text = cps_movement::chunks::write_chunks(&chunks, 7);
+    cps_outcome::files::write_file(&chunks_path(record), text.as_bytes())?;
+    Ok(())
+}
+
 impl Drop for LiveRun {
     fn drop(&mut self) {
         if let Some(h) = self.handle.take() {

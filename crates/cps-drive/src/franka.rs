@@ -421,9 +421,9 @@ pub fn execute_model(
     let mut last = from;
     let mut cancel = [0.0; 7];
     let max = 4 * nominal_plan.points().len() + 10_000;
-    let mut next = |measured: &[f64], _t: f64, out: &mut [f64]| -> bool {
+    let mut next = |measured: &cps_robot::Measured<'_>, _t: f64, out: &mut [f64]| -> bool {
         let lag = (0..7)
-            .map(|j| (measured[j] - last[j]).powi(2))
+            .map(|j| (measured.q[j] - last[j]).powi(2))
             .sum::<f64>()
             .sqrt();
         // Once the phase is over the shape is switched off and the spring settles the

@@ -521,7 +521,13 @@ impl<const N: usize> Streaming for DynamicsRobot<N> {
                 break;
             }
             let measured = self.measured();
-            let last = next(&measured, k as f64 * period, &mut command);
+            let (dq, tau) = (self.arm.dq, self.applied);
+            let seen = cps_robot::Measured {
+                q: &measured,
+                dq: &dq,
+                tau: &tau,
+            };
+            let last = next(&seen, k as f64 * period, &mut command);
             let target: [f64; N] =
                 command
                     .as_slice()

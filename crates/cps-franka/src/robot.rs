@@ -420,7 +420,12 @@ impl Streaming for FrankaRobot {
                 stop.flag(),
                 |state, t| {
                     let mut q = [0.0; 7];
-                    let finished = next(&state.q, t, &mut q);
+                    let measured = cps_robot::Measured {
+                        q: &state.q,
+                        dq: &state.dq,
+                        tau: &state.tau_j,
+                    };
+                    let finished = next(&measured, t, &mut q);
                     JointPositions { q, finished }
                 },
             )

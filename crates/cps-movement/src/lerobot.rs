@@ -138,8 +138,11 @@ pub(crate) fn joint_names(robot: &str) -> Result<Vec<String>, InputError> {
     Ok(load_robot(robot, None, None)?.published_joint_names())
 }
 
-/// An entry named as the joint: its published name, or the generic `joint<i>`.
+/// An entry named as the joint: its published name, or the generic `joint<i>`, either
+/// alone or with LeRobot's `.pos` after it (`joint3.pos`, what its robots and cps's
+/// LeRobot plugin name a joint's position).
 pub(crate) fn names_joint(entry: &str, joint: &str, i: usize) -> bool {
+    let entry = entry.strip_suffix(".pos").unwrap_or(entry);
     entry == joint || entry == format!("joint{}", i + 1)
 }
 
@@ -289,6 +292,9 @@ mod tests {
         assert!(names_joint("panda_joint3", "panda_joint3", 2));
         assert!(names_joint("joint3", "panda_joint3", 2));
         assert!(!names_joint("joint2", "panda_joint3", 2));
+        assert!(names_joint("joint3.pos", "fr3_joint3", 2));
+        assert!(names_joint("fr3_joint3.pos", "fr3_joint3", 2));
+        assert!(!names_joint("joint3.vel", "fr3_joint3", 2));
         let names = vec!["a".to_string(), "joint3".into()];
         let e = select(Path::new("d"), "obs", &names, &["panda_joint2".into()]).unwrap_err();
         assert!(

@@ -20,16 +20,21 @@ use crate::experiment::json_to_py;
 ///
 /// `ChunkExecutor(robot="dynamics", arm="fr3", host=None, rate=50.0, start=None,
 /// stall_timeout=0.25, max_gap=0.2, idle_end=5.0, max_duration=300.0,
-/// realtime="enforce")`: `robot` is `"franka"` (at `host`), `"dynamics"` (the arm with
+/// realtime="enforce", record=None, force=False, limit_share=0.95)`: `robot` is `"franka"` (at `host`), `"dynamics"` (the arm with
 /// franky-sim's PD and drives, simulated in real time) or `"kinematic"` (it does what it is
-/// told). The robot's loop starts at once; `push` chunks predicted from `state()`, and
+/// told); `limit_share` is the share of the robot's velocity, acceleration and jerk limits
+/// the executor may use, in (0, 1]. The robot's loop starts at once; `push` chunks predicted from `state()`, and
 /// `close()` ends the stream (the last chunk is followed, the arm comes to rest) and
-/// returns the recording. A `with` block closes it; an exception in it stops the robot.
+/// returns the recording; with `record` (a path, checked before the loop starts) it is
+/// also written there, with its report and chunks beside it, however the run ends. A
+/// `with` block closes it; an exception in it stops the robot.
 #[pyclass(module = "cps._cps", name = "ChunkExecutor")]
 pub struct ChunkExecutor {
     live: Mutex<Option<LiveRun>>,
     rate: f64,
     stop: StopToken,
+    /// Where the run is written when it closes.
+    record: Option<std::path::PathBuf>,
 }
 
 fn outcome<'py>(py: Python<'py>, done: &LiveOutcome) -> PyResult<Bound<'py, PyDict>> {
@@ -93,7 +98,7 @@ impl ChunkExecutor {
 #[pymethods]
 impl ChunkExecutor {
     #[new]
-    #[pyo3(signature = (robot = "dynamics", arm = "fr3", host = None, rate = 50.0, start = None, stall_timeout = 0.25, max_gap = 0.2, idle_end = 5.0, max_duration = 300.0, realtime = "enforce"))]
+    #[pyo3(signature = (robot = "dynamics", arm = "fr3", host = None, rate = 50.0, start = None, stall_timeout = 0.25, max_gap = 0.2, idle_end = 5.0, max_duration = 300.0, realtime = "enforce", record = None, force = false, limit_share = 0.95))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -107,7 +112,13 @@ impl ChunkExecutor {
         idle_end: f64,
         max_duration: f64,
         realtime: &str,
+        record: Option<std::path::PathBuf>,
+        force: bool,
+        limit_share: f64,
     ) -> PyResult<Self> {
+        if let Some(r) = &record {
+            cps_drive::follow::check_live_record(r, force).map_err(|e| e.py_err())?;
+        }
         let arm = crate::errors::arm_named(arm)?;
         if !(rate.is_finite() && rate > 0.0) {
             return Err(value_error(format!(
@@ -144,6 +155,7 @@ impl ChunkExecutor {
         settings.chunks.max_gap_rad = max_gap;
         settings.idle_end_s = idle_end;
         settings.max_duration_s = max_duration;
+        settings.limit_share = limit_share;
         let stop = StopToken::new();
         let live = py
             .detach(|| LiveRun::start(&which, settings, stop.clone()))
@@ -152,6 +164,7 @@ impl ChunkExecutor {
             live: Mutex::new(Some(live)),
             rate,
             stop,
+            record,
         })
     }
 
@@ -163,6 +176,26 @@ impl ChunkExecutor {
             Some((t, q)) => (t, array1(py, q).into_any()),
             None => (f64::NAN, array1(py, vec![f64::NAN; 7]).into_any()),
         })
+    }
+
+    /// Everything the robot measured in its last control period: a dict of `t` (s on the
+    /// executor's clock; NaN before the first period), `q` joint positions (rad), `dq`
+    /// velocities (rad/s), `tau` torques (N m: a Franka's measured link-side torques, the
+    /// simulated drives' torques), and `q_d` the command in force (rad), each (7,).
+    fn observe<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let seen = self.with_live(|l| Ok(l.feed().observe()))?;
+        let d = PyDict::new(py);
+        let nan = || vec![f64::NAN; 7];
+        let (t, q, dq, tau, q_d) = match seen {
+            Some(o) => (o.t, o.q, o.dq, o.tau, o.command),
+            None => (f64::NAN, nan(), nan(), nan(), nan()),
+        };
+        d.set_item("t", t)?;
+        d.set_item("q", array1(py, q))?;
+        d.set_item("dq", array1(py, dq))?;
+        d.set_item("tau", array1(py, tau))?;
+        d.set_item("q_d", array1(py, q_d))?;
+        Ok(d)
     }
 
     /// Hands a chunk to the robot's loop: `targets` (H, 7) joint positions (rad) at
@@ -209,7 +242,7 @@ impl ChunkExecutor {
     /// inference delay and jitter, acceleration and jerk peaks at boundaries and
     /// overall, stalls), `lines` (the report in words), `ending`, and `chunks`: every chunk
     /// as it came (`observed_s`, `arrived_s`, `rate`, `targets`, `verdict`), the run's
-    /// replay.
+    /// replay; `record`, where it was written (None without `record`).
     fn close<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let live = self
             .live
@@ -218,7 +251,16 @@ impl ChunkExecutor {
             .take()
             .ok_or_else(|| failure("the chunk stream is already closed"))?;
         let done = py.detach(|| live.finish()).map_err(|e| e.py_err())?;
-        outcome(py, &done)
+        if let Some(r) = &self.record {
+            py.detach(|| cps_drive::follow::write_live(&done, r))
+                .map_err(|e| e.py_err())?;
+        }
+        let d = outcome(py, &done)?;
+        d.set_item(
+            "record",
+            self.record.as_ref().map(|r| r.display().to_string()),
+        )?;
+        Ok(d)
     }
 
     fn __enter__(slf: Py<Self>) -> Py<Self> {

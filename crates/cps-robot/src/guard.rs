@@ -446,7 +446,7 @@ impl<R: Robot> Guarded<R> {
         let chain = &model.chain;
         let (inner, mut hit, mut breach, mut count) = (StopToken::new(), None, None, 0usize);
         let _moving = stop.moving();
-        let mut judged = |measured: &[f64], t: f64, out: &mut [f64]| -> bool {
+        let mut judged = |measured: &crate::Measured<'_>, t: f64, out: &mut [f64]| -> bool {
             if stop.is_stopped() {
                 inner.stop();
             }

@@ -107,12 +107,28 @@ impl KinematicRobot {
         let t0 = self.time;
         run.push(0.0, self.q.clone(), self.model.chain.fk(&self.q)?);
         let mut command = self.q.clone();
+        // It moves as told: its velocity is the last step's; it has no torques.
+        let (mut previous, mut dq, tau) = (
+            self.q.clone(),
+            vec![0.0; self.q.len()],
+            vec![0.0; self.q.len()],
+        );
+        let dt = self.dt;
         for k in 0.. {
             if let Some(ending) = over(stop, k, max_commands) {
                 run.ending = ending;
                 break;
             }
-            let last = next(&self.q, self.time - t0, &mut command);
+            for ((v, q), p) in dq.iter_mut().zip(&self.q).zip(&previous) {
+                *v = (q - p) / dt;
+            }
+            previous.copy_from_slice(&self.q);
+            let measured = crate::Measured {
+                q: &self.q,
+                dq: &dq,
+                tau: &tau,
+            };
+            let last = next(&measured, self.time - t0, &mut command);
             if let Some(ending) = send(self, &command, last)? {
                 run.ending = ending;
                 break;

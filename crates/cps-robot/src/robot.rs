@@ -126,11 +126,24 @@ pub trait Robot: Send {
     }
 }
 
-/// A command generator for [`Streaming::stream`]: given the measured joints and the time
-/// since the start (s), it writes the next command into the last argument and returns true
-/// when that command is the last. It runs on the robot's loop: it must not allocate, lock
-/// or log.
-pub type Generator<'a> = dyn FnMut(&[f64], f64, &mut [f64]) -> bool + Send + 'a;
+/// What a streaming robot measured in a control period, handed to the command generator.
+#[derive(Debug, Clone, Copy)]
+pub struct Measured<'a> {
+    /// Joint positions (rad).
+    pub q: &'a [f64],
+    /// Joint velocities (rad/s).
+    pub dq: &'a [f64],
+    /// Joint torques (N m): a Franka's measured link-side torques (`tau_J`), the drives'
+    /// torques of a simulated arm (gravity included), zeros where the robot has none (the
+    /// in-process robot).
+    pub tau: &'a [f64],
+}
+
+/// A command generator for [`Streaming::stream`]: given what the robot measured and the
+/// time since the start (s), it writes the next command into the last argument and returns
+/// true when that command is the last. It runs on the robot's loop: it must not allocate,
+/// lock or log.
+pub type Generator<'a> = dyn FnMut(&Measured<'_>, f64, &mut [f64]) -> bool + Send + 'a;
 
 /// A robot that takes one command per control period, computed from what it measured: a
 /// movement generated online (a DMP stepped with phase stopping, which slows when the

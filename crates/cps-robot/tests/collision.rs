@@ -171,7 +171,7 @@ fn a_streamed_movement_is_braked_where_it_comes_within_the_margin() {
     // The nominal plan stops short; the commands made online run on past it.
     let nominal = swing(0.2, 3.0);
     let points = plan.points().to_vec();
-    let mut next = |_: &[f64], t: f64, out: &mut [f64]| {
+    let mut next = |_: &cps_robot::Measured<'_>, t: f64, out: &mut [f64]| {
         let k = ((t * 1000.0).round() as usize + 1).min(points.len() - 1);
         out.copy_from_slice(&points[k]);
         k == points.len() - 1

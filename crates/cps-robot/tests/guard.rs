@@ -197,7 +197,7 @@ fn a_movement_generated_online_is_checked_on_its_nominal_plan_then_streamed() {
     let nominal = swing(6, 0.15, 2.0, 0.01);
     let points = nominal.points().to_vec();
     let mut k = 0;
-    let mut next = |_measured: &[f64], _t: f64, out: &mut [f64]| {
+    let mut next = |_measured: &cps_robot::Measured<'_>, _t: f64, out: &mut [f64]| {
         k += 1;
         let s = (k as f64 * 0.9).min(200.0);
         let (i, f) = (s.floor() as usize, s.fract());
@@ -218,7 +218,7 @@ fn a_movement_generated_online_is_checked_on_its_nominal_plan_then_streamed() {
     // from rest: the first command breaks the acceleration limit, is not sent, and the
     // robot stops where it stood.
     let mut target = HOME[6];
-    let mut lag = |_measured: &[f64], _t: f64, out: &mut [f64]| {
+    let mut lag = |_measured: &cps_robot::Measured<'_>, _t: f64, out: &mut [f64]| {
         target += (HOME[6] + 0.3 - target) * 0.05;
         out.copy_from_slice(&HOME);
         out[6] = target;
@@ -239,7 +239,8 @@ fn a_movement_generated_online_is_checked_on_its_nominal_plan_then_streamed() {
         "nothing of it was sent"
     );
     // A nominal movement that breaks a limit is refused before anything is sent.
-    let mut never = |_: &[f64], _: f64, _: &mut [f64]| -> bool { panic!("nothing is sent") };
+    let mut never =
+        |_: &cps_robot::Measured<'_>, _: f64, _: &mut [f64]| -> bool { panic!("nothing is sent") };
     let e = r
         .stream(
             &swing(6, 3.0, 0.2, 0.01),
