@@ -1,0 +1,256 @@
+"""cps's LeRobot robots against LeRobot 0.6.1 itself: its plugin discovery, its dataset
+writer, its `lerobot-replay` script, unchanged — on cps's simulated FR3 and on
+franka-sim with the robot's reflexes on.
+
+Run with the LeRobot venv `.ci/peers` makes (target/lerobot-venv, Python 3.12, with cps
+and this plugin installed): `target/lerobot-venv/bin/python -m pytest
+python/lerobot_robot_cps/tests`. franka-sim's interpreter is $CPS_FRANKA_SIM_PYTHON,
+franky-sim's (for the FR3 model) $CPS_FRANKA_PYTHON; under CI=1 a missing one fails.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[3]
+BIN = Path(sys.executable).parent
+# cps's FR3 ready pose (robots/fr3.toml), where the simulated arm starts.
+FR3_READY = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
+# The FR3's limits (Franka's datasheet; cps's robots/fr3.toml): velocity, acceleration, jerk.
+FR3_VELOCITY = np.array([2.62, 2.62, 2.62, 2.62, 5.26, 4.18, 5.26])
+FR3_ACCELERATION = 10.0
+FR3_JERK = 5000.0
+FPS = 30
+# Where franka-sim's arm starts.
+FRANKA_SIM_START = np.array([0.0, 0.0, 0.0, -1.57, 0.0, 1.57, 0.785])
+
+
+def peer(variable: str, default: str) -> str | None:
+    """A peer's interpreter: $variable, else .ci/peers's venv; None (a skip, a failure
+    under CI) when missing."""
+    path = os.environ.get(variable) or str(ROOT / default)
+    if Path(path).is_file():
+        return path
+    if os.environ.get("CI"):
+        pytest.fail(f"{variable}: no interpreter at {path} (bash .ci/peers installs it)")
+    pytest.skip(f"{variable} is not set and {default} is missing (bash .ci/peers)")
+    return None
+
+
+def swing(frames: int, start: np.ndarray) -> np.ndarray:
+    """A smooth demonstration from `start`: joints 1, 2 and 4 swing out and back."""
+    t = np.arange(frames) / FPS
+    s = 0.5 - 0.5 * np.cos(2 * np.pi * t / (frames / FPS))
+    q = np.repeat(start[None, :], frames, axis=0)
+    q[:, 0] += 0.4 * s
+    q[:, 1] += 0.2 * s
+    q[:, 3] += 0.3 * s
+    return q
+
+
+def write_dataset(root: Path, actions: np.ndarray) -> None:
+    """An episode written by LeRobot's own writer, its features the robot's."""
+    from lerobot.datasets import LeRobotDataset
+    from lerobot.utils.feature_utils import hw_to_dataset_features
+
+    from lerobot_robot_cps import CpsDynamics, CpsDynamicsConfig
+
+    robot = CpsDynamics(CpsDynamicsConfig(velocities=False, efforts=False, tool_pose=False))
+    features = {
+        **hw_to_dataset_features(robot.action_features, "action"),
+        **hw_to_dataset_features(robot.observation_features, "observation"),
+    }
+    ds = LeRobotDataset.create("local/swing", FPS, root=root, robot_type="cps_dynamics",
+                               features=features, use_videos=False)
+    for a in actions.astype(np.float32):
+        ds.add_frame({"action": a, "observation.state": a, "task": "swing"})
+    ds.save_episode()
+    ds.finalize()
+
+
+def replay(root: Path, record: Path, *robot_args: str, wrap: list[str] | None = None,
+           timeout: float = 120) -> subprocess.CompletedProcess:
+    """LeRobot's own `lerobot-replay`, unchanged, on a cps robot."""
+    command = [str(BIN / "lerobot-replay"), *robot_args, f"--robot.record={record}",
+               "--dataset.repo_id=local/swing", f"--dataset.root={root}", "--dataset.episode=0",
+               "--play_sounds=false"]
+    return subprocess.run((wrap or []) + command, capture_output=True, text=True, timeout=timeout,
+                          env={**os.environ, "HF_HUB_OFFLINE": "1", "HF_LEROBOT_HOME": str(root.parent)})
+
+
+def read_recording(path: Path) -> dict[str, np.ndarray]:
+    with open(path) as f:
+        rows = list(csv.reader(f))
+    columns = list(zip(*rows[1:]))
+    return {name: np.array([float(x) for x in col]) for name, col in zip(rows[0], columns)}
+
+
+def commanded(rec: dict[str, np.ndarray]) -> np.ndarray:
+    return np.column_stack([rec[f"q_d{j}"] for j in range(1, 8)])
+
+
+def assert_within_limits(q_d: np.ndarray, t: np.ndarray) -> dict[str, float]:
+    """The commands' velocity, acceleration and jerk against the FR3's limits (finite
+    differences over the recording's own times: a period the robot lost under load is
+    one longer step); returns the shares."""
+    dt = np.diff(t)[:, None]
+    v = np.diff(q_d, axis=0) / dt
+    a = np.diff(v, axis=0) / (0.5 * (dt[1:] + dt[:-1]))
+    j = np.diff(a, axis=0) / dt[1:-1]
+    shares = {
+        "velocity": float((np.abs(v) / FR3_VELOCITY).max()),
+        "acceleration": float(np.abs(a).max() / FR3_ACCELERATION),
+        "jerk": float(np.abs(j).max() / FR3_JERK),
+    }
+    assert max(shares.values()) <= 1.0, shares
+    return shares
+
+
+def test_lerobot_finds_both_robots_by_their_names():
+    from lerobot.robots import RobotConfig, make_robot_from_config
+    from lerobot.utils.import_utils import register_third_party_plugins
+
+    register_third_party_plugins()
+    config = RobotConfig.get_choice_class("cps_dynamics")(id="sim")
+    robot = make_robot_from_config(config)
+    assert type(robot).__name__ == "CpsDynamics"
+    franka = RobotConfig.get_choice_class("cps_franka")(host="172.16.0.2")
+    assert type(make_robot_from_config(franka)).__name__ == "CpsFranka"
+    assert list(robot.action_features) == [f"joint{i}.pos" for i in range(1, 8)]
+    obs = robot.observation_features
+    assert len(obs) == 7 * 3 + 7 and "joint7.effort" in obs and "tool.qw" in obs
+
+
+def test_the_dynamics_arm_observes_moves_and_records_within_its_limits(tmp_path):
+    from lerobot_robot_cps import CpsDynamics, CpsDynamicsConfig
+
+    record = tmp_path / "run.csv"
+    robot = CpsDynamics(CpsDynamicsConfig(record=record))
+    robot.connect()
+    try:
+        obs = robot.get_observation()
+        q0 = np.array([obs[f"joint{i}.pos"] for i in range(1, 8)])
+        assert np.abs(q0 - FR3_READY).max() < 1e-6
+        # The tool at the ready pose, by cps's own forward kinematics: straight down.
+        assert abs(obs["tool.qw"]) < 1e-6 or abs(abs(obs["tool.qx"]) - 1.0) < 1e-3, obs
+        with pytest.raises(ValueError, match="first action is 0.500 rad from the arm at joint1"):
+            robot.send_action({f"joint{i + 1}.pos": q0[i] + (0.5 if i == 0 else 0.0) for i in range(7)})
+        with pytest.raises(ValueError, match="no `joint7.pos`"):
+            robot.send_action({f"joint{i + 1}.pos": q0[i] for i in range(6)})
+        import time
+
+        for k, q in enumerate(swing(60, q0)):
+            said = robot.send_action({f"joint{i + 1}.pos": q[i] for i in range(7)})
+            assert np.allclose([said[f"joint{i}.pos"] for i in range(1, 8)], q)
+            time.sleep(1.0 / FPS)
+        moving = robot.get_observation()
+        assert any(abs(moving[f"joint{i}.vel"]) > 1e-3 for i in range(1, 8))
+    finally:
+        robot.disconnect()
+    run = robot.last_run
+    assert run["record"] == str(record)
+    rec = read_recording(record)
+    shares = assert_within_limits(commanded(rec), rec["t"])
+    assert shares["velocity"] > 0.05, shares  # it moved
+    report = json.loads(record.with_suffix(".report.json").read_text())
+    assert report["chunks"]["refused"] == 0, report
+    assert record.with_suffix(".chunks.csv").is_file()
+
+
+def test_lerobot_replay_on_the_dynamics_arm_follows_the_episode_within_every_limit(tmp_path):
+    root = tmp_path / "swing"
+    actions = swing(4 * FPS, FR3_READY)
+    write_dataset(root, actions)
+    record = tmp_path / "replay.csv"
+    p = replay(root, record, "--robot.type=cps_dynamics")
+    assert p.returncode == 0, p.stderr[-3000:]
+    rec = read_recording(record)
+    q_d = commanded(rec)
+    assert_within_limits(q_d, rec["t"])
+    # The arm followed the episode: its path passes within 15 mrad of every action.
+    q = np.column_stack([rec[f"q{j}"] for j in range(1, 8)])
+    gaps = [np.abs(q - a).max(axis=1).min() for a in actions.astype(np.float32)]
+    assert max(gaps) < 0.015, max(gaps)
+    # And LeRobot's replay of the same actions into cps's reader reads them back.
+
+
+def test_a_first_action_far_from_the_arm_is_approached_when_asked(tmp_path):
+    root = tmp_path / "swing"
+    start = FR3_READY + np.array([0.5, 0.0, 0.0, -0.3, 0.0, 0.0, 0.0])
+    actions = swing(2 * FPS, start)
+    write_dataset(root, actions)
+    refused = replay(root, tmp_path / "refused.csv", "--robot.type=cps_dynamics")
+    assert refused.returncode != 0
+    assert "pass --robot.approach=true" in refused.stderr, refused.stderr[-2000:]
+    record = tmp_path / "approached.csv"
+    p = replay(root, record, "--robot.type=cps_dynamics", "--robot.approach=true")
+    assert p.returncode == 0, p.stderr[-3000:]
+    rec = read_recording(record)
+    assert_within_limits(commanded(rec), rec["t"])
+    end = np.array([rec[f"q{j}"][-1] for j in range(1, 8)])
+    assert np.abs(end - actions[-1]).max() < 0.01
+
+
+def test_lerobot_replay_on_franka_sim_with_its_reflexes_on_trips_none(tmp_path):
+    """franka-sim (the FCI's limits and lost-cycle rules enforced, as the real Control
+    does) in a network namespace of its own, two CPU hogs beside it; LeRobot's replay
+    names cps_franka at its address."""
+    sim_python = peer("CPS_FRANKA_SIM_PYTHON", "target/franka-sim-venv/bin/python")
+    franky_python = peer("CPS_FRANKA_PYTHON", "target/franka-venv/bin/python")
+    if shutil.which("unshare") is None or subprocess.run(["unshare", "-n", "true"]).returncode != 0:
+        if os.environ.get("CI"):
+            pytest.fail("unshare -n is not available: franka-sim needs a network namespace (run as root)")
+        pytest.skip("unshare -n is not available (franka-sim binds 0.0.0.0:1337)")
+    assets = subprocess.check_output(
+        [franky_python, "-c", "import franky_sim, os; print(os.path.dirname(franky_sim.__file__))"],
+        text=True).strip() + "/assets"
+    model = tmp_path / "fr3.xml"
+    model.write_text((Path(assets) / "fr3.xml").read_text().replace(
+        'meshdir="assets"', f'meshdir="{assets}/meshes"'))
+    root = tmp_path / "swing"
+    actions = swing(4 * FPS, FRANKA_SIM_START)
+    write_dataset(root, actions)
+    record = tmp_path / "franka.csv"
+    sim_log = tmp_path / "sim.log"
+    command = [str(BIN / "lerobot-replay"), "--robot.type=cps_franka", "--robot.host=127.0.0.1",
+               "--robot.realtime=ignore", f"--robot.record={record}", "--dataset.repo_id=local/swing",
+               f"--dataset.root={root}", "--dataset.episode=0", "--play_sounds=false"]
+    script = textwrap.dedent(f"""
+        set -u
+        ip link set lo up
+        rt=""; chrt -f 20 true 2>/dev/null && rt="chrt -f 20"
+        FR3_MJCF={model} $rt {sim_python} -m franka_sim.run_server --no-gripper \\
+            --enforce-motion-limits --enforce-comm-constraints >{sim_log} 2>&1 &
+        sim=$!
+        for i in $(seq 300); do (exec 3<>/dev/tcp/127.0.0.1/1337) 2>/dev/null && break; sleep 0.1; done
+        sh -c 'while :; do :; done' & h1=$!
+        sh -c 'while :; do :; done' & h2=$!
+        {' '.join(command)}
+        rc=$?
+        kill $h1 $h2 $sim 2>/dev/null
+        wait $sim 2>/dev/null
+        exit $rc
+    """)
+    p = subprocess.run(["unshare", "-n", "bash", "-c", script], capture_output=True, text=True, timeout=240,
+                       env={**os.environ, "HF_HUB_OFFLINE": "1", "HF_LEROBOT_HOME": str(tmp_path)})
+    log = sim_log.read_text() if sim_log.exists() else ""
+    assert p.returncode == 0, p.stderr[-3000:] + "\n--- franka-sim:\n" + log[-2000:]
+    violations = [line for line in log.splitlines()
+                  if "violated" in line or "aborting the motion" in line or "reflex" in line.lower()]
+    assert not violations, violations[:5]
+    rec = read_recording(record)
+    q_d = np.column_stack([rec[f"q_d{j}"] for j in range(1, 8)])
+    assert_within_limits(q_d, rec["t"])
+    q = np.column_stack([rec[f"q{j}"] for j in range(1, 8)])
+    gaps = [np.abs(q - a).max(axis=1).min() for a in actions.astype(np.float32)]
+    assert max(gaps) < 0.03, max(gaps)
