@@ -366,8 +366,8 @@ pub fn follow<R: Robot>(
     };
     let max_commands = (settings.max_duration_s / dt).ceil() as usize;
     let dof = q0.len();
-    // The commands' recording, made before the loop starts.
-    let mut flat: Vec<f64> = Vec::with_capacity((max_commands + 1) * dof);
+    // The commands' recording, made (and its pages touched) before the loop starts.
+    let mut flat: Vec<f64> = cps_robot::prefaulted((max_commands + 1) * dof);
     // The command in force, published with each period's state.
     let mut in_force = q0.clone();
     let mut next = |measured: &Measured<'_>, t: f64, out: &mut [f64]| -> bool {

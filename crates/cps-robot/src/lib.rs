@@ -84,7 +84,9 @@ pub use guard::{
 pub use kinematic::KinematicRobot;
 pub use model::RobotModel;
 pub use plan::{CHECK_PERIOD, Ending, MAX_POINTS, Plan, Run, SampledMotion};
-pub use robot::{Generator, Measured, Robot, Stepped, Stepping, Streaming, run_stepped, step_of};
+pub use robot::{
+    Generator, Measured, Robot, Stepped, Stepping, Streaming, prefaulted, run_stepped, step_of,
+};
 pub use setting::SettingError;
 pub use stop::{Moving, StopToken};
 

@@ -339,16 +339,6 @@ pub struct JointPositions {
     pub finished: bool,
 }
 
-/// An empty vector with room for `n` values whose memory has been written once (so that
-/// filling it later faults no page in).
-fn prefaulted<T: Default + Clone>(n: usize) -> Vec<T> {
-    // Written element by element: `vec![0; n]` would take zeroed pages untouched.
-    let mut v = Vec::with_capacity(n);
-    v.resize(n, T::default());
-    v.clear();
-    v
-}
-
 /// Makes the calling thread realtime (SCHED_FIFO) when permitted.
 fn make_realtime(mode: Realtime) -> Result<bool, FrankaError> {
     if mode == Realtime::Off {
@@ -546,8 +536,8 @@ fn run_law<L: Law>(
     // Everything the loop needs, allocated now, and its pages touched now: a first touch
     // inside the loop is a page fault, which waits on the process's memory map, held at
     // times by threads of normal priority (a stall of milliseconds on a loaded machine).
-    let mut samples: Vec<Sample> = prefaulted(options.max_ticks);
-    let mut latency_ns: Vec<u32> = prefaulted(options.max_ticks);
+    let mut samples: Vec<Sample> = cps_robot::prefaulted(options.max_ticks);
+    let mut latency_ns: Vec<u32> = cps_robot::prefaulted(options.max_ticks);
     let mut command = Command::default();
     let (controller, generator) = law.modes();
     let motion_id = conn.start_move(controller, generator)?;
