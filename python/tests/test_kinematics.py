@@ -136,3 +136,24 @@ def test_bad_input():
         robot.ik([0.3, 0.0, 0.5], q0=[0.0] * 7)  # joint 4 outside its limits
     with pytest.raises(ValueError, match="robot"):
         cps.Robot("no_such_robot.toml")
+
+
+def test_the_tool_pose_as_position_and_quaternion_agrees_with_pytransform3d():
+    from pytransform3d.rotations import quaternion_from_matrix
+
+    robot = cps.Robot("fr3")
+    rng = np.random.default_rng(3)
+    lower, upper = robot.limits
+    # The ready pose (the hand straight down: a half turn, qw = 0) and random ones.
+    qs = np.vstack([robot.ready, rng.uniform(lower, upper, size=(20, 7))])
+    poses = robot.pose(qs)
+    assert poses.shape == (21, 7)
+    for q, pose in zip(qs, poses):
+        m = robot.fk(q)
+        np.testing.assert_allclose(pose[:3], m[:3, 3], atol=1e-12)
+        wxyz = quaternion_from_matrix(m[:3, :3])
+        xyzw = np.r_[wxyz[1:], wxyz[0]]
+        # The same rotation (a quaternion and its negative are one), with qw >= 0.
+        assert min(np.abs(pose[3:] - xyzw).max(), np.abs(pose[3:] + xyzw).max()) < 1e-9
+        assert pose[6] >= 0.0 and abs(np.linalg.norm(pose[3:]) - 1.0) < 1e-12
+    np.testing.assert_array_equal(robot.pose(qs[1]), poses[1])

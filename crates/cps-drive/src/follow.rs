@@ -24,7 +24,9 @@ use crate::franka::ExecutedTo;
 use cps_robot::{Policy, Robot, RobotError, StopToken};
 use serde_json::{Value, json};
 
-use crate::franka::{ExecuteSettings, Executed, ended, guarded_arm, write_recording};
+use crate::franka::{
+    ExecuteSettings, Executed, ended, guarded_arm, write_recording, write_table_and_report,
+};
 use crate::recording::check_record_target;
 
 /// The replay file of a recording: `rec.csv` → `rec.chunks.csv`.
@@ -525,46 +527,40 @@ pub fn write_live(done: &LiveOutcome, record: &Path) -> Result<(), DriveError> {
     });
     match &done.franka {
         Some(franka) => {
-            json["franka"] = json!({ "ending": format!("{:?}", franka.ending) });
+            json["franka"] = json!({
+                "ending": franka.ending.sentence(),
+                "timing": crate::franka::timing_json(franka),
+            });
             write_recording(record, &franka.samples, &json)?;
         }
-        None => {
-            use cps_outcome::outcome::{Column, Format, Table};
-            let run = &done.followed.run;
-            let rows = done
-                .followed
-                .commands
-                .len()
-                .min(run.q.len().saturating_sub(1));
-            let mut table = Table::new("recording").with(Column::numbers(
-                "t",
-                run.time[1..=rows].to_vec(),
-                Format::Plain,
-            ));
-            for j in 0..7 {
-                let q = run.q[1..=rows].iter().map(|q| q[j]).collect();
-                table.push(Column::numbers(format!("q{}", j + 1), q, Format::Plain));
-            }
-            for j in 0..7 {
-                let c = done.followed.commands[..rows]
-                    .iter()
-                    .map(|c| c[j])
-                    .collect();
-                table.push(Column::numbers(format!("q_d{}", j + 1), c, Format::Plain));
-            }
-            let csv = cps_outcome::files::table_csv(&table)?;
-            cps_outcome::files::write_file(record, &csv)?;
-            let text = format!("{json:#}");
-            cps_outcome::files::write_file(
-                &crate::recording::report_path(record),
-                text.as_bytes(),
-            )?;
-        }
+        None => write_table_and_report(record, &simulated_table(&done.followed), &json)?,
     }
     let chunks: Vec<_> = done.log.entries.iter().map(|(c, _)| c.clone()).collect();
     let text = cps_movement::chunks::write_chunks(&chunks, 7);
     cps_outcome::files::write_file(&chunks_path(record), text.as_bytes())?;
     Ok(())
+}
+
+/// A simulated arm's run as a table: `t`, the measured joints `q1..q7` and the commands
+/// `q_d1..q_d7`, one row per command.
+fn simulated_table(followed: &Followed) -> cps_outcome::outcome::Table {
+    use cps_outcome::outcome::{Column, Format, Table};
+    let run = &followed.run;
+    let rows = followed.commands.len().min(run.q.len().saturating_sub(1));
+    let mut table = Table::new("recording").with(Column::numbers(
+        "t",
+        run.time[1..=rows].to_vec(),
+        Format::Plain,
+    ));
+    for j in 0..7 {
+        let q = run.q[1..=rows].iter().map(|q| q[j]).collect();
+        table.push(Column::numbers(format!("q{}", j + 1), q, Format::Plain));
+    }
+    for j in 0..7 {
+        let c = followed.commands[..rows].iter().map(|c| c[j]).collect();
+        table.push(Column::numbers(format!("q_d{}", j + 1), c, Format::Plain));
+    }
+    table
 }
 
 impl Drop for LiveRun {

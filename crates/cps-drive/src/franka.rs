@@ -623,7 +623,16 @@ pub fn write_recording(
     samples: &[Sample],
     report: &Value,
 ) -> Result<(), DriveError> {
-    let csv = cps_outcome::files::table_csv(&recording_table(samples))?;
+    write_table_and_report(record, &recording_table(samples), report)
+}
+
+/// Writes `table` at `record` and `report` beside it (`<stem>.report.json`).
+pub(crate) fn write_table_and_report(
+    record: &Path,
+    table: &Table,
+    report: &Value,
+) -> Result<(), DriveError> {
+    let csv = cps_outcome::files::table_csv(table)?;
     cps_outcome::files::write_file(record, &csv)?;
     let text = format!("{report:#}");
     Ok(cps_outcome::files::write_file(

@@ -521,11 +521,10 @@ impl<const N: usize> Streaming for DynamicsRobot<N> {
                 break;
             }
             let measured = self.measured();
-            let (dq, tau) = (self.arm.dq, self.applied);
             let seen = cps_robot::Measured {
                 q: &measured,
-                dq: &dq,
-                tau: &tau,
+                dq: &self.arm.dq,
+                tau: &self.applied,
             };
             let last = next(&seen, k as f64 * period, &mut command);
             let target: [f64; N] =

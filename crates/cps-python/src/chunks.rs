@@ -20,11 +20,12 @@ use crate::experiment::json_to_py;
 ///
 /// `ChunkExecutor(robot="dynamics", arm="fr3", host=None, rate=50.0, start=None,
 /// stall_timeout=0.25, max_gap=0.2, idle_end=5.0, max_duration=300.0,
-/// realtime="enforce", record=None, force=False, limit_share=0.95)`: `robot` is `"franka"` (at `host`), `"dynamics"` (the arm with
-/// franky-sim's PD and drives, simulated in real time) or `"kinematic"` (it does what it is
-/// told); `limit_share` is the share of the robot's velocity, acceleration and jerk limits
-/// the executor may use, in (0, 1]. The robot's loop starts at once; `push` chunks predicted from `state()`, and
-/// `close()` ends the stream (the last chunk is followed, the arm comes to rest) and
+/// realtime="enforce", record=None, force=False, limit_share=0.95)`: `robot` is
+/// `"franka"` (at `host`), `"dynamics"` (the arm with franky-sim's PD and drives,
+/// simulated in real time) or `"kinematic"` (it does what it is told); `limit_share` is
+/// the share of the robot's velocity, acceleration and jerk limits the executor may use,
+/// in (0, 1]. The robot's loop starts at once; `push` chunks predicted from `state()`
+/// (or `observe()`), and `close()` ends the stream (the last chunk is followed, the arm comes to rest) and
 /// returns the recording; with `record` (a path, checked before the loop starts) it is
 /// also written there, with its report and chunks beside it, however the run ends. A
 /// `with` block closes it; an exception in it stops the robot.

@@ -122,6 +122,43 @@ impl Robot {
     }
 
     /// Configurations from `q`: (dof,) → one, (m, dof) → m. Returns (values, m, batched).
+    /// `each` of `q`'s configurations (one (dof,), or the rows of (m, dof)), computed
+    /// without the GIL, each appending `shape`'s count of values: an array of `shape`, or
+    /// (m, ..shape) for rows.
+    fn per_configuration<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        shape: Vec<usize>,
+        each: impl Fn(
+            &cps_kinematics::SerialChain,
+            &[f64],
+            &mut Vec<f64>,
+        ) -> Result<(), cps_kinematics::KinematicsError>
+        + Send
+        + Sync,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let (values, m, batched) = self.configurations(q)?;
+        let n = self.dof();
+        let chain = &self.model.chain;
+        let size: usize = shape.iter().product();
+        let out = py
+            .detach(|| -> Result<Vec<f64>, cps_kinematics::KinematicsError> {
+                let mut out = Vec::with_capacity(size * m);
+                for c in values.chunks(n) {
+                    each(chain, c, &mut out)?;
+                }
+                Ok(out)
+            })
+            .py()?;
+        let dims = if batched {
+            std::iter::once(m).chain(shape).collect()
+        } else {
+            shape
+        };
+        Ok(PyArray1::from_vec(py, out).reshape(dims)?.into_any())
+    }
+
     fn configurations(&self, q: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, usize, bool)> {
         let n = self.dof();
         let a = floats(q, "q")?;
@@ -324,48 +361,36 @@ impl Robot {
     /// The tool pose as a 4×4 homogeneous matrix (world frame, metres) of `q` (dof,),
     /// or (m, 4, 4) for `q` (m, dof).
     fn fk<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
-        let (values, m, batched) = self.configurations(q)?;
-        let n = self.dof();
-        let chain = &self.model.chain;
-        let out = py
-            .detach(|| -> Result<Vec<f64>, cps_kinematics::KinematicsError> {
-                let mut out = Vec::with_capacity(16 * m);
-                for c in values.chunks(n) {
-                    let t = chain.fk_matrix(c)?;
-                    out.extend((0..16).map(|k| t[(k / 4, k % 4)]));
-                }
-                Ok(out)
-            })
-            .py()?;
-        let flat = PyArray1::from_vec(py, out);
-        if batched {
-            Ok(flat.reshape([m, 4, 4])?.into_any())
-        } else {
-            Ok(flat.reshape([4, 4])?.into_any())
-        }
+        self.per_configuration(py, q, vec![4, 4], |chain, c, out| {
+            let t = chain.fk_matrix(c)?;
+            out.extend((0..16).map(|k| t[(k / 4, k % 4)]));
+            Ok(())
+        })
+    }
+
+    /// The tool pose as `[x, y, z, qx, qy, qz, qw]` (world frame, metres; the rotation's
+    /// unit quaternion with `qw >= 0`) of `q` (dof,), or (m, 7) for `q` (m, dof).
+    fn pose<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+        self.per_configuration(py, q, vec![7], |chain, c, out| {
+            let pose = chain.fk(c)?;
+            let r = nalgebra::UnitQuaternion::from_rotation_matrix(&pose.rotation);
+            let sign = if r.w < 0.0 { -1.0 } else { 1.0 };
+            let p = pose.translation.vector;
+            out.extend([p.x, p.y, p.z]);
+            out.extend([r.i, r.j, r.k, r.w].map(|x| sign * x));
+            Ok(())
+        })
     }
 
     /// The geometric Jacobian (6, dof) in the world frame (rows: linear, then angular
     /// velocity of the tool point), or (m, 6, dof) for `q` (m, dof).
     fn jacobian<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
-        let (values, m, batched) = self.configurations(q)?;
         let n = self.dof();
-        let chain = &self.model.chain;
-        let out = py
-            .detach(|| -> Result<Vec<f64>, cps_kinematics::KinematicsError> {
-                let mut out = Vec::with_capacity(6 * n * m);
-                for c in values.chunks(n) {
-                    let j = chain.jacobian(c)?;
-                    out.extend((0..6 * n).map(|k| j[(k / n, k % n)]));
-                }
-                Ok(out)
-            })
-            .py()?;
-        if batched {
-            Ok(PyArray1::from_vec(py, out).reshape([m, 6, n])?.into_any())
-        } else {
-            Ok(array2(py, out, 6, n)?.into_any())
-        }
+        self.per_configuration(py, q, vec![6, n], |chain, c, out| {
+            let j = chain.jacobian(c)?;
+            out.extend((0..6 * n).map(|k| j[(k / n, k % n)]));
+            Ok(())
+        })
     }
 
     /// Joint angles that put the tool at `target`: a position (3,), a pose [x, y, z, qx,

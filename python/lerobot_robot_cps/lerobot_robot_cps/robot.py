@@ -34,12 +34,16 @@ from .config import CpsDynamicsConfig, CpsFrankaConfig, CpsRobotConfig
 logger = logging.getLogger(__name__)
 
 JOINTS = 7
+# The tool pose's entries (m; the rotation's unit quaternion, qw >= 0), as cps.Robot.pose gives them.
+TOOL = ("x", "y", "z", "qx", "qy", "qz", "qw")
 # The caller's action rate assumed until two calls have measured it (LeRobot's default fps).
 DEFAULT_RATE = 30.0
 # A pause between actions longer than this starts the path anew from where the arm is.
 PAUSE_S = 0.5
 # Steps from a call of send_action to the time its action is due (see send_action).
 LEAD = 2
+# The acceleration an approach is planned with, at approach_share (rad/s^2: the FR3's limit).
+APPROACH_ACCELERATION = 10.0
 # How long connect waits for the robot's loop to measure its first state.
 FIRST_STATE_S = 10.0
 
@@ -57,14 +61,27 @@ class CpsRobot(Robot):
         self.cameras = make_cameras_from_configs(config.cameras)
         self._ex: cps.ChunkExecutor | None = None
         self._record: Path | None = None
+        self.last_run: dict[str, Any] | None = None
+        self._new_session()
+
+    def _new_session(self) -> None:
+        """What a session learns of the caller's actions, from nothing (each connect: the
+        executor's clock starts again at 0)."""
         self._history: list[np.ndarray] = []
         self._last_call: float | None = None
-        self._period = 1.0 / (config.action_rate or DEFAULT_RATE)
+        self._period = 1.0 / (self.config.action_rate or DEFAULT_RATE)
         self._observed = -math.inf
         self._due = -math.inf
         self._first = True
         self.not_followed = 0
-        self.last_run: dict[str, Any] | None = None
+
+    def _check_settings(self) -> None:
+        """The plugin's own settings (cps checks the executor's when it starts)."""
+        c = self.config
+        if c.action_rate is not None and not (math.isfinite(c.action_rate) and c.action_rate > 0):
+            raise ValueError(f"{self}: action_rate {c.action_rate} is not a number of actions per second")
+        if not 0.0 < c.approach_share <= 1.0:
+            raise ValueError(f"{self}: approach_share {c.approach_share} is not in (0, 1]")
 
     def __str__(self) -> str:
         return self.name if self.id is None else f"{self.name} {self.id}"
@@ -84,7 +101,7 @@ class CpsRobot(Robot):
         if c.efforts:
             features.update({f"{j}.effort": float for j in self._joints})
         if c.tool_pose:
-            features.update({f"tool.{k}": float for k in ("x", "y", "z", "qx", "qy", "qz", "qw")})
+            features.update({f"tool.{k}": float for k in TOOL})
         for key, cam in c.cameras.items():
             features[key] = (cam.height, cam.width, 3)
         return features
@@ -92,6 +109,11 @@ class CpsRobot(Robot):
     @cached_property
     def action_features(self) -> dict[str, type]:
         return {f"{j}.pos": float for j in self._joints}
+
+    @cached_property
+    def _range(self) -> tuple[np.ndarray, np.ndarray] | None:
+        limits = self.model.limits
+        return None if limits is None else (np.asarray(limits[0]), np.asarray(limits[1]))
 
     @property
     def is_connected(self) -> bool:
@@ -134,12 +156,16 @@ class CpsRobot(Robot):
     def connect(self, calibrate: bool = True) -> None:
         if self._ex is not None:
             raise DeviceAlreadyConnectedError(f"{self} is already connected.")
+        self._check_settings()
+        self._new_session()
         self._record = self._record_path()
         self._ex = self._executor(self._record)
         try:
             deadline = time.monotonic() + FIRST_STATE_S
             while not math.isfinite(self._ex.observe()["t"]):
-                if not self._ex.running or time.monotonic() > deadline:
+                if not self._ex.running:
+                    raise self._ended()
+                if time.monotonic() > deadline:
                     raise cps.CpsError(f"{self}: the robot's loop measured no state within {FIRST_STATE_S:.0f} s")
                 time.sleep(0.002)
             for cam in self.cameras.values():
@@ -194,7 +220,8 @@ class CpsRobot(Robot):
         if c.efforts:
             obs.update({f"{j}.effort": float(x) for j, x in zip(self._joints, o["tau"])})
         if c.tool_pose:
-            obs.update(_pose(self.model.fk(o["q"])))
+            pose = self.model.pose(o["q"])
+            obs.update({f"tool.{k}": float(x) for k, x in zip(TOOL, pose)})
         for key, cam in self.cameras.items():
             obs[key] = cam.read_latest()
         return obs
@@ -214,9 +241,9 @@ class CpsRobot(Robot):
 
     def send_action(self, action: dict[str, Any]) -> dict[str, Any]:
         """Hands `action` (joint positions, rad) to the 1 kHz loop, due two steps from now
-        (the path through the actions is smooth), and returns what the arm targets: the action within the joints' ranges, or, for an
-        action farther than `max_step` from the arm (not followed), where the arm is
-        commanded to be."""
+        (the path through the actions is smooth), and returns what the arm targets: the
+        action within the joints' ranges, or, for an action farther than `max_step` from
+        the arm (not followed), where the arm is commanded to be."""
         if self._ex is None:
             raise DeviceNotConnectedError(f"{self} is not connected.")
         if not self._ex.running:
@@ -257,7 +284,7 @@ class CpsRobot(Robot):
         # is smooth across them. Due one step after the action before it when the call came
         # on time (within half a step: the caller's sleep jitters, its actions do not).
         due = self._due + period
-        if not (len(self._history) > 1 and abs(due - LEAD * period - o["t"]) < 0.5 * period):
+        if not abs(due - LEAD * period - o["t"]) < 0.5 * period:
             due = o["t"] + LEAD * period
         self._due = due
         observed = max(due - period * (len(self._history) - 1), self._observed)
@@ -274,11 +301,7 @@ class CpsRobot(Robot):
         return {key: float(x) for key, x in zip(self.action_features, q)}
 
     def _clip(self, q: np.ndarray) -> np.ndarray:
-        limits = self.model.limits
-        if limits is None:
-            return q
-        lower, upper = (np.asarray(x) for x in limits)
-        return np.clip(q, lower, upper)
+        return q if self._range is None else np.clip(q, *self._range)
 
     def _first_far(self, target: np.ndarray, command: np.ndarray, far: np.ndarray) -> None:
         j = int(far.argmax())
@@ -289,11 +312,15 @@ class CpsRobot(Robot):
                 "or pass --robot.approach=true to approach it within the limits"
             )
         share = self.config.approach_share
-        if not 0.0 < share <= 1.0:
-            raise ValueError(f"{self}: approach_share {share} is not in (0, 1]")
         vmax = np.asarray(self.model.velocity_limits) * share
-        # A quintic from rest to rest: peak velocity 15/8 d/T, acceleration 5.77 d/T^2.
-        seconds = max(float(np.max(15.0 / 8.0 * far / vmax)), float(np.sqrt(np.max(5.78 * far / (10.0 * share)))), 0.5)
+        # A quintic from rest to rest (peak velocity 15/8 d/T, acceleration 5.77 d/T^2) at
+        # the share of the velocity limits and of APPROACH_ACCELERATION; the executor keeps
+        # the arm's own limits whatever the plan.
+        seconds = max(
+            float(np.max(15.0 / 8.0 * far / vmax)),
+            float(np.sqrt(np.max(5.78 * far / (APPROACH_ACCELERATION * share)))),
+            0.5,
+        )
         rate = 50.0
         t0 = self._ex.observe()["t"]
 
@@ -324,18 +351,6 @@ class CpsRobot(Robot):
         self._first = False
         self._history = [target] * LEAD
         self._last_call = time.perf_counter()
-
-
-def _pose(T: np.ndarray) -> dict[str, float]:
-    """A 4x4 pose as tool.x, y, z (m) and its rotation's unit quaternion (qw >= 0)."""
-    T = np.asarray(T)
-    R = T[:3, :3]
-    w = math.sqrt(max(0.0, 1.0 + R[0, 0] + R[1, 1] + R[2, 2])) / 2.0
-    x = math.copysign(math.sqrt(max(0.0, 1.0 + R[0, 0] - R[1, 1] - R[2, 2])) / 2.0, R[2, 1] - R[1, 2])
-    y = math.copysign(math.sqrt(max(0.0, 1.0 - R[0, 0] + R[1, 1] - R[2, 2])) / 2.0, R[0, 2] - R[2, 0])
-    z = math.copysign(math.sqrt(max(0.0, 1.0 - R[0, 0] - R[1, 1] + R[2, 2])) / 2.0, R[1, 0] - R[0, 1])
-    return {"tool.x": float(T[0, 3]), "tool.y": float(T[1, 3]), "tool.z": float(T[2, 3]),
-            "tool.qx": x, "tool.qy": y, "tool.qz": z, "tool.qw": w}
 
 
 class CpsFranka(CpsRobot):

@@ -142,7 +142,7 @@ def test_the_dynamics_arm_observes_moves_and_records_within_its_limits(tmp_path)
         q0 = np.array([obs[f"joint{i}.pos"] for i in range(1, 8)])
         assert np.abs(q0 - FR3_READY).max() < 1e-6
         # The tool at the ready pose, by cps's own forward kinematics: straight down.
-        assert abs(obs["tool.qw"]) < 1e-6 or abs(abs(obs["tool.qx"]) - 1.0) < 1e-3, obs
+        assert abs(abs(obs["tool.qx"]) - 1.0) < 1e-3 and abs(obs["tool.qw"]) < 1e-3, obs
         with pytest.raises(ValueError, match="first action is 0.500 rad from the arm at joint1"):
             robot.send_action({f"joint{i + 1}.pos": q0[i] + (0.5 if i == 0 else 0.0) for i in range(7)})
         with pytest.raises(ValueError, match="no `joint7.pos`"):
@@ -254,3 +254,27 @@ def test_lerobot_replay_on_franka_sim_with_its_reflexes_on_trips_none(tmp_path):
     q = np.column_stack([rec[f"q{j}"] for j in range(1, 8)])
     gaps = [np.abs(q - a).max(axis=1).min() for a in actions.astype(np.float32)]
     assert max(gaps) < 0.03, max(gaps)
+
+
+def test_a_robot_connects_again_on_a_new_clock_and_checks_its_settings_first(tmp_path):
+    from lerobot_robot_cps import CpsDynamics, CpsDynamicsConfig
+
+    with pytest.raises(ValueError, match="approach_share 0.0 is not in"):
+        CpsDynamics(CpsDynamicsConfig(approach_share=0.0, record=tmp_path / "never.csv")).connect()
+    assert not (tmp_path / "never.csv").exists()
+    import time
+
+    robot = CpsDynamics(CpsDynamicsConfig(record=tmp_path / "first.csv"))
+    for session in ("first", "second"):
+        robot.config.record = tmp_path / f"{session}.csv"
+        robot.connect()
+        try:
+            q0 = np.array([robot.get_observation()[f"joint{i}.pos"] for i in range(1, 8)])
+            for q in swing(45, q0):
+                robot.send_action({f"joint{i + 1}.pos": q[i] for i in range(7)})
+                time.sleep(1.0 / FPS)
+        finally:
+            robot.disconnect()
+        # The second session's clock starts at 0 again: its actions are taken as the first's.
+        report = robot.last_run["report"]
+        assert report["taken"] == 45 and report["refused"] == 0, (session, report)
