@@ -12,6 +12,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from lerobot.cameras import CameraConfig
+
+# Every camera LeRobot ships for any robot, registered so that each can be named in a cps
+# robot's --robot.cameras by every script (asynchronous inference's robot_client registers
+# only opencv and realsense itself). None needs its driver until it is used.
+from lerobot.cameras.opencv import OpenCVCameraConfig  # noqa: F401
+from lerobot.cameras.realsense import RealSenseCameraConfig  # noqa: F401
+from lerobot.cameras.zmq import ZMQCameraConfig  # noqa: F401
 from lerobot.robots import RobotConfig
 
 
@@ -37,8 +44,10 @@ class CpsRobotConfig(RobotConfig):
     approach: bool = False
     # The share of the limits an approach plans with, in (0, 1].
     approach_share: float = 0.3
-    # Without a new action for this long (s), the arm brakes to rest where it is; the next
-    # action near it resumes.
+    # Without a new action for this long (s), the arm brakes to rest where it is. An action
+    # that comes later than this after the one before it is not followed (a client whose
+    # policy server died hands over its queue so); the next one at the caller's rhythm
+    # starts the arm again.
     stall_timeout: float = 0.25
     # The caller's actions per second; measured from the calls when not given.
     action_rate: float | None = None

@@ -38,8 +38,6 @@ JOINTS = 7
 TOOL = ("x", "y", "z", "qx", "qy", "qz", "qw")
 # The caller's action rate assumed until two calls have measured it (LeRobot's default fps).
 DEFAULT_RATE = 30.0
-# A pause between actions longer than this starts the path anew from where the arm is.
-PAUSE_S = 0.5
 # Steps from a call of send_action to the time its action is due (see send_action).
 LEAD = 2
 # The acceleration an approach is planned with, at approach_share (rad/s^2: the FR3's limit).
@@ -62,6 +60,7 @@ class CpsRobot(Robot):
         self._ex: cps.ChunkExecutor | None = None
         self._record: Path | None = None
         self.last_run: dict[str, Any] | None = None
+        self.clock_start_unix = math.nan
         self._new_session()
 
     def _new_session(self) -> None:
@@ -74,6 +73,7 @@ class CpsRobot(Robot):
         self._due = -math.inf
         self._first = True
         self.not_followed = 0
+        self.resumed_late = 0
 
     def _check_settings(self) -> None:
         """The plugin's own settings (cps checks the executor's when it starts)."""
@@ -173,7 +173,13 @@ class CpsRobot(Robot):
         except BaseException:
             self._close()
             raise
-        logger.info("%s connected; cps records the run at 1 kHz to %s", self, self._record)
+        # The executor's clock against the wall's, for matching cps's recording (its t) with
+        # what happened around it.
+        self.clock_start_unix = time.time() - self._ex.observe()["t"]
+        logger.info(
+            "%s connected; cps records the run at 1 kHz to %s (its clock started at unix time %.3f)",
+            self, self._record, self.clock_start_unix,
+        )
 
     def disconnect(self) -> None:
         """Ends the action stream: the arm follows the last action to its end and comes to
@@ -242,23 +248,30 @@ class CpsRobot(Robot):
     def send_action(self, action: dict[str, Any]) -> dict[str, Any]:
         """Hands `action` (joint positions, rad) to the 1 kHz loop, due two steps from now
         (the path through the actions is smooth), and returns what the arm targets: the
-        action within the joints' ranges, or, for an action farther than `max_step` from
-        the arm (not followed), where the arm is commanded to be."""
+        action within the joints' ranges, or, for an action not followed, where the arm is
+        commanded to be. Not followed: one farther than `max_step` from the arm, and one
+        that comes more than `stall_timeout` after the action before it (the arm has
+        braked to rest; the next action at the caller's rhythm starts it again)."""
         if self._ex is None:
             raise DeviceNotConnectedError(f"{self} is not connected.")
         if not self._ex.running:
             raise self._ended()
         target = self._clip(self._targets(action))
         now = time.perf_counter()
-        if self._last_call is not None:
-            gap = now - self._last_call
-            if gap > PAUSE_S:
-                self._history.clear()
-            elif self.config.action_rate is None:
-                self._period += 0.2 * (min(max(gap, 1e-3), PAUSE_S) - self._period)
+        gap = math.inf if self._last_call is None else now - self._last_call
         self._last_call = now
         o = self._ex.observe()
         command = o["q_d"]
+        if gap <= self.config.stall_timeout and self.config.action_rate is None:
+            self._period += 0.2 * (max(gap, 1e-3) - self._period)
+        if not self._first and gap > self.config.stall_timeout:
+            # The stream had stopped (the arm braked to rest): a lone late action is not
+            # followed — a client whose policy server died hands over what it had queued,
+            # one action every few hundred milliseconds. Following starts again with the
+            # next action that comes at the caller's rhythm, from where the arm rests.
+            self._history.clear()
+            self.resumed_late += 1
+            return self._said(command)
         far = np.abs(target - command)
         if self._first and far.max() > self.config.max_step:
             self._first_far(target, command, far)

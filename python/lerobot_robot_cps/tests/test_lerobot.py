@@ -99,6 +99,12 @@ def commanded(rec: dict[str, np.ndarray]) -> np.ndarray:
     return np.column_stack([rec[f"q_d{j}"] for j in range(1, 8)])
 
 
+# A network namespace of its own (franka-sim binds 0.0.0.0:1337) and a PID namespace whose
+# first process is the script: however the test ends (a timeout kills `unshare`), the
+# kernel ends every process the script started with it.
+NAMESPACE = ["unshare", "--net", "--pid", "--kill-child"]
+
+
 def assert_within_limits(q_d: np.ndarray, t: np.ndarray) -> dict[str, float]:
     """The commands' velocity, acceleration and jerk against the FR3's limits (finite
     differences over the recording's own times: a period the robot lost under load is
@@ -201,53 +207,57 @@ def test_a_first_action_far_from_the_arm_is_approached_when_asked(tmp_path):
     assert np.abs(end - actions[-1]).max() < 0.01
 
 
-def test_lerobot_replay_on_franka_sim_with_its_reflexes_on_trips_none(tmp_path):
-    """franka-sim (the FCI's limits and lost-cycle rules enforced, as the real Control
-    does) in a network namespace of its own, two CPU hogs beside it; LeRobot's replay
-    names cps_franka at its address."""
+def franka_sim_script(tmp_path: Path, body: str) -> subprocess.CompletedProcess:
+    """Runs `body` (bash) beside franka-sim with its reflexes on (the FCI's limits and
+    lost-cycle rules enforced, as the real Control does; at a realtime priority where
+    permitted, standing for the robot's own machine) and two CPU hogs, in namespaces of
+    their own (`NAMESPACE`); franka-sim's log is `tmp_path/sim.log`. Job control is on, so
+    that a client started in the background takes SIGINT as it would from Ctrl-C."""
     sim_python = peer("CPS_FRANKA_SIM_PYTHON", "target/franka-sim-venv/bin/python")
     franky_python = peer("CPS_FRANKA_PYTHON", "target/franka-venv/bin/python")
-    if shutil.which("unshare") is None or subprocess.run(["unshare", "-n", "true"]).returncode != 0:
+    if shutil.which("unshare") is None or subprocess.run([*NAMESPACE, "true"]).returncode != 0:
         if os.environ.get("CI"):
-            pytest.fail("unshare -n is not available: franka-sim needs a network namespace (run as root)")
-        pytest.skip("unshare -n is not available (franka-sim binds 0.0.0.0:1337)")
+            pytest.fail("unshare is not available: franka-sim needs a network namespace (run as root)")
+        pytest.skip("unshare is not available (franka-sim binds 0.0.0.0:1337)")
     assets = subprocess.check_output(
         [franky_python, "-c", "import franky_sim, os; print(os.path.dirname(franky_sim.__file__))"],
         text=True).strip() + "/assets"
     model = tmp_path / "fr3.xml"
     model.write_text((Path(assets) / "fr3.xml").read_text().replace(
         'meshdir="assets"', f'meshdir="{assets}/meshes"'))
+    script = textwrap.dedent(f"""
+        set -u -m
+        ip link set lo up
+        rt=""; chrt -f 20 true 2>/dev/null && rt="chrt -f 20"
+        FR3_MJCF={model} $rt {sim_python} -m franka_sim.run_server --no-gripper \\
+            --enforce-motion-limits --enforce-comm-constraints >{tmp_path}/sim.log 2>&1 &
+        for i in $(seq 300); do (exec 3<>/dev/tcp/127.0.0.1/1337) 2>/dev/null && break; sleep 0.1; done
+        sh -c 'while :; do :; done' &
+        sh -c 'while :; do :; done' &
+    """) + textwrap.dedent(body)
+    return subprocess.run([*NAMESPACE, "bash", "-c", script], capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "HF_HUB_OFFLINE": "1", "HF_LEROBOT_HOME": str(tmp_path)})
+
+
+def franka_sim_violations(tmp_path: Path) -> list[str]:
+    """franka-sim's lines naming a violated limit, a reflex or an aborted motion."""
+    log = (tmp_path / "sim.log").read_text() if (tmp_path / "sim.log").exists() else ""
+    return [line for line in log.splitlines()
+            if "violated" in line or "aborting the motion" in line or "reflex" in line.lower()]
+
+
+def test_lerobot_replay_on_franka_sim_with_its_reflexes_on_trips_none(tmp_path):
+    """LeRobot's replay names cps_franka at franka-sim's address (`franka_sim_script`)."""
     root = tmp_path / "swing"
     actions = swing(4 * FPS, FRANKA_SIM_START)
     write_dataset(root, actions)
     record = tmp_path / "franka.csv"
-    sim_log = tmp_path / "sim.log"
     command = [str(BIN / "lerobot-replay"), "--robot.type=cps_franka", "--robot.host=127.0.0.1",
                "--robot.realtime=ignore", f"--robot.record={record}", "--dataset.repo_id=local/swing",
                f"--dataset.root={root}", "--dataset.episode=0", "--play_sounds=false"]
-    script = textwrap.dedent(f"""
-        set -u
-        ip link set lo up
-        rt=""; chrt -f 20 true 2>/dev/null && rt="chrt -f 20"
-        FR3_MJCF={model} $rt {sim_python} -m franka_sim.run_server --no-gripper \\
-            --enforce-motion-limits --enforce-comm-constraints >{sim_log} 2>&1 &
-        sim=$!
-        for i in $(seq 300); do (exec 3<>/dev/tcp/127.0.0.1/1337) 2>/dev/null && break; sleep 0.1; done
-        sh -c 'while :; do :; done' & h1=$!
-        sh -c 'while :; do :; done' & h2=$!
-        {' '.join(command)}
-        rc=$?
-        kill $h1 $h2 $sim 2>/dev/null
-        wait $sim 2>/dev/null
-        exit $rc
-    """)
-    p = subprocess.run(["unshare", "-n", "bash", "-c", script], capture_output=True, text=True, timeout=240,
-                       env={**os.environ, "HF_HUB_OFFLINE": "1", "HF_LEROBOT_HOME": str(tmp_path)})
-    log = sim_log.read_text() if sim_log.exists() else ""
-    assert p.returncode == 0, p.stderr[-3000:] + "\n--- franka-sim:\n" + log[-2000:]
-    violations = [line for line in log.splitlines()
-                  if "violated" in line or "aborting the motion" in line or "reflex" in line.lower()]
-    assert not violations, violations[:5]
+    p = franka_sim_script(tmp_path, " ".join(command) + "\n")
+    assert p.returncode == 0, p.stderr[-3000:] + "\n--- franka-sim:\n" + (tmp_path / "sim.log").read_text()[-2000:]
+    assert not franka_sim_violations(tmp_path), franka_sim_violations(tmp_path)[:5]
     rec = read_recording(record)
     q_d = np.column_stack([rec[f"q_d{j}"] for j in range(1, 8)])
     assert_within_limits(q_d, rec["t"])
@@ -278,3 +288,96 @@ def test_a_robot_connects_again_on_a_new_clock_and_checks_its_settings_first(tmp
         # The second session's clock starts at 0 again: its actions are taken as the first's.
         report = robot.last_run["report"]
         assert report["taken"] == 45 and report["refused"] == 0, (session, report)
+
+
+def make_act(folder: Path, start: np.ndarray, camera: tuple[int, int]) -> None:
+    """An ACT policy built here (random weights, nothing downloaded) for cps_franka's
+    observations — the state (28 entries) and one camera — and its 7 joint actions, saved
+    as LeRobot saves a trained one, with processors whose statistics put its actions within
+    about 10 mrad of `start`."""
+    import torch
+    from lerobot.configs.types import FeatureType, PolicyFeature
+    from lerobot.policies.act.configuration_act import ACTConfig
+    from lerobot.policies.act.modeling_act import ACTPolicy
+    from lerobot.policies.factory import make_pre_post_processors
+
+    height, width = camera
+    torch.manual_seed(0)
+    config = ACTConfig(
+        input_features={
+            "observation.state": PolicyFeature(FeatureType.STATE, (28,)),
+            "observation.images.front": PolicyFeature(FeatureType.VISUAL, (3, height, width)),
+        },
+        output_features={"action": PolicyFeature(FeatureType.ACTION, (7,))},
+        chunk_size=20, n_action_steps=20, pretrained_backbone_weights=None, dim_model=64,
+        dim_feedforward=128, n_encoder_layers=1, n_vae_encoder_layers=1, device="cpu",
+    )
+    policy = ACTPolicy(config)
+    policy.save_pretrained(folder)
+    state_mean = np.concatenate([start, np.zeros(14), [0.3, 0.0, 0.5, 1.0, 0.0, 0.0, 0.0]])
+    stats = {
+        "observation.state": {"mean": torch.tensor(state_mean, dtype=torch.float32),
+                              "std": torch.ones(28)},
+        "observation.images.front": {"mean": torch.full((3, 1, 1), 0.5), "std": torch.full((3, 1, 1), 0.25)},
+        "action": {"mean": torch.tensor(start, dtype=torch.float32), "std": torch.full((7,), 0.005)},
+    }
+    pre, post = make_pre_post_processors(config, dataset_stats=stats)
+    pre.save_pretrained(folder)
+    post.save_pretrained(folder)
+
+
+def test_asynchronous_inference_with_act_on_franka_sim_stops_within_a_second_of_the_server(tmp_path):
+    """LeRobot's policy_server and robot_client, unchanged, an ACT policy, a ZMQ camera
+    stand-in, cps_franka on franka-sim with its reflexes on (two CPU hogs beside it); the
+    policy server is killed mid-run."""
+    act = tmp_path / "act"
+    make_act(act, FRANKA_SIM_START, (48, 64))
+    record = tmp_path / "async.csv"
+    cameras = "{front: {type: zmq, server_address: 127.0.0.1, port: 5555, camera_name: front, width: 64, height: 48, fps: 30}}"
+    client = [sys.executable, "-m", "lerobot.async_inference.robot_client", "--robot.type=cps_franka",
+              "--robot.host=127.0.0.1", "--robot.realtime=ignore", f"--robot.record={record}",
+              f"--robot.cameras='{cameras}'", "--task=hold", "--server_address=127.0.0.1:8080",
+              "--policy_type=act", f"--pretrained_name_or_path={act}", "--policy_device=cpu",
+              "--client_device=cpu", "--actions_per_chunk=10", "--chunk_size_threshold=0.5", "--fps=30",
+              "--aggregate_fn_name=weighted_average"]
+    here = Path(__file__).parent
+    p = franka_sim_script(tmp_path, f"""
+        {sys.executable} {here}/frame_server.py --port 5555 >{tmp_path}/frames.log 2>&1 &
+        {sys.executable} -m lerobot.async_inference.policy_server --host=127.0.0.1 --port=8080 \\
+            >{tmp_path}/server.log 2>&1 &
+        server=$!
+        {' '.join(client)} >{tmp_path}/client.log 2>&1 &
+        client=$!
+        # The policy drives the arm for six of its chunks (at most a minute), then its server
+        # dies; three seconds later the user presses Ctrl-C (the client's own receiver
+        # thread never ends after its server died: it is killed ten seconds after).
+        for i in $(seq 600); do
+            [ "$(grep -c "Action chunk #" {tmp_path}/server.log 2>/dev/null)" -ge 6 ] && break
+            sleep 0.1
+        done
+        kill -9 $server; date +%s.%N >{tmp_path}/killed
+        sleep 3
+        kill -INT $client
+        for i in $(seq 100); do kill -0 $client 2>/dev/null || break; sleep 0.1; done
+        kill -9 $client 2>/dev/null
+    """)
+    client_log = (tmp_path / "client.log").read_text()
+    assert record.is_file(), p.stdout + p.stderr + client_log[-3000:]
+    assert not franka_sim_violations(tmp_path), franka_sim_violations(tmp_path)[:5]
+    rec = read_recording(record)
+    q_d = commanded(rec)
+    assert_within_limits(q_d, rec["t"])
+    report = json.loads(record.with_suffix(".report.json").read_text())
+    chunks = report["chunks"]
+    # The policy drove the arm: its chunks' actions were followed (its server, starved of
+    # the cores by the hogs, answers a few times a second; between its chunks the arm
+    # brakes to rest), none refused.
+    assert chunks["came"] >= 10 and chunks["refused"] == 0, chunks
+    # At rest within a second of the server's death: the clock cps's recording keeps
+    # against the wall's (the plugin says where its clock started).
+    start = float(client_log.split("its clock started at unix time ")[1].split(")")[0])
+    killed = float((tmp_path / "killed").read_text()) - start
+    moving = np.flatnonzero(np.abs(np.diff(q_d, axis=0)).max(axis=1) > 1e-9)
+    at_rest = rec["t"][moving[-1] + 1]
+    assert at_rest - killed < 1.0, (killed, at_rest)
+    assert rec["t"][-1] > at_rest + 1.0, "the recording goes on past the rest"
