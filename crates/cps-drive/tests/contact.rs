@@ -78,8 +78,13 @@ fn run(
         .unwrap();
     plan.sensing.friction = friction;
     let stop = AtomicBool::new(false);
+    // franky-sim is a Python process stepping MuJoCo: on a loaded CI machine it can pause
+    // for longer than a robot's 100 ms without a state; half a second tells a pause from a
+    // simulator that is gone. (The search without a table once ended interrupted in CI,
+    // its cause unrecorded: the assertions now print the loop's ending and timing.)
     let options = LoopOptions {
         realtime: Realtime::Ignore,
+        state_timeout: std::time::Duration::from_millis(500),
         ..Default::default()
     };
     let outcome = std::thread::scope(|scope| {
@@ -189,8 +194,10 @@ fn without_a_surface_within_reach_it_goes_back_up_without_pressing() {
     };
     assert!(
         matches!(out.ending, ContactEnding::NoContact { .. }),
-        "{:?}",
-        out.ending
+        "{:?}: {} ({:?})",
+        out.ending,
+        out.report.ending.sentence(),
+        out.report.timing
     );
     assert!(
         out.ending
@@ -225,7 +232,12 @@ fn a_force_above_the_ceiling_drops_it_and_retreats() {
         return;
     };
     let ContactEnding::Ceiling { force, t } = out.ending else {
-        panic!("{:?}", out.ending);
+        panic!(
+            "{:?}: {} ({:?})",
+            out.ending,
+            out.report.ending.sentence(),
+            out.report.timing
+        );
     };
     assert!(force > 30.0);
     // From that tick on no force is asked for, and the tool retreats from the table.

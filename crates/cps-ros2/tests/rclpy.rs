@@ -472,11 +472,16 @@ fn joint_states_from_rclpy_at_1_khz_are_recorded_without_loss() {
     assert_eq!(rec.lost, 0);
     assert_eq!(rec.incomplete, 0);
     // rclpy keeps 1 kHz only roughly on a loaded machine; every one it sent in the 3 s
-    // is kept, in the model's joint order (q_i = 0.1 i + sin(t + i)). Its timer catches
-    // up after a late call, so a window that opens on a late message may hold a few
-    // more than 3001 (3002 seen once on a loaded machine).
+    // is kept, once, in the order sent, in the model's joint order (q_i = 0.1 i +
+    // sin(t + i)). Its timer catches up after late calls, so a window that opens while it
+    // is behind holds more than 3001 (3012 seen with the Python tests at nice 10 behind
+    // two busy cores): a backlog of at most a tenth of a second is allowed.
     let kept = rec.positions.len();
-    assert!((2000..=3010).contains(&kept), "{kept} kept");
+    assert!((2000..=3100).contains(&kept), "{kept} kept");
+    assert!(
+        rec.stamps_ns.windows(2).all(|w| w[0] < w[1]),
+        "stamps out of order or repeated"
+    );
     let q = &rec.positions[0];
     let t0 = (q[0] - 0.0).asin();
     for (i, v) in q.iter().enumerate() {

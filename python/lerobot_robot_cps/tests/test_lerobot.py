@@ -233,8 +233,9 @@ def franka_sim_script(tmp_path: Path, body: str, hogs: bool = True) -> subproces
             --enforce-motion-limits --enforce-comm-constraints >{tmp_path}/sim.log 2>&1 &
         for i in $(seq 300); do (exec 3<>/dev/tcp/127.0.0.1/1337) 2>/dev/null && break; sleep 0.1; done
     """) + ("sh -c 'while :; do :; done' &\nsh -c 'while :; do :; done' &\n" if hogs else "") + textwrap.dedent(body)
+    # In tmp_path: LeRobot's policy server writes its logs to ./logs.
     return subprocess.run([*NAMESPACE, "bash", "-c", script], capture_output=True, text=True, timeout=300,
-                          env={**os.environ, "HF_HUB_OFFLINE": "1", "HF_LEROBOT_HOME": str(tmp_path)})
+                          cwd=tmp_path, env={**os.environ, "HF_HUB_OFFLINE": "1", "HF_LEROBOT_HOME": str(tmp_path)})
 
 
 def franka_sim_violations(tmp_path: Path) -> list[str]:
