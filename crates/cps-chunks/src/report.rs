@@ -228,15 +228,22 @@ impl FollowReport {
                 "chunks: {} came, {} taken, {} refused; {} targets skipped as already past",
                 self.chunks, self.taken, self.refused, self.skipped
             ),
-            format!(
-                "inference delay {:.1} ms mean (jitter {:.1} ms, {:.1}–{:.1} ms); a chunk every {:.1} ms (jitter {:.1} ms)",
-                ms(self.delay.mean),
-                ms(self.delay.std),
-                ms(self.delay.min),
-                ms(self.delay.max),
-                ms(self.interval.mean),
-                ms(self.interval.std)
-            ),
+            // Statistics of no value are NaN: a run without chunks (or with one) says so.
+            match (self.delay.mean.is_finite(), self.interval.mean.is_finite()) {
+                (false, _) => "no chunk came: no inference delay to measure".into(),
+                (true, false) => {
+                    format!("inference delay {:.1} ms (one chunk)", ms(self.delay.mean))
+                }
+                (true, true) => format!(
+                    "inference delay {:.1} ms mean (jitter {:.1} ms, {:.1}–{:.1} ms); a chunk every {:.1} ms (jitter {:.1} ms)",
+                    ms(self.delay.mean),
+                    ms(self.delay.std),
+                    ms(self.delay.min),
+                    ms(self.delay.max),
+                    ms(self.interval.mean),
+                    ms(self.interval.std)
+                ),
+            },
             format!(
                 "commands: peak acceleration {:.2} rad/s² ({:.2} at boundaries), jerk {:.0} rad/s³ ({:.0} at boundaries); {:.0} % / {:.0} % / {:.0} % of the velocity, acceleration and jerk limits",
                 peak(&self.overall.acceleration),

@@ -321,6 +321,15 @@ fn stale_and_future_chunks_are_refused_alone_and_a_long_pause_is_said() {
             .iter()
             .any(|l| l.contains("never reached the arm"))
     );
+    // No chunk at all: the report says so, and no statistic of nothing (NaN) is printed.
+    let mut source = Replay::new(Vec::new());
+    let run = follow(&mut robot(), &mut source, None, &short, &StopToken::new()).unwrap();
+    let lines = FollowReport::new(&run, &source.into_log()).lines();
+    assert!(
+        lines.iter().any(|l| l.starts_with("no chunk came")),
+        "{lines:?}"
+    );
+    assert!(lines.iter().all(|l| !l.contains("NaN")), "{lines:?}");
 }
 
 #[test]

@@ -61,7 +61,7 @@ pub fn demonstrations(
             .info()
             .robot_type
             .as_deref()
-            .and_then(|r| joint_names(r).ok())
+            .and_then(|r| joint_names(plugin_arm(r).unwrap_or(r)).ok())
             .filter(|joints| matches_all(feature, joints)),
     };
     episodes_of(&ds, root, pick, wanted.as_deref())
@@ -131,6 +131,13 @@ fn episodes_of(
         demos.push((label, demo));
     }
     Ok((names, demos))
+}
+
+/// The arm behind a robot type of cps's LeRobot plugin (`lerobot_robot_cps`), which LeRobot
+/// writes as a dataset's `robot_type`: `cps_dynamics` and `cps_franka` name a Franka's seven
+/// joints `joint1.pos`…`joint7.pos` (the FR3's; a Panda's are named alike).
+fn plugin_arm(robot_type: &str) -> Option<&'static str> {
+    matches!(robot_type, "cps_dynamics" | "cps_franka").then_some("fr3")
 }
 
 /// The robot's joint names (its published ones).

@@ -289,11 +289,12 @@ def test_a_robot_connects_again_on_a_new_clock_and_checks_its_settings_first(tmp
         assert report["taken"] == 45 and report["refused"] == 0, (session, report)
 
 
-def make_act(folder: Path, start: np.ndarray, camera: tuple[int, int]) -> None:
+def make_act(folder: Path, start: np.ndarray, camera: tuple[int, int], tool: bool = True) -> None:
     """An ACT policy built here (random weights, nothing downloaded) for cps_franka's
-    observations — the state (28 entries) and one camera — and its 7 joint actions, saved
-    as LeRobot saves a trained one, with processors whose statistics put its actions within
-    about 10 mrad of `start`."""
+    observations — the state (the joints' positions, velocities, and with `tool` their
+    efforts and the tool pose: 28 entries; else 14) and one camera — and its 7 joint
+    actions, saved as LeRobot saves a trained one, with processors whose statistics put its
+    actions within about 10 mrad of `start`."""
     import torch
     from lerobot.configs.types import FeatureType, PolicyFeature
     from lerobot.policies.act.configuration_act import ACTConfig
@@ -304,7 +305,7 @@ def make_act(folder: Path, start: np.ndarray, camera: tuple[int, int]) -> None:
     torch.manual_seed(0)
     config = ACTConfig(
         input_features={
-            "observation.state": PolicyFeature(FeatureType.STATE, (28,)),
+            "observation.state": PolicyFeature(FeatureType.STATE, (28 if tool else 14,)),
             "observation.images.front": PolicyFeature(FeatureType.VISUAL, (3, height, width)),
         },
         output_features={"action": PolicyFeature(FeatureType.ACTION, (7,))},
@@ -313,10 +314,11 @@ def make_act(folder: Path, start: np.ndarray, camera: tuple[int, int]) -> None:
     )
     policy = ACTPolicy(config)
     policy.save_pretrained(folder)
-    state_mean = np.concatenate([start, np.zeros(14), [0.3, 0.0, 0.5, 1.0, 0.0, 0.0, 0.0]])
+    state_mean = np.concatenate([start, np.zeros(7)]
+                                + ([np.zeros(7), [0.3, 0.0, 0.5, 1.0, 0.0, 0.0, 0.0]] if tool else []))
     stats = {
         "observation.state": {"mean": torch.tensor(state_mean, dtype=torch.float32),
-                              "std": torch.ones(28)},
+                              "std": torch.ones(len(state_mean))},
         "observation.images.front": {"mean": torch.full((3, 1, 1), 0.5), "std": torch.full((3, 1, 1), 0.25)},
         "action": {"mean": torch.tensor(start, dtype=torch.float32), "std": torch.full((7,), 0.005)},
     }
@@ -376,14 +378,84 @@ def test_asynchronous_inference_with_act_on_franka_sim_stops_within_a_second_of_
     # the cores by the hogs, answers a few times a second; between its chunks the arm
     # brakes to rest), none refused.
     assert chunks["came"] >= 10 and chunks["refused"] == 0, chunks
-    # At rest (every command below 1 mrad/s) soon after the server's death, on the clock
-    # cps's recording keeps against the wall's (the plugin says where its clock started).
-    # Measured 0.38-1.14 s: the client's queued actions (up to 10 at 30 Hz), the stall
-    # timeout, then the executor's stall settling back onto the point where it stalled;
-    # issue 64 asks for 1 s, which the settling does not always make yet.
+    # At rest (every command below 1 mrad/s) within a second of the server's death, on the
+    # clock cps's recording keeps against the wall's (the plugin says where its clock
+    # started): the client's last actions, the stall timeout (0.25 s), the brake. Measured
+    # 0.27-0.36 s in five runs (0.38-1.14 s in earlier runs with two CPU hogs beside the
+    # client).
     start = float(client_log.split("its clock started at unix time ")[1].split(")")[0])
     killed = float((tmp_path / "killed").read_text()) - start
     speed = np.abs(np.diff(q_d, axis=0)).max(axis=1) / np.diff(rec["t"])
     at_rest = rec["t"][np.flatnonzero(speed > 1e-3)[-1] + 1]
-    assert at_rest - killed < 2.0, (killed, at_rest)
+    assert at_rest - killed < 1.0, (killed, at_rest)
     assert rec["t"][-1] > at_rest + 1.0, "the recording goes on past the rest"
+
+
+def cps_cli() -> str:
+    """cps's command line: $CPS_CLI, else a build in target/ (a skip without one; under CI a
+    failure)."""
+    builds = (ROOT / "target" / p / "cps-cli" for p in ("checked", "release", "debug"))
+    found = os.environ.get("CPS_CLI") or next((str(b) for b in builds if b.is_file()), None)
+    if found is None:
+        if os.environ.get("CI"):
+            pytest.fail("cps-cli not found: build it (cargo build --profile checked -p cps-cli) or set CPS_CLI")
+        pytest.skip("cps-cli not found (set CPS_CLI)")
+    return found
+
+
+def test_lerobot_rollout_records_episodes_on_franka_sim_that_cps_reads_back(tmp_path):
+    """LeRobot's `lerobot-rollout` (episodic: the policy drives two episodes, the arm is held
+    between them and returned to its start at the end; in 0.6.1 `lerobot-record` takes no
+    policy), an ACT policy and the camera stand-in, on cps_franka and franka-sim with its
+    reflexes on; the dataset it records is LeRobot's, read back by `cps-cli lerobot show`
+    and `imitate`. The rollout gives a policy only the `.pos` and `.vel` entries of a
+    robot's state: the robot leaves out its efforts and tool pose."""
+    act = tmp_path / "act"
+    make_act(act, FRANKA_SIM_START, (48, 64), tool=False)
+    record = tmp_path / "rollout.csv"
+    dataset = tmp_path / "rollout_hold"
+    cameras = "{front: {type: zmq, server_address: 127.0.0.1, port: 5555, camera_name: front, width: 64, height: 48, fps: 30}}"
+    rollout = [str(BIN / "lerobot-rollout"), "--strategy.type=episodic", f"--policy.path={act}", "--device=cpu",
+               "--robot.type=cps_franka", "--robot.host=127.0.0.1", "--robot.realtime=ignore",
+               "--robot.efforts=false", "--robot.tool_pose=false", f"--robot.record={record}",
+               f"--robot.cameras='{cameras}'", "--dataset.repo_id=local/rollout_hold", f"--dataset.root={dataset}",
+               "--dataset.num_episodes=2", "--dataset.episode_time_s=3", "--dataset.reset_time_s=1",
+               "--dataset.push_to_hub=false", "--dataset.single_task=hold", "--play_sounds=false"]
+    p = franka_sim_script(tmp_path, hogs=False, body=f"""
+        {sys.executable} {Path(__file__).parent}/frame_server.py --port 5555 >{tmp_path}/frames.log 2>&1 &
+        {' '.join(rollout)}
+    """)
+    assert p.returncode == 0, p.stderr[-3000:] + "\n--- franka-sim:\n" + (tmp_path / "sim.log").read_text()[-2000:]
+    assert not franka_sim_violations(tmp_path), franka_sim_violations(tmp_path)[:5]
+    rec = read_recording(record)
+    assert_within_limits(commanded(rec), rec["t"])
+    report = json.loads(record.with_suffix(".report.json").read_text())
+    assert report["chunks"]["taken"] >= 150 and report["chunks"]["refused"] == 0, report["chunks"]
+
+    cli = cps_cli()
+    shown = json.loads(subprocess.run([cli, "lerobot", "show", str(dataset), "--json"], capture_output=True,
+                                      text=True, check=True).stdout)
+    assert shown["robot_type"] == "cps_franka", shown
+    # Two episodes of 3 s at 30 frames/s (LeRobot's loop is timed by the clock: a late
+    # iteration costs a frame).
+    frames = [e["frames"] for e in shown["episodes"]]
+    assert len(frames) == 2 and all(80 <= f <= 90 for f in frames), shown["episodes"]
+    # The actions LeRobot recorded are what send_action returned: the arm's 1 kHz path
+    # passes within 30 mrad of each (the policy's actions, 30 a second, smoothed by cps).
+    from lerobot.datasets import LeRobotDataset
+
+    ds = LeRobotDataset("local/rollout_hold", root=dataset)
+    actions = np.stack([ds.hf_dataset[i]["action"].numpy() for i in range(len(ds.hf_dataset))])
+    q = np.column_stack([rec[f"q{j}"] for j in range(1, 8)])
+    gaps = [np.abs(q - a).max(axis=1).min() for a in actions]
+    assert max(gaps) < 0.03, max(gaps)
+    # cps learns a movement from the episodes: its dimensions the arm's seven joints, matched
+    # by name through the dataset's robot type (not the velocities beside them).
+    learned = subprocess.run([cli, "imitate", str(dataset), "--out", str(tmp_path / "dmp.json"), "--json"],
+                             capture_output=True, text=True)
+    assert learned.returncode == 0, learned.stderr
+    fit = json.loads(learned.stdout)
+    assert fit["dimensions"] == [f"joint{i}.pos" for i in range(1, 8)], fit["dimensions"]
+    # The policy's actions wander about 10 mrad around the start from one chunk to the
+    # next; a DMP of 25 bases per joint fits the episodes' mean within a few milliradians.
+    assert max(fit["rmse"]) < 0.005, fit["rmse"]
