@@ -26,11 +26,11 @@ import subprocess
 import sys
 import tempfile
 import textwrap
-import time
+
+import franka_sim_peer
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-SIM_PY = os.path.join(ROOT, "target/franka-sim-venv/bin/python")
-FRANKY_PY = os.path.join(ROOT, "target/franka-venv/bin/python")
+FRANKY_PY = franka_sim_peer.FRANKY_PY
 HOME = [0.0, 0.0, 0.0, -1.57, 0.0, 1.57, 0.785]
 MODES = ["execute", "execute --retime", "DMP online", "follow file", "follow --listen",
          "identify", "guide", "pylibfranka"]
@@ -73,28 +73,8 @@ def chunks(path, start, seconds=3.0, chunk_hz=30.0, horizon=50, rate=50.0):
 def inner(args):
     """Inside the namespace: start franka-sim, the hogs, run one mode, print its JSON."""
     work = tempfile.mkdtemp(prefix="cps-lost-")
-    assets = subprocess.check_output(
-        [FRANKY_PY, "-c", "import franky_sim, os; print(os.path.dirname(franky_sim.__file__))"],
-        text=True).strip() + "/assets"
-    xml = open(os.path.join(assets, "fr3.xml")).read().replace(
-        'meshdir="assets"', f'meshdir="{assets}/meshes"')
-    model = os.path.join(work, "fr3.xml")
-    open(model, "w").write(xml)
-    log = open(os.path.join(work, "sim.log"), "w")
-    sim = [SIM_PY, "-m", "franka_sim.run_server", "--no-gripper", "--enforce-motion-limits",
-           "--enforce-comm-constraints"]
-    if not args.sim_normal:
-        sim = ["chrt", "-f", "20"] + sim
-    server = subprocess.Popen(sim, env={**os.environ, "FR3_MJCF": model}, stdout=log,
-                              stderr=subprocess.STDOUT)
-    import socket
-    for _ in range(300):
-        try:
-            socket.create_connection(("127.0.0.1", 1337), timeout=0.2).close()
-            break
-        except OSError:
-            time.sleep(0.1)
-    hogs = [subprocess.Popen(["sh", "-c", "while :; do :; done"]) for _ in range(os.cpu_count() or 2)]
+    server, log = franka_sim_peer.start(work, realtime=not args.sim_normal)
+    hogs = franka_sim_peer.hogs(os.cpu_count() or 2)
     cli, mode = args.run_cli, args.run_mode
     realtime = ["--realtime", args.realtime]
     rec = os.path.join(work, "rec.csv")
@@ -181,11 +161,7 @@ def inner(args):
         result["complete"] = False
         result["ending"] = f"no report: {e}"
     finally:
-        for h in hogs:
-            h.kill()
-        server.kill()
-        server.wait()
-        log.close()
+        franka_sim_peer.stop(server, log, hogs)
     text = open(os.path.join(work, "sim.log")).read()
     result["reflex"] = any(w in text for w in ("violated", "aborting the motion", "kReflexAborted"))
     result["sim"] = [line for line in text.splitlines() if "violated" in line][:1]

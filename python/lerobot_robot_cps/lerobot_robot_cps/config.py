@@ -75,6 +75,13 @@ class CpsFrankaConfig(CpsRobotConfig):
     host: str
     # enforce (a realtime kernel is required, as libfranka's default) or ignore.
     realtime: str = "enforce"
+    # A Franka Hand is fitted: actions and observations hold `gripper.pos`, the fingers'
+    # width (m). A narrower width than the fingers' is grasped (held with gripper_force),
+    # a wider one moved to; both at gripper_speed (m/s). The hand must have been homed
+    # once since the robot started (`cps-cli franka gripper home --host …`).
+    gripper: bool = False
+    gripper_speed: float = 0.05
+    gripper_force: float = 20.0
 
 
 @RobotConfig.register_subclass("cps_dynamics")

@@ -9,7 +9,9 @@ within every limit (the FCI's rules included), braking to rest when the actions 
 
 What the arm measures each millisecond is read back for `get_observation`; when the robot
 disconnects (LeRobot's scripts always do, also after an exception or Ctrl-C), the stream
-is closed, the arm comes to rest, and cps's 1 kHz recording is written.
+is closed, the arm comes to rest, and cps's 1 kHz recording is written. The executor runs
+in a process of its own (`process.py`); a Franka Hand, when fitted, in a thread of its own
+(`hand.py`).
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ from lerobot.robots import Robot
 from lerobot.utils.errors import DeviceAlreadyConnectedError, DeviceNotConnectedError
 
 from .config import CpsDynamicsConfig, CpsFrankaConfig, CpsRobotConfig
+from .hand import Hand
+from .process import LoopProcess
 
 logger = logging.getLogger(__name__)
 
@@ -44,6 +48,8 @@ LEAD = 2
 APPROACH_ACCELERATION = 10.0
 # How long connect waits for the robot's loop to measure its first state.
 FIRST_STATE_S = 10.0
+# The hand's entry in actions and observations: the fingers' width (m).
+GRIPPER = "gripper.pos"
 
 
 class CpsRobot(Robot):
@@ -57,7 +63,9 @@ class CpsRobot(Robot):
         self.config = config
         self.model = cps.Robot(config.arm)
         self.cameras = make_cameras_from_configs(config.cameras)
-        self._ex: cps.ChunkExecutor | None = None
+        self._ex: LoopProcess | None = None
+        self._hand: Hand | None = None
+        self._width = math.nan
         self._record: Path | None = None
         self.last_run: dict[str, Any] | None = None
         self.clock_start_unix = math.nan
@@ -82,6 +90,11 @@ class CpsRobot(Robot):
             raise ValueError(f"{self}: action_rate {c.action_rate} is not a number of actions per second")
         if not 0.0 < c.approach_share <= 1.0:
             raise ValueError(f"{self}: approach_share {c.approach_share} is not in (0, 1]")
+        if self._fitted_hand():
+            if not 0.0 < c.gripper_speed <= 0.1:
+                raise ValueError(f"{self}: gripper_speed {c.gripper_speed} m/s is not in (0, 0.1]")
+            if not 0.0 < c.gripper_force <= 140.0:
+                raise ValueError(f"{self}: gripper_force {c.gripper_force} N is not in (0, 140]")
 
     def __str__(self) -> str:
         return self.name if self.id is None else f"{self.name} {self.id}"
@@ -102,13 +115,22 @@ class CpsRobot(Robot):
             features.update({f"{j}.effort": float for j in self._joints})
         if c.tool_pose:
             features.update({f"tool.{k}": float for k in TOOL})
+        if self._fitted_hand():
+            features[GRIPPER] = float
         for key, cam in c.cameras.items():
             features[key] = (cam.height, cam.width, 3)
         return features
 
     @cached_property
     def action_features(self) -> dict[str, type]:
-        return {f"{j}.pos": float for j in self._joints}
+        features = {f"{j}.pos": float for j in self._joints}
+        if self._fitted_hand():
+            features[GRIPPER] = float
+        return features
+
+    def _fitted_hand(self) -> bool:
+        """Whether a hand takes `gripper.pos` (a Franka's, when configured)."""
+        return False
 
     @cached_property
     def _range(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -135,13 +157,14 @@ class CpsRobot(Robot):
         """Which robot `cps.ChunkExecutor` opens, with its own settings."""
         raise NotImplementedError
 
-    def _executor(self, record: Path) -> cps.ChunkExecutor:
+    def _executor(self, record: Path) -> LoopProcess:
+        """cps's chunk executor, in a process of its own (see `process.py`)."""
         c = self.config
-        return cps.ChunkExecutor(
+        return LoopProcess(dict(
             arm=c.arm, rate=1.0 / self._period, stall_timeout=c.stall_timeout, max_gap=c.max_step,
-            idle_end=c.max_duration, max_duration=c.max_duration, record=record,
+            idle_end=c.max_duration, max_duration=c.max_duration, record=str(record),
             limit_share=c.limit_share, **self._robot(),
-        )
+        ))
 
     def _record_path(self) -> Path:
         if self.config.record is not None:
@@ -168,6 +191,9 @@ class CpsRobot(Robot):
                 if time.monotonic() > deadline:
                     raise cps.CpsError(f"{self}: the robot's loop measured no state within {FIRST_STATE_S:.0f} s")
                 time.sleep(0.002)
+            if self._fitted_hand():
+                self._hand = Hand(self.config.host, self.config.gripper_speed, self.config.gripper_force)
+                self._width = self._hand.width
             for cam in self.cameras.values():
                 cam.connect()
         except BaseException:
@@ -196,6 +222,9 @@ class CpsRobot(Robot):
         logger.info("%s disconnected", self)
 
     def _close(self) -> dict[str, Any] | None:
+        hand, self._hand = self._hand, None
+        if hand is not None:
+            hand.close()
         ex, self._ex = self._ex, None
         if ex is None:
             return None
@@ -228,22 +257,26 @@ class CpsRobot(Robot):
         if c.tool_pose:
             pose = self.model.pose(o["q"])
             obs.update({f"tool.{k}": float(x) for k, x in zip(TOOL, pose)})
+        if self._hand is not None:
+            obs[GRIPPER] = self._hand.width
         for key, cam in self.cameras.items():
             obs[key] = cam.read_latest()
         return obs
 
+    def _entry(self, action: dict[str, Any], key: str, what: str) -> float:
+        """The action's number at `key`; a sentence naming it when missing or not a number."""
+        if key not in action:
+            raise ValueError(f"{self}: the action has no `{key}` (it needs {', '.join(self.action_features)})")
+        try:
+            x = float(action[key])
+        except (TypeError, ValueError):
+            raise ValueError(f"{self}: action `{key}` is {action[key]!r}, not {what}") from None
+        if not math.isfinite(x):
+            raise ValueError(f"{self}: action `{key}` is {x}, not {what}")
+        return x
+
     def _targets(self, action: dict[str, Any]) -> np.ndarray:
-        q = np.empty(JOINTS)
-        for i, key in enumerate(self.action_features):
-            if key not in action:
-                raise ValueError(f"{self}: the action has no `{key}` (it needs {', '.join(self.action_features)})")
-            try:
-                q[i] = float(action[key])
-            except (TypeError, ValueError):
-                raise ValueError(f"{self}: action `{key}` is {action[key]!r}, not a joint position (rad)") from None
-            if not math.isfinite(q[i]):
-                raise ValueError(f"{self}: action `{key}` is {q[i]}, not a joint position (rad)")
-        return q
+        return np.array([self._entry(action, f"{j}.pos", "a joint position (rad)") for j in self._joints])
 
     def send_action(self, action: dict[str, Any]) -> dict[str, Any]:
         """Hands `action` (joint positions, rad) to the 1 kHz loop, due two steps from now
@@ -251,12 +284,16 @@ class CpsRobot(Robot):
         action within the joints' ranges, or, for an action not followed, where the arm is
         commanded to be. Not followed: one farther than `max_step` from the arm, and one
         that comes more than `stall_timeout` after the action before it (the arm has
-        braked to rest; the next action at the caller's rhythm starts it again)."""
+        braked to rest; the next action at the caller's rhythm starts it again). With a
+        hand, `gripper.pos` (m) goes to the hand's thread, and the width it will move to is
+        returned."""
         if self._ex is None:
             raise DeviceNotConnectedError(f"{self} is not connected.")
         if not self._ex.running:
             raise self._ended()
         target = self._clip(self._targets(action))
+        if self._hand is not None:
+            self._width = self._hand.want(self._entry(action, GRIPPER, "the fingers' width (m)"))
         now = time.perf_counter()
         gap = math.inf if self._last_call is None else now - self._last_call
         self._last_call = now
@@ -311,7 +348,10 @@ class CpsRobot(Robot):
         return self._said(target)
 
     def _said(self, q: np.ndarray) -> dict[str, float]:
-        return {key: float(x) for key, x in zip(self.action_features, q)}
+        said = {f"{j}.pos": float(x) for j, x in zip(self._joints, q)}
+        if self._hand is not None:
+            said[GRIPPER] = self._width
+        return said
 
     def _clip(self, q: np.ndarray) -> np.ndarray:
         return q if self._range is None else np.clip(q, *self._range)
@@ -374,6 +414,9 @@ class CpsFranka(CpsRobot):
 
     def _robot(self) -> dict[str, Any]:
         return {"robot": "franka", "host": self.config.host, "realtime": self.config.realtime}
+
+    def _fitted_hand(self) -> bool:
+        return self.config.gripper
 
 
 class CpsDynamics(CpsRobot):

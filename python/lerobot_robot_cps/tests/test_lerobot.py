@@ -17,6 +17,7 @@ import shutil
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import numpy as np
@@ -153,8 +154,6 @@ def test_the_dynamics_arm_observes_moves_and_records_within_its_limits(tmp_path)
             robot.send_action({f"joint{i + 1}.pos": q0[i] + (0.5 if i == 0 else 0.0) for i in range(7)})
         with pytest.raises(ValueError, match="no `joint7.pos`"):
             robot.send_action({f"joint{i + 1}.pos": q0[i] for i in range(6)})
-        import time
-
         for k, q in enumerate(swing(60, q0)):
             said = robot.send_action({f"joint{i + 1}.pos": q[i] for i in range(7)})
             assert np.allclose([said[f"joint{i}.pos"] for i in range(1, 8)], q)
@@ -190,6 +189,41 @@ def test_lerobot_replay_on_the_dynamics_arm_follows_the_episode_within_every_lim
     # And LeRobot's replay of the same actions into cps's reader reads them back.
 
 
+def test_a_script_killed_mid_motion_leaves_the_arm_braked_and_the_recording_kept(tmp_path):
+    """The 1 kHz loop runs in a process of its own: when the LeRobot script dies without
+    disconnecting (SIGKILL, an out-of-memory kill), that process ends the stream — the arm
+    comes to rest within its limits — and writes cps's recording."""
+    record = tmp_path / "killed.csv"
+    script = textwrap.dedent(f"""
+        import os, signal, time
+        import numpy as np
+        from lerobot_robot_cps import CpsDynamics, CpsDynamicsConfig
+        robot = CpsDynamics(CpsDynamicsConfig(record={str(record)!r}))
+        robot.connect()
+        q = np.array([robot.get_observation()[f"joint{{i}}.pos"] for i in range(1, 8)])
+        for k in range(30):
+            q[0] += 0.01  # joint 1 at 0.3 rad/s
+            robot.send_action({{f"joint{{i + 1}}.pos": q[i] for i in range(7)}})
+            time.sleep(1 / 30)
+        os.kill(os.getpid(), signal.SIGKILL)
+    """)
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert p.returncode == -9, p.stderr[-3000:]
+    report = record.with_suffix(".report.json")
+    for _ in range(300):
+        if report.is_file() and record.is_file():
+            break
+        time.sleep(0.05)
+    assert report.is_file(), "no report from the loop's process after its parent died"
+    rec = read_recording(record)
+    q_d = commanded(rec)
+    assert_within_limits(q_d, rec["t"])
+    assert q_d[-1, 0] - q_d[0, 0] > 0.2, "the arm did not follow the actions"
+    # At rest at the end: the last commands equal.
+    assert np.abs(q_d[-1] - q_d[-50]).max() < 1e-9, q_d[-50:, 0]
+    assert json.loads(report.read_text())["chunks"]["taken"] == 30
+
+
 def test_a_first_action_far_from_the_arm_is_approached_when_asked(tmp_path):
     root = tmp_path / "swing"
     start = FR3_READY + np.array([0.5, 0.0, 0.0, -0.3, 0.0, 0.0, 0.0])
@@ -207,10 +241,10 @@ def test_a_first_action_far_from_the_arm_is_approached_when_asked(tmp_path):
     assert np.abs(end - actions[-1]).max() < 0.01
 
 
-def franka_sim_script(tmp_path: Path, body: str, hogs: bool = True) -> subprocess.CompletedProcess:
+def franka_sim_script(tmp_path: Path, body: str) -> subprocess.CompletedProcess:
     """Runs `body` (bash) beside franka-sim with its reflexes on (the FCI's limits and
     lost-cycle rules enforced, as the real Control does; at a realtime priority where
-    permitted, standing for the robot's own machine) and, with `hogs`, two CPU hogs, in namespaces of
+    permitted, standing for the robot's own machine) and two CPU hogs, in namespaces of
     their own (`NAMESPACE`); franka-sim's log is `tmp_path/sim.log`. Job control is on, so
     that a client started in the background takes SIGINT as it would from Ctrl-C."""
     sim_python = peer("CPS_FRANKA_SIM_PYTHON", "target/franka-sim-venv/bin/python")
@@ -232,7 +266,9 @@ def franka_sim_script(tmp_path: Path, body: str, hogs: bool = True) -> subproces
         FR3_MJCF={model} $rt {sim_python} -m franka_sim.run_server --no-gripper \\
             --enforce-motion-limits --enforce-comm-constraints >{tmp_path}/sim.log 2>&1 &
         for i in $(seq 300); do (exec 3<>/dev/tcp/127.0.0.1/1337) 2>/dev/null && break; sleep 0.1; done
-    """) + ("sh -c 'while :; do :; done' &\nsh -c 'while :; do :; done' &\n" if hogs else "") + textwrap.dedent(body)
+        sh -c 'while :; do :; done' &
+        sh -c 'while :; do :; done' &
+    """) + textwrap.dedent(body)
     # In tmp_path: LeRobot's policy server writes its logs to ./logs.
     return subprocess.run([*NAMESPACE, "bash", "-c", script], capture_output=True, text=True, timeout=300,
                           cwd=tmp_path, env={**os.environ, "HF_HUB_OFFLINE": "1", "HF_LEROBOT_HOME": str(tmp_path)})
@@ -271,8 +307,6 @@ def test_a_robot_connects_again_on_a_new_clock_and_checks_its_settings_first(tmp
     with pytest.raises(ValueError, match="approach_share 0.0 is not in"):
         CpsDynamics(CpsDynamicsConfig(approach_share=0.0, record=tmp_path / "never.csv")).connect()
     assert not (tmp_path / "never.csv").exists()
-    import time
-
     robot = CpsDynamics(CpsDynamicsConfig(record=tmp_path / "first.csv"))
     for session in ("first", "second"):
         robot.config.record = tmp_path / f"{session}.csv"
@@ -329,11 +363,11 @@ def make_act(folder: Path, start: np.ndarray, camera: tuple[int, int], tool: boo
 
 def test_asynchronous_inference_with_act_on_franka_sim_stops_within_a_second_of_the_server(tmp_path):
     """LeRobot's policy_server and robot_client, unchanged, an ACT policy, a ZMQ camera
-    stand-in, cps_franka on franka-sim with its reflexes on; the policy server is killed
-    mid-run. The machine is busy with the policy's inference on the CPU; without the two
-    hogs of the replay test: with them, franka-sim once aborted a motion at its start for
-    20 lost cycles (the loop, in the client's Python process, stalled; see issue 64's
-    note), which the Franka loop in a process of its own is to end."""
+    stand-in, cps_franka on franka-sim with its reflexes on, two CPU hogs beside the
+    policy's inference on the same two cores; the policy server is killed mid-run. (With
+    the loop inside the client's Python process, franka-sim ended a motion at its start for
+    lost cycles twice in about 30 runs under the hogs: the loop now runs in a process of
+    its own.)"""
     act = tmp_path / "act"
     make_act(act, FRANKA_SIM_START, (48, 64))
     record = tmp_path / "async.csv"
@@ -345,7 +379,7 @@ def test_asynchronous_inference_with_act_on_franka_sim_stops_within_a_second_of_
               "--client_device=cpu", "--actions_per_chunk=10", "--chunk_size_threshold=0.5", "--fps=30",
               "--aggregate_fn_name=weighted_average"]
     here = Path(__file__).parent
-    p = franka_sim_script(tmp_path, hogs=False, body=f"""
+    p = franka_sim_script(tmp_path, body=f"""
         {sys.executable} {here}/frame_server.py --port 5555 >{tmp_path}/frames.log 2>&1 &
         {sys.executable} -m lerobot.async_inference.policy_server --host=127.0.0.1 --port=8080 \\
             >{tmp_path}/server.log 2>&1 &
@@ -407,7 +441,7 @@ def test_lerobot_rollout_records_episodes_on_franka_sim_that_cps_reads_back(tmp_
     """LeRobot's `lerobot-rollout` (episodic: the policy drives two episodes, the arm is held
     between them and returned to its start at the end; in 0.6.1 `lerobot-record` takes no
     policy), an ACT policy and the camera stand-in, on cps_franka and franka-sim with its
-    reflexes on; the dataset it records is LeRobot's, read back by `cps-cli lerobot show`
+    reflexes on and two CPU hogs; the dataset it records is LeRobot's, read back by `cps-cli lerobot show`
     and `imitate`. The rollout gives a policy only the `.pos` and `.vel` entries of a
     robot's state: the robot leaves out its efforts and tool pose."""
     act = tmp_path / "act"
@@ -421,7 +455,7 @@ def test_lerobot_rollout_records_episodes_on_franka_sim_that_cps_reads_back(tmp_
                f"--robot.cameras='{cameras}'", "--dataset.repo_id=local/rollout_hold", f"--dataset.root={dataset}",
                "--dataset.num_episodes=2", "--dataset.episode_time_s=3", "--dataset.reset_time_s=1",
                "--dataset.push_to_hub=false", "--dataset.single_task=hold", "--play_sounds=false"]
-    p = franka_sim_script(tmp_path, hogs=False, body=f"""
+    p = franka_sim_script(tmp_path, body=f"""
         {sys.executable} {Path(__file__).parent}/frame_server.py --port 5555 >{tmp_path}/frames.log 2>&1 &
         {' '.join(rollout)}
     """)
@@ -436,10 +470,11 @@ def test_lerobot_rollout_records_episodes_on_franka_sim_that_cps_reads_back(tmp_
     shown = json.loads(subprocess.run([cli, "lerobot", "show", str(dataset), "--json"], capture_output=True,
                                       text=True, check=True).stdout)
     assert shown["robot_type"] == "cps_franka", shown
-    # Two episodes of 3 s at 30 frames/s (LeRobot's loop is timed by the clock: a late
-    # iteration costs a frame).
+    # Two episodes of 3 s at 30 frames/s. LeRobot's loop is timed by the clock, and a late
+    # iteration costs a frame: beside the hogs an episode kept 66-85 frames in six runs
+    # (86-90 without them).
     frames = [e["frames"] for e in shown["episodes"]]
-    assert len(frames) == 2 and all(80 <= f <= 90 for f in frames), shown["episodes"]
+    assert len(frames) == 2 and all(45 <= f <= 90 for f in frames), shown["episodes"]
     # The actions LeRobot recorded are what send_action returned: the arm's 1 kHz path
     # passes within 30 mrad of each (the policy's actions, 30 a second, smoothed by cps).
     from lerobot.datasets import LeRobotDataset
@@ -459,3 +494,49 @@ def test_lerobot_rollout_records_episodes_on_franka_sim_that_cps_reads_back(tmp_
     # The policy's actions wander about 10 mrad around the start from one chunk to the
     # next; a DMP of 25 bases per joint fits the episodes' mean within a few milliradians.
     assert max(fit["rmse"]) < 0.005, fit["rmse"]
+
+
+def test_the_hand_follows_gripper_pos_on_franky_sim(tmp_path):
+    """`--robot.gripper=true`: `gripper.pos` (the fingers' width, m) in the actions and
+    the observations, the hand moved by a thread of its own while the arm holds, on
+    franky-sim's FR3 and Franka Hand behind the real protocols (loopback 127.0.0.77)."""
+    import cps
+
+    from lerobot_robot_cps import CpsFranka, CpsFrankaConfig
+
+    host = "127.0.0.77"
+    franky_python = peer("CPS_FRANKA_PYTHON", "target/franka-venv/bin/python")
+    sim = subprocess.Popen([franky_python, str(ROOT / "crates/cps-franka/tests/sim_server.py"), "--host", host],
+                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert sim.stdout.readline().startswith("ready")
+        config = CpsFrankaConfig(host=host, realtime="ignore", gripper=True, record=tmp_path / "hand.csv")
+        with pytest.raises(ValueError, match="gripper_force 500.0 N is not in"):
+            CpsFranka(CpsFrankaConfig(host=host, gripper=True, gripper_force=500.0)).connect()
+        cps.Franka(host, realtime="ignore").gripper("home")
+        robot = CpsFranka(config)
+        assert list(robot.action_features)[-1] == "gripper.pos" and "gripper.pos" in robot.observation_features
+        robot.connect()
+        try:
+            obs = robot.get_observation()
+            q = {f"joint{i}.pos": obs[f"joint{i}.pos"] for i in range(1, 8)}
+            with pytest.raises(ValueError, match="the action has no `gripper.pos`"):
+                robot.send_action(q)
+            for width in (0.02, 0.07):
+                for _ in range(75):  # 2.5 s at 30 Hz: the fingers move at 0.05 m/s
+                    said = robot.send_action({**q, "gripper.pos": width})
+                    time.sleep(1.0 / FPS)
+                assert said["gripper.pos"] == width
+                # franky-sim stops the fingers a few millimetres short (see franky_sim.rs).
+                assert abs(robot.get_observation()["gripper.pos"] - width) < 5e-3, (width, robot.get_observation())
+            # Wider than the hand opens: the hand's maximum is asked for.
+            assert robot.send_action({**q, "gripper.pos": 0.5})["gripper.pos"] <= 0.081
+        finally:
+            robot.disconnect()
+        rec = read_recording(tmp_path / "hand.csv")
+        # The arm held where it stood (its actions were its measured joints: microradians
+        # from its commands).
+        assert np.abs(commanded(rec) - commanded(rec)[0]).max() < 1e-4, "the arm moved"
+    finally:
+        sim.kill()
+        sim.wait()
