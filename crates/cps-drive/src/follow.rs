@@ -360,6 +360,8 @@ pub enum ChunkRobot {
         arm: cps_franka::limits::Arm,
         /// Where it starts (rad).
         start: Option<Vec<f64>>,
+        /// The world its commands are checked in (see [`ExecuteSettings::world`]).
+        world: Option<std::sync::Arc<cps_robot::Shapes>>,
     },
     /// The in-process robot (it does what it is told), held to the wall clock.
     Kinematic {
@@ -367,6 +369,8 @@ pub enum ChunkRobot {
         arm: cps_franka::limits::Arm,
         /// Where it starts (rad).
         start: Option<Vec<f64>>,
+        /// The world its commands are checked in (see [`ExecuteSettings::world`]).
+        world: Option<std::sync::Arc<cps_robot::Shapes>>,
     },
 }
 
@@ -378,8 +382,14 @@ enum Opened {
 
 impl ChunkRobot {
     fn open(&self) -> Result<Opened, DriveError> {
-        let simulated = |arm: cps_franka::limits::Arm, start: &Option<Vec<f64>>, dynamics: bool| {
-            let model = cps_movement::robot_file::load_robot(arm.name(), Some("hand"), None)?;
+        let simulated = |arm: cps_franka::limits::Arm,
+                         start: &Option<Vec<f64>>,
+                         world: &Option<std::sync::Arc<cps_robot::Shapes>>,
+                         dynamics: bool| {
+            let model = crate::franka::in_world(
+                cps_movement::robot_file::load_robot(arm.name(), Some("hand"), None)?,
+                world.as_ref(),
+            );
             let start = start.clone().unwrap_or_else(|| model.ready.clone());
             if start.len() != 7 || start.iter().any(|x| !x.is_finite()) {
                 return Err(DriveError::from(InputError(
@@ -399,8 +409,8 @@ impl ChunkRobot {
         };
         match self {
             ChunkRobot::Franka(s) => Ok(Opened::Franka(Box::new(guarded_arm(s, Policy::STRICT)?))),
-            ChunkRobot::Dynamics { arm, start } => simulated(*arm, start, true),
-            ChunkRobot::Kinematic { arm, start } => simulated(*arm, start, false),
+            ChunkRobot::Dynamics { arm, start, world } => simulated(*arm, start, world, true),
+            ChunkRobot::Kinematic { arm, start, world } => simulated(*arm, start, world, false),
         }
     }
 }

@@ -9,6 +9,7 @@
 //! (`<stem>.report.json`) that says whether it is complete and why not.
 
 use std::path::Path;
+use std::sync::Arc;
 
 use cps_franka::limits::{Arm, DT, RateLimits};
 use cps_franka::{
@@ -17,7 +18,7 @@ use cps_franka::{
 };
 use cps_kinematics::Quantity;
 use cps_robot::{
-    Guarded, Limit, OnBreach, OnStart, Plan, Policy, Refusal, Robot, RobotError, StopToken,
+    Guarded, Limit, OnBreach, OnStart, Plan, Policy, Refusal, Robot, RobotError, Shapes, StopToken,
 };
 use serde_json::{Value, json};
 
@@ -80,6 +81,9 @@ pub struct ExecuteSettings {
     pub approach: bool,
     /// Realtime scheduling of the loop.
     pub realtime: Realtime,
+    /// The world every command is checked in, in the robot's base frame ([`scene_world`]):
+    /// the arm's shapes among a scene's obstacles. None: the arm and its hand alone.
+    pub world: Option<Arc<Shapes>>,
 }
 
 impl ExecuteSettings {
@@ -93,8 +97,33 @@ impl ExecuteSettings {
             retime: false,
             approach: false,
             realtime: parse_realtime(realtime)?,
+            world: None,
         })
     }
+}
+
+/// The world of the scene file at `scene` for the arm `arm`, in the arm's base frame: the
+/// scene's robot (its links, its tool) among its obstacles, with the contacts it allows
+/// and its margin, for [`ExecuteSettings::world`]. Errors: the file's, in its words, and a
+/// scene whose robot is another arm.
+pub fn scene_world(scene: &Path, arm: Arm) -> Result<Arc<Shapes>, DriveError> {
+    let s = cps_movement::scene::load_scene(scene)?;
+    if s.robot.name != arm.name() {
+        return Err(InputError(format!(
+            "{}: the scene's robot is `{}`, not the {} this command drives",
+            scene.display(),
+            s.robot.name,
+            arm.name()
+        ))
+        .into());
+    }
+    let shapes = s.robot.shapes.as_ref().ok_or_else(|| {
+        InputError(format!(
+            "{}: the scene's robot has no collision shapes to check",
+            scene.display()
+        ))
+    })?;
+    Ok(Arc::new(shapes.moved(&s.robot.chain.base().inverse())))
 }
 
 /// A joint trajectory file made ready for a Franka: 1 kHz commands from t = 0 (what
@@ -224,6 +253,17 @@ pub(crate) fn arm_model(arm: Arm) -> Result<cps_robot::RobotModel, DriveError> {
     Ok(model)
 }
 
+/// `model` checked among `world` where one is given.
+pub(crate) fn in_world(
+    mut model: cps_robot::RobotModel,
+    world: Option<&Arc<Shapes>>,
+) -> cps_robot::RobotModel {
+    if let Some(w) = world {
+        model.shapes = Some(w.clone());
+    }
+    model
+}
+
 /// Connects to the Franka of `settings`, behind the guard with `policy`.
 pub(crate) fn guarded_arm(
     settings: &ExecuteSettings,
@@ -236,7 +276,7 @@ pub(crate) fn guarded_arm(
             realtime: settings.realtime,
             dt: DT,
         },
-        arm_model(settings.arm)?,
+        in_world(arm_model(settings.arm)?, settings.world.as_ref()),
     )?;
     Ok(Guarded::new(robot, policy))
 }

@@ -345,6 +345,7 @@ pub fn franka_identify(
             retime: false,
             approach: false,
             realtime: settings.realtime,
+            world: None,
         },
         stop,
     )?;

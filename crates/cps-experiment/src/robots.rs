@@ -137,25 +137,10 @@ impl RobotChoice {
             ))
             .into());
         };
-        let world = match &self.model.shapes {
-            Some(shapes) => {
-                let to_base = self.setup.chain.base().inverse();
-                let obstacles = shapes
-                    .obstacles()
-                    .iter()
-                    .map(|o| {
-                        let mut o = o.clone();
-                        o.pose = to_base * o.pose;
-                        o
-                    })
-                    .collect();
-                let placed = shapes
-                    .with_obstacles(obstacles, shapes.allowed().to_vec())
-                    .map_err(|e| ExperimentError::Message(e.to_string()))?;
-                Some(std::sync::Arc::new(placed))
-            }
-            None => None,
-        };
+        let world =
+            self.model.shapes.as_ref().map(|shapes| {
+                std::sync::Arc::new(shapes.moved(&self.setup.chain.base().inverse()))
+            });
         Ok(RobotAt {
             host: host.clone(),
             arm: *arm,

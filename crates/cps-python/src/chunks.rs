@@ -20,11 +20,13 @@ use crate::experiment::json_to_py;
 ///
 /// `ChunkExecutor(robot="dynamics", arm="fr3", host=None, rate=50.0, start=None,
 /// stall_timeout=0.25, max_gap=0.2, idle_end=5.0, max_duration=300.0,
-/// realtime="enforce", record=None, force=False, limit_share=0.95)`: `robot` is
+/// realtime="enforce", record=None, force=False, limit_share=0.95, scene=None)`: `robot` is
 /// `"franka"` (at `host`), `"dynamics"` (the arm with franky-sim's PD and drives,
 /// simulated in real time) or `"kinematic"` (it does what it is told); `limit_share` is
 /// the share of the robot's velocity, acceleration and jerk limits the executor may use,
-/// in (0, 1]. The robot's loop starts at once; `push` chunks predicted from `state()`
+/// in (0, 1]; `scene` a scene file (`configs/scenes/`) whose obstacles every command is
+/// checked against — a command that would touch one is not sent, the arm is braked and
+/// the run ends. The robot's loop starts at once; `push` chunks predicted from `state()`
 /// (or `observe()`), and `close()` ends the stream (the last chunk is followed, the arm comes to rest) and
 /// returns the recording; with `record` (a path, checked before the loop starts) it is
 /// also written there, with its report and chunks beside it, however the run ends. A
@@ -99,7 +101,7 @@ impl ChunkExecutor {
 #[pymethods]
 impl ChunkExecutor {
     #[new]
-    #[pyo3(signature = (robot = "dynamics", arm = "fr3", host = None, rate = 50.0, start = None, stall_timeout = 0.25, max_gap = 0.2, idle_end = 5.0, max_duration = 300.0, realtime = "enforce", record = None, force = false, limit_share = 0.95))]
+    #[pyo3(signature = (robot = "dynamics", arm = "fr3", host = None, rate = 50.0, start = None, stall_timeout = 0.25, max_gap = 0.2, idle_end = 5.0, max_duration = 300.0, realtime = "enforce", record = None, force = false, limit_share = 0.95, scene = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -116,6 +118,7 @@ impl ChunkExecutor {
         record: Option<std::path::PathBuf>,
         force: bool,
         limit_share: f64,
+        scene: Option<std::path::PathBuf>,
     ) -> PyResult<Self> {
         if let Some(r) = &record {
             cps_drive::follow::check_live_record(r, force).map_err(|e| e.py_err())?;
@@ -127,6 +130,10 @@ impl ChunkExecutor {
             )));
         }
         let start = opt_vector(start, "start", Some(7))?;
+        let world = scene
+            .map(|p| cps_drive::franka::scene_world(&p, arm))
+            .transpose()
+            .map_err(|e| e.py_err())?;
         let which = match robot {
             "franka" => {
                 let host = host.ok_or_else(|| value_error("host: a Franka needs its address"))?;
@@ -141,10 +148,11 @@ impl ChunkExecutor {
                     retime: false,
                     approach: false,
                     realtime: choose("realtime", realtime, &Realtime::WORDS)?,
+                    world,
                 })
             }
-            "dynamics" => ChunkRobot::Dynamics { arm, start },
-            "kinematic" => ChunkRobot::Kinematic { arm, start },
+            "dynamics" => ChunkRobot::Dynamics { arm, start, world },
+            "kinematic" => ChunkRobot::Kinematic { arm, start, world },
             other => {
                 return Err(value_error(format!(
                     "robot: `{other}` is not franka, dynamics or kinematic"

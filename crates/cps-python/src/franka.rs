@@ -161,6 +161,7 @@ impl Franka {
             retime,
             approach,
             realtime: self.realtime,
+            world: None,
         };
         let (done, interrupt) =
             detached_keep(py, None, |stop| franka::execute(&prepared, &settings, stop))?;

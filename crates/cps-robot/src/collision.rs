@@ -89,6 +89,33 @@ impl Shapes {
         })
     }
 
+    /// The same robot with its obstacles moved by `to` (each pose `to * pose`): a scene's
+    /// obstacles, placed in its world, brought into the frame of the robot's base
+    /// (`to` = the base's pose inverted) for a robot whose own model starts at its base,
+    /// as a Franka's does.
+    pub fn moved(&self, to: &Isometry3<f64>) -> Self {
+        let obstacles: Vec<Obstacle> = self
+            .obstacles
+            .iter()
+            .map(|o| Obstacle {
+                pose: to * o.pose,
+                ..o.clone()
+            })
+            .collect();
+        let skip: Vec<(String, String)> =
+            self.touching.iter().chain(&self.allowed).cloned().collect();
+        let model = Arc::new(CollisionModel::new(
+            self.bodies.clone(),
+            obstacles.clone(),
+            &skip,
+        ));
+        Shapes {
+            obstacles,
+            model,
+            ..self.clone()
+        }
+    }
+
     /// The same shapes with clearance `margin` (m). Errors: not finite, or negative.
     pub fn with_margin(&self, margin: f64) -> Result<Self, SettingError> {
         if !(margin.is_finite() && margin >= 0.0) {

@@ -206,3 +206,43 @@ fn a_simulator_is_not_put_inside_an_obstacle() {
     assert_eq!(r.joint_positions().unwrap(), vec![0.0; 7]);
     assert!(r.teleport(&[0.1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]).unwrap());
 }
+
+#[test]
+fn a_scene_s_obstacles_moved_into_the_base_frame_collide_where_they_did_in_the_world() {
+    // The robot placed in a world (turned and shifted), the ball placed with it: the
+    // same collision as unplaced. Then the world's ball moved into the base's frame
+    // (`Shapes::moved`, as a Franka's commands are checked) for the unplaced robot: the
+    // same again, at the same millisecond, the same distance.
+    let plain = model();
+    let plan = swing(1.2, 1.2);
+    let base = Isometry3::new(Vector3::new(0.3, -0.2, 0.74), Vector3::new(0.0, 0.0, 0.5));
+    let shapes = plain.shapes.clone().unwrap();
+    let ball = &shapes.obstacles()[0];
+    let in_world = shapes
+        .with_obstacles(
+            vec![Obstacle {
+                pose: base * ball.pose,
+                ..ball.clone()
+            }],
+            vec![],
+        )
+        .unwrap();
+    let placed = plain.chain.clone().with_base(base);
+    let reference = cps_robot::check_shapes(&shapes, &plain.chain, &plan, 1e-3)
+        .unwrap()
+        .expect("the swing reaches the ball");
+    let in_world = Arc::new(in_world);
+    let world = cps_robot::check_shapes(&in_world, &placed, &plan, 1e-3)
+        .unwrap()
+        .unwrap();
+    let moved = Arc::new(in_world.moved(&base.inverse()));
+    let in_base = cps_robot::check_shapes(&moved, &plain.chain, &plan, 1e-3)
+        .unwrap()
+        .unwrap();
+    for c in [&world, &in_base] {
+        assert_eq!(c.command, reference.command);
+        assert_eq!((&c.first, &c.second), (&reference.first, &reference.second));
+        assert!((c.distance - reference.distance).abs() < 1e-9, "{c:?}");
+    }
+    assert_eq!(reference.command, first_within(&plan));
+}

@@ -31,6 +31,11 @@ class CpsRobotConfig(RobotConfig):
     # LeRobot's own cameras (`--robot.cameras="{front: {type: opencv, ...}}"`), read with
     # each observation: cps needs nothing of them.
     cameras: dict[str, CameraConfig] = field(default_factory=dict)
+    # A scene file (cps's `configs/scenes/fr3.toml`, or one of yours) whose obstacles —
+    # the table, a shelf — every command is checked against at 1 kHz, besides the arm
+    # against itself: a command that would touch one is not sent, the arm brakes, and the
+    # next call says why. Its robot must be the arm.
+    scene: Path | None = None
     # The share of the arm's velocity, acceleration and jerk limits the 1 kHz loop may use,
     # in (0, 1].
     limit_share: float = 0.95

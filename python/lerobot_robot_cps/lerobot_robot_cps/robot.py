@@ -65,6 +65,8 @@ class CpsRobot(Robot):
         self.cameras = make_cameras_from_configs(config.cameras)
         self._ex: LoopProcess | None = None
         self._hand: Hand | None = None
+        # The loop ended by itself and was closed; disconnect closes what is left.
+        self._over = False
         self._width = math.nan
         self._record: Path | None = None
         self.last_run: dict[str, Any] | None = None
@@ -163,7 +165,7 @@ class CpsRobot(Robot):
         return LoopProcess(dict(
             arm=c.arm, rate=1.0 / self._period, stall_timeout=c.stall_timeout, max_gap=c.max_step,
             idle_end=c.max_duration, max_duration=c.max_duration, record=str(record),
-            limit_share=c.limit_share, **self._robot(),
+            limit_share=c.limit_share, scene=None if c.scene is None else str(c.scene), **self._robot(),
         ))
 
     def _record_path(self) -> Path:
@@ -179,6 +181,8 @@ class CpsRobot(Robot):
     def connect(self, calibrate: bool = True) -> None:
         if self._ex is not None:
             raise DeviceAlreadyConnectedError(f"{self} is already connected.")
+        if self._over:
+            self.disconnect()  # the cameras of a session whose loop ended by itself
         self._check_settings()
         self._new_session()
         self._record = self._record_path()
@@ -210,9 +214,12 @@ class CpsRobot(Robot):
     def disconnect(self) -> None:
         """Ends the action stream: the arm follows the last action to its end and comes to
         rest (or, if it was stopped, is at rest already); cps's recording is written. Also
-        after the robot's loop has ended by itself (a reflex, a lost connection)."""
-        if self._ex is None:
+        after the robot's loop has ended by itself (a reflex, a lost connection, a command
+        the scene refused), whose error the script has seen: then only the cameras are left
+        to close (LeRobot's scripts disconnect in `finally`)."""
+        if self._ex is None and not self._over:
             raise DeviceNotConnectedError(f"{self} is not connected.")
+        self._over = False
         try:
             self._close()
         finally:
@@ -238,6 +245,7 @@ class CpsRobot(Robot):
     def _ended(self) -> cps.CpsError:
         """The robot's loop ended by itself: close it (the recording is written) and say why."""
         run = self._close()
+        self._over = True
         ending = run["ending"] if run else "the loop ended"
         where = run["record"] if run else None
         return cps.CpsError(f"{self}: the robot's loop ended: {ending} (the arm is at rest; recording: {where})")

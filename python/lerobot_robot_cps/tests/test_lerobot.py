@@ -189,6 +189,52 @@ def test_lerobot_replay_on_the_dynamics_arm_follows_the_episode_within_every_lim
     # And LeRobot's replay of the same actions into cps's reader reads them back.
 
 
+def test_a_scene_obstacle_in_the_episode_s_way_brakes_the_arm_before_it_touches(tmp_path):
+    """`--robot.scene`: a post stands where the swing's hand passes (cps-cli collide on the
+    episode's actions: 1.2 mm deep at its peak). lerobot-replay ends with cps's sentence
+    naming the link and the post. The guard refused the first command within the scene's
+    5 mm margin and braked from the one before it: every command sent, the brake's
+    included, kept 4 mm clear of the post (cps-cli collide on the 1 kHz commands, a second
+    opinion)."""
+    scene = tmp_path / "post.toml"
+    scene.write_text(textwrap.dedent("""
+        [robot]
+        model = "fr3"
+        tool = "hand"
+        initial_q = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]
+
+        [[obstacle]]
+        name = "post"
+        shape = "box"
+        xyz = [0.30, 0.22, 0.40]
+        size = [0.12, 0.06, 0.30]
+    """))
+    from lerobot_robot_cps import CpsDynamics, CpsDynamicsConfig
+
+    panda = tmp_path / "panda.toml"
+    panda.write_text(scene.read_text().replace('model = "fr3"', 'model = "panda"'))
+    with pytest.raises(Exception, match="the scene's robot is `panda`, not the fr3"):
+        CpsDynamics(CpsDynamicsConfig(scene=panda, record=tmp_path / "never.csv")).connect()
+    root = tmp_path / "swing"
+    write_dataset(root, swing(4 * FPS, FR3_READY))
+    record = tmp_path / "post.csv"
+    p = replay(root, record, "--robot.type=cps_dynamics", f"--robot.scene={scene}")
+    assert p.returncode != 0
+    assert "within the clearance margin, so the robot braked: `fr3_" in p.stderr and "`post`" in p.stderr, \
+        p.stderr[-3000:]
+    assert "is not connected" not in p.stderr, p.stderr[-3000:]
+    rec = read_recording(record)
+    q_d = commanded(rec)
+    assert_within_limits(q_d, rec["t"])
+    assert q_d[:, 0].max() > 0.1, "the arm did not go toward the post"
+    commands = tmp_path / "commands.csv"
+    np.savetxt(commands, np.column_stack([rec["t"], q_d]), delimiter=",",
+               header="t," + ",".join(f"q{j}" for j in range(1, 8)), comments="")
+    check = subprocess.run([cps_cli(), "collide", str(commands), "--scene", str(scene), "--margin", "0.004"],
+                           capture_output=True, text=True)
+    assert check.returncode == 0, check.stdout + check.stderr
+
+
 def test_a_script_killed_mid_motion_leaves_the_arm_braked_and_the_recording_kept(tmp_path):
     """The 1 kHz loop runs in a process of its own: when the LeRobot script dies without
     disconnecting (SIGKILL, an out-of-memory kill), that process ends the stream — the arm
