@@ -121,7 +121,6 @@ impl Robot {
         ))
     }
 
-    /// Configurations from `q`: (dof,) → one, (m, dof) → m. Returns (values, m, batched).
     /// `each` of `q`'s configurations (one (dof,), or the rows of (m, dof)), computed
     /// without the GIL, each appending `shape`'s count of values: an array of `shape`, or
     /// (m, ..shape) for rows.
@@ -159,6 +158,7 @@ impl Robot {
         Ok(PyArray1::from_vec(py, out).reshape(dims)?.into_any())
     }
 
+    /// Configurations from `q`: (dof,) → one, (m, dof) → m. Returns (values, m, batched).
     fn configurations(&self, q: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, usize, bool)> {
         let n = self.dof();
         let a = floats(q, "q")?;

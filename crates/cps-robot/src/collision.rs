@@ -75,18 +75,24 @@ impl Shapes {
                 });
             }
         }
+        Ok(self.among(obstacles, allowed))
+    }
+
+    /// The same robot among `obstacles` with `allowed`, its pairs' model built anew
+    /// (checked by the caller).
+    fn among(&self, obstacles: Vec<Obstacle>, allowed: Vec<(String, String)>) -> Self {
         let skip: Vec<(String, String)> = self.touching.iter().chain(&allowed).cloned().collect();
         let model = Arc::new(CollisionModel::new(
             self.bodies.clone(),
             obstacles.clone(),
             &skip,
         ));
-        Ok(Shapes {
+        Shapes {
             obstacles,
             allowed,
             model,
             ..self.clone()
-        })
+        }
     }
 
     /// The same robot with its obstacles moved by `to` (each pose `to * pose`): a scene's
@@ -102,18 +108,7 @@ impl Shapes {
                 ..o.clone()
             })
             .collect();
-        let skip: Vec<(String, String)> =
-            self.touching.iter().chain(&self.allowed).cloned().collect();
-        let model = Arc::new(CollisionModel::new(
-            self.bodies.clone(),
-            obstacles.clone(),
-            &skip,
-        ));
-        Shapes {
-            obstacles,
-            model,
-            ..self.clone()
-        }
+        self.among(obstacles, self.allowed.clone())
     }
 
     /// The same shapes with clearance `margin` (m). Errors: not finite, or negative.
