@@ -247,6 +247,36 @@ impl ProMp {
         (p, v)
     }
 
+    /// Positions `Φ w` and velocities `Φ̇ w` of the movement of weights `w` (`dims ·
+    /// bases`, dimension-major) at the times `times` (s): two `times.len() × dims`
+    /// row-major arrays, to the last bit the products of [`Self::features`] with `w`, with
+    /// no feature matrix built. Called per candidate by the learners that search weights.
+    pub fn path(&self, w: &[f64], times: &[f64]) -> Result<(Vec<f64>, Vec<f64>), ProMpError> {
+        let (d, n) = (self.dims, self.bases);
+        if w.len() != d * n {
+            return Err(invalid(format!(
+                "{} weights for a ProMP of {d} dimensions × {n} bases",
+                w.len()
+            )));
+        }
+        let mut p = Vec::with_capacity(times.len() * d);
+        let mut v = Vec::with_capacity(times.len() * d);
+        let (mut psi, mut dpsi) = (vec![0.0; n], vec![0.0; n]);
+        for &t in times {
+            self.basis_into(t / self.duration, &mut psi, &mut dpsi);
+            for wk in w.chunks_exact(n) {
+                let (mut pk, mut vk) = (0.0, 0.0);
+                for i in 0..n {
+                    pk += psi[i] * wk[i];
+                    vk += dpsi[i] / self.duration * wk[i];
+                }
+                p.push(pk);
+                v.push(vk);
+            }
+        }
+        Ok((p, v))
+    }
+
     /// Covariance of position and of velocity at time `t` (dims × dims each).
     pub fn covariance_at(&self, t: f64) -> (DMatrix<f64>, DMatrix<f64>) {
         let (p, v) = self.features(t);
@@ -723,5 +753,25 @@ mod tests {
                 assert!((vel[r * d + k] - b[k]).abs() < 1e-12, "t = {t}, dim {k}");
             }
         }
+    }
+
+    #[test]
+    fn a_weighted_path_is_the_feature_matrix_times_the_weights_to_the_last_bit() {
+        let (d, n) = (3, 9);
+        let p = ProMp::new(d, n, 4.0, vec![0.0; d * n], vec![0.0; d * n * d * n]).unwrap();
+        let w: Vec<f64> = (0..d * n).map(|i| (i as f64 * 1.3).cos() - 0.2).collect();
+        let times: Vec<f64> = (0..=80).map(|k| 4.0 * k as f64 / 80.0).collect();
+        let (pos, vel) = p.path(&w, &times).unwrap();
+        let wv = DVector::from_column_slice(&w);
+        for (r, &t) in times.iter().enumerate() {
+            let (phi, dphi) = p.features(t);
+            let (a, b) = (&phi * &wv, &dphi * &wv);
+            for k in 0..d {
+                assert_eq!(pos[r * d + k].to_bits(), a[k].to_bits(), "t = {t}, dim {k}");
+                assert_eq!(vel[r * d + k].to_bits(), b[k].to_bits(), "t = {t}, dim {k}");
+            }
+        }
+        let e = p.path(&w[1..], &times).unwrap_err().to_string();
+        assert_eq!(e, "26 weights for a ProMP of 3 dimensions × 9 bases");
     }
 }

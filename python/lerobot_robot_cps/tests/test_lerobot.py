@@ -290,8 +290,8 @@ def test_a_first_action_far_from_the_arm_is_approached_when_asked(tmp_path):
 def franka_sim_script(tmp_path: Path, body: str) -> subprocess.CompletedProcess:
     """Runs `body` (bash) beside franka-sim with its reflexes on (the FCI's limits and
     lost-cycle rules enforced, as the real Control does; at a realtime priority where
-    permitted, standing for the robot's own machine) and two CPU hogs, in namespaces of
-    their own (`NAMESPACE`); franka-sim's log is `tmp_path/sim.log`. Job control is on, so
+    permitted, standing for the robot's own machine) and two CPU hogs from the moment a
+    client connects to the robot, in namespaces of their own (`NAMESPACE`); franka-sim's log is `tmp_path/sim.log`. Job control is on, so
     that a client started in the background takes SIGINT as it would from Ctrl-C."""
     sim_python = peer("CPS_FRANKA_SIM_PYTHON", "target/franka-sim-venv/bin/python")
     franky_python = peer("CPS_FRANKA_PYTHON", "target/franka-venv/bin/python")
@@ -312,8 +312,10 @@ def franka_sim_script(tmp_path: Path, body: str) -> subprocess.CompletedProcess:
         FR3_MJCF={model} $rt {sim_python} -m franka_sim.run_server --no-gripper \\
             --enforce-motion-limits --enforce-comm-constraints >{tmp_path}/sim.log 2>&1 &
         for i in $(seq 300); do (exec 3<>/dev/tcp/127.0.0.1/1337) 2>/dev/null && break; sleep 0.1; done
-        sh -c 'while :; do :; done' &
-        sh -c 'while :; do :; done' &
+        # The hogs from the moment a client's connect command reaches the robot: LeRobot's
+        # own imports (torch) before it would only take twice as long beside them.
+        (until grep -q "Connect payload" {tmp_path}/sim.log; do sleep 0.05; done
+         sh -c 'while :; do :; done' & sh -c 'while :; do :; done' & wait) &
     """) + textwrap.dedent(body)
     # In tmp_path: LeRobot's policy server writes its logs to ./logs.
     return subprocess.run([*NAMESPACE, "bash", "-c", script], capture_output=True, text=True, timeout=300,

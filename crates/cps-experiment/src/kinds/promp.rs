@@ -190,16 +190,17 @@ fn mean_trajectory(p: &NamedProMp, times: &[f64]) -> Trajectory {
 
 /// The ProMP's movement of weights `w` at `times`: positions `Φ w`, velocities `Φ̇ w`,
 /// accelerations by differences of the velocities.
+/// (The products are cps-promp's, compiled optimised: a search calls this per candidate.)
 fn trajectory_of(p: &cps_promp::ProMp, w: &[f64], times: &[f64]) -> Trajectory {
     let n = times.len();
-    let w = nalgebra::DVector::from_column_slice(w);
+    let (m, v) = p
+        .path(w, times)
+        .expect("the weights are the ProMP's own (its mean or a search over them)");
     let (mut pos, mut vel) = (vec![vec![0.0; n]; 3], vec![vec![0.0; n]; 3]);
-    for (k, &t) in times.iter().enumerate() {
-        let (fp, fv) = p.features(t);
-        let (m, v) = (&fp * &w, &fv * &w);
+    for k in 0..n {
         for d in 0..3 {
-            pos[d][k] = m[d];
-            vel[d][k] = v[d];
+            pos[d][k] = m[k * 3 + d];
+            vel[d][k] = v[k * 3 + d];
         }
     }
     let acc = vel
