@@ -472,12 +472,15 @@ fn joint_states_from_rclpy_at_1_khz_are_recorded_without_loss() {
     assert_eq!(rec.lost, 0);
     assert_eq!(rec.incomplete, 0);
     // rclpy keeps 1 kHz only roughly on a loaded machine; every one it sent in the 3 s
-    // is kept, once, in the order sent, in the model's joint order (q_i = 0.1 i +
-    // sin(t + i)). Its timer catches up after late calls, so a window that opens while it
-    // is behind holds more than 3001 (3012 seen with the Python tests at nice 10 behind
-    // two busy cores): a backlog of at most a tenth of a second is allowed.
+    // is kept (no gap in the writer's DDS sequence numbers), once, in the order sent, in
+    // the model's joint order (q_i = 0.1 i + sin(t + i)). How many it sends is the
+    // machine's: this test runs at nice 10 beside the simulators' lane, and behind the
+    // franka-sim tests' CPU hogs rclpy's timer sent only 768 in the window (CI); once
+    // behind, it catches up, so a window that opens then holds more than 3001 (3012 seen):
+    // a backlog of at most a tenth of a second is allowed.
     let kept = rec.positions.len();
-    assert!((2000..=3100).contains(&kept), "{kept} kept");
+    assert_eq!(kept as u64, rec.messages, "every message received is kept");
+    assert!((300..=3100).contains(&kept), "{kept} kept");
     assert!(
         rec.stamps_ns.windows(2).all(|w| w[0] < w[1]),
         "stamps out of order or repeated"
