@@ -57,7 +57,7 @@ LAYERS = {
     "cps-robot": [
         ["setting"],
         ["plan", "stop"],
-        ["collision"],
+        ["collision", "never"],
         ["model"],
         ["check"],
         ["cycles"],

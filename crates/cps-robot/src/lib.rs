@@ -64,6 +64,7 @@ mod execute;
 mod guard;
 mod kinematic;
 mod model;
+mod never;
 mod plan;
 mod robot;
 mod setting;
@@ -83,6 +84,7 @@ pub use guard::{
 };
 pub use kinematic::KinematicRobot;
 pub use model::RobotModel;
+pub use never::{NeverSearch, PairApproach, closest_approaches};
 pub use plan::{CHECK_PERIOD, Ending, MAX_POINTS, Plan, Run, SampledMotion};
 pub use robot::{
     Generator, Measured, Robot, Stepped, Stepping, Streaming, prefaulted, run_stepped, step_of,
