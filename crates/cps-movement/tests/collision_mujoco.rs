@@ -36,6 +36,37 @@ fn franky_fr3() -> Option<(
     Some((python, assets, chain, geometry))
 }
 
+/// `tests/mujoco_robot.py`'s reply to `job` (its input: the box, the pairs, the
+/// configurations) on franky-sim's fr3.xml in `assets`, run by `python`.
+fn mujoco(
+    python: &std::path::Path,
+    assets: &std::path::Path,
+    job: &serde_json::Value,
+) -> serde_json::Value {
+    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/mujoco_robot.py");
+    let mut child = Command::new(python)
+        .arg(&script)
+        .arg(assets.join("fr3.xml"))
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(job.to_string().as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
 /// What a comparison found: errors of self and box pairs, how many configurations
 /// collide, and (when timed) MuJoCo's and coal's replies.
 struct Compared {
@@ -90,28 +121,7 @@ fn compare(configurations: usize, time: bool) -> Option<Compared> {
         "q": configurations,
         "time": time,
     });
-    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/mujoco_robot.py");
-    let mut child = Command::new(&python)
-        .arg(&script)
-        .arg(assets.join("fr3.xml"))
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(job.to_string().as_bytes())
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let reply: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let reply = mujoco(&python, &assets, &job);
 
     // The same self pairs as MuJoCo's filter.
     let ours: BTreeSet<(String, String)> = pairs
@@ -519,28 +529,7 @@ fn the_srdfs_never_pairs_searched_on_the_fr3s_hulls_meet_where_mujoco_says() {
         "q": meet.iter().map(|f| &f.witness).collect::<Vec<_>>(),
         "time": false,
     });
-    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/mujoco_robot.py");
-    let mut child = Command::new(&python)
-        .arg(&script)
-        .arg(assets.join("fr3.xml"))
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(job.to_string().as_bytes())
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let reply: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let reply = mujoco(&python, &assets, &job);
     for (k, f) in meet.iter().enumerate() {
         let theirs = reply["distances"][k][k].as_f64().unwrap();
         eprintln!(
