@@ -464,20 +464,15 @@ fn the_built_in_fr3_is_its_urdf() {
     }
 }
 
-/// franka_description's SRDF leaves 13 pairs of the arm's links (and the hand's with links
-/// 3, 4 and 6) out as "Never". Searched on the hulls cps checks (`closest_approaches`:
-/// 20 000 seeded samples over the FR3's joint ranges, then pattern searches from each
-/// pair's closest), link2 and link6 come 14.6 mm into each other and link5 and link7
-/// 5.9 mm (MuJoCo's figures, collision-notes.md), at configurations inside the ranges
-/// where MuJoCo, on franky-sim's model, measures the same depths within a millimetre.
-#[test]
-fn the_srdfs_never_pairs_searched_on_the_fr3s_hulls_meet_where_mujoco_says() {
-    use cps_kinematics::robots::{PandaTool, fr3};
-    use cps_movement::collision::{FRANKA_SRDF_NEVER, FrankaArm, franka_geometry};
-    use cps_robot::{NeverSearch, closest_approaches};
-    let geometry = franka_geometry(FrankaArm::Fr3, true);
-    let link = |k: usize| format!("fr3_link{k}");
-    // The SRDF's pairs: the arm's 13 and the hand's with links 3, 4 and 6.
+/// The SRDF's "Never" pairs of a built-in Franka arm (`prefix` `fr3` or `panda`): the arm's
+/// 13 and the hand's with links 3, 4 and 6.
+fn srdf_never_pairs(
+    geometry: &cps_movement::collision::RobotGeometry,
+    prefix: &str,
+) -> Vec<(String, String)> {
+    use cps_movement::collision::FRANKA_SRDF_NEVER;
+    let link = |k: usize| format!("{prefix}_link{k}");
+    let hand = format!("{prefix}_hand");
     let mut pairs: Vec<(String, String)> = FRANKA_SRDF_NEVER
         .iter()
         .map(|&(a, b)| (link(a), link(b)))
@@ -486,9 +481,26 @@ fn the_srdfs_never_pairs_searched_on_the_fr3s_hulls_meet_where_mujoco_says() {
         geometry
             .disabled
             .iter()
-            .filter(|(a, b)| a == "fr3_hand" && !b.contains("finger"))
+            .filter(|(a, b)| *a == hand && !b.contains("finger"))
             .cloned(),
     );
+    pairs
+}
+
+/// franka_description's SRDF leaves 13 pairs of the arm's links (and the hand's with links
+/// 3, 4 and 6) out as "Never". Searched on the hulls cps checks (`closest_approaches`:
+/// 20 000 seeded samples over the FR3's joint ranges, then pattern searches from each
+/// pair's closest), link2 and link6 come more than 10 mm into each other and link5 and
+/// link7 more than 4 mm (47.4 and 9.7 mm found; MuJoCo's random samples had found 14.6 and
+/// 5.9 mm, collision-notes.md), at configurations inside the ranges where MuJoCo, on
+/// franky-sim's model, measures the same depths within a millimetre.
+#[test]
+fn the_srdfs_never_pairs_searched_on_the_fr3s_hulls_meet_where_mujoco_says() {
+    use cps_kinematics::robots::{PandaTool, fr3};
+    use cps_movement::collision::{FrankaArm, franka_geometry};
+    use cps_robot::{NeverSearch, closest_approaches};
+    let geometry = franka_geometry(FrankaArm::Fr3, true);
+    let pairs = srdf_never_pairs(&geometry, "fr3");
     assert_eq!(pairs.len(), 13 + 3);
     let chain = fr3(PandaTool::HandTcp);
     let started = std::time::Instant::now();
@@ -549,21 +561,10 @@ fn the_srdfs_never_pairs_searched_on_the_fr3s_hulls_meet_where_mujoco_says() {
 #[test]
 fn the_pandas_left_out_pairs_keep_apart_over_its_joint_ranges() {
     use cps_kinematics::robots::{PandaTool, panda};
-    use cps_movement::collision::{FRANKA_SRDF_NEVER, FrankaArm, franka_geometry};
+    use cps_movement::collision::{FrankaArm, franka_geometry};
     use cps_robot::{NeverSearch, closest_approaches};
     let geometry = franka_geometry(FrankaArm::Panda, true);
-    let link = |k: usize| format!("panda_link{k}");
-    let mut pairs: Vec<(String, String)> = FRANKA_SRDF_NEVER
-        .iter()
-        .map(|&(a, b)| (link(a), link(b)))
-        .collect();
-    pairs.extend(
-        geometry
-            .disabled
-            .iter()
-            .filter(|(a, b)| a == "panda_hand" && !b.contains("finger"))
-            .cloned(),
-    );
+    let pairs = srdf_never_pairs(&geometry, "panda");
     let found = closest_approaches(
         &panda(PandaTool::HandTcp),
         &geometry.bodies,
