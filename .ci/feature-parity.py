@@ -47,7 +47,7 @@ def main():
     # format, a transport or figures (cps-report's `figures` and what turns it on): they
     # are checked again there, on purpose; nothing they depend on is.
     builds = (("cps-cli", ["--no-default-features"], TRANSPORTS),
-              ("cps-python", [], TRANSPORTS),
+              ("cps-python", [], set()),
               ("cps-experiment", ["-p", "cps-workspace-hack", "--no-default-features"], None))
     for package, args, left_out in builds:
         have = features("normal,build", "-p", package, *args)
