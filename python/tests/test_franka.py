@@ -63,7 +63,12 @@ def test_state_execute_and_record(sim):
     out = robot.execute(t, q)
     assert out["complete"] is True
     n = len(out["t"])
-    assert 3001 <= n <= 3004 + 50
+    # One row per state answered, on the robot's clock: the rows span every period of the
+    # motion; on a loaded machine a state cps skipped as stale leaves a 2 ms row (2 998
+    # rows over 3 001 periods in a cold CI).
+    periods = int(np.rint((out["t"][-1] - out["t"][0]) / 0.001)) + 1
+    assert 3001 <= periods <= 3004 + 50
+    assert 0.95 * periods <= n <= periods
     for k in ("q", "dq", "tau", "q_d"):
         assert out[k].shape == (n, 7)
     assert out["tool"].shape == (n, 3)
