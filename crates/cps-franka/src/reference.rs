@@ -131,6 +131,9 @@ pub struct ReferenceTracker {
     /// whatever came before (how the tracker finds the exact reference again after taking
     /// a state's own).
     recent: [Option<(u64, [f64; JOINTS])>; 3],
+    /// The last command, if the last state showed it applied (and told that apart from its
+    /// drop): the cycle it answered and the reference right after it.
+    confirmed: Option<(u64, Reference)>,
     counts: ReferenceCounts,
 }
 
@@ -149,6 +152,7 @@ impl ReferenceTracker {
             velocity_motion,
             usable: false,
             recent: [None; 3],
+            confirmed: None,
             counts: ReferenceCounts::default(),
         }
     }
@@ -170,6 +174,13 @@ impl ReferenceTracker {
         self.counts
     }
 
+    /// The last command sent, if the last state showed it taken in its cycle (and that
+    /// apart from its drop, which at constant acceleration looks the same): the state it
+    /// answered, and the reference right after it.
+    pub fn confirmed(&self) -> Option<(u64, Reference)> {
+        self.confirmed
+    }
+
     /// Cycles after the base's and before `id` that went without a command.
     fn unanswered_before(&self, id: u64) -> u64 {
         self.base_id.map_or(0, |b| id.saturating_sub(b + 1))
@@ -184,6 +195,7 @@ impl ReferenceTracker {
     pub fn reference(&mut self, state: &RobotState) -> Reference {
         let agrees = |r: &Reference| agreement(r, state, self.velocity_motion);
         let since = |id: u64| state.message_id.saturating_sub(id + 1);
+        self.confirmed = None;
         let Some((sent_id, q_c, behind)) = self.pending.take() else {
             let gap = self.unanswered_before(state.message_id);
             self.counts.extrapolated += gap;
@@ -307,6 +319,11 @@ impl ReferenceTracker {
         {
             Some(&s) => {
                 self.usable |= accelerating_clearly(&s.r);
+                // Applied, and told apart from its drop: the robot took it in its cycle.
+                let taken = matches!(s.kind, Kind::Applied | Kind::AppliedLate);
+                if taken && agrees(&now(&dropped)) != Agreement::Whole {
+                    self.confirmed = Some((sent_id, s.r));
+                }
                 s
             }
             None => {
@@ -558,6 +575,41 @@ mod tests {
             (2, 3, 0),
             "{n:?}"
         );
+    }
+
+    #[test]
+    fn a_command_is_confirmed_where_its_state_tells_it_from_its_drop() {
+        // Under jerk (the cubic) the state after a command shows it applied, not
+        // extrapolated: confirmed, with the reference right after it. At constant
+        // acceleration the two are the same reference: a command franka-sim has not taken
+        // yet looks the same, and none is confirmed.
+        let quadratic =
+            |t: f64| -> [f64; JOINTS] { std::array::from_fn(|i| 0.1 * i as f64 + t * t) };
+        for (jerk, make) in [
+            (true, command as fn(f64) -> [f64; JOINTS]),
+            (false, quadratic),
+        ] {
+            let q0 = make(0.0);
+            let mut tracker = ReferenceTracker::new(q0, false);
+            let mut robot = Reference::at_rest(q0);
+            for k in 0u64..20 {
+                let ours = tracker.reference(&state(k, &robot));
+                assert_eq!(ours, robot);
+                // (From rest, the quadratic's acceleration is constant from its third
+                // command on.)
+                if k >= 5 {
+                    let expected = jerk.then_some((k - 1, robot));
+                    assert_eq!(tracker.confirmed(), expected, "cycle {k}, jerk {jerk}");
+                }
+                let c = make(k as f64 * DT);
+                tracker.sent(k, c, false);
+                robot = if k == 0 {
+                    Reference::at_rest(c)
+                } else {
+                    robot.after(&c, DT)
+                };
+            }
+        }
     }
 
     #[test]

@@ -346,6 +346,21 @@ impl<const N: usize> Limiter<N> {
         self.holds[0] = 1;
     }
 
+    /// Notes that `q` was sent instead of the command [`Limiter::admit`] gave (moved
+    /// further, for a rule of the robot's the limiter does not know): it is counted as
+    /// limited, and the next command is judged from it.
+    pub fn replace(&mut self, q: [f64; N]) {
+        if self.sent == Some(self.desired.q) {
+            // The stream's own command: not counted yet.
+            self.count(q);
+        } else {
+            self.limited.deviation = (0..N)
+                .map(|i| (q[i] - self.desired.q[i]).abs())
+                .fold(self.limited.deviation, f64::max);
+        }
+        self.sent = Some(q);
+    }
+
     /// What it did so far.
     pub fn limited(&self) -> Limited {
         self.limited

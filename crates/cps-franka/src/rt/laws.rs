@@ -7,7 +7,8 @@
 //!   last one answered (a cycle lost or skipped) asks it twice, so a generator stepped
 //!   per period (the chunk executor, an online DMP) keeps the robot's time, and a
 //!   replayed stream its index — and its last answer goes through the [`Limiter`]
-//!   against the robot's reference. A stop, or a command that cannot be limited, switches
+//!   against the robot's reference, then [`late::guard`] (moved to where franka-sim, had
+//!   it taken cps's last commands late, accepts it too). A stop, or a command that cannot be limited, switches
 //!   to a [`Brake`] from that reference. The motion opens at rest where the robot stands
 //!   until a state shows that the robot took a command of it in time
 //!   (`control_command_success_rate` above zero): a robot takes its first command as the
@@ -21,6 +22,7 @@
 
 use cps_kinematics::Quantity;
 
+use super::late::{self, Guarded, LateHistory};
 use super::{JointPositions, MotionEnd, Torques};
 use crate::limits::{Brake, DT, RateLimits, StreamCheck, joint_breach, stream_check};
 use crate::reference::{Reference, ReferenceCounts, ReferenceTracker, TorqueTracker};
@@ -107,6 +109,11 @@ enum Mode {
 pub(crate) struct PositionLaw<F> {
     check: StreamCheck,
     tracker: ReferenceTracker,
+    /// The references franka-sim may hold had it taken some of cps's commands late
+    /// ([`late`]), and whether the last cycle went unanswered for want of a command every
+    /// one of them accepts.
+    late: LateHistory,
+    unmet: bool,
     limiter: Limiter<JOINTS>,
     mode: Mode,
     control: F,
@@ -131,6 +138,8 @@ where
         PositionLaw {
             check: stream_check(limits, q0),
             tracker: ReferenceTracker::new(q0, velocity),
+            late: LateHistory::new(limits),
+            unmet: false,
             limiter: Limiter::new(q0),
             mode: Mode::Follow,
             control,
@@ -211,6 +220,8 @@ where
         let limits = *self.check.bounds();
         self.check = stream_check(limits, q0);
         self.tracker = ReferenceTracker::new(q0, self.velocity);
+        self.late = LateHistory::new(limits);
+        self.unmet = false;
         self.limiter = Limiter::new(q0);
         self.desired = q0;
         self.origin = None;
@@ -231,6 +242,9 @@ where
         command: &mut Command,
     ) -> Option<bool> {
         let r = self.tracker.reference(state);
+        if let Some((id, after)) = self.tracker.confirmed() {
+            self.late.anchor(id, after);
+        }
         self.check.rebase(&r.q, &r.v, &r.a);
         if let Some(reason) = brake
             && self.following()
@@ -271,7 +285,25 @@ where
         let (q_c, mut done) = if matches!(self.mode, Mode::Brake) {
             self.brake_step(&r)
         } else {
+            let before = self.check;
             match self.limiter.admit(&mut self.check, &r) {
+                // A joint-velocity motion's late command averages only its acceleration.
+                Ok(q) if !self.velocity => {
+                    let id = state.message_id;
+                    let (sent, how) = late::guard(&self.late, id, &before, &mut self.check, &r, q);
+                    if how == Guarded::Moved {
+                        self.limiter.replace(sent);
+                    }
+                    if how == Guarded::Unmet && !self.unmet {
+                        // No command every history accepts: none this cycle (once). The
+                        // robot extrapolates the reference it holds, which each accepts.
+                        self.check = before;
+                        self.limiter.withdraw();
+                        self.unmet = true;
+                        return None;
+                    }
+                    (sent, finished)
+                }
                 Ok(q) => (q, finished),
                 Err(breach) => {
                     // Never sent: a controlled stop from the robot's reference instead.
@@ -291,12 +323,15 @@ where
             command.dq_c = *self.check.last().1;
         }
         command.motion_generation_finished = done;
+        self.unmet = false;
         self.tracker.sent(state.message_id, q_c, behind);
+        self.late.sent(state.message_id, q_c);
         Some(done)
     }
 
     fn withdraw(&mut self) {
         self.tracker.withdraw();
+        self.late.withdraw();
         self.limiter.withdraw();
     }
 

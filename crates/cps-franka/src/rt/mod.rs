@@ -16,6 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::error::FrankaError;
+mod late;
 mod laws;
 
 use crate::limits::{DT, RateLimits};
