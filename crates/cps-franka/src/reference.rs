@@ -174,6 +174,13 @@ impl ReferenceTracker {
         self.counts
     }
 
+    /// Whether this robot's states carry the reference it holds (a state of this motion
+    /// agreed wholly with a clearly accelerating one): a Franka's or franka-sim's, not
+    /// franky-sim's, whose `dq_d` is filtered.
+    pub fn reports_reference(&self) -> bool {
+        self.usable
+    }
+
     /// The last command sent, if the last state showed it taken in its cycle (and that
     /// apart from its drop, which at constant acceleration looks the same): the state it
     /// answered, and the reference right after it.

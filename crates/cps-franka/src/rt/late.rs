@@ -28,7 +28,11 @@
 //! Where the robot's command would break a limit against one of them, it is moved, joint
 //! by joint, to the nearest position every one accepts ([`guard`]); where none is, nothing
 //! is sent for that cycle (once in a row), and the robot extrapolates the reference it
-//! holds, which each accepts. Nothing here allocates.
+//! holds, which each accepts. Only on a robot whose states show the reference it holds
+//! (franka-sim, a Franka; not franky-sim, which applies every command as it comes and
+//! filters what it reports): on a Franka, which drops a late command, the histories are
+//! phantoms, and a command moved for them keeps every limit of the robot's own. Nothing
+//! here allocates.
 
 use crate::limits::{DT, RateLimits, StreamCheck};
 use crate::reference::Reference;

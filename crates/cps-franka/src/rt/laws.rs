@@ -287,8 +287,10 @@ where
         } else {
             let before = self.check;
             match self.limiter.admit(&mut self.check, &r) {
-                // A joint-velocity motion's late command averages only its acceleration.
-                Ok(q) if !self.velocity => {
+                // A joint-velocity motion's late command averages only its acceleration;
+                // a robot whose states do not show its reference (franky-sim) is not
+                // franka-sim.
+                Ok(q) if !self.velocity && self.tracker.reports_reference() => {
                     let id = state.message_id;
                     let (sent, how) = late::guard(&self.late, id, &before, &mut self.check, &r, q);
                     if how == Guarded::Moved {
