@@ -266,7 +266,10 @@ impl MoveStatus {
     }
 }
 
-/// The 41 error and reflex flags, in the order of the state's bytes (libfranka's `Errors`).
+/// The 41 error and reflex flags, in the order of the state's bytes: libfranka's
+/// `research_interface::robot::Error` enum (not the order of the fields of its public
+/// `franka::Errors`, which differs from the 24th on; franka-sim's table is the test's
+/// reference, `tests/franka_sim.rs`).
 pub const ERROR_NAMES: [&str; ERROR_COUNT] = [
     "joint_position_limits_violation",
     "cartesian_position_limits_violation",
@@ -291,16 +294,16 @@ pub const ERROR_NAMES: [&str; ERROR_COUNT] = [
     "cartesian_motion_generator_acceleration_discontinuity",
     "cartesian_motion_generator_elbow_sign_inconsistent",
     "cartesian_motion_generator_start_elbow_invalid",
+    "force_controller_desired_force_tolerance_violation",
+    "start_elbow_sign_inconsistent",
+    "communication_constraints_violation",
+    "power_limit_violation",
     "cartesian_motion_generator_joint_position_limits_violation",
     "cartesian_motion_generator_joint_velocity_limits_violation",
     "cartesian_motion_generator_joint_velocity_discontinuity",
     "cartesian_motion_generator_joint_acceleration_discontinuity",
     "cartesian_position_motion_generator_invalid_frame",
-    "force_controller_desired_force_tolerance_violation",
     "controller_torque_discontinuity",
-    "start_elbow_sign_inconsistent",
-    "communication_constraints_violation",
-    "power_limit_violation",
     "joint_p2p_insufficient_torque_for_planning",
     "tau_j_range_violation",
     "instability_detected",
@@ -1030,7 +1033,7 @@ mod tests {
         buf[596..600].copy_from_slice(&0.25f32.to_le_bytes()); // q[0]
         buf[652 + 24..652 + 28].copy_from_slice(&(-1.5f32).to_le_bytes()); // dq[6]
         buf[1290 + 6] = 1; // errors: joint_reflex
-        buf[1331 + 31] = 1; // reflex reason: communication_constraints_violation
+        buf[1331 + 25] = 1; // reflex reason: communication_constraints_violation
         buf[1372] = 4; // reflex mode
         buf[1373..].copy_from_slice(&0.5f32.to_le_bytes());
         let s = RobotState::decode(&buf).unwrap();

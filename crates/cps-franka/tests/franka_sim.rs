@@ -205,3 +205,41 @@ print(json.dumps({"long_periods": long_periods}))
         "franka-sim reports (pylibfranka): {violations:#?}"
     );
 }
+
+/// The error flags' names by their place in the state, as franka-sim (which reports every
+/// reflex by setting them) numbers them: its table is libfranka's `research_interface`
+/// enum. (cps once named them in the order of libfranka's public `Errors` fields, which
+/// differs from the 24th on: a lost-cycles abort was reported as a Cartesian generator's
+/// discontinuity.)
+#[test]
+fn every_error_flag_franka_sim_sets_has_franka_sim_s_name() {
+    let Some(python) = franka_sim::python() else {
+        return;
+    };
+    let out = std::process::Command::new(python)
+        .args([
+            "-c",
+            "import json; from franka_sim.limits.tables import ERROR_NAMES as n; \
+             from franka_sim.comm_constraints import COMMUNICATION_CONSTRAINTS_VIOLATION_INDEX as c; \
+             t = dict(n); t[c] = 'communication_constraints_violation'; \
+             print(json.dumps({str(k): v for k, v in t.items()}))",
+        ])
+        .output()
+        .expect("franka-sim's Python");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let theirs: std::collections::BTreeMap<String, String> =
+        serde_json::from_slice(&out.stdout).expect("franka-sim's table as JSON");
+    assert!(theirs.len() >= 20, "{theirs:?}");
+    for (index, name) in &theirs {
+        let i: usize = index.parse().unwrap();
+        // franka-sim spells the invalid frame's flag with the word `flag` after it, and
+        // `tau_J` as libfranka's member, where its error name has `tau_j`.
+        let name = name.to_lowercase();
+        let name = name.trim_end_matches("_flag");
+        assert_eq!(cps_franka::wire::ERROR_NAMES[i], name, "flag {i}");
+    }
+}
