@@ -307,6 +307,8 @@ pub struct Limiter<const N: usize> {
     /// until the next came), newest last: see [`Limiter::hold`].
     holds: [u32; HOLDS],
     limited: Limited,
+    /// What had been limited before the last command admitted (restored if it is withdrawn).
+    limited_before: Limited,
 }
 
 /// How many of the last holds a correction is made for.
@@ -324,6 +326,7 @@ impl<const N: usize> Limiter<N> {
             since_before: 0,
             holds: [1; HOLDS],
             limited: Limited::default(),
+            limited_before: Limited::default(),
         }
     }
 
@@ -339,11 +342,13 @@ impl<const N: usize> Limiter<N> {
     }
 
     /// Takes back the last command admitted: it was not sent (it would have come late), so
-    /// the robot held the one before through its period too.
+    /// the robot held the one before through its period too (and it is not counted as
+    /// limited).
     pub fn withdraw(&mut self) {
         self.since += self.since_before;
         self.holds.rotate_right(1);
         self.holds[0] = 1;
+        self.limited = self.limited_before;
     }
 
     /// Notes that `q` was sent instead of the command [`Limiter::admit`] gave (moved
@@ -393,6 +398,7 @@ impl<const N: usize> Limiter<N> {
         self.holds.rotate_left(1);
         self.holds[HOLDS - 1] = held;
         (self.since_before, self.since) = (self.since, 0);
+        self.limited_before = self.limited;
         match self.choose(judge, reference) {
             Ok(q) => {
                 self.sent = Some(q);
@@ -936,6 +942,25 @@ mod tests {
                 "seed {seed}, every {every}: {limited:?}"
             );
         }
+    }
+
+    #[test]
+    fn a_limited_command_withdrawn_is_not_counted() {
+        // A step of 8 µrad from rest: within the speed and acceleration limits, beyond the
+        // jerk limit (8 000 rad/s³ for one period): limited, not a jump.
+        let q0 = FROM;
+        let mut limiter = Limiter::new(q0);
+        let r = Reference::at_rest(q0);
+        let mut step = q0;
+        step[0] += 8e-6;
+        limiter.desire(&q0, DT);
+        limiter.desire(&step, DT);
+        let mut check = fr3(q0);
+        let sent = limiter.admit(&mut check, &r).unwrap();
+        assert_ne!(sent, step);
+        assert_eq!(limiter.limited().commands, 1);
+        limiter.withdraw();
+        assert_eq!(limiter.limited(), Limited::default());
     }
 
     #[test]
