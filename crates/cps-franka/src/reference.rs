@@ -544,6 +544,16 @@ mod tests {
         s
     }
 
+    /// The robot's reference after it applied `c` in cycle `k` (the motion's first command
+    /// is its standstill).
+    fn applied(r: &Reference, k: u64, c: &[f64; JOINTS]) -> Reference {
+        if k == 0 {
+            Reference::at_rest(*c)
+        } else {
+            r.after(c, DT)
+        }
+    }
+
     /// A smooth motion's command at time `t` (a cubic: jerk 6 rad/s³ on every joint).
     fn command(t: f64) -> [f64; JOINTS] {
         std::array::from_fn(|i| 0.1 * i as f64 + 0.3 * t + 2.0 * t * t + t * t * t)
@@ -610,11 +620,7 @@ mod tests {
                 }
                 let c = make(k as f64 * DT);
                 tracker.sent(k, c, false);
-                robot = if k == 0 {
-                    Reference::at_rest(c)
-                } else {
-                    robot.after(&c, DT)
-                };
+                robot = applied(&robot, k, &c);
             }
         }
     }
@@ -633,11 +639,7 @@ mod tests {
             assert_eq!(r, ours);
             let c = command(k as f64 * DT);
             tracker.sent(k, c, false);
-            ours = if k == 0 {
-                Reference::at_rest(c)
-            } else {
-                ours.after(&c, DT)
-            };
+            ours = applied(&ours, k, &c);
         }
         assert!(tracker.counts().unconfirmed >= 8, "{:?}", tracker.counts());
     }
@@ -670,11 +672,7 @@ mod tests {
             }
             let c = q.map(|x| x + v * DT);
             tracker.sent(k, c, false);
-            ours = if k == 0 {
-                Reference::at_rest(c)
-            } else {
-                ours.after(&c, DT)
-            };
+            ours = applied(&ours, k, &c);
             q = c;
             for i in 0..JOINTS {
                 let before = filtered[i];
