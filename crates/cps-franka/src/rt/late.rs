@@ -73,13 +73,10 @@ fn same(x: &Reference, y: &Reference) -> bool {
     close(&x.q, &y.q, 1e-12) && close(&x.v, &y.v, 1e-9) && close(&x.a, &y.a, 1e-6)
 }
 
-/// Puts `story` among `stories` unless one alike is there or they are full.
+/// Puts `story` among `stories` (all after the same command) unless one alike is there or
+/// they are full.
 fn keep(stories: &mut [Option<Story>; STORIES], story: Story) {
-    if stories
-        .iter()
-        .flatten()
-        .any(|s| s.1 == story.1 && same(&s.0, &story.0))
-    {
+    if stories.iter().flatten().any(|s| same(&s.0, &story.0)) {
         return;
     }
     if let Some(free) = stories.iter_mut().find(|s| s.is_none()) {

@@ -8,10 +8,10 @@
 //!   per period (the chunk executor, an online DMP) keeps the robot's time, and a
 //!   replayed stream its index — and its last answer goes through the [`Limiter`]
 //!   against the robot's reference, then [`late::guard`] (moved to where franka-sim, had
-//!   it taken cps's last commands late, accepts it too). A stop, or a command that cannot be limited, switches
-//!   to a [`Brake`] from that reference. The motion opens at rest where the robot stands
-//!   until a state shows that the robot took a command of it in time
-//!   (`control_command_success_rate` above zero): a robot takes its first command as the
+//!   it taken cps's last commands late, accepts it too). A stop, or a command that
+//!   cannot be limited, switches to a [`Brake`] from that reference. The motion opens at
+//!   rest where the robot stands until a state shows that the robot took a command of it
+//!   in time (`control_command_success_rate` above zero): a robot takes its first command as the
 //!   motion's standstill, and a simulator that applies a late first one without taking it
 //!   (franka-sim) would take the next, already moving, instead. The generator's clock
 //!   starts there.
