@@ -290,8 +290,8 @@ def test_a_first_action_far_from_the_arm_is_approached_when_asked(tmp_path):
 def franka_sim_script(tmp_path: Path, body: str) -> subprocess.CompletedProcess:
     """Runs `body` (bash) beside franka-sim with its reflexes on (the FCI's limits and
     lost-cycle rules enforced, as the real Control does; at a realtime priority where
-    permitted, standing for the robot's own machine) and two CPU hogs from the moment a
-    client connects to the robot, in namespaces of their own (`NAMESPACE`); franka-sim's log is `tmp_path/sim.log`. Job control is on, so
+    permitted, standing for the robot's own machine) and two CPU hogs while a client is
+    connected to the robot, in namespaces of their own (`NAMESPACE`); franka-sim's log is `tmp_path/sim.log`. Job control is on, so
     that a client started in the background takes SIGINT as it would from Ctrl-C."""
     sim_python = peer("CPS_FRANKA_SIM_PYTHON", "target/franka-sim-venv/bin/python")
     franky_python = peer("CPS_FRANKA_PYTHON", "target/franka-venv/bin/python")
@@ -312,14 +312,28 @@ def franka_sim_script(tmp_path: Path, body: str) -> subprocess.CompletedProcess:
         FR3_MJCF={model} $rt {sim_python} -m franka_sim.run_server --no-gripper \\
             --enforce-motion-limits --enforce-comm-constraints >{tmp_path}/sim.log 2>&1 &
         for i in $(seq 300); do (exec 3<>/dev/tcp/127.0.0.1/1337) 2>/dev/null && break; sleep 0.1; done
-        # The hogs from the moment a client's connect command reaches the robot: LeRobot's
-        # own imports (torch) before it would only take twice as long beside them.
+        # The hogs while a client is connected to the robot: LeRobot's own imports (torch)
+        # before, and its dataset's encoding after, would only take twice as long beside
+        # them.
         (until grep -q "Connect payload" {tmp_path}/sim.log; do sleep 0.05; done
-         sh -c 'while :; do :; done' & sh -c 'while :; do :; done' & wait) &
+         sh -c 'while :; do :; done' & h1=$!; sh -c 'while :; do :; done' & h2=$!
+         until grep -q "Client disconnected" {tmp_path}/sim.log; do sleep 0.1; done
+         kill $h1 $h2) &
     """) + textwrap.dedent(body)
     # In tmp_path: LeRobot's policy server writes its logs to ./logs.
     return subprocess.run([*NAMESPACE, "bash", "-c", script], capture_output=True, text=True, timeout=300,
                           cwd=tmp_path, env={**os.environ, "HF_HUB_OFFLINE": "1", "HF_LEROBOT_HOME": str(tmp_path)})
+
+
+def franka_sim_failed(p: subprocess.CompletedProcess, tmp_path: Path, record: Path) -> str:
+    """What a failed script on franka-sim leaves to read: the script's last words,
+    franka-sim's, and the loop's timing from cps's report (`realtime`: whether the loop had
+    SCHED_FIFO; missed ticks and stale states tell a loop that waited for a core from a
+    simulator whose own threads stalled)."""
+    report = record.with_suffix(".report.json")
+    timing = json.loads(report.read_text()).get("franka", {}).get("timing") if report.exists() else None
+    sim = (tmp_path / "sim.log").read_text()[-2000:] if (tmp_path / "sim.log").exists() else "(no log)"
+    return f"{p.stderr[-3000:]}\n--- franka-sim:\n{sim}\n--- cps's loop: {timing}"
 
 
 def franka_sim_violations(tmp_path: Path) -> list[str]:
@@ -339,7 +353,7 @@ def test_lerobot_replay_on_franka_sim_with_its_reflexes_on_trips_none(tmp_path):
                "--robot.realtime=ignore", f"--robot.record={record}", "--dataset.repo_id=local/swing",
                f"--dataset.root={root}", "--dataset.episode=0", "--play_sounds=false"]
     p = franka_sim_script(tmp_path, " ".join(command) + "\n")
-    assert p.returncode == 0, p.stderr[-3000:] + "\n--- franka-sim:\n" + (tmp_path / "sim.log").read_text()[-2000:]
+    assert p.returncode == 0, franka_sim_failed(p, tmp_path, record)
     assert not franka_sim_violations(tmp_path), franka_sim_violations(tmp_path)[:5]
     rec = read_recording(record)
     q_d = np.column_stack([rec[f"q_d{j}"] for j in range(1, 8)])
@@ -507,7 +521,7 @@ def test_lerobot_rollout_records_episodes_on_franka_sim_that_cps_reads_back(tmp_
         {sys.executable} {Path(__file__).parent}/frame_server.py --port 5555 >{tmp_path}/frames.log 2>&1 &
         {' '.join(rollout)}
     """)
-    assert p.returncode == 0, p.stderr[-3000:] + "\n--- franka-sim:\n" + (tmp_path / "sim.log").read_text()[-2000:]
+    assert p.returncode == 0, franka_sim_failed(p, tmp_path, record)
     assert not franka_sim_violations(tmp_path), franka_sim_violations(tmp_path)[:5]
     rec = read_recording(record)
     assert_within_limits(commanded(rec), rec["t"])
