@@ -7,8 +7,8 @@
 # fails its test instead.
 #
 # Without arguments the same tests run in two lanes at once: the test programs that start
-# franky-sim or franka-sim (a MuJoCo arm stepped against the clock, one simulator at a
-# time; franka-sim's with CPU hogs beside it, on purpose) in one,
+# franky-sim or franka-sim (a MuJoCo arm stepped against the clock, one franky-sim per
+# core at a time; franka-sim's alone, with CPU hogs beside it, on purpose) in one,
 # printed as they run; everything else in the other, at a lower priority so that the
 # simulator never waits for a core, printed when it ends. On two cores that takes about
 # two thirds of the time of one lane. With arguments it is one `cargo test --profile checked
