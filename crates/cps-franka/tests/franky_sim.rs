@@ -10,13 +10,22 @@ use cps_testkit::franky_sim as common;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
-use common::FrankySim;
+use common::{FrankySim, SimOptions};
 use cps_franka::limits::{Arm, RateLimits, check_stream, joint_limit};
 use cps_franka::{
     Connection, FrankaError, LoopOptions, MotionEnd, Realtime, RobotMode, Start, approach,
     check_trajectory, execute_stream,
 };
 use cps_kinematics::Quantity;
+
+/// For the runs compared tick by tick with pylibfranka's: no other simulator beside them.
+const ALONE: SimOptions = SimOptions {
+    table: None,
+    friction: None,
+    truth: false,
+    shelf: None,
+    alone: true,
+};
 
 fn options() -> LoopOptions {
     LoopOptions {
@@ -282,7 +291,7 @@ fn swing(from: [f64; 7]) -> Vec<[f64; 7]> {
 fn the_same_stream_from_cps_and_from_pylibfranka_moves_the_arm_alike() {
     // pylibfranka's loop on one simulator ...
     let theirs: serde_json::Value = {
-        let Some(sim) = FrankySim::start("127.0.0.26") else {
+        let Some(sim) = FrankySim::start_with("127.0.0.26", ALONE) else {
             return;
         };
         serde_json::from_str(&sim.python(
@@ -311,7 +320,7 @@ print(json.dumps({"q": rec, "median_us": lat[len(lat) // 2] * 1e6, "p99_us": lat
         .unwrap()
     };
     // ... and cps's on another, started alike.
-    let Some(sim) = FrankySim::start("127.0.0.27") else {
+    let Some(sim) = FrankySim::start_with("127.0.0.27", ALONE) else {
         return;
     };
     let mut robot = Connection::connect(&sim.host, Default::default()).unwrap();
@@ -456,7 +465,7 @@ fn swing_velocities(k: usize) -> [f64; 7] {
 fn joint_velocities_move_the_arm_as_pylibfranka_does() {
     // pylibfranka's joint velocity loop on one simulator ...
     let theirs: Vec<Vec<f64>> = {
-        let Some(sim) = FrankySim::start("127.0.0.71") else {
+        let Some(sim) = FrankySim::start_with("127.0.0.71", ALONE) else {
             return;
         };
         let out = sim.python(
@@ -479,7 +488,7 @@ print(json.dumps(rec))
         serde_json::from_str(&out).unwrap()
     };
     // ... and cps's on another, the same velocities per answered tick.
-    let Some(sim) = FrankySim::start("127.0.0.72") else {
+    let Some(sim) = FrankySim::start_with("127.0.0.72", ALONE) else {
         return;
     };
     let mut robot = Connection::connect(&sim.host, Default::default()).unwrap();

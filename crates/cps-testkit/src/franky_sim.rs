@@ -21,26 +21,28 @@ fn at_once() -> usize {
     std::thread::available_parallelism().map_or(1, usize::from)
 }
 
-/// A simulator's place among those running; given back when dropped.
-struct Turn;
+/// A simulator's places among those running (all of them for one that runs alone);
+/// given back when dropped.
+struct Turn(usize);
 
 impl Turn {
-    fn take() -> Turn {
+    fn take(alone: bool) -> Turn {
+        let places = if alone { at_once() } else { 1 };
         let (count, freed) = &RUNNING;
         let mut n = count.lock().unwrap_or_else(|e| e.into_inner());
-        while *n >= at_once() {
+        while *n + places > at_once() {
             n = freed.wait(n).unwrap_or_else(|e| e.into_inner());
         }
-        *n += 1;
-        Turn
+        *n += places;
+        Turn(places)
     }
 }
 
 impl Drop for Turn {
     fn drop(&mut self) {
         let (count, freed) = &RUNNING;
-        *count.lock().unwrap_or_else(|e| e.into_inner()) -= 1;
-        freed.notify_one();
+        *count.lock().unwrap_or_else(|e| e.into_inner()) -= self.0;
+        freed.notify_all();
     }
 }
 
@@ -106,6 +108,10 @@ pub struct SimOptions {
     /// A box (a shelf) centred at x, y, z in the base frame, sx × sy × sz metres, whose
     /// contacts with the robot are counted ([`FrankySim::box_contacts`]).
     pub shelf: Option<[f64; 6]>,
+    /// The only simulator of its test program while it runs: for runs compared tick by
+    /// tick with another client's (a tick that comes late to one run and not to the other
+    /// parts them by a few milliradians).
+    pub alone: bool,
 }
 
 /// One simulation step's ground truth (see sim_server.py).
@@ -133,7 +139,7 @@ impl FrankySim {
     /// Starts franky-sim on `host` with a table or the ground truth logged.
     pub fn start_with(host: &str, options: SimOptions) -> Option<Self> {
         let python = python()?;
-        let turn = Turn::take();
+        let turn = Turn::take(options.alone);
         let script = workspace().join("crates/cps-franka/tests/sim_server.py");
         let mut command = Command::new(python);
         command.arg(script).args(["--host", host]);
