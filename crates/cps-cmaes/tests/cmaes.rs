@@ -1,11 +1,14 @@
 //! Behaviour of the CMA-ES against analytic facts: convergence on sphere and a rotated
-//! ellipsoid, a healthy covariance, NaN handling, determinism across thread counts.
+//! ellipsoid, a healthy covariance, NaN handling, determinism across thread counts; its
+//! parameters against Hansen's tutorial formulas; the benchmark's seeds and runs. (All of
+//! the crate's tests are here: the library is not compiled a second time for unit tests.)
 
 use std::ops::ControlFlow;
 
+use cps_cmaes::functions::{Bench, Restarts, Seeds, TestFunction, bench};
 use cps_cmaes::{
-    Cmaes, CmaesConfig, FnObjective, NoObserver, Objective, ObjectiveError, StopRule, functions,
-    minimize,
+    Cmaes, CmaesConfig, CmaesError, FnObjective, NoObserver, Objective, ObjectiveError, Parameters,
+    StopRule, functions, minimize,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -822,4 +825,116 @@ fn a_resumed_checkpoint_continues_the_run_bit_for_bit() {
     let bad = json.replace("\"version\":2", "\"version\":7");
     let cp: cps_cmaes::Checkpoint = serde_json::from_str(&bad).unwrap();
     assert!(Cmaes::resume(&cp).is_err());
+}
+
+// The strategy's parameters against Hansen's tutorial formulas (moved from src/params.rs).
+
+fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-12 * b.abs().max(1e-300)
+}
+
+#[test]
+fn parameters_follow_the_tutorial_formulas() {
+    for &n in &[2usize, 10, 75, 200] {
+        let lambda = Parameters::default_lambda(n);
+        let p = Parameters::new(n, lambda);
+        let nf = n as f64;
+        assert_eq!(p.lambda, 4 + (3.0 * nf.ln()) as usize);
+        assert_eq!(p.mu, lambda / 2);
+        let pos: Vec<f64> = p.weights[..p.mu].to_vec();
+        assert!(close(pos.iter().sum::<f64>(), 1.0));
+        let mu_eff = 1.0 / pos.iter().map(|w| w * w).sum::<f64>();
+        assert!(close(p.mu_eff, mu_eff));
+        // Weights are proportional to ln((λ+1)/2) − ln i within each sign group.
+        for i in 1..p.mu {
+            let r = ((lambda as f64 + 1.0) / 2.0).ln() - ((i + 1) as f64).ln();
+            let r0 = ((lambda as f64 + 1.0) / 2.0).ln();
+            assert!(close(p.weights[i] / p.weights[0], r / r0));
+        }
+        assert!(close(p.c_sigma, (mu_eff + 2.0) / (nf + mu_eff + 5.0)));
+        let ds = 1.0 + 2.0 * f64::max(0.0, ((mu_eff - 1.0) / (nf + 1.0)).sqrt() - 1.0) + p.c_sigma;
+        assert!(close(p.d_sigma, ds));
+        assert!(close(
+            p.c_c,
+            (4.0 + mu_eff / nf) / (nf + 4.0 + 2.0 * mu_eff / nf)
+        ));
+        assert!(close(p.c1, 2.0 / ((nf + 1.3).powi(2) + mu_eff)));
+        let cmu = f64::min(
+            1.0 - p.c1,
+            2.0 * (mu_eff - 2.0 + 1.0 / mu_eff) / ((nf + 2.0).powi(2) + mu_eff),
+        );
+        assert!(close(p.c_mu, cmu));
+        let neg: Vec<f64> = p.weights[p.mu..]
+            .iter()
+            .copied()
+            .filter(|w| *w < 0.0)
+            .collect();
+        let mu_eff_neg = neg.iter().sum::<f64>().powi(2) / neg.iter().map(|w| w * w).sum::<f64>();
+        assert!(close(p.mu_eff_neg, mu_eff_neg));
+        let total = f64::min(
+            f64::min(1.0 + p.c1 / p.c_mu, 1.0 + 2.0 * mu_eff_neg / (mu_eff + 2.0)),
+            (1.0 - p.c1 - p.c_mu) / (nf * p.c_mu),
+        );
+        assert!(close(p.negative_weight_total(), total));
+        assert!(p.weights.windows(2).all(|w| w[0] >= w[1]));
+    }
+}
+
+#[test]
+fn known_values_at_n_10() {
+    // λ = 10, μ = 5; reference values computed independently in Python.
+    let p = Parameters::new(10, 10);
+    assert_eq!((p.lambda, p.mu), (10, 5));
+    assert!((p.mu_eff - 3.167_299_281_410_702_6).abs() < 1e-12);
+    assert!((p.chi_n - 3.084_726_565_169_012_3).abs() < 1e-12);
+    assert_eq!(Parameters::new(75, 16).default_eigen_gap(), 4);
+}
+
+#[test]
+fn separable_rates_are_scaled_by_n_plus_2_over_3() {
+    let (full, sep) = (Parameters::new(40, 15), Parameters::separable(40, 15));
+    assert!(close(sep.c1, full.c1 * 14.0));
+    assert!(close(sep.c_mu, full.c_mu * 14.0));
+    assert_eq!(sep.c_sigma, full.c_sigma);
+    // The negative weights follow the positive-definiteness bound of the new rates.
+    let posdef = (1.0 - sep.c1 - sep.c_mu) / (40.0 * sep.c_mu);
+    assert!(sep.negative_weight_total() <= posdef * (1.0 + 1e-12));
+}
+
+// The benchmark functions' seeds and runs (moved from src/functions.rs).
+
+#[test]
+fn seeds_are_read_and_bounded() {
+    let seeds = |t: &str| t.parse::<Seeds>().map(|s| (s.first, s.last));
+    assert_eq!(seeds("3..7").unwrap(), (3, 7));
+    assert_eq!(seeds(" 5 ").unwrap(), (5, 5));
+    assert!(seeds("7..3").is_err());
+    assert!(seeds("0..20000").unwrap_err().contains("20001 seeds"));
+}
+
+#[test]
+fn a_bench_runs_every_seed_and_refuses_a_dimension_out_of_range() {
+    let mut b = Bench {
+        function: TestFunction::Sphere,
+        dim: 3,
+        seeds: "4..6".parse().unwrap(),
+        restarts: Restarts::None,
+        separable: false,
+    };
+    let mut told = Vec::new();
+    let s = bench(&b, |r| told.push(r.seed)).unwrap();
+    assert_eq!(told, [4, 5, 6]);
+    assert_eq!(s.successes(), 3);
+    let mut e: Vec<u64> = s.runs.iter().map(|r| r.evaluations).collect();
+    e.sort_unstable();
+    assert_eq!(s.median_evaluations(), e[1] as f64);
+    b.dim = 5001;
+    assert!(matches!(
+        bench(&b, |_| {}),
+        Err(CmaesError::InvalidConfig { field: "dim", .. })
+    ));
+    b.separable = true;
+    b.seeds = "1".parse().unwrap();
+    b.dim = 0;
+    assert!(bench(&b, |_| {}).is_err());
 }
