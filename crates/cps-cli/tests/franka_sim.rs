@@ -1,6 +1,6 @@
 //! Every command that drives a Franka, against franka-sim 1.1.7 with the robot's reflexes
 //! on (its limits and discontinuities, its communication constraints) on a loaded machine:
-//! a CPU hog per core beside it and cps's loop at normal priority (`--realtime off`, how a
+//! a CPU hog on every core but one beside it and cps's loop at normal priority (`--realtime off`, how a
 //! researcher without a realtime kernel runs), so the robot loses cycles and extrapolates
 //! them, as a real FR3 does. `franka execute` (a trajectory out and back, a DMP stepped
 //! online), `franka follow` (a chunk file, a live policy over UDP),

@@ -1,6 +1,6 @@
 //! cps-franka against franka-sim 1.1.7 with its reflexes on (the FCI's limits and
-//! discontinuities, the communication constraints) on a loaded machine: a CPU hog per
-//! core beside it and cps's loop at normal priority, so the robot loses cycles, and the
+//! discontinuities, the communication constraints) on a loaded machine: a CPU hog on
+//! every core but one beside it and cps's loop at normal priority, so the robot loses cycles, and the
 //! link dropping 2 % of the commands on purpose (seeded), so it surely does. franka-sim
 //! extrapolates every lost cycle as a real FR3 does and judges the next command against
 //! that. Every motion must end as planned with no reflex, the robot's extrapolated cycles

@@ -290,7 +290,7 @@ def test_a_first_action_far_from_the_arm_is_approached_when_asked(tmp_path):
 def franka_sim_script(tmp_path: Path, body: str) -> subprocess.CompletedProcess:
     """Runs `body` (bash) beside franka-sim with its reflexes on (the FCI's limits and
     lost-cycle rules enforced, as the real Control does; at a realtime priority where
-    permitted, standing for the robot's own machine) and two CPU hogs while a client is
+    permitted, standing for the robot's own machine) and a CPU hog on every core but one while a client is
     connected to the robot, in namespaces of their own (`NAMESPACE`); franka-sim's log is `tmp_path/sim.log`. Job control is on, so
     that a client started in the background takes SIGINT as it would from Ctrl-C."""
     sim_python = peer("CPS_FRANKA_SIM_PYTHON", "target/franka-sim-venv/bin/python")
@@ -316,9 +316,10 @@ def franka_sim_script(tmp_path: Path, body: str) -> subprocess.CompletedProcess:
         # before, and its dataset's encoding after, would only take twice as long beside
         # them.
         (until grep -q "Connect payload" {tmp_path}/sim.log; do sleep 0.05; done
-         sh -c 'while :; do :; done' & h1=$!; sh -c 'while :; do :; done' & h2=$!
+         hogs=""; for i in $(seq $(( $(nproc) > 1 ? $(nproc) - 1 : 1 ))); do
+           sh -c 'while :; do :; done' & hogs="$hogs $!"; done
          until grep -q "Client disconnected" {tmp_path}/sim.log; do sleep 0.1; done
-         kill $h1 $h2) &
+         kill $hogs) &
     """) + textwrap.dedent(body)
     # In tmp_path: LeRobot's policy server writes its logs to ./logs.
     return subprocess.run([*NAMESPACE, "bash", "-c", script], capture_output=True, text=True, timeout=300,
@@ -425,7 +426,7 @@ def make_act(folder: Path, start: np.ndarray, camera: tuple[int, int], tool: boo
 
 def test_asynchronous_inference_with_act_on_franka_sim_stops_within_a_second_of_the_server(tmp_path):
     """LeRobot's policy_server and robot_client, unchanged, an ACT policy, a ZMQ camera
-    stand-in, cps_franka on franka-sim with its reflexes on, two CPU hogs beside the
+    stand-in, cps_franka on franka-sim with its reflexes on, a CPU hog beside the
     policy's inference on the same two cores; the policy server is killed mid-run. (With
     the loop inside the client's Python process, franka-sim ended a motion at its start for
     lost cycles twice in about 30 runs under the hogs: the loop now runs in a process of
@@ -503,7 +504,7 @@ def test_lerobot_rollout_records_episodes_on_franka_sim_that_cps_reads_back(tmp_
     """LeRobot's `lerobot-rollout` (episodic: the policy drives two episodes, the arm is held
     between them and returned to its start at the end; in 0.6.1 `lerobot-record` takes no
     policy), an ACT policy and the camera stand-in, on cps_franka and franka-sim with its
-    reflexes on and two CPU hogs; the dataset it records is LeRobot's, read back by `cps-cli lerobot show`
+    reflexes on and a CPU hog; the dataset it records is LeRobot's, read back by `cps-cli lerobot show`
     and `imitate`. The rollout gives a policy only the `.pos` and `.vel` entries of a
     robot's state: the robot leaves out its efforts and tool pose."""
     act = tmp_path / "act"
