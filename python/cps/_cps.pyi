@@ -372,8 +372,9 @@ def chunk_commands(
 
 class Franka:
     """A Franka robot (FR3, or a Panda on a protocol-10 system) over the Franka Control
-    Interface. Each call connects, works and disconnects."""
-    def __init__(self, host: str, arm: str = "fr3", realtime: str = "enforce") -> None: ...
+    Interface. Each call connects, works and disconnects; with ``scene`` (a scene file whose
+    robot is the arm) every command is checked against its obstacles too."""
+    def __init__(self, host: str, arm: str = "fr3", realtime: str = "enforce", scene: Optional[str] = None) -> None: ...
     @property
     def host(self) -> str: ...
     @property
@@ -542,6 +543,7 @@ def _ros2_send(
     period: float = 0.01,
     wait: float = 10.0,
     service_mapping: str = "auto",
+    scene: Optional[str] = None,
 ) -> dict[str, Any]: ...
 def _lerobot_show(path: str) -> dict[str, Any]: ...
 def _lerobot_demos(

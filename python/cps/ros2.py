@@ -40,11 +40,13 @@ def send(
     period: float = 0.01,
     wait: float = 10.0,
     service_mapping: str = "auto",
+    scene: Optional[str] = None,
 ) -> dict:
     """Sends the joint trajectory ``q`` (shape (samples, joints), rad) at times ``t`` (s).
 
-    It is checked against ``robot``'s limits (a broken one raises ``CpsError`` naming it,
-    and nothing is sent), sampled every ``period`` s by a spline with
+    It is checked against ``robot``'s limits and against the robot itself, and with
+    ``scene`` (a scene file whose robot is ``robot``) against the scene's obstacles (a
+    broken limit or a collision raises ``CpsError`` naming it, and nothing is sent), sampled every ``period`` s by a spline with
     velocities and accelerations, and sent to ``controller``: ``via="action"`` waits for
     the goal's result (Ctrl-C cancels the goal, then raises KeyboardInterrupt);
     ``via="topic"`` publishes on ``<controller>/joint_trajectory`` once the controller
@@ -59,7 +61,7 @@ def send(
     names = list(joint_names) if joint_names is not None else None
     return _cps._ros2_send(
         t, q, controller, via=via, robot=robot, joint_names=names, domain=domain,
-        period=period, wait=wait, service_mapping=service_mapping,
+        period=period, wait=wait, service_mapping=service_mapping, scene=scene,
     )
 
 

@@ -123,6 +123,19 @@ def test_a_host_without_a_robot_is_named():
         cps.Franka("127.0.0.59").state()
 
 
+def test_a_scene_is_read_when_the_robot_is_made(tmp_path):
+    # Franka(scene=) checks every command among the scene's obstacles (the command line's
+    # --scene, tested on franky-sim in crates/cps-cli/tests/franka.rs); a scene that is
+    # missing, or made for another arm, is named before anything connects.
+    with pytest.raises(ValueError, match="missing.toml: cannot read the scene file"):
+        cps.Franka("127.0.0.59", scene=str(tmp_path / "missing.toml"))
+    panda = tmp_path / "panda.toml"
+    panda.write_text('[robot]\nmodel = "panda"\ninitial_q = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]\n')
+    with pytest.raises(ValueError, match="the scene's robot is `panda`, not the fr3"):
+        cps.Franka("127.0.0.59", scene=str(panda))
+    assert "127.0.0.59" in repr(cps.Franka("127.0.0.59", arm="panda", scene=str(panda)))
+
+
 def test_guiding_records_what_a_hand_does():
     host = "127.0.0.54"
     p = _start(host)

@@ -104,6 +104,29 @@ def test_bad_input_is_refused_before_the_graph():
         cps.ros2.graph(seconds=0.0)
 
 
+def _post_scene(tmp_path, model, at):
+    """A scene of `model` at the Panda's ready pose with a 4 cm post centred at `at`."""
+    path = tmp_path / f"{model}.toml"
+    path.write_text(
+        f'[robot]\nmodel = "{model}"\ntool = "hand"\ninitial_q = {list(READY)}\n\n'
+        f'[[obstacle]]\nname = "post"\nshape = "box"\nxyz = {list(map(float, at))}\nsize = [0.04, 0.04, 0.3]\n')
+    return path
+
+
+def test_a_scene_s_obstacle_in_the_way_is_refused_before_the_graph(tmp_path):
+    # A post where the hand ends (cps's forward kinematics places it): the move is refused
+    # naming the hand and the post, before anything joins the graph (no namespace needed).
+    t, q = _move()
+    end = cps.Robot("panda", tool="hand").fk(q[-1])[:3, 3]
+    with pytest.raises(cps.CpsError, match=r"`panda_hand` and `post` at t = .* within the clearance margin"):
+        cps.ros2.send(t, q, "/arm", wait=1.0, scene=str(_post_scene(tmp_path, "panda", end)))
+    with pytest.raises(ValueError, match="the scene's robot is `fr3`, not the panda"):
+        cps.ros2.send(t, q, "/arm", wait=1.0, scene=str(_post_scene(tmp_path, "fr3", end)))
+    # The post a metre higher: the same move is clear of it (cps.collide, the guard's check).
+    far = _post_scene(tmp_path, "panda", end + np.array([0.0, 0.0, 1.0]))
+    assert cps.collide(t, q, scene=str(far))["ok"]
+
+
 def test_graph_shows_the_cyclone_server_and_its_middleware(tmp_path):
     if not _inside("test_graph_shows_the_cyclone_server_and_its_middleware"):
         return

@@ -11,6 +11,7 @@ use cps_outcome::Ended;
 use cps_robot::StopToken;
 
 use crate::robot::print;
+use crate::scene::InScene;
 
 /// The robot's address, and how to print the answer.
 #[derive(Args, Debug)]
@@ -86,6 +87,8 @@ pub struct ExecuteArgs {
     /// Retime the trajectory to the fastest timing within 95 % of every limit.
     #[arg(long)]
     retime: bool,
+    #[command(flatten)]
+    scene: InScene,
     /// When the robot is not at the trajectory's start, move there first (at 20 % of
     /// the limits) instead of refusing.
     #[arg(long)]
@@ -128,6 +131,8 @@ pub struct FollowArgs {
     record: Option<PathBuf>,
     #[command(flatten)]
     arm: Arm,
+    #[command(flatten)]
+    scene: InScene,
     /// Seconds without a new chunk before the arm brakes to rest.
     #[arg(long, default_value_t = 0.25)]
     stall_timeout: f64,
@@ -172,6 +177,8 @@ pub struct IdentifyArgs {
     record: Option<PathBuf>,
     #[command(flatten)]
     arm: Arm,
+    #[command(flatten)]
+    scene: InScene,
     /// Replace existing files.
     #[arg(long)]
     force: bool,
@@ -215,7 +222,8 @@ pub fn franka(cmd: &FrankaCommand, stop: &StopToken) -> Result<ExitCode> {
         }
         FrankaCommand::Execute(a) => execute(a, stop),
         FrankaCommand::Follow(a) => {
-            let exec = ExecuteSettings::parse(&a.on.host, &a.arm.arm, &a.arm.realtime)?;
+            let exec = ExecuteSettings::parse(&a.on.host, &a.arm.arm, &a.arm.realtime)?
+                .in_scene(a.scene.path())?;
             let chunks = follow::Chunks::of(a.file.as_deref(), a.rate, a.listen, &a.allow)?;
             let s = cps_chunks::FollowSettings::with_chunks(a.stall_timeout, a.max_gap);
             let ready = |at| eprintln!("listening for chunks on {at} (udp)");
@@ -228,7 +236,8 @@ pub fn franka(cmd: &FrankaCommand, stop: &StopToken) -> Result<ExitCode> {
                 franka::parse_arm(&a.arm.arm)?,
                 franka::parse_realtime(&a.arm.realtime)?,
             );
-            let settings = identify::IdentifySettings::new(&a.on.host, arm, rt);
+            let settings =
+                identify::IdentifySettings::new(&a.on.host, arm, rt).in_scene(a.scene.path())?;
             let done =
                 identify::franka_identify(&settings, &a.out, a.record.as_deref(), a.force, stop);
             print(&done?, a.on.json)
@@ -259,6 +268,7 @@ fn execute(a: &ExecuteArgs, stop: &StopToken) -> Result<ExitCode> {
         retime: a.retime,
         approach: a.approach,
         ..ExecuteSettings::parse(&a.on.host, &a.arm.arm, &a.arm.realtime)?
+            .in_scene(a.scene.path())?
     };
     let online = DmpSettings {
         error_gain: a.error_gain,

@@ -14,6 +14,7 @@ use cps_robot::StopToken;
 use indicatif::ProgressBar;
 
 use crate::robot::print;
+use crate::scene::InScene;
 
 /// The robot, its joints' names and the domain.
 #[derive(Args, Debug)]
@@ -35,6 +36,7 @@ impl On {
             robot: self.robot.clone(),
             joint_names: self.joint_names.clone(),
             domain: self.domain,
+            scene: None,
         }
     }
 }
@@ -90,6 +92,8 @@ pub struct FollowArgs {
     rate: f64,
     #[command(flatten)]
     on: On,
+    #[command(flatten)]
+    scene: InScene,
     /// Seconds between the points of each trajectory.
     #[arg(long, default_value_t = 0.01)]
     period: f64,
@@ -120,6 +124,8 @@ pub struct SendArgs {
     action: bool,
     #[command(flatten)]
     on: On,
+    #[command(flatten)]
+    scene: InScene,
     /// Seconds between the points sent.
     #[arg(long, default_value_t = 0.01)]
     period: f64,
@@ -220,7 +226,7 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
                 service_mapping: a.service_mapping,
                 controller: a.controller.clone(),
                 via: if a.topic { Via::Topic } else { Via::Action },
-                graph: a.on.graph(),
+                graph: a.on.graph().in_scene(a.scene.path()),
                 period: a.period,
                 wait: a.wait,
                 record: a.record.as_ref().map(|out| ros2::SendRecord {
@@ -237,7 +243,7 @@ pub fn ros2(cmd: &Ros2Command, stop: &StopToken) -> Result<ExitCode> {
         Ros2Command::Follow(a) => {
             let s = cps_drive::ros2_follow::FollowTopic {
                 controller: a.controller.clone(),
-                graph: a.on.graph(),
+                graph: a.on.graph().in_scene(a.scene.path()),
                 period: a.period,
                 wait: a.wait,
             };

@@ -1,7 +1,8 @@
 //! `cps-cli franka` end to end against franky-sim (a MuJoCo FR3 behind the real protocol):
 //! state, an execution recorded, refusals before anything moves, bad input, a host that is
 //! not there, Ctrl-C mid-motion, a recording without motion, a guided demonstration
-//! imitated and replayed.
+//! imitated and replayed; a scene's obstacle in the way refused, with MuJoCo's contact
+//! list as the judge.
 
 mod common;
 use cps_testkit::franky_sim as sim;
@@ -10,7 +11,7 @@ use std::path::Path;
 use std::process::{Command, Output};
 use std::time::Duration;
 
-use common::{cli, json, state_q};
+use common::{cli, json, state_q, stdout_json};
 use sim::FrankySim;
 
 fn stderr(o: &Output) -> String {
@@ -222,6 +223,145 @@ fn refusals_come_before_anything_moves() {
     assert_eq!(o.status.code(), Some(2));
     let o = run(&file, &["--realtime", "sometimes"]);
     assert_eq!(o.status.code(), Some(2));
+}
+
+/// franky-sim's start (franky_sim.constants.DEFAULT_INITIAL_JOINT_POS).
+const FRANKY_START: [f64; 7] = [0.0, 0.0, 0.0, -1.57, 0.0, 1.57, 0.785];
+
+/// A scene for the simulated FR3 (its base the world's origin, as in franky-sim's MuJoCo
+/// world) with one obstacle, `post`: a box of `size` centred at `at`.
+fn scene_with_post(dir: &Path, at: [f64; 3], size: [f64; 3]) -> String {
+    let q: Vec<String> = FRANKY_START.iter().map(f64::to_string).collect();
+    let text = format!(
+        "[robot]\nmodel = \"fr3\"\ntool = \"hand\"\ninitial_q = [{}]\n\n[[obstacle]]\nname = \"post\"\nshape = \"box\"\nxyz = [{}, {}, {}]\nsize = [{}, {}, {}]\n",
+        q.join(", "),
+        at[0],
+        at[1],
+        at[2],
+        size[0],
+        size[1],
+        size[2]
+    );
+    let p = dir.join("scene.toml");
+    std::fs::write(&p, text).unwrap();
+    p.to_str().unwrap().to_string()
+}
+
+/// `franka execute --scene`: a swing whose hand passes through a post of the scene is
+/// refused before the robot moves, the hand and the post named; the same post stands in
+/// franky-sim's MuJoCo world, whose contact list says the swing would have hit it (sent
+/// without the scene, it does) and that the refused one never touched it; the swing the
+/// other way, clear of the post, runs with the scene.
+#[test]
+fn with_a_scene_a_swing_into_its_obstacle_is_refused_before_the_robot_moves() {
+    // The post stands where the hand's centre point is at the swing's peak (joint 1 by
+    // 0.5 rad, joint 4 by 0.3, `trajectory`), 30 cm tall.
+    let mut peak = FRANKY_START;
+    peak[0] += 0.5;
+    peak[3] += 0.3;
+    let q: Vec<String> = peak.iter().map(f64::to_string).collect();
+    let fk = stdout_json(&cli(&[
+        "fk",
+        "--robot",
+        "fr3",
+        "--tool",
+        "hand",
+        "--q",
+        &q.join(","),
+        "--json",
+    ]));
+    let p: Vec<f64> = serde_json::from_value(fk["position"].clone()).unwrap();
+    let (at, size) = ([p[0], p[1], p[2]], [0.05, 0.05, 0.3]);
+    let Some(sim) = FrankySim::start_with(
+        "127.0.0.60",
+        sim::SimOptions {
+            shelf: Some([at[0], at[1], at[2], size[0], size[1], size[2]]),
+            ..Default::default()
+        },
+    ) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let q0 = state_q(&sim.host);
+    assert!(
+        q0.iter()
+            .zip(FRANKY_START)
+            .all(|(a, b)| (a - b).abs() < 0.02),
+        "franky-sim starts elsewhere: {q0:?}"
+    );
+    let scene = scene_with_post(dir.path(), at, size);
+    let (into, away) = (dir.path().join("into"), dir.path().join("away"));
+    std::fs::create_dir_all(&into).unwrap();
+    std::fs::create_dir_all(&away).unwrap();
+    let into = trajectory(&into, &q0, 0.5);
+    let away = trajectory(&away, &q0, -0.5);
+    let rec = dir.path().join("rec.csv");
+    let execute = |file: &str, extra: &[&str]| {
+        let mut a = vec![
+            "franka",
+            "execute",
+            file,
+            "--host",
+            &sim.host,
+            "--record",
+            rec.to_str().unwrap(),
+            "--realtime",
+            "ignore",
+            "--force",
+            "--approach",
+        ];
+        a.extend_from_slice(extra);
+        cli(&a)
+    };
+    let o = execute(&into, &["--scene", &scene]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("refused before sending anything") && err.contains("`post`"),
+        "{err}"
+    );
+    assert!(err.contains("`fr3_"), "{err}");
+    let still = state_q(&sim.host);
+    assert!(
+        still.iter().zip(&q0).all(|(a, b)| (a - b).abs() < 1e-3),
+        "the robot moved: {q0:?} -> {still:?}"
+    );
+    assert_eq!(
+        sim.box_contacts().0,
+        0,
+        "the refused swing touched the post"
+    );
+    // The other way, clear of the post: executed, checked against the same scene.
+    let o = execute(&away, &["--scene", &scene]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (steps, geoms) = sim.box_contacts();
+    assert_eq!(steps, 0, "the clear swing touched the post: {geoms:?}");
+    // Without the scene the guard knows no post, and MuJoCo says the swing hits it.
+    let o = execute(&into, &[]);
+    let _ = o.status;
+    let (steps, geoms) = sim.box_contacts();
+    assert!(
+        steps > 0,
+        "MuJoCo saw no contact: the post is not in the way"
+    );
+    assert!(
+        geoms
+            .iter()
+            .any(|g| g.contains("hand") || g.contains("finger") || g.contains("link")),
+        "{geoms:?}"
+    );
+    // A scene for another arm is named.
+    let panda = std::fs::read_to_string(&scene)
+        .unwrap()
+        .replace("\"fr3\"", "\"panda\"");
+    std::fs::write(&scene, panda).unwrap();
+    let o = execute(&away, &["--scene", &scene]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("the scene's robot is `panda`, not the fr3"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -179,3 +179,60 @@ fn a_chunk_file_for_another_robot_is_refused_before_the_graph() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("six.csv"), "{e}");
 }
+
+/// `--scene`: chunks whose motion runs the hand into a post of the scene are refused
+/// before anything joins the graph, the hand and the post named.
+#[test]
+fn chunks_into_a_scene_s_obstacle_are_refused_before_the_graph() {
+    let dir = tempfile::tempdir().unwrap();
+    let reach = [0.2, -0.1, 0.2, -0.1, 0.2, -0.1, 0.2];
+    let demo = |t: f64| -> Vec<f64> {
+        let s = 0.5 - 0.5 * (std::f64::consts::FRAC_PI_2 * t.clamp(0.0, 2.0)).cos();
+        READY.iter().zip(reach).map(|(q, d)| q + d * s).collect()
+    };
+    let chunks = StandIn {
+        horizon: 50,
+        target_hz: 50.0,
+        chunk_hz: 10.0,
+        delay_s: (0.05, 0.15),
+        noise_rad: 0.0,
+        seed: 9,
+    }
+    .chunks(&demo, 0.0, 2.5);
+    let file = dir.path().join("chunks.csv");
+    std::fs::write(&file, cps_movement::chunks::write_chunks(&chunks, 7)).unwrap();
+    // The post where the hand ends (cps-cli fk).
+    let end: Vec<String> = demo(2.0).iter().map(f64::to_string).collect();
+    let fk = common::stdout_json(&cli(&["fk", "--q", &end.join(","), "--json"]));
+    let p: Vec<f64> = serde_json::from_value(fk["position"].clone()).unwrap();
+    let ready: Vec<String> = READY.iter().map(f64::to_string).collect();
+    let scene = common::write(
+        dir.path(),
+        "scene.toml",
+        &format!(
+            "[robot]\nmodel = \"panda\"\ntool = \"hand\"\ninitial_q = [{}]\n\n[[obstacle]]\nname = \"post\"\nshape = \"box\"\nxyz = [{}, {}, {}]\nsize = [0.04, 0.04, 0.3]\n",
+            ready.join(", "),
+            p[0],
+            p[1],
+            p[2]
+        ),
+    );
+    let o = cli(&[
+        "ros2",
+        "follow",
+        file.to_str().unwrap(),
+        "--controller",
+        "/arm",
+        "--rate",
+        "50",
+        "--scene",
+        scene.to_str().unwrap(),
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(
+        e.contains("refused before sending anything: the executor's motion for these chunks comes too close")
+            && e.contains("`panda_hand` and `post`"),
+        "{e}"
+    );
+}

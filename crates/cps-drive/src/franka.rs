@@ -100,6 +100,16 @@ impl ExecuteSettings {
             world: None,
         })
     }
+
+    /// These settings with every command checked among the obstacles of the scene file at
+    /// `scene` ([`scene_world`]) as well as against the arm itself; unchanged for None.
+    /// Errors: the scene file's, and a scene whose robot is another arm.
+    pub fn in_scene(self, scene: Option<&Path>) -> Result<Self, DriveError> {
+        Ok(ExecuteSettings {
+            world: scene.map(|s| scene_world(s, self.arm)).transpose()?,
+            ..self
+        })
+    }
 }
 
 /// The world of the scene file at `scene` for the arm `arm`, in the arm's base frame: the
@@ -107,13 +117,19 @@ impl ExecuteSettings {
 /// and its margin, for [`ExecuteSettings::world`]. Errors: the file's, in its words, and a
 /// scene whose robot is another arm.
 pub fn scene_world(scene: &Path, arm: Arm) -> Result<Arc<Shapes>, DriveError> {
+    scene_shapes(scene, arm.name())
+}
+
+/// The world of the scene file at `scene` for the robot named `robot` (a built-in name,
+/// or a robot file's): [`scene_world`] for any robot. Errors: the file's, in its words,
+/// and a scene whose robot is another.
+pub fn scene_shapes(scene: &Path, robot: &str) -> Result<Arc<Shapes>, DriveError> {
     let s = cps_movement::scene::load_scene(scene)?;
-    if s.robot.name != arm.name() {
+    if s.robot.name != robot {
         return Err(InputError(format!(
-            "{}: the scene's robot is `{}`, not the {} this command drives",
+            "{}: the scene's robot is `{}`, not the {robot} this command drives",
             scene.display(),
             s.robot.name,
-            arm.name()
         ))
         .into());
     }
@@ -303,6 +319,9 @@ fn refusal(source: &str, arm: Arm, e: RobotError) -> DriveError {
                     arm.name()
                 )
             }
+            // No timing helps: the path itself comes too close (to the arm, or to the
+            // scene's obstacles with --scene).
+            Refusal::Collision(_) => format!("{source}: refused before sending anything: {reason}"),
             _ => format!(
                 "{source}: refused before sending anything: {reason} (pass --retime to retime it to the {}'s limits)",
                 arm.name()

@@ -43,9 +43,21 @@ pub struct IdentifySettings {
     pub fit: Chirps,
     /// The excitation held back to judge the fit, right after it.
     pub check: Chirps,
+    /// The world the chirps are checked in ([`ExecuteSettings::world`]); None: the arm
+    /// and its hand alone.
+    pub world: Option<std::sync::Arc<cps_robot::Shapes>>,
 }
 
 impl IdentifySettings {
+    /// These settings with the chirps checked among the obstacles of the scene file at
+    /// `scene` ([`crate::franka::scene_world`]); unchanged for None.
+    pub fn in_scene(self, scene: Option<&Path>) -> Result<Self, DriveError> {
+        Ok(IdentifySettings {
+            world: (scene.map(|s| crate::franka::scene_world(s, self.arm))).transpose()?,
+            ..self
+        })
+    }
+
     /// Six seconds of chirps from 0.2 to 1.5 Hz to fit on, then three from 1.2 down to
     /// 0.3 Hz, the joints in other phases, held back.
     pub fn new(host: &str, arm: Arm, realtime: Realtime) -> Self {
@@ -61,6 +73,7 @@ impl IdentifySettings {
                 phase: 2.1,
                 ..Chirps::default()
             },
+            world: None,
         }
     }
 }
@@ -345,7 +358,7 @@ pub fn franka_identify(
             retime: false,
             approach: false,
             realtime: settings.realtime,
-            world: None,
+            world: settings.world.clone(),
         },
         stop,
     )?;

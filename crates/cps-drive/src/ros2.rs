@@ -46,6 +46,20 @@ pub struct GraphSettings {
     pub joint_names: Option<Vec<String>>,
     /// The DDS domain (None: `ROS_DOMAIN_ID`, else 0).
     pub domain: Option<u16>,
+    /// A scene file whose obstacles every command is checked among, besides the robot
+    /// itself ([`crate::franka::scene_shapes`]; its robot must be `robot`). None: the
+    /// robot alone.
+    pub scene: Option<std::path::PathBuf>,
+}
+
+impl GraphSettings {
+    /// These settings with every command checked among the obstacles of `scene`, if given.
+    pub fn in_scene(self, scene: Option<&Path>) -> Self {
+        GraphSettings {
+            scene: scene.map(Path::to_path_buf),
+            ..self
+        }
+    }
 }
 
 /// Where and how to send.
@@ -78,13 +92,16 @@ pub struct SendRecord {
     pub force: bool,
 }
 
-/// The robot model and the joint names for it (the robot's, or `names` checked against
-/// its joint count).
+/// The robot model of `graph` (among its scene's obstacles where it names one) and the
+/// joint names for it (the robot's, or its names checked against the joint count).
 pub(crate) fn robot_and_names(
-    robot: &str,
-    names: Option<&[String]>,
+    graph: &GraphSettings,
 ) -> Result<(RobotModel, Vec<String>), DriveError> {
-    let model = load_robot(robot, None, None)?;
+    let (robot, names) = (&graph.robot, graph.joint_names.as_deref());
+    let mut model = load_robot(robot, None, None)?;
+    if let Some(scene) = &graph.scene {
+        model.shapes = Some(crate::franka::scene_shapes(scene, &model.name)?);
+    }
     let dof = model.chain.dof();
     let names = match names {
         None => cps_movement::export::joint_names(&model),
@@ -154,15 +171,19 @@ pub fn plan_of(
 fn refused(name: &str, model: &RobotModel, e: RobotError) -> DriveError {
     match e {
         RobotError::Refused { robot, reason } => DriveError::Refused {
-            sentence: format!(
-                "{name}: refused, nothing was sent: the trajectory breaks the {}'s limits: {reason}{}",
-                model.name,
-                if matches!(reason, Refusal::Start { .. }) {
-                    "; pass --approach to move there first"
-                } else {
-                    ""
-                }
-            ),
+            sentence: match &reason {
+                // The path itself comes too close: to the robot, or to the scene's obstacles.
+                Refusal::Collision(_) => format!("{name}: refused, nothing was sent: {reason}"),
+                _ => format!(
+                    "{name}: refused, nothing was sent: the trajectory breaks the {}'s limits: {reason}{}",
+                    model.name,
+                    if matches!(reason, Refusal::Start { .. }) {
+                        "; pass --approach to move there first"
+                    } else {
+                        ""
+                    }
+                ),
+            },
             source: Box::new(RobotError::Refused { robot, reason }),
         },
         other => DriveError::during(name, other),
@@ -178,7 +199,7 @@ pub fn send(
     stop: &StopToken,
     progress: impl FnMut(f64),
 ) -> Result<(Sent, Ended), DriveError> {
-    let (model, _) = robot_and_names(&s.graph.robot, s.graph.joint_names.as_deref())?;
+    let (model, _) = robot_and_names(&s.graph)?;
     let traj = cps_movement::limits::read_joint_trajectory(file, model.chain.dof())?;
     send_trajectory(&file.display().to_string(), &traj, s, stop, progress)
 }
@@ -198,7 +219,7 @@ pub fn send_trajectory(
     if !(s.wait.is_finite() && s.wait > 0.0 && s.wait <= 3600.0) {
         return Err(InputError(format!("--wait {}: give seconds in (0, 3600]", s.wait)).into());
     }
-    let (model, names) = robot_and_names(&s.graph.robot, s.graph.joint_names.as_deref())?;
+    let (model, names) = robot_and_names(&s.graph)?;
     // A bad name or domain is the user's: named before anything joins the graph.
     let me =
         NodeName::from_env(NODE_NAME, s.graph.domain).map_err(|e| InputError(e.to_string()))?;
@@ -224,6 +245,22 @@ pub fn send_trajectory(
     cps_movement::export::ExportOptions { period: s.period }.check()?;
     let plan = plan_of(name, traj, model.chain.dof())?;
     let wait = Duration::from_secs_f64(s.wait);
+    // Judged before anything joins the graph: neither way reads where the robot stands
+    // first (a topic is blind; the action's robot is opened without reading its start),
+    // so the guard's verdict needs no node, and a refusal opens no DDS participant.
+    let mut judge = Guarded::new(
+        TopicRobot {
+            node_name: me.clone(),
+            topic: controller.to_string(),
+            names: names.clone(),
+            model: model.clone(),
+            period: s.period,
+            wait,
+            sent: None,
+        },
+        Policy::STRICT,
+    );
+    judge.prepare(&plan).map_err(|e| refused(name, &model, e))?;
     let to = Destination {
         name,
         plan: &plan,
@@ -647,7 +684,7 @@ pub fn record_in_memory(
     if !(s.wait.is_finite() && s.wait > 0.0 && s.wait <= 3600.0) {
         return Err(InputError(format!("--wait {}: give seconds in (0, 3600]", s.wait)).into());
     }
-    let (model, names) = robot_and_names(&s.graph.robot, s.graph.joint_names.as_deref())?;
+    let (model, names) = robot_and_names(&s.graph)?;
     let node = node(s.graph.domain)?;
     let depth = 5000;
     let options = RecordOptions {

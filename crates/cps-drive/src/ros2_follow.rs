@@ -279,8 +279,7 @@ pub fn ros2_follow(
     if !(s.wait.is_finite() && s.wait > 0.0 && s.wait <= 3600.0) {
         return Err(InputError(format!("--wait {}: give seconds in (0, 3600]", s.wait)).into());
     }
-    let (model, names) =
-        crate::ros2::robot_and_names(&s.graph.robot, s.graph.joint_names.as_deref())?;
+    let (model, names) = crate::ros2::robot_and_names(&s.graph)?;
     let me =
         NodeName::from_env(NODE_NAME, s.graph.domain).map_err(|e| InputError(e.to_string()))?;
     let controller = s.controller.trim_end_matches('/');
@@ -319,7 +318,12 @@ pub fn ros2_follow(
     let run = robot.run(&plan, stop).map_err(|e| match e {
         RobotError::Refused { robot, reason } => DriveError::Refused {
             sentence: format!(
-                "{name}: refused before sending anything: the executor's motion for these chunks breaks a limit: {reason}"
+                "{name}: refused before sending anything: the executor's motion for these chunks {}: {reason}",
+                if matches!(reason, cps_robot::Refusal::Collision(_)) {
+                    "comes too close"
+                } else {
+                    "breaks a limit"
+                }
             ),
             source: Box::new(RobotError::Refused { robot, reason }),
         },

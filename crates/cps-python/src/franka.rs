@@ -17,14 +17,19 @@ use crate::interrupt::detached_keep;
 
 /// A Franka robot (FR3, or a Panda on a protocol-10 system) at `host`.
 ///
-/// `Franka(host, arm="fr3", realtime="enforce")`: `realtime="ignore"` runs the 1 kHz
-/// loop without SCHED_FIFO where it is not permitted, `"off"` never asks for it. Nothing connects until a method is
-/// called; each call connects, does its work and disconnects.
+/// `Franka(host, arm="fr3", realtime="enforce", scene=None)`: `realtime="ignore"` runs the
+/// 1 kHz loop without SCHED_FIFO where it is not permitted, `"off"` never asks for it;
+/// `scene` (a scene file, its robot the arm) checks every command against its obstacles
+/// as well as the arm itself. Nothing connects until a method is called; each call
+/// connects, does its work and disconnects.
 #[pyclass(module = "cps._cps", name = "Franka")]
 pub struct Franka {
     host: String,
     arm: Arm,
     realtime: Realtime,
+    /// The world every command is checked in (the arm among the scene's obstacles), if a
+    /// scene was given.
+    world: Option<std::sync::Arc<cps_robot::Shapes>>,
     /// The recording of the last execution that Ctrl-C interrupted.
     last: Option<Py<PyDict>>,
 }
@@ -89,7 +94,7 @@ impl Franka {
                 ))
                 .py_err()
             })?,
-            world: None,
+            world: self.world.clone(),
         })
     }
 }
@@ -97,15 +102,25 @@ impl Franka {
 #[pymethods]
 impl Franka {
     #[new]
-    #[pyo3(signature = (host, arm = "fr3", realtime = "enforce"))]
-    fn new(host: &str, arm: &str, realtime: &str) -> PyResult<Self> {
+    #[pyo3(signature = (host, arm = "fr3", realtime = "enforce", scene = None))]
+    fn new(
+        host: &str,
+        arm: &str,
+        realtime: &str,
+        scene: Option<std::path::PathBuf>,
+    ) -> PyResult<Self> {
         if host.trim().is_empty() {
             return Err(value_error("host: give the robot's address"));
         }
+        let arm = crate::errors::arm_named(arm)?;
         Ok(Franka {
             host: host.to_string(),
-            arm: crate::errors::arm_named(arm)?,
+            arm,
             realtime: choose("realtime", realtime, &Realtime::WORDS)?,
+            world: (scene.as_deref())
+                .map(|s| franka::scene_world(s, arm))
+                .transpose()
+                .map_err(|e| e.py_err())?,
             last: None,
         })
     }
@@ -161,7 +176,7 @@ impl Franka {
             retime,
             approach,
             realtime: self.realtime,
-            world: None,
+            world: self.world.clone(),
         };
         let (done, interrupt) =
             detached_keep(py, None, |stop| franka::execute(&prepared, &settings, stop))?;

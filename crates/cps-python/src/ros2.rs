@@ -15,7 +15,7 @@ use crate::interrupt::detached_keep;
 
 /// Sends the joint trajectory `q` (rows, rad) at times `t` (s) to `controller`.
 #[pyfunction]
-#[pyo3(signature = (t, q, controller, *, via = "action", robot = "panda", joint_names = None, domain = None, period = 0.01, wait = 10.0, service_mapping = "auto"))]
+#[pyo3(signature = (t, q, controller, *, via = "action", robot = "panda", joint_names = None, domain = None, period = 0.01, wait = 10.0, service_mapping = "auto", scene = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn _ros2_send<'py>(
     py: Python<'py>,
@@ -29,6 +29,7 @@ pub fn _ros2_send<'py>(
     period: f64,
     wait: f64,
     service_mapping: &str,
+    scene: Option<std::path::PathBuf>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let service_mapping = choose(
         "service_mapping",
@@ -53,6 +54,7 @@ pub fn _ros2_send<'py>(
             robot: robot.to_string(),
             joint_names,
             domain,
+            scene,
         },
         period,
         wait,
@@ -89,6 +91,7 @@ pub fn _ros2_record<'py>(
             robot: robot.to_string(),
             joint_names,
             domain,
+            scene: None,
         },
         wait,
         best_effort,
