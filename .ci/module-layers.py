@@ -153,7 +153,7 @@ LAYERS = {
     "cps-drive": [
         # the crate's error, and the words of what its commands return
         ["error", "said"],
-        ["chunk_socket", "recording", "ros2_graph", "stand_in"],
+        ["chunk_socket", "recording", "ros2_graph", "scene", "stand_in"],
         ["franka", "ros2"],
         # the contact task, identification and chunks on a Franka use its connection's words
         ["contact", "follow", "identify", "ros2_follow"],

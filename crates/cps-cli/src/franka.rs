@@ -10,8 +10,8 @@ use cps_drive::{DriveError, follow, identify};
 use cps_outcome::Ended;
 use cps_robot::StopToken;
 
+use crate::robot::InScene;
 use crate::robot::print;
-use crate::scene::InScene;
 
 /// The robot's address, and how to print the answer.
 #[derive(Args, Debug)]

@@ -13,8 +13,8 @@ use cps_outcome::Ended;
 use cps_robot::StopToken;
 use indicatif::ProgressBar;
 
+use crate::robot::InScene;
 use crate::robot::print;
-use crate::scene::InScene;
 
 /// The robot, its joints' names and the domain.
 #[derive(Args, Debug)]

@@ -33,20 +33,3 @@ pub fn scene(cmd: &SceneCommand) -> Result<ExitCode> {
     print(&reach, *json)?;
     Ok(ExitCode::from(u8::from(!reach.all_reachable())))
 }
-
-/// The scene a command's motions are checked in (`--scene`).
-#[derive(clap::Args, Debug)]
-pub struct InScene {
-    /// A scene file (TOML, as configs/scenes/fr3.toml) whose robot is the one driven: every
-    /// command is checked against its obstacles at its margin as well as against the robot
-    /// itself (without it, the robot alone); nothing is sent if one comes closer.
-    #[arg(long)]
-    pub scene: Option<std::path::PathBuf>,
-}
-
-impl InScene {
-    /// The scene file, if one was given.
-    pub fn path(&self) -> Option<&std::path::Path> {
-        self.scene.as_deref()
-    }
-}

@@ -50,10 +50,10 @@ pub struct IdentifySettings {
 
 impl IdentifySettings {
     /// These settings with the chirps checked among the obstacles of the scene file at
-    /// `scene` ([`crate::franka::scene_world`]); unchanged for None.
+    /// `scene` ([`crate::scene::scene_world`]); unchanged for None.
     pub fn in_scene(self, scene: Option<&Path>) -> Result<Self, DriveError> {
         Ok(IdentifySettings {
-            world: (scene.map(|s| crate::franka::scene_world(s, self.arm))).transpose()?,
+            world: (scene.map(|s| crate::scene::scene_world(s, self.arm))).transpose()?,
             ..self
         })
     }

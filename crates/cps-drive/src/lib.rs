@@ -49,4 +49,5 @@ pub mod ros2;
 pub mod ros2_follow;
 pub mod ros2_graph;
 pub mod said;
+pub mod scene;
 pub mod stand_in;

@@ -47,7 +47,7 @@ pub struct GraphSettings {
     /// The DDS domain (None: `ROS_DOMAIN_ID`, else 0).
     pub domain: Option<u16>,
     /// A scene file whose obstacles every command is checked among, besides the robot
-    /// itself ([`crate::franka::scene_shapes`]; its robot must be `robot`). None: the
+    /// itself ([`crate::scene::scene_shapes`]; its robot must be `robot`). None: the
     /// robot alone.
     pub scene: Option<std::path::PathBuf>,
 }
@@ -100,7 +100,7 @@ pub(crate) fn robot_and_names(
     let (robot, names) = (&graph.robot, graph.joint_names.as_deref());
     let mut model = load_robot(robot, None, None)?;
     if let Some(scene) = &graph.scene {
-        model.shapes = Some(crate::franka::scene_shapes(scene, &model.name)?);
+        model.shapes = Some(crate::scene::scene_shapes(scene, &model.name)?);
     }
     let dof = model.chain.dof();
     let names = match names {

@@ -131,7 +131,7 @@ impl ChunkExecutor {
         }
         let start = opt_vector(start, "start", Some(7))?;
         let world = scene
-            .map(|p| cps_drive::franka::scene_world(&p, arm))
+            .map(|p| cps_drive::scene::scene_world(&p, arm))
             .transpose()
             .map_err(|e| e.py_err())?;
         let which = match robot {

@@ -118,7 +118,7 @@ impl Franka {
             arm,
             realtime: choose("realtime", realtime, &Realtime::WORDS)?,
             world: (scene.as_deref())
-                .map(|s| franka::scene_world(s, arm))
+                .map(|s| cps_drive::scene::scene_world(s, arm))
                 .transpose()
                 .map_err(|e| e.py_err())?,
             last: None,
