@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::{Command, Output};
 use std::time::Duration;
 
-use common::{cli, json, state_q, stdout_json};
+use common::{cli, json, state_q};
 use sim::FrankySim;
 
 fn stderr(o: &Output) -> String {
@@ -228,25 +228,6 @@ fn refusals_come_before_anything_moves() {
 /// franky-sim's start (franky_sim.constants.DEFAULT_INITIAL_JOINT_POS).
 const FRANKY_START: [f64; 7] = [0.0, 0.0, 0.0, -1.57, 0.0, 1.57, 0.785];
 
-/// A scene for the simulated FR3 (its base the world's origin, as in franky-sim's MuJoCo
-/// world) with one obstacle, `post`: a box of `size` centred at `at`.
-fn scene_with_post(dir: &Path, at: [f64; 3], size: [f64; 3]) -> String {
-    let q: Vec<String> = FRANKY_START.iter().map(f64::to_string).collect();
-    let text = format!(
-        "[robot]\nmodel = \"fr3\"\ntool = \"hand\"\ninitial_q = [{}]\n\n[[obstacle]]\nname = \"post\"\nshape = \"box\"\nxyz = [{}, {}, {}]\nsize = [{}, {}, {}]\n",
-        q.join(", "),
-        at[0],
-        at[1],
-        at[2],
-        size[0],
-        size[1],
-        size[2]
-    );
-    let p = dir.join("scene.toml");
-    std::fs::write(&p, text).unwrap();
-    p.to_str().unwrap().to_string()
-}
-
 /// `franka execute --scene`: a swing whose hand passes through a post of the scene is
 /// refused before the robot moves, the hand and the post named; the same post stands in
 /// franky-sim's MuJoCo world, whose contact list says the swing would have hit it (sent
@@ -259,19 +240,7 @@ fn with_a_scene_a_swing_into_its_obstacle_is_refused_before_the_robot_moves() {
     let mut peak = FRANKY_START;
     peak[0] += 0.5;
     peak[3] += 0.3;
-    let q: Vec<String> = peak.iter().map(f64::to_string).collect();
-    let fk = stdout_json(&cli(&[
-        "fk",
-        "--robot",
-        "fr3",
-        "--tool",
-        "hand",
-        "--q",
-        &q.join(","),
-        "--json",
-    ]));
-    let p: Vec<f64> = serde_json::from_value(fk["position"].clone()).unwrap();
-    let (at, size) = ([p[0], p[1], p[2]], [0.05, 0.05, 0.3]);
+    let (at, size) = (common::hand_at("fr3", &peak), [0.05, 0.05, 0.3]);
     let Some(sim) = FrankySim::start_with(
         "127.0.0.60",
         sim::SimOptions {
@@ -289,7 +258,8 @@ fn with_a_scene_a_swing_into_its_obstacle_is_refused_before_the_robot_moves() {
             .all(|(a, b)| (a - b).abs() < 0.02),
         "franky-sim starts elsewhere: {q0:?}"
     );
-    let scene = scene_with_post(dir.path(), at, size);
+    let scene = common::post_scene(dir.path(), "scene", "fr3", &FRANKY_START, at, size);
+    let scene = scene.to_str().unwrap();
     let (into, away) = (dir.path().join("into"), dir.path().join("away"));
     std::fs::create_dir_all(&into).unwrap();
     std::fs::create_dir_all(&away).unwrap();
@@ -313,7 +283,7 @@ fn with_a_scene_a_swing_into_its_obstacle_is_refused_before_the_robot_moves() {
         a.extend_from_slice(extra);
         cli(&a)
     };
-    let o = execute(&into, &["--scene", &scene]);
+    let o = execute(&into, &["--scene", scene]);
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(
@@ -332,7 +302,7 @@ fn with_a_scene_a_swing_into_its_obstacle_is_refused_before_the_robot_moves() {
         "the refused swing touched the post"
     );
     // The other way, clear of the post: executed, checked against the same scene.
-    let o = execute(&away, &["--scene", &scene]);
+    let o = execute(&away, &["--scene", scene]);
     assert!(o.status.success(), "{}", stderr(&o));
     let (steps, geoms) = sim.box_contacts();
     assert_eq!(steps, 0, "the clear swing touched the post: {geoms:?}");
@@ -351,11 +321,11 @@ fn with_a_scene_a_swing_into_its_obstacle_is_refused_before_the_robot_moves() {
         "{geoms:?}"
     );
     // A scene for another arm is named.
-    let panda = std::fs::read_to_string(&scene)
+    let panda = std::fs::read_to_string(scene)
         .unwrap()
         .replace("\"fr3\"", "\"panda\"");
-    std::fs::write(&scene, panda).unwrap();
-    let o = execute(&away, &["--scene", &scene]);
+    std::fs::write(scene, panda).unwrap();
+    let o = execute(&away, &["--scene", scene]);
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(

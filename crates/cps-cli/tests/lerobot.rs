@@ -349,19 +349,10 @@ fn recordings_that_do_not_fit_are_refused_and_nothing_is_written() {
     assert_eq!(left.len(), 2, "{left:?}");
 }
 
-/// The tool position `cps-cli fk --robot panda` gives at `q` (the robot's base frame).
+/// The tool position `cps-cli fk --robot panda` gives at `q` (the robot's base frame; the
+/// Panda's default tool is its hand).
 fn tool(q: &[f64]) -> [f64; 3] {
-    let q: Vec<String> = q.iter().map(f64::to_string).collect();
-    let j = json(&cli(&[
-        "fk",
-        "--robot",
-        "panda",
-        "--q",
-        &q.join(","),
-        "--json",
-    ]));
-    let p: Vec<f64> = serde_json::from_value(j["position"].clone()).unwrap();
-    [p[0], p[1], p[2]]
+    common::hand_at("panda", q)
 }
 
 #[test]

@@ -163,19 +163,11 @@ fn bad_input_is_refused_before_anything_reaches_the_graph() {
     assert_eq!(o.status.code(), Some(2));
     // --scene: a post where the hand ends is refused, the hand and the post named; a scene
     // of another robot, or none at all, is named.
-    let end: Vec<String> = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]
-        .iter()
-        .map(|q| (q + 0.2).to_string())
-        .collect();
-    let fk = common::stdout_json(&cli(&["fk", "--q", &end.join(","), "--json"]));
-    let p: Vec<f64> = serde_json::from_value(fk["position"].clone()).unwrap();
-    let scene = |model: &str| {
-        let text = format!(
-            "[robot]\nmodel = \"{model}\"\ntool = \"hand\"\ninitial_q = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]\n\n[[obstacle]]\nname = \"post\"\nshape = \"box\"\nxyz = [{}, {}, {}]\nsize = [0.04, 0.04, 0.3]\n",
-            p[0], p[1], p[2]
-        );
-        common::write(dir.path(), &format!("{model}.toml"), &text)
-    };
+    let ready = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785];
+    let end: Vec<f64> = ready.iter().map(|q| q + 0.2).collect();
+    let at = common::hand_at("panda", &end);
+    let scene =
+        |model: &str| common::post_scene(dir.path(), model, model, &ready, at, [0.04, 0.04, 0.3]);
     let o = send(&["--scene", scene("panda").to_str().unwrap()], &ok);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");

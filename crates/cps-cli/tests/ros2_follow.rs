@@ -201,22 +201,9 @@ fn chunks_into_a_scene_s_obstacle_are_refused_before_the_graph() {
     .chunks(&demo, 0.0, 2.5);
     let file = dir.path().join("chunks.csv");
     std::fs::write(&file, cps_movement::chunks::write_chunks(&chunks, 7)).unwrap();
-    // The post where the hand ends (cps-cli fk).
-    let end: Vec<String> = demo(2.0).iter().map(f64::to_string).collect();
-    let fk = common::stdout_json(&cli(&["fk", "--q", &end.join(","), "--json"]));
-    let p: Vec<f64> = serde_json::from_value(fk["position"].clone()).unwrap();
-    let ready: Vec<String> = READY.iter().map(f64::to_string).collect();
-    let scene = common::write(
-        dir.path(),
-        "scene.toml",
-        &format!(
-            "[robot]\nmodel = \"panda\"\ntool = \"hand\"\ninitial_q = [{}]\n\n[[obstacle]]\nname = \"post\"\nshape = \"box\"\nxyz = [{}, {}, {}]\nsize = [0.04, 0.04, 0.3]\n",
-            ready.join(", "),
-            p[0],
-            p[1],
-            p[2]
-        ),
-    );
+    // The post where the hand ends.
+    let at = common::hand_at("panda", &demo(2.0));
+    let scene = common::post_scene(dir.path(), "scene", "panda", &READY, at, [0.04, 0.04, 0.3]);
     let o = cli(&[
         "ros2",
         "follow",

@@ -164,3 +164,48 @@ pub fn state_q(host: &str) -> Vec<f64> {
         .map(|x| x.as_f64().unwrap())
         .collect()
 }
+
+/// The tool position `cps-cli fk --robot ROBOT --tool hand` gives at `q` (the robot's base
+/// frame, m).
+pub fn hand_at(robot: &str, q: &[f64]) -> [f64; 3] {
+    let q: Vec<String> = q.iter().map(f64::to_string).collect();
+    let fk = stdout_json(&cli(&[
+        "fk",
+        "--robot",
+        robot,
+        "--tool",
+        "hand",
+        "--q",
+        &q.join(","),
+        "--json",
+    ]));
+    let p: Vec<f64> = serde_json::from_value(fk["position"].clone()).unwrap();
+    [p[0], p[1], p[2]]
+}
+
+/// A scene of `model` (its base the world's origin, its hand the tool, standing at
+/// `initial_q`) with one obstacle, `post`: a box of `size` centred at `at`; written as
+/// `NAME.toml` in `dir`.
+pub fn post_scene(
+    dir: &Path,
+    name: &str,
+    model: &str,
+    initial_q: &[f64],
+    at: [f64; 3],
+    size: [f64; 3],
+) -> PathBuf {
+    let q: Vec<String> = initial_q.iter().map(f64::to_string).collect();
+    let text = format!(
+        "[robot]\nmodel = \"{model}\"\ntool = \"hand\"\ninitial_q = [{}]\n\n[[obstacle]]\nname = \"post\"\nshape = \"box\"\nxyz = [{}, {}, {}]\nsize = [{}, {}, {}]\n",
+        q.join(", "),
+        at[0],
+        at[1],
+        at[2],
+        size[0],
+        size[1],
+        size[2]
+    );
+    let p = dir.join(format!("{name}.toml"));
+    std::fs::write(&p, text).unwrap();
+    p
+}
