@@ -307,8 +307,8 @@ fn with_a_scene_a_swing_into_its_obstacle_is_refused_before_the_robot_moves() {
     let (steps, geoms) = sim.box_contacts();
     assert_eq!(steps, 0, "the clear swing touched the post: {geoms:?}");
     // Without the scene the guard knows no post, and MuJoCo says the swing hits it.
-    let o = execute(&into, &[]);
-    let _ = o.status;
+    // (How that run ends is franky-sim's: the arm pushing on a fixed box.)
+    execute(&into, &[]);
     let (steps, geoms) = sim.box_contacts();
     assert!(
         steps > 0,

@@ -53,7 +53,9 @@ impl IdentifySettings {
     /// `scene` ([`crate::scene::scene_world`]); unchanged for None.
     pub fn in_scene(self, scene: Option<&Path>) -> Result<Self, DriveError> {
         Ok(IdentifySettings {
-            world: (scene.map(|s| crate::scene::scene_world(s, self.arm))).transpose()?,
+            world: scene
+                .map(|s| crate::scene::scene_world(s, self.arm))
+                .transpose()?,
             ..self
         })
     }

@@ -7,7 +7,7 @@
 use std::path::Path;
 use std::time::Duration;
 
-use cps_robot::{Guarded, Plan, Policy, Refusal, Robot, RobotError, StopToken};
+use cps_robot::{Guarded, Plan, Policy, Prepared, Refusal, Robot, RobotError, StopToken};
 use cps_ros2::action::FollowOutcome;
 use cps_ros2::names::NodeName;
 use cps_ros2::node::{Node, Qos};
@@ -245,9 +245,10 @@ pub fn send_trajectory(
     cps_movement::export::ExportOptions { period: s.period }.check()?;
     let plan = plan_of(name, traj, model.chain.dof())?;
     let wait = Duration::from_secs_f64(s.wait);
-    // Judged before anything joins the graph: neither way reads where the robot stands
-    // first (a topic is blind; the action's robot is opened without reading its start),
-    // so the guard's verdict needs no node, and a refusal opens no DDS participant.
+    // Judged once, before anything joins the graph: neither way reads where the robot
+    // stands first (a topic is blind; the action's robot is opened without reading its
+    // start), so the guard's verdict needs no node, and a refusal opens no DDS
+    // participant. Both ways then run this verdict (`run_prepared`).
     let mut judge = Guarded::new(
         TopicRobot {
             node_name: me.clone(),
@@ -260,25 +261,23 @@ pub fn send_trajectory(
         },
         Policy::STRICT,
     );
-    judge.prepare(&plan).map_err(|e| refused(name, &model, e))?;
+    let prepared = judge.prepare(&plan).map_err(|e| refused(name, &model, e))?;
     let to = Destination {
         name,
-        plan: &plan,
         model: &model,
         names: &names,
         controller,
         wait,
     };
     match s.via {
-        Via::Topic => send_by_topic(&to, me, s, stop),
-        Via::Action => send_by_action(&to, s, stop, &mut progress),
+        Via::Topic => send_by_topic(&to, prepared, me, s, stop),
+        Via::Action => send_by_action(&to, prepared, s, stop, &mut progress),
     }
 }
 
 /// Where [`send_trajectory`] sends a checked plan, and what it knows of the robot.
 struct Destination<'a> {
     name: &'a str,
-    plan: &'a Plan,
     model: &'a RobotModel,
     names: &'a [String],
     controller: &'a str,
@@ -289,20 +288,20 @@ struct Destination<'a> {
 /// answer).
 fn send_by_topic(
     to: &Destination<'_>,
+    prepared: Prepared,
     me: NodeName,
     s: &SendSettings,
     stop: &StopToken,
 ) -> Result<(Sent, Ended), DriveError> {
     let Destination {
         name,
-        plan,
         model,
         names,
         controller,
         wait,
     } = *to;
-    // Through the guard: checked as every plan is, then published by the topic's
-    // robot (one message, no answer).
+    // Through the guard, with its verdict: published by the topic's robot (one message,
+    // no answer).
     let topic = format!("{controller}/joint_trajectory");
     let mut robot = Guarded::new(
         TopicRobot {
@@ -317,7 +316,7 @@ fn send_by_topic(
         Policy::STRICT,
     );
     let run = robot
-        .run(plan, stop)
+        .run_prepared(prepared, stop)
         .map_err(|e| sent_or_refused(name, model, e))?;
     let Some((node, message, sent)) = robot.into_inner().sent else {
         return Err(DriveError::Failed("the topic's run sent nothing".into()));
@@ -335,13 +334,13 @@ fn send_by_topic(
 /// reported, its outcome (and the recording, with `--record`) the answer.
 fn send_by_action(
     to: &Destination<'_>,
+    prepared: Prepared,
     s: &SendSettings,
     stop: &StopToken,
     progress: &mut impl FnMut(f64),
 ) -> Result<(Sent, Ended), DriveError> {
     let Destination {
         name,
-        plan,
         model,
         names,
         controller,
@@ -360,7 +359,6 @@ fn send_by_action(
     };
     let robot = Ros2Robot::open(&settings, model.clone()).map_err(robot_message)?;
     let mut robot = Guarded::new(robot, Policy::STRICT);
-    let prepared = robot.prepare(plan).map_err(|e| refused(name, model, e))?;
     let message = trajectory_message(names, &prepared.plan, Some(s.period));
     let action = format!("{controller}/follow_joint_trajectory");
     let domain = robot.inner().node().name().domain;

@@ -197,8 +197,8 @@ with MujocoSimulator(enable_visualization=False) as sim:
         gripper = getattr(robot_server, "_FrankaRobotServer__gripper_server", None)
         servers = [robot_server] + ([gripper] if gripper is not None else [])
         # franky-sim steps its arm at 1 kHz whether or not a client is connected: a third of
-        # a core each, most of the simulators' CPU in the tests (BENCHMARKS › Where a cold
-        # CI's time goes). Once nobody has been connected, nothing has been asked on the
+        # a core each while nobody is (8 % paused; BENCHMARKS › Where a cold CI's time
+        # goes). Once nobody has been connected, nothing has been asked on the
         # standard input and the arm has rested for half a second, the physics pauses: the
         # connections are still accepted (every 2 ms), and the first client, command or
         # motion steps it again at 1 kHz. A client sees the same robot (the simulated
