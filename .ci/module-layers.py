@@ -31,7 +31,7 @@ LAYERS = {
         ["pose"],
     ],
     "cps-cmaes": [
-        ["error", "params", "stop"],
+        ["error", "params", "stop", "dense"],
         ["bounds"],
         ["config"],
         ["cmaes"],

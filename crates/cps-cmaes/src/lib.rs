@@ -1,4 +1,5 @@
-//! A CMA-ES for cps, built on faer.
+//! A CMA-ES for cps: its own dense kernels (Cholesky, triangular products), vectorised
+//! with runtime dispatch; nalgebra's matrices and its symmetric eigensolver.
 //!
 //! The (μ/μ_W, λ)-CMA-ES of Hansen (2016), "The CMA Evolution Strategy: A Tutorial"
 //! (arXiv:1604.00772), with active (negative) covariance weights and the tutorial's
@@ -35,6 +36,7 @@
 mod bounds;
 mod cmaes;
 mod config;
+mod dense;
 mod driver;
 mod error;
 pub mod functions;

@@ -23,8 +23,7 @@
 use std::ops::ControlFlow;
 
 use cps_cmaes::GenerationReport;
-use faer::linalg::solvers::Solve;
-use faer::{Mat, Side};
+use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 use cps_dmp::{DiscreteDmp, Trajectory};
@@ -364,14 +363,13 @@ fn normal_equations(jac: &[f64], r: &[f64], m: usize, n: usize) -> (Vec<f64>, Ve
 /// positive definite (λ too small for a singular `H`).
 fn damped_step(h: &[f64], g: &[f64], lambda: f64) -> Option<Vec<f64>> {
     let n = g.len();
-    let a = Mat::from_fn(n, n, |i, j| {
+    let a = DMatrix::from_fn(n, n, |i, j| {
         let v = h[i * n + j];
         if i == j { v + lambda * v.max(1e-12) } else { v }
     });
-    let llt = a.llt(Side::Lower).ok()?;
-    let rhs = Mat::from_fn(n, 1, |i, _| -g[i]);
-    let x = llt.solve(&rhs);
-    let delta: Vec<f64> = (0..n).map(|i| x[(i, 0)]).collect();
+    let llt = a.cholesky()?;
+    let x = llt.solve(&DVector::from_fn(n, |i, _| -g[i]));
+    let delta: Vec<f64> = x.iter().copied().collect();
     delta.iter().all(|d| d.is_finite()).then_some(delta)
 }
 
