@@ -452,7 +452,10 @@ def test_asynchronous_inference_with_act_on_franka_sim_stops_within_a_second_of_
         client=$!
         # The policy drives the arm for six of its chunks (at most a minute), then its server
         # dies; three seconds later the user presses Ctrl-C (the client's own receiver
-        # thread never ends after its server died: it is killed ten seconds after).
+        # thread never ends after its server died: it is killed ten seconds after). A
+        # Ctrl-C that lands in the client's failing gRPC call can be swallowed there, so
+        # the robot is never disconnected: killed, the client leaves its loop process
+        # to brake and write the recording, as it would beside a user's terminal.
         for i in $(seq 600); do
             [ "$(grep -c "Action chunk #" {tmp_path}/server.log 2>/dev/null)" -ge 6 ] && break
             sleep 0.1
@@ -462,6 +465,7 @@ def test_asynchronous_inference_with_act_on_franka_sim_stops_within_a_second_of_
         kill -INT $client
         for i in $(seq 100); do kill -0 $client 2>/dev/null || break; sleep 0.1; done
         kill -9 $client 2>/dev/null
+        for i in $(seq 100); do [ -e {record} ] && break; sleep 0.1; done
     """)
     client_log = (tmp_path / "client.log").read_text()
     assert record.is_file(), p.stdout + p.stderr + client_log[-3000:]
