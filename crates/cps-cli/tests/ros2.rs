@@ -350,7 +350,7 @@ fn show_to_a_viewer(file: &str, dir: &std::path::Path) -> (serde_json::Value, se
             "show",
             file,
             "--seconds",
-            "4",
+            "10",
             "--json",
             "--results",
         ])
@@ -359,7 +359,9 @@ fn show_to_a_viewer(file: &str, dir: &std::path::Path) -> (serde_json::Value, se
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    // The viewer joins a second later: the markers are latched.
+    // The viewer joins a second later: the markers are latched. (With 4 s of publishing,
+    // a viewer whose Python and discovery took more than the 3 s left on a loaded CI
+    // machine never saw them.)
     std::thread::sleep(std::time::Duration::from_secs(1));
     let got = dir.join("markers.json");
     let viewer = graph::Peer::start(&["markers", "/cps/markers", got.to_str().unwrap()]);
