@@ -59,7 +59,7 @@ def test_run_experiment_on_the_robot_with_dynamics_equals_the_command_line(tmp_p
     text = (EXPERIMENTS / "dynamics" / "viapoint_joint.toml").read_text()
     # Three iterations: on franky-sim's drives (friction smoothed over 5 mrad/s) the second
     # has taken the worst via point from 39 to 15 mm, the third to 7.7 mm.
-    text = text.replace("generations = 14 ", "generations = 3  ")
+    text = text.replace("generations = 15 ", "generations = 3  ")
     assert "generations = 3  " in text
     path = tmp_path / "dynamics.toml"
     path.write_text(text)
