@@ -31,7 +31,7 @@ LAYERS = {
         ["pose"],
     ],
     "cps-cmaes": [
-        ["error", "params", "stop", "dense"],
+        ["error", "params", "stop"],
         ["bounds"],
         ["config"],
         ["cmaes"],

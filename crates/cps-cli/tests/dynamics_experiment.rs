@@ -79,7 +79,7 @@ fn bad_dynamics_sections_are_named_with_their_place() {
     let said = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{said}");
     assert!(
-        said.contains("then on the executions: Levenberg–Marquardt, up to 14 iterations")
+        said.contains("then on the executions: Levenberg–Marquardt, up to 15 iterations")
             && said.contains("on the dynamics (in-process, joint_pd controller, franky-sim drive"),
         "{said}"
     );

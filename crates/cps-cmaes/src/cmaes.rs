@@ -1,11 +1,16 @@
 //! The CMA-ES state and its ask/tell step (Hansen 2016, active covariance update).
 
-use nalgebra::DMatrix;
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::{
+    LltRegularization, cholesky_in_place, cholesky_in_place_scratch,
+};
+use faer::linalg::evd::{self, ComputeEigenvectors};
+use faer::linalg::matmul::triangular::{self, BlockStructure};
+use faer::{Accum, Mat, Par};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::dense::{self, col, mirror_lower};
 use crate::{CmaesConfig, CmaesError, Parameters, StopRule, Termination};
 
 /// A CMA-ES optimiser driven by [`Cmaes::ask`] and [`Cmaes::tell`].
@@ -20,9 +25,9 @@ use crate::{CmaesConfig, CmaesError, Parameters, StopRule, Termination};
 /// update, and the step-size path is accumulated in its coordinates, `A⁻¹ y_w = z_w`,
 /// instead of those of the symmetric root `C^{-1/2}` — the Cholesky CMA-ES of Krause,
 /// Arbonès & Igel (2016), which they show to perform as the eigendecomposition form. A
-/// Cholesky factorisation costs n³/3 flops; a symmetric eigendecomposition tens of times
-/// more, so even pycma's lazy refresh every ≈ 5 generations would dominate a generation.
-/// The per-generation kernels are cps's own (`dense.rs`).
+/// Cholesky factorisation costs n³/3 flops (≈ 15 µs at n = 75); a symmetric
+/// eigendecomposition of a covariance close to isotropic costs ≈ 500 µs at n = 75 with
+/// faer, so even pycma's lazy refresh every ≈ 5 generations would dominate a generation.
 /// C is kept bit-for-bit symmetric; if a factorisation fails (C lost positive
 /// definiteness), C is rebuilt from the last factor and the repair is counted.
 ///
@@ -45,9 +50,9 @@ pub struct Cmaes {
     sigma: f64,
     /// Full form: C, its Cholesky factor (lower triangle; zeros above) and the diagnostic
     /// eigenvectors. Separable form: all three are empty.
-    c: DMatrix<f64>,
-    a: DMatrix<f64>,
-    b: DMatrix<f64>,
+    c: Mat<f64>,
+    a: Mat<f64>,
+    b: Mat<f64>,
     /// Full form: square roots of C's eigenvalues (diagnostic). Separable form: the standard
     /// deviations, C = diag(d²).
     d: Vec<f64>,
@@ -60,8 +65,8 @@ pub struct Cmaes {
     repairs: u64,
     last_decomposition: u64,
     condition: f64,
-    z: DMatrix<f64>,
-    y: DMatrix<f64>,
+    z: Mat<f64>,
+    y: Mat<f64>,
     x: Vec<f64>,
     sorted_costs: Vec<f64>,
     best: Option<(Vec<f64>, f64)>,
@@ -93,13 +98,25 @@ fn diagonal_update(
     new.iter().all(|v| v.is_finite() && *v > 0.0).then_some(new)
 }
 
+/// Copies the lower triangle of `c` onto the upper one: C stays symmetric bit for bit.
+fn mirror_lower(c: &mut Mat<f64>) {
+    for j in 0..c.ncols() {
+        for i in j + 1..c.nrows() {
+            c[(j, i)] = c[(i, j)];
+        }
+    }
+}
+
 /// Buffers reused every generation.
 struct Work {
     order: Vec<usize>,
-    yw: DMatrix<f64>,
-    ys: DMatrix<f64>,
+    yw: Mat<f64>,
+    ys: Mat<f64>,
     /// The factorisation in progress (`a` is replaced only if it succeeds).
-    factor: DMatrix<f64>,
+    factor: Mat<f64>,
+    eigvals: faer::diag::Diag<f64>,
+    eigvecs: Mat<f64>,
+    stack: MemBuffer,
 }
 
 impl std::fmt::Debug for Work {
@@ -187,16 +204,30 @@ impl Cmaes {
             .initial_scales
             .clone()
             .unwrap_or_else(|| vec![1.0; n]);
-        let c = DMatrix::from_fn(
+        let c = Mat::from_fn(
             m,
             m,
             |i, j| if i == j { scales[i] * scales[i] } else { 0.0 },
         );
-        let a = DMatrix::from_fn(m, m, |i, j| if i == j { scales[i] } else { 0.0 });
-        let b = DMatrix::identity(m, m);
+        let a = Mat::from_fn(m, m, |i, j| if i == j { scales[i] } else { 0.0 });
+        let b = Mat::identity(m, m);
         let (max, min) = scales.iter().fold((0.0f64, f64::INFINITY), |(a, b), s| {
             (a.max(s * s), b.min(s * s))
         });
+        let par = Par::Seq;
+        let req = if separable {
+            StackReq::EMPTY
+        } else {
+            StackReq::any_of(&[
+                evd::self_adjoint_evd_scratch::<f64>(
+                    n,
+                    ComputeEigenvectors::Yes,
+                    par,
+                    Default::default(),
+                ),
+                cholesky_in_place_scratch::<f64>(n, par, Default::default()),
+            ])
+        };
         let mut es = Self {
             gap,
             mean: x0.to_vec(),
@@ -214,8 +245,8 @@ impl Cmaes {
             repairs: 0,
             last_decomposition: 0,
             condition: max / min,
-            z: DMatrix::zeros(n, lambda),
-            y: DMatrix::zeros(n, lambda),
+            z: Mat::zeros(n, lambda),
+            y: Mat::zeros(n, lambda),
             x: vec![0.0; n * lambda],
             sorted_costs: Vec::with_capacity(lambda),
             best: None,
@@ -224,9 +255,12 @@ impl Cmaes {
             flat_generations: 0,
             work: Work {
                 order: (0..lambda).collect(),
-                yw: DMatrix::zeros(n, lambda),
-                ys: DMatrix::zeros(n, lambda),
-                factor: DMatrix::zeros(m, m),
+                yw: Mat::zeros(n, lambda),
+                ys: Mat::zeros(n, lambda),
+                factor: Mat::zeros(m, m),
+                eigvals: faer::diag::Diag::zeros(m),
+                eigvecs: Mat::zeros(m, m),
+                stack: MemBuffer::new(req),
             },
             params,
             config: config.clone(),
@@ -269,15 +303,22 @@ impl Cmaes {
                 }
             }
         } else {
-            dense::lower_times(&mut self.y, &self.a, &self.z);
+            triangular::matmul(
+                self.y.as_mut(),
+                BlockStructure::Rectangular,
+                Accum::Replace,
+                self.a.as_ref(),
+                BlockStructure::TriangularLower,
+                self.z.as_ref(),
+                BlockStructure::Rectangular,
+                1.0,
+                Par::Seq,
+            );
         }
-        for (x, y) in self
-            .x
-            .chunks_exact_mut(n)
-            .zip(self.y.as_slice().chunks_exact(n))
-        {
-            for ((x, m), y) in x.iter_mut().zip(&self.mean).zip(y) {
-                *x = m + self.sigma * y;
+        for k in 0..lambda {
+            let col = self.y.col(k);
+            for i in 0..n {
+                self.x[k * n + i] = self.mean[i] + self.sigma * col[i];
             }
         }
         &self.x
@@ -324,7 +365,7 @@ impl Cmaes {
         let mut z_w = vec![0.0; n];
         for (rank, &k) in order.iter().take(mu).enumerate() {
             let w = p.weights[rank];
-            let (yc, zc) = (col(&self.y, k), col(&self.z, k));
+            let (yc, zc) = (self.y.col(k), self.z.col(k));
             for i in 0..n {
                 y_w[i] += w * yc[i];
                 z_w[i] += w * zc[i];
@@ -356,15 +397,13 @@ impl Cmaes {
         for (rank, &k) in order.iter().enumerate() {
             let mut w = p.weights[rank];
             if w < 0.0 {
-                let z2: f64 = col(&self.z, k).iter().map(|v| v * v).sum();
+                let z2: f64 = self.z.col(k).iter().map(|v| v * v).sum();
                 w *= n as f64 / z2.max(f64::MIN_POSITIVE);
             }
-            let yk = col(&self.y, k);
-            let ys = &mut self.work.ys.as_mut_slice()[rank * n..(rank + 1) * n];
-            ys.copy_from_slice(yk);
-            let yw = &mut self.work.yw.as_mut_slice()[rank * n..(rank + 1) * n];
-            for (w_yi, yi) in yw.iter_mut().zip(yk) {
-                *w_yi = w * yi;
+            for i in 0..n {
+                let yi = self.y[(i, k)];
+                self.work.ys[(i, rank)] = yi;
+                self.work.yw[(i, rank)] = w * yi;
             }
         }
         if self.separable {
@@ -381,14 +420,23 @@ impl Cmaes {
                 None => self.repairs = self.repairs.saturating_add(1),
             }
         } else {
-            for (j, cj) in self.c.as_mut_slice().chunks_exact_mut(n).enumerate() {
-                let pj = self.p_c[j];
-                for (c, pi) in cj[j..].iter_mut().zip(&self.p_c[j..]) {
-                    *c = decay * *c + p.c1 * pi * pj;
+            for j in 0..n {
+                for i in j..n {
+                    self.c[(i, j)] = decay * self.c[(i, j)] + p.c1 * self.p_c[i] * self.p_c[j];
                 }
             }
             // Only the lower triangle is computed (and then mirrored).
-            dense::add_lower_product(&mut self.c, p.c_mu, &self.work.yw, &self.work.ys);
+            triangular::matmul(
+                self.c.as_mut(),
+                BlockStructure::TriangularLower,
+                Accum::Add,
+                self.work.yw.as_ref(),
+                BlockStructure::Rectangular,
+                self.work.ys.transpose(),
+                BlockStructure::Rectangular,
+                p.c_mu,
+                Par::Seq,
+            );
             mirror_lower(&mut self.c);
         }
 
@@ -427,16 +475,27 @@ impl Cmaes {
     /// last factor instead (a repair).
     fn factorize(&mut self) {
         let n = self.params.n;
-        let finite = self.c.iter().all(|v| v.is_finite());
+        let finite = (0..n).all(|j| (j..n).all(|i| self.c[(i, j)].is_finite()));
         let f = &mut self.work.factor;
-        f.copy_from(&self.c);
-        let ok = finite && dense::cholesky_lower(f);
+        f.copy_from(self.c.as_ref());
+        let ok = finite
+            && cholesky_in_place(
+                f.as_mut(),
+                LltRegularization::default(),
+                Par::Seq,
+                MemStack::new(&mut self.work.stack),
+                Default::default(),
+            )
+            .is_ok();
         if ok {
-            // The factor's strict upper triangle still holds C's: zeros, then it is A.
-            for (j, fj) in f.as_mut_slice().chunks_exact_mut(n).enumerate() {
-                fj[..j].fill(0.0);
+            for j in 0..n {
+                for i in 0..j {
+                    self.a[(i, j)] = 0.0;
+                }
+                for i in j..n {
+                    self.a[(i, j)] = f[(i, j)];
+                }
             }
-            std::mem::swap(&mut self.a, f);
         } else {
             self.repairs = self.repairs.saturating_add(1);
             self.rebuild_c_from_a();
@@ -448,25 +507,44 @@ impl Cmaes {
     /// factorised, so this is a solver failure) keeps the previous one.
     fn decompose(&mut self) {
         self.last_decomposition = self.generation;
-        let Some((vals, vecs)) = dense::symmetric_eigen(&self.c) else {
-            return;
-        };
+        let n = self.params.n;
+        let w = &mut self.work;
+        let ok = evd::self_adjoint_evd(
+            self.c.as_ref(),
+            w.eigvals.as_mut(),
+            Some(w.eigvecs.as_mut()),
+            Par::Seq,
+            MemStack::new(&mut w.stack),
+            Default::default(),
+        )
+        .is_ok();
+        let vals = w.eigvals.column_vector();
         let max = vals.iter().fold(0.0f64, |a, &v| a.max(v));
-        if max <= 0.0 {
+        if !(ok && max > 0.0 && vals.iter().all(|v| v.is_finite())) {
             return;
         }
         let floor = max * 1e-16;
-        for (d, v) in self.d.iter_mut().zip(&vals) {
-            *d = v.max(floor).sqrt();
+        for i in 0..n {
+            self.d[i] = vals[i].max(floor).sqrt();
         }
-        self.b = vecs;
+        self.b.copy_from(w.eigvecs.as_ref());
         let min = self.d.iter().fold(f64::INFINITY, |a, &v| a.min(v * v));
         self.condition = max / min;
     }
 
     /// C = A Aᵀ, symmetric by construction.
     fn rebuild_c_from_a(&mut self) {
-        dense::lower_gram(&mut self.c, &self.a);
+        triangular::matmul(
+            self.c.as_mut(),
+            BlockStructure::TriangularLower,
+            Accum::Replace,
+            self.a.as_ref(),
+            BlockStructure::TriangularLower,
+            self.a.transpose(),
+            BlockStructure::TriangularUpper,
+            1.0,
+            Par::Seq,
+        );
         mirror_lower(&mut self.c);
     }
 
@@ -576,7 +654,12 @@ impl Cmaes {
     /// [`Self::tell`]): save it (feature `serde`), later [`Self::resume`] it and go on with
     /// [`crate::resume`]; the continued run is bit for bit the uninterrupted one.
     pub fn checkpoint(&self) -> Checkpoint {
-        let flat = |m: &DMatrix<f64>| -> Vec<f64> { m.as_slice().to_vec() };
+        let flat = |m: &Mat<f64>| -> Vec<f64> {
+            (0..m.ncols())
+                .flat_map(|j| (0..m.nrows()).map(move |i| (i, j)))
+                .map(|(i, j)| m[(i, j)])
+                .collect()
+        };
         Checkpoint {
             format: CHECKPOINT_FORMAT.into(),
             version: CHECKPOINT_VERSION,
@@ -688,7 +771,7 @@ impl Cmaes {
                 g as f64,
             ));
         }
-        let unflat = |v: &[f64]| DMatrix::from_column_slice(m, m, v);
+        let unflat = |v: &[f64]| Mat::from_fn(m, m, |i, j| v[j * m + i]);
         es.sigma = cp.sigma;
         es.c = unflat(&cp.c);
         es.a = unflat(&cp.a);
@@ -722,8 +805,8 @@ impl Cmaes {
 
     /// The covariance matrix C (n × n, symmetric); empty (0 × 0) in the separable form,
     /// whose C is [`Self::covariance_diagonal`].
-    pub fn covariance(&self) -> &DMatrix<f64> {
-        &self.c
+    pub fn covariance(&self) -> faer::MatRef<'_, f64> {
+        self.c.as_ref()
     }
 
     /// The diagonal of C (in either form).

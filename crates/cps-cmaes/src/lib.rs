@@ -1,5 +1,4 @@
-//! A CMA-ES for cps: its own dense kernels (Cholesky, triangular products), vectorised
-//! with runtime dispatch; nalgebra's matrices and its symmetric eigensolver.
+//! A CMA-ES for cps, built on faer.
 //!
 //! The (μ/μ_W, λ)-CMA-ES of Hansen (2016), "The CMA Evolution Strategy: A Tutorial"
 //! (arXiv:1604.00772), with active (negative) covariance weights and the tutorial's
@@ -36,7 +35,6 @@
 mod bounds;
 mod cmaes;
 mod config;
-mod dense;
 mod driver;
 mod error;
 pub mod functions;

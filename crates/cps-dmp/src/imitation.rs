@@ -29,7 +29,8 @@
 //! ([`Combine::Mean`]) or stacked into one regression ([`Combine::Stack`]); the model's
 //! `y0` and `g` are the mean start and end.
 
-use nalgebra::{DMatrix, DMatrixView};
+use faer::linalg::solvers::Solve;
+use faer::{Mat, Side};
 
 use crate::jet::Jet;
 use crate::{DiscreteDmp, DmpConfig, DmpError, Formulation, Trajectory};
@@ -331,17 +332,17 @@ pub fn imitate(
 #[derive(Debug, Clone)]
 pub struct Imitator {
     template: DiscreteDmp,
-    gram: DMatrix<f64>,
+    gram: Mat<f64>,
     gram_eigen: std::sync::OnceLock<Vec<f64>>,
-    jerk: std::sync::OnceLock<DMatrix<f64>>,
+    jerk: std::sync::OnceLock<Mat<f64>>,
 }
 
 impl Imitator {
     /// Precomputes for the grid and basis of `dmp` (its endpoints are ignored).
     pub fn new(dmp: DiscreteDmp) -> Self {
         let (ns, nb) = (dmp.n_samples(), dmp.n_basis());
-        let phi = DMatrixView::from_slice(&dmp.grid().features, ns, nb);
-        let gram = phi.tr_mul(&phi);
+        let phi = faer::MatRef::from_column_major_slice(&dmp.grid().features, ns, nb);
+        let gram = phi.transpose() * phi;
         Self {
             template: dmp,
             gram,
@@ -351,13 +352,13 @@ impl Imitator {
     }
 
     /// `Δt · ΓᵀΓ` with `Γ[k, i]` the exact third time derivative of feature i at sample k.
-    fn jerk_penalty(&self) -> &DMatrix<f64> {
+    fn jerk_penalty(&self) -> &Mat<f64> {
         self.jerk.get_or_init(|| {
             let dmp = &self.template;
             let cfg = dmp.config();
             let (ns, nb) = (dmp.n_samples(), dmp.n_basis());
             let (c, h) = (dmp.basis().centers(), dmp.basis().widths());
-            let mut gamma = DMatrix::<f64>::zeros(ns, nb);
+            let mut gamma = Mat::<f64>::zeros(ns, nb);
             let mut psi = vec![Jet::constant(0.0); nb];
             for (k, &t) in dmp.times().iter().enumerate() {
                 let x = Jet::variable(t).scale(-cfg.alpha_x / cfg.tau).exp();
@@ -373,14 +374,16 @@ impl Imitator {
                 }
             }
             let step = cfg.step();
-            gamma.tr_mul(&gamma) * step
+            (gamma.transpose() * &gamma) * faer::Scale(step)
         })
     }
 
     /// Eigenvalues of the Gram matrix ΦᵀΦ, ascending (computed once).
     fn gram_eigenvalues(&self) -> &[f64] {
         self.gram_eigen.get_or_init(|| {
-            ascending_eigenvalues(&self.gram).unwrap_or_else(|| vec![f64::NAN; self.gram.nrows()])
+            self.gram
+                .self_adjoint_eigenvalues(Side::Lower)
+                .unwrap_or_else(|_| vec![f64::NAN; self.gram.nrows()])
         })
     }
 
@@ -388,21 +391,21 @@ impl Imitator {
     /// condition number of the first dimension's system.
     fn penalised(
         &self,
-        p: &DMatrix<f64>,
+        p: &Mat<f64>,
         m: f64,
-        rhs: &DMatrix<f64>,
+        rhs: &Mat<f64>,
         tt: &[f64],
         weights: &mut [f64],
         lambdas: &mut [f64],
     ) -> Result<f64, DmpError> {
         let nb = self.template.n_basis();
         let n = m * self.template.n_samples() as f64;
-        let gram = &self.gram * m;
+        let gram = &self.gram * faer::Scale(m);
         let mut condition = f64::NAN;
         for (d, t2) in tt.iter().enumerate() {
-            let r = DMatrix::from_column_slice(nb, 1, rhs.column(d).as_slice());
+            let r = rhs.col(d).as_mat().to_owned();
             let lam = gcv_lambda(&gram, p, &r, *t2, n)?;
-            let a = &gram + p * lam;
+            let a = &gram + p * faer::Scale(lam);
             let sol = solve_spd(&a, &r)?;
             for i in 0..nb {
                 weights[d * nb + i] = sol[(i, 0)];
@@ -547,7 +550,7 @@ impl Imitator {
         let mut weights = vec![0.0; dims * nb];
         let mut lambdas = vec![0.0; dims];
         // Φᵀ T for every dimension at once (summed over stacked targets), and Σ ‖t‖².
-        let mut rhs = DMatrix::<f64>::zeros(nb, dims);
+        let mut rhs = Mat::<f64>::zeros(nb, dims);
         let mut tt = vec![0.0; dims];
         let features = &self.template.grid().features;
         for t in &fitted {
@@ -595,7 +598,8 @@ impl Imitator {
             Regression::Ridge { lambda } => match lambda_of(lambda)? {
                 // One factorisation serves every dimension.
                 Some(lam) => {
-                    let a = &self.gram * m + DMatrix::<f64>::identity(nb, nb) * lam;
+                    let a = &self.gram * faer::Scale(m)
+                        + Mat::<f64>::identity(nb, nb) * faer::Scale(lam);
                     let sol = solve_spd(&a, &rhs)?;
                     for d in 0..dims {
                         for i in 0..nb {
@@ -607,7 +611,7 @@ impl Imitator {
                     (m * ev[nb - 1] + lam) / (m * ev[0] + lam)
                 }
                 None => self.penalised(
-                    &DMatrix::identity(nb, nb),
+                    &Mat::identity(nb, nb),
                     m,
                     &rhs,
                     &tt,
@@ -619,7 +623,7 @@ impl Imitator {
                 let p = self.jerk_penalty();
                 match lambda_of(lambda)? {
                     Some(lam) => {
-                        let a = &self.gram * m + p * lam;
+                        let a = &self.gram * faer::Scale(m) + p * faer::Scale(lam);
                         let sol = solve_spd(&a, &rhs)?;
                         for d in 0..dims {
                             for i in 0..nb {
@@ -789,41 +793,32 @@ fn report(
 
 /// Solves `a x = b` for symmetric positive (semi)definite `a`: Cholesky, or, when that
 /// fails, the eigendecomposition with eigenvalues below `1e-14 λ_max` dropped.
-fn solve_spd(a: &DMatrix<f64>, b: &DMatrix<f64>) -> Result<DMatrix<f64>, DmpError> {
-    if let Some(llt) = a.clone().cholesky() {
+fn solve_spd(a: &Mat<f64>, b: &Mat<f64>) -> Result<Mat<f64>, DmpError> {
+    if let Ok(llt) = a.llt(Side::Lower) {
         return Ok(llt.solve(b));
     }
-    let eig = nalgebra::SymmetricEigen::try_new(a.clone(), f64::EPSILON, 0).ok_or_else(|| {
+    let eig = a.self_adjoint_eigen(Side::Lower).map_err(|_| {
         DmpError::NumericalFailure("the eigendecomposition did not converge".into())
     })?;
-    let (u, s) = (&eig.eigenvectors, &eig.eigenvalues);
+    let (u, s) = (eig.U(), eig.S().column_vector());
     let smax = s.iter().fold(0.0f64, |m, &v| m.max(v));
-    let mut c = u.tr_mul(b);
-    for (i, mut row) in c.row_iter_mut().enumerate() {
+    let mut c = u.transpose() * b;
+    for i in 0..c.nrows() {
         let v = s[i];
-        row.iter_mut()
-            .for_each(|x| *x = if v > 1e-14 * smax { *x / v } else { 0.0 });
+        c[(i, 0)] = if v > 1e-14 * smax { c[(i, 0)] / v } else { 0.0 };
     }
     Ok(u * c)
 }
 
 /// `λ_max / λ_min` of a symmetric matrix (∞ if singular).
-fn condition_number(a: &DMatrix<f64>) -> f64 {
-    match ascending_eigenvalues(a) {
-        Some(v) => {
+fn condition_number(a: &Mat<f64>) -> f64 {
+    match a.self_adjoint_eigenvalues(Side::Lower) {
+        Ok(v) => {
             let (lo, hi) = (v[0], v[v.len() - 1]);
             if lo > 0.0 { hi / lo } else { f64::INFINITY }
         }
-        None => f64::NAN,
+        Err(_) => f64::NAN,
     }
-}
-
-/// The eigenvalues of a symmetric matrix, ascending; None if the iteration fails.
-fn ascending_eigenvalues(a: &DMatrix<f64>) -> Option<Vec<f64>> {
-    let eig = nalgebra::SymmetricEigen::try_new(a.clone(), f64::EPSILON, 0)?;
-    let mut v: Vec<f64> = eig.eigenvalues.iter().copied().collect();
-    v.sort_by(f64::total_cmp);
-    Some(v)
 }
 
 /// The λ minimising `GCV(λ) = n RSS(λ) / (n − tr H(λ))²` for the penalised least squares
@@ -833,31 +828,31 @@ fn ascending_eigenvalues(a: &DMatrix<f64>) -> Option<Vec<f64>> {
 /// `tr H = Σ 1/(1 + λΛ_i)` and `RSS = RSS(0) + Σ b_i² (λΛ_i / (1 + λΛ_i))²`, so every λ
 /// costs O(N). A log grid over twenty decades, then golden-section refinement.
 fn gcv_lambda(
-    c: &DMatrix<f64>,
-    p: &DMatrix<f64>,
-    rhs: &DMatrix<f64>,
+    c: &Mat<f64>,
+    p: &Mat<f64>,
+    rhs: &Mat<f64>,
     tt: f64,
     n: f64,
 ) -> Result<f64, DmpError> {
     let nb = c.nrows();
     let trace = (0..nb).map(|i| c[(i, i)]).sum::<f64>();
-    let jitter = DMatrix::<f64>::identity(nb, nb) * (1e-13 * trace / nb as f64);
-    let llt = (c + &jitter).cholesky().ok_or_else(|| {
+    let jitter = Mat::<f64>::identity(nb, nb) * faer::Scale(1e-13 * trace / nb as f64);
+    let llt = (c + &jitter).llt(Side::Lower).map_err(|_| {
         DmpError::NumericalFailure("the Gram matrix ΦᵀΦ is not positive definite".into())
     })?;
-    let l = llt.l();
+    let l = llt.L();
     // M = L⁻¹ P L⁻ᵀ by two triangular solves.
     let mut x = p.clone();
-    l.solve_lower_triangular_mut(&mut x);
-    let mut m = x.transpose();
-    l.solve_lower_triangular_mut(&mut m);
-    let eig = nalgebra::SymmetricEigen::try_new(m, f64::EPSILON, 0).ok_or_else(|| {
+    faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, x.as_mut(), faer::Par::Seq);
+    let mut m = x.transpose().to_owned();
+    faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, m.as_mut(), faer::Par::Seq);
+    let eig = m.self_adjoint_eigen(Side::Lower).map_err(|_| {
         DmpError::NumericalFailure("the eigendecomposition did not converge".into())
     })?;
     let mut z = rhs.clone();
-    l.solve_lower_triangular_mut(&mut z);
-    let b = eig.eigenvectors.tr_mul(&z);
-    let lam: Vec<f64> = eig.eigenvalues.iter().map(|v| v.max(0.0)).collect();
+    faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, z.as_mut(), faer::Par::Seq);
+    let b = eig.U().transpose() * z;
+    let lam: Vec<f64> = eig.S().column_vector().iter().map(|v| v.max(0.0)).collect();
     let b2: Vec<f64> = (0..nb).map(|i| b[(i, 0)] * b[(i, 0)]).collect();
     let rss0 = (tt - b2.iter().sum::<f64>()).max(0.0);
     let score = |log_l: f64| {

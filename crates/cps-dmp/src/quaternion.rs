@@ -261,8 +261,8 @@ impl QuaternionDmp {
         };
         let goal = orientations[n - 1];
         let nb = cfg.n_basis;
-        let mut gram = nalgebra::DMatrix::<f64>::zeros(nb, nb);
-        let mut rhs = nalgebra::DMatrix::<f64>::zeros(nb, 3);
+        let mut gram = faer::Mat::<f64>::zeros(nb, nb);
+        let mut rhs = faer::Mat::<f64>::zeros(nb, 3);
         for k in 0..ns {
             let f = tau * tau * domega(k)
                 - az * (bz * (goal * q[k].inverse()).scaled_axis() - tau * omega[k])
@@ -280,10 +280,13 @@ impl QuaternionDmp {
         for i in 0..nb {
             gram[(i, i)] += lambda;
         }
-        let Some(sol) = gram.cholesky().map(|l| l.solve(&rhs)) else {
-            return Err(DmpError::NumericalFailure(
-                "the orientation regression is singular; use λ > 0".into(),
-            ));
+        let sol = match gram.llt(faer::Side::Lower) {
+            Ok(l) => faer::linalg::solvers::Solve::solve(&l, &rhs),
+            Err(_) => {
+                return Err(DmpError::NumericalFailure(
+                    "the orientation regression is singular; use λ > 0".into(),
+                ));
+            }
         };
         let weights = (0..3)
             .flat_map(|a| (0..nb).map(move |i| (a, i)))

@@ -191,7 +191,7 @@ impl RhythmicDmp {
             let sum = basis(k as f64 * h / tau, n_basis, width, row);
             row.iter_mut().for_each(|v| *v /= sum);
         }
-        let mut gram = nalgebra::DMatrix::<f64>::zeros(n_basis, n_basis);
+        let mut gram = faer::Mat::<f64>::zeros(n_basis, n_basis);
         for k in 0..m {
             let row = &phi[k * n_basis..(k + 1) * n_basis];
             for i in 0..n_basis {
@@ -207,7 +207,7 @@ impl RhythmicDmp {
         let mut weights = Vec::with_capacity(dims * n_basis);
         let mut anchor = Vec::with_capacity(dims);
         let mut start_velocity = Vec::with_capacity(dims);
-        let mut rhs = nalgebra::DMatrix::<f64>::zeros(n_basis, dims);
+        let mut rhs = faer::Mat::<f64>::zeros(n_basis, dims);
         for (d, yd) in y.iter().enumerate() {
             let g = yd.iter().sum::<f64>() / m as f64;
             anchor.push(g);
@@ -231,10 +231,14 @@ impl RhythmicDmp {
                 }
             }
         }
-        let Some(sol) = gram.cholesky().map(|l| l.solve(&rhs)) else {
-            return Err(DmpError::NumericalFailure(
-                "the rhythmic regression is singular; use λ > 0 or fewer basis functions".into(),
-            ));
+        let sol = match gram.llt(faer::Side::Lower) {
+            Ok(l) => faer::linalg::solvers::Solve::solve(&l, &rhs),
+            Err(_) => {
+                return Err(DmpError::NumericalFailure(
+                    "the rhythmic regression is singular; use λ > 0 or fewer basis functions"
+                        .into(),
+                ));
+            }
         };
         for d in 0..dims {
             weights.extend((0..n_basis).map(|i| sol[(i, d)]));

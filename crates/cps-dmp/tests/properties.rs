@@ -319,8 +319,8 @@ mod imitation {
         let n = 6 * s;
         let mut coef = vec![[0.0; 3]; n];
         for d in 0..3 {
-            let mut a = nalgebra::DMatrix::<f64>::zeros(n, n);
-            let mut b = nalgebra::DMatrix::<f64>::zeros(n, 1);
+            let mut a = faer::Mat::<f64>::zeros(n, n);
+            let mut b = faer::Mat::<f64>::zeros(n, 1);
             let mut row = 0;
             // r-th derivative of u^j at u.
             let dpow = |j: usize, r: usize, u: f64| -> f64 {
@@ -359,10 +359,7 @@ mod imitation {
                 }
             }
             assert_eq!(row, n);
-            let x = a
-                .lu()
-                .solve(&b)
-                .expect("the spline's conditions determine it");
+            let x = a.partial_piv_lu().solve(&b);
             for i in 0..n {
                 coef[i][d] = x[(i, 0)];
             }
@@ -378,6 +375,8 @@ mod imitation {
             })
         }
     }
+
+    use faer::linalg::solvers::Solve;
 
     /// The thesis's Table 3 points as a smooth minimum-jerk demonstration: 10 s, 1000 samples.
     fn table3_demo() -> Demonstration {

@@ -4,7 +4,7 @@
 //! rollout (the via-point cost without obstacles; the effort cost, whose plant is
 //! linear), the cost is `‖r₀ + J θ‖²`: a linear least-squares problem. Its columns are
 //! found by rolling out unit parameter vectors (no separate derivation that could drift
-//! from the rollout), and it is solved with a Householder QR (nalgebra), which works on J
+//! from the rollout), and it is solved with a Householder QR (faer), which works on J
 //! directly instead of squaring its condition number in normal equations.
 //!
 //! The same `J` gives [`QuadraticCost`]: the cost as `c* + (θ − θ*)ᵀ H (θ − θ*)`,
@@ -12,7 +12,8 @@
 //! rollout's time, to the same value.
 
 use cps_dmp::{DiscreteDmp, Trajectory};
-use nalgebra::{DMatrix, DVector};
+use faer::Mat;
+use faer::prelude::SolveLstsq;
 use serde::{Deserialize, Serialize};
 
 use crate::task::Term;
@@ -41,7 +42,7 @@ pub(crate) struct AffineResiduals {
     /// The residuals at θ = 0.
     pub(crate) r0: Vec<f64>,
     /// Their Jacobian, one column per parameter.
-    pub(crate) jac: DMatrix<f64>,
+    pub(crate) jac: Mat<f64>,
     /// The DMP's dimensions and basis functions per dimension (for the block solve).
     dims: usize,
     n_basis: usize,
@@ -65,7 +66,7 @@ impl AffineResiduals {
                 "{m} residuals cannot determine {n} parameters: add cost terms (acceleration or jerk) or via points"
             )));
         }
-        let mut jac = DMatrix::<f64>::zeros(m, n);
+        let mut jac = Mat::<f64>::zeros(m, n);
         let nw = dmp.n_weights();
         const BATCH: usize = 8;
         let mut trajs: Vec<_> = (0..BATCH.min(n)).map(|_| dmp.new_trajectory()).collect();
@@ -83,7 +84,7 @@ impl AffineResiduals {
             for (c, traj) in trajs[..cols].iter().enumerate() {
                 residuals(traj, &mut r);
                 debug_assert_eq!(r.len(), m, "the residual count changed with θ");
-                let mut col = jac.column_mut(j0 + c);
+                let mut col = jac.col_mut(j0 + c);
                 for (i, (&ri, &r0i)) in r.iter().zip(&r0).enumerate() {
                     col[i] = ri - r0i;
                 }
@@ -107,37 +108,25 @@ impl AffineResiduals {
         let mut params = vec![0.0; jac.ncols()];
         let (mut smax, mut smin) = (0.0f64, f64::INFINITY);
         for (cols, rows) in &blocks {
-            if rows.len() < cols.len() {
-                // Fewer residuals than parameters in a block: some weights are free.
-                smin = 0.0;
-                continue;
-            }
-            let sub = DMatrix::from_fn(rows.len(), cols.len(), |i, j| jac[(rows[i], cols[j])]);
-            let mut rhs = DVector::from_fn(rows.len(), |i, _| -self.r0[rows[i]]);
+            let sub = Mat::from_fn(rows.len(), cols.len(), |i, j| jac[(rows[i], cols[j])]);
+            let rhs = Mat::from_fn(rows.len(), 1, |i, _| -self.r0[rows[i]]);
             let qr = sub.qr();
             // cond(J) = cond(R): singular values of the small square factor R.
-            let r = qr.r();
-            let sv = r
-                .clone()
-                .try_svd(false, false, f64::EPSILON, 0)
-                .ok_or_else(|| {
+            let sv = qr
+                .thin_R()
+                .singular_values()
+                .map_err(|_| {
                     LearnError::Exact(
                         "the singular value decomposition of the cost's Jacobian did not converge (are the settings extreme?)".into(),
                     )
-                })?
-                .singular_values;
-            for &v in sv.iter() {
+                })?;
+            for &v in &sv {
                 smax = smax.max(v);
                 smin = smin.min(v);
             }
-            // θ = R⁻¹ (Qᵀ b)₁..ₙ.
-            qr.q_tr_mul(&mut rhs);
-            let Some(sol) = r.solve_upper_triangular(&rhs.rows(0, cols.len())) else {
-                smin = 0.0;
-                continue;
-            };
+            let sol = qr.solve_lstsq(&rhs);
             for (j, &c) in cols.iter().enumerate() {
-                params[c] = sol[j];
+                params[c] = sol[(j, 0)];
             }
         }
         if smin.is_nan() || smin <= smax * 1e-14 {
@@ -152,12 +141,12 @@ impl AffineResiduals {
 
 /// Column blocks (one per DMP dimension) with the rows that touch them, when no row
 /// touches two blocks; otherwise a single block with everything.
-fn decoupled_blocks(jac: &DMatrix<f64>, dims: usize, nb: usize) -> Vec<(Vec<usize>, Vec<usize>)> {
+fn decoupled_blocks(jac: &Mat<f64>, dims: usize, nb: usize) -> Vec<(Vec<usize>, Vec<usize>)> {
     let (m, n) = (jac.nrows(), jac.ncols());
     let mut owner = vec![usize::MAX; m];
     for d in 0..dims {
         for j in d * nb..(d + 1) * nb {
-            for (i, &v) in jac.column(j).iter().enumerate() {
+            for (i, &v) in jac.col(j).iter().enumerate() {
                 if v != 0.0 {
                     if owner[i] != usize::MAX && owner[i] != d {
                         return vec![((0..n).collect(), (0..m).collect())];
@@ -240,7 +229,7 @@ impl QuadraticCost {
         let (centre, _) = affine.solve()?;
         let jac = &affine.jac;
         let n = jac.ncols();
-        let h = jac.tr_mul(jac);
+        let h = jac.transpose() * jac;
         let mut minimum = 0.0;
         for (i, &r0) in affine.r0.iter().enumerate() {
             let r = r0 + (0..n).map(|j| jac[(i, j)] * centre[j]).sum::<f64>();

@@ -23,7 +23,8 @@
 use std::ops::ControlFlow;
 
 use cps_cmaes::GenerationReport;
-use nalgebra::{DMatrix, DVector};
+use faer::linalg::solvers::Solve;
+use faer::{Mat, Side};
 use rayon::prelude::*;
 
 use cps_dmp::{DiscreteDmp, Trajectory};
@@ -363,13 +364,14 @@ fn normal_equations(jac: &[f64], r: &[f64], m: usize, n: usize) -> (Vec<f64>, Ve
 /// positive definite (λ too small for a singular `H`).
 fn damped_step(h: &[f64], g: &[f64], lambda: f64) -> Option<Vec<f64>> {
     let n = g.len();
-    let a = DMatrix::from_fn(n, n, |i, j| {
+    let a = Mat::from_fn(n, n, |i, j| {
         let v = h[i * n + j];
         if i == j { v + lambda * v.max(1e-12) } else { v }
     });
-    let llt = a.cholesky()?;
-    let x = llt.solve(&DVector::from_fn(n, |i, _| -g[i]));
-    let delta: Vec<f64> = x.iter().copied().collect();
+    let llt = a.llt(Side::Lower).ok()?;
+    let rhs = Mat::from_fn(n, 1, |i, _| -g[i]);
+    let x = llt.solve(&rhs);
+    let delta: Vec<f64> = (0..n).map(|i| x[(i, 0)]).collect();
     delta.iter().all(|d| d.is_finite()).then_some(delta)
 }
 
