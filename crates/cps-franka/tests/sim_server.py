@@ -60,6 +60,42 @@ from franky_sim.mujoco_simulator import MujocoSimulator  # noqa: E402
 
 TCP_OFFSET = 0.1034  # along the hand's z axis, from the flange
 
+
+def compiled_once(compile_xml):
+    """MuJoCo's compiler, each model compiled once per venv: the FR3's meshes (their convex
+    hulls) take 0.7 s of CPU to compile, half of a simulator's start, and the tests start
+    about a hundred. The compiled model is kept as MuJoCo's own binary (MJB, the same
+    mjModel bit for bit) under the venv, named by a hash of the XML, MuJoCo's and
+    franky-sim's versions; written whole, then renamed, so simulators starting at once
+    never read half a file."""
+    import hashlib
+    from importlib.metadata import version
+
+    folder = os.path.join(sys.prefix, "cps-mjb-cache")
+
+    def compile_or_load(xml, *rest, **named):
+        if rest or named:  # assets given: not a case sim_server.py makes
+            return compile_xml(xml, *rest, **named)
+        key = hashlib.sha256(
+            f"{mujoco.__version__}\0{version('franky-sim')}\0{xml}".encode()).hexdigest()
+        path = os.path.join(folder, f"{key}.mjb")
+        if os.path.exists(path):
+            return mujoco.MjModel.from_binary_path(path)
+        model = compile_xml(xml)
+        try:
+            os.makedirs(folder, exist_ok=True)
+            part = f"{path}.{os.getpid()}.part"
+            mujoco.mj_saveModel(model, part, None)
+            os.replace(part, path)
+        except OSError:
+            pass  # a read-only venv: compile each time
+        return model
+
+    return compile_or_load
+
+
+mujoco.MjModel.from_xml_string = staticmethod(compiled_once(mujoco.MjModel.from_xml_string))
+
 # What the standard input asks of the hand; read by the simulation thread each step.
 action = {"kind": None}
 lock = threading.Lock()
