@@ -141,7 +141,7 @@ LAYERS = {
         ["write"],
     ],
     "cps-movement": [
-        ["calibration", "chunks", "dae"],
+        ["calibration", "chunks", "dae", "left_out"],
         ["collision"],
         ["robot_file"],
         ["lerobot"],

@@ -945,12 +945,13 @@ fn a_robot_experiment_retimes_and_exports_its_movement() {
 
 /// A pose experiment with a robot executes the learned pose (IK every control period) and
 /// reports the joint movement's limit usage, as the other robot kinds do; with the hand,
-/// the guard stops it where the hand would hit link 5.
+/// the guard stops it where the wrist folds into link 5.
 #[test]
 fn a_pose_experiment_with_a_robot_executes_and_checks_its_movement() {
     let dir = tempfile::tempdir().unwrap();
-    // Learned blind to the arm's shapes, this pose folds the hand into link 5: the guard
-    // refuses the command before the two meet, and the run fails naming them.
+    // Learned blind to the arm's shapes, this pose folds the wrist into link 5 (link7,
+    // which franka_description's SRDF leaves out and cps checks, then the hand): the guard
+    // refuses the command before they meet, and the run fails naming them.
     let hand = POSE.replace("generations = 100 ", "generations = 30  ")
         + "\n[robot]\nscene = \"thesis\"\n";
     let file = write(dir.path(), "hand.toml", &hand);
@@ -960,16 +961,26 @@ fn a_pose_experiment_with_a_robot_executes_and_checks_its_movement() {
     let s = json(&out.join("summary.json"));
     let failure = s["failure"].as_str().unwrap();
     assert!(
-        failure.contains("`panda_link5` and `panda_hand` at t = ")
+        (failure.contains("`panda_link5` and `panda_hand` at t = ")
+            || failure.contains("`panda_link5` and `panda_link7` at t = "))
             && (failure.contains("within the clearance margin of 5.0 mm")
                 || failure.contains("deep in each other")),
         "{failure}"
     );
     assert_eq!(s["complete"], false);
-    // The thesis's scene with the bare flange (no hand to hit link 5) executes it all.
+    // The thesis's scene with the bare flange, the arm starting at Franka's home pose,
+    // executes it all. (From the thesis's stretched start the inverse kinematics folds the
+    // wrist, link7 into link5, and the guard refuses that too.)
     let thesis = std::fs::read_to_string(repo("configs/scenes/thesis.toml")).unwrap();
-    let flange = thesis.replace("tool = \"hand\" ", "tool = \"flange\" ");
-    assert_ne!(flange, thesis);
+    let stretched = "initial_q = [0.0, 0.0, 0.0, 0.0, 0.0, 1.5707963267948966, 0.7853981633974483]";
+    let flange = thesis
+        .replace("tool = \"hand\" ", "tool = \"flange\" ")
+        .replace(
+            stretched,
+            "initial_q = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]",
+        );
+    assert!(thesis.contains(stretched) && !flange.contains(stretched));
+    assert!(!flange.contains("tool = \"hand\" "));
     std::fs::write(dir.path().join("flange.toml"), flange).unwrap();
     let body = POSE.replace("generations = 100 ", "generations = 30  ")
         + "\n[robot]\nscene = \"flange.toml\"\n\n[export]\nformats = [\"csv-1khz\"]\n";
@@ -981,7 +992,6 @@ fn a_pose_experiment_with_a_robot_executes_and_checks_its_movement() {
     assert!(s["backend"].as_str().unwrap().starts_with("kinematic"));
     let e = &s["execution"];
     assert!(e["samples"].as_u64().unwrap() >= 1001, "{e}");
-    // The thesis's start pose is reached exactly (the tool starts there).
     assert!(s["limit_usage"]["peak_usage"]["velocity"].is_array());
     assert_eq!(s["export"][0]["file"], "trajectory_1khz.csv");
     assert!(out.join("trajectory_1khz.csv").is_file());

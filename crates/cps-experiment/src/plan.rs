@@ -537,8 +537,13 @@ impl Experiment {
                 k.iterations
             ),
         };
+        let itself = if c.self_distance == c.distance {
+            String::new()
+        } else {
+            format!(" ({:.1} mm between two of its own)", c.self_distance * 1e3)
+        };
         Some(format!(
-            "clearance: {:.1} mm between every pair of the robot's {} collision shapes and its world's {} obstacle(s), weight {:e} per m², {how}",
+            "clearance: {:.1} mm between every pair of the robot's {} collision shapes and its world's {} obstacle(s){itself}, weight {:e} per m², {how}",
             c.distance * 1e3,
             c.shapes.bodies().len(),
             c.shapes.obstacles().len(),

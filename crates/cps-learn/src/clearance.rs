@@ -20,8 +20,12 @@ use nalgebra::{Isometry3, Vector3};
 pub struct Clearance {
     /// The robot's shapes among the obstacles (the guard's).
     pub shapes: Arc<cps_robot::Shapes>,
-    /// The distance every pair keeps (m).
+    /// The distance every pair of the robot's shapes and its world's keeps (m).
     pub distance: f64,
+    /// The distance every pair of the robot's own shapes keeps (m): `[clearance]
+    /// self_distance`, the same as `distance` unless a file says otherwise (an arm that
+    /// folds close to itself along its path keeps the shelf far and itself near).
+    pub self_distance: f64,
     /// The weight of the squared shortfall (per m²).
     pub weight: f64,
     /// Every how many samples the movement is judged (the last always is): at 10 ms
@@ -36,6 +40,35 @@ pub struct Clearance {
 pub const CLEARANCE_STRIDE: usize = 4;
 
 impl Clearance {
+    /// The farther of the two distances: no pair farther apart falls short.
+    pub fn watch(&self) -> f64 {
+        self.distance.max(self.self_distance)
+    }
+
+    /// The squared shortfall of `contact` (a pair of the shapes' model): of the robot's
+    /// own shapes from [`Clearance::self_distance`], of one and an obstacle from
+    /// [`Clearance::distance`]; zero when it keeps it.
+    pub fn shortfall_squared(&self, contact: &cps_geometry::Contact) -> f64 {
+        let keep = match self.shapes.model().pair(contact.pair).1 {
+            cps_geometry::Other::Body(_) => self.self_distance,
+            cps_geometry::Other::Obstacle(_) => self.distance,
+        };
+        (keep - contact.separation.distance).max(0.0).powi(2)
+    }
+
+    /// Whether the robot at `q` keeps the clearance from itself and its world.
+    pub fn kept_at(
+        &self,
+        chain: &SerialChain,
+        q: &[f64],
+        b: &mut ClearanceBuffers,
+    ) -> Result<bool, KinematicsError> {
+        chain.frames_into(q, &mut b.frames)?;
+        let model = self.shapes.model();
+        model.within_into(&b.frames, self.watch(), &mut b.centres, &mut b.near);
+        Ok(b.near.iter().all(|c| self.shortfall_squared(c) == 0.0))
+    }
+
     /// The samples judged of `samples`: every `stride`-th, and the last.
     fn checked(samples: usize, stride: usize) -> impl Iterator<Item = usize> {
         let stride = stride.max(1);
@@ -124,7 +157,7 @@ impl Clearance {
             model as *const _ as usize,
             samples,
             self.stride,
-            self.distance.to_bits(),
+            self.distance.to_bits() ^ self.self_distance.to_bits().rotate_left(1),
         );
         let sw = self.weight.sqrt();
         let start = out.len();
@@ -132,10 +165,7 @@ impl Clearance {
         let nf = chain.dof() + 1;
         let pairs = model.pair_count();
         let shortfall = |near: &[cps_geometry::Contact]| -> f64 {
-            let s: f64 = near
-                .iter()
-                .map(|c| (self.distance - c.separation.distance).max(0.0).powi(2))
-                .sum();
+            let s: f64 = near.iter().map(|c| self.shortfall_squared(c)).sum();
             sw * s.sqrt()
         };
         let from_reference = REFERENCE.with(|r| -> Result<bool, KinematicsError> {
@@ -169,7 +199,7 @@ impl Clearance {
                     return Ok(false);
                 }
                 let lower = &r.lower[i * pairs..(i + 1) * pairs];
-                model.within_from(lower, &b.moved, &b.frames, self.distance, &mut b.near);
+                model.within_from(lower, &b.moved, &b.frames, self.watch(), &mut b.near);
                 out.push(shortfall(&b.near));
             }
             Ok(true)
@@ -178,7 +208,7 @@ impl Clearance {
             return Ok(());
         }
         // Walked afresh, and remembered.
-        let mut walk = cps_geometry::PathCheck::new(self.shapes.model().clone(), self.distance);
+        let mut walk = cps_geometry::PathCheck::new(self.shapes.model().clone(), self.watch());
         let n = checked.len();
         let mut frames = Vec::with_capacity(n * nf);
         let mut lower = Vec::with_capacity(n * pairs);
@@ -197,7 +227,7 @@ impl Clearance {
             q.extend_from_slice(&b.q);
             reach.push(model.reach(&b.frames));
             let closest = walk.lower().iter().fold(f64::INFINITY, |a, &l| a.min(l));
-            slack.push(closest - LOWER_SLACK - self.distance);
+            slack.push(closest - LOWER_SLACK - self.watch());
             // The pairs that count, computed afresh (the walk's are warm-started).
             b.near.clear();
             b.near
@@ -261,6 +291,30 @@ pub fn closest<'a>(
     positions: impl Fn(usize) -> &'a [f64],
     look: f64,
 ) -> Result<Option<Closest>, KinematicsError> {
+    closest_of(shapes, chain, times, positions, look, |_| true)
+}
+
+/// As [`closest`], among the pairs of a robot's shape and an obstacle only.
+pub fn closest_to_world<'a>(
+    shapes: &cps_robot::Shapes,
+    chain: &SerialChain,
+    times: &[f64],
+    positions: impl Fn(usize) -> &'a [f64],
+    look: f64,
+) -> Result<Option<Closest>, KinematicsError> {
+    closest_of(shapes, chain, times, positions, look, |o| {
+        matches!(o, cps_geometry::Other::Obstacle(_))
+    })
+}
+
+fn closest_of<'a>(
+    shapes: &cps_robot::Shapes,
+    chain: &SerialChain,
+    times: &[f64],
+    positions: impl Fn(usize) -> &'a [f64],
+    look: f64,
+    counts: impl Fn(cps_geometry::Other) -> bool,
+) -> Result<Option<Closest>, KinematicsError> {
     let model = shapes.model();
     let mut b = ClearanceBuffers::default();
     let mut best: Option<(usize, cps_geometry::Contact)> = None;
@@ -269,7 +323,7 @@ pub fn closest<'a>(
         b.q.extend((0..chain.dof()).map(|j| positions(j)[k]));
         chain.frames_into(&b.q, &mut b.frames)?;
         model.within_into(&b.frames, look, &mut b.centres, &mut b.near);
-        for c in &b.near {
+        for c in b.near.iter().filter(|c| counts(model.pair(c.pair).1)) {
             if best.is_none_or(|(_, x)| c.separation.distance < x.separation.distance) {
                 best = Some((k, *c));
             }

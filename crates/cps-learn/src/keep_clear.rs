@@ -186,7 +186,7 @@ impl Problem<'_> {
     /// plan ([`cps_geometry::PathCheck`]), from a fresh walk: the same θ, the same bits.
     fn clearance_residuals(&self, path: &cps_robot::CommandPath) -> Option<Vec<f64>> {
         let c = self.keep.clearance;
-        let mut walk = cps_geometry::PathCheck::new(c.shapes.model().clone(), c.distance);
+        let mut walk = cps_geometry::PathCheck::new(c.shapes.model().clone(), c.watch());
         let mut frames = Vec::with_capacity(self.keep.robot.chain.dof() + 1);
         let mut out = Vec::with_capacity(path.last_step.len());
         let mut step = 0;
@@ -202,7 +202,7 @@ impl Problem<'_> {
                 sum += walk
                     .near()
                     .iter()
-                    .map(|n| (c.distance - n.separation.distance).powi(2))
+                    .map(|n| c.shortfall_squared(n))
                     .sum::<f64>();
                 step += 1;
             }

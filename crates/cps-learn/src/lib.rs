@@ -47,7 +47,9 @@ mod space;
 mod task;
 mod viapoint;
 
-pub use clearance::{CLEARANCE_STRIDE, Clearance, ClearanceBuffers, Closest, closest};
+pub use clearance::{
+    CLEARANCE_STRIDE, Clearance, ClearanceBuffers, Closest, closest, closest_to_world,
+};
 pub use energy::{
     EffortConfig, EffortCostBreakdown, EffortOutcome, PlantTrajectory, PointMassPlant, effort_cost,
     learn_with_effort,

@@ -77,7 +77,7 @@ pub fn check_way_points(
 pub const CLEAR_TRIES: usize = 64;
 
 /// Way configurations ([`check_way_points`]'s) that keep `clearance`: one whose shapes
-/// come closer than `clearance.distance` (the arm into itself or its scene) is replaced by
+/// does not keep `clearance` (the arm into itself or its scene, [`crate::Clearance::kept_at`]) is replaced by
 /// the inverse-kinematics solution for the same point, from seeded random starts, that
 /// keeps it and lies closest to the configuration before it (so the way stays on one
 /// branch); where none of [`CLEAR_TRIES`] does, the first solution stays (learning's
@@ -89,16 +89,9 @@ pub fn clear_way_points(
     configs: Vec<Vec<f64>>,
 ) -> Result<Vec<Vec<f64>>, LearnError> {
     use rand::SeedableRng;
-    let shapes = &clearance.shapes;
-    let keeps = |q: &[f64]| -> Result<bool, LearnError> {
-        Ok(crate::clearance::closest(
-            shapes,
-            &robot.chain,
-            &[0.0],
-            |j| &q[j..=j],
-            clearance.distance,
-        )?
-        .is_none())
+    let mut buffers = crate::clearance::ClearanceBuffers::default();
+    let mut keeps = |q: &[f64]| -> Result<bool, LearnError> {
+        Ok(clearance.kept_at(&robot.chain, q, &mut buffers)?)
     };
     let mut points: Vec<&[f64]> = vec![&task.start];
     points.extend(task.via.iter().map(|v| v.position.as_slice()));

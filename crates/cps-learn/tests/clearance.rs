@@ -44,6 +44,7 @@ fn clearance(stride: usize) -> (Clearance, cps_kinematics::SerialChain) {
         Clearance {
             shapes: Arc::new(shapes),
             distance: CLEAR,
+            self_distance: CLEAR,
             weight: WEIGHT,
             stride,
         },
@@ -209,6 +210,7 @@ fn a_way_configuration_inside_an_obstacle_is_replaced_by_a_clear_one() {
     let clearance = Clearance {
         shapes: Arc::new(shapes),
         distance: 0.02,
+        self_distance: 0.02,
         weight: 1.0,
         stride: 1,
     };

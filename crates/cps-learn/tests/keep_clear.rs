@@ -97,6 +97,7 @@ impl World {
         Clearance {
             shapes: Arc::new(shapes),
             distance: CLEAR,
+            self_distance: CLEAR,
             weight: 1e6,
             stride: cps_learn::CLEARANCE_STRIDE,
         }

@@ -27,21 +27,22 @@ pub struct RobotGeometry {
     pub bodies: Vec<Body>,
     /// Links a joint joins (they touch at the joint).
     pub adjacent: Vec<(String, String)>,
-    /// Further pairs the robot's description leaves out (an SRDF's disabled collisions:
-    /// links that can never meet).
-    pub disabled: Vec<(String, String)>,
+    /// Further pairs the robot's description leaves out (an SRDF's disabled collisions),
+    /// each with the closest approach a search of the joint ranges found
+    /// ([`crate::left_out`]): left out only while farther apart than the margin.
+    pub disabled: Vec<cps_robot::LeftOut>,
     /// What the user should know: links with shapes the chain cannot place, meshes with
     /// holes (their hulls close them).
     pub notes: Vec<String>,
 }
 
 impl RobotGeometry {
-    /// The shapes the guard checks: these bodies, the adjacent and disabled pairs never
-    /// checked, at [`cps_robot::DEFAULT_MARGIN`].
+    /// The shapes the guard checks: these bodies at [`cps_robot::DEFAULT_MARGIN`], the
+    /// adjacent pairs never checked, the disabled ones while they keep the margin.
     pub fn shapes(self) -> cps_robot::Shapes {
-        let mut touching = self.adjacent;
-        touching.extend(self.disabled);
-        cps_robot::Shapes::new(self.bodies, touching)
+        let mut left_out = cps_robot::LeftOut::each(self.adjacent, cps_robot::Why::Joined);
+        left_out.extend(self.disabled);
+        cps_robot::Shapes::leaving_out(self.bodies, left_out)
     }
 }
 
@@ -97,8 +98,9 @@ pub fn find_mesh(filename: &str, urdf: &Path) -> Result<PathBuf, String> {
 }
 
 /// The bodies of the chain read from the URDF at `urdf` (its meshes read from beside it),
-/// and the pairs `ROBOT.srdf` beside `ROBOT.urdf` disables, when there is one. Errors name
-/// the file, the line of the element and the mesh.
+/// and the pairs `ROBOT.srdf` beside `ROBOT.urdf` disables, when there is one, verified
+/// over the joint ranges ([`crate::left_out`]: searched once, cached beside the URDF as
+/// `ROBOT.pairs.json`). Errors name the file, the line of the element and the mesh.
 pub fn urdf_geometry(chain: &UrdfChain, urdf: &Path) -> Result<RobotGeometry, InputError> {
     let mut meshes: HashMap<(PathBuf, [u64; 3]), Arc<cps_geometry::Hull>> = HashMap::new();
     let mut bodies = Vec::with_capacity(chain.collisions.len());
@@ -161,8 +163,32 @@ pub fn urdf_geometry(chain: &UrdfChain, urdf: &Path) -> Result<RobotGeometry, In
             cps_outcome::source::MAX_FILE_BYTES,
             "SRDF file",
         )?;
-        cps_kinematics::disabled_collisions(&text)
-            .map_err(|m| InputError(format!("{}: {m}", srdf.display())))?
+        let declared = cps_kinematics::disabled_collisions(&text)
+            .map_err(|m| InputError(format!("{}: {m}", srdf.display())))?;
+        // Those a joint joins need no search.
+        let joined = |a: &String, b: &String| {
+            chain
+                .adjacent
+                .iter()
+                .any(|(x, y)| (x == a && y == b) || (x == b && y == a))
+        };
+        let declared = declared
+            .into_iter()
+            .filter(|(a, b)| !joined(a, b))
+            .collect();
+        let urdf_text = cps_outcome::source::read_text(
+            urdf,
+            cps_outcome::source::MAX_FILE_BYTES,
+            "robot file",
+        )?;
+        crate::left_out::verified(
+            &chain.chain,
+            &bodies,
+            declared,
+            (urdf, &urdf_text),
+            &text,
+            &mut notes,
+        )
     } else {
         Vec::new()
     };
@@ -206,29 +232,6 @@ const PANDA_MESHES: [&[u8]; 8] = [
     include_bytes!("../../../configs/robots/franka/fer/link7.stl"),
 ];
 const HAND_MESH: &[u8] = include_bytes!("../../../configs/robots/franka/hand.stl");
-
-/// The arm's link pairs franka_description's SRDF disables beyond the adjacent ones
-/// (`reason="Never"`: its author's sampling never saw them meet). Two of them meet on the
-/// hulls cps checks — link2 and link6 47.4 mm deep, link5 and link7 9.7 mm on the FR3, at
-/// witnesses `cps_robot::closest_approaches` finds and MuJoCo measures alike
-/// (`tests/collision_mujoco.rs`) — and are still left out here: checking them makes
-/// `[clearance]` bend the shelf experiment's movement past a torque-rate limit, to be
-/// settled with issue 65's planner.
-pub const FRANKA_SRDF_NEVER: [(usize, usize); 13] = [
-    (0, 2),
-    (0, 3),
-    (0, 4),
-    (1, 3),
-    (1, 4),
-    (2, 4),
-    (2, 6),
-    (3, 5),
-    (3, 6),
-    (3, 7),
-    (4, 6),
-    (4, 7),
-    (5, 7),
-];
 
 /// How far each finger of the hand is open in the built-in model (m): fully, the most room
 /// the hand can take.
@@ -312,22 +315,8 @@ pub fn franka_geometry(arm: FrankaArm, hand: bool) -> RobotGeometry {
             adjacent.push((name("hand"), name(finger)));
         }
     }
-    // franka_description's SRDF (franka_arm.srdf.xacro, franka_hand.srdf.xacro): the
-    // pairs beyond the adjacent ones it says the arm's own joint ranges keep apart.
-    let mut disabled: Vec<(String, String)> = FRANKA_SRDF_NEVER
-        .iter()
-        .map(|&(a, b)| (name(&format!("link{a}")), name(&format!("link{b}"))))
-        .collect();
-    if hand {
-        for part in ["hand", "leftfinger", "rightfinger"] {
-            for link in [3, 4, 6, 7] {
-                if !(part == "hand" && link == 7) {
-                    disabled.push((name(part), name(&format!("link{link}"))));
-                }
-            }
-        }
-        disabled.push((name("leftfinger"), name("rightfinger")));
-    }
+    // franka_description's SRDF's pairs, with what the search found of each.
+    let disabled = crate::left_out::franka_left_out(prefix, arm == FrankaArm::Fr3, hand);
     RobotGeometry {
         bodies,
         adjacent,

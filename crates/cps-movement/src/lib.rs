@@ -8,8 +8,9 @@
 //! - [`movement`]: demonstration CSVs, imitation into DMP models, a model's rollout;
 //! - [`limits`]: a joint trajectory file at a control rate against a robot's limits;
 //! - [`collision`]: a robot's collision shapes (a URDF's `<collision>` elements, the
-//!   built-in Franka meshes); [`collide`]: a joint trajectory file against them and a
-//!   scene's obstacles;
+//!   built-in Franka meshes), with [`left_out`]: the pairs a description leaves out,
+//!   verified over the joint ranges; [`collide`]: a joint trajectory file against them and
+//!   a scene's obstacles;
 //! - [`retiming`]: a trajectory retimed for a robot (the fastest timing of its path, or the
 //!   smallest uniform slowing);
 //! - [`export`]: joint trajectories for ROS 2 and viewers (YAML, MCAP, 1 kHz CSV, URDF);
@@ -53,6 +54,7 @@ pub mod collide;
 pub mod collision;
 pub mod dae;
 pub mod export;
+pub mod left_out;
 pub mod lerobot;
 pub mod lerobot_write;
 pub mod limits;

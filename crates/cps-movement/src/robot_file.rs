@@ -121,6 +121,36 @@ impl Describe for RobotModel {
         };
         put!("base: {}", frame(&arm.base()));
         put!("tool ({}): {}", self.tool, frame(&arm.tool()));
+        match &self.shapes {
+            None => put!("collision shapes: none (nothing is checked for collisions)"),
+            Some(shapes) => {
+                let links = shapes.links();
+                put!(
+                    "collision shapes: {} bodies on {} links, {} pairs checked at a {:.1} mm margin",
+                    shapes.bodies().len(),
+                    links.len(),
+                    shapes.model().pair_count(),
+                    1e3 * shapes.margin()
+                );
+                let (skipped, checked): (Vec<_>, Vec<_>) = shapes
+                    .left_out()
+                    .iter()
+                    .partition(|l| l.skipped_at(shapes.margin()));
+                put!("pairs left out ({}):", skipped.len());
+                for l in skipped {
+                    put!("  {}", l.describe());
+                }
+                if !checked.is_empty() {
+                    put!(
+                        "pairs the description leaves out, checked ({}):",
+                        checked.len()
+                    );
+                    for l in checked {
+                        put!("  {}", l.describe());
+                    }
+                }
+            }
+        }
         out
     }
 }

@@ -464,31 +464,61 @@ fn the_built_in_fr3_is_its_urdf() {
     }
 }
 
-/// The SRDF's "Never" pairs of a built-in Franka arm (`prefix` `fr3` or `panda`): the arm's
-/// 13 and the hand's with links 3, 4 and 6.
-fn srdf_never_pairs(
-    geometry: &cps_movement::collision::RobotGeometry,
-    prefix: &str,
-) -> Vec<(String, String)> {
-    use cps_movement::collision::FRANKA_SRDF_NEVER;
-    let link = |k: usize| format!("{prefix}_link{k}");
-    let hand = format!("{prefix}_hand");
-    let mut pairs: Vec<(String, String)> = FRANKA_SRDF_NEVER
+/// The pairs a built-in Franka model leaves out beyond the joined ones (franka_description's
+/// SRDF's), searched afresh on its hulls over its joint ranges: each closest approach is the
+/// one the model carries (`FRANKA_LEFT_OUT`, to 0.1 mm), and those that meet are the two
+/// the model checks.
+fn searched_as_built_in(
+    arm: cps_movement::collision::FrankaArm,
+    chain: &cps_kinematics::SerialChain,
+) -> Vec<cps_robot::PairApproach> {
+    use cps_movement::collision::franka_geometry;
+    use cps_robot::{NeverSearch, Why, closest_approaches};
+    let geometry = franka_geometry(arm, true);
+    assert_eq!(geometry.disabled.len(), 25);
+    let pairs: Vec<(String, String)> = geometry
+        .disabled
         .iter()
-        .map(|&(a, b)| (link(a), link(b)))
+        .map(|l| (l.first.clone(), l.second.clone()))
         .collect();
-    pairs.extend(
-        geometry
-            .disabled
-            .iter()
-            .filter(|(a, b)| *a == hand && !b.contains("finger"))
-            .cloned(),
-    );
-    pairs
+    let started = std::time::Instant::now();
+    let found =
+        closest_approaches(chain, &geometry.bodies, &pairs, &NeverSearch::default()).unwrap();
+    eprintln!("searched in {:.1} s", started.elapsed().as_secs_f64());
+    for f in &found {
+        eprintln!(
+            "(\"{}\", \"{}\", {:.4}) at {:?}",
+            f.first, f.second, f.closest, f.witness
+        );
+    }
+    for (f, l) in found.iter().zip(&geometry.disabled) {
+        match l.why {
+            Why::Searched(carried) => {
+                assert!(
+                    (f.closest - carried).abs() < 6e-5,
+                    "{f:?}: carried {carried}"
+                )
+            }
+            // The search finds no pair of shapes to measure: they share a frame.
+            Why::Fixed => assert_eq!(f.closest, f64::INFINITY, "{f:?}"),
+            _ => panic!("{l:?} is not searched"),
+        }
+    }
+    // Exactly link2–link6 and link5–link7 come within the guard's margin: they are the
+    // pairs the model checks.
+    let shapes = geometry.shapes();
+    let searched = shapes.left_out().iter().filter(|l| l.why != Why::Joined);
+    for (f, l) in found.iter().zip(searched) {
+        let meets = f.first.ends_with("link2") && f.second.ends_with("link6")
+            || f.first.ends_with("link5") && f.second.ends_with("link7");
+        assert_eq!(meets, f.closest < cps_robot::DEFAULT_MARGIN, "{f:?}");
+        assert_eq!(meets, !l.skipped_at(shapes.margin()), "{l:?}");
+    }
+    found
 }
 
-/// franka_description's SRDF leaves 13 pairs of the arm's links (and the hand's with links
-/// 3, 4 and 6) out as "Never". Searched on the hulls cps checks (`closest_approaches`:
+/// franka_description's SRDF leaves 13 pairs of the arm's links (and 12 of the hand's and
+/// fingers') out as "Never". Searched on the hulls cps checks (`closest_approaches`:
 /// 20 000 seeded samples over the FR3's joint ranges, then pattern searches from each
 /// pair's closest), link2 and link6 come more than 10 mm into each other and link5 and
 /// link7 more than 4 mm (47.4 and 9.7 mm found; MuJoCo's random samples had found 14.6 and
@@ -497,25 +527,8 @@ fn srdf_never_pairs(
 #[test]
 fn the_srdfs_never_pairs_searched_on_the_fr3s_hulls_meet_where_mujoco_says() {
     use cps_kinematics::robots::{PandaTool, fr3};
-    use cps_movement::collision::{FrankaArm, franka_geometry};
-    use cps_robot::{NeverSearch, closest_approaches};
-    let geometry = franka_geometry(FrankaArm::Fr3, true);
-    let pairs = srdf_never_pairs(&geometry, "fr3");
-    assert_eq!(pairs.len(), 13 + 3);
-    let chain = fr3(PandaTool::HandTcp);
-    let started = std::time::Instant::now();
-    let found =
-        closest_approaches(&chain, &geometry.bodies, &pairs, &NeverSearch::default()).unwrap();
-    eprintln!("searched in {:.1} s", started.elapsed().as_secs_f64());
-    for f in &found {
-        eprintln!(
-            "{} – {}: {:+.1} mm at {:?}",
-            f.first,
-            f.second,
-            f.closest * 1e3,
-            f.witness
-        );
-    }
+    use cps_movement::collision::FrankaArm;
+    let found = searched_as_built_in(FrankaArm::Fr3, &fr3(PandaTool::HandTcp));
     let depth = |a: &str, b: &str| {
         found
             .iter()
@@ -524,13 +537,6 @@ fn the_srdfs_never_pairs_searched_on_the_fr3s_hulls_meet_where_mujoco_says() {
     };
     assert!(depth("fr3_link2", "fr3_link6").closest < -0.010);
     assert!(depth("fr3_link5", "fr3_link7").closest < -0.004);
-    // Every other pair keeps farther apart than the guard's margin over the search. (The
-    // two that meet are still left out by the built-in model: issue 65.)
-    for f in &found {
-        let meets = ["fr3_link2", "fr3_link5"].contains(&f.first.as_str())
-            && ["fr3_link6", "fr3_link7"].contains(&f.second.as_str());
-        assert_eq!(meets, f.closest < cps_robot::DEFAULT_MARGIN, "{f:?}");
-    }
     let Some((python, assets, _, _)) = franky_fr3() else {
         return;
     };
@@ -557,28 +563,10 @@ fn the_srdfs_never_pairs_searched_on_the_fr3s_hulls_meet_where_mujoco_says() {
 
 /// The Panda shares the FR3's SRDF pairs: searched the same way on its own hulls and joint
 /// ranges, every pair it leaves out keeps farther apart than the guard's margin but for
-/// link2–link6 and link5–link7, as on the FR3 (printed).
+/// link2–link6 and link5–link7, as on the FR3, and the model carries what the search found.
 #[test]
 fn the_pandas_left_out_pairs_keep_apart_over_its_joint_ranges() {
     use cps_kinematics::robots::{PandaTool, panda};
-    use cps_movement::collision::{FrankaArm, franka_geometry};
-    use cps_robot::{NeverSearch, closest_approaches};
-    let geometry = franka_geometry(FrankaArm::Panda, true);
-    let pairs = srdf_never_pairs(&geometry, "panda");
-    let found = closest_approaches(
-        &panda(PandaTool::HandTcp),
-        &geometry.bodies,
-        &pairs,
-        &NeverSearch::default(),
-    )
-    .unwrap();
-    for f in &found {
-        eprintln!("{} – {}: {:+.1} mm", f.first, f.second, f.closest * 1e3);
-        let known = [
-            ("panda_link2", "panda_link6"),
-            ("panda_link5", "panda_link7"),
-        ]
-        .contains(&(f.first.as_str(), f.second.as_str()));
-        assert!(known || f.closest > cps_robot::DEFAULT_MARGIN, "{f:?}");
-    }
+    use cps_movement::collision::FrankaArm;
+    searched_as_built_in(FrankaArm::Panda, &panda(PandaTool::HandTcp));
 }

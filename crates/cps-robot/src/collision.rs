@@ -23,11 +23,75 @@ use crate::setting::SettingError;
 /// larger than the links) and a controller's tracking error.
 pub const DEFAULT_MARGIN: f64 = 0.005;
 
+/// Why a pair of links may go unchecked.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Why {
+    /// A joint joins them: their shapes touch where it turns.
+    Joined,
+    /// Their shapes ride on one frame: they never move relative to each other (a hand
+    /// and its fingers held open).
+    Fixed,
+    /// The robot's description says so, unverified (a robot file's pairs).
+    Declared,
+    /// Searched over the joint ranges ([`crate::closest_approaches`]), they came no closer
+    /// than this (m; negative: inside each other): left out while the margin is smaller,
+    /// checked otherwise.
+    Searched(f64),
+}
+
+/// A pair of links the robot's description leaves out of the checks, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LeftOut {
+    /// A link's name.
+    pub first: String,
+    /// The other link's name.
+    pub second: String,
+    /// Why.
+    pub why: Why,
+}
+
+impl LeftOut {
+    /// Each of `pairs`, left out for the one reason `why`.
+    pub fn each(pairs: impl IntoIterator<Item = (String, String)>, why: Why) -> Vec<LeftOut> {
+        pairs
+            .into_iter()
+            .map(|(first, second)| LeftOut { first, second, why })
+            .collect()
+    }
+
+    /// Whether the pair goes unchecked at clearance `margin`: joined or declared, or
+    /// searched and found farther apart than the margin.
+    pub fn skipped_at(&self, margin: f64) -> bool {
+        match self.why {
+            Why::Joined | Why::Fixed | Why::Declared => true,
+            Why::Searched(closest) => closest > margin,
+        }
+    }
+
+    /// The pair and its reason, in words.
+    pub fn describe(&self) -> String {
+        let why = match self.why {
+            Why::Joined => "a joint joins them".to_string(),
+            Why::Fixed => "on one frame, they never move relative to each other".to_string(),
+            Why::Declared => "the robot's file says they never meet (not searched)".to_string(),
+            Why::Searched(d) if d < 0.0 => format!(
+                "the description leaves them out, but they meet {:.1} mm deep within the joint ranges",
+                -1e3 * d
+            ),
+            Why::Searched(d) => format!(
+                "no closer than {:.1} mm over the joint ranges (searched)",
+                1e3 * d
+            ),
+        };
+        format!("{} – {}: {why}", self.first, self.second)
+    }
+}
+
 /// A robot's collision geometry among its scene's obstacles, with the clearance kept.
 #[derive(Debug, Clone)]
 pub struct Shapes {
     bodies: Vec<Body>,
-    touching: Vec<(String, String)>,
+    left_out: Vec<LeftOut>,
     obstacles: Vec<Obstacle>,
     allowed: Vec<(String, String)>,
     margin: f64,
@@ -35,18 +99,24 @@ pub struct Shapes {
 }
 
 impl Shapes {
-    /// The robot's `bodies` alone, the pairs of links in `touching` never checked, at
-    /// [`DEFAULT_MARGIN`].
+    /// The robot's `bodies` alone, the pairs of links in `touching` never checked
+    /// ([`Why::Declared`]), at [`DEFAULT_MARGIN`].
     pub fn new(bodies: Vec<Body>, touching: Vec<(String, String)>) -> Self {
-        let model = Arc::new(CollisionModel::new(bodies.clone(), Vec::new(), &touching));
-        Shapes {
+        Self::leaving_out(bodies, LeftOut::each(touching, Why::Declared))
+    }
+
+    /// The robot's `bodies` alone at [`DEFAULT_MARGIN`], the pairs `left_out` unchecked
+    /// where [`LeftOut::skipped_at`] the margin says so.
+    pub fn leaving_out(bodies: Vec<Body>, left_out: Vec<LeftOut>) -> Self {
+        let shapes = Shapes {
             bodies,
-            touching,
+            left_out,
             obstacles: Vec::new(),
             allowed: Vec::new(),
             margin: DEFAULT_MARGIN,
-            model,
-        }
+            model: Arc::new(CollisionModel::new(Vec::new(), Vec::new(), &[])),
+        };
+        shapes.among(Vec::new(), Vec::new())
     }
 
     /// The same robot among `obstacles` (replacing any before), where the pairs in
@@ -81,7 +151,13 @@ impl Shapes {
     /// The same robot among `obstacles` with `allowed`, its pairs' model built anew
     /// (checked by the caller).
     fn among(&self, obstacles: Vec<Obstacle>, allowed: Vec<(String, String)>) -> Self {
-        let skip: Vec<(String, String)> = self.touching.iter().chain(&allowed).cloned().collect();
+        let skip: Vec<(String, String)> = self
+            .left_out
+            .iter()
+            .filter(|l| l.skipped_at(self.margin))
+            .map(|l| (l.first.clone(), l.second.clone()))
+            .chain(allowed.iter().cloned())
+            .collect();
         let model = Arc::new(CollisionModel::new(
             self.bodies.clone(),
             obstacles.clone(),
@@ -111,15 +187,18 @@ impl Shapes {
         self.among(obstacles, self.allowed.clone())
     }
 
-    /// The same shapes with clearance `margin` (m). Errors: not finite, or negative.
+    /// The same shapes with clearance `margin` (m): a pair left out for being searched
+    /// farther apart than the old margin is checked when it is not farther than the new
+    /// one. Errors: not finite, or negative.
     pub fn with_margin(&self, margin: f64) -> Result<Self, SettingError> {
         if !(margin.is_finite() && margin >= 0.0) {
             return Err(SettingError::Margin(margin));
         }
-        Ok(Shapes {
+        let with = Shapes {
             margin,
             ..self.clone()
-        })
+        };
+        Ok(with.among(self.obstacles.clone(), self.allowed.clone()))
     }
 
     /// The clearance (m) every checked pair keeps.
@@ -137,9 +216,10 @@ impl Shapes {
         &self.obstacles
     }
 
-    /// The pairs of links never checked (they touch at a joint, or a robot file says so).
-    pub fn touching(&self) -> &[(String, String)] {
-        &self.touching
+    /// The pairs of links the description leaves out, each with why; those
+    /// [`LeftOut::skipped_at`] the margin go unchecked, the others are checked.
+    pub fn left_out(&self) -> &[LeftOut] {
+        &self.left_out
     }
 
     /// The contacts the scene allows.

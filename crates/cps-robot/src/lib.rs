@@ -72,7 +72,7 @@ mod stop;
 mod watch;
 
 pub use check::{Breach, Limit, OUTSIDE_SLACK, Verdict, check};
-pub use collision::{Collision, DEFAULT_MARGIN, ShapeWatch, Shapes, check_shapes};
+pub use collision::{Collision, DEFAULT_MARGIN, LeftOut, ShapeWatch, Shapes, Why, check_shapes};
 pub use cycles::{
     CASCADE_GAINS, CycleLoss, Judge, LIMITABLE_GAP, Limited, Limiter, LinkBreak, LossyLink,
     MAX_LOSS, MAX_LOST_PERIODS, RateCheck, Reference,

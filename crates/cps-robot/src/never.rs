@@ -49,7 +49,8 @@ pub struct PairApproach {
     /// The pair's second link.
     pub second: String,
     /// The smallest signed distance found between any body of the one and any of the
-    /// other (m; negative: inside each other, by that depth).
+    /// other (m; negative: inside each other, by that depth); infinite when every body of
+    /// the one rides on a frame of the other's (they never move relative to each other).
     pub closest: f64,
     /// The joint positions where it was found (rad).
     pub witness: Vec<f64>,

@@ -9,8 +9,12 @@ use serde::Serialize;
 pub(crate) struct ClearanceSummary {
     /// The clearance learning kept (`[clearance] distance`, m), if any.
     kept_m: Option<f64>,
+    /// The clearance between two of the robot's own shapes (`[clearance] self_distance`).
+    kept_self_m: Option<f64>,
     /// The learned movement's closest pair (None: none within 10 cm).
     closest: Option<ClosestPair>,
+    /// Its closest pair of a robot's shape and an obstacle (None: none within 10 cm).
+    closest_to_world: Option<ClosestPair>,
     /// The warm start's (the movement before the clearance was kept).
     warm_start_closest: Option<ClosestPair>,
 }
@@ -112,7 +116,7 @@ impl ClearanceSummary {
     pub(crate) fn new(
         shapes: &cps_robot::Shapes,
         chain: &cps_kinematics::SerialChain,
-        kept: Option<f64>,
+        kept: Option<&cps_learn::Clearance>,
         learned: &Joints<'_>,
         warm: &Joints<'_>,
     ) -> Result<Self, cps_kinematics::KinematicsError> {
@@ -120,9 +124,13 @@ impl ClearanceSummary {
             cps_learn::closest(shapes, chain, m.times, |j| &m.joints[j], 0.1)
                 .map(|c| c.map(ClosestPair::from))
         };
+        let world =
+            cps_learn::closest_to_world(shapes, chain, learned.times, |j| &learned.joints[j], 0.1)?;
         Ok(ClearanceSummary {
-            kept_m: kept,
+            kept_m: kept.map(|c| c.distance),
+            kept_self_m: kept.map(|c| c.self_distance),
             closest: look(learned)?,
+            closest_to_world: world.map(ClosestPair::from),
             warm_start_closest: look(warm)?,
         })
     }

@@ -217,7 +217,7 @@ fn clearance_summary(
     ClearanceSummary::new(
         shapes,
         &robot.setup.chain,
-        ctx.exp.clearance.as_ref().map(|c| c.clearance.distance),
+        ctx.exp.clearance.as_ref().map(|c| &c.clearance),
         &Joints::of_recording(best),
         &Joints::of_recording(warm),
     )

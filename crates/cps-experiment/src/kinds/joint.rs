@@ -290,7 +290,7 @@ pub(crate) fn run(ctx: &Ctx<'_>, plan: crate::plan::JointPlan) -> Result<Outcome
                 ClearanceSummary::new(
                     shapes,
                     &config.robot.chain,
-                    exp.clearance.as_ref().map(|c| c.clearance.distance),
+                    exp.clearance.as_ref().map(|c| &c.clearance),
                     &Joints::of_trajectory(trajectory),
                     &Joints::of_trajectory(&outcome.warm_start_trajectory),
                 )

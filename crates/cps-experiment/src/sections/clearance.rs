@@ -3,7 +3,8 @@
 //! as a term of the learning cost. Every kind that learns a movement for a robot reads
 //! it: the joint kind in its cost (on the model and on the executions), the executed kind
 //! on every candidate's recording, and the pose, imitation and ProMP kinds in a last stage
-//! on the robot's model ([`cps_learn::keep_clear`]). The guard's own margin is `[robot]
+//! on the robot's model ([`cps_learn::keep_clear`]). `self_distance` (default: `distance`)
+//! is what the robot's own shapes keep from each other. The guard's own margin is `[robot]
 //! margin`; the clearance is what learning aims for, at least the margin.
 
 use serde::Deserialize;
@@ -18,6 +19,7 @@ use crate::InputError;
 #[serde(deny_unknown_fields)]
 pub struct ClearanceSection {
     distance: Spanned<f64>,
+    self_distance: Option<Spanned<f64>>,
     weight: Option<Spanned<f64>>,
     iterations: Option<Spanned<u64>>,
 }
@@ -68,6 +70,10 @@ impl Sections<'_> {
             ));
         };
         let distance = self.within(&s.distance, "[clearance] `distance`", 0.0, 0.5, " m")?;
+        let self_distance = match &s.self_distance {
+            Some(d) => self.within(d, "[clearance] `self_distance`", 0.0, 0.5, " m")?,
+            None => distance,
+        };
         let weight = match &s.weight {
             Some(w) => self.within(w, "[clearance] `weight`", 0.0, cps_learn::MAX_WEIGHT, "")?,
             None => DEFAULT_WEIGHT,
@@ -89,6 +95,7 @@ impl Sections<'_> {
             clearance: cps_learn::Clearance {
                 shapes,
                 distance,
+                self_distance,
                 weight,
                 stride: cps_learn::CLEARANCE_STRIDE,
             },
