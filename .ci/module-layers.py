@@ -54,6 +54,10 @@ LAYERS = {
         ["identify"],
         ["options"],
     ],
+    "cps-plan": [
+        ["free"],
+        ["rrt"],
+    ],
     "cps-robot": [
         ["setting"],
         ["plan", "stop"],
@@ -147,7 +151,7 @@ LAYERS = {
         ["lerobot"],
         ["movement", "scene"],
         ["lerobot_write", "limits", "mocap", "promp"],
-        ["collide", "retiming"],
+        ["collide", "planning", "retiming"],
         ["export"],
     ],
     "cps-drive": [

@@ -13,6 +13,8 @@
 //! - [`robot`] (`cps-robot`): the execution contract every robot implements (a plan run
 //!   from where the robot stands, limits checked by one guard, a stop token) and the
 //!   in-process robot.
+//! - [`plan`] (`cps-plan`): collision-free joint paths between two configurations, around
+//!   the robot itself and its scene, timed and verified as the guard checks a plan.
 //! - [`chunks`] (`cps-chunks`): the chunk executor — a learned policy's action chunks
 //!   followed on a streaming robot within its limits, from a recording or live.
 //! - [`dynamics`] (`cps-dynamics`): a robot arm with dynamics as a robot: forward dynamics
@@ -79,6 +81,7 @@ pub use cps_lerobot as lerobot;
 pub use cps_mocap as mocap;
 pub use cps_movement as movement;
 pub use cps_outcome as outcome;
+pub use cps_plan as plan;
 pub use cps_promp as promp;
 pub use cps_report as report;
 pub use cps_robot as robot;

@@ -1,4 +1,5 @@
-//! `cps-cli retime` and `cps-cli export`: a joint trajectory made ready for a robot.
+//! `cps-cli retime`, `cps-cli export` and `cps-cli plan`: a joint trajectory made ready
+//! for a robot.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -99,4 +100,88 @@ pub fn export(args: &ExportArgs) -> Result<ExitCode> {
             .for_each(|line| say!("{line}"));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Arguments of `cps-cli plan`; `--json` prints `{"waypoints", "length_rad", "duration_s",
+/// "clearance_m", "planning_s", …}`.
+#[derive(Args, Debug)]
+pub struct PlanArgs {
+    #[command(flatten)]
+    arm: RobotArgs,
+    /// A scene file: its robot among its obstacles, at its margin (instead of `--robot`).
+    #[arg(long, conflicts_with_all = ["robot", "tool", "tip"])]
+    scene: Option<PathBuf>,
+    /// Where the path starts: joint angles in radians, comma-separated.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        required = true
+    )]
+    from: Vec<f64>,
+    /// Where it ends.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        required = true
+    )]
+    to: Vec<f64>,
+    /// The timed path as a joint trajectory (CSV: t, then one position per joint, 1 kHz).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Replace an existing file of the kind cps writes there.
+    #[arg(long)]
+    force: bool,
+    /// The seed of the random configurations (the same seed, the same path).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// The most random configurations drawn before giving up.
+    #[arg(long, default_value_t = 20_000)]
+    samples: usize,
+    /// The share of the velocity, acceleration and jerk limits the path is timed at.
+    #[arg(long, default_value_t = 0.5)]
+    share: f64,
+}
+
+/// `cps-cli plan`: exit 0 with a path, 1 when none was found, 2 for a bad end.
+pub fn plan(args: &PlanArgs) -> Result<ExitCode> {
+    use cps_movement::planning::{End, PlanError, Settings, plan_report};
+    if !(args.share > 0.0 && args.share <= 1.0) {
+        return Err(InputError(format!("--share must be in (0, 1] (got {})", args.share)).into());
+    }
+    if let Some(out) = &args.out {
+        check_file_target(out, FileKind::TrajectoryCsv, args.force)?;
+    }
+    let model = match &args.scene {
+        Some(s) => cps_movement::scene::load_scene(s)?.robot,
+        None => args.arm.load()?,
+    };
+    let settings = Settings {
+        seed: args.seed,
+        samples: args.samples,
+        share: args.share,
+        ..Settings::default()
+    };
+    let report = match plan_report(&model, &args.from, &args.to, &settings) {
+        Ok(r) => r,
+        Err(e @ PlanError::NoPath { .. }) => {
+            eprintln!("error: {e}");
+            return Ok(ExitCode::from(1));
+        }
+        Err(e) => match e.end() {
+            Some(End::Start) => return Err(InputError(format!("--from: {e}")).into()),
+            Some(End::Goal) => return Err(InputError(format!("--to: {e}")).into()),
+            None => return Err(e.into()),
+        },
+    };
+    let title = match &args.out {
+        Some(out) => {
+            let csv = table_csv(&report.table)?;
+            write_file(out, &csv)?;
+            format!("{} ({} bytes) written", out.display(), csv.len())
+        }
+        None => "a path (no --out: nothing written)".to_string(),
+    };
+    print_titled(&title, &report, args.arm.json)
 }

@@ -14,6 +14,7 @@
 //! - [`retiming`]: a trajectory retimed for a robot (the fastest timing of its path, or the
 //!   smallest uniform slowing);
 //! - [`export`]: joint trajectories for ROS 2 and viewers (YAML, MCAP, 1 kHz CSV, URDF);
+//! - [`planning`]: a collision-free path between two configurations (`cps-cli plan`);
 //! - [`promp`]: ProMPs from demonstration files (fit, condition, sample, statistics);
 //! - [`mocap`]: motion-capture takes (C3D, Motive CSV) as demonstrations in a robot's
 //!   frame, with their report — and `[demonstrations] takes` of experiment files.
@@ -60,6 +61,7 @@ pub mod lerobot_write;
 pub mod limits;
 pub mod mocap;
 pub mod movement;
+pub mod planning;
 pub mod promp;
 pub mod retiming;
 pub mod robot_file;

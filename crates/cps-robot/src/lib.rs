@@ -84,7 +84,7 @@ pub use guard::{
 };
 pub use kinematic::KinematicRobot;
 pub use model::RobotModel;
-pub use never::{NeverSearch, PairApproach, closest_approaches};
+pub use never::{NeverSearch, PairApproach, SplitMix, closest_approaches};
 pub use plan::{CHECK_PERIOD, Ending, MAX_POINTS, Plan, Run, SampledMotion};
 pub use robot::{
     Generator, Measured, Robot, Stepped, Stepping, Streaming, prefaulted, run_stepped, step_of,

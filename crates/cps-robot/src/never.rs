@@ -213,13 +213,14 @@ impl Search<'_> {
     }
 }
 
-/// SplitMix64 (Steele, Lea and Flood, 2014): the samples' stream, the same on every
-/// machine for a seed.
-struct SplitMix(u64);
+/// SplitMix64 (Steele, Lea and Flood, 2014): a seeded stream of numbers, the same on every
+/// machine for a seed (the searches' and the planner's samples).
+#[derive(Debug, Clone)]
+pub struct SplitMix(pub u64);
 
 impl SplitMix {
     /// A uniform number in [0, 1), from the top 53 bits.
-    fn unit(&mut self) -> f64 {
+    pub fn unit(&mut self) -> f64 {
         self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);

@@ -1,0 +1,351 @@
+//! Collision-free motion between two configurations of a robot: around the robot itself
+//! and its scene's obstacles, at the guard's margin, on the very shapes the guard checks.
+//!
+//! [`plan`] searches a path with RRT-Connect (two trees, one from each end), checks every
+//! straight segment of it exactly by conservative advancement (no configuration between
+//! samples is skipped: the bodies' motion along a segment is bounded in advance), shortens
+//! it, times each segment as a rest-to-rest move within the robot's velocity, acceleration
+//! and jerk limits, and verifies the timed motion as the guard verifies any plan — every
+//! limit and every pair at the control period — before returning it. The same seed gives
+//! the same path.
+//!
+//! ```
+//! use cps_plan::{Settings, plan};
+//! let fr3 = cps_robot::RobotModel::of_chain(
+//!     "fr3",
+//!     cps_kinematics::robots::fr3(cps_kinematics::robots::PandaTool::HandTcp),
+//! );
+//! let (from, to) = ([0.0, -0.3, 0.0, -2.0, 0.0, 1.8, 0.8], [0.5, -0.3, 0.0, -2.0, 0.0, 1.8, 0.8]);
+//! let planned = plan(&fr3, &from, &to, &Settings::default())?;
+//! assert_eq!(planned.waypoints, vec![from.to_vec(), to.to_vec()]);
+//! # Ok::<(), cps_plan::PlanError>(())
+//! ```
+#![deny(missing_docs)]
+
+mod free;
+mod rrt;
+
+use std::time::Instant;
+
+use cps_robot::{Plan, RobotModel, SplitMix};
+pub use rrt::Tried;
+
+/// How a path is searched and timed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Settings {
+    /// The seed of the random configurations: the same seed, the same path.
+    pub seed: u64,
+    /// The most random configurations drawn before giving up.
+    pub samples: usize,
+    /// The longest step a tree takes towards a sample (rad, Euclidean over the joints).
+    pub reach: f64,
+    /// Attempts at joining two points of the path directly.
+    pub shortcuts: usize,
+    /// The share of the robot's velocity, acceleration and jerk limits each segment is
+    /// timed at.
+    pub share: f64,
+    /// The control period the motion is sampled, timed and verified at (s).
+    pub dt: f64,
+}
+
+impl Default for Settings {
+    /// Seed 1, 20 000 samples, steps of 0.5 rad, 200 shortcuts, half the limits, 1 ms.
+    fn default() -> Self {
+        Settings {
+            seed: 1,
+            samples: 20_000,
+            reach: 0.5,
+            shortcuts: 200,
+            share: 0.5,
+            dt: 0.001,
+        }
+    }
+}
+
+/// Which end of the path.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum End {
+    /// Where the path starts.
+    Start,
+    /// Where it ends.
+    Goal,
+}
+
+impl std::fmt::Display for End {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            End::Start => "start",
+            End::Goal => "goal",
+        })
+    }
+}
+
+/// Why no path is returned.
+#[derive(Debug, thiserror::Error)]
+pub enum PlanError {
+    /// A configuration with the wrong number of joints.
+    #[error("the {end} has {got} joint values; the robot has {expected} joints")]
+    JointCount {
+        /// Which end.
+        end: End,
+        /// The robot's joints.
+        expected: usize,
+        /// The values given.
+        got: usize,
+    },
+    /// A value that is not a finite number.
+    #[error("the {end}'s joint {joint} is not a finite number")]
+    NotFinite {
+        /// Which end.
+        end: End,
+        /// The joint (1-based).
+        joint: usize,
+    },
+    /// A joint outside its range.
+    #[error(
+        "the {end}'s joint {joint} = {value:.4} rad is outside its range [{lower:.4}, {upper:.4}]"
+    )]
+    OutOfRange {
+        /// Which end.
+        end: End,
+        /// The joint (1-based).
+        joint: usize,
+        /// Its value.
+        value: f64,
+        /// Its range's lower end.
+        lower: f64,
+        /// Its range's upper end.
+        upper: f64,
+    },
+    /// An end where two shapes come within the margin.
+    #[error("the {end} is in collision: `{first}` and `{second}` {}", words(*.distance, *.margin))]
+    InCollision {
+        /// Which end.
+        end: End,
+        /// A link.
+        first: String,
+        /// A link or an obstacle.
+        second: String,
+        /// Their signed distance (m).
+        distance: f64,
+        /// The margin (m).
+        margin: f64,
+    },
+    /// No path within the samples.
+    #[error(
+        "no collision-free path found within {} random configurations (trees of {} and {} nodes grown from the start and the goal): the way may be closed, or narrow — raise the samples, or choose another seed",
+        .tried.samples, .tried.nodes[0], .tried.nodes[1]
+    )]
+    NoPath {
+        /// What was tried.
+        tried: Tried,
+    },
+    /// The timed motion failed the guard's own check (a defect of the planner).
+    #[error("the planned motion failed the guard's check: {0}")]
+    Unverified(String),
+    /// The robot's model could not be used.
+    #[error(transparent)]
+    Robot(#[from] cps_robot::RobotError),
+    /// Kinematics failed.
+    #[error(transparent)]
+    Kinematics(#[from] cps_kinematics::KinematicsError),
+}
+
+impl PlanError {
+    /// The end a bad input is at (None: not an end's fault).
+    pub fn end(&self) -> Option<End> {
+        match self {
+            PlanError::JointCount { end, .. }
+            | PlanError::NotFinite { end, .. }
+            | PlanError::OutOfRange { end, .. }
+            | PlanError::InCollision { end, .. } => Some(*end),
+            _ => None,
+        }
+    }
+}
+
+fn words(distance: f64, margin: f64) -> String {
+    if distance < 0.0 {
+        format!("are {:.1} mm deep in each other", -1e3 * distance)
+    } else {
+        format!(
+            "come {:.1} mm apart, within the clearance margin of {:.1} mm",
+            1e3 * distance,
+            1e3 * margin
+        )
+    }
+}
+
+/// A path found, timed and verified.
+#[derive(Debug, Clone)]
+pub struct Planned {
+    /// Its corners: the start, the points it turns at, the goal.
+    pub waypoints: Vec<Vec<f64>>,
+    /// The timed motion, every control period, at rest at each corner.
+    pub plan: Plan,
+    /// Its length in joint space (rad, Euclidean, summed over the segments).
+    pub length: f64,
+    /// The smallest distance of any checked pair along it (m, looked for up to 0.1 m: 0.1
+    /// means none closer; None for a robot without shapes), every tenth control period.
+    pub clearance: Option<f64>,
+    /// What the search drew (no samples: the straight segment was free).
+    pub tried: Tried,
+    /// Configurations whose shapes were measured.
+    pub measured: usize,
+    /// Seconds the search and the shortening took.
+    pub planning_seconds: f64,
+    /// Seconds the timing and the verification took.
+    pub verifying_seconds: f64,
+}
+
+/// The farthest the clearance is looked for (m).
+const CLEARANCE_CAP: f64 = 0.1;
+
+/// A collision-free path of `robot` from `from` to `to`, timed and verified (see the
+/// crate's text). Errors: an end with the wrong joints, outside the ranges or in collision
+/// (naming the pair); no path within [`Settings::samples`].
+pub fn plan(
+    robot: &RobotModel,
+    from: &[f64],
+    to: &[f64],
+    settings: &Settings,
+) -> Result<Planned, PlanError> {
+    let started = Instant::now();
+    let chain = &robot.chain;
+    let dof = chain.dof();
+    let (lower, upper) = match chain.limits() {
+        Some((l, u)) => (l.to_vec(), u.to_vec()),
+        None => (
+            vec![-std::f64::consts::PI; dof],
+            vec![std::f64::consts::PI; dof],
+        ),
+    };
+    for (end, q) in [(End::Start, from), (End::Goal, to)] {
+        if q.len() != dof {
+            return Err(PlanError::JointCount {
+                end,
+                expected: dof,
+                got: q.len(),
+            });
+        }
+        if let Some(j) = q.iter().position(|x| !x.is_finite()) {
+            return Err(PlanError::NotFinite { end, joint: j + 1 });
+        }
+        if let Some(j) = (0..dof).find(|&j| q[j] < lower[j] || q[j] > upper[j]) {
+            return Err(PlanError::OutOfRange {
+                end,
+                joint: j + 1,
+                value: q[j],
+                lower: lower[j],
+                upper: upper[j],
+            });
+        }
+    }
+    let Some(shapes) = &robot.shapes else {
+        // Nothing to go around: the straight segment.
+        let waypoints = vec![from.to_vec(), to.to_vec()];
+        return timed(
+            robot,
+            waypoints,
+            Tried::default(),
+            0,
+            started,
+            settings,
+            None,
+        );
+    };
+    let model = shapes.model();
+    let mut free = free::Free::new(chain, model, shapes.margin(), lower, upper)?;
+    for (end, q) in [(End::Start, from), (End::Goal, to)] {
+        if let Some(c) = free.contact(q) {
+            let (first, second) = model.pair_names(c.pair);
+            return Err(PlanError::InCollision {
+                end,
+                first: first.to_string(),
+                second: second.to_string(),
+                distance: c.separation.distance,
+                margin: shapes.margin(),
+            });
+        }
+    }
+    let mut rng = SplitMix(settings.seed);
+    let reach = settings.reach.max(1e-3);
+    let (path, tried) = rrt::connect(&mut free, from, to, settings.samples, reach, &mut rng)
+        .map_err(|tried| PlanError::NoPath { tried })?;
+    let waypoints = rrt::shortcut(&mut free, path, settings.shortcuts, &mut rng);
+    let measured = free.measured;
+    timed(
+        robot,
+        waypoints,
+        tried,
+        measured,
+        started,
+        settings,
+        Some(&mut free),
+    )
+}
+
+/// The waypoints timed segment by segment and verified; the clearance measured with `free`.
+fn timed(
+    robot: &RobotModel,
+    waypoints: Vec<Vec<f64>>,
+    tried: Tried,
+    measured: usize,
+    started: Instant,
+    settings: &Settings,
+    free: Option<&mut free::Free<'_>>,
+) -> Result<Planned, PlanError> {
+    let planning_seconds = started.elapsed().as_secs_f64();
+    let verifying = Instant::now();
+    let dt = settings.dt;
+    let mut plan: Option<Plan> = None;
+    for pair in waypoints.windows(2) {
+        let segment = cps_robot::approach(robot, &pair[0], &pair[1], settings.share, dt)?;
+        plan = Some(match plan {
+            None => segment,
+            Some(p) => p.then(&segment)?,
+        });
+    }
+    let plan = plan.ok_or_else(|| PlanError::Unverified("a path of one point".into()))?;
+    let verdict = cps_robot::check(robot, &plan, dt)?;
+    if let Some(b) = verdict.breach {
+        return Err(PlanError::Unverified(b.to_string()));
+    }
+    let mut clearance = None;
+    if let Some(shapes) = &robot.shapes {
+        if let Some(c) = cps_robot::check_shapes(shapes, &robot.chain, &plan, dt)? {
+            return Err(PlanError::Unverified(c.to_string()));
+        }
+        if let Some(free) = free {
+            let samples = plan.samples(dt);
+            clearance = Some(
+                samples
+                    .iter()
+                    .step_by(10)
+                    .chain(samples.last())
+                    .map(|q| free.clearance(q, CLEARANCE_CAP))
+                    .fold(CLEARANCE_CAP, f64::min),
+            );
+        }
+    }
+    let length = waypoints
+        .windows(2)
+        .map(|w| {
+            w[0].iter()
+                .zip(&w[1])
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .sum();
+    Ok(Planned {
+        waypoints,
+        plan,
+        length,
+        clearance,
+        tried,
+        measured,
+        planning_seconds,
+        verifying_seconds: verifying.elapsed().as_secs_f64(),
+    })
+}
