@@ -40,7 +40,12 @@ pub(crate) struct Free<'a> {
     rho: Vec<Vec<f64>>,
     frames: Vec<Isometry3<f64>>,
     centres: Vec<Vector3<f64>>,
+    /// Per pair: how far its two members may come closer over the segment walked (m).
     moves: Vec<f64>,
+    /// Per pair: the support points its last distance ended at.
+    hints: Vec<[u32; 2]>,
+    /// Pairs, and the step their bounding spheres allow, in the order they are computed.
+    order: Vec<(f64, usize)>,
     near: Vec<Contact>,
     q: Vec<f64>,
     /// Configurations measured so far.
@@ -115,6 +120,8 @@ impl<'a> Free<'a> {
             frames,
             centres: Vec::new(),
             moves: Vec::new(),
+            hints: vec![[0, 0]; model.pair_count()],
+            order: Vec::with_capacity(model.pair_count()),
             near: Vec::new(),
             q: Vec::with_capacity(dof),
             measured: 0,
@@ -157,13 +164,24 @@ impl<'a> Free<'a> {
     /// convex: so is every point between) keeps the margin everywhere (see the module's
     /// text).
     pub(crate) fn segment(&mut self, a: &[f64], b: &[f64]) -> bool {
-        // Each body's motion bound over the whole segment.
+        // Each pair's motion bound over the whole segment: a body's against an obstacle
+        // from every joint before its frame; two bodies' from the joints between their
+        // frames alone (those before both move the two as one).
         self.moves.clear();
-        for rho in &self.rho {
+        for p in 0..self.model.pair_count() {
+            let (i, other) = self.model.pair(p);
+            let fi = self.model.bodies()[i].frame;
+            let (first, moving) = match other {
+                Other::Obstacle(_) => (0, i),
+                Other::Body(j) => {
+                    let fj = self.model.bodies()[j].frame;
+                    if fj > fi { (fi, j) } else { (fj, i) }
+                }
+            };
+            let rho = &self.rho[moving];
             self.moves.push(
-                rho.iter()
-                    .zip(a.iter().zip(b))
-                    .map(|(r, (x, y))| r * (y - x).abs())
+                (first..rho.len())
+                    .map(|k| rho[k] * (b[k] - a[k]).abs())
                     .sum(),
             );
         }
@@ -187,32 +205,48 @@ impl<'a> Free<'a> {
     }
 
     /// At the frames placed: the fraction of the segment the walk may advance (∞ when no
-    /// pair moves), or None when a pair is within the margin (or grazes it).
+    /// pair moves), or None when a pair is within the margin (or grazes it). The pairs are
+    /// taken in the order of the step their bounding spheres allow, and computed until the
+    /// spheres of the rest allow more than the step found.
     fn step(&mut self) -> Option<f64> {
         self.centres.clear();
         for (b, (c, _)) in self.model.bodies().iter().zip(&self.spheres) {
             self.centres
                 .push((self.frames[b.frame] * Point3::from(*c)).coords);
         }
-        let mut step = f64::INFINITY;
+        self.order.clear();
         for p in 0..self.model.pair_count() {
             let (i, other) = self.model.pair(p);
-            let (centre, radius, moves) = match other {
-                Other::Body(j) => (self.centres[j], self.spheres[j].1, self.moves[j]),
-                Other::Obstacle(k) => (self.obstacles[k].0, self.obstacles[k].1, 0.0),
+            let (centre, radius) = match other {
+                Other::Body(j) => (self.centres[j], self.spheres[j].1),
+                Other::Obstacle(k) => self.obstacles[k],
             };
-            let moves = moves + self.moves[i];
-            let bound = (self.centres[i] - centre).norm() - self.spheres[i].1 - radius;
-            if bound - self.margin >= step * moves {
-                // The spheres alone allow the step already taken as the smallest.
-                continue;
+            let room = (self.centres[i] - centre).norm() - self.spheres[i].1 - radius - self.margin;
+            // A pair that does not move keeps its distance: judged by its room alone.
+            let allows = if self.moves[p] > 0.0 {
+                room / self.moves[p]
+            } else if room > 0.0 {
+                f64::INFINITY
+            } else {
+                f64::NEG_INFINITY
+            };
+            self.order.push((allows, p));
+        }
+        self.order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        let mut step = f64::INFINITY;
+        for &(allows, p) in &self.order {
+            if allows >= step {
+                break;
             }
-            let d = self.model.distance(p, &self.frames).distance;
+            let d = self
+                .model
+                .distance_hinted(p, &self.frames, &mut self.hints[p])
+                .distance;
             if d - self.margin < GRAZE {
                 return None;
             }
-            if moves > 0.0 {
-                step = step.min((d - self.margin) / moves);
+            if self.moves[p] > 0.0 {
+                step = step.min((d - self.margin) / self.moves[p]);
             }
         }
         Some(step)
