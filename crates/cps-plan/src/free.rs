@@ -44,8 +44,10 @@ pub(crate) struct Free<'a> {
     moves: Vec<f64>,
     /// Per pair: the support points its last distance ended at.
     hints: Vec<[u32; 2]>,
-    /// Pairs, and the step their bounding spheres allow, in the order they are computed.
-    order: Vec<(f64, usize)>,
+    /// Per pair: a lower bound of its distance at the configuration the walk is at.
+    low: Vec<f64>,
+    /// Per pair: whether `low` is its exact distance there.
+    fresh: Vec<bool>,
     near: Vec<Contact>,
     q: Vec<f64>,
     /// Configurations measured so far.
@@ -121,7 +123,8 @@ impl<'a> Free<'a> {
             centres: Vec::new(),
             moves: Vec::new(),
             hints: vec![[0, 0]; model.pair_count()],
-            order: Vec::with_capacity(model.pair_count()),
+            low: Vec::with_capacity(model.pair_count()),
+            fresh: Vec::with_capacity(model.pair_count()),
             near: Vec::new(),
             q: Vec::with_capacity(dof),
             measured: 0,
@@ -185,6 +188,8 @@ impl<'a> Free<'a> {
                     .sum(),
             );
         }
+        self.low.clear();
+        self.low.resize(self.moves.len(), f64::NEG_INFINITY);
         let mut t: f64 = 0.0;
         for _ in 0..MAX_STEPS {
             self.q.clear();
@@ -193,63 +198,85 @@ impl<'a> Free<'a> {
             if self.chain.frames_into(&self.q, &mut self.frames).is_err() {
                 return false;
             }
-            let Some(step) = self.step() else {
+            let Some(step) = self.step(t == 0.0) else {
                 return false;
             };
             if t >= 1.0 {
                 return true;
             }
-            t = (t + step).min(1.0);
+            let step = step.min(1.0 - t);
+            // Every pair's bound, carried to the next configuration.
+            for (low, moves) in self.low.iter_mut().zip(&self.moves) {
+                *low -= step * moves;
+            }
+            t = if t + step >= 1.0 { 1.0 } else { t + step };
         }
         false
     }
 
     /// At the frames placed: the fraction of the segment the walk may advance (∞ when no
-    /// pair moves), or None when a pair is within the margin (or grazes it). The pairs are
-    /// taken in the order of the step their bounding spheres allow, and computed until the
-    /// spheres of the rest allow more than the step found.
-    fn step(&mut self) -> Option<f64> {
+    /// pair moves), or None when a pair is within the margin (or grazes it).
+    ///
+    /// Each pair's lower bound — carried from the configurations before, less the motion
+    /// since, or its bounding spheres' distance now, whichever is larger — allows a step;
+    /// the pair allowing the least is computed exactly (its bound becomes its distance),
+    /// until the least is allowed by a pair computed here. A pair that does not move is
+    /// computed once, at the segment's start (`first`).
+    fn step(&mut self, first: bool) -> Option<f64> {
         self.centres.clear();
         for (b, (c, _)) in self.model.bodies().iter().zip(&self.spheres) {
             self.centres
                 .push((self.frames[b.frame] * Point3::from(*c)).coords);
         }
-        self.order.clear();
+        self.fresh.clear();
+        self.fresh.resize(self.moves.len(), false);
         for p in 0..self.model.pair_count() {
             let (i, other) = self.model.pair(p);
+            if self.moves[p] == 0.0 {
+                if first {
+                    let d = self.exact(p);
+                    if d - self.margin < GRAZE {
+                        return None;
+                    }
+                }
+                continue;
+            }
             let (centre, radius) = match other {
                 Other::Body(j) => (self.centres[j], self.spheres[j].1),
                 Other::Obstacle(k) => self.obstacles[k],
             };
-            let room = (self.centres[i] - centre).norm() - self.spheres[i].1 - radius - self.margin;
-            // A pair that does not move keeps its distance: judged by its room alone.
-            let allows = if self.moves[p] > 0.0 {
-                room / self.moves[p]
-            } else if room > 0.0 {
-                f64::INFINITY
-            } else {
-                f64::NEG_INFINITY
-            };
-            self.order.push((allows, p));
+            let spheres = (self.centres[i] - centre).norm() - self.spheres[i].1 - radius;
+            self.low[p] = self.low[p].max(spheres);
         }
-        self.order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
-        let mut step = f64::INFINITY;
-        for &(allows, p) in &self.order {
-            if allows >= step {
-                break;
+        loop {
+            // The pair allowing the least step.
+            let mut least = (f64::INFINITY, usize::MAX);
+            for (p, (low, moves)) in self.low.iter().zip(&self.moves).enumerate() {
+                if *moves > 0.0 {
+                    let allows = (low - self.margin) / moves;
+                    if allows < least.0 {
+                        least = (allows, p);
+                    }
+                }
             }
-            let d = self
-                .model
-                .distance_hinted(p, &self.frames, &mut self.hints[p])
-                .distance;
+            let (allows, p) = least;
+            if p == usize::MAX || self.fresh[p] {
+                return Some(allows);
+            }
+            let d = self.exact(p);
             if d - self.margin < GRAZE {
                 return None;
             }
-            if self.moves[p] > 0.0 {
-                step = step.min((d - self.margin) / self.moves[p]);
-            }
+            self.low[p] = d;
+            self.fresh[p] = true;
         }
-        Some(step)
+    }
+
+    /// Pair `p`'s distance at the frames placed.
+    fn exact(&mut self, p: usize) -> f64 {
+        self.model
+            .distance_hinted(p, &self.frames, &mut self.hints[p])
+            .distance
     }
 }
 
