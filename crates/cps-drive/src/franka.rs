@@ -265,7 +265,8 @@ pub(crate) fn guarded_arm(
         },
         in_world(arm_model(settings.arm)?, settings.world.as_ref()),
     )?;
-    Ok(Guarded::new(robot, policy))
+    // `--approach` goes around the arm's shapes and its scene's where straight would not.
+    Ok(Guarded::new(robot, policy).going_around(cps_plan::around))
 }
 
 /// A refusal of the guard in the words of `franka execute` (`source` names the file):

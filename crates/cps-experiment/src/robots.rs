@@ -328,7 +328,8 @@ impl RobotChoice {
     }
 }
 
-/// A robot behind the guard every experiment runs with.
+/// A robot behind the guard every experiment runs with: its approaches go around the
+/// robot's shapes and its scene's where the straight way would not keep the margin.
 fn guarded(robot: Box<dyn Robot>) -> Box<dyn Robot> {
-    Box::new(Guarded::new(robot, Policy::EXPERIMENT))
+    Box::new(Guarded::new(robot, Policy::EXPERIMENT).going_around(cps_plan::around))
 }

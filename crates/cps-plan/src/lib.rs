@@ -285,6 +285,26 @@ pub fn plan(
     )
 }
 
+/// A way around for the guard's approaches ([`cps_robot::Guarded::going_around`]): a path
+/// from `from` to `to` with the default search, timed at `share` of the limits every `dt`
+/// seconds, verified; or why there is none, in words.
+pub fn around(
+    robot: &RobotModel,
+    from: &[f64],
+    to: &[f64],
+    share: f64,
+    dt: f64,
+) -> Result<Plan, String> {
+    let settings = Settings {
+        share,
+        dt,
+        ..Settings::default()
+    };
+    plan(robot, from, to, &settings)
+        .map(|p| p.plan)
+        .map_err(|e| e.to_string())
+}
+
 /// The waypoints timed segment by segment and verified; the clearance measured with `free`.
 fn timed(
     robot: &RobotModel,

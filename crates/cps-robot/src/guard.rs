@@ -213,7 +213,15 @@ pub struct Guarded<R> {
     /// The stepped commands' collision check (made at the first, when the robot has
     /// shapes; started over with `watch`).
     shapes: Option<ShapeWatch>,
+    /// The way around a straight approach that would collide, when one is given.
+    around: Option<Around>,
 }
+
+/// A planner of approaches around the robot's shapes and its scene: from `from` to `to` of
+/// `model`, timed at `share` of its limits every `dt` seconds, or why there is none (as
+/// `cps_plan::around`).
+pub type Around =
+    fn(model: &RobotModel, from: &[f64], to: &[f64], share: f64, dt: f64) -> Result<Plan, String>;
 
 /// A plan made ready by the guard: what will be sent, and how it came to be.
 #[derive(Debug, Clone)]
@@ -240,7 +248,16 @@ impl<R: Robot> Guarded<R> {
             commanded: false,
             stepping: crate::Stepping::Joints,
             shapes: None,
+            around: None,
         }
+    }
+
+    /// The same guard, approaching the way `around` plans where the straight approach to a
+    /// plan's start would bring two shapes within the margin (the approach it plans is
+    /// checked like any other: every pair, every limit).
+    pub fn going_around(mut self, around: Around) -> Self {
+        self.around = Some(around);
+        self
     }
 
     /// The robot inside.
@@ -276,6 +293,23 @@ impl<R: Robot> Guarded<R> {
         }
     }
 
+    /// The approach from `here` to `plan`'s start: straight, or — where that would bring
+    /// two shapes within the margin and a way around is given — the way around it finds
+    /// (the straight one when it finds none: the check then refuses it, naming the pair).
+    fn approach(&self, here: &[f64], plan: &Plan) -> Result<Plan, RobotError> {
+        let model = self.robot.model();
+        let straight = approach(model, here, plan.start(), APPROACH_SHARE, plan.dt())?;
+        if let (Some(around), Some(shapes)) = (self.around, &model.shapes) {
+            let period = self.robot.command_period();
+            if check_shapes(shapes, &model.chain, &straight, period)?.is_some()
+                && let Ok(way) = around(model, here, plan.start(), APPROACH_SHARE, plan.dt())
+            {
+                return Ok(way);
+            }
+        }
+        Ok(straight)
+    }
+
     /// Judges `plan` from where the robot stands: the approach it needs (or the refusal),
     /// the slowing its limits need (or the refusal). Nothing is sent.
     pub fn prepare(&mut self, plan: &Plan) -> Result<Prepared, RobotError> {
@@ -298,13 +332,7 @@ impl<R: Robot> Guarded<R> {
                         plan: plan.start()[joint],
                     }));
                 }
-                OnStart::Approach => Some(approach(
-                    self.robot.model(),
-                    here,
-                    plan.start(),
-                    APPROACH_SHARE,
-                    plan.dt(),
-                )?),
+                OnStart::Approach => Some(self.approach(here, plan)?),
             }
         } else {
             None

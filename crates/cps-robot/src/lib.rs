@@ -79,7 +79,7 @@ pub use cycles::{
 };
 pub use execute::{CommandPath, ExecutionConfig, Recording, command_path, execute};
 pub use guard::{
-    APPROACH_SHARE, BLEND_SHARE, Guarded, MAX_SLOWING, OnBreach, OnStart, Policy, Prepared,
+    APPROACH_SHARE, Around, BLEND_SHARE, Guarded, MAX_SLOWING, OnBreach, OnStart, Policy, Prepared,
     Refusal, SEPTIC_PEAKS, START_TOLERANCE, approach, move_to, rest_to_rest, septic,
 };
 pub use kinematic::KinematicRobot;
