@@ -51,6 +51,7 @@ __all__ = [
     "ChunkExecutor",
     "chunk_commands",
     "collide",
+    "plan",
     "CMAEvolutionStrategy",
     "CMAEvolutionStrategyResult",
     "CpsError",
@@ -195,3 +196,34 @@ def collide(
     """
     r = Robot(robot, tool=tool, tip=tip, scene=scene, margin=margin)
     return r.collide(t, q, rate=rate)
+
+
+def plan(
+    start: Any,
+    goal: Any,
+    *,
+    robot: Optional[str] = None,
+    tool: Optional[str] = None,
+    tip: Optional[str] = None,
+    scene: Any = None,
+    margin: Optional[float] = None,
+    seed: int = 1,
+    samples: int = 20000,
+    share: float = 0.5,
+) -> dict:
+    """A collision-free joint path from ``start`` to ``goal`` around the robot itself and
+    its scene, as ``cps-cli plan --json`` finds it (``waypoints``, ``length_rad``,
+    ``duration_s``, ``clearance_m``, ``planning_s``, ...), with the timed motion ``t``
+    (samples,) and ``q`` (samples, dof) every millisecond, verified as the guard checks a
+    plan. The robot is ``robot`` (a built-in name or a file; default the Panda) or
+    ``scene``'s, keeping ``margin`` metres (default: the scene's, else 5 mm). Raises
+    ``ValueError`` for a bad end (the pair named when it is in collision) and
+    ``cps.CpsError`` when no path is found within ``samples`` random configurations.
+
+    >>> import cps
+    >>> way = cps.plan([0, -0.8, 0, -2.4, 0, 1.6, 0.8], [1, -0.3, 0, -2, 0, 1.8, 0.8], robot="fr3")
+    >>> len(way["waypoints"]), way["q"].shape[1]
+    (2, 7)
+    """
+    r = Robot(robot, tool=tool, tip=tip, scene=scene, margin=margin)
+    return r.plan(start, goal, seed=seed, samples=samples, share=share)

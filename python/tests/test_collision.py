@@ -92,3 +92,35 @@ def test_robots_without_shapes_and_bad_arguments_say_so(tmp_path):
         cps.Robot("fr3", scene=plain)
     with pytest.raises(ValueError, match="q: expected"):
         cps.Robot("fr3").distances(np.zeros(6))
+
+
+def test_a_path_around_the_ball_is_what_the_command_line_plans(tmp_path, cli):
+    """cps.plan goes around a ball the swing of joint 1 meets, as `cps-cli plan --json`
+    does (the same seed, the same waypoints), and its timed motion passes cps.collide;
+    a bad end is a ValueError naming it, no path within the samples a cps.CpsError."""
+    plain = tmp_path / "plain.toml"
+    plain.write_text(FR3_SCENE)
+    start = np.array([0.0, 0.0, 0.0, -0.3, 0.0, 1.8707963267948966, 0.7853981633974483])
+    turned = start.copy()
+    turned[0] += 0.8
+    ball = scene_with_ball(tmp_path, "ball.toml", 0.05, cps.Robot(scene=plain).fk(turned)[:3, 3])
+    goal = start.copy()
+    goal[0] += 1.6
+    straight = np.linspace(start, goal, 50)
+    assert cps.collide(np.linspace(0, 3, 50), straight, scene=ball)["ok"] is False
+    way = cps.plan(start, goal, scene=ball, seed=3)
+    assert len(way["waypoints"]) >= 3
+    assert np.allclose(way["q"][0], start, atol=0) and np.allclose(way["q"][-1], goal, atol=0)
+    assert way["q"].shape == (len(way["t"]), 7)
+    assert way["clearance_m"] >= 0.005
+    assert cps.collide(way["t"], way["q"], scene=ball)["ok"] is True
+    out = cli("plan", "--scene", ball, "--from", ",".join(repr(float(x)) for x in start),
+              "--to", ",".join(repr(float(x)) for x in goal), "--seed", "3", "--json")
+    assert json.loads(out.stdout)["waypoints"] == way["waypoints"]
+    inside = turned.copy()
+    with pytest.raises(ValueError, match="goal: the goal is in collision: `fr3_.*` and `ball`"):
+        cps.plan(start, inside, scene=ball)
+    with pytest.raises(ValueError, match="start: the start's joint 4 = 0.5000 rad is outside"):
+        cps.plan(np.r_[start[:3], 0.5, start[4:]], goal, scene=ball)
+    with pytest.raises(cps.CpsError, match="no collision-free path found within 1 random"):
+        cps.plan(start, goal, scene=ball, samples=1)

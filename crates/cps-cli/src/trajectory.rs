@@ -124,9 +124,14 @@ pub struct PlanArgs {
         long,
         value_delimiter = ',',
         allow_hyphen_values = true,
-        required = true
+        required_unless_present = "to_pose",
+        conflicts_with = "to_pose"
     )]
     to: Vec<f64>,
+    /// Or where the tool ends, `x,y,z[,qx,qy,qz,qw]` (m, world frame): the clear
+    /// inverse-kinematics solution nearest `--from`.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    to_pose: Vec<f64>,
     /// The timed path as a joint trajectory (CSV: t, then one position per joint, 1 kHz).
     #[arg(long)]
     out: Option<PathBuf>,
@@ -146,7 +151,8 @@ pub struct PlanArgs {
 
 /// `cps-cli plan`: exit 0 with a path, 1 when none was found, 2 for a bad end.
 pub fn plan(args: &PlanArgs) -> Result<ExitCode> {
-    use cps_movement::planning::{End, PlanError, Settings, plan_report};
+    use cps_movement::planning::{End, PlanError, Settings, plan_report, reach};
+    use cps_movement::robot_file::ik_target;
     if !(args.share > 0.0 && args.share <= 1.0) {
         return Err(InputError(format!("--share must be in (0, 1] (got {})", args.share)).into());
     }
@@ -163,7 +169,14 @@ pub fn plan(args: &PlanArgs) -> Result<ExitCode> {
         share: args.share,
         ..Settings::default()
     };
-    let report = match plan_report(&model, &args.from, &args.to, &settings) {
+    let to = if args.to_pose.is_empty() {
+        args.to.clone()
+    } else {
+        let pose = |m: String| InputError(format!("--to-pose: {m}"));
+        let target = ik_target(&args.to_pose).map_err(|e| pose(e.0.replace("--target: ", "")))?;
+        reach(&model, &target, &args.from, 32, args.seed).map_err(|e| pose(e.to_string()))?
+    };
+    let report = match plan_report(&model, &args.from, &to, &settings) {
         Ok(r) => r,
         Err(e @ PlanError::NoPath { .. }) => {
             eprintln!("error: {e}");

@@ -860,8 +860,9 @@ fn plan_goes_around_a_post_the_straight_way_hits() {
 }
 
 /// `plan`'s bad ends are named by their flag (exit 2): a start inside the post, naming the
-/// pair; a goal out of its range; a value that is not a number; a joint too few. No way
-/// within the samples is exit 1, saying what was tried.
+/// pair; a goal out of its range; a value that is not a number; a joint too few; a goal
+/// pose out of reach or inside the post. A goal pose within reach is where the path's last
+/// configuration puts the hand. No way within the samples is exit 1, saying what was tried.
 #[test]
 fn plan_names_bad_ends_and_says_what_it_tried() {
     let dir = tempfile::tempdir().unwrap();
@@ -891,6 +892,54 @@ fn plan_names_bad_ends_and_says_what_it_tried() {
         let o = cli(&["plan", "--scene", &scene, "--from", from, "--to", to]);
         assert_eq!(o.status.code(), Some(2), "{wanted}: {}", stderr(&o));
         assert!(stderr(&o).contains(wanted), "{}", stderr(&o));
+    }
+    // A goal pose: out of reach, or inside the post.
+    let base = [0.42244, 0.02, 0.74177];
+    let hand = common::hand_at("fr3", &[1.0, 0.5, 0.0, -1.5, 0.0, 2.0, 0.785]);
+    let world = |p: [f64; 3]| format!("{},{},{}", p[0] + base[0], p[1] + base[1], p[2] + base[2]);
+    for (pose, wanted) in [
+        (
+            "3,0,1".to_string(),
+            "--to-pose: the goal pose is out of reach",
+        ),
+        (
+            world([0.55, 0.0, 0.35]),
+            "--to-pose: the goal is in collision: `fr3_",
+        ),
+    ] {
+        let o = cli(&[
+            "plan",
+            "--scene",
+            &scene,
+            "--from",
+            LEFT,
+            "--to-pose",
+            &pose,
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{wanted}: {}", stderr(&o));
+        assert!(stderr(&o).contains(wanted), "{}", stderr(&o));
+    }
+    // A reachable one: the path ends where the tool is there.
+    let o = cli(&[
+        "plan",
+        "--scene",
+        &scene,
+        "--from",
+        LEFT,
+        "--to-pose",
+        &world(hand),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j = stdout_json(&o);
+    let end: Vec<f64> =
+        serde_json::from_value(j["waypoints"].as_array().unwrap().last().unwrap().clone()).unwrap();
+    let there = common::hand_at("fr3", &end);
+    for k in 0..3 {
+        assert!(
+            (there[k] - hand[k]).abs() < 1e-6,
+            "{there:?} against {hand:?}"
+        );
     }
     let o = cli(&[
         "plan",

@@ -4,7 +4,7 @@
 //! table (`t`, then one column per joint, every control period).
 
 use cps_outcome::outcome::{Column, Format, Table};
-pub use cps_plan::{End, PlanError, Planned, Settings};
+pub use cps_plan::{End, PlanError, Planned, Settings, reach};
 use serde_json::{Value, json};
 
 use crate::robot_file::RobotModel;

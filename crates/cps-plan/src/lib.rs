@@ -140,6 +140,9 @@ pub enum PlanError {
         /// What was tried.
         tried: Tried,
     },
+    /// A goal pose no configuration within the ranges reaches.
+    #[error("the goal pose is out of reach: {0}")]
+    Unreachable(String),
     /// The timed motion failed the guard's own check (a defect of the planner).
     #[error("the planned motion failed the guard's check: {0}")]
     Unverified(String),
@@ -283,6 +286,75 @@ pub fn plan(
         settings,
         Some(&mut free),
     )
+}
+
+/// The configuration that puts `robot`'s tool at `target` (its world frame) and keeps the
+/// margin, closest to `near` (the path's start, so the way there is short): inverse
+/// kinematics from `near`, then from `tries` configurations drawn with `seed` within the
+/// joint ranges; every solution is judged, the clear one nearest `near` kept. Errors: no
+/// solution reaches the target ([`PlanError::Unreachable`]); every one found is in
+/// collision (the goal's [`PlanError::InCollision`], naming the pair of the first).
+pub fn reach(
+    robot: &RobotModel,
+    target: &cps_kinematics::IkTarget,
+    near: &[f64],
+    tries: usize,
+    seed: u64,
+) -> Result<Vec<f64>, PlanError> {
+    let chain = &robot.chain;
+    let config = cps_kinematics::IkConfig {
+        restarts: 0,
+        ..cps_kinematics::IkConfig::default()
+    };
+    let (lower, upper) = chain
+        .limits()
+        .map(|(l, u)| (l.to_vec(), u.to_vec()))
+        .ok_or_else(|| PlanError::Unreachable("the robot has no joint ranges".into()))?;
+    let mut free = robot
+        .shapes
+        .as_ref()
+        .map(|s| free::Free::new(chain, s.model(), s.margin(), lower.clone(), upper.clone()))
+        .transpose()?;
+    let mut rng = SplitMix(seed);
+    let gap = |q: &[f64]| -> f64 { q.iter().zip(near).map(|(a, b)| (a - b) * (a - b)).sum() };
+    let (mut best, mut blocked, mut last): (Option<Vec<f64>>, Option<PlanError>, String) =
+        (None, None, String::new());
+    for k in 0..=tries {
+        let from: Vec<f64> = if k == 0 {
+            near.to_vec()
+        } else {
+            (0..lower.len())
+                .map(|j| lower[j] + (upper[j] - lower[j]) * rng.unit())
+                .collect()
+        };
+        let q = match cps_kinematics::solve_ik(chain, target, &from, &config) {
+            Ok(s) => s.q,
+            Err(e) => {
+                last = e.to_string();
+                continue;
+            }
+        };
+        if best.as_ref().is_some_and(|b| gap(b) <= gap(&q)) {
+            continue;
+        }
+        let contact = free.as_mut().and_then(|f| f.contact(&q));
+        match (contact, robot.shapes.as_ref()) {
+            (Some(c), Some(shapes)) => {
+                if blocked.is_none() {
+                    let (first, second) = shapes.model().pair_names(c.pair);
+                    blocked = Some(PlanError::InCollision {
+                        end: End::Goal,
+                        first: first.to_string(),
+                        second: second.to_string(),
+                        distance: c.separation.distance,
+                        margin: shapes.margin(),
+                    });
+                }
+            }
+            _ => best = Some(q),
+        }
+    }
+    best.ok_or_else(|| blocked.unwrap_or(PlanError::Unreachable(last)))
 }
 
 /// A way around for the guard's approaches ([`cps_robot::Guarded::going_around`]): a path

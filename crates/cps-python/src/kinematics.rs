@@ -290,6 +290,54 @@ impl Robot {
         json_to_py(py, &report.json())
     }
 
+    /// A collision-free path from `start` to `goal` (dof,) around the robot itself and its
+    /// scene at its margin — what `cps-cli plan --json` prints, with the timed motion `t`
+    /// (samples,) and `q` (samples, dof) every millisecond: RRT-Connect seeded by `seed`
+    /// (the same seed, the same path), at most `samples` random configurations, each
+    /// segment timed at rest at its ends at `share` of the limits, the whole verified as the
+    /// guard checks a plan. Raises `ValueError` for a bad end (naming the pair of one in
+    /// collision), `cps.CpsError` when no path is found.
+    #[pyo3(signature = (start, goal, *, seed=1, samples=20_000, share=0.5))]
+    fn plan<'py>(
+        &self,
+        py: Python<'py>,
+        start: &Bound<'py, PyAny>,
+        goal: &Bound<'py, PyAny>,
+        seed: u64,
+        samples: usize,
+        share: f64,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        use cps_movement::planning::{End, Settings, plan_report};
+        let from = vector(start, "start", Some(self.dof()))?;
+        let to = vector(goal, "goal", Some(self.dof()))?;
+        if !(share > 0.0 && share <= 1.0) {
+            return Err(value_error(format!(
+                "share: a share of the limits in (0, 1] (got {share})"
+            )));
+        }
+        let settings = Settings {
+            seed,
+            samples,
+            share,
+            ..Settings::default()
+        };
+        let report = py
+            .detach(|| plan_report(&self.model, &from, &to, &settings))
+            .map_err(|e| match e.end() {
+                Some(End::Start) => value_error(format!("start: {e}")),
+                Some(End::Goal) => value_error(format!("goal: {e}")),
+                None => failure(e.to_string()),
+            })?;
+        let out = json_to_py(py, &report.json())?;
+        let plan = &report.planned.plan;
+        let times = (0..plan.points().len()).map(|k| plan.time(k)).collect();
+        out.set_item("t", array1(py, times))?;
+        let rows = plan.points().len();
+        let q = plan.points().concat();
+        out.set_item("q", array2(py, q, rows, self.dof())?)?;
+        Ok(out)
+    }
+
     /// The robot's name.
     #[getter]
     fn name(&self) -> String {
