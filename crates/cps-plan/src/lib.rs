@@ -49,13 +49,16 @@ pub struct Settings {
 }
 
 impl Default for Settings {
-    /// Seed 1, 20 000 samples, steps of 0.5 rad, 200 shortcuts, half the limits, 1 ms.
+    /// Seed 1, 20 000 samples, steps of 1 rad, 20 shortcuts, half the limits, 1 ms. (On
+    /// the benchmark, steps of 0.25, 0.5, 1 and 2 rad: medians of 26, 17, 14 and 10 ms,
+    /// paths 2 % shorter to 12 % longer than at 1 rad; 200 shortcuts instead of 20: three
+    /// times the time, the same lengths within 1 %.)
     fn default() -> Self {
         Settings {
             seed: 1,
             samples: 20_000,
-            reach: 0.5,
-            shortcuts: 200,
+            reach: 1.0,
+            shortcuts: 20,
             share: 0.5,
             dt: 0.001,
         }
