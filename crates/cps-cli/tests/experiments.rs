@@ -969,17 +969,8 @@ fn a_pose_experiment_with_a_robot_executes_and_checks_its_movement() {
     );
     assert_eq!(s["complete"], false);
     // The thesis's scene with the bare flange, the arm starting at Franka's home pose,
-    // executes it all. (From the thesis's stretched start the inverse kinematics folds the
-    // wrist, link7 into link5, and the guard refuses that too.)
-    let thesis = std::fs::read_to_string(repo("configs/scenes/thesis.toml")).unwrap();
-    let stretched = "initial_q = [0.0, 0.0, 0.0, 0.0, 0.0, 1.5707963267948966, 0.7853981633974483]";
-    let flange = thesis
-        .replace("tool = \"hand\" ", "tool = \"flange\" ")
-        .replace(
-            stretched,
-            "initial_q = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]",
-        );
-    assert!(thesis.contains(stretched) && !flange.contains(stretched));
+    // executes it all (from the stretched start the guard refuses the folded wrist too).
+    let flange = common::thesis_scene_at_home().replace("tool = \"hand\" ", "tool = \"flange\" ");
     assert!(!flange.contains("tool = \"hand\" "));
     std::fs::write(dir.path().join("flange.toml"), flange).unwrap();
     let body = POSE.replace("generations = 100 ", "generations = 30  ")

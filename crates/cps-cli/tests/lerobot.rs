@@ -361,17 +361,7 @@ fn an_imitation_experiment_learns_from_a_datasets_episodes() {
     // The thesis's scene with the Panda starting where the episodes start: from the
     // thesis's stretched arm, the inverse kinematics reaches them folded, link7 within
     // the guard's margin of link5.
-    let thesis = std::fs::read_to_string(repo("configs/scenes/thesis.toml")).unwrap();
-    let stretched = "initial_q = [0.0, 0.0, 0.0, 0.0, 0.0, 1.5707963267948966, 0.7853981633974483]";
-    assert!(thesis.contains(stretched));
-    let scene = common::write(
-        dir.path(),
-        "home.toml",
-        &thesis.replace(
-            stretched,
-            "initial_q = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]",
-        ),
-    );
+    let scene = common::write(dir.path(), "home.toml", &common::thesis_scene_at_home());
     let file = common::write(
         dir.path(),
         "lerobot.toml",

@@ -209,3 +209,15 @@ pub fn post_scene(
     std::fs::write(&p, text).unwrap();
     p
 }
+
+/// The thesis's scene with its Panda starting at Franka's home pose, not the thesis's
+/// stretched arm (from which inverse kinematics folds the wrist, link7 into link5's hull).
+pub fn thesis_scene_at_home() -> String {
+    let thesis = std::fs::read_to_string(repo("configs/scenes/thesis.toml")).unwrap();
+    let stretched = "initial_q = [0.0, 0.0, 0.0, 0.0, 0.0, 1.5707963267948966, 0.7853981633974483]";
+    assert!(thesis.contains(stretched));
+    thesis.replace(
+        stretched,
+        "initial_q = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]",
+    )
+}
