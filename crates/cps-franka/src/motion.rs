@@ -227,7 +227,7 @@ pub fn record_states(
         if stop.load(std::sync::atomic::Ordering::Relaxed) {
             break;
         }
-        match conn.newest_state(std::time::Duration::from_millis(100)) {
+        match conn.newest_state(crate::rt::STATE_TIMEOUT) {
             Ok((s, _)) if s.message_id > state.message_id => state = s,
             Ok(_) => {}
             Err(e) => return Ok((samples, Some(e.to_string()))),

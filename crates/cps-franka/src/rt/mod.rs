@@ -71,13 +71,22 @@ impl Realtime {
 /// 0.3 s on the FR3).
 pub const BRAKE_RESERVE: usize = 2000;
 
+/// How long a loop waits for the robot's next state before it ends the motion as a lost
+/// connection: libfranka's UDP timeout (`Network`'s `udp_timeout`, 1 s). A real robot that
+/// hears no command for 20 cycles stops by itself (`communication_constraints_violation`),
+/// so waiting longer moves nothing; a shorter wait would end motions that libfranka's own
+/// client carries on through a stall of the sender (a simulator descheduled on a busy
+/// machine, a switch's hiccup).
+pub const STATE_TIMEOUT: Duration = Duration::from_secs(1);
+
 /// Settings of a motion.
 #[derive(Debug, Clone, Copy)]
 pub struct LoopOptions {
     /// Realtime scheduling of the loop thread.
     pub realtime: Realtime,
     /// A state later than this ends the motion as a lost connection (the robot stops by
-    /// itself when commands stop: a real FCI after a few missed ticks).
+    /// itself when commands stop: a real FCI after 20 missed cycles). [`STATE_TIMEOUT`] by
+    /// default, as libfranka.
     pub state_timeout: Duration,
     /// Ticks the recording holds (264 bytes each, allocated before the motion); the loop
     /// starts braking [`BRAKE_RESERVE`] ticks before it is full, so the stop is recorded.
@@ -88,7 +97,7 @@ impl Default for LoopOptions {
     fn default() -> Self {
         LoopOptions {
             realtime: Realtime::Enforce,
-            state_timeout: Duration::from_millis(100),
+            state_timeout: STATE_TIMEOUT,
             max_ticks: 60_000 + BRAKE_RESERVE,
         }
     }
