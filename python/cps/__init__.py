@@ -200,8 +200,9 @@ def collide(
 
 def plan(
     start: Any,
-    goal: Any,
+    goal: Any = None,
     *,
+    goal_pose: Any = None,
     robot: Optional[str] = None,
     tool: Optional[str] = None,
     tip: Optional[str] = None,
@@ -216,9 +217,13 @@ def plan(
     ``duration_s``, ``clearance_m``, ``planning_s``, ...), with the timed motion ``t``
     (samples,) and ``q`` (samples, dof) every millisecond, verified as the guard checks a
     plan. The robot is ``robot`` (a built-in name or a file; default the Panda) or
-    ``scene``'s, keeping ``margin`` metres (default: the scene's, else 5 mm). Raises
-    ``ValueError`` for a bad end (the pair named when it is in collision) and
-    ``cps.CpsError`` when no path is found within ``samples`` random configurations.
+    ``scene``'s, keeping ``margin`` metres (default: the scene's, else 5 mm). Instead of
+    ``goal`` (joint angles), ``goal_pose`` puts the tool there: a position (3,), a pose
+    ``[x, y, z, qx, qy, qz, qw]`` (7,) or a 4×4 matrix, world frame; the goal is the clear
+    inverse-kinematics solution nearest ``start`` (``cps-cli plan --to-pose``). Raises
+    ``ValueError`` for a bad end (the pair named when it is in collision, a pose out of
+    reach) and ``cps.CpsError`` when no path is found within ``samples`` random
+    configurations.
 
     >>> import cps
     >>> way = cps.plan([0, -0.8, 0, -2.4, 0, 1.6, 0.8], [1, -0.3, 0, -2, 0, 1.8, 0.8], robot="fr3")
@@ -226,4 +231,4 @@ def plan(
     (2, 7)
     """
     r = Robot(robot, tool=tool, tip=tip, scene=scene, margin=margin)
-    return r.plan(start, goal, seed=seed, samples=samples, share=share)
+    return r.plan(start, goal, goal_pose=goal_pose, seed=seed, samples=samples, share=share)

@@ -437,8 +437,9 @@ class Robot:
     def plan(
         self,
         start: ArrayLike,
-        goal: ArrayLike,
+        goal: Optional[ArrayLike] = None,
         *,
+        goal_pose: Optional[ArrayLike] = None,
         seed: int = 1,
         samples: int = 20000,
         share: float = 0.5,

@@ -124,3 +124,35 @@ def test_a_path_around_the_ball_is_what_the_command_line_plans(tmp_path, cli):
         cps.plan(np.r_[start[:3], 0.5, start[4:]], goal, scene=ball)
     with pytest.raises(cps.CpsError, match="no collision-free path found within 1 random"):
         cps.plan(start, goal, scene=ball, samples=1)
+
+
+def test_a_path_to_a_pose_ends_with_the_tool_there_as_the_command_line_plans(tmp_path, cli):
+    """cps.plan(goal_pose=...) ends where the tool is at the pose (the robot's own forward
+    kinematics agree to a micrometre), clear of the ball, with `cps-cli plan --to-pose`'s
+    waypoints; a pose out of reach or two goals at once are ValueErrors naming the
+    argument."""
+    plain = tmp_path / "plain.toml"
+    plain.write_text(FR3_SCENE)
+    robot = cps.Robot(scene=plain)
+    start = np.array([0.0, 0.0, 0.0, -0.3, 0.0, 1.8707963267948966, 0.7853981633974483])
+    turned = start.copy()
+    turned[0] += 0.8
+    ball = scene_with_ball(tmp_path, "ball.toml", 0.05, robot.fk(turned)[:3, 3])
+    goal = start.copy()
+    goal[0] += 1.6
+    target = robot.fk(goal)
+    way = cps.plan(start, goal_pose=target, scene=ball, seed=3)
+    reached = robot.fk(way["q"][-1])
+    assert np.abs(reached[:3, 3] - target[:3, 3]).max() < 1e-6
+    assert np.abs(reached[:3, :3] - target[:3, :3]).max() < 1e-6
+    assert cps.collide(way["t"], way["q"], scene=ball)["ok"] is True
+    quat = cps.Robot(scene=ball).pose(goal)
+    out = cli("plan", "--scene", ball, "--from", ",".join(repr(float(x)) for x in start),
+              "--to-pose", ",".join(repr(float(x)) for x in quat), "--seed", "3", "--json")
+    assert np.allclose(json.loads(out.stdout)["waypoints"][-1], way["waypoints"][-1], atol=1e-6)
+    with pytest.raises(ValueError, match="goal_pose: "):
+        cps.plan(start, goal_pose=[5.0, 0.0, 0.5], scene=ball)
+    with pytest.raises(ValueError, match="one of the two"):
+        cps.plan(start, goal, goal_pose=target, scene=ball)
+    with pytest.raises(ValueError, match="goal_pose: expected a position"):
+        cps.plan(start, goal_pose=np.zeros(5), scene=ball)

@@ -189,6 +189,19 @@ impl Robot {
     fn target(&self, values: &[f64], name: &str) -> PyResult<IkTarget> {
         ik_target(values).map_err(|e| value_error(e.0.replace("--target", name)))
     }
+
+    /// One IK target: a position (3,), a pose (7,) or a 4×4 matrix.
+    fn one_target(&self, obj: &Bound<'_, PyAny>, name: &str) -> PyResult<IkTarget> {
+        let a = floats(obj, name)?;
+        match a.shape() {
+            [3] | [7] => self.target(a.values(), name),
+            [4, 4] => matrix_target(a.values(), name),
+            other => Err(value_error(format!(
+                "{name}: expected a position (3,), a pose [x, y, z, qx, qy, qz, qw] (7,) or a 4×4 matrix, got shape {}",
+                shape_text(other)
+            ))),
+        }
+    }
 }
 
 /// A homogeneous 4×4 matrix as an IK target.
@@ -295,21 +308,38 @@ impl Robot {
     /// (samples,) and `q` (samples, dof) every millisecond: RRT-Connect seeded by `seed`
     /// (the same seed, the same path), at most `samples` random configurations, each
     /// segment timed at rest at its ends at `share` of the limits, the whole verified as the
-    /// guard checks a plan. Raises `ValueError` for a bad end (naming the pair of one in
-    /// collision), `cps.CpsError` when no path is found.
-    #[pyo3(signature = (start, goal, *, seed=1, samples=20_000, share=0.5))]
+    /// guard checks a plan. Instead of `goal`, `goal_pose` puts the tool there (a position
+    /// (3,), a pose `[x, y, z, qx, qy, qz, qw]` (7,) or a 4×4 matrix, world frame): the
+    /// clear inverse-kinematics solution nearest `start`, as `cps-cli plan --to-pose`.
+    /// Raises `ValueError` for a bad end (naming the pair of one in collision, or a pose
+    /// out of reach), `cps.CpsError` when no path is found.
+    #[pyo3(signature = (start, goal=None, *, goal_pose=None, seed=1, samples=20_000, share=0.5))]
+    #[allow(clippy::too_many_arguments)]
     fn plan<'py>(
         &self,
         py: Python<'py>,
         start: &Bound<'py, PyAny>,
-        goal: &Bound<'py, PyAny>,
+        goal: Option<&Bound<'py, PyAny>>,
+        goal_pose: Option<&Bound<'py, PyAny>>,
         seed: u64,
         samples: usize,
         share: f64,
     ) -> PyResult<Bound<'py, PyAny>> {
-        use cps_movement::planning::{End, Settings, plan_report};
+        use cps_movement::planning::{End, Settings, plan_report, reach};
         let from = vector(start, "start", Some(self.dof()))?;
-        let to = vector(goal, "goal", Some(self.dof()))?;
+        let to = match (goal, goal_pose) {
+            (Some(g), None) => vector(g, "goal", Some(self.dof()))?,
+            (None, Some(p)) => {
+                let target = self.one_target(p, "goal_pose")?;
+                py.detach(|| reach(&self.model, &target, &from, 32, seed))
+                    .map_err(|e| value_error(format!("goal_pose: {e}")))?
+            }
+            _ => {
+                return Err(value_error(
+                    "give the goal as joint angles (goal) or as the tool's pose (goal_pose), one of the two",
+                ));
+            }
+        };
         if !(share > 0.0 && share <= 1.0) {
             return Err(value_error(format!(
                 "share: a share of the limits in (0, 1] (got {share})"
