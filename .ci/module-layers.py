@@ -57,6 +57,7 @@ LAYERS = {
     "cps-plan": [
         ["free"],
         ["rrt"],
+        ["join"],
     ],
     "cps-robot": [
         ["setting"],

@@ -104,9 +104,10 @@ enum Command {
     /// scene, as the guard will before sending it: the closest pair and the worst row, exit
     /// 1 on a collision. `--json` lists each row's pairs within 10 cm, in metres.
     Collide(robot::CollideArgs),
-    /// A collision-free joint path from one configuration to another, around the robot
-    /// itself and its scene at the guard's margin (RRT-Connect, shortcut), timed within every
-    /// limit and verified as the guard checks a plan: exit 1 when none is found.
+    /// A collision-free joint path from one configuration to another, or movements joined
+    /// by such paths (`--join`), around the robot itself and its scene at the guard's margin
+    /// (RRT-Connect, shortcut), timed within every limit and verified as the guard checks a
+    /// plan: exit 1 when none is found.
     Plan(trajectory::PlanArgs),
     /// Retime a joint trajectory (CSV) within the robot's limits: the fastest timing of
     /// its path, or the smallest uniform slowing.

@@ -10,6 +10,7 @@ use cps_experiment::InputError;
 use cps_movement::export::{ExportFormat, ExportOptions, export_file, usage};
 use cps_movement::retiming::{RetimeMode, retime_file};
 use cps_outcome::files::{table_csv, write_file};
+use cps_outcome::outcome::Table;
 use cps_outcome::results_dir::{FileKind, check_file_target};
 
 use crate::robot::{RobotArgs, print_titled};
@@ -111,12 +112,13 @@ pub struct PlanArgs {
     /// A scene file: its robot among its obstacles, at its margin (instead of `--robot`).
     #[arg(long, conflicts_with_all = ["robot", "tool", "tip"])]
     scene: Option<PathBuf>,
-    /// Where the path starts: joint angles in radians, comma-separated.
+    /// Where the path starts: joint angles in radians, comma-separated (with `--join`:
+    /// where the robot stands, default the first movement's start).
     #[arg(
         long,
         value_delimiter = ',',
         allow_hyphen_values = true,
-        required = true
+        required_unless_present = "join"
     )]
     from: Vec<f64>,
     /// Where it ends.
@@ -124,10 +126,15 @@ pub struct PlanArgs {
         long,
         value_delimiter = ',',
         allow_hyphen_values = true,
-        required_unless_present = "to_pose",
-        conflicts_with = "to_pose"
+        required_unless_present_any = ["to_pose", "join"],
+        conflicts_with_all = ["to_pose", "join"]
     )]
     to: Vec<f64>,
+    /// Or movements (joint trajectory CSVs) to run one after another as one trajectory:
+    /// each reached from where the one before ends by a planned transition, the whole
+    /// verified.
+    #[arg(long, num_args = 1.., conflicts_with = "to_pose")]
+    join: Vec<PathBuf>,
     /// Or where the tool ends, `x,y,z[,qx,qy,qz,qw]` (m, world frame): the clear
     /// inverse-kinematics solution nearest `--from`.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
@@ -169,6 +176,17 @@ pub fn plan(args: &PlanArgs) -> Result<ExitCode> {
         share: args.share,
         ..Settings::default()
     };
+    if !args.join.is_empty() {
+        let from = (!args.from.is_empty()).then_some(&args.from[..]);
+        return match cps_movement::planning::join_report(&model, from, &args.join, &settings) {
+            Ok(report) => write_plan(args, &report.table, &report),
+            Err(e) if e.is_input() => Err(InputError(format!("--join: {e}")).into()),
+            Err(e) => {
+                eprintln!("error: {e}");
+                Ok(ExitCode::from(1))
+            }
+        };
+    }
     let to = if args.to_pose.is_empty() {
         args.to.clone()
     } else {
@@ -188,13 +206,21 @@ pub fn plan(args: &PlanArgs) -> Result<ExitCode> {
             None => return Err(e.into()),
         },
     };
+    write_plan(args, &report.table, &report)
+}
+
+/// The timed motion to `--out` (when given), the report to the terminal.
+fn write_plan<T>(args: &PlanArgs, table: &Table, report: &T) -> Result<ExitCode>
+where
+    T: serde::Serialize + std::fmt::Display,
+{
     let title = match &args.out {
         Some(out) => {
-            let csv = table_csv(&report.table)?;
+            let csv = table_csv(table)?;
             write_file(out, &csv)?;
             format!("{} ({} bytes) written", out.display(), csv.len())
         }
         None => "a path (no --out: nothing written)".to_string(),
     };
-    print_titled(&title, &report, args.arm.json)
+    print_titled(&title, report, args.arm.json)
 }

@@ -959,3 +959,113 @@ fn plan_names_bad_ends_and_says_what_it_tried() {
         stderr(&o)
     );
 }
+
+/// A movement CSV at 1 kHz: joint 7 of `q` turned by 0.3 rad in a second, at rest at both
+/// ends (the quintic smoothstep).
+fn wrist_turn(q: &str) -> String {
+    let q: Vec<f64> = q.split(',').map(|x| x.parse().unwrap()).collect();
+    let mut csv = String::from("t,q1,q2,q3,q4,q5,q6,q7\n");
+    for k in 0..=1000 {
+        let s = k as f64 / 1000.0;
+        let mut p = q.clone();
+        p[6] += 0.3 * (10.0 * s.powi(3) - 15.0 * s.powi(4) + 6.0 * s.powi(5));
+        let row: Vec<String> = p.iter().map(|x| x.to_string()).collect();
+        csv += &format!("{},{}\n", k as f64 / 1000.0, row.join(","));
+    }
+    csv
+}
+
+/// `plan --join`: a movement on each side of the post, joined by a transition that goes
+/// around it; the file passes `collide` and `limits check`, and the movements' rows are in
+/// it unchanged where the report puts them. A movement that itself sweeps through the post
+/// is exit 2 naming it, its file and the pair; a missing file is exit 2 naming it.
+#[test]
+fn plan_joins_movements_around_the_post_between_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = post_scene(dir.path());
+    let left = write(dir.path(), "left.csv", &wrist_turn(LEFT));
+    let right = write(dir.path(), "right.csv", &wrist_turn(RIGHT));
+    let out = dir.path().join("task.csv");
+    let (l, r, o) = (
+        left.to_str().unwrap(),
+        right.to_str().unwrap(),
+        out.to_str().unwrap(),
+    );
+    let run = cli(&[
+        "plan", "--scene", &scene, "--join", l, r, "--out", o, "--json",
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let j = stdout_json(&run);
+    let stretches = j["stretches"].as_array().unwrap();
+    let parts: Vec<&str> = stretches
+        .iter()
+        .map(|s| s["part"].as_str().unwrap())
+        .collect();
+    assert_eq!(parts, ["movement", "transition", "movement"], "{j}");
+    assert!(
+        stretches[1]["waypoints"].as_array().unwrap().len() >= 3,
+        "{j}"
+    );
+    for args in [
+        vec!["collide", "--scene", &scene, o],
+        vec!["limits", "check", "--robot", "fr3", o],
+    ] {
+        let c = cli(&args);
+        assert!(c.status.success(), "{}", String::from_utf8_lossy(&c.stdout));
+    }
+    let joined = std::fs::read_to_string(&out).unwrap();
+    let rows: Vec<Vec<f64>> = joined
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').skip(1).map(|x| x.parse().unwrap()).collect())
+        .collect();
+    for (stretch, file) in [(&stretches[0], &left), (&stretches[2], &right)] {
+        let first = (stretch["start_s"].as_f64().unwrap() * 1000.0).round() as usize;
+        let text = std::fs::read_to_string(file).unwrap();
+        for (k, line) in text.lines().skip(1).enumerate() {
+            let given: Vec<f64> = line
+                .split(',')
+                .skip(1)
+                .map(|x| x.parse().unwrap())
+                .collect();
+            for (a, b) in given.iter().zip(&rows[first + k]) {
+                assert!((a - b).abs() < 1e-9, "row {k} of {}", file.display());
+            }
+        }
+    }
+    // A movement through the post; a file that is not there.
+    let sweep = write(
+        dir.path(),
+        "sweep.csv",
+        &format!("t,q1,q2,q3,q4,q5,q6,q7\n0,{LEFT}\n2,0,0.5,0,-1.5,0,2.0,0.785\n4,{RIGHT}\n"),
+    );
+    let bad = cli(&[
+        "plan",
+        "--scene",
+        &scene,
+        "--join",
+        r,
+        sweep.to_str().unwrap(),
+    ]);
+    assert_eq!(bad.status.code(), Some(2), "{}", stderr(&bad));
+    let text = stderr(&bad);
+    assert!(
+        text.contains("--join: movement 2, ") && text.contains("`post`"),
+        "{text}"
+    );
+    assert!(
+        text.contains("(movement 2 is ") && text.contains("sweep.csv)"),
+        "{text}"
+    );
+    let missing = dir.path().join("missing.csv");
+    let bad = cli(&[
+        "plan",
+        "--scene",
+        &scene,
+        "--join",
+        l,
+        missing.to_str().unwrap(),
+    ]);
+    assert_eq!(bad.status.code(), Some(2), "{}", stderr(&bad));
+    assert!(stderr(&bad).contains("missing.csv"), "{}", stderr(&bad));
+}

@@ -1,10 +1,16 @@
 //! A collision-free path between two configurations (`cps-cli plan`): [`cps_plan::plan`]
 //! on a robot's model (its own shapes, and its scene's when it comes from a scene), as a
 //! report that says itself in words and as JSON, and the timed motion as a trajectory
-//! table (`t`, then one column per joint, every control period).
+//! table (`t`, then one column per joint, every control period). Movements joined by
+//! planned transitions (`cps-cli plan --join`): [`cps_plan::join`] on trajectory files, as
+//! a [`JoinReport`].
 
+use std::path::{Path, PathBuf};
+
+use cps_outcome::InputError;
 use cps_outcome::outcome::{Column, Format, Table};
-pub use cps_plan::{End, PlanError, Planned, Settings, reach};
+pub use cps_plan::{End, JoinError, Joined, Part, PlanError, Planned, Settings, reach};
+use cps_robot::Plan;
 use serde_json::{Value, json};
 
 use crate::robot_file::RobotModel;
@@ -50,18 +56,7 @@ impl PlanReport {
     /// The report in words, a line each.
     pub fn lines(&self) -> Vec<String> {
         let p = &self.planned;
-        let mut out = Vec::new();
-        match (self.margin, self.checked) {
-            (Some(m), Some([bodies, obstacles, pairs])) => out.push(format!(
-                "{}: {bodies} bodies, {obstacles} obstacle(s), {pairs} pairs kept {:.1} mm apart",
-                self.robot,
-                1e3 * m
-            )),
-            _ => out.push(format!(
-                "{}: no collision shapes: the straight way, checked against the limits only",
-                self.robot
-            )),
-        }
+        let mut out = vec![checked_line(&self.robot, self.margin, self.checked)];
         let how = if p.tried.samples == 0 {
             "the straight way is free".to_string()
         } else {
@@ -98,7 +93,43 @@ pub fn plan_report(
     settings: &Settings,
 ) -> Result<PlanReport, PlanError> {
     let planned = cps_plan::plan(robot, from, to, settings)?;
-    let plan = &planned.plan;
+    let table = motion_table(robot, &planned.plan);
+    let shapes = robot.shapes.as_deref();
+    Ok(PlanReport {
+        robot: robot.name.clone(),
+        margin: shapes.map(|s| s.margin()),
+        checked: checked(robot),
+        planned,
+        table,
+    })
+}
+
+/// The bodies, obstacles and pairs `robot`'s guard checks (None: it has no shapes).
+fn checked(robot: &RobotModel) -> Option<[usize; 3]> {
+    robot.shapes.as_deref().map(|s| {
+        [
+            s.bodies().len(),
+            s.obstacles().len(),
+            s.model().pair_count(),
+        ]
+    })
+}
+
+/// The first line of a report: what is checked, or that nothing is.
+fn checked_line(robot: &str, margin: Option<f64>, checked: Option<[usize; 3]>) -> String {
+    match (margin, checked) {
+        (Some(m), Some([bodies, obstacles, pairs])) => format!(
+            "{robot}: {bodies} bodies, {obstacles} obstacle(s), {pairs} pairs kept {:.1} mm apart",
+            1e3 * m
+        ),
+        _ => format!(
+            "{robot}: no collision shapes: the straight way, checked against the limits only"
+        ),
+    }
+}
+
+/// A timed motion as a trajectory table: `t`, then one column per joint.
+fn motion_table(robot: &RobotModel, plan: &Plan) -> Table {
     let times: Vec<f64> = (0..plan.points().len()).map(|k| plan.time(k)).collect();
     let mut table = Table::new("plan").with(Column::numbers("t", times, Format::Plain));
     for (j, name) in robot.joint_names.iter().enumerate() {
@@ -108,18 +139,159 @@ pub fn plan_report(
             Format::Plain,
         ));
     }
-    let shapes = robot.shapes.as_deref();
-    Ok(PlanReport {
+    table
+}
+
+/// A trajectory file (CSV: `t`, then a position per joint) as a movement every `dt`
+/// seconds (resampled by a spline through its rows when it is at another rate).
+pub fn movement_file(path: &Path, robot: &RobotModel, dt: f64) -> Result<Plan, InputError> {
+    let traj = crate::limits::read_joint_trajectory(path, robot.chain.dof())?;
+    let (_, dt, commands, _) = crate::limits::at_rate(&traj, 1.0 / dt)
+        .map_err(|e| InputError(format!("{}: {e}", path.display())))?;
+    Plan::new(dt, commands).map_err(|e| InputError(format!("{}: {e}", path.display())))
+}
+
+/// What `cps-cli plan --join` made.
+#[derive(Debug, Clone)]
+pub struct JoinReport {
+    /// The robot's name.
+    pub robot: String,
+    /// The clearance margin every pair keeps (m; None: the robot has no shapes).
+    pub margin: Option<f64>,
+    /// The bodies and obstacles checked, and the pairs.
+    pub checked: Option<[usize; 3]>,
+    /// The movements' files, in order.
+    pub files: Vec<PathBuf>,
+    /// The joined motion.
+    pub joined: Joined,
+    /// The joined motion: `t` and one column per joint.
+    pub table: Table,
+}
+
+says_itself_by_json_and_lines!(JoinReport);
+
+impl JoinReport {
+    /// The report as JSON: `{"robot", "margin_m", "duration_s", "seconds", "stretches":
+    /// [{"part": "movement" | "transition", "movement" (1-based, the one led into),
+    /// "file", "start_s", "end_s", and a transition's "waypoints", "length_rad",
+    /// "clearance_m", "planning_s"}]}`.
+    pub fn json(&self) -> Value {
+        let stretches: Vec<Value> = self
+            .joined
+            .stretches
+            .iter()
+            .map(|s| {
+                let (part, k) = match s.part {
+                    Part::Movement(k) => ("movement", k),
+                    Part::Transition(k) => ("transition", k),
+                };
+                let mut v = json!({
+                    "part": part,
+                    "movement": k + 1,
+                    "file": self.files[k].display().to_string(),
+                    "start_s": s.start_s,
+                    "end_s": s.end_s,
+                });
+                if let Some(p) = &s.planned {
+                    v["waypoints"] = json!(p.waypoints);
+                    v["length_rad"] = json!(p.length);
+                    v["clearance_m"] = json!(p.clearance);
+                    v["planning_s"] = json!(p.planning_seconds);
+                }
+                v
+            })
+            .collect();
+        json!({
+            "robot": self.robot,
+            "margin_m": self.margin,
+            "duration_s": self.joined.plan.duration(),
+            "seconds": self.joined.seconds,
+            "stretches": stretches,
+        })
+    }
+
+    /// The report in words, a line each.
+    pub fn lines(&self) -> Vec<String> {
+        let mut out = vec![checked_line(&self.robot, self.margin, self.checked)];
+        for s in &self.joined.stretches {
+            let span = format!("{:8.3} – {:8.3} s", s.start_s, s.end_s);
+            out.push(match (s.part, &s.planned) {
+                (Part::Transition(k), Some(p)) => format!(
+                    "{span}  a transition into movement {}: {} waypoints, {:.3} rad{}, found in {:.1} ms",
+                    k + 1,
+                    p.waypoints.len(),
+                    p.length,
+                    p.clearance
+                        .map_or(String::new(), |c| format!(", {:.1} mm clear", 1e3 * c)),
+                    1e3 * p.planning_seconds
+                ),
+                (Part::Movement(k) | Part::Transition(k), _) => format!(
+                    "{span}  movement {} ({})",
+                    k + 1,
+                    self.files[k].display()
+                ),
+            });
+        }
+        out.push(format!(
+            "joined: {:.3} s, every limit and every pair verified every {:.0} ms as the guard checks ({:.1} ms with the planning)",
+            self.joined.plan.duration(),
+            1e3 * self.joined.plan.dt(),
+            1e3 * self.joined.seconds
+        ));
+        out
+    }
+}
+
+/// Why `cps-cli plan --join` made nothing.
+#[derive(Debug, thiserror::Error)]
+pub enum JoinFailure {
+    /// A movement's file could not be read.
+    #[error(transparent)]
+    File(#[from] InputError),
+    /// The movements could not be joined.
+    #[error("{error}{}", .file.as_ref().map_or(String::new(), |f| format!(" (movement {} is {})", .error.movement().map_or(0, |k| k + 1), f.display())))]
+    Join {
+        /// Why.
+        error: Box<JoinError>,
+        /// The file of the movement it is at.
+        file: Option<PathBuf>,
+    },
+}
+
+impl JoinFailure {
+    /// Whether the input is at fault (exit 2), not the search (exit 1).
+    pub fn is_input(&self) -> bool {
+        match self {
+            JoinFailure::File(_) => true,
+            JoinFailure::Join { error, .. } => error.is_input(),
+        }
+    }
+}
+
+/// `files`' movements joined by transitions planned with `settings`, from `from` (None:
+/// the first movement's start; see [`cps_plan::join`]). Errors: a file that cannot be
+/// read (its sentence), or why the movements cannot be joined, the movement's file named.
+pub fn join_report(
+    robot: &RobotModel,
+    from: Option<&[f64]>,
+    files: &[PathBuf],
+    settings: &Settings,
+) -> Result<JoinReport, JoinFailure> {
+    let movements = files
+        .iter()
+        .map(|f| movement_file(f, robot, settings.dt))
+        .collect::<Result<Vec<_>, _>>()?;
+    let joined =
+        cps_plan::join(robot, from, &movements, settings).map_err(|error| JoinFailure::Join {
+            file: error.movement().and_then(|k| files.get(k)).cloned(),
+            error: Box::new(error),
+        })?;
+    Ok(JoinReport {
         robot: robot.name.clone(),
-        margin: shapes.map(|s| s.margin()),
-        checked: shapes.map(|s| {
-            [
-                s.bodies().len(),
-                s.obstacles().len(),
-                s.model().pair_count(),
-            ]
-        }),
-        planned,
-        table,
+        margin: robot.shapes.as_deref().map(|s| s.margin()),
+        checked: checked(robot),
+        files: files.to_vec(),
+        table: motion_table(robot, &joined.plan),
+        joined,
     })
 }

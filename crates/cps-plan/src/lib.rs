@@ -23,11 +23,13 @@
 #![deny(missing_docs)]
 
 mod free;
+mod join;
 mod rrt;
 
 use std::time::Instant;
 
 use cps_robot::{Plan, RobotModel, SplitMix};
+pub use join::{JoinError, Joined, Part, Stretch, join};
 pub use rrt::Tried;
 
 /// How a path is searched and timed.
@@ -450,7 +452,7 @@ fn timed(
 // without a way around refuses it naming the pair, and with one the in-process robot gets
 // there — every configuration it passed keeping the margin.
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use std::sync::Arc;
 
     use cps_geometry::{Body, Obstacle, Shape};
@@ -461,12 +463,12 @@ mod tests {
     };
     use nalgebra::Isometry3;
 
-    const LEFT: [f64; 7] = [-1.0, 0.5, 0.0, -1.5, 0.0, 2.0, 0.785];
-    const RIGHT: [f64; 7] = [1.0, 0.5, 0.0, -1.5, 0.0, 2.0, 0.785];
+    pub(crate) const LEFT: [f64; 7] = [-1.0, 0.5, 0.0, -1.5, 0.0, 2.0, 0.785];
+    pub(crate) const RIGHT: [f64; 7] = [1.0, 0.5, 0.0, -1.5, 0.0, 2.0, 0.785];
 
     /// An FR3 of balls on its forearm, wrist and flange, a post 10 cm square and a metre tall
     /// 55 cm in front of its base.
-    fn robot() -> RobotModel {
+    pub(crate) fn robot() -> RobotModel {
         let mut model = RobotModel::of_chain("balls", fr3(PandaTool::Flange));
         let bodies = (3..=7)
             .map(|frame| Body {
