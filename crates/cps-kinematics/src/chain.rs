@@ -790,6 +790,35 @@ impl SerialChain {
         Ok(())
     }
 
+    /// [`Self::frames_into`], and each joint's axis in the world into `axes` (`axes[k]` joint
+    /// `k + 1`'s: a point on it and its unit direction), from one walk along the chain:
+    /// what bounds how far a body can move when the joints turn (a point `D` from an axis
+    /// moves at most `D |δ|` when it turns by `δ`). Nothing is allocated once both have room.
+    pub fn frames_axes_into(
+        &self,
+        q: &[f64],
+        out: &mut Vec<Isometry3<f64>>,
+        axes: &mut Vec<(Vector3<f64>, Vector3<f64>)>,
+    ) -> Result<(), KinematicsError> {
+        self.check(q)?;
+        out.clear();
+        axes.clear();
+        out.push(self.base());
+        self.walk(q, |i, f| {
+            let joint = f.to_isometry();
+            axes.push((
+                joint.translation.vector,
+                joint.rotation.matrix().column(2).into_owned(),
+            ));
+            let m = f.mul(&self.post[i]).to_isometry();
+            out.push(Isometry3::from_parts(
+                m.translation,
+                UnitQuaternion::from_rotation_matrix(&m.rotation),
+            ));
+        });
+        Ok(())
+    }
+
     /// The chain as URDF-style joints that all turn about their own z axis, for writing
     /// it out (viewers, ROS 2): `(base, joints, tail)` with `base` the world → robot-base
     /// transform, joint i's `origin` the fixed transform from joint i−1's rotating frame

@@ -126,4 +126,34 @@ fn frames_into_gives_the_base_then_every_link_frame_as_fk_frames_does() {
     );
     // Refused like fk: a wrong joint count.
     assert!(chain.frames_into(&q[..6], &mut out).is_err());
+    // With the axes: the same frames, and joint k's axis is what turning joint k turns
+    // every later frame's origin about (a small turn ε moves it by ε z × (p − o), to
+    // second order; checked by finite differences, on the FR3 and on a URDF chain whose
+    // second axis is the link's y).
+    let urdf = chain_from_urdf(ARM, Some("hand")).unwrap().chain;
+    for (chain, q) in [(chain, q.to_vec()), (urdf, vec![0.3, -0.7])] {
+        let (mut with, mut axes) = (Vec::new(), Vec::new());
+        chain.frames_axes_into(&q, &mut with, &mut axes).unwrap();
+        chain.frames_into(&q, &mut out).unwrap();
+        assert_eq!(with, out);
+        assert_eq!(axes.len(), q.len());
+        let eps = 1e-6;
+        for (k, (point, axis)) in axes.iter().enumerate() {
+            assert!((axis.norm() - 1.0).abs() < 1e-12);
+            let mut turned = q.clone();
+            turned[k] += eps;
+            let mut after = Vec::new();
+            chain.frames_into(&turned, &mut after).unwrap();
+            for m in k + 1..out.len() {
+                let p = out[m].translation.vector;
+                let moved = after[m].translation.vector - p;
+                let predicted = eps * axis.cross(&(p - point));
+                assert!(
+                    (moved - predicted).norm() < 1e-10,
+                    "joint {}, frame {m}: {moved:?} against {predicted:?}",
+                    k + 1
+                );
+            }
+        }
+    }
 }

@@ -6,12 +6,16 @@
 //! configuration on it is — not only sampled ones: it is walked by conservative
 //! advancement (Schwarzer, Saha and Latombe, "Adaptive dynamic collision checking for
 //! single and multiple articulated robots", IEEE T-RO 2005). Turning joint `j` by `δ`
-//! moves no point of a body beyond it further than `|δ| ρⱼ`, with `ρⱼ` a bound on the
-//! point's distance to the joint's axis that holds in every configuration (the chain's
-//! frame-to-frame offsets are fixed lengths); along a segment every body's motion is thus
-//! bounded in advance, and from a configuration where pair `p` is `dₚ` apart the walk may
-//! advance until the two bodies' bounds add up to `dₚ − margin` without missing a contact.
-//! A pair whose bounding spheres already allow the step is not computed.
+//! moves no point of a body beyond it further than `|δ| Dⱼ`, with `Dⱼ` the point's distance
+//! to the joint's axis. At the configuration the walk is at, `Dⱼ` is measured (the body's
+//! bounding sphere's centre's distance to the axis, plus its radius); while the walk
+//! advances by a fraction `s` of the segment it grows by at most `s Σₖ₍ₖ>ⱼ₎ |Δqₖ| ρₖ`, with
+//! `ρₖ` a bound on the distance to joint `k`'s axis that holds in every configuration
+//! (the chain's frame-to-frame offsets are fixed lengths). A body thus moves at most
+//! `s·A + s²·B/2` over the step, `A = Σⱼ |Δqⱼ| Dⱼ` and `B = Σⱼ |Δqⱼ| Σₖ₍ₖ>ⱼ₎ |Δqₖ| ρₖ` (two
+//! bodies: the joints between their frames alone), and from a configuration where pair `p`
+//! is `dₚ` apart the walk may advance until that reaches `dₚ − margin` without missing a
+//! contact. A pair whose bounding spheres already allow the step is not computed.
 
 use cps_geometry::{CollisionModel, Contact, Other};
 use cps_kinematics::SerialChain;
@@ -38,10 +42,23 @@ pub(crate) struct Free<'a> {
     obstacles: Vec<(Vector3<f64>, f64)>,
     /// Per body, per joint: the bound `ρⱼ` (0 for a joint after its frame).
     rho: Vec<Vec<f64>>,
+    /// Per pair: the first joint (0-based) that moves one member against the other, and
+    /// the member it moves.
+    joints: Vec<(usize, usize)>,
     frames: Vec<Isometry3<f64>>,
+    /// Per joint: a point on its axis and its direction, at the configuration walked.
+    axes: Vec<(Vector3<f64>, Vector3<f64>)>,
     centres: Vec<Vector3<f64>>,
-    /// Per pair: how far its two members may come closer over the segment walked (m).
+    /// Per joint: how far the segment walked turns it (rad).
+    turns: Vec<f64>,
+    /// Per body, per joint `j` (flat, `dof + 1` a body): `Σₖ₍ₖ≥ⱼ₎ |Δqₖ| Dₖ` at the
+    /// configuration walked.
+    rates: Vec<f64>,
+    /// Per pair: `A`, its members' approach per unit of the segment at the configuration
+    /// walked (m).
     moves: Vec<f64>,
+    /// Per pair: `B`, the bound on how fast `A` grows along the segment (m).
+    bends: Vec<f64>,
     /// Per pair: the support points its last distance ended at.
     hints: Vec<[u32; 2]>,
     /// Per pair: a lower bound of its distance at the configuration the walk is at.
@@ -102,6 +119,19 @@ impl<'a> Free<'a> {
                     .collect()
             })
             .collect();
+        let joints = (0..model.pair_count())
+            .map(|p| {
+                let (i, other) = model.pair(p);
+                let fi = model.bodies()[i].frame;
+                match other {
+                    Other::Obstacle(_) => (0, i),
+                    Other::Body(j) => {
+                        let fj = model.bodies()[j].frame;
+                        if fj > fi { (fi, j) } else { (fj, i) }
+                    }
+                }
+            })
+            .collect();
         let obstacles = model
             .obstacles()
             .iter()
@@ -119,9 +149,14 @@ impl<'a> Free<'a> {
             spheres,
             obstacles,
             rho,
+            joints,
             frames,
+            axes: Vec::with_capacity(dof),
             centres: Vec::new(),
+            turns: Vec::with_capacity(dof),
+            rates: Vec::new(),
             moves: Vec::new(),
+            bends: Vec::new(),
             hints: vec![[0, 0]; model.pair_count()],
             low: Vec::with_capacity(model.pair_count()),
             fresh: Vec::with_capacity(model.pair_count()),
@@ -167,35 +202,37 @@ impl<'a> Free<'a> {
     /// convex: so is every point between) keeps the margin everywhere (see the module's
     /// text).
     pub(crate) fn segment(&mut self, a: &[f64], b: &[f64]) -> bool {
-        // Each pair's motion bound over the whole segment: a body's against an obstacle
-        // from every joint before its frame; two bodies' from the joints between their
-        // frames alone (those before both move the two as one).
-        self.moves.clear();
-        for p in 0..self.model.pair_count() {
-            let (i, other) = self.model.pair(p);
-            let fi = self.model.bodies()[i].frame;
-            let (first, moving) = match other {
-                Other::Obstacle(_) => (0, i),
-                Other::Body(j) => {
-                    let fj = self.model.bodies()[j].frame;
-                    if fj > fi { (fi, j) } else { (fj, i) }
-                }
-            };
+        // Its far end first: one configuration where a walk would take many to find it.
+        if self.contact(b).is_some() {
+            return false;
+        }
+        // Per pair, `B`: from the fixed bounds, for the whole segment.
+        self.turns.clear();
+        self.turns
+            .extend(a.iter().zip(b).map(|(x, y)| (y - x).abs()));
+        self.bends.clear();
+        for &(first, moving) in &self.joints {
             let rho = &self.rho[moving];
-            self.moves.push(
-                (first..rho.len())
-                    .map(|k| rho[k] * (b[k] - a[k]).abs())
-                    .sum(),
-            );
+            let mut after = 0.0;
+            let mut bend = 0.0;
+            for k in (first..rho.len()).rev() {
+                bend += self.turns[k] * after;
+                after += self.turns[k] * rho[k];
+            }
+            self.bends.push(bend);
         }
         self.low.clear();
-        self.low.resize(self.moves.len(), f64::NEG_INFINITY);
+        self.low.resize(self.joints.len(), f64::NEG_INFINITY);
         let mut t: f64 = 0.0;
         for _ in 0..MAX_STEPS {
             self.q.clear();
             self.q.extend(a.iter().zip(b).map(|(x, y)| x + t * (y - x)));
             self.measured += 1;
-            if self.chain.frames_into(&self.q, &mut self.frames).is_err() {
+            if self
+                .chain
+                .frames_axes_into(&self.q, &mut self.frames, &mut self.axes)
+                .is_err()
+            {
                 return false;
             }
             let Some(step) = self.step(t == 0.0) else {
@@ -206,8 +243,8 @@ impl<'a> Free<'a> {
             }
             let step = step.min(1.0 - t);
             // Every pair's bound, carried to the next configuration.
-            for (low, moves) in self.low.iter_mut().zip(&self.moves) {
-                *low -= step * moves;
+            for ((low, moves), bend) in self.low.iter_mut().zip(&self.moves).zip(&self.bends) {
+                *low -= step * moves + 0.5 * step * step * bend;
             }
             t = if t + step >= 1.0 { 1.0 } else { t + step };
         }
@@ -228,11 +265,12 @@ impl<'a> Free<'a> {
             self.centres
                 .push((self.frames[b.frame] * Point3::from(*c)).coords);
         }
+        self.measure_rates();
         self.fresh.clear();
         self.fresh.resize(self.moves.len(), false);
         for p in 0..self.model.pair_count() {
             let (i, other) = self.model.pair(p);
-            if self.moves[p] == 0.0 {
+            if self.moves[p] == 0.0 && self.bends[p] == 0.0 {
                 if first {
                     let d = self.exact(p);
                     if d - self.margin < GRAZE {
@@ -249,11 +287,17 @@ impl<'a> Free<'a> {
             self.low[p] = self.low[p].max(spheres);
         }
         loop {
-            // The pair allowing the least step.
+            // The pair allowing the least step: the root of `s A + s² B / 2 = low − margin`.
             let mut least = (f64::INFINITY, usize::MAX);
-            for (p, (low, moves)) in self.low.iter().zip(&self.moves).enumerate() {
-                if *moves > 0.0 {
-                    let allows = (low - self.margin) / moves;
+            for p in 0..self.low.len() {
+                let (a, b) = (self.moves[p], self.bends[p]);
+                if a > 0.0 || b > 0.0 {
+                    let room = self.low[p] - self.margin;
+                    let allows = if room <= 0.0 {
+                        0.0
+                    } else {
+                        2.0 * room / (a + (a * a + 2.0 * b * room).sqrt())
+                    };
                     if allows < least.0 {
                         least = (allows, p);
                     }
@@ -269,6 +313,28 @@ impl<'a> Free<'a> {
             }
             self.low[p] = d;
             self.fresh[p] = true;
+        }
+    }
+
+    /// Every pair's `A` at the frames placed: per body and joint, the body's bounding
+    /// sphere's greatest distance to the joint's axis, times the joint's turn, summed from
+    /// the pair's first joint on.
+    fn measure_rates(&mut self) {
+        let dof = self.turns.len();
+        self.rates.clear();
+        for (b, body) in self.model.bodies().iter().enumerate() {
+            let (centre, radius) = (self.centres[b], self.spheres[b].1);
+            let base = self.rates.len();
+            self.rates.resize(base + dof + 1, 0.0);
+            for k in (0..body.frame.min(dof)).rev() {
+                let (point, axis) = &self.axes[k];
+                let reach = (centre - point).cross(axis).norm() + radius;
+                self.rates[base + k] = self.rates[base + k + 1] + self.turns[k] * reach;
+            }
+        }
+        self.moves.clear();
+        for &(first, moving) in &self.joints {
+            self.moves.push(self.rates[moving * (dof + 1) + first]);
         }
     }
 
