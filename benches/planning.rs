@@ -5,7 +5,8 @@
 //! time's median and 95th percentile, the path length and the clearance, then the whole.
 //!
 //! Run it: `bash benches/planning.sh` (`cargo bench -p cps-bench --bench planning`;
-//! `-- --per-kind N` for another count, 20 by default). One thread.
+//! `-- --per-kind N` for another count, 20 by default; `--reach R` and `--shortcuts N`
+//! for other settings). One thread.
 
 use std::time::Instant;
 
@@ -152,6 +153,15 @@ fn main() {
         .and_then(|i| args.get(i + 1))
         .and_then(|n| n.parse().ok())
         .unwrap_or(20);
+    let number = |flag: &str| -> Option<f64> {
+        let i = args.iter().position(|a| a == flag)?;
+        args.get(i + 1)?.parse().ok()
+    };
+    let settings = Settings {
+        reach: number("--reach").unwrap_or(Settings::default().reach),
+        shortcuts: number("--shortcuts").map_or(Settings::default().shortcuts, |n| n as usize),
+        ..Settings::default()
+    };
     let fr3 =
         cps::movement::robot_file::load_robot("fr3", Some("hand"), None).expect("the built-in FR3");
     let kinds = [
@@ -182,7 +192,7 @@ fn main() {
                 .expect("a scene");
             let (from, to) = (near(&robot, &mut rng), near(&robot, &mut rng));
             let started = Instant::now();
-            let result = plan(&robot, &from, &to, &Settings::default());
+            let result = plan(&robot, &from, &to, &settings);
             let seconds = started.elapsed().as_secs_f64();
             total += 1;
             match result {

@@ -26,8 +26,9 @@ pub(crate) struct Vert {
 #[derive(Debug, Clone, Copy)]
 #[allow(clippy::large_enum_variant)]
 pub(crate) enum Gjk {
-    /// Apart (or touching): the closest points of A and B.
-    Apart { a: V, b: V },
+    /// Apart (or touching): the closest points of A and B (within the tolerance), a lower
+    /// bound of their distance, and the last direction `a − b` looked along.
+    Apart { a: V, b: V, lower: f64, v: V },
     /// The origin is inside `A − B`, in the simplex of `n` points found so far.
     Overlap { simplex: [Vert; 4], n: usize },
 }
@@ -173,13 +174,15 @@ fn support<A: FnMut(&V) -> V, B: FnMut(&V) -> V>(sa: &mut A, sb: &mut B, d: &V) 
 }
 
 /// GJK on `A − B`: `sa`/`sb` give each set's farthest point along a direction, `start` is
-/// a first direction to look in (the centres' difference is a good one), `tol` (m) the
-/// distance within which the answer is exact.
+/// a first direction to look in (the centres' difference is a good one, the last answer's
+/// `v` a better one), `tol` (m) plus `rel` times the distance the gap within which the
+/// answer is exact.
 pub(crate) fn gjk<A: FnMut(&V) -> V, B: FnMut(&V) -> V>(
     sa: &mut A,
     sb: &mut B,
     start: V,
     tol: f64,
+    rel: f64,
 ) -> Gjk {
     let d0 = if start.norm_squared() > 0.0 {
         start
@@ -191,14 +194,16 @@ pub(crate) fn gjk<A: FnMut(&V) -> V, B: FnMut(&V) -> V>(
     let mut n = 1;
     let mut lambda = [1.0, 0.0, 0.0, 0.0];
     let mut v = s[0].w;
-    let witness = |s: &[Vert; 4], lambda: &[f64; 4], n: usize| {
+    // The best lower bound v·w/|v| on the distance so far.
+    let mut lower: f64 = 0.0;
+    let witness = |s: &[Vert; 4], lambda: &[f64; 4], n: usize, lower: f64, v: V| {
         let mut a = V::zeros();
         let mut b = V::zeros();
         for k in 0..n {
             a += s[k].a * lambda[k];
             b += s[k].b * lambda[k];
         }
-        Gjk::Apart { a, b }
+        Gjk::Apart { a, b, lower, v }
     };
     for _ in 0..96 {
         let vv = v.norm_squared();
@@ -206,12 +211,14 @@ pub(crate) fn gjk<A: FnMut(&V) -> V, B: FnMut(&V) -> V>(
             return Gjk::Overlap { simplex: s, n };
         }
         let w = support(sa, sb, &-v);
+        let norm = vv.sqrt();
+        lower = lower.max(v.dot(&w.w) / norm);
         // The gap between the upper bound |v| and the lower bound v·w/|v| on the distance.
-        if vv - v.dot(&w.w) <= tol * vv.sqrt() {
-            return witness(&s, &lambda, n);
+        if vv - v.dot(&w.w) <= (tol + rel * norm) * norm {
+            return witness(&s, &lambda, n, lower, v);
         }
         if s[..n].iter().any(|x| x.w == w.w) {
-            return witness(&s, &lambda, n);
+            return witness(&s, &lambda, n, lower, v);
         }
         s[n] = w;
         n += 1;
@@ -229,7 +236,7 @@ pub(crate) fn gjk<A: FnMut(&V) -> V, B: FnMut(&V) -> V>(
         };
         if c.v.norm_squared() >= vv {
             // No progress (rounding): the last simplex's answer stands.
-            return witness(&s, &lambda, n - 1);
+            return witness(&s, &lambda, n - 1, lower, v);
         }
         let old = s;
         for k in 0..c.n {
@@ -239,7 +246,7 @@ pub(crate) fn gjk<A: FnMut(&V) -> V, B: FnMut(&V) -> V>(
         lambda = c.lambda;
         v = c.v;
     }
-    witness(&s, &lambda, n)
+    witness(&s, &lambda, n, lower, v)
 }
 
 /// A face of the expanding polytope: outward unit normal and distance from the origin.

@@ -35,5 +35,5 @@ pub const MAX_EXTENT: f64 = 100.0;
 pub use hull::Hull;
 pub use mesh::{MAX_MESH_BYTES, Mesh};
 pub use model::{Body, CollisionModel, Contact, Obstacle, Other, PathCheck};
-pub use shape::{DISTANCE_TOLERANCE, Separation, Shape, distance, distance_hinted};
+pub use shape::{DISTANCE_TOLERANCE, Separation, Shape, distance, distance_bound, distance_hinted};
 pub use surface::{ROUND_SEGMENTS, Surface};

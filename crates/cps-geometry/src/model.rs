@@ -197,6 +197,25 @@ impl CollisionModel {
         }
     }
 
+    /// A lower bound of pair `p`'s distance at `frames` within `rel` of it
+    /// ([`crate::distance_bound`]; `hints` and `dir` kept per pair by the caller).
+    pub fn distance_bound(
+        &self,
+        p: usize,
+        frames: &[Isometry3<f64>],
+        hints: &mut [u32; 2],
+        dir: &mut Vector3<f64>,
+        rel: f64,
+    ) -> f64 {
+        let (a, b) = self.pairs[p];
+        let pa = self.pose(a, frames);
+        let (shape, pose) = match b {
+            Other::Body(j) => (&self.bodies[j].shape, self.pose(j, frames)),
+            Other::Obstacle(k) => (&self.obstacles[k].shape, self.obstacles[k].pose),
+        };
+        crate::distance_bound(&self.bodies[a].shape, &pa, shape, &pose, hints, dir, rel)
+    }
+
     /// Every pair closer than `limit` (m) at `frames`, closest first. Pairs whose bounding
     /// spheres are `limit` apart are not computed.
     pub fn within(&self, frames: &[Isometry3<f64>], limit: f64) -> Vec<Contact> {

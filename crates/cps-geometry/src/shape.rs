@@ -194,6 +194,47 @@ pub fn distance(a: &Shape, pa: &Isometry3<f64>, b: &Shape, pb: &Isometry3<f64>) 
     distance_hinted(a, pa, b, pb, &mut [0, 0])
 }
 
+/// A lower bound of the signed distance between `a` at `pa` and `b` at `pb`, within
+/// `rel` of the distance between their cores (and [`DISTANCE_TOLERANCE`]): what a
+/// conservative walk needs, for fewer GJK steps than the distance itself. `hints` as for
+/// [`distance_hinted`]; `dir` is where GJK starts looking (zero: the centres' difference)
+/// and is left where it ended, for the same pair's next query at a nearby pose. Where the
+/// cores overlap, the margins' negated sum (the distance is at most that).
+pub fn distance_bound(
+    a: &Shape,
+    pa: &Isometry3<f64>,
+    b: &Shape,
+    pb: &Isometry3<f64>,
+    hints: &mut [u32; 2],
+    dir: &mut V,
+    rel: f64,
+) -> f64 {
+    let (ra, rb) = (a.margin(), b.margin());
+    let [ha, hb] = hints;
+    let mut fa = |d: &V| {
+        (pa * nalgebra::Point3::from(a.core_support(&pa.rotation.inverse_transform_vector(d), ha)))
+            .coords
+    };
+    let mut fb = |d: &V| {
+        (pb * nalgebra::Point3::from(b.core_support(&pb.rotation.inverse_transform_vector(d), hb)))
+            .coords
+    };
+    let start = if dir.norm_squared() > 0.0 {
+        *dir
+    } else {
+        let ca = pa * nalgebra::Point3::from(a.bounds().0);
+        let cb = pb * nalgebra::Point3::from(b.bounds().0);
+        ca - cb
+    };
+    match gjk(&mut fa, &mut fb, start, DISTANCE_TOLERANCE, rel) {
+        Gjk::Apart { lower, v, .. } => {
+            *dir = v;
+            lower - ra - rb
+        }
+        Gjk::Overlap { .. } => -ra - rb,
+    }
+}
+
 /// [`distance`] with the hull vertices the last query of the same pair ended on, which
 /// makes a query at a nearby pose a few steps of climbing.
 pub fn distance_hinted(
@@ -216,8 +257,8 @@ pub fn distance_hinted(
     };
     let ca = pa * nalgebra::Point3::from(a.bounds().0);
     let cb = pb * nalgebra::Point3::from(b.bounds().0);
-    match gjk(&mut fa, &mut fb, ca - cb, DISTANCE_TOLERANCE) {
-        Gjk::Apart { a: pa_, b: pb_ } => {
+    match gjk(&mut fa, &mut fb, ca - cb, DISTANCE_TOLERANCE, 0.0) {
+        Gjk::Apart { a: pa_, b: pb_, .. } => {
             let gap = pb_ - pa_;
             let d = gap.norm();
             let normal = if d > 0.0 {

@@ -5,7 +5,7 @@
 
 use std::sync::Arc;
 
-use cps_geometry::{Hull, Shape, distance};
+use cps_geometry::{Hull, Shape, distance, distance_bound};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -162,6 +162,65 @@ fn every_separation_of_random_convex_pairs_comes_with_its_certificate() {
         separated > 100 && separated < 390,
         "{separated} of 400 apart"
     );
+}
+
+/// `distance_bound`, what the planner's walk steps by: never above the distance, within its
+/// share of it (20 % here), from a cold start and from the direction the query before at a
+/// nearby pose ended on; and where the shapes touch or overlap, at most minus their radii
+/// (the distance is at most that: a walk's step is refused either way).
+#[test]
+fn a_distance_bound_is_below_the_distance_and_within_its_share_of_it() {
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    let (mut apart, mut tight) = (0, 0);
+    for round in 0..400 {
+        let points: Vec<V> = (0..rng.random_range(5..80))
+            .map(|_| {
+                V::new(
+                    rng.random_range(-0.1..0.1),
+                    rng.random_range(-0.05..0.05),
+                    rng.random_range(-0.2..0.2),
+                )
+            })
+            .collect();
+        let a = Shape::Convex(Arc::new(Hull::new(&points, "random").unwrap()));
+        let b = if round % 2 == 0 {
+            Shape::capsule(0.03, 0.1, "capsule").unwrap()
+        } else {
+            Shape::cuboid([0.2, 0.1, 0.05], "box").unwrap()
+        };
+        let (pa, pb) = (random_pose(&mut rng, 0.4), random_pose(&mut rng, 0.4));
+        let nudge = Isometry3::from_parts(
+            Translation3::new(0.003, -0.002, 0.001),
+            UnitQuaternion::from_euler_angles(0.01, 0.0, -0.01),
+        );
+        let mut dir = V::zeros();
+        let mut hints = [0, 0];
+        for pb in [pb, nudge * pb] {
+            let exact = distance(&a, &pa, &b, &pb).distance;
+            let bound = distance_bound(&a, &pa, &b, &pb, &mut hints, &mut dir, 0.2);
+            let radius = if round % 2 == 0 { 0.03 } else { 0.0 };
+            if exact > 1e-6 {
+                assert!(bound <= exact + 1e-9, "round {round}: {bound} > {exact}");
+                apart += 1;
+                let cores = exact + radius;
+                assert!(
+                    bound + radius >= 0.8 * cores - 1e-7,
+                    "round {round}: {bound} against {exact}"
+                );
+                if bound > exact - 1e-6 {
+                    tight += 1;
+                }
+            } else {
+                // Touching or overlapping: below the distance, or, where the cores
+                // overlap, at minus the radii.
+                assert!(
+                    bound <= exact.max(-radius) + 1e-9,
+                    "round {round}: {bound} at {exact}"
+                );
+            }
+        }
+    }
+    assert!(apart > 200 && tight > 50, "{apart} apart, {tight} exact");
 }
 
 /// The depth two boxes overlap by, by the separating-axis theorem: the least overlap of

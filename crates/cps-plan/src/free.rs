@@ -25,6 +25,10 @@ use nalgebra::{Isometry3, Point3, Vector3};
 /// margin closer than this is not free (its steps would shrink without end).
 const GRAZE: f64 = 1e-5;
 
+/// How far below a pair's distance (a share of it) the bound a walk steps by may be: a
+/// looser bound takes fewer steps of GJK, a tighter one allows longer steps of the walk.
+const LOOSE: f64 = 0.05;
+
 /// The most steps one segment's walk takes before it is called not free.
 const MAX_STEPS: usize = 100_000;
 
@@ -49,11 +53,12 @@ pub(crate) struct Free<'a> {
     /// Per joint: a point on its axis and its direction, at the configuration walked.
     axes: Vec<(Vector3<f64>, Vector3<f64>)>,
     centres: Vec<Vector3<f64>>,
-    /// Per joint: how far the segment walked turns it (rad).
+    /// Per joint: how far the segment walked turns it (rad, signed).
     turns: Vec<f64>,
-    /// Per body, per joint `j` (flat, `dof + 1` a body): `Σₖ₍ₖ≥ⱼ₎ |Δqₖ| Dₖ` at the
+    /// Per body, per joint `j` (flat, `dof + 1` a body), from joint `j` on: the velocity of
+    /// its bounding sphere's centre along the segment, and its angular velocity, at the
     /// configuration walked.
-    rates: Vec<f64>,
+    rates: Vec<(Vector3<f64>, Vector3<f64>)>,
     /// Per pair: `A`, its members' approach per unit of the segment at the configuration
     /// walked (m).
     moves: Vec<f64>,
@@ -61,6 +66,8 @@ pub(crate) struct Free<'a> {
     bends: Vec<f64>,
     /// Per pair: the support points its last distance ended at.
     hints: Vec<[u32; 2]>,
+    /// Per pair: the direction its last distance's search ended along.
+    dirs: Vec<Vector3<f64>>,
     /// Per pair: a lower bound of its distance at the configuration the walk is at.
     low: Vec<f64>,
     /// Per pair: whether `low` is its exact distance there.
@@ -158,6 +165,7 @@ impl<'a> Free<'a> {
             moves: Vec::new(),
             bends: Vec::new(),
             hints: vec![[0, 0]; model.pair_count()],
+            dirs: vec![Vector3::zeros(); model.pair_count()],
             low: Vec::with_capacity(model.pair_count()),
             fresh: Vec::with_capacity(model.pair_count()),
             near: Vec::new(),
@@ -206,21 +214,7 @@ impl<'a> Free<'a> {
         if self.contact(b).is_some() {
             return false;
         }
-        // Per pair, `B`: from the fixed bounds, for the whole segment.
-        self.turns.clear();
-        self.turns
-            .extend(a.iter().zip(b).map(|(x, y)| (y - x).abs()));
-        self.bends.clear();
-        for &(first, moving) in &self.joints {
-            let rho = &self.rho[moving];
-            let mut after = 0.0;
-            let mut bend = 0.0;
-            for k in (first..rho.len()).rev() {
-                bend += self.turns[k] * after;
-                after += self.turns[k] * rho[k];
-            }
-            self.bends.push(bend);
-        }
+        self.prepare(a, b);
         self.low.clear();
         self.low.resize(self.joints.len(), f64::NEG_INFINITY);
         let mut t: f64 = 0.0;
@@ -228,11 +222,7 @@ impl<'a> Free<'a> {
             self.q.clear();
             self.q.extend(a.iter().zip(b).map(|(x, y)| x + t * (y - x)));
             self.measured += 1;
-            if self
-                .chain
-                .frames_axes_into(&self.q, &mut self.frames, &mut self.axes)
-                .is_err()
-            {
+            if !self.place() {
                 return false;
             }
             let Some(step) = self.step(t == 0.0) else {
@@ -251,6 +241,47 @@ impl<'a> Free<'a> {
         false
     }
 
+    /// Each pair's `B` over the segment from `a` to `b`, from the fixed bounds.
+    fn prepare(&mut self, a: &[f64], b: &[f64]) {
+        self.turns.clear();
+        self.turns.extend(a.iter().zip(b).map(|(x, y)| y - x));
+        self.bends.clear();
+        for &(first, moving) in &self.joints {
+            let rho = &self.rho[moving];
+            let last = self.model.bodies()[moving].frame.min(rho.len());
+            let radius = self.spheres[moving].1;
+            // Σₖ₍ₖ<ⱼ₎ |Δqₖ| and Σₖ₍ₖ≥ⱼ₎ |Δqₖ| ρₖ, from the pair's first joint.
+            let mut before = 0.0;
+            let mut after: f64 = (first..last).map(|k| self.turns[k].abs() * rho[k]).sum();
+            let mut bend = 0.0;
+            for (turn, rho) in self.turns[first..last].iter().zip(&rho[first..last]) {
+                let turn = turn.abs();
+                bend += turn * (2.0 * before * rho + after + radius * before);
+                after -= turn * rho;
+                before += turn;
+            }
+            self.bends.push(bend);
+        }
+    }
+
+    /// The frames, the joints' axes and the bodies' bounding spheres' centres at `self.q`
+    /// (false: outside the chain's ranges).
+    fn place(&mut self) -> bool {
+        if self
+            .chain
+            .frames_axes_into(&self.q, &mut self.frames, &mut self.axes)
+            .is_err()
+        {
+            return false;
+        }
+        self.centres.clear();
+        for (b, (c, _)) in self.model.bodies().iter().zip(&self.spheres) {
+            self.centres
+                .push((self.frames[b.frame] * Point3::from(*c)).coords);
+        }
+        true
+    }
+
     /// At the frames placed: the fraction of the segment the walk may advance (∞ when no
     /// pair moves), or None when a pair is within the margin (or grazes it).
     ///
@@ -260,11 +291,6 @@ impl<'a> Free<'a> {
     /// until the least is allowed by a pair computed here. A pair that does not move is
     /// computed once, at the segment's start (`first`).
     fn step(&mut self, first: bool) -> Option<f64> {
-        self.centres.clear();
-        for (b, (c, _)) in self.model.bodies().iter().zip(&self.spheres) {
-            self.centres
-                .push((self.frames[b.frame] * Point3::from(*c)).coords);
-        }
         self.measure_rates();
         self.fresh.clear();
         self.fresh.resize(self.moves.len(), false);
@@ -307,7 +333,7 @@ impl<'a> Free<'a> {
             if p == usize::MAX || self.fresh[p] {
                 return Some(allows);
             }
-            let d = self.exact(p);
+            let d = self.bound(p);
             if d - self.margin < GRAZE {
                 return None;
             }
@@ -316,25 +342,46 @@ impl<'a> Free<'a> {
         }
     }
 
-    /// Every pair's `A` at the frames placed: per body and joint, the body's bounding
-    /// sphere's greatest distance to the joint's axis, times the joint's turn, summed from
-    /// the pair's first joint on.
+    /// Every pair's `A` at the frames placed: the speed of the moving member's bounding
+    /// sphere's centre along the segment, from the pair's first joint on, plus the radius
+    /// times its turning rate.
     fn measure_rates(&mut self) {
         let dof = self.turns.len();
         self.rates.clear();
         for (b, body) in self.model.bodies().iter().enumerate() {
-            let (centre, radius) = (self.centres[b], self.spheres[b].1);
+            let centre = self.centres[b];
             let base = self.rates.len();
-            self.rates.resize(base + dof + 1, 0.0);
+            self.rates
+                .resize(base + dof + 1, (Vector3::zeros(), Vector3::zeros()));
             for k in (0..body.frame.min(dof)).rev() {
                 let (point, axis) = &self.axes[k];
-                let reach = (centre - point).cross(axis).norm() + radius;
-                self.rates[base + k] = self.rates[base + k + 1] + self.turns[k] * reach;
+                let turn = self.turns[k];
+                let (v, w) = self.rates[base + k + 1];
+                self.rates[base + k] = (v + turn * axis.cross(&(centre - point)), w + turn * axis);
             }
         }
         self.moves.clear();
         for &(first, moving) in &self.joints {
-            self.moves.push(self.rates[moving * (dof + 1) + first]);
+            let (v, w) = self.rates[moving * (dof + 1) + first];
+            self.moves
+                .push(v.norm() + self.spheres[moving].1 * w.norm());
+        }
+    }
+
+    /// A lower bound of pair `p`'s distance at the frames placed, within [`LOOSE`] of it;
+    /// the distance itself where the bound would not keep the margin.
+    fn bound(&mut self, p: usize) -> f64 {
+        let d = self.model.distance_bound(
+            p,
+            &self.frames,
+            &mut self.hints[p],
+            &mut self.dirs[p],
+            LOOSE,
+        );
+        if d - self.margin >= GRAZE {
+            d
+        } else {
+            self.exact(p)
         }
     }
 
@@ -394,6 +441,72 @@ mod tests {
             });
         }
         CollisionModel::new(bodies, obstacles, &skip)
+    }
+
+    /// The motion bound the walk steps by: over a step `s` from any configuration of a
+    /// segment, no point of a pair's moving member's bounding sphere moves farther than
+    /// `s A + s² B / 2` against the other member's frame — measured on 20 000 seeded
+    /// steps, up to a whole segment long, where the worst comes within 10 % of the bound
+    /// (so a bound that much too small fails).
+    #[test]
+    fn no_point_moves_farther_over_a_step_than_the_bound_says() {
+        let chain = fr3(PandaTool::Flange);
+        let (lower, upper) = chain
+            .limits()
+            .map(|(l, u)| (l.to_vec(), u.to_vec()))
+            .unwrap();
+        let mut rng = SplitMix(5);
+        let model = model(&mut rng);
+        let mut free = Free::new(&chain, &model, 0.005, lower.clone(), upper.clone()).unwrap();
+        let draw = |rng: &mut SplitMix| -> Vec<f64> {
+            (0..7)
+                .map(|j| lower[j] + (upper[j] - lower[j]) * rng.unit())
+                .collect()
+        };
+        let mut worst: f64 = 0.0;
+        let mut later = Vec::new();
+        for _ in 0..20_000 {
+            let (a, far) = (draw(&mut rng), draw(&mut rng));
+            let k = rng.unit();
+            let b: Vec<f64> = a.iter().zip(&far).map(|(x, y)| x + k * (y - x)).collect();
+            let t = rng.unit();
+            let s = (1.0 - t) * rng.unit();
+            let at =
+                |t: f64| -> Vec<f64> { a.iter().zip(&b).map(|(x, y)| x + t * (y - x)).collect() };
+            free.prepare(&a, &b);
+            free.q = at(t);
+            assert!(free.place());
+            free.measure_rates();
+            chain.frames_into(&at(t + s), &mut later).unwrap();
+            for (p, &(first, moving)) in free.joints.iter().enumerate() {
+                let body = &model.bodies()[moving];
+                let (c, r) = free.spheres[moving];
+                let bound = s * free.moves[p] + 0.5 * s * s * free.bends[p];
+                for u in [
+                    Vector3::zeros(),
+                    Vector3::x(),
+                    -Vector3::x(),
+                    Vector3::y(),
+                    -Vector3::y(),
+                    Vector3::z(),
+                    -Vector3::z(),
+                ] {
+                    let point = Point3::from(c + r * u);
+                    let before = free.frames[first].inverse() * (free.frames[body.frame] * point);
+                    let after = later[first].inverse() * (later[body.frame] * point);
+                    let moved = (after - before).norm();
+                    assert!(
+                        moved <= bound + 1e-12,
+                        "pair {p}: moved {moved} > bound {bound} (t {t}, s {s})"
+                    );
+                    if bound > 1e-3 {
+                        worst = worst.max(moved / bound);
+                    }
+                }
+            }
+        }
+        eprintln!("the worst step moved {:.3} of its bound", worst);
+        assert!(worst > 0.9, "{worst}");
     }
 
     /// Soundness of the walk: a segment it calls free keeps the margin at 4 000 evenly

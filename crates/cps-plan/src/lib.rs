@@ -52,9 +52,9 @@ pub struct Settings {
 
 impl Default for Settings {
     /// Seed 1, 20 000 samples, steps of 1 rad, 20 shortcuts, half the limits, 1 ms. (On
-    /// the benchmark, steps of 0.25, 0.5, 1 and 2 rad: medians of 26, 17, 14 and 10 ms,
-    /// paths 2 % shorter to 12 % longer than at 1 rad; 200 shortcuts instead of 20: three
-    /// times the time, the same lengths within 1 %.)
+    /// the benchmark, steps of 0.5, 1 and 2 rad: medians of 7.5, 5.3 and 4.1 ms, paths 1–6 %
+    /// shorter and 7–20 % longer than at 1 rad; 50 shortcuts instead of 20: 1.5 times the
+    /// time, lengths within 2 %.)
     fn default() -> Self {
         Settings {
             seed: 1,
