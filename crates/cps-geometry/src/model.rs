@@ -395,6 +395,13 @@ impl PathCheck {
         self.lower.fill(f64::NEG_INFINITY);
     }
 
+    /// Looks for pairs only below `watch` from the next configuration on, when that is
+    /// less than the watch so far (a path's closest approach, searched below the closest
+    /// found: a pair farther apart is no longer computed).
+    pub fn watch_below(&mut self, watch: f64) {
+        self.watch = self.watch.min(watch);
+    }
+
     /// How many exact distances were computed so far.
     pub fn queries(&self) -> usize {
         self.queries

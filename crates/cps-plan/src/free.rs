@@ -193,19 +193,6 @@ impl<'a> Free<'a> {
             .copied()
     }
 
-    /// The smallest distance of any pair at `q` (m), or `cap` when none is closer.
-    pub(crate) fn clearance(&mut self, q: &[f64], cap: f64) -> f64 {
-        if self.chain.frames_into(q, &mut self.frames).is_err() {
-            return f64::NEG_INFINITY;
-        }
-        self.model
-            .within_into(&self.frames, cap, &mut self.centres, &mut self.near);
-        self.near
-            .iter()
-            .map(|c| c.separation.distance)
-            .fold(cap, f64::min)
-    }
-
     /// Whether the straight segment from `a` to `b` (both within the ranges, which are
     /// convex: so is every point between) keeps the margin everywhere (see the module's
     /// text).

@@ -252,15 +252,7 @@ pub fn plan(
     let Some(shapes) = &robot.shapes else {
         // Nothing to go around: the straight segment.
         let waypoints = vec![from.to_vec(), to.to_vec()];
-        return timed(
-            robot,
-            waypoints,
-            Tried::default(),
-            0,
-            started,
-            settings,
-            None,
-        );
+        return timed(robot, waypoints, Tried::default(), 0, started, settings);
     };
     let model = shapes.model();
     let mut free = free::Free::new(chain, model, shapes.margin(), lower, upper)?;
@@ -282,15 +274,7 @@ pub fn plan(
         .map_err(|tried| PlanError::NoPath { tried })?;
     let waypoints = rrt::shortcut(&mut free, path, settings.shortcuts, &mut rng);
     let measured = free.measured;
-    timed(
-        robot,
-        waypoints,
-        tried,
-        measured,
-        started,
-        settings,
-        Some(&mut free),
-    )
+    timed(robot, waypoints, tried, measured, started, settings)
 }
 
 /// The configuration that puts `robot`'s tool at `target` (its world frame) and keeps the
@@ -382,7 +366,7 @@ pub fn around(
         .map_err(|e| e.to_string())
 }
 
-/// The waypoints timed segment by segment and verified; the clearance measured with `free`.
+/// The waypoints timed segment by segment and verified, and the clearance measured.
 fn timed(
     robot: &RobotModel,
     waypoints: Vec<Vec<f64>>,
@@ -390,7 +374,6 @@ fn timed(
     measured: usize,
     started: Instant,
     settings: &Settings,
-    free: Option<&mut free::Free<'_>>,
 ) -> Result<Planned, PlanError> {
     let planning_seconds = started.elapsed().as_secs_f64();
     let verifying = Instant::now();
@@ -413,17 +396,19 @@ fn timed(
         if let Some(c) = cps_robot::check_shapes(shapes, &robot.chain, &plan, dt)? {
             return Err(PlanError::Unverified(c.to_string()));
         }
-        if let Some(free) = free {
-            let samples = plan.samples(dt);
-            clearance = Some(
-                samples
-                    .iter()
-                    .step_by(10)
-                    .chain(samples.last())
-                    .map(|q| free.clearance(q, CLEARANCE_CAP))
-                    .fold(CLEARANCE_CAP, f64::min),
-            );
+        // Every tenth control period, each pair looked for only below the closest so far
+        // and computed only when its bodies' motion could have brought it there.
+        let mut walk = cps_geometry::PathCheck::new(shapes.model().clone(), CLEARANCE_CAP);
+        let (mut frames, mut closest) = (Vec::new(), CLEARANCE_CAP);
+        let samples = plan.samples(dt);
+        for q in samples.iter().step_by(10).chain(samples.last()) {
+            robot.chain.frames_into(q, &mut frames)?;
+            walk.watch_below(closest);
+            if let Some(c) = walk.step(&frames) {
+                closest = closest.min(c.separation.distance);
+            }
         }
+        clearance = Some(closest);
     }
     let length = waypoints
         .windows(2)
