@@ -194,6 +194,26 @@ pub fn distance(a: &Shape, pa: &Isometry3<f64>, b: &Shape, pb: &Isometry3<f64>) 
     distance_hinted(a, pa, b, pb, &mut [0, 0])
 }
 
+/// Shape `s` at pose `p`: its core's farthest point along a world direction, in the world
+/// (a hull climbed from `hint`, left where the climb ended).
+#[inline(always)]
+fn world_support<'a>(
+    s: &'a Shape,
+    p: &'a Isometry3<f64>,
+    hint: &'a mut u32,
+) -> impl FnMut(&V) -> V + 'a {
+    move |d: &V| {
+        (p * nalgebra::Point3::from(s.core_support(&p.rotation.inverse_transform_vector(d), hint)))
+            .coords
+    }
+}
+
+/// From `b`'s bounding sphere's centre to `a`'s: where GJK looks first without a better
+/// direction.
+fn centres(a: &Shape, pa: &Isometry3<f64>, b: &Shape, pb: &Isometry3<f64>) -> V {
+    (pa * nalgebra::Point3::from(a.bounds().0)) - (pb * nalgebra::Point3::from(b.bounds().0))
+}
+
 /// A lower bound of the signed distance between `a` at `pa` and `b` at `pb`, within
 /// `rel` of the distance between their cores (and [`DISTANCE_TOLERANCE`]): what a
 /// conservative walk needs, for fewer GJK steps than the distance itself. `hints` as for
@@ -211,21 +231,12 @@ pub fn distance_bound(
 ) -> f64 {
     let (ra, rb) = (a.margin(), b.margin());
     let [ha, hb] = hints;
-    let mut fa = |d: &V| {
-        (pa * nalgebra::Point3::from(a.core_support(&pa.rotation.inverse_transform_vector(d), ha)))
-            .coords
-    };
-    let mut fb = |d: &V| {
-        (pb * nalgebra::Point3::from(b.core_support(&pb.rotation.inverse_transform_vector(d), hb)))
-            .coords
-    };
     let start = if dir.norm_squared() > 0.0 {
         *dir
     } else {
-        let ca = pa * nalgebra::Point3::from(a.bounds().0);
-        let cb = pb * nalgebra::Point3::from(b.bounds().0);
-        ca - cb
+        centres(a, pa, b, pb)
     };
+    let (mut fa, mut fb) = (world_support(a, pa, ha), world_support(b, pb, hb));
     match gjk(&mut fa, &mut fb, start, DISTANCE_TOLERANCE, rel) {
         Gjk::Apart { lower, v, .. } => {
             *dir = v;
@@ -246,27 +257,17 @@ pub fn distance_hinted(
 ) -> Separation {
     let (ra, rb) = (a.margin(), b.margin());
     let [ha, hb] = hints;
-    // Each core's farthest point along a world direction, in the world.
-    let mut fa = |d: &V| {
-        (pa * nalgebra::Point3::from(a.core_support(&pa.rotation.inverse_transform_vector(d), ha)))
-            .coords
-    };
-    let mut fb = |d: &V| {
-        (pb * nalgebra::Point3::from(b.core_support(&pb.rotation.inverse_transform_vector(d), hb)))
-            .coords
-    };
-    let ca = pa * nalgebra::Point3::from(a.bounds().0);
-    let cb = pb * nalgebra::Point3::from(b.bounds().0);
-    match gjk(&mut fa, &mut fb, ca - cb, DISTANCE_TOLERANCE, 0.0) {
+    let (mut fa, mut fb) = (world_support(a, pa, ha), world_support(b, pb, hb));
+    let between = centres(a, pa, b, pb);
+    match gjk(&mut fa, &mut fb, between, DISTANCE_TOLERANCE, 0.0) {
         Gjk::Apart { a: pa_, b: pb_, .. } => {
             let gap = pb_ - pa_;
             let d = gap.norm();
             let normal = if d > 0.0 {
                 gap / d
             } else {
-                let c = cb - ca;
-                if c.norm() > 0.0 {
-                    c.normalize()
+                if between.norm() > 0.0 {
+                    -between.normalize()
                 } else {
                     V::z()
                 }

@@ -103,25 +103,26 @@ fn spheres_boxes_cylinders_and_capsules_match_their_closed_forms() {
     assert!((s.distance - (0.1 - 0.04)).abs() < 1e-9, "{s:?}");
 }
 
+/// The hull of 5 to `most` random points in a 20 × 10 × 40 cm box.
+fn random_hull(rng: &mut ChaCha8Rng, most: usize) -> Arc<Hull> {
+    let points: Vec<V> = (0..rng.random_range(5..most))
+        .map(|_| {
+            V::new(
+                rng.random_range(-0.1..0.1),
+                rng.random_range(-0.05..0.05),
+                rng.random_range(-0.2..0.2),
+            )
+        })
+        .collect();
+    Arc::new(Hull::new(&points, "random").unwrap())
+}
+
 #[test]
 fn every_separation_of_random_convex_pairs_comes_with_its_certificate() {
     let mut rng = ChaCha8Rng::seed_from_u64(11);
     let mut separated = 0;
     for round in 0..400 {
-        let hull = |rng: &mut ChaCha8Rng| {
-            let n = rng.random_range(5..120);
-            let points: Vec<V> = (0..n)
-                .map(|_| {
-                    V::new(
-                        rng.random_range(-0.1..0.1),
-                        rng.random_range(-0.05..0.05),
-                        rng.random_range(-0.2..0.2),
-                    )
-                })
-                .collect();
-            Arc::new(Hull::new(&points, "random").unwrap())
-        };
-        let (ha, hb) = (hull(&mut rng), hull(&mut rng));
+        let (ha, hb) = (random_hull(&mut rng, 120), random_hull(&mut rng, 120));
         let (a, b) = (Shape::Convex(ha.clone()), Shape::Convex(hb.clone()));
         let (pa, pb) = (random_pose(&mut rng, 0.4), random_pose(&mut rng, 0.4));
         let s = distance(&a, &pa, &b, &pb);
@@ -173,16 +174,7 @@ fn a_distance_bound_is_below_the_distance_and_within_its_share_of_it() {
     let mut rng = ChaCha8Rng::seed_from_u64(12);
     let (mut apart, mut tight) = (0, 0);
     for round in 0..400 {
-        let points: Vec<V> = (0..rng.random_range(5..80))
-            .map(|_| {
-                V::new(
-                    rng.random_range(-0.1..0.1),
-                    rng.random_range(-0.05..0.05),
-                    rng.random_range(-0.2..0.2),
-                )
-            })
-            .collect();
-        let a = Shape::Convex(Arc::new(Hull::new(&points, "random").unwrap()));
+        let a = Shape::Convex(random_hull(&mut rng, 80));
         let b = if round % 2 == 0 {
             Shape::capsule(0.03, 0.1, "capsule").unwrap()
         } else {

@@ -430,6 +430,28 @@ mod tests {
         CollisionModel::new(bodies, obstacles, &skip)
     }
 
+    /// The chain's joint ranges.
+    fn ranges(chain: &SerialChain) -> (Vec<f64>, Vec<f64>) {
+        chain
+            .limits()
+            .map(|(l, u)| (l.to_vec(), u.to_vec()))
+            .unwrap()
+    }
+
+    /// A seeded segment within the ranges: from a random configuration towards another,
+    /// a random share of the way (short and long segments alike).
+    fn segment(rng: &mut SplitMix, lower: &[f64], upper: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let mut draw = || -> Vec<f64> {
+            (0..lower.len())
+                .map(|j| lower[j] + (upper[j] - lower[j]) * rng.unit())
+                .collect()
+        };
+        let (a, far) = (draw(), draw());
+        let k = rng.unit();
+        let b = a.iter().zip(&far).map(|(x, y)| x + k * (y - x)).collect();
+        (a, b)
+    }
+
     /// The motion bound the walk steps by: over a step `s` from any configuration of a
     /// segment, no point of a pair's moving member's bounding sphere moves farther than
     /// `s A + s² B / 2` against the other member's frame — measured on 20 000 seeded
@@ -438,24 +460,14 @@ mod tests {
     #[test]
     fn no_point_moves_farther_over_a_step_than_the_bound_says() {
         let chain = fr3(PandaTool::Flange);
-        let (lower, upper) = chain
-            .limits()
-            .map(|(l, u)| (l.to_vec(), u.to_vec()))
-            .unwrap();
+        let (lower, upper) = ranges(&chain);
         let mut rng = SplitMix(5);
         let model = model(&mut rng);
         let mut free = Free::new(&chain, &model, 0.005, lower.clone(), upper.clone()).unwrap();
-        let draw = |rng: &mut SplitMix| -> Vec<f64> {
-            (0..7)
-                .map(|j| lower[j] + (upper[j] - lower[j]) * rng.unit())
-                .collect()
-        };
         let mut worst: f64 = 0.0;
         let mut later = Vec::new();
         for _ in 0..20_000 {
-            let (a, far) = (draw(&mut rng), draw(&mut rng));
-            let k = rng.unit();
-            let b: Vec<f64> = a.iter().zip(&far).map(|(x, y)| x + k * (y - x)).collect();
+            let (a, b) = segment(&mut rng, &lower, &upper);
             let t = rng.unit();
             let s = (1.0 - t) * rng.unit();
             let at =
@@ -502,27 +514,15 @@ mod tests {
     #[test]
     fn a_segment_called_free_keeps_the_margin_everywhere_along_it() {
         let chain = fr3(PandaTool::Flange);
-        let (lower, upper) = chain
-            .limits()
-            .map(|(l, u)| (l.to_vec(), u.to_vec()))
-            .unwrap();
+        let (lower, upper) = ranges(&chain);
         let mut rng = SplitMix(3);
         let model = model(&mut rng);
         let margin = 0.005;
         let mut free = Free::new(&chain, &model, margin, lower.clone(), upper.clone()).unwrap();
-        let draw = |rng: &mut SplitMix| -> Vec<f64> {
-            (0..7)
-                .map(|j| lower[j] + (upper[j] - lower[j]) * rng.unit())
-                .collect()
-        };
         let (mut free_ones, mut blocked) = (0, 0);
         let mut frames = Vec::new();
         for _ in 0..150 {
-            let a = draw(&mut rng);
-            // Short and long segments alike.
-            let far = draw(&mut rng);
-            let k = rng.unit();
-            let b: Vec<f64> = a.iter().zip(&far).map(|(x, y)| x + k * (y - x)).collect();
+            let (a, b) = segment(&mut rng, &lower, &upper);
             if free.contact(&a).is_some() || free.contact(&b).is_some() {
                 continue;
             }
