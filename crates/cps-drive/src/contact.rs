@@ -720,7 +720,8 @@ pub fn contact_on_robot(
         realtime: robot.realtime,
         dt: 0.01,
     };
-    let mut franka = Guarded::new(FrankaRobot::connect(&settings, model)?, Policy::EXPERIMENT);
+    let mut franka = Guarded::new(FrankaRobot::connect(&settings, model)?, Policy::EXPERIMENT)
+        .going_around(cps_plan::around);
     let free =
         |e: cps_robot::RobotError| DriveError::during("the free motion above the surface", e);
     let q = franka.joint_positions().map_err(free)?;

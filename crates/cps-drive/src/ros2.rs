@@ -174,14 +174,11 @@ fn refused(name: &str, model: &RobotModel, e: RobotError) -> DriveError {
             sentence: match &reason {
                 // The path itself comes too close: to the robot, or to the scene's obstacles.
                 Refusal::Collision(_) => format!("{name}: refused, nothing was sent: {reason}"),
+                // (Never where the robot stands: `ros2 send` does not read it, and has no
+                // approach to offer.)
                 _ => format!(
-                    "{name}: refused, nothing was sent: the trajectory breaks the {}'s limits: {reason}{}",
+                    "{name}: refused, nothing was sent: the trajectory breaks the {}'s limits: {reason}",
                     model.name,
-                    if matches!(reason, Refusal::Start { .. }) {
-                        "; pass --approach to move there first"
-                    } else {
-                        ""
-                    }
                 ),
             },
             source: Box::new(RobotError::Refused { robot, reason }),
