@@ -52,6 +52,7 @@ __all__ = [
     "chunk_commands",
     "collide",
     "plan",
+    "join",
     "CMAEvolutionStrategy",
     "CMAEvolutionStrategyResult",
     "CpsError",
@@ -232,3 +233,37 @@ def plan(
     """
     r = Robot(robot, tool=tool, tip=tip, scene=scene, margin=margin)
     return r.plan(start, goal, goal_pose=goal_pose, seed=seed, samples=samples, share=share)
+
+
+def join(
+    movements: Any,
+    *,
+    start: Any = None,
+    robot: Optional[str] = None,
+    tool: Optional[str] = None,
+    tip: Optional[str] = None,
+    scene: Any = None,
+    margin: Optional[float] = None,
+    seed: int = 1,
+    samples: int = 20000,
+    share: float = 0.5,
+) -> dict:
+    """Movements — a list of ``(t, q)`` pairs, ``q`` (samples, dof) — run one after another
+    as one motion, as ``cps-cli plan --join --json`` makes it: wherever the robot would
+    stand elsewhere than the next movement's start (after the one before, or at ``start``,
+    default the first movement's start), a path ``cps.plan`` would find leads there; the
+    movements themselves come through unchanged (resampled every millisecond), and the
+    whole is verified as the guard checks a plan. Returns ``stretches`` (each movement or
+    transition with its ``start_s`` and ``end_s``) with the motion ``t`` and ``q``. Raises
+    ``ValueError`` naming the movement (``movements[k]``) that breaks a limit or comes
+    within the margin, and ``cps.CpsError`` when no transition is found.
+
+    >>> import cps, numpy as np
+    >>> t = np.linspace(0, 1, 11)
+    >>> a = np.tile([0, -0.8, 0, -2.4, 0, 1.6, 0.8], (11, 1))
+    >>> b = np.tile([1, -0.3, 0, -2, 0, 1.8, 0.8], (11, 1))
+    >>> [s["part"] for s in cps.join([(t, a), (t, b)], robot="fr3")["stretches"]]
+    ['movement', 'transition', 'movement']
+    """
+    r = Robot(robot, tool=tool, tip=tip, scene=scene, margin=margin)
+    return r.join(movements, start=start, seed=seed, samples=samples, share=share)

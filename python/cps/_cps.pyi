@@ -444,6 +444,15 @@ class Robot:
         samples: int = 20000,
         share: float = 0.5,
     ) -> dict[str, Any]: ...
+    def join(
+        self,
+        movements: list[tuple[ArrayLike, ArrayLike]],
+        *,
+        start: Optional[ArrayLike] = None,
+        seed: int = 1,
+        samples: int = 20000,
+        share: float = 0.5,
+    ) -> dict[str, Any]: ...
     @property
     def dof(self) -> int: ...
     @property

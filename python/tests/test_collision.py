@@ -156,3 +156,53 @@ def test_a_path_to_a_pose_ends_with_the_tool_there_as_the_command_line_plans(tmp
         cps.plan(start, goal, goal_pose=target, scene=ball)
     with pytest.raises(ValueError, match="goal_pose: expected a position"):
         cps.plan(start, goal_pose=np.zeros(5), scene=ball)
+
+
+def test_movements_on_either_side_of_the_ball_are_joined_around_it_as_the_command_line_joins_them(tmp_path, cli):
+    """cps.join runs two movements — a wrist turn on each side of a ball the straight way
+    between them meets — as one motion: the movements' samples come through unchanged where
+    its stretches put them, the whole passes cps.collide, and `cps-cli plan --join` makes
+    the same motion from the same movements in files. A movement through the ball is a
+    ValueError naming it and the ball."""
+    plain = tmp_path / "plain.toml"
+    plain.write_text(FR3_SCENE)
+    start = np.array([0.0, 0.0, 0.0, -0.3, 0.0, 1.8707963267948966, 0.7853981633974483])
+    turned = start.copy()
+    turned[0] += 0.8
+    ball = scene_with_ball(tmp_path, "ball.toml", 0.05, cps.Robot(scene=plain).fk(turned)[:3, 3])
+    goal = start.copy()
+    goal[0] += 1.6
+    t = np.arange(1001) / 1000.0
+    s = t * t * t * (10 - 15 * t + 6 * t * t)
+
+    def wrist(q):
+        m = np.tile(q, (len(t), 1))
+        m[:, 6] += 0.3 * s
+        return m
+
+    a, b = wrist(start), wrist(goal)
+    joined = cps.join([(t, a), (t, b)], scene=ball, seed=3)
+    parts = [x["part"] for x in joined["stretches"]]
+    assert parts == ["movement", "transition", "movement"]
+    assert len(joined["stretches"][1]["waypoints"]) >= 3
+    for stretch, movement in [(joined["stretches"][0], a), (joined["stretches"][2], b)]:
+        first = round(stretch["start_s"] * 1000)
+        assert np.abs(joined["q"][first:first + len(movement)] - movement).max() < 1e-12
+    assert cps.collide(joined["t"], joined["q"], scene=ball)["ok"] is True
+    files = []
+    for name, m in [("a.csv", a), ("b.csv", b)]:
+        path = tmp_path / name
+        np.savetxt(path, np.column_stack([t, m]), delimiter=",", fmt="%.17g",
+                   header="t,q1,q2,q3,q4,q5,q6,q7", comments="")
+        files.append(str(path))
+    out = tmp_path / "task.csv"
+    cli("plan", "--scene", ball, "--join", *files, "--seed", "3", "--out", out)
+    rows = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert rows.shape == (len(joined["t"]), 8)
+    assert np.abs(rows[:, 1:] - joined["q"]).max() < 1e-9
+    slow = 3 * t
+    sweep = start + np.outer(s, goal - start)
+    with pytest.raises(ValueError, match=r"movement 2, .*`ball`.*\(movement 2 is movements\[1\]\)"):
+        cps.join([(t, a), (slow, sweep)], scene=ball)
+    with pytest.raises(ValueError, match=r"movements\[0\]: q"):
+        cps.join([(t, a[:, :6])], scene=ball)

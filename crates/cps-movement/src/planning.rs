@@ -8,6 +8,8 @@
 use std::path::{Path, PathBuf};
 
 use cps_outcome::InputError;
+
+use crate::limits::JointTrajectory;
 use cps_outcome::outcome::{Column, Format, Table};
 pub use cps_plan::{End, JoinError, Joined, Part, PlanError, Planned, Settings, reach};
 use cps_robot::Plan;
@@ -143,12 +145,17 @@ fn motion_table(robot: &RobotModel, plan: &Plan) -> Table {
 }
 
 /// A trajectory file (CSV: `t`, then a position per joint) as a movement every `dt`
-/// seconds (resampled by a spline through its rows when it is at another rate).
+/// seconds (see [`movement_of`]).
 pub fn movement_file(path: &Path, robot: &RobotModel, dt: f64) -> Result<Plan, InputError> {
     let traj = crate::limits::read_joint_trajectory(path, robot.chain.dof())?;
-    let (_, dt, commands, _) = crate::limits::at_rate(&traj, 1.0 / dt)
-        .map_err(|e| InputError(format!("{}: {e}", path.display())))?;
-    Plan::new(dt, commands).map_err(|e| InputError(format!("{}: {e}", path.display())))
+    movement_of(&traj, dt).map_err(|e| InputError(format!("{}: {e}", path.display())))
+}
+
+/// A joint trajectory as a movement every `dt` seconds (resampled by a spline through its
+/// rows when it is at another rate), from its first row.
+pub fn movement_of(traj: &JointTrajectory, dt: f64) -> Result<Plan, InputError> {
+    let (_, dt, commands, _) = crate::limits::at_rate(traj, 1.0 / dt)?;
+    Plan::new(dt, commands).map_err(|e| InputError(e.to_string()))
 }
 
 /// What `cps-cli plan --join` made.
@@ -160,8 +167,9 @@ pub struct JoinReport {
     pub margin: Option<f64>,
     /// The bodies and obstacles checked, and the pairs.
     pub checked: Option<[usize; 3]>,
-    /// The movements' files, in order.
-    pub files: Vec<PathBuf>,
+    /// Where the movements came from, in order: their files (or the arguments they were
+    /// given in).
+    pub sources: Vec<String>,
     /// The joined motion.
     pub joined: Joined,
     /// The joined motion: `t` and one column per joint.
@@ -173,7 +181,7 @@ says_itself_by_json_and_lines!(JoinReport);
 impl JoinReport {
     /// The report as JSON: `{"robot", "margin_m", "duration_s", "seconds", "stretches":
     /// [{"part": "movement" | "transition", "movement" (1-based, the one led into),
-    /// "file", "start_s", "end_s", and a transition's "waypoints", "length_rad",
+    /// "source" (its file), "start_s", "end_s", and a transition's "waypoints", "length_rad",
     /// "clearance_m", "planning_s"}]}`.
     pub fn json(&self) -> Value {
         let stretches: Vec<Value> = self
@@ -188,7 +196,7 @@ impl JoinReport {
                 let mut v = json!({
                     "part": part,
                     "movement": k + 1,
-                    "file": self.files[k].display().to_string(),
+                    "source": self.sources[k],
                     "start_s": s.start_s,
                     "end_s": s.end_s,
                 });
@@ -228,7 +236,7 @@ impl JoinReport {
                 (Part::Movement(k) | Part::Transition(k), _) => format!(
                     "{span}  movement {} ({})",
                     k + 1,
-                    self.files[k].display()
+                    self.sources[k]
                 ),
             });
         }
@@ -249,12 +257,12 @@ pub enum JoinFailure {
     #[error(transparent)]
     File(#[from] InputError),
     /// The movements could not be joined.
-    #[error("{error}{}", .file.as_ref().map_or(String::new(), |f| format!(" (movement {} is {})", .error.movement().map_or(0, |k| k + 1), f.display())))]
+    #[error("{error}{}", .source_of.as_ref().map_or(String::new(), |s| format!(" (movement {} is {s})", .error.movement().map_or(0, |k| k + 1))))]
     Join {
         /// Why.
         error: Box<JoinError>,
-        /// The file of the movement it is at.
-        file: Option<PathBuf>,
+        /// Where the movement it is at came from.
+        source_of: Option<String>,
     },
 }
 
@@ -269,7 +277,7 @@ impl JoinFailure {
 }
 
 /// `files`' movements joined by transitions planned with `settings`, from `from` (None:
-/// the first movement's start; see [`cps_plan::join`]). Errors: a file that cannot be
+/// the first movement's start; see [`join_movements`]). Errors: a file that cannot be
 /// read (its sentence), or why the movements cannot be joined, the movement's file named.
 pub fn join_report(
     robot: &RobotModel,
@@ -279,18 +287,36 @@ pub fn join_report(
 ) -> Result<JoinReport, JoinFailure> {
     let movements = files
         .iter()
-        .map(|f| movement_file(f, robot, settings.dt))
-        .collect::<Result<Vec<_>, _>>()?;
+        .map(|f| {
+            Ok((
+                f.display().to_string(),
+                movement_file(f, robot, settings.dt)?,
+            ))
+        })
+        .collect::<Result<Vec<_>, InputError>>()?;
+    join_movements(robot, from, movements, settings)
+}
+
+/// Movements, each with where it came from, joined by transitions planned with `settings`
+/// from `from` (None: the first movement's start; see [`cps_plan::join`]): the report, or
+/// why not with the movement's source named.
+pub fn join_movements(
+    robot: &RobotModel,
+    from: Option<&[f64]>,
+    movements: Vec<(String, Plan)>,
+    settings: &Settings,
+) -> Result<JoinReport, JoinFailure> {
+    let (sources, plans): (Vec<String>, Vec<Plan>) = movements.into_iter().unzip();
     let joined =
-        cps_plan::join(robot, from, &movements, settings).map_err(|error| JoinFailure::Join {
-            file: error.movement().and_then(|k| files.get(k)).cloned(),
+        cps_plan::join(robot, from, &plans, settings).map_err(|error| JoinFailure::Join {
+            source_of: error.movement().and_then(|k| sources.get(k)).cloned(),
             error: Box::new(error),
         })?;
     Ok(JoinReport {
         robot: robot.name.clone(),
         margin: robot.shapes.as_deref().map(|s| s.margin()),
         checked: checked(robot),
-        files: files.to_vec(),
+        sources,
         table: motion_table(robot, &joined.plan),
         joined,
     })

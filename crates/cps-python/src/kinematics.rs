@@ -190,6 +190,32 @@ impl Robot {
         ik_target(values).map_err(|e| value_error(e.0.replace("--target", name)))
     }
 
+    /// `share` of the limits, checked: in (0, 1].
+    fn share(&self, share: f64) -> PyResult<f64> {
+        if share > 0.0 && share <= 1.0 {
+            Ok(share)
+        } else {
+            Err(value_error(format!(
+                "share: a share of the limits in (0, 1] (got {share})"
+            )))
+        }
+    }
+
+    /// A report's JSON as a dict, with its motion: `t` (samples,) and `q` (samples, dof).
+    fn motion<'py>(
+        &self,
+        py: Python<'py>,
+        json: &serde_json::Value,
+        plan: &cps_robot::Plan,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let out = json_to_py(py, json)?;
+        let times = (0..plan.points().len()).map(|k| plan.time(k)).collect();
+        out.set_item("t", array1(py, times))?;
+        let rows = plan.points().len();
+        out.set_item("q", array2(py, plan.points().concat(), rows, self.dof())?)?;
+        Ok(out)
+    }
+
     /// One IK target: a position (3,), a pose (7,) or a 4×4 matrix.
     fn one_target(&self, obj: &Bound<'_, PyAny>, name: &str) -> PyResult<IkTarget> {
         let a = floats(obj, name)?;
@@ -340,15 +366,10 @@ impl Robot {
                 ));
             }
         };
-        if !(share > 0.0 && share <= 1.0) {
-            return Err(value_error(format!(
-                "share: a share of the limits in (0, 1] (got {share})"
-            )));
-        }
         let settings = Settings {
             seed,
             samples,
-            share,
+            share: self.share(share)?,
             ..Settings::default()
         };
         let report = py
@@ -358,14 +379,61 @@ impl Robot {
                 Some(End::Goal) => value_error(format!("goal: {e}")),
                 None => failure(e.to_string()),
             })?;
-        let out = json_to_py(py, &report.json())?;
-        let plan = &report.planned.plan;
-        let times = (0..plan.points().len()).map(|k| plan.time(k)).collect();
-        out.set_item("t", array1(py, times))?;
-        let rows = plan.points().len();
-        let q = plan.points().concat();
-        out.set_item("q", array2(py, q, rows, self.dof())?)?;
-        Ok(out)
+        self.motion(py, &report.json(), &report.planned.plan)
+    }
+
+    /// Movements run one after another as one motion: each a pair `(t, q)` (`t` (samples,)
+    /// in seconds, `q` (samples, dof)), resampled every millisecond; wherever the robot would
+    /// stand elsewhere than the next movement's start — after the one before, or at `start`
+    /// (default: the first movement's start) — a path planned as [`Robot::plan`] plans leads
+    /// there, and the whole is verified as the guard checks a plan — what `cps-cli plan
+    /// --join --json` prints (`stretches`, each movement or transition with its times),
+    /// with the motion `t` and `q`. Raises `ValueError` naming the movement (`movements[k]`)
+    /// for one that breaks a limit or comes within the margin, or an end in collision;
+    /// `cps.CpsError` when no transition is found.
+    #[pyo3(signature = (movements, *, start=None, seed=1, samples=20_000, share=0.5))]
+    fn join<'py>(
+        &self,
+        py: Python<'py>,
+        movements: Vec<(Bound<'py, PyAny>, Bound<'py, PyAny>)>,
+        start: Option<&Bound<'py, PyAny>>,
+        seed: u64,
+        samples: usize,
+        share: f64,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        use cps_movement::planning::{Settings, join_movements, movement_of};
+        let settings = Settings {
+            seed,
+            samples,
+            share: self.share(share)?,
+            ..Settings::default()
+        };
+        let from = start
+            .map(|s| vector(s, "start", Some(self.dof())))
+            .transpose()?;
+        let named = movements
+            .iter()
+            .enumerate()
+            .map(|(k, (t, q))| {
+                let name = format!("movements[{k}]");
+                let traj = self
+                    .trajectory(t, q, 1000.0)
+                    .map_err(|e| value_error(format!("{name}: {}", e.value(py))))?;
+                let plan = movement_of(&traj, settings.dt)
+                    .map_err(|e| value_error(format!("{name}: {e}")))?;
+                Ok((name, plan))
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        let report = py
+            .detach(|| join_movements(&self.model, from.as_deref(), named, &settings))
+            .map_err(|e| {
+                if e.is_input() {
+                    value_error(e.to_string())
+                } else {
+                    failure(e.to_string())
+                }
+            })?;
+        self.motion(py, &report.json(), &report.joined.plan)
     }
 
     /// The robot's name.
