@@ -94,10 +94,10 @@ def test_robots_without_shapes_and_bad_arguments_say_so(tmp_path):
         cps.Robot("fr3").distances(np.zeros(6))
 
 
-def test_a_path_around_the_ball_is_what_the_command_line_plans(tmp_path, cli):
-    """cps.plan goes around a ball the swing of joint 1 meets, as `cps-cli plan --json`
-    does (the same seed, the same waypoints), and its timed motion passes cps.collide;
-    a bad end is a ValueError naming it, no path within the samples a cps.CpsError."""
+def ball_in_the_swing(tmp_path):
+    """The FR3's scene (`plain`), and the same with a 5 cm ball (`ball`) where the hand is
+    when joint 1 has turned 0.8 rad from `start` (`turned`): the straight swing from
+    `start` to `goal`, 1.6 rad on, meets it."""
     plain = tmp_path / "plain.toml"
     plain.write_text(FR3_SCENE)
     start = np.array([0.0, 0.0, 0.0, -0.3, 0.0, 1.8707963267948966, 0.7853981633974483])
@@ -106,6 +106,14 @@ def test_a_path_around_the_ball_is_what_the_command_line_plans(tmp_path, cli):
     ball = scene_with_ball(tmp_path, "ball.toml", 0.05, cps.Robot(scene=plain).fk(turned)[:3, 3])
     goal = start.copy()
     goal[0] += 1.6
+    return plain, ball, start, turned, goal
+
+
+def test_a_path_around_the_ball_is_what_the_command_line_plans(tmp_path, cli):
+    """cps.plan goes around a ball the swing of joint 1 meets, as `cps-cli plan --json`
+    does (the same seed, the same waypoints), and its timed motion passes cps.collide;
+    a bad end is a ValueError naming it, no path within the samples a cps.CpsError."""
+    plain, ball, start, turned, goal = ball_in_the_swing(tmp_path)
     straight = np.linspace(start, goal, 50)
     assert cps.collide(np.linspace(0, 3, 50), straight, scene=ball)["ok"] is False
     way = cps.plan(start, goal, scene=ball, seed=3)
@@ -131,15 +139,8 @@ def test_a_path_to_a_pose_ends_with_the_tool_there_as_the_command_line_plans(tmp
     kinematics agree to a micrometre), clear of the ball, with `cps-cli plan --to-pose`'s
     waypoints; a pose out of reach or two goals at once are ValueErrors naming the
     argument."""
-    plain = tmp_path / "plain.toml"
-    plain.write_text(FR3_SCENE)
+    plain, ball, start, turned, goal = ball_in_the_swing(tmp_path)
     robot = cps.Robot(scene=plain)
-    start = np.array([0.0, 0.0, 0.0, -0.3, 0.0, 1.8707963267948966, 0.7853981633974483])
-    turned = start.copy()
-    turned[0] += 0.8
-    ball = scene_with_ball(tmp_path, "ball.toml", 0.05, robot.fk(turned)[:3, 3])
-    goal = start.copy()
-    goal[0] += 1.6
     target = robot.fk(goal)
     way = cps.plan(start, goal_pose=target, scene=ball, seed=3)
     reached = robot.fk(way["q"][-1])
@@ -164,14 +165,7 @@ def test_movements_on_either_side_of_the_ball_are_joined_around_it_as_the_comman
     its stretches put them, the whole passes cps.collide, and `cps-cli plan --join` makes
     the same motion from the same movements in files. A movement through the ball is a
     ValueError naming it and the ball."""
-    plain = tmp_path / "plain.toml"
-    plain.write_text(FR3_SCENE)
-    start = np.array([0.0, 0.0, 0.0, -0.3, 0.0, 1.8707963267948966, 0.7853981633974483])
-    turned = start.copy()
-    turned[0] += 0.8
-    ball = scene_with_ball(tmp_path, "ball.toml", 0.05, cps.Robot(scene=plain).fk(turned)[:3, 3])
-    goal = start.copy()
-    goal[0] += 1.6
+    plain, ball, start, turned, goal = ball_in_the_swing(tmp_path)
     t = np.arange(1001) / 1000.0
     s = t * t * t * (10 - 15 * t + 6 * t * t)
 

@@ -160,21 +160,19 @@ pub struct PlanArgs {
 pub fn plan(args: &PlanArgs) -> Result<ExitCode> {
     use cps_movement::planning::{End, PlanError, Settings, plan_report, reach};
     use cps_movement::robot_file::ik_target;
-    if !(args.share > 0.0 && args.share <= 1.0) {
-        return Err(InputError(format!("--share must be in (0, 1] (got {})", args.share)).into());
-    }
+    let settings = Settings {
+        seed: args.seed,
+        samples: args.samples,
+        share: args.share,
+        ..Settings::default()
+    };
+    settings.check().map_err(|e| InputError(format!("--{e}")))?;
     if let Some(out) = &args.out {
         check_file_target(out, FileKind::TrajectoryCsv, args.force)?;
     }
     let model = match &args.scene {
         Some(s) => cps_movement::scene::load_scene(s)?.robot,
         None => args.arm.load()?,
-    };
-    let settings = Settings {
-        seed: args.seed,
-        samples: args.samples,
-        share: args.share,
-        ..Settings::default()
     };
     if !args.join.is_empty() {
         let from = (!args.from.is_empty()).then_some(&args.from[..]);

@@ -122,6 +122,16 @@ impl CollisionModel {
         }
     }
 
+    /// Per body: its bounding sphere's centre in its frame, and radius.
+    pub fn body_spheres(&self) -> &[(V, f64)] {
+        &self.body_bounds
+    }
+
+    /// Per obstacle: its bounding sphere's centre in the world, and radius.
+    pub fn obstacle_spheres(&self) -> &[(V, f64)] {
+        &self.obstacle_bounds
+    }
+
     /// The robot's bodies.
     pub fn bodies(&self) -> &[Body] {
         &self.bodies

@@ -40,10 +40,6 @@ pub(crate) struct Free<'a> {
     margin: f64,
     lower: Vec<f64>,
     upper: Vec<f64>,
-    /// Per body: its bounding sphere's centre in its frame, and radius.
-    spheres: Vec<(Vector3<f64>, f64)>,
-    /// Per obstacle: its bounding sphere's centre in the world, and radius.
-    obstacles: Vec<(Vector3<f64>, f64)>,
     /// Per body, per joint: the bound `ρⱼ` (0 for a joint after its frame).
     rho: Vec<Vec<f64>>,
     /// Per pair: the first joint (0-based) that moves one member against the other, and
@@ -100,18 +96,10 @@ impl<'a> Free<'a> {
             .windows(2)
             .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
             .collect();
-        let spheres: Vec<(Vector3<f64>, f64)> = model
-            .bodies()
-            .iter()
-            .map(|b| {
-                let (c, r) = b.shape.bounds();
-                ((b.origin * Point3::from(c)).coords, r)
-            })
-            .collect();
         let rho = model
             .bodies()
             .iter()
-            .zip(&spheres)
+            .zip(model.body_spheres())
             .map(|(b, (c, r))| {
                 (1..=dof)
                     .map(|j| {
@@ -139,22 +127,12 @@ impl<'a> Free<'a> {
                 }
             })
             .collect();
-        let obstacles = model
-            .obstacles()
-            .iter()
-            .map(|o| {
-                let (c, r) = o.shape.bounds();
-                ((o.pose * Point3::from(c)).coords, r)
-            })
-            .collect();
         Ok(Free {
             chain,
             model,
             margin,
             lower,
             upper,
-            spheres,
-            obstacles,
             rho,
             joints,
             frames,
@@ -236,7 +214,7 @@ impl<'a> Free<'a> {
         for &(first, moving) in &self.joints {
             let rho = &self.rho[moving];
             let last = self.model.bodies()[moving].frame.min(rho.len());
-            let radius = self.spheres[moving].1;
+            let radius = self.model.body_spheres()[moving].1;
             // Σₖ₍ₖ<ⱼ₎ |Δqₖ| and Σₖ₍ₖ≥ⱼ₎ |Δqₖ| ρₖ, from the pair's first joint.
             let mut before = 0.0;
             let mut after: f64 = (first..last).map(|k| self.turns[k].abs() * rho[k]).sum();
@@ -262,7 +240,7 @@ impl<'a> Free<'a> {
             return false;
         }
         self.centres.clear();
-        for (b, (c, _)) in self.model.bodies().iter().zip(&self.spheres) {
+        for (b, (c, _)) in self.model.bodies().iter().zip(self.model.body_spheres()) {
             self.centres
                 .push((self.frames[b.frame] * Point3::from(*c)).coords);
         }
@@ -293,10 +271,11 @@ impl<'a> Free<'a> {
                 continue;
             }
             let (centre, radius) = match other {
-                Other::Body(j) => (self.centres[j], self.spheres[j].1),
-                Other::Obstacle(k) => self.obstacles[k],
+                Other::Body(j) => (self.centres[j], self.model.body_spheres()[j].1),
+                Other::Obstacle(k) => self.model.obstacle_spheres()[k],
             };
-            let spheres = (self.centres[i] - centre).norm() - self.spheres[i].1 - radius;
+            let spheres =
+                (self.centres[i] - centre).norm() - self.model.body_spheres()[i].1 - radius;
             self.low[p] = self.low[p].max(spheres);
         }
         loop {
@@ -351,7 +330,7 @@ impl<'a> Free<'a> {
         for &(first, moving) in &self.joints {
             let (v, w) = self.rates[moving * (dof + 1) + first];
             self.moves
-                .push(v.norm() + self.spheres[moving].1 * w.norm());
+                .push(v.norm() + self.model.body_spheres()[moving].1 * w.norm());
         }
     }
 
@@ -479,7 +458,7 @@ mod tests {
             chain.frames_into(&at(t + s), &mut later).unwrap();
             for (p, &(first, moving)) in free.joints.iter().enumerate() {
                 let body = &model.bodies()[moving];
-                let (c, r) = free.spheres[moving];
+                let (c, r) = model.body_spheres()[moving];
                 let bound = s * free.moves[p] + 0.5 * s * s * free.bends[p];
                 for u in [
                     Vector3::zeros(),

@@ -106,7 +106,7 @@ impl JoinError {
             | JoinError::Period { .. }
             | JoinError::Joints { .. }
             | JoinError::Unverified { .. } => true,
-            JoinError::Transition { source, .. } => source.end().is_some(),
+            JoinError::Transition { source, .. } => source.is_input(),
             JoinError::Robot(_) => false,
         }
     }

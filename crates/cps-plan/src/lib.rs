@@ -67,6 +67,36 @@ impl Default for Settings {
     }
 }
 
+impl Settings {
+    /// The settings checked, once for every caller: the share of the limits in (0, 1], a
+    /// step and a control period positive and finite.
+    pub fn check(&self) -> Result<(), PlanError> {
+        let bad = |setting, rule, value| PlanError::Setting {
+            setting,
+            rule,
+            value,
+        };
+        if !(self.share > 0.0 && self.share <= 1.0) {
+            return Err(bad("share", "a share of the limits in (0, 1]", self.share));
+        }
+        if !(self.reach.is_finite() && self.reach > 0.0) {
+            return Err(bad(
+                "reach",
+                "a step in radians, finite and positive",
+                self.reach,
+            ));
+        }
+        if !(self.dt.is_finite() && self.dt > 0.0) {
+            return Err(bad(
+                "dt",
+                "a control period in seconds, finite and positive",
+                self.dt,
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// Which end of the path.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum End {
@@ -145,6 +175,16 @@ pub enum PlanError {
         /// What was tried.
         tried: Tried,
     },
+    /// A setting out of its range ([`Settings::check`]).
+    #[error("{setting}: {rule} (got {value})")]
+    Setting {
+        /// The setting's name.
+        setting: &'static str,
+        /// What it must be.
+        rule: &'static str,
+        /// What it is.
+        value: f64,
+    },
     /// A goal pose no configuration within the ranges reaches.
     #[error("the goal pose is out of reach: {0}")]
     Unreachable(String),
@@ -169,6 +209,11 @@ impl PlanError {
             | PlanError::InCollision { end, .. } => Some(*end),
             _ => None,
         }
+    }
+
+    /// Whether what was given is at fault (an end or a setting), not the search.
+    pub fn is_input(&self) -> bool {
+        self.end().is_some() || matches!(self, PlanError::Setting { .. })
     }
 }
 
@@ -219,6 +264,7 @@ pub fn plan(
     settings: &Settings,
 ) -> Result<Planned, PlanError> {
     let started = Instant::now();
+    settings.check()?;
     let chain = &robot.chain;
     let dof = chain.dof();
     let (lower, upper) = match chain.limits() {
@@ -269,9 +315,15 @@ pub fn plan(
         }
     }
     let mut rng = SplitMix(settings.seed);
-    let reach = settings.reach.max(1e-3);
-    let (path, tried) = rrt::connect(&mut free, from, to, settings.samples, reach, &mut rng)
-        .map_err(|tried| PlanError::NoPath { tried })?;
+    let (path, tried) = rrt::connect(
+        &mut free,
+        from,
+        to,
+        settings.samples,
+        settings.reach,
+        &mut rng,
+    )
+    .map_err(|tried| PlanError::NoPath { tried })?;
     let waypoints = rrt::shortcut(&mut free, path, settings.shortcuts, &mut rng);
     let measured = free.measured;
     timed(robot, waypoints, tried, measured, started, settings)
@@ -477,6 +529,52 @@ pub(crate) mod tests {
             .unwrap();
         model.shapes = Some(Arc::new(shapes));
         model
+    }
+
+    /// A setting out of its range is refused by name, by `check` and by `plan` alike.
+    #[test]
+    fn settings_out_of_range_are_named() {
+        use crate::{PlanError, Settings, plan};
+        for (bad, name) in [
+            (
+                Settings {
+                    share: 0.0,
+                    ..Settings::default()
+                },
+                "share",
+            ),
+            (
+                Settings {
+                    share: 1.5,
+                    ..Settings::default()
+                },
+                "share",
+            ),
+            (
+                Settings {
+                    reach: f64::NAN,
+                    ..Settings::default()
+                },
+                "reach",
+            ),
+            (
+                Settings {
+                    dt: -0.001,
+                    ..Settings::default()
+                },
+                "dt",
+            ),
+        ] {
+            let e = bad.check().unwrap_err();
+            assert!(e.to_string().starts_with(&format!("{name}: ")), "{e}");
+            assert!(e.is_input());
+            let e = plan(&robot(), &LEFT, &LEFT, &bad).unwrap_err();
+            assert!(
+                matches!(e, PlanError::Setting { setting, .. } if setting == name),
+                "{e}"
+            );
+        }
+        assert!(Settings::default().check().is_ok());
     }
 
     #[test]

@@ -190,15 +190,21 @@ impl Robot {
         ik_target(values).map_err(|e| value_error(e.0.replace("--target", name)))
     }
 
-    /// `share` of the limits, checked: in (0, 1].
-    fn share(&self, share: f64) -> PyResult<f64> {
-        if share > 0.0 && share <= 1.0 {
-            Ok(share)
-        } else {
-            Err(value_error(format!(
-                "share: a share of the limits in (0, 1] (got {share})"
-            )))
-        }
+    /// The planner's settings with `seed`, `samples` and `share`, checked.
+    fn settings(
+        &self,
+        seed: u64,
+        samples: usize,
+        share: f64,
+    ) -> PyResult<cps_movement::planning::Settings> {
+        let settings = cps_movement::planning::Settings {
+            seed,
+            samples,
+            share,
+            ..Default::default()
+        };
+        settings.check().map_err(|e| value_error(e.to_string()))?;
+        Ok(settings)
     }
 
     /// A report's JSON as a dict, with its motion: `t` (samples,) and `q` (samples, dof).
@@ -351,7 +357,8 @@ impl Robot {
         samples: usize,
         share: f64,
     ) -> PyResult<Bound<'py, PyAny>> {
-        use cps_movement::planning::{End, Settings, plan_report, reach};
+        use cps_movement::planning::{End, plan_report, reach};
+        let settings = self.settings(seed, samples, share)?;
         let from = vector(start, "start", Some(self.dof()))?;
         let to = match (goal, goal_pose) {
             (Some(g), None) => vector(g, "goal", Some(self.dof()))?,
@@ -365,12 +372,6 @@ impl Robot {
                     "give the goal as joint angles (goal) or as the tool's pose (goal_pose), one of the two",
                 ));
             }
-        };
-        let settings = Settings {
-            seed,
-            samples,
-            share: self.share(share)?,
-            ..Settings::default()
         };
         let report = py
             .detach(|| plan_report(&self.model, &from, &to, &settings))
@@ -401,13 +402,8 @@ impl Robot {
         samples: usize,
         share: f64,
     ) -> PyResult<Bound<'py, PyAny>> {
-        use cps_movement::planning::{Settings, join_movements, movement_of};
-        let settings = Settings {
-            seed,
-            samples,
-            share: self.share(share)?,
-            ..Settings::default()
-        };
+        use cps_movement::planning::{join_movements, movement_of};
+        let settings = self.settings(seed, samples, share)?;
         let from = start
             .map(|s| vector(s, "start", Some(self.dof())))
             .transpose()?;
